@@ -1,0 +1,92 @@
+// CiA 302 concise DCF: the stream stored in object 1F22 (DSP 302 v3.2.1 §6.1.2 / Table 4).
+//   UNSIGNED32 number of entries, then per entry: UNSIGNED16 index, UNSIGNED8 sub-index,
+//   UNSIGNED32 data size in bytes, data. All little-endian.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cfg/diagnostics.hpp"
+#include "cfg/object_dictionary.hpp"
+#include "cfg/result.hpp"
+
+namespace cfg {
+
+/// One SDO write of a configuration: what a concise DCF entry holds, and what the configuration
+/// manager downloads.
+struct ObjectWrite {
+  std::uint16_t index = 0;
+  std::uint8_t sub_index = 0;
+  std::vector<std::uint8_t> data;
+  bool operator==(const ObjectWrite&) const = default;
+};
+
+/// Encodes entries as a concise DCF stream.
+std::vector<std::uint8_t> encode_concise_dcf(std::span<const ObjectWrite> entries);
+
+/// Streaming decoder: feed bytes in chunks of any size; it holds at most one entry.
+class ConciseDcfDecoder {
+ public:
+  /// Called for each complete entry; data is valid only during the call.
+  using EntryHandler = std::function<void(std::uint16_t index, std::uint8_t sub_index,
+                                          std::span<const std::uint8_t> data)>;
+  explicit ConciseDcfDecoder(EntryHandler on_entry);
+
+  /// Consumes bytes. Fails (and stays failed) on bytes after the last announced entry; the
+  /// message names the byte offset.
+  Status feed(std::span<const std::uint8_t> bytes);
+  /// Ends the stream. Fails on a truncated stream (count or an entry incomplete), naming the
+  /// byte offset and how many entries were announced and read.
+  Status finish();
+
+  std::uint64_t bytes_consumed() const { return offset_; }
+  std::uint32_t entries_read() const { return entries_read_; }
+
+ private:
+  enum class Stage { Count, Header, Data, Done, Failed };
+  EntryHandler on_entry_;
+  Stage stage_ = Stage::Count;
+  std::uint64_t offset_ = 0;
+  std::uint32_t entries_announced_ = 0;
+  std::uint32_t entries_read_ = 0;
+  std::uint8_t header_[7] = {};
+  std::size_t header_fill_ = 0;
+  std::uint64_t entry_start_ = 0;
+  std::uint16_t index_ = 0;
+  std::uint8_t sub_index_ = 0;
+  std::uint32_t size_ = 0;
+  std::vector<std::uint8_t> data_;
+  Error error_;
+};
+
+/// Decodes a whole stream held in memory.
+Result<std::vector<ObjectWrite>> decode_concise_dcf(std::span<const std::uint8_t> bytes);
+
+/// Which values of a DCF go into its concise DCF.
+enum class ConciseSelection {
+  Configured,    ///< every writable sub-object with a ParameterValue (default)
+  ChangedOnly,   ///< only ParameterValues that differ from DefaultValue
+  WithDefaults,  ///< ParameterValue, else DefaultValue, for every writable sub-object
+};
+
+struct ConciseOptions {
+  std::optional<std::uint8_t> node_id;  ///< overrides [DeviceComissioning] NodeID
+  ConciseSelection selection = ConciseSelection::Configured;
+  /// Directory DownloadFile/UploadFile paths are relative to (usually the DCF's directory).
+  std::string base_dir;
+  std::string file_name;  ///< for diagnostics
+};
+
+/// The writes a DCF configures, in PDO-safe order (see download_order.hpp). Never 1010h/1011h,
+/// never ro/const entries. Values that cannot be encoded are error diagnostics with file:line;
+/// the result is nullopt when there is any error.
+std::optional<std::vector<ObjectWrite>> concise_writes_from_dcf(const DeviceDescription& dcf,
+                                                                const ConciseOptions& options,
+                                                                Diagnostics& diagnostics);
+
+}  // namespace cfg

@@ -1,0 +1,81 @@
+// Typed values of CiA 301 basic types: parsing from EDS/DCF text (CiA 306), encoding to the
+// little-endian bytes sent by SDO and stored in a concise DCF, decoding, and formatting.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "cfg/data_type.hpp"
+#include "cfg/result.hpp"
+
+namespace cfg {
+
+/// A value of one basic data type. Integers are held widened (int64/uint64) but always within
+/// the range of their type when built through parse_value/decode/make_checked.
+class Value {
+ public:
+  Value() = default;  ///< UNSIGNED8 0
+
+  static Value from_bool(bool v) { return Value(DataType::Boolean, v); }
+  static Value from_signed(DataType type, std::int64_t v) { return Value(type, v); }
+  static Value from_unsigned(DataType type, std::uint64_t v) { return Value(type, v); }
+  static Value from_real(DataType type, double v) { return Value(type, v); }
+  /// Strings and DOMAIN: the encoded bytes (UNICODE_STRING: UTF-16LE bytes).
+  static Value from_bytes(DataType type, std::string bytes) {
+    return Value(type, std::move(bytes));
+  }
+
+  DataType type() const { return type_; }
+  bool as_bool() const { return std::get<bool>(data_); }
+  std::int64_t as_signed() const { return std::get<std::int64_t>(data_); }
+  std::uint64_t as_unsigned() const { return std::get<std::uint64_t>(data_); }
+  double as_real() const { return std::get<double>(data_); }
+  const std::string& as_bytes() const { return std::get<std::string>(data_); }
+
+  bool operator==(const Value&) const = default;
+
+ private:
+  using Data = std::variant<bool, std::int64_t, std::uint64_t, double, std::string>;
+  Value(DataType type, Data data) : type_(type), data_(std::move(data)) {}
+
+  DataType type_ = DataType::Unsigned8;
+  Data data_ = std::uint64_t{0};
+};
+
+/// Smallest and largest value of an integer type (INTEGER24: -8388608 .. 8388607).
+std::int64_t signed_min(DataType type);
+std::int64_t signed_max(DataType type);
+std::uint64_t unsigned_max(DataType type);
+
+/// True when the text uses $NODEID (any case, e.g. "$NodeId + 0x180").
+bool mentions_node_id(std::string_view text);
+
+/// Parses value text of an EDS/DCF (CiA 306 §4.6.3): decimal, `0x` hex, octal with a leading 0,
+/// negative decimals, REAL as decimal floating point, sums with `$NODEID` on either side
+/// (`$NODEID+0x180`, `0x180 + $NodeId`). `text` is trimmed and free of comments. Strings are taken
+/// as they are (VISIBLE_STRING bytes; UNICODE_STRING text is UTF-8 and becomes UTF-16LE);
+/// OCTET_STRING and DOMAIN text is hex digit pairs. Fails with a message when the text is not a
+/// value of the type, is out of its range, or needs a node-ID that was not given.
+Result<Value> parse_value(DataType type, std::string_view text,
+                          std::optional<std::uint8_t> node_id = std::nullopt);
+
+/// Little-endian bytes with the exact size of the type (INTEGER24: 3 bytes, UNSIGNED40: 5).
+std::vector<std::uint8_t> encode(const Value& value);
+
+/// Reads bytes as a value of the type. Fixed-size types need exactly their size.
+Result<Value> decode(DataType type, std::span<const std::uint8_t> bytes);
+
+/// Canonical EDS/DCF text that parse_value reads back to the same value: unsigned as 0x hex,
+/// signed as decimal, REAL with enough digits to round-trip, BOOLEAN as 0/1, OCTET_STRING and
+/// DOMAIN as hex pairs, strings as they are.
+std::string format_value(const Value& value);
+
+/// Text for people: `1000 (0x000003E8)` for unsigned, `"text"` for strings, `-5` for signed.
+std::string describe_value(const Value& value);
+
+}  // namespace cfg

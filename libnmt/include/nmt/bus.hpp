@@ -1,0 +1,37 @@
+// One bus interface for real-time CAN drivers (SocketCAN, UDP multicast). The simulated bus
+// (sim_bus.hpp) runs on simulated time and connects protocol engines directly.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "cfg/result.hpp"
+#include "nmt/frame.hpp"
+
+namespace nmt {
+
+struct ReceivedFrame {
+  CanFrame frame;
+  TimePoint timestamp;  ///< when the driver received it (driver's clock)
+};
+
+/// A CAN bus driver. Not thread-safe: one event loop owns it.
+class Bus {
+ public:
+  virtual ~Bus() = default;
+  /// Sends a frame. When the driver's transmit queue is full it waits (up to a bounded time)
+  /// rather than dropping; fails with a message only when the frame could not be sent.
+  virtual cfg::Status send(const CanFrame& frame) = 0;
+  /// Waits up to `timeout` of wall time for a frame. nullopt when none arrived in time.
+  virtual cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) = 0;
+  /// The URL the bus was opened with, e.g. "socketcan:can0".
+  virtual std::string url() const = 0;
+};
+
+/// Opens a bus by URL: `socketcan:IFNAME`, `udp://GROUP:PORT` (default
+/// udp://239.74.163.2:43113). Fails with a message naming the URL and the reason.
+cfg::Result<std::unique_ptr<Bus>> open_bus(std::string_view url);
+
+}  // namespace nmt

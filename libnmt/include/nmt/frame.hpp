@@ -1,0 +1,45 @@
+// CAN frames as protocol code sees them, and the candump text form used in tests and traces.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace nmt {
+
+/// Time as protocol engines see it: microseconds since an epoch the event loop chooses
+/// (simulated time on the virtual bus, a monotonic clock on real buses).
+using TimePoint = std::chrono::microseconds;
+using Duration = std::chrono::microseconds;
+
+/// A classic CAN frame (11- or 29-bit identifier, RTR, 0-8 data bytes). The data array is sized
+/// for CAN FD so FD support can be added without changing the layout users see.
+struct CanFrame {
+  static constexpr std::uint32_t kMaxStandardId = 0x7FF;
+  static constexpr std::uint32_t kMaxExtendedId = 0x1FFFFFFF;
+
+  std::uint32_t id = 0;  ///< 11-bit, or 29-bit when `extended`
+  bool extended = false;
+  bool rtr = false;
+  bool error = false;    ///< an error frame reported by the driver (id holds the error class)
+  std::uint8_t dlc = 0;  ///< number of data bytes, 0..8
+  std::array<std::uint8_t, 64> data{};
+
+  std::span<const std::uint8_t> payload() const { return {data.data(), dlc}; }
+  /// Builds a data frame; returns a frame with dlc clamped to 8 if more bytes are given.
+  static CanFrame make(std::uint32_t id, std::span<const std::uint8_t> bytes,
+                       bool extended = false);
+  bool operator==(const CanFrame& other) const;  ///< compares id, flags and the first dlc bytes
+};
+
+/// candump "compact" form: `605#2B171000E8030000`, `00000123#` (extended: 8 hex digits),
+/// `705#R` (RTR). Error frames: the id with CAN_ERR_FLAG, as candump prints them.
+std::string to_candump(const CanFrame& frame);
+/// Parses the form above (also `123#R3`, an RTR with DLC 3). nullopt on malformed text.
+std::optional<CanFrame> from_candump(std::string_view text);
+
+}  // namespace nmt

@@ -1,0 +1,2 @@
+// Placeholder until the cfgmgr commands land.
+int main() { return 0; }

@@ -1,0 +1,2 @@
+// Placeholder until the dcf2concise commands land.
+int main() { return 0; }
