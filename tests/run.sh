@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Builds and runs the whole test suite: unit tests, tools end to end, the corpus tier (skipped when
+# ../shared is absent), the UDP bus against python-can in a network namespace, the SocketCAN VM
+# tier, and a short smoke run of every fuzz target. This is the command the README and .ci/run use.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build=${BUILD_DIR:-$root/build}
+jobs=$(nproc)
+
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo
+cmake --build "$build" -j"$jobs"
+ctest --test-dir "$build" --output-on-failure -j"$jobs" --timeout 600
+
+# Fuzz smoke run: every libFuzzer target for a few seconds on its seeds (needs clang).
+if [ "${SKIP_FUZZ:-0}" != 1 ]; then
+  bash "$root/tests/fuzz/smoke.sh" "${FUZZ_BUILD_DIR:-$build-fuzz}"
+fi
