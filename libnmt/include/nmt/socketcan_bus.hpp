@@ -2,6 +2,7 @@
 // Behaviour follows the kernel's Documentation/networking/can.rst; the .cpp cites its sections.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -70,12 +71,27 @@ class SocketCanBus final : public Bus {
   /// The socket, for an event loop that polls several sources. Stays owned by this object.
   int native_handle() const { return fd_; }
 
- private:
-  SocketCanBus(int fd, std::string interface_name, const SocketCanOptions& options);
+  /// How often send() found the transmit queue full and waited before retrying (diagnostics).
+  std::uint64_t queue_full_waits() const { return queue_full_waits_; }
+  /// Frames the kernel dropped because this socket's receive buffer was full, as last reported
+  /// with a received frame (SO_RXQ_OVFL). Non-zero means the reader did not keep up.
+  std::uint32_t receive_overflows() const { return receive_overflows_; }
 
+ private:
+  struct Private {
+    explicit Private() = default;
+  };
+
+ public:
+  /// Use open(); public only so that open() can use std::make_unique.
+  SocketCanBus(Private, int fd, std::string interface_name, const SocketCanOptions& options);
+
+ private:
   int fd_;
   std::string interface_name_;
   SocketCanOptions options_;
+  std::uint64_t queue_full_waits_ = 0;
+  std::uint32_t receive_overflows_ = 0;
 };
 
 /// Opens `interface_name` with default options (see SocketCanBus::open).
