@@ -1,0 +1,165 @@
+// NMT error control (CiA 301 §7.2.8.3.2), sans-I/O: heartbeat producer (1017h) and consumer
+// (1016h), node guarding as the guarded slave answers it, and life guarding (100Ch, 100Dh).
+// Engines take frames and the current time and return frames to send, events and the next
+// deadline; they never read a clock.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "nmt/frame.hpp"
+#include "nmt/nmt_slave.hpp"
+
+namespace nmt {
+
+/// A heartbeat message `7xx#SS` (CiA 301 §7.2.8.3.2.2), node_id 1..127.
+CanFrame make_heartbeat(std::uint8_t node_id, NmtState state);
+/// The node guarding request: an RTR frame on 700h + node-ID with DLC 1 (CiA 301 §7.2.8.3.2.1).
+CanFrame make_guarding_request(std::uint8_t node_id);
+
+/// A received error-control message (heartbeat, boot-up or guarding reply): 700h + node-ID, one
+/// data byte, no RTR.
+struct ErrorControlMessage {
+  std::uint8_t node_id;
+  std::uint8_t byte;  ///< state in bits 0-6, toggle bit (guarding) or reserved (heartbeat) in 7
+  std::optional<NmtState> state() const { return nmt_state_from_byte(byte); }
+  bool toggle() const { return (byte & 0x80) != 0; }
+};
+/// nullopt for any other frame (other COB-IDs, RTR, DLC != 1).
+std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame);
+
+/// One sub-index of 1016h: node-ID in bits 16-23, heartbeat time in ms in bits 0-15; a node-ID
+/// of 0 or a time of 0 leaves the entry unused (CiA 301 §7.5.2.33).
+struct HeartbeatConsumerEntry {
+  std::uint8_t node_id = 0;
+  std::uint16_t time_ms = 0;
+  bool active() const { return node_id != 0 && node_id <= 127 && time_ms != 0; }
+  std::uint32_t encode() const { return (std::uint32_t{node_id} << 16) | time_ms; }
+  static HeartbeatConsumerEntry decode(std::uint32_t value) {
+    return {static_cast<std::uint8_t>((value >> 16) & 0xFF),
+            static_cast<std::uint16_t>(value & 0xFFFF)};
+  }
+};
+
+/// Heartbeat producer of one node (1017h). Starts with the boot-up message: CiA 301
+/// §7.2.8.3.2.2 counts the boot-up as the first heartbeat, so the next one follows one period
+/// later. A non-zero period written at run time starts the protocol at once. Heartbeats carry
+/// the state at the time they are sent.
+class HeartbeatProducer {
+ public:
+  /// Sets 1017h. 0 stops the producer; a change restarts the cycle with a heartbeat due `now`.
+  void set_period(std::uint16_t period_ms, TimePoint now);
+  std::uint16_t period_ms() const { return period_ms_; }
+  /// The boot-up message was sent at `now`: the next heartbeat is one period later.
+  void on_boot_up(TimePoint now);
+  /// Initialising: nothing is sent until the next boot-up.
+  void stop() { next_.reset(); }
+  /// When on_timer() has a heartbeat to send; nullopt when stopped or disabled.
+  std::optional<TimePoint> deadline() const { return next_; }
+  /// The heartbeat to send when the deadline has come, else nullopt.
+  std::optional<CanFrame> on_timer(TimePoint now, std::uint8_t node_id, NmtState state);
+
+ private:
+  std::uint16_t period_ms_ = 0;
+  std::optional<TimePoint> next_;
+};
+
+/// What a heartbeat consumer reports about a monitored node.
+enum class HeartbeatEventKind : std::uint8_t {
+  Timeout,       ///< heartbeat event: no heartbeat within the consumer time (CiA 301)
+  Resolved,      ///< a heartbeat arrived again after a timeout
+  StateChanged,  ///< the node announced a different NMT state
+  BootUp,        ///< the node sent its boot-up message (monitoring waits for a heartbeat again)
+};
+std::string_view to_string(HeartbeatEventKind kind);
+
+struct HeartbeatEvent {
+  std::uint8_t node_id;
+  HeartbeatEventKind kind;
+  std::optional<NmtState> state;  ///< the announced state (nullopt for Timeout)
+  TimePoint at;
+  bool operator==(const HeartbeatEvent&) const = default;
+};
+
+struct HeartbeatConsumerOptions {
+  /// CiA 302-2 §4.1 (start error control): "the timer for timeout checking shall be started
+  /// immediately with the process itself", so a node that never sends a heartbeat times out one
+  /// consumer time after monitoring starts. false: CiA 301 behaviour, monitoring begins with the
+  /// first heartbeat received.
+  bool timeout_from_start = false;
+};
+
+/// Heartbeat consumer (1016h) for any number of nodes. A node that timed out reports Timeout
+/// once; the next heartbeat from it reports Resolved and re-arms the timer.
+class HeartbeatConsumer {
+ public:
+  explicit HeartbeatConsumer(HeartbeatConsumerOptions options = {}) : options_(options) {}
+
+  /// Starts (or restarts) monitoring of entry.node_id at `now`; an inactive entry stops it.
+  void monitor(HeartbeatConsumerEntry entry, TimePoint now);
+  void stop(std::uint8_t node_id) { nodes_.erase(node_id); }
+  void stop_all() { nodes_.clear(); }
+  bool monitors(std::uint8_t node_id) const { return nodes_.count(node_id) != 0; }
+  /// The last state a node announced, if any.
+  std::optional<NmtState> last_state(std::uint8_t node_id) const;
+
+  /// Feeds a received frame; error-control messages of monitored nodes produce events.
+  std::vector<HeartbeatEvent> on_frame(const CanFrame& frame, TimePoint now);
+  /// Reports nodes whose consumer time expired at or before `now`.
+  std::vector<HeartbeatEvent> on_timer(TimePoint now);
+  /// The earliest time a node may time out; nullopt when no timer runs.
+  std::optional<TimePoint> deadline() const;
+
+ private:
+  struct Node {
+    Duration time;
+    std::optional<TimePoint> expires;  ///< nullopt: waiting for the first heartbeat, or timed out
+    bool timed_out = false;
+    std::optional<NmtState> state;
+  };
+  HeartbeatConsumerOptions options_;
+  std::map<std::uint8_t, Node> nodes_;
+};
+
+/// What life guarding reports (CiA 301 §7.2.8.3.2.1).
+enum class LifeGuardingEvent : std::uint8_t {
+  Occurred,  ///< no guarding request within guard time × life time factor
+  Resolved,  ///< a guarding request arrived again after the event
+};
+
+/// The guarded side of node guarding and life guarding. Answers each guarding request with its
+/// state and a toggle bit that starts at 0 after initialisation and alternates; life guarding
+/// starts with the first request and only when 100Ch and 100Dh are both non-zero.
+class NodeGuardingSlave {
+ public:
+  /// 100Ch guard time in ms and 100Dh life time factor; life time = their product.
+  void configure(std::uint16_t guard_time_ms, std::uint8_t life_time_factor);
+  /// Initialisation (reset communication): toggle back to 0, life guarding inactive.
+  void reset();
+
+  struct Result {
+    std::optional<CanFrame> reply;           ///< the guarding reply to send
+    std::optional<LifeGuardingEvent> event;  ///< Resolved when guarding recovered
+  };
+  /// Feeds a received frame. Only an RTR on 700h + node_id is a guarding request; others give
+  /// an empty result.
+  Result on_frame(const CanFrame& frame, TimePoint now, std::uint8_t node_id, NmtState state);
+  /// Occurred once when the life time expired at or before `now`.
+  std::optional<LifeGuardingEvent> on_timer(TimePoint now);
+  /// When life guarding expires; nullopt while inactive or already expired.
+  std::optional<TimePoint> deadline() const;
+  bool toggle() const { return toggle_; }
+
+ private:
+  Duration life_time() const;
+
+  std::uint16_t guard_time_ms_ = 0;
+  std::uint8_t life_time_factor_ = 0;
+  bool toggle_ = false;
+  std::optional<TimePoint> last_request_;
+  bool expired_ = false;
+};
+
+}  // namespace nmt

@@ -1,0 +1,120 @@
+// The NMT slave state machine of CiA 301 §7.3.2 (sans-I/O): NMT module control commands in,
+// state transitions and the boot-up message out. The owner (a simulated device, a real device's
+// firmware) performs the resets the machine asks for and then ends initialisation.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string_view>
+
+#include "nmt/frame.hpp"
+
+namespace nmt {
+
+/// NMT states, with the values the heartbeat and node-guarding messages carry (CiA 301
+/// §7.2.8.3.2.1): 00 boot-up (initialising), 04 stopped, 05 operational, 7F pre-operational.
+enum class NmtState : std::uint8_t {
+  Initialising = 0x00,
+  Stopped = 0x04,
+  Operational = 0x05,
+  PreOperational = 0x7F,
+};
+std::string_view to_string(NmtState state);  ///< "initialising", "stopped", ...
+/// The state a heartbeat/guarding byte announces (bit 7, the toggle bit, is ignored);
+/// nullopt for values that are no state.
+std::optional<NmtState> nmt_state_from_byte(std::uint8_t byte);
+
+/// NMT module control command specifiers (CiA 301 §7.2.8.3.1), byte 0 of a frame on COB-ID 000h.
+enum class NmtCommand : std::uint8_t {
+  Start = 0x01,                ///< start remote node
+  Stop = 0x02,                 ///< stop remote node
+  EnterPreOperational = 0x80,  ///< enter pre-operational
+  ResetNode = 0x81,            ///< reset node (application and communication)
+  ResetCommunication = 0x82,   ///< reset communication
+};
+std::string_view to_string(NmtCommand command);  ///< "start", "stop", "enter pre-operational", ...
+std::optional<NmtCommand> nmt_command_from_byte(std::uint8_t byte);
+
+/// COB-IDs of the pre-defined connection set used by NMT (CiA 301 §7.3.3).
+inline constexpr std::uint32_t kNmtCobId = 0x000;
+inline constexpr std::uint32_t kErrorControlCobIdBase = 0x700;
+
+/// The NMT module control frame `000#CCNN`; node_id 0 addresses all nodes.
+CanFrame make_nmt_command(NmtCommand command, std::uint8_t node_id);
+/// A received NMT command: the command and the node-ID it addresses (0: all nodes).
+struct NmtCommandFrame {
+  NmtCommand command;
+  std::uint8_t node_id;
+};
+/// Parses a frame on COB-ID 000h with exactly two data bytes and a known specifier; nullopt for
+/// anything else (other COB-IDs, RTR, wrong length, unknown specifier, node-ID > 127).
+std::optional<NmtCommandFrame> parse_nmt_command(const CanFrame& frame);
+
+/// The boot-up message `7xx#00` (CiA 301 §7.2.8.3.2.4), node_id 1..127.
+CanFrame make_boot_up(std::uint8_t node_id);
+
+/// Which communication services a node runs in a state (CiA 301 §7.3.2.2, Table 51). In
+/// initialising a node only sends its boot-up message.
+struct NmtServices {
+  bool sdo = false;            ///< SDO server and client
+  bool pdo = false;            ///< receive and transmit PDOs
+  bool emcy = false;           ///< emergency producer
+  bool sync_time = false;      ///< SYNC and TIME
+  bool error_control = false;  ///< heartbeat, node guarding, life guarding
+  bool nmt = false;            ///< NMT module control commands are obeyed
+};
+NmtServices services_in(NmtState state);
+
+/// What initialisation has to restore before the node boots again (CiA 301 §7.3.2.2.1):
+/// reset application restores the whole dictionary (then communication), reset communication only
+/// the communication area 1000h-1FFFh. Power-on counts as reset application.
+enum class ResetScope : std::uint8_t { Application, Communication };
+std::string_view to_string(ResetScope scope);
+
+/// The NMT slave state machine of one node. Starts in Initialising (power-on); the owner restores
+/// its parameters for `pending_reset()` and calls `finish_initialisation()`, which sends the
+/// boot-up message and enters pre-operational. Commands received while initialising are ignored:
+/// the node is not on the bus yet.
+class NmtSlave {
+ public:
+  /// node_id 1..127 (asserted).
+  explicit NmtSlave(std::uint8_t node_id);
+
+  std::uint8_t node_id() const { return node_id_; }
+  NmtState state() const { return state_; }
+  NmtServices services() const { return services_in(state_); }
+  /// The reset the owner must perform before finish_initialisation(); nullopt outside
+  /// initialising.
+  std::optional<ResetScope> pending_reset() const { return pending_reset_; }
+
+  /// A state change caused by a command; `reset` is set when the node went to initialising.
+  struct Transition {
+    NmtState from;
+    NmtState to;
+    NmtCommand command;
+    std::optional<ResetScope> reset;
+  };
+  /// Feeds a received frame. Returns the transition when the frame is an NMT command for this
+  /// node or for all nodes (a command that does not change the state, e.g. start while
+  /// operational, is still returned with from == to); nullopt for every other frame.
+  std::optional<Transition> on_frame(const CanFrame& frame);
+
+  /// Ends initialisation: enters pre-operational and returns the boot-up message to send.
+  /// Only valid while initialising (asserted).
+  CanFrame finish_initialisation();
+
+  /// Power failure / hardware reset: back to initialising with a reset-application pending.
+  void power_on();
+
+  /// Changes the node-ID used from the next initialisation on (e.g. LSS configured a new one;
+  /// CiA 301 applies a new node-ID at reset communication). 1..127 (asserted).
+  void set_node_id(std::uint8_t node_id);
+
+ private:
+  std::uint8_t node_id_;
+  std::uint8_t pending_node_id_;
+  NmtState state_ = NmtState::Initialising;
+  std::optional<ResetScope> pending_reset_ = ResetScope::Application;
+};
+
+}  // namespace nmt

@@ -1,0 +1,200 @@
+#include "nmt/error_control.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+
+namespace nmt {
+
+namespace {
+Duration ms(std::int64_t value) {
+  return std::chrono::milliseconds(value);
+}
+}  // namespace
+
+CanFrame make_heartbeat(std::uint8_t node_id, NmtState state) {
+  assert(node_id >= 1 && node_id <= 127);
+  const std::array<std::uint8_t, 1> bytes{static_cast<std::uint8_t>(state)};
+  return CanFrame::make(kErrorControlCobIdBase + node_id, bytes);
+}
+
+CanFrame make_guarding_request(std::uint8_t node_id) {
+  CanFrame f;
+  f.id = kErrorControlCobIdBase + node_id;
+  f.rtr = true;
+  f.dlc = 1;  // CiA 301 §7.2.8.3.2.1: the request asks for the one-byte reply
+  return f;
+}
+
+std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame) {
+  if (frame.extended || frame.rtr || frame.error || frame.dlc != 1) return std::nullopt;
+  if (frame.id <= kErrorControlCobIdBase || frame.id > kErrorControlCobIdBase + 127) {
+    return std::nullopt;
+  }
+  return ErrorControlMessage{static_cast<std::uint8_t>(frame.id - kErrorControlCobIdBase),
+                             frame.data[0]};
+}
+
+// --- heartbeat producer -------------------------------------------------------------------------
+
+void HeartbeatProducer::set_period(std::uint16_t period_ms, TimePoint now) {
+  if (period_ms == period_ms_) return;
+  period_ms_ = period_ms;
+  // CiA 301 §7.2.8.3.2.2: a non-zero producer time starts the protocol immediately.
+  if (period_ms_ == 0) {
+    next_.reset();
+  } else {
+    next_ = now;
+  }
+}
+
+void HeartbeatProducer::on_boot_up(TimePoint now) {
+  // The boot-up message is the first heartbeat.
+  if (period_ms_ == 0) {
+    next_.reset();
+  } else {
+    next_ = now + ms(period_ms_);
+  }
+}
+
+std::optional<CanFrame> HeartbeatProducer::on_timer(TimePoint now, std::uint8_t node_id,
+                                                    NmtState state) {
+  if (!next_ || now < *next_ || period_ms_ == 0) return std::nullopt;
+  // Keep the cycle free of drift, but do not burst to catch up after a long stall.
+  *next_ += ms(period_ms_);
+  if (*next_ <= now) *next_ = now + ms(period_ms_);
+  return make_heartbeat(node_id, state);
+}
+
+// --- heartbeat consumer -------------------------------------------------------------------------
+
+std::string_view to_string(HeartbeatEventKind kind) {
+  switch (kind) {
+    case HeartbeatEventKind::Timeout:
+      return "heartbeat timeout";
+    case HeartbeatEventKind::Resolved:
+      return "heartbeat resolved";
+    case HeartbeatEventKind::StateChanged:
+      return "state changed";
+    case HeartbeatEventKind::BootUp:
+      return "boot-up";
+  }
+  return "unknown";
+}
+
+void HeartbeatConsumer::monitor(HeartbeatConsumerEntry entry, TimePoint now) {
+  if (!entry.active()) {
+    if (entry.node_id != 0) nodes_.erase(entry.node_id);
+    return;
+  }
+  Node node;
+  node.time = ms(entry.time_ms);
+  if (options_.timeout_from_start) node.expires = now + node.time;
+  nodes_[entry.node_id] = node;
+}
+
+std::optional<NmtState> HeartbeatConsumer::last_state(std::uint8_t node_id) const {
+  auto it = nodes_.find(node_id);
+  return it == nodes_.end() ? std::nullopt : it->second.state;
+}
+
+std::vector<HeartbeatEvent> HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
+  std::vector<HeartbeatEvent> events;
+  auto msg = parse_error_control(frame);
+  if (!msg) return events;
+  auto it = nodes_.find(msg->node_id);
+  if (it == nodes_.end()) return events;
+  Node& node = it->second;
+  auto state = msg->state();
+  if (!state) return events;  // not a state byte: ignore rather than guess
+
+  if (*state == NmtState::Initialising) {
+    // The node rebooted. CiA 301: the consumer waits for its first heartbeat again; the NMT
+    // master runs boot slave and restarts error control (CiA 302-2 §4.3 boot-up handler).
+    events.push_back({msg->node_id, HeartbeatEventKind::BootUp, state, now});
+    node.expires.reset();
+    node.timed_out = false;
+    node.state = state;
+    return events;
+  }
+  if (node.timed_out) {
+    events.push_back({msg->node_id, HeartbeatEventKind::Resolved, state, now});
+    node.timed_out = false;
+  }
+  if (node.state && *node.state != *state) {
+    events.push_back({msg->node_id, HeartbeatEventKind::StateChanged, state, now});
+  }
+  node.state = state;
+  node.expires = now + node.time;
+  return events;
+}
+
+std::vector<HeartbeatEvent> HeartbeatConsumer::on_timer(TimePoint now) {
+  std::vector<HeartbeatEvent> events;
+  for (auto& [id, node] : nodes_) {
+    if (node.expires && *node.expires <= now) {
+      events.push_back({id, HeartbeatEventKind::Timeout, std::nullopt, *node.expires});
+      node.expires.reset();
+      node.timed_out = true;
+    }
+  }
+  return events;
+}
+
+std::optional<TimePoint> HeartbeatConsumer::deadline() const {
+  std::optional<TimePoint> earliest;
+  for (const auto& [id, node] : nodes_) {
+    if (node.expires && (!earliest || *node.expires < *earliest)) earliest = node.expires;
+  }
+  return earliest;
+}
+
+// --- node guarding / life guarding (slave side) -------------------------------------------------
+
+void NodeGuardingSlave::configure(std::uint16_t guard_time_ms, std::uint8_t life_time_factor) {
+  guard_time_ms_ = guard_time_ms;
+  life_time_factor_ = life_time_factor;
+  expired_ = false;
+}
+
+void NodeGuardingSlave::reset() {
+  toggle_ = false;
+  last_request_.reset();
+  expired_ = false;
+}
+
+Duration NodeGuardingSlave::life_time() const {
+  return ms(std::int64_t{guard_time_ms_} * life_time_factor_);
+}
+
+NodeGuardingSlave::Result NodeGuardingSlave::on_frame(const CanFrame& frame, TimePoint now,
+                                                      std::uint8_t node_id, NmtState state) {
+  Result result;
+  if (!frame.rtr || frame.extended || frame.error || frame.id != kErrorControlCobIdBase + node_id) {
+    return result;
+  }
+  // CiA 301 §7.2.8.3.2.1: bit 7 toggles, starting with 0 for the first reply.
+  const auto byte = static_cast<std::uint8_t>((toggle_ ? 0x80 : 0x00) |
+                                              (static_cast<std::uint8_t>(state) & 0x7F));
+  toggle_ = !toggle_;
+  const std::array<std::uint8_t, 1> bytes{byte};
+  result.reply = CanFrame::make(kErrorControlCobIdBase + node_id, bytes);
+  if (expired_) result.event = LifeGuardingEvent::Resolved;
+  expired_ = false;
+  last_request_ = now;
+  return result;
+}
+
+std::optional<TimePoint> NodeGuardingSlave::deadline() const {
+  if (!last_request_ || expired_ || life_time() == Duration::zero()) return std::nullopt;
+  return *last_request_ + life_time();
+}
+
+std::optional<LifeGuardingEvent> NodeGuardingSlave::on_timer(TimePoint now) {
+  auto due = deadline();
+  if (!due || now < *due) return std::nullopt;
+  expired_ = true;
+  return LifeGuardingEvent::Occurred;
+}
+
+}  // namespace nmt

@@ -1,0 +1,169 @@
+#include "nmt/nmt_slave.hpp"
+
+#include <array>
+#include <cassert>
+
+namespace nmt {
+
+std::string_view to_string(NmtState state) {
+  switch (state) {
+    case NmtState::Initialising:
+      return "initialising";
+    case NmtState::Stopped:
+      return "stopped";
+    case NmtState::Operational:
+      return "operational";
+    case NmtState::PreOperational:
+      return "pre-operational";
+  }
+  return "unknown";
+}
+
+std::optional<NmtState> nmt_state_from_byte(std::uint8_t byte) {
+  // CiA 301 §7.2.8.3.2: bit 7 is the guarding toggle bit (reserved in heartbeats).
+  switch (byte & 0x7F) {
+    case 0x00:
+      return NmtState::Initialising;
+    case 0x04:
+      return NmtState::Stopped;
+    case 0x05:
+      return NmtState::Operational;
+    case 0x7F:
+      return NmtState::PreOperational;
+    default:
+      return std::nullopt;
+  }
+}
+
+std::string_view to_string(NmtCommand command) {
+  switch (command) {
+    case NmtCommand::Start:
+      return "start";
+    case NmtCommand::Stop:
+      return "stop";
+    case NmtCommand::EnterPreOperational:
+      return "enter pre-operational";
+    case NmtCommand::ResetNode:
+      return "reset node";
+    case NmtCommand::ResetCommunication:
+      return "reset communication";
+  }
+  return "unknown";
+}
+
+std::optional<NmtCommand> nmt_command_from_byte(std::uint8_t byte) {
+  switch (byte) {
+    case 0x01:
+      return NmtCommand::Start;
+    case 0x02:
+      return NmtCommand::Stop;
+    case 0x80:
+      return NmtCommand::EnterPreOperational;
+    case 0x81:
+      return NmtCommand::ResetNode;
+    case 0x82:
+      return NmtCommand::ResetCommunication;
+    default:
+      return std::nullopt;
+  }
+}
+
+std::string_view to_string(ResetScope scope) {
+  return scope == ResetScope::Application ? "reset application" : "reset communication";
+}
+
+CanFrame make_nmt_command(NmtCommand command, std::uint8_t node_id) {
+  const std::array<std::uint8_t, 2> bytes{static_cast<std::uint8_t>(command), node_id};
+  return CanFrame::make(kNmtCobId, bytes);
+}
+
+std::optional<NmtCommandFrame> parse_nmt_command(const CanFrame& frame) {
+  // CiA 301 §7.2.8.3.1: NMT module control is COB-ID 0 with exactly two bytes.
+  if (frame.id != kNmtCobId || frame.extended || frame.rtr || frame.error || frame.dlc != 2) {
+    return std::nullopt;
+  }
+  auto command = nmt_command_from_byte(frame.data[0]);
+  if (!command || frame.data[1] > 127) return std::nullopt;
+  return NmtCommandFrame{*command, frame.data[1]};
+}
+
+CanFrame make_boot_up(std::uint8_t node_id) {
+  assert(node_id >= 1 && node_id <= 127);
+  const std::array<std::uint8_t, 1> bytes{0x00};
+  return CanFrame::make(kErrorControlCobIdBase + node_id, bytes);
+}
+
+NmtServices services_in(NmtState state) {
+  // CiA 301 §7.3.2.2 Table 51: SDO, SYNC/TIME and EMCY run in pre-operational and operational;
+  // PDO only in operational; error control and NMT in every state but initialising.
+  NmtServices s;
+  switch (state) {
+    case NmtState::Initialising:
+      break;
+    case NmtState::PreOperational:
+      s.sdo = s.emcy = s.sync_time = s.error_control = s.nmt = true;
+      break;
+    case NmtState::Operational:
+      s.sdo = s.pdo = s.emcy = s.sync_time = s.error_control = s.nmt = true;
+      break;
+    case NmtState::Stopped:
+      s.error_control = s.nmt = true;
+      break;
+  }
+  return s;
+}
+
+NmtSlave::NmtSlave(std::uint8_t node_id) : node_id_(node_id), pending_node_id_(node_id) {
+  assert(node_id >= 1 && node_id <= 127);
+}
+
+std::optional<NmtSlave::Transition> NmtSlave::on_frame(const CanFrame& frame) {
+  if (state_ == NmtState::Initialising) return std::nullopt;
+  auto command = parse_nmt_command(frame);
+  if (!command || (command->node_id != 0 && command->node_id != node_id_)) return std::nullopt;
+
+  Transition t{state_, state_, command->command, std::nullopt};
+  switch (command->command) {
+    case NmtCommand::Start:
+      t.to = NmtState::Operational;
+      break;
+    case NmtCommand::Stop:
+      t.to = NmtState::Stopped;
+      break;
+    case NmtCommand::EnterPreOperational:
+      t.to = NmtState::PreOperational;
+      break;
+    case NmtCommand::ResetNode:
+      t.to = NmtState::Initialising;
+      t.reset = ResetScope::Application;
+      break;
+    case NmtCommand::ResetCommunication:
+      t.to = NmtState::Initialising;
+      t.reset = ResetScope::Communication;
+      break;
+  }
+  state_ = t.to;
+  pending_reset_ = t.reset;
+  return t;
+}
+
+CanFrame NmtSlave::finish_initialisation() {
+  assert(state_ == NmtState::Initialising);
+  // CiA 301 §7.3.2.2.1: the node-ID takes effect in reset communication, which every reset passes.
+  node_id_ = pending_node_id_;
+  state_ = NmtState::PreOperational;
+  pending_reset_.reset();
+  return make_boot_up(node_id_);
+}
+
+void NmtSlave::power_on() {
+  state_ = NmtState::Initialising;
+  pending_reset_ = ResetScope::Application;
+}
+
+void NmtSlave::set_node_id(std::uint8_t node_id) {
+  assert(node_id >= 1 && node_id <= 127);
+  pending_node_id_ = node_id;
+}
+
+}  // namespace nmt

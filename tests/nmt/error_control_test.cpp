@@ -1,0 +1,244 @@
+// Heartbeat, node guarding and life guarding (CiA 301 §7.2.8.3.2) and the start-error-control
+// timing rule of CiA 302-2 §4.1. Frame bytes: spec/002_*.txt (heartbeat "705 1 7F", guarding
+// replies "701 7F" then "701 FF", state values 04/05/7F).
+#include "nmt/error_control.hpp"
+
+#include <gtest/gtest.h>
+
+namespace nmt {
+namespace {
+
+using std::chrono::milliseconds;
+
+TimePoint at_ms(std::int64_t ms) {
+  return milliseconds(ms);
+}
+
+CanFrame frame(std::string_view candump) {
+  auto f = from_candump(candump);
+  EXPECT_TRUE(f.has_value()) << candump;
+  return f.value_or(CanFrame{});
+}
+
+// --- heartbeat producer ---
+
+TEST(HeartbeatProducer, SendsStateEveryPeriodAfterBootUp) {
+  HeartbeatProducer p;
+  p.set_period(100, at_ms(0));
+  p.on_boot_up(at_ms(0));  // the boot-up message counts as the first heartbeat
+  EXPECT_EQ(p.deadline(), at_ms(100));
+  EXPECT_FALSE(p.on_timer(at_ms(99), 5, NmtState::PreOperational).has_value());
+  auto hb = p.on_timer(at_ms(100), 5, NmtState::PreOperational);
+  ASSERT_TRUE(hb.has_value());
+  EXPECT_EQ(to_candump(*hb), "705#7F");
+  EXPECT_EQ(p.deadline(), at_ms(200));
+  auto op = p.on_timer(at_ms(200), 5, NmtState::Operational);
+  ASSERT_TRUE(op.has_value());
+  EXPECT_EQ(to_candump(*op), "705#05");
+  EXPECT_EQ(to_candump(*p.on_timer(at_ms(300), 5, NmtState::Stopped)), "705#04");
+}
+
+TEST(HeartbeatProducer, ZeroPeriodDisablesTheProducer) {
+  HeartbeatProducer p;
+  p.on_boot_up(at_ms(0));
+  EXPECT_FALSE(p.deadline().has_value());
+  p.set_period(50, at_ms(10));
+  EXPECT_EQ(p.deadline(), at_ms(10));  // CiA 301: starts immediately when written at run time
+  p.set_period(0, at_ms(20));
+  EXPECT_FALSE(p.deadline().has_value());
+  EXPECT_FALSE(p.on_timer(at_ms(1000), 1, NmtState::Operational).has_value());
+}
+
+TEST(HeartbeatProducer, DoesNotBurstAfterStall) {
+  HeartbeatProducer p;
+  p.set_period(10, at_ms(0));
+  p.on_boot_up(at_ms(0));
+  ASSERT_TRUE(p.on_timer(at_ms(95), 1, NmtState::Operational).has_value());
+  EXPECT_EQ(p.deadline(), at_ms(105));
+  EXPECT_FALSE(p.on_timer(at_ms(96), 1, NmtState::Operational).has_value());
+}
+
+// --- heartbeat consumer ---
+
+TEST(HeartbeatConsumer, EntryEncodingIsNodeIdInBits16To23AndTimeInBits0To15) {
+  // CiA 301 §7.5.2.33: 0x00050064 = node 5, 100 ms.
+  auto e = HeartbeatConsumerEntry::decode(0x00050064);
+  EXPECT_EQ(e.node_id, 5);
+  EXPECT_EQ(e.time_ms, 100);
+  EXPECT_TRUE(e.active());
+  EXPECT_EQ(e.encode(), 0x00050064u);
+  EXPECT_FALSE(HeartbeatConsumerEntry::decode(0x00000064).active());  // node-ID 0: unused
+  EXPECT_FALSE(HeartbeatConsumerEntry::decode(0x00050000).active());  // time 0: unused
+}
+
+TEST(HeartbeatConsumer, Cia301MonitoringStartsWithFirstHeartbeat) {
+  HeartbeatConsumer c;  // timeout_from_start = false
+  c.monitor({5, 100}, at_ms(0));
+  EXPECT_FALSE(c.deadline().has_value());
+  EXPECT_TRUE(c.on_timer(at_ms(10'000)).empty());  // silent node: no event without a heartbeat
+  EXPECT_TRUE(c.on_frame(frame("705#7F"), at_ms(10'000)).empty());
+  EXPECT_EQ(c.deadline(), at_ms(10'100));
+  EXPECT_TRUE(c.on_timer(at_ms(10'099)).empty());
+  auto ev = c.on_timer(at_ms(10'100));
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, HeartbeatEventKind::Timeout);
+  EXPECT_EQ(ev[0].node_id, 5);
+  EXPECT_EQ(ev[0].at, at_ms(10'100));
+}
+
+TEST(HeartbeatConsumer, Cia302StartErrorControlTimesOutSilentNodeFromStart) {
+  // CiA 302-2 §4.1: "The timer for timeout checking shall be started immediately with the
+  // process itself."
+  HeartbeatConsumer c({.timeout_from_start = true});
+  c.monitor({5, 100}, at_ms(0));
+  EXPECT_EQ(c.deadline(), at_ms(100));
+  auto ev = c.on_timer(at_ms(100));
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, HeartbeatEventKind::Timeout);
+  EXPECT_TRUE(c.on_timer(at_ms(500)).empty());  // reported once
+}
+
+TEST(HeartbeatConsumer, Cia302HeartbeatInTimeEndsStartErrorControlSuccessfully) {
+  HeartbeatConsumer c({.timeout_from_start = true});
+  c.monitor({5, 100}, at_ms(0));
+  EXPECT_TRUE(c.on_frame(frame("705#7F"), at_ms(60)).empty());
+  EXPECT_TRUE(c.on_timer(at_ms(100)).empty());
+  EXPECT_EQ(c.deadline(), at_ms(160));
+}
+
+TEST(HeartbeatConsumer, HeartbeatAfterTimeoutResolvesAndRearms) {
+  HeartbeatConsumer c;
+  c.monitor({7, 50}, at_ms(0));
+  (void)c.on_frame(frame("707#05"), at_ms(0));
+  ASSERT_EQ(c.on_timer(at_ms(50)).size(), 1u);
+  auto ev = c.on_frame(frame("707#05"), at_ms(300));
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, HeartbeatEventKind::Resolved);
+  EXPECT_EQ(ev[0].state, NmtState::Operational);
+  EXPECT_EQ(c.deadline(), at_ms(350));
+}
+
+TEST(HeartbeatConsumer, ReportsStateChangesAndBootUp) {
+  HeartbeatConsumer c;
+  c.monitor({7, 50}, at_ms(0));
+  EXPECT_TRUE(c.on_frame(frame("707#7F"), at_ms(0)).empty());
+  auto changed = c.on_frame(frame("707#05"), at_ms(10));
+  ASSERT_EQ(changed.size(), 1u);
+  EXPECT_EQ(changed[0].kind, HeartbeatEventKind::StateChanged);
+  EXPECT_EQ(changed[0].state, NmtState::Operational);
+  auto boot = c.on_frame(frame("707#00"), at_ms(20));
+  ASSERT_EQ(boot.size(), 1u);
+  EXPECT_EQ(boot[0].kind, HeartbeatEventKind::BootUp);
+  EXPECT_FALSE(c.deadline().has_value());  // waits for a heartbeat again
+}
+
+TEST(HeartbeatConsumer, IgnoresUnmonitoredNodesAndOtherFrames) {
+  HeartbeatConsumer c({.timeout_from_start = true});
+  c.monitor({7, 50}, at_ms(0));
+  EXPECT_TRUE(c.on_frame(frame("708#05"), at_ms(10)).empty());
+  EXPECT_TRUE(c.on_frame(frame("707#R1"), at_ms(10)).empty());
+  EXPECT_TRUE(c.on_frame(frame("707#0500"), at_ms(10)).empty());
+  EXPECT_TRUE(c.on_frame(frame("707#12"), at_ms(10)).empty());  // 0x12 is no NMT state
+  EXPECT_EQ(c.on_timer(at_ms(50)).size(), 1u);  // none of these was a heartbeat of node 7
+}
+
+TEST(HeartbeatConsumer, InactiveEntryStopsMonitoring) {
+  HeartbeatConsumer c({.timeout_from_start = true});
+  c.monitor({7, 50}, at_ms(0));
+  c.monitor({7, 0}, at_ms(10));
+  EXPECT_FALSE(c.monitors(7));
+  EXPECT_TRUE(c.on_timer(at_ms(100)).empty());
+}
+
+TEST(HeartbeatConsumer, MonitorsSeveralNodesIndependently) {
+  HeartbeatConsumer c({.timeout_from_start = true});
+  c.monitor({1, 100}, at_ms(0));
+  c.monitor({2, 200}, at_ms(0));
+  (void)c.on_frame(frame("701#05"), at_ms(90));
+  (void)c.on_frame(frame("701#05"), at_ms(150));
+  auto ev = c.on_timer(at_ms(200));
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].node_id, 2);
+  EXPECT_EQ(c.deadline(), at_ms(250));
+}
+
+// --- node guarding / life guarding ---
+
+TEST(NodeGuardingSlave, RepliesWithToggleBitStartingAtZero) {
+  NodeGuardingSlave g;
+  const CanFrame rtr = frame("705#R1");
+  auto r1 = g.on_frame(rtr, at_ms(0), 5, NmtState::Operational);
+  ASSERT_TRUE(r1.reply.has_value());
+  EXPECT_EQ(to_candump(*r1.reply), "705#05");
+  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(10), 5, NmtState::Operational).reply), "705#85");
+  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(20), 5, NmtState::Operational).reply), "705#05");
+}
+
+TEST(NodeGuardingSlave, PreOperationalRepliesMatchSpecExample) {
+  // spec/002: "701 7F" then "701 FF" for node 1 in pre-operational.
+  NodeGuardingSlave g;
+  const CanFrame rtr = frame("701#R");
+  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(0), 1, NmtState::PreOperational).reply), "701#7F");
+  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(1), 1, NmtState::PreOperational).reply), "701#FF");
+}
+
+TEST(NodeGuardingSlave, StoppedStateIsFour) {
+  NodeGuardingSlave g;
+  EXPECT_EQ(to_candump(*g.on_frame(frame("705#R1"), at_ms(0), 5, NmtState::Stopped).reply),
+            "705#04");
+}
+
+TEST(NodeGuardingSlave, ResetReturnsToggleToZero) {
+  NodeGuardingSlave g;
+  (void)g.on_frame(frame("705#R1"), at_ms(0), 5, NmtState::Operational);
+  g.reset();
+  EXPECT_EQ(to_candump(*g.on_frame(frame("705#R1"), at_ms(1), 5, NmtState::PreOperational).reply),
+            "705#7F");
+}
+
+TEST(NodeGuardingSlave, IgnoresOtherNodesAndDataFrames) {
+  NodeGuardingSlave g;
+  EXPECT_FALSE(g.on_frame(frame("706#R1"), at_ms(0), 5, NmtState::Operational).reply);
+  EXPECT_FALSE(g.on_frame(frame("705#05"), at_ms(0), 5, NmtState::Operational).reply);
+  EXPECT_FALSE(g.toggle());
+}
+
+TEST(NodeGuardingSlave, LifeGuardingStartsWithFirstRequestAndFiresAfterLifeTime) {
+  NodeGuardingSlave g;
+  g.configure(100, 3);                     // life time 300 ms
+  EXPECT_FALSE(g.deadline().has_value());  // spec/002: starts with the first remote frame
+  (void)g.on_frame(frame("705#R1"), at_ms(1000), 5, NmtState::Operational);
+  EXPECT_EQ(g.deadline(), at_ms(1300));
+  (void)g.on_frame(frame("705#R1"), at_ms(1100), 5, NmtState::Operational);
+  EXPECT_FALSE(g.on_timer(at_ms(1399)).has_value());
+  EXPECT_EQ(g.on_timer(at_ms(1400)), LifeGuardingEvent::Occurred);
+  EXPECT_FALSE(g.on_timer(at_ms(2000)).has_value());  // reported once
+  auto again = g.on_frame(frame("705#R1"), at_ms(2000), 5, NmtState::Operational);
+  EXPECT_EQ(again.event, LifeGuardingEvent::Resolved);
+  EXPECT_EQ(g.deadline(), at_ms(2300));
+}
+
+TEST(NodeGuardingSlave, LifeGuardingNeedsBothGuardTimeAndLifeTimeFactor) {
+  NodeGuardingSlave g;
+  g.configure(100, 0);
+  (void)g.on_frame(frame("705#R1"), at_ms(0), 5, NmtState::Operational);
+  EXPECT_FALSE(g.deadline().has_value());
+  g.configure(0, 3);
+  EXPECT_FALSE(g.deadline().has_value());
+  EXPECT_FALSE(g.on_timer(at_ms(100'000)).has_value());
+}
+
+TEST(ErrorControl, FramesAreEncodedAsTheSpecExamples) {
+  EXPECT_EQ(to_candump(make_heartbeat(5, NmtState::PreOperational)), "705#7F");
+  EXPECT_EQ(to_candump(make_guarding_request(1)), "701#R1");
+  auto msg = parse_error_control(frame("701#FF"));
+  ASSERT_TRUE(msg.has_value());
+  EXPECT_EQ(msg->node_id, 1);
+  EXPECT_TRUE(msg->toggle());
+  EXPECT_EQ(msg->state(), NmtState::PreOperational);
+  EXPECT_FALSE(parse_error_control(frame("700#05")).has_value());  // node-ID 0
+  EXPECT_FALSE(parse_error_control(frame("780#05")).has_value());
+}
+
+}  // namespace
+}  // namespace nmt
