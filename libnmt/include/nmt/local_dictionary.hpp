@@ -1,0 +1,142 @@
+// The runtime object dictionary of one node: every entry of a device description with its
+// attributes and its current value as bytes. The SDO server reads and writes it through the
+// checked `read`/`write` (CiA 301 access and value rules, answering with abort codes); the device
+// model uses the unchecked accessors and hooks. No I/O, no clock.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cfg/data_type.hpp"
+#include "cfg/object_dictionary.hpp"
+#include "cfg/result.hpp"
+#include "cfg/value.hpp"
+#include "nmt/sdo_abort.hpp"
+
+namespace nmt {
+
+/// One value-carrying entry (index, sub-index) of the dictionary.
+struct DictionaryEntry {
+  std::uint16_t index = 0;
+  std::uint8_t sub_index = 0;
+  std::string name;             ///< ParameterName of the sub-object (or object for a VAR)
+  std::uint16_t data_type = 0;  ///< DataType= index as in the device file
+  /// The basic type; nullopt for unknown or complex types (treated as DOMAIN bytes).
+  std::optional<cfg::DataType> basic_type;
+  cfg::AccessType access = cfg::AccessType::Rw;
+  bool pdo_mapping = false;
+  std::optional<cfg::Value> low_limit;   ///< LowLimit, $NODEID resolved (numeric types only)
+  std::optional<cfg::Value> high_limit;  ///< HighLimit, $NODEID resolved (numeric types only)
+  /// Largest value in bytes a write may store. Fixed-size types: their size. Variable-size
+  /// types (strings, DOMAIN, unknown types): LocalDictionary::kDefaultMaxVariableSize unless
+  /// changed with set_max_size().
+  std::size_t max_size = 0;
+  std::vector<std::uint8_t> bytes;  ///< current value, little-endian as on the bus
+
+  /// Size in bytes for fixed-size types, nullopt for variable-size ones.
+  std::optional<std::size_t> fixed_size() const;
+};
+
+class LocalDictionary {
+ public:
+  /// Default max_size of variable-size entries (strings, DOMAIN): 1 MiB.
+  static constexpr std::size_t kDefaultMaxVariableSize = std::size_t{1} << 20;
+
+  /// Called by write() after all dictionary checks passed and before the value is stored. A
+  /// result other than SdoAbort::None rejects the write with that code (the value stays).
+  using WriteHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub,
+                                           std::span<const std::uint8_t> data)>;
+  /// Called by write() after a value was stored (not by the unchecked setters).
+  using WriteObserver = std::function<void(std::uint16_t index, std::uint8_t sub,
+                                           std::span<const std::uint8_t> data)>;
+  /// Called by read() after the access check, before the value is copied: it may refresh the
+  /// value with set_bytes() or refuse the read with a code (e.g. NoDataAvailable).
+  using ReadHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub)>;
+
+  LocalDictionary() = default;
+
+  /// Builds the dictionary of node `node_id` (1..127) from a device description: every
+  /// sub-object becomes an entry whose value is ParameterValue, else DefaultValue, else zeros
+  /// of the type's size (empty for variable-size types), parsed with cfg::parse_value and
+  /// $NODEID resolved; LowLimit/HighLimit likewise. Fails with a message naming the entry when
+  /// a value or limit does not parse, or when node_id is out of range.
+  static cfg::Result<LocalDictionary> from_device(const cfg::DeviceDescription& device,
+                                                  std::uint8_t node_id);
+
+  std::uint8_t node_id() const { return node_id_; }
+
+  // --- SDO side: checked, answers with CiA 301 abort codes ----------------------------------
+
+  /// Reads the value for an SDO upload into `out` (replaced). Aborts: ObjectDoesNotExist (no
+  /// entry at `index`), SubIndexDoesNotExist, ReadOfWriteOnly (wo), or a read hook's code.
+  SdoAbort read(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t>& out) const;
+
+  /// Writes a value from an SDO download. Checks in this order, each with its abort:
+  /// object exists (ObjectDoesNotExist), sub-index exists (SubIndexDoesNotExist), writable
+  /// (WriteOfReadOnly for ro/const), size (fixed types: LengthTooHigh / LengthTooLow;
+  /// variable types: LengthTooHigh above max_size), value (BOOLEAN other than 0/1:
+  /// ValueRangeExceeded; HighLimit < LowLimit: MaxLessThanMin; above HighLimit: ValueTooHigh;
+  /// below LowLimit: ValueTooLow), then the write hooks in the order added. On None the value
+  /// is stored and the observers are called.
+  SdoAbort write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data);
+
+  /// The checks write() does before seeing the data: existence, access, and (when the size is
+  /// known) the size. The SDO server uses it to refuse a download at its initiate request.
+  SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
+                       std::optional<std::size_t> size) const;
+
+  void add_write_hook(WriteHook hook) { write_hooks_.push_back(std::move(hook)); }
+  void add_write_observer(WriteObserver observer) { observers_.push_back(std::move(observer)); }
+  void add_read_hook(ReadHook hook) { read_hooks_.push_back(std::move(hook)); }
+
+  // --- device model side: unchecked (no access, size or range checks, no hooks) ------------
+
+  /// Attributes and value of an entry; nullptr when absent.
+  const DictionaryEntry* entry(std::uint16_t index, std::uint8_t sub) const;
+  /// True when any sub-index of `index` exists.
+  bool has_object(std::uint16_t index) const;
+  /// The current bytes; nullopt when the entry is absent. The span is valid until the entry's
+  /// value changes.
+  std::optional<std::span<const std::uint8_t>> get_bytes(std::uint16_t index,
+                                                         std::uint8_t sub) const;
+  /// The value as a little-endian unsigned number (first up to 8 bytes; BOOLEAN and integer
+  /// types). nullopt when absent or when the entry is not BOOLEAN/integer.
+  std::optional<std::uint64_t> get_unsigned(std::uint16_t index, std::uint8_t sub) const;
+  /// The value decoded as its basic type; nullopt when absent, of unknown type or undecodable.
+  std::optional<cfg::Value> get_value(std::uint16_t index, std::uint8_t sub) const;
+  /// Replaces the bytes as they are. False when the entry is absent.
+  bool set_bytes(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data);
+  /// Stores `value` little-endian in the entry's fixed size (truncating higher bytes). False
+  /// when absent or not of a fixed-size type.
+  bool set_unsigned(std::uint16_t index, std::uint8_t sub, std::uint64_t value);
+  /// Changes the largest size a write may store in a variable-size entry. False when absent or
+  /// of a fixed-size type.
+  bool set_max_size(std::uint16_t index, std::uint8_t sub, std::size_t max_size);
+  /// Adds or replaces an entry (objects the device model implements beyond its device file).
+  void insert(DictionaryEntry entry);
+
+  /// All entries in (index, sub-index) order.
+  const std::map<std::uint32_t, DictionaryEntry>& entries() const { return entries_; }
+  /// The key of entries(): index << 8 | sub.
+  static constexpr std::uint32_t key(std::uint16_t index, std::uint8_t sub) {
+    return static_cast<std::uint32_t>(index) << 8 | sub;
+  }
+
+ private:
+  DictionaryEntry* find(std::uint16_t index, std::uint8_t sub);
+  SdoAbort check_value(const DictionaryEntry& entry, std::span<const std::uint8_t> data) const;
+
+  std::uint8_t node_id_ = 0;
+  std::map<std::uint32_t, DictionaryEntry> entries_;
+  std::vector<WriteHook> write_hooks_;
+  std::vector<WriteObserver> observers_;
+  std::vector<ReadHook> read_hooks_;
+};
+
+}  // namespace nmt

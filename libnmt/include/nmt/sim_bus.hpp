@@ -1,0 +1,327 @@
+// A simulated CAN bus on simulated time: a discrete-event scheduler plus a bus model that gives
+// every frame its real length on the wire (ISO 11898-1 fields and stuff bits) and arbitrates by
+// identifier. Protocol engines run on it thousands of times faster than real time, with
+// deterministic fault injection (frame loss, per-frame drop/delay).
+//
+// How a node takes part:
+//   class MyNode : public nmt::SimNode {
+//     void on_frame(const CanFrame& f, TimePoint now) override { ... send(reply); }
+//     void on_timer(TimePoint now) override { ... set_timer(now + 10ms); }
+//   };
+//   nmt::SimBus bus(500'000);
+//   MyNode a, b;
+//   bus.attach(a);
+//   bus.attach(b);
+//   bus.run_for(std::chrono::seconds(1));
+// A sans-I/O engine with on_frame(frame, now, out) / on_timer(now, out) / next_deadline() runs
+// unchanged inside SimEngineNode<Engine> (bottom of this file).
+//
+// Timing model. Time starts at 0. A frame sent while the bus is idle starts at the current time
+// after all other events of that instant ran (so nodes sending "at once" arbitrate). It is
+// delivered to every attached node except its sender at the end of its EOF field, and the bus
+// is free again after the 3-bit intermission; then the queued frames arbitrate again: the frame
+// whose arbitration field is lowest wins (11-bit base id first; at equal base id a standard data
+// frame beats an extended one because SRR is recessive, a standard remote frame beats an
+// extended one because IDE is recessive; data beats remote at equal id). Losers stay queued and
+// retry when the bus is free. Each node's queue is FIFO (like a SocketCAN queue): only its oldest
+// frame competes. Nodes react in zero simulated time; model processing time with set_timer().
+// Not thread-safe. Internally time is kept in nanoseconds so bit times at any bit rate add up
+// exactly; the TimePoint (microsecond) view is rounded down.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <queue>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include "nmt/frame.hpp"
+
+namespace nmt {
+
+class SimBus;
+
+/// The length of a classic CAN frame on the wire, in bits (ISO 11898-1).
+struct FrameBits {
+  unsigned stuffed_region = 0;  ///< SOF .. end of CRC sequence: the bits stuffing applies to
+  unsigned stuff_bits = 0;      ///< bits inserted after 5 equal bits (counted on the real bits)
+  unsigned trailer = 10;        ///< CRC delimiter 1, ACK slot 1, ACK delimiter 1, EOF 7
+  unsigned intermission = 3;    ///< interframe space before the bus is free
+  /// SOF to end of EOF: the bits before a receiver accepts the frame.
+  unsigned until_eof() const { return stuffed_region + stuff_bits + trailer; }
+  unsigned total() const { return until_eof() + intermission; }
+};
+
+/// Computes the exact bit length of a data or remote frame: the real bit sequence SOF,
+/// arbitration, control, data, CRC-15 is built and stuffed. Error frames (frame.error) are
+/// given the length of an active error flag plus delimiter: 6 + 8 bits + intermission.
+FrameBits frame_bits(const CanFrame& frame);
+
+/// The arbitration priority of a frame: lower wins. Compares as the bits of the arbitration
+/// field (base id, SRR/RTR, IDE, extended id, RTR) would on the wire.
+std::uint64_t arbitration_key(const CanFrame& frame);
+
+/// A participant on the simulated bus. Attach it with SimBus::attach; it must stay alive while
+/// attached (its destructor detaches it). Not copyable or movable: the bus holds its address.
+class SimNode {
+ public:
+  SimNode() = default;
+  SimNode(const SimNode&) = delete;
+  SimNode& operator=(const SimNode&) = delete;
+  virtual ~SimNode();
+
+  /// A frame sent by another node finished (end of EOF) at `now`.
+  virtual void on_frame(const CanFrame& frame, TimePoint now) = 0;
+  /// The deadline set with set_timer() came. The timer is cleared before the call.
+  virtual void on_timer(TimePoint now) = 0;
+
+  /// The bus this node is attached to, or nullptr.
+  SimBus* bus() const { return bus_; }
+
+ protected:
+  /// Queues a frame for transmission (FIFO per node). Ignored when not attached.
+  void send(const CanFrame& frame);
+  /// Asks for on_timer() at `deadline` (replacing any earlier request); a deadline in the past
+  /// fires at the current time; nullopt cancels. Ignored when not attached.
+  void set_timer(std::optional<TimePoint> deadline);
+  /// Current simulated time (0 when not attached).
+  TimePoint now() const;
+
+ private:
+  friend class SimBus;
+  SimBus* bus_ = nullptr;
+  std::size_t slot_ = 0;
+};
+
+/// What the fault filter decides for one frame.
+struct FrameFate {
+  enum class Kind { Deliver, Drop, Delay };
+  Kind kind = Kind::Deliver;
+  Duration delay{0};  ///< Delay: delivered this much after its end of frame
+
+  static FrameFate deliver() { return {}; }
+  static FrameFate drop() { return {Kind::Drop, Duration{0}}; }
+  static FrameFate delayed(Duration d) { return {Kind::Delay, d}; }
+};
+
+/// Counters since construction or reset_statistics().
+struct SimBusStats {
+  std::uint64_t frames = 0;          ///< frames that completed transmission (dropped included)
+  std::uint64_t frames_dropped = 0;  ///< lost by the loss rate or dropped by the filter
+  std::uint64_t bits = 0;            ///< sum of FrameBits::total() of those frames
+  std::int64_t busy_ns = 0;          ///< time the bus carried frames (intermission included)
+  std::int64_t elapsed_ns = 0;       ///< simulated time covered
+  /// busy / elapsed, 0..1 (0 when no time elapsed).
+  double load() const {
+    return elapsed_ns > 0 ? static_cast<double>(busy_ns) / static_cast<double>(elapsed_ns) : 0.0;
+  }
+};
+
+/// The scheduler and the bus. Owns nothing it is given: nodes and callbacks' captures must
+/// outlive their attachment.
+class SimBus {
+ public:
+  using Observer = std::function<void(const CanFrame&, TimePoint)>;
+  using Filter = std::function<FrameFate(const CanFrame&, TimePoint)>;
+
+  /// A bus at `bitrate_bps` bit/s (1 ... 1e9; 0 is taken as 1).
+  explicit SimBus(std::uint32_t bitrate_bps = 1'000'000);
+  ~SimBus();
+  SimBus(const SimBus&) = delete;
+  SimBus& operator=(const SimBus&) = delete;
+
+  // --- nodes -----------------------------------------------------------------------------
+  /// Attaches a node (no effect if already attached here; a node on another bus moves).
+  void attach(SimNode& node);
+  /// Detaches a node: its queued frames and timer are discarded; a frame it is transmitting
+  /// completes. Safe to call from inside callbacks.
+  void detach(SimNode& node);
+
+  /// Same as SimNode::send / set_timer, for code holding the node.
+  void send(SimNode& node, const CanFrame& frame);
+  void set_timer(SimNode& node, std::optional<TimePoint> deadline);
+
+  /// Runs `fn(now)` at `at` (or now, if in the past), after timers already due then.
+  void schedule_at(TimePoint at, std::function<void(TimePoint)> fn);
+
+  /// Observers see every frame receivers see (after the fault filter), at its delivery time.
+  /// Returns a handle for remove_observer.
+  std::size_t add_observer(Observer observer);
+  void remove_observer(std::size_t handle);
+
+  // --- fault injection ---------------------------------------------------------------------
+  /// Each frame is lost (occupies the bus, reaches nobody) with probability `rate` (0..1),
+  /// drawn from a PRNG seeded with `seed`: the same seed gives the same losses.
+  void set_loss_rate(double rate, std::uint64_t seed = 1);
+  /// Decides per frame (at its end of frame) to deliver, drop or delay it; applied after the
+  /// loss rate. Pass {} to remove.
+  void set_filter(Filter filter) { filter_ = std::move(filter); }
+
+  // --- running -----------------------------------------------------------------------------
+  TimePoint now() const { return TimePoint{now_ns_ / 1000}; }
+  std::int64_t now_ns() const { return now_ns_; }
+  std::uint32_t bitrate_bps() const { return bitrate_bps_; }
+  /// Duration of `bits` bit times, in nanoseconds.
+  std::int64_t bits_to_ns(std::uint64_t bits) const;
+
+  /// Processes every event up to and including `t`, then sets the time to `t` (never back).
+  void run_until(TimePoint t);
+  void run_for(Duration d) { run_until(now() + d); }
+  /// Processes events until none is left or the next one is after `limit`. True when idle
+  /// (no timer, no scheduled call, no frame queued or on the bus).
+  bool run_until_idle(TimePoint limit = TimePoint::max());
+  /// Processes events one at a time until `done()` is true (checked before each event) or the
+  /// next event is after `limit` / none is left. True when `done()` became true.
+  bool run_until(const std::function<bool()>& done, TimePoint limit = TimePoint::max());
+  /// Processes the earliest event. False when there is none.
+  bool step();
+  bool idle() const { return events_.empty(); }
+
+  // --- statistics ----------------------------------------------------------------------------
+  SimBusStats statistics() const;
+  void reset_statistics();
+  /// Events processed since construction (timers, deliveries, arbitrations, calls).
+  std::uint64_t events_processed() const { return events_processed_; }
+
+ private:
+  friend class SimNode;
+  enum class EventKind : std::uint8_t { Timer, Call, EndOfFrame, Arbitrate, DelayedDelivery };
+  struct Event {
+    std::int64_t at_ns;
+    std::uint8_t phase;  // 0: timers, calls, deliveries; 1: arbitration after them
+    std::uint64_t seq;
+    EventKind kind;
+    std::size_t slot;          // Timer: node slot; Call/DelayedDelivery: payload slot
+    std::uint64_t generation;  // Timer: matches Slot::timer_generation when still valid
+    bool operator>(const Event& o) const {
+      if (at_ns != o.at_ns) return at_ns > o.at_ns;
+      if (phase != o.phase) return phase > o.phase;
+      return seq > o.seq;
+    }
+  };
+  struct Slot {
+    SimNode* node = nullptr;
+    std::vector<CanFrame> queue;  // FIFO, front at queue_head
+    std::size_t queue_head = 0;
+    std::uint64_t timer_generation = 0;
+  };
+  struct Delayed {
+    CanFrame frame;
+    std::size_t sender;
+  };
+
+  void push(std::int64_t at_ns, std::uint8_t phase, EventKind kind, std::size_t slot = 0,
+            std::uint64_t generation = 0);
+  void enqueue_frame(std::size_t slot, const CanFrame& frame);
+  void arm_timer(std::size_t slot, std::optional<TimePoint> deadline);
+  void dispatch(const Event& e);
+  void arbitrate();
+  void end_of_frame();
+  void deliver(const CanFrame& frame, std::size_t sender);
+  void advance_to(std::int64_t t_ns);
+
+  std::uint32_t bitrate_bps_;
+  std::int64_t now_ns_ = 0;
+  std::uint64_t seq_ = 0;
+  std::uint64_t events_processed_ = 0;
+  std::priority_queue<Event, std::vector<Event>, std::greater<>> events_;
+  std::vector<Slot> slots_;
+  std::vector<std::size_t> free_slots_;
+  std::vector<std::pair<std::size_t, Observer>> observers_;
+  std::size_t next_observer_ = 0;
+  std::vector<std::function<void(TimePoint)>> calls_;
+  std::vector<std::size_t> free_calls_;
+  std::vector<std::optional<Delayed>> delayed_;
+  std::vector<std::size_t> free_delayed_;
+  Filter filter_;
+  double loss_rate_ = 0.0;
+  std::mt19937_64 rng_{1};
+
+  // The frame on the wire.
+  bool arbitration_pending_ = false;
+  bool transmitting_ = false;
+  CanFrame current_{};
+  std::size_t current_sender_ = 0;
+  std::int64_t current_start_ns_ = 0;
+  FrameBits current_bits_{};
+
+  SimBusStats stats_{};
+  std::int64_t stats_start_ns_ = 0;
+};
+
+/// Runs a sans-I/O protocol engine on the simulated bus. `Engine` provides
+///   void on_frame(const CanFrame&, TimePoint now, std::vector<CanFrame>& out);
+///   void on_timer(TimePoint now, std::vector<CanFrame>& out);
+///   std::optional<TimePoint> next_deadline() const;
+/// (on_frame may return a value; it is ignored). After using the engine's own API from outside
+/// a callback (e.g. starting an SDO transfer), call rearm() — or use apply() — so the node's
+/// timer follows the engine's new deadline.
+template <class Engine>
+class SimEngineNode : public SimNode {
+ public:
+  template <class... Args>
+  explicit SimEngineNode(Args&&... args) : engine_(std::forward<Args>(args)...) {}
+
+  Engine& engine() { return engine_; }
+  const Engine& engine() const { return engine_; }
+
+  /// Calls fn(engine()) and re-arms the timer; returns what fn returns.
+  template <class Fn>
+  decltype(auto) apply(Fn&& fn) {
+    struct Rearm {
+      SimEngineNode* self;
+      ~Rearm() { self->rearm(); }
+    } rearm_on_exit{this};
+    return std::forward<Fn>(fn)(engine_);
+  }
+  /// Sets the timer to the engine's next deadline.
+  void rearm() { set_timer(engine_.next_deadline()); }
+
+  void on_frame(const CanFrame& frame, TimePoint now) override {
+    out_.clear();
+    engine_.on_frame(frame, now, out_);
+    flush();
+  }
+  void on_timer(TimePoint now) override {
+    out_.clear();
+    engine_.on_timer(now, out_);
+    flush();
+  }
+
+ private:
+  void flush() {
+    for (const auto& f : out_) send(f);
+    out_.clear();
+    rearm();
+  }
+  Engine engine_;
+  std::vector<CanFrame> out_;
+};
+
+/// A node made of callbacks, for tests and scripts. send()/set_timer() are public here.
+class FunctionNode : public SimNode {
+ public:
+  using FrameFn = std::function<void(FunctionNode&, const CanFrame&, TimePoint)>;
+  using TimerFn = std::function<void(FunctionNode&, TimePoint)>;
+  explicit FunctionNode(FrameFn on_frame_fn = {}, TimerFn on_timer_fn = {})
+      : on_frame_(std::move(on_frame_fn)), on_timer_(std::move(on_timer_fn)) {}
+
+  void on_frame(const CanFrame& frame, TimePoint t) override {
+    if (on_frame_) on_frame_(*this, frame, t);
+  }
+  void on_timer(TimePoint t) override {
+    if (on_timer_) on_timer_(*this, t);
+  }
+  using SimNode::now;
+  using SimNode::send;
+  using SimNode::set_timer;
+
+ private:
+  FrameFn on_frame_;
+  TimerFn on_timer_;
+};
+
+}  // namespace nmt
