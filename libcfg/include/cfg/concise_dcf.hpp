@@ -1,6 +1,7 @@
-// CiA 302 concise DCF: the stream stored in object 1F22 (DSP 302 v3.2.1 §6.1.2 / Table 4).
+// CiA 302 concise DCF: the stream stored in object 1F22h (DSP 302 v3.2.1 §6.2 "Concise
+// configuration storage").
 //   UNSIGNED32 number of entries, then per entry: UNSIGNED16 index, UNSIGNED8 sub-index,
-//   UNSIGNED32 data size in bytes, data. All little-endian.
+//   UNSIGNED32 data size in bytes, data. All little-endian. A count of 0 is the empty data set.
 #pragma once
 
 #include <cstddef>
@@ -26,10 +27,16 @@ struct ObjectWrite {
   bool operator==(const ObjectWrite&) const = default;
 };
 
-/// Encodes entries as a concise DCF stream.
+/// Encodes entries as a concise DCF stream, in the given order. Precondition: every entry's data
+/// is below 4 GiB (the size field is UNSIGNED32); throws std::length_error otherwise.
 std::vector<std::uint8_t> encode_concise_dcf(std::span<const ObjectWrite> entries);
 
-/// Streaming decoder: feed bytes in chunks of any size; it holds at most one entry.
+/// Streaming decoder: feed bytes in chunks of any size; it holds at most one entry, and grows
+/// an entry's buffer as its bytes arrive (an announced size is not trusted, so a stream that
+/// announces 4 GiB and ends costs nothing). Byte offsets in messages count from 0 at the first
+/// byte of the stream. Entries are delivered as they complete, so a stream that fails later
+/// has already delivered its good entries: use decode_concise_dcf or check finish() before
+/// acting on them.
 class ConciseDcfDecoder {
  public:
   /// Called for each complete entry; data is valid only during the call.
@@ -46,8 +53,13 @@ class ConciseDcfDecoder {
 
   std::uint64_t bytes_consumed() const { return offset_; }
   std::uint32_t entries_read() const { return entries_read_; }
+  /// The entry count from the first 4 bytes (0 until they were fed).
+  std::uint32_t entries_announced() const { return entries_announced_; }
 
  private:
+  Status fail(std::string message);
+  void deliver();
+
   enum class Stage { Count, Header, Data, Done, Failed };
   EntryHandler on_entry_;
   Stage stage_ = Stage::Count;
@@ -64,13 +76,15 @@ class ConciseDcfDecoder {
   Error error_;
 };
 
-/// Decodes a whole stream held in memory.
+/// Decodes a whole stream held in memory; fails like the streaming decoder.
 Result<std::vector<ObjectWrite>> decode_concise_dcf(std::span<const std::uint8_t> bytes);
 
-/// Which values of a DCF go into its concise DCF.
+/// Which values of a DCF go into its concise DCF. An empty ParameterValue/DefaultValue counts
+/// as absent (CANopenEditor writes "ParameterValue=" for every entry it does not configure).
+/// A DOMAIN with a DownloadFile is always taken, its content being the file.
 enum class ConciseSelection {
   Configured,    ///< every writable sub-object with a ParameterValue (default)
-  ChangedOnly,   ///< only ParameterValues that differ from DefaultValue
+  ChangedOnly,   ///< only ParameterValues whose value differs from DefaultValue's
   WithDefaults,  ///< ParameterValue, else DefaultValue, for every writable sub-object
 };
 
@@ -83,8 +97,16 @@ struct ConciseOptions {
 };
 
 /// The writes a DCF configures, in PDO-safe order (see download_order.hpp). Never 1010h/1011h,
-/// never ro/const entries. Values that cannot be encoded are error diagnostics with file:line;
-/// the result is nullopt when there is any error.
+/// never ro/const entries, never 0001h-0FFFh (data type definitions), never entries whose
+/// ObjFlags bit 0 is set (CiA 306 "refuse write on download"). $NODEID is resolved with the
+/// node-ID of the options, else of [DeviceComissioning]; a value that needs one when there is
+/// none is an error. A value that cannot be encoded (not a value of its type, out of range,
+/// DataType not basic, DownloadFile missing) is an error diagnostic with file:line; the result
+/// is nullopt when there is any error. When a PDO mapping's entries are selected but not its
+/// sub-index 0, sub-index 0 is added with the DCF's value so that the mapping can be
+/// deactivated and restored around them; the COB-ID for the invalid/valid pair comes from the
+/// writes or else from the DCF (ParameterValue, else DefaultValue). Where neither is there, a
+/// warning says the PDO rule could not be applied in full.
 std::optional<std::vector<ObjectWrite>> concise_writes_from_dcf(const DeviceDescription& dcf,
                                                                 const ConciseOptions& options,
                                                                 Diagnostics& diagnostics);
