@@ -54,10 +54,29 @@ struct WriteOptions {
   std::optional<Stamp> stamp;
 };
 
-/// Writes the model as an EDS or DCF in canonical form: sections in a fixed order, objects by
-/// index, object lists derived from the objects, CompactSubObj expanded. An EDS gets no
-/// ParameterValue/Denotation/[DeviceComissioning].
+/// Writes the model as an EDS or DCF in canonical form: [FileInfo], [DeviceInfo], [DummyUsage],
+/// [Comments], the three object lists (derived from the objects by object_list_for), the objects
+/// by index each followed by its sub-objects and [xxxxObjectLinks], [DeviceComissioning] (DCF
+/// only), then other_sections in model order. Deterministic: the same model and options give the
+/// same bytes. An EDS gets no ParameterValue/Denotation/[DeviceComissioning].
+/// CompactSubObj objects are written expanded, one [xxxxsubN] section per sub-object: the model
+/// holds them expanded anyway, and the expanded form can say everything the model says (per-sub
+/// names, values, limits), so it is lossless where the compact form is not. SubNumber is written
+/// as the number of sub-objects. Texts are written as they are, except that line breaks become
+/// blanks; keys and section names that could not be read back as themselves (empty, with '=',
+/// ']' or a line break, starting with ';', '#' or '[', or an other_sections name the reader
+/// interprets, like "1000" or "FileInfo") are left out.
 std::string write_device_description(const DeviceDescription& device,
                                      const WriteOptions& options = {});
+
+/// The model as write_device_description() with these options represents it, i.e. what reading
+/// its output back gives (ignoring `line` fields): FileInfo stamped, CompactSubObj expanded
+/// (compact_sub_obj unset, sub_number = number of sub-objects), VAR entries named and typed like
+/// their object and without sub-objects beyond 0, values stored as the reader stores them
+/// (trimmed, comments cut from numbers, empty fixed-size values dropped), duplicate keys and
+/// other_sections merged, unwritable keys/sections dropped; for FileKind::Eds no ParameterValue,
+/// Denotation or commissioning. For models read from files this is the round-trip contract:
+/// parse(write(m, o)) == canonical_form(m, o).
+DeviceDescription canonical_form(DeviceDescription device, const WriteOptions& options = {});
 
 }  // namespace cfg

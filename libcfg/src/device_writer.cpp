@@ -1,0 +1,380 @@
+// The CiA 306 EDS/DCF writer. It writes canonical_form() of the model verbatim, so that what it
+// writes reads back as exactly that model (the round-trip contract in cfg/device_file.hpp).
+#include <algorithm>
+#include <array>
+#include <unordered_map>
+
+#include "cfg/device_file.hpp"
+#include "device_file_detail.hpp"
+#include "ini_scanner.hpp"
+
+namespace cfg {
+namespace {
+
+using detail::trim_blanks;
+
+// Text as one trimmed line: a line break inside would end the key or start a new one.
+std::string one_line(std::string_view text) {
+  std::string out(text);
+  std::replace(out.begin(), out.end(), '\r', ' ');
+  std::replace(out.begin(), out.end(), '\n', ' ');
+  return std::string(trim_blanks(out));
+}
+
+void clean_text(std::string& text) {
+  text = one_line(text);
+}
+
+void clean_text(std::optional<std::string>& text, bool drop_empty) {
+  if (!text) return;
+  clean_text(*text);
+  if (drop_empty && text->empty()) text.reset();
+}
+
+// A key that reads back as itself: not empty, no '=' (the first '=' ends the key), not taken
+// for a comment or a section header. Input is one_line()d.
+bool writable_key(std::string_view key) {
+  if (key.empty() || key.find('=') != std::string_view::npos) return false;
+  return key.front() != ';' && key.front() != '#' && key.front() != '[';
+}
+
+bool writable_section_name(std::string_view name) {
+  return !name.empty() && name.find(']') == std::string_view::npos &&
+         !detail::is_reserved_section_name(name);
+}
+
+struct CaseInsensitiveHash {
+  std::size_t operator()(std::string_view s) const {
+    std::size_t h = 1469598103934665603ULL;
+    for (char c : s) {
+      h ^= static_cast<unsigned char>((c >= 'A' && c <= 'Z') ? c - 'A' + 'a' : c);
+      h *= 1099511628211ULL;
+    }
+    return h;
+  }
+};
+struct CaseInsensitiveEqual {
+  bool operator()(std::string_view a, std::string_view b) const { return iequals(a, b); }
+};
+
+// Merges `from` into `into` as the reader does a repeated key: the first position, the later
+// value. Keys and values become single trimmed lines; unwritable keys go.
+void merge_key_values(KeyValues& into, KeyValues from) {
+  std::unordered_map<std::string, std::size_t, CaseInsensitiveHash, CaseInsensitiveEqual> index;
+  for (std::size_t i = 0; i < into.entries.size(); ++i) index.emplace(into.entries[i].first, i);
+  for (auto& [key, value] : from.entries) {
+    std::string k = one_line(key);
+    if (!writable_key(k)) continue;
+    std::string v = one_line(value);
+    auto it = index.find(k);
+    if (it != index.end()) {
+      into.entries[it->second].second = std::move(v);
+      continue;
+    }
+    index.emplace(k, into.entries.size());
+    into.entries.emplace_back(std::move(k), std::move(v));
+  }
+}
+
+KeyValues canonical_key_values(KeyValues kv) {
+  KeyValues out;
+  merge_key_values(out, std::move(kv));
+  return out;
+}
+
+// What the reader keeps of a number-valued key: the text before an inline comment.
+void cut_comment(std::string& value) {
+  const std::size_t c = detail::find_inline_comment(value);
+  if (c != std::string::npos)
+    value = std::string(trim_blanks(std::string_view(value).substr(0, c)));
+}
+
+// Proleptic Gregorian calendar date of a day count since 1970-01-01 (H. Hinnant's
+// days_from_civil inverse); no locale, no time zone: the stamp is UTC.
+struct Civil {
+  std::int64_t year;
+  unsigned month, day, hour, minute;
+};
+Civil civil_from_unix(std::int64_t t) {
+  std::int64_t days = t / 86400;
+  std::int64_t secs = t % 86400;
+  if (secs < 0) {
+    secs += 86400;
+    --days;
+  }
+  const std::int64_t z = days + 719468;
+  const std::int64_t era = (z >= 0 ? z : z - 146096) / 146097;
+  const auto doe = static_cast<std::uint64_t>(z - era * 146097);
+  const std::uint64_t yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+  const std::int64_t y = static_cast<std::int64_t>(yoe) + era * 400;
+  const std::uint64_t doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+  const std::uint64_t mp = (5 * doy + 2) / 153;
+  const auto d = static_cast<unsigned>(doy - (153 * mp + 2) / 5 + 1);
+  const auto m = static_cast<unsigned>(mp < 10 ? mp + 3 : mp - 9);
+  return {m <= 2 ? y + 1 : y, m, d, static_cast<unsigned>(secs / 3600),
+          static_cast<unsigned>((secs % 3600) / 60)};
+}
+
+std::string two_digits(unsigned v) {
+  return std::string{static_cast<char>('0' + v / 10 % 10), static_cast<char>('0' + v % 10)};
+}
+
+// CiA 306 §4.3 [FileInfo]: time "hh:mm(AM|PM)", date "mm-dd-yyyy".
+std::string stamp_time(const Civil& c) {
+  const unsigned h12 = c.hour % 12 == 0 ? 12 : c.hour % 12;
+  return two_digits(h12) + ":" + two_digits(c.minute) + (c.hour < 12 ? "AM" : "PM");
+}
+std::string stamp_date(const Civil& c) {
+  return two_digits(c.month) + "-" + two_digits(c.day) + "-" + std::to_string(c.year);
+}
+
+void apply_stamp(KeyValues& file_info, const WriteOptions::Stamp& stamp) {
+  const Civil c = civil_from_unix(stamp.unix_time_s);
+  const std::string time = stamp_time(c), date = stamp_date(c);
+  if (!file_info.find("CreatedBy")) file_info.set("CreatedBy", stamp.modified_by);
+  if (!file_info.find("CreationTime")) file_info.set("CreationTime", time);
+  if (!file_info.find("CreationDate")) file_info.set("CreationDate", date);
+  file_info.set("ModificationTime", time);
+  file_info.set("ModificationDate", date);
+  file_info.set("ModifiedBy", stamp.modified_by);
+}
+
+void canonical_entry(SubObject& s, FileKind kind) {
+  clean_text(s.name);
+  for (std::optional<std::string>* v :
+       {&s.default_value, &s.parameter_value, &s.low_limit, &s.high_limit}) {
+    if (!*v) continue;
+    *v = detail::normalize_value(one_line(**v), s.data_type).text;
+  }
+  clean_text(s.denotation, true);
+  clean_text(s.upload_file, true);
+  clean_text(s.download_file, true);
+  if (kind == FileKind::Eds) {
+    s.parameter_value.reset();
+    s.denotation.reset();
+  }
+}
+
+// ---- output
+class Out {
+ public:
+  explicit Out(LineEnding ending) : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n") {}
+
+  void section(std::string_view name) {
+    if (!text_.empty()) text_ += eol_;  // a blank line between sections
+    text_ += '[';
+    text_ += name;
+    text_ += ']';
+    text_ += eol_;
+  }
+  void key(std::string_view key, std::string_view value) {
+    text_ += key;
+    text_ += '=';
+    text_ += value;
+    text_ += eol_;
+  }
+  void optional_key(std::string_view k, const std::optional<std::string>& value) {
+    if (value) key(k, *value);
+  }
+  void key_values(const KeyValues& kv) {
+    for (const auto& [k, v] : kv.entries) key(k, v);
+  }
+  std::string take() { return std::move(text_); }
+  void reserve(std::size_t n) { text_.reserve(n); }
+
+ private:
+  std::string_view eol_;
+  std::string text_;
+};
+
+std::string hex(std::uint64_t v, int digits) {
+  static constexpr char kDigits[] = "0123456789ABCDEF";
+  std::string out;
+  do {
+    out.insert(out.begin(), kDigits[v & 0xF]);
+    v >>= 4;
+  } while (v != 0);
+  while (static_cast<int>(out.size()) < digits) out.insert(out.begin(), '0');
+  return "0x" + out;
+}
+
+std::string index_name(std::uint16_t index) {
+  return hex(index, 4).substr(2);
+}
+
+// The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them).
+void write_entry(Out& out, const SubObject& s, const std::optional<std::uint32_t>& obj_flags,
+                 FileKind kind) {
+  out.key("DataType", hex(s.data_type, 4));
+  out.key("AccessType", to_string(s.access));
+  out.optional_key("DefaultValue", s.default_value);
+  out.key("PDOMapping", s.pdo_mapping ? "1" : "0");
+  out.optional_key("LowLimit", s.low_limit);
+  out.optional_key("HighLimit", s.high_limit);
+  if (obj_flags) out.key("ObjFlags", hex(*obj_flags, 0));
+  if (kind == FileKind::Dcf) {
+    out.optional_key("ParameterValue", s.parameter_value);
+    out.optional_key("Denotation", s.denotation);
+  }
+  out.optional_key("UploadFile", s.upload_file);
+  out.optional_key("DownloadFile", s.download_file);
+}
+
+void write_object(Out& out, const Object& obj, FileKind kind) {
+  const std::string name = index_name(obj.index);
+  out.section(name);
+  out.key("ParameterName", obj.name);
+  out.key("ObjectType", hex(static_cast<unsigned>(obj.object_type), 0));
+  if (detail::var_like(obj.object_type)) {
+    if (const SubObject* s = obj.sub(0)) write_entry(out, *s, obj.obj_flags, kind);
+  } else {
+    if (obj.sub_number) out.key("SubNumber", hex(*obj.sub_number, 0));
+    if (obj.obj_flags) out.key("ObjFlags", hex(*obj.obj_flags, 0));
+    for (const auto& [sub, s] : obj.subs) {
+      out.section(name + "sub" + hex(sub, 0).substr(2));
+      out.key("ParameterName", s.name);
+      out.key("ObjectType", hex(static_cast<unsigned>(s.object_type), 0));
+      write_entry(out, s, s.obj_flags, kind);
+    }
+  }
+  if (!obj.object_links.empty()) {
+    out.section(name + "ObjectLinks");
+    out.key("ObjectLinks", std::to_string(obj.object_links.size()));
+    for (std::size_t i = 0; i < obj.object_links.size(); ++i) {
+      out.key(std::to_string(i + 1), hex(obj.object_links[i], 4));
+    }
+  }
+}
+
+void write_commissioning(Out& out, const DeviceCommissioning& c) {
+  // CiA 306 §4.7, with the standard's spelling of the section name.
+  out.section("DeviceComissioning");
+  if (c.node_id) out.key("NodeID", std::to_string(*c.node_id));
+  out.key("NodeName", c.node_name);
+  if (c.baudrate_kbps) out.key("Baudrate", std::to_string(*c.baudrate_kbps));
+  if (c.net_number) out.key("NetNumber", std::to_string(*c.net_number));
+  out.key("NetworkName", c.network_name);
+  if (c.canopen_manager) out.key("CANopenManager", *c.canopen_manager ? "1" : "0");
+  if (c.lss_serial_number) out.key("LSS_SerialNumber", hex(*c.lss_serial_number, 8));
+  out.key_values(c.other);
+}
+
+}  // namespace
+
+DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& options) {
+  if (options.stamp) apply_stamp(d.file_info, *options.stamp);
+  d.file_info = canonical_key_values(std::move(d.file_info));
+  d.device_info = canonical_key_values(std::move(d.device_info));
+  for (auto& [key, value] : d.device_info.entries) {
+    if (detail::is_numeric_device_info_key(key)) cut_comment(value);
+  }
+  d.dummy_usage = canonical_key_values(std::move(d.dummy_usage));
+  for (auto& [key, value] : d.dummy_usage.entries) cut_comment(value);
+  for (std::string& line : d.comments) clean_text(line);
+
+  d.objects.erase(0);  // index 0000h is no object (CiA 301)
+  for (auto& [index, obj] : d.objects) {
+    obj.index = index;
+    clean_text(obj.name);
+    obj.compact_sub_obj.reset();
+    if (detail::var_like(obj.object_type)) {
+      SubObject entry;
+      if (SubObject* s = obj.sub(0)) entry = std::move(*s);
+      obj.subs.clear();
+      entry.sub_index = 0;
+      entry.name = obj.name;
+      entry.object_type = obj.object_type;
+      entry.obj_flags.reset();
+      canonical_entry(entry, options.kind);
+      obj.subs.emplace(0, std::move(entry));
+      obj.sub_number.reset();
+    } else {
+      for (auto& [sub, s] : obj.subs) {
+        s.sub_index = sub;
+        canonical_entry(s, options.kind);
+      }
+      if (obj.subs.size() <= 0xFF) {
+        obj.sub_number = static_cast<std::uint8_t>(obj.subs.size());
+      } else {
+        obj.sub_number.reset();
+      }
+    }
+  }
+
+  if (options.kind == FileKind::Eds) {
+    d.commissioning.reset();
+  } else if (d.commissioning) {
+    DeviceCommissioning& c = *d.commissioning;
+    if (c.node_id && (*c.node_id < 1 || *c.node_id > 127)) c.node_id.reset();
+    clean_text(c.node_name);
+    clean_text(c.network_name);
+    KeyValues other = canonical_key_values(std::move(c.other));
+    c.other.entries.clear();
+    // Keys the reader takes into the fields above cannot come back as `other`.
+    static constexpr std::array<std::string_view, 7> kKnown = {
+        "NodeID",      "NodeName",       "Baudrate",        "NetNumber",
+        "NetworkName", "CANopenManager", "LSS_SerialNumber"};
+    for (auto& kv : other.entries) {
+      const bool known = std::any_of(kKnown.begin(), kKnown.end(),
+                                     [&](std::string_view k) { return iequals(kv.first, k); });
+      if (!known) c.other.entries.push_back(std::move(kv));
+    }
+  }
+
+  std::vector<RawSection> others;
+  std::unordered_map<std::string, std::size_t, CaseInsensitiveHash, CaseInsensitiveEqual> index;
+  for (RawSection& section : d.other_sections) {
+    std::string name = one_line(section.name);
+    if (!writable_section_name(name)) continue;
+    auto [it, inserted] = index.emplace(name, others.size());
+    if (inserted) others.push_back({std::move(name), {}});
+    merge_key_values(others[it->second].keys, std::move(section.keys));
+  }
+  d.other_sections = std::move(others);
+  return d;
+}
+
+std::string write_device_description(const DeviceDescription& device, const WriteOptions& options) {
+  const DeviceDescription d = canonical_form(device, options);
+  Out out(options.line_ending);
+  std::size_t subs = 0;
+  for (const auto& [index, obj] : d.objects) subs += obj.subs.size() + 1;
+  out.reserve(subs * 160 + 4096);
+
+  out.section("FileInfo");
+  out.key_values(d.file_info);
+  out.section("DeviceInfo");
+  out.key_values(d.device_info);
+  if (!d.dummy_usage.entries.empty()) {
+    out.section("DummyUsage");
+    out.key_values(d.dummy_usage);
+  }
+  if (!d.comments.empty()) {
+    out.section("Comments");
+    out.key("Lines", std::to_string(d.comments.size()));
+    for (std::size_t i = 0; i < d.comments.size(); ++i) {
+      out.key("Line" + std::to_string(i + 1), d.comments[i]);
+    }
+  }
+  // CiA 306 §4.5: the object lists, each with SupportedObjects and entries 1..n.
+  for (ObjectList list : {ObjectList::Mandatory, ObjectList::Optional, ObjectList::Manufacturer}) {
+    std::vector<std::uint16_t> indices;
+    for (const auto& [index, obj] : d.objects) {
+      if (object_list_for(index) == list) indices.push_back(index);
+    }
+    out.section(to_string(list));
+    out.key("SupportedObjects", std::to_string(indices.size()));
+    for (std::size_t i = 0; i < indices.size(); ++i) {
+      out.key(std::to_string(i + 1), hex(indices[i], 4));
+    }
+  }
+  for (const auto& [index, obj] : d.objects) write_object(out, obj, options.kind);
+  if (options.kind == FileKind::Dcf && d.commissioning) write_commissioning(out, *d.commissioning);
+  for (const RawSection& section : d.other_sections) {
+    out.section(section.name);
+    out.key_values(section.keys);
+  }
+  return out.take();
+}
+
+}  // namespace cfg

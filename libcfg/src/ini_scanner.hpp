@@ -1,0 +1,53 @@
+// Private to libcfg: splits EDS/DCF text into lines and drives inih over them.
+//
+// Debian's inih is compiled with a 200-byte line limit (longer lines are cut and the rest parsed
+// as a new line), inline ';' comments after whitespace, and indented lines treated as
+// continuations; real device files break all three. Its settings are process-global variables
+// that a library must not touch. So the scanner classifies each physical line itself and hands
+// inih only short tokens: `[<line>]` plus an open marker for a section header, `<line>=` for a
+// key line. inih drives the structure (sections and the entries in them); the text itself (name,
+// key, value as string_views into the caller's buffer) is handed to the sink directly, so no line
+// limit, comment or continuation rule can corrupt data. Nothing is allocated per line.
+#pragma once
+
+#include <string_view>
+
+namespace cfg::detail {
+
+/// Receives the lines of an INI text in file order. Line numbers are 1-based. Views point into
+/// the scanned text and are valid as long as it is.
+class IniSink {
+ public:
+  virtual ~IniSink() = default;
+  /// `[name]trailing`: name and trailing text trimmed; `closed` is false when ']' is missing
+  /// (then name is the rest of the line).
+  virtual void on_section(int line, std::string_view name, std::string_view trailing,
+                          bool closed) = 0;
+  /// `key=value`, both trimmed of blanks; the value is taken verbatim up to the end of the line
+  /// (comments in it are the sink's business, they depend on the key).
+  virtual void on_key(int line, std::string_view key, std::string_view value) = 0;
+  /// A whole-line comment; `marker` is ';' (CiA 306) or '#'.
+  virtual void on_comment(int line, char marker) = 0;
+  /// A line that is neither blank, a comment, a section header nor has an '='.
+  virtual void on_junk(int line, std::string_view text) = 0;
+};
+
+/// Scans `text` (no BOM handling: strip it first). Lines end at LF, CRLF or a lone CR; a
+/// missing final line end is fine. Returns false only if inih disagreed with the scanner about
+/// the structure (a bug, not bad input).
+bool scan_ini(std::string_view text, IniSink& sink);
+
+/// Blank for the purposes of trimming: space, tab, vertical tab, form feed.
+constexpr bool is_blank(char c) {
+  return c == ' ' || c == '\t' || c == '\v' || c == '\f';
+}
+
+constexpr std::string_view trim_blanks(std::string_view s) {
+  std::size_t b = 0;
+  while (b < s.size() && is_blank(s[b])) ++b;
+  std::size_t e = s.size();
+  while (e > b && is_blank(s[e - 1])) --e;
+  return s.substr(b, e - b);
+}
+
+}  // namespace cfg::detail
