@@ -1,0 +1,120 @@
+// A virtual CAN bus over IPv4 UDP multicast that interoperates with python-can's `udp_multicast`
+// interface (python-can 4.1: can/interfaces/udp_multicast). Every member of the group hears every
+// frame; there is no arbitration, no acknowledgement and no guaranteed delivery or order.
+//
+// Wire format (python-can's pack_message): one MessagePack map per datagram with exactly the keys
+// timestamp (float64, seconds since the Unix epoch), arbitration_id, is_extended_id,
+// is_remote_frame, is_error_frame, channel (nil), dlc, data (bin), is_fd, bitrate_switch and
+// error_state_indicator. python-can builds a can.Message(check=True) from the map, so one
+// datagram with an unknown key or an inconsistent field stops its receive thread for good: we
+// never send anything else.
+//
+// URL: `udp://[GROUP][:PORT][?iface=ADDR&ttl=N]`, default `udp://239.74.163.2:43113`.
+//   GROUP  an IPv4 multicast address (224.0.0.0/4). IPv6 is not supported.
+//   PORT   UDP port, 1..65535. Groups on the same port are kept apart (we bind to the group),
+//          but python-can binds to the port on every address and hears all groups on it.
+//   iface  the IPv4 address of the local interface to send and join on. Default 127.0.0.1:
+//          the bus stays on this machine. Give the address of a LAN interface to reach other
+//          machines (then also raise ttl if the group must cross routers).
+//   ttl    IPv4 multicast time to live, 1..255, default 1 (never leaves the local link).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cfg/result.hpp"
+#include "nmt/bus.hpp"
+#include "nmt/frame.hpp"
+
+namespace nmt {
+
+/// Where and how a UdpBus joins its group. All addresses are dotted-quad IPv4 text.
+struct UdpBusOptions {
+  std::string group = "239.74.163.2";  ///< python-can's DEFAULT_GROUP_IPv4
+  std::uint16_t port = 43113;          ///< python-can's default port
+  std::string interface_address = "127.0.0.1";
+  std::uint8_t ttl = 1;
+  /// Longest total time send() waits for room in the socket's send buffer before failing.
+  Duration send_timeout = std::chrono::milliseconds(1000);
+  /// Requested receive buffer (SO_RCVBUF), bytes; the kernel caps it at net.core.rmem_max.
+  int receive_buffer_bytes = 4 << 20;
+};
+
+/// Parses a `udp://` URL (see the top of this file). Fails with a message naming the URL and the
+/// accepted form.
+cfg::Result<UdpBusOptions> parse_udp_url(std::string_view url);
+/// The URL that parse_udp_url() turns back into `options` (query only for non-defaults).
+std::string to_udp_url(const UdpBusOptions& options);
+
+/// Encodes `frame` as one python-can datagram; `timestamp_s` is seconds since the Unix epoch.
+/// Fails (without encoding) on a frame python-can would reject: id out of range for its format,
+/// dlc > 8, or both `rtr` and `error` set.
+cfg::Result<std::vector<std::uint8_t>> encode_udp_datagram(const CanFrame& frame,
+                                                           double timestamp_s);
+/// Decodes one datagram. Accepts what python-can itself accepts (missing keys take can.Message's
+/// defaults, e.g. is_extended_id true) and ignores unknown keys. Fails with the reason on
+/// anything else: not MessagePack, trailing bytes, a field of the wrong type or out of range,
+/// CAN FD frames (not supported). Error frames come back with `extended` set, as SocketCanBus
+/// reports them. The datagram's timestamp is ignored: the receiver stamps frames itself.
+cfg::Result<CanFrame> decode_udp_datagram(std::span<const std::uint8_t> datagram);
+
+/// What a UdpBus has dropped, for diagnostics.
+struct UdpBusCounters {
+  std::uint64_t own_datagrams = 0;  ///< our own frames, looped back by the kernel and dropped
+  std::uint64_t rejected = 0;       ///< datagrams decode_udp_datagram() refused (skipped)
+  std::uint64_t send_waits = 0;     ///< times send() found the send buffer full and waited
+};
+
+/// One member of a multicast group. Owns two sockets: one bound to the group's port that joins
+/// the group (receive), and one with an ephemeral port that sends, so our own looped-back
+/// datagrams are recognised by their source address and dropped. Not thread-safe: one event loop
+/// owns it.
+class UdpBus final : public Bus {
+ public:
+  /// Opens both sockets and joins the group. Fails with a message on an invalid address, a
+  /// `interface_address` that is not a local IPv4 address, or any socket error.
+  static cfg::Result<std::unique_ptr<UdpBus>> open(const UdpBusOptions& options);
+  ~UdpBus() override;
+  UdpBus(const UdpBus&) = delete;
+  UdpBus& operator=(const UdpBus&) = delete;
+
+  /// Sends one datagram to the group. Refuses frames python-can would reject (see
+  /// encode_udp_datagram); error frames may be sent (python-can carries them too). Waits up to
+  /// `send_timeout` for buffer space, then fails.
+  cfg::Status send(const CanFrame& frame) override;
+  /// Waits up to `timeout` for a frame from another member, skipping our own datagrams and
+  /// malformed ones (counted in counters()). The timestamp is the steady (monotonic) clock at
+  /// reception, microseconds since that clock's epoch. Fails only on a socket error.
+  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
+  /// The URL that opens an equivalent bus (to_udp_url).
+  std::string url() const override;
+
+  /// The receive socket, for an event loop that polls several sources. Stays owned by the bus.
+  int native_handle() const { return receive_fd_; }
+  const UdpBusCounters& counters() const { return counters_; }
+  /// Why the last rejected datagram was refused; empty if none was.
+  const std::string& last_rejection() const { return last_rejection_; }
+
+ private:
+  UdpBus(UdpBusOptions options, int receive_fd, int send_fd);
+
+  UdpBusOptions options_;
+  int receive_fd_;
+  int send_fd_;
+  std::uint32_t group_be_ = 0;        ///< group address, network byte order
+  std::uint32_t own_address_be_ = 0;  ///< send socket's local address, network byte order
+  std::uint16_t own_port_be_ = 0;     ///< send socket's local port, network byte order
+  UdpBusCounters counters_;
+  std::string last_rejection_;
+};
+
+/// Opens a UdpBus from a `udp://` URL (parse_udp_url + UdpBus::open).
+cfg::Result<std::unique_ptr<Bus>> open_udp_bus(std::string_view url);
+
+}  // namespace nmt

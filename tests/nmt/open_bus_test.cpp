@@ -1,0 +1,54 @@
+// nmt::open_bus: URL dispatch and its messages. Opening a UDP bus sends nothing but joins a
+// group, so that case runs with the other multicast tests (UdpBus.OpensThroughOpenBus).
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "nmt/bus.hpp"
+
+namespace nmt {
+namespace {
+
+void expect_names_url_and_forms(const std::string& url) {
+  auto bus = open_bus(url);
+  ASSERT_FALSE(bus.ok()) << url;
+  const std::string& message = bus.error().message;
+  EXPECT_NE(message.find("'" + url + "'"), std::string::npos) << message;
+  EXPECT_NE(message.find("socketcan:IFNAME"), std::string::npos) << message;
+  EXPECT_NE(message.find("udp://GROUP:PORT"), std::string::npos) << message;
+}
+
+TEST(OpenBus, RejectsUnknownSchemesNamingTheAcceptedForms) {
+  for (const char* url : {"", "can0", "tcp://239.74.163.2:43113", "UDP://239.74.163.2:43113",
+                          "socketcan", "virtual:0"}) {
+    expect_names_url_and_forms(url);
+  }
+}
+
+TEST(OpenBus, RejectsSocketcanWithoutAValidInterfaceName) {
+  for (const char* url :
+       {"socketcan:", "socketcan:a/b", "socketcan:can 0", "socketcan:sixteen_chars_xx"}) {
+    expect_names_url_and_forms(url);
+  }
+}
+
+TEST(OpenBus, RejectsBadUdpUrls) {
+  for (const char* url : {"udp://10.0.0.1:43113", "udp://239.74.163.2:99999", "udp://[ff15::1]"}) {
+    auto bus = open_bus(url);
+    ASSERT_FALSE(bus.ok()) << url;
+    EXPECT_NE(bus.error().message.find(url), std::string::npos) << bus.error().message;
+    EXPECT_NE(bus.error().message.find("udp://GROUP:PORT"), std::string::npos);
+  }
+}
+
+TEST(OpenBus, SocketcanInterfaceThatDoesNotExistFailsNamingTheUrl) {
+  // Fails either for lack of CAN support or because there is no such interface; no frame is
+  // sent in either case.
+  auto bus = open_bus("socketcan:nmtnosuch0");
+  ASSERT_FALSE(bus.ok());
+  EXPECT_NE(bus.error().message.find("socketcan:nmtnosuch0"), std::string::npos)
+      << bus.error().message;
+}
+
+}  // namespace
+}  // namespace nmt
