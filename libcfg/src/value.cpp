@@ -4,7 +4,8 @@
 // - Signed types accept hex literals as the two's complement bit pattern of the type's width
 //   ("0x80000000" is INTEGER32 -2147483648, "0xFFFFFFFFFFFFFFF6" is INTEGER64 -10), because real
 //   device files write limits that way. Decimal text is range-checked as written.
-// - TIME_OF_DAY / TIME_DIFFERENCE text is the 48-bit raw value (CiA 301 §7.1.6.5: 28 bits of
+// - TIME_OF_DAY / TIME_DIFFERENCE text is the 48-bit raw value (CiA 301 §7.1, TIME_OF_DAY: 28 bits
+// of
 //   milliseconds, 4 reserved bits, 16 bits of days), written like an unsigned integer.
 // - REAL text is decimal floating point (exponent allowed) plus "inf", "-inf" and "nan", so that
 //   every value decode() can produce formats to text that reads back.

@@ -16,7 +16,7 @@ struct Row {
   std::uint8_t size_bytes;  // 0: variable size
 };
 
-// CiA 301 Table 44 with the sizes of §7.1.4-§7.1.6 (INTEGERn / UNSIGNEDn are n/8 bytes,
+// CiA 301 Table 44 with the sizes of §7.1 (INTEGERn / UNSIGNEDn are n/8 bytes,
 // TIME_OF_DAY and TIME_DIFFERENCE 48 bits).
 constexpr Row kCia301Types[] = {
     {0x0001, "BOOLEAN", 1},         {0x0002, "INTEGER8", 1},       {0x0003, "INTEGER16", 2},

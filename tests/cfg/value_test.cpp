@@ -34,7 +34,7 @@ Bytes encoded(DataType type, std::string_view text) {
   return encode(parsed(type, text));
 }
 
-// ---- Ranges (CiA 301 §7.1.4/§7.1.5: INTEGERn is two's complement, UNSIGNEDn 0..2^n-1) ----
+// ---- Ranges (CiA 301 §7.1: INTEGERn is two's complement, UNSIGNEDn 0..2^n-1) ----
 
 TEST(Value, IntegerRangesFollowTheirBitWidth) {
   EXPECT_EQ(signed_min(DataType::Integer8), -128);
@@ -141,7 +141,7 @@ TEST(Value, NodeIdFormulasInAnyCaseSpacingAndOrder) {
     EXPECT_EQ(parsed(DataType::Unsigned32, text, 5).as_unsigned(), 0x185U);
   }
   EXPECT_EQ(parsed(DataType::Unsigned8, "$NODEID", 127).as_unsigned(), 127U);
-  // EMCY COB-ID with the "invalid" bit kept (CiA 301 §7.5.2.7 bit 31).
+  // EMCY COB-ID with the "invalid" bit kept (CiA 301 §7.5.2, object 1014h, bit 31).
   EXPECT_EQ(parsed(DataType::Unsigned32, "$NODEID+0x80000080", 3).as_unsigned(), 0x80000083U);
 }
 
