@@ -1,2 +1,36 @@
-// Placeholder until the cfgmgr commands land.
-int main() { return 0; }
+// cfgmgr: the CANopen configuration manager's command line. Each subcommand lives in its own
+// file (commands.hpp); this file only builds the app and maps errors to exit codes.
+#include <CLI/CLI.hpp>
+
+#include <exception>
+#include <iostream>
+#include <string>
+
+#include "../common/tool_support.hpp"
+#include "commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "CANopen configuration manager: check, format and (later) download device "
+      "configurations (CiA 302, CiA 306).",
+      "cfgmgr"};
+  app.require_subcommand(1);
+  app.footer(std::string("Run 'cfgmgr COMMAND --help' for a command's options and examples.\n\n") +
+             std::string(tools::kExitCodesHelp));
+
+  cfgmgr::add_check_command(app);
+  cfgmgr::add_fmt_command(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::RuntimeError& e) {
+    return e.get_exit_code();  // a command's own exit code (cfgmgr::exit_with)
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? tools::kExitOk : tools::kExitUsage;
+  } catch (const std::exception& e) {
+    std::cerr << "cfgmgr: error: " << e.what() << '\n';
+    return tools::kExitIo;
+  }
+  return tools::kExitOk;
+}

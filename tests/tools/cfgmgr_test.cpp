@@ -1,0 +1,174 @@
+// cfgmgr end to end: `check` and `fmt` on samples/ and tests/data/check/ (files written for these
+// tests; each says in its first lines what is wrong with it and where).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "tool_test_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using ::testing::Not;
+using tool_test::data_path;
+using tool_test::Json;
+using tool_test::run;
+using tool_test::ScratchDir;
+
+std::vector<std::string> sample_files() {
+  std::vector<std::string> files;
+  const fs::path samples(CANOPEN_SAMPLES_DIR);
+  if (!fs::exists(samples)) return files;
+  for (const auto& e : fs::recursive_directory_iterator(samples)) {
+    const auto ext = e.path().extension();
+    if (ext == ".eds" || ext == ".dcf") files.push_back(e.path().string());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+TEST(Cfgmgr, HelpListsCommandsAndExitCodes) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"--help"}, dir.path());
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.out, HasSubstr("check"));
+  EXPECT_THAT(r.out, HasSubstr("fmt"));
+  EXPECT_THAT(r.out, HasSubstr("Exit codes:"));
+  auto check_help = run("cfgmgr", {"check", "--help"}, dir.path());
+  EXPECT_EQ(check_help.exit_code, 0);
+  EXPECT_THAT(check_help.out, HasSubstr("Examples:"));
+}
+
+TEST(Cfgmgr, UsageErrorsExitWith2) {
+  ScratchDir dir;
+  EXPECT_EQ(run("cfgmgr", {}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("cfgmgr", {"no-such-command"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("cfgmgr", {"check"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("cfgmgr", {"fmt"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "--eds", "--dcf"}, dir.path())
+                .exit_code,
+            2);
+}
+
+TEST(Cfgmgr, CheckAcceptsEverySample) {
+  auto files = sample_files();
+  if (files.empty()) GTEST_SKIP() << "no samples";
+  ScratchDir dir;
+  auto r = run(
+      "cfgmgr",
+      [&] {
+        std::vector<std::string> args{"check"};
+        args.insert(args.end(), files.begin(), files.end());
+        return args;
+      }(),
+      dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, Not(HasSubstr("error:")));
+  // One summary line per file on stdout.
+  EXPECT_EQ(static_cast<std::size_t>(std::count(r.out.begin(), r.out.end(), '\n')), files.size());
+}
+
+TEST(Cfgmgr, CheckWarningIsNotAFailureUnlessStrict) {
+  ScratchDir dir;
+  const std::string file = data_path("check/bad_access_type.eds");
+  auto tolerant = run("cfgmgr", {"check", file}, dir.path());
+  EXPECT_EQ(tolerant.exit_code, 0) << tolerant.err;
+  // Line 75 of the file: AccessType=bogus.
+  EXPECT_THAT(tolerant.err, HasSubstr("bad_access_type.eds:75: warning: [2000] AccessType"));
+  auto strict = run("cfgmgr", {"check", "--strict", file}, dir.path());
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_THAT(strict.err, HasSubstr("bad_access_type.eds:75: error: [2000] AccessType"));
+}
+
+TEST(Cfgmgr, CheckReportsErrorsAndKeepsGoing) {
+  ScratchDir dir;
+  auto r =
+      run("cfgmgr", {"check", data_path("check/not_a_device.eds"), data_path("concise/node5.dcf")},
+          dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.err, HasSubstr("not_a_device.eds: error:"));
+  EXPECT_THAT(r.out, HasSubstr("node5.dcf: 0 errors"));
+}
+
+TEST(Cfgmgr, CheckMissingFileIsAnIoError) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"check", dir / "absent.eds", data_path("concise/node5.dcf")}, dir.path());
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_THAT(r.err, HasSubstr("absent.eds"));
+}
+
+TEST(Cfgmgr, CheckJsonHasOneReportPerFile) {
+  ScratchDir dir;
+  auto r = run("cfgmgr",
+               {"check", "--json", data_path("check/bad_access_type.eds"),
+                data_path("check/not_a_device.eds")},
+               dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  tool_test::JsonParser parser(r.out);
+  auto json = parser.parse();
+  ASSERT_TRUE(json.has_value()) << parser.error() << "\n" << r.out;
+  EXPECT_FALSE(json->get("ok")->boolean);
+  const auto& files = json->get("files")->array;
+  ASSERT_EQ(files.size(), 2u);
+  EXPECT_TRUE(files[0].get("ok")->boolean);
+  EXPECT_EQ(files[0].get("errors")->number, 0);
+  EXPECT_GE(files[0].get("warnings")->number, 1);
+  EXPECT_EQ(files[0].get("objects")->number, 4);  // 1000h, 1001h, 1018h, 2000h
+  const auto& diagnostic = files[0].get("diagnostics")->array.at(0);
+  EXPECT_EQ(diagnostic.get("line")->number, 75);
+  EXPECT_EQ(diagnostic.get("severity")->string, "warning");
+  EXPECT_FALSE(files[1].get("ok")->boolean);
+  EXPECT_GE(files[1].get("errors")->number, 1);
+}
+
+TEST(Cfgmgr, FmtWritesCanonicalCrlfThatReadsBack) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "-o", dir / "a.dcf"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string first = tool_test::slurp(dir / "a.dcf");
+  EXPECT_THAT(first, HasSubstr("\r\n"));  // CiA 306 files are CRLF by convention
+  EXPECT_THAT(first, HasSubstr("ParameterValue=1000"));
+  EXPECT_EQ(run("cfgmgr", {"check", "--strict", dir / "a.dcf"}, dir.path()).exit_code, 0);
+  // Canonical form is a fixed point.
+  auto again = run("cfgmgr", {"fmt", dir / "a.dcf"}, dir.path());
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(again.out, first);
+}
+
+TEST(Cfgmgr, FmtLfAndEds) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "--eds", "--lf"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, Not(HasSubstr("\r")));
+  EXPECT_THAT(r.out, Not(HasSubstr("ParameterValue")));  // an EDS carries no configuration
+  EXPECT_THAT(r.out, Not(HasSubstr("[DeviceComissioning]")));
+  EXPECT_THAT(r.out, HasSubstr("[1017]"));
+}
+
+TEST(Cfgmgr, FmtInPlaceReplacesTheFile) {
+  ScratchDir dir;
+  fs::copy_file(data_path("concise/node5.dcf"), dir / "n.dcf");
+  auto r = run("cfgmgr", {"fmt", "n.dcf", "-o", "n.dcf", "--lf"}, dir.path(), dir.path().string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(tool_test::slurp(dir / "n.dcf"), Not(HasSubstr("; Test DCF written")));
+  for (const auto& name : dir.files()) EXPECT_THAT(name, Not(HasSubstr("tmp"))) << name;
+}
+
+TEST(Cfgmgr, FmtDoesNotWriteAFileWithErrors) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"fmt", data_path("check/not_a_device.eds"), "-o", dir / "out.eds"},
+               dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.err, HasSubstr("not_a_device.eds: error:"));
+  EXPECT_FALSE(fs::exists(dir / "out.eds"));
+  EXPECT_EQ(run("cfgmgr", {"fmt", dir / "absent.eds"}, dir.path()).exit_code, 3);
+}
+
+}  // namespace

@@ -1,0 +1,375 @@
+// dcf2concise end to end: the built binary on tests/data/concise/ (written for these tests),
+// samples/network/ and the corpus. Expected entries come from the DCF text (values as written
+// there) and the order from DSP 302 v3.2.1 §6.2; outputs are decoded back with libcfg.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cfg/concise_dcf.hpp"
+#include "concise_test_support.hpp"
+#include "tool_test_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using cfg::ObjectWrite;
+using test_support::u16;
+using test_support::u32;
+using test_support::u8;
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+using ::testing::Not;
+using tool_test::data_path;
+using tool_test::run;
+using tool_test::ScratchDir;
+
+std::vector<ObjectWrite> decode_file(const std::string& path) {
+  auto entries = cfg::decode_concise_dcf(test_support::read_bytes(path));
+  EXPECT_TRUE(entries.ok()) << path << ": " << entries.error().message;
+  return entries.ok() ? *entries : std::vector<ObjectWrite>{};
+}
+
+std::vector<ObjectWrite> decode_string(const std::string& bytes) {
+  std::vector<std::uint8_t> data(bytes.begin(), bytes.end());
+  auto entries = cfg::decode_concise_dcf(data);
+  EXPECT_TRUE(entries.ok()) << entries.error().message;
+  return entries.ok() ? *entries : std::vector<ObjectWrite>{};
+}
+
+// node5.dcf (NodeID=5): 1017h ParameterValue=1000; RPDO1 with 1400h sub 2 = 1, COB-ID default
+// $NODEID+0x200, mapping 2 entries; 1F50h sub 1 DownloadFile=node5_program.bin
+// ("CANopen\0\xFF"). Not: 1000h/1001h/1018h (ro), 1010h (store command), 2000h (no value).
+const ObjectWrite kProgram{0x1F50, 1, {'C', 'A', 'N', 'o', 'p', 'e', 'n', 0x00, 0xFF}};
+std::vector<ObjectWrite> node5_writes(std::uint32_t cob_id = 0x205) {
+  return {u16(0x1017, 0, 1000),
+          u32(0x1400, 1, 0x80000000 | cob_id),
+          u8(0x1400, 2, 1),
+          u8(0x1600, 0, 0),
+          u32(0x1600, 1, 0x20000008),
+          u32(0x1600, 2, 0x60400010),
+          u8(0x1600, 0, 2),
+          u32(0x1400, 1, cob_id),
+          kProgram};
+}
+
+// A copy of tests/data/concise/ in the scratch directory, for runs that write beside the input.
+void copy_concise_data(const ScratchDir& dir) {
+  for (const auto& e : fs::directory_iterator(data_path("concise"))) {
+    fs::copy_file(e.path(), dir.path() / e.path().filename());
+  }
+}
+
+TEST(Dcf2Concise, HelpDocumentsExitCodesAndExamples) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {"--help"}, dir.path());
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.out, HasSubstr("Exit codes:"));
+  EXPECT_THAT(r.out, HasSubstr("2  usage error"));
+  EXPECT_THAT(r.out, HasSubstr("Examples:"));
+  EXPECT_THAT(r.out, HasSubstr("--decode"));
+}
+
+TEST(Dcf2Concise, UsageErrorsExitWith2) {
+  ScratchDir dir;
+  const std::string dcf = data_path("concise/node5.dcf");
+  EXPECT_EQ(run("dcf2concise", {}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("dcf2concise", {dcf, "--node-id", "128"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("dcf2concise", {dcf, "--node-id", "0"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("dcf2concise", {dcf, "--changed-only", "--with-defaults"}, dir.path()).exit_code,
+            2);
+  EXPECT_EQ(run("dcf2concise", {"--decode", dcf, "--node-id", "3"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("dcf2concise", {dcf, "--dcf", dcf}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("dcf2concise", {dcf, "--json", "-o", "-"}, dir.path()).exit_code, 2);
+  EXPECT_EQ(run("dcf2concise", {dcf, "--no-such-option"}, dir.path()).exit_code, 2);
+  EXPECT_THAT(dir.files(), ::testing::IsEmpty());
+}
+
+TEST(Dcf2Concise, MissingInputIsAnIoError) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {dir / "absent.dcf", "-o", dir / "out.bin"}, dir.path());
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_THAT(r.err, HasSubstr("absent.dcf"));
+  EXPECT_FALSE(fs::exists(dir / "out.bin"));
+}
+
+TEST(Dcf2Concise, UnwritableOutputIsAnIoError) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "no/such/dir/out.bin"},
+               dir.path());
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_THAT(r.err, HasSubstr("out.bin"));
+}
+
+TEST(Dcf2Concise, ConvertsADcfInPdoSafeOrder) {
+  ScratchDir dir;
+  // Run from the scratch directory: DownloadFile must be found beside the DCF, not in the cwd.
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "node5.bin"}, dir.path(),
+               dir.path().string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(decode_file(dir / "node5.bin"), node5_writes());
+}
+
+TEST(Dcf2Concise, DefaultOutputIsTheInputWithExtensionBin) {
+  ScratchDir dir;
+  copy_concise_data(dir);
+  auto r = run("dcf2concise", {"node5.dcf"}, dir.path(), dir.path().string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(decode_file(dir / "node5.bin"), node5_writes());
+}
+
+TEST(Dcf2Concise, DashWritesTheStreamToStdout) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", "-"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(decode_string(r.out), node5_writes());
+}
+
+TEST(Dcf2Concise, NodeIdOptionOverridesCommissioning) {
+  ScratchDir dir;
+  auto r =
+      run("dcf2concise", {data_path("concise/node5.dcf"), "-o", "-", "--node-id", "9"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(decode_string(r.out), node5_writes(0x209));  // CiA 301: RPDO1 = 200h + node-ID
+}
+
+TEST(Dcf2Concise, ChangedOnlyKeepsValuesThatDifferFromDefaults) {
+  ScratchDir dir;
+  auto r =
+      run("dcf2concise", {data_path("concise/node5.dcf"), "-o", "-", "--changed-only"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // 1600h sub 1 equals its DefaultValue and is left out; sub 0 (2, default 1) stays.
+  EXPECT_THAT(decode_string(r.out),
+              ElementsAre(u16(0x1017, 0, 1000), u32(0x1400, 1, 0x80000205), u8(0x1400, 2, 1),
+                          u8(0x1600, 0, 0), u32(0x1600, 2, 0x60400010), u8(0x1600, 0, 2),
+                          u32(0x1400, 1, 0x205), kProgram));
+}
+
+TEST(Dcf2Concise, WithDefaultsAddsWritableDefaults) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", "-", "--with-defaults"},
+               dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto expected = node5_writes();
+  expected.push_back(u8(0x2000, 0, 0));  // rww, DefaultValue=0
+  EXPECT_EQ(decode_string(r.out), expected);
+}
+
+TEST(Dcf2Concise, ValueErrorIsReportedWithFileAndLineAndNoOutputIsLeft) {
+  ScratchDir dir;
+  copy_concise_data(dir);
+  { std::ofstream(dir / "out.bin") << "old"; }
+  auto r = run("dcf2concise", {"bad_value.dcf", "-o", "out.bin"}, dir.path(), dir.path().string());
+  EXPECT_EQ(r.exit_code, 1);
+  // [1017] starts at line 86 of bad_value.dcf; ParameterValue=70000 does not fit UNSIGNED16.
+  EXPECT_THAT(r.err, HasSubstr("bad_value.dcf:86: error: [1017] ParameterValue '70000'"));
+  EXPECT_EQ(tool_test::slurp(dir / "out.bin"), "old");  // untouched
+  for (const auto& name : dir.files()) EXPECT_THAT(name, Not(HasSubstr("tmp"))) << name;
+  EXPECT_FALSE(fs::exists(dir / "bad_value.bin"));
+}
+
+TEST(Dcf2Concise, MissingNodeIdIsAnError) {
+  ScratchDir dir;
+  auto r =
+      run("dcf2concise", {data_path("concise/no_node_id.dcf"), "-o", dir / "out.bin"}, dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.err, HasSubstr("no_node_id.dcf:125: error: [1400sub1]"));
+  EXPECT_THAT(r.err, HasSubstr("no node-ID"));
+  EXPECT_FALSE(fs::exists(dir / "out.bin"));
+  // With a node-ID it converts.
+  auto with_id =
+      run("dcf2concise", {data_path("concise/no_node_id.dcf"), "-o", "-", "--node-id", "5"},
+          dir.path());
+  EXPECT_EQ(with_id.exit_code, 0) << with_id.err;
+  EXPECT_EQ(decode_string(with_id.out), node5_writes());
+}
+
+TEST(Dcf2Concise, MissingDownloadFileIsAnError) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/missing_file.dcf"), "-o", dir / "out.bin"},
+               dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.err, HasSubstr("missing_file.dcf:192: error: [1F50sub1] DownloadFile"));
+  EXPECT_FALSE(fs::exists(dir / "out.bin"));
+}
+
+TEST(Dcf2Concise, StrictMakesDeviationsErrors) {
+  ScratchDir dir;
+  copy_concise_data(dir);
+  std::string text = tool_test::slurp(dir / "node5.dcf");
+  // [2000] "AccessType=rww" -> "AccessType=RWW": CiA 306 writes access types in lower case.
+  const auto at = text.find("AccessType=rww");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 14, "AccessType=RWW");
+  std::ofstream(dir / "upper.dcf", std::ios::binary) << text;
+  auto tolerant = run("dcf2concise", {"upper.dcf", "-o", "t.bin"}, dir.path(), dir.path().string());
+  EXPECT_EQ(tolerant.exit_code, 0) << tolerant.err;
+  auto strict =
+      run("dcf2concise", {"upper.dcf", "-o", "s.bin", "--strict"}, dir.path(), dir.path().string());
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_TRUE(std::regex_search(strict.err, std::regex(R"(upper\.dcf:\d+: error: )")))
+      << strict.err;
+  EXPECT_FALSE(fs::exists(dir / "s.bin"));
+}
+
+TEST(Dcf2Concise, JsonSummaryHasEntriesAndDiagnostics) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "n.bin", "--json"},
+               dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  tool_test::JsonParser parser(r.out);
+  auto json = parser.parse();
+  ASSERT_TRUE(json.has_value()) << parser.error() << "\n" << r.out;
+  ASSERT_TRUE(json->is(tool_test::Json::Kind::Object));
+  EXPECT_TRUE(json->get("ok")->boolean);
+  EXPECT_EQ(json->get("output")->string, dir / "n.bin");
+  EXPECT_EQ(json->get("size")->number, static_cast<double>(fs::file_size(dir / "n.bin")));
+  const auto& entries = json->get("entries")->array;
+  ASSERT_EQ(entries.size(), 9u);
+  EXPECT_EQ(entries[0].get("index")->number, 0x1017);
+  EXPECT_EQ(entries[0].get("index_hex")->string, "1017");
+  EXPECT_EQ(entries[0].get("sub_index")->number, 0);
+  EXPECT_EQ(entries[0].get("size")->number, 2);
+  EXPECT_EQ(entries[0].get("data")->string, "e803");  // 1000, little-endian
+  EXPECT_TRUE(json->get("diagnostics")->is(tool_test::Json::Kind::Array));
+}
+
+TEST(Dcf2Concise, JsonOnErrorSaysWhy) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/bad_value.dcf"), "-o", dir / "n.bin", "--json"},
+               dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  tool_test::JsonParser parser(r.out);
+  auto json = parser.parse();
+  ASSERT_TRUE(json.has_value()) << parser.error() << "\n" << r.out;
+  EXPECT_FALSE(json->get("ok")->boolean);
+  EXPECT_TRUE(json->get("output")->is(tool_test::Json::Kind::Null));
+  bool found = false;
+  for (const auto& d : json->get("diagnostics")->array) {
+    if (d.get("severity")->string == "error" && d.get("line")->number == 86) found = true;
+  }
+  EXPECT_TRUE(found) << r.out;
+}
+
+TEST(Dcf2Concise, DecodePrintsNamesAndValuesInWords) {
+  ScratchDir dir;
+  ASSERT_EQ(run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "n.bin"}, dir.path())
+                .exit_code,
+            0);
+  auto r = run("dcf2concise", {"--decode", dir / "n.bin", "--dcf", data_path("concise/node5.dcf")},
+               dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<std::string> lines;
+  std::istringstream in(r.out);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 9u) << r.out;
+  EXPECT_TRUE(std::regex_match(
+      lines[0], std::regex(R"(1017sub0  Producer heartbeat time += 1000 \(0x03E8\))")))
+      << lines[0];
+  EXPECT_THAT(lines[1], HasSubstr("1400sub1  RPDO1 communication parameter: COB-ID used by RPDO"));
+  EXPECT_THAT(lines[1], HasSubstr("(0x80000205)"));
+  EXPECT_THAT(lines[8], HasSubstr("1F50sub1"));
+}
+
+TEST(Dcf2Concise, DecodeWithoutDeviceFileShowsBytes) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {"--decode", "-"}, dir.path(), "",
+               CANOPEN_TEST_DATA_DIR "/concise/heartbeat_1000.bin");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "1017sub0    2 bytes  = 1000 (0x03E8)\n");
+}
+
+TEST(Dcf2Concise, DecodeJsonHasTypedValues) {
+  ScratchDir dir;
+  auto r = run("dcf2concise",
+               {"--decode", data_path("concise/heartbeat_1000.bin"), "--dcf",
+                data_path("concise/node5.dcf"), "--json"},
+               dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  tool_test::JsonParser parser(r.out);
+  auto json = parser.parse();
+  ASSERT_TRUE(json.has_value()) << parser.error() << "\n" << r.out;
+  EXPECT_TRUE(json->get("ok")->boolean);
+  EXPECT_EQ(json->get("announced")->number, 1);
+  const auto& entries = json->get("entries")->array;
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_EQ(entries[0].get("name")->string, "Producer heartbeat time");
+  EXPECT_EQ(entries[0].get("type")->string, "UNSIGNED16");
+  EXPECT_EQ(entries[0].get("value")->string, "0x3E8");  // format_value: canonical DCF text
+  EXPECT_EQ(entries[0].get("data")->string, "e803");
+}
+
+TEST(Dcf2Concise, DecodeRejectsTruncatedStreamWithOffset) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {"--decode", data_path("concise/truncated.bin")}, dir.path());
+  EXPECT_EQ(r.exit_code, 1);
+  // truncated.bin: heartbeat_1000.bin without its last byte (12 bytes).
+  EXPECT_THAT(r.err, HasSubstr("truncated.bin: error: concise DCF truncated: the stream ends at "
+                               "byte offset 12"));
+}
+
+TEST(Dcf2Concise, DecodeWarnsAboutEntriesTheDeviceDoesNotHave) {
+  ScratchDir dir;
+  const std::vector<ObjectWrite> entries{u16(0x1017, 0, 1000), u8(0x3000, 1, 7)};
+  auto bytes = cfg::encode_concise_dcf(entries);
+  std::ofstream(dir / "x.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
+  const std::string device = data_path("concise/node5.dcf");
+  auto r = run("dcf2concise", {"--decode", dir / "x.bin", "--dcf", device}, dir.path());
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.err, HasSubstr("warning: entry 2 (3000sub1): not in node5.dcf"));
+  auto strict =
+      run("dcf2concise", {"--decode", dir / "x.bin", "--dcf", device, "--strict"}, dir.path());
+  EXPECT_EQ(strict.exit_code, 1);
+}
+
+// samples/network/*.dcf (written for this project): each converts, and each entry decodes as
+// the data type its DCF gives it.
+TEST(Dcf2Concise, ConvertsEverySampleNetworkDcf) {
+  const fs::path network = fs::path(CANOPEN_SAMPLES_DIR) / "network";
+  if (!fs::exists(network)) GTEST_SKIP() << "no samples/network";
+  ScratchDir dir;
+  int converted = 0;
+  for (const auto& e : fs::directory_iterator(network)) {
+    if (e.path().extension() != ".dcf") continue;
+    const std::string out = dir / (e.path().stem().string() + ".bin");
+    auto r = run("dcf2concise", {e.path().string(), "-o", out}, dir.path());
+    ASSERT_EQ(r.exit_code, 0) << e.path() << "\n" << r.err;
+    EXPECT_FALSE(decode_file(out).empty()) << e.path();
+    auto decoded =
+        run("dcf2concise", {"--decode", out, "--dcf", e.path().string(), "--strict"}, dir.path());
+    EXPECT_EQ(decoded.exit_code, 0) << e.path() << "\n" << decoded.err;
+    ++converted;
+  }
+  EXPECT_GE(converted, 3);
+}
+
+// Every concise DCF of the corpus decodes with the entry count MANIFEST.tsv records.
+TEST(Dcf2Concise, DecodesCorpusStreams) {
+  const fs::path corpus(CANOPEN_CORPUS_DIR);
+  if (!fs::exists(corpus / "MANIFEST.tsv")) GTEST_SKIP() << "corpus not found: " << corpus;
+  ScratchDir dir;
+  std::istringstream manifest(tool_test::slurp(corpus / "MANIFEST.tsv"));
+  for (std::string line; std::getline(manifest, line);) {
+    const std::string file = line.substr(0, line.find('\t'));
+    if (file.size() < 4 || file.substr(file.size() - 4) != ".bin") continue;
+    const auto key = line.find("concise-dcf entries=");
+    ASSERT_NE(key, std::string::npos);
+    auto r = run("dcf2concise", {"--decode", (corpus / file).string(), "--json"}, dir.path());
+    ASSERT_EQ(r.exit_code, 0) << file << "\n" << r.err;
+    tool_test::JsonParser parser(r.out);
+    auto json = parser.parse();
+    ASSERT_TRUE(json.has_value()) << file << ": " << parser.error();
+    EXPECT_EQ(json->get("entries")->array.size(), std::stoul(line.substr(key + 20))) << file;
+  }
+}
+
+}  // namespace

@@ -1,0 +1,292 @@
+// End-to-end test helpers: run a built tool with arguments and capture exit code, stdout and
+// stderr; a scratch directory per test; a small strict JSON parser to check --json output.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tool_test {
+
+inline std::string tool_path(const std::string& name) {
+  return std::string(CANOPEN_TOOLS_DIR) + "/" + name;
+}
+inline std::string data_path(const std::string& relative) {
+  return std::string(CANOPEN_TEST_DATA_DIR) + "/" + relative;
+}
+
+inline std::string slurp(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Single-quoted for /bin/sh.
+inline std::string shell_quote(const std::string& arg) {
+  std::string out = "'";
+  for (char c : arg) {
+    if (c == '\'') {
+      out += "'\\''";
+    } else {
+      out += c;
+    }
+  }
+  return out + "'";
+}
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;  ///< stdout, bytes as written
+  std::string err;  ///< stderr
+};
+
+/// A scratch directory, removed at the end of the test.
+class ScratchDir {
+ public:
+  ScratchDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = std::filesystem::temp_directory_path() /
+            (std::string("canopen_tools_") + info->test_suite_name() + "_" + info->name() + "_" +
+             std::to_string(::getpid()));
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+  /// Names of the files in the directory (hidden ones too), sorted.
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(path_)) {
+      names.push_back(e.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+/// Runs `tool` (cfgmgr, dcf2concise) with `args`, in `cwd` when given, stdin from `stdin_file`
+/// when given (else /dev/null).
+inline RunResult run(const std::string& tool, const std::vector<std::string>& args,
+                     const std::string& scratch, const std::string& cwd = "",
+                     const std::string& stdin_file = "") {
+  const std::string out_file = scratch + "/.stdout";
+  const std::string err_file = scratch + "/.stderr";
+  std::string command;
+  if (!cwd.empty()) command += "cd " + shell_quote(cwd) + " && ";
+  command += shell_quote(tool_path(tool));
+  for (const auto& a : args) command += " " + shell_quote(a);
+  command += " <" + shell_quote(stdin_file.empty() ? "/dev/null" : stdin_file);
+  command += " >" + shell_quote(out_file) + " 2>" + shell_quote(err_file);
+  const int status = std::system(command.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = slurp(out_file);
+  r.err = slurp(err_file);
+  std::filesystem::remove(out_file);
+  std::filesystem::remove(err_file);
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// JSON (RFC 8259), strict: enough to check that --json output parses and has its shape.
+
+struct Json {
+  enum class Kind { Null, Bool, Number, String, Array, Object } kind = Kind::Null;
+  bool boolean = false;
+  double number = 0;
+  std::string string;
+  std::vector<Json> array;
+  std::map<std::string, Json> object;
+
+  const Json* get(const std::string& key) const {
+    auto it = object.find(key);
+    return it == object.end() ? nullptr : &it->second;
+  }
+  bool is(Kind k) const { return kind == k; }
+};
+
+class JsonParser {
+ public:
+  explicit JsonParser(std::string_view text) : text_(text) {}
+
+  /// The value, or nullopt (with `error()`) when the text is not exactly one JSON value.
+  std::optional<Json> parse() {
+    auto v = value();
+    skip_ws();
+    if (v && pos_ != text_.size()) return fail("trailing characters");
+    return v;
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  std::optional<Json> fail(const std::string& why) {
+    if (error_.empty()) error_ = why + " at offset " + std::to_string(pos_);
+    return std::nullopt;
+  }
+  void skip_ws() {
+    while (pos_ < text_.size() && (text_[pos_] == ' ' || text_[pos_] == '\n' ||
+                                   text_[pos_] == '\r' || text_[pos_] == '\t')) {
+      ++pos_;
+    }
+  }
+  bool literal(std::string_view word) {
+    if (text_.substr(pos_, word.size()) != word) return false;
+    pos_ += word.size();
+    return true;
+  }
+  std::optional<Json> value() {
+    if (++depth_ > 64) return fail("too deep");
+    skip_ws();
+    if (pos_ >= text_.size()) return fail("unexpected end");
+    Json j;
+    const char c = text_[pos_];
+    if (c == '{') {
+      j.kind = Json::Kind::Object;
+      ++pos_;
+      skip_ws();
+      if (pos_ < text_.size() && text_[pos_] == '}') {
+        ++pos_;
+      } else {
+        while (true) {
+          skip_ws();
+          auto key = string();
+          if (!key) return std::nullopt;
+          skip_ws();
+          if (pos_ >= text_.size() || text_[pos_] != ':') return fail("expected ':'");
+          ++pos_;
+          auto v = value();
+          if (!v) return std::nullopt;
+          if (!j.object.emplace(*key, std::move(*v)).second) return fail("duplicate key " + *key);
+          skip_ws();
+          if (pos_ < text_.size() && text_[pos_] == ',') {
+            ++pos_;
+            continue;
+          }
+          if (pos_ < text_.size() && text_[pos_] == '}') {
+            ++pos_;
+            break;
+          }
+          return fail("expected ',' or '}'");
+        }
+      }
+    } else if (c == '[') {
+      j.kind = Json::Kind::Array;
+      ++pos_;
+      skip_ws();
+      if (pos_ < text_.size() && text_[pos_] == ']') {
+        ++pos_;
+      } else {
+        while (true) {
+          auto v = value();
+          if (!v) return std::nullopt;
+          j.array.push_back(std::move(*v));
+          skip_ws();
+          if (pos_ < text_.size() && text_[pos_] == ',') {
+            ++pos_;
+            continue;
+          }
+          if (pos_ < text_.size() && text_[pos_] == ']') {
+            ++pos_;
+            break;
+          }
+          return fail("expected ',' or ']'");
+        }
+      }
+    } else if (c == '"') {
+      auto s = string();
+      if (!s) return std::nullopt;
+      j.kind = Json::Kind::String;
+      j.string = std::move(*s);
+    } else if (literal("true")) {
+      j.kind = Json::Kind::Bool;
+      j.boolean = true;
+    } else if (literal("false")) {
+      j.kind = Json::Kind::Bool;
+    } else if (literal("null")) {
+      j.kind = Json::Kind::Null;
+    } else if (c == '-' || (c >= '0' && c <= '9')) {
+      const std::size_t start = pos_;
+      if (text_[pos_] == '-') ++pos_;
+      while (pos_ < text_.size() &&
+             (std::isdigit(static_cast<unsigned char>(text_[pos_])) || text_[pos_] == '.' ||
+              text_[pos_] == 'e' || text_[pos_] == 'E' || text_[pos_] == '+' ||
+              text_[pos_] == '-')) {
+        ++pos_;
+      }
+      j.kind = Json::Kind::Number;
+      j.number = std::strtod(std::string(text_.substr(start, pos_ - start)).c_str(), nullptr);
+    } else {
+      return fail(std::string("unexpected '") + c + "'");
+    }
+    --depth_;
+    return j;
+  }
+  std::optional<std::string> string() {
+    if (pos_ >= text_.size() || text_[pos_] != '"') {
+      fail("expected string");
+      return std::nullopt;
+    }
+    ++pos_;
+    std::string out;
+    while (pos_ < text_.size() && text_[pos_] != '"') {
+      const auto c = static_cast<unsigned char>(text_[pos_]);
+      if (c < 0x20) {
+        fail("control character in string");
+        return std::nullopt;
+      }
+      if (c == '\\') {
+        if (++pos_ >= text_.size()) break;
+        const char e = text_[pos_];
+        if (e == 'u') {
+          if (pos_ + 4 >= text_.size()) break;
+          out += '?';  // code point not needed by the tests
+          pos_ += 4;
+        } else if (std::string_view("\"\\/bfnrt").find(e) == std::string_view::npos) {
+          fail("bad escape");
+          return std::nullopt;
+        } else {
+          out += e == 'n' ? '\n' : e == 't' ? '\t' : e == 'r' ? '\r' : e;
+        }
+      } else {
+        out += static_cast<char>(c);
+      }
+      ++pos_;
+    }
+    if (pos_ >= text_.size()) {
+      fail("unterminated string");
+      return std::nullopt;
+    }
+    ++pos_;
+    return out;
+  }
+
+  std::string_view text_;
+  std::size_t pos_ = 0;
+  int depth_ = 0;
+  std::string error_;
+};
+
+}  // namespace tool_test

@@ -1,0 +1,137 @@
+// cfgmgr check FILE...: read EDS/DCF files (CiA 306), check them against the CiA 301/302 object
+// definitions in schemas/, and print every diagnostic. Exit 0 when nothing is an error.
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "../common/tool_support.hpp"
+#include "cfg/device_file.hpp"
+#include "cfg/schema.hpp"
+#include "commands.hpp"
+
+namespace cfgmgr {
+namespace {
+
+struct CheckOptions {
+  std::vector<std::string> files;
+  bool strict = false;
+  bool json = false;
+  bool no_schema = false;
+  std::string schema_dir;
+};
+
+struct FileReport {
+  std::string file;
+  bool readable = true;
+  std::size_t objects = 0;
+  cfg::Diagnostics diagnostics;
+};
+
+std::string json_report(const std::vector<FileReport>& reports, bool ok) {
+  std::string out = "{\"ok\": " + std::string(ok ? "true" : "false") + ", \"files\": [";
+  bool first = true;
+  for (const auto& r : reports) {
+    if (!first) out += ", ";
+    first = false;
+    const auto& d = r.diagnostics;
+    out += "{\"file\": " + tools::json_string(r.file) +
+           ", \"readable\": " + (r.readable ? "true" : "false") +
+           ", \"ok\": " + (r.readable && !d.has_errors() ? "true" : "false") +
+           ", \"objects\": " + std::to_string(r.objects) +
+           ", \"errors\": " + std::to_string(d.count(cfg::Severity::Error)) +
+           ", \"warnings\": " + std::to_string(d.count(cfg::Severity::Warning)) +
+           ", \"notes\": " + std::to_string(d.count(cfg::Severity::Note)) +
+           ", \"diagnostics\": " + tools::json_diagnostics(d) + "}";
+  }
+  return out + "]}\n";
+}
+
+void run_check(const CheckOptions& options) {
+  // The standard's object definitions; a tool run outside the source tree may not find them,
+  // which is said once and does not fail the check.
+  std::vector<cfg::DeviceDescription> schemas;
+  if (!options.no_schema) {
+    const std::string dir =
+        options.schema_dir.empty() ? cfg::default_schema_dir() : options.schema_dir;
+    for (auto name : {cfg::kCia301Schema, cfg::kCia302ManagerSchema}) {
+      auto schema = cfg::load_schema(name, dir);
+      if (schema) {
+        schemas.push_back(std::move(schema).value());
+      } else {
+        std::cerr << "cfgmgr: note: schema " << name << " not used: " << schema.error().message
+                  << '\n';
+      }
+    }
+  }
+
+  std::vector<FileReport> reports;
+  bool any_unreadable = false;
+  bool any_errors = false;
+  for (const auto& file : options.files) {
+    FileReport report;
+    report.file = file;
+    if (auto readable = tools::check_readable(file); !readable) {
+      std::cerr << readable.error().message << '\n';
+      report.readable = false;
+      any_unreadable = true;
+      reports.push_back(std::move(report));
+      continue;
+    }
+    cfg::ReadOptions read_options;
+    read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
+    read_options.file_name = file;
+    auto read = cfg::read_device_file(file, read_options);
+    report.diagnostics = read.diagnostics;
+    if (read.device) {
+      report.objects = read.device->objects.size();
+      for (const auto& schema : schemas) {
+        cfg::check_against_schema(*read.device, schema, file, report.diagnostics);
+      }
+    } else if (!report.diagnostics.has_errors()) {
+      report.diagnostics.add(file, 0, cfg::Severity::Error, "not a device description");
+    }
+    // Strict is lint: every warning is an error, as with -Werror.
+    if (options.strict) report.diagnostics = tools::promote_warnings(report.diagnostics);
+    tools::print_diagnostics(report.diagnostics);
+    any_errors = any_errors || report.diagnostics.has_errors();
+    if (!options.json) {
+      std::cout << file << ": " << report.diagnostics.count(cfg::Severity::Error) << " errors, "
+                << report.diagnostics.count(cfg::Severity::Warning) << " warnings, "
+                << report.objects << " objects\n";
+    }
+    reports.push_back(std::move(report));
+  }
+  if (options.json) std::cout << json_report(reports, !any_unreadable && !any_errors);
+  std::cout.flush();
+  if (any_unreadable) exit_with(tools::kExitIo);
+  if (any_errors) exit_with(tools::kExitInputErrors);
+}
+
+}  // namespace
+
+void add_check_command(CLI::App& app) {
+  auto options = std::make_shared<CheckOptions>();
+  auto* cmd = app.add_subcommand(
+      "check",
+      "Read EDS/DCF files, check them against the CiA 301/302 object definitions, and print "
+      "every diagnostic (FILE:LINE: severity: message) on stderr");
+  cmd->add_option("files", options->files, "EDS or DCF files")->required()->type_name("FILE");
+  cmd->add_flag("--strict", options->strict,
+                "Lint: every deviation from CiA 306 and every warning is an error");
+  cmd->add_flag("--json", options->json, "Print the result as JSON on stdout");
+  cmd->add_option("--schema-dir", options->schema_dir,
+                  "Directory of the schema EDS files (default: the one built in)")
+      ->type_name("DIR");
+  cmd->add_flag("--no-schema", options->no_schema,
+                "Do not check against the CiA 301/302 object definitions");
+  cmd->footer(std::string("Examples:\n"
+                          "  cfgmgr check drive.eds\n"
+                          "  cfgmgr check --strict network/*.dcf\n"
+                          "  cfgmgr check --json node3.dcf | jq .files[0].errors\n\n") +
+              std::string(tools::kExitCodesHelp));
+  cmd->callback([options] { run_check(*options); });
+}
+
+}  // namespace cfgmgr

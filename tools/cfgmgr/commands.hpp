@@ -1,0 +1,21 @@
+// cfgmgr subcommands: each lives in its own file and registers itself on the app with one
+// add_<name>_command call in main.cpp. A command's callback does its work and, when the exit
+// code is not 0, ends with exit_with(code); main returns that code.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace cfgmgr {
+
+/// `cfgmgr check FILE...`: read EDS/DCF files, print every diagnostic (check.cpp).
+void add_check_command(CLI::App& app);
+/// `cfgmgr fmt IN [-o OUT]`: write a device file back in canonical form (fmt.cpp).
+void add_fmt_command(CLI::App& app);
+
+/// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
+/// App::parse as a RuntimeError, which main turns into the process exit code.
+[[noreturn]] inline void exit_with(int code) {
+  throw CLI::RuntimeError(code);
+}
+
+}  // namespace cfgmgr

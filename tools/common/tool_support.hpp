@@ -1,0 +1,200 @@
+// What the command-line tools share: exit codes, compiler-style diagnostics on stderr, JSON
+// output, and writing an output file so that no partial file is ever left behind.
+// Header-only: tools are thin, this is output formatting, not protocol logic.
+#pragma once
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cfg/diagnostics.hpp"
+#include "cfg/result.hpp"
+
+namespace tools {
+
+/// Exit codes of every tool (documented in each --help).
+enum ExitCode : int {
+  kExitOk = 0,           ///< done; warnings may have been printed
+  kExitInputErrors = 1,  ///< the input has errors (diagnostics say which)
+  kExitUsage = 2,        ///< bad command line
+  kExitIo = 3,           ///< a file could not be read or written
+};
+
+inline constexpr std::string_view kExitCodesHelp =
+    "Exit codes:\n"
+    "  0  success (warnings may have been printed)\n"
+    "  1  the input has errors (printed as FILE:LINE: error: ...)\n"
+    "  2  usage error (bad command line)\n"
+    "  3  I/O error (a file could not be read or written)\n";
+
+/// Prints diagnostics compiler-style (`file.dcf:42: error: ...`) on stderr, one a line.
+inline void print_diagnostics(const cfg::Diagnostics& diagnostics) {
+  for (const auto& d : diagnostics.items()) std::cerr << d.format() << '\n';
+  std::cerr.flush();
+}
+
+/// --strict: warnings count as errors (like -Werror); returns the promoted copy.
+inline cfg::Diagnostics promote_warnings(const cfg::Diagnostics& diagnostics) {
+  cfg::Diagnostics out;
+  for (auto d : diagnostics.items()) {
+    if (d.severity == cfg::Severity::Warning) d.severity = cfg::Severity::Error;
+    out.add(std::move(d));
+  }
+  return out;
+}
+
+/// A JSON string literal (RFC 8259) for arbitrary bytes. Bytes that are not valid UTF-8 are
+/// written as \u00XX of their Latin-1 reading, so the output is always valid JSON.
+inline std::string json_string(std::string_view text) {
+  std::string out = "\"";
+  auto escape = [&out](unsigned code) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "\\u%04X", code);
+    out += buf;
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\r') {
+      out += "\\r";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c < 0x20 || c == 0x7F) {
+      escape(c);
+    } else if (c < 0x80) {
+      out += static_cast<char>(c);
+    } else {
+      // Copy a well-formed UTF-8 sequence; escape anything else byte by byte.
+      std::size_t len = c >= 0xF0 && c <= 0xF4 ? 4 : c >= 0xE0 ? 3 : c >= 0xC2 && c < 0xE0 ? 2 : 0;
+      bool valid = len != 0 && i + len <= text.size();
+      for (std::size_t k = 1; valid && k < len; ++k) {
+        valid = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
+      }
+      if (valid) {
+        out.append(text.substr(i, len));
+        i += len - 1;
+      } else {
+        escape(c);
+      }
+    }
+  }
+  out += '"';
+  return out;
+}
+
+/// `[{"file": ..., "line": 42, "severity": "error", "message": ...}, ...]`
+inline std::string json_diagnostics(const cfg::Diagnostics& diagnostics) {
+  std::string out = "[";
+  bool first = true;
+  for (const auto& d : diagnostics.items()) {
+    if (!first) out += ", ";
+    first = false;
+    out += "{\"file\": " + json_string(d.file) + ", \"line\": " + std::to_string(d.line) +
+           ", \"severity\": " + json_string(cfg::to_string(d.severity)) +
+           ", \"message\": " + json_string(d.message) + "}";
+  }
+  return out + "]";
+}
+
+/// Lower-case hex pairs without separators ("e803"), as JSON carries data.
+inline std::string hex_string(std::span<const std::uint8_t> bytes) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(bytes.size() * 2);
+  for (std::uint8_t b : bytes) {
+    out += kDigits[b >> 4];
+    out += kDigits[b & 0xF];
+  }
+  return out;
+}
+
+/// Reads a whole file, or "-" for stdin. Fails with a message naming the path.
+inline cfg::Result<std::string> read_input(const std::string& path) {
+  if (path == "-") {
+    return std::string{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
+  }
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": is a directory"};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return cfg::Error{path + ": cannot open: " + std::strerror(errno)};
+  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) return cfg::Error{path + ": read error"};
+  return data;
+}
+
+/// True when the path can be opened for reading (tools check this first so that a missing
+/// input is an I/O error, exit code 3, not a diagnostic of the input).
+inline cfg::Status check_readable(const std::string& path) {
+  if (path == "-") return {};
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": is a directory"};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return cfg::Error{path + ": cannot open: " + std::strerror(errno)};
+  return {};
+}
+
+/// Writes `bytes` to `path` ("-": stdout) so that the file appears complete or not at all:
+/// a temporary file beside it, then rename(2) over the target. On failure nothing is left
+/// behind and an existing target is untouched.
+inline cfg::Status write_output(const std::string& path, std::string_view bytes) {
+  if (path == "-") {
+    std::cout.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    std::cout.flush();
+    if (!std::cout) return cfg::Error{"<stdout>: write error"};
+    return {};
+  }
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  std::string temp = (dir / ("." + target.filename().string() + ".tmpXXXXXX")).string();
+  const int fd = ::mkstemp(temp.data());
+  if (fd < 0) return cfg::Error{path + ": cannot create: " + std::strerror(errno)};
+  // mkstemp creates 0600; give the file the mode a plain create would (0666 & ~umask).
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  ::fchmod(fd, 0666 & ~mask);
+  std::size_t written = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string why = std::strerror(errno);
+      ::close(fd);
+      ::unlink(temp.c_str());
+      return cfg::Error{path + ": write error: " + why};
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    const std::string why = std::strerror(errno);
+    ::unlink(temp.c_str());
+    return cfg::Error{path + ": write error: " + why};
+  }
+  if (std::rename(temp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    ::unlink(temp.c_str());
+    return cfg::Error{path + ": cannot write: " + why};
+  }
+  return {};
+}
+
+}  // namespace tools

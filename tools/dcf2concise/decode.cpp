@@ -1,0 +1,227 @@
+// dcf2concise --decode: a concise DCF as one line per entry, with names and typed values when a
+// device file says what the entries are.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "../common/tool_support.hpp"
+#include "cfg/concise_dcf.hpp"
+#include "cfg/device_file.hpp"
+#include "cfg/value.hpp"
+#include "dcf2concise.hpp"
+
+namespace dcf2concise {
+namespace {
+
+// How much of a long value a line shows.
+constexpr std::size_t kShownBytes = 16;
+
+struct Row {
+  std::string entry;  // "1017sub0"
+  std::uint16_t index = 0;
+  std::uint8_t sub_index = 0;
+  std::size_t size = 0;
+  std::string name;   // empty without a device file
+  std::string type;   // "UNSIGNED16"; empty when unknown
+  std::string words;  // "1000 (0x03E8)"
+  std::string value;  // canonical DCF text (format_value); empty when not decoded
+  std::string data;   // hex (first kShownBytes for text, all for JSON)
+};
+
+std::string hex_bytes(std::span<const std::uint8_t> data, std::size_t limit) {
+  std::string out;
+  char buf[4];
+  for (std::size_t i = 0; i < data.size() && i < limit; ++i) {
+    std::snprintf(buf, sizeof buf, i == 0 ? "%02X" : " %02X", data[i]);
+    out += buf;
+  }
+  if (data.size() > limit) out += " ...";
+  return out;
+}
+
+// Without a device file: the bytes, and for 1 to 8 bytes their little-endian unsigned reading.
+std::string raw_words(std::span<const std::uint8_t> data) {
+  if (data.empty()) return "(empty)";
+  if (data.size() > 8) {
+    return hex_bytes(data, kShownBytes) + " (" + std::to_string(data.size()) + " bytes)";
+  }
+  std::uint64_t v = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) v |= std::uint64_t{data[i]} << (8 * i);
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%llu (0x%0*llX)", static_cast<unsigned long long>(v),
+                static_cast<int>(data.size() * 2), static_cast<unsigned long long>(v));
+  return buf;
+}
+
+class Describer {
+ public:
+  Describer(const cfg::DeviceDescription* device, std::string device_name, std::string input)
+      : device_(device), device_name_(std::move(device_name)), input_(std::move(input)) {}
+
+  Row describe(std::uint16_t index, std::uint8_t sub_index, std::span<const std::uint8_t> data,
+               std::uint32_t entry_number, cfg::Diagnostics& diagnostics) const {
+    Row row;
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "%04Xsub%X", index, sub_index);
+    row.entry = buf;
+    row.index = index;
+    row.sub_index = sub_index;
+    row.size = data.size();
+    row.data = tools::hex_string(data);
+    row.words = raw_words(data);
+    if (device_ == nullptr) return row;
+
+    auto warn = [&](const std::string& what) {
+      diagnostics.add(input_, 0, cfg::Severity::Warning,
+                      "entry " + std::to_string(entry_number) + " (" + row.entry + "): " + what);
+    };
+    const cfg::Object* object = device_->object(index);
+    const cfg::SubObject* sub = object != nullptr ? object->sub(sub_index) : nullptr;
+    if (sub == nullptr) {
+      row.name = "(not in " + device_name_ + ")";
+      warn("not in " + device_name_);
+      return row;
+    }
+    row.name =
+        object->is_var() || sub->name.empty() ? object->name : object->name + ": " + sub->name;
+    auto type = sub->basic_type();
+    if (!type) {
+      char type_hex[8];
+      std::snprintf(type_hex, sizeof type_hex, "%04X", sub->data_type);
+      warn(std::string("DataType 0x") + type_hex + " is not a basic type; shown as bytes");
+      return row;
+    }
+    row.type = std::string(cfg::to_string(*type));
+    auto value = cfg::decode(*type, data);
+    if (!value) {
+      warn(value.error().message);
+      return row;
+    }
+    row.value = cfg::format_value(*value);
+    const bool long_bytes = cfg::is_variable_size(*type) && data.size() > kShownBytes;
+    row.words = long_bytes
+                    ? hex_bytes(data, kShownBytes) + " (" + std::to_string(data.size()) + " bytes)"
+                    : cfg::describe_value(*value);
+    return row;
+  }
+
+ private:
+  const cfg::DeviceDescription* device_;
+  std::string device_name_;
+  std::string input_;
+};
+
+void print_text(const std::vector<Row>& rows, bool with_names) {
+  std::size_t name_width = 0;
+  for (const auto& r : rows) name_width = std::max(name_width, r.name.size());
+  for (const auto& r : rows) {
+    std::string line = r.entry + "  ";
+    if (with_names) {
+      line += r.name + std::string(name_width - r.name.size(), ' ') + "  ";
+    } else {
+      line += std::string(r.size < 10    ? 2
+                          : r.size < 100 ? 1
+                                         : 0,
+                          ' ') +
+              std::to_string(r.size) + " bytes  ";
+    }
+    line += "= " + r.words;
+    std::cout << line << '\n';
+  }
+}
+
+void print_json(const std::string& input, const std::vector<Row>& rows, bool ok,
+                std::uint32_t announced, const cfg::Diagnostics& diagnostics) {
+  std::string out = "{\"input\": " + tools::json_string(input) +
+                    ", \"ok\": " + (ok ? "true" : "false") +
+                    ", \"announced\": " + std::to_string(announced) + ", \"entries\": [";
+  bool first = true;
+  for (const auto& r : rows) {
+    if (!first) out += ", ";
+    first = false;
+    out += "{\"index\": " + std::to_string(r.index) + ", \"index_hex\": \"" + r.entry.substr(0, 4) +
+           "\", \"sub_index\": " + std::to_string(r.sub_index) +
+           ", \"size\": " + std::to_string(r.size) + ", \"data\": \"" + r.data + "\"";
+    if (!r.name.empty()) out += ", \"name\": " + tools::json_string(r.name);
+    if (!r.type.empty()) out += ", \"type\": " + tools::json_string(r.type);
+    if (!r.value.empty() || !r.type.empty()) out += ", \"value\": " + tools::json_string(r.value);
+    out += "}";
+  }
+  out += "], \"diagnostics\": " + tools::json_diagnostics(diagnostics) + "}\n";
+  std::cout << out;
+}
+
+}  // namespace
+
+int run_decode(const DecodeOptions& options) {
+  const std::string name = options.input == "-" ? "<stdin>" : options.input;
+  cfg::Diagnostics diagnostics;
+
+  std::optional<cfg::DeviceDescription> device;
+  if (!options.device_file.empty()) {
+    if (auto readable = tools::check_readable(options.device_file); !readable) {
+      std::cerr << readable.error().message << '\n';
+      return tools::kExitIo;
+    }
+    cfg::ReadOptions read_options;
+    read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
+    read_options.file_name = options.device_file;
+    auto read = cfg::read_device_file(options.device_file, read_options);
+    diagnostics.append(read.diagnostics);
+    if (!read.ok()) {
+      tools::print_diagnostics(diagnostics);
+      return tools::kExitInputErrors;
+    }
+    device = std::move(read.device);
+  }
+
+  std::ifstream file;
+  std::istream* in = &std::cin;
+  if (options.input != "-") {
+    if (auto readable = tools::check_readable(options.input); !readable) {
+      std::cerr << readable.error().message << '\n';
+      return tools::kExitIo;
+    }
+    file.open(options.input, std::ios::binary);
+    in = &file;
+  }
+
+  const Describer describer(device ? &*device : nullptr,
+                            std::filesystem::path(options.device_file).filename().string(), name);
+  std::vector<Row> rows;
+  cfg::ConciseDcfDecoder decoder(
+      [&](std::uint16_t index, std::uint8_t sub_index, std::span<const std::uint8_t> data) {
+        rows.push_back(describer.describe(
+            index, sub_index, data, static_cast<std::uint32_t>(rows.size() + 1), diagnostics));
+      });
+  // Streams of any size: fed in chunks, never held whole.
+  std::vector<char> chunk(64 * 1024);
+  cfg::Status status;
+  while (status && *in) {
+    in->read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    const auto n = static_cast<std::size_t>(in->gcount());
+    if (n == 0) break;
+    status = decoder.feed({reinterpret_cast<const std::uint8_t*>(chunk.data()), n});
+  }
+  if (in->bad()) {
+    std::cerr << name << ": read error\n";
+    return tools::kExitIo;
+  }
+  if (status) status = decoder.finish();
+  if (!status) diagnostics.add(name, 0, cfg::Severity::Error, status.error().message);
+  if (options.strict) diagnostics = tools::promote_warnings(diagnostics);
+
+  if (options.json) {
+    print_json(name, rows, !diagnostics.has_errors(), decoder.entries_announced(), diagnostics);
+  } else {
+    print_text(rows, device.has_value());
+  }
+  tools::print_diagnostics(diagnostics);
+  return diagnostics.has_errors() ? tools::kExitInputErrors : tools::kExitOk;
+}
+
+}  // namespace dcf2concise

@@ -1,0 +1,97 @@
+// dcf2concise DCF -> concise DCF: read the DCF, let libcfg choose and order the writes, encode,
+// write the file atomically.
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include "../common/tool_support.hpp"
+#include "cfg/concise_dcf.hpp"
+#include "cfg/device_file.hpp"
+#include "dcf2concise.hpp"
+
+namespace dcf2concise {
+namespace {
+
+std::string default_output(const std::string& input) {
+  if (input == "-") return "-";
+  return std::filesystem::path(input).replace_extension(".bin").string();
+}
+
+std::string index_text(const cfg::ObjectWrite& w) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%04X", w.index);
+  return buf;
+}
+
+}  // namespace
+
+int run_encode(const EncodeOptions& options) {
+  if (auto readable = tools::check_readable(options.input); !readable) {
+    std::cerr << readable.error().message << '\n';
+    return tools::kExitIo;
+  }
+  auto text = tools::read_input(options.input);
+  if (!text) {
+    std::cerr << text.error().message << '\n';
+    return tools::kExitIo;
+  }
+  const std::string name = options.input == "-" ? "<stdin>" : options.input;
+  cfg::ReadOptions read_options;
+  read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
+  read_options.file_name = name;
+  cfg::ReadResult read = cfg::parse_device_description(*text, read_options);
+
+  cfg::Diagnostics diagnostics = read.diagnostics;
+  std::optional<std::vector<cfg::ObjectWrite>> writes;
+  if (read.device && !read.diagnostics.has_errors()) {
+    cfg::ConciseOptions concise;
+    concise.node_id = options.node_id;
+    concise.selection = options.selection;
+    concise.file_name = name;
+    concise.base_dir = options.input == "-"
+                           ? std::string(".")
+                           : std::filesystem::path(options.input).parent_path().string();
+    writes = cfg::concise_writes_from_dcf(*read.device, concise, diagnostics);
+  }
+  if (options.strict) diagnostics = tools::promote_warnings(diagnostics);
+  tools::print_diagnostics(diagnostics);
+
+  const std::string output =
+      options.output.empty() ? default_output(options.input) : options.output;
+  const bool ok = writes.has_value() && !diagnostics.has_errors();
+  std::vector<std::uint8_t> stream;
+  int code = ok ? tools::kExitOk : tools::kExitInputErrors;
+  if (ok) {
+    stream = cfg::encode_concise_dcf(*writes);
+    auto status = tools::write_output(
+        output, std::string_view(reinterpret_cast<const char*>(stream.data()), stream.size()));
+    if (!status) {
+      std::cerr << status.error().message << '\n';
+      code = tools::kExitIo;
+    }
+  }
+
+  if (options.json) {
+    std::string out = "{\"input\": " + tools::json_string(name) + ", \"output\": " +
+                      (code == tools::kExitOk ? tools::json_string(output) : "null") +
+                      ", \"ok\": " + (code == tools::kExitOk ? "true" : "false") +
+                      ", \"size\": " + std::to_string(stream.size()) + ", \"entries\": [";
+    if (ok) {
+      bool first = true;
+      for (const auto& w : *writes) {
+        if (!first) out += ", ";
+        first = false;
+        out += "{\"index\": " + std::to_string(w.index) + ", \"index_hex\": \"" + index_text(w) +
+               "\", \"sub_index\": " + std::to_string(w.sub_index) +
+               ", \"size\": " + std::to_string(w.data.size()) + ", \"data\": \"" +
+               tools::hex_string(w.data) + "\"}";
+      }
+    }
+    out += "], \"diagnostics\": " + tools::json_diagnostics(diagnostics) + "}\n";
+    std::cout << out;
+  }
+  return code;
+}
+
+}  // namespace dcf2concise
