@@ -156,6 +156,11 @@ CanFrame NmtSlave::finish_initialisation() {
   return make_boot_up(node_id_);
 }
 
+void NmtSlave::set_state(NmtState state) {
+  assert(state_ != NmtState::Initialising && state != NmtState::Initialising);
+  state_ = state;
+}
+
 void NmtSlave::power_on() {
   state_ = NmtState::Initialising;
   pending_reset_ = ResetScope::Application;

@@ -103,6 +103,11 @@ class NmtSlave {
   /// Only valid while initialising (asserted).
   CanFrame finish_initialisation();
 
+  /// A state change the node makes on its own, not by NMT command: the communication error
+  /// behaviour of 1029h, or a self-starting device going operational. Not into or out of
+  /// initialising (asserted): resets go through on_frame()/power_on().
+  void set_state(NmtState state);
+
   /// Power failure / hardware reset: back to initialising with a reset-application pending.
   void power_on();
 
