@@ -119,6 +119,7 @@ class LocalDictionary {
   /// of a fixed-size type.
   bool set_max_size(std::uint16_t index, std::uint8_t sub, std::size_t max_size);
   /// Adds or replaces an entry (objects the device model implements beyond its device file).
+  /// A max_size of 0 is replaced by the default for the entry's type.
   void insert(DictionaryEntry entry);
 
   /// All entries in (index, sub-index) order.

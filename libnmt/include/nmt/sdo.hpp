@@ -104,7 +104,7 @@ class SdoServer {
   void handle(const std::array<std::uint8_t, 8>& d, TimePoint now);
   void initiate_download(const std::array<std::uint8_t, 8>& d, TimePoint now);
   void download_segment(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void initiate_upload(const std::array<std::uint8_t, 8>& d, TimePoint now);
+  void start_upload(TimePoint now);
   void upload_segment(const std::array<std::uint8_t, 8>& d, TimePoint now);
   void block_download(const std::array<std::uint8_t, 8>& d, TimePoint now);
   void block_download_segment(const std::array<std::uint8_t, 8>& d, TimePoint now);
@@ -130,6 +130,7 @@ class SdoServer {
   std::uint8_t ack_seq_ = 0;        // download: last segment received in order
   std::uint8_t sent_in_block_ = 0;  // upload: segments in the sub-block on the wire
   bool last_received_ = false;      // download: segment with c=1 received in order
+  bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
   std::optional<TimePoint> timeout_at_;
   std::deque<Pending> pending_;  // responses waiting out response_latency
 };
@@ -166,6 +167,8 @@ struct SdoTransferOptions {
   std::uint8_t protocol_switch_threshold = 0;
   /// Block transfers check the CRC when the server supports it.
   bool crc = true;
+  /// Largest upload accepted; a server sending more is aborted with 0504 0005.
+  std::size_t max_size = std::size_t{16} << 20;
 };
 
 /// The outcome of one transfer.
@@ -213,6 +216,8 @@ class SdoClient {
   /// Handles a frame; false when it is not a response for this client.
   bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out);
   void on_timer(TimePoint now, std::vector<CanFrame>& out);
+  /// TimePoint{0} ("as soon as possible") while a queued transfer waits to start or a cancel
+  /// waits to be sent; the response timeout of the running transfer; nullopt when idle.
   std::optional<TimePoint> next_deadline() const;
 
   /// The result of a finished transfer started without a callback; nullopt while it runs.
@@ -258,6 +263,7 @@ class SdoClient {
     std::uint8_t sent_in_block = 0;  // block download: segments on the wire
     std::uint8_t ack_seq = 0;        // block upload: last in-order sequence number
     bool last_received = false;      // block upload: c=1 received in order
+    bool block_has_last = false;     // block download: the sub-block on the wire ends the data
     std::optional<TimePoint> started;
     TimePoint deadline{0};
     SdoAbort cancel_code = SdoAbort::None;
@@ -272,6 +278,8 @@ class SdoClient {
             std::vector<CanFrame>& out);
   void fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, std::vector<CanFrame>& out);
   void finish(SdoAbort code, bool by_server, TimePoint now);
+  void pump(TimePoint now, std::vector<CanFrame>& out);
+  void report(SdoResult result, Callback& done);
 
   SdoClientConfig config_;
   TransferId next_id_ = 1;

@@ -35,6 +35,7 @@
 #include <optional>
 #include <queue>
 #include <random>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -54,6 +55,13 @@ struct FrameBits {
   unsigned until_eof() const { return stuffed_region + stuff_bits + trailer; }
   unsigned total() const { return until_eof() + intermission; }
 };
+
+/// The number of stuff bits ISO 11898-1 (bit stuffing) inserts into `bits` (one bit per element, 0
+/// or 1): after five equal bits a complementary bit, which itself starts the next run.
+unsigned count_stuff_bits(std::span<const std::uint8_t> bits);
+
+/// CAN CRC-15 (generator 0x4599, initial 0) over `bits` (one bit per element).
+std::uint16_t can_crc15(std::span<const std::uint8_t> bits);
 
 /// Computes the exact bit length of a data or remote frame: the real bit sequence SOF,
 /// arbitration, control, data, CRC-15 is built and stuffed. Error frames (frame.error) are
@@ -178,7 +186,8 @@ class SimBus {
   bool run_until(const std::function<bool()>& done, TimePoint limit = TimePoint::max());
   /// Processes the earliest event. False when there is none.
   bool step();
-  bool idle() const { return events_.empty(); }
+  /// True when nothing is scheduled: no timer, no call, no frame queued or on the bus.
+  bool idle() const { return live_events_ == 0; }
 
   // --- statistics ----------------------------------------------------------------------------
   SimBusStats statistics() const;
@@ -207,6 +216,7 @@ class SimBus {
     std::vector<CanFrame> queue;  // FIFO, front at queue_head
     std::size_t queue_head = 0;
     std::uint64_t timer_generation = 0;
+    bool timer_armed = false;
   };
   struct Delayed {
     CanFrame frame;
@@ -222,11 +232,14 @@ class SimBus {
   void end_of_frame();
   void deliver(const CanFrame& frame, std::size_t sender);
   void advance_to(std::int64_t t_ns);
+  bool stale(const Event& e) const;
+  void drop_stale();
 
   std::uint32_t bitrate_bps_;
   std::int64_t now_ns_ = 0;
   std::uint64_t seq_ = 0;
   std::uint64_t events_processed_ = 0;
+  std::uint64_t live_events_ = 0;  // queued events that are not stale timers
   std::priority_queue<Event, std::vector<Event>, std::greater<>> events_;
   std::vector<Slot> slots_;
   std::vector<std::size_t> free_slots_;

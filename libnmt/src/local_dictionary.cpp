@@ -1,0 +1,256 @@
+#include "nmt/local_dictionary.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace nmt {
+
+namespace {
+
+std::string entry_name(std::uint16_t index, std::uint8_t sub) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "0x%04X sub %u", static_cast<unsigned>(index),
+                static_cast<unsigned>(sub));
+  return buf;
+}
+
+bool is_numeric(cfg::DataType type) {
+  auto c = cfg::data_type_info(type).type_class;
+  return c == cfg::TypeClass::Signed || c == cfg::TypeClass::Unsigned || c == cfg::TypeClass::Real;
+}
+
+// Compares two values of the same numeric type: <0, 0, >0.
+int compare(const cfg::Value& a, const cfg::Value& b) {
+  switch (cfg::data_type_info(a.type()).type_class) {
+    case cfg::TypeClass::Signed:
+      return a.as_signed() < b.as_signed() ? -1 : (a.as_signed() > b.as_signed() ? 1 : 0);
+    case cfg::TypeClass::Unsigned:
+      return a.as_unsigned() < b.as_unsigned() ? -1 : (a.as_unsigned() > b.as_unsigned() ? 1 : 0);
+    case cfg::TypeClass::Real:
+      return a.as_real() < b.as_real() ? -1 : (a.as_real() > b.as_real() ? 1 : 0);
+    default:
+      return 0;
+  }
+}
+
+}  // namespace
+
+std::optional<std::size_t> DictionaryEntry::fixed_size() const {
+  if (!basic_type) return std::nullopt;
+  auto size = cfg::data_type_info(*basic_type).size_bytes;
+  if (size == 0) return std::nullopt;
+  return size;
+}
+
+cfg::Result<LocalDictionary> LocalDictionary::from_device(const cfg::DeviceDescription& device,
+                                                          std::uint8_t node_id) {
+  if (node_id < 1 || node_id > 127) {
+    return cfg::Error{"node-ID " + std::to_string(node_id) + " is outside 1..127"};
+  }
+  LocalDictionary dict;
+  dict.node_id_ = node_id;
+  for (const auto& [index, object] : device.objects) {
+    for (const auto& [sub_index, sub] : object.subs) {
+      DictionaryEntry e;
+      e.index = index;
+      e.sub_index = sub_index;
+      e.name = sub.name;
+      e.data_type = sub.data_type;
+      e.basic_type = sub.basic_type();
+      e.access = sub.access;
+      e.pdo_mapping = sub.pdo_mapping;
+      const auto where = [&](std::string_view key, const std::string& text) {
+        return "object " + entry_name(index, sub_index) + ": " + std::string(key) + " '" + text +
+               "': ";
+      };
+      if (!e.basic_type) {
+        // Unknown or complex type: kept as DOMAIN-like bytes; its value text cannot be read.
+        e.max_size = kDefaultMaxVariableSize;
+        dict.entries_.emplace(key(index, sub_index), std::move(e));
+        continue;
+      }
+      const auto type = *e.basic_type;
+      const auto fixed = e.fixed_size();
+      e.max_size = fixed ? *fixed : kDefaultMaxVariableSize;
+      if (const auto& text = sub.configured_value()) {
+        auto value = cfg::parse_value(type, *text, node_id);
+        if (!value) {
+          return cfg::Error{where(sub.parameter_value ? "ParameterValue" : "DefaultValue", *text) +
+                            value.error().message};
+        }
+        e.bytes = cfg::encode(*value);
+      } else if (fixed) {
+        e.bytes.assign(*fixed, 0);
+      }
+      if (is_numeric(type)) {
+        if (sub.low_limit) {
+          auto v = cfg::parse_value(type, *sub.low_limit, node_id);
+          if (!v) return cfg::Error{where("LowLimit", *sub.low_limit) + v.error().message};
+          e.low_limit = *v;
+        }
+        if (sub.high_limit) {
+          auto v = cfg::parse_value(type, *sub.high_limit, node_id);
+          if (!v) return cfg::Error{where("HighLimit", *sub.high_limit) + v.error().message};
+          e.high_limit = *v;
+        }
+      }
+      dict.entries_.emplace(key(index, sub_index), std::move(e));
+    }
+  }
+  return dict;
+}
+
+const DictionaryEntry* LocalDictionary::entry(std::uint16_t index, std::uint8_t sub) const {
+  auto it = entries_.find(key(index, sub));
+  return it == entries_.end() ? nullptr : &it->second;
+}
+
+DictionaryEntry* LocalDictionary::find(std::uint16_t index, std::uint8_t sub) {
+  auto it = entries_.find(key(index, sub));
+  return it == entries_.end() ? nullptr : &it->second;
+}
+
+bool LocalDictionary::has_object(std::uint16_t index) const {
+  auto it = entries_.lower_bound(key(index, 0));
+  return it != entries_.end() && it->second.index == index;
+}
+
+SdoAbort LocalDictionary::read(std::uint16_t index, std::uint8_t sub,
+                               std::vector<std::uint8_t>& out) const {
+  const auto* e = entry(index, sub);
+  if (!e) return has_object(index) ? SdoAbort::SubIndexDoesNotExist : SdoAbort::ObjectDoesNotExist;
+  if (!cfg::is_readable(e->access)) return SdoAbort::ReadOfWriteOnly;
+  for (const auto& hook : read_hooks_) {
+    if (auto code = hook(index, sub); code != SdoAbort::None) return code;
+  }
+  // The hook may have replaced the value; look it up again.
+  e = entry(index, sub);
+  if (!e) return SdoAbort::ObjectDoesNotExist;
+  out = e->bytes;
+  return SdoAbort::None;
+}
+
+SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
+                                      std::optional<std::size_t> size) const {
+  const auto* e = entry(index, sub);
+  if (!e) return has_object(index) ? SdoAbort::SubIndexDoesNotExist : SdoAbort::ObjectDoesNotExist;
+  // CiA 301 Table 22: "attempt to write a read only object" covers ro and const.
+  if (!cfg::is_writable(e->access)) return SdoAbort::WriteOfReadOnly;
+  if (size) {
+    if (auto fixed = e->fixed_size()) {
+      if (*size > *fixed) return SdoAbort::LengthTooHigh;
+      if (*size < *fixed) return SdoAbort::LengthTooLow;
+    } else if (*size > e->max_size) {
+      return SdoAbort::LengthTooHigh;
+    }
+  }
+  return SdoAbort::None;
+}
+
+SdoAbort LocalDictionary::check_value(const DictionaryEntry& e,
+                                      std::span<const std::uint8_t> data) const {
+  if (!e.basic_type) return SdoAbort::None;
+  const auto type = *e.basic_type;
+  const auto type_class = cfg::data_type_info(type).type_class;
+  if (type_class == cfg::TypeClass::UnicodeString && data.size() % 2 != 0) {
+    return SdoAbort::LengthMismatch;  // UTF-16 code units are two bytes
+  }
+  if (type_class == cfg::TypeClass::Boolean && data[0] > 1) return SdoAbort::ValueRangeExceeded;
+  if (!e.low_limit && !e.high_limit) return SdoAbort::None;
+  auto value = cfg::decode(type, data);
+  if (!value) return SdoAbort::ValueRangeExceeded;
+  if (e.low_limit && e.high_limit && compare(*e.high_limit, *e.low_limit) < 0) {
+    return SdoAbort::MaxLessThanMin;
+  }
+  if (type_class == cfg::TypeClass::Real && value->as_real() != value->as_real()) {
+    return SdoAbort::ValueRangeExceeded;  // NaN is in no range
+  }
+  if (e.high_limit && compare(*value, *e.high_limit) > 0) return SdoAbort::ValueTooHigh;
+  if (e.low_limit && compare(*value, *e.low_limit) < 0) return SdoAbort::ValueTooLow;
+  return SdoAbort::None;
+}
+
+SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
+                                std::span<const std::uint8_t> data) {
+  if (auto code = check_write(index, sub, data.size()); code != SdoAbort::None) return code;
+  if (auto code = check_value(*entry(index, sub), data); code != SdoAbort::None) return code;
+  for (const auto& hook : write_hooks_) {
+    if (auto code = hook(index, sub, data); code != SdoAbort::None) return code;
+  }
+  auto* e = find(index, sub);
+  if (!e) return SdoAbort::ObjectDoesNotExist;  // a hook removed it
+  e->bytes.assign(data.begin(), data.end());
+  // Observers get a copy's view: an observer may change this entry.
+  const std::vector<std::uint8_t> stored = e->bytes;
+  for (const auto& observer : observers_) observer(index, sub, stored);
+  return SdoAbort::None;
+}
+
+std::optional<std::span<const std::uint8_t>> LocalDictionary::get_bytes(std::uint16_t index,
+                                                                        std::uint8_t sub) const {
+  const auto* e = entry(index, sub);
+  if (!e) return std::nullopt;
+  return std::span<const std::uint8_t>(e->bytes);
+}
+
+std::optional<std::uint64_t> LocalDictionary::get_unsigned(std::uint16_t index,
+                                                           std::uint8_t sub) const {
+  const auto* e = entry(index, sub);
+  if (!e || !e->basic_type) return std::nullopt;
+  auto c = cfg::data_type_info(*e->basic_type).type_class;
+  if (c != cfg::TypeClass::Boolean && c != cfg::TypeClass::Signed &&
+      c != cfg::TypeClass::Unsigned) {
+    return std::nullopt;
+  }
+  std::uint64_t v = 0;
+  for (std::size_t i = 0; i < e->bytes.size() && i < 8; ++i) {
+    v |= std::uint64_t{e->bytes[i]} << (8 * i);
+  }
+  return v;
+}
+
+std::optional<cfg::Value> LocalDictionary::get_value(std::uint16_t index, std::uint8_t sub) const {
+  const auto* e = entry(index, sub);
+  if (!e || !e->basic_type) return std::nullopt;
+  auto v = cfg::decode(*e->basic_type, e->bytes);
+  if (!v) return std::nullopt;
+  return std::move(v).value();
+}
+
+bool LocalDictionary::set_bytes(std::uint16_t index, std::uint8_t sub,
+                                std::span<const std::uint8_t> data) {
+  auto* e = find(index, sub);
+  if (!e) return false;
+  e->bytes.assign(data.begin(), data.end());
+  return true;
+}
+
+bool LocalDictionary::set_unsigned(std::uint16_t index, std::uint8_t sub, std::uint64_t value) {
+  auto* e = find(index, sub);
+  if (!e) return false;
+  auto size = e->fixed_size();
+  if (!size) return false;
+  e->bytes.resize(*size);
+  for (std::size_t i = 0; i < *size; ++i) {
+    e->bytes[i] = i < 8 ? static_cast<std::uint8_t>(value >> (8 * i)) : 0;
+  }
+  return true;
+}
+
+bool LocalDictionary::set_max_size(std::uint16_t index, std::uint8_t sub, std::size_t max_size) {
+  auto* e = find(index, sub);
+  if (!e || e->fixed_size()) return false;
+  e->max_size = max_size;
+  return true;
+}
+
+void LocalDictionary::insert(DictionaryEntry entry) {
+  if (entry.max_size == 0) {
+    auto fixed = entry.fixed_size();
+    entry.max_size = fixed ? *fixed : kDefaultMaxVariableSize;
+  }
+  auto k = key(entry.index, entry.sub_index);
+  entries_.insert_or_assign(k, std::move(entry));
+}
+
+}  // namespace nmt

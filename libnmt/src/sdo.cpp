@@ -1,0 +1,1023 @@
+#include "nmt/sdo.hpp"
+
+#include <algorithm>
+#include <limits>
+
+namespace nmt {
+
+namespace {
+
+using Bytes = std::array<std::uint8_t, 8>;
+
+// CiA 301 §7.2.4.3: command specifiers in bits 7..5 of byte 0.
+constexpr std::uint8_t kCcsDownloadSegment = 0;
+constexpr std::uint8_t kCcsInitiateDownload = 1;
+constexpr std::uint8_t kCcsInitiateUpload = 2;
+constexpr std::uint8_t kCcsUploadSegment = 3;
+constexpr std::uint8_t kCsAbort = 4;
+constexpr std::uint8_t kCcsBlockUpload = 5;
+constexpr std::uint8_t kCcsBlockDownload = 6;
+constexpr std::uint8_t kScsUploadSegment = 0;
+constexpr std::uint8_t kScsDownloadSegment = 1;
+constexpr std::uint8_t kScsInitiateUpload = 2;
+constexpr std::uint8_t kScsInitiateDownload = 3;
+constexpr std::uint8_t kScsBlockDownload = 5;
+constexpr std::uint8_t kScsBlockUpload = 6;
+
+constexpr std::uint8_t kMaxBlockSize = 127;  // CiA 301 §7.2.4.3.9: blksize 1..127
+constexpr std::size_t kSegmentBytes = 7;
+
+std::uint8_t command(const Bytes& d) {
+  return static_cast<std::uint8_t>(d[0] >> 5);
+}
+std::uint16_t get_index(const Bytes& d) {
+  return static_cast<std::uint16_t>(d[1] | d[2] << 8);
+}
+std::uint32_t get_u32(const Bytes& d, std::size_t at) {
+  return static_cast<std::uint32_t>(d[at] | d[at + 1] << 8 | d[at + 2] << 16) |
+         static_cast<std::uint32_t>(d[at + 3]) << 24;
+}
+void put_u32(Bytes& d, std::size_t at, std::uint32_t v) {
+  for (std::size_t i = 0; i < 4; ++i) d[at + i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+void put_mux(Bytes& d, std::uint16_t index, std::uint8_t sub) {
+  d[1] = static_cast<std::uint8_t>(index);
+  d[2] = static_cast<std::uint8_t>(index >> 8);
+  d[3] = sub;
+}
+bool same_mux(const Bytes& d, std::uint16_t index, std::uint8_t sub) {
+  return get_index(d) == index && d[3] == sub;
+}
+
+// A COB-ID above 0x7FF is sent as a 29-bit identifier.
+bool matches(const CanFrame& f, std::uint32_t cob_id) {
+  return f.id == cob_id && f.extended == (cob_id > CanFrame::kMaxStandardId);
+}
+CanFrame make_frame(std::uint32_t cob_id, const Bytes& d) {
+  return CanFrame::make(cob_id, d, cob_id > CanFrame::kMaxStandardId);
+}
+// Frames shorter than 8 bytes are read as if padded with zeros (see sdo.hpp).
+std::optional<Bytes> sdo_payload(const CanFrame& f) {
+  if (f.rtr || f.error || f.dlc == 0) return std::nullopt;
+  Bytes d{};
+  std::copy_n(f.data.begin(), std::min<std::size_t>(f.dlc, 8), d.begin());
+  return d;
+}
+Bytes abort_bytes(std::uint16_t index, std::uint8_t sub, SdoAbort code) {
+  Bytes d{};
+  d[0] = kCsAbort << 5;
+  put_mux(d, index, sub);
+  put_u32(d, 4, to_u32(code));
+  return d;
+}
+bool valid_block_size(std::uint8_t n) {
+  return n >= 1 && n <= kMaxBlockSize;
+}
+std::uint8_t clamp_block_size(std::uint8_t n) {
+  return std::clamp<std::uint8_t>(n, 1, kMaxBlockSize);
+}
+// Bytes in the last segment of `size` bytes sent in 7-byte segments (an empty value is sent as
+// one empty segment).
+std::size_t last_segment_bytes(std::size_t size) {
+  return size == 0 ? 0 : (size - 1) % kSegmentBytes + 1;
+}
+// Time arithmetic that saturates instead of overflowing on absurd durations.
+TimePoint later(TimePoint now, Duration d) {
+  if (d.count() > 0 && now.count() > std::numeric_limits<std::int64_t>::max() - d.count()) {
+    return TimePoint::max();
+  }
+  return now + d;
+}
+
+constexpr std::array<std::uint16_t, 256> make_crc_table() {
+  std::array<std::uint16_t, 256> table{};
+  for (unsigned i = 0; i < 256; ++i) {
+    std::uint16_t crc = static_cast<std::uint16_t>(i << 8);
+    for (int bit = 0; bit < 8; ++bit) {
+      crc = static_cast<std::uint16_t>((crc & 0x8000) ? (crc << 1) ^ 0x1021 : crc << 1);
+    }
+    table[i] = crc;
+  }
+  return table;
+}
+constexpr auto kCrcTable = make_crc_table();
+
+}  // namespace
+
+std::uint16_t sdo_block_crc(std::span<const std::uint8_t> data, std::uint16_t crc) {
+  for (auto byte : data) {
+    crc = static_cast<std::uint16_t>(crc << 8 ^ kCrcTable[(crc >> 8 ^ byte) & 0xFF]);
+  }
+  return crc;
+}
+
+// ================================================================================== server ==
+
+SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
+  SdoServerConfig c;
+  c.request_cob_id = 0x600u + node_id;
+  c.response_cob_id = 0x580u + node_id;
+  return c;
+}
+
+SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
+  auto c = for_node(dict.node_id());
+  // CiA 301 §7.5.2.33 (1200h): bit 31 "valid" (0 = valid), bit 29 frame format, bits 28..0 id.
+  auto cob = [](std::optional<std::uint64_t> v) -> std::optional<std::uint32_t> {
+    if (!v || (*v & 0x80000000u) != 0) return std::nullopt;
+    const bool extended = (*v & 0x20000000u) != 0;
+    const auto id = static_cast<std::uint32_t>(*v & (extended ? 0x1FFFFFFFu : 0x7FFu));
+    // An 11-bit id stays standard; a 29-bit one is only representable when above 0x7FF.
+    if (extended && id <= CanFrame::kMaxStandardId) return std::nullopt;
+    return id;
+  };
+  auto rx = cob(dict.get_unsigned(0x1200, 1));
+  auto tx = cob(dict.get_unsigned(0x1200, 2));
+  if (rx && tx) {
+    c.request_cob_id = *rx;
+    c.response_cob_id = *tx;
+  }
+  return c;
+}
+
+SdoServer::SdoServer(LocalDictionary& dict, SdoServerConfig config)
+    : dict_(&dict), config_(config) {
+  config_.block_size = clamp_block_size(config_.block_size);
+}
+
+void SdoServer::set_config(SdoServerConfig config) {
+  config_ = config;
+  config_.block_size = clamp_block_size(config_.block_size);
+  reset();
+  pending_.clear();
+}
+
+bool SdoServer::busy() const {
+  return state_ != State::Idle;
+}
+
+void SdoServer::reset() {
+  state_ = State::Idle;
+  buffer_.clear();
+  buffer_.shrink_to_fit();
+  size_.reset();
+  offset_ = 0;
+  toggle_ = false;
+  crc_ = false;
+  ack_seq_ = 0;
+  sent_in_block_ = 0;
+  last_received_ = false;
+  block_has_last_ = false;
+  timeout_at_.reset();
+}
+
+std::optional<TimePoint> SdoServer::next_deadline() const {
+  std::optional<TimePoint> t = timeout_at_;
+  if (!pending_.empty() && (!t || pending_.front().due < *t)) t = pending_.front().due;
+  return t;
+}
+
+bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
+  if (!matches(frame, config_.request_cob_id)) return false;
+  auto d = sdo_payload(frame);
+  if (!d) return false;
+  handle(*d, now);
+  timeout_at_ = state_ == State::Idle
+                    ? std::nullopt
+                    : std::optional(later(later(now, config_.response_latency), config_.timeout));
+  while (!pending_.empty() && pending_.front().due <= now) {
+    out.push_back(pending_.front().frame);
+    pending_.pop_front();
+  }
+  return true;
+}
+
+void SdoServer::on_timer(TimePoint now, std::vector<CanFrame>& out) {
+  if (timeout_at_ && now >= *timeout_at_) send_abort(SdoAbort::Timeout, now);
+  while (!pending_.empty() && pending_.front().due <= now) {
+    out.push_back(pending_.front().frame);
+    pending_.pop_front();
+  }
+}
+
+void SdoServer::abort(SdoAbort code, TimePoint now, std::vector<CanFrame>& out) {
+  if (state_ == State::Idle) return;
+  send_abort(code, now);
+  while (!pending_.empty() && pending_.front().due <= now) {
+    out.push_back(pending_.front().frame);
+    pending_.pop_front();
+  }
+}
+
+void SdoServer::respond(const Bytes& d, TimePoint now) {
+  // Responses keep their order even if the latency is changed between them.
+  TimePoint due = later(now, config_.response_latency);
+  if (!pending_.empty() && pending_.back().due > due) due = pending_.back().due;
+  pending_.push_back({due, make_frame(config_.response_cob_id, d)});
+}
+
+void SdoServer::send_abort(SdoAbort code, TimePoint now) {
+  respond(abort_bytes(index_, sub_, code), now);
+  reset();
+}
+
+void SdoServer::handle(const Bytes& d, TimePoint now) {
+  // In a block download every frame is a segment (byte 0: c | seqno); only 0x80 (c=1 with the
+  // invalid sequence number 0) is an abort there. Elsewhere the command specifier 4 is.
+  const bool is_abort = state_ == State::BlockDownload ? d[0] == 0x80 : command(d) == kCsAbort;
+  if (is_abort) {
+    reset();  // CiA 301 §7.2.4.3.17: no response to an abort
+    return;
+  }
+  switch (state_) {
+    case State::Idle:
+      // Only initiate requests carry a multiplexer; other aborts name 0000h/00h.
+      index_ = 0;
+      sub_ = 0;
+      if (command(d) == kCcsInitiateDownload || command(d) == kCcsInitiateUpload ||
+          command(d) == kCcsBlockDownload || command(d) == kCcsBlockUpload) {
+        index_ = get_index(d);
+        sub_ = d[3];
+      }
+      switch (command(d)) {
+        case kCcsInitiateDownload:
+          return initiate_download(d, now);
+        case kCcsInitiateUpload:
+          if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
+            return send_abort(code, now);
+          }
+          return start_upload(now);
+        case kCcsBlockDownload:
+          return block_download(d, now);
+        case kCcsBlockUpload:
+          return block_upload(d, now);
+        default:
+          return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      }
+    case State::DownloadSegment:
+      return download_segment(d, now);
+    case State::UploadSegment:
+      return upload_segment(d, now);
+    case State::BlockDownload:
+      return block_download_segment(d, now);
+    case State::BlockDownloadEnd:
+    case State::BlockUploadStart:
+    case State::BlockUpload:
+    case State::BlockUploadEnd:
+      if (command(d) == kCcsBlockDownload && state_ == State::BlockDownloadEnd) {
+        return block_download(d, now);
+      }
+      if (command(d) == kCcsBlockUpload && state_ != State::BlockDownloadEnd) {
+        return block_upload(d, now);
+      }
+      return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  }
+}
+
+// CiA 301 §7.2.4.3.3 / §7.2.4.3.5: initiate download, expedited or segmented.
+void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
+  const bool expedited = (d[0] & 0x02) != 0;
+  const bool size_indicated = (d[0] & 0x01) != 0;
+  if (expedited) {
+    std::size_t size = 4;
+    if (size_indicated) {
+      size = 4 - (d[0] >> 2 & 0x3);
+    } else if (const auto* e = dict_->entry(index_, sub_);
+               e && e->fixed_size() && *e->fixed_size() <= 4) {
+      size = *e->fixed_size();  // size not indicated: the object's own size
+    }
+    const auto code = dict_->write(index_, sub_, std::span(d).subspan(4, size));
+    if (code != SdoAbort::None) return send_abort(code, now);
+    Bytes r{};
+    r[0] = kScsInitiateDownload << 5;
+    put_mux(r, index_, sub_);
+    respond(r, now);
+    return;
+  }
+  if (size_indicated) size_ = get_u32(d, 4);
+  if (auto code = dict_->check_write(index_, sub_, size_); code != SdoAbort::None) {
+    return send_abort(code, now);
+  }
+  if (size_ && *size_ > config_.max_download_size) return send_abort(SdoAbort::OutOfMemory, now);
+  buffer_.clear();
+  buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 16));
+  toggle_ = false;
+  state_ = State::DownloadSegment;
+  Bytes r{};
+  r[0] = kScsInitiateDownload << 5;
+  put_mux(r, index_, sub_);
+  respond(r, now);
+}
+
+// CiA 301 §7.2.4.3.4 / §7.2.4.3.6: download segment, toggle bit starts at 0 and alternates.
+void SdoServer::download_segment(const Bytes& d, TimePoint now) {
+  if (command(d) != kCcsDownloadSegment) {
+    return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  }
+  const bool toggle = (d[0] & 0x10) != 0;
+  if (toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, now);
+  const std::size_t len = kSegmentBytes - (d[0] >> 1 & 0x7);
+  const bool last = (d[0] & 0x01) != 0;
+  if (size_ && buffer_.size() + len > *size_) return send_abort(SdoAbort::LengthMismatch, now);
+  if (buffer_.size() + len > config_.max_download_size) {
+    return send_abort(SdoAbort::OutOfMemory, now);
+  }
+  buffer_.insert(buffer_.end(), d.begin() + 1, d.begin() + 1 + static_cast<std::ptrdiff_t>(len));
+  Bytes r{};
+  r[0] = static_cast<std::uint8_t>(kScsDownloadSegment << 5 | (toggle ? 0x10 : 0));
+  if (last) {
+    // The response to the last segment confirms the write, so it is sent only after it.
+    return finish_download(now, r[0]);
+  }
+  toggle_ = !toggle_;
+  respond(r, now);
+}
+
+void SdoServer::finish_download(TimePoint now, std::uint8_t response) {
+  if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, now);
+  const auto code = dict_->write(index_, sub_, buffer_);
+  if (code != SdoAbort::None) return send_abort(code, now);
+  Bytes r{};
+  r[0] = response;
+  respond(r, now);
+  reset();
+}
+
+// CiA 301 §7.2.4.3.7 / §7.2.4.3.8: initiate upload response for the value in buffer_; values
+// of 1..4 bytes go expedited.
+void SdoServer::start_upload(TimePoint now) {
+  Bytes r{};
+  put_mux(r, index_, sub_);
+  if (!buffer_.empty() && buffer_.size() <= 4) {
+    r[0] = static_cast<std::uint8_t>(kScsInitiateUpload << 5 | (4 - buffer_.size()) << 2 | 0x3);
+    std::copy(buffer_.begin(), buffer_.end(), r.begin() + 4);
+    respond(r, now);
+    reset();
+    return;
+  }
+  if (buffer_.size() > std::numeric_limits<std::uint32_t>::max()) {
+    return send_abort(SdoAbort::OutOfMemory, now);
+  }
+  r[0] = kScsInitiateUpload << 5 | 0x1;  // segmented, size indicated
+  put_u32(r, 4, static_cast<std::uint32_t>(buffer_.size()));
+  offset_ = 0;
+  toggle_ = false;
+  state_ = State::UploadSegment;
+  respond(r, now);
+}
+
+void SdoServer::upload_segment(const Bytes& d, TimePoint now) {
+  if (command(d) != kCcsUploadSegment) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  const bool toggle = (d[0] & 0x10) != 0;
+  if (toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, now);
+  const std::size_t len = std::min(kSegmentBytes, buffer_.size() - offset_);
+  const bool last = offset_ + len == buffer_.size();
+  Bytes r{};
+  r[0] = static_cast<std::uint8_t>(kScsUploadSegment << 5 | (toggle ? 0x10 : 0) |
+                                   (kSegmentBytes - len) << 1 | (last ? 1 : 0));
+  std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(offset_), len, r.begin() + 1);
+  respond(r, now);
+  offset_ += len;
+  toggle_ = !toggle_;
+  if (last) reset();
+}
+
+// CiA 301 §7.2.4.3.9 - §7.2.4.3.11: block download (initiate and end requests).
+void SdoServer::block_download(const Bytes& d, TimePoint now) {
+  if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  const bool end = (d[0] & 0x01) != 0;
+  if (state_ == State::Idle) {
+    if (end) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+    crc_ = (d[0] & 0x04) != 0;
+    if ((d[0] & 0x02) != 0) size_ = get_u32(d, 4);
+    if (auto code = dict_->check_write(index_, sub_, size_); code != SdoAbort::None) {
+      return send_abort(code, now);
+    }
+    if (size_ && *size_ > config_.max_download_size) {
+      return send_abort(SdoAbort::OutOfMemory, now);
+    }
+    buffer_.clear();
+    buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 20));
+    block_size_ = config_.block_size;
+    ack_seq_ = 0;
+    last_received_ = false;
+    state_ = State::BlockDownload;
+    Bytes r{};
+    r[0] = kScsBlockDownload << 5 | 0x04;  // sc: the server checks the CRC
+    put_mux(r, index_, sub_);
+    r[4] = block_size_;
+    respond(r, now);
+    return;
+  }
+  // State::BlockDownloadEnd: the end request carries n (bytes of the last segment without data)
+  // and the CRC of the whole value.
+  if (!end) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  const std::size_t n = d[0] >> 2 & 0x7;
+  if (n > buffer_.size()) return send_abort(SdoAbort::LengthMismatch, now);
+  buffer_.resize(buffer_.size() - n);
+  if (crc_) {
+    const auto crc = static_cast<std::uint16_t>(d[1] | d[2] << 8);
+    if (sdo_block_crc(buffer_) != crc) return send_abort(SdoAbort::CrcError, now);
+  }
+  finish_download(now, kScsBlockDownload << 5 | 0x01);
+}
+
+void SdoServer::block_download_segment(const Bytes& d, TimePoint now) {
+  const std::uint8_t seq = d[0] & 0x7F;
+  const bool last = (d[0] & 0x80) != 0;
+  if (seq == 0 || seq > block_size_) return send_abort(SdoAbort::InvalidSequenceNumber, now);
+  // Segments after a lost one are ignored; the acknowledgement names the last one received in
+  // order and the client resends from there (CiA 301 §7.2.4.3.10).
+  if (seq == ack_seq_ + 1 && !last_received_) {
+    // Segments carry 7 bytes each, the last one padded: never more than the size needs.
+    const std::size_t limit = size_ ? *size_ : config_.max_download_size;
+    const std::size_t segments =
+        std::max<std::size_t>(1, (limit + kSegmentBytes - 1) / kSegmentBytes);
+    if (buffer_.size() + kSegmentBytes > segments * kSegmentBytes) {
+      return send_abort(size_ ? SdoAbort::LengthMismatch : SdoAbort::OutOfMemory, now);
+    }
+    buffer_.insert(buffer_.end(), d.begin() + 1, d.end());
+    ack_seq_ = seq;
+    last_received_ = last;
+  }
+  if (last || seq == block_size_) {
+    Bytes r{};
+    r[0] = kScsBlockDownload << 5 | 0x02;
+    r[1] = ack_seq_;
+    r[2] = block_size_;
+    respond(r, now);
+    ack_seq_ = 0;
+    if (last_received_) state_ = State::BlockDownloadEnd;
+  }
+}
+
+// CiA 301 §7.2.4.3.12 - §7.2.4.3.15: block upload.
+void SdoServer::block_upload(const Bytes& d, TimePoint now) {
+  if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  const std::uint8_t sub_command = d[0] & 0x03;
+  switch (state_) {
+    case State::Idle: {
+      if (sub_command != 0) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      const std::uint8_t block_size = d[4];
+      const std::uint8_t pst = d[5];
+      if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, now);
+      if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
+        return send_abort(code, now);
+      }
+      // Protocol switch threshold: small values may go by the normal upload protocol.
+      if (pst != 0 && buffer_.size() <= pst) return start_upload(now);
+      if (buffer_.size() > std::numeric_limits<std::uint32_t>::max()) {
+        return send_abort(SdoAbort::OutOfMemory, now);
+      }
+      crc_ = (d[0] & 0x04) != 0;
+      block_size_ = block_size;
+      offset_ = 0;
+      state_ = State::BlockUploadStart;
+      Bytes r{};
+      r[0] = kScsBlockUpload << 5 | 0x04 | 0x02;  // sc, size indicated
+      put_mux(r, index_, sub_);
+      put_u32(r, 4, static_cast<std::uint32_t>(buffer_.size()));
+      respond(r, now);
+      return;
+    }
+    case State::BlockUploadStart:
+      if (sub_command != 3) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      state_ = State::BlockUpload;
+      return send_upload_sub_block(now);
+    case State::BlockUpload: {
+      if (sub_command != 2) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      const std::uint8_t ack_seq = d[1];
+      const std::uint8_t block_size = d[2];
+      if (ack_seq > sent_in_block_) return send_abort(SdoAbort::InvalidSequenceNumber, now);
+      if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, now);
+      const bool all_acknowledged = ack_seq == sent_in_block_;
+      offset_ = std::min(buffer_.size(), offset_ + ack_seq * kSegmentBytes);
+      block_size_ = block_size;
+      if (all_acknowledged && block_has_last_) {
+        Bytes r{};
+        const auto n = kSegmentBytes - last_segment_bytes(buffer_.size());
+        r[0] = static_cast<std::uint8_t>(kScsBlockUpload << 5 | n << 2 | 0x01);
+        if (crc_) {
+          const auto crc = sdo_block_crc(buffer_);
+          r[1] = static_cast<std::uint8_t>(crc);
+          r[2] = static_cast<std::uint8_t>(crc >> 8);
+        }
+        state_ = State::BlockUploadEnd;
+        respond(r, now);
+        return;
+      }
+      return send_upload_sub_block(now);
+    }
+    case State::BlockUploadEnd:
+      if (sub_command != 1) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      reset();  // the client confirmed the end: done
+      return;
+    default:
+      return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  }
+}
+
+void SdoServer::send_upload_sub_block(TimePoint now) {
+  std::size_t pos = offset_;
+  sent_in_block_ = 0;
+  block_has_last_ = false;
+  for (std::uint8_t seq = 1; seq <= block_size_; ++seq) {
+    const std::size_t len = std::min(kSegmentBytes, buffer_.size() - pos);
+    const bool last = pos + len == buffer_.size();
+    Bytes r{};
+    r[0] = static_cast<std::uint8_t>((last ? 0x80 : 0) | seq);
+    std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(pos), len, r.begin() + 1);
+    respond(r, now);
+    pos += len;
+    sent_in_block_ = seq;
+    if (last) {
+      block_has_last_ = true;
+      break;
+    }
+  }
+}
+
+// ================================================================================== client ==
+
+SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
+  SdoClientConfig c;
+  c.request_cob_id = 0x600u + node_id;
+  c.response_cob_id = 0x580u + node_id;
+  c.node_id = node_id;
+  return c;
+}
+
+SdoClient::SdoClient(SdoClientConfig config) : config_(config) {}
+
+SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
+                                          std::vector<std::uint8_t> data,
+                                          SdoTransferOptions options, Callback done) {
+  auto t = std::make_unique<Transfer>();
+  t->id = next_id_++;
+  t->index = index;
+  t->sub = sub;
+  t->data = std::move(data);
+  t->options = options;
+  t->mode = options.mode;
+  t->done = std::move(done);
+  const auto id = t->id;
+  queue_.push_back(std::move(t));
+  return id;
+}
+
+SdoClient::TransferId SdoClient::upload(std::uint16_t index, std::uint8_t sub,
+                                        SdoTransferOptions options, Callback done) {
+  auto t = std::make_unique<Transfer>();
+  t->id = next_id_++;
+  t->upload = true;
+  t->index = index;
+  t->sub = sub;
+  t->options = options;
+  t->mode = options.mode;
+  t->done = std::move(done);
+  const auto id = t->id;
+  queue_.push_back(std::move(t));
+  return id;
+}
+
+bool SdoClient::cancel(TransferId id, SdoAbort code) {
+  if (active_ && active_->id == id) {
+    if (active_->state != State::Cancel) {
+      active_->cancel_code = code;
+      active_->state = State::Cancel;
+    }
+    return true;
+  }
+  for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+    if ((*it)->id != id) continue;
+    auto t = std::move(*it);
+    queue_.erase(it);
+    SdoResult r;
+    r.id = t->id;
+    r.node_id = config_.node_id;
+    r.index = t->index;
+    r.sub_index = t->sub;
+    r.upload = t->upload;
+    r.abort = code == SdoAbort::None ? SdoAbort::General : code;
+    report(std::move(r), t->done);
+    return true;
+  }
+  return false;
+}
+
+const SdoResult* SdoClient::result(TransferId id) const {
+  auto it = results_.find(id);
+  return it == results_.end() ? nullptr : &it->second;
+}
+
+std::optional<SdoResult> SdoClient::take_result(TransferId id) {
+  auto it = results_.find(id);
+  if (it == results_.end()) return std::nullopt;
+  auto r = std::move(it->second);
+  results_.erase(it);
+  return r;
+}
+
+std::optional<TimePoint> SdoClient::next_deadline() const {
+  if (active_) {
+    if (active_->state == State::Cancel || active_->state == State::Start) return TimePoint{0};
+    return active_->deadline;
+  }
+  if (!queue_.empty()) return TimePoint{0};
+  return std::nullopt;
+}
+
+void SdoClient::report(SdoResult result, Callback& done) {
+  if (done) {
+    done(result);
+  } else {
+    results_.insert_or_assign(result.id, std::move(result));
+  }
+}
+
+void SdoClient::finish(SdoAbort code, bool by_server, TimePoint now) {
+  auto t = std::move(active_);
+  SdoResult r;
+  r.id = t->id;
+  r.node_id = config_.node_id;
+  r.index = t->index;
+  r.sub_index = t->sub;
+  r.upload = t->upload;
+  r.abort = code;
+  r.aborted_by_server = by_server;
+  r.protocol = t->protocol;
+  r.fell_back = t->fell_back;
+  if (t->upload && code == SdoAbort::None) r.data = std::move(t->data);
+  r.started = t->started.value_or(now);
+  r.finished = now;
+  report(std::move(r), t->done);
+}
+
+void SdoClient::fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now,
+                     std::vector<CanFrame>& out) {
+  if (send_frame)
+    out.push_back(make_frame(config_.request_cob_id, abort_bytes(t.index, t.sub, code)));
+  finish(code, false, now);
+}
+
+void SdoClient::send(Transfer& t, const Bytes& d, TimePoint now, std::vector<CanFrame>& out) {
+  out.push_back(make_frame(config_.request_cob_id, d));
+  if (!t.started) t.started = now;
+  t.deadline = later(now, t.options.timeout);
+}
+
+void SdoClient::pump(TimePoint now, std::vector<CanFrame>& out) {
+  // A finished transfer's callback may queue more; start them without waiting for a timer.
+  while (!active_ && !queue_.empty()) {
+    active_ = std::move(queue_.front());
+    queue_.pop_front();
+    start(*active_, now, out);
+  }
+}
+
+void SdoClient::on_timer(TimePoint now, std::vector<CanFrame>& out) {
+  if (active_) {
+    auto& t = *active_;
+    if (t.state == State::Cancel) {
+      fail(t, t.cancel_code == SdoAbort::None ? SdoAbort::General : t.cancel_code, true, now, out);
+    } else if (t.state != State::Start && now >= t.deadline) {
+      // CiA 301 §7.2.4.3.17: the client aborts with 0504 0000 when the server does not answer.
+      fail(t, SdoAbort::Timeout, true, now, out);
+    }
+  }
+  pump(now, out);
+}
+
+bool SdoClient::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
+  if (!matches(frame, config_.response_cob_id)) return false;
+  auto d = sdo_payload(frame);
+  if (!d) return false;
+  if (active_ && active_->state != State::Cancel && active_->state != State::Start) {
+    handle(*active_, *d, now, out);
+  }
+  pump(now, out);
+  return true;
+}
+
+void SdoClient::start(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
+  t.toggle = false;
+  t.offset = 0;
+  t.size.reset();
+  t.options.block_size = clamp_block_size(t.options.block_size);
+  Bytes d{};
+  put_mux(d, t.index, t.sub);
+  if (!t.upload) {
+    const auto size = t.data.size();
+    if (size > std::numeric_limits<std::uint32_t>::max()) {
+      return finish(SdoAbort::OutOfMemory, false, now);  // cannot be described on the bus
+    }
+    if (t.mode == SdoMode::Block) {
+      t.protocol = SdoProtocol::Block;
+      d[0] = static_cast<std::uint8_t>(kCcsBlockDownload << 5 | (t.options.crc ? 0x04 : 0) | 0x02);
+      put_u32(d, 4, static_cast<std::uint32_t>(size));
+      t.state = State::BlockDownloadInit;
+    } else if (t.mode == SdoMode::Auto && size >= 1 && size <= 4) {
+      // CiA 301 §7.2.4.3.3: e=1, s=1, n = 4 - size.
+      t.protocol = SdoProtocol::Expedited;
+      d[0] = static_cast<std::uint8_t>(kCcsInitiateDownload << 5 | (4 - size) << 2 | 0x03);
+      std::copy(t.data.begin(), t.data.end(), d.begin() + 4);
+      t.state = State::InitiateDownload;
+    } else {
+      t.protocol = SdoProtocol::Segmented;
+      d[0] = kCcsInitiateDownload << 5 | 0x01;
+      put_u32(d, 4, static_cast<std::uint32_t>(size));
+      t.state = State::InitiateDownload;
+    }
+  } else {
+    t.data.clear();
+    if (t.mode == SdoMode::Block) {
+      t.protocol = SdoProtocol::Block;
+      d[0] = static_cast<std::uint8_t>(kCcsBlockUpload << 5 | (t.options.crc ? 0x04 : 0));
+      d[4] = t.options.block_size;
+      d[5] = t.options.protocol_switch_threshold;
+      t.state = State::BlockUploadInit;
+    } else {
+      t.protocol = SdoProtocol::Segmented;  // until the server answers expedited
+      d[0] = kCcsInitiateUpload << 5;
+      t.state = State::InitiateUpload;
+    }
+  }
+  send(t, d, now, out);
+}
+
+void SdoClient::send_download_segment(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
+  const std::size_t len = std::min(kSegmentBytes, t.data.size() - t.offset);
+  const bool last = t.offset + len == t.data.size();
+  Bytes d{};
+  d[0] = static_cast<std::uint8_t>(kCcsDownloadSegment << 5 | (t.toggle ? 0x10 : 0) |
+                                   (kSegmentBytes - len) << 1 | (last ? 1 : 0));
+  std::copy_n(t.data.begin() + static_cast<std::ptrdiff_t>(t.offset), len, d.begin() + 1);
+  t.state = State::DownloadSegment;
+  send(t, d, now, out);
+}
+
+void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
+  std::size_t pos = t.offset;
+  t.sent_in_block = 0;
+  t.block_has_last = false;
+  for (std::uint8_t seq = 1; seq <= t.block_size; ++seq) {
+    const std::size_t len = std::min(kSegmentBytes, t.data.size() - pos);
+    const bool last = pos + len == t.data.size();
+    Bytes d{};
+    d[0] = static_cast<std::uint8_t>((last ? 0x80 : 0) | seq);
+    std::copy_n(t.data.begin() + static_cast<std::ptrdiff_t>(pos), len, d.begin() + 1);
+    send(t, d, now, out);
+    pos += len;
+    t.sent_in_block = seq;
+    if (last) {
+      t.block_has_last = true;
+      break;
+    }
+  }
+  t.state = State::BlockDownload;
+}
+
+void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<CanFrame>& out) {
+  // While a block upload's segments arrive only 0x80 is an abort (see the server).
+  const bool is_abort = t.state == State::BlockUpload ? d[0] == 0x80 : command(d) == kCsAbort;
+  if (is_abort) {
+    auto code = static_cast<SdoAbort>(get_u32(d, 4));
+    if (code == SdoAbort::None) code = SdoAbort::General;  // 0 would read as success
+    const bool block_init =
+        t.state == State::BlockDownloadInit || t.state == State::BlockUploadInit;
+    if (block_init && code == SdoAbort::InvalidCommandSpecifier && !t.fell_back) {
+      // The server does not do block transfer: retry with expedited/segmented.
+      t.fell_back = true;
+      t.mode = SdoMode::Auto;
+      return start(t, now, out);
+    }
+    return finish(code, true, now);
+  }
+  const auto cs = command(d);
+  switch (t.state) {
+    case State::InitiateDownload:
+      if (cs != kScsInitiateDownload)
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      if (!same_mux(d, t.index, t.sub)) return fail(t, SdoAbort::General, true, now, out);
+      if (t.protocol == SdoProtocol::Expedited) return finish(SdoAbort::None, false, now);
+      return send_download_segment(t, now, out);
+
+    case State::DownloadSegment: {
+      if (cs != kScsDownloadSegment)
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      if (((d[0] & 0x10) != 0) != t.toggle) {
+        return fail(t, SdoAbort::ToggleBitNotAlternated, true, now, out);
+      }
+      const std::size_t len = std::min(kSegmentBytes, t.data.size() - t.offset);
+      t.offset += len;
+      if (t.offset == t.data.size()) return finish(SdoAbort::None, false, now);
+      t.toggle = !t.toggle;
+      return send_download_segment(t, now, out);
+    }
+
+    case State::BlockUploadInit:
+      if (cs == kScsBlockUpload && (d[0] & 0x01) == 0) {
+        if (!same_mux(d, t.index, t.sub)) return fail(t, SdoAbort::General, true, now, out);
+        t.crc = t.options.crc && (d[0] & 0x04) != 0;
+        if ((d[0] & 0x02) != 0) {
+          t.size = get_u32(d, 4);
+          if (*t.size > t.options.max_size) return fail(t, SdoAbort::OutOfMemory, true, now, out);
+        }
+        t.block_size = t.options.block_size;
+        t.ack_seq = 0;
+        t.last_received = false;
+        t.state = State::BlockUpload;
+        Bytes r{};
+        r[0] = kCcsBlockUpload << 5 | 0x03;  // start upload
+        return send(t, r, now, out);
+      }
+      if (cs != kScsInitiateUpload)
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      // The server switched protocols (protocol switch threshold): a normal upload response.
+      t.protocol = SdoProtocol::Segmented;
+      [[fallthrough]];
+    case State::InitiateUpload: {
+      if (cs != kScsInitiateUpload)
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      if (!same_mux(d, t.index, t.sub)) return fail(t, SdoAbort::General, true, now, out);
+      const bool expedited = (d[0] & 0x02) != 0;
+      const bool size_indicated = (d[0] & 0x01) != 0;
+      if (expedited) {
+        const std::size_t size = size_indicated ? 4 - (d[0] >> 2 & 0x3) : 4;
+        t.data.assign(d.begin() + 4, d.begin() + 4 + static_cast<std::ptrdiff_t>(size));
+        t.protocol = SdoProtocol::Expedited;
+        return finish(SdoAbort::None, false, now);
+      }
+      if (size_indicated) {
+        t.size = get_u32(d, 4);
+        if (*t.size > t.options.max_size) return fail(t, SdoAbort::OutOfMemory, true, now, out);
+        t.data.reserve(std::min<std::size_t>(*t.size, 1 << 16));
+      }
+      t.protocol = SdoProtocol::Segmented;
+      t.toggle = false;
+      t.state = State::UploadSegment;
+      Bytes r{};
+      r[0] = kCcsUploadSegment << 5;
+      return send(t, r, now, out);
+    }
+
+    case State::UploadSegment: {
+      if (cs != kScsUploadSegment)
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      if (((d[0] & 0x10) != 0) != t.toggle) {
+        return fail(t, SdoAbort::ToggleBitNotAlternated, true, now, out);
+      }
+      const std::size_t len = kSegmentBytes - (d[0] >> 1 & 0x7);
+      const bool last = (d[0] & 0x01) != 0;
+      if (t.data.size() + len > t.options.max_size) {
+        return fail(t, SdoAbort::OutOfMemory, true, now, out);
+      }
+      t.data.insert(t.data.end(), d.begin() + 1, d.begin() + 1 + static_cast<std::ptrdiff_t>(len));
+      if (t.size && t.data.size() > *t.size)
+        return fail(t, SdoAbort::LengthMismatch, true, now, out);
+      if (last) {
+        if (t.size && t.data.size() != *t.size) {
+          return fail(t, SdoAbort::LengthMismatch, true, now, out);
+        }
+        return finish(SdoAbort::None, false, now);
+      }
+      t.toggle = !t.toggle;
+      Bytes r{};
+      r[0] = static_cast<std::uint8_t>(kCcsUploadSegment << 5 | (t.toggle ? 0x10 : 0));
+      return send(t, r, now, out);
+    }
+
+    case State::BlockDownloadInit: {
+      if (cs != kScsBlockDownload || (d[0] & 0x03) != 0) {
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      }
+      if (!same_mux(d, t.index, t.sub)) return fail(t, SdoAbort::General, true, now, out);
+      if (!valid_block_size(d[4])) return fail(t, SdoAbort::InvalidBlockSize, true, now, out);
+      t.crc = t.options.crc && (d[0] & 0x04) != 0;
+      t.block_size = d[4];
+      t.offset = 0;
+      return send_download_sub_block(t, now, out);
+    }
+
+    case State::BlockDownload: {
+      if (cs != kScsBlockDownload || (d[0] & 0x03) != 2) {
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      }
+      const std::uint8_t ack_seq = d[1];
+      if (ack_seq > t.sent_in_block)
+        return fail(t, SdoAbort::InvalidSequenceNumber, true, now, out);
+      if (!valid_block_size(d[2])) return fail(t, SdoAbort::InvalidBlockSize, true, now, out);
+      t.offset = std::min(t.data.size(), t.offset + ack_seq * kSegmentBytes);
+      t.block_size = d[2];
+      if (ack_seq == t.sent_in_block && t.block_has_last) {
+        // CiA 301 §7.2.4.3.11: end request with n and the CRC over the whole value.
+        Bytes r{};
+        const auto n = kSegmentBytes - last_segment_bytes(t.data.size());
+        r[0] = static_cast<std::uint8_t>(kCcsBlockDownload << 5 | n << 2 | 0x01);
+        if (t.crc) {
+          const auto crc = sdo_block_crc(t.data);
+          r[1] = static_cast<std::uint8_t>(crc);
+          r[2] = static_cast<std::uint8_t>(crc >> 8);
+        }
+        t.state = State::BlockDownloadEnd;
+        return send(t, r, now, out);
+      }
+      // Resend from the segment after the last one acknowledged, numbering from 1 again.
+      return send_download_sub_block(t, now, out);
+    }
+
+    case State::BlockDownloadEnd:
+      if (cs != kScsBlockDownload || (d[0] & 0x03) != 1) {
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      }
+      return finish(SdoAbort::None, false, now);
+
+    case State::BlockUpload: {
+      const std::uint8_t seq = d[0] & 0x7F;
+      const bool last = (d[0] & 0x80) != 0;
+      if (seq == 0 || seq > t.block_size) {
+        return fail(t, SdoAbort::InvalidSequenceNumber, true, now, out);
+      }
+      if (seq == t.ack_seq + 1 && !t.last_received) {
+        if (t.data.size() + kSegmentBytes > t.options.max_size + kSegmentBytes) {
+          return fail(t, SdoAbort::OutOfMemory, true, now, out);
+        }
+        t.data.insert(t.data.end(), d.begin() + 1, d.end());
+        t.ack_seq = seq;
+        t.last_received = last;
+      }
+      if (last || seq == t.block_size) {
+        Bytes r{};
+        r[0] = kCcsBlockUpload << 5 | 0x02;
+        r[1] = t.ack_seq;
+        r[2] = t.options.block_size;
+        t.block_size = t.options.block_size;
+        t.ack_seq = 0;
+        if (t.last_received) t.state = State::BlockUploadEnd;
+        return send(t, r, now, out);
+      }
+      t.deadline = later(now, t.options.timeout);  // segments keep the transfer alive
+      return;
+    }
+
+    case State::BlockUploadEnd: {
+      if (cs != kScsBlockUpload || (d[0] & 0x03) != 1) {
+        return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+      }
+      const std::size_t n = d[0] >> 2 & 0x7;
+      if (n > t.data.size()) return fail(t, SdoAbort::LengthMismatch, true, now, out);
+      t.data.resize(t.data.size() - n);
+      if (t.size && t.data.size() != *t.size)
+        return fail(t, SdoAbort::LengthMismatch, true, now, out);
+      if (t.crc && sdo_block_crc(t.data) != static_cast<std::uint16_t>(d[1] | d[2] << 8)) {
+        return fail(t, SdoAbort::CrcError, true, now, out);
+      }
+      Bytes r{};
+      r[0] = kCcsBlockUpload << 5 | 0x01;  // end response
+      out.push_back(make_frame(config_.request_cob_id, r));
+      return finish(SdoAbort::None, false, now);
+    }
+
+    case State::Start:
+    case State::Cancel:
+      return;
+  }
+}
+
+// ===================================================================================== mux ==
+
+SdoClient& SdoClientMux::client(std::uint8_t node_id) {
+  return add(SdoClientConfig::for_node(node_id));
+}
+
+SdoClient& SdoClientMux::add(SdoClientConfig config) {
+  auto& slot = clients_[config.response_cob_id];
+  if (!slot) slot = std::make_unique<SdoClient>(config);
+  return *slot;
+}
+
+bool SdoClientMux::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
+  auto it = clients_.find(frame.id);
+  return it != clients_.end() && it->second->on_frame(frame, now, out);
+}
+
+void SdoClientMux::on_timer(TimePoint now, std::vector<CanFrame>& out) {
+  for (auto& [cob, c] : clients_) {
+    if (auto t = c->next_deadline(); t && *t <= now) c->on_timer(now, out);
+  }
+}
+
+std::optional<TimePoint> SdoClientMux::next_deadline() const {
+  std::optional<TimePoint> best;
+  for (const auto& [cob, c] : clients_) {
+    if (auto t = c->next_deadline(); t && (!best || *t < *best)) best = t;
+  }
+  return best;
+}
+
+bool SdoClientMux::busy() const {
+  return std::any_of(clients_.begin(), clients_.end(),
+                     [](const auto& kv) { return kv.second->busy(); });
+}
+
+}  // namespace nmt

@@ -1,0 +1,280 @@
+// SDO client and server talking over the simulated bus: block transfers of 1000+ bytes,
+// retransmission after lost frames, fallback to segmented, timeouts, many nodes at once.
+// Protocol from public knowledge of CiA 301 §7.2.4 (not in spec/).
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "nmt/sdo.hpp"
+#include "nmt/sim_bus.hpp"
+#include "sdo_test_device.hpp"
+
+namespace nmt {
+namespace {
+
+using namespace std::chrono_literals;
+using Bytes = std::vector<std::uint8_t>;
+
+// A node that only serves SDO: the dictionary and the server engine on the bus.
+struct ServerNode {
+  explicit ServerNode(std::uint8_t node_id, SdoServerConfig config)
+      : dict(LocalDictionary::from_device(test_support::sdo_test_device(), node_id).value()),
+        node(dict, config) {}
+  explicit ServerNode(std::uint8_t node_id)
+      : ServerNode(node_id, SdoServerConfig::for_node(node_id)) {}
+  LocalDictionary dict;
+  SimEngineNode<SdoServer> node;
+};
+
+Bytes pattern(std::size_t n, unsigned seed = 1) {
+  Bytes b(n);
+  for (std::size_t i = 0; i < n; ++i) b[i] = static_cast<std::uint8_t>(i * 7 + seed * 13 + i / 256);
+  return b;
+}
+
+SdoTransferOptions block_mode() {
+  SdoTransferOptions o;
+  o.mode = SdoMode::Block;
+  return o;
+}
+
+class SdoTransferTest : public ::testing::Test {
+ protected:
+  SimBus bus{1'000'000};
+  ServerNode server{5};
+  SimEngineNode<SdoClientMux> client;
+  std::vector<std::string> trace;
+
+  void SetUp() override {
+    bus.attach(server.node);
+    bus.attach(client);
+    bus.add_observer([this](const CanFrame& f, TimePoint) { trace.push_back(to_candump(f)); });
+  }
+  SdoResult run_download(std::uint16_t index, std::uint8_t sub, Bytes data,
+                         SdoTransferOptions o = {}) {
+    std::optional<SdoResult> result;
+    client.apply([&](SdoClientMux& m) {
+      m.client(5).download(index, sub, std::move(data), o, [&](const SdoResult& r) { result = r; });
+    });
+    EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
+    EXPECT_TRUE(result.has_value());
+    return result.value_or(SdoResult{});
+  }
+  SdoResult run_upload(std::uint16_t index, std::uint8_t sub, SdoTransferOptions o = {}) {
+    std::optional<SdoResult> result;
+    client.apply([&](SdoClientMux& m) {
+      m.client(5).upload(index, sub, o, [&](const SdoResult& r) { result = r; });
+    });
+    EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
+    EXPECT_TRUE(result.has_value());
+    return result.value_or(SdoResult{});
+  }
+  int count(std::string_view prefix) const {
+    int n = 0;
+    for (const auto& t : trace) n += t.rfind(prefix, 0) == 0 ? 1 : 0;
+    return n;
+  }
+};
+
+TEST_F(SdoTransferTest, ExpeditedDownloadFrameExactOnTheBus) {
+  auto r = run_download(0x1017, 0, {0xE8, 0x03});
+  EXPECT_TRUE(r.ok()) << r.abort;
+  EXPECT_EQ(trace, (std::vector<std::string>{"605#2B171000E8030000", "585#6017100000000000"}));
+  EXPECT_EQ(server.dict.get_unsigned(0x1017, 0), 1000u);
+  // Two frames of 119 and 114 bits (stuffing included) at 1 us per bit.
+  EXPECT_GT(r.finished - r.started, 200us);
+  EXPECT_LT(r.finished - r.started, 250us);
+}
+
+TEST_F(SdoTransferTest, BlockDownloadAndUploadOfFifteenHundredBytes) {
+  const Bytes data = pattern(1500);
+  auto down = run_download(0x2000, 0, data, block_mode());
+  ASSERT_TRUE(down.ok()) << down.abort;
+  EXPECT_EQ(down.protocol, SdoProtocol::Block);
+  EXPECT_FALSE(down.fell_back);
+  auto stored = server.dict.get_bytes(0x2000, 0);
+  EXPECT_EQ(Bytes(stored->begin(), stored->end()), data);
+  // 1500 bytes = 215 segments: blocks of 127 and 88 segments, two acknowledgements.
+  EXPECT_EQ(count("585#A2"), 2);
+
+  trace.clear();
+  auto up = run_upload(0x2000, 0, block_mode());
+  ASSERT_TRUE(up.ok()) << up.abort;
+  EXPECT_EQ(up.data, data);
+  EXPECT_EQ(up.protocol, SdoProtocol::Block);
+  EXPECT_EQ(count("605#A2"), 2);
+}
+
+TEST_F(SdoTransferTest, SegmentedTransfersOfAThousandBytes) {
+  const Bytes data = pattern(1000, 3);
+  ASSERT_TRUE(run_download(0x2000, 0, data).ok());
+  auto up = run_upload(0x2000, 0);
+  ASSERT_TRUE(up.ok()) << up.abort;
+  EXPECT_EQ(up.data, data);
+  EXPECT_EQ(up.protocol, SdoProtocol::Segmented);
+}
+
+TEST_F(SdoTransferTest, BlockDownloadRetransmitsAfterLostSegment) {
+  // Drop the fifth segment of the first sub-block, once.
+  bool dropped = false;
+  bus.set_filter([&](const CanFrame& f, TimePoint) {
+    if (!dropped && f.id == 0x605 && f.data[0] == 0x05) {
+      dropped = true;
+      return FrameFate::drop();
+    }
+    return FrameFate::deliver();
+  });
+  const Bytes data = pattern(2000, 5);
+  auto r = run_download(0x2000, 0, data, block_mode());
+  ASSERT_TRUE(dropped);
+  ASSERT_TRUE(r.ok()) << r.abort;
+  auto stored = server.dict.get_bytes(0x2000, 0);
+  EXPECT_EQ(Bytes(stored->begin(), stored->end()), data);
+  // The server acknowledged segment 4 as the last one received in order.
+  EXPECT_EQ(count("585#A2047F"), 1);
+}
+
+TEST_F(SdoTransferTest, BlockUploadRetransmitsAfterLostSegment) {
+  const Bytes data = pattern(1200, 9);
+  ASSERT_TRUE(server.dict.set_bytes(0x2000, 0, data));
+  int seen = 0;
+  bus.set_filter([&](const CanFrame& f, TimePoint) {
+    // The 30th segment from the server (sequence number 30 of the first sub-block).
+    if (f.id == 0x585 && (f.data[0] & 0x7F) == 30 && seen++ == 0) return FrameFate::drop();
+    return FrameFate::deliver();
+  });
+  auto r = run_upload(0x2000, 0, block_mode());
+  ASSERT_TRUE(r.ok()) << r.abort;
+  EXPECT_EQ(r.data, data);
+  EXPECT_EQ(count("605#A21D7F"), 1);  // ack 29
+}
+
+TEST_F(SdoTransferTest, FallsBackToSegmentedWhenServerDoesNotDoBlock) {
+  auto config = server.node.engine().config();
+  config.block_transfer = false;
+  server.node.engine().set_config(config);
+  const Bytes data = pattern(100);
+  auto r = run_download(0x2000, 0, data, block_mode());
+  ASSERT_TRUE(r.ok()) << r.abort;
+  EXPECT_TRUE(r.fell_back);
+  EXPECT_EQ(r.protocol, SdoProtocol::Segmented);
+  ASSERT_GE(trace.size(), 3u);
+  EXPECT_EQ(trace[0], "605#C600200064000000");
+  EXPECT_EQ(trace[1], "585#8000200001000405");
+  EXPECT_EQ(trace[2], "605#2100200064000000");
+  auto up = run_upload(0x2000, 0, block_mode());
+  ASSERT_TRUE(up.ok());
+  EXPECT_TRUE(up.fell_back);
+  EXPECT_EQ(up.data, data);
+}
+
+TEST_F(SdoTransferTest, ClientTimesOutOnASlowServerAndSendsAbort) {
+  auto config = server.node.engine().config();
+  config.response_latency = 1500ms;
+  server.node.engine().set_config(config);
+  SdoTransferOptions o;
+  o.timeout = 1000ms;
+  auto r = run_download(0x1017, 0, {0xE8, 0x03}, o);
+  EXPECT_EQ(r.abort, SdoAbort::Timeout);
+  EXPECT_FALSE(r.aborted_by_server);
+  // Request at 0, abort when 1 s passed without a response; the late response still comes.
+  ASSERT_EQ(trace.size(), 3u);
+  EXPECT_EQ(trace[0], "605#2B171000E8030000");
+  EXPECT_EQ(trace[1], "605#8017100000000405");
+  EXPECT_EQ(trace[2], "585#6017100000000000");
+  EXPECT_EQ(r.finished - r.started, 1000ms);
+}
+
+TEST_F(SdoTransferTest, SlowServerWithinTheTimeoutSucceeds) {
+  auto config = server.node.engine().config();
+  config.response_latency = 20ms;
+  server.node.engine().set_config(config);
+  auto r = run_upload(0x1008, 0);
+  ASSERT_TRUE(r.ok()) << r.abort;
+  // Four request/response exchanges of 20 ms each.
+  EXPECT_GE(r.finished - r.started, 80ms);
+  EXPECT_LT(r.finished - r.started, 81ms);
+}
+
+TEST_F(SdoTransferTest, TimeoutWhenTheLastSegmentOfABlockIsLost) {
+  // The segment with c=1 never arrives: the server cannot acknowledge, the client times out.
+  bus.set_filter([](const CanFrame& f, TimePoint) {
+    return f.id == 0x605 && (f.data[0] & 0x80) != 0 && (f.data[0] & 0x7F) != 0
+               ? FrameFate::drop()
+               : FrameFate::deliver();
+  });
+  SdoTransferOptions o = block_mode();
+  o.timeout = 300ms;
+  auto r = run_download(0x2000, 0, pattern(50), o);
+  EXPECT_EQ(r.abort, SdoAbort::Timeout);
+  EXPECT_FALSE(server.node.engine().busy());  // the client's abort reset the server
+}
+
+TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
+  std::vector<std::unique_ptr<ServerNode>> servers;
+  for (std::uint8_t id = 10; id < 20; ++id) {
+    servers.push_back(std::make_unique<ServerNode>(id));
+    bus.attach(servers.back()->node);
+  }
+  std::vector<SdoResult> results;
+  client.apply([&](SdoClientMux& m) {
+    for (std::uint8_t id = 10; id < 20; ++id) {
+      auto& c = m.client(id);
+      auto done = [&](const SdoResult& r) { results.push_back(r); };
+      c.download(0x2000, 0, pattern(700, id), block_mode(), done);
+      c.download(0x2005, 0, pattern(30, id), {}, done);
+      c.download(0x1017, 0, {id, 0}, {}, done);
+      c.upload(0x2000, 0, block_mode(), done);
+      c.upload(0x1018, 1, {}, done);
+    }
+  });
+  ASSERT_TRUE(bus.run_until_idle(bus.now() + 60s));
+  ASSERT_EQ(results.size(), 50u);
+  TimePoint last{0};
+  Duration sum{0};
+  for (const auto& r : results) {
+    EXPECT_TRUE(r.ok()) << "node " << int{r.node_id} << " " << r.abort;
+    if (r.upload && r.index == 0x2000) {
+      EXPECT_EQ(r.data, pattern(700, r.node_id));
+    }
+    last = std::max(last, r.finished);
+    sum += r.finished - r.started;
+  }
+  for (std::uint8_t id = 10; id < 20; ++id) {
+    EXPECT_EQ(servers[id - 10]->dict.get_unsigned(0x1017, 0), id);
+  }
+  // The transfers overlapped: all were done in less time than they took one after another.
+  EXPECT_LT(last.count() * 3, sum.count());
+}
+
+TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
+  bus.set_loss_rate(0.05, 7);
+  int finished = 0, succeeded = 0;
+  SdoTransferOptions o = block_mode();
+  o.timeout = 100ms;
+  client.apply([&](SdoClientMux& m) {
+    for (int i = 0; i < 40; ++i) {
+      auto done = [&](const SdoResult& r) {
+        ++finished;
+        succeeded += r.ok() ? 1 : 0;
+        if (!r.ok()) {
+          EXPECT_TRUE(r.abort == SdoAbort::Timeout || r.aborted_by_server) << r.abort;
+        }
+      };
+      if (i % 2 == 0) {
+        m.client(5).download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), o, done);
+      } else {
+        m.client(5).upload(0x2000, 0, o, done);
+      }
+    }
+  });
+  ASSERT_TRUE(bus.run_until_idle(bus.now() + 600s));
+  EXPECT_EQ(finished, 40);
+  EXPECT_GT(succeeded, 0);
+  EXPECT_FALSE(server.node.engine().busy());
+}
+
+}  // namespace
+}  // namespace nmt
