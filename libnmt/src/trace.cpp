@@ -5,6 +5,7 @@
 #include <pcap/pcap.h>
 
 #include <array>
+#include <cassert>
 #include <cerrno>
 #include <cinttypes>
 #include <cstdio>
@@ -186,7 +187,9 @@ TimePoint wall_clock_now() {
 
 TracingBus::TracingBus(std::unique_ptr<Bus> inner, std::unique_ptr<TraceWriter> trace,
                        std::function<TimePoint()> clock)
-    : inner_(std::move(inner)), trace_(std::move(trace)), clock_(std::move(clock)) {}
+    : inner_(std::move(inner)), trace_(std::move(trace)), clock_(std::move(clock)) {
+  assert(inner_ != nullptr && trace_ != nullptr && clock_);
+}
 
 cfg::Status TracingBus::send(const CanFrame& frame) {
   auto status = inner_->send(frame);

@@ -388,7 +388,7 @@ cfg::Result<CanFrame> decode_udp_datagram(std::span<const std::uint8_t> datagram
     if (!st) return st.error();
   }
 
-  // The checks of python-can's Message._check, in its order.
+  // No CAN FD here; then the checks of python-can's Message._check.
   if (fd) return cfg::Error{"CAN FD frame (not supported)"};
   if (remote && error) return cfg::Error{"frame is both remote and error"};
   if (id > (extended ? CanFrame::kMaxExtendedId : CanFrame::kMaxStandardId)) {
