@@ -14,6 +14,8 @@ packages=(
   clang libclang-rt-14-dev
   # bus tests: python-can as an independent peer, can-utils, network namespaces
   python3 python3-can python3-msgpack can-utils iproute2 util-linux
+  # an independent decoder of our pcap traces (CANopen dissector)
+  tshark
   # VM tier: a real Linux CAN stack under qemu
   qemu-system-x86 busybox-static cpio kmod xz-utils
 )
