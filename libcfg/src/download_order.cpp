@@ -7,7 +7,8 @@
 namespace cfg {
 namespace {
 
-using Key = std::pair<std::uint16_t, std::uint8_t>;  // (index, sub-index)
+// CiA 301 1020h Verify configuration (configuration date and time).
+constexpr std::uint16_t kVerifyConfiguration = 0x1020;
 
 std::optional<std::uint32_t> as_u32(const std::vector<std::uint8_t>& data) {
   if (data.size() != 4) return std::nullopt;
@@ -117,9 +118,14 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
   for (const auto& [index, pdo] : sequence) {
     if (pdo) {
       order_pdo(*pdo, find(pdo->comm_index), find(pdo->mapping_index), current_cob_id, out);
-    } else {
+    } else if (index != kVerifyConfiguration) {
       for (const auto& entry : by_object.at(index)) out.writes.push_back(entry.second);
     }
+  }
+  // DSP 302 v3.2.1 §6.3: "If any other command changes boot-up configuration values, the device
+  // has to reset the object Verify Configuration to 0" - so 1020h goes last.
+  if (const ObjectWrites* verify = find(kVerifyConfiguration)) {
+    for (const auto& entry : *verify) out.writes.push_back(entry.second);
   }
   return out;
 }

@@ -494,6 +494,19 @@ TEST(ConciseWrites, ValuesThatCannotBeEncodedAreErrorsNeverZeroOrTruncated) {
   EXPECT_THAT(diagnostics.items()[4].message, HasSubstr("0x0020"));
 }
 
+TEST(ConciseWrites, VerifyConfigurationComesLast) {
+  // CiA 301 1020h (configuration date, time): written after every other value, which would
+  // reset it (DSP 302 v3.2.1 §6.3). lely dcfgen never writes 1020h at all.
+  auto dcf = make_dcf({{0x1020, 1, DataType::Unsigned32, kRw, "14000", none, 1},
+                       {0x1020, 2, DataType::Unsigned32, kRw, "36000000", none, 2},
+                       {0x6081, 0, DataType::Unsigned32, kRw, "1000", none, 3}});
+  Diagnostics diagnostics;
+  auto writes = concise_writes_from_dcf(dcf, options(), diagnostics);
+  ASSERT_TRUE(writes.has_value()) << diagnostics.format();
+  EXPECT_THAT(*writes,
+              ElementsAre(u32(0x6081, 0, 1000), u32(0x1020, 1, 14000), u32(0x1020, 2, 36000000)));
+}
+
 TEST(ConciseWrites, OddWidthIntegersHaveTheirOwnSize) {
   // CiA 301 §7.1.4/§7.1.5: INTEGER24 is 3 bytes, UNSIGNED40 5, ... (lely dcfgen pads these to
   // 4 or 8 bytes; see docs/dcfgen-differences.md).

@@ -71,6 +71,18 @@ TEST(DownloadOrder, OtherObjectsInIndexThenSubIndexOrderWithPdosAtTheirCommIndex
                           u32(0x1800, 1, 0x181), u32(0x1F80, 0, 0x4), u32(0x6081, 0, 1000)));
 }
 
+TEST(DownloadOrder, VerifyConfigurationIsWrittenLast) {
+  // DSP 302 v3.2.1 §6.3: "If any other command changes boot-up configuration values, the device
+  // has to reset the object Verify Configuration to 0." 1020h sub 1 = date, sub 2 = time.
+  std::vector<ObjectWrite> writes{u32(0x1020, 2, 36000000), u32(0x1020, 1, 14000),
+                                  u32(0x6081, 0, 1000), u16(0x1017, 0, 1000), u8(0x1400, 2, 1)};
+  auto lookup = [](std::uint16_t) { return std::optional<std::uint32_t>(0x202); };
+  EXPECT_THAT(pdo_safe_order(writes, lookup),
+              ElementsAre(u16(0x1017, 0, 1000), u32(0x1400, 1, 0x80000202), u8(0x1400, 2, 1),
+                          u32(0x1400, 1, 0x202), u32(0x6081, 0, 1000), u32(0x1020, 1, 14000),
+                          u32(0x1020, 2, 36000000)));
+}
+
 TEST(DownloadOrder, PdoWithOnlyMappingWrittenSortsAtItsCommIndex) {
   // TPDO 1 (1800h/1A00h) must come before TPDO 2 (1801h) even though only its mapping is
   // written, i.e. the group is keyed 1800h, not 1A00h.

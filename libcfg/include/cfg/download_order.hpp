@@ -41,8 +41,10 @@ struct DownloadOrder {
 /// whose parameters are written: first its COB-ID with bit 31 set (PDO invalid), then
 /// communication sub-indices 2 and up, then mapping sub-index 0 = 0, the mapping entries,
 /// mapping sub-index 0 = n, and last the COB-ID as configured. Every other object in index
-/// order (sub-index order within an object). A PDO sorts at its communication index, so the
-/// whole sequence of RPDO n sits where 1400h+n would.
+/// order (sub-index order within an object), except 1020h (verify configuration), which comes
+/// after everything else: a device resets it when any other configuration value changes (DSP
+/// 302 v3.2.1 §6.3). A PDO sorts at its communication index, so the whole sequence of RPDO n
+/// sits where 1400h+n would.
 ///
 /// The writes are taken as the values to configure: input order does not matter, except that
 /// when one (index, sub-index) is written more than once the last write wins (as when a stream
