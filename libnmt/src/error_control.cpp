@@ -197,4 +197,90 @@ std::optional<LifeGuardingEvent> NodeGuardingSlave::on_timer(TimePoint now) {
   return LifeGuardingEvent::Occurred;
 }
 
+// --- node guarding (master side) ----------------------------------------------------------------
+
+std::string_view to_string(NodeGuardingEventKind kind) {
+  switch (kind) {
+    case NodeGuardingEventKind::Timeout:
+      return "node guarding timeout";
+    case NodeGuardingEventKind::Resolved:
+      return "node guarding resolved";
+    case NodeGuardingEventKind::StateChanged:
+      return "state changed";
+  }
+  return "unknown";
+}
+
+void NodeGuardingMaster::start(std::uint8_t node_id, std::uint16_t guard_time_ms,
+                               std::uint8_t life_time_factor, TimePoint now) {
+  if (node_id == 0 || node_id > 127 || guard_time_ms == 0 || life_time_factor == 0) {
+    nodes_.erase(node_id);
+    return;
+  }
+  Node node;
+  node.guard_time = ms(guard_time_ms);
+  node.life_time_factor = life_time_factor;
+  node.next_request = now;
+  nodes_[node_id] = node;
+}
+
+std::vector<NodeGuardingEvent> NodeGuardingMaster::on_frame(const CanFrame& frame, TimePoint now) {
+  std::vector<NodeGuardingEvent> events;
+  auto msg = parse_error_control(frame);
+  if (!msg) return events;
+  auto it = nodes_.find(msg->node_id);
+  if (it == nodes_.end() || !it->second.awaiting_reply) return events;
+  Node& node = it->second;
+  auto state = msg->state();
+  // A boot-up (00) is no guarding reply; the master's boot-up handler deals with it.
+  if (!state || *state == NmtState::Initialising) return events;
+  if (msg->toggle() != node.expected_toggle) {
+    // CiA 301 §7.2.8.3.2.1: the toggle bit alternates; a repeated one means a lost reply.
+    // Still awaiting a valid reply: counted as missed when the next request goes out.
+    node.expected_toggle = !msg->toggle();
+    return events;
+  }
+  node.awaiting_reply = false;
+  node.expected_toggle = !node.expected_toggle;
+  node.missed = 0;
+  if (node.timed_out) {
+    node.timed_out = false;
+    events.push_back({msg->node_id, NodeGuardingEventKind::Resolved, state, now});
+  }
+  if (node.state && *node.state != *state) {
+    events.push_back({msg->node_id, NodeGuardingEventKind::StateChanged, state, now});
+  }
+  node.state = state;
+  return events;
+}
+
+std::vector<NodeGuardingEvent> NodeGuardingMaster::on_timer(TimePoint now,
+                                                            std::vector<CanFrame>& out) {
+  std::vector<NodeGuardingEvent> events;
+  for (auto& [id, node] : nodes_) {
+    if (now < node.next_request) continue;
+    // The previous request's answer window ends with this request.
+    if (node.awaiting_reply) {
+      if (node.missed < 255) ++node.missed;
+      if (node.missed >= node.life_time_factor && !node.timed_out) {
+        node.timed_out = true;
+        events.push_back({id, NodeGuardingEventKind::Timeout, std::nullopt, node.next_request});
+      }
+    }
+    out.push_back(make_guarding_request(id));
+    node.awaiting_reply = true;
+    node.next_request += node.guard_time;
+    if (node.next_request <= now) node.next_request = now + node.guard_time;
+  }
+  return events;
+}
+
+std::optional<TimePoint> NodeGuardingMaster::deadline() const {
+  std::optional<TimePoint> earliest;
+  for (const auto& [id, node] : nodes_) {
+    if (!earliest || node.next_request < *earliest) earliest = node.next_request;
+  }
+  return earliest;
+}
+
 }  // namespace nmt

@@ -240,5 +240,104 @@ TEST(ErrorControl, FramesAreEncodedAsTheSpecExamples) {
   EXPECT_FALSE(parse_error_control(frame("780#05")).has_value());
 }
 
+// --- node guarding, master side ---
+
+std::vector<std::string> texts(const std::vector<CanFrame>& frames) {
+  std::vector<std::string> out;
+  for (const auto& f : frames) out.push_back(to_candump(f));
+  return out;
+}
+
+TEST(NodeGuardingMaster, SendsARequestEveryGuardTime) {
+  NodeGuardingMaster m;
+  m.start(5, 100, 3, at_ms(0));
+  std::vector<CanFrame> out;
+  EXPECT_TRUE(m.on_timer(at_ms(0), out).empty());
+  EXPECT_EQ(texts(out), std::vector<std::string>{"705#R1"});
+  EXPECT_EQ(m.deadline(), at_ms(100));
+  out.clear();
+  (void)m.on_timer(at_ms(50), out);
+  EXPECT_TRUE(out.empty());
+}
+
+TEST(NodeGuardingMaster, AlternatingRepliesKeepTheNodeGuarded) {
+  NodeGuardingMaster m;
+  m.start(5, 100, 1, at_ms(0));
+  std::vector<CanFrame> out;
+  const char* replies[] = {"705#7F", "705#FF", "705#7F", "705#FF"};  // spec/002 sequence
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_TRUE(m.on_timer(at_ms(100 * i), out).empty());
+    EXPECT_TRUE(m.on_frame(frame(replies[i]), at_ms(100 * i + 5)).empty());
+  }
+  EXPECT_TRUE(m.on_timer(at_ms(400), out).empty());
+}
+
+TEST(NodeGuardingMaster, TimesOutAfterLifeTimeFactorMissedReplies) {
+  NodeGuardingMaster m;
+  m.start(5, 100, 3, at_ms(0));
+  std::vector<CanFrame> out;
+  EXPECT_TRUE(m.on_timer(at_ms(0), out).empty());
+  EXPECT_TRUE(m.on_timer(at_ms(100), out).empty());  // 1 missed
+  EXPECT_TRUE(m.on_timer(at_ms(200), out).empty());  // 2 missed
+  auto ev = m.on_timer(at_ms(300), out);             // 3 missed: life time over
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::Timeout);
+  EXPECT_EQ(ev[0].at, at_ms(300));
+  EXPECT_TRUE(m.on_timer(at_ms(400), out).empty());  // reported once
+  EXPECT_EQ(out.size(), 5u);                         // requests go on
+  auto back = m.on_frame(frame("705#05"), at_ms(410));
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].kind, NodeGuardingEventKind::Resolved);
+  EXPECT_EQ(back[0].state, NmtState::Operational);
+}
+
+TEST(NodeGuardingMaster, ReplyWithRepeatedToggleBitCountsAsMissed) {
+  NodeGuardingMaster m;
+  m.start(5, 100, 1, at_ms(0));
+  std::vector<CanFrame> out;
+  (void)m.on_timer(at_ms(0), out);
+  EXPECT_TRUE(m.on_frame(frame("705#85"), at_ms(5)).empty());  // first reply must have toggle 0
+  auto ev = m.on_timer(at_ms(100), out);
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::Timeout);
+  // Resynchronised: the device's next reply (toggle 0) is valid again.
+  EXPECT_EQ(m.on_frame(frame("705#05"), at_ms(105)).size(), 1u);  // Resolved
+}
+
+TEST(NodeGuardingMaster, ReportsStateChanges) {
+  NodeGuardingMaster m;
+  m.start(5, 100, 2, at_ms(0));
+  std::vector<CanFrame> out;
+  (void)m.on_timer(at_ms(0), out);
+  EXPECT_TRUE(m.on_frame(frame("705#7F"), at_ms(5)).empty());
+  (void)m.on_timer(at_ms(100), out);
+  auto ev = m.on_frame(frame("705#85"), at_ms(105));
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::StateChanged);
+  EXPECT_EQ(ev[0].state, NmtState::Operational);
+}
+
+TEST(NodeGuardingMaster, GuardsTheSlaveEngineWithoutEvents) {
+  // Master and slave engines exchanging frames directly for 10 s of guarding at 100 ms, life
+  // time factor 3 on both sides.
+  NodeGuardingMaster m;
+  NodeGuardingSlave s;
+  s.configure(100, 3);
+  m.start(9, 100, 3, at_ms(0));
+  int requests = 0;
+  for (int t = 0; t <= 10'000; t += 10) {
+    std::vector<CanFrame> out;
+    EXPECT_TRUE(m.on_timer(at_ms(t), out).empty());
+    for (const auto& request : out) {
+      ++requests;
+      auto r = s.on_frame(request, at_ms(t), 9, NmtState::Operational);
+      ASSERT_TRUE(r.reply.has_value());
+      EXPECT_TRUE(m.on_frame(*r.reply, at_ms(t + 1)).empty());
+    }
+    EXPECT_FALSE(s.on_timer(at_ms(t)).has_value());
+  }
+  EXPECT_EQ(requests, 101);
+}
+
 }  // namespace
 }  // namespace nmt

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "nmt/frame.hpp"
@@ -160,6 +161,58 @@ class NodeGuardingSlave {
   bool toggle_ = false;
   std::optional<TimePoint> last_request_;
   bool expired_ = false;
+};
+
+/// What the guarding master reports about a guarded node.
+enum class NodeGuardingEventKind : std::uint8_t {
+  Timeout,       ///< node guarding event: life_time_factor requests without a valid reply
+  Resolved,      ///< a valid reply arrived again after a Timeout
+  StateChanged,  ///< the node answered with a different NMT state
+};
+std::string_view to_string(NodeGuardingEventKind kind);
+
+struct NodeGuardingEvent {
+  std::uint8_t node_id;
+  NodeGuardingEventKind kind;
+  std::optional<NmtState> state;  ///< the state in the reply (nullopt for Timeout)
+  TimePoint at;
+  bool operator==(const NodeGuardingEvent&) const = default;
+};
+
+/// The guarding side of node guarding, as an NMT master runs it (CiA 301 §7.2.8.3.2.1; CiA 302-2
+/// §4.1 starts it when a node has no heartbeat and 1F81h bytes 2-3 give a guard time). Sends a
+/// request every guard time; the reply must arrive before the next request and its toggle bit
+/// must alternate, starting at 0. A request without a valid reply counts as missed; after
+/// life_time_factor missed requests in a row, Timeout is reported once. A reply whose toggle bit
+/// did not alternate counts as missed and resynchronises the expected toggle.
+class NodeGuardingMaster {
+ public:
+  /// Starts guarding `node_id` with the first request at `now`. guard_time_ms and
+  /// life_time_factor must both be non-zero (else the node is not guarded).
+  void start(std::uint8_t node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
+             TimePoint now);
+  void stop(std::uint8_t node_id) { nodes_.erase(node_id); }
+  bool guards(std::uint8_t node_id) const { return nodes_.count(node_id) != 0; }
+
+  /// Feeds a received frame; replies of guarded nodes may produce events.
+  std::vector<NodeGuardingEvent> on_frame(const CanFrame& frame, TimePoint now);
+  /// Sends due requests (appended to `out`) and reports nodes that reached their life time.
+  std::vector<NodeGuardingEvent> on_timer(TimePoint now, std::vector<CanFrame>& out);
+  /// The next request time of any node; nullopt when none is guarded.
+  std::optional<TimePoint> deadline() const;
+
+ private:
+  struct Node {
+    Duration guard_time;
+    std::uint8_t life_time_factor = 0;
+    TimePoint next_request;
+    bool awaiting_reply = false;
+    bool expected_toggle = false;
+    std::uint8_t missed = 0;
+    bool timed_out = false;
+    std::optional<NmtState> state;
+  };
+  std::map<std::uint8_t, Node> nodes_;
 };
 
 }  // namespace nmt
