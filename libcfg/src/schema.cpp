@@ -120,7 +120,8 @@ void check_object(const Object& object, const Object& standard, std::string_view
     const SubObject* standard_entry = standard.sub(0);
     if (entry == nullptr || standard_entry == nullptr) return;
     for (auto& what : entry_findings(*entry, *standard_entry)) {
-      warn(entry->line > 0 ? entry->line : object.line, where + ": " + what);
+      what.insert(0, where + ": ");
+      warn(entry->line > 0 ? entry->line : object.line, std::move(what));
     }
     return;
   }

@@ -174,11 +174,10 @@ Result<Value> parse_unsigned(DataType type, std::string_view text,
 
 // Two's complement value of the low `bits` bits of `pattern`.
 std::int64_t sign_extend(std::uint64_t pattern, unsigned bits) {
-  if (bits < 64) {
-    const std::uint64_t sign = std::uint64_t{1} << (bits - 1);
-    pattern &= (sign << 1) - 1;
-    pattern = (pattern ^ sign) - sign;  // wraps modulo 2^64: the two's complement of the value
-  }
+  if (bits == 0 || bits >= 64) return std::bit_cast<std::int64_t>(pattern);
+  const std::uint64_t sign = std::uint64_t{1} << (bits - 1);
+  pattern &= (sign << 1) - 1;
+  pattern = (pattern ^ sign) - sign;  // wraps modulo 2^64: the two's complement of the value
   return std::bit_cast<std::int64_t>(pattern);
 }
 
