@@ -11,6 +11,8 @@ namespace cfgmgr {
 void add_check_command(CLI::App& app);
 /// `cfgmgr fmt IN [-o OUT]`: write a device file back in canonical form (fmt.cpp).
 void add_fmt_command(CLI::App& app);
+/// `cfgmgr simulate DEVICE.eds[@ID]...`: run simulated slaves on a bus (simulate.cpp).
+void add_simulate_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
 
   cfgmgr::add_check_command(app);
   cfgmgr::add_fmt_command(app);
+  cfgmgr::add_simulate_command(app);
 
   try {
     app.parse(argc, argv);

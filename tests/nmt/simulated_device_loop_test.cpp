@@ -1,0 +1,166 @@
+// The real-time event loop driving simulated devices over an nmt::Bus. A fake bus with a fake
+// clock makes the timing exact: receive(timeout) advances the clock to the next scripted frame or
+// by the timeout. Expected bytes: boot-up and heartbeat per spec/002; the SDO expedited upload
+// response `43 idx sub data` per CiA 301 §7.2.4.3.6 (public description).
+#include <gtest/gtest.h>
+
+#include <deque>
+
+#include "cfg/device_file.hpp"
+#include "nmt/bus_event_loop.hpp"
+#include "nmt/sdo.hpp"
+#include "nmt/simulated_device.hpp"
+
+namespace nmt {
+namespace {
+
+using namespace std::chrono_literals;
+
+class FakeBus final : public Bus {
+ public:
+  cfg::Status send(const CanFrame& frame) override {
+    if (fail_sends) return cfg::Error{"transmit queue full"};
+    sent.push_back({now, to_candump(frame)});
+    return {};
+  }
+  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override {
+    ++receives;
+    if (!script.empty() && script.front().first <= now + timeout) {
+      now = std::max(now, script.front().first);
+      auto f = *from_candump(script.front().second);
+      script.pop_front();
+      return std::optional<ReceivedFrame>(ReceivedFrame{f, now});
+    }
+    now += timeout;
+    return std::optional<ReceivedFrame>{};
+  }
+  std::string url() const override { return "fake:"; }
+
+  TimePoint now{0};
+  bool fail_sends = false;
+  std::size_t receives = 0;
+  std::deque<std::pair<TimePoint, std::string>> script;  // frames arriving at given times
+  std::vector<std::pair<TimePoint, std::string>> sent;
+};
+
+cfg::DeviceDescription sim_eds() {
+  auto r = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sim_device.eds");
+  EXPECT_TRUE(r.device.has_value()) << r.diagnostics.format();
+  return r.device.value_or(cfg::DeviceDescription{});
+}
+
+std::unique_ptr<SimulatedDevice> device_with_heartbeat(std::uint8_t node, const char* ms) {
+  auto eds = sim_eds();
+  eds.sub(0x1017, 0)->default_value = ms;
+  auto d = SimulatedDevice::create(eds, node);
+  EXPECT_TRUE(d.ok());
+  return std::move(d).value();
+}
+
+TEST(BusEventLoop, DeviceBootsAndProducesHeartbeatOnTime) {
+  FakeBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto device = device_with_heartbeat(2, "100");
+  EngineRef ref(*device);
+  loop.add(ref);
+  device->power_on(loop.now());
+  ASSERT_TRUE(loop.run_until(TimePoint{1000ms + 1us}).ok());
+  ASSERT_EQ(bus.sent.size(), 11u);
+  EXPECT_EQ(bus.sent[0], std::make_pair(TimePoint{0}, std::string("702#00")));
+  for (std::size_t i = 1; i < bus.sent.size(); ++i) {
+    EXPECT_EQ(bus.sent[i].first, TimePoint{std::chrono::milliseconds(100 * i)});
+    EXPECT_EQ(bus.sent[i].second, "702#7F");
+  }
+}
+
+TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
+  FakeBus bus;
+  bus.script.push_back({250ms, "000#0102"});
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto device = device_with_heartbeat(2, "100");
+  EngineRef ref(*device);
+  loop.add(ref);
+  device->power_on(loop.now());
+  ASSERT_TRUE(loop.run_until(TimePoint{450ms}).ok());
+  std::vector<std::string> frames;
+  for (const auto& [t, f] : bus.sent) frames.push_back(f);
+  EXPECT_EQ(frames, (std::vector<std::string>{"702#00", "702#7F", "702#7F", "702#05", "702#05"}));
+  EXPECT_EQ(loop.frames_received(), 1u);
+}
+
+TEST(BusEventLoop, AnswersSdoRequestFromTheBus) {
+  FakeBus bus;
+  bus.script.push_back({10ms, "602#4000100000000000"});  // upload 1000h sub 0
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto device = device_with_heartbeat(2, "0");
+  EngineRef ref(*device);
+  loop.add(ref);
+  device->power_on(loop.now());
+  ASSERT_TRUE(loop.run_until(TimePoint{20ms}).ok());
+  ASSERT_EQ(bus.sent.size(), 2u);
+  // 1000h = 0x000F0191 (sim_device.eds), 4 bytes expedited: command byte 43h.
+  EXPECT_EQ(bus.sent[1], std::make_pair(TimePoint{10ms}, std::string("582#4300100091010F00")));
+}
+
+TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
+  FakeBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto device = device_with_heartbeat(4, "0");
+  SdoClient client(SdoClientConfig::for_node(4));
+  EngineRef device_ref(*device);
+  EngineRef client_ref(client);
+  loop.add(device_ref);
+  loop.add(client_ref);
+  device->power_on(loop.now());
+  auto id = client.upload(0x1018, 1);
+  ASSERT_TRUE(loop.run_until(TimePoint{5ms}).ok());
+  const SdoResult* r = client.result(id);
+  ASSERT_NE(r, nullptr);
+  ASSERT_TRUE(r->ok()) << r->abort;
+  EXPECT_EQ(r->data, (std::vector<std::uint8_t>{0xDE, 0xC0, 0x57, 0x7E}));  // 0x7E57C0DE
+  // Both sides' frames went to the bus too.
+  ASSERT_EQ(bus.sent.size(), 3u);
+  EXPECT_EQ(bus.sent[1].second, "604#4018100100000000");
+  EXPECT_EQ(bus.sent[2].second, "584#43181001DEC0577E");
+}
+
+TEST(BusEventLoop, StopRequestEndsRun) {
+  FakeBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto device = device_with_heartbeat(2, "100");
+  EngineRef ref(*device);
+  loop.add(ref);
+  device->power_on(loop.now());
+  loop.set_observer([&](const CanFrame& f, TimePoint, BusEventLoop::Direction) {
+    if (to_candump(f) == "702#7F") loop.request_stop();
+  });
+  ASSERT_TRUE(loop.run().ok());
+  EXPECT_EQ(bus.now, TimePoint{100ms});
+  EXPECT_TRUE(loop.stop_requested());
+}
+
+TEST(BusEventLoop, WaitsAreBoundedByMaxWait) {
+  FakeBus bus;
+  BusEventLoopOptions options;
+  options.max_wait = 20ms;
+  BusEventLoop loop(bus, options, [&] { return bus.now; });
+  ASSERT_TRUE(loop.run_until(TimePoint{100ms}).ok());
+  EXPECT_EQ(bus.receives, 5u);
+}
+
+TEST(BusEventLoop, SendFailureEndsRunWithMessage) {
+  FakeBus bus;
+  bus.fail_sends = true;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto device = device_with_heartbeat(2, "100");
+  EngineRef ref(*device);
+  loop.add(ref);
+  device->power_on(loop.now());
+  auto s = loop.run_for(1s);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("702#00"), std::string::npos) << s.error().message;
+  EXPECT_NE(s.error().message.find("transmit queue full"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace nmt

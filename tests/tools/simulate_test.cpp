@@ -1,0 +1,282 @@
+// cfgmgr simulate end to end. Argument and file errors need no network. The run over a UDP
+// multicast bus happens in a private network namespace whose only interface is lo
+// (tests/support/run_in_netns.sh, as the UDP bus tests do): Simulate.EndToEndOverUdp re-runs this
+// executable there with --gtest_filter=SimulateInNetns.*; those tests skip anywhere else.
+// The master side of the conversation is libnmt's SdoClient on a UdpBus, driven by the same
+// BusEventLoop; the expected values come from tests/data/sim_device.eds and spec/002 (frames).
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <net/if.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <deque>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "nmt/bus.hpp"
+#include "nmt/bus_event_loop.hpp"
+#include "nmt/sdo.hpp"
+#include "tool_test_support.hpp"
+
+extern char** environ;
+
+namespace {
+
+using namespace std::chrono_literals;
+using tool_test::data_path;
+using tool_test::run;
+using tool_test::ScratchDir;
+
+const std::string kDevice = data_path("sim_device.eds");
+
+// ------------------------------------------------------------------- no network -------------
+
+TEST(Simulate, HelpDocumentsUsageExamplesAndExitCodes) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--help"}, dir.path().string());
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("DEVICE.eds[@NODE-ID]"), std::string::npos);
+  EXPECT_NE(r.out.find("--bus"), std::string::npos);
+  EXPECT_NE(r.out.find("Examples:"), std::string::npos);
+  EXPECT_NE(r.out.find("Exit codes:"), std::string::npos);
+}
+
+TEST(Simulate, RejectsNodeIdOutOfRange) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--for", "0.1", kDevice + "@128"}, dir.path().string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("out of range 1..127"), std::string::npos) << r.err;
+}
+
+TEST(Simulate, RejectsTheSameNodeIdTwice) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--for", "0.1", kDevice + "@5", kDevice + "@0x05"},
+               dir.path().string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("node-ID 5 given twice"), std::string::npos) << r.err;
+}
+
+TEST(Simulate, EdsWithoutNodeIdIsAnInputError) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--for", "0.1", kDevice}, dir.path().string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no node-ID"), std::string::npos) << r.err;
+}
+
+TEST(Simulate, MissingDeviceFileIsAnIoError) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--for", "0.1", dir / "missing.eds@3"}, dir.path().string());
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("missing.eds"), std::string::npos) << r.err;
+}
+
+TEST(Simulate, BusThatCannotBeOpenedIsAnIoError) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--bus", "carrier-pigeon:1", "--for", "0.1", kDevice + "@3"},
+               dir.path().string());
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("carrier-pigeon:1"), std::string::npos) << r.err;
+}
+
+TEST(Simulate, BadLossRateIsAUsageError) {
+  ScratchDir dir;
+  auto r = run("cfgmgr", {"simulate", "--loss", "1.5", "--for", "0.1", kDevice + "@3"},
+               dir.path().string());
+  EXPECT_EQ(r.exit_code, 2);
+}
+
+// --------------------------------------------------------- over UDP, in a namespace ----------
+
+TEST(Simulate, EndToEndOverUdp) {
+  const std::string script = std::string(CANOPEN_TEST_DATA_DIR) + "/../support/run_in_netns.sh";
+  const auto self = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string command = "sh " + tool_test::shell_quote(script) + " " +
+                              tool_test::shell_quote(self) +
+                              " --gtest_filter='SimulateInNetns.*' --gtest_brief=1";
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no network namespace (unshare -n needs root)";
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "SimulateInNetns.* failed; output above";
+}
+
+std::optional<std::string> not_in_private_netns() {
+  const char* env = std::getenv("CANOPEN_UDP_NETNS");
+  if (env == nullptr || std::string(env) != "1") {
+    return "sends multicast: runs only inside run_in_netns.sh (Simulate.EndToEndOverUdp)";
+  }
+  struct if_nameindex* names = if_nameindex();
+  if (names == nullptr) return "cannot list network interfaces";
+  std::optional<std::string> why;
+  for (auto* n = names; n->if_index != 0; ++n) {
+    if (std::string(n->if_name) != "lo") why = std::string("interface ") + n->if_name + " exists";
+  }
+  if_freenameindex(names);
+  return why;
+}
+
+// cfgmgr started with posix_spawn, stdout/stderr to files, so the test can signal it.
+class Simulator {
+ public:
+  Simulator(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
+    std::vector<std::string> argv_storage{tool_test::tool_path("cfgmgr"), "simulate"};
+    argv_storage.insert(argv_storage.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : argv_storage) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~Simulator() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  bool started() const { return pid_ > 0; }
+  /// Sends `signal` and waits up to `limit` for the exit; the exit code, or nullopt.
+  std::optional<int> stop(int signal, std::chrono::milliseconds limit) {
+    ::kill(pid_, signal);
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    return std::nullopt;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+// Sends scripted frames from the test's side of the bus and records what it hears.
+class Script {
+ public:
+  void queue(std::string candump) { out_.push_back(*nmt::from_candump(candump)); }
+  void on_frame(const nmt::CanFrame& f, nmt::TimePoint now, std::vector<nmt::CanFrame>&) {
+    heard.push_back({now, nmt::to_candump(f)});
+  }
+  void on_timer(nmt::TimePoint, std::vector<nmt::CanFrame>& out) {
+    for (auto& f : out_) out.push_back(f);
+    out_.clear();
+  }
+  std::optional<nmt::TimePoint> next_deadline() const {
+    return out_.empty() ? std::nullopt : std::optional<nmt::TimePoint>(nmt::TimePoint{0});
+  }
+  std::size_t count(const std::string& frame) const {
+    std::size_t n = 0;
+    for (const auto& [t, f] : heard) n += f == frame ? 1 : 0;
+    return n;
+  }
+  std::vector<std::pair<nmt::TimePoint, std::string>> heard;
+
+ private:
+  std::deque<nmt::CanFrame> out_;
+};
+
+TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
+  if (auto why = not_in_private_netns()) GTEST_SKIP() << *why;
+  ScratchDir dir;
+  const std::string url = "udp://239.74.163.2:43171";
+  auto opened = nmt::open_bus(url);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  auto bus = std::move(opened).value();
+
+  Simulator sim({"--bus", url, kDevice + "@5", kDevice + "@6", "-v", "--candump", dir / "run.log",
+                 "--trace", dir / "run.pcap"},
+                dir / "out.txt", dir / "err.txt");
+  ASSERT_TRUE(sim.started());
+
+  nmt::BusEventLoop loop(*bus);
+  Script script;
+  nmt::SdoClient client(nmt::SdoClientConfig::for_node(5));
+  nmt::EngineRef script_ref(script);
+  nmt::EngineRef client_ref(client);
+  loop.add(script_ref);
+  loop.add(client_ref);
+  auto run_until = [&](const std::function<bool()>& done, nmt::Duration limit) {
+    const auto end = loop.now() + limit;
+    while (!done() && loop.now() < end) ASSERT_TRUE(loop.run_for(10ms).ok());
+  };
+
+  // Boot-up of both nodes (spec/002: `7xx#00`).
+  run_until([&] { return script.count("705#00") == 1 && script.count("706#00") == 1; }, 5s);
+  ASSERT_EQ(script.count("705#00"), 1u) << tool_test::slurp(dir / "err.txt");
+  ASSERT_EQ(script.count("706#00"), 1u);
+
+  // SDO: 1018h sub 1 is VendorNumber 0x7E57C0DE in sim_device.eds.
+  auto vendor = client.upload(0x1018, 1);
+  run_until([&] { return client.result(vendor) != nullptr; }, 3s);
+  ASSERT_NE(client.result(vendor), nullptr);
+  ASSERT_TRUE(client.result(vendor)->ok()) << client.result(vendor)->abort;
+  EXPECT_EQ(client.result(vendor)->data, (std::vector<std::uint8_t>{0xDE, 0xC0, 0x57, 0x7E}));
+
+  // A segmented download and upload of a string (2001h VISIBLE_STRING).
+  const std::string name = "simulated over UDP multicast";
+  auto write = client.download(0x2001, 0, std::vector<std::uint8_t>(name.begin(), name.end()));
+  run_until([&] { return client.result(write) != nullptr; }, 3s);
+  ASSERT_NE(client.result(write), nullptr);
+  EXPECT_TRUE(client.result(write)->ok()) << client.result(write)->abort;
+  auto read = client.upload(0x2001, 0);
+  run_until([&] { return client.result(read) != nullptr; }, 3s);
+  ASSERT_NE(client.result(read), nullptr);
+  EXPECT_EQ(std::string(client.result(read)->data.begin(), client.result(read)->data.end()), name);
+
+  // Heartbeat 100 ms, then start node 5: heartbeats say operational (05).
+  auto hb = client.download(0x1017, 0, {100, 0});
+  run_until([&] { return client.result(hb) != nullptr; }, 3s);
+  ASSERT_TRUE(client.result(hb) && client.result(hb)->ok());
+  script.queue("000#0105");
+  run_until([&] { return script.count("705#05") >= 3; }, 2s);
+  EXPECT_GE(script.count("705#05"), 3u);
+  EXPECT_EQ(script.count("706#05"), 0u);  // node 6 was not started and has no heartbeat
+
+  // Node guarding on node 6 (1017h = 0): toggle bit starts at 0 (spec/002).
+  script.queue("706#R1");
+  run_until([&] { return script.count("706#7F") == 1; }, 2s);
+  EXPECT_EQ(script.count("706#7F"), 1u);
+
+  // SIGINT ends it with exit code 0.
+  EXPECT_EQ(sim.stop(SIGINT, 3000ms), 0);
+
+  const std::string out = tool_test::slurp(dir / "out.txt");
+  EXPECT_NE(out.find("rx  000#0105"), std::string::npos) << out;
+  EXPECT_NE(out.find("tx  705#00"), std::string::npos);
+  EXPECT_NE(out.find("node 5  nmt: start"), std::string::npos);
+  const std::string log = tool_test::slurp(dir / "run.log");
+  EXPECT_NE(log.find(" can0 705#00\n"), std::string::npos) << log;
+  EXPECT_NE(log.find(" can0 000#0105\n"), std::string::npos);
+  // pcap: the classic file header (magic a1b2c3d4 little-endian) with link type 227
+  // (LINKTYPE_CAN_SOCKETCAN), then records.
+  const std::string pcap = tool_test::slurp(dir / "run.pcap");
+  ASSERT_GT(pcap.size(), 24u);
+  EXPECT_EQ(pcap.substr(0, 4), std::string("\xD4\xC3\xB2\xA1", 4));
+  EXPECT_EQ(static_cast<unsigned char>(pcap[20]), 227);
+}
+
+TEST(SimulateInNetns, ForEndsTheRunByItself) {
+  if (auto why = not_in_private_netns()) GTEST_SKIP() << *why;
+  ScratchDir dir;
+  auto r = run("cfgmgr",
+               {"simulate", "--bus", "udp://239.74.163.2:43172", "--for", "0.3", kDevice + "@7"},
+               dir.path().string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("node 7: "), std::string::npos);
+  EXPECT_NE(r.out.find("frames: 0 received, 1 sent"), std::string::npos) << r.out;
+}
+
+}  // namespace
