@@ -59,9 +59,10 @@ for t in /opt/canopen/tests/*; do
 done
 
 # Hook: every /opt/canopen/guest.d/*.sh (from tests/vm/guest.d/) runs here with vcan0/vcan1
-# up and the static tools in /opt/canopen/bin (run-vm-tests.sh --tools lists which). A script
-# fails the tier by exiting non-zero. This is where `cfgmgr simulate --bus socketcan:vcan0`
-# with devices answering SDO goes once the simulator and SDO client exist.
+# up, the tools in /opt/canopen/bin (a "# vm-tools: TARGET" line in the script says which) and
+# the repository's samples/ and schemas/ in /opt/canopen. A script fails the tier by exiting
+# non-zero. This is where `cfgmgr simulate --bus socketcan:vcan0` with devices answering SDO
+# goes once the simulator and SDO client exist.
 for s in /opt/canopen/guest.d/*.sh; do
   [ -f "$s" ] || continue
   echo "vm-guest: running hook $(basename "$s")"

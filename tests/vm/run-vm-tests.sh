@@ -10,14 +10,18 @@
 #
 # Exit status: 0 pass, 1 fail, 77 skipped (qemu, busybox-static, kmod or the kernel package
 # cannot be had). With CANOPEN_VM_REQUIRED=1 a missing prerequisite fails instead of skipping, so
-# CI on machines that have them cannot silently skip the tier.
+# CI cannot silently skip the tier; it is the default when CI=true (CANOPEN_VM_REQUIRED=0 turns
+# it off).
 #
 # Usage: run-vm-tests.sh [--work DIR] [--static-build DIR] [--filter GTEST_FILTER]
-#                        [--tools "target..."]
+#                        [--tools "target..."] [--tools-dir DIR]
 #   --work          scratch and cache directory (default: <repo>/build-vm)
 #   --static-build  build directory for the -static test binaries (default: <work>/static)
 #   --filter        gtest filter for the guest run
 #   --tools         extra static targets to build and put in /opt/canopen/bin for guest.d hooks
+#                   (a hook script can also ask for them with a line "# vm-tools: cfgmgr")
+#   --tools-dir     take those tools ready-built from DIR (e.g. the regular build's tools/)
+#                   instead of building them -static; they go in with their shared libraries
 # Environment: CANOPEN_VM_CACHE (kernel download cache, default <work>/cache),
 #              CANOPEN_VM_TIMEOUT (seconds the guest may run, default 300).
 set -euo pipefail
@@ -28,12 +32,14 @@ work=$source_dir/build-vm
 static_build=""
 filter=""
 tools=""
+tools_dir=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --work) work=$2; shift 2 ;;
     --static-build) static_build=$2; shift 2 ;;
     --filter) filter=$2; shift 2 ;;
     --tools) tools=$2; shift 2 ;;
+    --tools-dir) tools_dir=$2; shift 2 ;;
     *) echo "run-vm-tests: unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -44,9 +50,17 @@ cache=${CANOPEN_VM_CACHE:-$work/cache}
 guest_timeout=${CANOPEN_VM_TIMEOUT:-300}
 started=$(date +%s)
 
+required=${CANOPEN_VM_REQUIRED:-$([ "${CI:-}" = true ] && echo 1 || echo 0)}
+
 log() { echo "run-vm-tests: $*"; }
+# The first existing path among the arguments (a glob that matched nothing stays literal).
+first_match() {
+  for f in "$@"; do
+    if [ -e "$f" ]; then echo "$f"; return; fi
+  done
+}
 skip() {
-  if [ "${CANOPEN_VM_REQUIRED:-0}" = 1 ]; then
+  if [ "$required" = 1 ]; then
     log "FAIL: $* (CANOPEN_VM_REQUIRED=1, so this is not skipped)"
     exit 1
   fi
@@ -74,7 +88,7 @@ guest_programs=()
 for u in candump cansend tc; do
   if p=$(PATH=$PATH:/usr/sbin:/sbin command -v "$u"); then
     guest_programs+=("$p")
-  elif [ "${CANOPEN_VM_REQUIRED:-0}" = 1 ]; then
+  elif [ "$required" = 1 ]; then
     log "FAIL: $u not found (CANOPEN_VM_REQUIRED=1; $packages_hint)"
     exit 1
   else
@@ -83,8 +97,16 @@ for u in candump cansend tc; do
 done
 
 # --- The kernel: Debian's current package, downloaded once and cached ---------------------
-kernel_pkg=$(apt-cache depends linux-image-amd64 2>/dev/null |
-  awk '/Depends: linux-image-[0-9]/ { print $2; exit }')
+find_kernel_pkg() {
+  apt-cache depends linux-image-amd64 2>/dev/null |
+    awk '/Depends: linux-image-[0-9]/ { print $2; exit }'
+}
+kernel_pkg=$(find_kernel_pkg)
+if [ -z "$kernel_pkg" ] && [ "$(id -u)" -eq 0 ]; then
+  log "apt knows no linux-image-amd64: running apt-get update"
+  apt-get update -qq >/dev/null 2>&1 || true
+  kernel_pkg=$(find_kernel_pkg)
+fi
 [ -n "$kernel_pkg" ] || skip "apt knows no linux-image-amd64 (run apt-get update)"
 kernel_ver=$(apt-cache show --no-all-versions "$kernel_pkg" 2>/dev/null |
   awk '/^Version:/ { print $2; exit }')
@@ -94,13 +116,15 @@ kdir=$cache/${kernel_pkg}_${kernel_ver}
 # The marker names the extraction recipe: change it when the list of extracted files changes.
 extracted_marker=$kdir/.extracted-v2
 if [ ! -f "$extracted_marker" ]; then
-  deb=$(ls "$cache/${kernel_pkg}_${kernel_ver}_"*.deb 2>/dev/null | head -n1 || true)
+  deb=$(first_match "$cache/${kernel_pkg}_${kernel_ver}_"*.deb)
   if [ -z "$deb" ]; then
     log "downloading $kernel_pkg $kernel_ver"
     # Older kernels' packages go: the cache keeps only the current one.
     rm -rf "$cache"/linux-image-*
-    (cd "$cache" && apt-get download -q "$kernel_pkg=$kernel_ver" 2>&1 | grep -v '^W: Download is performed unsandboxed' || true)
-    deb=$(ls "$cache/${kernel_pkg}_${kernel_ver}_"*.deb 2>/dev/null | head -n1 || true)
+    # As root apt warns that it downloads unsandboxed; that is expected here.
+    (cd "$cache" && apt-get download -q "$kernel_pkg=$kernel_ver" 2>&1) |
+      grep -v '^W: Download is performed unsandboxed' || true
+    deb=$(first_match "$cache/${kernel_pkg}_${kernel_ver}_"*.deb)
     [ -n "$deb" ] || skip "could not download $kernel_pkg $kernel_ver"
   fi
   log "extracting vmlinuz and the CAN modules from $(basename "$deb")"
@@ -120,7 +144,7 @@ if [ ! -f "$extracted_marker" ]; then
   find "$kdir" -name '*.ko.gz' -exec gzip -d {} +
   touch "$extracted_marker"
 fi
-vmlinuz=$(ls "$kdir"/boot/vmlinuz-* 2>/dev/null | head -n1 || true)
+vmlinuz=$(first_match "$kdir"/boot/vmlinuz-*)
 [ -n "$vmlinuz" ] || { log "FAIL: no vmlinuz in $kernel_pkg"; exit 1; }
 kver=${vmlinuz##*/vmlinuz-}
 [ -d "$kdir/lib/modules/$kver" ] || { log "FAIL: no modules for $kver in $kernel_pkg"; exit 1; }
@@ -135,6 +159,9 @@ done < <(modprobe -d "$kdir" -S "$kver" --show-depends -a vcan can-raw sch_tbf)
 log "kernel $kver ($kernel_pkg $kernel_ver); modules: $(for m in "${modules[@]}"; do basename "$m"; done | tr '\n' ' ')"
 
 # --- Static test binaries ------------------------------------------------------------------
+if compgen -G "$here/guest.d/*.sh" >/dev/null; then
+  tools="$tools $(sed -n 's/^# vm-tools: *//p' "$here"/guest.d/*.sh | tr '\n' ' ')"
+fi
 # No -march=native anywhere: the emulated CPU (-cpu max under TCG) lacks AVX-512. The build type
 # is the one tests/run.sh uses. Warnings are not errors here: the regular build already fails on
 # them, and g++ 12's optimiser-dependent false positives (-Wrestrict, -Wmaybe-uninitialized)
@@ -143,8 +170,10 @@ log "building static test binaries in $static_build"
 cmake -S "$source_dir" -B "$static_build" -DCANOPEN_STATIC=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCANOPEN_WERROR=OFF -DCANOPEN_BUILD_BENCH=OFF -DCMAKE_PROJECT_INCLUDE="$here/static.cmake" >"$work/static-configure.log" 2>&1 ||
   { cat "$work/static-configure.log"; log "FAIL: configuring the static build"; exit 1; }
-# shellcheck disable=SC2086 # tools is a space-separated list of targets
-nice cmake --build "$static_build" -j"$(nproc)" --target socketcan_vm_tests $tools \
+static_targets="socketcan_vm_tests"
+[ -n "$tools_dir" ] || static_targets="$static_targets $tools"
+# shellcheck disable=SC2086 # a space-separated list of targets
+nice cmake --build "$static_build" -j"$(nproc)" --target $static_targets \
   >"$work/static-build.log" 2>&1 ||
   { tail -n 60 "$work/static-build.log"; log "FAIL: building the static test binaries"; exit 1; }
 test_bin=$(find "$static_build" -type f -name socketcan_vm_tests -perm -u+x | head -n1)
@@ -164,20 +193,31 @@ for m in "${modules[@]}"; do
 done
 # Debug information stays in the build tree; the guest needs only the code.
 strip -o "$root/opt/canopen/tests/$(basename "$test_bin")" "$test_bin"
-for t in $tools; do
-  bin=$(find "$static_build" -type f -name "$t" -perm -u+x | head -n1)
-  [ -n "$bin" ] || { log "FAIL: tool $t was not built"; exit 1; }
-  strip -o "$root/opt/canopen/bin/$t" "$bin"
-done
-if compgen -G "$here/guest.d/*.sh" >/dev/null; then cp "$here"/guest.d/*.sh "$root/opt/canopen/guest.d/"; fi
-# Debian links these dynamically: copy them with the shared libraries they need.
-for u in "${guest_programs[@]}"; do
-  cp "$u" "$root/usr/bin/"
-  for lib in $(ldd "$u" | grep -o '/[^ ]*'); do
+# Copies a program into the initramfs with the shared libraries it needs (none if static).
+copy_with_libs() {
+  cp "$1" "$2/"
+  for lib in $(ldd "$1" 2>/dev/null | grep -o '/[^ ]*' || true); do
     mkdir -p "$root$(dirname "$lib")"
     cp -L "$lib" "$root$lib"
   done
+}
+for t in $tools; do
+  if [ -n "$tools_dir" ]; then
+    [ -x "$tools_dir/$t" ] || { log "FAIL: no tool $t in $tools_dir"; exit 1; }
+    copy_with_libs "$tools_dir/$t" "$root/opt/canopen/bin"
+  else
+    bin=$(find "$static_build" -type f -name "$t" -perm -u+x | head -n1)
+    [ -n "$bin" ] || { log "FAIL: tool $t was not built"; exit 1; }
+    strip -o "$root/opt/canopen/bin/$t" "$bin"
+  fi
 done
+if compgen -G "$here/guest.d/*.sh" >/dev/null; then cp "$here"/guest.d/*.sh "$root/opt/canopen/guest.d/"; fi
+# Device files and object definitions for hooks that run simulated devices (small).
+for d in samples schemas; do
+  if [ -d "$source_dir/$d" ]; then cp -r "$source_dir/$d" "$root/opt/canopen/"; fi
+done
+# Debian links these dynamically.
+for u in "${guest_programs[@]}"; do copy_with_libs "$u" "$root/usr/bin"; done
 initrd=$work/initramfs.cpio.gz
 (cd "$root" && find . | LC_ALL=C sort | cpio -o -H newc --quiet | gzip -1) >"$initrd"
 log "initramfs $(du -h "$initrd" | cut -f1) ready after $(($(date +%s) - started)) s"
