@@ -165,7 +165,12 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   namespace fs = std::filesystem;
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  std::string temp = (dir / ("." + target.filename().string() + ".tmpXXXXXX")).string();
+  // Hidden temporary beside the target: ".NAME.tmpXXXXXX" (built by append: GCC 12 -O2 reports
+  // a false -Wrestrict on `"." + std::string`, GCC bug 105329).
+  std::string temp_name = ".";
+  temp_name += target.filename().string();
+  temp_name += ".tmpXXXXXX";
+  std::string temp = (dir / temp_name).string();
   const int fd = ::mkstemp(temp.data());
   if (fd < 0) return cfg::Error{path + ": cannot create: " + std::strerror(errno)};
   // mkstemp creates 0600; give the file the mode a plain create would (0666 & ~umask).
