@@ -188,9 +188,19 @@ constexpr std::array<std::string_view, 15> kKeyNames = {
     "ObjFlags",      "ParameterValue", "Denotation", "UploadFile", "DownloadFile"};
 constexpr std::size_t kKeyCount = kKeyNames.size();
 
+// Case-insensitive equality with a name made of ASCII letters only: for a letter L,
+// (c | 0x20) == lower(L) holds exactly for c == L in either case. Hot: once per key line.
+bool equals_letters(std::string_view text, std::string_view letters) {
+  if (text.size() != letters.size()) return false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if ((text[i] | 0x20) != (letters[i] | 0x20)) return false;
+  }
+  return true;
+}
+
 std::optional<Key> object_key(std::string_view name) {
   for (std::size_t i = 0; i < kKeyCount; ++i) {
-    if (iequals(name, kKeyNames[i])) return static_cast<Key>(i);
+    if (equals_letters(name, kKeyNames[i])) return static_cast<Key>(i);
   }
   return std::nullopt;
 }

@@ -9,8 +9,11 @@ namespace cfg::detail {
 namespace {
 
 // The open marker follows every section token, so that sections without keys reach the
-// handler too (inih only calls it for name=value lines).
+// handler too (inih only calls it for name=value lines). Key lines are handed over as the
+// shortest line inih reads as a key: inih's per-line work (strlen, strchr per character) grows
+// with the token, and the handler knows which line it stands for.
 constexpr char kOpenMarker[] = "@=\n";
+constexpr char kKeyToken[] = "k=\n";
 
 struct Scanner {
   std::string_view text;
@@ -26,15 +29,21 @@ struct Scanner {
   bool closed = true;
   bool marker_due = false;
   bool in_sync = true;
+  const char* current_section = nullptr;  // inih's section text at the last open marker
 
-  // Writes `[<line>]\n` or `<line>=\n` into inih's buffer.
+  // Writes `[<line>]\n` (section) or `k=\n` (key) into inih's buffer.
   bool write_token(char* buf, int size, bool section) const {
     char tmp[32];
     char* p = tmp;
-    if (section) *p++ = '[';
-    p = std::to_chars(p, tmp + sizeof(tmp) - 4, pending_line).ptr;
-    *p++ = section ? ']' : '=';
-    *p++ = '\n';
+    if (section) {
+      *p++ = '[';
+      p = std::to_chars(p, tmp + sizeof(tmp) - 4, pending_line).ptr;
+      *p++ = ']';
+      *p++ = '\n';
+    } else {
+      std::memcpy(p, kKeyToken, sizeof(kKeyToken) - 1);
+      p += sizeof(kKeyToken) - 1;
+    }
     const auto n = static_cast<std::size_t>(p - tmp);
     if (size < 0 || static_cast<std::size_t>(size) < n + 1) return false;
     std::memcpy(buf, tmp, n);
@@ -125,15 +134,20 @@ struct Scanner {
 
   static int handle(void* user, const char* section, const char* key, const char* /*value*/) {
     auto* self = static_cast<Scanner*>(user);
-    if (std::strcmp(key, "@") == 0) {
+    if (key[0] == '@' && key[1] == '\0') {
       if (self->pending != Pending::Section || !token_is_line(section, self->pending_line)) {
         self->in_sync = false;
         return 1;
       }
+      self->current_section = section;
       self->sink->on_section(self->pending_line, self->name, self->value, self->closed);
       return 1;
     }
-    if (self->pending != Pending::Key || !token_is_line(key, self->pending_line)) {
+    // A key line: inih must have read our key token, in the section we opened last (its section
+    // text was checked at the open marker; inih keeps it in one buffer).
+    const bool in_section =
+        self->current_section == nullptr ? section[0] == '\0' : section == self->current_section;
+    if (self->pending != Pending::Key || key[0] != 'k' || key[1] != '\0' || !in_section) {
       self->in_sync = false;
       return 1;
     }

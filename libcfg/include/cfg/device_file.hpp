@@ -14,6 +14,7 @@ namespace cfg {
 
 /// Tolerant (default): recover from deviations real vendor files have and warn.
 /// Strict (lint): every deviation from CiA 306 is an error.
+/// The mode changes only the diagnostics, never the model read.
 enum class ReadMode { Tolerant, Strict };
 
 struct ReadOptions {
@@ -31,7 +32,20 @@ struct ReadResult {
   bool ok() const { return device.has_value() && !diagnostics.has_errors(); }
 };
 
-/// Parses EDS/DCF text. Never throws on bad input; bytes need not be valid UTF-8.
+/// Parses EDS/DCF text. Never throws on bad input; bytes need not be valid UTF-8 (texts are kept
+/// byte for byte). Lines end at LF, CRLF or CR; any line length; a UTF-8 BOM is skipped. Section
+/// and key names are case-insensitive. Values are stored trimmed, with $NODEID kept as written;
+/// DefaultValue/ParameterValue/LowLimit/HighLimit are checked against the DataType with
+/// parse_value (node-ID 1 standing in for $NODEID). How deviations are recovered from (the full
+/// list is at the top of libcfg/src/device_reader.cpp):
+/// - a repeated section is merged into the first; a key given twice takes the later value;
+/// - ObjectType defaults to VAR (CiA 306); missing AccessType reads as ro;
+/// - an inline comment (';' or '#' after a blank) is cut from numbers, kept in strings;
+/// - an empty value of a fixed-size type is "not given";
+/// - objects come from their sections; the object lists are only checked against them;
+/// - CompactSubObj is expanded (sub-index 0 "NrOfObjects", 1..n named "<ParameterName><n>" unless
+///   [xxxxName] names them), with [xxxxValue]/[xxxxDenotation] applied.
+/// Rejected (no model, one error): an empty file, and text without any [section].
 ReadResult parse_device_description(std::string_view text, const ReadOptions& options = {});
 
 /// Reads and parses a file; a file that cannot be opened is an error diagnostic.
