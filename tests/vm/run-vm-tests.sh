@@ -14,12 +14,14 @@
 # it off).
 #
 # Usage: run-vm-tests.sh [--work DIR] [--static-build DIR] [--filter GTEST_FILTER]
-#                        [--tools "target..."] [--tools-dir DIR]
+#                        [--tools "target..."] [--tools-dir DIR] [--test-bin FILE]
 #   --work          scratch and cache directory (default: <repo>/build-vm)
 #   --static-build  build directory for the -static test binaries (default: <work>/static)
 #   --filter        gtest filter for the guest run
 #   --tools         extra static targets to build and put in /opt/canopen/bin for guest.d hooks
 #                   (a hook script can also ask for them with a line "# vm-tools: cfgmgr")
+#   --test-bin      run this ready-built gtest binary in the guest instead of building
+#                   socketcan_vm_tests, e.g. a sanitizer build's nmt_tests (with --filter)
 #   --tools-dir     take those tools ready-built from DIR (e.g. the regular build's tools/)
 #                   instead of building them -static; they go in with their shared libraries
 # Environment: CANOPEN_VM_CACHE (kernel download cache, default <work>/cache),
@@ -33,6 +35,7 @@ static_build=""
 filter=""
 tools=""
 tools_dir=""
+test_bin=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --work) work=$2; shift 2 ;;
@@ -40,6 +43,7 @@ while [ $# -gt 0 ]; do
     --filter) filter=$2; shift 2 ;;
     --tools) tools=$2; shift 2 ;;
     --tools-dir) tools_dir=$2; shift 2 ;;
+    --test-bin) test_bin=$(cd "$(dirname "$2")" && pwd)/$(basename "$2"); shift 2 ;;
     *) echo "run-vm-tests: unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -166,18 +170,25 @@ fi
 # is the one tests/run.sh uses. Warnings are not errors here: the regular build already fails on
 # them, and g++ 12's optimiser-dependent false positives (-Wrestrict, -Wmaybe-uninitialized)
 # should not decide whether the driver works on a real CAN stack.
-log "building static test binaries in $static_build"
-cmake -S "$source_dir" -B "$static_build" -DCANOPEN_STATIC=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DCANOPEN_WERROR=OFF -DCANOPEN_BUILD_BENCH=OFF -DCMAKE_PROJECT_INCLUDE="$here/static.cmake" >"$work/static-configure.log" 2>&1 ||
-  { cat "$work/static-configure.log"; log "FAIL: configuring the static build"; exit 1; }
-static_targets="socketcan_vm_tests"
+static_targets=""
+[ -n "$test_bin" ] || static_targets="socketcan_vm_tests"
 [ -n "$tools_dir" ] || static_targets="$static_targets $tools"
-# shellcheck disable=SC2086 # a space-separated list of targets
-nice cmake --build "$static_build" -j"$(nproc)" --target $static_targets \
-  >"$work/static-build.log" 2>&1 ||
-  { tail -n 60 "$work/static-build.log"; log "FAIL: building the static test binaries"; exit 1; }
-test_bin=$(find "$static_build" -type f -name socketcan_vm_tests -perm -u+x | head -n1)
-[ -n "$test_bin" ] || { log "FAIL: socketcan_vm_tests was not built"; exit 1; }
+if [ -n "${static_targets// /}" ]; then
+  log "building static test binaries in $static_build"
+  cmake -S "$source_dir" -B "$static_build" -DCANOPEN_STATIC=ON \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCANOPEN_WERROR=OFF -DCANOPEN_BUILD_BENCH=OFF \
+    -DCMAKE_PROJECT_INCLUDE="$here/static.cmake" >"$work/static-configure.log" 2>&1 ||
+    { cat "$work/static-configure.log"; log "FAIL: configuring the static build"; exit 1; }
+  # shellcheck disable=SC2086 # a space-separated list of targets
+  nice cmake --build "$static_build" -j"$(nproc)" --target $static_targets \
+    >"$work/static-build.log" 2>&1 ||
+    { tail -n 60 "$work/static-build.log"; log "FAIL: building the static test binaries"; exit 1; }
+fi
+if [ -z "$test_bin" ]; then
+  test_bin=$(find "$static_build" -type f -name socketcan_vm_tests -perm -u+x | head -n1)
+  [ -n "$test_bin" ] || { log "FAIL: socketcan_vm_tests was not built"; exit 1; }
+fi
+[ -x "$test_bin" ] || { log "FAIL: no test binary $test_bin"; exit 1; }
 
 # --- The initramfs -------------------------------------------------------------------------
 root=$work/initramfs
@@ -191,16 +202,16 @@ for m in "${modules[@]}"; do
   cp "$m" "$root/lib/modules/"
   basename "$m" >>"$root/etc/canopen-modules"
 done
-# Debug information stays in the build tree; the guest needs only the code.
-strip -o "$root/opt/canopen/tests/$(basename "$test_bin")" "$test_bin"
 # Copies a program into the initramfs with the shared libraries it needs (none if static).
+# Debug information stays in the build tree; the guest needs only the code.
 copy_with_libs() {
-  cp "$1" "$2/"
+  strip -o "$2/$(basename "$1")" "$1"
   for lib in $(ldd "$1" 2>/dev/null | grep -o '/[^ ]*' || true); do
     mkdir -p "$root$(dirname "$lib")"
     cp -L "$lib" "$root$lib"
   done
 }
+copy_with_libs "$test_bin" "$root/opt/canopen/tests"
 for t in $tools; do
   if [ -n "$tools_dir" ]; then
     [ -x "$tools_dir/$t" ] || { log "FAIL: no tool $t in $tools_dir"; exit 1; }
@@ -208,7 +219,7 @@ for t in $tools; do
   else
     bin=$(find "$static_build" -type f -name "$t" -perm -u+x | head -n1)
     [ -n "$bin" ] || { log "FAIL: tool $t was not built"; exit 1; }
-    strip -o "$root/opt/canopen/bin/$t" "$bin"
+    copy_with_libs "$bin" "$root/opt/canopen/bin"
   fi
 done
 if compgen -G "$here/guest.d/*.sh" >/dev/null; then cp "$here"/guest.d/*.sh "$root/opt/canopen/guest.d/"; fi
