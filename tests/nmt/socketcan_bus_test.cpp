@@ -89,6 +89,7 @@ std::vector<CanFrame> receive_frames(SocketCanBus& bus, std::size_t count, Durat
 
 std::vector<std::string> as_candump(const std::vector<CanFrame>& frames) {
   std::vector<std::string> out;
+  out.reserve(frames.size());
   for (const auto& f : frames) out.push_back(to_candump(f));
   return out;
 }
