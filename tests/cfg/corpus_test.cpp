@@ -411,5 +411,50 @@ TEST(Corpus, BogusEdsVersionsAreKeptAsText) {
   EXPECT_EQ(*r.device->file_info.find("EDSVersion"), "404");
 }
 
+TEST(Corpus, MoreQuirksOfTheManifest) {
+  REQUIRE_CORPUS();
+  // odrive master.dcf line 2256 "ParameterName=motor_1: " (trailing blank) in [2000sub1].
+  auto odrive = load("odrive-cia402-profile/master.dcf");
+  ASSERT_TRUE(odrive.device);
+  EXPECT_EQ(odrive.device->sub(0x2000, 1)->name, "motor_1:");
+  // demoDevice.eds line 2810: a VISIBLE_STRING with a tab and UTF-8 inside, kept whole;
+  // lines 2732/2741/2759: INTEGER64 -1234567890123456789, UNSIGNED64 hex, REAL64 456.789.
+  auto demo = load("canopennode/demoDevice.eds");
+  ASSERT_TRUE(demo.device);
+  EXPECT_EQ(demo.device->sub(0x2121, 2)->default_value,
+            "Example string with 1000 bytes capacity. It may contain UTF-8 characters, like "
+            "'\xE2\x82\xAC', tabs '\t', newlines, etc.");
+  EXPECT_EQ(demo.device->sub(0x2120, 1)->default_value, "-1234567890123456789");
+  EXPECT_EQ(demo.device->sub(0x2120, 4)->default_value, "456.789");
+  for (int line : {2732, 2741, 2759}) {
+    for (const Diagnostic& d : demo.diagnostics.items()) EXPECT_NE(d.line, line) << d.format();
+  }
+  // e35.eds line 3479: "AccessType=rww" in [2700sub1].
+  auto e35 = load("python-canopen/e35.eds");
+  ASSERT_TRUE(e35.device);
+  EXPECT_EQ(e35.device->sub(0x2700, 1)->access, AccessType::Rww);
+  // emsiso.eds: "[Comments] Lines=0"; extra [FileInfo] keys and the time "13:37PM" kept.
+  auto emsiso = load("emsiso/emsiso.eds");
+  ASSERT_TRUE(emsiso.device);
+  EXPECT_TRUE(emsiso.device->comments.empty());
+  EXPECT_EQ(*emsiso.device->file_info.find("LastEDS"), "dcf_used.dcf");
+  EXPECT_EQ(*emsiso.device->file_info.find("CreationTime"), "13:37PM");
+  // sample.eds lines 32-36: [DeviceComissioning] NodeID=0x10, NodeName=Some name, Baudrate=500.
+  auto sample = load("python-canopen/sample.eds");
+  ASSERT_TRUE(sample.device);
+  EXPECT_EQ(sample.device->node_id(), 0x10);
+  EXPECT_EQ(sample.device->commissioning->node_name, "Some name");
+  EXPECT_EQ(sample.device->commissioning->baudrate_kbps, 500);
+  // full_features.dcf: [2100Denotation] 1=Config A..3=Config C; [2000ObjectLinks] 0x2100, 0x1000.
+  auto full = load("eds-dcf-net/full_features.dcf");
+  ASSERT_TRUE(full.device);
+  EXPECT_EQ(full.device->sub(0x2100, 2)->denotation, "Config B");
+  EXPECT_THAT(full.device->object(0x2000)->object_links, ::testing::ElementsAre(0x2100, 0x1000));
+  // ZeroErrDriver.eds line 306: "$NodeID+0x80" in [1014].
+  auto zeroerr = load("zeroerr/ZeroErrDriver.eds");
+  ASSERT_TRUE(zeroerr.device);
+  EXPECT_EQ(zeroerr.device->sub(0x1014, 0)->default_value, "$NodeID+0x80");
+}
+
 }  // namespace
 }  // namespace cfg
