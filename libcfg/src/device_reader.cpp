@@ -33,6 +33,8 @@
 //   "<ParameterName><i>" (decimal), with DataType/AccessType/PDOMapping/DefaultValue/limits/
 //   ParameterValue of the object's section; [xxxxValue] gives ParameterValue, [xxxxDenotation]
 //   Denotation per sub-index. An explicit [xxxxsubN] section replaces the expanded entry (warning).
+//   Expansion is budgeted (65536 + file size / 8 sub-objects): beyond it an object is not
+//   expanded, with an error, so a small hostile file cannot claim gigabytes.
 #include <algorithm>
 #include <array>
 #include <bitset>
@@ -317,6 +319,10 @@ class Reader final : public detail::IniSink {
       result.diagnostics = take_diagnostics();
       return result;
     }
+    // A few bytes of CompactSubObj=254 become 255 sub-objects of a few hundred bytes each; the
+    // budget keeps a hostile file from turning kilobytes into gigabytes (real files expand to a
+    // few thousand sub-objects).
+    expanded_budget_ = 65536 + text.size() / 8;
     file_info_.kv = &model_.file_info;
     device_info_.kv = &model_.device_info;
     dummy_usage_.kv = &model_.dummy_usage;
@@ -1173,9 +1179,18 @@ class Reader final : public detail::IniSink {
     }
 
     const std::size_t explicit_subs = obj.subs.size();
-    const bool compact = st.compact && *st.compact > 0;
+    bool compact = st.compact && *st.compact > 0;
+    if (compact && expanded_budget_ < *st.compact) {
+      error(st.compact_line, sec + " CompactSubObj " + std::to_string(*st.compact) +
+                                 ": the file expands to more sub-objects than its size can "
+                                 "justify; this object is not expanded");
+      compact = false;
+    }
     if (compact) {
+      expanded_budget_ -= *st.compact;
       expand_compact(obj, st, sec);
+    } else if (st.compact && *st.compact > 0) {
+      // not expanded (budget): only the explicit sub-object sections
     } else {
       if (!st.sub_number) {
         warn(st.main_line, sec + " " + std::string(to_string(obj.object_type)) +
@@ -1430,6 +1445,7 @@ class Reader final : public detail::IniSink {
   std::array<std::size_t, 3> suppressed_{};
   Current cur_;
   std::size_t sections_seen_ = 0;
+  std::size_t expanded_budget_ = 0;  // sub-objects CompactSubObj may still create
   Seen seen_;
   std::array<ListState, 3> lists_;
   std::map<std::uint16_t, ObjectState> states_;

@@ -932,6 +932,23 @@ TEST(DeviceReader, ExplicitSubSectionReplacesTheExpandedCompactEntry) {
                        {"[1016] uses CompactSubObj", "0x02", "replaces the expanded entry"}));
 }
 
+TEST(DeviceReader, CompactSubObjExpansionIsBudgetedAgainstTheFileSize) {
+  // 300 objects of 254 sub-objects from ~20 KB of text: more than 65536 + size/8.
+  std::string text = "[DeviceInfo]\nVendorName=x\n";
+  for (int i = 0; i < 300; ++i) {
+    text += "[" + hex4(static_cast<std::uint16_t>(0x2000 + i)) +
+            "]\nParameterName=a\nObjectType=8\nDataType=5\nAccessType=ro\nCompactSubObj=254\n";
+  }
+  auto r = parse(text);
+  ASSERT_TRUE(r.device);
+  std::size_t subs = 0;
+  for (const auto& [index, obj] : r.device->objects) subs += obj.subs.size();
+  EXPECT_LE(subs, 65536u + text.size() / 8 + 300u);
+  EXPECT_GT(subs, 60000u);  // the budget is spent first
+  EXPECT_TRUE(r.diagnostics.has_errors());
+  EXPECT_TRUE(has_diag(r, 0, Severity::Error, {"CompactSubObj 254", "not expanded"}));
+}
+
 TEST(DeviceReader, ValueSectionOfAVarIsIgnoredWithAWarning) {
   const std::string text =
       eds("[2000]\nParameterName=v\nDataType=0x0005\nAccessType=rw\n"
