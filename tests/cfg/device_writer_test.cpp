@@ -324,5 +324,16 @@ TEST(DeviceWriter, VarObjectIsWrittenFromSubIndexZeroWithTheObjectsName) {
   EXPECT_EQ(*r.device, canonical_form(d));
 }
 
+TEST(DeviceWriter, OutputOfACompleteModelIsCleanEvenForTheStrictReader) {
+  for (FileKind kind : {FileKind::Dcf, FileKind::Eds}) {
+    WriteOptions options;
+    options.kind = kind;
+    auto r = parse_device_description(write_device_description(model(), options),
+                                      {ReadMode::Strict, "written"});
+    EXPECT_TRUE(r.ok());
+    EXPECT_TRUE(r.diagnostics.empty()) << r.diagnostics.format();
+  }
+}
+
 }  // namespace
 }  // namespace cfg
