@@ -653,15 +653,13 @@ class Reader final : public detail::IniSink {
     auto [it, inserted] =
         b.index.emplace(key, std::pair<std::size_t, int>{b.kv->entries.size(), line});
     if (!inserted) {
-      warn(line, where() + key_name(key) + " is given a second time (first at line " +
+      warn(line, where() + std::string(key) + " is given a second time (first at line " +
                      std::to_string(it->second.second) + "); the later value is used");
       b.kv->entries[it->second.first].second.assign(value);
       return;
     }
     b.kv->entries.emplace_back(std::string(key), std::string(value));
   }
-
-  static std::string key_name(std::string_view key) { return std::string(key); }
 
   // Cuts an inline comment from a number-like value, with a warning.
   std::string_view without_comment(std::string_view value, std::string_view key, int line) {
@@ -1148,7 +1146,7 @@ class Reader final : public detail::IniSink {
     obj.sub_number = st.sub_number;
     obj.compact_sub_obj = st.compact;
     obj.obj_flags = st.obj_flags;
-    finish_links(obj, st, sec);
+    finish_links(obj, st);
 
     if (var_like(obj.object_type)) {
       if (!obj.subs.empty()) {
@@ -1331,7 +1329,7 @@ class Reader final : public detail::IniSink {
     }
   }
 
-  void finish_links(Object& obj, const ObjectState& st, const std::string& sec) {
+  void finish_links(Object& obj, const ObjectState& st) {
     if (!st.has_links) return;
     std::vector<std::pair<std::uint64_t, std::uint16_t>> links = st.links;
     std::stable_sort(links.begin(), links.end(),
@@ -1345,7 +1343,6 @@ class Reader final : public detail::IniSink {
       warn(st.links_line, lsec + " ObjectLinks " + std::to_string(*st.links_count) + " but " +
                               std::to_string(links.size()) + " entries are given");
     }
-    (void)sec;
   }
 
   void check_object_lists() {

@@ -59,10 +59,10 @@ struct CaseInsensitiveEqual {
 
 // Merges `from` into `into` as the reader does a repeated key: the first position, the later
 // value. Keys and values become single trimmed lines; unwritable keys go.
-void merge_key_values(KeyValues& into, KeyValues from) {
+void merge_key_values(KeyValues& into, const KeyValues& from) {
   std::unordered_map<std::string, std::size_t, CaseInsensitiveHash, CaseInsensitiveEqual> index;
   for (std::size_t i = 0; i < into.entries.size(); ++i) index.emplace(into.entries[i].first, i);
-  for (auto& [key, value] : from.entries) {
+  for (const auto& [key, value] : from.entries) {
     std::string k = one_line(key);
     if (!writable_key(k)) continue;
     std::string v = one_line(value);
@@ -76,9 +76,9 @@ void merge_key_values(KeyValues& into, KeyValues from) {
   }
 }
 
-KeyValues canonical_key_values(KeyValues kv) {
+KeyValues canonical_key_values(const KeyValues& kv) {
   KeyValues out;
-  merge_key_values(out, std::move(kv));
+  merge_key_values(out, kv);
   return out;
 }
 
@@ -263,12 +263,12 @@ void write_commissioning(Out& out, const DeviceCommissioning& c) {
 
 DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& options) {
   if (options.stamp) apply_stamp(d.file_info, *options.stamp);
-  d.file_info = canonical_key_values(std::move(d.file_info));
-  d.device_info = canonical_key_values(std::move(d.device_info));
+  d.file_info = canonical_key_values(d.file_info);
+  d.device_info = canonical_key_values(d.device_info);
   for (auto& [key, value] : d.device_info.entries) {
     if (detail::is_numeric_device_info_key(key)) cut_comment(value);
   }
-  d.dummy_usage = canonical_key_values(std::move(d.dummy_usage));
+  d.dummy_usage = canonical_key_values(d.dummy_usage);
   for (auto& [key, value] : d.dummy_usage.entries) cut_comment(value);
   for (std::string& line : d.comments) clean_text(line);
 
@@ -308,7 +308,7 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
     if (c.node_id && (*c.node_id < 1 || *c.node_id > 127)) c.node_id.reset();
     clean_text(c.node_name);
     clean_text(c.network_name);
-    KeyValues other = canonical_key_values(std::move(c.other));
+    KeyValues other = canonical_key_values(c.other);
     c.other.entries.clear();
     // Keys the reader takes into the fields above cannot come back as `other`.
     static constexpr std::array<std::string_view, 7> kKnown = {
@@ -328,7 +328,7 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
     if (!writable_section_name(name)) continue;
     auto [it, inserted] = index.emplace(name, others.size());
     if (inserted) others.push_back({std::move(name), {}});
-    merge_key_values(others[it->second].keys, std::move(section.keys));
+    merge_key_values(others[it->second].keys, section.keys);
   }
   d.other_sections = std::move(others);
   return d;
