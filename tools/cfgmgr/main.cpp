@@ -9,7 +9,9 @@
 #include "../common/tool_support.hpp"
 #include "commands.hpp"
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   CLI::App app{
       "CANopen configuration manager: check, format and (later) download device "
       "configurations (CiA 302, CiA 306).",
@@ -29,9 +31,21 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? tools::kExitOk : tools::kExitUsage;
-  } catch (const std::exception& e) {
-    std::cerr << "cfgmgr: error: " << e.what() << '\n';
-    return tools::kExitIo;
   }
   return tools::kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    // Only resource exhaustion and the like end up here; bad input is a diagnostic.
+    std::cerr << "cfgmgr: error: " << e.what() << '\n';
+    return tools::kExitIo;
+  } catch (...) {
+    std::cerr << "cfgmgr: error: unexpected exception\n";
+    return tools::kExitIo;
+  }
 }

@@ -185,7 +185,10 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
       const std::string why = std::strerror(errno);
       ::close(fd);
       ::unlink(temp.c_str());
-      return cfg::Error{path + ": write error: " + why};
+      std::string message = path;
+      message += ": write error: ";
+      message += why;
+      return cfg::Error{std::move(message)};
     }
     written += static_cast<std::size_t>(n);
   }

@@ -199,7 +199,7 @@ int run_decode(const DecodeOptions& options) {
             index, sub_index, data, static_cast<std::uint32_t>(rows.size() + 1), diagnostics));
       });
   // Streams of any size: fed in chunks, never held whole.
-  std::vector<char> chunk(64 * 1024);
+  std::vector<char> chunk(std::size_t{64} * 1024);
   cfg::Status status;
   while (status && *in) {
     in->read(chunk.data(), static_cast<std::streamsize>(chunk.size()));

@@ -9,7 +9,9 @@
 #include "../common/tool_support.hpp"
 #include "dcf2concise.hpp"
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   CLI::App app{
       "Converts a CANopen DCF (CiA 306) into the concise DCF stream a CANopen manager stores "
       "in object 1F22h (CiA 302), with PDOs written in the order DSP 302 §6.2 asks for; or "
@@ -75,23 +77,30 @@ int main(int argc, char** argv) {
     return code == 0 ? tools::kExitOk : tools::kExitUsage;
   }
 
+  if (decode) return dcf2concise::run_decode({input, device_file, strict, json});
+  dcf2concise::EncodeOptions options;
+  options.input = input;
+  options.output = output;
+  if (node_opt->count() > 0) options.node_id = static_cast<std::uint8_t>(node_id);
+  options.selection = changed_only    ? cfg::ConciseSelection::ChangedOnly
+                      : with_defaults ? cfg::ConciseSelection::WithDefaults
+                                      : cfg::ConciseSelection::Configured;
+  options.strict = strict;
+  options.json = json;
+  return dcf2concise::run_encode(options);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
   try {
-    if (decode) {
-      return dcf2concise::run_decode({input, device_file, strict, json});
-    }
-    dcf2concise::EncodeOptions options;
-    options.input = input;
-    options.output = output;
-    if (node_opt->count() > 0) options.node_id = static_cast<std::uint8_t>(node_id);
-    options.selection = changed_only    ? cfg::ConciseSelection::ChangedOnly
-                        : with_defaults ? cfg::ConciseSelection::WithDefaults
-                                        : cfg::ConciseSelection::Configured;
-    options.strict = strict;
-    options.json = json;
-    return dcf2concise::run_encode(options);
+    return run(argc, argv);
   } catch (const std::exception& e) {
     // Only resource exhaustion and the like end up here; bad input is a diagnostic.
     std::cerr << "dcf2concise: error: " << e.what() << '\n';
+    return tools::kExitIo;
+  } catch (...) {
+    std::cerr << "dcf2concise: error: unexpected exception\n";
     return tools::kExitIo;
   }
 }
