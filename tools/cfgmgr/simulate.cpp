@@ -203,8 +203,9 @@ void run_simulate(const SimulateOptions& options) {
   for (auto* traced : {pcap, candump}) {
     if (!traced) continue;
     auto flushed = traced->trace().flush();
-    if (!flushed || !traced->trace().status()) {
-      const auto& why = !flushed ? flushed.error() : traced->trace().status().error();
+    const cfg::Status status_after = traced->trace().status();  // by value: keep it alive
+    if (!flushed || !status_after) {
+      const cfg::Error why = !flushed ? flushed.error() : status_after.error();
       std::cerr << "cfgmgr simulate: trace " << traced->trace().path().string() << ": "
                 << why.message << '\n';
       trace_failed = true;
