@@ -87,6 +87,20 @@ TEST(Cfgmgr, CheckWarningIsNotAFailureUnlessStrict) {
   EXPECT_THAT(strict.err, HasSubstr("bad_access_type.eds:75: error: [2000] AccessType"));
 }
 
+TEST(Cfgmgr, CheckComparesWithTheCiA301Schema) {
+  ScratchDir dir;
+  // schema_mismatch.eds declares 1017h UNSIGNED32; CiA 301 defines UNSIGNED16.
+  const std::string file = data_path("check/schema_mismatch.eds");
+  auto r = run("cfgmgr", {"check", file}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("schema_mismatch.eds:71: warning: 1017h"));
+  EXPECT_THAT(r.err, HasSubstr("UNSIGNED16"));
+  EXPECT_EQ(run("cfgmgr", {"check", "--strict", file}, dir.path()).exit_code, 1);
+  auto without = run("cfgmgr", {"check", "--no-schema", "--strict", file}, dir.path());
+  EXPECT_EQ(without.exit_code, 0) << without.err;
+  EXPECT_EQ(without.err, "");
+}
+
 TEST(Cfgmgr, CheckReportsErrorsAndKeepsGoing) {
   ScratchDir dir;
   auto r =
