@@ -87,6 +87,13 @@ TEST(Dcf2Concise, UsageErrorsExitWith2) {
   EXPECT_EQ(run("dcf2concise", {dcf, "--dcf", dcf}, dir.path()).exit_code, 2);
   EXPECT_EQ(run("dcf2concise", {dcf, "--json", "-o", "-"}, dir.path()).exit_code, 2);
   EXPECT_EQ(run("dcf2concise", {dcf, "--no-such-option"}, dir.path()).exit_code, 2);
+  // stdin in, so stdout out by default: no room for --json.
+  EXPECT_EQ(run("dcf2concise", {"-", "--json"}, dir.path(), "", dcf).exit_code, 2);
+  // The default output (input with .bin) must not be the input itself.
+  fs::copy_file(dcf, dir / "weird.bin");
+  EXPECT_EQ(run("dcf2concise", {"weird.bin"}, dir.path(), dir.path().string()).exit_code, 2);
+  EXPECT_EQ(tool_test::slurp(dir / "weird.bin"), tool_test::slurp(dcf));
+  fs::remove(dir / "weird.bin");
   EXPECT_THAT(dir.files(), ::testing::IsEmpty());
 }
 

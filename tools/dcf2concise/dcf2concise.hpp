@@ -25,6 +25,9 @@ struct DecodeOptions {
   bool json = false;
 };
 
+/// The input with extension .bin ("-" for "-"): where the stream goes without -o.
+std::string default_output(const std::string& input);
+
 /// Each returns the process exit code (tools::ExitCode).
 int run_encode(const EncodeOptions& options);
 int run_decode(const DecodeOptions& options);

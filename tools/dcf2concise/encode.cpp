@@ -13,11 +13,6 @@
 namespace dcf2concise {
 namespace {
 
-std::string default_output(const std::string& input) {
-  if (input == "-") return "-";
-  return std::filesystem::path(input).replace_extension(".bin").string();
-}
-
 std::string index_text(const cfg::ObjectWrite& w) {
   char buf[16];
   std::snprintf(buf, sizeof buf, "%04X", w.index);
@@ -25,6 +20,11 @@ std::string index_text(const cfg::ObjectWrite& w) {
 }
 
 }  // namespace
+
+std::string default_output(const std::string& input) {
+  if (input == "-") return "-";
+  return std::filesystem::path(input).replace_extension(".bin").string();
+}
 
 int run_encode(const EncodeOptions& options) {
   if (auto readable = tools::check_readable(options.input); !readable) {

@@ -68,9 +68,14 @@ int run(int argc, char** argv) {
 
   try {
     app.parse(argc, argv);
-    if (json && output == "-") {
+    if (!decode && output.empty()) output = dcf2concise::default_output(input);
+    if (!decode && output == input && input != "-") {
+      throw CLI::ValidationError("--output", "the output would overwrite the input " + input +
+                                                 "; give another one with -o");
+    }
+    if (json && !decode && output == "-") {
       throw CLI::ValidationError("--json",
-                                 "--json prints on stdout; it cannot be combined with -o -");
+                                 "--json prints on stdout; the stream cannot go there too");
     }
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
