@@ -60,8 +60,8 @@ cfg::Result<LocalDictionary> LocalDictionary::from_device(const cfg::DeviceDescr
       e.access = sub.access;
       e.pdo_mapping = sub.pdo_mapping;
       const auto where = [&](std::string_view key, const std::string& text) {
-        return "object " + entry_name(index, sub_index) + ": " + std::string(key) + " '" + text +
-               "': ";
+        return "object " + entry_name(e.index, e.sub_index) + ": " + std::string(key) + " '" +
+               text + "': ";
       };
       if (!e.basic_type) {
         // Unknown or complex type: kept as DOMAIN-like bytes; its value text cannot be read.
@@ -134,7 +134,7 @@ SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
                                       std::optional<std::size_t> size) const {
   const auto* e = entry(index, sub);
   if (!e) return has_object(index) ? SdoAbort::SubIndexDoesNotExist : SdoAbort::ObjectDoesNotExist;
-  // CiA 301 Table 22: "attempt to write a read only object" covers ro and const.
+  // the CiA 301 abort code table: "attempt to write a read only object" covers ro and const.
   if (!cfg::is_writable(e->access)) return SdoAbort::WriteOfReadOnly;
   if (size) {
     if (auto fixed = e->fixed_size()) {
@@ -232,7 +232,7 @@ bool LocalDictionary::set_unsigned(std::uint16_t index, std::uint8_t sub, std::u
   if (!size) return false;
   e->bytes.resize(*size);
   for (std::size_t i = 0; i < *size; ++i) {
-    e->bytes[i] = i < 8 ? static_cast<std::uint8_t>(value >> (8 * i)) : 0;
+    e->bytes[i] = static_cast<std::uint8_t>(i < 8 ? value >> (8 * i) : 0);
   }
   return true;
 }

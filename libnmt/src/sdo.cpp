@@ -9,7 +9,7 @@ namespace {
 
 using Bytes = std::array<std::uint8_t, 8>;
 
-// CiA 301 §7.2.4.3: command specifiers in bits 7..5 of byte 0.
+// CiA 301 §7.2.4.3 (SDO protocols): command specifiers in bits 7..5 of byte 0.
 constexpr std::uint8_t kCcsDownloadSegment = 0;
 constexpr std::uint8_t kCcsInitiateDownload = 1;
 constexpr std::uint8_t kCcsInitiateUpload = 2;
@@ -24,7 +24,7 @@ constexpr std::uint8_t kScsInitiateDownload = 3;
 constexpr std::uint8_t kScsBlockDownload = 5;
 constexpr std::uint8_t kScsBlockUpload = 6;
 
-constexpr std::uint8_t kMaxBlockSize = 127;  // CiA 301 §7.2.4.3.9: blksize 1..127
+constexpr std::uint8_t kMaxBlockSize = 127;  // CiA 301 block protocols: blksize 1..127
 constexpr std::size_t kSegmentBytes = 7;
 
 std::uint8_t command(const Bytes& d) {
@@ -122,7 +122,7 @@ SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
 
 SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
   auto c = for_node(dict.node_id());
-  // CiA 301 §7.5.2.33 (1200h): bit 31 "valid" (0 = valid), bit 29 frame format, bits 28..0 id.
+  // CiA 301 object 1200h: bit 31 "valid" (0 = valid), bit 29 frame format, bits 28..0 id.
   auto cob = [](std::optional<std::uint64_t> v) -> std::optional<std::uint32_t> {
     if (!v || (*v & 0x80000000u) != 0) return std::nullopt;
     const bool extended = (*v & 0x20000000u) != 0;
@@ -226,7 +226,7 @@ void SdoServer::handle(const Bytes& d, TimePoint now) {
   // invalid sequence number 0) is an abort there. Elsewhere the command specifier 4 is.
   const bool is_abort = state_ == State::BlockDownload ? d[0] == 0x80 : command(d) == kCsAbort;
   if (is_abort) {
-    reset();  // CiA 301 §7.2.4.3.17: no response to an abort
+    reset();  // CiA 301 SDO abort transfer protocol: not confirmed
     return;
   }
   switch (state_) {
@@ -274,7 +274,7 @@ void SdoServer::handle(const Bytes& d, TimePoint now) {
   }
 }
 
-// CiA 301 §7.2.4.3.3 / §7.2.4.3.5: initiate download, expedited or segmented.
+// CiA 301 §7.2.4.3, SDO download initiate protocol: expedited or segmented.
 void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
   const bool expedited = (d[0] & 0x02) != 0;
   const bool size_indicated = (d[0] & 0x01) != 0;
@@ -309,7 +309,7 @@ void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
   respond(r, now);
 }
 
-// CiA 301 §7.2.4.3.4 / §7.2.4.3.6: download segment, toggle bit starts at 0 and alternates.
+// CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
 void SdoServer::download_segment(const Bytes& d, TimePoint now) {
   if (command(d) != kCcsDownloadSegment) {
     return send_abort(SdoAbort::InvalidCommandSpecifier, now);
@@ -343,7 +343,7 @@ void SdoServer::finish_download(TimePoint now, std::uint8_t response) {
   reset();
 }
 
-// CiA 301 §7.2.4.3.7 / §7.2.4.3.8: initiate upload response for the value in buffer_; values
+// CiA 301 §7.2.4.3, SDO upload initiate protocol: the response for the value in buffer_; values
 // of 1..4 bytes go expedited.
 void SdoServer::start_upload(TimePoint now) {
   Bytes r{};
@@ -382,7 +382,7 @@ void SdoServer::upload_segment(const Bytes& d, TimePoint now) {
   if (last) reset();
 }
 
-// CiA 301 §7.2.4.3.9 - §7.2.4.3.11: block download (initiate and end requests).
+// CiA 301 §7.2.4.3, SDO block download protocol: initiate and end requests.
 void SdoServer::block_download(const Bytes& d, TimePoint now) {
   if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
   const bool end = (d[0] & 0x01) != 0;
@@ -427,7 +427,7 @@ void SdoServer::block_download_segment(const Bytes& d, TimePoint now) {
   const bool last = (d[0] & 0x80) != 0;
   if (seq == 0 || seq > block_size_) return send_abort(SdoAbort::InvalidSequenceNumber, now);
   // Segments after a lost one are ignored; the acknowledgement names the last one received in
-  // order and the client resends from there (CiA 301 §7.2.4.3.10).
+  // order and the client resends from there (CiA 301 block download sub-block).
   if (seq == ack_seq_ + 1 && !last_received_) {
     // Segments carry 7 bytes each, the last one padded: never more than the size needs.
     const std::size_t limit = size_ ? *size_ : config_.max_download_size;
@@ -451,7 +451,7 @@ void SdoServer::block_download_segment(const Bytes& d, TimePoint now) {
   }
 }
 
-// CiA 301 §7.2.4.3.12 - §7.2.4.3.15: block upload.
+// CiA 301 §7.2.4.3, SDO block upload protocol.
 void SdoServer::block_upload(const Bytes& d, TimePoint now) {
   if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
   const std::uint8_t sub_command = d[0] & 0x03;
@@ -681,7 +681,7 @@ void SdoClient::on_timer(TimePoint now, std::vector<CanFrame>& out) {
     if (t.state == State::Cancel) {
       fail(t, t.cancel_code == SdoAbort::None ? SdoAbort::General : t.cancel_code, true, now, out);
     } else if (t.state != State::Start && now >= t.deadline) {
-      // CiA 301 §7.2.4.3.17: the client aborts with 0504 0000 when the server does not answer.
+      // CiA 301 abort codes: the client aborts with 0504 0000 when the server does not answer.
       fail(t, SdoAbort::Timeout, true, now, out);
     }
   }
@@ -717,7 +717,7 @@ void SdoClient::start(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
       put_u32(d, 4, static_cast<std::uint32_t>(size));
       t.state = State::BlockDownloadInit;
     } else if (t.mode == SdoMode::Auto && size >= 1 && size <= 4) {
-      // CiA 301 §7.2.4.3.3: e=1, s=1, n = 4 - size.
+      // CiA 301 download initiate: e=1, s=1, n = 4 - size.
       t.protocol = SdoProtocol::Expedited;
       d[0] = static_cast<std::uint8_t>(kCcsInitiateDownload << 5 | (4 - size) << 2 | 0x03);
       std::copy(t.data.begin(), t.data.end(), d.begin() + 4);
@@ -910,7 +910,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
       t.offset = std::min(t.data.size(), t.offset + ack_seq * kSegmentBytes);
       t.block_size = d[2];
       if (ack_seq == t.sent_in_block && t.block_has_last) {
-        // CiA 301 §7.2.4.3.11: end request with n and the CRC over the whole value.
+        // CiA 301 end block download: n and the CRC over the whole value.
         Bytes r{};
         const auto n = kSegmentBytes - last_segment_bytes(t.data.size());
         r[0] = static_cast<std::uint8_t>(kCcsBlockDownload << 5 | n << 2 | 0x01);

@@ -9,7 +9,7 @@ namespace nmt {
 
 namespace {
 
-// CiA 301 Table 22 (SDO abort codes), texts in lower case as the standard words them.
+// The CiA 301 abort code table, texts in lower case as the standard words them.
 constexpr std::array<SdoAbortInfo, 31> kTable{{
     {SdoAbort::ToggleBitNotAlternated, "toggle bit not alternated"},
     {SdoAbort::Timeout, "SDO protocol timed out"},

@@ -1,5 +1,5 @@
 // Runtime object dictionary: values from a device description, and the SDO access rules with
-// the abort codes of CiA 301 Table 22 (public knowledge of CiA 301; not in spec/).
+// the abort codes of the CiA 301 abort code table (public knowledge of CiA 301; not in spec/).
 #include "nmt/local_dictionary.hpp"
 
 #include <gtest/gtest.h>

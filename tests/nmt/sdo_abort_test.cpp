@@ -1,4 +1,4 @@
-// SDO abort codes, CiA 301 Table 22 (from public knowledge of CiA 301; not in spec/).
+// SDO abort codes, the CiA 301 abort code table (from public knowledge of CiA 301; not in spec/).
 #include "nmt/sdo_abort.hpp"
 
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 namespace nmt {
 namespace {
 
-TEST(SdoAbort, CodesHaveTheValuesOfCiA301Table22) {
+TEST(SdoAbort, CodesHaveTheValuesOfTheCiA301AbortTable) {
   EXPECT_EQ(to_u32(SdoAbort::ToggleBitNotAlternated), 0x05030000u);
   EXPECT_EQ(to_u32(SdoAbort::Timeout), 0x05040000u);
   EXPECT_EQ(to_u32(SdoAbort::InvalidCommandSpecifier), 0x05040001u);
@@ -44,7 +44,7 @@ TEST(SdoAbort, CodesHaveTheValuesOfCiA301Table22) {
 }
 
 TEST(SdoAbort, TableHoldsEveryCodeOnceWithAText) {
-  // CiA 301 Table 22 lists 31 codes.
+  // The CiA 301 abort code table lists 31 codes.
   EXPECT_EQ(sdo_abort_table().size(), 31u);
   std::set<std::uint32_t> seen;
   for (const auto& row : sdo_abort_table()) {

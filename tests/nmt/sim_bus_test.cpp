@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -106,6 +107,42 @@ TEST(SimBusTiming, Crc15OfKnownBits) {
   EXPECT_EQ(can_crc15(bits("0000000000")), 0u);
   // A single 1 bit leaves the generator polynomial without its x^15 term: 0x4599.
   EXPECT_EQ(can_crc15(bits("1")), 0x4599u);
+}
+
+// The bus computes lengths a byte at a time; the bit-at-a-time functions above define them.
+TEST(SimBusTiming, FrameBitsAgreeWithBitByBitComputationForManyFrames) {
+  std::mt19937 rng(7);
+  for (int n = 0; n < 5000; ++n) {
+    CanFrame f;
+    f.extended = (rng() & 1) != 0;
+    f.rtr = (rng() % 8) == 0;
+    f.id = static_cast<std::uint32_t>(rng()) & (f.extended ? 0x1FFFFFFFu : 0x7FFu);
+    f.dlc = static_cast<std::uint8_t>(rng() % 9);
+    // Runs of equal bytes make long runs of equal bits.
+    for (auto& byte : f.data) byte = (rng() & 1) != 0 ? 0x00 : static_cast<std::uint8_t>(rng());
+    std::vector<std::uint8_t> b;
+    auto put = [&](std::uint32_t v, int width) {
+      for (int i = width - 1; i >= 0; --i) b.push_back(static_cast<std::uint8_t>(v >> i & 1));
+    };
+    put(0, 1);  // SOF
+    if (f.extended) {
+      put(f.id >> 18, 11);
+      put(0b11, 2);  // SRR, IDE
+      put(f.id & 0x3FFFF, 18);
+      put(f.rtr, 1);
+      put(0, 2);  // r1, r0
+    } else {
+      put(f.id, 11);
+      put(f.rtr, 1);
+      put(0, 2);  // IDE, r0
+    }
+    put(f.dlc, 4);
+    for (int i = 0; i < (f.rtr ? 0 : f.dlc); ++i) put(f.data[i], 8);
+    put(can_crc15(b), 15);
+    const auto bits_of_f = frame_bits(f);
+    ASSERT_EQ(bits_of_f.stuffed_region, b.size()) << to_candump(f);
+    ASSERT_EQ(bits_of_f.stuff_bits, count_stuff_bits(b)) << to_candump(f);
+  }
 }
 
 TEST(SimBus, DeliversAtEndOfFrameAndFreesBusAfterIntermission) {

@@ -8,7 +8,7 @@
 //   engine.next_deadline();             // nullopt: nothing to wait for
 // Any call may change the deadline; drivers re-read it after every call (SimEngineNode does).
 //
-// Protocol choices where CiA 301 leaves room (the same as lely-core's):
+// Protocol choices where CiA 301 leaves room:
 // - Frames with DLC < 8 are read as if padded with zeros; DLC 0 and RTR frames are ignored.
 // - A request that does not fit the server's state (e.g. a new initiate during a segmented
 //   transfer) is answered with abort 0504 0001 and the server returns to idle.
@@ -16,6 +16,9 @@
 //   the "no more segments" flag, with the last sequence number received in order; the sender
 //   then resends from the segment after it. Sequence number 0 or above the block size aborts
 //   with 0504 0003.
+// Limitation of the protocol: SDO frames carry no transaction number. A response that arrives
+// after its transfer ended (server latency above the client's timeout) can be taken for a
+// response of the next transfer on the channel; keep client timeouts above server latency.
 #pragma once
 
 #include <array>
@@ -36,7 +39,7 @@
 
 namespace nmt {
 
-/// CRC-16 of SDO block transfer (CiA 301 §7.2.4.3.16: polynomial x^16 + x^12 + x^5 + 1, initial
+/// CRC-16 of SDO block transfer (CiA 301 block protocols: polynomial x^16 + x^12 + x^5 + 1, initial
 /// value 0, no reflection, i.e. CRC-16/XMODEM). Pass the previous result as `crc` to continue.
 std::uint16_t sdo_block_crc(std::span<const std::uint8_t> data, std::uint16_t crc = 0);
 

@@ -1,4 +1,4 @@
-// SDO abort codes (CiA 301 §7.2.4.3.17, Table 22): the one enum and the one table of texts.
+// SDO abort codes (the abort code table of CiA 301 §7.2.4.3): the one enum and the one table of texts.
 // Implemented from public knowledge of CiA 301 (the standard is not in spec/).
 #pragma once
 
@@ -52,10 +52,10 @@ enum class SdoAbort : std::uint32_t {
 /// One row of the abort-code table.
 struct SdoAbortInfo {
   SdoAbort code;
-  std::string_view text;  ///< lower-case description after CiA 301 Table 22
+  std::string_view text;  ///< lower-case description after the CiA 301 abort code table
 };
 
-/// Every code of CiA 301 Table 22 (not `None`), in numeric order.
+/// Every code of the CiA 301 abort code table (not `None`), in numeric order.
 std::span<const SdoAbortInfo> sdo_abort_table();
 
 /// True for `None` and every code of the table.
