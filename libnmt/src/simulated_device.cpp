@@ -311,7 +311,7 @@ void SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now, std::vector
 
   std::vector<CanFrame> local;
   if (auto t = nmt_.on_frame(frame)) {
-    apply_nmt(*t, now, local);
+    apply_nmt(*t, now);
     flush(local, out);
     return;
   }
@@ -351,9 +351,7 @@ void SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now, std::vector
   flush(local, out);
 }
 
-void SimulatedDevice::apply_nmt(const NmtSlave::Transition& t, TimePoint now,
-                                std::vector<CanFrame>& out) {
-  (void)out;
+void SimulatedDevice::apply_nmt(const NmtSlave::Transition& t, TimePoint now) {
   emit(DeviceEvent::Kind::StateChange, now,
        std::string(to_string(t.command)) + ": " + std::string(to_string(t.from)) + " -> " +
            std::string(t.reset ? to_string(*t.reset) : to_string(t.to)));
@@ -375,7 +373,6 @@ void SimulatedDevice::on_timer(TimePoint now, std::vector<CanFrame>& out) {
     emit(DeviceEvent::Kind::Boot, now, "boot-up");
   }
   if (nmt_.state() != NmtState::Initialising) {
-    const NmtServices services = nmt_.services();
     if (auto due = heartbeat_.deadline(); due && now >= *due) {
       auto hb = heartbeat_.on_timer(now, nmt_.node_id(), nmt_.state());
       if (hb && !heartbeat_stopped_by_fault(*due)) local.push_back(*hb);
@@ -389,9 +386,15 @@ void SimulatedDevice::on_timer(TimePoint now, std::vector<CanFrame>& out) {
            "heartbeat of node " + std::to_string(ev.node_id) + " timed out");
       communication_error("heartbeat", now, local);
     }
+    // Read the state again: the error behaviour above may have changed it.
     for (auto& f : emcy_.on_timer(now, nmt_.services().emcy)) local.push_back(f);
-    (void)services;
-    sdo_.on_timer(now, local);
+    if (nmt_.services().sdo) {
+      sdo_.on_timer(now, local);
+    } else {
+      // Stopped: responses still waiting out the latency are not sent.
+      std::vector<CanFrame> discarded;
+      sdo_.on_timer(now, discarded);
+    }
   }
   flush(local, out);
 }

@@ -73,8 +73,8 @@ struct DeviceFaults {
   /// SimBus::set_loss_rate.
   double frame_loss_rate = 0.0;
   std::uint64_t loss_seed = 1;
-  /// The device power-cycles when it receives its Nth SDO request frame (counted from power-on
-  /// of the fault's installation, N >= 1), without answering it: a reboot in the middle of a
+  /// The device power-cycles when it receives its Nth SDO request frame (N >= 1, counted from
+  /// create() or set_faults()), without answering it: a reboot in the middle of a
   /// configuration or program download. Fires once.
   std::optional<std::uint32_t> reboot_at_sdo_request;
   /// From this time on no heartbeat is produced (the device otherwise keeps working).
@@ -140,7 +140,8 @@ class SimulatedDevice {
   LocalDictionary& dictionary() { return dict_; }
   const LocalDictionary& dictionary() const { return dict_; }
   const DeviceFaults& faults() const { return faults_; }
-  /// Replaces the faults. Latency and loss take effect at once, identity at the next reset.
+  /// Replaces the faults. Latency, loss, guarding and heartbeat faults take effect at once,
+  /// identity and boot delay at the next reset; after changing `absent`, power_on() again.
   void set_faults(DeviceFaults faults);
   /// Values 1010h saved, by LocalDictionary::key(); empty when nothing was saved.
   const std::map<std::uint32_t, std::vector<std::uint8_t>>& stored() const { return stored_; }
@@ -169,7 +170,7 @@ class SimulatedDevice {
   void emit(DeviceEvent::Kind kind, TimePoint at, std::string text);
   void flush(std::vector<CanFrame>& local, std::vector<CanFrame>& out);
   bool lose();
-  void apply_nmt(const NmtSlave::Transition& t, TimePoint now, std::vector<CanFrame>& out);
+  void apply_nmt(const NmtSlave::Transition& t, TimePoint now);
   void communication_error(const std::string& what, TimePoint now, std::vector<CanFrame>& out);
   void communication_recovered(const std::string& what, TimePoint now, std::vector<CanFrame>& out);
   void set_error_register(std::uint8_t value);
