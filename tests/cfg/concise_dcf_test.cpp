@@ -509,7 +509,7 @@ TEST(ConciseWrites, VerifyConfigurationComesLast) {
 
 TEST(ConciseWrites, OddWidthIntegersHaveTheirOwnSize) {
   // CiA 301 §7.1.4/§7.1.5: INTEGER24 is 3 bytes, UNSIGNED40 5, ... (lely dcfgen pads these to
-  // 4 or 8 bytes; see docs/dcfgen-differences.md).
+  // 4 or 8 bytes; see tests/cfg/dcfgen-differences.md).
   auto dcf = make_dcf({
       {0x2010, 0, DataType::Unsigned24, kRw, "0x123456", none, 1},
       {0x2011, 0, DataType::Integer24, kRw, "-2", none, 2},

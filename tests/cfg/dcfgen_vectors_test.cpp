@@ -4,7 +4,7 @@
 // ParameterValues, hand-translated line by line (the comments quote the YAML). The comparison is
 // semantic: the state a device is left in (the last value written to each entry), plus the
 // PDO-safe order of our stream. Every place where our stream differs is listed in the test with
-// the reason, and in docs/dcfgen-differences.md.
+// the reason, and in tests/cfg/dcfgen-differences.md.
 //
 // Hand-translation rules (lely dcfgen semantics of its YAML keys):
 // - rpdo/tpdo N `enabled: true`, `cob_id: auto` (or no cob_id): COB-ID = CiA 301 pre-defined

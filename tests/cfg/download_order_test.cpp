@@ -230,7 +230,7 @@ TEST(DownloadOrder, ReproducesTheOrderLelyDcfgenWroteForPilzPrbt) {
 
 // robot_control__joint_1.bin: the PDO part (its first 25 entries) is in the same order as ours;
 // dcfgen then writes the yml's "sdo:" list in file order (60C2h, 6081h, 6083h, 6060h), where we
-// write index order (6060h before 6081h). See docs/dcfgen-differences.md.
+// write index order (6060h before 6081h). See tests/cfg/dcfgen-differences.md.
 TEST(DownloadOrder, MatchesDcfgenPdoSequenceForRos2CanopenJoint) {
   const std::string path =
       std::string(CANOPEN_CORPUS_DIR) + "/starnus-ros2_canopen-build/robot_control__joint_1.bin";
