@@ -160,7 +160,9 @@ enum class SdoMode : std::uint8_t {
 
 struct SdoTransferOptions {
   /// Longest wait for each server response; then abort 0504 0000 is sent and the transfer
-  /// ends with Timeout.
+  /// ends with Timeout. It runs from when the client hands its frames out; a block download's
+  /// sub-block of up to 127 frames spends about 127 x 120 bit times on the bus first (1.5 s at
+  /// 10 kbit/s), so choose the timeout (or the server's block size) for the bit rate.
   Duration timeout = std::chrono::milliseconds(1000);
   SdoMode mode = SdoMode::Auto;
   /// Block size the client asks for in block uploads, 1..127.
