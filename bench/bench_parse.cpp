@@ -1,12 +1,15 @@
 // EDS/DCF parse throughput (MB/s and sub-objects/s) and peak heap use relative to the file size.
 //
-// Inputs: a DCF generated here (200 RECORDs of 255 sub-objects each: 51,000 sub-objects, about
-// 12 MB, every key CANopenEditor writes for a DCF entry) and the largest corpus file,
-// oresat/c3.dcf (skipped when the corpus is absent). Baseline in the same run: a memchr line
-// count over the same bytes, i.e. the cost of merely touching every line; report the parse figure
-// as a ratio to it. Memory: the global operator new is counted; "peak_heap_per_file_byte" is the
-// largest heap in use during one parse (the model plus everything transient, not counting the
-// text, which the caller owns) divided by the file size.
+// Inputs: two DCFs generated here, 200 RECORDs of 255 sub-objects each (51,000 sub-objects):
+// "Generated" has every key CANopenEditor writes for a DCF entry (about 11 MB, 217 bytes per
+// entry), "Terse" only the keys CiA 306 requires plus a DefaultValue (about 6 MB, 124 bytes per
+// entry); and the largest corpus file, oresat/c3.dcf (skipped when the corpus is absent). Baseline
+// in the same run: a memchr line count over the same bytes, i.e. the cost of merely touching every
+// line; report the parse figure as a ratio to it. Memory: the global operator new is counted;
+// "peak_heap_per_file_byte" is the largest heap in use during one parse (the model plus everything
+// transient, not counting the text, which the caller owns) divided by the file size;
+// "model_heap_per_file_byte" is what the result still holds after the parse (model and
+// diagnostics).
 //
 // Run (Release): cmake -B build-rel -DCMAKE_BUILD_TYPE=Release && cmake --build build-rel
 //   --target bench_parse && build-rel/bench/bench_parse
@@ -143,6 +146,39 @@ std::string read_file(const std::filesystem::path& path) {
   return out.str();
 }
 
+// Only what CiA 306 asks of an entry, plus a DefaultValue: the smallest realistic entry.
+const std::string& terse_dcf() {
+  static const std::string text = [] {
+    std::string s;
+    s.reserve(7'000'000);
+    s += "[FileInfo]\r\nFileName=terse.dcf\r\n\r\n[DeviceInfo]\r\nVendorName=Bench\r\n\r\n"
+         "[ManufacturerObjects]\r\nSupportedObjects=" +
+         std::to_string(kObjects) + "\r\n";
+    char buf[256];
+    for (int i = 0; i < kObjects; ++i) {
+      std::snprintf(buf, sizeof buf, "%d=0x%04X\r\n", i + 1, 0x2000 + i);
+      s += buf;
+    }
+    for (int i = 0; i < kObjects; ++i) {
+      std::snprintf(buf, sizeof buf,
+                    "\r\n[%04X]\r\nParameterName=Record %d\r\nObjectType=0x9\r\n"
+                    "SubNumber=0x%X\r\n",
+                    0x2000 + i, i, kSubsPerObject);
+      s += buf;
+      for (int sub = 0; sub < kSubsPerObject; ++sub) {
+        std::snprintf(buf, sizeof buf,
+                      "\r\n[%04Xsub%X]\r\nParameterName=Entry %d\r\nObjectType=0x7\r\n"
+                      "DataType=0x0007\r\nAccessType=rw\r\nDefaultValue=0x%08X\r\n"
+                      "PDOMapping=0\r\n",
+                      0x2000 + i, sub, sub, static_cast<unsigned>(sub));
+        s += buf;
+      }
+    }
+    return s;
+  }();
+  return text;
+}
+
 const std::string* corpus_dcf() {
   static const std::string text = [] {
     const auto path = std::filesystem::path(CANOPEN_CORPUS_DIR) / "oresat" / "c3.dcf";
@@ -160,6 +196,7 @@ std::size_t count_subs(const cfg::DeviceDescription& d) {
 void parse_bench(benchmark::State& state, const std::string& text, cfg::ReadMode mode) {
   std::size_t subs = 0;
   std::size_t peak = 0;
+  std::size_t kept = 0;
   std::optional<cfg::ReadResult> r;
   for (auto _ : state) {
     const std::size_t before = g_in_use.load();
@@ -169,6 +206,7 @@ void parse_bench(benchmark::State& state, const std::string& text, cfg::ReadMode
     // Parse only: reading the result and freeing the model are not timed.
     state.PauseTiming();
     peak = std::max(peak, g_peak.load() - before);
+    kept = g_in_use.load() - before;
     if (!r->device) state.SkipWithError("the text did not parse");
     subs = r->device ? count_subs(*r->device) : 0;
     r.reset();
@@ -182,6 +220,9 @@ void parse_bench(benchmark::State& state, const std::string& text, cfg::ReadMode
   state.counters["peak_heap_bytes"] = static_cast<double>(peak);
   state.counters["peak_heap_per_file_byte"] =
       static_cast<double>(peak) / static_cast<double>(text.size());
+  state.counters["model_heap_per_file_byte"] =
+      static_cast<double>(kept) / static_cast<double>(text.size());
+  state.counters["sizeof_SubObject"] = sizeof(cfg::SubObject);
 }
 
 // Baseline: find every line end with memchr and touch the first byte of each line.
@@ -212,6 +253,12 @@ void BM_ParseGeneratedDcfStrict(benchmark::State& state) {
 }
 void BM_BaselineMemchrLinesGeneratedDcf(benchmark::State& state) {
   memchr_bench(state, generated_dcf());
+}
+void BM_ParseTerseDcf(benchmark::State& state) {
+  parse_bench(state, terse_dcf(), cfg::ReadMode::Tolerant);
+}
+void BM_BaselineMemchrLinesTerseDcf(benchmark::State& state) {
+  memchr_bench(state, terse_dcf());
 }
 void BM_ParseCorpusC3Dcf(benchmark::State& state) {
   if (const std::string* text = corpus_dcf()) {
@@ -245,6 +292,8 @@ void BM_WriteGeneratedDcf(benchmark::State& state) {
 BENCHMARK(BM_ParseGeneratedDcf)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ParseGeneratedDcfStrict)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BaselineMemchrLinesGeneratedDcf)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ParseTerseDcf)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BaselineMemchrLinesTerseDcf)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ParseCorpusC3Dcf)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BaselineMemchrLinesCorpusC3Dcf)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_WriteGeneratedDcf)->Unit(benchmark::kMillisecond);

@@ -511,6 +511,13 @@ class Reader final : public detail::IniSink {
       }
       seen = true;
     };
+    // Object sections first: they are nearly all sections, and no named section starts with
+    // four hex digits.
+    if (name.size() >= 4) {
+      if (auto index = parse_hex_digits(name.substr(0, 4), 4)) {
+        if (open_object_section(static_cast<std::uint16_t>(*index), name.substr(4))) return;
+      }
+    }
     if (iequals(name, "FileInfo")) return known(seen_.file_info, Kind::FileInfo);
     if (iequals(name, "DeviceInfo")) return known(seen_.device_info, Kind::DeviceInfo);
     if (iequals(name, "DummyUsage")) return known(seen_.dummy_usage, Kind::DummyUsage);
@@ -533,11 +540,6 @@ class Reader final : public detail::IniSink {
       if (!model_.commissioning) model_.commissioning.emplace();
       commissioning_other_.kv = &model_.commissioning->other;
       return known(seen_.commissioning, Kind::Commissioning);
-    }
-    if (name.size() >= 4) {
-      if (auto index = parse_hex_digits(name.substr(0, 4), 4)) {
-        if (open_object_section(static_cast<std::uint16_t>(*index), name.substr(4))) return;
-      }
     }
     open_other_section();
   }
