@@ -1,4 +1,5 @@
 #include "cfg/concise_dcf.hpp"
+#include "cfg/hex.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -32,15 +33,9 @@ std::uint32_t get_le32(const std::uint8_t* p) {
          static_cast<std::uint32_t>(p[2]) << 16 | static_cast<std::uint32_t>(p[3]) << 24;
 }
 
-std::string hex(unsigned value, int digits) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "%0*X", digits, value);
-  return buf;
-}
-
 // "1234h sub ABh", as CiA documents write an entry.
 std::string entry_name(std::uint16_t index, std::uint8_t sub_index) {
-  return hex(index, 4) + "h sub " + hex(sub_index, 2) + "h";
+  return hex_digits(index, 4) + "h sub " + hex_digits(sub_index, 2) + "h";
 }
 
 }  // namespace
@@ -257,7 +252,7 @@ std::optional<Value> WriteBuilder::parse(const Location& at, std::string_view ke
   if (!type) {
     report(at, severity,
            std::string(key) + " '" + std::string(text) + "': DataType 0x" +
-               hex(at.sub->data_type, 4) +
+               hex_digits(at.sub->data_type, 4) +
                " is not a basic CiA 301 type, so the value cannot be encoded");
     return std::nullopt;
   }
@@ -425,7 +420,7 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
     const SubObject* sub = object != nullptr ? object->sub(1) : nullptr;
     if (sub != nullptr && !is_writable(sub->access)) continue;
     diagnostics_.add(options_.file_name, object != nullptr ? object->line : 0, Severity::Warning,
-                     "PDO " + hex(comm_index, 4) +
+                     "PDO " + hex_digits(comm_index, 4) +
                          "h: parameters are written but its COB-ID (sub-index 1) has no value "
                          "in the DCF, so the PDO is not disabled around them (DSP 302 §6.2)");
   }
@@ -434,7 +429,7 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
     const SubObject* sub = object != nullptr ? object->sub(0) : nullptr;
     if (sub != nullptr && !is_writable(sub->access)) continue;
     diagnostics_.add(options_.file_name, object != nullptr ? object->line : 0, Severity::Warning,
-                     "PDO mapping " + hex(mapping_index, 4) +
+                     "PDO mapping " + hex_digits(mapping_index, 4) +
                          "h: entries are written but sub-index 0 has no value in the DCF, so "
                          "the mapping is not deactivated around them (DSP 302 §6.2)");
   }

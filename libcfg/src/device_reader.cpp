@@ -48,6 +48,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
 #include "cfg/value.hpp"
 #include "device_file_detail.hpp"
 #include "ini_scanner.hpp"
@@ -107,17 +108,6 @@ std::optional<std::uint32_t> parse_hex_digits(std::string_view text, std::size_t
     v = v * 16 + static_cast<std::uint32_t>(d);
   }
   return v;
-}
-
-std::string hex(std::uint64_t v, int digits) {
-  static constexpr char kDigits[] = "0123456789ABCDEF";
-  std::string out;
-  do {
-    out.insert(out.begin(), kDigits[v & 0xF]);
-    v >>= 4;
-  } while (v != 0);
-  while (static_cast<int>(out.size()) < digits) out.insert(out.begin(), '0');
-  return "0x" + out;
 }
 
 std::string section_of(std::uint16_t index) {

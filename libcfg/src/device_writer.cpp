@@ -5,6 +5,7 @@
 #include <unordered_map>
 
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
 #include "device_file_detail.hpp"
 #include "ini_scanner.hpp"
 
@@ -186,17 +187,6 @@ class Out {
   std::string_view eol_;
   std::string text_;
 };
-
-std::string hex(std::uint64_t v, int digits) {
-  static constexpr char kDigits[] = "0123456789ABCDEF";
-  std::string out;
-  do {
-    out.insert(out.begin(), kDigits[v & 0xF]);
-    v >>= 4;
-  } while (v != 0);
-  while (static_cast<int>(out.size()) < digits) out.insert(out.begin(), '0');
-  return "0x" + out;
-}
 
 std::string index_name(std::uint16_t index) {
   return hex(index, 4).substr(2);

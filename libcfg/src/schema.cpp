@@ -1,4 +1,5 @@
 #include "cfg/schema.hpp"
+#include "cfg/hex.hpp"
 
 #include <array>
 #include <cstdio>
@@ -56,20 +57,14 @@ Shape shape_of(const Object& object) {
   return Shape::Other;
 }
 
-std::string hex(unsigned value, int digits) {
-  std::array<char, 16> buf{};
-  std::snprintf(buf.data(), buf.size(), "%0*X", digits, value);
-  return buf.data();
-}
-
 std::string type_text(std::uint16_t data_type) {
   const DataTypeInfo* info = find_data_type(data_type);
-  std::string code = "0x" + hex(data_type, 4);
+  std::string code = "0x" + hex_digits(data_type, 4);
   return info == nullptr ? code : std::string(info->name) + " (" + code + ")";
 }
 
 std::string object_type_text(ObjectType type) {
-  return std::string(to_string(type)) + " (0x" + hex(static_cast<unsigned>(type), 1) + ")";
+  return std::string(to_string(type)) + " (0x" + hex_digits(static_cast<unsigned>(type), 1) + ")";
 }
 
 // The device may offer less access than the standard (CiA 301/302 "ro/const/wo, if rw is not
@@ -106,7 +101,7 @@ void check_object(const Object& object, const Object& standard, std::string_view
   auto warn = [&](int line, std::string message) {
     diagnostics.add(std::string(file_name), line, Severity::Warning, std::move(message));
   };
-  const std::string where = hex(object.index, 4) + "h";
+  const std::string where = hex_digits(object.index, 4) + "h";
   const Shape shape = shape_of(object);
   const Shape standard_shape = shape_of(standard);
   if (shape != standard_shape) {
@@ -144,10 +139,10 @@ void check_object(const Object& object, const Object& standard, std::string_view
         last = findings[j].sub_index;
       }
     }
-    const std::string subs =
-        last == findings[i].sub_index
-            ? " sub-index " + hex(findings[i].sub_index, 2) + "h"
-            : " sub-indices " + hex(findings[i].sub_index, 2) + "h-" + hex(last, 2) + "h";
+    const std::string subs = last == findings[i].sub_index
+                                 ? " sub-index " + hex_digits(findings[i].sub_index, 2) + "h"
+                                 : " sub-indices " + hex_digits(findings[i].sub_index, 2) + "h-" +
+                                       hex_digits(last, 2) + "h";
     warn(findings[i].line, where + subs + ": " + findings[i].what);
   }
 }
@@ -179,8 +174,8 @@ Result<DeviceDescription> load_schemas(std::span<const std::string_view> names,
     for (auto& [index, object] : schema->objects) {
       auto [it, inserted] = merged.objects.emplace(index, object);
       if (!inserted && !(it->second == object)) {
-        return Error{"schemas disagree on object " + hex(index, 4) + "h (" + std::string(name) +
-                     " and an earlier schema)"};
+        return Error{"schemas disagree on object " + hex_digits(index, 4) + "h (" +
+                     std::string(name) + " and an earlier schema)"};
       }
     }
   }

@@ -10,6 +10,7 @@
 // - REAL text is decimal floating point (exponent allowed) plus "inf", "-inf" and "nan", so that
 //   every value decode() can produce formats to text that reads back.
 #include "cfg/value.hpp"
+#include "cfg/hex.hpp"
 
 #include <array>
 #include <bit>
@@ -38,17 +39,6 @@ std::string_view trim(std::string_view text) {
 
 std::string quoted(std::string_view text) {
   return "\"" + std::string(text) + "\"";
-}
-
-std::string hex(std::uint64_t v, int min_digits = 0) {
-  static constexpr char kDigits[] = "0123456789ABCDEF";
-  std::string out;
-  do {
-    out.insert(out.begin(), kDigits[v & 0xF]);
-    v >>= 4;
-  } while (v != 0);
-  while (static_cast<int>(out.size()) < min_digits) out.insert(out.begin(), '0');
-  return "0x" + out;
 }
 
 int hex_digit_value(char c) {

@@ -1,4 +1,5 @@
 #include "nmt/simulated_device.hpp"
+#include "cfg/hex.hpp"
 
 #include <algorithm>
 #include <array>
@@ -79,14 +80,8 @@ std::uint32_t crc32(std::span<const std::uint8_t> data) {
   return ~crc;
 }
 
-std::string hex(std::uint32_t value, int digits) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "%0*X", digits, value);
-  return buf;
-}
-
 std::string where(std::uint16_t index, std::uint8_t sub) {
-  return hex(index, 4) + "sub" + hex(sub, 1);
+  return cfg::hex_digits(index, 4) + "sub" + cfg::hex_digits(sub, 1);
 }
 
 }  // namespace
@@ -437,7 +432,7 @@ void SimulatedDevice::raise_emergency(std::uint16_t error_code, std::uint8_t err
       (error_code != emcy_code::kErrorReset ? error_register::kGeneric : 0));
   set_error_register(reg);
   emit(DeviceEvent::Kind::Emergency, now,
-       "EMCY " + hex(error_code, 4) + " register " + hex(reg, 2));
+       "EMCY " + cfg::hex_digits(error_code, 4) + " register " + cfg::hex_digits(reg, 2));
   std::vector<CanFrame> local;
   if (auto f = emcy_.raise({error_code, reg, {}}, now, nmt_.services().emcy)) local.push_back(*f);
   flush(local, out);
@@ -567,7 +562,7 @@ SdoAbort SimulatedDevice::check_pdo_mapping(std::uint16_t mapping_index, std::ui
     if (index >= 0x0001 && index <= 0x0007 && sub == 0) {
       // Dummy mapping (CiA 301 §7.4.7.1): a data type index, allowed when [DummyUsage] says so.
       const auto* type = cfg::find_data_type(index);
-      const std::string key = "Dummy" + hex(index, 4);
+      const std::string key = "Dummy" + cfg::hex_digits(index, 4);
       const std::string* usage = description_.dummy_usage.find(key);
       if (!type || !usage || *usage == "0" || !receive) return SdoAbort::CannotBeMapped;
       const unsigned type_bits = index == 0x0001 ? 1u : type->size_bytes * 8u;
@@ -705,14 +700,14 @@ void SimulatedDevice::save(std::uint8_t area) {
     ++count;
   }
   emit(DeviceEvent::Kind::Stored, now_,
-       "saved " + std::to_string(count) + " parameters (1010sub" + hex(area, 1) + ")");
+       "saved " + std::to_string(count) + " parameters (1010sub" + cfg::hex_digits(area, 1) + ")");
 }
 
 void SimulatedDevice::restore_defaults(std::uint8_t area) {
   // CiA 301 §7.5.2.14: defaults become effective at the next reset; until then nothing changes.
   std::erase_if(stored_, [area](const auto& kv) { return in_area(area, kv.first >> 8 & 0xFFFF); });
   emit(DeviceEvent::Kind::Restored, now_,
-       "defaults requested (1011sub" + hex(area, 1) + "), effective at next reset");
+       "defaults requested (1011sub" + cfg::hex_digits(area, 1) + "), effective at next reset");
 }
 
 // --- simulated bus node
