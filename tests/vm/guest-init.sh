@@ -61,8 +61,8 @@ done
 # Hook: every /opt/canopen/guest.d/*.sh (from tests/vm/guest.d/) runs here with vcan0/vcan1
 # up, the tools in /opt/canopen/bin (a "# vm-tools: TARGET" line in the script says which) and
 # the repository's samples/ and schemas/ in /opt/canopen. A script fails the tier by exiting
-# non-zero. This is where `cfgmgr simulate --bus socketcan:vcan0` with devices answering SDO
-# goes once the simulator and SDO client exist.
+# non-zero. simulate_sdo.sh runs `cfgmgr simulate --bus socketcan:vcan0` against can-utils and
+# our SDO client (SocketCanSdo.* of the test binaries above).
 for s in /opt/canopen/guest.d/*.sh; do
   [ -f "$s" ] || continue
   echo "vm-guest: running hook $(basename "$s")"
