@@ -1,5 +1,5 @@
-// SDO abort codes (the abort code table of CiA 301 §7.2.4.3): the one enum and the one table of texts.
-// Implemented from public knowledge of CiA 301 (the standard is not in spec/).
+// SDO abort codes (the abort code table of CiA 301 §7.2.4.3): the one enum and the one table of
+// texts. Implemented from public knowledge of CiA 301 (the standard is not in spec/).
 #pragma once
 
 #include <cstdint>
