@@ -175,6 +175,29 @@ TEST(Cfgmgr, FmtInPlaceReplacesTheFile) {
   for (const auto& name : dir.files()) EXPECT_THAT(name, Not(HasSubstr("tmp"))) << name;
 }
 
+// CiA 306 [FileInfo]: ModificationTime "hh:mm" + AM/PM, ModificationDate "mm-dd-yyyy". The time is
+// taken from SOURCE_DATE_EPOCH; 1700000000 is 2023-11-14 22:13:20 UTC (date -u -d @1700000000).
+TEST(Cfgmgr, FmtStampsFileInfoOnlyWhenItChangesTheFile) {
+  ScratchDir dir;
+  ::setenv("SOURCE_DATE_EPOCH", "1700000000", 1);
+  auto r = run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "-o", dir / "a.dcf"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string first = tool_test::slurp(dir / "a.dcf");
+  EXPECT_THAT(first, HasSubstr("ModifiedBy=cfgmgr\r\n"));
+  EXPECT_THAT(first, HasSubstr("ModificationTime=10:13PM\r\n"));
+  EXPECT_THAT(first, HasSubstr("ModificationDate=11-14-2023\r\n"));
+  // Formatting the canonical file again changes nothing, not even the stamp.
+  ::setenv("SOURCE_DATE_EPOCH", "1800000000", 1);
+  auto again = run("cfgmgr", {"fmt", dir / "a.dcf"}, dir.path());
+  ::unsetenv("SOURCE_DATE_EPOCH");
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(again.out, first);
+  // --no-stamp leaves [FileInfo] as the input has it.
+  auto plain = run("cfgmgr", {"fmt", "--no-stamp", data_path("concise/node5.dcf")}, dir.path());
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_THAT(plain.out, Not(HasSubstr("ModifiedBy=cfgmgr")));
+}
+
 TEST(Cfgmgr, FmtDoesNotWriteAFileWithErrors) {
   ScratchDir dir;
   auto r = run("cfgmgr", {"fmt", data_path("check/not_a_device.eds"), "-o", dir / "out.eds"},

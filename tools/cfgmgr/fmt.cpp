@@ -1,7 +1,11 @@
 // cfgmgr fmt IN [-o OUT]: write an EDS/DCF back in canonical form (libcfg's writer: sections in
 // a fixed order, objects by index, object lists derived from the objects).
+#include <chrono>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <memory>
 #include <string>
 
@@ -19,7 +23,32 @@ struct FmtOptions {
   bool eds = false;
   bool dcf = false;
   bool lf = false;
+  bool no_stamp = false;
 };
+
+// When fmt changes a file it says so in [FileInfo] (CiA 306 ModifiedBy, ModificationDate/Time),
+// as an editing tool does. The time is SOURCE_DATE_EPOCH when set (reproducible output), else now.
+cfg::WriteOptions::Stamp stamp_now() {
+  cfg::WriteOptions::Stamp stamp;
+  stamp.modified_by = "cfgmgr";
+  if (const char* epoch = std::getenv("SOURCE_DATE_EPOCH"); epoch != nullptr && *epoch != 0) {
+    char* end = nullptr;
+    const long long seconds = std::strtoll(epoch, &end, 10);
+    if (end != nullptr && *end == 0) {
+      stamp.unix_time_s = seconds;
+      return stamp;
+    }
+  }
+  stamp.unix_time_s = std::chrono::duration_cast<std::chrono::seconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();
+  return stamp;
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
 
 void run_fmt(const FmtOptions& options) {
   if (auto readable = tools::check_readable(options.input); !readable) {
@@ -41,7 +70,12 @@ void run_fmt(const FmtOptions& options) {
     write_options.kind = cfg::iequals(ext, ".eds") ? cfg::FileKind::Eds : cfg::FileKind::Dcf;
   }
   write_options.line_ending = options.lf ? cfg::LineEnding::Lf : cfg::LineEnding::Crlf;
-  const std::string text = cfg::write_device_description(*read.device, write_options);
+  std::string text = cfg::write_device_description(*read.device, write_options);
+  // Stamp only a real change, so that formatting a canonical file leaves it byte-identical.
+  if (!options.no_stamp && text != read_bytes(options.input)) {
+    write_options.stamp = stamp_now();
+    text = cfg::write_device_description(*read.device, write_options);
+  }
   if (auto status = tools::write_output(options.output, text); !status) {
     std::cerr << status.error().message << '\n';
     exit_with(tools::kExitIo);
@@ -62,6 +96,9 @@ void add_fmt_command(CLI::App& app) {
   auto* dcf = cmd->add_flag("--dcf", options->dcf, "Write a DCF");
   eds->excludes(dcf);
   cmd->add_flag("--lf", options->lf, "LF line endings instead of CRLF");
+  cmd->add_flag("--no-stamp", options->no_stamp,
+                "Leave [FileInfo] as it is (default: when the output differs from the input, set "
+                "ModifiedBy=cfgmgr and ModificationDate/Time, from SOURCE_DATE_EPOCH if set)");
   cmd->footer(std::string("The kind of output defaults to the input's (by extension .eds/.dcf).\n"
                           "An input with errors is not written; warnings are printed.\n\n"
                           "Examples:\n"
