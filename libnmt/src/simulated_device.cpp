@@ -30,6 +30,7 @@ constexpr std::uint16_t kVerifyConfiguration = 0x1020;
 constexpr std::uint16_t kErrorBehaviour = 0x1029;
 constexpr std::uint16_t kProgramData = 0x1F50;
 constexpr std::uint16_t kProgramControl = 0x1F51;
+constexpr std::uint16_t kVerifyApplicationSoftware = 0x1F52;
 constexpr std::uint16_t kProgramIdentification = 0x1F56;
 
 bool is_program_object(std::uint16_t index) {
@@ -116,7 +117,7 @@ std::string_view to_string(DeviceEvent::Kind kind) {
 
 cfg::Result<std::unique_ptr<SimulatedDevice>> SimulatedDevice::create(
     const cfg::DeviceDescription& description, std::optional<std::uint8_t> node_id,
-    DeviceFaults faults) {
+    DeviceFaults faults, SimulatedDeviceOptions options) {
   if (!node_id) node_id = description.node_id();
   if (!node_id) {
     return cfg::Error{"no node-ID: give one (DEVICE.eds@ID) or set NodeID in [DeviceComissioning]"};
@@ -127,15 +128,17 @@ cfg::Result<std::unique_ptr<SimulatedDevice>> SimulatedDevice::create(
   auto factory = LocalDictionary::from_device(description, *node_id);
   if (!factory) return factory.error();
   return std::make_unique<SimulatedDevice>(Key{}, description, std::move(factory).value(), *node_id,
-                                           std::move(faults));
+                                           std::move(faults), std::move(options));
 }
 
 SimulatedDevice::SimulatedDevice(Key, cfg::DeviceDescription description, LocalDictionary factory,
-                                 std::uint8_t node_id, DeviceFaults faults)
+                                 std::uint8_t node_id, DeviceFaults faults,
+                                 SimulatedDeviceOptions options)
     : description_(std::move(description)),
       factory_(std::move(factory)),
       dict_(factory_),
       faults_(std::move(faults)),
+      options_(std::move(options)),
       nmt_(node_id),
       sdo_(dict_, SdoServerConfig::for_node(node_id)),
       emcy_(kEmcyCobIdBase + node_id),
@@ -681,6 +684,17 @@ void SimulatedDevice::after_write(std::uint16_t index, std::uint8_t sub,
         set_program_state(sub, ProgramState::Stopped);
         if (dict_.entry(kProgramIdentification, sub)) {
           dict_.set_unsigned(kProgramIdentification, sub, crc32(data));
+        }
+        // DSP 302 §9: 1F52h verifies "the stored program number 1"; the new image's date and
+        // time come from the options (unset: the simulator does not know them, 1F52h stays).
+        if (sub == 1 && options_.downloaded_program_version) {
+          const auto& v = *options_.downloaded_program_version;
+          if (dict_.entry(kVerifyApplicationSoftware, 1)) {
+            dict_.set_unsigned(kVerifyApplicationSoftware, 1, v.date_days);
+          }
+          if (dict_.entry(kVerifyApplicationSoftware, 2)) {
+            dict_.set_unsigned(kVerifyApplicationSoftware, 2, v.time_ms);
+          }
         }
         emit(DeviceEvent::Kind::Program, now_,
              "program " + std::to_string(sub) + " downloaded, " + std::to_string(data.size()) +

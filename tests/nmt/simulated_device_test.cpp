@@ -2,7 +2,8 @@
 // frames, SDO transfers, guarding requests. Device file: tests/data/sim_device.eds (written for
 // these tests). Frame bytes follow the spec texts (spec/002: boot-up `7xx#00`, heartbeat state
 // bytes, guarding toggle; the life-guarding EMCY `3081110000000000`), abort codes CiA 301
-// Table 22, 1010h/1011h signatures CiA 301 §7.5.2.13/14, 1F51h program control DSP 302 §9.
+// Table 22, 1010h/1011h signatures CiA 301 §7.5.2.13/14, 1F51h program control and 1F52h
+// verify application software DSP 302 §9 (CiA 302-3).
 #include "nmt/simulated_device.hpp"
 
 #include <gtest/gtest.h>
@@ -543,6 +544,138 @@ TEST(SimulatedDevice, ProgramSurvivesResetAndStartsAgain) {
   rig.send("000#8102");
   EXPECT_EQ(rig.read_u(0x1F51, 1), 1u);           // the device boots its application
   EXPECT_EQ(rig.read_u(0x1F56, 1), 0x114AD5FFu);  // zlib.crc32 of the 1000-byte image
+}
+
+// ------------------------------------------- verify application software (1F52h) ---------
+
+// DSP 302 §9 / CiA 302-3: 1F52h "Verify application software", ARRAY, sub 0 = 2, sub 1
+// application software date (UNSIGNED32, days since 1 January 1984), sub 2 application software
+// time (UNSIGNED32, ms after midnight). Dates below were converted with Python's datetime:
+// (date(2020,6,15) - date(1984,1,1)).days == 13315, 08:00:00.000 == 28 800 000 ms;
+// (date(2024,3,1) - date(1984,1,1)).days == 14670, 14:30:15.250 == 52 215 250 ms.
+constexpr std::uint32_t kFileDate = 13315;
+constexpr std::uint32_t kFileTime = 28'800'000;
+constexpr ApplicationSoftwareVersion kDownloadedVersion{14670, 52'215'250};
+
+// sim_device.eds plus 1F52h as the device file of a device that has it would declare it; sub 1
+// and 2 with `access` (the spec tables say rw; CiA 302-3 devices commonly declare ro).
+cfg::DeviceDescription sim_eds_with_1f52(cfg::AccessType access = cfg::AccessType::Ro) {
+  cfg::DeviceDescription eds = sim_eds();
+  cfg::Object object;
+  object.index = 0x1F52;
+  object.name = "Verify application software";
+  object.object_type = cfg::ObjectType::Array;
+  object.sub_number = 3;
+  auto add = [&object](std::uint8_t sub_index, std::string name, cfg::DataType type,
+                       cfg::AccessType sub_access, std::string value) {
+    cfg::SubObject sub;
+    sub.sub_index = sub_index;
+    sub.name = std::move(name);
+    sub.data_type = static_cast<std::uint16_t>(type);
+    sub.access = sub_access;
+    sub.default_value = std::move(value);
+    object.subs[sub_index] = std::move(sub);
+  };
+  add(0, "Highest sub-index supported", cfg::DataType::Unsigned8, cfg::AccessType::Ro, "2");
+  add(1, "Application software date", cfg::DataType::Unsigned32, access, std::to_string(kFileDate));
+  add(2, "Application software time", cfg::DataType::Unsigned32, access, std::to_string(kFileTime));
+  eds.objects[object.index] = std::move(object);
+  return eds;
+}
+
+// Stops program 1, downloads a new image and starts it: the sequence of DSP 302 §9.
+void download_and_start(Rig& rig) {
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 0, 1), SdoAbort::None);  // stop
+  ASSERT_EQ(rig.write(0x1F50, 1, program_image(100)).abort, SdoAbort::None);
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 1, 1), SdoAbort::None);  // start
+  ASSERT_EQ(rig.device().program_state(1), ProgramState::Running);
+}
+
+TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareReportsTheDownloadedProgram) {
+  Rig rig({}, sim_eds_with_1f52());
+  rig.boot();
+  EXPECT_EQ(rig.read_u(0x1F52, 0), 2u);
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kFileDate);  // from the device file
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kFileTime);
+  rig.device().set_options({.downloaded_program_version = kDownloadedVersion});
+  download_and_start(rig);
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kDownloadedVersion.date_days);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kDownloadedVersion.time_ms);
+  EXPECT_EQ(rig.read_u(0x1F52, 0), 2u);
+}
+
+TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareKeepsItsValueWhenTheVersionIsNotGiven) {
+  // Without SimulatedDeviceOptions::downloaded_program_version the simulator does not invent a
+  // date (documented default): a master comparing with 1F53h/1F54h still sees the old one.
+  Rig rig({}, sim_eds_with_1f52());
+  rig.boot();
+  download_and_start(rig);
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kFileDate);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kFileTime);
+}
+
+TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareWriteAbortsWhenReadOnly) {
+  Rig rig({}, sim_eds_with_1f52(cfg::AccessType::Ro));
+  rig.boot();
+  // CiA 301 Table 22: 0601 0002 "attempt to write a read only object".
+  EXPECT_EQ(rig.write_u(0x1F52, 1, kDownloadedVersion.date_days, 4), SdoAbort::WriteOfReadOnly);
+  EXPECT_EQ(rig.write_u(0x1F52, 2, kDownloadedVersion.time_ms, 4), SdoAbort::WriteOfReadOnly);
+  EXPECT_EQ(rig.write_u(0x1F52, 0, 2, 1), SdoAbort::WriteOfReadOnly);
+  auto r = rig.write(0x1F52, 1, le(1, 4));
+  EXPECT_EQ(static_cast<std::uint32_t>(r.abort), 0x06010002u);
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kFileDate);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kFileTime);
+}
+
+TEST(SimulatedDevice, Dsp302VerifyApplicationSoftwareIsWritableWhenTheDeviceFileSaysRw) {
+  // DSP 302 §9 and §10 list 1F52h as rw; a device file that says so gets SDO writes.
+  Rig rig({}, sim_eds_with_1f52(cfg::AccessType::Rw));
+  rig.boot();
+  EXPECT_EQ(rig.write_u(0x1F52, 1, kDownloadedVersion.date_days, 4), SdoAbort::None);
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kDownloadedVersion.date_days);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kFileTime);
+}
+
+TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareSurvivesResetsAndPowerCycle) {
+  Rig rig({}, sim_eds_with_1f52());
+  rig.boot();
+  rig.device().set_options({.downloaded_program_version = kDownloadedVersion});
+  download_and_start(rig);
+  // The installed program does not change on a reset (CiA 301 §7.3.2.2.1 resets restore
+  // parameters, not program memory), so neither does its version.
+  rig.send("000#8102");  // reset node
+  rig.bus.run_for(10ms);
+  ASSERT_EQ(rig.frames("702#00").size(), 2u);  // booted again
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kDownloadedVersion.date_days);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kDownloadedVersion.time_ms);
+  rig.send("000#8202");  // reset communication
+  rig.bus.run_for(10ms);
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kDownloadedVersion.date_days);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kDownloadedVersion.time_ms);
+  rig.boot();  // power cycle
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kDownloadedVersion.date_days);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kDownloadedVersion.time_ms);
+}
+
+TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareIsNotAddedWhenTheFileLacksIt) {
+  // Nanotec CL4-E declares 1F50h/1F51h but not the optional 1F52h (corpus); the simulated
+  // device keeps to its file, so a master reading 1F52h gets 0602 0000 (CiA 301 Table 22).
+  const std::filesystem::path path =
+      std::filesystem::path(CANOPEN_CORPUS_DIR) / "nanotec/CL4-E-1-12.eds";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus file not found at " << path;
+  auto read = cfg::read_device_file(path.string());
+  ASSERT_TRUE(read.device.has_value()) << read.diagnostics.format();
+  ASSERT_NE(read.device->object(0x1F50), nullptr);
+  ASSERT_EQ(read.device->object(0x1F52), nullptr);
+  Rig rig({}, *read.device);
+  rig.boot();
+  rig.device().set_options({.downloaded_program_version = kDownloadedVersion});
+  EXPECT_EQ(rig.read(0x1F52, 1).abort, SdoAbort::ObjectDoesNotExist);
+  // A download with a version given still works and adds nothing.
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 0, 1), SdoAbort::None);  // stop
+  ASSERT_EQ(rig.write(0x1F50, 1, program_image(100)).abort, SdoAbort::None);
+  EXPECT_EQ(rig.read(0x1F52, 1).abort, SdoAbort::ObjectDoesNotExist);
+  EXPECT_EQ(rig.read(0x1F52, 2).abort, SdoAbort::ObjectDoesNotExist);
 }
 
 // ------------------------------------------------------------------------- faults -----------

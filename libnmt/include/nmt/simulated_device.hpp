@@ -17,6 +17,12 @@
 //   manager writes 1020h last).
 // - PDO mapping writes while the PDO is valid, and mapping entry writes while mapping sub 0 is
 //   not 0, abort with 0800 0022 (device state), as e.g. Turck and Bonfiglioli manuals document.
+// - 1F52h (verify application software) is served as the device file declares it: SDO writes
+//   follow its AccessType (0601 0002 when ro/const). A file that declares 1F50h/1F51h but no 1F52h
+//   gets none (the object is optional; real devices, e.g. Nanotec CL4-E, omit it), so a master
+//   reading it sees 0602 0000. A download of program 1 sets it from
+//   SimulatedDeviceOptions::downloaded_program_version, or leaves it unchanged when that is unset.
+//   Like 1F50h-1F57h as a whole, it lives in program memory: resets and power cycles keep it.
 #pragma once
 
 #include <cstdint>
@@ -106,6 +112,23 @@ std::string_view to_string(DeviceEvent::Kind kind);
 /// Program control states as 1F51h reads them (CiA 302-3; DSP 302 §9 has 0-2).
 enum class ProgramState : std::uint8_t { Stopped = 0, Running = 1, NoProgram = 3 };
 
+/// Version of an application program as 1F52h sub 1/2 hold it (DSP 302 §9, CiA 302-3).
+struct ApplicationSoftwareVersion {
+  std::uint32_t date_days = 0;  ///< days since 1 January 1984 (sub 1)
+  std::uint32_t time_ms = 0;    ///< milliseconds after midnight (sub 2)
+  bool operator==(const ApplicationSoftwareVersion&) const = default;
+};
+
+/// What a simulated device cannot take from its device file. All default to "not simulated".
+struct SimulatedDeviceOptions {
+  /// The version 1F52h reports once a new program number 1 has been downloaded (1F50h sub 1
+  /// written successfully). The simulator cannot know a real image's build date, so whoever
+  /// downloads says it here. nullopt (default): 1F52h keeps the value it had. Only program 1:
+  /// DSP 302 §9 gives 1F52h to "the stored program number 1". Has no effect when the device
+  /// file has no 1F52h (nothing is added).
+  std::optional<ApplicationSoftwareVersion> downloaded_program_version;
+};
+
 /// A simulated slave. Not copyable or movable (its dictionary hooks refer to it): create() hands
 /// out a unique_ptr.
 class SimulatedDevice {
@@ -119,7 +142,7 @@ class SimulatedDevice {
   /// is off until power_on().
   static cfg::Result<std::unique_ptr<SimulatedDevice>> create(
       const cfg::DeviceDescription& description, std::optional<std::uint8_t> node_id,
-      DeviceFaults faults = {});
+      DeviceFaults faults = {}, SimulatedDeviceOptions options = {});
 
   SimulatedDevice(const SimulatedDevice&) = delete;
   SimulatedDevice& operator=(const SimulatedDevice&) = delete;
@@ -143,6 +166,9 @@ class SimulatedDevice {
   /// Replaces the faults. Latency, loss, guarding and heartbeat faults take effect at once,
   /// identity and boot delay at the next reset; after changing `absent`, power_on() again.
   void set_faults(DeviceFaults faults);
+  const SimulatedDeviceOptions& options() const { return options_; }
+  /// Replaces the options; they act from the next SDO write on.
+  void set_options(SimulatedDeviceOptions options) { options_ = std::move(options); }
   /// Values 1010h saved, by LocalDictionary::key(); empty when nothing was saved.
   const std::map<std::uint32_t, std::vector<std::uint8_t>>& stored() const { return stored_; }
   /// Program state of 1F51h sub `program` (1..), nullopt when the device has no such program.
@@ -159,7 +185,7 @@ class SimulatedDevice {
 
   /// Only create() can call this (Key is private).
   SimulatedDevice(Key, cfg::DeviceDescription description, LocalDictionary factory,
-                  std::uint8_t node_id, DeviceFaults faults);
+                  std::uint8_t node_id, DeviceFaults faults, SimulatedDeviceOptions options);
 
  private:
   void install_hooks();
@@ -195,6 +221,7 @@ class SimulatedDevice {
   LocalDictionary factory_;  ///< values as the device file gives them (no hooks)
   LocalDictionary dict_;
   DeviceFaults faults_;
+  SimulatedDeviceOptions options_;
   NmtSlave nmt_;
   SdoServer sdo_;
   HeartbeatProducer heartbeat_;
