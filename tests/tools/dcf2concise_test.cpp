@@ -124,6 +124,37 @@ TEST(Dcf2Concise, ConvertsADcfInPdoSafeOrder) {
   EXPECT_EQ(decode_file(dir / "node5.bin"), node5_writes());
 }
 
+// Output to something that is not a regular file is written into, never replaced (a user who
+// says `-o /dev/null` must still have /dev/null afterwards).
+TEST(Dcf2Concise, OutputToADeviceWritesIntoItAndKeepsIt) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", "/dev/null"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
+}
+
+TEST(Dcf2Concise, OutputThroughASymlinkReplacesTheTargetAndKeepsTheLink) {
+  ScratchDir dir;
+  { std::ofstream(dir / "real.bin") << "old"; }
+  fs::create_symlink(dir / "real.bin", dir / "link.bin");
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "link.bin"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_symlink(dir / "link.bin"));
+  EXPECT_EQ(decode_file(dir / "real.bin"), node5_writes());
+}
+
+TEST(Dcf2Concise, OutputKeepsThePermissionsOfAnExistingFile) {
+  ScratchDir dir;
+  { std::ofstream(dir / "out.bin") << "old"; }
+  fs::permissions(dir / "out.bin",
+                  fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "out.bin"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(fs::status(dir / "out.bin").permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  EXPECT_EQ(decode_file(dir / "out.bin"), node5_writes());
+}
+
 TEST(Dcf2Concise, DefaultOutputIsTheInputWithExtensionBin) {
   ScratchDir dir;
   copy_concise_data(dir);

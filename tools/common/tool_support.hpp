@@ -3,6 +3,7 @@
 // Header-only: tools are thin, this is output formatting, not protocol logic.
 #pragma once
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -133,11 +134,11 @@ inline cfg::Result<std::string> read_input(const std::string& path) {
     return std::string{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
   }
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": is a directory"};
+  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": error: is a directory"};
   std::ifstream in(path, std::ios::binary);
-  if (!in) return cfg::Error{path + ": cannot open: " + std::strerror(errno)};
+  if (!in) return cfg::Error{path + ": error: cannot open: " + std::strerror(errno)};
   std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) return cfg::Error{path + ": read error"};
+  if (in.bad()) return cfg::Error{path + ": error: read error"};
   return data;
 }
 
@@ -146,24 +147,72 @@ inline cfg::Result<std::string> read_input(const std::string& path) {
 inline cfg::Status check_readable(const std::string& path) {
   if (path == "-") return {};
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": is a directory"};
+  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": error: is a directory"};
   std::ifstream in(path, std::ios::binary);
-  if (!in) return cfg::Error{path + ": cannot open: " + std::strerror(errno)};
+  if (!in) return cfg::Error{path + ": error: cannot open: " + std::strerror(errno)};
   return {};
 }
 
-/// Writes `bytes` to `path` ("-": stdout) so that the file appears complete or not at all:
-/// a temporary file beside it, then rename(2) over the target. On failure nothing is left
-/// behind and an existing target is untouched.
+/// Writes all of `bytes` to `fd`; errno-based message on failure.
+inline cfg::Status write_all(int fd, std::string_view bytes, const std::string& path) {
+  std::size_t written = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      std::string message = path;
+      message += ": error: write error: ";
+      message += n == 0 ? "nothing written" : std::strerror(errno);
+      return cfg::Error{std::move(message)};
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  return {};
+}
+
+/// Writes `bytes` to `path` ("-": stdout). A regular file (new or existing) appears complete or
+/// not at all: a temporary file beside it, then rename(2) over it, keeping an existing file's
+/// permission bits; on failure nothing is left behind and the old file is untouched. A symbolic
+/// link is followed (the link stays, its target is replaced). Anything else that exists (a
+/// device such as /dev/null, a FIFO) is opened and written in place, never replaced.
 inline cfg::Status write_output(const std::string& path, std::string_view bytes) {
   if (path == "-") {
     std::cout.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     std::cout.flush();
-    if (!std::cout) return cfg::Error{"<stdout>: write error"};
+    if (!std::cout) return cfg::Error{"<stdout>: error: write error"};
     return {};
   }
   namespace fs = std::filesystem;
-  const fs::path target(path);
+  std::error_code ec;
+  fs::path target(path);
+  if (fs::is_symlink(fs::symlink_status(target, ec))) {
+    const fs::path resolved = fs::weakly_canonical(target, ec);
+    if (ec) return cfg::Error{path + ": error: cannot follow the link: " + ec.message()};
+    target = resolved;
+  }
+  const fs::file_status status = fs::status(target, ec);
+  if (fs::is_directory(status)) return cfg::Error{path + ": error: is a directory"};
+  mode_t mode = 0;
+  if (fs::exists(status)) {
+    if (!fs::is_regular_file(status)) {
+      // A device or FIFO: write into it, as a shell redirection would.
+      const int fd = ::open(target.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC);
+      if (fd < 0)
+        return cfg::Error{path + ": error: cannot open for writing: " + std::strerror(errno)};
+      cfg::Status written = write_all(fd, bytes, path);
+      if (::close(fd) != 0 && written) {
+        return cfg::Error{path + ": error: write error: " + std::strerror(errno)};
+      }
+      return written;
+    }
+    struct stat st {};
+    if (::stat(target.c_str(), &st) == 0) mode = st.st_mode & 07777;
+  } else {
+    // A new file gets the mode a plain create would (0666 & ~umask).
+    const mode_t mask = ::umask(0);
+    ::umask(mask);
+    mode = 0666 & ~mask;
+  }
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   // Hidden temporary beside the target: ".NAME.tmpXXXXXX" (built by append: GCC 12 -O2 reports
   // a false -Wrestrict on `"." + std::string`, GCC bug 105329).
@@ -172,35 +221,22 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   temp_name += ".tmpXXXXXX";
   std::string temp = (dir / temp_name).string();
   const int fd = ::mkstemp(temp.data());
-  if (fd < 0) return cfg::Error{path + ": cannot create: " + std::strerror(errno)};
-  // mkstemp creates 0600; give the file the mode a plain create would (0666 & ~umask).
-  const mode_t mask = ::umask(0);
-  ::umask(mask);
-  ::fchmod(fd, 0666 & ~mask);
-  std::size_t written = 0;
-  while (written < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const std::string why = std::strerror(errno);
-      ::close(fd);
-      ::unlink(temp.c_str());
-      std::string message = path;
-      message += ": write error: ";
-      message += why;
-      return cfg::Error{std::move(message)};
-    }
-    written += static_cast<std::size_t>(n);
+  if (fd < 0) return cfg::Error{path + ": error: cannot create: " + std::strerror(errno)};
+  ::fchmod(fd, mode);
+  if (cfg::Status written = write_all(fd, bytes, path); !written) {
+    ::close(fd);
+    ::unlink(temp.c_str());
+    return written;
   }
   if (::close(fd) != 0) {
     const std::string why = std::strerror(errno);
     ::unlink(temp.c_str());
-    return cfg::Error{path + ": write error: " + why};
+    return cfg::Error{path + ": error: write error: " + why};
   }
-  if (std::rename(temp.c_str(), path.c_str()) != 0) {
+  if (std::rename(temp.c_str(), target.c_str()) != 0) {
     const std::string why = std::strerror(errno);
     ::unlink(temp.c_str());
-    return cfg::Error{path + ": cannot write: " + why};
+    return cfg::Error{path + ": error: cannot write: " + why};
   }
   return {};
 }
