@@ -1069,9 +1069,16 @@ class Reader final : public detail::IniSink {
     if (info == nullptr || info->type_class == TypeClass::VisibleString) return n.text;
     auto v = parse_value(info->type, *n.text, kValidationNodeId);
     if (!v) {
-      warn(k.line, section() + std::string(k.key) + " " + shown(*n.text) + " is not a valid " +
-                       std::string(info->name) + " (DataType " + hex(data_type, 4) +
-                       "): " + v.error().message);
+      const std::string msg = section() + std::string(k.key) + " " + shown(*n.text) +
+                              " is not a valid " + std::string(info->name) + " (DataType " +
+                              hex(data_type, 4) + "): " + v.error().message;
+      // A ParameterValue is what a configuration manager downloads: one that cannot be encoded
+      // is an error in either mode. A vendor's bad DefaultValue or limit stays a warning.
+      if (iequals(k.key, "ParameterValue")) {
+        error(k.line, msg);
+      } else {
+        warn(k.line, msg);
+      }
     } else if (parsed != nullptr && !mentions_node_id(*n.text)) {
       *parsed = std::move(v.value());
     }

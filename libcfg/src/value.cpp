@@ -4,9 +4,10 @@
 // - Signed types accept hex literals as the two's complement bit pattern of the type's width
 //   ("0x80000000" is INTEGER32 -2147483648, "0xFFFFFFFFFFFFFFF6" is INTEGER64 -10), because real
 //   device files write limits that way. Decimal text is range-checked as written.
-// - TIME_OF_DAY / TIME_DIFFERENCE text is the 48-bit raw value (CiA 301 §7.1, TIME_OF_DAY: 28 bits
-// of
-//   milliseconds, 4 reserved bits, 16 bits of days), written like an unsigned integer.
+// - TIME_OF_DAY / TIME_DIFFERENCE text is the 48-bit raw value (CiA 301 §7.1: 28 bits of
+//   milliseconds, 4 reserved bits, 16 bits of days) written like an unsigned integer, or
+//   "DAYS MS" as lely's DCFs write it.
+// - REAL text may also be the hex IEEE 754 bit pattern, as lely's DCFs write it.
 // - REAL text is decimal floating point (exponent allowed) plus "inf", "-inf" and "nan", so that
 //   every value decode() can produce formats to text that reads back.
 #include "cfg/value.hpp"
@@ -202,6 +203,19 @@ Result<Value> parse_real(DataType type, std::string_view text) {
     return Error{"invalid number " + quoted(text) + " for " + std::string(to_string(type))};
   };
   if (text.empty()) return bad();
+  // A hex literal is the IEEE 754 bit pattern of the type's width, as lely's DCFs write REALs
+  // ("0x40490FDB" is pi as REAL32); the same reading as hex for signed types above.
+  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
+    auto lit = parse_literal(text, text);
+    if (!lit) return bad();
+    if (type == DataType::Real32) {
+      if (lit->magnitude > 0xFFFFFFFFu) return bad();
+      return Value::from_real(
+          type,
+          static_cast<double>(std::bit_cast<float>(static_cast<std::uint32_t>(lit->magnitude))));
+    }
+    return Value::from_real(type, std::bit_cast<double>(lit->magnitude));
+  }
   // from_chars takes no leading '+', and neither do we ("+1" is not CiA 306 syntax).
   double v = 0;
   auto [end, ec] =
@@ -224,6 +238,21 @@ Result<Value> parse_real(DataType type, std::string_view text) {
     v = static_cast<double>(static_cast<float>(v));
   }
   return Value::from_real(type, v);
+}
+
+// TIME_OF_DAY / TIME_DIFFERENCE: the 48-bit raw value, or "DAYS MS" as lely's DCFs write it
+// (CiA 301 §7.1: milliseconds in bits 0-27, days in bits 32-47).
+Result<Value> parse_time(DataType type, std::string_view text,
+                         std::optional<std::uint8_t> node_id) {
+  const std::size_t space = text.find_first_of(" \t");
+  if (space == std::string_view::npos) return parse_unsigned(type, text, node_id);
+  auto days = parse_unsigned(DataType::Unsigned16, trim(text.substr(0, space)), std::nullopt);
+  auto ms = parse_unsigned(DataType::Unsigned32, trim(text.substr(space)), std::nullopt);
+  if (!days || !ms || ms->as_unsigned() >= (std::uint64_t{1} << 28)) {
+    return Error{"invalid " + std::string(to_string(type)) + " " + quoted(text) +
+                 ": expected a 48-bit number or \"DAYS MS\" (days 0..65535, ms 0..268435455)"};
+  }
+  return Value::from_unsigned(type, days->as_unsigned() << 32 | ms->as_unsigned());
 }
 
 Result<Value> parse_hex_bytes(DataType type, std::string_view text) {
@@ -417,8 +446,9 @@ Result<Value> parse_value(DataType type, std::string_view text,
       if (iequals(t, "false")) return Value::from_bool(false);
       return parse_unsigned(type, t, node_id);
     case TypeClass::Unsigned:
-    case TypeClass::Time:
       return parse_unsigned(type, t, node_id);
+    case TypeClass::Time:
+      return parse_time(type, t, node_id);
     case TypeClass::Signed:
       return parse_signed(type, t, node_id);
     case TypeClass::Real:

@@ -602,12 +602,24 @@ TEST(DeviceReader, ValueOutOfTheRangeOfItsTypeIsWarned) {
                {"[2000] DefaultValue \"256\" is not a valid UNSIGNED8", "DataType 0x0005"}));
 }
 
-TEST(DeviceReader, ValueNotParseableForItsTypeIsWarnedInToleranAndAnErrorInStrictMode) {
+TEST(DeviceReader, DefaultValueNotParseableForItsTypeIsWarnedInTolerantAndAnErrorInStrictMode) {
+  const std::string text = var2000("0x0007", "DefaultValue=No\n");
+  EXPECT_TRUE(has_diag(parse(text), line_of(text, "DefaultValue=No"), Severity::Warning,
+                       {"[2000] DefaultValue \"No\" is not a valid UNSIGNED32"}));
+  EXPECT_TRUE(has_diag(parse(text, ReadMode::Strict), line_of(text, "DefaultValue=No"),
+                       Severity::Error, {"[2000] DefaultValue"}));
+}
+
+// A DCF's ParameterValue is what a configuration manager downloads (CiA 302 §6): one that cannot
+// be encoded for its type is an error in either mode.
+TEST(DeviceReader, ParameterValueNotParseableForItsTypeIsAnErrorInBothModes) {
   const std::string text = var2000("0x0007", "ParameterValue=No\n");
-  EXPECT_TRUE(has_diag(parse(text), line_of(text, "ParameterValue=No"), Severity::Warning,
-                       {"[2000] ParameterValue \"No\" is not a valid UNSIGNED32"}));
-  EXPECT_TRUE(has_diag(parse(text, ReadMode::Strict), line_of(text, "ParameterValue=No"),
-                       Severity::Error, {"[2000] ParameterValue"}));
+  for (ReadMode mode : {ReadMode::Tolerant, ReadMode::Strict}) {
+    auto r = parse(text, mode);
+    EXPECT_TRUE(has_diag(r, line_of(text, "ParameterValue=No"), Severity::Error,
+                         {"[2000] ParameterValue \"No\" is not a valid UNSIGNED32"}));
+    EXPECT_FALSE(r.ok());
+  }
 }
 
 TEST(DeviceReader, DiagnosticsFormatAsFileLineSeverityMessage) {

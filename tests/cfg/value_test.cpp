@@ -34,6 +34,27 @@ Bytes encoded(DataType type, std::string_view text) {
   return encode(parsed(type, text));
 }
 
+// lely's DCFs (corpus lely-core/co-sdev.dcf) write REALs as hex IEEE 754 bit patterns and
+// TIME_OF_DAY as "DAYS MS". Pi: 0x40490FDB (binary32), 0x400921FB54442D18 (binary64).
+TEST(Value, RealAsHexIsTheIeee754BitPattern) {
+  EXPECT_EQ(parsed(DataType::Real32, "0x40490FDB").as_real(),
+            static_cast<double>(3.14159274101257324f));
+  EXPECT_EQ(encoded(DataType::Real32, "0x40490FDB"), (Bytes{0xDB, 0x0F, 0x49, 0x40}));
+  EXPECT_EQ(parsed(DataType::Real64, "0x400921FB54442D18").as_real(), 3.141592653589793);
+  error_of(DataType::Real32, "0x140490FDB");  // 33 bits do not fit a binary32
+}
+
+// CiA 301 §7.1 TIME_OF_DAY: ms (28 bits), 4 reserved bits, days (16 bits), little-endian.
+// 365 days, 43200000 ms (12:00): ms 0x02932E00, days 0x016D.
+TEST(Value, TimeOfDayAsDaysAndMilliseconds) {
+  EXPECT_EQ(encoded(DataType::TimeOfDay, "365 43200000"),
+            (Bytes{0x00, 0x2E, 0x93, 0x02, 0x6D, 0x01}));
+  EXPECT_EQ(encoded(DataType::TimeDifference, "365 43200000"),
+            (Bytes{0x00, 0x2E, 0x93, 0x02, 0x6D, 0x01}));
+  error_of(DataType::TimeOfDay, "1 268435456");  // ms needs more than 28 bits
+  error_of(DataType::TimeOfDay, "65536 0");      // days needs more than 16 bits
+}
+
 // ---- Ranges (CiA 301 §7.1: INTEGERn is two's complement, UNSIGNEDn 0..2^n-1) ----
 
 TEST(Value, IntegerRangesFollowTheirBitWidth) {
@@ -232,20 +253,21 @@ TEST(Value, Real32KeepsTheNearestBinary32) {
 }
 
 TEST(Value, RejectsRealJunk) {
-  for (std::string_view junk : {"1.5x", "1,5", "e5", "1e", "+1.0", "--1", "0x3FC00000", "1.5 2"}) {
+  for (std::string_view junk : {"1.5x", "1,5", "e5", "1e", "+1.0", "--1", "0x", "1.5 2"}) {
     SCOPED_TRACE(junk);
     error_of(DataType::Real32, junk);
   }
 }
 
 TEST(Value, TimeTypesAreTheir48BitRawValue) {
-  // Project choice (documented in value.cpp): TIME_OF_DAY text is the raw 48-bit value.
+  // Project choice (documented in value.cpp): TIME_OF_DAY text is the raw 48-bit value, or
+  // "DAYS MS" as lely writes it (TimeOfDayAsDaysAndMilliseconds).
   // 0x0001_02932E00: 43200000 ms (noon) = 0x2932E00 in the low 28 bits, day 1 in the high 16.
   EXPECT_EQ(encoded(DataType::TimeOfDay, "0x000102932E00"),
             (Bytes{0x00, 0x2E, 0x93, 0x02, 0x01, 0x00}));
   EXPECT_EQ(parsed(DataType::TimeDifference, "0xFFFFFFFFFFFF").as_unsigned(), 0xFFFFFFFFFFFFU);
   error_of(DataType::TimeDifference, "0x1000000000000");
-  error_of(DataType::TimeOfDay, "365 43200000");
+  error_of(DataType::TimeOfDay, "365 43200000 7");  // "DAYS MS" (below) has two numbers
 }
 
 // ---- Strings and DOMAIN ----

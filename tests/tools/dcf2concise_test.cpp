@@ -206,8 +206,10 @@ TEST(Dcf2Concise, ValueErrorIsReportedWithFileAndLineAndNoOutputIsLeft) {
   { std::ofstream(dir / "out.bin") << "old"; }
   auto r = run("dcf2concise", {"bad_value.dcf", "-o", "out.bin"}, dir.path(), dir.path().string());
   EXPECT_EQ(r.exit_code, 1);
-  // [1017] starts at line 86 of bad_value.dcf; ParameterValue=70000 does not fit UNSIGNED16.
-  EXPECT_THAT(r.err, HasSubstr("bad_value.dcf:86: error: [1017] ParameterValue '70000'"));
+  // Line 92 of bad_value.dcf is [1017]'s ParameterValue=70000, which does not fit UNSIGNED16
+  // (0..65535): one error, at the key's line.
+  EXPECT_THAT(r.err, HasSubstr("bad_value.dcf:92: error: [1017] ParameterValue \"70000\""));
+  EXPECT_THAT(r.err, HasSubstr("out of range for UNSIGNED16"));
   EXPECT_EQ(tool_test::slurp(dir / "out.bin"), "old");  // untouched
   for (const auto& name : dir.files()) EXPECT_THAT(name, Not(HasSubstr("tmp"))) << name;
   EXPECT_FALSE(fs::exists(dir / "bad_value.bin"));
@@ -291,7 +293,7 @@ TEST(Dcf2Concise, JsonOnErrorSaysWhy) {
   EXPECT_TRUE(json->get("output")->is(tool_test::Json::Kind::Null));
   bool found = false;
   for (const auto& d : json->get("diagnostics")->array) {
-    if (d.get("severity")->string == "error" && d.get("line")->number == 86) found = true;
+    if (d.get("severity")->string == "error" && d.get("line")->number == 92) found = true;
   }
   EXPECT_TRUE(found) << r.out;
 }
