@@ -19,6 +19,7 @@ struct Diagnostic {
   std::string message;
 
   /// Compiler style: `file.dcf:42: error: message` (`file.dcf: error: ...` when line is 0).
+  /// Control characters in the file name or message are shown as \xNN.
   std::string format() const;
   bool operator==(const Diagnostic&) const = default;
 };
