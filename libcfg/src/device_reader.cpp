@@ -657,9 +657,16 @@ class Reader final : public detail::IniSink {
   std::string_view without_comment(std::string_view value, std::string_view key, int line) {
     const std::size_t c = find_inline_comment(value);
     if (c == std::string_view::npos) return value;
-    warn(line, where() + std::string(key) + ": " + shown(value.substr(c)) +
-                   " after the value is a comment and is dropped");
+    dropped_comment(line, where() + std::string(key) + ": " + shown(value.substr(c)) +
+                              " after the value is a comment and is dropped");
     return trim_blanks(value.substr(0, c));
+  }
+
+  // Hand-written profile files carry a comment after nearly every value: in tolerant mode say
+  // it once in full and sum up the rest at the end (finish()), so other warnings stay visible.
+  void dropped_comment(int line, std::string message) {
+    if (strict_ || dropped_comments_ == 0) warn(line, std::move(message));
+    ++dropped_comments_;
   }
 
   // A number of an attribute key, with diagnostics; nullopt (after a warning) if unreadable
@@ -1055,8 +1062,9 @@ class Reader final : public detail::IniSink {
     auto section = [&] { return "[" + std::string(section_name) + "] "; };
     detail::NormalizedValue n = detail::normalize_value(k.value, data_type);
     if (!n.comment.empty()) {
-      warn(k.line, section() + std::string(k.key) + ": " + shown(n.comment) + " after the " +
-                       std::string(info->name) + " value is a comment and is dropped");
+      dropped_comment(k.line, section() + std::string(k.key) + ": " + shown(n.comment) +
+                                  " after the " + std::string(info->name) +
+                                  " value is a comment and is dropped");
     }
     if (!n.text) {
       if (strict_) error(k.line, section() + std::string(k.key) + " is empty");
@@ -1095,6 +1103,11 @@ class Reader final : public detail::IniSink {
     for (auto& [index, st] : states_) finish_object(index, st);
     check_object_lists();
     finish_comments();
+    if (!strict_ && dropped_comments_ > 1) {
+      warn(0, std::to_string(dropped_comments_ - 1) +
+                  " more values have a comment after them, dropped the same way (--strict lists "
+                  "each)");
+    }
     for (const auto& [key, u] : unknown_keys_) {
       const std::string msg = "key " + std::string(key) +
                               " is not a CiA 306 object key and is ignored" +
@@ -1455,6 +1468,7 @@ class Reader final : public detail::IniSink {
   CaseInsensitiveMap<int> first_section_line_;
   CaseInsensitiveMap<int> commissioning_keys_;
   CaseInsensitiveMap<UnknownKey> unknown_keys_;
+  std::size_t dropped_comments_ = 0;  // inline comments cut from numeric values
   std::optional<std::uint64_t> comment_lines_;
   int comment_lines_line_ = 0;
   std::map<std::uint64_t, std::pair<std::string_view, int>> comment_text_;
