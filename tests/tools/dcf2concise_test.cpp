@@ -412,4 +412,77 @@ TEST(Dcf2Concise, DecodesCorpusStreams) {
   }
 }
 
+// The version comes from the top-level CMakeLists.txt's project(... VERSION x.y.z), read here
+// independently of the tool's own compile definition.
+TEST(Dcf2Concise, VersionPrintsNameAndProjectVersion) {
+  ScratchDir dir;
+  const std::string text =
+      tool_test::slurp(fs::path(CANOPEN_SAMPLES_DIR).parent_path() / "CMakeLists.txt");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(text, m, std::regex(R"(project\([^)]*VERSION\s+([0-9.]+))")));
+  auto r = run("dcf2concise", {"--version"}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "dcf2concise " + m[1].str() + "\n");
+}
+
+// An EDS has no ParameterValue: the stream is only its entry count, UNSIGNED32 0 (DSP 302
+// §6.2). Legal, so rc 0, but said.
+TEST(Dcf2Concise, WarnsThatAFileWithoutParameterValuesGivesAnEmptyStream) {
+  const fs::path eds = fs::path(CANOPEN_SAMPLES_DIR) / "drive.eds";
+  if (!fs::exists(eds)) GTEST_SKIP() << "no samples/drive.eds";
+  ScratchDir dir;
+  auto r = run("dcf2concise", {eds.string(), "-o", dir / "drive.bin"}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("drive.eds: warning: no ParameterValue to download: the concise "
+                               "DCF is empty (use --with-defaults to include DefaultValues)"));
+  EXPECT_EQ(tool_test::slurp(dir / "drive.bin"), std::string(4, '\0'));
+
+  auto json = run("dcf2concise", {eds.string(), "-o", dir / "drive.bin", "--json"}, dir.path());
+  EXPECT_EQ(json.exit_code, 0) << json.err;
+  tool_test::JsonParser parser(json.out);
+  auto parsed = parser.parse();
+  ASSERT_TRUE(parsed.has_value()) << parser.error() << "\n" << json.out;
+  EXPECT_EQ(parsed->get("size")->number, 4);
+  const auto& diagnostics = parsed->get("diagnostics")->array;
+  ASSERT_EQ(diagnostics.size(), 1u) << json.out;
+  EXPECT_EQ(diagnostics[0].get("severity")->string, "warning");
+  EXPECT_THAT(diagnostics[0].get("message")->string, HasSubstr("no ParameterValue to download"));
+
+  // With the DefaultValues there is something to download, and nothing to warn about (the
+  // EDS's $NODEID defaults need a node-ID).
+  auto defaults =
+      run("dcf2concise",
+          {eds.string(), "-o", dir / "drive.bin", "--with-defaults", "--node-id", "3"}, dir.path());
+  EXPECT_EQ(defaults.exit_code, 0) << defaults.err;
+  EXPECT_THAT(defaults.err, Not(HasSubstr("the concise DCF is empty")));
+  EXPECT_GT(tool_test::slurp(dir / "drive.bin").size(), 4u);
+}
+
+TEST(Dcf2Concise, NotesThatNodeIdOverridesTheDcfs) {
+  ScratchDir dir;
+  const std::string dcf = data_path("concise/node5.dcf");  // [DeviceComissioning] NodeID=5
+  auto r = run("dcf2concise", {dcf, "-o", dir / "n.bin", "--node-id", "7"}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err,
+              HasSubstr("node5.dcf: note: --node-id 7 overrides NodeID 5 of [DeviceComissioning]"));
+  EXPECT_EQ(decode_file(dir / "n.bin"), node5_writes(0x207));  // $NODEID+0x200 with node 7
+  auto same = run("dcf2concise", {dcf, "-o", dir / "n.bin", "--node-id", "5"}, dir.path());
+  EXPECT_EQ(same.exit_code, 0) << same.err;
+  EXPECT_THAT(same.err, Not(HasSubstr("overrides")));
+}
+
+// One entry of one byte, written by hand (DSP 302 §6.2: UNSIGNED32 count, then UNSIGNED16 index,
+// UNSIGNED8 sub-index, UNSIGNED32 size, data; little-endian): 1400h sub 2 = 1.
+TEST(Dcf2Concise, DecodeSaysOneByteInTheSingular) {
+  ScratchDir dir;
+  const std::string stream(
+      "\x01\x00\x00\x00"
+      "\x00\x14\x02\x01\x00\x00\x00\x01",
+      12);
+  std::ofstream(dir / "one.bin", std::ios::binary) << stream;
+  auto r = run("dcf2concise", {"--decode", dir / "one.bin"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "1400sub2    1 byte   = 1 (0x01)\n");
+}
+
 }  // namespace

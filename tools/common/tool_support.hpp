@@ -42,6 +42,25 @@ inline constexpr std::string_view kExitCodesHelp =
     "  2  usage error (bad command line)\n"
     "  3  I/O error (a file could not be read or written)\n";
 
+/// The project version (CMake PROJECT_VERSION, passed by tools/CMakeLists.txt).
+#ifndef CANOPEN_VERSION
+#error "tools/CMakeLists.txt defines CANOPEN_VERSION"
+#endif
+inline constexpr std::string_view kProjectVersion = CANOPEN_VERSION;
+
+/// What `TOOL --version` prints: "cfgmgr 0.1.0".
+inline std::string version_text(std::string_view tool) {
+  return std::string(tool) + " " + std::string(kProjectVersion);
+}
+
+/// A count with its noun in the right number: plural(1, "error") is "1 error", plural(2,
+/// "error") is "2 errors". Nouns here take a plain "s".
+inline std::string plural(std::size_t count, std::string_view noun) {
+  std::string out = std::to_string(count) + " " + std::string(noun);
+  if (count != 1) out += 's';
+  return out;
+}
+
 /// Prints diagnostics compiler-style (`file.dcf:42: error: ...`) on stderr, one a line.
 inline void print_diagnostics(const cfg::Diagnostics& diagnostics) {
   for (const auto& d : diagnostics.items()) std::cerr << d.format() << '\n';

@@ -123,11 +123,12 @@ void print_text(const std::vector<Row>& rows, bool with_names) {
     if (with_names) {
       line += r.name + std::string(name_width - r.name.size(), ' ') + "  ";
     } else {
+      // "  1 byte   = ..." keeps "=" in the column of "  2 bytes  = ...".
       line += std::string(r.size < 10    ? 2
                           : r.size < 100 ? 1
                                          : 0,
                           ' ') +
-              std::to_string(r.size) + " bytes  ";
+              tools::plural(r.size, "byte") + (r.size == 1 ? "   " : "  ");
     }
     line += "= " + r.words;
     std::cout << line << '\n';

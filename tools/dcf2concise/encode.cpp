@@ -19,6 +19,20 @@ std::string index_text(const cfg::ObjectWrite& w) {
   return buf;
 }
 
+// Why the stream has no entries, in the terms of the selection the user made.
+std::string empty_stream_warning(cfg::ConciseSelection selection) {
+  switch (selection) {
+    case cfg::ConciseSelection::ChangedOnly:
+      return "no ParameterValue differs from its DefaultValue: the concise DCF is empty";
+    case cfg::ConciseSelection::WithDefaults:
+      return "no writable entry has a ParameterValue or DefaultValue: the concise DCF is empty";
+    case cfg::ConciseSelection::Configured:
+      break;
+  }
+  return "no ParameterValue to download: the concise DCF is empty (use --with-defaults to "
+         "include DefaultValues)";
+}
+
 }  // namespace
 
 std::string default_output(const std::string& input) {
@@ -44,6 +58,15 @@ int run_encode(const EncodeOptions& options) {
 
   cfg::Diagnostics diagnostics = read.diagnostics;
   std::optional<std::vector<cfg::ObjectWrite>> writes;
+  if (read.device && options.node_id) {
+    // Said because the file's own node-ID is what a reader of the DCF expects to be used.
+    const auto file_node_id = read.device->node_id();
+    if (file_node_id && *file_node_id != *options.node_id) {
+      diagnostics.add(name, 0, cfg::Severity::Note,
+                      "--node-id " + std::to_string(*options.node_id) + " overrides NodeID " +
+                          std::to_string(*file_node_id) + " of [DeviceComissioning]");
+    }
+  }
   if (read.device && !read.diagnostics.has_errors()) {
     cfg::ConciseOptions concise;
     concise.node_id = options.node_id;
@@ -53,6 +76,11 @@ int run_encode(const EncodeOptions& options) {
                            ? std::string(".")
                            : std::filesystem::path(options.input).parent_path().string();
     writes = cfg::concise_writes_from_dcf(*read.device, concise, diagnostics);
+    // An empty configuration is legal (DSP 302 §6.2: the stream is then just its count, 0),
+    // but from an EDS or an unfinished DCF it is rarely what was meant.
+    if (writes && writes->empty()) {
+      diagnostics.add(name, 0, cfg::Severity::Warning, empty_stream_warning(options.selection));
+    }
   }
   if (options.strict) diagnostics = tools::promote_warnings(diagnostics);
   tools::print_diagnostics(diagnostics);

@@ -26,6 +26,9 @@ int run(int argc, char** argv) {
                          "\n") +
              std::string(tools::kExitCodesHelp));
 
+  app.set_version_flag("--version", tools::version_text("dcf2concise"),
+                       "Print the name and version and exit");
+
   std::string input;
   std::string output;
   int node_id = 0;
