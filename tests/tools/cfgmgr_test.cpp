@@ -208,4 +208,103 @@ TEST(Cfgmgr, FmtDoesNotWriteAFileWithErrors) {
   EXPECT_EQ(run("cfgmgr", {"fmt", dir / "absent.eds"}, dir.path()).exit_code, 3);
 }
 
+// The version comes from the top-level CMakeLists.txt's project(... VERSION x.y.z), read here
+// independently of the tools' own compile definition.
+std::string project_version() {
+  const std::string text =
+      tool_test::slurp(fs::path(CANOPEN_SAMPLES_DIR).parent_path() / "CMakeLists.txt");
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex(R"(project\([^)]*VERSION\s+([0-9.]+))"))) return "";
+  return m[1];
+}
+
+TEST(Cfgmgr, VersionPrintsNameAndProjectVersion) {
+  ScratchDir dir;
+  const std::string version = project_version();
+  ASSERT_FALSE(version.empty());
+  auto r = run("cfgmgr", {"--version"}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "cfgmgr " + version + "\n");
+}
+
+TEST(Cfgmgr, CheckSchemaDirThatCannotBeLoadedIsAnIoError) {
+  ScratchDir dir;
+  const std::string file = data_path("concise/node5.dcf");
+  auto missing = run("cfgmgr", {"check", "--schema-dir", dir / "absent", file}, dir.path());
+  EXPECT_EQ(missing.exit_code, 3);
+  EXPECT_THAT(missing.err, HasSubstr("--schema-dir " + (dir / "absent")));
+  EXPECT_EQ(missing.out, "");  // nothing was checked
+  // A directory without the schema files.
+  fs::create_directories(dir / "empty");
+  auto empty = run("cfgmgr", {"check", "--schema-dir", dir / "empty", file}, dir.path());
+  EXPECT_EQ(empty.exit_code, 3);
+  EXPECT_THAT(empty.err, HasSubstr(dir / "empty"));
+  EXPECT_THAT(empty.err, HasSubstr("cia301_communication"));
+  // The directory the project ships loads.
+  auto shipped = run("cfgmgr", {"check", "--schema-dir", CANOPEN_SCHEMA_DIR, file}, dir.path());
+  EXPECT_EQ(shipped.exit_code, 0) << shipped.err;
+}
+
+// CiA 306 §4.7 [DeviceComissioning]: a DCF is the configuration of one node and names it.
+// no_node_id.dcf has no [DeviceComissioning] (tests/data/concise/README.md); section_only.dcf
+// is node5.dcf with the section but without its NodeID line.
+TEST(Cfgmgr, CheckWarnsWhenADcfHasNoNodeIdCiA306) {
+  ScratchDir dir;
+  const std::string file = data_path("concise/no_node_id.dcf");
+  {
+    std::string text = tool_test::slurp(data_path("concise/node5.dcf"));
+    const auto at = text.find("NodeID=5");
+    ASSERT_NE(at, std::string::npos);
+    text.erase(at, text.find('\n', at) + 1 - at);
+    std::ofstream(dir / "section_only.dcf", std::ios::binary) << text;
+  }
+  auto section_only = run("cfgmgr", {"check", dir / "section_only.dcf"}, dir.path());
+  EXPECT_EQ(section_only.exit_code, 0) << section_only.err;
+  EXPECT_THAT(section_only.err,
+              HasSubstr("section_only.dcf: warning: a DCF should give the node-ID in "
+                        "[DeviceComissioning] NodeID (CiA 306)"));
+  EXPECT_THAT(tool_test::slurp(dir / "section_only.dcf"), HasSubstr("[DeviceComissioning]"));
+
+  const std::string message =
+      "no_node_id.dcf: warning: a DCF should give the node-ID in [DeviceComissioning] NodeID "
+      "(CiA 306)";
+  auto r = run("cfgmgr", {"check", file}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr(message));
+  auto strict = run("cfgmgr", {"check", "--strict", file}, dir.path());
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_THAT(strict.err, HasSubstr("no_node_id.dcf: error: a DCF should give the node-ID"));
+  // A DCF with NodeID=5, and an EDS (which has no commissioning), are not warned about.
+  auto node5 = run("cfgmgr", {"check", data_path("concise/node5.dcf")}, dir.path());
+  EXPECT_THAT(node5.err, Not(HasSubstr("should give the node-ID")));
+  auto eds = run("cfgmgr", {"check", data_path("check/schema_mismatch.eds")}, dir.path());
+  EXPECT_THAT(eds.err, Not(HasSubstr("should give the node-ID")));
+}
+
+TEST(Cfgmgr, CheckSummaryUsesSingularForOne) {
+  ScratchDir dir;
+  const std::string file = data_path("concise/no_node_id.dcf");
+  // no_node_id.dcf: 9 objects in its object lists, and only the missing NodeID to warn about.
+  auto r = run("cfgmgr", {"check", file}, dir.path());
+  EXPECT_EQ(r.out, file + ": 0 errors, 1 warning, 9 objects\n") << r.err;
+  auto strict = run("cfgmgr", {"check", "--strict", file}, dir.path());
+  EXPECT_EQ(strict.out, file + ": 1 error, 0 warnings, 9 objects\n") << strict.err;
+}
+
+TEST(Cfgmgr, CheckReadsStdin) {
+  ScratchDir dir;
+  // node5.dcf lists 3 mandatory, 5 optional and 1 manufacturer object.
+  auto r = run("cfgmgr", {"check", "-"}, dir.path(), "", data_path("concise/node5.dcf"));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "<stdin>: 0 errors, 0 warnings, 9 objects\n");
+  // Diagnostics name <stdin>: a DCF read from stdin has no extension, so only the reader speaks.
+  auto bad = run("cfgmgr", {"check", "-"}, dir.path(), "", data_path("check/not_a_device.eds"));
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_THAT(bad.err, HasSubstr("<stdin>: error:"));
+  // stdin can be read once only.
+  auto twice = run("cfgmgr", {"check", "-", "-"}, dir.path(), "", data_path("concise/node5.dcf"));
+  EXPECT_EQ(twice.exit_code, 2);
+  EXPECT_THAT(twice.err, HasSubstr("stdin"));
+}
+
 }  // namespace

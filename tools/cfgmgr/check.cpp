@@ -1,5 +1,8 @@
 // cfgmgr check FILE...: read EDS/DCF files (CiA 306), check them against the CiA 301/302 object
 // definitions in schemas/, and print every diagnostic. Exit 0 when nothing is an error.
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -48,17 +51,42 @@ std::string json_report(const std::vector<FileReport>& reports, bool ok) {
   return out + "]}\n";
 }
 
+// True for a path whose extension is .dcf (any case): CiA 306 §2 names DCFs by it.
+bool has_dcf_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".dcf";
+}
+
 void run_check(const CheckOptions& options) {
-  // The standard's object definitions; a tool run outside the source tree may not find them,
-  // which is said once and does not fail the check.
+  if (std::count(options.files.begin(), options.files.end(), "-") > 1) {
+    std::cerr << "cfgmgr check: error: '-' (stdin) can be given only once\n";
+    exit_with(tools::kExitUsage);
+  }
+  // The standard's object definitions. The built-in directory may be missing when the tool runs
+  // outside the source tree, which is said once and does not fail the check; a directory the
+  // user named must load (exit 3, before any file is checked).
   std::vector<cfg::DeviceDescription> schemas;
   if (!options.no_schema) {
-    const std::string dir =
-        options.schema_dir.empty() ? cfg::default_schema_dir() : options.schema_dir;
+    const bool asked = !options.schema_dir.empty();
+    const std::string dir = asked ? options.schema_dir : cfg::default_schema_dir();
+    if (std::error_code ec; asked && !std::filesystem::is_directory(dir, ec)) {
+      std::cerr << "cfgmgr check: error: --schema-dir " << dir << ": "
+                << (ec ? ec.message() : std::string("not a directory")) << '\n';
+      exit_with(tools::kExitIo);
+    }
     for (auto name : {cfg::kCia301Schema, cfg::kCia302ManagerSchema}) {
       auto schema = cfg::load_schema(name, dir);
       if (schema) {
         schemas.push_back(std::move(schema).value());
+      } else if (asked) {
+        // The message may end with the schema file's diagnostics, one a line.
+        std::string why = schema.error().message;
+        while (!why.empty() && why.back() == '\n') why.pop_back();
+        std::cerr << "cfgmgr check: error: --schema-dir " << dir << ": cannot load schema " << name
+                  << ": " << why << '\n';
+        exit_with(tools::kExitIo);
       } else {
         std::cerr << "cfgmgr: note: schema " << name << " not used: " << schema.error().message
                   << '\n';
@@ -71,35 +99,44 @@ void run_check(const CheckOptions& options) {
   bool any_errors = false;
   for (const auto& file : options.files) {
     FileReport report;
-    report.file = file;
-    if (auto readable = tools::check_readable(file); !readable) {
-      std::cerr << readable.error().message << '\n';
+    const bool from_stdin = file == "-";
+    report.file = from_stdin ? "<stdin>" : file;
+    cfg::ReadOptions read_options;
+    read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
+    read_options.file_name = report.file;
+    auto text = tools::read_input(file);
+    if (!text) {
+      std::cerr << text.error().message << '\n';
       report.readable = false;
       any_unreadable = true;
       reports.push_back(std::move(report));
       continue;
     }
-    cfg::ReadOptions read_options;
-    read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
-    read_options.file_name = file;
-    auto read = cfg::read_device_file(file, read_options);
+    auto read = cfg::parse_device_description(*text, read_options);
     report.diagnostics = read.diagnostics;
     if (read.device) {
       report.objects = read.device->objects.size();
       for (const auto& schema : schemas) {
-        cfg::check_against_schema(*read.device, schema, file, report.diagnostics);
+        cfg::check_against_schema(*read.device, schema, report.file, report.diagnostics);
+      }
+      // CiA 306 §4.7: a DCF describes one configured node, so it says which node-ID it is for.
+      if (has_dcf_extension(file) && !read.device->node_id()) {
+        report.diagnostics.add(report.file, 0, cfg::Severity::Warning,
+                               "a DCF should give the node-ID in [DeviceComissioning] NodeID "
+                               "(CiA 306)");
       }
     } else if (!report.diagnostics.has_errors()) {
-      report.diagnostics.add(file, 0, cfg::Severity::Error, "not a device description");
+      report.diagnostics.add(report.file, 0, cfg::Severity::Error, "not a device description");
     }
     // Strict is lint: every warning is an error, as with -Werror.
     if (options.strict) report.diagnostics = tools::promote_warnings(report.diagnostics);
     tools::print_diagnostics(report.diagnostics);
     any_errors = any_errors || report.diagnostics.has_errors();
     if (!options.json) {
-      std::cout << file << ": " << report.diagnostics.count(cfg::Severity::Error) << " errors, "
-                << report.diagnostics.count(cfg::Severity::Warning) << " warnings, "
-                << report.objects << " objects\n";
+      std::cout << report.file << ": "
+                << tools::plural(report.diagnostics.count(cfg::Severity::Error), "error") << ", "
+                << tools::plural(report.diagnostics.count(cfg::Severity::Warning), "warning")
+                << ", " << tools::plural(report.objects, "object") << '\n';
     }
     reports.push_back(std::move(report));
   }
@@ -117,7 +154,9 @@ void add_check_command(CLI::App& app) {
       "check",
       "Read EDS/DCF files, check them against the CiA 301/302 object definitions, and print "
       "every diagnostic (FILE:LINE: severity: message) on stderr");
-  cmd->add_option("files", options->files, "EDS or DCF files")->required()->type_name("FILE");
+  cmd->add_option("files", options->files, "EDS or DCF files ('-': stdin)")
+      ->required()
+      ->type_name("FILE");
   cmd->add_flag("--strict", options->strict,
                 "Lint: every deviation from CiA 306 and every warning is an error");
   cmd->add_flag("--json", options->json, "Print the result as JSON on stdout");

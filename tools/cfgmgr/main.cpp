@@ -17,6 +17,8 @@ int run(int argc, char** argv) {
       "configurations (CiA 302, CiA 306).",
       "cfgmgr"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", tools::version_text("cfgmgr"),
+                       "Print the name and version and exit");
   app.footer(std::string("Run 'cfgmgr COMMAND --help' for a command's options and examples.\n\n") +
              std::string(tools::kExitCodesHelp));
 
