@@ -77,12 +77,28 @@ TEST(Simulate, MissingDeviceFileIsAnIoError) {
   EXPECT_NE(r.err.find("missing.eds"), std::string::npos) << r.err;
 }
 
+TEST(Simulate, BusUrlThatDoesNotParseIsAUsageError) {
+  ScratchDir dir;
+  // An unknown scheme, a udp:// group outside 224.0.0.0/4 (RFC 5771), a port that is not a
+  // number, and socketcan: without an interface name: none names a bus, so none is opened.
+  for (const std::string url :
+       {"carrier-pigeon:1", "udp://10.0.0.1:43113", "udp://239.74.163.2:port", "socketcan:"}) {
+    auto r = run("cfgmgr", {"simulate", "--bus", url, "--for", "0.1", kDevice + "@3"},
+                 dir.path().string());
+    EXPECT_EQ(r.exit_code, 2) << url << "\n" << r.err;
+    EXPECT_NE(r.err.find("--bus"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(url), std::string::npos) << r.err;
+  }
+}
+
 TEST(Simulate, BusThatCannotBeOpenedIsAnIoError) {
   ScratchDir dir;
-  auto r = run("cfgmgr", {"simulate", "--bus", "carrier-pigeon:1", "--for", "0.1", kDevice + "@3"},
-               dir.path().string());
-  EXPECT_EQ(r.exit_code, 3);
-  EXPECT_NE(r.err.find("carrier-pigeon:1"), std::string::npos) << r.err;
+  // Well-formed, but no such interface (or no CAN support in the kernel): opening fails.
+  auto r =
+      run("cfgmgr", {"simulate", "--bus", "socketcan:nosuchcan9", "--for", "0.1", kDevice + "@3"},
+          dir.path().string());
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("socketcan:nosuchcan9"), std::string::npos) << r.err;
 }
 
 TEST(Simulate, BadLossRateIsAUsageError) {
