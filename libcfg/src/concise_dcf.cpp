@@ -181,7 +181,7 @@ constexpr std::uint32_t kObjFlagRefuseWriteOnDownload = 0x1;
 
 // An empty value ("ParameterValue=") means "not configured": CANopenEditor writes the key
 // empty for every entry the user did not set.
-std::optional<std::string_view> value_text(const std::optional<std::string>& text) {
+std::optional<std::string_view> value_text(const OptionalText& text) {
   if (!text) return std::nullopt;
   std::string_view v = *text;
   while (!v.empty() && (v.front() == ' ' || v.front() == '\t')) v.remove_prefix(1);

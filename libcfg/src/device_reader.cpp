@@ -974,7 +974,7 @@ class Reader final : public detail::IniSink {
     if (const RawKey* k = get(Key::PDOMapping)) {
       if (auto n = number(k->key, k->value, k->line, 1)) s.pdo_mapping = *n == 1;
     }
-    auto text_key = [&](Key key, std::optional<std::string>& field) {
+    auto text_key = [&](Key key, OptionalText& field) {
       if (const RawKey* k = get(key)) {
         if (k->value.empty()) {
           field.reset();
@@ -988,7 +988,7 @@ class Reader final : public detail::IniSink {
     text_key(Key::DownloadFile, s.download_file);
 
     std::optional<Value> low, high, def, param;
-    auto value_key = [&](Key key, std::optional<std::string>& field, std::optional<Value>& parsed) {
+    auto value_key = [&](Key key, OptionalText& field, std::optional<Value>& parsed) {
       if (const RawKey* k = get(key)) {
         field = clean_value(cur_.name, *k, s.data_type, &parsed);
       }
@@ -1009,7 +1009,7 @@ class Reader final : public detail::IniSink {
       return;
     }
     // Limits from an earlier occurrence of a duplicated section still apply.
-    auto reparse = [&](const std::optional<std::string>& text, std::optional<Value>& v) {
+    auto reparse = [&](const OptionalText& text, std::optional<Value>& v) {
       if (v || !text || mentions_node_id(*text)) return;
       if (auto type = s.basic_type()) {
         if (auto r = parse_value(*type, *text, kValidationNodeId)) v = std::move(r.value());
@@ -1030,8 +1030,7 @@ class Reader final : public detail::IniSink {
                        shown(*s.high_limit));
       }
     }
-    auto check = [&](const std::optional<Value>& v, Key key,
-                     const std::optional<std::string>& text) {
+    auto check = [&](const std::optional<Value>& v, Key key, const OptionalText& text) {
       if (!v) return;
       const RawKey* r = get(key);
       if (r == nullptr) return;
@@ -1325,7 +1324,7 @@ class Reader final : public detail::IniSink {
       sub->parameter_value = clean_value(name, raw, sub->data_type, &parsed);
       if (parsed && sub->basic_type()) {
         std::optional<Value> low, high;
-        auto limit = [&](const std::optional<std::string>& text, std::optional<Value>& v) {
+        auto limit = [&](const OptionalText& text, std::optional<Value>& v) {
           if (!text || mentions_node_id(*text)) return;
           if (auto r = parse_value(*sub->basic_type(), *text, kValidationNodeId))
             v = std::move(r.value());

@@ -26,7 +26,7 @@ void clean_text(std::string& text) {
   text = one_line(text);
 }
 
-void clean_text(std::optional<std::string>& text, bool drop_empty) {
+void clean_text(OptionalText& text, bool drop_empty) {
   if (!text) return;
   clean_text(*text);
   if (drop_empty && text->empty()) text.reset();
@@ -142,8 +142,7 @@ void apply_stamp(KeyValues& file_info, const WriteOptions::Stamp& stamp) {
 
 void canonical_entry(SubObject& s, FileKind kind) {
   clean_text(s.name);
-  for (std::optional<std::string>* v :
-       {&s.default_value, &s.parameter_value, &s.low_limit, &s.high_limit}) {
+  for (OptionalText* v : {&s.default_value, &s.parameter_value, &s.low_limit, &s.high_limit}) {
     if (!*v) continue;
     *v = detail::normalize_value(one_line(**v), s.data_type).text;
   }
@@ -174,7 +173,7 @@ class Out {
     text_ += value;
     text_ += eol_;
   }
-  void optional_key(std::string_view k, const std::optional<std::string>& value) {
+  void optional_key(std::string_view k, const OptionalText& value) {
     if (value) key(k, *value);
   }
   void key_values(const KeyValues& kv) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cfg/data_type.hpp"
+#include "cfg/optional_text.hpp"
 
 namespace cfg {
 
@@ -49,20 +50,20 @@ struct SubObject {
   std::uint16_t data_type = 0;  ///< DataType= index; find_data_type() tells if it is basic
   AccessType access = AccessType::Rw;
   bool pdo_mapping = false;
-  std::optional<std::string> default_value;    ///< DefaultValue, text as in the file
-  std::optional<std::string> parameter_value;  ///< ParameterValue (DCF), text as in the file
-  std::optional<std::string> low_limit;
-  std::optional<std::string> high_limit;
-  std::optional<std::string> denotation;     ///< Denotation (DCF)
-  std::optional<std::string> upload_file;    ///< UploadFile (DOMAIN)
-  std::optional<std::string> download_file;  ///< DownloadFile (DOMAIN)
-  std::optional<std::uint32_t> obj_flags;    ///< ObjFlags when written on a sub-object
+  OptionalText default_value;    ///< DefaultValue, text as in the file
+  OptionalText parameter_value;  ///< ParameterValue (DCF), text as in the file
+  OptionalText low_limit;
+  OptionalText high_limit;
+  OptionalText denotation;                 ///< Denotation (DCF)
+  OptionalText upload_file;                ///< UploadFile (DOMAIN)
+  OptionalText download_file;              ///< DownloadFile (DOMAIN)
+  std::optional<std::uint32_t> obj_flags;  ///< ObjFlags when written on a sub-object
   int line = 0;  ///< line of the defining section in the source file; 0 if not from a file
 
   /// The basic type, when DataType is one (nullopt for unknown or complex types).
   std::optional<DataType> basic_type() const;
   /// The value this entry is configured with: ParameterValue, else DefaultValue.
-  const std::optional<std::string>& configured_value() const {
+  const OptionalText& configured_value() const {
     return parameter_value ? parameter_value : default_value;
   }
   bool operator==(const SubObject& other) const;  ///< every attribute but `line`
