@@ -12,14 +12,20 @@ namespace {
 constexpr std::string_view kAcceptedForms =
     "accepted: socketcan:IFNAME (e.g. socketcan:can0), udp://GROUP:PORT[?iface=ADDR&ttl=N] "
     "(e.g. udp://239.74.163.2:43113)";
+
+constexpr std::string_view kUdp = "udp://";
+constexpr std::string_view kSocketCan = "socketcan:";
 }  // namespace
 
-cfg::Result<std::unique_ptr<Bus>> open_bus(std::string_view url) {
-  constexpr std::string_view kSocketCan = "socketcan:";
-  if (url.substr(0, 6) == "udp://") return open_udp_bus(url);
+cfg::Status check_bus_url(std::string_view url) {
+  if (url.substr(0, kUdp.size()) == kUdp) {
+    auto parsed = parse_udp_url(url);
+    if (!parsed) return parsed.error();
+    return {};
+  }
   if (url.substr(0, kSocketCan.size()) == kSocketCan) {
     const std::string_view name = url.substr(kSocketCan.size());
-    // Linux interface names: 1..15 bytes (IFNAMSIZ - 1), no '/', no whitespace.
+    // Linux interface names: 1..15 bytes (IFNAMSIZ - 1), no '/', ':' or whitespace.
     const bool valid = !name.empty() && name.size() < 16 &&
                        name.find_first_of("/ \t\n:") == std::string_view::npos;
     if (!valid) {
@@ -28,12 +34,18 @@ cfg::Result<std::unique_ptr<Bus>> open_bus(std::string_view url) {
                         "'socketcan:'; " +
                         std::string(kAcceptedForms)};
     }
-    auto bus = open_socketcan_bus(std::string(name));
-    if (!bus)
-      return cfg::Error{"cannot open bus '" + std::string(url) + "': " + bus.error().message};
-    return bus;
+    return {};
   }
   return cfg::Error{"unknown bus URL '" + std::string(url) + "'; " + std::string(kAcceptedForms)};
+}
+
+cfg::Result<std::unique_ptr<Bus>> open_bus(std::string_view url) {
+  if (auto syntax = check_bus_url(url); !syntax) return syntax.error();
+  if (url.substr(0, kUdp.size()) == kUdp) return open_udp_bus(url);
+  const std::string name(url.substr(kSocketCan.size()));
+  auto bus = open_socketcan_bus(name);
+  if (!bus) return cfg::Error{"cannot open bus '" + std::string(url) + "': " + bus.error().message};
+  return bus;
 }
 
 }  // namespace nmt

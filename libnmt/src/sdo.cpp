@@ -549,35 +549,38 @@ SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
 
 SdoClient::SdoClient(SdoClientConfig config) : config_(config) {}
 
-SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
-                                          std::vector<std::uint8_t> data,
-                                          SdoTransferOptions options, Callback done) {
+std::unique_ptr<SdoClient::Transfer> SdoClient::new_transfer(std::uint16_t index, std::uint8_t sub,
+                                                             SdoTransferOptions options,
+                                                             Callback done) {
   auto t = std::make_unique<Transfer>();
   t->id = next_id_++;
   t->index = index;
   t->sub = sub;
-  t->data = std::move(data);
   t->options = options;
   t->mode = options.mode;
   t->done = std::move(done);
-  const auto id = t->id;
-  queue_.push_back(std::move(t));
+  return t;
+}
+
+SdoClient::TransferId SdoClient::enqueue(std::unique_ptr<Transfer> transfer) {
+  const auto id = transfer->id;
+  queue_.push_back(std::move(transfer));
   return id;
+}
+
+SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
+                                          std::vector<std::uint8_t> data,
+                                          SdoTransferOptions options, Callback done) {
+  auto t = new_transfer(index, sub, options, std::move(done));
+  t->data = std::move(data);
+  return enqueue(std::move(t));
 }
 
 SdoClient::TransferId SdoClient::upload(std::uint16_t index, std::uint8_t sub,
                                         SdoTransferOptions options, Callback done) {
-  auto t = std::make_unique<Transfer>();
-  t->id = next_id_++;
+  auto t = new_transfer(index, sub, options, std::move(done));
   t->upload = true;
-  t->index = index;
-  t->sub = sub;
-  t->options = options;
-  t->mode = options.mode;
-  t->done = std::move(done);
-  const auto id = t->id;
-  queue_.push_back(std::move(t));
-  return id;
+  return enqueue(std::move(t));
 }
 
 bool SdoClient::cancel(TransferId id, SdoAbort code) {

@@ -41,6 +41,18 @@ TEST(OpenBus, RejectsBadUdpUrls) {
   }
 }
 
+// Syntax alone, nothing opened: a tool tells a mistyped URL (usage) from an absent bus (I/O).
+// Linux interface names are 1..15 bytes (IFNAMSIZ 16 with the NUL), without '/' or whitespace.
+TEST(OpenBus, CheckBusUrlJudgesSyntaxWithoutOpening) {
+  EXPECT_TRUE(check_bus_url("socketcan:nosuchcan9").ok());  // exists or not: not asked
+  EXPECT_TRUE(check_bus_url("udp://239.74.163.2:43113").ok());
+  EXPECT_FALSE(check_bus_url("socketcan:").ok());
+  EXPECT_FALSE(check_bus_url("socketcan:0123456789abcdef").ok());  // 16 bytes
+  EXPECT_FALSE(check_bus_url("socketcan:a/b").ok());
+  EXPECT_FALSE(check_bus_url("udp://239.74.163.2:notaport").ok());
+  EXPECT_FALSE(check_bus_url("carrier-pigeon:1").ok());
+}
+
 TEST(OpenBus, SocketcanInterfaceThatDoesNotExistFailsNamingTheUrl) {
   // Fails either for lack of CAN support or because there is no such interface; no frame is
   // sent in either case.

@@ -20,7 +20,6 @@
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/simulated_device.hpp"
 #include "nmt/trace.hpp"
-#include "nmt/udp_bus.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -79,39 +78,14 @@ nmt::Duration ms_to_duration(double ms) {
   return nmt::Duration(static_cast<std::int64_t>(ms * 1000.0));
 }
 
-// A --bus that does not parse is a usage error; nmt::open_bus reports syntax and open failures
-// alike, so the syntax is checked here first, with the rules open_bus applies (bus.hpp,
-// udp_bus.hpp). Returns the message for a URL that does not parse.
-std::optional<std::string> bus_url_syntax_error(std::string_view url) {
-  constexpr std::string_view kUdp = "udp://";
-  constexpr std::string_view kSocketCan = "socketcan:";
-  if (url.substr(0, kUdp.size()) == kUdp) {
-    auto parsed = nmt::parse_udp_url(url);
-    if (!parsed) return parsed.error().message;
-    return std::nullopt;
-  }
-  if (url.substr(0, kSocketCan.size()) == kSocketCan) {
-    // Linux interface names: 1..15 bytes (IFNAMSIZ - 1), no '/', ':' or whitespace.
-    const std::string_view name = url.substr(kSocketCan.size());
-    if (name.empty() || name.size() > 15 ||
-        name.find_first_of("/ \t\n:") != std::string_view::npos) {
-      return "bad bus URL '" + std::string(url) +
-             "': expected an interface name of 1 to 15 characters after 'socketcan:'";
-    }
-    return std::nullopt;
-  }
-  return "unknown bus URL '" + std::string(url) +
-         "'; accepted: socketcan:IFNAME (e.g. socketcan:can0), udp://GROUP:PORT[?iface=ADDR&ttl=N] "
-         "(e.g. udp://239.74.163.2:43113)";
-}
-
 void run_simulate(const SimulateOptions& options) {
   if (options.loss < 0.0 || options.loss > 1.0) {
     std::cerr << "cfgmgr simulate: --loss must be between 0 and 1\n";
     exit_with(tools::kExitUsage);
   }
-  if (auto bad_url = bus_url_syntax_error(options.bus)) {
-    std::cerr << "cfgmgr simulate: --bus: " << *bad_url << '\n';
+  // A --bus that does not parse is a usage error; one that parses but cannot be opened is I/O.
+  if (auto syntax = nmt::check_bus_url(options.bus); !syntax) {
+    std::cerr << "cfgmgr simulate: --bus: " << syntax.error().message << '\n';
     exit_with(tools::kExitUsage);
   }
   nmt::DeviceFaults faults;

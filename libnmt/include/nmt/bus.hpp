@@ -34,4 +34,8 @@ class Bus {
 /// udp://239.74.163.2:43113). Fails with a message naming the URL and the reason.
 cfg::Result<std::unique_ptr<Bus>> open_bus(std::string_view url);
 
+/// Checks a bus URL's syntax without opening anything (the rules open_bus applies), so that a
+/// tool can tell a mistyped URL (a usage error) from a bus that cannot be opened.
+cfg::Status check_bus_url(std::string_view url);
+
 }  // namespace nmt

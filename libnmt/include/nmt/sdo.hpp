@@ -285,6 +285,9 @@ class SdoClient {
   void finish(SdoAbort code, bool by_server, TimePoint now);
   void pump(TimePoint now, std::vector<CanFrame>& out);
   void report(SdoResult result, Callback& done);
+  std::unique_ptr<Transfer> new_transfer(std::uint16_t index, std::uint8_t sub,
+                                         SdoTransferOptions options, Callback done);
+  TransferId enqueue(std::unique_ptr<Transfer> transfer);
 
   SdoClientConfig config_;
   TransferId next_id_ = 1;
