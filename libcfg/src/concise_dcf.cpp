@@ -259,8 +259,8 @@ std::optional<Value> WriteBuilder::parse(const Location& at, std::string_view ke
   if (mentions_node_id(text) && !node_id_) {
     report(at, severity,
            std::string(key) + " '" + std::string(text) +
-               "' uses $NODEID, but no node-ID is known: give one, or set NodeID in "
-               "[DeviceComissioning]");
+               "' uses $NODEID, but no node-ID is known: set NodeID in [DeviceComissioning], "
+               "or give it to the tool (dcf2concise --node-id N)");
     return std::nullopt;
   }
   auto value = parse_value(*type, text, node_id_);
