@@ -197,24 +197,6 @@ std::optional<Key> object_key(std::string_view name) {
   return std::nullopt;
 }
 
-// a <=> b for the numeric classes; nullopt when not comparable.
-std::optional<int> compare_values(const Value& a, const Value& b) {
-  if (a.type() != b.type()) return std::nullopt;
-  switch (data_type_info(a.type()).type_class) {
-    case TypeClass::Signed:
-      return a.as_signed() < b.as_signed() ? -1 : (a.as_signed() > b.as_signed() ? 1 : 0);
-    case TypeClass::Unsigned:
-      return a.as_unsigned() < b.as_unsigned() ? -1 : (a.as_unsigned() > b.as_unsigned() ? 1 : 0);
-    case TypeClass::Real: {
-      const double x = a.as_real(), y = b.as_real();
-      if (x != x || y != y) return std::nullopt;  // NaN
-      return x < y ? -1 : (x > y ? 1 : 0);
-    }
-    default:
-      return std::nullopt;
-  }
-}
-
 enum class Kind {
   None,  // before the first section
   Ignored,

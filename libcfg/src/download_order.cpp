@@ -85,16 +85,6 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
 
 }  // namespace
 
-std::optional<PdoIndices> pdo_indices_of(std::uint16_t index) {
-  // CiA 301 §7.5.2.35-38: 512 RPDOs (1400h/1600h) and 512 TPDOs (1800h/1A00h).
-  auto in = [index](unsigned first, unsigned last) { return index >= first && index <= last; };
-  if (in(0x1400, 0x15FF)) return PdoIndices{index, static_cast<std::uint16_t>(index + 0x200)};
-  if (in(0x1600, 0x17FF)) return PdoIndices{static_cast<std::uint16_t>(index - 0x200), index};
-  if (in(0x1800, 0x19FF)) return PdoIndices{index, static_cast<std::uint16_t>(index + 0x200)};
-  if (in(0x1A00, 0x1BFF)) return PdoIndices{static_cast<std::uint16_t>(index - 0x200), index};
-  return std::nullopt;
-}
-
 DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
                                  const CobIdLookup& current_cob_id) {
   // Last write of an (index, sub-index) wins, as on a device.

@@ -600,4 +600,22 @@ std::string describe_value(const Value& value) {
   return {};
 }
 
+std::optional<int> compare_values(const Value& a, const Value& b) {
+  if (a.type() != b.type()) return std::nullopt;
+  auto order = [](auto x, auto y) { return x < y ? -1 : (x > y ? 1 : 0); };
+  switch (data_type_info(a.type()).type_class) {
+    case TypeClass::Signed:
+      return order(a.as_signed(), b.as_signed());
+    case TypeClass::Unsigned:
+      return order(a.as_unsigned(), b.as_unsigned());
+    case TypeClass::Real: {
+      const double x = a.as_real(), y = b.as_real();
+      if (std::isnan(x) || std::isnan(y)) return std::nullopt;
+      return order(x, y);
+    }
+    default:
+      return std::nullopt;
+  }
+}
+
 }  // namespace cfg

@@ -8,7 +8,9 @@
 #include <span>
 #include <vector>
 
+#include "cfg/cob_id.hpp"
 #include "cfg/concise_dcf.hpp"
+#include "cfg/object_index.hpp"
 
 namespace cfg {
 
@@ -62,15 +64,11 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
 std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,
                                         const CobIdLookup& current_cob_id = {});
 
-/// PDO parameter indices (CiA 301 §7.5.2.35-38): the communication and mapping index of the
-/// PDO an index belongs to, or nullopt for any other index.
-struct PdoIndices {
-  std::uint16_t comm_index = 0;     ///< 1400h-15FFh (RPDO) or 1800h-19FFh (TPDO)
-  std::uint16_t mapping_index = 0;  ///< 1600h-17FFh (RPDO) or 1A00h-1BFFh (TPDO)
-};
-std::optional<PdoIndices> pdo_indices_of(std::uint16_t index);
+/// PDO parameter indices live with the other object names (object_index.hpp).
+using object::PdoIndices;
+using object::pdo_indices_of;
 
 /// Bit 31 of a PDO COB-ID: set = PDO does not exist / is not valid (CiA 301 §7.5.2.35).
-inline constexpr std::uint32_t kPdoCobIdInvalid = 0x80000000u;
+inline constexpr std::uint32_t kPdoCobIdInvalid = kCobIdInvalidBit;
 
 }  // namespace cfg

@@ -77,6 +77,12 @@ Result<Value> decode(DataType type, std::span<const std::uint8_t> bytes);
 /// DOMAIN as hex pairs, strings as they are.
 std::string format_value(const Value& value);
 
+/// Orders two numeric values of the same type (signed, unsigned or REAL): <0, 0 or >0. nullopt
+/// when they cannot be ordered: different types, a type that is not numeric, or a NaN (a REAL
+/// limit or value that is NaN is outside every range). The one value comparison of both
+/// libraries (limits in the reader, the schema checks, SDO range checks).
+std::optional<int> compare_values(const Value& a, const Value& b);
+
 /// Text for people: `1000 (0x000003E8)` for unsigned, `"text"` for strings, `-5` for signed.
 std::string describe_value(const Value& value);
 

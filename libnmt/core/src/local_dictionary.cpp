@@ -19,20 +19,6 @@ bool is_numeric(cfg::DataType type) {
   return c == cfg::TypeClass::Signed || c == cfg::TypeClass::Unsigned || c == cfg::TypeClass::Real;
 }
 
-// Compares two values of the same numeric type: <0, 0, >0.
-int compare(const cfg::Value& a, const cfg::Value& b) {
-  switch (cfg::data_type_info(a.type()).type_class) {
-    case cfg::TypeClass::Signed:
-      return a.as_signed() < b.as_signed() ? -1 : (a.as_signed() > b.as_signed() ? 1 : 0);
-    case cfg::TypeClass::Unsigned:
-      return a.as_unsigned() < b.as_unsigned() ? -1 : (a.as_unsigned() > b.as_unsigned() ? 1 : 0);
-    case cfg::TypeClass::Real:
-      return a.as_real() < b.as_real() ? -1 : (a.as_real() > b.as_real() ? 1 : 0);
-    default:
-      return 0;
-  }
-}
-
 }  // namespace
 
 std::optional<std::size_t> DictionaryEntry::fixed_size() const {
@@ -159,14 +145,15 @@ SdoAbort LocalDictionary::check_value(const DictionaryEntry& e,
   if (!e.low_limit && !e.high_limit) return SdoAbort::None;
   auto value = cfg::decode(type, data);
   if (!value) return SdoAbort::ValueRangeExceeded;
-  if (e.low_limit && e.high_limit && compare(*e.high_limit, *e.low_limit) < 0) {
-    return SdoAbort::MaxLessThanMin;
+  if (e.low_limit && e.high_limit) {
+    const auto order = cfg::compare_values(*e.high_limit, *e.low_limit);
+    if (order && *order < 0) return SdoAbort::MaxLessThanMin;
   }
-  if (type_class == cfg::TypeClass::Real && value->as_real() != value->as_real()) {
-    return SdoAbort::ValueRangeExceeded;  // NaN is in no range
-  }
-  if (e.high_limit && compare(*value, *e.high_limit) > 0) return SdoAbort::ValueTooHigh;
-  if (e.low_limit && compare(*value, *e.low_limit) < 0) return SdoAbort::ValueTooLow;
+  const auto above = e.high_limit ? cfg::compare_values(*value, *e.high_limit) : -1;
+  const auto below = e.low_limit ? cfg::compare_values(*value, *e.low_limit) : 1;
+  if (!above || !below) return SdoAbort::ValueRangeExceeded;  // NaN is in no range
+  if (*above > 0) return SdoAbort::ValueTooHigh;
+  if (*below < 0) return SdoAbort::ValueTooLow;
   return SdoAbort::None;
 }
 

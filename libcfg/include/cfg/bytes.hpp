@@ -1,0 +1,50 @@
+// Little-endian integers as CANopen puts them on the bus and in concise DCF streams (CiA 301
+// §7.1.2: "little endian"), and hex digits of text. The one place of these conversions.
+#pragma once
+
+#include <cassert>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+namespace cfg {
+
+/// The unsigned integer in the first `size` bytes of `bytes` (1..8; asserted, and `bytes` must
+/// hold them), least significant byte first.
+constexpr std::uint64_t load_le(std::span<const std::uint8_t> bytes, std::size_t size) {
+  assert(size >= 1 && size <= 8 && bytes.size() >= size);
+  std::uint64_t v = 0;
+  for (std::size_t i = size; i-- > 0;) v = v << 8 | bytes[i];
+  return v;
+}
+constexpr std::uint16_t load_le16(std::span<const std::uint8_t> bytes) {
+  return static_cast<std::uint16_t>(load_le(bytes, 2));
+}
+constexpr std::uint32_t load_le32(std::span<const std::uint8_t> bytes) {
+  return static_cast<std::uint32_t>(load_le(bytes, 4));
+}
+
+/// Writes the low `size` bytes of `value` (1..8) to `out`, least significant first.
+constexpr void store_le(std::uint64_t value, std::span<std::uint8_t> out, std::size_t size) {
+  assert(size >= 1 && size <= 8 && out.size() >= size);
+  for (std::size_t i = 0; i < size; ++i) out[i] = static_cast<std::uint8_t>(value >> (8 * i));
+}
+/// Appends the low `size` bytes of `value` (1..8), least significant first.
+void append_le(std::vector<std::uint8_t>& out, std::uint64_t value, std::size_t size);
+
+/// 0..15 for a hex digit (either case), -1 for any other character.
+constexpr int hex_digit_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+/// `text` read as hex digits only (no prefix), 1..max_digits of them (max_digits <= 16);
+/// nullopt for an empty text, another character, or more digits.
+std::optional<std::uint64_t> parse_hex_number(std::string_view text, std::size_t max_digits = 16);
+
+}  // namespace cfg

@@ -1,0 +1,65 @@
+// The shared vocabulary of both libraries: object addresses, little-endian bytes, hex digits and
+// integer literals (headers object_address.hpp, bytes.hpp, integer_literal.hpp).
+#include <charconv>
+
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/integer_literal.hpp"
+#include "cfg/object_address.hpp"
+
+namespace cfg {
+
+std::string to_string(ObjectAddress address) {
+  return hex_digits(address.index, 4) + "h sub " + hex_digits(address.sub_index, 2) + "h";
+}
+
+std::string object_name(std::uint16_t index) {
+  return hex_digits(index, 4) + "h";
+}
+
+void append_le(std::vector<std::uint8_t>& out, std::uint64_t value, std::size_t size) {
+  assert(size >= 1 && size <= 8);
+  for (std::size_t i = 0; i < size; ++i) out.push_back(static_cast<std::uint8_t>(value >> (8 * i)));
+}
+
+std::optional<std::uint64_t> parse_hex_number(std::string_view text, std::size_t max_digits) {
+  if (text.empty() || text.size() > max_digits || text.size() > 16) return std::nullopt;
+  std::uint64_t v = 0;
+  for (char c : text) {
+    const int d = hex_digit_value(c);
+    if (d < 0) return std::nullopt;
+    v = v << 4 | static_cast<std::uint64_t>(d);
+  }
+  return v;
+}
+
+IntegerLiteralResult parse_integer_literal(std::string_view text) {
+  int base = 10;
+  std::string_view digits = text;
+  if (text.size() >= 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
+    base = 16;
+    digits = text.substr(2);
+  } else if (text.size() >= 2 && text[0] == '0') {
+    base = 8;
+    digits = text.substr(1);
+  }
+  IntegerLiteralResult result;
+  if (digits.empty()) return result;  // "", "0x"
+  for (char c : digits) {
+    const int d = hex_digit_value(c);
+    if (d < 0 || d >= base) return result;  // "12abc", "08", "-1", "+1"
+  }
+  IntegerLiteral lit;
+  lit.is_hex = base == 16;
+  const auto [end, ec] =
+      std::from_chars(digits.data(), digits.data() + digits.size(), lit.value, base);
+  if (ec == std::errc::result_out_of_range) {
+    result.error = IntegerLiteralError::OutOfRange;
+    return result;
+  }
+  if (ec != std::errc{} || end != digits.data() + digits.size()) return result;
+  result.literal = lit;
+  return result;
+}
+
+}  // namespace cfg

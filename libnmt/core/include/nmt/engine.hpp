@@ -1,0 +1,85 @@
+// The one shape of every protocol engine in libnmt (SDO server and client, NMT slave, heartbeat
+// producer and consumer, node and life guarding, EMCY, the slave node, and later the NMT master,
+// the configuration manager and the flying master). This comment is the contract; the concept
+// below checks its signatures at compile time, and each driver has one adapter that runs any
+// engine (SimEngineNode in sim_bus.hpp, EngineRef in bus_event_loop.hpp).
+//
+// An engine is sans-I/O: it never reads a clock or touches a bus. It is fed
+//   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);  // a frame seen on the bus
+//   void on_timer(TimePoint now, Output& out);                          // time has come
+//   std::optional<TimePoint> next_deadline() const;                     // when to call on_timer
+// and answers through one output type, Outbox<Event>: frames to send (in order) and events for
+// the application (in the order they happened). `Event` is the engine's own event type (NoEvent
+// when it has nothing to report).
+//
+// Rules every engine keeps and every driver relies on:
+// 1. Time is microseconds since an epoch the driver chooses (simulated time on the simulated
+//    bus, a monotonic clock on real buses). It never goes back from one call to the next.
+// 2. on_frame sees every frame of the bus, including those other engines of the same program
+//    sent (drivers echo them; CAN nodes hear every frame). It returns true when the frame was
+//    addressed to this engine (an SDO request for this server, an NMT command for this node),
+//    false when the engine ignored it.
+// 3. on_timer may be called at any time at or after next_deadline(), also early or twice:
+//    the engine checks its own due times, so a spurious call changes nothing.
+// 4. next_deadline() is nullopt when nothing is due; a time in the past (TimePoint{0}) means
+//    "as soon as possible". Any call may change it, so drivers read it after every call.
+// 5. Calls of the engine's own API that start work (an SDO transfer, an emergency, a state
+//    change) take `TimePoint now, Output& out` too and put their first frames into `out` at
+//    once: nothing started through the API waits for a timer to reach the bus.
+// 6. Engines keep no reference to `out` or to a frame after a call returns; they only append.
+// 7. Engines that contain engines (the slave node, the master) forward frames and time to them
+//    and report their parts' events as their own event type. Test faults (latency, loss,
+//    reboots) live in wrappers of the same shape (nmt/fault_injection.hpp), never inside a
+//    protocol engine.
+#pragma once
+
+#include <concepts>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "nmt/frame.hpp"
+
+namespace nmt {
+
+/// The event type of engines that report nothing but frames.
+struct NoEvent {
+  bool operator==(const NoEvent&) const = default;
+};
+
+/// What an engine call hands back: frames to send, in order, and events for the application.
+/// The caller owns it, clears it between uses (or not: engines only append), and sends
+/// `frames` in order.
+template <class Event>
+struct Outbox {
+  std::vector<CanFrame> frames;
+  std::vector<Event> events;
+
+  void send(const CanFrame& frame) { frames.push_back(frame); }
+  void report(Event event) { events.push_back(std::move(event)); }
+  void clear() {
+    frames.clear();
+    events.clear();
+  }
+  bool empty() const { return frames.empty() && events.empty(); }
+};
+
+/// The engine contract above, as far as a compiler can check it.
+template <class E>
+concept Engine = requires(E& engine, const E& const_engine, const CanFrame& frame, TimePoint now,
+                          Outbox<typename E::Event>& out) {
+  typename E::Event;
+  requires std::same_as<typename E::Output, Outbox<typename E::Event>>;
+  { engine.on_frame(frame, now, out) } -> std::same_as<bool>;
+  { engine.on_timer(now, out) } -> std::same_as<void>;
+  { const_engine.next_deadline() } -> std::same_as<std::optional<TimePoint>>;
+};
+
+/// The earlier of two deadlines (nullopt: none), for engines made of engines.
+inline std::optional<TimePoint> earliest(std::optional<TimePoint> a, std::optional<TimePoint> b) {
+  if (!a) return b;
+  if (!b) return a;
+  return *a < *b ? a : b;
+}
+
+}  // namespace nmt
