@@ -224,8 +224,11 @@ class WriteBuilder {
   void error(const Location& at, std::string message) {
     report(at, Severity::Error, std::move(message));
   }
-  void report(const Location& at, Severity severity, std::string message) {
-    int line = at.sub->line != 0 ? at.sub->line : at.object->line;
+  // `key_line`: the line of the key the message is about, when the model knows it.
+  void report(const Location& at, Severity severity, std::string message, int key_line = 0) {
+    const int line = key_line != 0      ? key_line
+                     : at.sub->line != 0 ? at.sub->line
+                                         : at.object->line;
     diagnostics_.add(options_.file_name, line, severity,
                      section_name(*at.object, *at.sub) + " " + std::move(message));
     if (severity == Severity::Error) failed_ = true;
@@ -248,26 +251,33 @@ class WriteBuilder {
 
 std::optional<Value> WriteBuilder::parse(const Location& at, std::string_view key,
                                          std::string_view text, Severity severity) {
+  // Messages about the value name the line of its own key (issue 9), not its section's.
+  const int key_line = key == "ParameterValue" ? at.sub->parameter_value_line
+                       : key == "DefaultValue" ? at.sub->default_value_line
+                                               : 0;
   auto type = at.sub->basic_type();
   if (!type) {
     report(at, severity,
            std::string(key) + " '" + std::string(text) + "': DataType 0x" +
                hex_digits(at.sub->data_type, 4) +
-               " is not a basic CiA 301 type, so the value cannot be encoded");
+               " is not a basic CiA 301 type, so the value cannot be encoded",
+           key_line);
     return std::nullopt;
   }
   if (mentions_node_id(text) && !node_id_) {
     report(at, severity,
            std::string(key) + " '" + std::string(text) +
                "' uses $NODEID, but no node-ID is known: set NodeID in [DeviceComissioning], "
-               "or give it to the tool (dcf2concise --node-id N)");
+               "or give it to the tool (dcf2concise --node-id N)",
+           key_line);
     return std::nullopt;
   }
   auto value = parse_value(*type, text, node_id_);
   if (!value) {
     report(at, severity,
            std::string(key) + " '" + std::string(text) + "' is not a valid " +
-               std::string(to_string(*type)) + ": " + value.error().message);
+               std::string(to_string(*type)) + ": " + value.error().message,
+           key_line);
     return std::nullopt;
   }
   return std::move(value).value();
@@ -304,7 +314,8 @@ void WriteBuilder::add_entry(const Location& at) {
   if ((flags & kObjFlagRefuseWriteOnDownload) != 0) {
     if (parameter) {
       report(at, Severity::Note,
-             "ParameterValue not written: ObjFlags bit 0 says refuse write on download");
+             "ParameterValue not written: ObjFlags bit 0 says refuse write on download",
+             sub.parameter_value_line);
     }
     return;
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <span>
 #include <utility>
 
 namespace cfg {
@@ -27,16 +28,22 @@ bool all_zero(const std::vector<std::uint8_t>& data) {
   return std::all_of(data.begin(), data.end(), [](std::uint8_t b) { return b == 0; });
 }
 
-// The writes of one object, by sub-index.
-using ObjectWrites = std::map<std::uint8_t, ObjectWrite>;
+// The writes of one object, by sub-index, one per sub-index (views into the caller's writes:
+// no copy until a write goes out).
+using ObjectWrites = std::span<const ObjectWrite* const>;
+
+const ObjectWrite* find_sub(const ObjectWrites* writes, std::uint8_t sub) {
+  if (writes == nullptr) return nullptr;
+  for (const ObjectWrite* w : *writes) {
+    if (w->sub_index == sub) return w;
+  }
+  return nullptr;
+}
 
 // DSP 302 v3.2.1 §6.2 application hint, steps 1-5, for one PDO.
 void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrites* mapping,
                const CobIdLookup& current_cob_id, DownloadOrder& out) {
-  const ObjectWrite* configured_cob = nullptr;
-  if (comm != nullptr) {
-    if (auto it = comm->find(1); it != comm->end()) configured_cob = &it->second;
-  }
+  const ObjectWrite* configured_cob = find_sub(comm, 1);
   std::optional<std::uint32_t> cob_id =
       configured_cob != nullptr ? as_u32(configured_cob->data) : std::nullopt;
   bool cob_id_from_lookup = false;
@@ -54,14 +61,13 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
   // Step 2: communication sub-indices other than the COB-ID (sub-index order; a writable sub 0
   // is unusual but goes here too).
   if (comm != nullptr) {
-    for (const auto& [sub, write] : *comm) {
-      if (sub != 1) out.writes.push_back(write);
+    for (const ObjectWrite* write : *comm) {
+      if (write->sub_index != 1) out.writes.push_back(*write);
     }
   }
   // Steps 3 and 4: deactivate the mapping, write the entries, activate with n entries.
   if (mapping != nullptr) {
-    const ObjectWrite* count = nullptr;
-    if (auto it = mapping->find(0); it != mapping->end()) count = &it->second;
+    const ObjectWrite* count = find_sub(mapping, 0);
     if (count != nullptr) {
       ObjectWrite zero = *count;
       std::fill(zero.data.begin(), zero.data.end(), std::uint8_t{0});
@@ -69,8 +75,8 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
     } else {
       out.unknown_mapping_count.push_back(pdo.mapping_index);
     }
-    for (const auto& [sub, write] : *mapping) {
-      if (sub != 0) out.writes.push_back(write);
+    for (const ObjectWrite* write : *mapping) {
+      if (write->sub_index != 0) out.writes.push_back(*write);
     }
     if (count != nullptr && !all_zero(count->data)) out.writes.push_back(*count);
   }
@@ -87,9 +93,29 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
 
 DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
                                  const CobIdLookup& current_cob_id) {
-  // Last write of an (index, sub-index) wins, as on a device.
+  // Last write of an (index, sub-index) wins, as on a device: a stable sort keeps equal keys in
+  // input order, and the last of each run is kept. Pointers, not copies: a DCF has tens of
+  // thousands of writes.
+  std::vector<const ObjectWrite*> sorted;
+  sorted.reserve(writes.size());
+  for (const auto& write : writes) sorted.push_back(&write);
+  auto key = [](const ObjectWrite* w) { return (std::uint32_t{w->index} << 8) | w->sub_index; };
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [&key](const ObjectWrite* a, const ObjectWrite* b) { return key(a) < key(b); });
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < sorted.size(); ++i) {
+    if (i + 1 < sorted.size() && key(sorted[i]) == key(sorted[i + 1])) continue;
+    sorted[kept++] = sorted[i];
+  }
+  sorted.resize(kept);
   std::map<std::uint16_t, ObjectWrites> by_object;
-  for (const auto& write : writes) by_object[write.index][write.sub_index] = write;
+  for (std::size_t begin = 0; begin < sorted.size();) {
+    std::size_t end = begin + 1;
+    while (end < sorted.size() && sorted[end]->index == sorted[begin]->index) ++end;
+    by_object.emplace(sorted[begin]->index,
+                      ObjectWrites(sorted).subspan(begin, end - begin));
+    begin = end;
+  }
 
   // What to emit, by sort index: a PDO sorts at its communication index even when only its
   // mapping is written.
@@ -109,13 +135,13 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
     if (pdo) {
       order_pdo(*pdo, find(pdo->comm_index), find(pdo->mapping_index), current_cob_id, out);
     } else if (index != kVerifyConfiguration) {
-      for (const auto& entry : by_object.at(index)) out.writes.push_back(entry.second);
+      for (const ObjectWrite* write : by_object.at(index)) out.writes.push_back(*write);
     }
   }
   // DSP 302 v3.2.1 §6.3: "If any other command changes boot-up configuration values, the device
   // has to reset the object Verify Configuration to 0" - so 1020h goes last.
   if (const ObjectWrites* verify = find(kVerifyConfiguration)) {
-    for (const auto& entry : *verify) out.writes.push_back(entry.second);
+    for (const ObjectWrite* write : *verify) out.writes.push_back(*write);
   }
   return out;
 }

@@ -462,6 +462,7 @@ Result<Value> parse_value(DataType type, std::string_view text,
 std::vector<std::uint8_t> encode(const Value& value) {
   const auto& info = data_type_info(value.type());
   std::vector<std::uint8_t> out;
+  out.reserve(info.size_bytes);  // one allocation for fixed-size types
   auto put_le = [&](std::uint64_t bits, std::size_t size) {
     for (std::size_t i = 0; i < size; ++i)
       out.push_back(static_cast<std::uint8_t>(bits >> (8 * i)));

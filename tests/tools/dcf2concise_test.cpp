@@ -314,7 +314,8 @@ TEST(Dcf2Concise, DecodePrintsNamesAndValuesInWords) {
       lines[0], std::regex(R"(1017sub0  Producer heartbeat time += 1000 \(0x03E8\))")))
       << lines[0];
   EXPECT_THAT(lines[1], HasSubstr("1400sub1  RPDO1 communication parameter: COB-ID used by RPDO"));
-  EXPECT_THAT(lines[1], HasSubstr("(0x80000205)"));
+  // A COB-ID reads as hex alone (issue 9): bit 31 set, CAN-ID 205h (CiA 301 §7.5.2.35).
+  EXPECT_TRUE(lines[1].ends_with("  = 0x80000205")) << lines[1];
   EXPECT_THAT(lines[8], HasSubstr("1F50sub1"));
 }
 
@@ -426,15 +427,16 @@ TEST(Dcf2Concise, VersionPrintsNameAndProjectVersion) {
 }
 
 // An EDS has no ParameterValue: the stream is only its entry count, UNSIGNED32 0 (DSP 302
-// §6.2). Legal, so rc 0, but said.
-TEST(Dcf2Concise, WarnsThatAFileWithoutParameterValuesGivesAnEmptyStream) {
+// §6.2). A valid configuration, so rc 0 and a note, also under --strict (issue 9).
+TEST(Dcf2Concise, SaysThatAFileWithoutParameterValuesGivesAnEmptyStream) {
   const fs::path eds = fs::path(CANOPEN_SAMPLES_DIR) / "drive.eds";
   if (!fs::exists(eds)) GTEST_SKIP() << "no samples/drive.eds";
   ScratchDir dir;
   auto r = run("dcf2concise", {eds.string(), "-o", dir / "drive.bin"}, dir.path());
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_THAT(r.err, HasSubstr("drive.eds: warning: no ParameterValue to download: the concise "
-                               "DCF is empty (use --with-defaults to include DefaultValues)"));
+  EXPECT_THAT(r.err, HasSubstr("drive.eds: note: no ParameterValue to download: the concise DCF "
+                               "is empty, a valid configuration"));
+  EXPECT_THAT(r.err, HasSubstr("use --with-defaults to include DefaultValues"));
   EXPECT_EQ(tool_test::slurp(dir / "drive.bin"), std::string(4, '\0'));
 
   auto json = run("dcf2concise", {eds.string(), "-o", dir / "drive.bin", "--json"}, dir.path());
@@ -445,7 +447,7 @@ TEST(Dcf2Concise, WarnsThatAFileWithoutParameterValuesGivesAnEmptyStream) {
   EXPECT_EQ(parsed->get("size")->number, 4);
   const auto& diagnostics = parsed->get("diagnostics")->array;
   ASSERT_EQ(diagnostics.size(), 1u) << json.out;
-  EXPECT_EQ(diagnostics[0].get("severity")->string, "warning");
+  EXPECT_EQ(diagnostics[0].get("severity")->string, "note");
   EXPECT_THAT(diagnostics[0].get("message")->string, HasSubstr("no ParameterValue to download"));
 
   // With the DefaultValues there is something to download, and nothing to warn about (the
@@ -483,6 +485,79 @@ TEST(Dcf2Concise, DecodeSaysOneByteInTheSingular) {
   auto r = run("dcf2concise", {"--decode", dir / "one.bin"}, dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out, "1400sub2    1 byte   = 1 (0x01)\n");
+}
+
+// A DCF without any ParameterValue under --strict: the empty configuration is valid (DSP 302
+// §6.2), so it is written and said, not failed (issue 9). no_params.dcf is written here: one
+// writable VAR with a DefaultValue only, node-ID 5.
+TEST(Dcf2Concise, StrictAcceptsAnEmptyConfiguration) {
+  ScratchDir dir;
+  std::ofstream(dir / "no_params.dcf", std::ios::binary)
+      << "[FileInfo]\r\nFileName=no_params.dcf\r\n"
+         "[DeviceInfo]\r\nVendorName=Test\r\nProductName=Test\r\n"
+         "[MandatoryObjects]\r\nSupportedObjects=3\r\n1=0x1000\r\n2=0x1001\r\n3=0x1018\r\n"
+         "[OptionalObjects]\r\nSupportedObjects=1\r\n1=0x1017\r\n"
+         "[1000]\r\nParameterName=Device type\r\nObjectType=0x7\r\nDataType=0x0007\r\n"
+         "AccessType=ro\r\nDefaultValue=0\r\nPDOMapping=0\r\n"
+         "[1001]\r\nParameterName=Error register\r\nObjectType=0x7\r\nDataType=0x0005\r\n"
+         "AccessType=ro\r\nDefaultValue=0\r\nPDOMapping=0\r\n"
+         "[1017]\r\nParameterName=Producer heartbeat time\r\nObjectType=0x7\r\n"
+         "DataType=0x0006\r\nAccessType=rw\r\nDefaultValue=0\r\nPDOMapping=0\r\n"
+         "[1018]\r\nParameterName=Identity object\r\nObjectType=0x9\r\nSubNumber=2\r\n"
+         "[1018sub0]\r\nParameterName=Highest sub-index supported\r\nObjectType=0x7\r\n"
+         "DataType=0x0005\r\nAccessType=const\r\nDefaultValue=1\r\nPDOMapping=0\r\n"
+         "[1018sub1]\r\nParameterName=Vendor-ID\r\nObjectType=0x7\r\nDataType=0x0007\r\n"
+         "AccessType=ro\r\nDefaultValue=0\r\nPDOMapping=0\r\n"
+         "[DeviceComissioning]\r\nNodeID=5\r\nBaudrate=500\r\n";
+  auto r = run("dcf2concise", {"no_params.dcf", "--strict", "-o", "out.bin"}, dir.path(),
+               dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("no_params.dcf: note: no ParameterValue to download: the concise "
+                               "DCF is empty, a valid configuration"));
+  EXPECT_THAT(r.err, Not(HasSubstr("error")));
+  EXPECT_EQ(tool_test::slurp(dir / "out.bin"), std::string(4, '\0'));  // count 0, no entries
+}
+
+// COB-IDs and PDO mapping entries are bit fields: --decode shows them as hex alone, with or
+// without a device file; an ordinary number keeps its decimal first (issue 9). Entries: 1400h
+// sub 1 = 80000202h (RPDO1 of node 2, not valid: CiA 301 §7.5.2.35), 1600h sub 1 = 60400010h
+// (maps 6040h sub 0, 16 bits: CiA 301 §7.5.2.36), 1600h sub 0 = 1 (a count), 1005h = 80h (SYNC
+// COB-ID, CiA 301 §7.5.2.5), 1017h = 1000 (a time in ms).
+TEST(Dcf2Concise, DecodeShowsCobIdsAndMappingEntriesAsHex) {
+  ScratchDir dir;
+  const std::vector<ObjectWrite> entries{u32(0x1400, 1, 0x80000202), u32(0x1600, 1, 0x60400010),
+                                         u8(0x1600, 0, 1), u32(0x1005, 0, 0x80),
+                                         u16(0x1017, 0, 1000)};
+  auto bytes = cfg::encode_concise_dcf(entries);
+  std::ofstream(dir / "x.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
+  auto r = run("dcf2concise", {"--decode", dir / "x.bin"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out,
+            "1400sub1    4 bytes  = 0x80000202\n"
+            "1600sub1    4 bytes  = 0x60400010\n"
+            "1600sub0    1 byte   = 1 (0x01)\n"
+            "1005sub0    4 bytes  = 0x00000080\n"
+            "1017sub0    2 bytes  = 1000 (0x03E8)\n");
+
+  // With node5.dcf (RPDO1 parameters, mapping and heartbeat as UNSIGNED32/8/16).
+  const std::vector<ObjectWrite> known{u32(0x1400, 1, 0x80000205), u32(0x1600, 2, 0x60400010),
+                                       u16(0x1017, 0, 1000)};
+  bytes = cfg::encode_concise_dcf(known);
+  std::ofstream(dir / "k.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
+  auto named = run("dcf2concise", {"--decode", dir / "k.bin", "--dcf", data_path("concise/node5.dcf")},
+                   dir.path());
+  ASSERT_EQ(named.exit_code, 0) << named.err;
+  std::vector<std::string> lines;
+  std::istringstream in(named.out);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 3u) << named.out;
+  EXPECT_TRUE(lines[0].ends_with("= 0x80000205")) << lines[0];
+  EXPECT_TRUE(lines[1].ends_with("= 0x60400010")) << lines[1];
+  EXPECT_TRUE(lines[2].ends_with("= 1000 (0x03E8)")) << lines[2];
 }
 
 }  // namespace

@@ -15,13 +15,17 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <iterator>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
+#include "cfg/device_file.hpp"
 #include "cfg/diagnostics.hpp"
 #include "cfg/result.hpp"
 
@@ -147,18 +151,28 @@ inline std::string hex_string(std::span<const std::uint8_t> bytes) {
   return out;
 }
 
-/// Reads a whole file, or "-" for stdin. Fails with a message naming the path.
+/// Reads a whole file in one piece (cfg::read_file), or "-" for stdin. Fails with a message
+/// naming the path.
 inline cfg::Result<std::string> read_input(const std::string& path) {
-  if (path == "-") {
-    return std::string{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
+  const bool from_stdin = path == "-";
+  auto text = from_stdin ? cfg::read_file(STDIN_FILENO) : cfg::read_file(path);
+  if (!text) {
+    return cfg::Error{(from_stdin ? std::string("<stdin>") : path) + ": error: " +
+                      text.error().message};
   }
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": error: is a directory"};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return cfg::Error{path + ": error: cannot open: " + std::strerror(errno)};
-  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) return cfg::Error{path + ": error: read error"};
-  return data;
+  return text;
+}
+
+/// Ends the tool's use of a large object without destroying it, when the process is about to
+/// exit: freeing a model of tens of thousands of nodes one by one costs more than reading the
+/// file did, and the kernel takes the whole heap back at exit at once (clang's -disable-free
+/// does the same with its syntax tree). The object stays reachable from a static list, so leak
+/// checkers do not report it. Only for the last use before exit: nothing is ever freed.
+template <class T>
+void keep_until_exit(T&& object) {
+  using Kept = std::remove_cvref_t<T>;
+  static auto* kept = new std::vector<std::unique_ptr<Kept>>();  // NOLINT: never freed, on purpose
+  kept->push_back(std::make_unique<Kept>(std::forward<T>(object)));
 }
 
 /// True when the path can be opened for reading (tools check this first so that a missing

@@ -5,12 +5,17 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bytes.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
 #include "dcf2concise.hpp"
 
@@ -57,6 +62,29 @@ std::string raw_words(std::span<const std::uint8_t> data) {
   return buf;
 }
 
+// COB-IDs and PDO mapping entries are bit fields (CiA 301 §7.5.2: bit 31 valid, bit 29 frame
+// format, then the CAN-ID; a mapping entry is index << 16 | sub-index << 8 | length in bits), so
+// their hex digits say what they are and their decimal value says nothing: shown as hex alone.
+bool is_bit_field_entry(std::uint16_t index, std::uint8_t sub_index) {
+  namespace o = cfg::object;
+  if (index == o::kCobIdSync || index == o::kCobIdTime || index == o::kCobIdEmcy) {
+    return sub_index == 0;
+  }
+  if (o::is_sdo_server_parameter(index) || o::is_sdo_client_parameter(index)) {
+    return sub_index == 1 || sub_index == 2;  // COB-ID client -> server, server -> client
+  }
+  if (o::is_pdo_communication(index)) return sub_index == 1;
+  if (o::is_pdo_mapping(index)) return sub_index >= 1;  // sub-index 0 is the entry count
+  return false;
+}
+
+// "0x80000202": a 4-byte bit field entry (little-endian) as hex, all 8 digits.
+std::optional<std::string> bit_field_words(std::uint16_t index, std::uint8_t sub_index,
+                                           std::span<const std::uint8_t> data) {
+  if (data.size() != 4 || !is_bit_field_entry(index, sub_index)) return std::nullopt;
+  return cfg::hex(cfg::load_le32(data), 8);
+}
+
 class Describer {
  public:
   Describer(const cfg::DeviceDescription* device, std::string device_name, std::string input)
@@ -72,7 +100,8 @@ class Describer {
     row.sub_index = sub_index;
     row.size = data.size();
     row.data = tools::hex_string(data);
-    row.words = raw_words(data);
+    const auto bit_field = bit_field_words(index, sub_index, data);
+    row.words = bit_field ? *bit_field : raw_words(data);
     if (device_ == nullptr) return row;
 
     auto warn = [&](const std::string& what) {
@@ -103,9 +132,11 @@ class Describer {
     }
     row.value = cfg::format_value(*value);
     const bool long_bytes = cfg::is_variable_size(*type) && data.size() > kShownBytes;
+    const bool unsigned32 = *type == cfg::DataType::Unsigned32;
     row.words = long_bytes
                     ? hex_bytes(data, kShownBytes) + " (" + std::to_string(data.size()) + " bytes)"
-                    : cfg::describe_value(*value);
+                : bit_field && unsigned32 ? *bit_field
+                                          : cfg::describe_value(*value);
     return row;
   }
 

@@ -19,18 +19,27 @@ std::string index_text(const cfg::ObjectWrite& w) {
   return buf;
 }
 
-// Why the stream has no entries, in the terms of the selection the user made.
-std::string empty_stream_warning(cfg::ConciseSelection selection) {
+// Why the stream has no entries, in the terms of the selection the user made, and that this is
+// a valid result.
+std::string empty_stream_note(cfg::ConciseSelection selection) {
+  std::string why;
   switch (selection) {
     case cfg::ConciseSelection::ChangedOnly:
-      return "no ParameterValue differs from its DefaultValue: the concise DCF is empty";
+      why = "no ParameterValue differs from its DefaultValue";
+      break;
     case cfg::ConciseSelection::WithDefaults:
-      return "no writable entry has a ParameterValue or DefaultValue: the concise DCF is empty";
+      why = "no writable entry has a ParameterValue or DefaultValue";
+      break;
     case cfg::ConciseSelection::Configured:
+      why = "no ParameterValue to download";
       break;
   }
-  return "no ParameterValue to download: the concise DCF is empty (use --with-defaults to "
-         "include DefaultValues)";
+  why += ": the concise DCF is empty, a valid configuration (DSP 302 §6.2: only the entry "
+         "count, 0)";
+  if (selection == cfg::ConciseSelection::Configured) {
+    why += "; use --with-defaults to include DefaultValues";
+  }
+  return why;
 }
 
 }  // namespace
@@ -76,10 +85,11 @@ int run_encode(const EncodeOptions& options) {
                            ? std::string(".")
                            : std::filesystem::path(options.input).parent_path().string();
     writes = cfg::concise_writes_from_dcf(*read.device, concise, diagnostics);
-    // An empty configuration is legal (DSP 302 §6.2: the stream is then just its count, 0),
-    // but from an EDS or an unfinished DCF it is rarely what was meant.
+    // An empty configuration is valid (DSP 302 §6.2: the stream is then just its count, 0), so
+    // it is a note, which --strict does not promote: said, because from an EDS or an
+    // unfinished DCF it is rarely what was meant, but no failure.
     if (writes && writes->empty()) {
-      diagnostics.add(name, 0, cfg::Severity::Warning, empty_stream_warning(options.selection));
+      diagnostics.add(name, 0, cfg::Severity::Note, empty_stream_note(options.selection));
     }
   }
   if (options.strict) diagnostics = tools::promote_warnings(diagnostics);
@@ -119,6 +129,9 @@ int run_encode(const EncodeOptions& options) {
     out += "], \"diagnostics\": " + tools::json_diagnostics(diagnostics) + "}\n";
     std::cout << out;
   }
+  // The process ends now: let exit take the model back instead of freeing it node by node.
+  tools::keep_until_exit(std::move(read));
+  tools::keep_until_exit(std::move(writes));
   return code;
 }
 

@@ -9,6 +9,7 @@
 
 #include "cfg/diagnostics.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/result.hpp"
 
 namespace cfg {
 
@@ -48,8 +49,19 @@ struct ReadResult {
 /// Rejected (no model, one error): an empty file, and text without any [section].
 ReadResult parse_device_description(std::string_view text, const ReadOptions& options = {});
 
-/// Reads and parses a file; a file that cannot be opened is an error diagnostic.
+/// Reads and parses a file (read_file, then parse_device_description); a file that cannot be
+/// opened or read is one error diagnostic (line 0) and no model.
 ReadResult read_device_file(const std::string& path, ReadOptions options = {});
+
+/// The whole content of a file in one piece: its size from fstat(2), one buffer of that size,
+/// read(2) until end of file (a file that grows meanwhile is read to its end; pipes and other
+/// files without a size work too). Every tool reads its input this way; a stream iterator costs
+/// more than parsing. Fails, without the path in the message (the caller names the file), with
+/// "is a directory", "cannot open: <reason>" or "cannot read: <reason>".
+Result<std::string> read_file(const std::string& path);
+/// The same from an open descriptor (standard input: 0) to its end; the descriptor stays open
+/// and owned by the caller. Fails with "cannot read: <reason>".
+Result<std::string> read_file(int fd);
 
 enum class FileKind { Eds, Dcf };
 enum class LineEnding { Crlf, Lf };

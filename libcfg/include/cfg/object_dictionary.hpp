@@ -59,6 +59,11 @@ struct SubObject {
   OptionalText download_file;              ///< DownloadFile (DOMAIN)
   std::optional<std::uint32_t> obj_flags;  ///< ObjFlags when written on a sub-object
   int line = 0;  ///< line of the defining section in the source file; 0 if not from a file
+  /// Lines of the DefaultValue= and ParameterValue= keys that gave the values (for a value from
+  /// [xxxxValue] or an expanded CompactSubObj, that key's line); 0 when not from a file. What is
+  /// said about a value names its own line. 8 bytes per entry (SubObject is 128 bytes).
+  int default_value_line = 0;
+  int parameter_value_line = 0;
 
   /// The basic type, when DataType is one (nullopt for unknown or complex types).
   std::optional<DataType> basic_type() const;
@@ -66,7 +71,8 @@ struct SubObject {
   const OptionalText& configured_value() const {
     return parameter_value ? parameter_value : default_value;
   }
-  bool operator==(const SubObject& other) const;  ///< every attribute but `line`
+  /// Every attribute but the lines (`line`, `default_value_line`, `parameter_value_line`).
+  bool operator==(const SubObject& other) const;
 };
 
 struct Object {
