@@ -2,7 +2,7 @@
 // text is not in spec/); where real files and the standard part ways, the choices are listed here
 // and asserted in tests/cfg/device_reader_test.cpp.
 //
-// Structure: ini_scanner (on inih) hands over sections and key lines as views into the text
+// Structure: ini_scanner hands over sections and key lines as views into the text
 // (device_reader_sections.cpp dispatches them). The keys of an object or sub-object section are
 // collected and applied when the section ends, because how a value is read depends on DataType,
 // which may come after it (device_reader_keys.cpp). Everything that needs the whole file
@@ -40,7 +40,6 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
-#include <fstream>
 #include <limits>
 
 #include "cfg/hex.hpp"
@@ -80,9 +79,7 @@ ReadResult Reader::run(std::string_view text) {
   file_info_.kv = &model_.file_info;
   device_info_.kv = &model_.device_info;
   dummy_usage_.kv = &model_.dummy_usage;
-  if (!detail::scan_ini(text, *this)) {
-    error(0, "internal error: the INI scanner lost track of the file structure");
-  }
+  detail::scan_ini(text, *this);
   close_section();
   if (sections_seen_ == 0) {
     diagnostics_.clear();  // line-by-line complaints about a non-INI file help nobody
@@ -167,28 +164,14 @@ ReadResult parse_device_description(std::string_view text, const ReadOptions& op
 
 ReadResult read_device_file(const std::string& path, ReadOptions options) {
   if (options.file_name.empty()) options.file_name = path;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
+  auto text = read_file(path);
+  if (!text) {
     ReadResult result;
     result.diagnostics.add(options.file_name, 0, Severity::Error,
-                           std::string("cannot open the file: ") + std::strerror(errno));
+                           text.error().message);
     return result;
   }
-  std::string text;
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  in.seekg(0, std::ios::beg);
-  if (size > 0) {
-    text.resize(static_cast<std::size_t>(size));
-    in.read(text.data(), size);
-    text.resize(static_cast<std::size_t>(in.gcount()));
-  }
-  if (in.bad()) {
-    ReadResult result;
-    result.diagnostics.add(options.file_name, 0, Severity::Error, "cannot read the file");
-    return result;
-  }
-  return parse_device_description(text, options);
+  return parse_device_description(*text, options);
 }
 
 }  // namespace cfg

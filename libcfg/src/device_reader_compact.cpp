@@ -212,6 +212,7 @@ void Reader::apply_values(Object& obj, ObjectState& st) {
     RawKey raw{key, e.text, e.line};
     std::optional<Value> parsed;
     sub->parameter_value = clean_value(name, raw, sub->data_type, &parsed);
+    sub->parameter_value_line = sub->parameter_value ? e.line : 0;
     if (parsed && sub->basic_type()) {
       std::optional<Value> low, high;
       auto limit = [&](const OptionalText& text, std::optional<Value>& v) {

@@ -241,15 +241,17 @@ void Reader::apply_entry(SubObject& s, const ObjectKeys& get, bool needs_type) {
   text_key(Key::DownloadFile, s.download_file);
 
   std::optional<Value> low, high, def, param;
-  auto value_key = [&](Key key, OptionalText& field, std::optional<Value>& parsed) {
+  auto value_key = [&](Key key, OptionalText& field, std::optional<Value>& parsed,
+                       int* line = nullptr) {
     if (const RawKey* k = get(key)) {
       field = clean_value(cur_.name, *k, s.data_type, &parsed);
+      if (line != nullptr) *line = field ? k->line : 0;
     }
   };
   value_key(Key::LowLimit, s.low_limit, low);
   value_key(Key::HighLimit, s.high_limit, high);
-  value_key(Key::DefaultValue, s.default_value, def);
-  value_key(Key::ParameterValue, s.parameter_value, param);
+  value_key(Key::DefaultValue, s.default_value, def, &s.default_value_line);
+  value_key(Key::ParameterValue, s.parameter_value, param, &s.parameter_value_line);
   check_limits(s, get, low, high, def, param);
 }
 

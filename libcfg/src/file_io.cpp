@@ -24,7 +24,7 @@ Result<std::string> read_file(int fd) {
     if (used == text.size()) text.resize(text.size() * 2);
     const ssize_t n = ::read(fd, text.data() + used, text.size() - used);
     if (n < 0 && errno == EINTR) continue;
-    if (n < 0) return Error{std::string("cannot read: ") + std::strerror(errno)};
+    if (n < 0) return Error{std::string("cannot read the file: ") + std::strerror(errno)};
     if (n == 0) break;
     used += static_cast<std::size_t>(n);
   }
@@ -34,7 +34,7 @@ Result<std::string> read_file(int fd) {
 
 Result<std::string> read_file(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return Error{std::string("cannot open: ") + std::strerror(errno)};
+  if (fd < 0) return Error{std::string("cannot open the file: ") + std::strerror(errno)};
   struct stat st {};
   if (::fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) {
     ::close(fd);

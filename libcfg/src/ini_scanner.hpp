@@ -1,13 +1,10 @@
-// Private to libcfg: splits EDS/DCF text into lines and drives inih over them.
+// Private to libcfg: splits EDS/DCF text into lines and classifies each one (section header,
+// key=value, comment, other), handing the sink views into the caller's buffer.
 //
-// Debian's inih is compiled with a 200-byte line limit (longer lines are cut and the rest parsed
-// as a new line), inline ';' comments after whitespace, and indented lines treated as
-// continuations; real device files break all three. Its settings are process-global variables
-// that a library must not touch. So the scanner classifies each physical line itself and hands
-// inih only short tokens: `[<line>]` plus an open marker for a section header, `<line>=` for a
-// key line. inih drives the structure (sections and the entries in them); the text itself (name,
-// key, value as string_views into the caller's buffer) is handed to the sink directly, so no line
-// limit, comment or continuation rule can corrupt data. Nothing is allocated per line.
+// Not inih: Debian's inih cuts lines at 200 bytes (long DOMAIN values), strips inline ';'
+// comments after whitespace and joins indented lines, with process-global settings a library
+// must not touch; real device files break all three. Here no line limit, comment or continuation
+// rule touches data, and nothing is allocated per line.
 #pragma once
 
 #include <string_view>
@@ -33,9 +30,8 @@ class IniSink {
 };
 
 /// Scans `text` (no BOM handling: strip it first). Lines end at LF, CRLF or a lone CR; a
-/// missing final line end is fine. Returns false only if inih disagreed with the scanner about
-/// the structure (a bug, not bad input).
-bool scan_ini(std::string_view text, IniSink& sink);
+/// missing final line end is fine. Every line is handed to the sink, in order; nothing fails.
+void scan_ini(std::string_view text, IniSink& sink);
 
 /// Blank for the purposes of trimming: space, tab, vertical tab, form feed.
 constexpr bool is_blank(char c) {

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "cfg/device_file.hpp"
 #include "concise_test_support.hpp"
 
 namespace cfg {
@@ -449,6 +450,57 @@ TEST(ConciseWrites, MissingNodeIdIsAnErrorWithFileAndLine) {
   ASSERT_EQ(diagnostics.count(Severity::Error), 1u) << diagnostics.format();
   EXPECT_THAT(diagnostics.items()[0].format(), HasSubstr("dev.dcf:40: error: [1014]"));
   EXPECT_THAT(diagnostics.items()[0].message, HasSubstr("no node-ID"));
+}
+
+// Issue 9: what the concise stage says about a value names the line of the value's own key,
+// as read from the file (ParameterValue=, DefaultValue=, an entry of [xxxxValue]), not the
+// line of its section. No node-ID is known, so every $NODEID value is an error (DSP 302 §6.2
+// needs the node-ID to compute it).
+TEST(ConciseWrites, DiagnosticsNameTheLineOfTheValueKey) {
+  const std::string text =
+      "[1014]\n"                       // 1
+      "ParameterName=COB-ID EMCY\n"    // 2
+      "ObjectType=0x7\n"               // 3
+      "DataType=0x0007\n"              // 4
+      "AccessType=rw\n"                // 5
+      "DefaultValue=$NODEID+0x80\n"    // 6
+      "ParameterValue=$NODEID+0x81\n"  // 7
+      "[1012]\n"                       // 8
+      "ParameterName=COB-ID TIME\n"    // 9
+      "ObjectType=0x7\n"               // 10
+      "DataType=0x0007\n"              // 11
+      "AccessType=rw\n"                // 12
+      "\n"                             // 13
+      "DefaultValue=$NODEID+0x100\n"   // 14
+      "[2000]\n"                       // 15
+      "ParameterName=Offsets\n"        // 16
+      "ObjectType=0x8\n"               // 17
+      "DataType=0x0007\n"              // 18
+      "AccessType=rw\n"                // 19
+      "CompactSubObj=2\n"              // 20
+      "[2000Value]\n"                  // 21
+      "NrOfEntries=1\n"                // 22
+      "1=$NODEID\n";                   // 23
+  ReadOptions read_options;
+  read_options.file_name = "dev.dcf";
+  auto read = parse_device_description(text, read_options);
+  ASSERT_TRUE(read.device.has_value()) << read.diagnostics.format();
+
+  Diagnostics configured;
+  EXPECT_FALSE(concise_writes_from_dcf(*read.device, options(), configured).has_value());
+  std::vector<int> lines;
+  for (const auto& d : configured.items()) lines.push_back(d.line);
+  EXPECT_THAT(lines, ElementsAre(7, 23)) << configured.format();  // 1014h, then 2000h sub 1
+  EXPECT_THAT(configured.items()[0].format(), HasSubstr("dev.dcf:7: error: [1014] ParameterValue"));
+
+  Diagnostics with_defaults;
+  EXPECT_FALSE(
+      concise_writes_from_dcf(*read.device, options(ConciseSelection::WithDefaults), with_defaults)
+          .has_value());
+  lines.clear();
+  for (const auto& d : with_defaults.items()) lines.push_back(d.line);
+  // By index: 1012h DefaultValue (line 14), 1014h ParameterValue, 2000h sub 1.
+  EXPECT_THAT(lines, ElementsAre(14, 7, 23)) << with_defaults.format();
 }
 
 TEST(ConciseWrites, NodeIdIsNotNeededWhenNoValueUsesIt) {

@@ -64,6 +64,7 @@ int run_encode(const EncodeOptions& options) {
   read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
   read_options.file_name = name;
   cfg::ReadResult read = cfg::parse_device_description(*text, read_options);
+  std::string().swap(*text);  // the model holds copies: give the file's bytes back now
 
   cfg::Diagnostics diagnostics = read.diagnostics;
   std::optional<std::vector<cfg::ObjectWrite>> writes;

@@ -57,10 +57,10 @@ ReadResult read_device_file(const std::string& path, ReadOptions options = {});
 /// read(2) until end of file (a file that grows meanwhile is read to its end; pipes and other
 /// files without a size work too). Every tool reads its input this way; a stream iterator costs
 /// more than parsing. Fails, without the path in the message (the caller names the file), with
-/// "is a directory", "cannot open: <reason>" or "cannot read: <reason>".
+/// "is a directory", "cannot open the file: <reason>" or "cannot read the file: <reason>".
 Result<std::string> read_file(const std::string& path);
 /// The same from an open descriptor (standard input: 0) to its end; the descriptor stays open
-/// and owned by the caller. Fails with "cannot read: <reason>".
+/// and owned by the caller. Fails with "cannot read the file: <reason>".
 Result<std::string> read_file(int fd);
 
 enum class FileKind { Eds, Dcf };
