@@ -129,14 +129,17 @@ int main(int argc, char** argv) {
   const fs::path dir = dir_template;
   const fs::path dcf = dir / "big.dcf";
   const std::string text = bench::generated_big_dcf();
-  std::ofstream(dcf, std::ios::binary).write(text.data(), static_cast<std::streamsize>(text.size()));
+  std::ofstream(dcf, std::ios::binary)
+      .write(text.data(), static_cast<std::streamsize>(text.size()));
   const double mb = static_cast<double>(text.size()) / 1e6;
 
   const std::vector<Command> commands = {
-      {"dcf2concise big.dcf -o out.bin", {dcf.string(), "-o", (dir / "out.bin").string()},
+      {"dcf2concise big.dcf -o out.bin",
+       {dcf.string(), "-o", (dir / "out.bin").string()},
        "dcf2concise"},
       {"cfgmgr check big.dcf", {"check", dcf.string()}, "cfgmgr"},
-      {"cfgmgr fmt big.dcf -o out.dcf", {"fmt", dcf.string(), "-o", (dir / "out.dcf").string()},
+      {"cfgmgr fmt big.dcf -o out.dcf",
+       {"fmt", dcf.string(), "-o", (dir / "out.dcf").string()},
        "cfgmgr"},
   };
   auto program = [](const std::string& build, const std::string& tool) {

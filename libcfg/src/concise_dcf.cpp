@@ -226,9 +226,7 @@ class WriteBuilder {
   }
   // `key_line`: the line of the key the message is about, when the model knows it.
   void report(const Location& at, Severity severity, std::string message, int key_line = 0) {
-    const int line = key_line != 0      ? key_line
-                     : at.sub->line != 0 ? at.sub->line
-                                         : at.object->line;
+    const int line = key_line != 0 ? key_line : at.sub->line != 0 ? at.sub->line : at.object->line;
     diagnostics_.add(options_.file_name, line, severity,
                      section_name(*at.object, *at.sub) + " " + std::move(message));
     if (severity == Severity::Error) failed_ = true;

@@ -167,8 +167,7 @@ ReadResult read_device_file(const std::string& path, ReadOptions options) {
   auto text = read_file(path);
   if (!text) {
     ReadResult result;
-    result.diagnostics.add(options.file_name, 0, Severity::Error,
-                           text.error().message);
+    result.diagnostics.add(options.file_name, 0, Severity::Error, text.error().message);
     return result;
   }
   return parse_device_description(*text, options);

@@ -112,8 +112,7 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
   for (std::size_t begin = 0; begin < sorted.size();) {
     std::size_t end = begin + 1;
     while (end < sorted.size() && sorted[end]->index == sorted[begin]->index) ++end;
-    by_object.emplace(sorted[begin]->index,
-                      ObjectWrites(sorted).subspan(begin, end - begin));
+    by_object.emplace(sorted[begin]->index, ObjectWrites(sorted).subspan(begin, end - begin));
     begin = end;
   }
 

@@ -17,8 +17,7 @@ Result<std::string> read_file(int fd) {
   // A regular file's size is known: one allocation and usually one read (the +1 lets the read
   // that sees end of file fit without growing). Pipes and /proc files report no size, so the
   // buffer grows while data keeps coming.
-  std::string text(sized ? static_cast<std::size_t>(st.st_size) + 1 : std::size_t{64 * 1024},
-                   '\0');
+  std::string text(sized ? static_cast<std::size_t>(st.st_size) + 1 : std::size_t{64 * 1024}, '\0');
   std::size_t used = 0;
   for (;;) {
     if (used == text.size()) text.resize(text.size() * 2);

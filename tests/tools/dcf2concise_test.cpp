@@ -511,8 +511,8 @@ TEST(Dcf2Concise, StrictAcceptsAnEmptyConfiguration) {
          "[1018sub1]\r\nParameterName=Vendor-ID\r\nObjectType=0x7\r\nDataType=0x0007\r\n"
          "AccessType=ro\r\nDefaultValue=0\r\nPDOMapping=0\r\n"
          "[DeviceComissioning]\r\nNodeID=5\r\nBaudrate=500\r\n";
-  auto r = run("dcf2concise", {"no_params.dcf", "--strict", "-o", "out.bin"}, dir.path(),
-               dir.path());
+  auto r =
+      run("dcf2concise", {"no_params.dcf", "--strict", "-o", "out.bin"}, dir.path(), dir.path());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr("no_params.dcf: note: no ParameterValue to download: the concise "
                                "DCF is empty, a valid configuration"));
@@ -550,8 +550,9 @@ TEST(Dcf2Concise, DecodeShowsCobIdsAndMappingEntriesAsHex) {
   std::ofstream(dir / "k.bin", std::ios::binary)
       .write(reinterpret_cast<const char*>(bytes.data()),
              static_cast<std::streamsize>(bytes.size()));
-  auto named = run("dcf2concise", {"--decode", dir / "k.bin", "--dcf", data_path("concise/node5.dcf")},
-                   dir.path());
+  auto named =
+      run("dcf2concise", {"--decode", dir / "k.bin", "--dcf", data_path("concise/node5.dcf")},
+          dir.path());
   ASSERT_EQ(named.exit_code, 0) << named.err;
   std::vector<std::string> lines;
   std::istringstream in(named.out);

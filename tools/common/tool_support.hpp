@@ -15,8 +15,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <memory>
 #include <iterator>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -157,8 +157,8 @@ inline cfg::Result<std::string> read_input(const std::string& path) {
   const bool from_stdin = path == "-";
   auto text = from_stdin ? cfg::read_file(STDIN_FILENO) : cfg::read_file(path);
   if (!text) {
-    return cfg::Error{(from_stdin ? std::string("<stdin>") : path) + ": error: " +
-                      text.error().message};
+    return cfg::Error{(from_stdin ? std::string("<stdin>") : path) +
+                      ": error: " + text.error().message};
   }
   return text;
 }

@@ -34,8 +34,9 @@ std::string empty_stream_note(cfg::ConciseSelection selection) {
       why = "no ParameterValue to download";
       break;
   }
-  why += ": the concise DCF is empty, a valid configuration (DSP 302 §6.2: only the entry "
-         "count, 0)";
+  why +=
+      ": the concise DCF is empty, a valid configuration (DSP 302 §6.2: only the entry "
+      "count, 0)";
   if (selection == cfg::ConciseSelection::Configured) {
     why += "; use --with-defaults to include DefaultValues";
   }
