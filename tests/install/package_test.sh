@@ -60,7 +60,7 @@ runtime_name=$(dpkg-deb -f "$runtime" Package)
 # Shared libraries with their SONAME, the schemas; what they link comes from dpkg-shlibdeps.
 has_files "$runtime" "lib/libcanopen-cfg.so.$version" "lib/libcanopen-nmt-core.so.$version" \
   "lib/libcanopen-nmt-io.so.$version" share/canopen/schemas/cia301_communication.eds
-has_depends "$runtime" '(^|, )libc6' 'libinih' 'libmsgpackc' 'libpcap0'
+has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' 'libpcap0'
 # Headers, archives, .so links, CMake and pkg-config; a static link needs the deps' -dev packages.
 has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/frame.hpp \
   lib/libcanopen-cfg.a lib/libcanopen-nmt-core.so lib/cmake/canopen/canopenConfig.cmake \
