@@ -243,7 +243,7 @@ void SdoServer::handle(const Bytes& d, TimePoint now) {
         case kCcsInitiateDownload:
           return initiate_download(d, now);
         case kCcsInitiateUpload:
-          if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
+          if (auto code = dict_->read(index_, sub_, buffer_, now); code != SdoAbort::None) {
             return send_abort(code, now);
           }
           return start_upload(now);
@@ -286,7 +286,7 @@ void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
                e && e->fixed_size() && *e->fixed_size() <= 4) {
       size = *e->fixed_size();  // size not indicated: the object's own size
     }
-    const auto code = dict_->write(index_, sub_, std::span(d).subspan(4, size));
+    const auto code = dict_->write(index_, sub_, std::span(d).subspan(4, size), now);
     if (code != SdoAbort::None) return send_abort(code, now);
     Bytes r{};
     r[0] = kScsInitiateDownload << 5;
@@ -335,7 +335,7 @@ void SdoServer::download_segment(const Bytes& d, TimePoint now) {
 
 void SdoServer::finish_download(TimePoint now, std::uint8_t response) {
   if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, now);
-  const auto code = dict_->write(index_, sub_, buffer_);
+  const auto code = dict_->write(index_, sub_, buffer_, now);
   if (code != SdoAbort::None) return send_abort(code, now);
   Bytes r{};
   r[0] = response;
@@ -461,7 +461,7 @@ void SdoServer::block_upload(const Bytes& d, TimePoint now) {
       const std::uint8_t block_size = d[4];
       const std::uint8_t pst = d[5];
       if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, now);
-      if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
+      if (auto code = dict_->read(index_, sub_, buffer_, now); code != SdoAbort::None) {
         return send_abort(code, now);
       }
       // Protocol switch threshold: small values may go by the normal upload protocol.
