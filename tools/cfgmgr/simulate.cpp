@@ -124,7 +124,7 @@ void run_simulate(const SimulateOptions& options) {
       std::cerr << parsed->path << ": error: " << device.error().message << '\n';
       exit_with(tools::kExitInputErrors);
     }
-    const std::uint8_t node = device.value().node_id();
+    const std::uint8_t node = device.value().node().node_id();
     if (auto [it, inserted] = by_node.emplace(node, parsed->path); !inserted) {
       std::cerr << "cfgmgr simulate: node-ID " << int{node} << " given twice (" << it->second
                 << " and " << parsed->path << ")\n";
@@ -168,7 +168,7 @@ void run_simulate(const SimulateOptions& options) {
     auto& device = *devices[i];
     nmt::EngineRef<nmt::SimulatedDevice>::EventHandler print;
     if (options.verbose) {
-      const int node = device.node_id();
+      const int node = device.node().node_id();
       print = [node, start](const nmt::SlaveEvent& e, nmt::TimePoint) {
         std::cout << seconds_since(start, e.at) << "  node " << node << "  "
                   << nmt::to_string(e.kind) << ": " << e.text << '\n'
@@ -177,7 +177,7 @@ void run_simulate(const SimulateOptions& options) {
     }
     refs.push_back(std::make_unique<nmt::EngineRef<nmt::SimulatedDevice>>(device, print));
     loop.add(*refs.back());
-    std::cout << "node " << int{device.node_id()} << ": " << names[i] << '\n';
+    std::cout << "node " << int{device.node().node_id()} << ": " << names[i] << '\n';
   }
   if (options.verbose) {
     loop.set_observer(

@@ -120,19 +120,9 @@ class FaultInjectedSlave {
                        Output& out);
 
   // --- the node and its faults --------------------------------------------------------------
+  /// The node, to observe it (state, dictionary, stored values, programs) and drive its API.
   SlaveNode& node() { return *node_; }
   const SlaveNode& node() const { return *node_; }
-  cfg::NodeId node_id() const { return node_->node_id(); }
-  NmtState state() const { return node_->state(); }
-  bool powered() const { return node_->powered(); }
-  LocalDictionary& dictionary() { return node_->dictionary(); }
-  const LocalDictionary& dictionary() const { return node_->dictionary(); }
-  const std::map<std::uint32_t, std::vector<std::uint8_t>>& stored() const {
-    return node_->stored();
-  }
-  std::optional<ProgramState> program_state(std::uint8_t program) const {
-    return node_->program_state(program);
-  }
   /// The node's options as given (the SDO server timeout without the latency fault's share).
   const SlaveNodeOptions& options() const;
   /// SlaveNode::set_options, keeping the latency fault's share of the SDO server timeout.
