@@ -616,7 +616,7 @@ TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareReportsTheDownloadedProgr
 }
 
 TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareKeepsItsValueWhenTheVersionIsNotGiven) {
-  // Without SimulatedDeviceOptions::downloaded_program_version the simulator does not invent a
+  // Without SlaveNodeOptions::downloaded_program_version the simulator does not invent a
   // date (documented default): a master comparing with 1F53h/1F54h still sees the old one.
   Rig rig({}, sim_eds_with_1f52());
   rig.boot();

@@ -95,7 +95,7 @@ cfg::Result<std::unique_ptr<SlaveNode>> SlaveNode::create(const cfg::DeviceDescr
   auto factory = LocalDictionary::from_device(description, node_id);
   if (!factory) return factory.error();
   return std::make_unique<SlaveNode>(Key{}, description, std::move(factory).value(), node_id,
-                                     std::move(options));
+                                     options);
 }
 
 SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary factory,
@@ -103,7 +103,7 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
     : description_(std::move(description)),
       factory_(std::move(factory)),
       dict_(factory_),
-      options_(std::move(options)),
+      options_(options),
       nmt_(node_id),
       sdo_(dict_, SdoServerConfig::for_node(node_id)),
       heartbeat_(node_id),
@@ -134,7 +134,7 @@ void SlaveNode::install_hooks() {
 
 void SlaveNode::set_options(SlaveNodeOptions options) {
   const bool timeout_changed = options.sdo_server_timeout != options_.sdo_server_timeout;
-  options_ = std::move(options);
+  options_ = options;
   if (timeout_changed) {
     auto config = sdo_.config();
     config.timeout = options_.sdo_server_timeout;

@@ -78,7 +78,7 @@ const SlaveNodeOptions& FaultInjectedSlave::options() const {
 }
 
 void FaultInjectedSlave::set_options(SlaveNodeOptions options) {
-  state_->options = std::move(options);
+  state_->options = options;
   apply_sdo_timeout();
 }
 
@@ -103,7 +103,7 @@ void FaultInjectedSlave::apply_sdo_timeout() {
   // The server sees requests undelayed: its timeout must also cover the response's latency.
   SlaveNodeOptions options = state_->options;
   options.sdo_server_timeout += state_->faults.sdo_latency;
-  node_->set_options(std::move(options));
+  node_->set_options(options);
 }
 
 // --- resets --------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ cfg::Result<SimulatedDevice> SimulatedDevice::create(const cfg::DeviceDescriptio
   if (!valid) {
     return cfg::Error{"node-ID " + std::to_string(*node_id) + " is out of range 1..127"};
   }
-  auto node = SlaveNode::create(description, *valid, std::move(options));
+  auto node = SlaveNode::create(description, *valid, options);
   if (!node) return node.error();
   return SimulatedDevice(std::move(node).value(), std::move(faults));
 }
