@@ -59,6 +59,12 @@ std::uint32_t crc32(std::span<const std::uint8_t> data) {
   return ~crc;
 }
 
+// The frames a part sent, in order, into the node's output (its events the node handles).
+template <class Part>
+void forward_frames(const Outbox<Part>& part, SlaveNode::Output& out) {
+  out.frames.insert(out.frames.end(), part.frames.begin(), part.frames.end());
+}
+
 }  // namespace
 
 std::string_view to_string(SlaveEvent::Kind kind) {
@@ -258,7 +264,9 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   bool taken = false;
 
   if (services.sdo && !frame.rtr && !frame.error) {
-    taken = sdo_.on_frame(frame, now, out.frames) || taken;
+    SdoServer::Output sdo_out;
+    taken = sdo_.on_frame(frame, now, sdo_out) || taken;
+    forward_frames(sdo_out, out);
   }
 
   if (services.error_control) {
@@ -266,7 +274,7 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     if (heartbeat_.period_ms() == 0) {
       NodeGuardingSlave::Output guarding_out;
       taken = guarding_.on_frame(frame, now, guarding_out) || taken;
-      out.frames.insert(out.frames.end(), guarding_out.frames.begin(), guarding_out.frames.end());
+      forward_frames(guarding_out, out);
       for (auto event : guarding_out.events) {
         if (event != LifeGuardingEvent::Resolved) continue;
         emit(SlaveEvent::Kind::LifeGuarding, now, "life guarding resolved");
@@ -299,7 +307,7 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     boot_at_.reset();
     NmtSlave::Output nmt_out;
     nmt_.finish_initialisation(now, nmt_out);
-    out.frames.insert(out.frames.end(), nmt_out.frames.begin(), nmt_out.frames.end());
+    forward_frames(nmt_out, out);
     heartbeat_.on_boot_up(now);
     emit(SlaveEvent::Kind::Boot, now, "boot-up");
   }
@@ -307,7 +315,7 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     sync_parts();
     HeartbeatProducer::Output heartbeat_out;
     heartbeat_.on_timer(now, heartbeat_out);
-    out.frames.insert(out.frames.end(), heartbeat_out.frames.begin(), heartbeat_out.frames.end());
+    forward_frames(heartbeat_out, out);
 
     NodeGuardingSlave::Output guarding_out;
     guarding_.on_timer(now, guarding_out);
@@ -327,14 +335,11 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     sync_parts();
     EmcyProducer::Output emcy_out;
     emcy_.on_timer(now, emcy_out);
-    out.frames.insert(out.frames.end(), emcy_out.frames.begin(), emcy_out.frames.end());
-    if (nmt_.services().sdo) {
-      sdo_.on_timer(now, out.frames);
-    } else {
-      // Stopped: a transfer that times out now is not answered.
-      std::vector<CanFrame> discarded;
-      sdo_.on_timer(now, discarded);
-    }
+    forward_frames(emcy_out, out);
+    SdoServer::Output sdo_out;
+    sdo_.on_timer(now, sdo_out);
+    // Stopped: a transfer that times out now is not answered.
+    if (nmt_.services().sdo) forward_frames(sdo_out, out);
   }
   take_events(out);
 }
@@ -367,7 +372,7 @@ void SlaveNode::send_emcy(const Emergency& emcy, TimePoint now, Output& out) {
   sync_parts();
   EmcyProducer::Output emcy_out;
   emcy_.raise(emcy, now, emcy_out);
-  out.frames.insert(out.frames.end(), emcy_out.frames.begin(), emcy_out.frames.end());
+  forward_frames(emcy_out, out);
 }
 
 void SlaveNode::raise_emergency(std::uint16_t error_code, std::uint8_t error_register_bits,

@@ -15,12 +15,6 @@ bool on_cob_id(const CanFrame& frame, const cfg::CobId& cob_id) {
   return can_id && frame.id == can_id->id && frame.extended == can_id->extended;
 }
 
-// TEMPORARY until the SDO server's COB-IDs are cfg::CobId words (main after the SDO rework).
-[[maybe_unused]] bool on_cob_id(const CanFrame& frame, std::uint32_t id) {
-  return on_cob_id(frame, id > cfg::kMaxStandardCanId ? cfg::CobId::of({id, true})
-                                                      : cfg::CobId::standard(id));
-}
-
 }  // namespace
 
 struct FaultInjectedSlave::State {
