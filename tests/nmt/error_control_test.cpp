@@ -256,8 +256,7 @@ TEST(NodeGuardingSlave, PreOperationalRepliesMatchSpecExample) {
 
 TEST(NodeGuardingSlave, StoppedStateIsFour) {
   NodeGuardingSlave g(id(1));
-  EXPECT_EQ(to_candump(*guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Stopped).reply),
-            "705#04");
+  EXPECT_EQ(to_candump(*guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Stopped).reply), "705#04");
 }
 
 TEST(NodeGuardingSlave, ResetReturnsToggleToZero) {
@@ -277,7 +276,7 @@ TEST(NodeGuardingSlave, IgnoresOtherNodesAndDataFrames) {
 
 TEST(NodeGuardingSlave, LifeGuardingStartsWithFirstRequestAndFiresAfterLifeTime) {
   NodeGuardingSlave g(id(1));
-  g.configure(100, 3);                     // life time 300 ms
+  g.configure(100, 3);                          // life time 300 ms
   EXPECT_FALSE(g.next_deadline().has_value());  // spec/002: starts with the first remote frame
   (void)guard(g, frame("705#R1"), at_ms(1000), 5, NmtState::Operational);
   EXPECT_EQ(g.next_deadline(), at_ms(1300));
@@ -356,7 +355,7 @@ TEST(NodeGuardingMaster, TimesOutAfterLifeTimeFactorMissedReplies) {
   EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::Timeout);
   EXPECT_EQ(ev[0].at, at_ms(300));
   EXPECT_TRUE(tick(m, at_ms(400), out).empty());  // reported once
-  EXPECT_EQ(out.size(), 5u);                         // requests go on
+  EXPECT_EQ(out.size(), 5u);                      // requests go on
   auto back = feed(m, frame("705#05"), at_ms(410));
   ASSERT_EQ(back.size(), 1u);
   EXPECT_EQ(back[0].kind, NodeGuardingEventKind::Resolved);

@@ -182,7 +182,8 @@ TEST(LocalDictionary, UnicodeStringOfOddLengthAbortsWithLengthMismatch) {
 
 TEST(LocalDictionary, ValueAboveHighLimitAbortsWithValueTooHigh) {
   auto d = make();
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{101, 0}, kNow), SdoAbort::ValueTooHigh);  // INTEGER16 101 > 100
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{101, 0}, kNow),
+            SdoAbort::ValueTooHigh);  // INTEGER16 101 > 100
   EXPECT_EQ(d.write(0x2003, 0, Bytes{0xE9, 0x03, 0, 0}, kNow), SdoAbort::ValueTooHigh);  // 1001
   EXPECT_EQ(d.write(0x2008, 0, real32(2.75f), kNow), SdoAbort::ValueTooHigh);
 }
@@ -222,11 +223,11 @@ TEST(LocalDictionary, NanIsOutsideEveryRange) {
 TEST(LocalDictionary, WriteHookCanRejectAndValueStays) {
   auto d = make();
   Bytes seen;
-  d.add_write_hook([&](std::uint16_t index, std::uint8_t, std::span<const std::uint8_t> data,
-                       TimePoint) {
-    seen.assign(data.begin(), data.end());
-    return index == 0x1017 ? SdoAbort::DeviceState : SdoAbort::None;
-  });
+  d.add_write_hook(
+      [&](std::uint16_t index, std::uint8_t, std::span<const std::uint8_t> data, TimePoint) {
+        seen.assign(data.begin(), data.end());
+        return index == 0x1017 ? SdoAbort::DeviceState : SdoAbort::None;
+      });
   int observed = 0;
   d.add_write_observer(
       [&](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>, TimePoint) { ++observed; });
@@ -253,11 +254,11 @@ TEST(LocalDictionary, WriteHookSeesOnlyValuesThatPassedTheChecks) {
 TEST(LocalDictionary, ObserverSeesTheStoredValueAfterCommit) {
   auto d = make();
   Bytes value_in_dictionary;
-  d.add_write_observer([&](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>,
-                           TimePoint) {
-    auto b = d.get_bytes(index, sub);
-    value_in_dictionary.assign(b->begin(), b->end());
-  });
+  d.add_write_observer(
+      [&](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>, TimePoint) {
+        auto b = d.get_bytes(index, sub);
+        value_in_dictionary.assign(b->begin(), b->end());
+      });
   EXPECT_EQ(d.write(0x1017, 0, Bytes{0xE8, 0x03}, kNow), SdoAbort::None);
   EXPECT_EQ(value_in_dictionary, (Bytes{0xE8, 0x03}));
 }

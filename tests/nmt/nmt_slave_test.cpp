@@ -104,7 +104,7 @@ TEST(NmtSlave, ResetCommunicationFromStoppedAsksForResetCommunication) {
 TEST(NmtSlave, NodeIdZeroAddressesAllNodes) {
   NmtSlave a = booted(1);
   NmtSlave b = booted(127);
-    EXPECT_EQ(feed(a, "000#0100")->to, NmtState::Operational);
+  EXPECT_EQ(feed(a, "000#0100")->to, NmtState::Operational);
   EXPECT_EQ(feed(b, "000#0100")->to, NmtState::Operational);
 }
 

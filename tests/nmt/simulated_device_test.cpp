@@ -69,9 +69,8 @@ class Rig {
 
   SimulatedDevice& device() { return device_->engine(); }
   void power_on() {
-    device_->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) {
-      d.power_on(now);
-    });
+    device_->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
   }
   /// Raises an emergency at the bus's time; the frames the device sent for it at once.
   std::vector<std::string> raise_emergency(std::uint16_t code, std::uint8_t bits) {
@@ -951,7 +950,8 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     bus.attach(node);
     bus.attach(client);
     bus.add_observer([&](const CanFrame& f, TimePoint) { seen.push_back(to_candump(f)); });
-    node.apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+    node.apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
     bus.run_for(10ms);
     ASSERT_FALSE(seen.empty());
     EXPECT_EQ(seen.front(), "703#00");

@@ -95,8 +95,8 @@ bool LocalDictionary::has_object(std::uint16_t index) const {
   return it != entries_.end() && it->second.index == index;
 }
 
-SdoAbort LocalDictionary::read(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t>& out,
-                               TimePoint now) const {
+SdoAbort LocalDictionary::read(std::uint16_t index, std::uint8_t sub,
+                               std::vector<std::uint8_t>& out, TimePoint now) const {
   const auto* e = entry(index, sub);
   if (!e) return has_object(index) ? SdoAbort::SubIndexDoesNotExist : SdoAbort::ObjectDoesNotExist;
   if (!cfg::is_readable(e->access)) return SdoAbort::ReadOfWriteOnly;

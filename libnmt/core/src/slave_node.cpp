@@ -199,7 +199,8 @@ void SlaveNode::enter_initialisation(ResetScope scope, TimePoint now) {
 void SlaveNode::restore(ResetScope scope) {
   std::vector<cfg::ObjectAddress> addresses;
   addresses.reserve(dict_.entries().size());
-  for (const auto& [key, entry] : dict_.entries()) addresses.push_back({entry.index, entry.sub_index});
+  for (const auto& [key, entry] : dict_.entries())
+    addresses.push_back({entry.index, entry.sub_index});
   for (auto [index, sub] : addresses) {
     if (is_program_object(index)) continue;  // the program has its own memory
     if (scope == ResetScope::Communication &&

@@ -50,16 +50,12 @@ FaultInjectedSlave::FaultInjectedSlave(std::unique_ptr<SlaveNode> node, DeviceFa
   // object at all would.
   State* state = state_.get();
   auto& dict = node_->dictionary();
-  dict.add_write_hook(
-      [state](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>, TimePoint) {
-        return state->injected_abort(index, sub, true);
-      },
-      LocalDictionary::HookPosition::First);
-  dict.add_read_hook(
-      [state](std::uint16_t index, std::uint8_t sub, TimePoint) {
-        return state->injected_abort(index, sub, false);
-      },
-      LocalDictionary::HookPosition::First);
+  dict.add_write_hook([state](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>,
+                              TimePoint) { return state->injected_abort(index, sub, true); },
+                      LocalDictionary::HookPosition::First);
+  dict.add_read_hook([state](std::uint16_t index, std::uint8_t sub,
+                             TimePoint) { return state->injected_abort(index, sub, false); },
+                     LocalDictionary::HookPosition::First);
   set_faults(std::move(faults));
 }
 
@@ -154,9 +150,9 @@ bool FaultInjectedSlave::on_frame(const CanFrame& frame, TimePoint now, Output& 
     if (f.reboot_at_sdo_request && !state_->reboot_fired &&
         state_->sdo_requests >= *f.reboot_at_sdo_request) {
       state_->reboot_fired = true;
-      out.report({SlaveEvent::Kind::Fault, now,
-                  "power cycle at SDO request " + std::to_string(state_->sdo_requests) +
-                      " (injected)"});
+      out.report(
+          {SlaveEvent::Kind::Fault, now,
+           "power cycle at SDO request " + std::to_string(state_->sdo_requests) + " (injected)"});
       power_on(now);
       return true;
     }
@@ -204,9 +200,8 @@ std::optional<TimePoint> FaultInjectedSlave::next_deadline() const {
   return earliest(next, state_->sdo_responses.next_due());
 }
 
-void FaultInjectedSlave::raise_emergency(std::uint16_t error_code,
-                                         std::uint8_t error_register_bits, TimePoint now,
-                                         Output& out) {
+void FaultInjectedSlave::raise_emergency(std::uint16_t error_code, std::uint8_t error_register_bits,
+                                         TimePoint now, Output& out) {
   if (!node_->powered() || state_->faults.absent) return;
   Output inner;
   node_->raise_emergency(error_code, error_register_bits, now, inner);
