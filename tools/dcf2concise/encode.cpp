@@ -72,6 +72,7 @@ int run_encode(const EncodeOptions& options) {
     concise.node_id = options.node_id;
     concise.selection = options.selection;
     concise.file_name = name;
+    concise.node_id_hint = "give one with --node-id N";
     concise.base_dir = options.input == "-"
                            ? std::string(".")
                            : std::filesystem::path(options.input).parent_path().string();

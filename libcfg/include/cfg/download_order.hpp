@@ -68,7 +68,4 @@ std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,
 using object::PdoIndices;
 using object::pdo_indices_of;
 
-/// Bit 31 of a PDO COB-ID: set = PDO does not exist / is not valid (CiA 301 §7.5.2.35).
-inline constexpr std::uint32_t kPdoCobIdInvalid = kCobIdInvalidBit;
-
 }  // namespace cfg
