@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Builds and runs the whole test suite: unit tests, tools end to end, the corpus tier (skipped when
-# ../shared is absent), the UDP bus against python-can in a network namespace, the SocketCAN VM
-# tier, and a short smoke run of every fuzz target. This is the command the README and .ci/run use.
+# Builds and runs the whole test suite, every tier (CTest labels, tests/CMakeLists.txt): unit, io
+# (drivers and traces; the UDP bus against python-can in a network namespace), interop (python-can,
+# tshark, can-utils, the corpus in ../shared, skipped when absent), tools end to end, install (a
+# temporary prefix, consumers of it, the Debian packages), the SocketCAN VM tier; then a short smoke
+# run of every fuzz target. This is the command the README and .ci/run use.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD_DIR:-$root/build}

@@ -4,12 +4,14 @@
 set -euo pipefail
 
 packages=(
-  # build
-  g++ cmake make pkg-config
+  # build; man pages from --help
+  g++ cmake make pkg-config help2man
   # libraries the product uses
   libinih-dev zlib1g-dev libcli11-dev libmsgpack-dev libpcap-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # install tier: Debian packages with CPack (dpkg-shlibdeps, file), man pages rendered
+  dpkg-dev file man-db
   # fuzzing (libFuzzer ships with clang's runtime) and the sanitizer build
   clang libclang-rt-14-dev
   # bus tests: python-can as an independent peer, can-utils, network namespaces

@@ -1,14 +1,17 @@
 #include "cfg/schema.hpp"
-#include "cfg/hex.hpp"
 
 #include <array>
-#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <system_error>
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
 
-#ifndef CANOPEN_SCHEMA_DIR
-#define CANOPEN_SCHEMA_DIR "schemas"
+// The schema directory seen from the directory of the installed programs (libcfg/CMakeLists.txt).
+#ifndef CANOPEN_SCHEMA_DIR_FROM_PROGRAM
+#error "libcfg/CMakeLists.txt defines CANOPEN_SCHEMA_DIR_FROM_PROGRAM"
 #endif
 
 namespace cfg {
@@ -147,10 +150,39 @@ void check_object(const Object& object, const Object& standard, std::string_view
   }
 }
 
+// True when `dir` holds the file of every standard schema.
+bool holds_schemas(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (std::string_view name : kStandardSchemas) {
+    if (!std::filesystem::is_regular_file(dir / (std::string(name) + ".eds"), ec)) return false;
+  }
+  return true;
+}
+
+Error no_schemas_in(const std::string& dir, const std::string& why) {
+  return Error{"no schemas (" + std::string(kCia301Schema) + ".eds, " +
+               std::string(kCia302ManagerSchema) + ".eds) in " + dir + " (" + why + ")"};
+}
+
 }  // namespace
 
-std::string default_schema_dir() {
-  return CANOPEN_SCHEMA_DIR;
+Result<std::string> find_schema_dir() {
+  const std::string variable(kSchemaDirVariable);
+  if (const char* from_env = std::getenv(variable.c_str()); from_env != nullptr && *from_env) {
+    if (holds_schemas(from_env)) return std::string(from_env);
+    return no_schemas_in(from_env, "from " + variable);
+  }
+  std::error_code ec;
+  const std::filesystem::path program = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) {
+    return Error{"no schema directory: the running program's path is unknown (" + ec.message() +
+                 "); set " + variable};
+  }
+  const std::filesystem::path beside =
+      (program.parent_path() / CANOPEN_SCHEMA_DIR_FROM_PROGRAM).lexically_normal();
+  if (holds_schemas(beside)) return beside.string();
+  return no_schemas_in(beside.string(), "where they are installed beside " + program.string() +
+                                            ", and " + variable + " is not set");
 }
 
 Result<DeviceDescription> load_schema(std::string_view name, const std::string& schema_dir) {
@@ -163,6 +195,18 @@ Result<DeviceDescription> load_schema(std::string_view name, const std::string& 
     return Error{"schema " + std::string(name) + " is not clean:\n" + read.diagnostics.format()};
   }
   return std::move(*read.device);
+}
+
+Result<DeviceDescription> load_schema(std::string_view name) {
+  auto dir = find_schema_dir();
+  if (!dir) return dir.error();
+  return load_schema(name, *dir);
+}
+
+Result<DeviceDescription> load_schemas(std::span<const std::string_view> names) {
+  auto dir = find_schema_dir();
+  if (!dir) return dir.error();
+  return load_schemas(names, *dir);
 }
 
 Result<DeviceDescription> load_schemas(std::span<const std::string_view> names,

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -83,9 +84,58 @@ TEST(Schema, Cia302ManagerSchemaLoadsStrictClean) {
   EXPECT_FALSE(r->objects.empty());
 }
 
-TEST(Schema, DefaultDirectoryIsTheCompiledInOne) {
-  EXPECT_EQ(std::filesystem::path(default_schema_dir()), std::filesystem::path(CANOPEN_SCHEMA_DIR));
+// Sets an environment variable for one test (each test runs in its own process under ctest).
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::string& value) : name_(name) {
+    ::setenv(name, value.c_str(), 1);
+  }
+  ~ScopedEnv() { ::unsetenv(name_); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+};
+
+// The build tree has the installed layout (<bindir>/../share/canopen/schemas), which leads to
+// the source tree's schemas/.
+TEST(SchemaDir, FoundBesideTheProgramInTheBuildTree) {
+  ::unsetenv("CANOPEN_SCHEMA_DIR");
+  auto dir = find_schema_dir();
+  ASSERT_TRUE(dir.ok()) << dir.error().message;
+  EXPECT_TRUE(std::filesystem::equivalent(*dir, CANOPEN_SCHEMA_DIR)) << *dir;
   EXPECT_TRUE(load_schema(kCia301Schema).ok());
+  EXPECT_TRUE(load_schemas().ok());
+}
+
+TEST(SchemaDir, EnvironmentVariableOverridesTheInstalledPlace) {
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "schema_env";
+  std::filesystem::create_directories(dir);
+  for (auto name : kStandardSchemas) {
+    const std::string file = std::string(name) + ".eds";
+    std::filesystem::copy_file(std::filesystem::path(CANOPEN_SCHEMA_DIR) / file, dir / file,
+                               std::filesystem::copy_options::overwrite_existing);
+  }
+  ScopedEnv env("CANOPEN_SCHEMA_DIR", dir.string());
+  auto found = find_schema_dir();
+  ASSERT_TRUE(found.ok()) << found.error().message;
+  EXPECT_EQ(*found, dir.string());
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SchemaDir, EnvironmentVariableWithoutSchemasIsAnErrorNotAFallback) {
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "schema_none";
+  std::filesystem::create_directories(dir);
+  ScopedEnv env("CANOPEN_SCHEMA_DIR", dir.string());
+  auto found = find_schema_dir();
+  ASSERT_FALSE(found.ok());
+  EXPECT_THAT(found.error().message, AllOf(HasSubstr(dir.string()), HasSubstr("CANOPEN_SCHEMA_DIR"),
+                                           HasSubstr("cia301_communication.eds")));
+  auto loaded = load_schema(kCia301Schema);
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.error().message, found.error().message);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Schema, MissingSchemaIsAnError) {

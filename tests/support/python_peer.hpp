@@ -1,4 +1,4 @@
-// Runs tests/nmt/python/can_peer.py (python-can as an independent peer) from a test.
+// Runs tests/io/python/can_peer.py (python-can as an independent peer) from a test.
 // Uses Debian's /usr/bin/python3 explicitly: python3-can and python3-msgpack are Debian packages.
 #pragma once
 
@@ -15,7 +15,7 @@
 namespace test_support {
 
 inline std::string can_peer_script() {
-  return std::string(CANOPEN_TEST_DATA_DIR) + "/../nmt/python/can_peer.py";
+  return std::string(CANOPEN_TEST_DATA_DIR) + "/../io/python/can_peer.py";
 }
 
 /// Quotes `s` for /bin/sh.

@@ -64,33 +64,38 @@ void run_check(const CheckOptions& options) {
     std::cerr << "cfgmgr check: error: '-' (stdin) can be given only once\n";
     exit_with(tools::kExitUsage);
   }
-  // The standard's object definitions. The built-in directory may be missing when the tool runs
-  // outside the source tree, which is said once and does not fail the check; a directory the
-  // user named must load (exit 3, before any file is checked).
+  // The standard's object definitions: from --schema-dir, else as cfg::find_schema_dir() finds
+  // them ($CANOPEN_SCHEMA_DIR, or installed beside the program). Never skipped silently: when
+  // they cannot be had the check fails (exit 3, before any file is read); --no-schema opts out.
   std::vector<cfg::DeviceDescription> schemas;
   if (!options.no_schema) {
     const bool asked = !options.schema_dir.empty();
-    const std::string dir = asked ? options.schema_dir : cfg::default_schema_dir();
+    std::string dir = options.schema_dir;
+    if (!asked) {
+      auto found = cfg::find_schema_dir();
+      if (!found) {
+        std::cerr << "cfgmgr check: error: " << found.error().message
+                  << "; give --schema-dir DIR, or --no-schema to check without them\n";
+        exit_with(tools::kExitIo);
+      }
+      dir = std::move(found).value();
+    }
     if (std::error_code ec; asked && !std::filesystem::is_directory(dir, ec)) {
       std::cerr << "cfgmgr check: error: --schema-dir " << dir << ": "
                 << (ec ? ec.message() : std::string("not a directory")) << '\n';
       exit_with(tools::kExitIo);
     }
-    for (auto name : {cfg::kCia301Schema, cfg::kCia302ManagerSchema}) {
+    for (auto name : cfg::kStandardSchemas) {
       auto schema = cfg::load_schema(name, dir);
-      if (schema) {
-        schemas.push_back(std::move(schema).value());
-      } else if (asked) {
+      if (!schema) {
         // The message may end with the schema file's diagnostics, one a line.
         std::string why = schema.error().message;
         while (!why.empty() && why.back() == '\n') why.pop_back();
-        std::cerr << "cfgmgr check: error: --schema-dir " << dir << ": cannot load schema " << name
-                  << ": " << why << '\n';
+        std::cerr << "cfgmgr check: error: " << (asked ? "--schema-dir " : "schema directory ")
+                  << dir << ": cannot load schema " << name << ": " << why << '\n';
         exit_with(tools::kExitIo);
-      } else {
-        std::cerr << "cfgmgr: note: schema " << name << " not used: " << schema.error().message
-                  << '\n';
       }
+      schemas.push_back(std::move(schema).value());
     }
   }
 
@@ -161,7 +166,8 @@ void add_check_command(CLI::App& app) {
                 "Lint: every deviation from CiA 306 and every warning is an error");
   cmd->add_flag("--json", options->json, "Print the result as JSON on stdout");
   cmd->add_option("--schema-dir", options->schema_dir,
-                  "Directory of the schema EDS files (default: the one built in)")
+                  "Directory of the schema EDS files (default: $CANOPEN_SCHEMA_DIR, else "
+                  "share/canopen/schemas of the installation)")
       ->type_name("DIR");
   cmd->add_flag("--no-schema", options->no_schema,
                 "Do not check against the CiA 301/302 object definitions");

@@ -31,20 +31,33 @@ inline constexpr std::string_view kCia302ManagerSchema = "cia302_manager";
 inline constexpr std::array<std::string_view, 2> kStandardSchemas{kCia301Schema,
                                                                   kCia302ManagerSchema};
 
-/// The schema directory compiled in (CANOPEN_SCHEMA_DIR: the source tree's schemas/).
-std::string default_schema_dir();
+/// The environment variable that names the schema directory for find_schema_dir().
+inline constexpr std::string_view kSchemaDirVariable = "CANOPEN_SCHEMA_DIR";
+
+/// Finds the directory of the schemas, in this order:
+///  1. $CANOPEN_SCHEMA_DIR when it is set (and not empty): that directory and no other;
+///  2. the installed layout beside the running program (/proc/self/exe):
+///     `<bindir>/../share/canopen/schemas` (the relative path is the one the build installs to;
+///     the build tree has the same layout, a link to the source tree's schemas/).
+/// A directory is found when it holds the file of every standard schema (kStandardSchemas).
+/// Fails, with a message naming every place it looked and how to give the directory, when none
+/// is found; never falls back to anything else.
+Result<std::string> find_schema_dir();
 
 /// Reads `<schema_dir>/<name>.eds` with the strict reader. Fails when the file cannot be read or
 /// has any diagnostic (a schema must be clean); the message carries the diagnostics.
-Result<DeviceDescription> load_schema(std::string_view name,
-                                      const std::string& schema_dir = default_schema_dir());
+Result<DeviceDescription> load_schema(std::string_view name, const std::string& schema_dir);
+/// The same from find_schema_dir(); fails with its message when no directory is found.
+Result<DeviceDescription> load_schema(std::string_view name);
 
 /// Loads several schemas (each as load_schema does) into one description holding the objects of
 /// all of them, so that a device is checked once. Fails when a schema fails to load, or when two
 /// schemas define the same index differently (cia302_manager repeats 1000h/1001h/1018h, which
 /// CiA 306 requires in every EDS, from cia301_communication).
-Result<DeviceDescription> load_schemas(std::span<const std::string_view> names = kStandardSchemas,
-                                       const std::string& schema_dir = default_schema_dir());
+Result<DeviceDescription> load_schemas(std::span<const std::string_view> names,
+                                       const std::string& schema_dir);
+/// The same from find_schema_dir(); fails with its message when no directory is found.
+Result<DeviceDescription> load_schemas(std::span<const std::string_view> names = kStandardSchemas);
 
 /// Adds a warning to `diagnostics` for each object or sub-object of `device` that the schema
 /// defines differently: ObjectType (VAR/DOMAIN vs ARRAY vs RECORD), DataType, or an AccessType

@@ -1,7 +1,9 @@
 #include "nmt/frame.hpp"
 
 #include <algorithm>
-#include <cstdio>
+
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
 
 namespace nmt {
 
@@ -19,53 +21,37 @@ bool CanFrame::operator==(const CanFrame& other) const {
          dlc == other.dlc && std::equal(data.begin(), data.begin() + dlc, other.data.begin());
 }
 
+namespace {
+// Linux <linux/can.h> CAN_ERR_FLAG: candump writes error frames with it in the 8-digit id.
+constexpr std::uint32_t kCanErrFlag = 0x20000000u;
+}  // namespace
+
 std::string to_candump(const CanFrame& frame) {
   // candump uses 3 hex digits for standard ids and 8 for extended (and error) ids.
-  char buf[32];
-  if (frame.error) {
-    std::snprintf(buf, sizeof buf, "%08X#", frame.id | 0x20000000u);
-  } else if (frame.extended) {
-    std::snprintf(buf, sizeof buf, "%08X#", frame.id);
-  } else {
-    std::snprintf(buf, sizeof buf, "%03X#", frame.id);
-  }
-  std::string out = buf;
+  std::string out = frame.error      ? cfg::hex_digits(frame.id | kCanErrFlag, 8)
+                    : frame.extended ? cfg::hex_digits(frame.id, 8)
+                                     : cfg::hex_digits(frame.id, 3);
+  out += '#';
   if (frame.rtr) {
     out += 'R';
     if (frame.dlc != 0) out += static_cast<char>('0' + frame.dlc);
     return out;
   }
-  static constexpr char kHex[] = "0123456789ABCDEF";
-  for (std::uint8_t i = 0; i < frame.dlc; ++i) {
-    out += kHex[frame.data[i] >> 4];
-    out += kHex[frame.data[i] & 0xF];
-  }
+  for (std::uint8_t i = 0; i < frame.dlc; ++i) out += cfg::hex_digits(frame.data[i], 2);
   return out;
 }
-
-namespace {
-int hex_digit(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  return -1;
-}
-}  // namespace
 
 std::optional<CanFrame> from_candump(std::string_view text) {
   auto hash = text.find('#');
   if (hash == std::string_view::npos || hash == 0 || hash > 8) return std::nullopt;
+  const auto parsed_id = cfg::parse_hex_number(text.substr(0, hash), 8);
+  if (!parsed_id) return std::nullopt;
+  auto id = static_cast<std::uint32_t>(*parsed_id);
   CanFrame f;
-  std::uint32_t id = 0;
-  for (char c : text.substr(0, hash)) {
-    int d = hex_digit(c);
-    if (d < 0) return std::nullopt;
-    id = (id << 4) | static_cast<std::uint32_t>(d);
-  }
   f.extended = hash == 8;
-  if (f.extended && (id & 0x20000000u) != 0) {
+  if (f.extended && (id & kCanErrFlag) != 0) {
     f.error = true;
-    id &= ~0x20000000u;
+    id &= ~kCanErrFlag;
   }
   if (id > (f.extended ? CanFrame::kMaxExtendedId : CanFrame::kMaxStandardId)) return std::nullopt;
   f.id = id;
@@ -81,10 +67,9 @@ std::optional<CanFrame> from_candump(std::string_view text) {
   }
   if (rest.size() % 2 != 0 || rest.size() > 16) return std::nullopt;
   for (std::size_t i = 0; i < rest.size(); i += 2) {
-    int hi = hex_digit(rest[i]);
-    int lo = hex_digit(rest[i + 1]);
-    if (hi < 0 || lo < 0) return std::nullopt;
-    f.data[i / 2] = static_cast<std::uint8_t>(hi << 4 | lo);
+    const auto byte = cfg::parse_hex_number(rest.substr(i, 2), 2);
+    if (!byte) return std::nullopt;
+    f.data[i / 2] = static_cast<std::uint8_t>(*byte);
   }
   f.dlc = static_cast<std::uint8_t>(rest.size() / 2);
   return f;

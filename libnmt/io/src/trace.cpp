@@ -12,8 +12,6 @@
 #include <cstring>
 #include <utility>
 
-#include "nmt/sim_bus.hpp"
-
 namespace nmt {
 
 namespace {
@@ -209,10 +207,6 @@ std::string TracingBus::url() const {
 
 std::function<void(const CanFrame&, TimePoint)> trace_observer(TraceWriter& writer) {
   return [&writer](const CanFrame& frame, TimePoint at) { (void)writer.write(frame, at); };
-}
-
-std::size_t trace_sim_bus(SimBus& bus, TraceWriter& writer) {
-  return bus.add_observer(trace_observer(writer));
 }
 
 }  // namespace nmt

@@ -19,6 +19,8 @@
 #include <cstring>
 #include <utility>
 
+#include "cfg/hex.hpp"
+
 namespace nmt {
 
 namespace {
@@ -278,10 +280,8 @@ cfg::Result<std::vector<std::uint8_t>> encode_udp_datagram(const CanFrame& frame
   if (frame.rtr && frame.error) return cfg::Error{"a frame cannot be both remote and error"};
   const std::uint32_t max_id = frame.extended ? CanFrame::kMaxExtendedId : CanFrame::kMaxStandardId;
   if (frame.id > max_id) {
-    char text[64];
-    std::snprintf(text, sizeof text, "CAN id 0x%X is out of range for %s-bit id", frame.id,
-                  frame.extended ? "a 29" : "an 11");
-    return cfg::Error{text};
+    return cfg::Error{"CAN id " + cfg::hex(frame.id) + " is out of range for " +
+                      (frame.extended ? "a 29" : "an 11") + "-bit id"};
   }
   if (!std::isfinite(timestamp_s) || timestamp_s < 0) timestamp_s = 0;
 

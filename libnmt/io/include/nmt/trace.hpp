@@ -3,8 +3,9 @@
 //    line; read by can-utils (canplayer, log2asc, ...) and python-can (can.LogReader).
 //  - pcap with link type LINKTYPE_CAN_SOCKETCAN (227), written with libpcap; read by Wireshark
 //    and tshark (which decode CANopen with `-d can.subdissector,canopen`).
-// Any bus can be traced: wrap a real driver in TracingBus, or hook a writer to the simulated
-// bus with trace_observer().
+// Any bus can be traced: wrap a real driver in TracingBus, or give the simulated bus an observer
+// made by trace_observer() (sim.add_observer(nmt::trace_observer(writer))); this room does not
+// depend on the simulation.
 #pragma once
 
 #include <cstddef>
@@ -18,8 +19,6 @@
 #include "nmt/frame.hpp"
 
 namespace nmt {
-
-class SimBus;
 
 /// A file that records frames. Not thread-safe. The file is complete when the writer is flushed
 /// or destroyed.
@@ -80,13 +79,10 @@ class TracingBus final : public Bus {
   std::function<TimePoint()> clock_;
 };
 
-/// An observer for the simulated bus (SimBus::add_observer) that writes every frame with the
-/// simulated time it was seen at. `writer` is not owned and must outlive the observer; failures
-/// stay in writer.status().
+/// A frame observer that writes every frame with the time it is given, e.g. for the simulated
+/// bus: `sim.add_observer(trace_observer(writer))` records every frame receivers see at its
+/// simulated delivery time. `writer` is not owned and must outlive the observer; failures stay
+/// in writer.status().
 std::function<void(const CanFrame&, TimePoint)> trace_observer(TraceWriter& writer);
-/// Hooks `writer` to `bus` as an observer (bus.add_observer(trace_observer(writer))): every
-/// frame receivers see, at its simulated delivery time. Returns the handle for
-/// bus.remove_observer(). `writer` is not owned and must outlive the hook.
-std::size_t trace_sim_bus(SimBus& bus, TraceWriter& writer);
 
 }  // namespace nmt

@@ -343,7 +343,7 @@ TEST_F(Trace, SimulatedBusTraceHasDeliveryTimes) {
   SimBus sim(500'000);
   auto writer = open_candump_log(dir_ / "sim.log");
   ASSERT_TRUE(writer.ok());
-  trace_sim_bus(sim, **writer);
+  sim.add_observer(trace_observer(**writer));
   std::vector<TimePoint> seen;  // when the receiving node saw each frame
   FunctionNode a;
   FunctionNode b([&seen](FunctionNode&, const CanFrame&, TimePoint now) { seen.push_back(now); });
