@@ -65,7 +65,7 @@ std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,
                                         const CobIdLookup& current_cob_id = {});
 
 /// PDO parameter indices live with the other object names (object_index.hpp).
-using object::PdoIndices;
 using object::pdo_indices_of;
+using object::PdoIndices;
 
 }  // namespace cfg
