@@ -98,18 +98,18 @@ struct Rig {
   nmt::LocalDictionary dict = nmt::LocalDictionary::from_device(bench_device(), 5).value();
   nmt::SimEngineNode<nmt::SdoServer> server{dict, nmt::SdoServerConfig::for_node(5)};
   nmt::SimEngineNode<nmt::SdoClient> client{nmt::SdoClientConfig::for_node(5)};
+  nmt::SdoResult result;  // the last transfer's
   Rig() {
     bus.attach(server);
     bus.attach(client);
+    client.set_event_handler([this](const nmt::SdoResult& r, nmt::TimePoint) { result = r; });
   }
   nmt::SdoResult run(bool upload, std::vector<std::uint8_t> data, nmt::SdoTransferOptions o) {
-    nmt::SdoResult result;
-    client.apply([&](nmt::SdoClient& c) {
-      auto done = [&](const nmt::SdoResult& r) { result = r; };
+    client.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
       if (upload) {
-        c.upload(0x2000, 0, o, done);
+        c.upload(0x2000, 0, now, out, o);
       } else {
-        c.download(0x2000, 0, std::move(data), o, done);
+        c.download(0x2000, 0, std::move(data), now, out, o);
       }
     });
     bus.run_until_idle();
@@ -124,14 +124,14 @@ void BM_SdoExpeditedTransfers(benchmark::State& state) {
   const auto start = rig.bus.now();
   for (auto _ : state) {
     ++value;
-    bool ok = false;
-    rig.client.apply([&](nmt::SdoClient& c) {
+    rig.result = {};
+    rig.client.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
       c.download(0x1017, 0,
-                 {static_cast<std::uint8_t>(value), static_cast<std::uint8_t>(value >> 8)}, {},
-                 [&](const nmt::SdoResult& r) { ok = r.ok(); });
+                 {static_cast<std::uint8_t>(value), static_cast<std::uint8_t>(value >> 8)}, now,
+                 out);
     });
     rig.bus.run_until_idle();
-    all_ok = all_ok && ok;
+    all_ok = all_ok && rig.result.ok() && rig.result.id != 0;
   }
   if (!all_ok) state.SkipWithError("a transfer failed");
   state.counters["transfers/s"] =

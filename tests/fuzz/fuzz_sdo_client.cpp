@@ -2,7 +2,7 @@
 // the input controls: frames are delivered, dropped, mutated or injected, and time advances.
 // Input: bytes 0..1 configure the server and the transfers (count, kinds, sizes, timeouts);
 // the rest are channel operations. Checks: no crash; once the input ends and frames flow again
-// with time advancing, every transfer ends (its callback is called exactly once) within a
+// with time advancing, every transfer ends (its result is reported exactly once) within a
 // bounded number of steps, the client and server end idle; while the channel is clean (see
 // below) every successful upload returns the server's value and every successful download
 // stored its data.
@@ -11,9 +11,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
+#include <functional>
+#include <map>
 #include <vector>
 
 #include "../support/sdo_test_device.hpp"
+#include "nmt/fault_injection.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/sdo.hpp"
 
@@ -43,40 +46,48 @@ constexpr std::uint16_t kIndices[] = {0x1000, 0x1008, 0x1017, 0x2000, 0x2005, 0x
 
 struct Harness {
   nmt::LocalDictionary dict;
-  nmt::SdoServer server;
+  nmt::Delayed<nmt::SdoServer> server;
   nmt::SdoClient client{nmt::SdoClientConfig::for_node(5)};
   std::deque<CanFrame> to_server, to_client;
   TimePoint now{0};
-  std::vector<CanFrame> out;
+  nmt::SdoServer::Output server_out;
+  nmt::SdoClient::Output client_out;
+  std::function<void(const nmt::SdoResult&)> on_result;
 
-  Harness(nmt::LocalDictionary d, nmt::SdoServerConfig c) : dict(std::move(d)), server(dict, c) {}
+  Harness(nmt::LocalDictionary d, nmt::SdoServerConfig c, nmt::Duration latency)
+      : dict(std::move(d)), server(latency, dict, c) {}
 
+  void from_server() {
+    for (auto& o : server_out.frames) to_client.push_back(o);
+    server_out.clear();
+  }
+  void from_client() {
+    for (auto& o : client_out.frames) to_server.push_back(o);
+    for (auto& r : client_out.events) on_result(r);
+    client_out.clear();
+  }
   void server_step() {
     if (to_server.empty()) return;
     auto f = to_server.front();
     to_server.pop_front();
-    server.on_frame(f, now, out);
-    for (auto& o : out) to_client.push_back(o);
-    out.clear();
+    server.on_frame(f, now, server_out);
+    from_server();
   }
   void client_step() {
     if (to_client.empty()) return;
     auto f = to_client.front();
     to_client.pop_front();
-    client.on_frame(f, now, out);
-    for (auto& o : out) to_server.push_back(o);
-    out.clear();
+    client.on_frame(f, now, client_out);
+    from_client();
   }
   void timers() {
     if (auto d = server.next_deadline(); d && *d <= now) {
-      server.on_timer(now, out);
-      for (auto& o : out) to_client.push_back(o);
-      out.clear();
+      server.on_timer(now, server_out);
+      from_server();
     }
     if (auto d = client.next_deadline(); d && *d <= now) {
-      client.on_timer(now, out);
-      for (auto& o : out) to_server.push_back(o);
-      out.clear();
+      client.on_timer(now, client_out);
+      from_client();
     }
   }
   // Jumps to the earliest deadline (at most `limit` ahead).
@@ -100,10 +111,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::uint8_t setup = in.next();
   auto config = nmt::SdoServerConfig::for_node(5);
   config.block_transfer = (setup & 0x01) == 0;
-  config.response_latency = std::chrono::milliseconds(setup >> 1 & 0x07);
+  const auto latency = std::chrono::milliseconds(setup >> 1 & 0x07);
   config.block_size = static_cast<std::uint8_t>(1 + (setup >> 4) * 8);
   config.timeout = 300ms;
-  Harness h(std::move(dict).value(), config);
+  Harness h(std::move(dict).value(), config, latency);
 
   int started = 0;
   int reported = 0;
@@ -113,6 +124,29 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // no transaction number to tell them from the next transfer's).
   bool corrupted = false;
   bool wrong_result = false;
+  struct Expected {
+    std::uint16_t index;
+    std::vector<std::uint8_t> value;  // download: what was sent
+  };
+  std::map<nmt::SdoClient::TransferId, Expected> expected;
+  h.on_result = [&](const nmt::SdoResult& r) {
+    ++reported;
+    auto it = expected.find(r.id);
+    check(it != expected.end());  // reported once, and only for a transfer that was started
+    const auto [index, value] = std::move(it->second);
+    expected.erase(it);
+    if (!r.ok()) corrupted = true;
+    if (corrupted) return;
+    if (r.upload) {
+      auto stored = h.dict.get_bytes(index, 0);
+      wrong_result |=
+          !stored || !std::equal(stored->begin(), stored->end(), r.data.begin(), r.data.end());
+    } else {
+      auto stored = h.dict.get_bytes(index, 0);
+      wrong_result |=
+          !stored || !std::equal(stored->begin(), stored->end(), value.begin(), value.end());
+    }
+  };
   const int transfers = 1 + in.next() % 6;
   for (int i = 0; i < transfers; ++i) {
     const std::uint8_t kind = in.next();
@@ -128,25 +162,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       value.resize(in.next() * 11 % 1500);
       for (std::size_t k = 0; k < value.size(); ++k) value[k] = static_cast<std::uint8_t>(k);
     }
-    auto done = [&, index, value](const nmt::SdoResult& r) {
-      ++reported;
-      if (!r.ok()) corrupted = true;
-      if (corrupted) return;
-      if (r.upload) {
-        auto expected = h.dict.get_bytes(index, 0);
-        wrong_result |= !expected || !std::equal(expected->begin(), expected->end(), r.data.begin(),
-                                                 r.data.end());
-      } else {
-        auto stored = h.dict.get_bytes(index, 0);
-        wrong_result |=
-            !stored || !std::equal(stored->begin(), stored->end(), value.begin(), value.end());
-      }
-    };
+    nmt::SdoClient::TransferId id = 0;
     if (kind & 0x80) {
-      h.client.upload(index, 0, o, done);
+      id = h.client.upload(index, 0, h.now, h.client_out, o);
     } else {
-      h.client.download(index, 0, value, o, done);
+      id = h.client.download(index, 0, value, h.now, h.client_out, o);
     }
+    expected[id] = {index, value};
+    h.from_client();
     ++started;
   }
   h.timers();
@@ -192,8 +215,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
 
   // The channel works again and time runs: everything must end.
-  for (int guard = 0;
-       h.client.busy() || h.server.busy() || !h.to_server.empty() || !h.to_client.empty();
+  for (int guard = 0; h.client.busy() || h.server.engine().busy() || h.server.held() != 0 ||
+                      !h.to_server.empty() || !h.to_client.empty();
        ++guard) {
     check(guard < 200000);
     if (!h.to_server.empty()) {

@@ -1,5 +1,6 @@
 // libFuzzer target: random and mutated requests fed to an SDO server with time advancing.
-// Input: byte 0 configures the server (block transfer on/off, response latency); then a list of
+// Input: byte 0 configures the server (block transfer on/off, response delay through
+// nmt::Delayed, as a slow device is simulated); then a list of
 // operations: a raw frame, a valid request template with one byte mutated, a frame on another
 // COB-ID, or a step of time. Checks: no crash; every response is an 8-byte frame on the
 // response COB-ID; after the input, once the timeout has passed, the server is idle with nothing
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "../support/sdo_test_device.hpp"
+#include "nmt/fault_injection.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/sdo.hpp"
 
@@ -55,17 +57,17 @@ struct Input {
 
 struct Harness {
   nmt::LocalDictionary dict;
-  nmt::SdoServer server;
+  nmt::Delayed<nmt::SdoServer> server;
   nmt::SdoServerConfig config;
   TimePoint now{0};
-  std::vector<CanFrame> out;
+  nmt::SdoServer::Output out;
 
-  Harness(nmt::LocalDictionary d, nmt::SdoServerConfig c)
-      : dict(std::move(d)), server(dict, c), config(c) {}
+  Harness(nmt::LocalDictionary d, nmt::SdoServerConfig c, nmt::Duration latency)
+      : dict(std::move(d)), server(latency, dict, c), config(c) {}
 
   void check_output() {
-    for (const auto& f : out) {
-      check(f.id == config.response_cob_id && f.dlc == 8 && !f.rtr && !f.extended);
+    for (const auto& f : out.frames) {
+      check(f.id == config.response_cob_id.can_id().id && f.dlc == 8 && !f.rtr && !f.extended);
     }
     out.clear();
   }
@@ -97,10 +99,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   auto config = nmt::SdoServerConfig::for_node(5);
   const std::uint8_t setup = in.next();
   config.block_transfer = (setup & 0x01) == 0;
-  config.response_latency = std::chrono::milliseconds((setup >> 1) & 0x0F);
+  const auto latency = std::chrono::milliseconds((setup >> 1) & 0x0F);
   config.block_size = static_cast<std::uint8_t>((setup >> 5) == 0 ? 127 : (setup >> 5));
   config.max_download_size = 4096;
-  Harness h(std::move(dict).value(), config);
+  Harness h(std::move(dict).value(), config, latency);
+  const std::uint32_t request_id = config.request_cob_id.can_id().id;
 
   while (!in.empty()) {
     const std::uint8_t op = in.next();
@@ -109,7 +112,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         std::array<std::uint8_t, 8> bytes{};
         const std::size_t dlc = in.next() % 9;
         for (std::size_t i = 0; i < dlc; ++i) bytes[i] = in.next();
-        auto f = CanFrame::make(config.request_cob_id, std::span(bytes.data(), dlc));
+        auto f = CanFrame::make(request_id, std::span(bytes.data(), dlc));
         h.feed(f);
         break;
       }
@@ -118,17 +121,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         auto bytes = kTemplates[in.next() % kTemplates.size()];
         const std::uint8_t where = in.next();
         if (where & 0x80) bytes[where & 0x07] ^= in.next();
-        h.feed(CanFrame::make(config.request_cob_id, bytes));
+        h.feed(CanFrame::make(request_id, bytes));
         break;
       }
       case 3: {  // another COB-ID or a remote frame: never answered
         auto f = CanFrame::make(0x600 + (in.next() & 0x7F), kTemplates[1]);
         f.rtr = (op & 0x08) != 0;
-        const auto before = h.server.busy();
-        std::vector<CanFrame> out;
-        if (f.id != config.request_cob_id || f.rtr) {
+        const auto before = h.server.engine().busy();
+        nmt::SdoServer::Output out;
+        if (f.id != request_id || f.rtr) {
           check(!h.server.on_frame(f, h.now, out));
-          check(out.empty() && h.server.busy() == before);
+          check(out.empty() && h.server.engine().busy() == before);
         }
         break;
       }
@@ -139,8 +142,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   // No stuck transfer: after the server timeout (and the latency of the abort it sends) the
   // server is idle and has nothing left to send.
-  h.advance_to(h.now + config.timeout + config.response_latency * 2 + std::chrono::seconds(1));
-  check(!h.server.busy());
+  h.advance_to(h.now + config.timeout + latency * 2 + std::chrono::seconds(1));
+  check(!h.server.engine().busy());
+  check(h.server.held() == 0);
   check(!h.server.next_deadline().has_value());
   return 0;
 }

@@ -161,23 +161,36 @@ class SocketCanSdo : public ::testing::Test {
     ASSERT_FALSE(mux_.busy()) << "transfers still running after 30 s";
   }
 
+  // The result the mux reported for transfer `id` of `node_id`'s client.
   SdoResult take(std::uint8_t node_id, SdoClient::TransferId id) {
-    auto r = mux_.client(node_id).take_result(id);
-    EXPECT_TRUE(r.has_value()) << "transfer " << id << " to node " << int{node_id}
-                               << " has no result";
-    return r.value_or(SdoResult{});
+    auto it = results_.find({node_id, id});
+    EXPECT_TRUE(it != results_.end())
+        << "transfer " << id << " to node " << int{node_id} << " has no result";
+    if (it == results_.end()) return SdoResult{};
+    auto r = it->second;
+    results_.erase(it);
+    return r;
+  }
+
+  SdoClient::TransferId start_upload(std::uint8_t node_id, std::uint16_t index, std::uint8_t sub,
+                                     SdoTransferOptions o = options()) {
+    return mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+      return m.client(node_id).upload(index, sub, now, out, o);
+    });
   }
 
   SdoResult upload(std::uint8_t node_id, std::uint16_t index, std::uint8_t sub,
                    SdoTransferOptions o = options()) {
-    const auto id = mux_.client(node_id).upload(index, sub, o);
+    const auto id = start_upload(node_id, index, sub, o);
     run_until_idle();
     return take(node_id, id);
   }
 
   SdoResult download(std::uint8_t node_id, std::uint16_t index, std::uint8_t sub, Bytes data,
                      SdoTransferOptions o = options()) {
-    const auto id = mux_.client(node_id).download(index, sub, std::move(data), o);
+    const auto id = mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+      return m.client(node_id).download(index, sub, std::move(data), now, out, o);
+    });
     run_until_idle();
     return take(node_id, id);
   }
@@ -185,7 +198,10 @@ class SocketCanSdo : public ::testing::Test {
   std::vector<SimulatedNode> nodes_;
   std::unique_ptr<SocketCanBus> bus_;
   SdoClientMux mux_;
-  EngineRef<SdoClientMux> mux_ref_{mux_};
+  std::map<std::pair<std::uint8_t, SdoClient::TransferId>, SdoResult> results_;
+  EngineRef<SdoClientMux> mux_ref_{mux_, [this](const SdoResult& r, TimePoint) {
+                                     results_[{r.node_id, r.id}] = r;
+                                   }};
   std::unique_ptr<BusEventLoop> loop_;
 };
 
@@ -313,9 +329,8 @@ TEST_F(SocketCanSdo, TransfersToSeveralNodesRunAtTheSameTime) {
   std::vector<Started> started;
   for (const auto& node : nodes_) {
     const std::uint16_t name_index = node.device.sub(0x1008, 0) != nullptr ? 0x1008 : 0x1000;
-    started.push_back(
-        {&node, name_index, mux_.client(node.node_id).upload(name_index, 0, options())});
-    started.push_back({&node, 0x1000, mux_.client(node.node_id).upload(0x1000, 0, options())});
+    started.push_back({&node, name_index, start_upload(node.node_id, name_index, 0)});
+    started.push_back({&node, 0x1000, start_upload(node.node_id, 0x1000, 0)});
   }
   run_until_idle();
   loop_->set_observer({});

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "nmt/fault_injection.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
 #include "sdo_test_device.hpp"
@@ -17,15 +18,17 @@ namespace {
 using namespace std::chrono_literals;
 using Bytes = std::vector<std::uint8_t>;
 
-// A node that only serves SDO: the dictionary and the server engine on the bus.
+// A node that only serves SDO: the dictionary and the server engine on the bus, wrapped so a
+// test can make it slow (Delayed with no delay changes nothing).
 struct ServerNode {
   explicit ServerNode(std::uint8_t node_id, SdoServerConfig config)
       : dict(LocalDictionary::from_device(test_support::sdo_test_device(), node_id).value()),
-        node(dict, config) {}
+        node(Duration{0}, dict, config) {}
   explicit ServerNode(std::uint8_t node_id)
       : ServerNode(node_id, SdoServerConfig::for_node(node_id)) {}
+  SdoServer& sdo() { return node.engine().engine(); }
   LocalDictionary dict;
-  SimEngineNode<SdoServer> node;
+  SimEngineNode<Delayed<SdoServer>> node;
 };
 
 Bytes pattern(std::size_t n, unsigned seed = 1) {
@@ -46,30 +49,32 @@ class SdoTransferTest : public ::testing::Test {
   ServerNode server{5};
   SimEngineNode<SdoClientMux> client;
   std::vector<std::string> trace;
+  std::vector<SdoResult> results;  // the client's events, in order
 
   void SetUp() override {
     bus.attach(server.node);
     bus.attach(client);
     bus.add_observer([this](const CanFrame& f, TimePoint) { trace.push_back(to_candump(f)); });
+    client.set_event_handler([this](const SdoResult& r, TimePoint) { results.push_back(r); });
   }
   SdoResult run_download(std::uint16_t index, std::uint8_t sub, Bytes data,
                          SdoTransferOptions o = {}) {
-    std::optional<SdoResult> result;
-    client.apply([&](SdoClientMux& m) {
-      m.client(5).download(index, sub, std::move(data), o, [&](const SdoResult& r) { result = r; });
+    results.clear();
+    client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+      m.client(5).download(index, sub, std::move(data), now, out, o);
     });
     EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
-    EXPECT_TRUE(result.has_value());
-    return result.value_or(SdoResult{});
+    EXPECT_EQ(results.size(), 1u);
+    return results.empty() ? SdoResult{} : results.back();
   }
   SdoResult run_upload(std::uint16_t index, std::uint8_t sub, SdoTransferOptions o = {}) {
-    std::optional<SdoResult> result;
-    client.apply([&](SdoClientMux& m) {
-      m.client(5).upload(index, sub, o, [&](const SdoResult& r) { result = r; });
+    results.clear();
+    client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+      m.client(5).upload(index, sub, now, out, o);
     });
     EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
-    EXPECT_TRUE(result.has_value());
-    return result.value_or(SdoResult{});
+    EXPECT_EQ(results.size(), 1u);
+    return results.empty() ? SdoResult{} : results.back();
   }
   int count(std::string_view prefix) const {
     int n = 0;
@@ -86,6 +91,20 @@ TEST_F(SdoTransferTest, ExpeditedDownloadFrameExactOnTheBus) {
   // Two frames of 119 and 114 bits (stuffing included) at 1 us per bit.
   EXPECT_GT(r.finished - r.started, 200us);
   EXPECT_LT(r.finished - r.started, 250us);
+}
+
+TEST_F(SdoTransferTest, ADownloadStartedThroughTheApiIsOnTheBusAtTheNextStep) {
+  // Engine rule 5 (nmt/engine.hpp): no timer stands between download() and the bus. The next
+  // two events are the arbitration of the initiate request and its end of frame.
+  const auto before = bus.events_processed();
+  client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+    m.client(5).download(0x1017, 0, {0xE8, 0x03}, now, out);
+  });
+  EXPECT_EQ(client.engine().next_deadline(), bus.now() + 1s);  // the response timeout
+  ASSERT_TRUE(bus.step());
+  ASSERT_TRUE(bus.step());
+  EXPECT_EQ(bus.events_processed() - before, 2u);
+  EXPECT_EQ(trace, std::vector<std::string>{"605#2B171000E8030000"});
 }
 
 TEST_F(SdoTransferTest, BlockDownloadAndUploadOfFifteenHundredBytes) {
@@ -152,9 +171,9 @@ TEST_F(SdoTransferTest, BlockUploadRetransmitsAfterLostSegment) {
 }
 
 TEST_F(SdoTransferTest, FallsBackToSegmentedWhenServerDoesNotDoBlock) {
-  auto config = server.node.engine().config();
+  auto config = server.sdo().config();
   config.block_transfer = false;
-  server.node.engine().set_config(config);
+  server.sdo().set_config(config);
   const Bytes data = pattern(100);
   auto r = run_download(0x2000, 0, data, block_mode());
   ASSERT_TRUE(r.ok()) << r.abort;
@@ -171,9 +190,7 @@ TEST_F(SdoTransferTest, FallsBackToSegmentedWhenServerDoesNotDoBlock) {
 }
 
 TEST_F(SdoTransferTest, ClientTimesOutOnASlowServerAndSendsAbort) {
-  auto config = server.node.engine().config();
-  config.response_latency = 1500ms;
-  server.node.engine().set_config(config);
+  server.node.engine().set_delay(1500ms);
   SdoTransferOptions o;
   o.timeout = 1000ms;
   auto r = run_download(0x1017, 0, {0xE8, 0x03}, o);
@@ -188,9 +205,7 @@ TEST_F(SdoTransferTest, ClientTimesOutOnASlowServerAndSendsAbort) {
 }
 
 TEST_F(SdoTransferTest, SlowServerWithinTheTimeoutSucceeds) {
-  auto config = server.node.engine().config();
-  config.response_latency = 20ms;
-  server.node.engine().set_config(config);
+  server.node.engine().set_delay(20ms);
   auto r = run_upload(0x1008, 0);
   ASSERT_TRUE(r.ok()) << r.abort;
   // Four request/response exchanges of 20 ms each.
@@ -209,7 +224,7 @@ TEST_F(SdoTransferTest, TimeoutWhenTheLastSegmentOfABlockIsLost) {
   o.timeout = 300ms;
   auto r = run_download(0x2000, 0, pattern(50), o);
   EXPECT_EQ(r.abort, SdoAbort::Timeout);
-  EXPECT_FALSE(server.node.engine().busy());  // the client's abort reset the server
+  EXPECT_FALSE(server.sdo().busy());  // the client's abort reset the server
 }
 
 TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
@@ -218,16 +233,14 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
     servers.push_back(std::make_unique<ServerNode>(id));
     bus.attach(servers.back()->node);
   }
-  std::vector<SdoResult> results;
-  client.apply([&](SdoClientMux& m) {
+  client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
     for (std::uint8_t id = 10; id < 20; ++id) {
       auto& c = m.client(id);
-      auto done = [&](const SdoResult& r) { results.push_back(r); };
-      c.download(0x2000, 0, pattern(700, id), block_mode(), done);
-      c.download(0x2005, 0, pattern(30, id), {}, done);
-      c.download(0x1017, 0, {id, 0}, {}, done);
-      c.upload(0x2000, 0, block_mode(), done);
-      c.upload(0x1018, 1, {}, done);
+      c.download(0x2000, 0, pattern(700, id), now, out, block_mode());
+      c.download(0x2005, 0, pattern(30, id), now, out);
+      c.download(0x1017, 0, {id, 0}, now, out);
+      c.upload(0x2000, 0, now, out, block_mode());
+      c.upload(0x1018, 1, now, out);
     }
   });
   ASSERT_TRUE(bus.run_until_idle(bus.now() + 60s));
@@ -251,29 +264,41 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
 
 TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
   bus.set_loss_rate(0.05, 7);
-  int finished = 0, succeeded = 0;
   SdoTransferOptions o = block_mode();
   o.timeout = 100ms;
-  client.apply([&](SdoClientMux& m) {
+  client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
     for (int i = 0; i < 40; ++i) {
-      auto done = [&](const SdoResult& r) {
-        ++finished;
-        succeeded += r.ok() ? 1 : 0;
-        if (!r.ok()) {
-          EXPECT_TRUE(r.abort == SdoAbort::Timeout || r.aborted_by_server) << r.abort;
-        }
-      };
       if (i % 2 == 0) {
-        m.client(5).download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), o, done);
+        m.client(5).download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), now, out, o);
       } else {
-        m.client(5).upload(0x2000, 0, o, done);
+        m.client(5).upload(0x2000, 0, now, out, o);
       }
     }
   });
   ASSERT_TRUE(bus.run_until_idle(bus.now() + 600s));
-  EXPECT_EQ(finished, 40);
-  EXPECT_GT(succeeded, 0);
-  EXPECT_FALSE(server.node.engine().busy());
+  ASSERT_EQ(results.size(), 40u);
+  // Seed 7 is deterministic: these outcomes were recorded on the code before the engine
+  // refactoring (issue 8) and must not change. Every failure is the client's own timeout
+  // (0504 0000, no server abort); two downloads fell back to segmented after a 0504 0001.
+  std::vector<std::uint32_t> timed_out;
+  std::vector<std::uint32_t> fell_back;
+  int succeeded = 0;
+  for (const auto& r : results) {
+    succeeded += r.ok() ? 1 : 0;
+    if (!r.ok()) {
+      EXPECT_EQ(r.abort, SdoAbort::Timeout) << r.id;
+      EXPECT_FALSE(r.aborted_by_server) << r.id;
+      timed_out.push_back(r.id);
+    }
+    if (r.fell_back) fell_back.push_back(r.id);
+  }
+  EXPECT_EQ(succeeded, 25);
+  EXPECT_EQ(timed_out,
+            (std::vector<std::uint32_t>{1, 3, 9, 15, 16, 17, 19, 26, 28, 29, 31, 34, 36, 37, 39}));
+  EXPECT_EQ(fell_back, (std::vector<std::uint32_t>{29, 39}));
+  EXPECT_EQ(results.back().id, 40u);
+  EXPECT_EQ(results.back().finished, TimePoint{1'880'773});
+  EXPECT_FALSE(server.sdo().busy());
 }
 
 }  // namespace

@@ -107,14 +107,19 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(4, "0");
   SdoClient client(SdoClientConfig::for_node(4));
+  std::optional<SdoResult> result;
   EngineRef device_ref(*device);
-  EngineRef client_ref(client);
+  EngineRef client_ref(client, [&](const SdoResult& r, TimePoint) { result = r; });
   loop.add(device_ref);
   loop.add(client_ref);
   device->power_on(loop.now());
-  auto id = client.upload(0x1018, 1);
+  ASSERT_TRUE(loop.run_until(TimePoint{1ms}).ok());  // boot-up
+  // The request goes out from apply() at once; the device hears it through the loop's echo.
+  client_ref.apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+    return c.upload(0x1018, 1, now, out);
+  });
   ASSERT_TRUE(loop.run_until(TimePoint{5ms}).ok());
-  const SdoResult* r = client.result(id);
+  const SdoResult* r = result ? &*result : nullptr;
   ASSERT_NE(r, nullptr);
   ASSERT_TRUE(r->ok()) << r->abort;
   EXPECT_EQ(r->data, (std::vector<std::uint8_t>{0xDE, 0xC0, 0x57, 0x7E}));  // 0x7E57C0DE

@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -60,6 +62,7 @@ class Rig {
     bus.attach(*device_);
     bus.attach(sdo_);
     bus.attach(master_);
+    sdo_.set_event_handler([this](const SdoResult& r, TimePoint) { results_[r.id] = r; });
     bus.add_observer([this](const CanFrame& f, TimePoint t) {
       seen.push_back({t, to_candump(f)});
     });
@@ -80,15 +83,18 @@ class Rig {
   }
   SdoResult write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
                   SdoTransferOptions options = {}) {
-    auto id =
-        sdo_.apply([&](SdoClient& c) { return c.download(index, sub, std::move(data), options); });
+    auto id = sdo_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+      return c.download(index, sub, std::move(data), now, out, options);
+    });
     return finish(id);
   }
   SdoAbort write_u(std::uint16_t index, std::uint8_t sub, std::uint64_t value, std::size_t size) {
     return write(index, sub, le(value, size)).abort;
   }
   SdoResult read(std::uint16_t index, std::uint8_t sub) {
-    auto id = sdo_.apply([&](SdoClient& c) { return c.upload(index, sub); });
+    auto id = sdo_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+      return c.upload(index, sub, now, out);
+    });
     return finish(id);
   }
   std::optional<std::uint64_t> read_u(std::uint16_t index, std::uint8_t sub) {
@@ -114,12 +120,16 @@ class Rig {
 
  private:
   SdoResult finish(SdoClient::TransferId id) {
-    bus.run_until([&] { return sdo_.engine().result(id) != nullptr; }, bus.now() + 10s);
-    auto r = sdo_.engine().take_result(id);
-    EXPECT_TRUE(r.has_value()) << "SDO transfer did not finish";
-    return r.value_or(SdoResult{});
+    bus.run_until([&] { return results_.count(id) != 0; }, bus.now() + 10s);
+    auto it = results_.find(id);
+    EXPECT_TRUE(it != results_.end()) << "SDO transfer did not finish";
+    if (it == results_.end()) return SdoResult{};
+    auto r = it->second;
+    results_.erase(it);
+    return r;
   }
 
+  std::map<SdoClient::TransferId, SdoResult> results_;
   std::unique_ptr<SimulatedDeviceNode> device_;
   SimEngineNode<SdoClient> sdo_;
   FunctionNode master_;
@@ -916,9 +926,12 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     bus.run_for(10ms);
     ASSERT_FALSE(seen.empty());
     EXPECT_EQ(seen.front(), "703#00");
-    auto id = client.apply([](SdoClient& c) { return c.upload(0x1000, 0); });
-    bus.run_until([&] { return client.engine().result(id) != nullptr; }, bus.now() + 5s);
-    auto r = client.engine().take_result(id);
+    std::optional<SdoResult> r;
+    client.set_event_handler([&](const SdoResult& result, TimePoint) { r = result; });
+    client.apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+      return c.upload(0x1000, 0, now, out);
+    });
+    bus.run_until([&] { return r.has_value(); }, bus.now() + 5s);
     ASSERT_TRUE(r.has_value());
     if (!expected) {
       EXPECT_EQ(r->abort, SdoAbort::ObjectDoesNotExist);

@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <deque>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <thread>
 #include <vector>
@@ -182,12 +183,15 @@ class Simulator {
 // Sends scripted frames from the test's side of the bus and records what it hears.
 class Script {
  public:
+  using Event = nmt::NoEvent;
+  using Output = nmt::Outbox<nmt::NoEvent>;
   void queue(std::string candump) { out_.push_back(*nmt::from_candump(candump)); }
-  void on_frame(const nmt::CanFrame& f, nmt::TimePoint now, std::vector<nmt::CanFrame>&) {
+  bool on_frame(const nmt::CanFrame& f, nmt::TimePoint now, Output&) {
     heard.push_back({now, nmt::to_candump(f)});
+    return false;
   }
-  void on_timer(nmt::TimePoint, std::vector<nmt::CanFrame>& out) {
-    for (auto& f : out_) out.push_back(f);
+  void on_timer(nmt::TimePoint, Output& out) {
+    for (auto& f : out_) out.send(f);
     out_.clear();
   }
   std::optional<nmt::TimePoint> next_deadline() const {
@@ -220,8 +224,26 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
   nmt::BusEventLoop loop(*bus);
   Script script;
   nmt::SdoClient client(nmt::SdoClientConfig::for_node(5));
+  std::map<nmt::SdoClient::TransferId, nmt::SdoResult> results;
+  const auto result = [&](nmt::SdoClient::TransferId id) -> const nmt::SdoResult* {
+    auto it = results.find(id);
+    return it == results.end() ? nullptr : &it->second;
+  };
   nmt::EngineRef script_ref(script);
-  nmt::EngineRef client_ref(client);
+  nmt::EngineRef client_ref(client,
+                            [&](const nmt::SdoResult& r, nmt::TimePoint) { results[r.id] = r; });
+  const auto upload = [&](std::uint16_t index, std::uint8_t sub) {
+    return client_ref.apply(
+        [&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+          return c.upload(index, sub, now, out);
+        });
+  };
+  const auto download = [&](std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
+    return client_ref.apply(
+        [&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+          return c.download(index, sub, std::move(data), now, out);
+        });
+  };
   loop.add(script_ref);
   loop.add(client_ref);
   auto run_until = [&](const std::function<bool()>& done, nmt::Duration limit) {
@@ -235,27 +257,27 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
   ASSERT_EQ(script.count("706#00"), 1u);
 
   // SDO: 1018h sub 1 is VendorNumber 0x7E57C0DE in sim_device.eds.
-  auto vendor = client.upload(0x1018, 1);
-  run_until([&] { return client.result(vendor) != nullptr; }, 3s);
-  ASSERT_NE(client.result(vendor), nullptr);
-  ASSERT_TRUE(client.result(vendor)->ok()) << client.result(vendor)->abort;
-  EXPECT_EQ(client.result(vendor)->data, (std::vector<std::uint8_t>{0xDE, 0xC0, 0x57, 0x7E}));
+  auto vendor = upload(0x1018, 1);
+  run_until([&] { return result(vendor) != nullptr; }, 3s);
+  ASSERT_NE(result(vendor), nullptr);
+  ASSERT_TRUE(result(vendor)->ok()) << result(vendor)->abort;
+  EXPECT_EQ(result(vendor)->data, (std::vector<std::uint8_t>{0xDE, 0xC0, 0x57, 0x7E}));
 
   // A segmented download and upload of a string (2001h VISIBLE_STRING).
   const std::string name = "simulated over UDP multicast";
-  auto write = client.download(0x2001, 0, std::vector<std::uint8_t>(name.begin(), name.end()));
-  run_until([&] { return client.result(write) != nullptr; }, 3s);
-  ASSERT_NE(client.result(write), nullptr);
-  EXPECT_TRUE(client.result(write)->ok()) << client.result(write)->abort;
-  auto read = client.upload(0x2001, 0);
-  run_until([&] { return client.result(read) != nullptr; }, 3s);
-  ASSERT_NE(client.result(read), nullptr);
-  EXPECT_EQ(std::string(client.result(read)->data.begin(), client.result(read)->data.end()), name);
+  auto write = download(0x2001, 0, std::vector<std::uint8_t>(name.begin(), name.end()));
+  run_until([&] { return result(write) != nullptr; }, 3s);
+  ASSERT_NE(result(write), nullptr);
+  EXPECT_TRUE(result(write)->ok()) << result(write)->abort;
+  auto read = upload(0x2001, 0);
+  run_until([&] { return result(read) != nullptr; }, 3s);
+  ASSERT_NE(result(read), nullptr);
+  EXPECT_EQ(std::string(result(read)->data.begin(), result(read)->data.end()), name);
 
   // Heartbeat 100 ms, then start node 5: heartbeats say operational (05).
-  auto hb = client.download(0x1017, 0, {100, 0});
-  run_until([&] { return client.result(hb) != nullptr; }, 3s);
-  ASSERT_TRUE(client.result(hb) && client.result(hb)->ok());
+  auto hb = download(0x1017, 0, {100, 0});
+  run_until([&] { return result(hb) != nullptr; }, 3s);
+  ASSERT_TRUE(result(hb) && result(hb)->ok());
   script.queue("000#0105");
   run_until([&] { return script.count("705#05") >= 3; }, 2s);
   EXPECT_GE(script.count("705#05"), 3u);

@@ -1,5 +1,7 @@
 #include "nmt/sdo.hpp"
 
+#include "cfg/object_index.hpp"
+
 #include <algorithm>
 #include <limits>
 
@@ -49,12 +51,14 @@ bool same_mux(const Bytes& d, std::uint16_t index, std::uint8_t sub) {
   return get_index(d) == index && d[3] == sub;
 }
 
-// A COB-ID above 0x7FF is sent as a 29-bit identifier.
-bool matches(const CanFrame& f, std::uint32_t cob_id) {
-  return f.id == cob_id && f.extended == (cob_id > CanFrame::kMaxStandardId);
+// An unusable COB-ID (bit 31 set, ill-formed) matches no frame.
+bool matches(const CanFrame& f, cfg::CobId cob_id) {
+  const auto id = cfg::usable_can_id(cob_id);
+  return id && f.id == id->id && f.extended == id->extended;
 }
-CanFrame make_frame(std::uint32_t cob_id, const Bytes& d) {
-  return CanFrame::make(cob_id, d, cob_id > CanFrame::kMaxStandardId);
+CanFrame make_frame(cfg::CobId cob_id, const Bytes& d) {
+  const auto id = cob_id.can_id();
+  return CanFrame::make(id.id, d, id.extended);
 }
 // Frames shorter than 8 bytes are read as if padded with zeros (see sdo.hpp).
 std::optional<Bytes> sdo_payload(const CanFrame& f) {
@@ -115,24 +119,22 @@ std::uint16_t sdo_block_crc(std::span<const std::uint8_t> data, std::uint16_t cr
 
 SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
   SdoServerConfig c;
-  c.request_cob_id = 0x600u + node_id;
-  c.response_cob_id = 0x580u + node_id;
+  c.request_cob_id = cfg::CobId::standard(0x600u + node_id);
+  c.response_cob_id = cfg::CobId::standard(0x580u + node_id);
   return c;
 }
 
 SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
   auto c = for_node(dict.node_id());
-  // CiA 301 object 1200h: bit 31 "valid" (0 = valid), bit 29 frame format, bits 28..0 id.
-  auto cob = [](std::optional<std::uint64_t> v) -> std::optional<std::uint32_t> {
-    if (!v || (*v & 0x80000000u) != 0) return std::nullopt;
-    const bool extended = (*v & 0x20000000u) != 0;
-    const auto id = static_cast<std::uint32_t>(*v & (extended ? 0x1FFFFFFFu : 0x7FFu));
-    // An 11-bit id stays standard; a 29-bit one is only representable when above 0x7FF.
-    if (extended && id <= CanFrame::kMaxStandardId) return std::nullopt;
-    return id;
+  // CiA 301 object 1200h sub 1/2: the COB-IDs of the default SDO server channel.
+  auto cob = [&](std::uint8_t sub) -> std::optional<cfg::CobId> {
+    const auto word = dict.get_unsigned(cfg::object::kSdoServerFirst, sub);
+    if (!word || *word > 0xFFFFFFFFu) return std::nullopt;
+    const auto id = cfg::CobId::from_word(static_cast<std::uint32_t>(*word));
+    return cfg::usable_can_id(id) ? std::optional(id) : std::nullopt;
   };
-  auto rx = cob(dict.get_unsigned(0x1200, 1));
-  auto tx = cob(dict.get_unsigned(0x1200, 2));
+  auto rx = cob(1);
+  auto tx = cob(2);
   if (rx && tx) {
     c.request_cob_id = *rx;
     c.response_cob_id = *tx;
@@ -149,7 +151,6 @@ void SdoServer::set_config(SdoServerConfig config) {
   config_ = config;
   config_.block_size = clamp_block_size(config_.block_size);
   reset();
-  pending_.clear();
 }
 
 bool SdoServer::busy() const {
@@ -172,56 +173,40 @@ void SdoServer::reset() {
 }
 
 std::optional<TimePoint> SdoServer::next_deadline() const {
-  std::optional<TimePoint> t = timeout_at_;
-  if (!pending_.empty() && (!t || pending_.front().due < *t)) t = pending_.front().due;
-  return t;
+  return timeout_at_;
 }
 
-bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
-  if (!matches(frame, config_.request_cob_id)) return false;
+bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  // A channel without a usable response COB-ID cannot answer: it serves nothing.
+  if (!matches(frame, config_.request_cob_id) || !cfg::usable_can_id(config_.response_cob_id)) {
+    return false;
+  }
   auto d = sdo_payload(frame);
   if (!d) return false;
-  handle(*d, now);
-  timeout_at_ = state_ == State::Idle
-                    ? std::nullopt
-                    : std::optional(later(later(now, config_.response_latency), config_.timeout));
-  while (!pending_.empty() && pending_.front().due <= now) {
-    out.push_back(pending_.front().frame);
-    pending_.pop_front();
-  }
+  handle(*d, out);
+  timeout_at_ = state_ == State::Idle ? std::nullopt : std::optional(later(now, config_.timeout));
   return true;
 }
 
-void SdoServer::on_timer(TimePoint now, std::vector<CanFrame>& out) {
-  if (timeout_at_ && now >= *timeout_at_) send_abort(SdoAbort::Timeout, now);
-  while (!pending_.empty() && pending_.front().due <= now) {
-    out.push_back(pending_.front().frame);
-    pending_.pop_front();
-  }
+void SdoServer::on_timer(TimePoint now, Output& out) {
+  if (timeout_at_ && now >= *timeout_at_) send_abort(SdoAbort::Timeout, out);
 }
 
-void SdoServer::abort(SdoAbort code, TimePoint now, std::vector<CanFrame>& out) {
+void SdoServer::abort(SdoAbort code, TimePoint /*now*/, Output& out) {
   if (state_ == State::Idle) return;
-  send_abort(code, now);
-  while (!pending_.empty() && pending_.front().due <= now) {
-    out.push_back(pending_.front().frame);
-    pending_.pop_front();
-  }
+  send_abort(code, out);
 }
 
-void SdoServer::respond(const Bytes& d, TimePoint now) {
-  // Responses keep their order even if the latency is changed between them.
-  TimePoint due = later(now, config_.response_latency);
-  if (!pending_.empty() && pending_.back().due > due) due = pending_.back().due;
-  pending_.push_back({due, make_frame(config_.response_cob_id, d)});
+void SdoServer::respond(const Bytes& d, Output& out) {
+  out.send(make_frame(config_.response_cob_id, d));
 }
 
-void SdoServer::send_abort(SdoAbort code, TimePoint now) {
-  respond(abort_bytes(index_, sub_, code), now);
+void SdoServer::send_abort(SdoAbort code, Output& out) {
+  respond(abort_bytes(index_, sub_, code), out);
   reset();
 }
 
-void SdoServer::handle(const Bytes& d, TimePoint now) {
+void SdoServer::handle(const Bytes& d, Output& out) {
   // In a block download every frame is a segment (byte 0: c | seqno); only 0x80 (c=1 with the
   // invalid sequence number 0) is an abort there. Elsewhere the command specifier 4 is.
   const bool is_abort = state_ == State::BlockDownload ? d[0] == 0x80 : command(d) == kCsAbort;
@@ -241,41 +226,41 @@ void SdoServer::handle(const Bytes& d, TimePoint now) {
       }
       switch (command(d)) {
         case kCcsInitiateDownload:
-          return initiate_download(d, now);
+          return initiate_download(d, out);
         case kCcsInitiateUpload:
           if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
-            return send_abort(code, now);
+            return send_abort(code, out);
           }
-          return start_upload(now);
+          return start_upload(out);
         case kCcsBlockDownload:
-          return block_download(d, now);
+          return block_download(d, out);
         case kCcsBlockUpload:
-          return block_upload(d, now);
+          return block_upload(d, out);
         default:
-          return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+          return send_abort(SdoAbort::InvalidCommandSpecifier, out);
       }
     case State::DownloadSegment:
-      return download_segment(d, now);
+      return download_segment(d, out);
     case State::UploadSegment:
-      return upload_segment(d, now);
+      return upload_segment(d, out);
     case State::BlockDownload:
-      return block_download_segment(d, now);
+      return block_download_segment(d, out);
     case State::BlockDownloadEnd:
     case State::BlockUploadStart:
     case State::BlockUpload:
     case State::BlockUploadEnd:
       if (command(d) == kCcsBlockDownload && state_ == State::BlockDownloadEnd) {
-        return block_download(d, now);
+        return block_download(d, out);
       }
       if (command(d) == kCcsBlockUpload && state_ != State::BlockDownloadEnd) {
-        return block_upload(d, now);
+        return block_upload(d, out);
       }
-      return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   }
 }
 
 // CiA 301 §7.2.4.3, SDO download initiate protocol: expedited or segmented.
-void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
+void SdoServer::initiate_download(const Bytes& d, Output& out) {
   const bool expedited = (d[0] & 0x02) != 0;
   const bool size_indicated = (d[0] & 0x01) != 0;
   if (expedited) {
@@ -287,18 +272,18 @@ void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
       size = *e->fixed_size();  // size not indicated: the object's own size
     }
     const auto code = dict_->write(index_, sub_, std::span(d).subspan(4, size));
-    if (code != SdoAbort::None) return send_abort(code, now);
+    if (code != SdoAbort::None) return send_abort(code, out);
     Bytes r{};
     r[0] = kScsInitiateDownload << 5;
     put_mux(r, index_, sub_);
-    respond(r, now);
+    respond(r, out);
     return;
   }
   if (size_indicated) size_ = get_u32(d, 4);
   if (auto code = dict_->check_write(index_, sub_, size_); code != SdoAbort::None) {
-    return send_abort(code, now);
+    return send_abort(code, out);
   }
-  if (size_ && *size_ > config_.max_download_size) return send_abort(SdoAbort::OutOfMemory, now);
+  if (size_ && *size_ > config_.max_download_size) return send_abort(SdoAbort::OutOfMemory, out);
   buffer_.clear();
   buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 16));
   toggle_ = false;
@@ -306,95 +291,95 @@ void SdoServer::initiate_download(const Bytes& d, TimePoint now) {
   Bytes r{};
   r[0] = kScsInitiateDownload << 5;
   put_mux(r, index_, sub_);
-  respond(r, now);
+  respond(r, out);
 }
 
 // CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
-void SdoServer::download_segment(const Bytes& d, TimePoint now) {
+void SdoServer::download_segment(const Bytes& d, Output& out) {
   if (command(d) != kCcsDownloadSegment) {
-    return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+    return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   }
   const bool toggle = (d[0] & 0x10) != 0;
-  if (toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, now);
+  if (toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
   const std::size_t len = kSegmentBytes - (d[0] >> 1 & 0x7);
   const bool last = (d[0] & 0x01) != 0;
-  if (size_ && buffer_.size() + len > *size_) return send_abort(SdoAbort::LengthMismatch, now);
+  if (size_ && buffer_.size() + len > *size_) return send_abort(SdoAbort::LengthMismatch, out);
   if (buffer_.size() + len > config_.max_download_size) {
-    return send_abort(SdoAbort::OutOfMemory, now);
+    return send_abort(SdoAbort::OutOfMemory, out);
   }
   buffer_.insert(buffer_.end(), d.begin() + 1, d.begin() + 1 + static_cast<std::ptrdiff_t>(len));
   Bytes r{};
   r[0] = static_cast<std::uint8_t>(kScsDownloadSegment << 5 | (toggle ? 0x10 : 0));
   if (last) {
     // The response to the last segment confirms the write, so it is sent only after it.
-    return finish_download(now, r[0]);
+    return finish_download(r[0], out);
   }
   toggle_ = !toggle_;
-  respond(r, now);
+  respond(r, out);
 }
 
-void SdoServer::finish_download(TimePoint now, std::uint8_t response) {
-  if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, now);
+void SdoServer::finish_download(std::uint8_t response, Output& out) {
+  if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
   const auto code = dict_->write(index_, sub_, buffer_);
-  if (code != SdoAbort::None) return send_abort(code, now);
+  if (code != SdoAbort::None) return send_abort(code, out);
   Bytes r{};
   r[0] = response;
-  respond(r, now);
+  respond(r, out);
   reset();
 }
 
 // CiA 301 §7.2.4.3, SDO upload initiate protocol: the response for the value in buffer_; values
 // of 1..4 bytes go expedited.
-void SdoServer::start_upload(TimePoint now) {
+void SdoServer::start_upload(Output& out) {
   Bytes r{};
   put_mux(r, index_, sub_);
   if (!buffer_.empty() && buffer_.size() <= 4) {
     r[0] = static_cast<std::uint8_t>(kScsInitiateUpload << 5 | (4 - buffer_.size()) << 2 | 0x3);
     std::copy(buffer_.begin(), buffer_.end(), r.begin() + 4);
-    respond(r, now);
+    respond(r, out);
     reset();
     return;
   }
   if (buffer_.size() > std::numeric_limits<std::uint32_t>::max()) {
-    return send_abort(SdoAbort::OutOfMemory, now);
+    return send_abort(SdoAbort::OutOfMemory, out);
   }
   r[0] = kScsInitiateUpload << 5 | 0x1;  // segmented, size indicated
   put_u32(r, 4, static_cast<std::uint32_t>(buffer_.size()));
   offset_ = 0;
   toggle_ = false;
   state_ = State::UploadSegment;
-  respond(r, now);
+  respond(r, out);
 }
 
-void SdoServer::upload_segment(const Bytes& d, TimePoint now) {
-  if (command(d) != kCcsUploadSegment) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+void SdoServer::upload_segment(const Bytes& d, Output& out) {
+  if (command(d) != kCcsUploadSegment) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   const bool toggle = (d[0] & 0x10) != 0;
-  if (toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, now);
+  if (toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
   const std::size_t len = std::min(kSegmentBytes, buffer_.size() - offset_);
   const bool last = offset_ + len == buffer_.size();
   Bytes r{};
   r[0] = static_cast<std::uint8_t>(kScsUploadSegment << 5 | (toggle ? 0x10 : 0) |
                                    (kSegmentBytes - len) << 1 | (last ? 1 : 0));
   std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(offset_), len, r.begin() + 1);
-  respond(r, now);
+  respond(r, out);
   offset_ += len;
   toggle_ = !toggle_;
   if (last) reset();
 }
 
 // CiA 301 §7.2.4.3, SDO block download protocol: initiate and end requests.
-void SdoServer::block_download(const Bytes& d, TimePoint now) {
-  if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+void SdoServer::block_download(const Bytes& d, Output& out) {
+  if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   const bool end = (d[0] & 0x01) != 0;
   if (state_ == State::Idle) {
-    if (end) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+    if (end) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
     crc_ = (d[0] & 0x04) != 0;
     if ((d[0] & 0x02) != 0) size_ = get_u32(d, 4);
     if (auto code = dict_->check_write(index_, sub_, size_); code != SdoAbort::None) {
-      return send_abort(code, now);
+      return send_abort(code, out);
     }
     if (size_ && *size_ > config_.max_download_size) {
-      return send_abort(SdoAbort::OutOfMemory, now);
+      return send_abort(SdoAbort::OutOfMemory, out);
     }
     buffer_.clear();
     buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 20));
@@ -406,26 +391,26 @@ void SdoServer::block_download(const Bytes& d, TimePoint now) {
     r[0] = kScsBlockDownload << 5 | 0x04;  // sc: the server checks the CRC
     put_mux(r, index_, sub_);
     r[4] = block_size_;
-    respond(r, now);
+    respond(r, out);
     return;
   }
   // State::BlockDownloadEnd: the end request carries n (bytes of the last segment without data)
   // and the CRC of the whole value.
-  if (!end) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+  if (!end) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   const std::size_t n = d[0] >> 2 & 0x7;
-  if (n > buffer_.size()) return send_abort(SdoAbort::LengthMismatch, now);
+  if (n > buffer_.size()) return send_abort(SdoAbort::LengthMismatch, out);
   buffer_.resize(buffer_.size() - n);
   if (crc_) {
     const auto crc = static_cast<std::uint16_t>(d[1] | d[2] << 8);
-    if (sdo_block_crc(buffer_) != crc) return send_abort(SdoAbort::CrcError, now);
+    if (sdo_block_crc(buffer_) != crc) return send_abort(SdoAbort::CrcError, out);
   }
-  finish_download(now, kScsBlockDownload << 5 | 0x01);
+  finish_download(kScsBlockDownload << 5 | 0x01, out);
 }
 
-void SdoServer::block_download_segment(const Bytes& d, TimePoint now) {
+void SdoServer::block_download_segment(const Bytes& d, Output& out) {
   const std::uint8_t seq = d[0] & 0x7F;
   const bool last = (d[0] & 0x80) != 0;
-  if (seq == 0 || seq > block_size_) return send_abort(SdoAbort::InvalidSequenceNumber, now);
+  if (seq == 0 || seq > block_size_) return send_abort(SdoAbort::InvalidSequenceNumber, out);
   // Segments after a lost one are ignored; the acknowledgement names the last one received in
   // order and the client resends from there (CiA 301 block download sub-block).
   if (seq == ack_seq_ + 1 && !last_received_) {
@@ -434,7 +419,7 @@ void SdoServer::block_download_segment(const Bytes& d, TimePoint now) {
     const std::size_t segments =
         std::max<std::size_t>(1, (limit + kSegmentBytes - 1) / kSegmentBytes);
     if (buffer_.size() + kSegmentBytes > segments * kSegmentBytes) {
-      return send_abort(size_ ? SdoAbort::LengthMismatch : SdoAbort::OutOfMemory, now);
+      return send_abort(size_ ? SdoAbort::LengthMismatch : SdoAbort::OutOfMemory, out);
     }
     buffer_.insert(buffer_.end(), d.begin() + 1, d.end());
     ack_seq_ = seq;
@@ -445,29 +430,29 @@ void SdoServer::block_download_segment(const Bytes& d, TimePoint now) {
     r[0] = kScsBlockDownload << 5 | 0x02;
     r[1] = ack_seq_;
     r[2] = block_size_;
-    respond(r, now);
+    respond(r, out);
     ack_seq_ = 0;
     if (last_received_) state_ = State::BlockDownloadEnd;
   }
 }
 
 // CiA 301 §7.2.4.3, SDO block upload protocol.
-void SdoServer::block_upload(const Bytes& d, TimePoint now) {
-  if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+void SdoServer::block_upload(const Bytes& d, Output& out) {
+  if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   const std::uint8_t sub_command = d[0] & 0x03;
   switch (state_) {
     case State::Idle: {
-      if (sub_command != 0) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      if (sub_command != 0) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
       const std::uint8_t block_size = d[4];
       const std::uint8_t pst = d[5];
-      if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, now);
+      if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
       if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
-        return send_abort(code, now);
+        return send_abort(code, out);
       }
       // Protocol switch threshold: small values may go by the normal upload protocol.
-      if (pst != 0 && buffer_.size() <= pst) return start_upload(now);
+      if (pst != 0 && buffer_.size() <= pst) return start_upload(out);
       if (buffer_.size() > std::numeric_limits<std::uint32_t>::max()) {
-        return send_abort(SdoAbort::OutOfMemory, now);
+        return send_abort(SdoAbort::OutOfMemory, out);
       }
       crc_ = (d[0] & 0x04) != 0;
       block_size_ = block_size;
@@ -477,19 +462,19 @@ void SdoServer::block_upload(const Bytes& d, TimePoint now) {
       r[0] = kScsBlockUpload << 5 | 0x04 | 0x02;  // sc, size indicated
       put_mux(r, index_, sub_);
       put_u32(r, 4, static_cast<std::uint32_t>(buffer_.size()));
-      respond(r, now);
+      respond(r, out);
       return;
     }
     case State::BlockUploadStart:
-      if (sub_command != 3) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      if (sub_command != 3) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
       state_ = State::BlockUpload;
-      return send_upload_sub_block(now);
+      return send_upload_sub_block(out);
     case State::BlockUpload: {
-      if (sub_command != 2) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      if (sub_command != 2) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
       const std::uint8_t ack_seq = d[1];
       const std::uint8_t block_size = d[2];
-      if (ack_seq > sent_in_block_) return send_abort(SdoAbort::InvalidSequenceNumber, now);
-      if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, now);
+      if (ack_seq > sent_in_block_) return send_abort(SdoAbort::InvalidSequenceNumber, out);
+      if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
       const bool all_acknowledged = ack_seq == sent_in_block_;
       offset_ = std::min(buffer_.size(), offset_ + ack_seq * kSegmentBytes);
       block_size_ = block_size;
@@ -503,21 +488,21 @@ void SdoServer::block_upload(const Bytes& d, TimePoint now) {
           r[2] = static_cast<std::uint8_t>(crc >> 8);
         }
         state_ = State::BlockUploadEnd;
-        respond(r, now);
+        respond(r, out);
         return;
       }
-      return send_upload_sub_block(now);
+      return send_upload_sub_block(out);
     }
     case State::BlockUploadEnd:
-      if (sub_command != 1) return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      if (sub_command != 1) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
       reset();  // the client confirmed the end: done
       return;
     default:
-      return send_abort(SdoAbort::InvalidCommandSpecifier, now);
+      return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   }
 }
 
-void SdoServer::send_upload_sub_block(TimePoint now) {
+void SdoServer::send_upload_sub_block(Output& out) {
   std::size_t pos = offset_;
   sent_in_block_ = 0;
   block_has_last_ = false;
@@ -527,7 +512,7 @@ void SdoServer::send_upload_sub_block(TimePoint now) {
     Bytes r{};
     r[0] = static_cast<std::uint8_t>((last ? 0x80 : 0) | seq);
     std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(pos), len, r.begin() + 1);
-    respond(r, now);
+    respond(r, out);
     pos += len;
     sent_in_block_ = seq;
     if (last) {
@@ -541,136 +526,106 @@ void SdoServer::send_upload_sub_block(TimePoint now) {
 
 SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
   SdoClientConfig c;
-  c.request_cob_id = 0x600u + node_id;
-  c.response_cob_id = 0x580u + node_id;
+  c.request_cob_id = cfg::CobId::standard(0x600u + node_id);
+  c.response_cob_id = cfg::CobId::standard(0x580u + node_id);
   c.node_id = node_id;
   return c;
 }
 
 SdoClient::SdoClient(SdoClientConfig config) : config_(config) {}
 
-std::unique_ptr<SdoClient::Transfer> SdoClient::new_transfer(std::uint16_t index, std::uint8_t sub,
-                                                             SdoTransferOptions options,
-                                                             Callback done) {
-  auto t = std::make_unique<Transfer>();
-  t->id = next_id_++;
-  t->index = index;
-  t->sub = sub;
-  t->options = options;
-  t->mode = options.mode;
-  t->done = std::move(done);
-  return t;
-}
-
-SdoClient::TransferId SdoClient::enqueue(std::unique_ptr<Transfer> transfer) {
+SdoClient::TransferId SdoClient::enqueue(std::unique_ptr<Transfer> transfer, TimePoint now,
+                                         Output& out) {
+  transfer->id = next_id_++;
+  transfer->mode = transfer->options.mode;
   const auto id = transfer->id;
   queue_.push_back(std::move(transfer));
+  pump(now, out);  // engine rule 5: an idle channel starts at once
   return id;
 }
 
 SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
-                                          std::vector<std::uint8_t> data,
-                                          SdoTransferOptions options, Callback done) {
-  auto t = new_transfer(index, sub, options, std::move(done));
+                                          std::vector<std::uint8_t> data, TimePoint now,
+                                          Output& out, SdoTransferOptions options) {
+  auto t = std::make_unique<Transfer>();
+  t->index = index;
+  t->sub = sub;
+  t->options = options;
   t->data = std::move(data);
-  return enqueue(std::move(t));
+  return enqueue(std::move(t), now, out);
 }
 
-SdoClient::TransferId SdoClient::upload(std::uint16_t index, std::uint8_t sub,
-                                        SdoTransferOptions options, Callback done) {
-  auto t = new_transfer(index, sub, options, std::move(done));
+SdoClient::TransferId SdoClient::upload(std::uint16_t index, std::uint8_t sub, TimePoint now,
+                                        Output& out, SdoTransferOptions options) {
+  auto t = std::make_unique<Transfer>();
   t->upload = true;
-  return enqueue(std::move(t));
+  t->index = index;
+  t->sub = sub;
+  t->options = options;
+  return enqueue(std::move(t), now, out);
 }
 
-bool SdoClient::cancel(TransferId id, SdoAbort code) {
+bool SdoClient::cancel(TransferId id, TimePoint now, Output& out, SdoAbort code) {
+  if (code == SdoAbort::None) code = SdoAbort::General;  // None would read as success
   if (active_ && active_->id == id) {
-    if (active_->state != State::Cancel) {
-      active_->cancel_code = code;
-      active_->state = State::Cancel;
-    }
+    fail(*active_, code, true, now, out);
+    pump(now, out);
     return true;
   }
   for (auto it = queue_.begin(); it != queue_.end(); ++it) {
     if ((*it)->id != id) continue;
     auto t = std::move(*it);
     queue_.erase(it);
-    SdoResult r;
-    r.id = t->id;
-    r.node_id = config_.node_id;
-    r.index = t->index;
-    r.sub_index = t->sub;
-    r.upload = t->upload;
-    r.abort = code == SdoAbort::None ? SdoAbort::General : code;
-    report(std::move(r), t->done);
+    auto r = result_of(*t, code);
+    r.started = now;
+    r.finished = now;
+    out.report(std::move(r));
     return true;
   }
   return false;
 }
 
-const SdoResult* SdoClient::result(TransferId id) const {
-  auto it = results_.find(id);
-  return it == results_.end() ? nullptr : &it->second;
-}
-
-std::optional<SdoResult> SdoClient::take_result(TransferId id) {
-  auto it = results_.find(id);
-  if (it == results_.end()) return std::nullopt;
-  auto r = std::move(it->second);
-  results_.erase(it);
-  return r;
-}
-
 std::optional<TimePoint> SdoClient::next_deadline() const {
-  if (active_) {
-    if (active_->state == State::Cancel || active_->state == State::Start) return TimePoint{0};
-    return active_->deadline;
-  }
-  if (!queue_.empty()) return TimePoint{0};
+  if (active_) return active_->deadline;
   return std::nullopt;
 }
 
-void SdoClient::report(SdoResult result, Callback& done) {
-  if (done) {
-    done(result);
-  } else {
-    results_.insert_or_assign(result.id, std::move(result));
-  }
+SdoResult SdoClient::result_of(const Transfer& t, SdoAbort code) const {
+  SdoResult r;
+  r.id = t.id;
+  r.node_id = config_.node_id;
+  r.index = t.index;
+  r.sub_index = t.sub;
+  r.upload = t.upload;
+  r.abort = code;
+  r.protocol = t.protocol;
+  r.fell_back = t.fell_back;
+  return r;
 }
 
-void SdoClient::finish(SdoAbort code, bool by_server, TimePoint now) {
+void SdoClient::finish(SdoAbort code, bool by_server, TimePoint now, Output& out) {
   auto t = std::move(active_);
-  SdoResult r;
-  r.id = t->id;
-  r.node_id = config_.node_id;
-  r.index = t->index;
-  r.sub_index = t->sub;
-  r.upload = t->upload;
-  r.abort = code;
+  auto r = result_of(*t, code);
   r.aborted_by_server = by_server;
-  r.protocol = t->protocol;
-  r.fell_back = t->fell_back;
   if (t->upload && code == SdoAbort::None) r.data = std::move(t->data);
   r.started = t->started.value_or(now);
   r.finished = now;
-  report(std::move(r), t->done);
+  out.report(std::move(r));
 }
 
-void SdoClient::fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now,
-                     std::vector<CanFrame>& out) {
-  if (send_frame)
-    out.push_back(make_frame(config_.request_cob_id, abort_bytes(t.index, t.sub, code)));
-  finish(code, false, now);
+void SdoClient::fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, Output& out) {
+  if (send_frame) out.send(make_frame(config_.request_cob_id, abort_bytes(t.index, t.sub, code)));
+  finish(code, false, now, out);
 }
 
-void SdoClient::send(Transfer& t, const Bytes& d, TimePoint now, std::vector<CanFrame>& out) {
-  out.push_back(make_frame(config_.request_cob_id, d));
+void SdoClient::send(Transfer& t, const Bytes& d, TimePoint now, Output& out) {
+  out.send(make_frame(config_.request_cob_id, d));
   if (!t.started) t.started = now;
   t.deadline = later(now, t.options.timeout);
 }
 
-void SdoClient::pump(TimePoint now, std::vector<CanFrame>& out) {
-  // A finished transfer's callback may queue more; start them without waiting for a timer.
+void SdoClient::pump(TimePoint now, Output& out) {
+  // The next queued transfer starts as soon as the channel is free, in the same call.
   while (!active_ && !queue_.empty()) {
     active_ = std::move(queue_.front());
     queue_.pop_front();
@@ -678,31 +633,22 @@ void SdoClient::pump(TimePoint now, std::vector<CanFrame>& out) {
   }
 }
 
-void SdoClient::on_timer(TimePoint now, std::vector<CanFrame>& out) {
-  if (active_) {
-    auto& t = *active_;
-    if (t.state == State::Cancel) {
-      fail(t, t.cancel_code == SdoAbort::None ? SdoAbort::General : t.cancel_code, true, now, out);
-    } else if (t.state != State::Start && now >= t.deadline) {
-      // CiA 301 abort codes: the client aborts with 0504 0000 when the server does not answer.
-      fail(t, SdoAbort::Timeout, true, now, out);
-    }
-  }
+void SdoClient::on_timer(TimePoint now, Output& out) {
+  // CiA 301 abort codes: the client aborts with 0504 0000 when the server does not answer.
+  if (active_ && now >= active_->deadline) fail(*active_, SdoAbort::Timeout, true, now, out);
   pump(now, out);
 }
 
-bool SdoClient::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
+bool SdoClient::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (!matches(frame, config_.response_cob_id)) return false;
   auto d = sdo_payload(frame);
   if (!d) return false;
-  if (active_ && active_->state != State::Cancel && active_->state != State::Start) {
-    handle(*active_, *d, now, out);
-  }
+  if (active_) handle(*active_, *d, now, out);
   pump(now, out);
   return true;
 }
 
-void SdoClient::start(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
+void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
   t.toggle = false;
   t.offset = 0;
   t.size.reset();
@@ -712,7 +658,7 @@ void SdoClient::start(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
   if (!t.upload) {
     const auto size = t.data.size();
     if (size > std::numeric_limits<std::uint32_t>::max()) {
-      return finish(SdoAbort::OutOfMemory, false, now);  // cannot be described on the bus
+      return finish(SdoAbort::OutOfMemory, false, now, out);  // cannot be described on the bus
     }
     if (t.mode == SdoMode::Block) {
       t.protocol = SdoProtocol::Block;
@@ -748,7 +694,7 @@ void SdoClient::start(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
   send(t, d, now, out);
 }
 
-void SdoClient::send_download_segment(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
+void SdoClient::send_download_segment(Transfer& t, TimePoint now, Output& out) {
   const std::size_t len = std::min(kSegmentBytes, t.data.size() - t.offset);
   const bool last = t.offset + len == t.data.size();
   Bytes d{};
@@ -759,7 +705,7 @@ void SdoClient::send_download_segment(Transfer& t, TimePoint now, std::vector<Ca
   send(t, d, now, out);
 }
 
-void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, std::vector<CanFrame>& out) {
+void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, Output& out) {
   std::size_t pos = t.offset;
   t.sent_in_block = 0;
   t.block_has_last = false;
@@ -780,7 +726,7 @@ void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, std::vector<
   t.state = State::BlockDownload;
 }
 
-void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<CanFrame>& out) {
+void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, Output& out) {
   // While a block upload's segments arrive only 0x80 is an abort (see the server).
   const bool is_abort = t.state == State::BlockUpload ? d[0] == 0x80 : command(d) == kCsAbort;
   if (is_abort) {
@@ -794,7 +740,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
       t.mode = SdoMode::Auto;
       return start(t, now, out);
     }
-    return finish(code, true, now);
+    return finish(code, true, now, out);
   }
   const auto cs = command(d);
   switch (t.state) {
@@ -802,7 +748,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
       if (cs != kScsInitiateDownload)
         return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
       if (!same_mux(d, t.index, t.sub)) return fail(t, SdoAbort::General, true, now, out);
-      if (t.protocol == SdoProtocol::Expedited) return finish(SdoAbort::None, false, now);
+      if (t.protocol == SdoProtocol::Expedited) return finish(SdoAbort::None, false, now, out);
       return send_download_segment(t, now, out);
 
     case State::DownloadSegment: {
@@ -813,7 +759,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
       }
       const std::size_t len = std::min(kSegmentBytes, t.data.size() - t.offset);
       t.offset += len;
-      if (t.offset == t.data.size()) return finish(SdoAbort::None, false, now);
+      if (t.offset == t.data.size()) return finish(SdoAbort::None, false, now, out);
       t.toggle = !t.toggle;
       return send_download_segment(t, now, out);
     }
@@ -849,7 +795,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
         const std::size_t size = size_indicated ? 4 - (d[0] >> 2 & 0x3) : 4;
         t.data.assign(d.begin() + 4, d.begin() + 4 + static_cast<std::ptrdiff_t>(size));
         t.protocol = SdoProtocol::Expedited;
-        return finish(SdoAbort::None, false, now);
+        return finish(SdoAbort::None, false, now, out);
       }
       if (size_indicated) {
         t.size = get_u32(d, 4);
@@ -882,7 +828,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
         if (t.size && t.data.size() != *t.size) {
           return fail(t, SdoAbort::LengthMismatch, true, now, out);
         }
-        return finish(SdoAbort::None, false, now);
+        return finish(SdoAbort::None, false, now, out);
       }
       t.toggle = !t.toggle;
       Bytes r{};
@@ -933,7 +879,7 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
       if (cs != kScsBlockDownload || (d[0] & 0x03) != 1) {
         return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
       }
-      return finish(SdoAbort::None, false, now);
+      return finish(SdoAbort::None, false, now, out);
 
     case State::BlockUpload: {
       const std::uint8_t seq = d[0] & 0x7F;
@@ -977,13 +923,9 @@ void SdoClient::handle(Transfer& t, const Bytes& d, TimePoint now, std::vector<C
       }
       Bytes r{};
       r[0] = kCcsBlockUpload << 5 | 0x01;  // end response
-      out.push_back(make_frame(config_.request_cob_id, r));
-      return finish(SdoAbort::None, false, now);
+      out.send(make_frame(config_.request_cob_id, r));
+      return finish(SdoAbort::None, false, now, out);
     }
-
-    case State::Start:
-    case State::Cancel:
-      return;
   }
 }
 
@@ -994,17 +936,17 @@ SdoClient& SdoClientMux::client(std::uint8_t node_id) {
 }
 
 SdoClient& SdoClientMux::add(SdoClientConfig config) {
-  auto& slot = clients_[config.response_cob_id];
+  auto& slot = clients_[cfg::CobId::of(config.response_cob_id.can_id()).word()];
   if (!slot) slot = std::make_unique<SdoClient>(config);
   return *slot;
 }
 
-bool SdoClientMux::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
-  auto it = clients_.find(frame.id);
+bool SdoClientMux::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  auto it = clients_.find(cfg::CobId::of({frame.id, frame.extended}).word());
   return it != clients_.end() && it->second->on_frame(frame, now, out);
 }
 
-void SdoClientMux::on_timer(TimePoint now, std::vector<CanFrame>& out) {
+void SdoClientMux::on_timer(TimePoint now, Output& out) {
   for (auto& [cob, c] : clients_) {
     if (auto t = c->next_deadline(); t && *t <= now) c->on_timer(now, out);
   }

@@ -39,20 +39,43 @@ cfg::Status BusEventLoop::deliver(const CanFrame& frame, LoopEngine* from, TimeP
   // Breadth-first: answers to this frame are delivered after every engine has seen it, as on
   // a bus where all nodes receive a frame at the same moment.
   pending_.push_back({frame, from});
+  delivering_ = true;
   std::vector<CanFrame> out;
-  for (std::size_t i = 0; i < pending_.size(); ++i) {
+  cfg::Status status;
+  for (std::size_t i = 0; i < pending_.size() && status; ++i) {
     const Pending p = pending_[i];
     for (LoopEngine* e : engines_) {
       if (e == p.from) continue;
-      e->on_frame(p.frame, now, out);
-      if (auto s = emit(out, e, now); !s) {
-        pending_.clear();
-        return s;
-      }
+      (void)e->on_frame(p.frame, now, out);
+      status = emit(out, e, now);
+      if (!status) break;
+      e->report_events(now);
     }
   }
+  delivering_ = false;
   pending_.clear();
+  return status;
+}
+
+cfg::Status BusEventLoop::send_and_echo(LoopEngine* from, std::vector<CanFrame>& frames,
+                                        TimePoint now) {
+  // Inside deliver() the echoes join the frames it is working through.
+  if (delivering_) return emit(frames, from, now);
+  pending_.clear();
+  if (auto s = emit(frames, from, now); !s) return s;
+  // What this engine sent reaches the others now.
+  std::vector<Pending> echoed;
+  echoed.swap(pending_);
+  for (const auto& p : echoed) {
+    if (auto s = deliver(p.frame, p.from, now); !s) return s;
+  }
   return {};
+}
+
+cfg::Status BusEventLoop::send_now(LoopEngine& from, std::vector<CanFrame>& frames, TimePoint now) {
+  auto s = send_and_echo(&from, frames, now);
+  if (!s && !failed_) failed_ = s.error();
+  return s;
 }
 
 cfg::Status BusEventLoop::fire_timers(TimePoint now) {
@@ -63,19 +86,19 @@ cfg::Status BusEventLoop::fire_timers(TimePoint now) {
     auto d = e->next_deadline();
     if (!d || *d > now) continue;
     e->on_timer(now, out);
-    pending_.clear();
-    if (auto s = emit(out, e, now); !s) return s;
-    // What this engine sent reaches the others now.
-    std::vector<Pending> echoed;
-    echoed.swap(pending_);
-    for (const auto& p : echoed) {
-      if (auto s = deliver(p.frame, p.from, now); !s) return s;
-    }
+    auto s = send_and_echo(e, out, now);
+    e->report_events(now);
+    if (!s) return s;
   }
   return {};
 }
 
 cfg::Status BusEventLoop::run_until(TimePoint until) {
+  if (failed_) {
+    cfg::Error e = std::move(*failed_);
+    failed_.reset();
+    return e;
+  }
   while (!stop_requested()) {
     TimePoint now = clock_();
     if (now >= until) break;

@@ -140,7 +140,7 @@ SimulatedDevice::SimulatedDevice(Key, cfg::DeviceDescription description, LocalD
       faults_(std::move(faults)),
       options_(std::move(options)),
       nmt_(node_id),
-      sdo_(dict_, SdoServerConfig::for_node(node_id)),
+      sdo_(faults_.sdo_latency, dict_, SdoServerConfig::for_node(node_id)),
       emcy_(kEmcyCobIdBase + node_id),
       rng_(faults_.loss_seed) {
   // Programs the device file declares (1F51h sub 1..); a shipped device runs its program
@@ -175,9 +175,9 @@ void SimulatedDevice::set_faults(DeviceFaults faults) {
   rng_.seed(faults_.loss_seed);
   sdo_requests_ = 0;
   reboot_fired_ = false;
-  auto config = sdo_.config();
-  config.response_latency = faults_.sdo_latency;
-  sdo_.set_config(config);
+  sdo_.engine().set_config(sdo_.engine().config());
+  sdo_.discard();
+  sdo_.set_delay(faults_.sdo_latency);
 }
 
 std::optional<ProgramState> SimulatedDevice::program_state(std::uint8_t program) const {
@@ -271,9 +271,10 @@ void SimulatedDevice::apply_identity() {
 }
 
 void SimulatedDevice::configure_services() {
-  auto sdo_config = SdoServerConfig::from_dictionary(dict_);
-  sdo_config.response_latency = faults_.sdo_latency;
-  sdo_.set_config(sdo_config);  // drops a transfer in progress without a frame
+  // Drops a transfer in progress, and responses not yet sent, without a frame.
+  sdo_.engine().set_config(SdoServerConfig::from_dictionary(dict_));
+  sdo_.discard();
+  sdo_.set_delay(faults_.sdo_latency);
 
   heartbeat_.set_period(
       static_cast<std::uint16_t>(dict_.get_unsigned(kProducerHeartbeat, 0).value_or(0)), now_);
@@ -301,21 +302,24 @@ void SimulatedDevice::restart_consumer() {
 // --- engine
 // ---------------------------------------------------------------------------------------
 
-void SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) {
-  if (!powered_ || faults_.absent) return;
+bool SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now, Output& output) {
+  auto& out = output.frames;
+  if (!powered_ || faults_.absent) return false;
   now_ = now;
-  if (lose()) return;
-  if (nmt_.state() == NmtState::Initialising) return;  // not on the bus yet
+  if (lose()) return false;
+  if (nmt_.state() == NmtState::Initialising) return false;  // not on the bus yet
 
   std::vector<CanFrame> local;
   if (auto t = nmt_.on_frame(frame)) {
     apply_nmt(*t, now);
     flush(local, out);
-    return;
+    return true;
   }
   const NmtServices services = nmt_.services();
 
-  if (frame.id == sdo_.config().request_cob_id && !frame.rtr && !frame.error && services.sdo) {
+  const auto sdo_request = cfg::usable_can_id(sdo_.engine().config().request_cob_id);
+  if (sdo_request && frame.id == sdo_request->id && frame.extended == sdo_request->extended &&
+      !frame.rtr && !frame.error && services.sdo) {
     ++sdo_requests_;
     if (faults_.reboot_at_sdo_request && !reboot_fired_ &&
         sdo_requests_ >= *faults_.reboot_at_sdo_request) {
@@ -323,9 +327,11 @@ void SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now, std::vector
       emit(DeviceEvent::Kind::Fault, now,
            "power cycle at SDO request " + std::to_string(sdo_requests_) + " (injected)");
       power_on(now);
-      return;
+      return true;
     }
-    sdo_.on_frame(frame, now, local);
+    Delayed<SdoServer>::Output sdo_out;
+    sdo_.on_frame(frame, now, sdo_out);
+    local.insert(local.end(), sdo_out.frames.begin(), sdo_out.frames.end());
   }
 
   if (services.error_control) {
@@ -347,6 +353,7 @@ void SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now, std::vector
     }
   }
   flush(local, out);
+  return true;
 }
 
 void SimulatedDevice::apply_nmt(const NmtSlave::Transition& t, TimePoint now) {
@@ -360,7 +367,8 @@ bool SimulatedDevice::heartbeat_stopped_by_fault(TimePoint at) const {
   return faults_.heartbeat_stops_at && at >= *faults_.heartbeat_stops_at;
 }
 
-void SimulatedDevice::on_timer(TimePoint now, std::vector<CanFrame>& out) {
+void SimulatedDevice::on_timer(TimePoint now, Output& output) {
+  auto& out = output.frames;
   if (!powered_ || faults_.absent) return;
   now_ = now;
   std::vector<CanFrame> local;
@@ -386,13 +394,11 @@ void SimulatedDevice::on_timer(TimePoint now, std::vector<CanFrame>& out) {
     }
     // Read the state again: the error behaviour above may have changed it.
     for (auto& f : emcy_.on_timer(now, nmt_.services().emcy)) local.push_back(f);
-    if (nmt_.services().sdo) {
-      sdo_.on_timer(now, local);
-    } else {
-      // Stopped: responses still waiting out the latency are not sent.
-      std::vector<CanFrame> discarded;
-      sdo_.on_timer(now, discarded);
-    }
+    Delayed<SdoServer>::Output sdo_out;
+    sdo_.on_timer(now, sdo_out);
+    // Stopped: responses still waiting out the latency are not sent.
+    if (nmt_.services().sdo)
+      local.insert(local.end(), sdo_out.frames.begin(), sdo_out.frames.end());
   }
   flush(local, out);
 }
@@ -735,7 +741,7 @@ void SimulatedDeviceNode::power_on() {
 void SimulatedDeviceNode::apply(
     const std::function<void(SimulatedDevice&, TimePoint, std::vector<CanFrame>&)>& fn) {
   out_.clear();
-  fn(*device_, now(), out_);
+  fn(*device_, now(), out_.frames);
   flush();
 }
 
@@ -752,7 +758,7 @@ void SimulatedDeviceNode::on_timer(TimePoint now) {
 }
 
 void SimulatedDeviceNode::flush() {
-  for (const auto& f : out_) send(f);
+  for (const auto& f : out_.frames) send(f);
   out_.clear();
   set_timer(device_->next_deadline());
 }

@@ -1,12 +1,6 @@
-// SDO client and server (CiA 301 §7.2.4: expedited, segmented and block transfer), sans-I/O.
-// Implemented from public knowledge of CiA 301 (not in spec/).
-//
-// Both engines are fed frames and the current time and answer with frames to send and their next
-// deadline; they never read a clock or touch a bus:
-//   engine.on_frame(frame, now, out);   // a received frame; frames to send appended to `out`
-//   engine.on_timer(now, out);          // call when now >= engine.next_deadline()
-//   engine.next_deadline();             // nullopt: nothing to wait for
-// Any call may change the deadline; drivers re-read it after every call (SimEngineNode does).
+// SDO client and server (CiA 301 §7.2.4: expedited, segmented and block transfer), sans-I/O
+// engines of the shape nmt/engine.hpp defines (that header is the contract). Implemented from
+// public knowledge of CiA 301.
 //
 // Protocol choices where CiA 301 leaves room:
 // - Frames with DLC < 8 are read as if padded with zeros; DLC 0 and RTR frames are ignored.
@@ -17,8 +11,9 @@
 //   then resends from the segment after it. Sequence number 0 or above the block size aborts
 //   with 0504 0003.
 // Limitation of the protocol: SDO frames carry no transaction number. A response that arrives
-// after its transfer ended (server latency above the client's timeout) can be taken for a
-// response of the next transfer on the channel; keep client timeouts above server latency.
+// after its transfer ended (a slow server, e.g. nmt::Delayed in tests, answering after the
+// client's timeout) can be taken for a response of the next transfer on the channel; keep
+// client timeouts above server response times.
 #pragma once
 
 #include <array>
@@ -26,13 +21,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
-#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
 #include <span>
 #include <vector>
 
+#include "cfg/cob_id.hpp"
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/sdo_abort.hpp"
@@ -49,12 +45,13 @@ enum class SdoProtocol : std::uint8_t { Expedited, Segmented, Block };
 // ================================================================================== server ==
 
 struct SdoServerConfig {
-  std::uint32_t request_cob_id = 0x600;   ///< client -> server (1200h sub 1)
-  std::uint32_t response_cob_id = 0x580;  ///< server -> client (1200h sub 2)
+  /// client -> server (1200h sub 1), a CiA 301 COB-ID word: bit 29 selects a 29-bit
+  /// identifier; with bit 31 set (or an ill-formed word) the server answers nothing.
+  cfg::CobId request_cob_id = cfg::CobId::standard(0x600);
+  /// server -> client (1200h sub 2).
+  cfg::CobId response_cob_id = cfg::CobId::standard(0x580);
   /// When false, block requests are answered with abort 0504 0001 (clients fall back).
   bool block_transfer = true;
-  /// Every response leaves this long after the request that caused it (fault injection).
-  Duration response_latency{0};
   /// A segmented or block transfer with no request for this long is aborted with 0504 0000.
   Duration timeout = std::chrono::milliseconds(2000);
   /// Block size the server asks for in block downloads, 1..127.
@@ -64,20 +61,28 @@ struct SdoServerConfig {
 
   /// The pre-defined connection set: 0x600 + node_id / 0x580 + node_id.
   static SdoServerConfig for_node(std::uint8_t node_id);
-  /// COB-IDs from 1200h sub 1/2 of the dictionary when present and valid (bit 31 clear, 11-bit
-  /// or with bit 29 for 29-bit ids), else the pre-defined ones for the dictionary's node-ID.
+  /// COB-IDs from 1200h sub 1/2 of the dictionary when both are present and usable (bit 31
+  /// clear, well formed), else the pre-defined ones for the dictionary's node-ID.
   static SdoServerConfig from_dictionary(const LocalDictionary& dict);
 };
 
 /// The SDO server of one node, serving one LocalDictionary (which must outlive it). One transfer
-/// at a time, as CiA 301 defines for one SDO channel.
+/// at a time, as CiA 301 defines for one SDO channel. An nmt::Engine that reports no events:
+/// the dictionary's hooks see every access. Responses leave in the call that caused them; a
+/// slow device is modelled by wrapping the server (nmt::Delayed in nmt/fault_injection.hpp).
 class SdoServer {
  public:
+  using Event = NoEvent;
+  using Output = Outbox<NoEvent>;
+
   SdoServer(LocalDictionary& dict, SdoServerConfig config);
 
   /// Handles a frame; false (and nothing done) when it is not a request for this server.
-  bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out);
-  void on_timer(TimePoint now, std::vector<CanFrame>& out);
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// Aborts a segmented or block transfer with 0504 0000 when no request came for
+  /// config().timeout.
+  void on_timer(TimePoint now, Output& out);
+  /// The timeout of the transfer in progress; nullopt when idle.
   std::optional<TimePoint> next_deadline() const;
 
   const SdoServerConfig& config() const { return config_; }
@@ -86,7 +91,7 @@ class SdoServer {
   /// True while a segmented or block transfer is in progress.
   bool busy() const;
   /// Ends a transfer in progress by sending an abort with `code` (e.g. on an NMT reset).
-  void abort(SdoAbort code, TimePoint now, std::vector<CanFrame>& out);
+  void abort(SdoAbort code, TimePoint now, Output& out);
 
  private:
   enum class State : std::uint8_t {
@@ -99,23 +104,20 @@ class SdoServer {
     BlockUpload,       // sub-block sent: waiting for the acknowledgement
     BlockUploadEnd,    // end sent: waiting for the end response
   };
-  struct Pending {
-    TimePoint due;
-    CanFrame frame;
-  };
+  using Bytes = std::array<std::uint8_t, 8>;
 
-  void handle(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void initiate_download(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void download_segment(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void start_upload(TimePoint now);
-  void upload_segment(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void block_download(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void block_download_segment(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void block_upload(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void send_upload_sub_block(TimePoint now);
-  void finish_download(TimePoint now, std::uint8_t command);
-  void respond(const std::array<std::uint8_t, 8>& d, TimePoint now);
-  void send_abort(SdoAbort code, TimePoint now);
+  void handle(const Bytes& d, Output& out);
+  void initiate_download(const Bytes& d, Output& out);
+  void download_segment(const Bytes& d, Output& out);
+  void start_upload(Output& out);
+  void upload_segment(const Bytes& d, Output& out);
+  void block_download(const Bytes& d, Output& out);
+  void block_download_segment(const Bytes& d, Output& out);
+  void block_upload(const Bytes& d, Output& out);
+  void send_upload_sub_block(Output& out);
+  void finish_download(std::uint8_t command, Output& out);
+  void respond(const Bytes& d, Output& out);
+  void send_abort(SdoAbort code, Output& out);
   void reset();
 
   LocalDictionary* dict_;
@@ -135,15 +137,17 @@ class SdoServer {
   bool last_received_ = false;      // download: segment with c=1 received in order
   bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
   std::optional<TimePoint> timeout_at_;
-  std::deque<Pending> pending_;  // responses waiting out response_latency
 };
+static_assert(Engine<SdoServer>);
 
 // ================================================================================== client ==
 
 struct SdoClientConfig {
-  std::uint32_t request_cob_id = 0x600;   ///< client -> server
-  std::uint32_t response_cob_id = 0x580;  ///< server -> client
-  std::uint8_t node_id = 0;               ///< the server's node-ID, for reports (0: unknown)
+  /// client -> server, a CiA 301 COB-ID word (1280h sub 1): bit 29 selects a 29-bit identifier.
+  cfg::CobId request_cob_id = cfg::CobId::standard(0x600);
+  /// server -> client (1280h sub 2).
+  cfg::CobId response_cob_id = cfg::CobId::standard(0x580);
+  std::uint8_t node_id = 0;  ///< the server's node-ID, for reports (0: unknown)
 
   static SdoClientConfig for_node(std::uint8_t node_id);
 };
@@ -198,44 +202,49 @@ struct SdoResult {
 
 /// Client side of one SDO channel (one server). Transfers are queued and run one at a time, in
 /// order; use one client per server (or SdoClientMux) to talk to many nodes at once.
+///
+/// An nmt::Engine whose events are the results: every transfer started with download() or
+/// upload() ends with exactly one SdoResult reported into the Output of the call in which it
+/// ended (on_frame, on_timer, cancel, or the starting call itself when it cannot start). That
+/// is the only way results come back: there is no per-transfer callback and no result store, so
+/// a driver's event handler (SimEngineNode, EngineRef) sees every result. A handler may start
+/// the next transfer through the driver's apply().
 class SdoClient {
  public:
   using TransferId = std::uint32_t;
-  /// Called once when a transfer ends, from inside on_frame/on_timer (or cancel). It may start
-  /// new transfers.
-  using Callback = std::function<void(const SdoResult&)>;
+  using Event = SdoResult;
+  using Output = Outbox<SdoResult>;
 
   explicit SdoClient(SdoClientConfig config);
 
-  /// Queues a download of `data` to (index, sub). It starts at the next on_timer (the deadline
-  /// becomes "now"). Without a callback the result is kept for result()/take_result().
+  /// Starts a download of `data` to (index, sub): when no transfer runs, its first frame is in
+  /// `out` when the call returns; otherwise it is queued behind the running ones.
   TransferId download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
-                      SdoTransferOptions options = {}, Callback done = {});
-  /// Queues an upload of (index, sub); the value arrives in SdoResult::data.
-  TransferId upload(std::uint16_t index, std::uint8_t sub, SdoTransferOptions options = {},
-                    Callback done = {});
-  /// Ends a transfer: a running one sends an abort frame with `code` at the next on_timer, a
-  /// queued one is removed; either reports `code`. False when `id` is not queued or running.
-  bool cancel(TransferId id, SdoAbort code = SdoAbort::General);
+                      TimePoint now, Output& out, SdoTransferOptions options = {});
+  /// Starts (or queues) an upload of (index, sub); the value arrives in SdoResult::data.
+  TransferId upload(std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
+                    SdoTransferOptions options = {});
+  /// Ends a transfer with `code` (None is taken as General): a running one sends its abort frame
+  /// into `out` and the next queued one starts; a queued one is removed. Either reports its
+  /// result into `out`. False (nothing done) when `id` is not queued or running.
+  bool cancel(TransferId id, TimePoint now, Output& out, SdoAbort code = SdoAbort::General);
 
   /// Handles a frame; false when it is not a response for this client.
-  bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out);
-  void on_timer(TimePoint now, std::vector<CanFrame>& out);
-  /// TimePoint{0} ("as soon as possible") while a queued transfer waits to start or a cancel
-  /// waits to be sent; the response timeout of the running transfer; nullopt when idle.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// Times out the running transfer (abort 0504 0000) when its response is overdue.
+  void on_timer(TimePoint now, Output& out);
+  /// The response timeout of the running transfer; nullopt when idle. Queued transfers start
+  /// when the one before ends, in the same call, so they never wait for a timer.
   std::optional<TimePoint> next_deadline() const;
 
-  /// The result of a finished transfer started without a callback; nullopt while it runs.
-  const SdoResult* result(TransferId id) const;
-  std::optional<SdoResult> take_result(TransferId id);
   /// True while a transfer runs or is queued.
   bool busy() const { return active_ != nullptr || !queue_.empty(); }
   std::size_t queued() const { return queue_.size() + (active_ ? 1 : 0); }
   const SdoClientConfig& config() const { return config_; }
 
  private:
+  using Bytes = std::array<std::uint8_t, 8>;
   enum class State : std::uint8_t {
-    Start,             // queued: initiate at the next on_timer
     InitiateDownload,  // initiate sent (expedited or segmented)
     DownloadSegment,   // segment sent
     InitiateUpload,
@@ -246,7 +255,6 @@ class SdoClient {
     BlockUploadInit,    // block initiate sent
     BlockUpload,        // receiving a sub-block
     BlockUploadEnd,     // waiting for the server's end request
-    Cancel,             // abort frame to send at the next on_timer
   };
   struct Transfer {
     TransferId id = 0;
@@ -255,8 +263,7 @@ class SdoClient {
     std::uint8_t sub = 0;
     std::vector<std::uint8_t> data;  // download: value; upload: received bytes
     SdoTransferOptions options;
-    Callback done;
-    State state = State::Start;
+    State state = State::InitiateDownload;
     SdoMode mode = SdoMode::Auto;
     bool fell_back = false;
     SdoProtocol protocol = SdoProtocol::Expedited;
@@ -271,49 +278,51 @@ class SdoClient {
     bool block_has_last = false;     // block download: the sub-block on the wire ends the data
     std::optional<TimePoint> started;
     TimePoint deadline{0};
-    SdoAbort cancel_code = SdoAbort::None;
   };
 
-  void start(Transfer& t, TimePoint now, std::vector<CanFrame>& out);
-  void handle(Transfer& t, const std::array<std::uint8_t, 8>& d, TimePoint now,
-              std::vector<CanFrame>& out);
-  void send_download_segment(Transfer& t, TimePoint now, std::vector<CanFrame>& out);
-  void send_download_sub_block(Transfer& t, TimePoint now, std::vector<CanFrame>& out);
-  void send(Transfer& t, const std::array<std::uint8_t, 8>& d, TimePoint now,
-            std::vector<CanFrame>& out);
-  void fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, std::vector<CanFrame>& out);
-  void finish(SdoAbort code, bool by_server, TimePoint now);
-  void pump(TimePoint now, std::vector<CanFrame>& out);
-  void report(SdoResult result, Callback& done);
-  std::unique_ptr<Transfer> new_transfer(std::uint16_t index, std::uint8_t sub,
-                                         SdoTransferOptions options, Callback done);
-  TransferId enqueue(std::unique_ptr<Transfer> transfer);
+  void start(Transfer& t, TimePoint now, Output& out);
+  void handle(Transfer& t, const Bytes& d, TimePoint now, Output& out);
+  void send_download_segment(Transfer& t, TimePoint now, Output& out);
+  void send_download_sub_block(Transfer& t, TimePoint now, Output& out);
+  void send(Transfer& t, const Bytes& d, TimePoint now, Output& out);
+  void fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, Output& out);
+  void finish(SdoAbort code, bool by_server, TimePoint now, Output& out);
+  void pump(TimePoint now, Output& out);
+  SdoResult result_of(const Transfer& t, SdoAbort code) const;
+  TransferId enqueue(std::unique_ptr<Transfer> transfer, TimePoint now, Output& out);
 
   SdoClientConfig config_;
   TransferId next_id_ = 1;
   std::unique_ptr<Transfer> active_;
   std::deque<std::unique_ptr<Transfer>> queue_;
-  std::map<TransferId, SdoResult> results_;
 };
+static_assert(Engine<SdoClient>);
 
 /// Many SdoClients on one bus, one per server node, for transfers to many nodes at once. Frames
-/// are routed by response COB-ID; the deadline is the earliest of all clients'.
+/// are routed by response COB-ID; the deadline is the earliest of all clients'. An nmt::Engine
+/// with the clients' results as its events (SdoResult::node_id says whose); start transfers on
+/// client(n) with the Output of the mux's call.
 class SdoClientMux {
  public:
+  using Event = SdoResult;
+  using Output = Outbox<SdoResult>;
+
   /// The client for `node_id` with the pre-defined COB-IDs, created on first use. The
   /// reference stays valid for the mux's lifetime.
   SdoClient& client(std::uint8_t node_id);
   /// Adds (or returns the existing) client for a channel with other COB-IDs, keyed by its
-  /// response COB-ID.
+  /// response identifier.
   SdoClient& add(SdoClientConfig config);
 
-  bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out);
-  void on_timer(TimePoint now, std::vector<CanFrame>& out);
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
   bool busy() const;
 
  private:
-  std::map<std::uint32_t, std::unique_ptr<SdoClient>> clients_;  // by response COB-ID
+  // By the response identifier as a COB-ID word (cfg::CobId::of), so 11- and 29-bit ids differ.
+  std::map<std::uint32_t, std::unique_ptr<SdoClient>> clients_;
 };
+static_assert(Engine<SdoClientMux>);
 
 }  // namespace nmt

@@ -1,48 +1,104 @@
-// The real-time event loop that drives sans-I/O protocol engines over an nmt::Bus (SocketCAN,
-// UDP multicast): it waits for frames up to the engines' next deadline, feeds received frames
-// and due timers to the engines and sends what they answer. The engines are the same objects
-// that run on the simulated bus (SimulatedDevice, SdoServer, SdoClient, ...); only this loop
-// knows about clocks and sockets.
+// The real-time event loop that drives nmt::Engine objects (nmt/engine.hpp) over an nmt::Bus
+// (SocketCAN, UDP multicast): it waits for frames up to the engines' next deadline, feeds
+// received frames and due timers to the engines and sends what they answer. The engines are
+// the same objects that run on the simulated bus; only this loop knows about clocks and
+// sockets. EngineRef<E> is the one adapter from any engine to the loop.
 #pragma once
 
 #include <atomic>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <vector>
 
 #include "cfg/result.hpp"
 #include "nmt/bus.hpp"
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 
 namespace nmt {
 
-/// A sans-I/O engine as the loop sees it: the three calls every engine of this library has.
+class BusEventLoop;
+
+/// An engine as the loop sees it, with its event type erased. Implemented by EngineRef; the
+/// loop calls these in this order for each frame or timer: on_frame/on_timer, sends the frames,
+/// then report_events.
 class LoopEngine {
  public:
+  LoopEngine() = default;
+  LoopEngine(const LoopEngine&) = delete;
+  LoopEngine& operator=(const LoopEngine&) = delete;
   virtual ~LoopEngine() = default;
   /// A frame from the bus (or from another engine of the loop) at `now`; frames to send are
-  /// appended to `out`.
-  virtual void on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) = 0;
+  /// appended to `frames`. True when it was addressed to the engine.
+  virtual bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& frames) = 0;
   /// Called when now >= next_deadline().
-  virtual void on_timer(TimePoint now, std::vector<CanFrame>& out) = 0;
+  virtual void on_timer(TimePoint now, std::vector<CanFrame>& frames) = 0;
   virtual std::optional<TimePoint> next_deadline() const = 0;
-};
+  /// Hands the events of the last call to the application.
+  virtual void report_events(TimePoint now) = 0;
 
-/// Adapts an engine that has the three calls (SimulatedDevice, SdoClient, SdoServer, ...)
-/// without owning it; the engine must outlive the adapter.
-template <class Engine>
-class EngineRef final : public LoopEngine {
- public:
-  explicit EngineRef(Engine& engine) : engine_(&engine) {}
-  void on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out) override {
-    (void)engine_->on_frame(frame, now, out);
-  }
-  void on_timer(TimePoint now, std::vector<CanFrame>& out) override { engine_->on_timer(now, out); }
-  std::optional<TimePoint> next_deadline() const override { return engine_->next_deadline(); }
-  Engine& engine() { return *engine_; }
+ protected:
+  /// The loop this engine was added to (nullptr before BusEventLoop::add).
+  BusEventLoop* loop() const { return loop_; }
 
  private:
-  Engine* engine_;
+  friend class BusEventLoop;
+  BusEventLoop* loop_ = nullptr;
+};
+
+/// The event-loop driver of any nmt::Engine, without owning it (the engine must outlive the
+/// adapter, the adapter the loop's use of it). Events go to the handler (dropped when there is
+/// none).
+template <Engine E>
+class EngineRef final : public LoopEngine {
+ public:
+  using Event = typename E::Event;
+  using Output = typename E::Output;
+  /// Called with each event and the loop's time, after the frames of the same call were sent.
+  /// It may use apply().
+  using EventHandler = std::function<void(const Event&, TimePoint)>;
+
+  explicit EngineRef(E& engine, EventHandler handler = {})
+      : engine_(&engine), handler_(std::move(handler)) {}
+  E& engine() { return *engine_; }
+  void set_event_handler(EventHandler handler) { handler_ = std::move(handler); }
+
+  /// Runs an API call of the engine, `fn(engine(), now, out)` at the loop's time, and sends the
+  /// frames it put into `out` at once (the loop's other engines see them too), then reports its
+  /// events. Returns what fn returns. The engine must have been added to a loop (else
+  /// std::logic_error); a frame the bus refuses makes the loop's next run*() return that error.
+  template <class Fn>
+  decltype(auto) apply(Fn&& fn);
+
+  bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& frames) override {
+    const bool mine = engine_->on_frame(frame, now, out_);
+    take_frames(frames);
+    return mine;
+  }
+  void on_timer(TimePoint now, std::vector<CanFrame>& frames) override {
+    engine_->on_timer(now, out_);
+    take_frames(frames);
+  }
+  std::optional<TimePoint> next_deadline() const override { return engine_->next_deadline(); }
+  void report_events(TimePoint now) override { report(out_, now); }
+
+ private:
+  void take_frames(std::vector<CanFrame>& frames) {
+    frames.insert(frames.end(), out_.frames.begin(), out_.frames.end());
+    out_.frames.clear();
+  }
+  void report(Output& out, TimePoint now) {
+    if (out.events.empty()) return;
+    auto events = std::move(out.events);  // the handler may call apply()
+    out.events.clear();
+    if (handler_) {
+      for (const auto& e : events) handler_(e, now);
+    }
+  }
+  E* engine_;
+  EventHandler handler_;
+  Output out_;
 };
 
 /// Microseconds of std::chrono::steady_clock, the loop's default clock.
@@ -68,7 +124,10 @@ class BusEventLoop {
   explicit BusEventLoop(Bus& bus, BusEventLoopOptions options = {}, Clock clock = steady_now);
 
   /// Adds an engine; it sees frames and timers from the next loop iteration on.
-  void add(LoopEngine& engine) { engines_.push_back(&engine); }
+  void add(LoopEngine& engine) {
+    engine.loop_ = this;
+    engines_.push_back(&engine);
+  }
   void set_observer(Observer observer) { observer_ = std::move(observer); }
   /// The loop's clock (the time engines are given).
   TimePoint now() const { return clock_(); }
@@ -88,6 +147,10 @@ class BusEventLoop {
   std::uint64_t frames_received() const { return received_; }
   std::uint64_t frames_sent() const { return sent_; }
 
+  /// Sends frames `from` produced outside a loop callback (EngineRef::apply) at once and
+  /// delivers them to the loop's other engines. A failure is also kept for the next run*().
+  cfg::Status send_now(LoopEngine& from, std::vector<CanFrame>& frames, TimePoint now);
+
  private:
   struct Pending {
     CanFrame frame;
@@ -96,6 +159,7 @@ class BusEventLoop {
   cfg::Status fire_timers(TimePoint now);
   cfg::Status deliver(const CanFrame& frame, LoopEngine* from, TimePoint now);
   cfg::Status emit(std::vector<CanFrame>& out, LoopEngine* from, TimePoint now);
+  cfg::Status send_and_echo(LoopEngine* from, std::vector<CanFrame>& frames, TimePoint now);
   std::optional<TimePoint> next_deadline() const;
 
   Bus* bus_;
@@ -108,6 +172,24 @@ class BusEventLoop {
   std::vector<Pending> pending_;
   std::uint64_t received_ = 0;
   std::uint64_t sent_ = 0;
+  bool delivering_ = false;           // inside deliver(): pending_ is being worked through
+  std::optional<cfg::Error> failed_;  // a send_now failure for the next run*()
 };
+
+template <Engine E>
+template <class Fn>
+decltype(auto) EngineRef<E>::apply(Fn&& fn) {
+  if (loop() == nullptr) throw std::logic_error("EngineRef::apply before BusEventLoop::add");
+  struct Flush {
+    EngineRef* self;
+    Output out;
+    TimePoint now;
+    ~Flush() {
+      (void)self->loop()->send_now(*self, out.frames, now);
+      self->report(out, now);
+    }
+  } flush_on_exit{this, {}, loop()->now()};
+  return std::forward<Fn>(fn)(*engine_, flush_on_exit.now, flush_on_exit.out);
+}
 
 }  // namespace nmt

@@ -13,8 +13,7 @@
 //   bus.attach(a);
 //   bus.attach(b);
 //   bus.run_for(std::chrono::seconds(1));
-// A sans-I/O engine with on_frame(frame, now, out) / on_timer(now, out) / next_deadline() runs
-// unchanged inside SimEngineNode<Engine> (bottom of this file).
+// Any nmt::Engine (nmt/engine.hpp) runs unchanged inside SimEngineNode<E> (bottom of this file).
 //
 // Timing model. Time starts at 0. A frame sent while the bus is idle starts at the current time
 // after all other events of that instant ran (so nodes sending "at once" arbitrate). It is
@@ -39,6 +38,7 @@
 #include <utility>
 #include <vector>
 
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 
 namespace nmt {
@@ -265,53 +265,65 @@ class SimBus {
   std::int64_t stats_start_ns_ = 0;
 };
 
-/// Runs a sans-I/O protocol engine on the simulated bus. `Engine` provides
-///   void on_frame(const CanFrame&, TimePoint now, std::vector<CanFrame>& out);
-///   void on_timer(TimePoint now, std::vector<CanFrame>& out);
-///   std::optional<TimePoint> next_deadline() const;
-/// (on_frame may return a value; it is ignored). After using the engine's own API from outside
-/// a callback (e.g. starting an SDO transfer), call rearm() — or use apply() — so the node's
-/// timer follows the engine's new deadline.
-template <class Engine>
+/// The simulated-bus driver of any nmt::Engine (nmt/engine.hpp): feeds it the bus's frames and
+/// timers, sends what it produces at once, keeps the node's timer on the engine's
+/// next_deadline() and hands its events to the event handler (dropped when there is none).
+template <Engine E>
 class SimEngineNode : public SimNode {
  public:
+  using Event = typename E::Event;
+  using Output = typename E::Output;
+  /// Called with each event and the time of the call that produced it, after that call's
+  /// frames were queued. It may use apply().
+  using EventHandler = std::function<void(const Event&, TimePoint)>;
+
+  /// Builds the engine from `args`.
   template <class... Args>
   explicit SimEngineNode(Args&&... args) : engine_(std::forward<Args>(args)...) {}
 
-  Engine& engine() { return engine_; }
-  const Engine& engine() const { return engine_; }
+  E& engine() { return engine_; }
+  const E& engine() const { return engine_; }
+  void set_event_handler(EventHandler handler) { handler_ = std::move(handler); }
 
-  /// Calls fn(engine()) and re-arms the timer; returns what fn returns.
+  /// Runs an API call of the engine, `fn(engine(), now, out)` at the bus's current time, then
+  /// sends the frames it put into `out` at once, re-arms the timer and reports its events.
+  /// Returns what fn returns. Attach the node first (unattached, frames are dropped).
   template <class Fn>
   decltype(auto) apply(Fn&& fn) {
-    struct Rearm {
+    struct Flush {
       SimEngineNode* self;
-      ~Rearm() { self->rearm(); }
-    } rearm_on_exit{this};
-    return std::forward<Fn>(fn)(engine_);
+      Output out;
+      TimePoint now;
+      ~Flush() { self->flush(out, now); }
+    } flush_on_exit{this, {}, now()};
+    return std::forward<Fn>(fn)(engine_, flush_on_exit.now, flush_on_exit.out);
   }
-  /// Sets the timer to the engine's next deadline.
-  void rearm() { set_timer(engine_.next_deadline()); }
 
   void on_frame(const CanFrame& frame, TimePoint now) override {
-    out_.clear();
-    engine_.on_frame(frame, now, out_);
-    flush();
+    (void)engine_.on_frame(frame, now, out_);
+    flush(out_, now);
   }
   void on_timer(TimePoint now) override {
-    out_.clear();
     engine_.on_timer(now, out_);
-    flush();
+    flush(out_, now);
   }
 
  private:
-  void flush() {
-    for (const auto& f : out_) send(f);
-    out_.clear();
-    rearm();
+  void flush(Output& out, TimePoint now) {
+    for (const auto& f : out.frames) send(f);
+    out.frames.clear();
+    set_timer(engine_.next_deadline());
+    if (out.events.empty()) return;
+    // The handler may call apply(), which reports through its own Output.
+    auto events = std::move(out.events);
+    out.events.clear();
+    if (handler_) {
+      for (const auto& e : events) handler_(e, now);
+    }
   }
-  Engine engine_;
-  std::vector<CanFrame> out_;
+  E engine_;
+  EventHandler handler_;
+  Output out_;  // reused by on_frame/on_timer
 };
 
 /// A node made of callbacks, for tests and scripts. send()/set_timer() are public here.

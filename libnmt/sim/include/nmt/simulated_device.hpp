@@ -38,6 +38,7 @@
 #include "cfg/result.hpp"
 #include "nmt/emcy.hpp"
 #include "nmt/error_control.hpp"
+#include "nmt/fault_injection.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/nmt_slave.hpp"
@@ -151,9 +152,11 @@ class SimulatedDevice {
   // --- engine interface (see the top of the file) -------------------------------------------
   /// Power-on (or power cycle) at `now`: unsaved values are lost, stored ones reload, and the
   /// boot-up message follows after faults().boot_delay.
+  using Event = NoEvent;
+  using Output = Outbox<NoEvent>;
   void power_on(TimePoint now);
-  void on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& out);
-  void on_timer(TimePoint now, std::vector<CanFrame>& out);
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
 
   // --- observation and control --------------------------------------------------------------
@@ -223,7 +226,7 @@ class SimulatedDevice {
   DeviceFaults faults_;
   SimulatedDeviceOptions options_;
   NmtSlave nmt_;
-  SdoServer sdo_;
+  Delayed<SdoServer> sdo_;  ///< faults_.sdo_latency
   HeartbeatProducer heartbeat_;
   HeartbeatConsumer consumer_;
   NodeGuardingSlave guarding_;
@@ -261,7 +264,7 @@ class SimulatedDeviceNode : public SimNode {
  private:
   void flush();
   std::unique_ptr<SimulatedDevice> device_;
-  std::vector<CanFrame> out_;
+  SimulatedDevice::Output out_;
 };
 
 }  // namespace nmt
