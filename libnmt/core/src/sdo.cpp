@@ -183,7 +183,7 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   }
   auto d = sdo_payload(frame);
   if (!d) return false;
-  handle(*d, out);
+  handle(*d, now, out);
   timeout_at_ = state_ == State::Idle ? std::nullopt : std::optional(later(now, config_.timeout));
   return true;
 }
@@ -206,7 +206,7 @@ void SdoServer::send_abort(SdoAbort code, Output& out) {
   reset();
 }
 
-void SdoServer::handle(const Bytes& d, Output& out) {
+void SdoServer::handle(const Bytes& d, TimePoint now, Output& out) {
   // In a block download every frame is a segment (byte 0: c | seqno); only 0x80 (c=1 with the
   // invalid sequence number 0) is an abort there. Elsewhere the command specifier 4 is.
   const bool is_abort = state_ == State::BlockDownload ? d[0] == 0x80 : command(d) == kCsAbort;
@@ -226,21 +226,21 @@ void SdoServer::handle(const Bytes& d, Output& out) {
       }
       switch (command(d)) {
         case kCcsInitiateDownload:
-          return initiate_download(d, out);
+          return initiate_download(d, now, out);
         case kCcsInitiateUpload:
-          if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
+          if (auto code = dict_->read(index_, sub_, buffer_, now); code != SdoAbort::None) {
             return send_abort(code, out);
           }
           return start_upload(out);
         case kCcsBlockDownload:
-          return block_download(d, out);
+          return block_download(d, now, out);
         case kCcsBlockUpload:
-          return block_upload(d, out);
+          return block_upload(d, now, out);
         default:
           return send_abort(SdoAbort::InvalidCommandSpecifier, out);
       }
     case State::DownloadSegment:
-      return download_segment(d, out);
+      return download_segment(d, now, out);
     case State::UploadSegment:
       return upload_segment(d, out);
     case State::BlockDownload:
@@ -250,17 +250,17 @@ void SdoServer::handle(const Bytes& d, Output& out) {
     case State::BlockUpload:
     case State::BlockUploadEnd:
       if (command(d) == kCcsBlockDownload && state_ == State::BlockDownloadEnd) {
-        return block_download(d, out);
+        return block_download(d, now, out);
       }
       if (command(d) == kCcsBlockUpload && state_ != State::BlockDownloadEnd) {
-        return block_upload(d, out);
+        return block_upload(d, now, out);
       }
       return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   }
 }
 
 // CiA 301 §7.2.4.3, SDO download initiate protocol: expedited or segmented.
-void SdoServer::initiate_download(const Bytes& d, Output& out) {
+void SdoServer::initiate_download(const Bytes& d, TimePoint now, Output& out) {
   const bool expedited = (d[0] & 0x02) != 0;
   const bool size_indicated = (d[0] & 0x01) != 0;
   if (expedited) {
@@ -271,7 +271,7 @@ void SdoServer::initiate_download(const Bytes& d, Output& out) {
                e && e->fixed_size() && *e->fixed_size() <= 4) {
       size = *e->fixed_size();  // size not indicated: the object's own size
     }
-    const auto code = dict_->write(index_, sub_, std::span(d).subspan(4, size));
+    const auto code = dict_->write(index_, sub_, std::span(d).subspan(4, size), now);
     if (code != SdoAbort::None) return send_abort(code, out);
     Bytes r{};
     r[0] = kScsInitiateDownload << 5;
@@ -295,7 +295,7 @@ void SdoServer::initiate_download(const Bytes& d, Output& out) {
 }
 
 // CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
-void SdoServer::download_segment(const Bytes& d, Output& out) {
+void SdoServer::download_segment(const Bytes& d, TimePoint now, Output& out) {
   if (command(d) != kCcsDownloadSegment) {
     return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   }
@@ -312,15 +312,15 @@ void SdoServer::download_segment(const Bytes& d, Output& out) {
   r[0] = static_cast<std::uint8_t>(kScsDownloadSegment << 5 | (toggle ? 0x10 : 0));
   if (last) {
     // The response to the last segment confirms the write, so it is sent only after it.
-    return finish_download(r[0], out);
+    return finish_download(r[0], now, out);
   }
   toggle_ = !toggle_;
   respond(r, out);
 }
 
-void SdoServer::finish_download(std::uint8_t response, Output& out) {
+void SdoServer::finish_download(std::uint8_t response, TimePoint now, Output& out) {
   if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
-  const auto code = dict_->write(index_, sub_, buffer_);
+  const auto code = dict_->write(index_, sub_, buffer_, now);
   if (code != SdoAbort::None) return send_abort(code, out);
   Bytes r{};
   r[0] = response;
@@ -368,7 +368,7 @@ void SdoServer::upload_segment(const Bytes& d, Output& out) {
 }
 
 // CiA 301 §7.2.4.3, SDO block download protocol: initiate and end requests.
-void SdoServer::block_download(const Bytes& d, Output& out) {
+void SdoServer::block_download(const Bytes& d, TimePoint now, Output& out) {
   if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   const bool end = (d[0] & 0x01) != 0;
   if (state_ == State::Idle) {
@@ -404,7 +404,7 @@ void SdoServer::block_download(const Bytes& d, Output& out) {
     const auto crc = static_cast<std::uint16_t>(d[1] | d[2] << 8);
     if (sdo_block_crc(buffer_) != crc) return send_abort(SdoAbort::CrcError, out);
   }
-  finish_download(kScsBlockDownload << 5 | 0x01, out);
+  finish_download(kScsBlockDownload << 5 | 0x01, now, out);
 }
 
 void SdoServer::block_download_segment(const Bytes& d, Output& out) {
@@ -437,7 +437,7 @@ void SdoServer::block_download_segment(const Bytes& d, Output& out) {
 }
 
 // CiA 301 §7.2.4.3, SDO block upload protocol.
-void SdoServer::block_upload(const Bytes& d, Output& out) {
+void SdoServer::block_upload(const Bytes& d, TimePoint now, Output& out) {
   if (!config_.block_transfer) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   const std::uint8_t sub_command = d[0] & 0x03;
   switch (state_) {
@@ -446,7 +446,7 @@ void SdoServer::block_upload(const Bytes& d, Output& out) {
       const std::uint8_t block_size = d[4];
       const std::uint8_t pst = d[5];
       if (!valid_block_size(block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
-      if (auto code = dict_->read(index_, sub_, buffer_); code != SdoAbort::None) {
+      if (auto code = dict_->read(index_, sub_, buffer_, now); code != SdoAbort::None) {
         return send_abort(code, out);
       }
       // Protocol switch threshold: small values may go by the normal upload protocol.

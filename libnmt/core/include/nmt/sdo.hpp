@@ -106,16 +106,16 @@ class SdoServer {
   };
   using Bytes = std::array<std::uint8_t, 8>;
 
-  void handle(const Bytes& d, Output& out);
-  void initiate_download(const Bytes& d, Output& out);
-  void download_segment(const Bytes& d, Output& out);
+  void handle(const Bytes& d, TimePoint now, Output& out);
+  void initiate_download(const Bytes& d, TimePoint now, Output& out);
+  void download_segment(const Bytes& d, TimePoint now, Output& out);
   void start_upload(Output& out);
   void upload_segment(const Bytes& d, Output& out);
-  void block_download(const Bytes& d, Output& out);
+  void block_download(const Bytes& d, TimePoint now, Output& out);
   void block_download_segment(const Bytes& d, Output& out);
-  void block_upload(const Bytes& d, Output& out);
+  void block_upload(const Bytes& d, TimePoint now, Output& out);
   void send_upload_sub_block(Output& out);
-  void finish_download(std::uint8_t command, Output& out);
+  void finish_download(std::uint8_t command, TimePoint now, Output& out);
   void respond(const Bytes& d, Output& out);
   void send_abort(SdoAbort code, Output& out);
   void reset();
