@@ -10,6 +10,7 @@
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/simulated_device.hpp"
+#include "nmt/slave_node.hpp"
 
 namespace nmt {
 namespace {
@@ -127,6 +128,30 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   ASSERT_EQ(bus.sent.size(), 3u);
   EXPECT_EQ(bus.sent[1].second, "604#4018100100000000");
   EXPECT_EQ(bus.sent[2].second, "584#43181001DEC0577E");
+}
+
+TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
+  // The slave node as an embedder puts it on a real bus: no fault wrapper, events to a handler.
+  FakeBus bus;
+  bus.script.push_back({10ms, "603#2B17100064000000"});  // 1017h = 100 ms
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto node = SlaveNode::create(sim_eds(), cfg::NodeId::from(3).value());
+  ASSERT_TRUE(node.ok()) << node.error().message;
+  std::vector<std::string> events;
+  EngineRef ref(**node, [&](const SlaveEvent& e, TimePoint) {
+    events.push_back(std::string(to_string(e.kind)) + ": " + e.text);
+  });
+  loop.add(ref);
+  (*node)->power_on(loop.now());
+  ASSERT_TRUE(loop.run_until(TimePoint{150ms}).ok());
+  std::vector<std::pair<TimePoint, std::string>> expected{
+      {TimePoint{0}, "703#00"},                   // boot-up (CiA 301 §7.2.8.3.2.4)
+      {TimePoint{10ms}, "583#6017100000000000"},  // download confirmed
+      {TimePoint{10ms}, "703#7F"},                // the producer starts at once
+      {TimePoint{110ms}, "703#7F"}};              // then every 100 ms
+  EXPECT_EQ(bus.sent, expected);
+  EXPECT_EQ(events,
+            (std::vector<std::string>{"boot: boot-up", "sdo-write: 1017h sub 00h = 2 byte(s)"}));
 }
 
 TEST(BusEventLoop, StopRequestEndsRun) {

@@ -774,6 +774,20 @@ TEST(SimulatedDevice, FaultSdoAbortsOnChosenObjects) {
   EXPECT_EQ(rig.read_u(0x1018, 1), 0x7E57C0DEu);  // other sub-indices answer
 }
 
+TEST(SimulatedDevice, FaultSdoAbortAnswersBeforeTheNodesOwnChecks) {
+  // A device that fails to access the object at all answers with that failure, whatever the
+  // value: 1010h sub 1 with a wrong signature is otherwise 0800 0020 (CiA 301 §7.5.2.13).
+  Rig plain;
+  plain.boot();
+  EXPECT_EQ(plain.write_u(0x1010, 1, 0x12345678, 4), SdoAbort::CannotStoreOrTransfer);
+  DeviceFaults f;
+  f.sdo_aborts.push_back({0x1010, 1, SdoAbort::HardwareError, false, true});
+  Rig rig(f);
+  rig.boot();
+  EXPECT_EQ(rig.write_u(0x1010, 1, 0x12345678, 4), SdoAbort::HardwareError);
+  EXPECT_EQ(rig.read_u(0x1010, 1), 1u);  // reads are not affected (on_read = false)
+}
+
 TEST(SimulatedDevice, FaultSlowResponsesDelayEverySdoAnswer) {
   DeviceFaults f;
   f.sdo_latency = 300ms;
@@ -786,6 +800,21 @@ TEST(SimulatedDevice, FaultSlowResponsesDelayEverySdoAnswer) {
   quick.timeout = 100ms;
   auto id = rig.write(0x2000, 0, le(5, 2), quick);
   EXPECT_EQ(id.abort, SdoAbort::Timeout);
+}
+
+TEST(SimulatedDevice, FaultLatencyAboveTheServerTimeoutStillCompletesASegmentedTransfer) {
+  // The server's 2 s timeout runs from its response, as it would in a slow device: a latency
+  // of 2.5 s does not make it abort between the segments.
+  DeviceFaults f;
+  f.sdo_latency = 2500ms;
+  Rig rig(f);
+  rig.boot();
+  SdoTransferOptions patient;
+  patient.timeout = 5s;
+  const std::string name = "slow device";  // 11 bytes: initiate and two segments
+  auto r = rig.write(0x2001, 0, std::vector<std::uint8_t>(name.begin(), name.end()), patient);
+  ASSERT_TRUE(r.ok()) << r.abort;
+  EXPECT_GE(r.finished - r.started, 3 * 2500ms);
 }
 
 TEST(SimulatedDevice, FaultFrameLossLosesSomeFrames) {

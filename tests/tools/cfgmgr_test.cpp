@@ -307,4 +307,23 @@ TEST(Cfgmgr, CheckReadsStdin) {
   EXPECT_THAT(twice.err, HasSubstr("stdin"));
 }
 
+// Issue 9: vendor tools export DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits
+// (tests/data/concise/vendor_hex_domain.dcf, written for the tests). Such a DCF passes check,
+// also strict, and fmt writes the values in its own form (digit pairs without a prefix).
+TEST(Cfgmgr, CheckAndFmtAcceptHexPrefixedDomainValues) {
+  ScratchDir dir;
+  const std::string file = data_path("concise/vendor_hex_domain.dcf");
+  auto r = run("cfgmgr", {"check", "--strict", file}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, file + ": 0 errors, 0 warnings, 6 objects\n");
+  auto fmt = run("cfgmgr", {"fmt", file, "-o", dir / "out.dcf"}, dir.path());
+  ASSERT_EQ(fmt.exit_code, 0) << fmt.err;
+  const std::string written = tool_test::slurp(dir / "out.dcf");
+  EXPECT_THAT(written,
+              HasSubstr("ParameterValue=0400003700002401010000320000240101000001000024\r\n"));
+  EXPECT_THAT(written, HasSubstr("ParameterValue=c0ffee01\r\n"));
+  EXPECT_THAT(written, Not(HasSubstr("=0x0400")));
+  EXPECT_EQ(run("cfgmgr", {"check", "--strict", dir / "out.dcf"}, dir.path()).exit_code, 0);
+}
+
 }  // namespace

@@ -224,6 +224,7 @@ TEST(Dcf2Concise, MissingNodeIdIsAnError) {
   // message names the key's own line (issue 9).
   EXPECT_THAT(r.err, HasSubstr("no_node_id.dcf:130: error: [1400sub1] DefaultValue"));
   EXPECT_THAT(r.err, HasSubstr("no node-ID"));
+  EXPECT_THAT(r.err, HasSubstr("give one with --node-id N"));
   EXPECT_FALSE(fs::exists(dir / "out.bin"));
   // With a node-ID it converts.
   auto with_id =
@@ -561,6 +562,24 @@ TEST(Dcf2Concise, DecodeShowsCobIdsAndMappingEntriesAsHex) {
   EXPECT_TRUE(lines[0].ends_with("= 0x80000205")) << lines[0];
   EXPECT_TRUE(lines[1].ends_with("= 0x60400010")) << lines[1];
   EXPECT_TRUE(lines[2].ends_with("= 1000 (0x03E8)")) << lines[2];
+}
+
+// Issue 9: tests/data/concise/vendor_hex_domain.dcf (written for the tests) gives DOMAIN and
+// OCTET_STRING values as one 0x-prefixed run of digits; 2000h holds 8000 bytes of the pattern
+// (i * 37 + 11) mod 256 on one line. The concise DCF carries the bytes as they are (DSP 302 §6.2).
+TEST(Dcf2Concise, HexPrefixedDomainValuesConvertToTheirBytes) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/vendor_hex_domain.dcf"), "-o", "-"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<std::uint8_t> table;
+  for (unsigned i = 0; i < 8000; ++i)
+    table.push_back(static_cast<std::uint8_t>((i * 37 + 11) & 0xFF));
+  EXPECT_EQ(decode_string(r.out),
+            (std::vector<ObjectWrite>{
+                {0x2000, 0, table},
+                {0x2001, 0, {0x04, 0x00, 0x00, 0x37, 0x00, 0x00, 0x24, 0x01, 0x01, 0x00, 0x00, 0x32,
+                             0x00, 0x00, 0x24, 0x01, 0x01, 0x00, 0x00, 0x01, 0x00, 0x00, 0x24}},
+                {0x2002, 0, {0xC0, 0xFF, 0xEE, 0x01}}}));
 }
 
 }  // namespace

@@ -118,7 +118,7 @@ void run_check(const CheckOptions& options) {
       continue;
     }
     auto read = cfg::parse_device_description(*text, read_options);
-    std::string().swap(*text);  // the model holds copies: give the file's bytes back now
+    text->release();  // the model holds copies: give the file's bytes back now
     report.diagnostics = read.diagnostics;
     if (read.device) {
       report.objects = read.device->objects.size();

@@ -71,7 +71,7 @@ void run_fmt(const FmtOptions& options) {
   write_options.line_ending = options.lf ? cfg::LineEnding::Lf : cfg::LineEnding::Crlf;
   std::string text = cfg::write_device_description(*read.device, write_options);
   // Stamp only a real change, so that formatting a canonical file leaves it byte-identical.
-  if (!options.no_stamp && text != *input) {
+  if (!options.no_stamp && text != input->view()) {
     write_options.stamp = stamp_now();
     text = cfg::write_device_description(*read.device, write_options);
   }

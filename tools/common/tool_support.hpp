@@ -153,7 +153,7 @@ inline std::string hex_string(std::span<const std::uint8_t> bytes) {
 
 /// Reads a whole file in one piece (cfg::read_file), or "-" for stdin. Fails with a message
 /// naming the path.
-inline cfg::Result<std::string> read_input(const std::string& path) {
+inline cfg::Result<cfg::FileText> read_input(const std::string& path) {
   const bool from_stdin = path == "-";
   auto text = from_stdin ? cfg::read_file(STDIN_FILENO) : cfg::read_file(path);
   if (!text) {

@@ -65,7 +65,7 @@ int run_encode(const EncodeOptions& options) {
   read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
   read_options.file_name = name;
   cfg::ReadResult read = cfg::parse_device_description(*text, read_options);
-  std::string().swap(*text);  // the model holds copies: give the file's bytes back now
+  text->release();  // the model holds copies: give the file's bytes back now
 
   cfg::Diagnostics diagnostics = read.diagnostics;
   std::optional<std::vector<cfg::ObjectWrite>> writes;
@@ -83,6 +83,7 @@ int run_encode(const EncodeOptions& options) {
     concise.node_id = options.node_id;
     concise.selection = options.selection;
     concise.file_name = name;
+    concise.node_id_hint = "give one with --node-id N";
     concise.base_dir = options.input == "-"
                            ? std::string(".")
                            : std::filesystem::path(options.input).parent_path().string();

@@ -53,15 +53,45 @@ ReadResult parse_device_description(std::string_view text, const ReadOptions& op
 /// opened or read is one error diagnostic (line 0) and no model.
 ReadResult read_device_file(const std::string& path, ReadOptions options = {});
 
-/// The whole content of a file in one piece: its size from fstat(2), one buffer of that size,
-/// read(2) until end of file (a file that grows meanwhile is read to its end; pipes and other
-/// files without a size work too). Every tool reads its input this way; a stream iterator costs
-/// more than parsing. Fails, without the path in the message (the caller names the file), with
-/// "is a directory", "cannot open the file: <reason>" or "cannot read the file: <reason>".
-Result<std::string> read_file(const std::string& path);
+/// The bytes of a whole file, read in one piece. A regular file is mapped read-only (no copy:
+/// the pages are the kernel's file cache, not heap, so a model read from it stays within 3x the
+/// file size); anything else (a pipe, standard input) is read into memory. Move-only; released
+/// with the object. As with every mapping, a file that is truncated by another process while it
+/// is mapped makes reading the vanished part fail with SIGBUS; tools read files nobody is
+/// rewriting at that moment.
+class FileText {
+ public:
+  FileText() = default;
+  explicit FileText(std::string bytes);
+  FileText(FileText&& other) noexcept;
+  FileText& operator=(FileText&& other) noexcept;
+  FileText(const FileText&) = delete;
+  FileText& operator=(const FileText&) = delete;
+  ~FileText();
+
+  std::string_view view() const {
+    return mapped_ != nullptr ? std::string_view(mapped_, mapped_size_) : std::string_view(buffer_);
+  }
+  operator std::string_view() const { return view(); }  // NOLINT(google-explicit-constructor)
+  std::size_t size() const { return view().size(); }
+  /// Gives the memory back now (the object is empty afterwards).
+  void release();
+
+ private:
+  friend Result<FileText> read_file(int fd);
+  const char* mapped_ = nullptr;
+  std::size_t mapped_size_ = 0;
+  std::string buffer_;
+};
+
+/// The whole content of a file (FileText: mapped when it is a regular file, else read to its
+/// end). Every tool reads its input this way; a stream iterator costs more than parsing. Fails,
+/// without the path in the message (the caller names the file), with "is a directory",
+/// "cannot open the file: <reason>" or "cannot read the file: <reason>".
+Result<FileText> read_file(const std::string& path);
 /// The same from an open descriptor (standard input: 0) to its end; the descriptor stays open
 /// and owned by the caller. Fails with "cannot read the file: <reason>".
-Result<std::string> read_file(int fd);
+Result<FileText> read_file(int fd);
 
 enum class FileKind { Eds, Dcf };
 enum class LineEnding { Crlf, Lf };
