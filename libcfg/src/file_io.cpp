@@ -60,9 +60,9 @@ Result<FileText> read_file(int fd) {
   // Pipes and /proc files report no size, so the buffer grows while data keeps coming; a
   // regular file that could not be mapped is read in one piece (the +1 lets the read that sees
   // end of file fit without growing).
-  std::string text(regular && st.st_size > 0 ? static_cast<std::size_t>(st.st_size) + 1
-                                             : std::size_t{64 * 1024},
-                   '\0');
+  std::string text(
+      regular && st.st_size > 0 ? static_cast<std::size_t>(st.st_size) + 1 : std::size_t{64 * 1024},
+      '\0');
   std::size_t used = 0;
   for (;;) {
     if (used == text.size()) text.resize(text.size() * 2);
