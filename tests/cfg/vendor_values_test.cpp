@@ -11,9 +11,12 @@
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/value.hpp"
+#include "device_text_support.hpp"
 
 namespace cfg {
 namespace {
+
+using test_support::line_of;
 
 using ::testing::HasSubstr;
 using Bytes = std::vector<std::uint8_t>;
@@ -50,16 +53,7 @@ std::string var(std::string_view index, std::string_view data_type, std::string_
 }
 
 ReadResult parse(std::string_view text, ReadMode mode = ReadMode::Tolerant) {
-  ReadOptions options;
-  options.mode = mode;
-  options.file_name = "vendor.dcf";
-  return parse_device_description(text, options);
-}
-
-int line_of(std::string_view text, std::string_view needle) {
-  const std::size_t at = text.find(needle);
-  if (at == std::string_view::npos) return -1;
-  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+  return test_support::parse_text(text, mode, "vendor.dcf");
 }
 
 Bytes bytes_of(const SubObject& s, const OptionalText& text) {

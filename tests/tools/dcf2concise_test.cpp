@@ -105,6 +105,36 @@ TEST(Dcf2Concise, MissingInputIsAnIoError) {
   EXPECT_FALSE(fs::exists(dir / "out.bin"));
 }
 
+// Each file is opened once and the error that arises says which kind it is (README: exit 3 when
+// a file cannot be read or written, 1 when the input is wrong); no check runs beforehand.
+TEST(Dcf2Concise, UnreadableFilesAreIoErrorsInEveryMode) {
+  ScratchDir dir;
+  fs::create_directories(dir / "a_directory");
+  auto directory = run("dcf2concise", {dir / "a_directory", "-o", dir / "out.bin"}, dir.path());
+  EXPECT_EQ(directory.exit_code, 3);
+  EXPECT_THAT(directory.err, HasSubstr("a_directory: error: is a directory"));
+  EXPECT_FALSE(fs::exists(dir / "out.bin"));
+  // --decode: the stream, and the device file that names its entries.
+  auto stream = run("dcf2concise", {"--decode", dir / "absent.bin"}, dir.path());
+  EXPECT_EQ(stream.exit_code, 3);
+  EXPECT_THAT(stream.err, HasSubstr("absent.bin: error: cannot open"));
+  auto stream_dir = run("dcf2concise", {"--decode", dir / "a_directory"}, dir.path());
+  EXPECT_EQ(stream_dir.exit_code, 3);
+  EXPECT_THAT(stream_dir.err, HasSubstr("a_directory: error: read error"));
+  auto device =
+      run("dcf2concise",
+          {"--decode", data_path("concise/heartbeat_1000.bin"), "--dcf", dir / "absent.eds"},
+          dir.path());
+  EXPECT_EQ(device.exit_code, 3);
+  EXPECT_THAT(device.err, HasSubstr("absent.eds: error: cannot open"));
+  // A device file that is there but wrong is an input error.
+  auto wrong = run("dcf2concise",
+                   {"--decode", data_path("concise/heartbeat_1000.bin"), "--dcf",
+                    data_path("check/not_a_device.eds")},
+                   dir.path());
+  EXPECT_EQ(wrong.exit_code, 1);
+}
+
 TEST(Dcf2Concise, UnwritableOutputIsAnIoError) {
   ScratchDir dir;
   auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "no/such/dir/out.bin"},

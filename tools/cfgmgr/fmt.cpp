@@ -44,18 +44,14 @@ cfg::WriteOptions::Stamp stamp_now() {
 }
 
 void run_fmt(const FmtOptions& options) {
-  if (auto readable = tools::check_readable(options.input); !readable) {
-    std::cerr << readable.error().message << '\n';
-    exit_with(tools::kExitIo);
-  }
-  cfg::ReadOptions read_options;
-  read_options.file_name = options.input;
   // One read of the file: parsed, and compared with the output below.
   auto input = tools::read_input(options.input);
   if (!input) {
     std::cerr << input.error().message << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::exit_code_for(input.error()));
   }
+  cfg::ReadOptions read_options;
+  read_options.file_name = options.input;
   auto read = cfg::parse_device_description(*input, read_options);
   tools::print_diagnostics(read.diagnostics);
   if (!read.ok()) exit_with(tools::kExitInputErrors);
@@ -73,11 +69,12 @@ void run_fmt(const FmtOptions& options) {
   // Stamp only a real change, so that formatting a canonical file leaves it byte-identical.
   if (!options.no_stamp && text != input->view()) {
     write_options.stamp = stamp_now();
+    std::string().swap(text);  // never both outputs in memory at once
     text = cfg::write_device_description(*read.device, write_options);
   }
   if (auto status = tools::write_output(options.output, text); !status) {
     std::cerr << status.error().message << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::exit_code_for(status.error()));
   }
   // The process ends now: let exit take the model back instead of freeing it node by node.
   tools::keep_until_exit(std::move(read));

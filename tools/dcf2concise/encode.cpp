@@ -51,14 +51,10 @@ std::string default_output(const std::string& input) {
 }
 
 int run_encode(const EncodeOptions& options) {
-  if (auto readable = tools::check_readable(options.input); !readable) {
-    std::cerr << readable.error().message << '\n';
-    return tools::kExitIo;
-  }
   auto text = tools::read_input(options.input);
   if (!text) {
     std::cerr << text.error().message << '\n';
-    return tools::kExitIo;
+    return tools::exit_code_for(text.error());
   }
   const std::string name = options.input == "-" ? "<stdin>" : options.input;
   cfg::ReadOptions read_options;
@@ -109,7 +105,7 @@ int run_encode(const EncodeOptions& options) {
         output, std::string_view(reinterpret_cast<const char*>(stream.data()), stream.size()));
     if (!status) {
       std::cerr << status.error().message << '\n';
-      code = tools::kExitIo;
+      code = tools::exit_code_for(status.error());
     }
   }
 
