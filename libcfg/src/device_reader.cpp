@@ -44,13 +44,14 @@
 #include <limits>
 
 #include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
 #include "device_reader.hpp"
 
 namespace cfg {
 namespace detail::reader {
 
 std::string section_of(std::uint16_t index) {
-  return "[" + hex(index, 4).substr(2) + "]";
+  return "[" + hex_digits(index, 4) + "]";
 }
 
 std::string shown(std::string_view text) {
@@ -133,7 +134,7 @@ void Reader::finish() {
   finish_comments();
   if (!strict_ && dropped_comments_ > 1) {
     warn(0, std::to_string(dropped_comments_ - 1) +
-                " more values have a comment after them, dropped the same way (--strict lists "
+                " more values have a comment after them, dropped the same way (strict mode lists "
                 "each)");
   }
   for (const auto& [key, u] : unknown_keys_) {
@@ -152,7 +153,7 @@ void Reader::finish() {
     for (std::uint16_t index :
          {std::uint16_t{0x1000}, std::uint16_t{0x1001}, std::uint16_t{0x1018}}) {
       if (!model_.object(index)) {
-        warn(0, "mandatory object " + hex(index, 4) + " is missing (CiA 301)");
+        warn(0, "mandatory object " + object_name(index) + " is missing (CiA 301)");
       }
     }
   }
