@@ -104,6 +104,11 @@ class SlaveNodeSpec : public ::testing::Test {
     node_->power_on(now_);
     return run_due();
   }
+  // Power off, one second later on again.
+  std::vector<std::string> power_cycle() {
+    now_ += 1s;
+    return power_on();
+  }
   std::vector<std::string> boot() {
     now_ = std::max(now_, kPowerOn);
     return power_on();
@@ -544,8 +549,7 @@ TEST_F(SlaveNodeSpec, StoredValueSurvivesPowerCycle) {
   configure(0x2000, 0, 0x1234, 2);
   configure(0x1017, 0, 500, 2);
   configure(0x1010, 1, kSave, 4);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(request("605#4000200000000000"), "585#4B00200034120000");
   EXPECT_EQ(read(0x1017, 0), 500u);
 }
@@ -554,8 +558,7 @@ TEST_F(SlaveNodeSpec, UnsavedValueIsLostAtPowerCycle) {
   boot();
   configure(0x2000, 0, 0x1234, 2);
   configure(0x1017, 0, 500, 2);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x2000, 0), 10u);
   EXPECT_EQ(read(0x1017, 0), 0u);
 }
@@ -565,8 +568,7 @@ TEST_F(SlaveNodeSpec, ValueWrittenAfterSaveIsLostAtPowerCycle) {
   configure(0x2000, 0, 0x1234, 2);
   configure(0x1010, 1, kSave, 4);
   configure(0x2000, 0, 0x5678, 2);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x2000, 0), 0x1234u);
 }
 
@@ -599,8 +601,7 @@ TEST_F(SlaveNodeSpec, SaveCommunicationParametersKeepsOnlyTheCommunicationArea) 
   configure(0x1017, 0, 500, 2);
   // CiA 301 §7.5.2.13: sub 2 saves the communication parameters (1000h-1FFFh).
   configure(0x1010, 2, kSave, 4);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x1017, 0), 500u);
   EXPECT_EQ(read(0x2000, 0), 10u);
 }
@@ -611,8 +612,7 @@ TEST_F(SlaveNodeSpec, SaveApplicationParametersKeepsOnlyTheApplicationArea) {
   configure(0x1017, 0, 500, 2);
   // CiA 301 §7.5.2.13: sub 3 saves the application parameters (6000h-9FFFh).
   configure(0x1010, 3, kSave, 4);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x6200, 1), 0x5Au);
   EXPECT_EQ(read(0x1017, 0), 0u);
 }
@@ -634,12 +634,10 @@ TEST_F(SlaveNodeSpec, RestoreDefaultsTakesEffectAfterPowerCycle) {
   configure(0x2000, 0, 0x1234, 2);
   configure(0x1010, 1, kSave, 4);
   configure(0x1011, 1, kLoad, 4);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x2000, 0), 10u);
   // and stays default at the next power cycle too (the stored set was replaced by defaults).
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x2000, 0), 10u);
 }
 
@@ -702,8 +700,7 @@ TEST_F(SlaveNodeSpec, VerifyConfigurationIsKeptBySaveAndSurvivesPowerCycle) {
   // device restores the configuration and the signature.
   configure(0x1010, 1, kSave, 4);
   EXPECT_EQ(read(0x1020, 1), 0x00002D6Bu);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x1020, 1), 0x00002D6Bu);
   EXPECT_EQ(read(0x1020, 2), 0x02932E00u);
   EXPECT_EQ(read(0x2000, 0), 0x1234u);
@@ -921,8 +918,7 @@ TEST_F(SlaveNodeSpec, ErrorRegisterIsClearAfterPowerCycle) {
   out_.clear();
   node_->raise_emergency(0x1000, error_register::kGeneric, now_, out_);
   EXPECT_EQ(read(0x1001, 0), 0x01u);
-  now_ += 1s;
-  power_on();
+  power_cycle();
   EXPECT_EQ(read(0x1001, 0), 0u);
 }
 
