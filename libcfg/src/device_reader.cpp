@@ -26,6 +26,9 @@
 // - An empty value of a fixed-size type (`ParameterValue=` as CANopenEditor writes it) is "not
 //   given" (strict: error); of a string/DOMAIN type it is the empty value.
 // - `0180h` hex (and digit groups `0000 0080h`): warning, read as 0x0180 and stored so.
+// - DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits, as motor-controller vendor
+//   tools export them: no diagnostic, stored without the prefix (the same bytes, the writer's
+//   form). An odd number of digits is an error like any value that is not of its type.
 // - Text after a section's ']': warning, ignored. Keys before the first section: warning, ignored.
 // - Sub-index FFh (reserved by CiA 301): warning, kept. Sub-objects of a VAR: warning, ignored.
 // - Object listed but without a section: warning, no object. Section of an object that no list

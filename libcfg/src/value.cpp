@@ -248,9 +248,10 @@ Result<Value> parse_hex_bytes(DataType type, std::string_view text) {
     }
     const std::size_t at = i + (text.size() - digits.size());  // position in `text`
     const int hi = hex_digit_value(digits[i]);
-    if (hi < 0)
+    if (hi < 0) {
       return bad(quoted(digits.substr(i, 1)) + " at character " + std::to_string(at + 1) +
                  " is not a hex digit");
+    }
     const int lo = i + 1 < digits.size() ? hex_digit_value(digits[i + 1]) : -1;
     if (lo < 0) {
       if (i + 1 == digits.size()) {
