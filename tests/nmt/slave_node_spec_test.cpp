@@ -829,6 +829,14 @@ TEST_F(SlaveNodeSpec, PdoCobIdChangeWhilePdoValidIsRefused) {
   EXPECT_EQ(read(0x1800, 1), 0x185u);
 }
 
+TEST_F(SlaveNodeSpec, RpdoCobIdChangeWhilePdoValidIsRefused) {
+  boot();
+  // CiA 301 §7.5.2.35, for the RPDO: only "refused" is checked.
+  const auto answer = request("605#2300140115020000");
+  EXPECT_EQ(answer.substr(0, 12), "585#80001401") << answer;
+  EXPECT_EQ(read(0x1400, 1), 0x205u);
+}
+
 // --- EMCY (CiA 301 §7.2.7) ------------------------------------------------------------------
 
 TEST_F(SlaveNodeSpec, RaiseEmergencySendsEmcyWithErrorRegisterAtOnce) {
@@ -882,6 +890,18 @@ TEST_F(SlaveNodeSpec, EmergencyInhibitTime1015DelaysTheNextEmcy) {
   node_->raise_emergency(0x2000, error_register::kCurrent, now_, out_);
   EXPECT_TRUE(out_.frames.empty());
   EXPECT_EQ(advance(20ms), (std::vector<Sent>{{first + 10ms, "085#0020030000000000"}}));
+}
+
+TEST_F(SlaveNodeSpec, EmcyWaitingForInhibitTimeIsNotSentInStopped) {
+  boot();
+  configure(0x1015, 0, 100, 2);  // 10 ms
+  out_.clear();
+  node_->raise_emergency(0x1000, error_register::kGeneric, now_, out_);
+  node_->raise_emergency(0x2000, error_register::kCurrent, now_, out_);
+  ASSERT_EQ(out_.frames.size(), 1u);
+  command("000#0205");
+  // Table 51: no EMCY in stopped, also none that waited for the inhibit time.
+  EXPECT_EQ(advance(100ms), std::vector<Sent>{});
 }
 
 TEST_F(SlaveNodeSpec, EmergencyUsesCobIdOf1014) {
@@ -991,6 +1011,19 @@ TEST_F(SlaveNodeSpec, NoHeartbeatConsumerEventWhileHeartbeatsKeepComing) {
     EXPECT_EQ(advance(150ms), std::vector<Sent>{});
   }
   EXPECT_EQ(node_->state(), NmtState::Operational);
+}
+
+// FINDING: CiA 301 §7.5.2.33 (as publicly known): configuring a second non-zero consumer
+// heartbeat time for a node-ID that another sub-index of 1016h already monitors is not allowed;
+// the device answers 0604 0043 (general parameter incompatibility). The node confirms the write
+// (585#6016100200000000) and 1016h sub 2 reads 00060064h.
+TEST_F(SlaveNodeSpec, DISABLED_TwoConsumerHeartbeatTimesForOneNodeAbort06040043) {
+  boot();
+  configure(0x1016, 1, 0x000600C8, 4);  // node 6, 200 ms
+  EXPECT_EQ(request(download(0x1016, 2, 0x00060064)), "585#8016100243000406");
+  EXPECT_EQ(read(0x1016, 2), 0u);
+  // another node is fine
+  EXPECT_EQ(request(download(0x1016, 2, 0x00070064)), download_ok(0x1016, 2));
 }
 
 // --- the engine contract (nmt/engine.hpp) ---------------------------------------------------
