@@ -10,8 +10,8 @@ namespace nmt {
 
 SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
   SdoClientConfig c;
-  c.request_cob_id = cfg::CobId::standard(0x600u + node_id);
-  c.response_cob_id = cfg::CobId::standard(0x580u + node_id);
+  c.request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId + node_id);
+  c.response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId + node_id);
   c.node_id = node_id;
   return c;
 }
@@ -213,34 +213,31 @@ void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, Output& out)
 }
 
 void SdoClient::handle(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out) {
-  std::optional<sdo::Abort> abort;
   if (t.state == State::BlockUpload) {
     // Inside a sub-block every frame is a segment, except an abort.
     const auto f = sdo::parse_sub_block_frame(d);
     if (const auto* segment = std::get_if<sdo::BlockSegment>(&f)) {
       return block_upload_segment(t, *segment, now, out);
     }
-    abort = std::get<sdo::Abort>(f);
+    return aborted(t, std::get<sdo::Abort>(f), now, out);
   }
   const auto f = sdo::parse_server_frame(d);
-  if (!abort && f) {
-    if (const auto* a = std::get_if<sdo::Abort>(&*f)) abort = *a;
-  }
-  if (abort) {
-    auto code = abort->code;
-    if (code == SdoAbort::None) code = SdoAbort::General;  // 0 would read as success
-    const bool block_init =
-        t.state == State::BlockDownloadInit || t.state == State::BlockUploadInit;
-    if (block_init && code == SdoAbort::InvalidCommandSpecifier && !t.fell_back) {
-      // The server does not do block transfer: retry with expedited/segmented.
-      t.fell_back = true;
-      t.mode = SdoMode::Auto;
-      return start(t, now, out);
-    }
-    return finish(code, true, now, out);
-  }
   if (!f) return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+  if (const auto* a = std::get_if<sdo::Abort>(&*f)) return aborted(t, *a, now, out);
   handle_response(t, *f, now, out);
+}
+
+void SdoClient::aborted(Transfer& t, const sdo::Abort& abort, TimePoint now, Output& out) {
+  auto code = abort.code;
+  if (code == SdoAbort::None) code = SdoAbort::General;  // 0 would read as success
+  const bool block_init = t.state == State::BlockDownloadInit || t.state == State::BlockUploadInit;
+  if (block_init && code == SdoAbort::InvalidCommandSpecifier && !t.fell_back) {
+    // The server does not do block transfer: retry with expedited/segmented.
+    t.fell_back = true;
+    t.mode = SdoMode::Auto;
+    return start(t, now, out);
+  }
+  finish(code, true, now, out);
 }
 
 void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoint now,

@@ -191,23 +191,6 @@ Abort parse_abort(const Payload& d) {
 
 }  // namespace
 
-std::optional<Payload> sdo_payload(const CanFrame& frame) {
-  if (frame.rtr || frame.error || frame.dlc == 0) return std::nullopt;
-  Payload d{};
-  std::copy_n(frame.data.begin(), std::min<std::size_t>(frame.dlc, d.size()), d.begin());
-  return d;
-}
-
-bool on_channel(const CanFrame& frame, cfg::CobId cob_id) {
-  const auto id = cfg::usable_can_id(cob_id);
-  return id && frame.id == id->id && frame.extended == id->extended;
-}
-
-CanFrame make_frame(cfg::CobId cob_id, const Payload& payload) {
-  const auto id = cob_id.can_id();
-  return CanFrame::make(id.id, payload, id.extended);
-}
-
 std::optional<ClientFrame> parse_client_frame(const Payload& d) {
   const Byte0 b{d[0]};
   switch (static_cast<Ccs>(b.command())) {

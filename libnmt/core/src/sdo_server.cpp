@@ -11,8 +11,8 @@ namespace nmt {
 
 SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
   SdoServerConfig c;
-  c.request_cob_id = cfg::CobId::standard(0x600u + node_id);
-  c.response_cob_id = cfg::CobId::standard(0x580u + node_id);
+  c.request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId + node_id);
+  c.response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId + node_id);
   return c;
 }
 
@@ -90,7 +90,8 @@ void SdoServer::abort(SdoAbort code, TimePoint /*now*/, Output& out) {
   send_abort(code, out);
 }
 
-void SdoServer::respond(const sdo::ServerFrame& f, Output& out) {
+template <class Frame>
+void SdoServer::respond(const Frame& f, Output& out) {
   out.send(sdo::make_frame(config_.response_cob_id, sdo::encode(f)));
 }
 
@@ -110,39 +111,38 @@ void SdoServer::handle(const sdo::Payload& d, Output& out) {
   }
   const auto f = sdo::parse_client_frame(d);
   if (f && std::holds_alternative<sdo::Abort>(*f)) return reset();
-  // Only initiate requests carry a multiplexer; other aborts name 0000h sub 00h.
-  if (state_ == State::Idle) address_ = f ? sdo::multiplexer(*f).value_or(cfg::ObjectAddress{}) : cfg::ObjectAddress{};
+  // A transfer starts with an initiate request, which names the object; an abort answering
+  // any other frame in idle names 0000h sub 00h.
+  if (state_ == State::Idle) address_ = {};
   if (!f) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
   handle_command(*f, out);
 }
 
 void SdoServer::handle_command(const sdo::ClientFrame& f, Output& out) {
-  const bool block = std::holds_alternative<sdo::BlockDownloadInitiateRequest>(f) ||
-                     std::holds_alternative<sdo::BlockDownloadEndRequest>(f) ||
-                     std::holds_alternative<sdo::BlockUploadInitiateRequest>(f) ||
-                     std::holds_alternative<sdo::BlockUploadStart>(f) ||
-                     std::holds_alternative<sdo::BlockUploadAck>(f) ||
-                     std::holds_alternative<sdo::BlockUploadEndResponse>(f);
-  // Without block transfer the block commands are unknown to this server: clients fall back.
-  if (block && !config_.block_transfer) {
-    return send_abort(SdoAbort::InvalidCommandSpecifier, out);
-  }
   switch (state_) {
     case State::Idle:
       if (const auto* r = std::get_if<sdo::InitiateDownloadRequest>(&f)) {
+        address_ = r->address;
         return initiate_download(*r, out);
       }
-      if (std::holds_alternative<sdo::InitiateUploadRequest>(f)) {
+      if (const auto* r = std::get_if<sdo::InitiateUploadRequest>(&f)) {
+        address_ = r->address;
         if (auto code = dict_->read(address_.index, address_.sub_index, buffer_);
             code != SdoAbort::None) {
           return send_abort(code, out);
         }
         return start_upload(out);
       }
+      // Without block transfer the block commands are unknown to this server: clients fall
+      // back. (Other block frames can only come in block states, which need them on.)
       if (const auto* r = std::get_if<sdo::BlockDownloadInitiateRequest>(&f)) {
+        address_ = r->address;
+        if (!config_.block_transfer) break;
         return block_download_initiate(*r, out);
       }
       if (const auto* r = std::get_if<sdo::BlockUploadInitiateRequest>(&f)) {
+        address_ = r->address;
+        if (!config_.block_transfer) break;
         return block_upload_initiate(*r, out);
       }
       break;
@@ -224,7 +224,8 @@ void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, Output& o
   respond(response, out);
 }
 
-void SdoServer::finish_download(const sdo::ServerFrame& confirmation, Output& out) {
+template <class Frame>
+void SdoServer::finish_download(const Frame& confirmation, Output& out) {
   if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
   const auto code = dict_->write(address_.index, address_.sub_index, buffer_);
   if (code != SdoAbort::None) return send_abort(code, out);

@@ -33,9 +33,9 @@ enum class SdoProtocol : std::uint8_t { Expedited, Segmented, Block };
 
 struct SdoClientConfig {
   /// client -> server, a CiA 301 COB-ID word (1280h sub 1): bit 29 selects a 29-bit identifier.
-  cfg::CobId request_cob_id = cfg::CobId::standard(0x600);
+  cfg::CobId request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId);
   /// server -> client (1280h sub 2).
-  cfg::CobId response_cob_id = cfg::CobId::standard(0x580);
+  cfg::CobId response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId);
   std::uint8_t node_id = 0;  ///< the server's node-ID, for reports (0: unknown)
 
   static SdoClientConfig for_node(std::uint8_t node_id);
@@ -171,6 +171,7 @@ class SdoClient {
   void start(Transfer& t, TimePoint now, Output& out);
   void handle(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out);
   void handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoint now, Output& out);
+  void aborted(Transfer& t, const sdo::Abort& abort, TimePoint now, Output& out);
   void block_upload_segment(Transfer& t, const sdo::BlockSegment& f, TimePoint now, Output& out);
   void send_download_segment(Transfer& t, TimePoint now, Output& out);
   void send_download_sub_block(Transfer& t, TimePoint now, Output& out);

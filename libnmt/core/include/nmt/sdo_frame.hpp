@@ -12,6 +12,7 @@
 // CiA 301 leaves unused (they encode as 0), so encode(parse(p)) may differ from p there.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -35,6 +36,11 @@ namespace sdo {
 /// The 8 data bytes of an SDO frame.
 using Payload = std::array<std::uint8_t, 8>;
 
+/// CiA 301 §7.3.5, pre-defined connection set: the default SDO channel of node n uses the
+/// CAN identifiers 600h + n (client to server) and 580h + n (server to client).
+inline constexpr std::uint32_t kDefaultRequestId = 0x600;
+inline constexpr std::uint32_t kDefaultResponseId = 0x580;
+
 /// Data bytes in one segment (segmented and block transfer).
 inline constexpr std::size_t kSegmentBytes = 7;
 /// Block size limits of the block protocols: 1..127 segments per sub-block.
@@ -42,12 +48,24 @@ inline constexpr std::uint8_t kMaxBlockSize = 127;
 
 /// The payload of an SDO frame: its data padded with zeros to 8 bytes; nullopt for RTR, error
 /// and DLC 0 frames.
-std::optional<Payload> sdo_payload(const CanFrame& frame);
+inline std::optional<Payload> sdo_payload(const CanFrame& frame) {
+  if (frame.rtr || frame.error || frame.dlc == 0) return std::nullopt;
+  Payload d;
+  std::copy_n(frame.data.begin(), d.size(), d.begin());
+  for (std::size_t i = frame.dlc; i < d.size(); ++i) d[i] = 0;  // DLC < 8: zero padding
+  return d;
+}
 /// True when `cob_id` is usable (bit 31 clear, well formed) and `frame` has its identifier and
 /// frame format (bit 29: 29-bit), through the one conversion of cfg/cob_id.hpp.
-bool on_channel(const CanFrame& frame, cfg::CobId cob_id);
+inline bool on_channel(const CanFrame& frame, cfg::CobId cob_id) {
+  const auto id = cfg::usable_can_id(cob_id);
+  return id && frame.id == id->id && frame.extended == id->extended;
+}
 /// An 8-byte frame with `cob_id`'s identifier and frame format.
-CanFrame make_frame(cfg::CobId cob_id, const Payload& payload);
+inline CanFrame make_frame(cfg::CobId cob_id, const Payload& payload) {
+  const auto id = cob_id.can_id();
+  return CanFrame::make(id.id, payload, id.extended);
+}
 
 /// A block size from a frame or a setting: CiA 301 allows 1..127 segments per sub-block.
 constexpr bool valid_block_size(std::uint8_t n) {

@@ -32,9 +32,9 @@ namespace nmt {
 struct SdoServerConfig {
   /// client -> server (1200h sub 1), a CiA 301 COB-ID word: bit 29 selects a 29-bit
   /// identifier; with bit 31 set (or an ill-formed word) the server answers nothing.
-  cfg::CobId request_cob_id = cfg::CobId::standard(0x600);
+  cfg::CobId request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId);
   /// server -> client (1200h sub 2).
-  cfg::CobId response_cob_id = cfg::CobId::standard(0x580);
+  cfg::CobId response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId);
   /// When false, block requests are answered with abort 0504 0001 (clients fall back).
   bool block_transfer = true;
   /// A segmented or block transfer with no request for this long is aborted with 0504 0000.
@@ -102,8 +102,10 @@ class SdoServer {
   void block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, Output& out);
   void block_upload_ack(const sdo::BlockUploadAck& f, Output& out);
   void send_upload_sub_block(Output& out);
-  void finish_download(const sdo::ServerFrame& confirmation, Output& out);
-  void respond(const sdo::ServerFrame& f, Output& out);
+  template <class Frame>
+  void finish_download(const Frame& confirmation, Output& out);
+  template <class Frame>
+  void respond(const Frame& f, Output& out);
   void send_abort(SdoAbort code, Output& out);
   void reset();
 
