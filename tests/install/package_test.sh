@@ -8,9 +8,9 @@ build=$1
 work=$2
 here=$(cd "$(dirname "$0")" && pwd)
 source_dir=$(cd "$here/../.." && pwd)
-for tool in dpkg-deb dpkg-shlibdeps; do
+for tool in dpkg-deb dpkg-shlibdeps file; do
   if ! command -v "$tool" >/dev/null; then
-    echo "package_test: $tool missing (apt-get install dpkg-dev); skipping" >&2
+    echo "package_test: $tool missing (apt-get install dpkg-dev file); skipping" >&2
     exit 77
   fi
 done

@@ -13,65 +13,96 @@ TimePoint at_ms(std::int64_t ms) {
   return milliseconds(ms);
 }
 
+cfg::CobId cob(std::uint32_t word) {
+  return cfg::CobId::from_word(word);
+}
+
+// Raises one emergency; the frames it sent at once (the producer reports no events).
+std::vector<CanFrame> raise(EmcyProducer& p, const Emergency& e, TimePoint now) {
+  EmcyProducer::Output out;
+  p.raise(e, now, out);
+  return out.frames;
+}
+std::vector<CanFrame> timer(EmcyProducer& p, TimePoint now) {
+  EmcyProducer::Output out;
+  p.on_timer(now, out);
+  return out.frames;
+}
+
+static_assert(Engine<EmcyProducer>);
+
 const Emergency kLifeGuard{emcy_code::kLifeGuardOrHeartbeat,
                            error_register::kGeneric | error_register::kCommunication,
                            {}};
 
 TEST(Emcy, LifeGuardErrorFrameMatchesSpecExample) {
-  EXPECT_EQ(to_candump(make_emcy(kEmcyCobIdBase + 1, kLifeGuard)), "081#3081110000000000");
+  EXPECT_EQ(to_candump(make_emcy(cob(kEmcyCobIdBase + 1), kLifeGuard)), "081#3081110000000000");
 }
 
 TEST(Emcy, ParsesWhatItEncodes) {
   Emergency e{0x1234, 0x81, {1, 2, 3, 4, 5}};
-  auto frame = make_emcy(0x85, e);
+  auto frame = make_emcy(cob(0x85), e);
   EXPECT_EQ(to_candump(frame), "085#3412810102030405");
   EXPECT_EQ(parse_emcy(frame), e);
   EXPECT_FALSE(parse_emcy(*from_candump("085#3412")).has_value());
 }
 
 TEST(EmcyProducer, SendsAtOnceWithoutInhibitTime) {
-  EmcyProducer p(0x81);
-  auto f = p.raise(kLifeGuard, at_ms(0), true);
-  ASSERT_TRUE(f.has_value());
-  EXPECT_EQ(f->id, 0x81u);
-  EXPECT_TRUE(p.raise(kLifeGuard, at_ms(0), true).has_value());
+  EmcyProducer p(cob(0x81));
+  auto f = raise(p, kLifeGuard, at_ms(0));
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_EQ(f[0].id, 0x81u);
+  EXPECT_EQ(raise(p, kLifeGuard, at_ms(0)).size(), 1u);
 }
 
 TEST(EmcyProducer, InhibitTimeDelaysTheNextMessage) {
-  EmcyProducer p(0x81, 100);  // 100 × 100 µs = 10 ms
-  ASSERT_TRUE(p.raise(kLifeGuard, at_ms(0), true).has_value());
-  EXPECT_FALSE(p.raise({emcy_code::kGeneric, 1, {}}, at_ms(3), true).has_value());
-  EXPECT_EQ(p.deadline(), at_ms(10));
-  EXPECT_TRUE(p.on_timer(at_ms(9), true).empty());
-  auto out = p.on_timer(at_ms(10), true);
+  EmcyProducer p(cob(0x81), 100);  // 100 × 100 µs = 10 ms
+  ASSERT_EQ(raise(p, kLifeGuard, at_ms(0)).size(), 1u);
+  EXPECT_TRUE(raise(p, {emcy_code::kGeneric, 1, {}}, at_ms(3)).empty());
+  EXPECT_EQ(p.next_deadline(), at_ms(10));
+  EXPECT_TRUE(timer(p, at_ms(9)).empty());
+  auto out = timer(p, at_ms(10));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(to_candump(out[0]), "081#0010010000000000");
-  EXPECT_FALSE(p.deadline().has_value());
+  EXPECT_FALSE(p.next_deadline().has_value());
 }
 
 TEST(EmcyProducer, NothingIsSentInStoppedOrWithInvalidCobId) {
-  EmcyProducer p(0x81);
-  EXPECT_FALSE(p.raise(kLifeGuard, at_ms(0), /*allowed=*/false).has_value());
-  p.set_cob_id(0x80000081u);  // CiA 301 §7.5.2.14: bit 31 set, EMCY does not exist
-  EXPECT_FALSE(p.raise(kLifeGuard, at_ms(0), true).has_value());
+  EmcyProducer p(cob(0x81));
+  p.set_allowed(false);  // stopped
+  EXPECT_TRUE(raise(p, kLifeGuard, at_ms(0)).empty());
+  p.set_allowed(true);
+  p.set_cob_id(cob(0x80000081u));  // CiA 301 §7.5.2.14: bit 31 set, EMCY does not exist
+  EXPECT_TRUE(raise(p, kLifeGuard, at_ms(0)).empty());
   EXPECT_EQ(p.dropped(), 2u);
 }
 
 TEST(EmcyProducer, QueueIsBounded) {
-  EmcyProducer p(0x81, 10'000);
-  (void)p.raise(kLifeGuard, at_ms(0), true);
+  EmcyProducer p(cob(0x81), 10'000);
+  (void)raise(p, kLifeGuard, at_ms(0));
   for (std::size_t i = 0; i < EmcyProducer::kQueueCapacity + 3; ++i) {
-    (void)p.raise(kLifeGuard, at_ms(0), true);
+    (void)raise(p, kLifeGuard, at_ms(0));
   }
   EXPECT_EQ(p.dropped(), 3u);
 }
 
 TEST(EmcyProducer, ExtendedCobIdUses29BitIdentifier) {
-  EmcyProducer p(0x20000181u);
-  auto f = p.raise(kLifeGuard, at_ms(0), true);
-  ASSERT_TRUE(f.has_value());
-  EXPECT_TRUE(f->extended);
-  EXPECT_EQ(f->id, 0x181u);
+  EmcyProducer p(cob(0x20000181u));
+  auto f = raise(p, kLifeGuard, at_ms(0));
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_TRUE(f[0].extended);
+  EXPECT_EQ(f[0].id, 0x181u);
+}
+
+TEST(EmcyProducer, QueuedMessagesAreDroppedWhenTheStateNoLongerAllowsEmcy) {
+  // CiA 301 §7.3.2.2 Table 51: no EMCY in stopped, also none that waited for the inhibit time.
+  EmcyProducer p(cob(0x81), 100);
+  ASSERT_EQ(raise(p, kLifeGuard, at_ms(0)).size(), 1u);
+  EXPECT_TRUE(raise(p, kLifeGuard, at_ms(1)).empty());  // queued
+  p.set_allowed(false);
+  EXPECT_TRUE(timer(p, at_ms(10)).empty());
+  EXPECT_EQ(p.dropped(), 1u);
+  EXPECT_FALSE(p.next_deadline().has_value());
 }
 
 }  // namespace

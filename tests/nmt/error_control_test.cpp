@@ -20,42 +20,114 @@ CanFrame frame(std::string_view candump) {
   return f.value_or(CanFrame{});
 }
 
+cfg::NodeId id(std::uint8_t node_id) {
+  return cfg::NodeId::from(node_id).value();
+}
+
+// The engines through their one shape (nmt/engine.hpp), read back as what each call produced.
+
+// A frame fed to an engine that answers no frames: the events it reported.
+template <class E>
+std::vector<typename E::Event> feed(E& engine, const CanFrame& f, TimePoint now) {
+  typename E::Output out;
+  (void)engine.on_frame(f, now, out);
+  EXPECT_TRUE(out.frames.empty());
+  return out.events;
+}
+// A timer call of an engine that sends no frames from it: the events it reported.
+template <class E>
+std::vector<typename E::Event> tick(E& engine, TimePoint now) {
+  typename E::Output out;
+  engine.on_timer(now, out);
+  EXPECT_TRUE(out.frames.empty());
+  return out.events;
+}
+// The guarding master's timer: requests are appended to `frames`, events returned.
+std::vector<NodeGuardingEvent> tick(NodeGuardingMaster& m, TimePoint now,
+                                    std::vector<CanFrame>& frames) {
+  NodeGuardingMaster::Output out;
+  m.on_timer(now, out);
+  frames.insert(frames.end(), out.frames.begin(), out.frames.end());
+  return out.events;
+}
+// The heartbeat the producer sends at `now` for `node` in `state`, if one is due.
+std::optional<CanFrame> beat(HeartbeatProducer& p, TimePoint now, std::uint8_t node,
+                             NmtState state) {
+  p.set_node_id(id(node));
+  p.set_state(state);
+  HeartbeatProducer::Output out;
+  p.on_timer(now, out);
+  EXPECT_LE(out.frames.size(), 1u);
+  if (out.frames.empty()) return std::nullopt;
+  return out.frames.front();
+}
+// What the guarded slave does with a frame: its reply and its life guarding event.
+struct GuardResult {
+  std::optional<CanFrame> reply;
+  std::optional<LifeGuardingEvent> event;
+};
+GuardResult guard(NodeGuardingSlave& g, const CanFrame& f, TimePoint now, std::uint8_t node,
+                  NmtState state) {
+  g.set_node_id(id(node));
+  g.set_state(state);
+  NodeGuardingSlave::Output out;
+  const bool taken = g.on_frame(f, now, out);
+  EXPECT_EQ(taken, !out.frames.empty());
+  EXPECT_LE(out.frames.size(), 1u);
+  EXPECT_LE(out.events.size(), 1u);
+  GuardResult r;
+  if (!out.frames.empty()) r.reply = out.frames.front();
+  if (!out.events.empty()) r.event = out.events.front();
+  return r;
+}
+std::optional<LifeGuardingEvent> life(NodeGuardingSlave& g, TimePoint now) {
+  auto events = tick(g, now);
+  EXPECT_LE(events.size(), 1u);
+  if (events.empty()) return std::nullopt;
+  return events.front();
+}
+
+static_assert(Engine<HeartbeatProducer>);
+static_assert(Engine<HeartbeatConsumer>);
+static_assert(Engine<NodeGuardingSlave>);
+static_assert(Engine<NodeGuardingMaster>);
+
 // --- heartbeat producer ---
 
 TEST(HeartbeatProducer, SendsStateEveryPeriodAfterBootUp) {
-  HeartbeatProducer p;
+  HeartbeatProducer p(id(1));
   p.set_period(100, at_ms(0));
   p.on_boot_up(at_ms(0));  // the boot-up message counts as the first heartbeat
-  EXPECT_EQ(p.deadline(), at_ms(100));
-  EXPECT_FALSE(p.on_timer(at_ms(99), 5, NmtState::PreOperational).has_value());
-  auto hb = p.on_timer(at_ms(100), 5, NmtState::PreOperational);
+  EXPECT_EQ(p.next_deadline(), at_ms(100));
+  EXPECT_FALSE(beat(p, at_ms(99), 5, NmtState::PreOperational).has_value());
+  auto hb = beat(p, at_ms(100), 5, NmtState::PreOperational);
   ASSERT_TRUE(hb.has_value());
   EXPECT_EQ(to_candump(*hb), "705#7F");
-  EXPECT_EQ(p.deadline(), at_ms(200));
-  auto op = p.on_timer(at_ms(200), 5, NmtState::Operational);
+  EXPECT_EQ(p.next_deadline(), at_ms(200));
+  auto op = beat(p, at_ms(200), 5, NmtState::Operational);
   ASSERT_TRUE(op.has_value());
   EXPECT_EQ(to_candump(*op), "705#05");
-  EXPECT_EQ(to_candump(*p.on_timer(at_ms(300), 5, NmtState::Stopped)), "705#04");
+  EXPECT_EQ(to_candump(*beat(p, at_ms(300), 5, NmtState::Stopped)), "705#04");
 }
 
 TEST(HeartbeatProducer, ZeroPeriodDisablesTheProducer) {
-  HeartbeatProducer p;
+  HeartbeatProducer p(id(1));
   p.on_boot_up(at_ms(0));
-  EXPECT_FALSE(p.deadline().has_value());
+  EXPECT_FALSE(p.next_deadline().has_value());
   p.set_period(50, at_ms(10));
-  EXPECT_EQ(p.deadline(), at_ms(10));  // CiA 301: starts immediately when written at run time
+  EXPECT_EQ(p.next_deadline(), at_ms(10));  // CiA 301: starts immediately when written at run time
   p.set_period(0, at_ms(20));
-  EXPECT_FALSE(p.deadline().has_value());
-  EXPECT_FALSE(p.on_timer(at_ms(1000), 1, NmtState::Operational).has_value());
+  EXPECT_FALSE(p.next_deadline().has_value());
+  EXPECT_FALSE(beat(p, at_ms(1000), 1, NmtState::Operational).has_value());
 }
 
 TEST(HeartbeatProducer, DoesNotBurstAfterStall) {
-  HeartbeatProducer p;
+  HeartbeatProducer p(id(1));
   p.set_period(10, at_ms(0));
   p.on_boot_up(at_ms(0));
-  ASSERT_TRUE(p.on_timer(at_ms(95), 1, NmtState::Operational).has_value());
-  EXPECT_EQ(p.deadline(), at_ms(105));
-  EXPECT_FALSE(p.on_timer(at_ms(96), 1, NmtState::Operational).has_value());
+  ASSERT_TRUE(beat(p, at_ms(95), 1, NmtState::Operational).has_value());
+  EXPECT_EQ(p.next_deadline(), at_ms(105));
+  EXPECT_FALSE(beat(p, at_ms(96), 1, NmtState::Operational).has_value());
 }
 
 // --- heartbeat consumer ---
@@ -74,12 +146,12 @@ TEST(HeartbeatConsumer, EntryEncodingIsNodeIdInBits16To23AndTimeInBits0To15) {
 TEST(HeartbeatConsumer, Cia301MonitoringStartsWithFirstHeartbeat) {
   HeartbeatConsumer c;  // timeout_from_start = false
   c.monitor({5, 100}, at_ms(0));
-  EXPECT_FALSE(c.deadline().has_value());
-  EXPECT_TRUE(c.on_timer(at_ms(10'000)).empty());  // silent node: no event without a heartbeat
-  EXPECT_TRUE(c.on_frame(frame("705#7F"), at_ms(10'000)).empty());
-  EXPECT_EQ(c.deadline(), at_ms(10'100));
-  EXPECT_TRUE(c.on_timer(at_ms(10'099)).empty());
-  auto ev = c.on_timer(at_ms(10'100));
+  EXPECT_FALSE(c.next_deadline().has_value());
+  EXPECT_TRUE(tick(c, at_ms(10'000)).empty());  // silent node: no event without a heartbeat
+  EXPECT_TRUE(feed(c, frame("705#7F"), at_ms(10'000)).empty());
+  EXPECT_EQ(c.next_deadline(), at_ms(10'100));
+  EXPECT_TRUE(tick(c, at_ms(10'099)).empty());
+  auto ev = tick(c, at_ms(10'100));
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].kind, HeartbeatEventKind::Timeout);
   EXPECT_EQ(ev[0].node_id, 5);
@@ -91,55 +163,55 @@ TEST(HeartbeatConsumer, Cia302StartErrorControlTimesOutSilentNodeFromStart) {
   // process itself."
   HeartbeatConsumer c({.timeout_from_start = true});
   c.monitor({5, 100}, at_ms(0));
-  EXPECT_EQ(c.deadline(), at_ms(100));
-  auto ev = c.on_timer(at_ms(100));
+  EXPECT_EQ(c.next_deadline(), at_ms(100));
+  auto ev = tick(c, at_ms(100));
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].kind, HeartbeatEventKind::Timeout);
-  EXPECT_TRUE(c.on_timer(at_ms(500)).empty());  // reported once
+  EXPECT_TRUE(tick(c, at_ms(500)).empty());  // reported once
 }
 
 TEST(HeartbeatConsumer, Cia302HeartbeatInTimeEndsStartErrorControlSuccessfully) {
   HeartbeatConsumer c({.timeout_from_start = true});
   c.monitor({5, 100}, at_ms(0));
-  EXPECT_TRUE(c.on_frame(frame("705#7F"), at_ms(60)).empty());
-  EXPECT_TRUE(c.on_timer(at_ms(100)).empty());
-  EXPECT_EQ(c.deadline(), at_ms(160));
+  EXPECT_TRUE(feed(c, frame("705#7F"), at_ms(60)).empty());
+  EXPECT_TRUE(tick(c, at_ms(100)).empty());
+  EXPECT_EQ(c.next_deadline(), at_ms(160));
 }
 
 TEST(HeartbeatConsumer, HeartbeatAfterTimeoutResolvesAndRearms) {
   HeartbeatConsumer c;
   c.monitor({7, 50}, at_ms(0));
-  (void)c.on_frame(frame("707#05"), at_ms(0));
-  ASSERT_EQ(c.on_timer(at_ms(50)).size(), 1u);
-  auto ev = c.on_frame(frame("707#05"), at_ms(300));
+  (void)feed(c, frame("707#05"), at_ms(0));
+  ASSERT_EQ(tick(c, at_ms(50)).size(), 1u);
+  auto ev = feed(c, frame("707#05"), at_ms(300));
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].kind, HeartbeatEventKind::Resolved);
   EXPECT_EQ(ev[0].state, NmtState::Operational);
-  EXPECT_EQ(c.deadline(), at_ms(350));
+  EXPECT_EQ(c.next_deadline(), at_ms(350));
 }
 
 TEST(HeartbeatConsumer, ReportsStateChangesAndBootUp) {
   HeartbeatConsumer c;
   c.monitor({7, 50}, at_ms(0));
-  EXPECT_TRUE(c.on_frame(frame("707#7F"), at_ms(0)).empty());
-  auto changed = c.on_frame(frame("707#05"), at_ms(10));
+  EXPECT_TRUE(feed(c, frame("707#7F"), at_ms(0)).empty());
+  auto changed = feed(c, frame("707#05"), at_ms(10));
   ASSERT_EQ(changed.size(), 1u);
   EXPECT_EQ(changed[0].kind, HeartbeatEventKind::StateChanged);
   EXPECT_EQ(changed[0].state, NmtState::Operational);
-  auto boot = c.on_frame(frame("707#00"), at_ms(20));
+  auto boot = feed(c, frame("707#00"), at_ms(20));
   ASSERT_EQ(boot.size(), 1u);
   EXPECT_EQ(boot[0].kind, HeartbeatEventKind::BootUp);
-  EXPECT_FALSE(c.deadline().has_value());  // waits for a heartbeat again
+  EXPECT_FALSE(c.next_deadline().has_value());  // waits for a heartbeat again
 }
 
 TEST(HeartbeatConsumer, IgnoresUnmonitoredNodesAndOtherFrames) {
   HeartbeatConsumer c({.timeout_from_start = true});
   c.monitor({7, 50}, at_ms(0));
-  EXPECT_TRUE(c.on_frame(frame("708#05"), at_ms(10)).empty());
-  EXPECT_TRUE(c.on_frame(frame("707#R1"), at_ms(10)).empty());
-  EXPECT_TRUE(c.on_frame(frame("707#0500"), at_ms(10)).empty());
-  EXPECT_TRUE(c.on_frame(frame("707#12"), at_ms(10)).empty());  // 0x12 is no NMT state
-  EXPECT_EQ(c.on_timer(at_ms(50)).size(), 1u);  // none of these was a heartbeat of node 7
+  EXPECT_TRUE(feed(c, frame("708#05"), at_ms(10)).empty());
+  EXPECT_TRUE(feed(c, frame("707#R1"), at_ms(10)).empty());
+  EXPECT_TRUE(feed(c, frame("707#0500"), at_ms(10)).empty());
+  EXPECT_TRUE(feed(c, frame("707#12"), at_ms(10)).empty());  // 0x12 is no NMT state
+  EXPECT_EQ(tick(c, at_ms(50)).size(), 1u);  // none of these was a heartbeat of node 7
 }
 
 TEST(HeartbeatConsumer, InactiveEntryStopsMonitoring) {
@@ -147,90 +219,89 @@ TEST(HeartbeatConsumer, InactiveEntryStopsMonitoring) {
   c.monitor({7, 50}, at_ms(0));
   c.monitor({7, 0}, at_ms(10));
   EXPECT_FALSE(c.monitors(7));
-  EXPECT_TRUE(c.on_timer(at_ms(100)).empty());
+  EXPECT_TRUE(tick(c, at_ms(100)).empty());
 }
 
 TEST(HeartbeatConsumer, MonitorsSeveralNodesIndependently) {
   HeartbeatConsumer c({.timeout_from_start = true});
   c.monitor({1, 100}, at_ms(0));
   c.monitor({2, 200}, at_ms(0));
-  (void)c.on_frame(frame("701#05"), at_ms(90));
-  (void)c.on_frame(frame("701#05"), at_ms(150));
-  auto ev = c.on_timer(at_ms(200));
+  (void)feed(c, frame("701#05"), at_ms(90));
+  (void)feed(c, frame("701#05"), at_ms(150));
+  auto ev = tick(c, at_ms(200));
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].node_id, 2);
-  EXPECT_EQ(c.deadline(), at_ms(250));
+  EXPECT_EQ(c.next_deadline(), at_ms(250));
 }
 
 // --- node guarding / life guarding ---
 
 TEST(NodeGuardingSlave, RepliesWithToggleBitStartingAtZero) {
-  NodeGuardingSlave g;
+  NodeGuardingSlave g(id(1));
   const CanFrame rtr = frame("705#R1");
-  auto r1 = g.on_frame(rtr, at_ms(0), 5, NmtState::Operational);
+  auto r1 = guard(g, rtr, at_ms(0), 5, NmtState::Operational);
   ASSERT_TRUE(r1.reply.has_value());
   EXPECT_EQ(to_candump(*r1.reply), "705#05");
-  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(10), 5, NmtState::Operational).reply), "705#85");
-  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(20), 5, NmtState::Operational).reply), "705#05");
+  EXPECT_EQ(to_candump(*guard(g, rtr, at_ms(10), 5, NmtState::Operational).reply), "705#85");
+  EXPECT_EQ(to_candump(*guard(g, rtr, at_ms(20), 5, NmtState::Operational).reply), "705#05");
 }
 
 TEST(NodeGuardingSlave, PreOperationalRepliesMatchSpecExample) {
   // spec/002: "701 7F" then "701 FF" for node 1 in pre-operational.
-  NodeGuardingSlave g;
+  NodeGuardingSlave g(id(1));
   const CanFrame rtr = frame("701#R");
-  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(0), 1, NmtState::PreOperational).reply), "701#7F");
-  EXPECT_EQ(to_candump(*g.on_frame(rtr, at_ms(1), 1, NmtState::PreOperational).reply), "701#FF");
+  EXPECT_EQ(to_candump(*guard(g, rtr, at_ms(0), 1, NmtState::PreOperational).reply), "701#7F");
+  EXPECT_EQ(to_candump(*guard(g, rtr, at_ms(1), 1, NmtState::PreOperational).reply), "701#FF");
 }
 
 TEST(NodeGuardingSlave, StoppedStateIsFour) {
-  NodeGuardingSlave g;
-  EXPECT_EQ(to_candump(*g.on_frame(frame("705#R1"), at_ms(0), 5, NmtState::Stopped).reply),
-            "705#04");
+  NodeGuardingSlave g(id(1));
+  EXPECT_EQ(to_candump(*guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Stopped).reply), "705#04");
 }
 
 TEST(NodeGuardingSlave, ResetReturnsToggleToZero) {
-  NodeGuardingSlave g;
-  (void)g.on_frame(frame("705#R1"), at_ms(0), 5, NmtState::Operational);
+  NodeGuardingSlave g(id(1));
+  (void)guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Operational);
   g.reset();
-  EXPECT_EQ(to_candump(*g.on_frame(frame("705#R1"), at_ms(1), 5, NmtState::PreOperational).reply),
+  EXPECT_EQ(to_candump(*guard(g, frame("705#R1"), at_ms(1), 5, NmtState::PreOperational).reply),
             "705#7F");
 }
 
 TEST(NodeGuardingSlave, IgnoresOtherNodesAndDataFrames) {
-  NodeGuardingSlave g;
-  EXPECT_FALSE(g.on_frame(frame("706#R1"), at_ms(0), 5, NmtState::Operational).reply);
-  EXPECT_FALSE(g.on_frame(frame("705#05"), at_ms(0), 5, NmtState::Operational).reply);
+  NodeGuardingSlave g(id(1));
+  EXPECT_FALSE(guard(g, frame("706#R1"), at_ms(0), 5, NmtState::Operational).reply);
+  EXPECT_FALSE(guard(g, frame("705#05"), at_ms(0), 5, NmtState::Operational).reply);
   EXPECT_FALSE(g.toggle());
 }
 
 TEST(NodeGuardingSlave, LifeGuardingStartsWithFirstRequestAndFiresAfterLifeTime) {
-  NodeGuardingSlave g;
-  g.configure(100, 3);                     // life time 300 ms
-  EXPECT_FALSE(g.deadline().has_value());  // spec/002: starts with the first remote frame
-  (void)g.on_frame(frame("705#R1"), at_ms(1000), 5, NmtState::Operational);
-  EXPECT_EQ(g.deadline(), at_ms(1300));
-  (void)g.on_frame(frame("705#R1"), at_ms(1100), 5, NmtState::Operational);
-  EXPECT_FALSE(g.on_timer(at_ms(1399)).has_value());
-  EXPECT_EQ(g.on_timer(at_ms(1400)), LifeGuardingEvent::Occurred);
-  EXPECT_FALSE(g.on_timer(at_ms(2000)).has_value());  // reported once
-  auto again = g.on_frame(frame("705#R1"), at_ms(2000), 5, NmtState::Operational);
+  NodeGuardingSlave g(id(1));
+  g.configure(100, 3);                          // life time 300 ms
+  EXPECT_FALSE(g.next_deadline().has_value());  // spec/002: starts with the first remote frame
+  (void)guard(g, frame("705#R1"), at_ms(1000), 5, NmtState::Operational);
+  EXPECT_EQ(g.next_deadline(), at_ms(1300));
+  (void)guard(g, frame("705#R1"), at_ms(1100), 5, NmtState::Operational);
+  EXPECT_FALSE(life(g, at_ms(1399)).has_value());
+  EXPECT_EQ(life(g, at_ms(1400)), LifeGuardingEvent::Occurred);
+  EXPECT_FALSE(life(g, at_ms(2000)).has_value());  // reported once
+  auto again = guard(g, frame("705#R1"), at_ms(2000), 5, NmtState::Operational);
   EXPECT_EQ(again.event, LifeGuardingEvent::Resolved);
-  EXPECT_EQ(g.deadline(), at_ms(2300));
+  EXPECT_EQ(g.next_deadline(), at_ms(2300));
 }
 
 TEST(NodeGuardingSlave, LifeGuardingNeedsBothGuardTimeAndLifeTimeFactor) {
-  NodeGuardingSlave g;
+  NodeGuardingSlave g(id(1));
   g.configure(100, 0);
-  (void)g.on_frame(frame("705#R1"), at_ms(0), 5, NmtState::Operational);
-  EXPECT_FALSE(g.deadline().has_value());
+  (void)guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Operational);
+  EXPECT_FALSE(g.next_deadline().has_value());
   g.configure(0, 3);
-  EXPECT_FALSE(g.deadline().has_value());
-  EXPECT_FALSE(g.on_timer(at_ms(100'000)).has_value());
+  EXPECT_FALSE(g.next_deadline().has_value());
+  EXPECT_FALSE(life(g, at_ms(100'000)).has_value());
 }
 
 TEST(ErrorControl, FramesAreEncodedAsTheSpecExamples) {
-  EXPECT_EQ(to_candump(make_heartbeat(5, NmtState::PreOperational)), "705#7F");
-  EXPECT_EQ(to_candump(make_guarding_request(1)), "701#R1");
+  EXPECT_EQ(to_candump(make_heartbeat(id(5), NmtState::PreOperational)), "705#7F");
+  EXPECT_EQ(to_candump(make_guarding_request(id(1))), "701#R1");
   auto msg = parse_error_control(frame("701#FF"));
   ASSERT_TRUE(msg.has_value());
   EXPECT_EQ(msg->node_id, 1);
@@ -250,42 +321,42 @@ std::vector<std::string> texts(const std::vector<CanFrame>& frames) {
 
 TEST(NodeGuardingMaster, SendsARequestEveryGuardTime) {
   NodeGuardingMaster m;
-  m.start(5, 100, 3, at_ms(0));
+  m.start(id(5), 100, 3, at_ms(0));
   std::vector<CanFrame> out;
-  EXPECT_TRUE(m.on_timer(at_ms(0), out).empty());
+  EXPECT_TRUE(tick(m, at_ms(0), out).empty());
   EXPECT_EQ(texts(out), std::vector<std::string>{"705#R1"});
-  EXPECT_EQ(m.deadline(), at_ms(100));
+  EXPECT_EQ(m.next_deadline(), at_ms(100));
   out.clear();
-  (void)m.on_timer(at_ms(50), out);
+  (void)tick(m, at_ms(50), out);
   EXPECT_TRUE(out.empty());
 }
 
 TEST(NodeGuardingMaster, AlternatingRepliesKeepTheNodeGuarded) {
   NodeGuardingMaster m;
-  m.start(5, 100, 1, at_ms(0));
+  m.start(id(5), 100, 1, at_ms(0));
   std::vector<CanFrame> out;
   const char* replies[] = {"705#7F", "705#FF", "705#7F", "705#FF"};  // spec/002 sequence
   for (int i = 0; i < 4; ++i) {
-    EXPECT_TRUE(m.on_timer(at_ms(100 * i), out).empty());
-    EXPECT_TRUE(m.on_frame(frame(replies[i]), at_ms(100 * i + 5)).empty());
+    EXPECT_TRUE(tick(m, at_ms(100 * i), out).empty());
+    EXPECT_TRUE(feed(m, frame(replies[i]), at_ms(100 * i + 5)).empty());
   }
-  EXPECT_TRUE(m.on_timer(at_ms(400), out).empty());
+  EXPECT_TRUE(tick(m, at_ms(400), out).empty());
 }
 
 TEST(NodeGuardingMaster, TimesOutAfterLifeTimeFactorMissedReplies) {
   NodeGuardingMaster m;
-  m.start(5, 100, 3, at_ms(0));
+  m.start(id(5), 100, 3, at_ms(0));
   std::vector<CanFrame> out;
-  EXPECT_TRUE(m.on_timer(at_ms(0), out).empty());
-  EXPECT_TRUE(m.on_timer(at_ms(100), out).empty());  // 1 missed
-  EXPECT_TRUE(m.on_timer(at_ms(200), out).empty());  // 2 missed
-  auto ev = m.on_timer(at_ms(300), out);             // 3 missed: life time over
+  EXPECT_TRUE(tick(m, at_ms(0), out).empty());
+  EXPECT_TRUE(tick(m, at_ms(100), out).empty());  // 1 missed
+  EXPECT_TRUE(tick(m, at_ms(200), out).empty());  // 2 missed
+  auto ev = tick(m, at_ms(300), out);             // 3 missed: life time over
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::Timeout);
   EXPECT_EQ(ev[0].at, at_ms(300));
-  EXPECT_TRUE(m.on_timer(at_ms(400), out).empty());  // reported once
-  EXPECT_EQ(out.size(), 5u);                         // requests go on
-  auto back = m.on_frame(frame("705#05"), at_ms(410));
+  EXPECT_TRUE(tick(m, at_ms(400), out).empty());  // reported once
+  EXPECT_EQ(out.size(), 5u);                      // requests go on
+  auto back = feed(m, frame("705#05"), at_ms(410));
   ASSERT_EQ(back.size(), 1u);
   EXPECT_EQ(back[0].kind, NodeGuardingEventKind::Resolved);
   EXPECT_EQ(back[0].state, NmtState::Operational);
@@ -293,25 +364,25 @@ TEST(NodeGuardingMaster, TimesOutAfterLifeTimeFactorMissedReplies) {
 
 TEST(NodeGuardingMaster, ReplyWithRepeatedToggleBitCountsAsMissed) {
   NodeGuardingMaster m;
-  m.start(5, 100, 1, at_ms(0));
+  m.start(id(5), 100, 1, at_ms(0));
   std::vector<CanFrame> out;
-  (void)m.on_timer(at_ms(0), out);
-  EXPECT_TRUE(m.on_frame(frame("705#85"), at_ms(5)).empty());  // first reply must have toggle 0
-  auto ev = m.on_timer(at_ms(100), out);
+  (void)tick(m, at_ms(0), out);
+  EXPECT_TRUE(feed(m, frame("705#85"), at_ms(5)).empty());  // first reply must have toggle 0
+  auto ev = tick(m, at_ms(100), out);
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::Timeout);
   // Resynchronised: the device's next reply (toggle 0) is valid again.
-  EXPECT_EQ(m.on_frame(frame("705#05"), at_ms(105)).size(), 1u);  // Resolved
+  EXPECT_EQ(feed(m, frame("705#05"), at_ms(105)).size(), 1u);  // Resolved
 }
 
 TEST(NodeGuardingMaster, ReportsStateChanges) {
   NodeGuardingMaster m;
-  m.start(5, 100, 2, at_ms(0));
+  m.start(id(5), 100, 2, at_ms(0));
   std::vector<CanFrame> out;
-  (void)m.on_timer(at_ms(0), out);
-  EXPECT_TRUE(m.on_frame(frame("705#7F"), at_ms(5)).empty());
-  (void)m.on_timer(at_ms(100), out);
-  auto ev = m.on_frame(frame("705#85"), at_ms(105));
+  (void)tick(m, at_ms(0), out);
+  EXPECT_TRUE(feed(m, frame("705#7F"), at_ms(5)).empty());
+  (void)tick(m, at_ms(100), out);
+  auto ev = feed(m, frame("705#85"), at_ms(105));
   ASSERT_EQ(ev.size(), 1u);
   EXPECT_EQ(ev[0].kind, NodeGuardingEventKind::StateChanged);
   EXPECT_EQ(ev[0].state, NmtState::Operational);
@@ -321,20 +392,20 @@ TEST(NodeGuardingMaster, GuardsTheSlaveEngineWithoutEvents) {
   // Master and slave engines exchanging frames directly for 10 s of guarding at 100 ms, life
   // time factor 3 on both sides.
   NodeGuardingMaster m;
-  NodeGuardingSlave s;
+  NodeGuardingSlave s(id(9));
   s.configure(100, 3);
-  m.start(9, 100, 3, at_ms(0));
+  m.start(id(9), 100, 3, at_ms(0));
   int requests = 0;
   for (int t = 0; t <= 10'000; t += 10) {
     std::vector<CanFrame> out;
-    EXPECT_TRUE(m.on_timer(at_ms(t), out).empty());
+    EXPECT_TRUE(tick(m, at_ms(t), out).empty());
     for (const auto& request : out) {
       ++requests;
-      auto r = s.on_frame(request, at_ms(t), 9, NmtState::Operational);
+      auto r = guard(s, request, at_ms(t), 9, NmtState::Operational);
       ASSERT_TRUE(r.reply.has_value());
-      EXPECT_TRUE(m.on_frame(*r.reply, at_ms(t + 1)).empty());
+      EXPECT_TRUE(feed(m, *r.reply, at_ms(t + 1)).empty());
     }
-    EXPECT_FALSE(s.on_timer(at_ms(t)).has_value());
+    EXPECT_FALSE(life(s, at_ms(t)).has_value());
   }
   EXPECT_EQ(requests, 101);
 }

@@ -16,6 +16,7 @@ namespace nmt {
 namespace {
 
 using Bytes = std::vector<std::uint8_t>;
+constexpr TimePoint kNow{0};  // the time of an access only matters to the hooks
 
 LocalDictionary make(std::uint8_t node_id = 5) {
   auto d = LocalDictionary::from_device(test_support::sdo_test_device(), node_id);
@@ -25,7 +26,7 @@ LocalDictionary make(std::uint8_t node_id = 5) {
 
 Bytes read(const LocalDictionary& d, std::uint16_t index, std::uint8_t sub) {
   Bytes out;
-  EXPECT_EQ(d.read(index, sub, out), SdoAbort::None);
+  EXPECT_EQ(d.read(index, sub, out, kNow), SdoAbort::None);
   return out;
 }
 
@@ -88,7 +89,9 @@ TEST(LocalDictionary, RejectsValueThatDoesNotFitItsTypeNamingTheEntry) {
   device.sub(0x1017, 0)->default_value = "70000";  // UNSIGNED16 holds at most 65535
   auto d = LocalDictionary::from_device(device, 1);
   ASSERT_FALSE(d.ok());
-  EXPECT_NE(d.error().message.find("0x1017 sub 0"), std::string::npos) << d.error().message;
+  // The one way messages write an address (cfg/object_address.hpp).
+  EXPECT_NE(d.error().message.find("object 1017h sub 00h: "), std::string::npos)
+      << d.error().message;
   EXPECT_NE(d.error().message.find("DefaultValue"), std::string::npos) << d.error().message;
 }
 
@@ -96,41 +99,41 @@ TEST(LocalDictionary, RejectsValueThatDoesNotFitItsTypeNamingTheEntry) {
 
 TEST(LocalDictionary, ReadAbortsWithObjectDoesNotExist) {
   Bytes out;
-  EXPECT_EQ(make().read(0x3000, 0, out), SdoAbort::ObjectDoesNotExist);
+  EXPECT_EQ(make().read(0x3000, 0, out, kNow), SdoAbort::ObjectDoesNotExist);
 }
 
 TEST(LocalDictionary, ReadAbortsWithSubIndexDoesNotExist) {
   Bytes out;
-  EXPECT_EQ(make().read(0x1018, 5, out), SdoAbort::SubIndexDoesNotExist);
+  EXPECT_EQ(make().read(0x1018, 5, out, kNow), SdoAbort::SubIndexDoesNotExist);
 }
 
 TEST(LocalDictionary, ReadOfWriteOnlyAborts) {
   Bytes out;
-  EXPECT_EQ(make().read(0x2001, 0, out), SdoAbort::ReadOfWriteOnly);
+  EXPECT_EQ(make().read(0x2001, 0, out, kNow), SdoAbort::ReadOfWriteOnly);
 }
 
 // --- write: existence and access -------------------------------------------------------------
 
 TEST(LocalDictionary, WriteAbortsWithObjectOrSubIndexDoesNotExist) {
   auto d = make();
-  EXPECT_EQ(d.write(0x3000, 0, Bytes{1}), SdoAbort::ObjectDoesNotExist);
-  EXPECT_EQ(d.write(0x1018, 9, Bytes{1, 0, 0, 0}), SdoAbort::SubIndexDoesNotExist);
+  EXPECT_EQ(d.write(0x3000, 0, Bytes{1}, kNow), SdoAbort::ObjectDoesNotExist);
+  EXPECT_EQ(d.write(0x1018, 9, Bytes{1, 0, 0, 0}, kNow), SdoAbort::SubIndexDoesNotExist);
 }
 
 TEST(LocalDictionary, WriteOfReadOnlyAndConstAborts) {
   auto d = make();
-  EXPECT_EQ(d.write(0x1000, 0, Bytes{0, 0, 0, 0}), SdoAbort::WriteOfReadOnly);
-  EXPECT_EQ(d.write(0x2006, 0, Bytes{0, 0}), SdoAbort::WriteOfReadOnly);  // const
+  EXPECT_EQ(d.write(0x1000, 0, Bytes{0, 0, 0, 0}, kNow), SdoAbort::WriteOfReadOnly);
+  EXPECT_EQ(d.write(0x2006, 0, Bytes{0, 0}, kNow), SdoAbort::WriteOfReadOnly);  // const
   EXPECT_EQ(read(d, 0x2006, 0), (Bytes{0x34, 0x12}));
 }
 
 TEST(LocalDictionary, WritesToRwRwwRwrAndWo) {
   auto d = make();
-  EXPECT_EQ(d.write(0x1017, 0, Bytes{0xE8, 0x03}), SdoAbort::None);
+  EXPECT_EQ(d.write(0x1017, 0, Bytes{0xE8, 0x03}, kNow), SdoAbort::None);
   EXPECT_EQ(read(d, 0x1017, 0), (Bytes{0xE8, 0x03}));
-  EXPECT_EQ(d.write(0x200C, 0, Bytes{1, 2, 3, 4}), SdoAbort::None);  // rww
-  EXPECT_EQ(d.write(0x200D, 0, Bytes{1, 2, 3, 4}), SdoAbort::None);  // rwr
-  EXPECT_EQ(d.write(0x2001, 0, Bytes{7}), SdoAbort::None);           // wo
+  EXPECT_EQ(d.write(0x200C, 0, Bytes{1, 2, 3, 4}, kNow), SdoAbort::None);  // rww
+  EXPECT_EQ(d.write(0x200D, 0, Bytes{1, 2, 3, 4}, kNow), SdoAbort::None);  // rwr
+  EXPECT_EQ(d.write(0x2001, 0, Bytes{7}, kNow), SdoAbort::None);           // wo
   EXPECT_EQ(d.get_unsigned(0x2001, 0), 7u);
 }
 
@@ -138,32 +141,32 @@ TEST(LocalDictionary, WritesToRwRwwRwrAndWo) {
 
 TEST(LocalDictionary, FixedSizeWriteTooLongAbortsWithLengthTooHigh) {
   auto d = make();
-  EXPECT_EQ(d.write(0x1017, 0, Bytes{1, 2, 3}), SdoAbort::LengthTooHigh);
-  EXPECT_EQ(d.write(0x200A, 0, Bytes{1, 2, 3, 4}), SdoAbort::LengthTooHigh);  // INTEGER24
+  EXPECT_EQ(d.write(0x1017, 0, Bytes{1, 2, 3}, kNow), SdoAbort::LengthTooHigh);
+  EXPECT_EQ(d.write(0x200A, 0, Bytes{1, 2, 3, 4}, kNow), SdoAbort::LengthTooHigh);  // INTEGER24
   EXPECT_EQ(read(d, 0x1017, 0), (Bytes{0, 0}));
 }
 
 TEST(LocalDictionary, FixedSizeWriteTooShortAbortsWithLengthTooLow) {
   auto d = make();
-  EXPECT_EQ(d.write(0x1017, 0, Bytes{1}), SdoAbort::LengthTooLow);
-  EXPECT_EQ(d.write(0x2009, 0, Bytes{1, 2, 3, 4, 5, 6, 7}), SdoAbort::LengthTooLow);
-  EXPECT_EQ(d.write(0x2004, 0, Bytes{}), SdoAbort::LengthTooLow);
+  EXPECT_EQ(d.write(0x1017, 0, Bytes{1}, kNow), SdoAbort::LengthTooLow);
+  EXPECT_EQ(d.write(0x2009, 0, Bytes{1, 2, 3, 4, 5, 6, 7}, kNow), SdoAbort::LengthTooLow);
+  EXPECT_EQ(d.write(0x2004, 0, Bytes{}, kNow), SdoAbort::LengthTooLow);
 }
 
 TEST(LocalDictionary, StringsMayChangeLength) {
   auto d = make();
   const Bytes text{'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd'};
-  EXPECT_EQ(d.write(0x2005, 0, text), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2005, 0, text, kNow), SdoAbort::None);
   EXPECT_EQ(read(d, 0x2005, 0), text);
-  EXPECT_EQ(d.write(0x2005, 0, Bytes{}), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2005, 0, Bytes{}, kNow), SdoAbort::None);
   EXPECT_TRUE(read(d, 0x2005, 0).empty());
 }
 
 TEST(LocalDictionary, DomainWriteAboveItsSizeLimitAbortsWithLengthTooHigh) {
   auto d = make();
   ASSERT_TRUE(d.set_max_size(0x2000, 0, 16));
-  EXPECT_EQ(d.write(0x2000, 0, Bytes(17, 0xAA)), SdoAbort::LengthTooHigh);
-  EXPECT_EQ(d.write(0x2000, 0, Bytes(16, 0xAA)), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2000, 0, Bytes(17, 0xAA), kNow), SdoAbort::LengthTooHigh);
+  EXPECT_EQ(d.write(0x2000, 0, Bytes(16, 0xAA), kNow), SdoAbort::None);
   EXPECT_EQ(read(d, 0x2000, 0), Bytes(16, 0xAA));
   EXPECT_EQ(d.check_write(0x2000, 0, 17), SdoAbort::LengthTooHigh);
   EXPECT_FALSE(d.set_max_size(0x1017, 0, 16));  // fixed size
@@ -171,46 +174,47 @@ TEST(LocalDictionary, DomainWriteAboveItsSizeLimitAbortsWithLengthTooHigh) {
 
 TEST(LocalDictionary, UnicodeStringOfOddLengthAbortsWithLengthMismatch) {
   auto d = make();
-  EXPECT_EQ(d.write(0x200B, 0, Bytes{'A', 0, 'B'}), SdoAbort::LengthMismatch);
-  EXPECT_EQ(d.write(0x200B, 0, Bytes{'A', 0, 'B', 0}), SdoAbort::None);
+  EXPECT_EQ(d.write(0x200B, 0, Bytes{'A', 0, 'B'}, kNow), SdoAbort::LengthMismatch);
+  EXPECT_EQ(d.write(0x200B, 0, Bytes{'A', 0, 'B', 0}, kNow), SdoAbort::None);
 }
 
 // --- write: values ---------------------------------------------------------------------------
 
 TEST(LocalDictionary, ValueAboveHighLimitAbortsWithValueTooHigh) {
   auto d = make();
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{101, 0}), SdoAbort::ValueTooHigh);  // INTEGER16 101 > 100
-  EXPECT_EQ(d.write(0x2003, 0, Bytes{0xE9, 0x03, 0, 0}), SdoAbort::ValueTooHigh);  // 1001
-  EXPECT_EQ(d.write(0x2008, 0, real32(2.75f)), SdoAbort::ValueTooHigh);
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{101, 0}, kNow),
+            SdoAbort::ValueTooHigh);  // INTEGER16 101 > 100
+  EXPECT_EQ(d.write(0x2003, 0, Bytes{0xE9, 0x03, 0, 0}, kNow), SdoAbort::ValueTooHigh);  // 1001
+  EXPECT_EQ(d.write(0x2008, 0, real32(2.75f), kNow), SdoAbort::ValueTooHigh);
 }
 
 TEST(LocalDictionary, ValueBelowLowLimitAbortsWithValueTooLow) {
   auto d = make();
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{0x9B, 0xFF}), SdoAbort::ValueTooLow);  // -101
-  EXPECT_EQ(d.write(0x2003, 0, Bytes{9, 0, 0, 0}), SdoAbort::ValueTooLow);
-  EXPECT_EQ(d.write(0x2008, 0, real32(-2.0f)), SdoAbort::ValueTooLow);
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{0x9B, 0xFF}, kNow), SdoAbort::ValueTooLow);  // -101
+  EXPECT_EQ(d.write(0x2003, 0, Bytes{9, 0, 0, 0}, kNow), SdoAbort::ValueTooLow);
+  EXPECT_EQ(d.write(0x2008, 0, real32(-2.0f), kNow), SdoAbort::ValueTooLow);
 }
 
 TEST(LocalDictionary, ValuesAtTheLimitsAreAccepted) {
   auto d = make();
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{100, 0}), SdoAbort::None);
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{0x9C, 0xFF}), SdoAbort::None);  // -100
-  EXPECT_EQ(d.write(0x2003, 0, Bytes{0xE8, 0x03, 0, 0}), SdoAbort::None);
-  EXPECT_EQ(d.write(0x2008, 0, real32(-1.5f)), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{100, 0}, kNow), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{0x9C, 0xFF}, kNow), SdoAbort::None);  // -100
+  EXPECT_EQ(d.write(0x2003, 0, Bytes{0xE8, 0x03, 0, 0}, kNow), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2008, 0, real32(-1.5f), kNow), SdoAbort::None);
 }
 
 TEST(LocalDictionary, HighLimitBelowLowLimitAbortsWithMaxLessThanMin) {
-  EXPECT_EQ(make().write(0x2007, 0, Bytes{7}), SdoAbort::MaxLessThanMin);
+  EXPECT_EQ(make().write(0x2007, 0, Bytes{7}, kNow), SdoAbort::MaxLessThanMin);
 }
 
 TEST(LocalDictionary, BooleanOtherThanZeroOrOneAbortsWithValueRangeExceeded) {
   auto d = make();
-  EXPECT_EQ(d.write(0x2004, 0, Bytes{2}), SdoAbort::ValueRangeExceeded);
-  EXPECT_EQ(d.write(0x2004, 0, Bytes{1}), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2004, 0, Bytes{2}, kNow), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(d.write(0x2004, 0, Bytes{1}, kNow), SdoAbort::None);
 }
 
 TEST(LocalDictionary, NanIsOutsideEveryRange) {
-  EXPECT_EQ(make().write(0x2008, 0, real32(std::numeric_limits<float>::quiet_NaN())),
+  EXPECT_EQ(make().write(0x2008, 0, real32(std::numeric_limits<float>::quiet_NaN()), kNow),
             SdoAbort::ValueRangeExceeded);
 }
 
@@ -219,54 +223,90 @@ TEST(LocalDictionary, NanIsOutsideEveryRange) {
 TEST(LocalDictionary, WriteHookCanRejectAndValueStays) {
   auto d = make();
   Bytes seen;
-  d.add_write_hook([&](std::uint16_t index, std::uint8_t, std::span<const std::uint8_t> data) {
-    seen.assign(data.begin(), data.end());
-    return index == 0x1017 ? SdoAbort::DeviceState : SdoAbort::None;
-  });
+  d.add_write_hook(
+      [&](std::uint16_t index, std::uint8_t, std::span<const std::uint8_t> data, TimePoint) {
+        seen.assign(data.begin(), data.end());
+        return index == 0x1017 ? SdoAbort::DeviceState : SdoAbort::None;
+      });
   int observed = 0;
   d.add_write_observer(
-      [&](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>) { ++observed; });
-  EXPECT_EQ(d.write(0x1017, 0, Bytes{0x10, 0x00}), SdoAbort::DeviceState);
+      [&](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>, TimePoint) { ++observed; });
+  EXPECT_EQ(d.write(0x1017, 0, Bytes{0x10, 0x00}, kNow), SdoAbort::DeviceState);
   EXPECT_EQ(seen, (Bytes{0x10, 0x00}));
   EXPECT_EQ(read(d, 0x1017, 0), (Bytes{0, 0}));
   EXPECT_EQ(observed, 0);
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{5, 0}), SdoAbort::None);
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{5, 0}, kNow), SdoAbort::None);
   EXPECT_EQ(observed, 1);
 }
 
 TEST(LocalDictionary, WriteHookSeesOnlyValuesThatPassedTheChecks) {
   auto d = make();
   int hook_calls = 0;
-  d.add_write_hook([&](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>) {
+  d.add_write_hook([&](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>, TimePoint) {
     ++hook_calls;
     return SdoAbort::None;
   });
-  EXPECT_EQ(d.write(0x2002, 0, Bytes{101, 0}), SdoAbort::ValueTooHigh);
-  EXPECT_EQ(d.write(0x1000, 0, Bytes{0, 0, 0, 0}), SdoAbort::WriteOfReadOnly);
+  EXPECT_EQ(d.write(0x2002, 0, Bytes{101, 0}, kNow), SdoAbort::ValueTooHigh);
+  EXPECT_EQ(d.write(0x1000, 0, Bytes{0, 0, 0, 0}, kNow), SdoAbort::WriteOfReadOnly);
   EXPECT_EQ(hook_calls, 0);
 }
 
 TEST(LocalDictionary, ObserverSeesTheStoredValueAfterCommit) {
   auto d = make();
   Bytes value_in_dictionary;
-  d.add_write_observer([&](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>) {
-    auto b = d.get_bytes(index, sub);
-    value_in_dictionary.assign(b->begin(), b->end());
-  });
-  EXPECT_EQ(d.write(0x1017, 0, Bytes{0xE8, 0x03}), SdoAbort::None);
+  d.add_write_observer(
+      [&](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>, TimePoint) {
+        auto b = d.get_bytes(index, sub);
+        value_in_dictionary.assign(b->begin(), b->end());
+      });
+  EXPECT_EQ(d.write(0x1017, 0, Bytes{0xE8, 0x03}, kNow), SdoAbort::None);
   EXPECT_EQ(value_in_dictionary, (Bytes{0xE8, 0x03}));
 }
 
 TEST(LocalDictionary, ReadHookCanRefreshOrRefuse) {
   auto d = make();
-  d.add_read_hook([&](std::uint16_t index, std::uint8_t sub) {
+  d.add_read_hook([&](std::uint16_t index, std::uint8_t sub, TimePoint) {
     if (index == 0x1001) d.set_unsigned(index, sub, 0x81);  // error register computed on read
     if (index == 0x2005) return SdoAbort::NoDataAvailable;
     return SdoAbort::None;
   });
   EXPECT_EQ(read(d, 0x1001, 0), (Bytes{0x81}));
   Bytes out{9};
-  EXPECT_EQ(d.read(0x2005, 0, out), SdoAbort::NoDataAvailable);
+  EXPECT_EQ(d.read(0x2005, 0, out, kNow), SdoAbort::NoDataAvailable);
+}
+
+TEST(LocalDictionary, HooksAndObserversGetTheTimeOfTheAccess) {
+  auto d = make();
+  std::vector<TimePoint> times;
+  d.add_write_hook([&](auto, auto, auto, TimePoint now) {
+    times.push_back(now);
+    return SdoAbort::None;
+  });
+  d.add_write_observer([&](auto, auto, auto, TimePoint now) { times.push_back(now); });
+  d.add_read_hook([&](auto, auto, TimePoint now) {
+    times.push_back(now);
+    return SdoAbort::None;
+  });
+  ASSERT_EQ(d.write(0x1017, 0, Bytes{1, 0}, TimePoint{std::chrono::milliseconds(3)}),
+            SdoAbort::None);
+  Bytes out;
+  ASSERT_EQ(d.read(0x1017, 0, out, TimePoint{std::chrono::milliseconds(9)}), SdoAbort::None);
+  EXPECT_EQ(times, (std::vector<TimePoint>{TimePoint{std::chrono::milliseconds(3)},
+                                           TimePoint{std::chrono::milliseconds(3)},
+                                           TimePoint{std::chrono::milliseconds(9)}}));
+}
+
+TEST(LocalDictionary, HookAddedFirstRunsBeforeTheOthersAndItsRefusalWins) {
+  auto d = make();
+  d.add_write_hook([](auto, auto, auto, auto) { return SdoAbort::DeviceState; });
+  d.add_write_hook([](auto, auto, auto, auto) { return SdoAbort::HardwareError; },
+                   LocalDictionary::HookPosition::First);
+  EXPECT_EQ(d.write(0x1017, 0, Bytes{1, 0}, kNow), SdoAbort::HardwareError);
+  d.add_read_hook([](auto, auto, auto) { return SdoAbort::General; });
+  d.add_read_hook([](auto, auto, auto) { return SdoAbort::NoDataAvailable; },
+                  LocalDictionary::HookPosition::First);
+  Bytes out;
+  EXPECT_EQ(d.read(0x1017, 0, out, kNow), SdoAbort::NoDataAvailable);
 }
 
 // --- unchecked accessors ---------------------------------------------------------------------
@@ -274,11 +314,11 @@ TEST(LocalDictionary, ReadHookCanRefreshOrRefuse) {
 TEST(LocalDictionary, UncheckedSettersIgnoreAccessAndCallNoHooks) {
   auto d = make();
   int calls = 0;
-  d.add_write_hook([&](auto, auto, auto) {
+  d.add_write_hook([&](auto, auto, auto, auto) {
     ++calls;
     return SdoAbort::General;
   });
-  d.add_write_observer([&](auto, auto, auto) { ++calls; });
+  d.add_write_observer([&](auto, auto, auto, auto) { ++calls; });
   EXPECT_TRUE(d.set_unsigned(0x1001, 0, 0x11));  // ro for SDO, the device sets it
   EXPECT_EQ(d.get_unsigned(0x1001, 0), 0x11u);
   EXPECT_TRUE(d.set_bytes(0x1008, 0, Bytes{'x'}));
@@ -311,7 +351,7 @@ TEST(LocalDictionary, InsertAddsEntriesTheDeviceImplements) {
   e.bytes = {1, 2};
   d.insert(e);
   EXPECT_EQ(read(d, 0x5000, 0), (Bytes{1, 2}));
-  EXPECT_EQ(d.write(0x5000, 0, Bytes{1, 2, 3}), SdoAbort::LengthTooHigh);
+  EXPECT_EQ(d.write(0x5000, 0, Bytes{1, 2, 3}, kNow), SdoAbort::LengthTooHigh);
 }
 
 // --- real device files -----------------------------------------------------------------------
@@ -336,7 +376,7 @@ TEST(LocalDictionary, CorpusFilesLoadOrFailNamingAnEntry) {
     auto r = cfg::read_device_file(file.path().string());
     if (!r.device) continue;
     const std::uint8_t node = r.device->node_id().value_or(1);
-    auto d = LocalDictionary::from_device(*r.device, node >= 1 && node <= 127 ? node : 1);
+    auto d = LocalDictionary::from_device(*r.device, cfg::is_node_id(node) ? node : 1);
     if (d.ok()) {
       ++loaded;
       // Every value of a fixed-size type has its size.
@@ -346,7 +386,9 @@ TEST(LocalDictionary, CorpusFilesLoadOrFailNamingAnEntry) {
         }
       }
     } else {
-      EXPECT_NE(d.error().message.find("object 0x"), std::string::npos)
+      EXPECT_EQ(d.error().message.rfind("object ", 0), 0u)
+          << file.path() << ": " << d.error().message;
+      EXPECT_NE(d.error().message.find("h sub "), std::string::npos)
           << file.path() << ": " << d.error().message;
     }
   }

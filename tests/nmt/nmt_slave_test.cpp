@@ -14,62 +14,88 @@ CanFrame frame(std::string_view candump) {
   return f.value_or(CanFrame{});
 }
 
+cfg::NodeId id(std::uint8_t node_id) {
+  return cfg::NodeId::from(node_id).value();
+}
+
+// Feeds one frame; the transition it reported (the slave reports at most one and sends nothing).
+std::optional<NmtTransition> feed(NmtSlave& slave, std::string_view candump) {
+  NmtSlave::Output out;
+  const bool taken = slave.on_frame(frame(candump), TimePoint{0}, out);
+  EXPECT_TRUE(out.frames.empty());
+  EXPECT_EQ(out.events.size(), taken ? 1u : 0u);
+  if (!taken || out.events.empty()) return std::nullopt;
+  return out.events.front();
+}
+
+// Ends initialisation; the one frame it sent.
+std::string finish(NmtSlave& slave) {
+  NmtSlave::Output out;
+  slave.finish_initialisation(TimePoint{0}, out);
+  EXPECT_TRUE(out.events.empty());
+  if (out.frames.size() != 1) return "frames: " + std::to_string(out.frames.size());
+  return to_candump(out.frames.front());
+}
+
 NmtSlave booted(std::uint8_t node_id) {
-  NmtSlave slave(node_id);
-  (void)slave.finish_initialisation();
+  NmtSlave slave(id(node_id));
+  (void)finish(slave);
   return slave;
 }
 
+static_assert(Engine<NmtSlave>);
+
 TEST(NmtSlave, StartsInitialisingAndBootsIntoPreOperationalWithBootUpMessage) {
-  NmtSlave slave(2);
+  NmtSlave slave(id(2));
   EXPECT_EQ(slave.state(), NmtState::Initialising);
   EXPECT_EQ(slave.pending_reset(), ResetScope::Application);  // power-on: reset application
-  EXPECT_EQ(to_candump(slave.finish_initialisation()), "702#00");
+  EXPECT_EQ(finish(slave), "702#00");
   EXPECT_EQ(slave.state(), NmtState::PreOperational);
   EXPECT_FALSE(slave.pending_reset().has_value());
 }
 
 TEST(NmtSlave, IgnoresCommandsWhileInitialising) {
-  NmtSlave slave(1);
-  EXPECT_FALSE(slave.on_frame(frame("000#0101")).has_value());
+  NmtSlave slave(id(1));
+  EXPECT_FALSE(feed(slave, "000#0101").has_value());
   EXPECT_EQ(slave.state(), NmtState::Initialising);
+  EXPECT_FALSE(slave.next_deadline().has_value());  // nothing in the NMT slave is timed
 }
 
 TEST(NmtSlave, StartStopAndEnterPreOperationalFollowTheStateDiagram) {
   NmtSlave slave = booted(1);
   // Transition (3): start remote node from pre-operational.
-  auto t = slave.on_frame(frame("000#0101"));
+  auto t = feed(slave, "000#0101");
   ASSERT_TRUE(t.has_value());
   EXPECT_EQ(t->from, NmtState::PreOperational);
   EXPECT_EQ(t->to, NmtState::Operational);
   EXPECT_EQ(t->command, NmtCommand::Start);
   EXPECT_FALSE(t->reset.has_value());
   // (8): stop from operational.
-  EXPECT_EQ(slave.on_frame(frame("000#0201"))->to, NmtState::Stopped);
+  EXPECT_EQ(feed(slave, "000#0201")->to, NmtState::Stopped);
   // (7): enter pre-operational from stopped.
-  EXPECT_EQ(slave.on_frame(frame("000#8001"))->to, NmtState::PreOperational);
+  EXPECT_EQ(feed(slave, "000#8001")->to, NmtState::PreOperational);
   // (5): stop from pre-operational, (6): start from stopped, (4): pre-op from operational.
-  EXPECT_EQ(slave.on_frame(frame("000#0201"))->to, NmtState::Stopped);
-  EXPECT_EQ(slave.on_frame(frame("000#0101"))->to, NmtState::Operational);
-  EXPECT_EQ(slave.on_frame(frame("000#8001"))->to, NmtState::PreOperational);
+  EXPECT_EQ(feed(slave, "000#0201")->to, NmtState::Stopped);
+  EXPECT_EQ(feed(slave, "000#0101")->to, NmtState::Operational);
+  EXPECT_EQ(feed(slave, "000#8001")->to, NmtState::PreOperational);
 }
 
 TEST(NmtSlave, ResetNodeAsksForResetApplicationAndBootsAgain) {
   NmtSlave slave = booted(5);
-  (void)slave.on_frame(frame("000#0105"));
-  auto t = slave.on_frame(frame("000#8105"));
+  (void)feed(slave, "000#0105");
+  auto t = feed(slave, "000#8105");
   ASSERT_TRUE(t.has_value());
   EXPECT_EQ(t->to, NmtState::Initialising);
   EXPECT_EQ(t->reset, ResetScope::Application);
   EXPECT_EQ(slave.pending_reset(), ResetScope::Application);
-  EXPECT_EQ(to_candump(slave.finish_initialisation()), "705#00");
+  EXPECT_EQ(finish(slave), "705#00");
   EXPECT_EQ(slave.state(), NmtState::PreOperational);
 }
 
 TEST(NmtSlave, ResetCommunicationFromStoppedAsksForResetCommunication) {
   NmtSlave slave = booted(5);
-  (void)slave.on_frame(frame("000#0205"));
-  auto t = slave.on_frame(frame("000#8205"));
+  (void)feed(slave, "000#0205");
+  auto t = feed(slave, "000#8205");
   ASSERT_TRUE(t.has_value());
   EXPECT_EQ(t->from, NmtState::Stopped);
   EXPECT_EQ(t->reset, ResetScope::Communication);
@@ -78,27 +104,26 @@ TEST(NmtSlave, ResetCommunicationFromStoppedAsksForResetCommunication) {
 TEST(NmtSlave, NodeIdZeroAddressesAllNodes) {
   NmtSlave a = booted(1);
   NmtSlave b = booted(127);
-  const CanFrame start_all = frame("000#0100");
-  EXPECT_EQ(a.on_frame(start_all)->to, NmtState::Operational);
-  EXPECT_EQ(b.on_frame(start_all)->to, NmtState::Operational);
+  EXPECT_EQ(feed(a, "000#0100")->to, NmtState::Operational);
+  EXPECT_EQ(feed(b, "000#0100")->to, NmtState::Operational);
 }
 
 TEST(NmtSlave, IgnoresCommandsForOtherNodesAndMalformedFrames) {
   NmtSlave slave = booted(3);
-  EXPECT_FALSE(slave.on_frame(frame("000#0104")).has_value());       // other node
-  EXPECT_FALSE(slave.on_frame(frame("000#01")).has_value());         // one byte
-  EXPECT_FALSE(slave.on_frame(frame("000#010300")).has_value());     // three bytes
-  EXPECT_FALSE(slave.on_frame(frame("000#0303")).has_value());       // unknown specifier
-  EXPECT_FALSE(slave.on_frame(frame("000#R2")).has_value());         // remote frame
-  EXPECT_FALSE(slave.on_frame(frame("001#0103")).has_value());       // not COB-ID 0
-  EXPECT_FALSE(slave.on_frame(frame("00000000#0103")).has_value());  // 29-bit identifier
-  EXPECT_FALSE(slave.on_frame(frame("000#0180")).has_value());       // node-ID 128
+  EXPECT_FALSE(feed(slave, "000#0104").has_value());       // other node
+  EXPECT_FALSE(feed(slave, "000#01").has_value());         // one byte
+  EXPECT_FALSE(feed(slave, "000#010300").has_value());     // three bytes
+  EXPECT_FALSE(feed(slave, "000#0303").has_value());       // unknown specifier
+  EXPECT_FALSE(feed(slave, "000#R2").has_value());         // remote frame
+  EXPECT_FALSE(feed(slave, "001#0103").has_value());       // not COB-ID 0
+  EXPECT_FALSE(feed(slave, "00000000#0103").has_value());  // 29-bit identifier
+  EXPECT_FALSE(feed(slave, "000#0180").has_value());       // node-ID 128
   EXPECT_EQ(slave.state(), NmtState::PreOperational);
 }
 
 TEST(NmtSlave, RepeatedCommandIsReportedWithoutStateChange) {
   NmtSlave slave = booted(3);
-  auto t = slave.on_frame(frame("000#8003"));
+  auto t = feed(slave, "000#8003");
   ASSERT_TRUE(t.has_value());
   EXPECT_EQ(t->from, NmtState::PreOperational);
   EXPECT_EQ(t->to, NmtState::PreOperational);
@@ -106,10 +131,10 @@ TEST(NmtSlave, RepeatedCommandIsReportedWithoutStateChange) {
 
 TEST(NmtSlave, NewNodeIdTakesEffectAtNextInitialisation) {
   NmtSlave slave = booted(3);
-  slave.set_node_id(9);
+  slave.set_node_id(id(9));
   EXPECT_EQ(slave.node_id(), 3);
-  (void)slave.on_frame(frame("000#8203"));
-  EXPECT_EQ(to_candump(slave.finish_initialisation()), "709#00");
+  (void)feed(slave, "000#8203");
+  EXPECT_EQ(finish(slave), "709#00");
   EXPECT_EQ(slave.node_id(), 9);
 }
 

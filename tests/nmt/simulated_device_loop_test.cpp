@@ -10,6 +10,7 @@
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/simulated_device.hpp"
+#include "nmt/slave_node.hpp"
 
 namespace nmt {
 namespace {
@@ -49,11 +50,11 @@ cfg::DeviceDescription sim_eds() {
   return r.device.value_or(cfg::DeviceDescription{});
 }
 
-std::unique_ptr<SimulatedDevice> device_with_heartbeat(std::uint8_t node, const char* ms) {
+SimulatedDevice device_with_heartbeat(std::uint8_t node, const char* ms) {
   auto eds = sim_eds();
   eds.sub(0x1017, 0)->default_value = ms;
   auto d = SimulatedDevice::create(eds, node);
-  EXPECT_TRUE(d.ok());
+  EXPECT_TRUE(d.ok()) << (d.ok() ? "" : d.error().message);
   return std::move(d).value();
 }
 
@@ -61,9 +62,9 @@ TEST(BusEventLoop, DeviceBootsAndProducesHeartbeatOnTime) {
   FakeBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
-  EngineRef ref(*device);
+  EngineRef ref(device);
   loop.add(ref);
-  device->power_on(loop.now());
+  device.power_on(loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1000ms + 1us}).ok());
   ASSERT_EQ(bus.sent.size(), 11u);
   EXPECT_EQ(bus.sent[0], std::make_pair(TimePoint{0}, std::string("702#00")));
@@ -78,9 +79,9 @@ TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
   bus.script.push_back({250ms, "000#0102"});
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
-  EngineRef ref(*device);
+  EngineRef ref(device);
   loop.add(ref);
-  device->power_on(loop.now());
+  device.power_on(loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{450ms}).ok());
   std::vector<std::string> frames;
   for (const auto& [t, f] : bus.sent) frames.push_back(f);
@@ -93,9 +94,9 @@ TEST(BusEventLoop, AnswersSdoRequestFromTheBus) {
   bus.script.push_back({10ms, "602#4000100000000000"});  // upload 1000h sub 0
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "0");
-  EngineRef ref(*device);
+  EngineRef ref(device);
   loop.add(ref);
-  device->power_on(loop.now());
+  device.power_on(loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{20ms}).ok());
   ASSERT_EQ(bus.sent.size(), 2u);
   // 1000h = 0x000F0191 (sim_device.eds), 4 bytes expedited: command byte 43h.
@@ -108,11 +109,11 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   auto device = device_with_heartbeat(4, "0");
   SdoClient client(SdoClientConfig::for_node(4));
   std::optional<SdoResult> result;
-  EngineRef device_ref(*device);
+  EngineRef device_ref(device);
   EngineRef client_ref(client, [&](const SdoResult& r, TimePoint) { result = r; });
   loop.add(device_ref);
   loop.add(client_ref);
-  device->power_on(loop.now());
+  device.power_on(loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1ms}).ok());  // boot-up
   // The request goes out from apply() at once; the device hears it through the loop's echo.
   client_ref.apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
@@ -129,13 +130,37 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   EXPECT_EQ(bus.sent[2].second, "584#43181001DEC0577E");
 }
 
+TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
+  // The slave node as an embedder puts it on a real bus: no fault wrapper, events to a handler.
+  FakeBus bus;
+  bus.script.push_back({10ms, "603#2B17100064000000"});  // 1017h = 100 ms
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  auto node = SlaveNode::create(sim_eds(), cfg::NodeId::from(3).value());
+  ASSERT_TRUE(node.ok()) << node.error().message;
+  std::vector<std::string> events;
+  EngineRef ref(**node, [&](const SlaveEvent& e, TimePoint) {
+    events.push_back(std::string(to_string(e.kind)) + ": " + e.text);
+  });
+  loop.add(ref);
+  (*node)->power_on(loop.now());
+  ASSERT_TRUE(loop.run_until(TimePoint{150ms}).ok());
+  std::vector<std::pair<TimePoint, std::string>> expected{
+      {TimePoint{0}, "703#00"},                   // boot-up (CiA 301 §7.2.8.3.2.4)
+      {TimePoint{10ms}, "583#6017100000000000"},  // download confirmed
+      {TimePoint{10ms}, "703#7F"},                // the producer starts at once
+      {TimePoint{110ms}, "703#7F"}};              // then every 100 ms
+  EXPECT_EQ(bus.sent, expected);
+  EXPECT_EQ(events,
+            (std::vector<std::string>{"boot: boot-up", "sdo-write: 1017h sub 00h = 2 byte(s)"}));
+}
+
 TEST(BusEventLoop, StopRequestEndsRun) {
   FakeBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
-  EngineRef ref(*device);
+  EngineRef ref(device);
   loop.add(ref);
-  device->power_on(loop.now());
+  device.power_on(loop.now());
   loop.set_observer([&](const CanFrame& f, TimePoint, BusEventLoop::Direction) {
     if (to_candump(f) == "702#7F") loop.request_stop();
   });
@@ -158,9 +183,9 @@ TEST(BusEventLoop, SendFailureEndsRunWithMessage) {
   bus.fail_sends = true;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
-  EngineRef ref(*device);
+  EngineRef ref(device);
   loop.add(ref);
-  device->power_on(loop.now());
+  device.power_on(loop.now());
   auto s = loop.run_for(1s);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("702#00"), std::string::npos) << s.error().message;

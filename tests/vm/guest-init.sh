@@ -27,7 +27,7 @@ done </etc/canopen-modules
 # instead. A token bucket on vcan0 makes it behave like a real bus: about 1000 frames/s, as a
 # 125 kbit/s CAN bus (tbf counts the 16-byte struct can_frame, 128 bits), and a transmit queue of
 # 10 frames (160 bytes) that fills under a burst, so the driver meets ENOBUFS
-# (tests/nmt/socketcan_bus_test.cpp, *TransmitQueue*). vcan1 stays as vcan creates it.
+# (tests/io/socketcan_bus_test.cpp, *TransmitQueue*). vcan1 stays as vcan creates it.
 ip link add dev vcan0 type vcan || fail "create-vcan0"
 ip link set vcan0 up || fail "up-vcan0"
 # iproute2's tc, not busybox's applet of that name (which cannot add a tbf).

@@ -21,7 +21,7 @@
 #   --tools         extra static targets to build and put in /opt/canopen/bin for guest.d hooks
 #                   (a hook script can also ask for them with a line "# vm-tools: cfgmgr")
 #   --test-bin      run this ready-built gtest binary in the guest instead of building
-#                   socketcan_vm_tests, e.g. a sanitizer build's nmt_tests (with --filter)
+#                   socketcan_vm_tests, e.g. a sanitizer build's io_tests (with --filter)
 #   --tools-dir     take those tools ready-built from DIR (e.g. the regular build's tools/)
 #                   instead of building them -static; they go in with their shared libraries
 # Environment: CANOPEN_VM_CACHE (kernel download cache, default <work>/cache),

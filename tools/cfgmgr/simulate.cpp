@@ -1,7 +1,7 @@
 // cfgmgr simulate --bus URL DEVICE.eds[@NODE-ID]...: run simulated CANopen slaves built from
 // device files on a real bus (UDP multicast, SocketCAN) until SIGINT/SIGTERM or --for. All
-// protocol behaviour is libnmt's SimulatedDevice driven by its BusEventLoop; this file parses
-// arguments, opens the bus and traces, and prints.
+// protocol behaviour is libnmt's SimulatedDevice (a slave node with faults) driven by its
+// BusEventLoop; this file parses arguments, opens the bus and traces, and prints.
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -15,6 +15,7 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/node_id.hpp"
 #include "commands.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
@@ -62,7 +63,7 @@ cfg::Result<DeviceArg> parse_device_arg(const std::string& arg) {
     return DeviceArg{arg, std::nullopt};
   }
   if (used != suffix.size()) return DeviceArg{arg, std::nullopt};
-  if (value < 1 || value > 127) {
+  if (!cfg::is_node_id(value)) {
     return cfg::Error{arg + ": node-ID " + suffix + " is out of range 1..127"};
   }
   return DeviceArg{arg.substr(0, at), static_cast<std::uint8_t>(value)};
@@ -94,6 +95,7 @@ void run_simulate(const SimulateOptions& options) {
   faults.frame_loss_rate = options.loss;
 
   // Devices first: a bad file should not touch the bus.
+  // Held by pointer: the loop's EngineRefs keep their addresses.
   std::vector<std::unique_ptr<nmt::SimulatedDevice>> devices;
   std::vector<std::string> names;
   std::map<std::uint8_t, std::string> by_node;
@@ -103,27 +105,33 @@ void run_simulate(const SimulateOptions& options) {
       std::cerr << "cfgmgr simulate: " << parsed.error().message << '\n';
       exit_with(tools::kExitUsage);
     }
-    if (auto readable = tools::check_readable(parsed->path); !readable) {
-      std::cerr << readable.error().message << '\n';
-      exit_with(tools::kExitIo);
+    auto text = tools::read_input(parsed->path);
+    if (!text) {
+      std::cerr << text.error().message << '\n';
+      exit_with(tools::exit_code_for(text.error()));
     }
     cfg::ReadOptions read_options;
     read_options.file_name = parsed->path;
-    auto read = cfg::read_device_file(parsed->path, read_options);
+    auto read = cfg::parse_device_description(*text, read_options);
     tools::print_diagnostics(read.diagnostics);
     if (!read.ok()) exit_with(tools::kExitInputErrors);
+    if (!parsed->node_id && !read.device->node_id()) {
+      std::cerr << parsed->path << ": error: no node-ID: give one (" << parsed->path
+                << "@ID) or set NodeID in [DeviceComissioning]\n";
+      exit_with(tools::kExitInputErrors);
+    }
     auto device = nmt::SimulatedDevice::create(*read.device, parsed->node_id, faults);
     if (!device) {
       std::cerr << parsed->path << ": error: " << device.error().message << '\n';
       exit_with(tools::kExitInputErrors);
     }
-    const std::uint8_t node = device.value()->node_id();
+    const std::uint8_t node = device.value().node().node_id();
     if (auto [it, inserted] = by_node.emplace(node, parsed->path); !inserted) {
       std::cerr << "cfgmgr simulate: node-ID " << int{node} << " given twice (" << it->second
                 << " and " << parsed->path << ")\n";
       exit_with(tools::kExitUsage);
     }
-    devices.push_back(std::move(device).value());
+    devices.push_back(std::make_unique<nmt::SimulatedDevice>(std::move(device).value()));
     names.push_back(parsed->path);
   }
 
@@ -159,17 +167,18 @@ void run_simulate(const SimulateOptions& options) {
   std::vector<std::unique_ptr<nmt::EngineRef<nmt::SimulatedDevice>>> refs;
   for (std::size_t i = 0; i < devices.size(); ++i) {
     auto& device = *devices[i];
+    nmt::EngineRef<nmt::SimulatedDevice>::EventHandler print;
     if (options.verbose) {
-      const int node = device.node_id();
-      device.set_event_handler([node, start](const nmt::DeviceEvent& e) {
+      const int node = device.node().node_id();
+      print = [node, start](const nmt::SlaveEvent& e, nmt::TimePoint) {
         std::cout << seconds_since(start, e.at) << "  node " << node << "  "
                   << nmt::to_string(e.kind) << ": " << e.text << '\n'
                   << std::flush;
-      });
+      };
     }
-    refs.push_back(std::make_unique<nmt::EngineRef<nmt::SimulatedDevice>>(device));
+    refs.push_back(std::make_unique<nmt::EngineRef<nmt::SimulatedDevice>>(device, print));
     loop.add(*refs.back());
-    std::cout << "node " << int{device.node_id()} << ": " << names[i] << '\n';
+    std::cout << "node " << int{device.node().node_id()} << ": " << names[i] << '\n';
   }
   if (options.verbose) {
     loop.set_observer(

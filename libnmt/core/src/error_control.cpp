@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cassert>
 
 namespace nmt {
 
@@ -12,13 +11,12 @@ Duration ms(std::int64_t value) {
 }
 }  // namespace
 
-CanFrame make_heartbeat(std::uint8_t node_id, NmtState state) {
-  assert(node_id >= 1 && node_id <= 127);
+CanFrame make_heartbeat(cfg::NodeId node_id, NmtState state) {
   const std::array<std::uint8_t, 1> bytes{static_cast<std::uint8_t>(state)};
   return CanFrame::make(kErrorControlCobIdBase + node_id, bytes);
 }
 
-CanFrame make_guarding_request(std::uint8_t node_id) {
+CanFrame make_guarding_request(cfg::NodeId node_id) {
   CanFrame f;
   f.id = kErrorControlCobIdBase + node_id;
   f.rtr = true;
@@ -28,7 +26,7 @@ CanFrame make_guarding_request(std::uint8_t node_id) {
 
 std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame) {
   if (frame.extended || frame.rtr || frame.error || frame.dlc != 1) return std::nullopt;
-  if (frame.id <= kErrorControlCobIdBase || frame.id > kErrorControlCobIdBase + 127) {
+  if (frame.id < kErrorControlCobIdBase || !cfg::is_node_id(frame.id - kErrorControlCobIdBase)) {
     return std::nullopt;
   }
   return ErrorControlMessage{static_cast<std::uint8_t>(frame.id - kErrorControlCobIdBase),
@@ -57,13 +55,12 @@ void HeartbeatProducer::on_boot_up(TimePoint now) {
   }
 }
 
-std::optional<CanFrame> HeartbeatProducer::on_timer(TimePoint now, std::uint8_t node_id,
-                                                    NmtState state) {
-  if (!next_ || now < *next_ || period_ms_ == 0) return std::nullopt;
+void HeartbeatProducer::on_timer(TimePoint now, Output& out) {
+  if (!next_ || now < *next_ || period_ms_ == 0) return;
   // Keep the cycle free of drift, but do not burst to catch up after a long stall.
   *next_ += ms(period_ms_);
   if (*next_ <= now) *next_ = now + ms(period_ms_);
-  return make_heartbeat(node_id, state);
+  out.send(make_heartbeat(node_id_, state_));
 }
 
 // --- heartbeat consumer -------------------------------------------------------------------------
@@ -98,50 +95,47 @@ std::optional<NmtState> HeartbeatConsumer::last_state(std::uint8_t node_id) cons
   return it == nodes_.end() ? std::nullopt : it->second.state;
 }
 
-std::vector<HeartbeatEvent> HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
-  std::vector<HeartbeatEvent> events;
+bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   auto msg = parse_error_control(frame);
-  if (!msg) return events;
+  if (!msg) return false;
   auto it = nodes_.find(msg->node_id);
-  if (it == nodes_.end()) return events;
+  if (it == nodes_.end()) return false;
   Node& node = it->second;
   auto state = msg->state();
-  if (!state) return events;  // not a state byte: ignore rather than guess
+  if (!state) return true;  // not a state byte: ignore rather than guess
 
   if (*state == NmtState::Initialising) {
     // The node rebooted. CiA 301: the consumer waits for its first heartbeat again; the NMT
     // master runs boot slave and restarts error control (CiA 302-2 §4.3 boot-up handler).
-    events.push_back({msg->node_id, HeartbeatEventKind::BootUp, state, now});
+    out.report({msg->node_id, HeartbeatEventKind::BootUp, state, now});
     node.expires.reset();
     node.timed_out = false;
     node.state = state;
-    return events;
+    return true;
   }
   if (node.timed_out) {
-    events.push_back({msg->node_id, HeartbeatEventKind::Resolved, state, now});
+    out.report({msg->node_id, HeartbeatEventKind::Resolved, state, now});
     node.timed_out = false;
   }
   if (node.state && *node.state != *state) {
-    events.push_back({msg->node_id, HeartbeatEventKind::StateChanged, state, now});
+    out.report({msg->node_id, HeartbeatEventKind::StateChanged, state, now});
   }
   node.state = state;
   node.expires = now + node.time;
-  return events;
+  return true;
 }
 
-std::vector<HeartbeatEvent> HeartbeatConsumer::on_timer(TimePoint now) {
-  std::vector<HeartbeatEvent> events;
+void HeartbeatConsumer::on_timer(TimePoint now, Output& out) {
   for (auto& [id, node] : nodes_) {
     if (node.expires && *node.expires <= now) {
-      events.push_back({id, HeartbeatEventKind::Timeout, std::nullopt, *node.expires});
+      out.report({id, HeartbeatEventKind::Timeout, std::nullopt, *node.expires});
       node.expires.reset();
       node.timed_out = true;
     }
   }
-  return events;
 }
 
-std::optional<TimePoint> HeartbeatConsumer::deadline() const {
+std::optional<TimePoint> HeartbeatConsumer::next_deadline() const {
   std::optional<TimePoint> earliest;
   for (const auto& [id, node] : nodes_) {
     if (node.expires && (!earliest || *node.expires < *earliest)) earliest = node.expires;
@@ -167,34 +161,33 @@ Duration NodeGuardingSlave::life_time() const {
   return ms(std::int64_t{guard_time_ms_} * life_time_factor_);
 }
 
-NodeGuardingSlave::Result NodeGuardingSlave::on_frame(const CanFrame& frame, TimePoint now,
-                                                      std::uint8_t node_id, NmtState state) {
-  Result result;
-  if (!frame.rtr || frame.extended || frame.error || frame.id != kErrorControlCobIdBase + node_id) {
-    return result;
+bool NodeGuardingSlave::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  if (!frame.rtr || frame.extended || frame.error ||
+      frame.id != kErrorControlCobIdBase + node_id_) {
+    return false;
   }
   // CiA 301 §7.2.8.3.2.1: bit 7 toggles, starting with 0 for the first reply.
   const auto byte = static_cast<std::uint8_t>((toggle_ ? 0x80 : 0x00) |
-                                              (static_cast<std::uint8_t>(state) & 0x7F));
+                                              (static_cast<std::uint8_t>(state_) & 0x7F));
   toggle_ = !toggle_;
   const std::array<std::uint8_t, 1> bytes{byte};
-  result.reply = CanFrame::make(kErrorControlCobIdBase + node_id, bytes);
-  if (expired_) result.event = LifeGuardingEvent::Resolved;
+  out.send(CanFrame::make(kErrorControlCobIdBase + node_id_, bytes));
+  if (expired_) out.report(LifeGuardingEvent::Resolved);
   expired_ = false;
   last_request_ = now;
-  return result;
+  return true;
 }
 
-std::optional<TimePoint> NodeGuardingSlave::deadline() const {
+std::optional<TimePoint> NodeGuardingSlave::next_deadline() const {
   if (!last_request_ || expired_ || life_time() == Duration::zero()) return std::nullopt;
   return *last_request_ + life_time();
 }
 
-std::optional<LifeGuardingEvent> NodeGuardingSlave::on_timer(TimePoint now) {
-  auto due = deadline();
-  if (!due || now < *due) return std::nullopt;
+void NodeGuardingSlave::on_timer(TimePoint now, Output& out) {
+  auto due = next_deadline();
+  if (!due || now < *due) return;
   expired_ = true;
-  return LifeGuardingEvent::Occurred;
+  out.report(LifeGuardingEvent::Occurred);
 }
 
 // --- node guarding (master side) ----------------------------------------------------------------
@@ -211,9 +204,9 @@ std::string_view to_string(NodeGuardingEventKind kind) {
   return "unknown";
 }
 
-void NodeGuardingMaster::start(std::uint8_t node_id, std::uint16_t guard_time_ms,
+void NodeGuardingMaster::start(cfg::NodeId node_id, std::uint16_t guard_time_ms,
                                std::uint8_t life_time_factor, TimePoint now) {
-  if (node_id == 0 || node_id > 127 || guard_time_ms == 0 || life_time_factor == 0) {
+  if (guard_time_ms == 0 || life_time_factor == 0) {
     nodes_.erase(node_id);
     return;
   }
@@ -224,39 +217,36 @@ void NodeGuardingMaster::start(std::uint8_t node_id, std::uint16_t guard_time_ms
   nodes_[node_id] = node;
 }
 
-std::vector<NodeGuardingEvent> NodeGuardingMaster::on_frame(const CanFrame& frame, TimePoint now) {
-  std::vector<NodeGuardingEvent> events;
+bool NodeGuardingMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   auto msg = parse_error_control(frame);
-  if (!msg) return events;
+  if (!msg) return false;
   auto it = nodes_.find(msg->node_id);
-  if (it == nodes_.end() || !it->second.awaiting_reply) return events;
+  if (it == nodes_.end() || !it->second.awaiting_reply) return false;
   Node& node = it->second;
   auto state = msg->state();
   // A boot-up (00) is no guarding reply; the master's boot-up handler deals with it.
-  if (!state || *state == NmtState::Initialising) return events;
+  if (!state || *state == NmtState::Initialising) return false;
   if (msg->toggle() != node.expected_toggle) {
     // CiA 301 §7.2.8.3.2.1: the toggle bit alternates; a repeated one means a lost reply.
     // Still awaiting a valid reply: counted as missed when the next request goes out.
     node.expected_toggle = !msg->toggle();
-    return events;
+    return true;
   }
   node.awaiting_reply = false;
   node.expected_toggle = !node.expected_toggle;
   node.missed = 0;
   if (node.timed_out) {
     node.timed_out = false;
-    events.push_back({msg->node_id, NodeGuardingEventKind::Resolved, state, now});
+    out.report({msg->node_id, NodeGuardingEventKind::Resolved, state, now});
   }
   if (node.state && *node.state != *state) {
-    events.push_back({msg->node_id, NodeGuardingEventKind::StateChanged, state, now});
+    out.report({msg->node_id, NodeGuardingEventKind::StateChanged, state, now});
   }
   node.state = state;
-  return events;
+  return true;
 }
 
-std::vector<NodeGuardingEvent> NodeGuardingMaster::on_timer(TimePoint now,
-                                                            std::vector<CanFrame>& out) {
-  std::vector<NodeGuardingEvent> events;
+void NodeGuardingMaster::on_timer(TimePoint now, Output& out) {
   for (auto& [id, node] : nodes_) {
     if (now < node.next_request) continue;
     // The previous request's answer window ends with this request.
@@ -264,18 +254,18 @@ std::vector<NodeGuardingEvent> NodeGuardingMaster::on_timer(TimePoint now,
       if (node.missed < 255) ++node.missed;
       if (node.missed >= node.life_time_factor && !node.timed_out) {
         node.timed_out = true;
-        events.push_back({id, NodeGuardingEventKind::Timeout, std::nullopt, node.next_request});
+        out.report({id, NodeGuardingEventKind::Timeout, std::nullopt, node.next_request});
       }
     }
-    out.push_back(make_guarding_request(id));
+    // The map holds only node-IDs start() accepted.
+    out.send(make_guarding_request(*cfg::NodeId::from(id)));
     node.awaiting_reply = true;
     node.next_request += node.guard_time;
     if (node.next_request <= now) node.next_request = now + node.guard_time;
   }
-  return events;
 }
 
-std::optional<TimePoint> NodeGuardingMaster::deadline() const {
+std::optional<TimePoint> NodeGuardingMaster::next_deadline() const {
   std::optional<TimePoint> earliest;
   for (const auto& [id, node] : nodes_) {
     if (!earliest || node.next_request < *earliest) earliest = node.next_request;

@@ -1,18 +1,12 @@
 #include "nmt/local_dictionary.hpp"
 
 #include <algorithm>
-#include <cstdio>
+
+#include "cfg/bytes.hpp"
 
 namespace nmt {
 
 namespace {
-
-std::string entry_name(std::uint16_t index, std::uint8_t sub) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "0x%04X sub %u", static_cast<unsigned>(index),
-                static_cast<unsigned>(sub));
-  return buf;
-}
 
 bool is_numeric(cfg::DataType type) {
   auto c = cfg::data_type_info(type).type_class;
@@ -30,11 +24,11 @@ std::optional<std::size_t> DictionaryEntry::fixed_size() const {
 
 cfg::Result<LocalDictionary> LocalDictionary::from_device(const cfg::DeviceDescription& device,
                                                           std::uint8_t node_id) {
-  if (node_id < 1 || node_id > 127) {
+  if (!cfg::is_node_id(node_id)) {
     return cfg::Error{"node-ID " + std::to_string(node_id) + " is outside 1..127"};
   }
   LocalDictionary dict;
-  dict.node_id_ = node_id;
+  dict.node_id_ = cfg::NodeId::from(node_id);
   for (const auto& [index, object] : device.objects) {
     for (const auto& [sub_index, sub] : object.subs) {
       DictionaryEntry e;
@@ -46,7 +40,7 @@ cfg::Result<LocalDictionary> LocalDictionary::from_device(const cfg::DeviceDescr
       e.access = sub.access;
       e.pdo_mapping = sub.pdo_mapping;
       const auto where = [&](std::string_view key, const std::string& text) {
-        return "object " + entry_name(e.index, e.sub_index) + ": " + std::string(key) + " '" +
+        return "object " + cfg::to_string({e.index, e.sub_index}) + ": " + std::string(key) + " '" +
                text + "': ";
       };
       if (!e.basic_type) {
@@ -102,12 +96,12 @@ bool LocalDictionary::has_object(std::uint16_t index) const {
 }
 
 SdoAbort LocalDictionary::read(std::uint16_t index, std::uint8_t sub,
-                               std::vector<std::uint8_t>& out) const {
+                               std::vector<std::uint8_t>& out, TimePoint now) const {
   const auto* e = entry(index, sub);
   if (!e) return has_object(index) ? SdoAbort::SubIndexDoesNotExist : SdoAbort::ObjectDoesNotExist;
   if (!cfg::is_readable(e->access)) return SdoAbort::ReadOfWriteOnly;
   for (const auto& hook : read_hooks_) {
-    if (auto code = hook(index, sub); code != SdoAbort::None) return code;
+    if (auto code = hook(index, sub, now); code != SdoAbort::None) return code;
   }
   // The hook may have replaced the value; look it up again.
   e = entry(index, sub);
@@ -158,18 +152,18 @@ SdoAbort LocalDictionary::check_value(const DictionaryEntry& e,
 }
 
 SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
-                                std::span<const std::uint8_t> data) {
+                                std::span<const std::uint8_t> data, TimePoint now) {
   if (auto code = check_write(index, sub, data.size()); code != SdoAbort::None) return code;
   if (auto code = check_value(*entry(index, sub), data); code != SdoAbort::None) return code;
   for (const auto& hook : write_hooks_) {
-    if (auto code = hook(index, sub, data); code != SdoAbort::None) return code;
+    if (auto code = hook(index, sub, data, now); code != SdoAbort::None) return code;
   }
   auto* e = find(index, sub);
   if (!e) return SdoAbort::ObjectDoesNotExist;  // a hook removed it
   e->bytes.assign(data.begin(), data.end());
   // Observers get a copy's view: an observer may change this entry.
   const std::vector<std::uint8_t> stored = e->bytes;
-  for (const auto& observer : observers_) observer(index, sub, stored);
+  for (const auto& observer : observers_) observer(index, sub, stored, now);
   return SdoAbort::None;
 }
 
@@ -189,11 +183,8 @@ std::optional<std::uint64_t> LocalDictionary::get_unsigned(std::uint16_t index,
       c != cfg::TypeClass::Unsigned) {
     return std::nullopt;
   }
-  std::uint64_t v = 0;
-  for (std::size_t i = 0; i < e->bytes.size() && i < 8; ++i) {
-    v |= std::uint64_t{e->bytes[i]} << (8 * i);
-  }
-  return v;
+  const std::size_t size = std::min<std::size_t>(e->bytes.size(), 8);
+  return size == 0 ? 0 : cfg::load_le(e->bytes, size);
 }
 
 std::optional<cfg::Value> LocalDictionary::get_value(std::uint16_t index, std::uint8_t sub) const {
@@ -217,10 +208,8 @@ bool LocalDictionary::set_unsigned(std::uint16_t index, std::uint8_t sub, std::u
   if (!e) return false;
   auto size = e->fixed_size();
   if (!size) return false;
-  e->bytes.resize(*size);
-  for (std::size_t i = 0; i < *size; ++i) {
-    e->bytes[i] = static_cast<std::uint8_t>(i < 8 ? value >> (8 * i) : 0);
-  }
+  e->bytes.assign(*size, 0);
+  cfg::store_le(value, e->bytes, std::min<std::size_t>(*size, 8));
   return true;
 }
 

@@ -83,12 +83,11 @@ std::optional<NmtCommandFrame> parse_nmt_command(const CanFrame& frame) {
     return std::nullopt;
   }
   auto command = nmt_command_from_byte(frame.data[0]);
-  if (!command || frame.data[1] > 127) return std::nullopt;
+  if (!command || (frame.data[1] != 0 && !cfg::is_node_id(frame.data[1]))) return std::nullopt;
   return NmtCommandFrame{*command, frame.data[1]};
 }
 
-CanFrame make_boot_up(std::uint8_t node_id) {
-  assert(node_id >= 1 && node_id <= 127);
+CanFrame make_boot_up(cfg::NodeId node_id) {
   const std::array<std::uint8_t, 1> bytes{0x00};
   return CanFrame::make(kErrorControlCobIdBase + node_id, bytes);
 }
@@ -113,14 +112,12 @@ NmtServices services_in(NmtState state) {
   return s;
 }
 
-NmtSlave::NmtSlave(std::uint8_t node_id) : node_id_(node_id), pending_node_id_(node_id) {
-  assert(node_id >= 1 && node_id <= 127);
-}
+NmtSlave::NmtSlave(cfg::NodeId node_id) : node_id_(node_id), pending_node_id_(node_id) {}
 
-std::optional<NmtSlave::Transition> NmtSlave::on_frame(const CanFrame& frame) {
-  if (state_ == NmtState::Initialising) return std::nullopt;
+bool NmtSlave::on_frame(const CanFrame& frame, TimePoint /*now*/, Output& out) {
+  if (state_ == NmtState::Initialising) return false;
   auto command = parse_nmt_command(frame);
-  if (!command || (command->node_id != 0 && command->node_id != node_id_)) return std::nullopt;
+  if (!command || (command->node_id != 0 && command->node_id != node_id_)) return false;
 
   Transition t{state_, state_, command->command, std::nullopt};
   switch (command->command) {
@@ -144,16 +141,17 @@ std::optional<NmtSlave::Transition> NmtSlave::on_frame(const CanFrame& frame) {
   }
   state_ = t.to;
   pending_reset_ = t.reset;
-  return t;
+  out.report(t);
+  return true;
 }
 
-CanFrame NmtSlave::finish_initialisation() {
+void NmtSlave::finish_initialisation(TimePoint /*now*/, Output& out) {
   assert(state_ == NmtState::Initialising);
   // CiA 301 §7.3.2.2.1: the node-ID takes effect in reset communication, which every reset passes.
   node_id_ = pending_node_id_;
   state_ = NmtState::PreOperational;
   pending_reset_.reset();
-  return make_boot_up(node_id_);
+  out.send(make_boot_up(node_id_));
 }
 
 void NmtSlave::set_state(NmtState state) {
@@ -166,8 +164,7 @@ void NmtSlave::power_on() {
   pending_reset_ = ResetScope::Application;
 }
 
-void NmtSlave::set_node_id(std::uint8_t node_id) {
-  assert(node_id >= 1 && node_id <= 127);
+void NmtSlave::set_node_id(cfg::NodeId node_id) {
   pending_node_id_ = node_id;
 }
 

@@ -76,7 +76,7 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   }
   auto d = sdo::sdo_payload(frame);
   if (!d) return false;
-  handle(*d, out);
+  handle(*d, now, out);
   timeout_at_ = state_ == State::Idle ? std::nullopt : std::optional(later(now, config_.timeout));
   return true;
 }
@@ -100,7 +100,7 @@ void SdoServer::send_abort(SdoAbort code, Output& out) {
   reset();
 }
 
-void SdoServer::handle(const sdo::Payload& d, Output& out) {
+void SdoServer::handle(const sdo::Payload& d, TimePoint now, Output& out) {
   if (state_ == State::BlockDownload) {
     // Inside a sub-block every frame is a segment, except an abort.
     const auto f = sdo::parse_sub_block_frame(d);
@@ -115,19 +115,19 @@ void SdoServer::handle(const sdo::Payload& d, Output& out) {
   // any other frame in idle names 0000h sub 00h.
   if (state_ == State::Idle) address_ = {};
   if (!f) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
-  handle_command(*f, out);
+  handle_command(*f, now, out);
 }
 
-void SdoServer::handle_command(const sdo::ClientFrame& f, Output& out) {
+void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output& out) {
   switch (state_) {
     case State::Idle:
       if (const auto* r = std::get_if<sdo::InitiateDownloadRequest>(&f)) {
         address_ = r->address;
-        return initiate_download(*r, out);
+        return initiate_download(*r, now, out);
       }
       if (const auto* r = std::get_if<sdo::InitiateUploadRequest>(&f)) {
         address_ = r->address;
-        if (auto code = dict_->read(address_.index, address_.sub_index, buffer_);
+        if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now);
             code != SdoAbort::None) {
           return send_abort(code, out);
         }
@@ -143,12 +143,12 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, Output& out) {
       if (const auto* r = std::get_if<sdo::BlockUploadInitiateRequest>(&f)) {
         address_ = r->address;
         if (!config_.block_transfer) break;
-        return block_upload_initiate(*r, out);
+        return block_upload_initiate(*r, now, out);
       }
       break;
     case State::DownloadSegment:
       if (const auto* r = std::get_if<sdo::DownloadSegmentRequest>(&f)) {
-        return download_segment(*r, out);
+        return download_segment(*r, now, out);
       }
       break;
     case State::UploadSegment:
@@ -160,7 +160,7 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, Output& out) {
       break;
     case State::BlockDownloadEnd:
       if (const auto* r = std::get_if<sdo::BlockDownloadEndRequest>(&f)) {
-        return block_download_end(*r, out);
+        return block_download_end(*r, now, out);
       }
       break;
     case State::BlockUploadStart:
@@ -182,7 +182,8 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, Output& out) {
 }
 
 // CiA 301 §7.2.4.3, SDO download initiate protocol: expedited or segmented.
-void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, Output& out) {
+void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now,
+                                  Output& out) {
   const auto [index, sub] = address_;
   if (f.expedited) {
     std::size_t size = 4;
@@ -192,7 +193,7 @@ void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, Output&
                e && e->fixed_size() && *e->fixed_size() <= 4) {
       size = *e->fixed_size();  // size not indicated: the object's own size
     }
-    const auto code = dict_->write(index, sub, std::span(f.data).first(size));
+    const auto code = dict_->write(index, sub, std::span(f.data).first(size), now);
     if (code != SdoAbort::None) return send_abort(code, out);
     respond(sdo::InitiateDownloadResponse{address_}, out);
     return;
@@ -210,7 +211,8 @@ void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, Output&
 }
 
 // CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
-void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, Output& out) {
+void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now,
+                                 Output& out) {
   if (f.toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
   if (size_ && buffer_.size() + f.size > *size_) return send_abort(SdoAbort::LengthMismatch, out);
   if (buffer_.size() + f.size > config_.max_download_size) {
@@ -219,15 +221,15 @@ void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, Output& o
   buffer_.insert(buffer_.end(), f.data.begin(), f.data.begin() + f.size);
   const sdo::DownloadSegmentResponse response{f.toggle};
   // The response to the last segment confirms the write, so it is sent only after it.
-  if (f.last) return finish_download(response, out);
+  if (f.last) return finish_download(response, now, out);
   toggle_ = !toggle_;
   respond(response, out);
 }
 
 template <class Frame>
-void SdoServer::finish_download(const Frame& confirmation, Output& out) {
+void SdoServer::finish_download(const Frame& confirmation, TimePoint now, Output& out) {
   if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
-  const auto code = dict_->write(address_.index, address_.sub_index, buffer_);
+  const auto code = dict_->write(address_.index, address_.sub_index, buffer_, now);
   if (code != SdoAbort::None) return send_abort(code, out);
   respond(confirmation, out);
   reset();
@@ -313,17 +315,19 @@ void SdoServer::block_download_segment(const sdo::BlockSegment& f, Output& out) 
 
 // CiA 301 §7.2.4.3, SDO block download protocol: the end request carries n (bytes of the last
 // segment without data) and the CRC of the whole value.
-void SdoServer::block_download_end(const sdo::BlockDownloadEndRequest& f, Output& out) {
+void SdoServer::block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now,
+                                   Output& out) {
   if (f.empty_bytes > buffer_.size()) return send_abort(SdoAbort::LengthMismatch, out);
   buffer_.resize(buffer_.size() - f.empty_bytes);
   if (crc_ && sdo_block_crc(buffer_) != f.crc) return send_abort(SdoAbort::CrcError, out);
-  finish_download(sdo::BlockDownloadEndResponse{}, out);
+  finish_download(sdo::BlockDownloadEndResponse{}, now, out);
 }
 
 // CiA 301 §7.2.4.3, SDO block upload protocol: initiate.
-void SdoServer::block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, Output& out) {
+void SdoServer::block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now,
+                                      Output& out) {
   if (!sdo::valid_block_size(f.block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
-  if (auto code = dict_->read(address_.index, address_.sub_index, buffer_);
+  if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now);
       code != SdoAbort::None) {
     return send_abort(code, out);
   }

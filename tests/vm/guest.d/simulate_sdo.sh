@@ -4,7 +4,7 @@
 # kernel's CAN stack:
 #   - can-utils: candump sees their boot-up and (once cansend has set 1017h) heartbeat frames,
 #     and an SDO upload request for 1000h sent by cansend is answered with the device type;
-#   - our SDO client over our SocketCAN driver: SocketCanSdo.* (tests/nmt/socketcan_sdo_test.cpp)
+#   - our SDO client over our SocketCAN driver: SocketCanSdo.* (tests/io/socketcan_sdo_test.cpp)
 #     in the test binaries, with CANOPEN_VM_SIMULATED_DEVICES naming the same devices.
 # Expected values are read from the device files. Frame layouts: boot-up 700h+node #00 and
 # heartbeat #7F in pre-operational (spec/002), SDO expedited upload response 43h idx sub data and

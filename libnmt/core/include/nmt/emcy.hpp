@@ -1,6 +1,6 @@
 // Emergency objects (CiA 301 §7.2.7): the 8-byte EMCY message, common error codes and
-// error-register bits, and a sans-I/O producer that honours the COB-ID (1014h), the inhibit time
-// (1015h) and the NMT state.
+// error-register bits, and a producer (an engine of the shape of nmt/engine.hpp) that honours the
+// COB-ID (1014h), the inhibit time (1015h) and the NMT state.
 #pragma once
 
 #include <array>
@@ -10,6 +10,9 @@
 #include <optional>
 #include <vector>
 
+#include "cfg/cob_id.hpp"
+#include "cfg/node_id.hpp"
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 
 namespace nmt {
@@ -49,36 +52,51 @@ struct Emergency {
 
 /// Default EMCY COB-ID of the pre-defined connection set: 080h + node-ID.
 inline constexpr std::uint32_t kEmcyCobIdBase = 0x080;
+/// The EMCY COB-ID of the pre-defined connection set for `node_id` (valid, 11-bit).
+constexpr cfg::CobId default_emcy_cob_id(cfg::NodeId node_id) {
+  return cfg::CobId::standard(kEmcyCobIdBase + node_id);
+}
 
-/// The 8-byte EMCY frame on `cob_id` (bits 0-10; bit 29 selects a 29-bit identifier).
-CanFrame make_emcy(std::uint32_t cob_id, const Emergency& emcy);
+/// The 8-byte EMCY frame on the identifier of `cob_id` (the 1014h word; its validity bit is not
+/// looked at).
+CanFrame make_emcy(cfg::CobId cob_id, const Emergency& emcy);
 /// Reads an EMCY frame (8 data bytes, no RTR); nullopt for other frames. Does not check the
 /// COB-ID: the caller knows which identifiers carry EMCY.
 std::optional<Emergency> parse_emcy(const CanFrame& frame);
 
 /// Emergency producer of one node. raise() sends at once when the inhibit time allows and
 /// queues otherwise; on_timer() releases queued messages. Nothing is sent while the COB-ID is
-/// invalid (bit 31 of 1014h set) or the NMT state forbids EMCY (CiA 301 §7.3.2.2: not in stopped
-/// nor initialising): such messages are dropped and counted.
+/// invalid (bit 31 of 1014h set) or the NMT state forbids EMCY (set_allowed(false); CiA 301
+/// §7.3.2.2: not in stopped nor initialising): such messages are dropped and counted. Receives
+/// nothing and reports no events.
 class EmcyProducer {
  public:
+  using Event = NoEvent;
+  using Output = Outbox<Event>;
+
   /// At most this many messages wait for the inhibit time; more are dropped and counted.
   static constexpr std::size_t kQueueCapacity = 16;
 
-  /// cob_id: value of 1014h (bit 31 set: invalid). inhibit_time_100us: 1015h, in 100 µs.
-  explicit EmcyProducer(std::uint32_t cob_id, std::uint16_t inhibit_time_100us = 0);
+  /// cob_id: value of 1014h. inhibit_time_100us: 1015h, in 100 µs. EMCY starts allowed.
+  explicit EmcyProducer(cfg::CobId cob_id, std::uint16_t inhibit_time_100us = 0);
 
-  void set_cob_id(std::uint32_t cob_id) { cob_id_ = cob_id; }
-  std::uint32_t cob_id() const { return cob_id_; }
+  void set_cob_id(cfg::CobId cob_id) { cob_id_ = cob_id; }
+  cfg::CobId cob_id() const { return cob_id_; }
   void set_inhibit_time(std::uint16_t inhibit_time_100us) { inhibit_100us_ = inhibit_time_100us; }
+  /// Whether the NMT state permits EMCY (services_in(state).emcy).
+  void set_allowed(bool allowed) { allowed_ = allowed; }
+  bool allowed() const { return allowed_; }
 
-  /// Reports an emergency at `now`. `allowed`: the NMT state permits EMCY. Returns the frame to
-  /// send now, or nullopt when it was queued (inhibit time running) or dropped.
-  std::optional<CanFrame> raise(const Emergency& emcy, TimePoint now, bool allowed);
-  /// Releases queued messages whose inhibit time has passed (at most one per inhibit time).
-  std::vector<CanFrame> on_timer(TimePoint now, bool allowed);
+  /// Reports an emergency at `now`: sent into `out` at once, or queued while the inhibit time
+  /// runs, or dropped (not allowed, COB-ID invalid, queue full).
+  void raise(const Emergency& emcy, TimePoint now, Output& out);
+
+  bool on_frame(const CanFrame& /*frame*/, TimePoint /*now*/, Output& /*out*/) { return false; }
+  /// Releases queued messages whose inhibit time has passed (at most one per inhibit time);
+  /// drops the queue when EMCY is no longer allowed.
+  void on_timer(TimePoint now, Output& out);
   /// When on_timer() has something to release; nullopt when the queue is empty.
-  std::optional<TimePoint> deadline() const;
+  std::optional<TimePoint> next_deadline() const;
 
   /// Forgets queued messages and the inhibit timer (reset communication).
   void reset();
@@ -86,13 +104,16 @@ class EmcyProducer {
 
  private:
   bool can_send(TimePoint now) const;
-  CanFrame send(const Emergency& emcy, TimePoint now);
+  bool blocked() const { return !allowed_ || !cob_id_.valid(); }
+  void send(const Emergency& emcy, TimePoint now, Output& out);
 
-  std::uint32_t cob_id_;
+  cfg::CobId cob_id_;
   std::uint16_t inhibit_100us_;
+  bool allowed_ = true;
   std::optional<TimePoint> last_sent_;
   std::deque<Emergency> queue_;
   std::size_t dropped_ = 0;
 };
+static_assert(Engine<EmcyProducer>);
 
 }  // namespace nmt

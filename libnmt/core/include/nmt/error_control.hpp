@@ -1,7 +1,7 @@
 // NMT error control (CiA 301 §7.2.8.3.2), sans-I/O: heartbeat producer (1017h) and consumer
 // (1016h), node guarding as the guarded slave answers it, and life guarding (100Ch, 100Dh).
-// Engines take frames and the current time and return frames to send, events and the next
-// deadline; they never read a clock.
+// Each is an engine of the shape of nmt/engine.hpp: frames and the current time in, frames,
+// events and the next deadline out; they never read a clock.
 #pragma once
 
 #include <cstdint>
@@ -10,15 +10,17 @@
 #include <string_view>
 #include <vector>
 
+#include "cfg/node_id.hpp"
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/nmt_slave.hpp"
 
 namespace nmt {
 
-/// A heartbeat message `7xx#SS` (CiA 301 §7.2.8.3.2.2), node_id 1..127.
-CanFrame make_heartbeat(std::uint8_t node_id, NmtState state);
+/// A heartbeat message `7xx#SS` (CiA 301 §7.2.8.3.2.2).
+CanFrame make_heartbeat(cfg::NodeId node_id, NmtState state);
 /// The node guarding request: an RTR frame on 700h + node-ID with DLC 1 (CiA 301 §7.2.8.3.2.1).
-CanFrame make_guarding_request(std::uint8_t node_id);
+CanFrame make_guarding_request(cfg::NodeId node_id);
 
 /// A received error-control message (heartbeat, boot-up or guarding reply): 700h + node-ID, one
 /// data byte, no RTR.
@@ -36,7 +38,7 @@ std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame);
 struct HeartbeatConsumerEntry {
   std::uint8_t node_id = 0;
   std::uint16_t time_ms = 0;
-  bool active() const { return node_id != 0 && node_id <= 127 && time_ms != 0; }
+  bool active() const { return cfg::is_node_id(node_id) && time_ms != 0; }
   std::uint32_t encode() const { return (std::uint32_t{node_id} << 16) | time_ms; }
   static HeartbeatConsumerEntry decode(std::uint32_t value) {
     return {static_cast<std::uint8_t>((value >> 16) & 0xFF),
@@ -47,25 +49,41 @@ struct HeartbeatConsumerEntry {
 /// Heartbeat producer of one node (1017h). Starts with the boot-up message: CiA 301
 /// §7.2.8.3.2.2 counts the boot-up as the first heartbeat, so the next one follows one period
 /// later. A non-zero period written at run time starts the protocol at once. Heartbeats carry
-/// the state at the time they are sent.
+/// the state set with set_state() at the time they are sent. Reports no events.
 class HeartbeatProducer {
  public:
-  /// Sets 1017h. 0 stops the producer; a change restarts the cycle with a heartbeat due `now`.
+  using Event = NoEvent;
+  using Output = Outbox<Event>;
+
+  explicit HeartbeatProducer(cfg::NodeId node_id) : node_id_(node_id) {}
+
+  /// Sets 1017h. 0 stops the producer; a change restarts the cycle with a heartbeat due `now`
+  /// (next_deadline() == now: the driver calls on_timer() at once).
   void set_period(std::uint16_t period_ms, TimePoint now);
   std::uint16_t period_ms() const { return period_ms_; }
+  /// The node-ID the heartbeats are sent for (700h + node-ID).
+  void set_node_id(cfg::NodeId node_id) { node_id_ = node_id; }
+  /// The NMT state the next heartbeats announce.
+  void set_state(NmtState state) { state_ = state; }
   /// The boot-up message was sent at `now`: the next heartbeat is one period later.
   void on_boot_up(TimePoint now);
   /// Initialising: nothing is sent until the next boot-up.
   void stop() { next_.reset(); }
-  /// When on_timer() has a heartbeat to send; nullopt when stopped or disabled.
-  std::optional<TimePoint> deadline() const { return next_; }
-  /// The heartbeat to send when the deadline has come, else nullopt.
-  std::optional<CanFrame> on_timer(TimePoint now, std::uint8_t node_id, NmtState state);
+
+  /// Heartbeats are produced, not consumed: every frame returns false.
+  bool on_frame(const CanFrame& /*frame*/, TimePoint /*now*/, Output& /*out*/) { return false; }
+  /// Sends the heartbeat when it is due.
+  void on_timer(TimePoint now, Output& out);
+  /// When the next heartbeat is due; nullopt when stopped or disabled.
+  std::optional<TimePoint> next_deadline() const { return next_; }
 
  private:
+  cfg::NodeId node_id_;
+  NmtState state_ = NmtState::PreOperational;
   std::uint16_t period_ms_ = 0;
   std::optional<TimePoint> next_;
 };
+static_assert(Engine<HeartbeatProducer>);
 
 /// What a heartbeat consumer reports about a monitored node.
 enum class HeartbeatEventKind : std::uint8_t {
@@ -96,6 +114,9 @@ struct HeartbeatConsumerOptions {
 /// once; the next heartbeat from it reports Resolved and re-arms the timer.
 class HeartbeatConsumer {
  public:
+  using Event = HeartbeatEvent;
+  using Output = Outbox<Event>;
+
   explicit HeartbeatConsumer(HeartbeatConsumerOptions options = {}) : options_(options) {}
 
   /// Starts (or restarts) monitoring of entry.node_id at `now`; an inactive entry stops it.
@@ -106,12 +127,13 @@ class HeartbeatConsumer {
   /// The last state a node announced, if any.
   std::optional<NmtState> last_state(std::uint8_t node_id) const;
 
-  /// Feeds a received frame; error-control messages of monitored nodes produce events.
-  std::vector<HeartbeatEvent> on_frame(const CanFrame& frame, TimePoint now);
+  /// Feeds a received frame; error-control messages of monitored nodes may produce events and
+  /// return true (false for every other frame). Sends nothing.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   /// Reports nodes whose consumer time expired at or before `now`.
-  std::vector<HeartbeatEvent> on_timer(TimePoint now);
+  void on_timer(TimePoint now, Output& out);
   /// The earliest time a node may time out; nullopt when no timer runs.
-  std::optional<TimePoint> deadline() const;
+  std::optional<TimePoint> next_deadline() const;
 
  private:
   struct Node {
@@ -130,38 +152,47 @@ enum class LifeGuardingEvent : std::uint8_t {
   Resolved,  ///< a guarding request arrived again after the event
 };
 
-/// The guarded side of node guarding and life guarding. Answers each guarding request with its
-/// state and a toggle bit that starts at 0 after initialisation and alternates; life guarding
-/// starts with the first request and only when 100Ch and 100Dh are both non-zero.
+/// The guarded side of node guarding and life guarding. Answers each guarding request with the
+/// state set with set_state() and a toggle bit that starts at 0 after initialisation and
+/// alternates; life guarding starts with the first request and only when 100Ch and 100Dh are
+/// both non-zero. Its events are the life guarding events.
 class NodeGuardingSlave {
  public:
+  using Event = LifeGuardingEvent;
+  using Output = Outbox<Event>;
+
+  explicit NodeGuardingSlave(cfg::NodeId node_id) : node_id_(node_id) {}
+
   /// 100Ch guard time in ms and 100Dh life time factor; life time = their product.
   void configure(std::uint16_t guard_time_ms, std::uint8_t life_time_factor);
+  /// The node-ID whose requests (RTR on 700h + node-ID) are answered.
+  void set_node_id(cfg::NodeId node_id) { node_id_ = node_id; }
+  /// The NMT state the replies announce.
+  void set_state(NmtState state) { state_ = state; }
   /// Initialisation (reset communication): toggle back to 0, life guarding inactive.
   void reset();
 
-  struct Result {
-    std::optional<CanFrame> reply;           ///< the guarding reply to send
-    std::optional<LifeGuardingEvent> event;  ///< Resolved when guarding recovered
-  };
-  /// Feeds a received frame. Only an RTR on 700h + node_id is a guarding request; others give
-  /// an empty result.
-  Result on_frame(const CanFrame& frame, TimePoint now, std::uint8_t node_id, NmtState state);
-  /// Occurred once when the life time expired at or before `now`.
-  std::optional<LifeGuardingEvent> on_timer(TimePoint now);
+  /// Only an RTR on 700h + node-ID is a guarding request (returns true): it is answered, and
+  /// Resolved is reported when life guarding recovers. Other frames return false.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// Reports Occurred once when the life time expired at or before `now`.
+  void on_timer(TimePoint now, Output& out);
   /// When life guarding expires; nullopt while inactive or already expired.
-  std::optional<TimePoint> deadline() const;
+  std::optional<TimePoint> next_deadline() const;
   bool toggle() const { return toggle_; }
 
  private:
   Duration life_time() const;
 
+  cfg::NodeId node_id_;
+  NmtState state_ = NmtState::PreOperational;
   std::uint16_t guard_time_ms_ = 0;
   std::uint8_t life_time_factor_ = 0;
   bool toggle_ = false;
   std::optional<TimePoint> last_request_;
   bool expired_ = false;
 };
+static_assert(Engine<NodeGuardingSlave>);
 
 /// What the guarding master reports about a guarded node.
 enum class NodeGuardingEventKind : std::uint8_t {
@@ -187,19 +218,23 @@ struct NodeGuardingEvent {
 /// did not alternate counts as missed and resynchronises the expected toggle.
 class NodeGuardingMaster {
  public:
+  using Event = NodeGuardingEvent;
+  using Output = Outbox<Event>;
+
   /// Starts guarding `node_id` with the first request at `now`. guard_time_ms and
   /// life_time_factor must both be non-zero (else the node is not guarded).
-  void start(std::uint8_t node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
+  void start(cfg::NodeId node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
              TimePoint now);
   void stop(std::uint8_t node_id) { nodes_.erase(node_id); }
   bool guards(std::uint8_t node_id) const { return nodes_.count(node_id) != 0; }
 
-  /// Feeds a received frame; replies of guarded nodes may produce events.
-  std::vector<NodeGuardingEvent> on_frame(const CanFrame& frame, TimePoint now);
-  /// Sends due requests (appended to `out`) and reports nodes that reached their life time.
-  std::vector<NodeGuardingEvent> on_timer(TimePoint now, std::vector<CanFrame>& out);
+  /// Feeds a received frame; a reply of a guarded node that awaits one returns true and may
+  /// produce events. Other frames return false.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// Sends due requests and reports nodes that reached their life time.
+  void on_timer(TimePoint now, Output& out);
   /// The next request time of any node; nullopt when none is guarded.
-  std::optional<TimePoint> deadline() const;
+  std::optional<TimePoint> next_deadline() const;
 
  private:
   struct Node {
@@ -214,5 +249,8 @@ class NodeGuardingMaster {
   };
   std::map<std::uint8_t, Node> nodes_;
 };
+
+static_assert(Engine<HeartbeatConsumer>);
+static_assert(Engine<NodeGuardingMaster>);
 
 }  // namespace nmt

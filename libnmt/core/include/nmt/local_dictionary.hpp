@@ -1,7 +1,8 @@
 // The runtime object dictionary of one node: every entry of a device description with its
 // attributes and its current value as bytes. The SDO server reads and writes it through the
 // checked `read`/`write` (CiA 301 access and value rules, answering with abort codes); the device
-// model uses the unchecked accessors and hooks. No I/O, no clock.
+// model uses the unchecked accessors and hooks. No I/O, no clock: the time of an access is given
+// by the caller and handed to the hooks.
 #pragma once
 
 #include <cstddef>
@@ -14,9 +15,12 @@
 #include <vector>
 
 #include "cfg/data_type.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/object_dictionary.hpp"
 #include "cfg/result.hpp"
 #include "cfg/value.hpp"
+#include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
 
 namespace nmt {
@@ -48,52 +52,69 @@ class LocalDictionary {
   /// Default max_size of variable-size entries (strings, DOMAIN): 1 MiB.
   static constexpr std::size_t kDefaultMaxVariableSize = std::size_t{1} << 20;
 
-  /// Called by write() after all dictionary checks passed and before the value is stored. A
-  /// result other than SdoAbort::None rejects the write with that code (the value stays).
+  /// Called by write() after all dictionary checks passed and before the value is stored, with
+  /// the time of the write. A result other than SdoAbort::None rejects the write with that code
+  /// (the value stays).
   using WriteHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub,
-                                           std::span<const std::uint8_t> data)>;
-  /// Called by write() after a value was stored (not by the unchecked setters).
+                                           std::span<const std::uint8_t> data, TimePoint now)>;
+  /// Called by write() after a value was stored (not by the unchecked setters), with the time of
+  /// the write.
   using WriteObserver = std::function<void(std::uint16_t index, std::uint8_t sub,
-                                           std::span<const std::uint8_t> data)>;
-  /// Called by read() after the access check, before the value is copied: it may refresh the
-  /// value with set_bytes() or refuse the read with a code (e.g. NoDataAvailable).
-  using ReadHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub)>;
+                                           std::span<const std::uint8_t> data, TimePoint now)>;
+  /// Called by read() after the access check, before the value is copied, with the time of the
+  /// read: it may refresh the value with set_bytes() or refuse the read with a code (e.g.
+  /// NoDataAvailable).
+  using ReadHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub, TimePoint now)>;
+  /// Where add_*_hook puts a hook among those already there: hooks run in that order and the
+  /// first refusal wins.
+  enum class HookPosition : std::uint8_t { Last, First };
 
   LocalDictionary() = default;
 
   /// Builds the dictionary of node `node_id` (1..127) from a device description: every
   /// sub-object becomes an entry whose value is ParameterValue, else DefaultValue, else zeros
   /// of the type's size (empty for variable-size types), parsed with cfg::parse_value and
-  /// $NODEID resolved; LowLimit/HighLimit likewise. Fails with a message naming the entry when
-  /// a value or limit does not parse, or when node_id is out of range.
+  /// $NODEID resolved; LowLimit/HighLimit likewise. Fails with a message naming the entry
+  /// ("object 1017h sub 00h: ...") when a value or limit does not parse, or when node_id is out
+  /// of range.
   static cfg::Result<LocalDictionary> from_device(const cfg::DeviceDescription& device,
                                                   std::uint8_t node_id);
 
-  std::uint8_t node_id() const { return node_id_; }
+  /// The node-ID the values were resolved for; 0 for a dictionary built empty.
+  std::uint8_t node_id() const { return node_id_ ? node_id_->value() : 0; }
 
   // --- SDO side: checked, answers with CiA 301 abort codes ----------------------------------
 
-  /// Reads the value for an SDO upload into `out` (replaced). Aborts: ObjectDoesNotExist (no
-  /// entry at `index`), SubIndexDoesNotExist, ReadOfWriteOnly (wo), or a read hook's code.
-  SdoAbort read(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t>& out) const;
+  /// Reads the value for an SDO upload at `now` into `out` (replaced). Aborts:
+  /// ObjectDoesNotExist (no entry at `index`), SubIndexDoesNotExist, ReadOfWriteOnly (wo), or a
+  /// read hook's code.
+  SdoAbort read(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t>& out,
+                TimePoint now) const;
 
   /// Writes a value from an SDO download. Checks in this order, each with its abort:
   /// object exists (ObjectDoesNotExist), sub-index exists (SubIndexDoesNotExist), writable
   /// (WriteOfReadOnly for ro/const), size (fixed types: LengthTooHigh / LengthTooLow;
   /// variable types: LengthTooHigh above max_size), value (BOOLEAN other than 0/1:
   /// ValueRangeExceeded; HighLimit < LowLimit: MaxLessThanMin; above HighLimit: ValueTooHigh;
-  /// below LowLimit: ValueTooLow), then the write hooks in the order added. On None the value
-  /// is stored and the observers are called.
-  SdoAbort write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data);
+  /// below LowLimit: ValueTooLow), then the write hooks in their order. On None the value is
+  /// stored and the observers are called. `now`: the time of the write, for the hooks.
+  SdoAbort write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                 TimePoint now);
 
   /// The checks write() does before seeing the data: existence, access, and (when the size is
   /// known) the size. The SDO server uses it to refuse a download at its initiate request.
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
                        std::optional<std::size_t> size) const;
 
-  void add_write_hook(WriteHook hook) { write_hooks_.push_back(std::move(hook)); }
+  void add_write_hook(WriteHook hook, HookPosition where = HookPosition::Last) {
+    write_hooks_.insert(where == HookPosition::First ? write_hooks_.begin() : write_hooks_.end(),
+                        std::move(hook));
+  }
   void add_write_observer(WriteObserver observer) { observers_.push_back(std::move(observer)); }
-  void add_read_hook(ReadHook hook) { read_hooks_.push_back(std::move(hook)); }
+  void add_read_hook(ReadHook hook, HookPosition where = HookPosition::Last) {
+    read_hooks_.insert(where == HookPosition::First ? read_hooks_.begin() : read_hooks_.end(),
+                       std::move(hook));
+  }
 
   // --- device model side: unchecked (no access, size or range checks, no hooks) ------------
 
@@ -124,16 +145,16 @@ class LocalDictionary {
 
   /// All entries in (index, sub-index) order.
   const std::map<std::uint32_t, DictionaryEntry>& entries() const { return entries_; }
-  /// The key of entries(): index << 8 | sub.
+  /// The key of entries(): index << 8 | sub (cfg::ObjectAddress::key()).
   static constexpr std::uint32_t key(std::uint16_t index, std::uint8_t sub) {
-    return static_cast<std::uint32_t>(index) << 8 | sub;
+    return cfg::ObjectAddress{index, sub}.key();
   }
 
  private:
   DictionaryEntry* find(std::uint16_t index, std::uint8_t sub);
   SdoAbort check_value(const DictionaryEntry& entry, std::span<const std::uint8_t> data) const;
 
-  std::uint8_t node_id_ = 0;
+  std::optional<cfg::NodeId> node_id_;
   std::map<std::uint32_t, DictionaryEntry> entries_;
   std::vector<WriteHook> write_hooks_;
   std::vector<WriteObserver> observers_;

@@ -1,12 +1,15 @@
-// The NMT slave state machine of CiA 301 §7.3.2 (sans-I/O): NMT module control commands in,
-// state transitions and the boot-up message out. The owner (a simulated device, a real device's
-// firmware) performs the resets the machine asks for and then ends initialisation.
+// The NMT slave state machine of CiA 301 §7.3.2, an engine of the shape of nmt/engine.hpp: NMT
+// module control commands in, state transitions (its events) and the boot-up message out. The
+// owner (the slave node, a real device's firmware) performs the resets the machine asks for and
+// then ends initialisation.
 #pragma once
 
 #include <cstdint>
 #include <optional>
 #include <string_view>
 
+#include "cfg/node_id.hpp"
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 
 namespace nmt {
@@ -39,7 +42,7 @@ std::optional<NmtCommand> nmt_command_from_byte(std::uint8_t byte);
 inline constexpr std::uint32_t kNmtCobId = 0x000;
 inline constexpr std::uint32_t kErrorControlCobIdBase = 0x700;
 
-/// The NMT module control frame `000#CCNN`; node_id 0 addresses all nodes.
+/// The NMT module control frame `000#CCNN`; node_id 0 addresses all nodes, else 1..127.
 CanFrame make_nmt_command(NmtCommand command, std::uint8_t node_id);
 /// A received NMT command: the command and the node-ID it addresses (0: all nodes).
 struct NmtCommandFrame {
@@ -50,8 +53,8 @@ struct NmtCommandFrame {
 /// anything else (other COB-IDs, RTR, wrong length, unknown specifier, node-ID > 127).
 std::optional<NmtCommandFrame> parse_nmt_command(const CanFrame& frame);
 
-/// The boot-up message `7xx#00` (CiA 301 §7.2.8.3.2.4), node_id 1..127.
-CanFrame make_boot_up(std::uint8_t node_id);
+/// The boot-up message `7xx#00` (CiA 301 §7.2.8.3.2.4).
+CanFrame make_boot_up(cfg::NodeId node_id);
 
 /// Which communication services a node runs in a state (CiA 301 §7.3.2.2, Table 51). In
 /// initialising a node only sends its boot-up message.
@@ -71,37 +74,45 @@ NmtServices services_in(NmtState state);
 enum class ResetScope : std::uint8_t { Application, Communication };
 std::string_view to_string(ResetScope scope);
 
+/// A state change caused by an NMT command: the NMT slave's event. `reset` is set when the node
+/// went to initialising.
+struct NmtTransition {
+  NmtState from;
+  NmtState to;
+  NmtCommand command;
+  std::optional<ResetScope> reset;
+  bool operator==(const NmtTransition&) const = default;
+};
+
 /// The NMT slave state machine of one node. Starts in Initialising (power-on); the owner restores
 /// its parameters for `pending_reset()` and calls `finish_initialisation()`, which sends the
 /// boot-up message and enters pre-operational. Commands received while initialising are ignored:
-/// the node is not on the bus yet.
+/// the node is not on the bus yet. Nothing in it is timed (next_deadline() is always nullopt).
 class NmtSlave {
  public:
-  /// node_id 1..127 (asserted).
-  explicit NmtSlave(std::uint8_t node_id);
+  using Event = NmtTransition;
+  using Output = Outbox<Event>;
+  using Transition = NmtTransition;
 
-  std::uint8_t node_id() const { return node_id_; }
+  explicit NmtSlave(cfg::NodeId node_id);
+
+  cfg::NodeId node_id() const { return node_id_; }
   NmtState state() const { return state_; }
   NmtServices services() const { return services_in(state_); }
   /// The reset the owner must perform before finish_initialisation(); nullopt outside
   /// initialising.
   std::optional<ResetScope> pending_reset() const { return pending_reset_; }
 
-  /// A state change caused by a command; `reset` is set when the node went to initialising.
-  struct Transition {
-    NmtState from;
-    NmtState to;
-    NmtCommand command;
-    std::optional<ResetScope> reset;
-  };
-  /// Feeds a received frame. Returns the transition when the frame is an NMT command for this
-  /// node or for all nodes (a command that does not change the state, e.g. start while
-  /// operational, is still returned with from == to); nullopt for every other frame.
-  std::optional<Transition> on_frame(const CanFrame& frame);
+  /// Feeds a frame. An NMT command for this node or for all nodes is reported as a transition
+  /// (a command that does not change the state, e.g. start while operational, is still reported,
+  /// with from == to) and returns true; every other frame returns false. Sends nothing.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint /*now*/, Output& /*out*/) {}
+  std::optional<TimePoint> next_deadline() const { return std::nullopt; }
 
-  /// Ends initialisation: enters pre-operational and returns the boot-up message to send.
+  /// Ends initialisation: enters pre-operational and sends the boot-up message.
   /// Only valid while initialising (asserted).
-  CanFrame finish_initialisation();
+  void finish_initialisation(TimePoint now, Output& out);
 
   /// A state change the node makes on its own, not by NMT command: the communication error
   /// behaviour of 1029h, or a self-starting device going operational. Not into or out of
@@ -112,14 +123,15 @@ class NmtSlave {
   void power_on();
 
   /// Changes the node-ID used from the next initialisation on (e.g. LSS configured a new one;
-  /// CiA 301 applies a new node-ID at reset communication). 1..127 (asserted).
-  void set_node_id(std::uint8_t node_id);
+  /// CiA 301 applies a new node-ID at reset communication).
+  void set_node_id(cfg::NodeId node_id);
 
  private:
-  std::uint8_t node_id_;
-  std::uint8_t pending_node_id_;
+  cfg::NodeId node_id_;
+  cfg::NodeId pending_node_id_;
   NmtState state_ = NmtState::Initialising;
   std::optional<ResetScope> pending_reset_ = ResetScope::Application;
 };
+static_assert(Engine<NmtSlave>);
 
 }  // namespace nmt

@@ -90,20 +90,20 @@ class SdoServer {
     BlockUploadEnd,    // end sent: waiting for the end response
   };
 
-  void handle(const sdo::Payload& d, Output& out);
-  void handle_command(const sdo::ClientFrame& f, Output& out);
-  void initiate_download(const sdo::InitiateDownloadRequest& f, Output& out);
-  void download_segment(const sdo::DownloadSegmentRequest& f, Output& out);
+  void handle(const sdo::Payload& d, TimePoint now, Output& out);
+  void handle_command(const sdo::ClientFrame& f, TimePoint now, Output& out);
+  void initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now, Output& out);
+  void download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, Output& out);
   void start_upload(Output& out);
   void upload_segment(const sdo::UploadSegmentRequest& f, Output& out);
   void block_download_initiate(const sdo::BlockDownloadInitiateRequest& f, Output& out);
   void block_download_segment(const sdo::BlockSegment& f, Output& out);
-  void block_download_end(const sdo::BlockDownloadEndRequest& f, Output& out);
-  void block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, Output& out);
+  void block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now, Output& out);
+  void block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now, Output& out);
   void block_upload_ack(const sdo::BlockUploadAck& f, Output& out);
   void send_upload_sub_block(Output& out);
   template <class Frame>
-  void finish_download(const Frame& confirmation, Output& out);
+  void finish_download(const Frame& confirmation, TimePoint now, Output& out);
   template <class Frame>
   void respond(const Frame& f, Output& out);
   void send_abort(SdoAbort code, Output& out);

@@ -1,0 +1,213 @@
+// A CANopen slave node built from any EDS/DCF, as one engine of the shape of nmt/engine.hpp: its
+// own runtime dictionary, NMT slave, SDO server, heartbeat producer and consumer or node/life
+// guarding, EMCY, the PDO parameter rules real devices enforce, parameter storage
+// (1010h/1011h/1020h) and program download (1F50h-1F57h). It has no faults and no test knobs:
+// an embedder can put it on a real bus (EngineRef of nmt/bus_event_loop.hpp) as it is; the
+// simulated devices of nmt/simulated_device.hpp wrap it with the faults of
+// nmt/fault_injection.hpp.
+//   node->power_on(now);                // initialising; the boot-up is sent from on_timer
+//   node->on_frame(frame, now, out);    // frames to send and events go into `out`
+//   node->on_timer(now, out);           // call when now >= node->next_deadline()
+//
+// Behaviour where CiA 301 leaves room (chosen after what common devices do; each says why):
+// - Initialisation ends at the first on_timer() call after a reset (next_deadline() is the time
+//   of the reset): the restores happen at once, the boot-up message follows from on_timer().
+// - Stored parameters are the writable entries except 1010h, 1011h and the program objects
+//   1F50h-1F57h (the program lives in its own memory). 1010h/1011h sub 1 = all, 2 = 1000h-1FFFh,
+//   3 = 6000h-9FFFh, 4 = 2000h-5FFFh, other sub-indices = all.
+// - Every successful SDO write of a stored parameter other than 1020h sets 1020h sub 1 and 2 to 0,
+//   even when the value is unchanged (CiA 302 §6.3 / DSP 302 §6.3: the device "has to reset the
+//   object Verify Configuration to 0" when boot-up configuration values change; a configuration
+//   manager writes 1020h last).
+// - PDO mapping writes while the PDO is valid, and mapping entry writes while mapping sub 0 is
+//   not 0, abort with 0800 0022 (device state), as e.g. Turck and Bonfiglioli manuals document.
+// - 1F52h (verify application software) is served as the device file declares it: SDO writes
+//   follow its AccessType (0601 0002 when ro/const). A file that declares 1F50h/1F51h but no 1F52h
+//   gets none (the object is optional; real devices, e.g. Nanotec CL4-E, omit it), so a master
+//   reading it sees 0602 0000. A download of program 1 sets it from
+//   SlaveNodeOptions::downloaded_program_version, or leaves it unchanged when that is unset.
+//   Like 1F50h-1F57h as a whole, it lives in program memory: resets and power cycles keep it.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cfg/node_id.hpp"
+#include "cfg/object_dictionary.hpp"
+#include "cfg/result.hpp"
+#include "nmt/emcy.hpp"
+#include "nmt/engine.hpp"
+#include "nmt/error_control.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/local_dictionary.hpp"
+#include "nmt/nmt_slave.hpp"
+#include "nmt/sdo.hpp"
+#include "nmt/sdo_abort.hpp"
+
+namespace nmt {
+
+/// What a slave node reports to whoever watches it (the simulate tool prints these with -v).
+struct SlaveEvent {
+  enum class Kind {
+    Boot,          ///< boot-up message sent
+    StateChange,   ///< NMT command changed the state (also resets)
+    SdoWrite,      ///< an SDO download stored a value
+    Stored,        ///< 1010h save executed
+    Restored,      ///< 1011h restore-defaults requested
+    LifeGuarding,  ///< life guarding event or its resolution
+    Heartbeat,     ///< heartbeat consumer event (1016h)
+    Emergency,     ///< an EMCY was raised
+    Program,       ///< program control (1F51h) or program download (1F50h)
+    Fault,         ///< an injected fault acted (reported by nmt/fault_injection.hpp, never here)
+  };
+  Kind kind;
+  TimePoint at;
+  std::string text;  ///< one line for people
+};
+std::string_view to_string(SlaveEvent::Kind kind);
+
+/// Program control states as 1F51h reads them (CiA 302-3; DSP 302 §9 has 0-2).
+enum class ProgramState : std::uint8_t { Stopped = 0, Running = 1, NoProgram = 3 };
+
+/// Version of an application program as 1F52h sub 1/2 hold it (DSP 302 §9, CiA 302-3).
+struct ApplicationSoftwareVersion {
+  std::uint32_t date_days = 0;  ///< days since 1 January 1984 (sub 1)
+  std::uint32_t time_ms = 0;    ///< milliseconds after midnight (sub 2)
+  bool operator==(const ApplicationSoftwareVersion&) const = default;
+};
+
+/// What a slave node cannot take from its device file.
+struct SlaveNodeOptions {
+  /// The version 1F52h reports once a new program number 1 has been downloaded (1F50h sub 1
+  /// written successfully). The node cannot know a real image's build date, so whoever
+  /// downloads says it here. nullopt (default): 1F52h keeps the value it had. Only program 1:
+  /// DSP 302 §9 gives 1F52h to "the stored program number 1". Has no effect when the device
+  /// file has no 1F52h (nothing is added).
+  std::optional<ApplicationSoftwareVersion> downloaded_program_version;
+  /// A segmented or block SDO transfer with no request for this long is aborted with 0504 0000
+  /// (SdoServerConfig::timeout).
+  Duration sdo_server_timeout = std::chrono::milliseconds(2000);
+};
+
+/// One slave node. Not copyable or movable (its dictionary hooks refer to it): create() hands
+/// out a unique_ptr.
+class SlaveNode {
+  struct Key {
+    explicit Key() = default;
+  };
+
+ public:
+  using Event = SlaveEvent;
+  using Output = Outbox<Event>;
+
+  /// Builds the node. Fails with a message when a value of the file does not parse. The node is
+  /// off (sends and answers nothing) until power_on().
+  static cfg::Result<std::unique_ptr<SlaveNode>> create(const cfg::DeviceDescription& description,
+                                                        cfg::NodeId node_id,
+                                                        SlaveNodeOptions options = {});
+
+  SlaveNode(const SlaveNode&) = delete;
+  SlaveNode& operator=(const SlaveNode&) = delete;
+  ~SlaveNode();
+
+  // --- engine (nmt/engine.hpp) ---------------------------------------------------------------
+  /// Power-on (or power cycle) at `now`: unsaved values are lost, stored ones reload; the
+  /// boot-up message is due at `now` (next_deadline()).
+  void power_on(TimePoint now);
+  /// True for frames the node acted on: NMT commands for it, its SDO requests, guarding
+  /// requests, heartbeats it consumes.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint now, Output& out);
+  std::optional<TimePoint> next_deadline() const;
+
+  // --- application -------------------------------------------------------------------------
+  /// Raises an emergency (application error) at `now`: `error_register_bits` are ORed into
+  /// 1001h and the EMCY goes into `out` when the state allows EMCY (not stopped or
+  /// initialising) and the inhibit time has passed (else it waits or is dropped, see
+  /// EmcyProducer).
+  void raise_emergency(std::uint16_t error_code, std::uint8_t error_register_bits, TimePoint now,
+                       Output& out);
+
+  // --- observation ---------------------------------------------------------------------------
+  cfg::NodeId node_id() const { return nmt_.node_id(); }
+  NmtState state() const { return nmt_.state(); }
+  NmtServices services() const { return nmt_.services(); }
+  bool powered() const { return powered_; }
+  LocalDictionary& dictionary() { return dict_; }
+  const LocalDictionary& dictionary() const { return dict_; }
+  /// The SDO server's COB-IDs and settings as the last reset configured them (1200h).
+  const SdoServerConfig& sdo_config() const { return sdo_.config(); }
+  /// The heartbeat producer as 1017h configured it (its next_deadline() is the next heartbeat).
+  const HeartbeatProducer& heartbeat_producer() const { return heartbeat_; }
+  const SlaveNodeOptions& options() const { return options_; }
+  /// Replaces the options. The program version acts from the next SDO write on; a changed SDO
+  /// server timeout reconfigures the server at once, dropping a transfer in progress.
+  void set_options(SlaveNodeOptions options);
+  /// Values 1010h saved, by LocalDictionary::key(); empty when nothing was saved.
+  const std::map<std::uint32_t, std::vector<std::uint8_t>>& stored() const { return stored_; }
+  /// Program state of 1F51h sub `program` (1..), nullopt when the node has no such program.
+  std::optional<ProgramState> program_state(std::uint8_t program) const;
+
+  /// Only create() can call this (Key is private).
+  SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary factory, cfg::NodeId node_id,
+            SlaveNodeOptions options);
+
+ private:
+  void install_hooks();
+  void enter_initialisation(ResetScope scope, TimePoint now);
+  void restore(ResetScope scope);
+  void configure_services(TimePoint now);
+  void sync_parts();
+  void emit(SlaveEvent::Kind kind, TimePoint at, std::string text);
+  void take_events(Output& out);
+  void apply_nmt(const NmtTransition& t, TimePoint now);
+  void communication_error(const std::string& what, TimePoint now, Output& out);
+  void communication_recovered(const std::string& what, TimePoint now, Output& out);
+  void send_emcy(const Emergency& emcy, TimePoint now, Output& out);
+  void set_error_register(std::uint8_t value);
+  std::uint8_t error_register() const;
+
+  SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
+                       std::span<const std::uint8_t> data) const;
+  SdoAbort check_pdo_write(std::uint16_t index, std::uint8_t sub,
+                           std::span<const std::uint8_t> data) const;
+  SdoAbort check_pdo_mapping(std::uint16_t mapping_index, std::uint8_t count) const;
+  SdoAbort check_program_write(std::uint16_t index, std::uint8_t sub,
+                               std::span<const std::uint8_t> data) const;
+  void after_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                   TimePoint now);
+  bool is_stored_parameter(std::uint16_t index, std::uint8_t sub) const;
+  void save(std::uint8_t area, TimePoint now);
+  void restore_defaults(std::uint8_t area, TimePoint now);
+  void restart_consumer(TimePoint now);
+  void set_program_state(std::uint8_t program, ProgramState state);
+
+  cfg::DeviceDescription description_;
+  LocalDictionary factory_;  ///< values as the device file gives them (no hooks)
+  LocalDictionary dict_;
+  SlaveNodeOptions options_;
+  NmtSlave nmt_;
+  SdoServer sdo_;
+  HeartbeatProducer heartbeat_;
+  HeartbeatConsumer consumer_;
+  NodeGuardingSlave guarding_;
+  EmcyProducer emcy_;
+  std::map<std::uint32_t, std::vector<std::uint8_t>> stored_;
+  std::map<std::uint8_t, ProgramState> programs_;
+  /// Events in the order they happened, handed to the caller's output at the end of each
+  /// engine call: the dictionary hooks that report them run inside the SDO server, which has no
+  /// access to that output.
+  std::vector<SlaveEvent> events_;
+
+  bool powered_ = false;
+  std::optional<TimePoint> boot_at_;
+  int communication_errors_ = 0;  ///< active life guarding / heartbeat consumer errors
+};
+static_assert(Engine<SlaveNode>);
+
+}  // namespace nmt

@@ -1,0 +1,661 @@
+#include "nmt/slave_node.hpp"
+
+#include <algorithm>
+#include <array>
+#include <utility>
+
+#include "cfg/bytes.hpp"
+#include "cfg/cob_id.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
+
+namespace nmt {
+
+namespace obj = cfg::object;
+
+namespace {
+
+// CiA 301 §7.5.2.13/14: 'save' and 'load' as little-endian UNSIGNED32.
+constexpr std::uint32_t kSaveSignature = 0x65766173;
+constexpr std::uint32_t kLoadSignature = 0x64616F6C;
+
+bool is_program_object(std::uint16_t index) {
+  return index >= obj::kProgramData && index <= obj::kFlashStatusIdentification;
+}
+
+bool in_range(std::uint16_t index, std::uint16_t first, std::uint16_t last) {
+  return index >= first && index <= last;
+}
+
+// 1010h/1011h sub-index -> which indices it covers (CiA 301 §7.5.2.13).
+bool in_area(std::uint8_t area, std::uint16_t index) {
+  switch (area) {
+    case 2:
+      return in_range(index, obj::kCommunicationAreaFirst, obj::kCommunicationAreaLast);
+    case 3:
+      return in_range(index, obj::kProfileAreaFirst, obj::kProfileAreaLast);
+    case 4:
+      return in_range(index, obj::kManufacturerAreaFirst, obj::kManufacturerAreaLast);
+    default:
+      return true;  // 1: all parameters; 05h-7Fh manufacturer-specific: taken as all
+  }
+}
+
+// The first up to four bytes as a little-endian number (shorter data: the missing bytes are 0).
+std::uint32_t le32(std::span<const std::uint8_t> data) {
+  std::array<std::uint8_t, 4> bytes{};
+  std::copy_n(data.begin(), std::min<std::size_t>(4, data.size()), bytes.begin());
+  return cfg::load_le32(bytes);
+}
+
+// CRC-32 (IEEE 802.3), the checksum the node reports in 1F56h after a download.
+std::uint32_t crc32(std::span<const std::uint8_t> data) {
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (auto byte : data) {
+    crc ^= byte;
+    for (int i = 0; i < 8; ++i) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
+// The frames a part sent, in order, into the node's output (its events the node handles).
+template <class Part>
+void forward_frames(const Outbox<Part>& part, SlaveNode::Output& out) {
+  out.frames.insert(out.frames.end(), part.frames.begin(), part.frames.end());
+}
+
+}  // namespace
+
+std::string_view to_string(SlaveEvent::Kind kind) {
+  switch (kind) {
+    case SlaveEvent::Kind::Boot:
+      return "boot";
+    case SlaveEvent::Kind::StateChange:
+      return "nmt";
+    case SlaveEvent::Kind::SdoWrite:
+      return "sdo-write";
+    case SlaveEvent::Kind::Stored:
+      return "store";
+    case SlaveEvent::Kind::Restored:
+      return "restore";
+    case SlaveEvent::Kind::LifeGuarding:
+      return "life-guarding";
+    case SlaveEvent::Kind::Heartbeat:
+      return "heartbeat";
+    case SlaveEvent::Kind::Emergency:
+      return "emcy";
+    case SlaveEvent::Kind::Program:
+      return "program";
+    case SlaveEvent::Kind::Fault:
+      return "fault";
+  }
+  return "event";
+}
+
+// --- construction --------------------------------------------------------------------------------
+
+cfg::Result<std::unique_ptr<SlaveNode>> SlaveNode::create(const cfg::DeviceDescription& description,
+                                                          cfg::NodeId node_id,
+                                                          SlaveNodeOptions options) {
+  auto factory = LocalDictionary::from_device(description, node_id);
+  if (!factory) return factory.error();
+  return std::make_unique<SlaveNode>(Key{}, description, std::move(factory).value(), node_id,
+                                     options);
+}
+
+SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary factory,
+                     cfg::NodeId node_id, SlaveNodeOptions options)
+    : description_(std::move(description)),
+      factory_(std::move(factory)),
+      dict_(factory_),
+      options_(options),
+      nmt_(node_id),
+      sdo_(dict_, SdoServerConfig::for_node(node_id)),
+      heartbeat_(node_id),
+      guarding_(node_id),
+      emcy_(default_emcy_cob_id(node_id)) {
+  // Programs the device file declares (1F51h sub 1..); a shipped device runs its program
+  // unless the file says otherwise.
+  for (const auto& [key, entry] : dict_.entries()) {
+    if (entry.index != obj::kProgramControl || entry.sub_index == 0) continue;
+    auto v = dict_.get_unsigned(obj::kProgramControl, entry.sub_index).value_or(1);
+    programs_[entry.sub_index] = v == 0 || v == 2 ? ProgramState::Stopped
+                                 : v == 3         ? ProgramState::NoProgram
+                                                  : ProgramState::Running;
+  }
+  install_hooks();
+}
+
+SlaveNode::~SlaveNode() = default;
+
+void SlaveNode::install_hooks() {
+  dict_.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
+                              std::span<const std::uint8_t> data,
+                              TimePoint) { return check_write(index, sub, data); });
+  dict_.add_write_observer([this](std::uint16_t index, std::uint8_t sub,
+                                  std::span<const std::uint8_t> data,
+                                  TimePoint now) { after_write(index, sub, data, now); });
+}
+
+void SlaveNode::set_options(SlaveNodeOptions options) {
+  const bool timeout_changed = options.sdo_server_timeout != options_.sdo_server_timeout;
+  options_ = options;
+  if (timeout_changed) {
+    auto config = sdo_.config();
+    config.timeout = options_.sdo_server_timeout;
+    sdo_.set_config(config);
+  }
+}
+
+std::optional<ProgramState> SlaveNode::program_state(std::uint8_t program) const {
+  auto it = programs_.find(program);
+  if (it == programs_.end()) return std::nullopt;
+  return it->second;
+}
+
+void SlaveNode::emit(SlaveEvent::Kind kind, TimePoint at, std::string text) {
+  events_.push_back(SlaveEvent{kind, at, std::move(text)});
+}
+
+void SlaveNode::take_events(Output& out) {
+  for (auto& e : events_) out.report(std::move(e));
+  events_.clear();
+}
+
+void SlaveNode::sync_parts() {
+  // The parts send what the NMT slave's state allows and announce that state.
+  heartbeat_.set_state(nmt_.state());
+  guarding_.set_state(nmt_.state());
+  emcy_.set_allowed(nmt_.services().emcy);
+}
+
+// --- resets
+// ---------------------------------------------------------------------------------------
+
+void SlaveNode::power_on(TimePoint now) {
+  powered_ = true;
+  nmt_.power_on();
+  enter_initialisation(ResetScope::Application, now);
+}
+
+void SlaveNode::enter_initialisation(ResetScope scope, TimePoint now) {
+  // CiA 301 §7.3.2.2.1: reset application restores 2000h-9FFFh (and then communication);
+  // reset communication restores 1000h-1FFFh, from stored values where there are any.
+  restore(scope);
+  if (scope == ResetScope::Application) {
+    // Like a power cycle, reset application boots the device's program when there is one.
+    for (auto& [program, state] : programs_) {
+      set_program_state(program, state == ProgramState::NoProgram ? ProgramState::NoProgram
+                                                                  : ProgramState::Running);
+    }
+  }
+  configure_services(now);
+  heartbeat_.stop();
+  boot_at_ = now;
+  communication_errors_ = 0;
+}
+
+void SlaveNode::restore(ResetScope scope) {
+  std::vector<cfg::ObjectAddress> addresses;
+  addresses.reserve(dict_.entries().size());
+  for (const auto& [key, entry] : dict_.entries())
+    addresses.push_back({entry.index, entry.sub_index});
+  for (auto [index, sub] : addresses) {
+    if (is_program_object(index)) continue;  // the program has its own memory
+    if (scope == ResetScope::Communication &&
+        !in_range(index, obj::kCommunicationAreaFirst, obj::kCommunicationAreaLast)) {
+      continue;
+    }
+    auto stored = stored_.find(LocalDictionary::key(index, sub));
+    if (stored != stored_.end()) {
+      dict_.set_bytes(index, sub, stored->second);
+    } else if (auto factory = factory_.get_bytes(index, sub)) {
+      dict_.set_bytes(index, sub, *factory);
+    }
+  }
+}
+
+void SlaveNode::configure_services(TimePoint now) {
+  auto sdo_config = SdoServerConfig::from_dictionary(dict_);
+  sdo_config.timeout = options_.sdo_server_timeout;
+  sdo_.set_config(sdo_config);  // drops a transfer in progress without a frame
+
+  heartbeat_.set_node_id(nmt_.node_id());
+  heartbeat_.set_period(
+      static_cast<std::uint16_t>(dict_.get_unsigned(obj::kProducerHeartbeatTime, 0).value_or(0)),
+      now);
+  guarding_.set_node_id(nmt_.node_id());
+  guarding_.configure(
+      static_cast<std::uint16_t>(dict_.get_unsigned(obj::kGuardTime, 0).value_or(0)),
+      static_cast<std::uint8_t>(dict_.get_unsigned(obj::kLifeTimeFactor, 0).value_or(0)));
+  guarding_.reset();
+
+  const auto emcy_cob_id = dict_.get_unsigned(obj::kCobIdEmcy, 0);
+  emcy_.set_cob_id(emcy_cob_id ? cfg::CobId::from_word(static_cast<std::uint32_t>(*emcy_cob_id))
+                               : default_emcy_cob_id(nmt_.node_id()));
+  emcy_.set_inhibit_time(
+      static_cast<std::uint16_t>(dict_.get_unsigned(obj::kInhibitTimeEmcy, 0).value_or(0)));
+  emcy_.reset();
+  restart_consumer(now);
+}
+
+void SlaveNode::restart_consumer(TimePoint now) {
+  consumer_.stop_all();
+  for (std::uint8_t sub = 1; sub != 0 && dict_.entry(obj::kConsumerHeartbeatTime, sub); ++sub) {
+    auto value = dict_.get_unsigned(obj::kConsumerHeartbeatTime, sub).value_or(0);
+    consumer_.monitor(HeartbeatConsumerEntry::decode(static_cast<std::uint32_t>(value)), now);
+  }
+}
+
+// --- engine
+// ---------------------------------------------------------------------------------------
+
+bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  if (!powered_ || nmt_.state() == NmtState::Initialising) return false;  // not on the bus yet
+
+  NmtSlave::Output nmt_out;
+  if (nmt_.on_frame(frame, now, nmt_out)) {
+    for (const auto& t : nmt_out.events) apply_nmt(t, now);
+    take_events(out);
+    return true;
+  }
+  const NmtServices services = nmt_.services();
+  sync_parts();
+  bool taken = false;
+
+  if (services.sdo && !frame.rtr && !frame.error) {
+    SdoServer::Output sdo_out;
+    taken = sdo_.on_frame(frame, now, sdo_out) || taken;
+    forward_frames(sdo_out, out);
+  }
+
+  if (services.error_control) {
+    // CiA 301 §7.2.8.1: a device uses heartbeat when 1017h is not 0, node guarding otherwise.
+    if (heartbeat_.period_ms() == 0) {
+      NodeGuardingSlave::Output guarding_out;
+      taken = guarding_.on_frame(frame, now, guarding_out) || taken;
+      forward_frames(guarding_out, out);
+      for (auto event : guarding_out.events) {
+        if (event != LifeGuardingEvent::Resolved) continue;
+        emit(SlaveEvent::Kind::LifeGuarding, now, "life guarding resolved");
+        communication_recovered("life guarding", now, out);
+      }
+    }
+    HeartbeatConsumer::Output consumer_out;
+    taken = consumer_.on_frame(frame, now, consumer_out) || taken;
+    for (const auto& ev : consumer_out.events) {
+      if (ev.kind != HeartbeatEventKind::Resolved) continue;
+      emit(SlaveEvent::Kind::Heartbeat, now,
+           "heartbeat of node " + std::to_string(ev.node_id) + " resolved");
+      communication_recovered("heartbeat", now, out);
+    }
+  }
+  take_events(out);
+  return taken;
+}
+
+void SlaveNode::apply_nmt(const NmtTransition& t, TimePoint now) {
+  emit(SlaveEvent::Kind::StateChange, now,
+       std::string(to_string(t.command)) + ": " + std::string(to_string(t.from)) + " -> " +
+           std::string(t.reset ? to_string(*t.reset) : to_string(t.to)));
+  if (t.reset) enter_initialisation(*t.reset, now);
+}
+
+void SlaveNode::on_timer(TimePoint now, Output& out) {
+  if (!powered_) return;
+  if (boot_at_ && now >= *boot_at_) {
+    boot_at_.reset();
+    NmtSlave::Output nmt_out;
+    nmt_.finish_initialisation(now, nmt_out);
+    forward_frames(nmt_out, out);
+    heartbeat_.on_boot_up(now);
+    emit(SlaveEvent::Kind::Boot, now, "boot-up");
+  }
+  if (nmt_.state() != NmtState::Initialising) {
+    sync_parts();
+    HeartbeatProducer::Output heartbeat_out;
+    heartbeat_.on_timer(now, heartbeat_out);
+    forward_frames(heartbeat_out, out);
+
+    NodeGuardingSlave::Output guarding_out;
+    guarding_.on_timer(now, guarding_out);
+    for (auto event : guarding_out.events) {
+      if (event != LifeGuardingEvent::Occurred) continue;
+      emit(SlaveEvent::Kind::LifeGuarding, now, "life guarding event");
+      communication_error("life guarding", now, out);
+    }
+    HeartbeatConsumer::Output consumer_out;
+    consumer_.on_timer(now, consumer_out);
+    for (const auto& ev : consumer_out.events) {
+      emit(SlaveEvent::Kind::Heartbeat, now,
+           "heartbeat of node " + std::to_string(ev.node_id) + " timed out");
+      communication_error("heartbeat", now, out);
+    }
+    // The error behaviour above may have changed the state.
+    sync_parts();
+    EmcyProducer::Output emcy_out;
+    emcy_.on_timer(now, emcy_out);
+    forward_frames(emcy_out, out);
+    SdoServer::Output sdo_out;
+    sdo_.on_timer(now, sdo_out);
+    // Stopped: a transfer that times out now is not answered.
+    if (nmt_.services().sdo) forward_frames(sdo_out, out);
+  }
+  take_events(out);
+}
+
+std::optional<TimePoint> SlaveNode::next_deadline() const {
+  if (!powered_) return std::nullopt;
+  std::optional<TimePoint> next = boot_at_;
+  if (nmt_.state() != NmtState::Initialising) {
+    next = earliest(next, heartbeat_.next_deadline());
+    next = earliest(next, guarding_.next_deadline());
+    next = earliest(next, consumer_.next_deadline());
+    next = earliest(next, emcy_.next_deadline());
+    next = earliest(next, sdo_.next_deadline());
+  }
+  return next;
+}
+
+// --- errors and emergencies
+// -----------------------------------------------------------------------
+
+std::uint8_t SlaveNode::error_register() const {
+  return static_cast<std::uint8_t>(dict_.get_unsigned(obj::kErrorRegister, 0).value_or(0));
+}
+
+void SlaveNode::set_error_register(std::uint8_t value) {
+  dict_.set_unsigned(obj::kErrorRegister, 0, value);
+}
+
+void SlaveNode::send_emcy(const Emergency& emcy, TimePoint now, Output& out) {
+  sync_parts();
+  EmcyProducer::Output emcy_out;
+  emcy_.raise(emcy, now, emcy_out);
+  forward_frames(emcy_out, out);
+}
+
+void SlaveNode::raise_emergency(std::uint16_t error_code, std::uint8_t error_register_bits,
+                                TimePoint now, Output& out) {
+  if (!powered_ || nmt_.state() == NmtState::Initialising) return;
+  // CiA 301 §7.5.2.2: the generic bit is set whenever any error is present.
+  const auto reg = static_cast<std::uint8_t>(
+      error_register() | error_register_bits |
+      (error_code != emcy_code::kErrorReset ? error_register::kGeneric : 0));
+  set_error_register(reg);
+  emit(SlaveEvent::Kind::Emergency, now,
+       "EMCY " + cfg::hex_digits(error_code, 4) + " register " + cfg::hex_digits(reg, 2));
+  send_emcy({error_code, reg, {}}, now, out);
+  take_events(out);
+}
+
+void SlaveNode::communication_error(const std::string& what, TimePoint now, Output& out) {
+  ++communication_errors_;
+  const auto reg = static_cast<std::uint8_t>(error_register() | error_register::kGeneric |
+                                             error_register::kCommunication);
+  set_error_register(reg);
+  // spec/002: "Node 1 send an EMCY indicating the lifeguard error" (8130h).
+  emit(SlaveEvent::Kind::Emergency, now,
+       "EMCY " + cfg::hex_digits(emcy_code::kLifeGuardOrHeartbeat, 4) + " (" + what + ")");
+  send_emcy({emcy_code::kLifeGuardOrHeartbeat, reg, {}}, now, out);
+  // CiA 301 §7.5.2.32 (1029h sub 1): 0 pre-operational (only from operational), 1 no change,
+  // 2 stopped. Devices without 1029h stay where they are.
+  if (auto behaviour = dict_.get_unsigned(obj::kErrorBehaviour, 1)) {
+    if (*behaviour == 0 && nmt_.state() == NmtState::Operational) {
+      nmt_.set_state(NmtState::PreOperational);
+      emit(SlaveEvent::Kind::StateChange, now, "error behaviour: operational -> pre-operational");
+    } else if (*behaviour == 2 && nmt_.state() != NmtState::Stopped) {
+      emit(SlaveEvent::Kind::StateChange, now,
+           "error behaviour: " + std::string(to_string(nmt_.state())) + " -> stopped");
+      nmt_.set_state(NmtState::Stopped);
+    }
+  }
+}
+
+void SlaveNode::communication_recovered(const std::string& what, TimePoint now, Output& out) {
+  if (communication_errors_ == 0) return;
+  if (--communication_errors_ > 0) return;
+  const auto reg = static_cast<std::uint8_t>(
+      error_register() & ~(error_register::kCommunication | error_register::kGeneric));
+  set_error_register(reg);
+  // CiA 301 §7.2.7.1: error code 0000h tells that an error condition has gone.
+  emit(SlaveEvent::Kind::Emergency, now,
+       "EMCY " + cfg::hex_digits(emcy_code::kErrorReset, 4) + " (" + what + " recovered)");
+  send_emcy({emcy_code::kErrorReset, reg, {}}, now, out);
+}
+
+// --- dictionary hooks
+// -----------------------------------------------------------------------------
+
+bool SlaveNode::is_stored_parameter(std::uint16_t index, std::uint8_t sub) const {
+  if (index == obj::kStoreParameters || index == obj::kRestoreDefaultParameters ||
+      is_program_object(index)) {
+    return false;
+  }
+  const DictionaryEntry* e = dict_.entry(index, sub);
+  return e != nullptr && cfg::is_writable(e->access);
+}
+
+SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
+                                std::span<const std::uint8_t> data) const {
+  if (index == obj::kStoreParameters && sub != 0 && le32(data) != kSaveSignature) {
+    return SdoAbort::CannotStoreOrTransfer;  // CiA 301 §7.5.2.13: wrong signature
+  }
+  if (index == obj::kRestoreDefaultParameters && sub != 0 && le32(data) != kLoadSignature) {
+    return SdoAbort::CannotStoreOrTransfer;  // CiA 301 §7.5.2.14
+  }
+  if (auto code = check_pdo_write(index, sub, data); code != SdoAbort::None) return code;
+  return check_program_write(index, sub, data);
+}
+
+SdoAbort SlaveNode::check_pdo_write(std::uint16_t index, std::uint8_t sub,
+                                    std::span<const std::uint8_t> data) const {
+  const auto pdo = obj::pdo_indices_of(index);
+  if (!pdo) return SdoAbort::None;
+  const auto comm_cob_id = dict_.get_unsigned(pdo->comm_index, 1);
+  const bool pdo_valid =
+      comm_cob_id && cfg::CobId::from_word(static_cast<std::uint32_t>(*comm_cob_id)).valid();
+  if (index == pdo->comm_index) {
+    if (!pdo_valid) return SdoAbort::None;
+    if (sub == 1) {
+      // CiA 301 §7.5.2.35/37: bits 0-30 may only change while the PDO does not exist;
+      // setting bit 31 (destroying the PDO) is always allowed.
+      const auto value = cfg::CobId::from_word(le32(data));
+      if (value.valid() && value.word() != *comm_cob_id) return SdoAbort::ValueRangeExceeded;
+    }
+    // CiA 301 §7.5.2.37: inhibit time (3) and SYNC start value (6) of a TPDO shall not change
+    // while the PDO exists.
+    if (!pdo->receive && (sub == 3 || sub == 6)) {
+      const DictionaryEntry* e = dict_.entry(index, sub);
+      if (e && !std::equal(e->bytes.begin(), e->bytes.end(), data.begin(), data.end())) {
+        return SdoAbort::ValueRangeExceeded;
+      }
+    }
+    return SdoAbort::None;
+  }
+  // CiA 301 §7.5.2.36/38: mapping changes only while the PDO is invalid, entries only while
+  // sub 0 is 0; writing sub 0 = n validates the n entries.
+  if (pdo_valid) return SdoAbort::DeviceState;
+  if (sub != 0) {
+    return dict_.get_unsigned(index, 0).value_or(0) != 0 ? SdoAbort::DeviceState : SdoAbort::None;
+  }
+  return data.empty() ? SdoAbort::None : check_pdo_mapping(index, data[0]);
+}
+
+SdoAbort SlaveNode::check_pdo_mapping(std::uint16_t mapping_index, std::uint8_t count) const {
+  const bool receive = obj::pdo_indices_of(mapping_index)->receive;
+  unsigned total_bits = 0;
+  for (std::uint8_t i = 1; i <= count && i != 0; ++i) {
+    auto value = dict_.get_unsigned(mapping_index, i);
+    if (!value) return SdoAbort::CannotBeMapped;
+    const auto index = static_cast<std::uint16_t>(*value >> 16);
+    const auto sub = static_cast<std::uint8_t>((*value >> 8) & 0xFF);
+    const auto bits = static_cast<unsigned>(*value & 0xFF);
+    if (bits == 0) return SdoAbort::CannotBeMapped;
+
+    if (index >= 0x0001 && index <= 0x0007 && sub == 0) {
+      // Dummy mapping (CiA 301 §7.4.7.1): a data type index, allowed when [DummyUsage] says so.
+      const auto* type = cfg::find_data_type(index);
+      const std::string key = "Dummy" + cfg::hex_digits(index, 4);
+      const std::string* usage = description_.dummy_usage.find(key);
+      if (!type || !usage || *usage == "0" || !receive) return SdoAbort::CannotBeMapped;
+      const unsigned type_bits = index == 0x0001 ? 1u : type->size_bytes * 8u;
+      if (bits != type_bits) return SdoAbort::CannotBeMapped;
+    } else {
+      const DictionaryEntry* e = dict_.entry(index, sub);
+      if (e == nullptr || !e->pdo_mapping) return SdoAbort::CannotBeMapped;
+      // CiA 306 §4.6.3: rww entries go into RPDOs, rwr entries into TPDOs.
+      using cfg::AccessType;
+      const bool fits = receive ? (e->access == AccessType::Rw || e->access == AccessType::Wo ||
+                                   e->access == AccessType::Rww)
+                                : (e->access == AccessType::Rw || e->access == AccessType::Ro ||
+                                   e->access == AccessType::Rwr || e->access == AccessType::Const);
+      if (!fits) return SdoAbort::CannotBeMapped;
+      if (auto size = e->fixed_size()) {
+        // BOOLEAN maps as 1 bit (CiA 301) or as its byte.
+        const bool boolean = e->basic_type == cfg::DataType::Boolean;
+        if (bits != *size * 8 && !(boolean && bits == 1)) return SdoAbort::CannotBeMapped;
+      } else if (bits % 8 != 0) {
+        return SdoAbort::CannotBeMapped;
+      }
+    }
+    total_bits += bits;
+  }
+  // CiA 301 §7.5.2.36: a classic CAN PDO carries at most 64 bits.
+  if (total_bits > 64) return SdoAbort::PdoLengthExceeded;
+  return SdoAbort::None;
+}
+
+SdoAbort SlaveNode::check_program_write(std::uint16_t index, std::uint8_t sub,
+                                        std::span<const std::uint8_t> data) const {
+  if (index == obj::kProgramData && sub != 0) {
+    // Program data may only replace a program that is not running.
+    auto it = programs_.find(sub);
+    if (it != programs_.end() && it->second == ProgramState::Running) return SdoAbort::DeviceState;
+    return SdoAbort::None;
+  }
+  if (index == obj::kProgramControl && sub != 0 && !data.empty()) {
+    auto it = programs_.find(sub);
+    const ProgramState state = it == programs_.end() ? ProgramState::NoProgram : it->second;
+    // DSP 302 §9: "If the action is not possible, the Device responds with ... 0800 0024h".
+    switch (data[0]) {
+      case 0:  // stop
+        return SdoAbort::None;
+      case 1:  // start
+      case 2:  // reset
+        return state == ProgramState::NoProgram ? SdoAbort::NoDataAvailable : SdoAbort::None;
+      case 3:  // clear (CiA 302-3): not while running
+        return state == ProgramState::Running ? SdoAbort::NoDataAvailable : SdoAbort::None;
+      default:
+        return SdoAbort::ValueRangeExceeded;
+    }
+  }
+  return SdoAbort::None;
+}
+
+void SlaveNode::set_program_state(std::uint8_t program, ProgramState state) {
+  programs_[program] = state;
+  dict_.set_unsigned(obj::kProgramControl, program, static_cast<std::uint8_t>(state));
+}
+
+void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
+                            std::span<const std::uint8_t> data, TimePoint now) {
+  emit(SlaveEvent::Kind::SdoWrite, now,
+       cfg::to_string({index, sub}) + " = " + std::to_string(data.size()) + " byte(s)");
+
+  if (index == obj::kStoreParameters || index == obj::kRestoreDefaultParameters) {
+    if (sub != 0) {
+      if (index == obj::kStoreParameters) {
+        save(sub, now);
+      } else {
+        restore_defaults(sub, now);
+      }
+      // Reads keep telling what the device supports, not the signature.
+      if (auto factory = factory_.get_bytes(index, sub)) dict_.set_bytes(index, sub, *factory);
+    }
+    return;
+  }
+  // DSP 302 §6.3: changing a boot-up configuration value invalidates 1020h.
+  if (index != obj::kVerifyConfiguration && is_stored_parameter(index, sub)) {
+    dict_.set_unsigned(obj::kVerifyConfiguration, 1, 0);
+    dict_.set_unsigned(obj::kVerifyConfiguration, 2, 0);
+  }
+
+  switch (index) {
+    case obj::kProducerHeartbeatTime:
+      heartbeat_.set_period(static_cast<std::uint16_t>(le32(data)), now);
+      break;
+    case obj::kGuardTime:
+    case obj::kLifeTimeFactor:
+      guarding_.configure(
+          static_cast<std::uint16_t>(dict_.get_unsigned(obj::kGuardTime, 0).value_or(0)),
+          static_cast<std::uint8_t>(dict_.get_unsigned(obj::kLifeTimeFactor, 0).value_or(0)));
+      break;
+    case obj::kCobIdEmcy:
+      emcy_.set_cob_id(cfg::CobId::from_word(le32(data)));
+      break;
+    case obj::kInhibitTimeEmcy:
+      emcy_.set_inhibit_time(static_cast<std::uint16_t>(le32(data)));
+      break;
+    case obj::kConsumerHeartbeatTime:
+      if (sub != 0) restart_consumer(now);
+      break;
+    case obj::kProgramControl:
+      if (sub != 0 && !data.empty()) {
+        static constexpr std::array<ProgramState, 4> kAfter{
+            ProgramState::Stopped, ProgramState::Running, ProgramState::Stopped,
+            ProgramState::NoProgram};
+        set_program_state(sub, kAfter[data[0] & 3]);
+        emit(SlaveEvent::Kind::Program, now,
+             "program " + std::to_string(sub) + " control " + std::to_string(data[0]));
+      }
+      break;
+    case obj::kProgramData:
+      if (sub != 0) {
+        set_program_state(sub, ProgramState::Stopped);
+        if (dict_.entry(obj::kProgramSoftwareIdentification, sub)) {
+          dict_.set_unsigned(obj::kProgramSoftwareIdentification, sub, crc32(data));
+        }
+        // DSP 302 §9: 1F52h verifies "the stored program number 1"; the new image's date and
+        // time come from the options (unset: the node does not know them, 1F52h stays).
+        if (sub == 1 && options_.downloaded_program_version) {
+          const auto& v = *options_.downloaded_program_version;
+          if (dict_.entry(obj::kVerifyApplicationSoftware, 1)) {
+            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 1, v.date_days);
+          }
+          if (dict_.entry(obj::kVerifyApplicationSoftware, 2)) {
+            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 2, v.time_ms);
+          }
+        }
+        emit(SlaveEvent::Kind::Program, now,
+             "program " + std::to_string(sub) + " downloaded, " + std::to_string(data.size()) +
+                 " bytes");
+      }
+      break;
+    default:
+      break;
+  }
+}
+
+void SlaveNode::save(std::uint8_t area, TimePoint now) {
+  std::size_t count = 0;
+  for (const auto& [key, entry] : dict_.entries()) {
+    if (!in_area(area, entry.index) || !is_stored_parameter(entry.index, entry.sub_index)) continue;
+    stored_[key] = entry.bytes;
+    ++count;
+  }
+  emit(SlaveEvent::Kind::Stored, now,
+       "saved " + std::to_string(count) + " parameters (" +
+           cfg::to_string({obj::kStoreParameters, area}) + ")");
+}
+
+void SlaveNode::restore_defaults(std::uint8_t area, TimePoint now) {
+  // CiA 301 §7.5.2.14: defaults become effective at the next reset; until then nothing changes.
+  std::erase_if(stored_, [area](const auto& kv) { return in_area(area, kv.first >> 8 & 0xFFFF); });
+  emit(SlaveEvent::Kind::Restored, now,
+       "defaults requested (" + cfg::to_string({obj::kRestoreDefaultParameters, area}) +
+           "), effective at next reset");
+}
+
+}  // namespace nmt
