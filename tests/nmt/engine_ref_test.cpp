@@ -59,7 +59,8 @@ TEST(EngineRef, ApplySendsAtOnceAndTheLoopsOtherEnginesHearIt) {
   EngineRef ref_b(b, [&](const int& e, TimePoint) { heard_by_b.push_back(e); });
   loop.add(ref_a);
   loop.add(ref_b);
-  const int r = ref_a.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(5, now, out); });
+  const int r =
+      ref_a.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(5, now, out); });
   EXPECT_EQ(r, 5);
   // No run() in between: the frame is on the bus, b answered it through the loop's echo.
   EXPECT_EQ(bus.sent, (std::vector<std::string>{"200#05", "201#05"}));
@@ -74,7 +75,8 @@ TEST(EngineRef, TheEventHandlerMayApply) {
   EngineRef ref_a(a);
   EngineRef<Echo> ref_b(b);
   ref_b.set_event_handler([&](const int& e, TimePoint) {
-    if (e == 1) ref_b.apply([](Echo& x, TimePoint now, Echo::Output& out) { return x.say(2, now, out); });
+    if (e == 1)
+      ref_b.apply([](Echo& x, TimePoint now, Echo::Output& out) { return x.say(2, now, out); });
   });
   loop.add(ref_a);
   loop.add(ref_b);
@@ -86,8 +88,9 @@ TEST(EngineRef, TheEventHandlerMayApply) {
 TEST(EngineRef, ApplyBeforeAddIsAProgrammingError) {
   Echo a;
   EngineRef ref(a);
-  EXPECT_THROW(ref.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(1, now, out); }),
-               std::logic_error);
+  EXPECT_THROW(
+      ref.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(1, now, out); }),
+      std::logic_error);
 }
 
 TEST(EngineRef, AFrameTheBusRefusesInApplyEndsTheNextRun) {

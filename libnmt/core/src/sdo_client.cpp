@@ -98,7 +98,9 @@ void SdoClient::finish(SdoAbort code, bool by_server, TimePoint now, Output& out
 }
 
 void SdoClient::fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, Output& out) {
-  if (send_frame) out.send(sdo::make_frame(config_.request_cob_id, sdo::encode(sdo::Abort{{t.index, t.sub}, code})));
+  if (send_frame)
+    out.send(
+        sdo::make_frame(config_.request_cob_id, sdo::encode(sdo::Abort{{t.index, t.sub}, code})));
   finish(code, false, now, out);
 }
 
@@ -147,8 +149,8 @@ void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
       t.protocol = SdoProtocol::Block;
       t.state = State::BlockDownloadInit;
       return send(t,
-                  sdo::encode(sdo::BlockDownloadInitiateRequest{
-                      address, t.options.crc, static_cast<std::uint32_t>(size)}),
+                  sdo::encode(sdo::BlockDownloadInitiateRequest{address, t.options.crc,
+                                                                static_cast<std::uint32_t>(size)}),
                   now, out);
     }
     sdo::InitiateDownloadRequest r;
@@ -169,11 +171,11 @@ void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
   if (t.mode == SdoMode::Block) {
     t.protocol = SdoProtocol::Block;
     t.state = State::BlockUploadInit;
-    return send(t,
-                sdo::encode(sdo::BlockUploadInitiateRequest{address, t.options.crc,
-                                                            t.options.block_size,
-                                                            t.options.protocol_switch_threshold}),
-                now, out);
+    return send(
+        t,
+        sdo::encode(sdo::BlockUploadInitiateRequest{address, t.options.crc, t.options.block_size,
+                                                    t.options.protocol_switch_threshold}),
+        now, out);
   }
   t.protocol = SdoProtocol::Segmented;  // until the server answers expedited
   t.state = State::InitiateUpload;
@@ -351,11 +353,10 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
         // CiA 301 end block download: n and the CRC over the whole value.
         const std::uint16_t crc = t.crc ? sdo_block_crc(t.data) : 0;
         t.state = State::BlockDownloadEnd;
-        return send(
-            t,
-            sdo::encode(sdo::BlockDownloadEndRequest{sdo::last_segment_empty_bytes(t.data.size()),
-                                                     crc}),
-            now, out);
+        return send(t,
+                    sdo::encode(sdo::BlockDownloadEndRequest{
+                        sdo::last_segment_empty_bytes(t.data.size()), crc}),
+                    now, out);
       }
       // Resend from the segment after the last one acknowledged, numbering from 1 again.
       return send_download_sub_block(t, now, out);

@@ -185,6 +185,23 @@ Payload encode_block_ack(const F& f, Cs cs) {
   return d;
 }
 
+// Block download initiate request and block upload initiate response: cc/sc, s, multiplexer,
+// size (the block sub-command 0 is the zero bit 0).
+template <class F>
+F parse_block_initiate_with_size(const Payload& d, Byte0 b) {
+  F f{get_address(d), b.bit(kBlockCrc), std::nullopt};
+  if (b.bit(kBlockSize)) f.size = get_u32(d);
+  return f;
+}
+template <class F, class Cs>
+Payload encode_block_initiate_with_size(const F& f, Cs cs) {
+  Payload d{};
+  d[0] = Byte0::make(cs).set(kBlockCrc, f.crc).set(kBlockSize, f.size.has_value()).value;
+  put_address(d, f.address);
+  if (f.size) put_u32(d, *f.size);
+  return d;
+}
+
 Abort parse_abort(const Payload& d) {
   return {get_address(d), static_cast<SdoAbort>(get_u32(d))};
 }
@@ -217,9 +234,7 @@ std::optional<ClientFrame> parse_client_frame(const Payload& d) {
       }
     case Ccs::BlockDownload: {
       if (b.field(0, 1) == kBlockEnd) return parse_block_end<BlockDownloadEndRequest>(d, b);
-      BlockDownloadInitiateRequest f{get_address(d), b.bit(kBlockCrc), std::nullopt};
-      if (b.bit(kBlockSize)) f.size = get_u32(d);
-      return f;
+      return parse_block_initiate_with_size<BlockDownloadInitiateRequest>(d, b);
     }
   }
   return std::nullopt;  // ccs 7
@@ -256,9 +271,7 @@ std::optional<ServerFrame> parse_server_frame(const Payload& d) {
         if (b.bit(1)) return std::nullopt;
         return parse_block_end<BlockUploadEndRequest>(d, b);
       }
-      BlockUploadInitiateResponse f{get_address(d), b.bit(kBlockCrc), std::nullopt};
-      if (b.bit(kBlockSize)) f.size = get_u32(d);
-      return f;
+      return parse_block_initiate_with_size<BlockUploadInitiateResponse>(d, b);
     }
   }
   return std::nullopt;  // scs 7
@@ -313,19 +326,12 @@ Payload encode(const Abort& f) {
   return d;
 }
 Payload encode(const BlockDownloadInitiateRequest& f) {
-  Payload d{};
-  d[0] = Byte0::make(Ccs::BlockDownload)
-             .set(kBlockCrc, f.crc)
-             .set(kBlockSize, f.size.has_value())
-             .set_field(0, 1, kBlockInitiate)
-             .value;
-  put_address(d, f.address);
-  if (f.size) put_u32(d, *f.size);
-  return d;
+  return encode_block_initiate_with_size(f, Ccs::BlockDownload);
 }
 Payload encode(const BlockDownloadInitiateResponse& f) {
   Payload d{};
-  d[0] = Byte0::make(Scs::BlockDownload).set(kBlockCrc, f.crc).set_field(0, 2, kBlockInitiate).value;
+  d[0] =
+      Byte0::make(Scs::BlockDownload).set(kBlockCrc, f.crc).set_field(0, 2, kBlockInitiate).value;
   put_address(d, f.address);
   d[4] = f.block_size;
   return d;
@@ -357,15 +363,7 @@ Payload encode(const BlockUploadInitiateRequest& f) {
   return d;
 }
 Payload encode(const BlockUploadInitiateResponse& f) {
-  Payload d{};
-  d[0] = Byte0::make(Scs::BlockUpload)
-             .set(kBlockCrc, f.crc)
-             .set(kBlockSize, f.size.has_value())
-             .set_field(0, 1, kBlockInitiate)
-             .value;
-  put_address(d, f.address);
-  if (f.size) put_u32(d, *f.size);
-  return d;
+  return encode_block_initiate_with_size(f, Scs::BlockUpload);
 }
 Payload encode(const BlockUploadStart&) {
   return {Byte0::make(Ccs::BlockUpload).set_field(0, 2, kBlockStart).value};

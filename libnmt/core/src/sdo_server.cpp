@@ -211,8 +211,7 @@ void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoi
 }
 
 // CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
-void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now,
-                                 Output& out) {
+void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, Output& out) {
   if (f.toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
   if (size_ && buffer_.size() + f.size > *size_) return send_abort(SdoAbort::LengthMismatch, out);
   if (buffer_.size() + f.size > config_.max_download_size) {
@@ -343,8 +342,9 @@ void SdoServer::block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, 
   offset_ = 0;
   state_ = State::BlockUploadStart;
   // sc: this server sends a CRC; s: size indicated.
-  respond(sdo::BlockUploadInitiateResponse{address_, true, static_cast<std::uint32_t>(buffer_.size())},
-          out);
+  respond(
+      sdo::BlockUploadInitiateResponse{address_, true, static_cast<std::uint32_t>(buffer_.size())},
+      out);
 }
 
 void SdoServer::block_upload_ack(const sdo::BlockUploadAck& f, Output& out) {

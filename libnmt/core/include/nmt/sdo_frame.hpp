@@ -77,7 +77,8 @@ constexpr std::uint8_t clamp_block_size(std::uint8_t n) {
 /// n of the end block frame: bytes of the last 7-byte segment of a `size`-byte value that carry
 /// no data (an empty value is sent as one empty segment: 7).
 constexpr std::uint8_t last_segment_empty_bytes(std::size_t size) {
-  return static_cast<std::uint8_t>(kSegmentBytes - (size == 0 ? 0 : (size - 1) % kSegmentBytes + 1));
+  return static_cast<std::uint8_t>(kSegmentBytes -
+                                   (size == 0 ? 0 : (size - 1) % kSegmentBytes + 1));
 }
 
 // --- frame layouts shared by two commands (the Tag only makes them distinct types) ----------
@@ -104,9 +105,9 @@ struct Multiplexed {
 /// Download segment request (ccs 0) and upload segment response (scs 0).
 template <class Tag>
 struct Segment {
-  bool toggle = false;  ///< t: 0 in the first segment, then alternating
-  bool last = false;    ///< c: no more segments follow
-  std::uint8_t size = kSegmentBytes;  ///< bytes of data, 0..7 (7 - n)
+  bool toggle = false;                             ///< t: 0 in the first segment, then alternating
+  bool last = false;                               ///< c: no more segments follow
+  std::uint8_t size = kSegmentBytes;               ///< bytes of data, 0..7 (7 - n)
   std::array<std::uint8_t, kSegmentBytes> data{};  ///< bytes 1..7 (beyond `size`: padding)
   bool operator==(const Segment&) const = default;
 };
@@ -205,7 +206,7 @@ struct BlockUploadStart {
 
 /// A segment of a sub-block (either direction): byte 0 = c | seqno, then 7 data bytes.
 struct BlockSegment {
-  bool last = false;    ///< c: the last segment of the value
+  bool last = false;     ///< c: the last segment of the value
   std::uint8_t seq = 1;  ///< 1..127 (0 is invalid; parse keeps it for the receiver to refuse)
   std::array<std::uint8_t, kSegmentBytes> data{};
   bool operator==(const BlockSegment&) const = default;
@@ -214,9 +215,9 @@ struct BlockSegment {
 /// Every command frame a client sends (outside sub-blocks).
 using ClientFrame =
     std::variant<InitiateDownloadRequest, DownloadSegmentRequest, InitiateUploadRequest,
-                 UploadSegmentRequest, Abort, BlockDownloadInitiateRequest,
-                 BlockDownloadEndRequest, BlockUploadInitiateRequest, BlockUploadStart,
-                 BlockUploadAck, BlockUploadEndResponse>;
+                 UploadSegmentRequest, Abort, BlockDownloadInitiateRequest, BlockDownloadEndRequest,
+                 BlockUploadInitiateRequest, BlockUploadStart, BlockUploadAck,
+                 BlockUploadEndResponse>;
 /// Every command frame a server sends (outside sub-blocks).
 using ServerFrame =
     std::variant<InitiateDownloadResponse, DownloadSegmentResponse, InitiateUploadResponse,

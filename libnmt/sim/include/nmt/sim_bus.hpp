@@ -337,7 +337,7 @@ class SimEngineNode : public SimNode {
   }
   E engine_;
   EventHandler handler_;
-  Output out_;                        // reused by on_frame/on_timer and the outermost apply()
+  Output out_;                   // reused by on_frame/on_timer and the outermost apply()
   std::vector<Event> pending_;   // events being handed to the handler
   std::vector<Event> deferred_;  // events of apply() calls the handler made
   bool in_handler_ = false;
