@@ -1,8 +1,6 @@
 #include "cfg/concise_dcf.hpp"
-#include "cfg/hex.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -12,7 +10,11 @@
 #include <string_view>
 #include <utility>
 
+#include "cfg/bytes.hpp"
 #include "cfg/download_order.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/value.hpp"
 
 namespace cfg {
@@ -24,20 +26,6 @@ namespace {
 constexpr std::size_t kCountSize = 4;
 constexpr std::size_t kHeaderSize = 2 + 1 + 4;
 
-void put_le(std::vector<std::uint8_t>& out, std::uint64_t value, int bytes) {
-  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<std::uint8_t>(value >> (8 * i)));
-}
-
-std::uint32_t get_le32(const std::uint8_t* p) {
-  return static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) << 8 |
-         static_cast<std::uint32_t>(p[2]) << 16 | static_cast<std::uint32_t>(p[3]) << 24;
-}
-
-// "1234h sub ABh", as CiA documents write an entry.
-std::string entry_name(std::uint16_t index, std::uint8_t sub_index) {
-  return hex_digits(index, 4) + "h sub " + hex_digits(sub_index, 2) + "h";
-}
-
 }  // namespace
 
 std::vector<std::uint8_t> encode_concise_dcf(std::span<const ObjectWrite> entries) {
@@ -48,17 +36,18 @@ std::vector<std::uint8_t> encode_concise_dcf(std::span<const ObjectWrite> entrie
   for (const auto& e : entries) total += kHeaderSize + e.data.size();
   std::vector<std::uint8_t> out;
   out.reserve(total);
-  put_le(out, entries.size(), 4);
+  append_le(out, entries.size(), 4);
   for (const auto& e : entries) {
     // The size field is UNSIGNED32; a larger entry cannot be represented (programming error:
     // concise_writes_from_dcf rejects such DOMAIN files with a diagnostic).
     if (e.data.size() > std::numeric_limits<std::uint32_t>::max()) {
-      throw std::length_error("concise DCF: entry " + entry_name(e.index, e.sub_index) +
+      throw std::length_error("concise DCF: entry " +
+                              to_string(ObjectAddress{e.index, e.sub_index}) +
                               " larger than 4 GiB");
     }
-    put_le(out, e.index, 2);
-    put_le(out, e.sub_index, 1);
-    put_le(out, e.data.size(), 4);
+    append_le(out, e.index, 2);
+    append_le(out, e.sub_index, 1);
+    append_le(out, e.data.size(), 4);
     out.insert(out.end(), e.data.begin(), e.data.end());
   }
   return out;
@@ -99,15 +88,15 @@ Status ConciseDcfDecoder::feed(std::span<const std::uint8_t> bytes) {
         if (header_fill_ < need) break;
         header_fill_ = 0;
         if (stage_ == Stage::Count) {
-          entries_announced_ = get_le32(header_);
+          entries_announced_ = load_le32(header_);
           entry_start_ = offset_;
           // DSP 302 §6.2 application hint: a count of 0 is the valid empty data set.
           stage_ = entries_announced_ == 0 ? Stage::Done : Stage::Header;
           break;
         }
-        index_ = static_cast<std::uint16_t>(header_[0] | header_[1] << 8);
+        index_ = load_le16(header_);
         sub_index_ = header_[2];
-        size_ = get_le32(header_ + 3);
+        size_ = load_le32(std::span(header_).subspan(3));
         stage_ = Stage::Data;
         // Data grows as bytes arrive: the announced size may be anything up to 4 GiB and is
         // not trusted until the bytes are there.
@@ -153,8 +142,8 @@ Status ConciseDcfDecoder::finish() {
       return fail("concise DCF truncated: " + at + ", inside the 7-byte header of " + which);
     case Stage::Data:
       return fail("concise DCF truncated: " + at + ", inside the data of " + which + ": " +
-                  entry_name(index_, sub_index_) + " announces " + std::to_string(size_) +
-                  " bytes, " + std::to_string(data_.size()) + " present");
+                  to_string(ObjectAddress{index_, sub_index_}) + " announces " +
+                  std::to_string(size_) + " bytes, " + std::to_string(data_.size()) + " present");
   }
   return {};
 }
@@ -194,15 +183,16 @@ std::optional<std::string_view> value_text(const OptionalText& text) {
 
 // "[1400sub1]" or "[1017]": the section that defines the entry, as a user finds it in the file.
 std::string section_name(const Object& object, const SubObject& sub) {
-  // snprintf rather than string concatenation: GCC 12 -O2 reports a false -Wrestrict on
-  // `"[" + std::string` (GCC bug 105329).
-  char buf[16];
-  if (object.is_var()) {
-    std::snprintf(buf, sizeof buf, "[%04X]", object.index);
-  } else {
-    std::snprintf(buf, sizeof buf, "[%04Xsub%X]", object.index, sub.sub_index);
+  // Built by append: GCC 12 -O2 reports a false -Wrestrict on `"[" + std::string` (GCC bug
+  // 105329).
+  std::string name = "[";
+  name += hex_digits(object.index, 4);
+  if (!object.is_var()) {
+    name += "sub";
+    name += hex_digits(sub.sub_index);
   }
-  return buf;
+  name += ']';
+  return name;
 }
 
 class WriteBuilder {
@@ -251,16 +241,16 @@ std::optional<Value> WriteBuilder::parse(const Location& at, std::string_view ke
   auto type = at.sub->basic_type();
   if (!type) {
     report(at, severity,
-           std::string(key) + " '" + std::string(text) + "': DataType 0x" +
-               hex_digits(at.sub->data_type, 4) +
+           std::string(key) + " '" + std::string(text) + "': DataType " +
+               hex(at.sub->data_type, 4) +
                " is not a basic CiA 301 type, so the value cannot be encoded");
     return std::nullopt;
   }
   if (mentions_node_id(text) && !node_id_) {
     report(at, severity,
            std::string(key) + " '" + std::string(text) +
-               "' uses $NODEID, but no node-ID is known: set NodeID in [DeviceComissioning], "
-               "or give it to the tool (dcf2concise --node-id N)");
+               "' uses $NODEID, but no node-ID is known ([DeviceComissioning] has no NodeID)" +
+               (options_.node_id_hint.empty() ? std::string() : "; " + options_.node_id_hint));
     return std::nullopt;
   }
   auto value = parse_value(*type, text, node_id_);
@@ -390,7 +380,7 @@ void WriteBuilder::complete_pdo_mappings() {
 }
 
 std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
-  if (node_id_ && (*node_id_ < 1 || *node_id_ > 127)) {
+  if (node_id_ && !is_node_id(*node_id_)) {
     diagnostics_.add(
         options_.file_name, 0, Severity::Error,
         "node-ID " + std::to_string(*node_id_) + " is out of range: CANopen node-IDs are 1..127");
@@ -420,8 +410,8 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
     const SubObject* sub = object != nullptr ? object->sub(1) : nullptr;
     if (sub != nullptr && !is_writable(sub->access)) continue;
     diagnostics_.add(options_.file_name, object != nullptr ? object->line : 0, Severity::Warning,
-                     "PDO " + hex_digits(comm_index, 4) +
-                         "h: parameters are written but its COB-ID (sub-index 1) has no value "
+                     "PDO " + object_name(comm_index) +
+                         ": parameters are written but its COB-ID (sub-index 1) has no value "
                          "in the DCF, so the PDO is not disabled around them (DSP 302 §6.2)");
   }
   for (std::uint16_t mapping_index : order.unknown_mapping_count) {
@@ -429,8 +419,8 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
     const SubObject* sub = object != nullptr ? object->sub(0) : nullptr;
     if (sub != nullptr && !is_writable(sub->access)) continue;
     diagnostics_.add(options_.file_name, object != nullptr ? object->line : 0, Severity::Warning,
-                     "PDO mapping " + hex_digits(mapping_index, 4) +
-                         "h: entries are written but sub-index 0 has no value in the DCF, so "
+                     "PDO mapping " + object_name(mapping_index) +
+                         ": entries are written but sub-index 0 has no value in the DCF, so "
                          "the mapping is not deactivated around them (DSP 302 §6.2)");
   }
   return std::move(order.writes);

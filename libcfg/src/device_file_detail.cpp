@@ -93,6 +93,14 @@ NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type) 
         return out;
       }
     }
+    // Vendor tools export DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits; the
+    // model keeps the digits, the form the writer writes (bytes unchanged).
+    if ((tc == TypeClass::OctetString || tc == TypeClass::Domain) && text.size() > 2 &&
+        text[0] == '0' && (text[1] == 'x' || text[1] == 'X') &&
+        !trim_blanks(text.substr(2)).empty()) {
+      out.text.emplace(trim_blanks(text.substr(2)));
+      return out;
+    }
   }
   out.text.emplace(text);
   return out;

@@ -34,7 +34,8 @@ std::optional<std::string> h_suffix_digits(std::string_view text);
 /// How the reader stores the text of a DefaultValue/ParameterValue/LowLimit/HighLimit of an entry
 /// with DataType `data_type`. `text` is trimmed. For types other than VISIBLE_STRING,
 /// UNICODE_STRING and unknown types an inline comment is cut; an empty value of a fixed-size or
-/// unknown type is "not given" (nullopt); 'h'-suffix hex of an integer type becomes 0x hex.
+/// unknown type is "not given" (nullopt); 'h'-suffix hex of an integer type becomes 0x hex; a
+/// 0x-prefixed OCTET_STRING/DOMAIN value loses its prefix (the digits are the same bytes).
 struct NormalizedValue {
   std::optional<std::string> text;
   std::string_view comment;  ///< the cut comment ("" if none)

@@ -26,6 +26,9 @@
 // - An empty value of a fixed-size type (`ParameterValue=` as CANopenEditor writes it) is "not
 //   given" (strict: error); of a string/DOMAIN type it is the empty value.
 // - `0180h` hex (and digit groups `0000 0080h`): warning, read as 0x0180 and stored so.
+// - DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits, as motor-controller vendor
+//   tools export them: no diagnostic, stored without the prefix (the same bytes, the writer's
+//   form). An odd number of digits is an error like any value that is not of its type.
 // - Text after a section's ']': warning, ignored. Keys before the first section: warning, ignored.
 // - Sub-index FFh (reserved by CiA 301): warning, kept. Sub-objects of a VAR: warning, ignored.
 // - Object listed but without a section: warning, no object. Section of an object that no list
@@ -44,13 +47,14 @@
 #include <limits>
 
 #include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
 #include "device_reader.hpp"
 
 namespace cfg {
 namespace detail::reader {
 
 std::string section_of(std::uint16_t index) {
-  return "[" + hex(index, 4).substr(2) + "]";
+  return "[" + hex_digits(index, 4) + "]";
 }
 
 std::string shown(std::string_view text) {
@@ -133,7 +137,7 @@ void Reader::finish() {
   finish_comments();
   if (!strict_ && dropped_comments_ > 1) {
     warn(0, std::to_string(dropped_comments_ - 1) +
-                " more values have a comment after them, dropped the same way (--strict lists "
+                " more values have a comment after them, dropped the same way (strict mode lists "
                 "each)");
   }
   for (const auto& [key, u] : unknown_keys_) {
@@ -152,7 +156,7 @@ void Reader::finish() {
     for (std::uint16_t index :
          {std::uint16_t{0x1000}, std::uint16_t{0x1001}, std::uint16_t{0x1018}}) {
       if (!model_.object(index)) {
-        warn(0, "mandatory object " + hex(index, 4) + " is missing (CiA 301)");
+        warn(0, "mandatory object " + object_name(index) + " is missing (CiA 301)");
       }
     }
   }

@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
 #include "device_reader.hpp"
 
 namespace cfg::detail::reader {
@@ -32,8 +33,8 @@ void Reader::finish_object(std::uint16_t index, ObjectState& st) {
                      : st.values.present      ? st.values.line
                      : st.denotations.present ? st.denotations.line
                                               : st.links_line;
-    warn(line,
-         "sections for object " + hex(index, 4) + " but no " + sec + " section; they are ignored");
+    warn(line, "sections for object " + object_name(index) + " but no " + sec +
+                   " section; they are ignored");
     model_.objects.erase(index);
     last_object_ = nullptr;
     return;
@@ -68,7 +69,7 @@ void Reader::finish_object(std::uint16_t index, ObjectState& st) {
         {&st.names, "Name"}, {&st.values, "Value"}, {&st.denotations, "Denotation"}};
     for (const auto& [s, what] : entry_sections) {
       if (s->present) {
-        warn(s->line, "[" + hex(index, 4).substr(2) + std::string(what) + "] is for " + sec +
+        warn(s->line, "[" + hex_digits(index, 4) + std::string(what) + "] is for " + sec +
                           ", which is a " + std::string(to_string(obj.object_type)) +
                           " and has no sub-objects; ignored");
       }
@@ -115,7 +116,7 @@ void Reader::finish_object(std::uint16_t index, ObjectState& st) {
   });
   apply_values(obj, st);
   if (!compact && (st.names.present || st.values.present || st.denotations.present) && strict_) {
-    error(st.main_line, sec + " has [" + hex(index, 4).substr(2) +
+    error(st.main_line, sec + " has [" + hex_digits(index, 4) +
                             "Name/Value/Denotation] sections but no CompactSubObj");
   }
   if (obj.subs.empty()) {
@@ -163,7 +164,8 @@ void Reader::expand_compact(Object& obj, ObjectState& st, const std::string& sec
   }
   if (!explicit_subs.empty()) {
     std::string list;
-    for (const auto& [sub, s] : explicit_subs) list += (list.empty() ? "" : ", ") + hex(sub, 2);
+    for (const auto& [sub, s] : explicit_subs)
+      list += (list.empty() ? "" : ", ") + hex_digits(sub, 2) + "h";
     warn(explicit_subs.begin()->second.line,
          sec + " uses CompactSubObj, but sub-index " + list +
              " also has its own section, which replaces the expanded entry");
@@ -174,7 +176,7 @@ void Reader::expand_compact(Object& obj, ObjectState& st, const std::string& sec
 void Reader::apply_sub_entries(Object& obj, const SubEntrySection& s, std::string_view what,
                                void (*apply)(SubObject&, std::string_view)) {
   if (!s.present) return;
-  const std::string sec = "[" + hex(obj.index, 4).substr(2) + std::string(what) + "]";
+  const std::string sec = "[" + hex_digits(obj.index, 4) + std::string(what) + "]";
   check_entry_count(s, sec);
   for (const SubEntry& e : s.entries) {
     SubObject* sub = obj.sub(e.sub);
@@ -198,7 +200,7 @@ void Reader::check_entry_count(const SubEntrySection& s, const std::string& sec)
 
 void Reader::apply_values(Object& obj, ObjectState& st) {
   if (!st.values.present) return;
-  const std::string name = hex(obj.index, 4).substr(2) + "Value";
+  const std::string name = hex_digits(obj.index, 4) + "Value";
   const std::string sec = "[" + name + "] ";
   check_entry_count(st.values, sec.substr(0, sec.size() - 1));
   for (const SubEntry& e : st.values.entries) {
@@ -237,7 +239,7 @@ void Reader::finish_links(Object& obj, const ObjectState& st) {
                    [](const auto& a, const auto& b) { return a.first < b.first; });
   obj.object_links.clear();
   for (const auto& l : links) obj.object_links.push_back(l.second);
-  const std::string lsec = "[" + hex(obj.index, 4).substr(2) + "ObjectLinks]";
+  const std::string lsec = "[" + hex_digits(obj.index, 4) + "ObjectLinks]";
   if (!st.links_count) {
     warn(st.links_line, lsec + " has no ObjectLinks count");
   } else if (*st.links_count != links.size()) {

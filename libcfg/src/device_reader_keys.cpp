@@ -2,10 +2,10 @@
 // attribute keys, DataType/AccessType/PDOMapping, DefaultValue/ParameterValue/limits checked
 // against the data type.
 #include <algorithm>
-#include <charconv>
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
+#include "cfg/integer_literal.hpp"
 #include "device_reader.hpp"
 
 namespace cfg::detail::reader {
@@ -37,31 +37,13 @@ std::optional<Key> object_key(std::string_view name) {
 }  // namespace
 
 std::optional<Number> parse_number(std::string_view text) {
-  if (text.empty()) return std::nullopt;
-  int base = 10;
-  std::string_view digits = text;
-  bool h_suffix = false;
-  std::string h_digits;
-  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
-    base = 16;
-    digits = text.substr(2);
-  } else if (auto h = h_suffix_digits(text)) {
-    base = 16;
-    h_digits = std::move(*h);
-    digits = h_digits;
-    h_suffix = true;
-  } else if (text.size() > 1 && text[0] == '0') {
-    base = 8;
-    digits = text.substr(1);
+  if (auto digits = h_suffix_digits(text)) {
+    if (auto v = parse_hex_number(*digits)) return Number{*v, true};
+    return std::nullopt;
   }
-  for (char c : digits) {
-    const int d = hex_digit_value(c);
-    if (d < 0 || d >= base) return std::nullopt;
-  }
-  std::uint64_t v = 0;
-  auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v, base);
-  if (ec != std::errc{} || end != digits.data() + digits.size()) return std::nullopt;
-  return Number{v, h_suffix};
+  const IntegerLiteralResult r = parse_integer_literal(text);
+  if (!r.literal) return std::nullopt;
+  return Number{r.literal->value, false};
 }
 
 // Cuts an inline comment from a number-like value, with a warning.

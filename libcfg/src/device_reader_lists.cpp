@@ -1,6 +1,7 @@
 // The object lists of CiA 306 §4.6.2: [MandatoryObjects], [OptionalObjects],
 // [ManufacturerObjects], checked against the object sections.
 #include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
 #include "device_reader.hpp"
 
 namespace cfg::detail::reader {
@@ -48,17 +49,17 @@ void Reader::check_object_lists() {
     for (const auto& [index, line] : list.entries) {
       auto [it, inserted] = listed.emplace(index, line);
       if (!inserted) {
-        warn(line, sec + " lists " + hex(index, 4) + " again (first at line " +
+        warn(line, sec + " lists " + object_name(index) + " again (first at line " +
                        std::to_string(it->second) + ")");
         continue;
       }
       if (strict_ && object_list_for(index) != kKinds[i]) {
-        error(line, sec + " lists " + hex(index, 4) + ", which belongs in [" +
+        error(line, sec + " lists " + object_name(index) + ", which belongs in [" +
                         std::string(to_string(object_list_for(index))) + "]");
       }
       if (!model_.object(index)) {
-        warn(line, sec + " lists " + hex(index, 4) + " but the file has no " + section_of(index) +
-                       " section; no such object");
+        warn(line, sec + " lists " + object_name(index) + " but the file has no " +
+                       section_of(index) + " section; no such object");
       }
     }
   }

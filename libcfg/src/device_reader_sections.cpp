@@ -5,6 +5,7 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
+#include "cfg/node_id.hpp"
 #include "device_reader.hpp"
 
 namespace cfg::detail::reader {
@@ -164,7 +165,7 @@ bool Reader::open_object_section(std::uint16_t index, std::string_view rest) {
       return true;
     }
     if (*sub > 0xFF) {
-      warn(cur_.line, "[" + std::string(cur_.name) + "]: sub-index " + hex(*sub, 2) +
+      warn(cur_.line, "[" + std::string(cur_.name) + "]: sub-index " + hex_digits(*sub, 2) + "h" +
                           " is larger than FFh; section ignored");
       cur_.kind = Kind::Ignored;
       return true;
@@ -316,7 +317,7 @@ void Reader::commissioning_key(std::string_view key, std::string_view value, int
   // CiA 306 §4.7.
   if (iequals(key, "NodeID")) {
     auto n = number(key, value, line, 0xFF);
-    if (n && (*n < 1 || *n > 127)) {
+    if (n && !is_node_id(*n)) {
       warn(line, where() + "NodeID " + std::to_string(*n) + " is not a node-ID (1..127); ignored");
       n.reset();
     }

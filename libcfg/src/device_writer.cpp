@@ -6,6 +6,7 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/hex.hpp"
+#include "cfg/node_id.hpp"
 #include "device_file_detail.hpp"
 #include "ini_scanner.hpp"
 
@@ -188,7 +189,7 @@ class Out {
 };
 
 std::string index_name(std::uint16_t index) {
-  return hex(index, 4).substr(2);
+  return hex_digits(index, 4);
 }
 
 // The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them).
@@ -220,7 +221,7 @@ void write_object(Out& out, const Object& obj, FileKind kind) {
     if (obj.sub_number) out.key("SubNumber", hex(*obj.sub_number, 0));
     if (obj.obj_flags) out.key("ObjFlags", hex(*obj.obj_flags, 0));
     for (const auto& [sub, s] : obj.subs) {
-      out.section(name + "sub" + hex(sub, 0).substr(2));
+      out.section(name + "sub" + hex_digits(sub));
       out.key("ParameterName", s.name);
       out.key("ObjectType", hex(static_cast<unsigned>(s.object_type), 0));
       write_entry(out, s, s.obj_flags, kind);
@@ -294,7 +295,7 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
     d.commissioning.reset();
   } else if (d.commissioning) {
     DeviceCommissioning& c = *d.commissioning;
-    if (c.node_id && (*c.node_id < 1 || *c.node_id > 127)) c.node_id.reset();
+    if (c.node_id && !is_node_id(*c.node_id)) c.node_id.reset();
     clean_text(c.node_name);
     clean_text(c.network_name);
     KeyValues other = canonical_key_values(c.other);

@@ -4,23 +4,25 @@
 #include <map>
 #include <utility>
 
+#include "cfg/bytes.hpp"
+#include "cfg/cob_id.hpp"
+
 namespace cfg {
 namespace {
 
 // CiA 301 1020h Verify configuration (configuration date and time).
 constexpr std::uint16_t kVerifyConfiguration = 0x1020;
 
-std::optional<std::uint32_t> as_u32(const std::vector<std::uint8_t>& data) {
+std::optional<CobId> as_cob_id(const std::vector<std::uint8_t>& data) {
   if (data.size() != 4) return std::nullopt;
-  return static_cast<std::uint32_t>(data[0]) | static_cast<std::uint32_t>(data[1]) << 8 |
-         static_cast<std::uint32_t>(data[2]) << 16 | static_cast<std::uint32_t>(data[3]) << 24;
+  return CobId::from_word(load_le32(data));
 }
 
-ObjectWrite cob_id_write(std::uint16_t comm_index, std::uint32_t cob_id) {
-  return {comm_index,
-          1,
-          {static_cast<std::uint8_t>(cob_id), static_cast<std::uint8_t>(cob_id >> 8),
-           static_cast<std::uint8_t>(cob_id >> 16), static_cast<std::uint8_t>(cob_id >> 24)}};
+// CiA 301 §7.5.2.35: the PDO COB-ID is sub-index 1 of the communication parameter (UNSIGNED32).
+ObjectWrite cob_id_write(std::uint16_t comm_index, CobId cob_id) {
+  ObjectWrite write{comm_index, 1, {}};
+  append_le(write.data, cob_id.word(), 4);
+  return write;
 }
 
 bool all_zero(const std::vector<std::uint8_t>& data) {
@@ -37,17 +39,17 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
   if (comm != nullptr) {
     if (auto it = comm->find(1); it != comm->end()) configured_cob = &it->second;
   }
-  std::optional<std::uint32_t> cob_id =
-      configured_cob != nullptr ? as_u32(configured_cob->data) : std::nullopt;
+  std::optional<CobId> cob_id =
+      configured_cob != nullptr ? as_cob_id(configured_cob->data) : std::nullopt;
   bool cob_id_from_lookup = false;
   if (!cob_id && current_cob_id) {
-    cob_id = current_cob_id(pdo.comm_index);
+    if (auto word = current_cob_id(pdo.comm_index)) cob_id = CobId::from_word(*word);
     cob_id_from_lookup = cob_id.has_value();
   }
 
   // Step 1: delete the PDO (bit 31 = 1) so that its parameters may change.
   if (cob_id) {
-    out.writes.push_back(cob_id_write(pdo.comm_index, *cob_id | kPdoCobIdInvalid));
+    out.writes.push_back(cob_id_write(pdo.comm_index, cob_id->with_valid(false)));
   } else {
     out.unknown_cob_id.push_back(pdo.comm_index);
   }
@@ -77,8 +79,8 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
   // Step 5: create the PDO with the configured COB-ID. A COB-ID that is itself invalid was
   // already written in step 1.
   if (configured_cob != nullptr) {
-    if (!(cob_id && (*cob_id & kPdoCobIdInvalid) != 0)) out.writes.push_back(*configured_cob);
-  } else if (cob_id_from_lookup && (*cob_id & kPdoCobIdInvalid) == 0) {
+    if (!(cob_id && !cob_id->valid())) out.writes.push_back(*configured_cob);
+  } else if (cob_id_from_lookup && cob_id->valid()) {
     out.writes.push_back(cob_id_write(pdo.comm_index, *cob_id));
   }
 }

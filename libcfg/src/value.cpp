@@ -11,7 +11,6 @@
 // - REAL text is decimal floating point (exponent allowed) plus "inf", "-inf" and "nan", so that
 //   every value decode() can produce formats to text that reads back.
 #include "cfg/value.hpp"
-#include "cfg/hex.hpp"
 
 #include <array>
 #include <bit>
@@ -21,6 +20,9 @@
 #include <limits>
 #include <system_error>
 
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/integer_literal.hpp"
 #include "cfg/object_dictionary.hpp"
 
 namespace cfg {
@@ -42,46 +44,14 @@ std::string quoted(std::string_view text) {
   return "\"" + std::string(text) + "\"";
 }
 
-int hex_digit_value(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  return -1;
-}
-
-// An unsigned integer literal: "0x1F"/"0X1f" hex, "017" octal (CiA 306 follows C here), or
-// decimal. No sign, no suffix, no inner whitespace.
-struct Literal {
-  std::uint64_t magnitude = 0;
-  bool is_hex = false;
-};
-
-Result<Literal> parse_literal(std::string_view text, std::string_view whole) {
-  auto bad = [&] { return Error{"invalid number " + quoted(whole)}; };
-  if (text.empty()) return bad();
-  int base = 10;
-  std::string_view digits = text;
-  if (text.size() >= 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
-    base = 16;
-    digits = text.substr(2);
-  } else if (text.size() >= 2 && text[0] == '0') {
-    base = 8;
-    digits = text.substr(1);
-  }
-  if (digits.empty()) return bad();  // "0x"
-  for (char c : digits) {
-    int d = hex_digit_value(c);
-    if (d < 0 || d >= base) return bad();  // "12abc", "08"
-  }
-  Literal lit;
-  lit.is_hex = base == 16;
-  auto [end, ec] =
-      std::from_chars(digits.data(), digits.data() + digits.size(), lit.magnitude, base);
-  if (ec == std::errc::result_out_of_range) {
+// One integer literal of CiA 306 (cfg/integer_literal.hpp); `whole` is the text a message quotes.
+Result<IntegerLiteral> parse_literal(std::string_view text, std::string_view whole) {
+  const IntegerLiteralResult r = parse_integer_literal(text);
+  if (r.literal) return *r.literal;
+  if (r.error == IntegerLiteralError::OutOfRange) {
     return Error{"value " + std::string(whole) + " does not fit in 64 bits"};
   }
-  if (ec != std::errc{} || end != digits.data() + digits.size()) return bad();
-  return lit;
+  return Error{"invalid number " + quoted(whole)};
 }
 
 bool is_node_id_term(std::string_view term) {
@@ -112,7 +82,7 @@ Result<IntegerText> parse_node_id_sum(std::string_view text, std::optional<std::
     } else {
       auto lit = parse_literal(term, text);
       if (!lit) return Error{"invalid $NODEID formula " + quoted(text)};
-      addend = lit->magnitude;
+      addend = lit->value;
     }
     if (addend > std::numeric_limits<std::uint64_t>::max() - sum) {
       return Error{"value " + quoted(text) + " does not fit in 64 bits"};
@@ -135,7 +105,7 @@ Result<IntegerText> parse_integer_text(std::string_view text, std::optional<std:
   }
   auto lit = parse_literal(body, text);
   if (!lit) return lit.error();
-  return IntegerText{lit->magnitude, negative && lit->magnitude != 0, lit->is_hex};
+  return IntegerText{lit->value, negative && lit->value != 0, lit->is_hex};
 }
 
 std::string range_text(DataType type) {
@@ -209,12 +179,11 @@ Result<Value> parse_real(DataType type, std::string_view text) {
     auto lit = parse_literal(text, text);
     if (!lit) return bad();
     if (type == DataType::Real32) {
-      if (lit->magnitude > 0xFFFFFFFFu) return bad();
+      if (lit->value > 0xFFFFFFFFu) return bad();
       return Value::from_real(
-          type,
-          static_cast<double>(std::bit_cast<float>(static_cast<std::uint32_t>(lit->magnitude))));
+          type, static_cast<double>(std::bit_cast<float>(static_cast<std::uint32_t>(lit->value))));
     }
-    return Value::from_real(type, std::bit_cast<double>(lit->magnitude));
+    return Value::from_real(type, std::bit_cast<double>(lit->value));
   }
   // from_chars takes no leading '+', and neither do we ("+1" is not CiA 306 syntax).
   double v = 0;
@@ -255,19 +224,42 @@ Result<Value> parse_time(DataType type, std::string_view text,
   return Value::from_unsigned(type, days->as_unsigned() << 32 | ms->as_unsigned());
 }
 
+// OCTET_STRING / DOMAIN text: pairs of hex digits, blanks between pairs allowed ("01 A2 FF").
+// Motor-controller vendor tools export these values as one 0x-prefixed run of digits
+// ("0x04000037...", tens of thousands of digits on one line); the prefix is read the same way.
+// Messages do not quote such a value whole: they say where it goes wrong.
 Result<Value> parse_hex_bytes(DataType type, std::string_view text) {
+  auto bad = [&](const std::string& why) {
+    return Error{"invalid " + std::string(to_string(type)) + ": " + why +
+                 "; expected pairs of hex digits, e.g. \"01 A2 FF\" or \"0x01A2FF\""};
+  };
+  std::string_view digits = text;
+  if (digits.size() >= 2 && digits[0] == '0' && (digits[1] == 'x' || digits[1] == 'X')) {
+    digits.remove_prefix(2);
+    if (trim(digits).empty()) return bad("no digits after 0x");
+  }
   std::string bytes;
+  bytes.reserve(digits.size() / 2);
   std::size_t i = 0;
-  while (i < text.size()) {
-    if (is_space(text[i])) {
+  while (i < digits.size()) {
+    if (is_space(digits[i])) {
       ++i;
       continue;
     }
-    const int hi = hex_digit_value(text[i]);
-    const int lo = i + 1 < text.size() ? hex_digit_value(text[i + 1]) : -1;
-    if (hi < 0 || lo < 0) {
-      return Error{"invalid " + std::string(to_string(type)) + " " + quoted(text) +
-                   ": expected pairs of hex digits, e.g. \"01 A2 FF\""};
+    const std::size_t at = i + (text.size() - digits.size());  // position in `text`
+    const int hi = hex_digit_value(digits[i]);
+    if (hi < 0) {
+      return bad(quoted(digits.substr(i, 1)) + " at character " + std::to_string(at + 1) +
+                 " is not a hex digit");
+    }
+    const int lo = i + 1 < digits.size() ? hex_digit_value(digits[i + 1]) : -1;
+    if (lo < 0) {
+      if (i + 1 == digits.size()) {
+        return bad("an odd number of hex digits (the last one, at character " +
+                   std::to_string(at + 1) + ", has no pair)");
+      }
+      return bad(quoted(digits.substr(i + 1, 1)) + " at character " + std::to_string(at + 2) +
+                 " breaks the pair that starts at character " + std::to_string(at + 1));
     }
     bytes.push_back(static_cast<char>(hi * 16 + lo));
     i += 2;
@@ -462,10 +454,7 @@ Result<Value> parse_value(DataType type, std::string_view text,
 std::vector<std::uint8_t> encode(const Value& value) {
   const auto& info = data_type_info(value.type());
   std::vector<std::uint8_t> out;
-  auto put_le = [&](std::uint64_t bits, std::size_t size) {
-    for (std::size_t i = 0; i < size; ++i)
-      out.push_back(static_cast<std::uint8_t>(bits >> (8 * i)));
-  };
+  auto put_le = [&](std::uint64_t bits, std::size_t size) { append_le(out, bits, size); };
   switch (info.type_class) {
     case TypeClass::Boolean:
       out.push_back(value.as_bool() ? 1 : 0);
@@ -500,10 +489,8 @@ Result<Value> decode(DataType type, std::span<const std::uint8_t> bytes) {
     return Error{std::string(info.name) + " needs " + std::to_string(info.size_bytes) +
                  " byte(s), got " + std::to_string(bytes.size())};
   }
-  std::uint64_t le = 0;
-  for (std::size_t i = 0; i < bytes.size() && i < 8 && info.size_bytes != 0; ++i) {
-    le |= std::uint64_t{bytes[i]} << (8 * i);
-  }
+  // Fixed-size types are 1..8 bytes (CiA 301 §7.1); the size was checked above.
+  const std::uint64_t le = info.size_bytes != 0 ? load_le(bytes, bytes.size()) : 0;
   switch (info.type_class) {
     case TypeClass::Boolean:
       if (le > 1) return Error{"BOOLEAN byte " + hex(le, 2) + " is neither 0 nor 1"};

@@ -33,6 +33,7 @@ using test_support::u8;
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 using ::testing::IsEmpty;
+using ::testing::Not;
 
 using Bytes = std::vector<std::uint8_t>;
 
@@ -449,6 +450,15 @@ TEST(ConciseWrites, MissingNodeIdIsAnErrorWithFileAndLine) {
   ASSERT_EQ(diagnostics.count(Severity::Error), 1u) << diagnostics.format();
   EXPECT_THAT(diagnostics.items()[0].format(), HasSubstr("dev.dcf:40: error: [1014]"));
   EXPECT_THAT(diagnostics.items()[0].message, HasSubstr("no node-ID"));
+  // The library speaks of its own parameters; how a user gives a node-ID is the caller's hint.
+  EXPECT_THAT(diagnostics.items()[0].message, Not(HasSubstr("--node-id")));
+  ConciseOptions hinted = options();
+  hinted.node_id_hint = "give one with --node-id N";
+  Diagnostics with_hint;
+  EXPECT_FALSE(concise_writes_from_dcf(dcf, hinted, with_hint).has_value());
+  ASSERT_EQ(with_hint.count(Severity::Error), 1u) << with_hint.format();
+  EXPECT_THAT(with_hint.items()[0].message, HasSubstr("no node-ID"));
+  EXPECT_THAT(with_hint.items()[0].message, HasSubstr("; give one with --node-id N"));
 }
 
 TEST(ConciseWrites, NodeIdIsNotNeededWhenNoValueUsesIt) {

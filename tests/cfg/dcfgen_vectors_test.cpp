@@ -102,7 +102,7 @@ Pdo disabled() {
 void configure_pdo(DeviceDescription& dcf, bool receive, int n, const Pdo& pdo) {
   const auto comm = static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + n - 1);
   const unsigned base = (receive ? 0x200u : 0x180u) + 0x100u * static_cast<unsigned>(n - 1);
-  set(dcf, comm, 1, "$NODEID+" + hex32(base | (pdo.enabled ? 0u : kPdoCobIdInvalid)));
+  set(dcf, comm, 1, "$NODEID+" + hex32(base | (pdo.enabled ? 0u : kCobIdInvalidBit)));
   if (pdo.transmission) set(dcf, comm, 2, std::to_string(*pdo.transmission));
   if (pdo.mapping.empty()) return;
   const auto map = static_cast<std::uint16_t>(comm + 0x200);

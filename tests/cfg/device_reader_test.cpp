@@ -4,11 +4,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <cstdio>
 #include <initializer_list>
 #include <string>
 
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
 
 namespace cfg {
 namespace {
@@ -16,9 +16,7 @@ namespace {
 using ::testing::HasSubstr;
 
 std::string hex4(std::uint16_t v) {
-  char buf[8];
-  std::snprintf(buf, sizeof buf, "%04X", v);
-  return buf;
+  return hex_digits(v, 4);
 }
 
 // A complete, clean EDS (no deviation, also in strict mode) with 1000h, 1001h, 1018h, plus
@@ -517,7 +515,7 @@ TEST(DeviceReader, ObjectListedWithoutASectionIsWarnedAndNotCreated) {
   ASSERT_TRUE(r.device);
   EXPECT_EQ(r.device->object(0x1017), nullptr);
   EXPECT_TRUE(has_diag(r, line_of(text, "1=0x1017"), Severity::Warning,
-                       {"[OptionalObjects] lists 0x1017", "no [1017] section"}));
+                       {"[OptionalObjects] lists 1017h", "no [1017] section"}));
 }
 
 TEST(DeviceReader, SectionOfAnObjectNoListNamesIsKeptWithAWarning) {
@@ -548,7 +546,7 @@ TEST(DeviceReader, ObjectListedTwiceIsWarned) {
   text.replace(text.find("SupportedObjects=3"), 18, "SupportedObjects=4");
   auto r = parse(text);
   EXPECT_TRUE(has_diag(r, line_of(text, "4=0x1001"), Severity::Warning,
-                       {"lists 0x1001 again", "first at line"}));
+                       {"lists 1001h again", "first at line"}));
 }
 
 TEST(DeviceReader, ObjectInTheWrongListIsAnErrorOnlyInStrictMode) {
@@ -564,7 +562,7 @@ TEST(DeviceReader, MissingMandatoryObjectIsWarned) {
   std::string text = eds();
   text.replace(text.find("[1001]"), 6, "[1002]");
   auto r = parse(text);
-  EXPECT_TRUE(has_diag(r, 0, Severity::Warning, {"mandatory object 0x1001 is missing"}));
+  EXPECT_TRUE(has_diag(r, 0, Severity::Warning, {"mandatory object 1001h is missing"}));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -943,8 +941,9 @@ TEST(DeviceReader, ExplicitSubSectionReplacesTheExpandedCompactEntry) {
   ASSERT_EQ(o->subs.size(), 4u);
   EXPECT_EQ(o->sub(2)->name, "special");
   EXPECT_EQ(o->sub(2)->access, AccessType::Ro);
-  EXPECT_TRUE(has_diag(r, line_of(text, "[1016sub2]"), Severity::Warning,
-                       {"[1016] uses CompactSubObj", "0x02", "replaces the expanded entry"}));
+  EXPECT_TRUE(
+      has_diag(r, line_of(text, "[1016sub2]"), Severity::Warning,
+               {"[1016] uses CompactSubObj", "sub-index 02h", "replaces the expanded entry"}));
 }
 
 TEST(DeviceReader, CompactSubObjExpansionIsBudgetedAgainstTheFileSize) {

@@ -4,6 +4,7 @@
 // checked with Python's struct.pack('<f') / ('<d')).
 #include "cfg/value.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,6 +14,8 @@
 
 namespace cfg {
 namespace {
+
+using ::testing::HasSubstr;
 
 using Bytes = std::vector<std::uint8_t>;
 
@@ -285,8 +288,30 @@ TEST(Value, OctetStringAndDomainAreHexPairs) {
   EXPECT_EQ(encoded(DataType::OctetString, ""), Bytes{});
   error_of(DataType::OctetString, "ABC");   // odd digit count
   error_of(DataType::OctetString, "A BC");  // space inside a pair
-  error_of(DataType::Domain, "0xAB");
   error_of(DataType::Domain, "@ABCD");
+}
+
+// Motor-controller vendor tools export DOMAIN and OCTET_STRING values as one 0x-prefixed run of
+// hex digits (issue 9; hand-written values of that shape). The digits are the bytes in order.
+TEST(Value, DomainAndOctetStringAcceptOne0xPrefixedRunOfDigits) {
+  EXPECT_EQ(encoded(DataType::Domain, "0x0400003700002401"),
+            (Bytes{0x04, 0x00, 0x00, 0x37, 0x00, 0x00, 0x24, 0x01}));
+  EXPECT_EQ(encoded(DataType::Domain, "0XabCD"), (Bytes{0xAB, 0xCD}));
+  EXPECT_EQ(encoded(DataType::OctetString, "0x00ff"), (Bytes{0x00, 0xFF}));
+  // The prefix is the same bytes as the plain digits.
+  EXPECT_EQ(parsed(DataType::Domain, "0x0102FF"), parsed(DataType::Domain, "0102FF"));
+}
+
+TEST(Value, OddHexDigitCountIsAnErrorThatSaysWhere) {
+  // A value of tens of thousands of digits is not quoted whole: the message says where it breaks.
+  const std::string long_value = "0x" + std::string(20001, 'A');
+  const std::string message = error_of(DataType::Domain, long_value);
+  EXPECT_THAT(message, HasSubstr("odd number of hex digits"));
+  EXPECT_THAT(message, HasSubstr("character 20003"));
+  EXPECT_LT(message.size(), 300u);
+  EXPECT_THAT(error_of(DataType::Domain, "0x01G2"), HasSubstr("\"G\" at character 5"));
+  EXPECT_THAT(error_of(DataType::OctetString, "0x"), HasSubstr("no digits after 0x"));
+  EXPECT_THAT(error_of(DataType::OctetString, "0x1"), HasSubstr("odd number of hex digits"));
 }
 
 TEST(Value, UnicodeStringIsUtf16LittleEndian) {

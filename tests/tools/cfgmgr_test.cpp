@@ -206,6 +206,14 @@ TEST(Cfgmgr, FmtDoesNotWriteAFileWithErrors) {
   EXPECT_THAT(r.err, HasSubstr("not_a_device.eds: error:"));
   EXPECT_FALSE(fs::exists(dir / "out.eds"));
   EXPECT_EQ(run("cfgmgr", {"fmt", dir / "absent.eds"}, dir.path()).exit_code, 3);
+  // The file is opened once; what goes wrong there decides the exit code (no check beforehand).
+  fs::create_directories(dir / "a_directory");
+  auto directory = run("cfgmgr", {"fmt", dir / "a_directory"}, dir.path());
+  EXPECT_EQ(directory.exit_code, 3);
+  EXPECT_THAT(directory.err, HasSubstr("a_directory: error: is a directory"));
+  auto check = run("cfgmgr", {"check", dir / "a_directory"}, dir.path());
+  EXPECT_EQ(check.exit_code, 3);
+  EXPECT_THAT(check.err, HasSubstr("a_directory: error: is a directory"));
 }
 
 // The version comes from the top-level CMakeLists.txt's project(... VERSION x.y.z), read here
@@ -240,6 +248,11 @@ TEST(Cfgmgr, CheckSchemaDirThatCannotBeLoadedIsAnIoError) {
   EXPECT_EQ(empty.exit_code, 3);
   EXPECT_THAT(empty.err, HasSubstr(dir / "empty"));
   EXPECT_THAT(empty.err, HasSubstr("cia301_communication"));
+  // A file where the directory should be: found out by loading, not by a check beforehand.
+  auto not_a_directory = run("cfgmgr", {"check", "--schema-dir", file, file}, dir.path());
+  EXPECT_EQ(not_a_directory.exit_code, 3);
+  EXPECT_THAT(not_a_directory.err, HasSubstr("--schema-dir " + file));
+  EXPECT_EQ(not_a_directory.out, "");
   // The directory the project ships loads.
   auto shipped = run("cfgmgr", {"check", "--schema-dir", CANOPEN_SCHEMA_DIR, file}, dir.path());
   EXPECT_EQ(shipped.exit_code, 0) << shipped.err;
@@ -305,6 +318,25 @@ TEST(Cfgmgr, CheckReadsStdin) {
   auto twice = run("cfgmgr", {"check", "-", "-"}, dir.path(), "", data_path("concise/node5.dcf"));
   EXPECT_EQ(twice.exit_code, 2);
   EXPECT_THAT(twice.err, HasSubstr("stdin"));
+}
+
+// Issue 9: vendor tools export DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits
+// (tests/data/concise/vendor_hex_domain.dcf, written for the tests). Such a DCF passes check,
+// also strict, and fmt writes the values in its own form (digit pairs without a prefix).
+TEST(Cfgmgr, CheckAndFmtAcceptHexPrefixedDomainValues) {
+  ScratchDir dir;
+  const std::string file = data_path("concise/vendor_hex_domain.dcf");
+  auto r = run("cfgmgr", {"check", "--strict", file}, dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, file + ": 0 errors, 0 warnings, 6 objects\n");
+  auto fmt = run("cfgmgr", {"fmt", file, "-o", dir / "out.dcf"}, dir.path());
+  ASSERT_EQ(fmt.exit_code, 0) << fmt.err;
+  const std::string written = tool_test::slurp(dir / "out.dcf");
+  EXPECT_THAT(written,
+              HasSubstr("ParameterValue=0400003700002401010000320000240101000001000024\r\n"));
+  EXPECT_THAT(written, HasSubstr("ParameterValue=c0ffee01\r\n"));
+  EXPECT_THAT(written, Not(HasSubstr("=0x0400")));
+  EXPECT_EQ(run("cfgmgr", {"check", "--strict", dir / "out.dcf"}, dir.path()).exit_code, 0);
 }
 
 }  // namespace

@@ -105,6 +105,36 @@ TEST(Dcf2Concise, MissingInputIsAnIoError) {
   EXPECT_FALSE(fs::exists(dir / "out.bin"));
 }
 
+// Each file is opened once and the error that arises says which kind it is (README: exit 3 when
+// a file cannot be read or written, 1 when the input is wrong); no check runs beforehand.
+TEST(Dcf2Concise, UnreadableFilesAreIoErrorsInEveryMode) {
+  ScratchDir dir;
+  fs::create_directories(dir / "a_directory");
+  auto directory = run("dcf2concise", {dir / "a_directory", "-o", dir / "out.bin"}, dir.path());
+  EXPECT_EQ(directory.exit_code, 3);
+  EXPECT_THAT(directory.err, HasSubstr("a_directory: error: is a directory"));
+  EXPECT_FALSE(fs::exists(dir / "out.bin"));
+  // --decode: the stream, and the device file that names its entries.
+  auto stream = run("dcf2concise", {"--decode", dir / "absent.bin"}, dir.path());
+  EXPECT_EQ(stream.exit_code, 3);
+  EXPECT_THAT(stream.err, HasSubstr("absent.bin: error: cannot open"));
+  auto stream_dir = run("dcf2concise", {"--decode", dir / "a_directory"}, dir.path());
+  EXPECT_EQ(stream_dir.exit_code, 3);
+  EXPECT_THAT(stream_dir.err, HasSubstr("a_directory: error: read error"));
+  auto device =
+      run("dcf2concise",
+          {"--decode", data_path("concise/heartbeat_1000.bin"), "--dcf", dir / "absent.eds"},
+          dir.path());
+  EXPECT_EQ(device.exit_code, 3);
+  EXPECT_THAT(device.err, HasSubstr("absent.eds: error: cannot open"));
+  // A device file that is there but wrong is an input error.
+  auto wrong = run("dcf2concise",
+                   {"--decode", data_path("concise/heartbeat_1000.bin"), "--dcf",
+                    data_path("check/not_a_device.eds")},
+                   dir.path());
+  EXPECT_EQ(wrong.exit_code, 1);
+}
+
 TEST(Dcf2Concise, UnwritableOutputIsAnIoError) {
   ScratchDir dir;
   auto r = run("dcf2concise", {data_path("concise/node5.dcf"), "-o", dir / "no/such/dir/out.bin"},
@@ -222,6 +252,7 @@ TEST(Dcf2Concise, MissingNodeIdIsAnError) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_THAT(r.err, HasSubstr("no_node_id.dcf:125: error: [1400sub1]"));
   EXPECT_THAT(r.err, HasSubstr("no node-ID"));
+  EXPECT_THAT(r.err, HasSubstr("give one with --node-id N"));
   EXPECT_FALSE(fs::exists(dir / "out.bin"));
   // With a node-ID it converts.
   auto with_id =
@@ -483,6 +514,24 @@ TEST(Dcf2Concise, DecodeSaysOneByteInTheSingular) {
   auto r = run("dcf2concise", {"--decode", dir / "one.bin"}, dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out, "1400sub2    1 byte   = 1 (0x01)\n");
+}
+
+// Issue 9: tests/data/concise/vendor_hex_domain.dcf (written for the tests) gives DOMAIN and
+// OCTET_STRING values as one 0x-prefixed run of digits; 2000h holds 8000 bytes of the pattern
+// (i * 37 + 11) mod 256 on one line. The concise DCF carries the bytes as they are (DSP 302 §6.2).
+TEST(Dcf2Concise, HexPrefixedDomainValuesConvertToTheirBytes) {
+  ScratchDir dir;
+  auto r = run("dcf2concise", {data_path("concise/vendor_hex_domain.dcf"), "-o", "-"}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<std::uint8_t> table;
+  for (unsigned i = 0; i < 8000; ++i)
+    table.push_back(static_cast<std::uint8_t>((i * 37 + 11) & 0xFF));
+  EXPECT_EQ(decode_string(r.out),
+            (std::vector<ObjectWrite>{
+                {0x2000, 0, table},
+                {0x2001, 0, {0x04, 0x00, 0x00, 0x37, 0x00, 0x00, 0x24, 0x01, 0x01, 0x00, 0x00, 0x32,
+                             0x00, 0x00, 0x24, 0x01, 0x01, 0x00, 0x00, 0x01, 0x00, 0x00, 0x24}},
+                {0x2002, 0, {0xC0, 0xFF, 0xEE, 0x01}}}));
 }
 
 }  // namespace

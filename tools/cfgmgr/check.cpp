@@ -80,11 +80,6 @@ void run_check(const CheckOptions& options) {
       }
       dir = std::move(found).value();
     }
-    if (std::error_code ec; asked && !std::filesystem::is_directory(dir, ec)) {
-      std::cerr << "cfgmgr check: error: --schema-dir " << dir << ": "
-                << (ec ? ec.message() : std::string("not a directory")) << '\n';
-      exit_with(tools::kExitIo);
-    }
     for (auto name : cfg::kStandardSchemas) {
       auto schema = cfg::load_schema(name, dir);
       if (!schema) {

@@ -3,9 +3,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
-#include <iterator>
 #include <memory>
 #include <string>
 
@@ -45,19 +43,16 @@ cfg::WriteOptions::Stamp stamp_now() {
   return stamp;
 }
 
-std::string read_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 void run_fmt(const FmtOptions& options) {
-  if (auto readable = tools::check_readable(options.input); !readable) {
-    std::cerr << readable.error().message << '\n';
-    exit_with(tools::kExitIo);
+  // One read of the file: parsed, and compared with the output below.
+  auto input = tools::read_input(options.input);
+  if (!input) {
+    std::cerr << input.error().message << '\n';
+    exit_with(tools::exit_code_for(input.error()));
   }
   cfg::ReadOptions read_options;
   read_options.file_name = options.input;
-  auto read = cfg::read_device_file(options.input, read_options);
+  auto read = cfg::parse_device_description(*input, read_options);
   tools::print_diagnostics(read.diagnostics);
   if (!read.ok()) exit_with(tools::kExitInputErrors);
 
@@ -72,13 +67,13 @@ void run_fmt(const FmtOptions& options) {
   write_options.line_ending = options.lf ? cfg::LineEnding::Lf : cfg::LineEnding::Crlf;
   std::string text = cfg::write_device_description(*read.device, write_options);
   // Stamp only a real change, so that formatting a canonical file leaves it byte-identical.
-  if (!options.no_stamp && text != read_bytes(options.input)) {
+  if (!options.no_stamp && text != *input) {
     write_options.stamp = stamp_now();
     text = cfg::write_device_description(*read.device, write_options);
   }
   if (auto status = tools::write_output(options.output, text); !status) {
     std::cerr << status.error().message << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::exit_code_for(status.error()));
   }
 }
 

@@ -105,13 +105,14 @@ void run_simulate(const SimulateOptions& options) {
       std::cerr << "cfgmgr simulate: " << parsed.error().message << '\n';
       exit_with(tools::kExitUsage);
     }
-    if (auto readable = tools::check_readable(parsed->path); !readable) {
-      std::cerr << readable.error().message << '\n';
-      exit_with(tools::kExitIo);
+    auto text = tools::read_input(parsed->path);
+    if (!text) {
+      std::cerr << text.error().message << '\n';
+      exit_with(tools::exit_code_for(text.error()));
     }
     cfg::ReadOptions read_options;
     read_options.file_name = parsed->path;
-    auto read = cfg::read_device_file(parsed->path, read_options);
+    auto read = cfg::parse_device_description(*text, read_options);
     tools::print_diagnostics(read.diagnostics);
     if (!read.ok()) exit_with(tools::kExitInputErrors);
     if (!parsed->node_id && !read.device->node_id()) {

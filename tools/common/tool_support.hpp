@@ -147,29 +147,32 @@ inline std::string hex_string(std::span<const std::uint8_t> bytes) {
   return out;
 }
 
-/// Reads a whole file, or "-" for stdin. Fails with a message naming the path.
-inline cfg::Result<std::string> read_input(const std::string& path) {
-  if (path == "-") {
-    return std::string{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
-  }
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": error: is a directory"};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return cfg::Error{path + ": error: cannot open: " + std::strerror(errno)};
-  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) return cfg::Error{path + ": error: read error"};
-  return data;
+/// The exit code for an error: kExitIo when a file could not be read or written, else
+/// kExitInputErrors. The category is set where the error arises, so no tool checks its files
+/// beforehand (each file is opened once).
+inline int exit_code_for(const cfg::Error& error) {
+  return error.category == cfg::ErrorCategory::Io ? kExitIo : kExitInputErrors;
 }
 
-/// True when the path can be opened for reading (tools check this first so that a missing
-/// input is an I/O error, exit code 3, not a diagnostic of the input).
-inline cfg::Status check_readable(const std::string& path) {
-  if (path == "-") return {};
+/// An I/O error (exit code 3) about `path`: "PATH: error: WHAT".
+inline cfg::Error io_error(const std::string& path, const std::string& what) {
+  return cfg::Error{path + ": error: " + what, cfg::ErrorCategory::Io};
+}
+
+/// Reads a whole file, or "-" for stdin. Fails (category Io) with a message naming the path.
+inline cfg::Result<std::string> read_input(const std::string& path) {
+  if (path == "-") {
+    std::string data{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
+    if (std::cin.bad()) return io_error("<stdin>", "read error");
+    return data;
+  }
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return cfg::Error{path + ": error: is a directory"};
+  if (std::filesystem::is_directory(path, ec)) return io_error(path, "is a directory");
   std::ifstream in(path, std::ios::binary);
-  if (!in) return cfg::Error{path + ": error: cannot open: " + std::strerror(errno)};
-  return {};
+  if (!in) return io_error(path, std::string("cannot open: ") + std::strerror(errno));
+  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) return io_error(path, "read error");
+  return data;
 }
 
 /// Writes all of `bytes` to `fd`; errno-based message on failure.
@@ -179,10 +182,9 @@ inline cfg::Status write_all(int fd, std::string_view bytes, const std::string& 
     const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      std::string message = path;
-      message += ": error: write error: ";
-      message += n == 0 ? "nothing written" : std::strerror(errno);
-      return cfg::Error{std::move(message)};
+      std::string what = "write error: ";
+      what += n == 0 ? "nothing written" : std::strerror(errno);
+      return io_error(path, what);
     }
     written += static_cast<std::size_t>(n);
   }
@@ -198,7 +200,7 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   if (path == "-") {
     std::cout.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     std::cout.flush();
-    if (!std::cout) return cfg::Error{"<stdout>: error: write error"};
+    if (!std::cout) return io_error("<stdout>", "write error");
     return {};
   }
   namespace fs = std::filesystem;
@@ -206,21 +208,21 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   fs::path target(path);
   if (fs::is_symlink(fs::symlink_status(target, ec))) {
     const fs::path resolved = fs::weakly_canonical(target, ec);
-    if (ec) return cfg::Error{path + ": error: cannot follow the link: " + ec.message()};
+    if (ec) return io_error(path, "cannot follow the link: " + ec.message());
     target = resolved;
   }
   const fs::file_status status = fs::status(target, ec);
-  if (fs::is_directory(status)) return cfg::Error{path + ": error: is a directory"};
+  if (fs::is_directory(status)) return io_error(path, "is a directory");
   mode_t mode = 0;
   if (fs::exists(status)) {
     if (!fs::is_regular_file(status)) {
       // A device or FIFO: write into it, as a shell redirection would.
       const int fd = ::open(target.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC);
       if (fd < 0)
-        return cfg::Error{path + ": error: cannot open for writing: " + std::strerror(errno)};
+        return io_error(path, std::string("cannot open for writing: ") + std::strerror(errno));
       cfg::Status written = write_all(fd, bytes, path);
       if (::close(fd) != 0 && written) {
-        return cfg::Error{path + ": error: write error: " + std::strerror(errno)};
+        return io_error(path, std::string("write error: ") + std::strerror(errno));
       }
       return written;
     }
@@ -240,7 +242,7 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   temp_name += ".tmpXXXXXX";
   std::string temp = (dir / temp_name).string();
   const int fd = ::mkstemp(temp.data());
-  if (fd < 0) return cfg::Error{path + ": error: cannot create: " + std::strerror(errno)};
+  if (fd < 0) return io_error(path, std::string("cannot create: ") + std::strerror(errno));
   ::fchmod(fd, mode);
   if (cfg::Status written = write_all(fd, bytes, path); !written) {
     ::close(fd);
@@ -250,12 +252,12 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   if (::close(fd) != 0) {
     const std::string why = std::strerror(errno);
     ::unlink(temp.c_str());
-    return cfg::Error{path + ": error: write error: " + why};
+    return io_error(path, "write error: " + why);
   }
   if (std::rename(temp.c_str(), target.c_str()) != 0) {
     const std::string why = std::strerror(errno);
     ::unlink(temp.c_str());
-    return cfg::Error{path + ": error: cannot write: " + why};
+    return io_error(path, "cannot write: " + why);
   }
   return {};
 }

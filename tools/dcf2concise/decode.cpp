@@ -1,9 +1,13 @@
 // dcf2concise --decode: a concise DCF as one line per entry, with names and typed values when a
 // device file says what the entries are.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -164,14 +168,15 @@ int run_decode(const DecodeOptions& options) {
 
   std::optional<cfg::DeviceDescription> device;
   if (!options.device_file.empty()) {
-    if (auto readable = tools::check_readable(options.device_file); !readable) {
-      std::cerr << readable.error().message << '\n';
-      return tools::kExitIo;
+    auto text = tools::read_input(options.device_file);
+    if (!text) {
+      std::cerr << text.error().message << '\n';
+      return tools::exit_code_for(text.error());
     }
     cfg::ReadOptions read_options;
     read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
     read_options.file_name = options.device_file;
-    auto read = cfg::read_device_file(options.device_file, read_options);
+    auto read = cfg::parse_device_description(*text, read_options);
     diagnostics.append(read.diagnostics);
     if (!read.ok()) {
       tools::print_diagnostics(diagnostics);
@@ -180,15 +185,24 @@ int run_decode(const DecodeOptions& options) {
     device = std::move(read.device);
   }
 
-  std::ifstream file;
-  std::istream* in = &std::cin;
+  // The stream is opened once and read in chunks (read(2): a directory fails at the first
+  // read with EISDIR, an I/O error like any other).
+  int fd = STDIN_FILENO;
+  struct Closer {
+    int fd = -1;
+    ~Closer() {
+      if (fd >= 0) ::close(fd);
+    }
+  } closer;
   if (options.input != "-") {
-    if (auto readable = tools::check_readable(options.input); !readable) {
-      std::cerr << readable.error().message << '\n';
+    fd = ::open(options.input.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+      std::cerr
+          << tools::io_error(name, std::string("cannot open: ") + std::strerror(errno)).message
+          << '\n';
       return tools::kExitIo;
     }
-    file.open(options.input, std::ios::binary);
-    in = &file;
+    closer.fd = fd;
   }
 
   const Describer describer(device ? &*device : nullptr,
@@ -202,15 +216,17 @@ int run_decode(const DecodeOptions& options) {
   // Streams of any size: fed in chunks, never held whole.
   std::vector<char> chunk(std::size_t{64} * 1024);
   cfg::Status status;
-  while (status && *in) {
-    in->read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-    const auto n = static_cast<std::size_t>(in->gcount());
+  while (status) {
+    const ssize_t n = ::read(fd, chunk.data(), chunk.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      std::cerr << tools::io_error(name, std::string("read error: ") + std::strerror(errno)).message
+                << '\n';
+      return tools::kExitIo;
+    }
     if (n == 0) break;
-    status = decoder.feed({reinterpret_cast<const std::uint8_t*>(chunk.data()), n});
-  }
-  if (in->bad()) {
-    std::cerr << name << ": read error\n";
-    return tools::kExitIo;
+    status = decoder.feed(
+        {reinterpret_cast<const std::uint8_t*>(chunk.data()), static_cast<std::size_t>(n)});
   }
   if (status) status = decoder.finish();
   if (!status) diagnostics.add(name, 0, cfg::Severity::Error, status.error().message);

@@ -41,14 +41,10 @@ std::string default_output(const std::string& input) {
 }
 
 int run_encode(const EncodeOptions& options) {
-  if (auto readable = tools::check_readable(options.input); !readable) {
-    std::cerr << readable.error().message << '\n';
-    return tools::kExitIo;
-  }
   auto text = tools::read_input(options.input);
   if (!text) {
     std::cerr << text.error().message << '\n';
-    return tools::kExitIo;
+    return tools::exit_code_for(text.error());
   }
   const std::string name = options.input == "-" ? "<stdin>" : options.input;
   cfg::ReadOptions read_options;
@@ -72,6 +68,7 @@ int run_encode(const EncodeOptions& options) {
     concise.node_id = options.node_id;
     concise.selection = options.selection;
     concise.file_name = name;
+    concise.node_id_hint = "give one with --node-id N";
     concise.base_dir = options.input == "-"
                            ? std::string(".")
                            : std::filesystem::path(options.input).parent_path().string();
@@ -96,7 +93,7 @@ int run_encode(const EncodeOptions& options) {
         output, std::string_view(reinterpret_cast<const char*>(stream.data()), stream.size()));
     if (!status) {
       std::cerr << status.error().message << '\n';
-      code = tools::kExitIo;
+      code = tools::exit_code_for(status.error());
     }
   }
 

@@ -94,6 +94,9 @@ struct ConciseOptions {
   /// Directory DownloadFile/UploadFile paths are relative to (usually the DCF's directory).
   std::string base_dir;
   std::string file_name;  ///< for diagnostics
+  /// How the caller's user gives a node-ID (e.g. a tool's "give one with --node-id N"), added to
+  /// the message when a value needs one and none is known. Empty: the message ends there.
+  std::string node_id_hint;
 };
 
 /// The writes a DCF configures, in PDO-safe order (see download_order.hpp). Never 1010h/1011h,

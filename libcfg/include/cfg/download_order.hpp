@@ -65,10 +65,7 @@ std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,
                                         const CobIdLookup& current_cob_id = {});
 
 /// PDO parameter indices live with the other object names (object_index.hpp).
-using object::PdoIndices;
 using object::pdo_indices_of;
-
-/// Bit 31 of a PDO COB-ID: set = PDO does not exist / is not valid (CiA 301 §7.5.2.35).
-inline constexpr std::uint32_t kPdoCobIdInvalid = kCobIdInvalidBit;
+using object::PdoIndices;
 
 }  // namespace cfg

@@ -3,15 +3,24 @@
 #pragma once
 
 #include <cassert>
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <variant>
 
 namespace cfg {
 
-/// Why an operation failed, in words a user understands.
+/// What kind of failure an Error is, set where it arises, so that a caller (a tool choosing its
+/// exit code) needs no checks of its own beforehand.
+enum class ErrorCategory : std::uint8_t {
+  Input,  ///< the input (text, bytes, a value, a command) is not what it must be
+  Io,     ///< a file could not be opened, read or written (missing, a directory, no permission)
+};
+
+/// Why an operation failed, in words a user understands, and of which kind.
 struct Error {
   std::string message;
+  ErrorCategory category = ErrorCategory::Input;
   bool operator==(const Error&) const = default;
 };
 

@@ -59,7 +59,9 @@ bool mentions_node_id(std::string_view text);
 /// negative decimals, REAL as decimal floating point, sums with `$NODEID` on either side
 /// (`$NODEID+0x180`, `0x180 + $NodeId`). `text` is trimmed and free of comments. Strings are taken
 /// as they are (VISIBLE_STRING bytes; UNICODE_STRING text is UTF-8 and becomes UTF-16LE);
-/// OCTET_STRING and DOMAIN text is hex digit pairs. As lely's DCFs write them, a REAL may be
+/// OCTET_STRING and DOMAIN text is hex digit pairs, blanks allowed between pairs ("01 A2 FF"), or
+/// one 0x-prefixed run of digits as vendor tools export them ("0x01A2FF"); an odd number of
+/// digits is an error. As lely's DCFs write them, a REAL may be
 /// given as the hex IEEE 754 bit pattern ("0x40490FDB" is pi as REAL32), and TIME_OF_DAY /
 /// TIME_DIFFERENCE as "DAYS MS" as well as the 48-bit raw number. Fails with a message when the
 /// text is not a value of the type, is out of its range, or needs a node-ID that was not given.
