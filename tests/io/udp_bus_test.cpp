@@ -2,7 +2,7 @@
 // independent implementation of the wire format.
 //
 // UdpUrl.* and UdpDatagram.* use no network. UdpBus.* send multicast, so they run only inside
-// the private network namespace the ctest test `nmt_udp_bus_netns` creates (its only interface
+// the private network namespace the ctest test `io_udp_bus_netns` creates (its only interface
 // is lo, with the multicast route on lo): nothing can leave the machine. Elsewhere they skip.
 #include "nmt/udp_bus.hpp"
 
@@ -267,12 +267,12 @@ TEST(UdpDatagram, RefusesToEncodeFramesPythonCanWouldReject) {
 // ---- the bus, in the private network namespace -------------------------------------------
 
 // Why multicast must not be sent here, or nullopt when this is the namespace the ctest test
-// nmt_udp_bus_netns created (CANOPEN_UDP_NETNS=1 and lo the only interface).
+// io_udp_bus_netns created (CANOPEN_UDP_NETNS=1 and lo the only interface).
 std::optional<std::string> multicast_not_isolated() {
   const char* env = std::getenv("CANOPEN_UDP_NETNS");
   if (env == nullptr || std::string(env) != "1") {
     return "sends multicast: runs only in the private network namespace of the ctest test "
-           "nmt_udp_bus_netns (ctest -R nmt_udp_bus_netns)";
+           "io_udp_bus_netns (ctest -R io_udp_bus_netns)";
   }
   struct if_nameindex* names = if_nameindex();
   if (names == nullptr) return "cannot list network interfaces";

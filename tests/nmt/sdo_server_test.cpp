@@ -308,6 +308,17 @@ TEST_F(SdoServerTest, CobIdsComeFrom1200h) {
   EXPECT_EQ(SdoServerConfig::from_dictionary(dict).request_cob_id, cfg::CobId::standard(0x605));
 }
 
+TEST_F(SdoServerTest, A29BitCobIdFrom1200hServesExtendedFrames) {
+  // CiA 301 1200h sub 1/2: bit 29 set = 29-bit CAN-ID, so 605h as an extended frame is another
+  // channel than the 11-bit 605h.
+  ASSERT_TRUE(dict.set_unsigned(0x1200, 1, 0x20000605));
+  ASSERT_TRUE(dict.set_unsigned(0x1200, 2, 0x20000585));
+  server.set_config(SdoServerConfig::from_dictionary(dict));
+  EXPECT_EQ(request("00000605#4000100000000000"), Frames{"00000585#4300100091010200"});
+  SdoServer::Output out;
+  EXPECT_FALSE(server.on_frame(*from_candump("605#4000100000000000"), now, out));
+}
+
 TEST(SdoBlockCrc, IsCrc16Xmodem) {
   // Check value of CRC-16/XMODEM (poly 0x1021, init 0) for "123456789" is 0x31C3.
   const std::string text = "123456789";

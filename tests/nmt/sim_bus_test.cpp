@@ -6,6 +6,8 @@
 // by polynomial long division over the bit string, stuffing by scanning for runs of five).
 #include "nmt/sim_bus.hpp"
 
+#include "cfg/hex.hpp"
+
 #include <gtest/gtest.h>
 
 #include <random>
@@ -384,6 +386,104 @@ TEST(SimBus, DestroyedNodeDetachesItself) {
   }
   bus.run_until_idle();
   EXPECT_TRUE(a.received.empty());  // its queued frame was discarded
+}
+
+// --- SimEngineNode: the simulated-bus driver of any nmt::Engine ------------------------------
+
+// A toy engine: answers 100#xx with 101#xx and reports xx; a timer set through arm() sends
+// 7FF#01 and reports -1 when due.
+struct EchoEngine {
+  using Event = int;
+  using Output = Outbox<int>;
+  std::optional<TimePoint> deadline;
+  int timers = 0;
+
+  bool on_frame(const CanFrame& f, TimePoint /*now*/, Output& out) {
+    if (f.id != 0x100 || f.dlc == 0) return false;
+    out.send(*from_candump("101#" + cfg::hex_digits(f.data[0], 2)));
+    out.report(f.data[0]);
+    return true;
+  }
+  void on_timer(TimePoint now, Output& out) {
+    ++timers;
+    if (!deadline || now < *deadline) return;
+    deadline.reset();
+    out.send(*from_candump("7FF#01"));
+    out.report(-1);
+  }
+  std::optional<TimePoint> next_deadline() const { return deadline; }
+  // An API call in the engine shape: sends at once and sets a deadline.
+  int arm(TimePoint at, TimePoint /*now*/, Output& out) {
+    deadline = at;
+    out.send(*from_candump("102#"));
+    return 7;
+  }
+};
+static_assert(Engine<EchoEngine>);
+
+TEST(SimEngineNode, AnswersFramesAndHandsEventsToTheHandler) {
+  SimBus bus(1'000'000);
+  SimEngineNode<EchoEngine> node;
+  FunctionNode peer;
+  std::vector<std::pair<TimePoint, std::string>> seen;
+  std::vector<std::pair<int, TimePoint>> events;
+  bus.attach(node);
+  bus.attach(peer);
+  bus.add_observer([&](const CanFrame& f, TimePoint t) { seen.emplace_back(t, to_candump(f)); });
+  node.set_event_handler([&](const int& e, TimePoint t) { events.emplace_back(e, t); });
+  peer.send(*from_candump("100#2A"));
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{1'000'000}));
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0].second, "100#2A");
+  EXPECT_EQ(seen[1].second, "101#2A");
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].first, 0x2A);
+  EXPECT_EQ(events[0].second, seen[0].first);  // the time of the call: 100#2A's end of frame
+  EXPECT_EQ(node.engine().timers, 0);          // nothing was due: no timer call
+}
+
+TEST(SimEngineNode, ApplySendsAtOnceAndTheTimerFollowsTheNewDeadline) {
+  SimBus bus(1'000'000);
+  SimEngineNode<EchoEngine> node;
+  FunctionNode peer;
+  std::vector<std::pair<TimePoint, std::string>> seen;
+  std::vector<int> events;
+  bus.attach(node);
+  bus.attach(peer);
+  bus.add_observer([&](const CanFrame& f, TimePoint t) { seen.emplace_back(t, to_candump(f)); });
+  node.set_event_handler([&](const int& e, TimePoint) { events.push_back(e); });
+  const int r = node.apply([](EchoEngine& e, TimePoint now, EchoEngine::Output& out) {
+    return e.arm(now + std::chrono::milliseconds(5), now, out);
+  });
+  EXPECT_EQ(r, 7);
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{1'000'000}));
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0].second, "102#");
+  EXPECT_LT(seen[0].first, TimePoint{100});  // at once: one frame time, no timer before it
+  EXPECT_EQ(seen[1].second, "7FF#01");
+  EXPECT_GE(seen[1].first, TimePoint{5000});
+  EXPECT_EQ(node.engine().timers, 1);  // exactly at the deadline
+  EXPECT_EQ(events, std::vector<int>{-1});
+}
+
+TEST(SimEngineNode, TheEventHandlerMayApply) {
+  SimBus bus(1'000'000);
+  SimEngineNode<EchoEngine> node;
+  FunctionNode peer;
+  std::vector<std::string> seen;
+  bus.attach(node);
+  bus.attach(peer);
+  bus.add_observer([&](const CanFrame& f, TimePoint) { seen.push_back(to_candump(f)); });
+  node.set_event_handler([&](const int& event, TimePoint) {
+    if (event == -1) return;  // the timer's own event
+    node.apply([](EchoEngine& e, TimePoint now, EchoEngine::Output& out) {
+      return e.arm(now + std::chrono::milliseconds(1), now, out);
+    });
+  });
+  peer.send(*from_candump("100#01"));
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{1'000'000}));
+  // The answer, then what the handler started, then its timer's frame.
+  EXPECT_EQ(seen, (std::vector<std::string>{"100#01", "101#01", "102#", "7FF#01"}));
 }
 
 }  // namespace

@@ -290,13 +290,17 @@ class SimEngineNode : public SimNode {
   /// Returns what fn returns. Attach the node first (unattached, frames are dropped).
   template <class Fn>
   decltype(auto) apply(Fn&& fn) {
+    // The outermost call reuses one Output; a nested one (from the event handler) its own.
     struct Flush {
       SimEngineNode* self;
-      Output out;
+      Output* out;
       TimePoint now;
-      ~Flush() { self->flush(out, now); }
-    } flush_on_exit{this, {}, now()};
-    return std::forward<Fn>(fn)(engine_, flush_on_exit.now, flush_on_exit.out);
+      ~Flush() { self->flush(*out, now); }
+    };
+    Output nested;
+    Output& out = out_.frames.empty() && !in_handler_ ? out_ : nested;
+    Flush flush_on_exit{this, &out, now()};
+    return std::forward<Fn>(fn)(engine_, flush_on_exit.now, out);
   }
 
   void on_frame(const CanFrame& frame, TimePoint now) override {
@@ -314,16 +318,29 @@ class SimEngineNode : public SimNode {
     out.frames.clear();
     set_timer(engine_.next_deadline());
     if (out.events.empty()) return;
-    // The handler may call apply(), which reports through its own Output.
-    auto events = std::move(out.events);
-    out.events.clear();
-    if (handler_) {
-      for (const auto& e : events) handler_(e, now);
+    if (in_handler_) {
+      // apply() from inside the handler: reported after the events being handed out.
+      for (auto& e : out.events) deferred_.push_back(std::move(e));
+      out.events.clear();
+      return;
     }
+    in_handler_ = true;
+    pending_.swap(out.events);  // keeps both buffers' capacity
+    while (!pending_.empty()) {
+      for (const auto& e : pending_) {
+        if (handler_) handler_(e, now);
+      }
+      pending_.clear();
+      pending_.swap(deferred_);
+    }
+    in_handler_ = false;
   }
   E engine_;
   EventHandler handler_;
-  Output out_;  // reused by on_frame/on_timer
+  Output out_;                   // reused by on_frame/on_timer and the outermost apply()
+  std::vector<Event> pending_;   // events being handed to the handler
+  std::vector<Event> deferred_;  // events of apply() calls the handler made
+  bool in_handler_ = false;
 };
 
 /// A node made of callbacks, for tests and scripts. send()/set_timer() are public here.

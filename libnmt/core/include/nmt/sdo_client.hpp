@@ -1,0 +1,219 @@
+// The SDO client (CiA 301 §7.2.4: expedited, segmented and block transfer) and SdoClientMux for
+// many servers, nmt::Engine objects (nmt/engine.hpp is the contract) on top of the frame codec
+// (nmt/sdo_frame.hpp). Implemented from public knowledge of CiA 301.
+//
+// Protocol choices where CiA 301 leaves room: the client aborts with 0504 0000 when a response
+// does not come within SdoTransferOptions::timeout; in a block upload it acknowledges when it
+// sees the block's last sequence number or the "no more segments" flag.
+// Limitation of the protocol: SDO frames carry no transaction number. A response that arrives
+// after its transfer ended (a slow server answering after the client's timeout) can be taken
+// for a response of the next transfer on the channel; keep client timeouts above server
+// response times.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "cfg/cob_id.hpp"
+#include "nmt/engine.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/sdo_abort.hpp"
+#include "nmt/sdo_frame.hpp"
+
+namespace nmt {
+
+/// How a transfer went over the bus.
+enum class SdoProtocol : std::uint8_t { Expedited, Segmented, Block };
+
+struct SdoClientConfig {
+  /// client -> server, a CiA 301 COB-ID word (1280h sub 1): bit 29 selects a 29-bit identifier.
+  cfg::CobId request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId);
+  /// server -> client (1280h sub 2).
+  cfg::CobId response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId);
+  std::uint8_t node_id = 0;  ///< the server's node-ID, for reports (0: unknown)
+
+  static SdoClientConfig for_node(std::uint8_t node_id);
+};
+
+enum class SdoMode : std::uint8_t {
+  /// Downloads of 1..4 bytes expedited, others segmented; uploads as the server answers.
+  Auto,
+  /// Downloads segmented even when they would fit expedited (testing); uploads as Auto.
+  Segmented,
+  /// Block transfer; when the server answers the block initiate with abort 0504 0001, the
+  /// transfer is retried once as Auto.
+  Block,
+};
+
+struct SdoTransferOptions {
+  /// Longest wait for each server response; then abort 0504 0000 is sent and the transfer
+  /// ends with Timeout. It runs from when the client hands its frames out; a block download's
+  /// sub-block of up to 127 frames spends about 127 x 120 bit times on the bus first (1.5 s at
+  /// 10 kbit/s), so choose the timeout (or the server's block size) for the bit rate.
+  Duration timeout = std::chrono::milliseconds(1000);
+  SdoMode mode = SdoMode::Auto;
+  /// Block size the client asks for in block uploads, 1..127.
+  std::uint8_t block_size = 127;
+  /// Block upload: protocol switch threshold sent to the server (0: never switch). A server may
+  /// answer with a normal upload when the value has at most this many bytes.
+  std::uint8_t protocol_switch_threshold = 0;
+  /// Block transfers check the CRC when the server supports it.
+  bool crc = true;
+  /// Largest upload accepted; a server sending more is aborted with 0504 0005.
+  std::size_t max_size = std::size_t{16} << 20;
+};
+
+/// The outcome of one transfer.
+struct SdoResult {
+  std::uint32_t id = 0;  ///< the TransferId
+  std::uint8_t node_id = 0;
+  std::uint16_t index = 0;
+  std::uint8_t sub_index = 0;
+  bool upload = false;
+  SdoAbort abort = SdoAbort::None;  ///< None on success
+  /// True when the server sent the abort; false when the client detected the problem (and sent
+  /// the abort frame itself) or on success.
+  bool aborted_by_server = false;
+  SdoProtocol protocol = SdoProtocol::Expedited;  ///< the protocol the transfer ended with
+  bool fell_back = false;          ///< Block mode retried as Auto after abort 0504 0001
+  std::vector<std::uint8_t> data;  ///< upload: the value
+  TimePoint started{0};            ///< time of the first request frame
+  TimePoint finished{0};
+
+  bool ok() const { return abort == SdoAbort::None; }
+};
+
+/// Client side of one SDO channel (one server). Transfers are queued and run one at a time, in
+/// order; use one client per server (or SdoClientMux) to talk to many nodes at once.
+///
+/// An nmt::Engine whose events are the results: every transfer started with download() or
+/// upload() ends with exactly one SdoResult reported into the Output of the call in which it
+/// ended (on_frame, on_timer, cancel, or the starting call itself when it cannot start). That
+/// is the only way results come back: there is no per-transfer callback and no result store, so
+/// a driver's event handler (SimEngineNode, EngineRef) sees every result. A handler may start
+/// the next transfer through the driver's apply().
+class SdoClient {
+ public:
+  using TransferId = std::uint32_t;
+  using Event = SdoResult;
+  using Output = Outbox<SdoResult>;
+
+  explicit SdoClient(SdoClientConfig config);
+
+  /// Starts a download of `data` to (index, sub): when no transfer runs, its first frame is in
+  /// `out` when the call returns; otherwise it is queued behind the running ones.
+  TransferId download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
+                      TimePoint now, Output& out, SdoTransferOptions options = {});
+  /// Starts (or queues) an upload of (index, sub); the value arrives in SdoResult::data.
+  TransferId upload(std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
+                    SdoTransferOptions options = {});
+  /// Ends a transfer with `code` (None is taken as General): a running one sends its abort frame
+  /// into `out` and the next queued one starts; a queued one is removed. Either reports its
+  /// result into `out`. False (nothing done) when `id` is not queued or running.
+  bool cancel(TransferId id, TimePoint now, Output& out, SdoAbort code = SdoAbort::General);
+
+  /// Handles a frame; false when it is not a response for this client.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// Times out the running transfer (abort 0504 0000) when its response is overdue.
+  void on_timer(TimePoint now, Output& out);
+  /// The response timeout of the running transfer; nullopt when idle. Queued transfers start
+  /// when the one before ends, in the same call, so they never wait for a timer.
+  std::optional<TimePoint> next_deadline() const;
+
+  /// True while a transfer runs or is queued.
+  bool busy() const { return active_ != nullptr || !queue_.empty(); }
+  std::size_t queued() const { return queue_.size() + (active_ ? 1 : 0); }
+  const SdoClientConfig& config() const { return config_; }
+
+ private:
+  enum class State : std::uint8_t {
+    InitiateDownload,  // initiate sent (expedited or segmented)
+    DownloadSegment,   // segment sent
+    InitiateUpload,
+    UploadSegment,      // segment request sent
+    BlockDownloadInit,  // block initiate sent
+    BlockDownload,      // sub-block sent, waiting for the acknowledgement
+    BlockDownloadEnd,   // end request sent
+    BlockUploadInit,    // block initiate sent
+    BlockUpload,        // receiving a sub-block
+    BlockUploadEnd,     // waiting for the server's end request
+  };
+  struct Transfer {
+    TransferId id = 0;
+    bool upload = false;
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::vector<std::uint8_t> data;  // download: value; upload: received bytes
+    SdoTransferOptions options;
+    State state = State::InitiateDownload;
+    SdoMode mode = SdoMode::Auto;
+    bool fell_back = false;
+    SdoProtocol protocol = SdoProtocol::Expedited;
+    bool toggle = false;
+    std::size_t offset = 0;           // download: bytes acknowledged; upload: unused
+    std::optional<std::size_t> size;  // upload: indicated size
+    bool crc = false;
+    std::uint8_t block_size = 0;
+    std::uint8_t sent_in_block = 0;  // block download: segments on the wire
+    std::uint8_t ack_seq = 0;        // block upload: last in-order sequence number
+    bool last_received = false;      // block upload: c=1 received in order
+    bool block_has_last = false;     // block download: the sub-block on the wire ends the data
+    std::optional<TimePoint> started;
+    TimePoint deadline{0};
+  };
+
+  void start(Transfer& t, TimePoint now, Output& out);
+  void handle(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out);
+  void handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoint now, Output& out);
+  void aborted(Transfer& t, const sdo::Abort& abort, TimePoint now, Output& out);
+  void block_upload_segment(Transfer& t, const sdo::BlockSegment& f, TimePoint now, Output& out);
+  void send_download_segment(Transfer& t, TimePoint now, Output& out);
+  void send_download_sub_block(Transfer& t, TimePoint now, Output& out);
+  void send(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out);
+  void fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, Output& out);
+  void finish(SdoAbort code, bool by_server, TimePoint now, Output& out);
+  void pump(TimePoint now, Output& out);
+  SdoResult result_of(const Transfer& t, SdoAbort code) const;
+  TransferId enqueue(std::unique_ptr<Transfer> transfer, TimePoint now, Output& out);
+
+  SdoClientConfig config_;
+  TransferId next_id_ = 1;
+  std::unique_ptr<Transfer> active_;
+  std::deque<std::unique_ptr<Transfer>> queue_;
+};
+static_assert(Engine<SdoClient>);
+
+/// Many SdoClients on one bus, one per server node, for transfers to many nodes at once. Frames
+/// are routed by response COB-ID; the deadline is the earliest of all clients'. An nmt::Engine
+/// with the clients' results as its events (SdoResult::node_id says whose); start transfers on
+/// client(n) with the Output of the mux's call.
+class SdoClientMux {
+ public:
+  using Event = SdoResult;
+  using Output = Outbox<SdoResult>;
+
+  /// The client for `node_id` with the pre-defined COB-IDs, created on first use. The
+  /// reference stays valid for the mux's lifetime.
+  SdoClient& client(std::uint8_t node_id);
+  /// Adds (or returns the existing) client for a channel with other COB-IDs, keyed by its
+  /// response identifier.
+  SdoClient& add(SdoClientConfig config);
+
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint now, Output& out);
+  std::optional<TimePoint> next_deadline() const;
+  bool busy() const;
+
+ private:
+  // By the response identifier as a COB-ID word (cfg::CobId::of), so 11- and 29-bit ids differ.
+  std::map<std::uint32_t, std::unique_ptr<SdoClient>> clients_;
+};
+static_assert(Engine<SdoClientMux>);
+
+}  // namespace nmt

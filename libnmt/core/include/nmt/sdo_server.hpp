@@ -1,0 +1,131 @@
+// The SDO server (CiA 301 §7.2.4: expedited, segmented and block transfer), an nmt::Engine
+// (nmt/engine.hpp is the contract) on top of the frame codec (nmt/sdo_frame.hpp). Implemented
+// from public knowledge of CiA 301.
+//
+// Protocol choices where CiA 301 leaves room:
+// - Frames with DLC < 8 are read as if padded with zeros; DLC 0 and RTR frames are ignored.
+// - A request that does not fit the server's state (e.g. a new initiate during a segmented
+//   transfer) is answered with abort 0504 0001 and the server returns to idle. An abort names
+//   the transfer's object, or 0000h sub 00h when the request that caused it carries none.
+// - Block transfer: the server acknowledges when it sees the block's last sequence number or
+//   the "no more segments" flag, with the last sequence number received in order; the client
+//   then resends from the segment after it. Sequence number 0 or above the block size aborts
+//   with 0504 0003.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "cfg/cob_id.hpp"
+#include "cfg/object_address.hpp"
+#include "nmt/engine.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/local_dictionary.hpp"
+#include "nmt/sdo_abort.hpp"
+#include "nmt/sdo_frame.hpp"
+
+namespace nmt {
+
+struct SdoServerConfig {
+  /// client -> server (1200h sub 1), a CiA 301 COB-ID word: bit 29 selects a 29-bit
+  /// identifier; with bit 31 set (or an ill-formed word) the server answers nothing.
+  cfg::CobId request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId);
+  /// server -> client (1200h sub 2).
+  cfg::CobId response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId);
+  /// When false, block requests are answered with abort 0504 0001 (clients fall back).
+  bool block_transfer = true;
+  /// A segmented or block transfer with no request for this long is aborted with 0504 0000.
+  Duration timeout = std::chrono::milliseconds(2000);
+  /// Block size the server asks for in block downloads, 1..127.
+  std::uint8_t block_size = 127;
+  /// Largest download kept in memory (bigger ones abort with 0504 0005 "out of memory").
+  std::size_t max_download_size = std::size_t{16} << 20;
+
+  /// The pre-defined connection set: 0x600 + node_id / 0x580 + node_id.
+  static SdoServerConfig for_node(std::uint8_t node_id);
+  /// COB-IDs from 1200h sub 1/2 of the dictionary when both are present and usable (bit 31
+  /// clear, well formed), else the pre-defined ones for the dictionary's node-ID.
+  static SdoServerConfig from_dictionary(const LocalDictionary& dict);
+};
+
+/// The SDO server of one node, serving one LocalDictionary (which must outlive it). One transfer
+/// at a time, as CiA 301 defines for one SDO channel. An nmt::Engine that reports no events:
+/// the dictionary's hooks see every access. Responses leave in the call that caused them; a
+/// slow device is modelled by wrapping the server (nmt::Delayed in nmt/fault_injection.hpp).
+class SdoServer {
+ public:
+  using Event = NoEvent;
+  using Output = Outbox<NoEvent>;
+
+  SdoServer(LocalDictionary& dict, SdoServerConfig config);
+
+  /// Handles a frame; false (and nothing done) when it is not a request for this server.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// Aborts a segmented or block transfer with 0504 0000 when no request came for
+  /// config().timeout.
+  void on_timer(TimePoint now, Output& out);
+  /// The timeout of the transfer in progress; nullopt when idle.
+  std::optional<TimePoint> next_deadline() const;
+
+  const SdoServerConfig& config() const { return config_; }
+  /// Takes effect for the next request; a transfer in progress is dropped without a frame.
+  void set_config(SdoServerConfig config);
+  /// True while a segmented or block transfer is in progress.
+  bool busy() const;
+  /// Ends a transfer in progress by sending an abort with `code` (e.g. on an NMT reset).
+  void abort(SdoAbort code, TimePoint now, Output& out);
+
+ private:
+  enum class State : std::uint8_t {
+    Idle,
+    DownloadSegment,   // segmented download: waiting for the next segment
+    UploadSegment,     // segmented upload: waiting for the next segment request
+    BlockDownload,     // receiving sub-block segments
+    BlockDownloadEnd,  // all data received: waiting for the end request
+    BlockUploadStart,  // initiate answered: waiting for the start request
+    BlockUpload,       // sub-block sent: waiting for the acknowledgement
+    BlockUploadEnd,    // end sent: waiting for the end response
+  };
+
+  void handle(const sdo::Payload& d, TimePoint now, Output& out);
+  void handle_command(const sdo::ClientFrame& f, TimePoint now, Output& out);
+  void initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now, Output& out);
+  void download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, Output& out);
+  void start_upload(Output& out);
+  void upload_segment(const sdo::UploadSegmentRequest& f, Output& out);
+  void block_download_initiate(const sdo::BlockDownloadInitiateRequest& f, Output& out);
+  void block_download_segment(const sdo::BlockSegment& f, Output& out);
+  void block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now, Output& out);
+  void block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now, Output& out);
+  void block_upload_ack(const sdo::BlockUploadAck& f, Output& out);
+  void send_upload_sub_block(Output& out);
+  template <class Frame>
+  void finish_download(const Frame& confirmation, TimePoint now, Output& out);
+  template <class Frame>
+  void respond(const Frame& f, Output& out);
+  void send_abort(SdoAbort code, Output& out);
+  void reset();
+
+  LocalDictionary* dict_;
+  SdoServerConfig config_;
+  State state_ = State::Idle;
+  cfg::ObjectAddress address_;  // of the transfer in progress (0000h sub 00h when none)
+  bool toggle_ = false;
+  std::optional<std::size_t> size_;  // indicated size (download) / value size (upload)
+  std::vector<std::uint8_t> buffer_;
+  std::size_t offset_ = 0;  // upload: bytes sent and acknowledged
+  // block transfer
+  bool crc_ = false;
+  std::uint8_t block_size_ = 0;
+  std::uint8_t ack_seq_ = 0;        // download: last segment received in order
+  std::uint8_t sent_in_block_ = 0;  // upload: segments in the sub-block on the wire
+  bool last_received_ = false;      // download: segment with c=1 received in order
+  bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
+  std::optional<TimePoint> timeout_at_;
+};
+static_assert(Engine<SdoServer>);
+
+}  // namespace nmt

@@ -1,0 +1,449 @@
+#include "nmt/sdo_client.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <variant>
+
+#include "saturating_time.hpp"
+
+namespace nmt {
+
+SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
+  SdoClientConfig c;
+  c.request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId + node_id);
+  c.response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId + node_id);
+  c.node_id = node_id;
+  return c;
+}
+
+SdoClient::SdoClient(SdoClientConfig config) : config_(config) {}
+
+SdoClient::TransferId SdoClient::enqueue(std::unique_ptr<Transfer> transfer, TimePoint now,
+                                         Output& out) {
+  transfer->id = next_id_++;
+  transfer->mode = transfer->options.mode;
+  const auto id = transfer->id;
+  queue_.push_back(std::move(transfer));
+  pump(now, out);  // engine rule 5: an idle channel starts at once
+  return id;
+}
+
+SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
+                                          std::vector<std::uint8_t> data, TimePoint now,
+                                          Output& out, SdoTransferOptions options) {
+  auto t = std::make_unique<Transfer>();
+  t->index = index;
+  t->sub = sub;
+  t->options = options;
+  t->data = std::move(data);
+  return enqueue(std::move(t), now, out);
+}
+
+SdoClient::TransferId SdoClient::upload(std::uint16_t index, std::uint8_t sub, TimePoint now,
+                                        Output& out, SdoTransferOptions options) {
+  auto t = std::make_unique<Transfer>();
+  t->upload = true;
+  t->index = index;
+  t->sub = sub;
+  t->options = options;
+  return enqueue(std::move(t), now, out);
+}
+
+bool SdoClient::cancel(TransferId id, TimePoint now, Output& out, SdoAbort code) {
+  if (code == SdoAbort::None) code = SdoAbort::General;  // None would read as success
+  if (active_ && active_->id == id) {
+    fail(*active_, code, true, now, out);
+    pump(now, out);
+    return true;
+  }
+  for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+    if ((*it)->id != id) continue;
+    auto t = std::move(*it);
+    queue_.erase(it);
+    auto r = result_of(*t, code);
+    r.started = now;
+    r.finished = now;
+    out.report(std::move(r));
+    return true;
+  }
+  return false;
+}
+
+std::optional<TimePoint> SdoClient::next_deadline() const {
+  if (active_) return active_->deadline;
+  return std::nullopt;
+}
+
+SdoResult SdoClient::result_of(const Transfer& t, SdoAbort code) const {
+  SdoResult r;
+  r.id = t.id;
+  r.node_id = config_.node_id;
+  r.index = t.index;
+  r.sub_index = t.sub;
+  r.upload = t.upload;
+  r.abort = code;
+  r.protocol = t.protocol;
+  r.fell_back = t.fell_back;
+  return r;
+}
+
+void SdoClient::finish(SdoAbort code, bool by_server, TimePoint now, Output& out) {
+  auto t = std::move(active_);
+  auto r = result_of(*t, code);
+  r.aborted_by_server = by_server;
+  if (t->upload && code == SdoAbort::None) r.data = std::move(t->data);
+  r.started = t->started.value_or(now);
+  r.finished = now;
+  out.report(std::move(r));
+}
+
+void SdoClient::fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, Output& out) {
+  if (send_frame)
+    out.send(
+        sdo::make_frame(config_.request_cob_id, sdo::encode(sdo::Abort{{t.index, t.sub}, code})));
+  finish(code, false, now, out);
+}
+
+void SdoClient::send(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out) {
+  out.send(sdo::make_frame(config_.request_cob_id, d));
+  if (!t.started) t.started = now;
+  t.deadline = later(now, t.options.timeout);
+}
+
+void SdoClient::pump(TimePoint now, Output& out) {
+  // The next queued transfer starts as soon as the channel is free, in the same call.
+  while (!active_ && !queue_.empty()) {
+    active_ = std::move(queue_.front());
+    queue_.pop_front();
+    start(*active_, now, out);
+  }
+}
+
+void SdoClient::on_timer(TimePoint now, Output& out) {
+  // CiA 301 abort codes: the client aborts with 0504 0000 when the server does not answer.
+  if (active_ && now >= active_->deadline) fail(*active_, SdoAbort::Timeout, true, now, out);
+  pump(now, out);
+}
+
+bool SdoClient::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  if (!sdo::on_channel(frame, config_.response_cob_id)) return false;
+  auto d = sdo::sdo_payload(frame);
+  if (!d) return false;
+  if (active_) handle(*active_, *d, now, out);
+  pump(now, out);
+  return true;
+}
+
+void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
+  t.toggle = false;
+  t.offset = 0;
+  t.size.reset();
+  t.options.block_size = sdo::clamp_block_size(t.options.block_size);
+  const cfg::ObjectAddress address{t.index, t.sub};
+  if (!t.upload) {
+    const auto size = t.data.size();
+    if (size > std::numeric_limits<std::uint32_t>::max()) {
+      return finish(SdoAbort::OutOfMemory, false, now, out);  // cannot be described on the bus
+    }
+    if (t.mode == SdoMode::Block) {
+      t.protocol = SdoProtocol::Block;
+      t.state = State::BlockDownloadInit;
+      return send(t,
+                  sdo::encode(sdo::BlockDownloadInitiateRequest{address, t.options.crc,
+                                                                static_cast<std::uint32_t>(size)}),
+                  now, out);
+    }
+    sdo::InitiateDownloadRequest r;
+    r.address = address;
+    r.size = static_cast<std::uint32_t>(size);
+    t.state = State::InitiateDownload;
+    if (t.mode == SdoMode::Auto && size >= 1 && size <= 4) {
+      // CiA 301 download initiate: e=1, s=1, n = 4 - size.
+      t.protocol = SdoProtocol::Expedited;
+      r.expedited = true;
+      std::copy(t.data.begin(), t.data.end(), r.data.begin());
+    } else {
+      t.protocol = SdoProtocol::Segmented;
+    }
+    return send(t, sdo::encode(r), now, out);
+  }
+  t.data.clear();
+  if (t.mode == SdoMode::Block) {
+    t.protocol = SdoProtocol::Block;
+    t.state = State::BlockUploadInit;
+    return send(
+        t,
+        sdo::encode(sdo::BlockUploadInitiateRequest{address, t.options.crc, t.options.block_size,
+                                                    t.options.protocol_switch_threshold}),
+        now, out);
+  }
+  t.protocol = SdoProtocol::Segmented;  // until the server answers expedited
+  t.state = State::InitiateUpload;
+  send(t, sdo::encode(sdo::InitiateUploadRequest{address}), now, out);
+}
+
+void SdoClient::send_download_segment(Transfer& t, TimePoint now, Output& out) {
+  const std::size_t len = std::min(sdo::kSegmentBytes, t.data.size() - t.offset);
+  sdo::DownloadSegmentRequest r;
+  r.toggle = t.toggle;
+  r.last = t.offset + len == t.data.size();
+  r.size = static_cast<std::uint8_t>(len);
+  std::copy_n(t.data.begin() + static_cast<std::ptrdiff_t>(t.offset), len, r.data.begin());
+  t.state = State::DownloadSegment;
+  send(t, sdo::encode(r), now, out);
+}
+
+void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, Output& out) {
+  std::size_t pos = t.offset;
+  t.sent_in_block = 0;
+  t.block_has_last = false;
+  for (std::uint8_t seq = 1; seq <= t.block_size; ++seq) {
+    const std::size_t len = std::min(sdo::kSegmentBytes, t.data.size() - pos);
+    sdo::BlockSegment segment;
+    segment.last = pos + len == t.data.size();
+    segment.seq = seq;
+    std::copy_n(t.data.begin() + static_cast<std::ptrdiff_t>(pos), len, segment.data.begin());
+    send(t, sdo::encode(segment), now, out);
+    pos += len;
+    t.sent_in_block = seq;
+    if (segment.last) {
+      t.block_has_last = true;
+      break;
+    }
+  }
+  t.state = State::BlockDownload;
+}
+
+void SdoClient::handle(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out) {
+  if (t.state == State::BlockUpload) {
+    // Inside a sub-block every frame is a segment, except an abort.
+    const auto f = sdo::parse_sub_block_frame(d);
+    if (const auto* segment = std::get_if<sdo::BlockSegment>(&f)) {
+      return block_upload_segment(t, *segment, now, out);
+    }
+    return aborted(t, std::get<sdo::Abort>(f), now, out);
+  }
+  const auto f = sdo::parse_server_frame(d);
+  if (!f) return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+  if (const auto* a = std::get_if<sdo::Abort>(&*f)) return aborted(t, *a, now, out);
+  handle_response(t, *f, now, out);
+}
+
+void SdoClient::aborted(Transfer& t, const sdo::Abort& abort, TimePoint now, Output& out) {
+  auto code = abort.code;
+  if (code == SdoAbort::None) code = SdoAbort::General;  // 0 would read as success
+  const bool block_init = t.state == State::BlockDownloadInit || t.state == State::BlockUploadInit;
+  if (block_init && code == SdoAbort::InvalidCommandSpecifier && !t.fell_back) {
+    // The server does not do block transfer: retry with expedited/segmented.
+    t.fell_back = true;
+    t.mode = SdoMode::Auto;
+    return start(t, now, out);
+  }
+  finish(code, true, now, out);
+}
+
+void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoint now,
+                                Output& out) {
+  const cfg::ObjectAddress address{t.index, t.sub};
+  switch (t.state) {
+    case State::InitiateDownload: {
+      const auto* r = std::get_if<sdo::InitiateDownloadResponse>(&f);
+      if (r == nullptr) break;
+      if (r->address != address) return fail(t, SdoAbort::General, true, now, out);
+      if (t.protocol == SdoProtocol::Expedited) return finish(SdoAbort::None, false, now, out);
+      return send_download_segment(t, now, out);
+    }
+
+    case State::DownloadSegment: {
+      const auto* r = std::get_if<sdo::DownloadSegmentResponse>(&f);
+      if (r == nullptr) break;
+      if (r->toggle != t.toggle) return fail(t, SdoAbort::ToggleBitNotAlternated, true, now, out);
+      t.offset += std::min(sdo::kSegmentBytes, t.data.size() - t.offset);
+      if (t.offset == t.data.size()) return finish(SdoAbort::None, false, now, out);
+      t.toggle = !t.toggle;
+      return send_download_segment(t, now, out);
+    }
+
+    case State::BlockUploadInit:
+      if (const auto* r = std::get_if<sdo::BlockUploadInitiateResponse>(&f)) {
+        if (r->address != address) return fail(t, SdoAbort::General, true, now, out);
+        t.crc = t.options.crc && r->crc;
+        if (r->size) {
+          t.size = *r->size;
+          if (*t.size > t.options.max_size) return fail(t, SdoAbort::OutOfMemory, true, now, out);
+        }
+        t.block_size = t.options.block_size;
+        t.ack_seq = 0;
+        t.last_received = false;
+        t.state = State::BlockUpload;
+        return send(t, sdo::encode(sdo::BlockUploadStart{}), now, out);
+      }
+      // The server switched protocols (protocol switch threshold): a normal upload response.
+      if (std::holds_alternative<sdo::InitiateUploadResponse>(f)) {
+        t.protocol = SdoProtocol::Segmented;
+      }
+      [[fallthrough]];
+    case State::InitiateUpload: {
+      const auto* r = std::get_if<sdo::InitiateUploadResponse>(&f);
+      if (r == nullptr) break;
+      if (r->address != address) return fail(t, SdoAbort::General, true, now, out);
+      if (r->expedited) {
+        const std::size_t size = r->size.value_or(4);
+        t.data.assign(r->data.begin(), r->data.begin() + static_cast<std::ptrdiff_t>(size));
+        t.protocol = SdoProtocol::Expedited;
+        return finish(SdoAbort::None, false, now, out);
+      }
+      if (r->size) {
+        t.size = *r->size;
+        if (*t.size > t.options.max_size) return fail(t, SdoAbort::OutOfMemory, true, now, out);
+        t.data.reserve(std::min<std::size_t>(*t.size, 1 << 16));
+      }
+      t.protocol = SdoProtocol::Segmented;
+      t.toggle = false;
+      t.state = State::UploadSegment;
+      return send(t, sdo::encode(sdo::UploadSegmentRequest{false}), now, out);
+    }
+
+    case State::UploadSegment: {
+      const auto* r = std::get_if<sdo::UploadSegmentResponse>(&f);
+      if (r == nullptr) break;
+      if (r->toggle != t.toggle) return fail(t, SdoAbort::ToggleBitNotAlternated, true, now, out);
+      if (t.data.size() + r->size > t.options.max_size) {
+        return fail(t, SdoAbort::OutOfMemory, true, now, out);
+      }
+      t.data.insert(t.data.end(), r->data.begin(), r->data.begin() + r->size);
+      if (t.size && t.data.size() > *t.size) {
+        return fail(t, SdoAbort::LengthMismatch, true, now, out);
+      }
+      if (r->last) {
+        if (t.size && t.data.size() != *t.size) {
+          return fail(t, SdoAbort::LengthMismatch, true, now, out);
+        }
+        return finish(SdoAbort::None, false, now, out);
+      }
+      t.toggle = !t.toggle;
+      return send(t, sdo::encode(sdo::UploadSegmentRequest{t.toggle}), now, out);
+    }
+
+    case State::BlockDownloadInit: {
+      const auto* r = std::get_if<sdo::BlockDownloadInitiateResponse>(&f);
+      if (r == nullptr) break;
+      if (r->address != address) return fail(t, SdoAbort::General, true, now, out);
+      if (!sdo::valid_block_size(r->block_size)) {
+        return fail(t, SdoAbort::InvalidBlockSize, true, now, out);
+      }
+      t.crc = t.options.crc && r->crc;
+      t.block_size = r->block_size;
+      t.offset = 0;
+      return send_download_sub_block(t, now, out);
+    }
+
+    case State::BlockDownload: {
+      const auto* r = std::get_if<sdo::BlockDownloadAck>(&f);
+      if (r == nullptr) break;
+      if (r->ack_seq > t.sent_in_block) {
+        return fail(t, SdoAbort::InvalidSequenceNumber, true, now, out);
+      }
+      if (!sdo::valid_block_size(r->block_size)) {
+        return fail(t, SdoAbort::InvalidBlockSize, true, now, out);
+      }
+      t.offset = std::min(t.data.size(), t.offset + r->ack_seq * sdo::kSegmentBytes);
+      t.block_size = r->block_size;
+      if (r->ack_seq == t.sent_in_block && t.block_has_last) {
+        // CiA 301 end block download: n and the CRC over the whole value.
+        const std::uint16_t crc = t.crc ? sdo_block_crc(t.data) : 0;
+        t.state = State::BlockDownloadEnd;
+        return send(t,
+                    sdo::encode(sdo::BlockDownloadEndRequest{
+                        sdo::last_segment_empty_bytes(t.data.size()), crc}),
+                    now, out);
+      }
+      // Resend from the segment after the last one acknowledged, numbering from 1 again.
+      return send_download_sub_block(t, now, out);
+    }
+
+    case State::BlockDownloadEnd:
+      if (!std::holds_alternative<sdo::BlockDownloadEndResponse>(f)) break;
+      return finish(SdoAbort::None, false, now, out);
+
+    case State::BlockUploadEnd: {
+      const auto* r = std::get_if<sdo::BlockUploadEndRequest>(&f);
+      if (r == nullptr) break;
+      if (r->empty_bytes > t.data.size()) return fail(t, SdoAbort::LengthMismatch, true, now, out);
+      t.data.resize(t.data.size() - r->empty_bytes);
+      if (t.size && t.data.size() != *t.size) {
+        return fail(t, SdoAbort::LengthMismatch, true, now, out);
+      }
+      if (t.crc && sdo_block_crc(t.data) != r->crc) {
+        return fail(t, SdoAbort::CrcError, true, now, out);
+      }
+      out.send(sdo::make_frame(config_.request_cob_id, sdo::encode(sdo::BlockUploadEndResponse{})));
+      return finish(SdoAbort::None, false, now, out);
+    }
+
+    case State::BlockUpload:  // handled in handle()
+      break;
+  }
+  fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
+}
+
+void SdoClient::block_upload_segment(Transfer& t, const sdo::BlockSegment& f, TimePoint now,
+                                     Output& out) {
+  if (f.seq == 0 || f.seq > t.block_size) {
+    return fail(t, SdoAbort::InvalidSequenceNumber, true, now, out);
+  }
+  if (f.seq == t.ack_seq + 1 && !t.last_received) {
+    if (t.data.size() + sdo::kSegmentBytes > t.options.max_size + sdo::kSegmentBytes) {
+      return fail(t, SdoAbort::OutOfMemory, true, now, out);
+    }
+    t.data.insert(t.data.end(), f.data.begin(), f.data.end());
+    t.ack_seq = f.seq;
+    t.last_received = f.last;
+  }
+  if (f.last || f.seq == t.block_size) {
+    const sdo::BlockUploadAck ack{t.ack_seq, t.options.block_size};
+    t.block_size = t.options.block_size;
+    t.ack_seq = 0;
+    if (t.last_received) t.state = State::BlockUploadEnd;
+    return send(t, sdo::encode(ack), now, out);
+  }
+  t.deadline = later(now, t.options.timeout);  // segments keep the transfer alive
+}
+
+// ===================================================================================== mux ==
+
+SdoClient& SdoClientMux::client(std::uint8_t node_id) {
+  return add(SdoClientConfig::for_node(node_id));
+}
+
+SdoClient& SdoClientMux::add(SdoClientConfig config) {
+  auto& slot = clients_[cfg::CobId::of(config.response_cob_id.can_id()).word()];
+  if (!slot) slot = std::make_unique<SdoClient>(config);
+  return *slot;
+}
+
+bool SdoClientMux::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  auto it = clients_.find(cfg::CobId::of({frame.id, frame.extended}).word());
+  return it != clients_.end() && it->second->on_frame(frame, now, out);
+}
+
+void SdoClientMux::on_timer(TimePoint now, Output& out) {
+  for (auto& [cob, c] : clients_) {
+    if (auto t = c->next_deadline(); t && *t <= now) c->on_timer(now, out);
+  }
+}
+
+std::optional<TimePoint> SdoClientMux::next_deadline() const {
+  std::optional<TimePoint> best;
+  for (const auto& [cob, c] : clients_) {
+    if (auto t = c->next_deadline(); t && (!best || *t < *best)) best = t;
+  }
+  return best;
+}
+
+bool SdoClientMux::busy() const {
+  return std::any_of(clients_.begin(), clients_.end(),
+                     [](const auto& kv) { return kv.second->busy(); });
+}
+
+}  // namespace nmt

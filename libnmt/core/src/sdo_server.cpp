@@ -1,0 +1,385 @@
+#include "nmt/sdo_server.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <variant>
+
+#include "cfg/object_index.hpp"
+#include "saturating_time.hpp"
+
+namespace nmt {
+
+SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
+  SdoServerConfig c;
+  c.request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId + node_id);
+  c.response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId + node_id);
+  return c;
+}
+
+SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
+  auto c = for_node(dict.node_id());
+  // CiA 301 object 1200h sub 1/2: the COB-IDs of the default SDO server channel.
+  auto cob = [&](std::uint8_t sub) -> std::optional<cfg::CobId> {
+    const auto word = dict.get_unsigned(cfg::object::kSdoServerFirst, sub);
+    if (!word || *word > std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+    const auto id = cfg::CobId::from_word(static_cast<std::uint32_t>(*word));
+    return cfg::usable_can_id(id) ? std::optional(id) : std::nullopt;
+  };
+  auto rx = cob(1);
+  auto tx = cob(2);
+  if (rx && tx) {
+    c.request_cob_id = *rx;
+    c.response_cob_id = *tx;
+  }
+  return c;
+}
+
+SdoServer::SdoServer(LocalDictionary& dict, SdoServerConfig config)
+    : dict_(&dict), config_(config) {
+  config_.block_size = sdo::clamp_block_size(config_.block_size);
+}
+
+void SdoServer::set_config(SdoServerConfig config) {
+  config_ = config;
+  config_.block_size = sdo::clamp_block_size(config_.block_size);
+  reset();
+}
+
+bool SdoServer::busy() const {
+  return state_ != State::Idle;
+}
+
+void SdoServer::reset() {
+  state_ = State::Idle;
+  buffer_.clear();
+  buffer_.shrink_to_fit();
+  size_.reset();
+  offset_ = 0;
+  toggle_ = false;
+  crc_ = false;
+  ack_seq_ = 0;
+  sent_in_block_ = 0;
+  last_received_ = false;
+  block_has_last_ = false;
+  timeout_at_.reset();
+}
+
+std::optional<TimePoint> SdoServer::next_deadline() const {
+  return timeout_at_;
+}
+
+bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  // A channel without a usable response COB-ID cannot answer: it serves nothing.
+  if (!sdo::on_channel(frame, config_.request_cob_id) ||
+      !cfg::usable_can_id(config_.response_cob_id)) {
+    return false;
+  }
+  auto d = sdo::sdo_payload(frame);
+  if (!d) return false;
+  handle(*d, now, out);
+  timeout_at_ = state_ == State::Idle ? std::nullopt : std::optional(later(now, config_.timeout));
+  return true;
+}
+
+void SdoServer::on_timer(TimePoint now, Output& out) {
+  if (timeout_at_ && now >= *timeout_at_) send_abort(SdoAbort::Timeout, out);
+}
+
+void SdoServer::abort(SdoAbort code, TimePoint /*now*/, Output& out) {
+  if (state_ == State::Idle) return;
+  send_abort(code, out);
+}
+
+template <class Frame>
+void SdoServer::respond(const Frame& f, Output& out) {
+  out.send(sdo::make_frame(config_.response_cob_id, sdo::encode(f)));
+}
+
+void SdoServer::send_abort(SdoAbort code, Output& out) {
+  out.send(sdo::make_frame(config_.response_cob_id, sdo::encode(sdo::Abort{address_, code})));
+  reset();
+}
+
+void SdoServer::handle(const sdo::Payload& d, TimePoint now, Output& out) {
+  if (state_ == State::BlockDownload) {
+    // Inside a sub-block every frame is a segment, except an abort.
+    const auto f = sdo::parse_sub_block_frame(d);
+    if (const auto* segment = std::get_if<sdo::BlockSegment>(&f)) {
+      return block_download_segment(*segment, out);
+    }
+    return reset();  // CiA 301 SDO abort transfer protocol: not confirmed
+  }
+  const auto f = sdo::parse_client_frame(d);
+  if (f && std::holds_alternative<sdo::Abort>(*f)) return reset();
+  // A transfer starts with an initiate request, which names the object; an abort answering
+  // any other frame in idle names 0000h sub 00h.
+  if (state_ == State::Idle) address_ = {};
+  if (!f) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
+  handle_command(*f, now, out);
+}
+
+void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output& out) {
+  switch (state_) {
+    case State::Idle:
+      if (const auto* r = std::get_if<sdo::InitiateDownloadRequest>(&f)) {
+        address_ = r->address;
+        return initiate_download(*r, now, out);
+      }
+      if (const auto* r = std::get_if<sdo::InitiateUploadRequest>(&f)) {
+        address_ = r->address;
+        if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now);
+            code != SdoAbort::None) {
+          return send_abort(code, out);
+        }
+        return start_upload(out);
+      }
+      // Without block transfer the block commands are unknown to this server: clients fall
+      // back. (Other block frames can only come in block states, which need them on.)
+      if (const auto* r = std::get_if<sdo::BlockDownloadInitiateRequest>(&f)) {
+        address_ = r->address;
+        if (!config_.block_transfer) break;
+        return block_download_initiate(*r, out);
+      }
+      if (const auto* r = std::get_if<sdo::BlockUploadInitiateRequest>(&f)) {
+        address_ = r->address;
+        if (!config_.block_transfer) break;
+        return block_upload_initiate(*r, now, out);
+      }
+      break;
+    case State::DownloadSegment:
+      if (const auto* r = std::get_if<sdo::DownloadSegmentRequest>(&f)) {
+        return download_segment(*r, now, out);
+      }
+      break;
+    case State::UploadSegment:
+      if (const auto* r = std::get_if<sdo::UploadSegmentRequest>(&f)) {
+        return upload_segment(*r, out);
+      }
+      break;
+    case State::BlockDownload:  // handled in handle()
+      break;
+    case State::BlockDownloadEnd:
+      if (const auto* r = std::get_if<sdo::BlockDownloadEndRequest>(&f)) {
+        return block_download_end(*r, now, out);
+      }
+      break;
+    case State::BlockUploadStart:
+      if (std::holds_alternative<sdo::BlockUploadStart>(f)) {
+        state_ = State::BlockUpload;
+        return send_upload_sub_block(out);
+      }
+      break;
+    case State::BlockUpload:
+      if (const auto* r = std::get_if<sdo::BlockUploadAck>(&f)) return block_upload_ack(*r, out);
+      break;
+    case State::BlockUploadEnd:
+      if (std::holds_alternative<sdo::BlockUploadEndResponse>(f)) {
+        return reset();  // the client confirmed the end: done
+      }
+      break;
+  }
+  send_abort(SdoAbort::InvalidCommandSpecifier, out);
+}
+
+// CiA 301 §7.2.4.3, SDO download initiate protocol: expedited or segmented.
+void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now,
+                                  Output& out) {
+  const auto [index, sub] = address_;
+  if (f.expedited) {
+    std::size_t size = 4;
+    if (f.size) {
+      size = *f.size;
+    } else if (const auto* e = dict_->entry(index, sub);
+               e && e->fixed_size() && *e->fixed_size() <= 4) {
+      size = *e->fixed_size();  // size not indicated: the object's own size
+    }
+    const auto code = dict_->write(index, sub, std::span(f.data).first(size), now);
+    if (code != SdoAbort::None) return send_abort(code, out);
+    respond(sdo::InitiateDownloadResponse{address_}, out);
+    return;
+  }
+  if (f.size) size_ = *f.size;
+  if (auto code = dict_->check_write(index, sub, size_); code != SdoAbort::None) {
+    return send_abort(code, out);
+  }
+  if (size_ && *size_ > config_.max_download_size) return send_abort(SdoAbort::OutOfMemory, out);
+  buffer_.clear();
+  buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 16));
+  toggle_ = false;
+  state_ = State::DownloadSegment;
+  respond(sdo::InitiateDownloadResponse{address_}, out);
+}
+
+// CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
+void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, Output& out) {
+  if (f.toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
+  if (size_ && buffer_.size() + f.size > *size_) return send_abort(SdoAbort::LengthMismatch, out);
+  if (buffer_.size() + f.size > config_.max_download_size) {
+    return send_abort(SdoAbort::OutOfMemory, out);
+  }
+  buffer_.insert(buffer_.end(), f.data.begin(), f.data.begin() + f.size);
+  const sdo::DownloadSegmentResponse response{f.toggle};
+  // The response to the last segment confirms the write, so it is sent only after it.
+  if (f.last) return finish_download(response, now, out);
+  toggle_ = !toggle_;
+  respond(response, out);
+}
+
+template <class Frame>
+void SdoServer::finish_download(const Frame& confirmation, TimePoint now, Output& out) {
+  if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
+  const auto code = dict_->write(address_.index, address_.sub_index, buffer_, now);
+  if (code != SdoAbort::None) return send_abort(code, out);
+  respond(confirmation, out);
+  reset();
+}
+
+// CiA 301 §7.2.4.3, SDO upload initiate protocol: the response for the value in buffer_; values
+// of 1..4 bytes go expedited.
+void SdoServer::start_upload(Output& out) {
+  sdo::InitiateUploadResponse r;
+  r.address = address_;
+  if (!buffer_.empty() && buffer_.size() <= 4) {
+    r.expedited = true;
+    r.size = static_cast<std::uint32_t>(buffer_.size());
+    std::copy(buffer_.begin(), buffer_.end(), r.data.begin());
+    respond(r, out);
+    reset();
+    return;
+  }
+  if (buffer_.size() > std::numeric_limits<std::uint32_t>::max()) {
+    return send_abort(SdoAbort::OutOfMemory, out);
+  }
+  r.size = static_cast<std::uint32_t>(buffer_.size());  // segmented, size indicated
+  offset_ = 0;
+  toggle_ = false;
+  state_ = State::UploadSegment;
+  respond(r, out);
+}
+
+void SdoServer::upload_segment(const sdo::UploadSegmentRequest& f, Output& out) {
+  if (f.toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
+  const std::size_t len = std::min(sdo::kSegmentBytes, buffer_.size() - offset_);
+  sdo::UploadSegmentResponse r;
+  r.toggle = f.toggle;
+  r.last = offset_ + len == buffer_.size();
+  r.size = static_cast<std::uint8_t>(len);
+  std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(offset_), len, r.data.begin());
+  respond(r, out);
+  offset_ += len;
+  toggle_ = !toggle_;
+  if (r.last) reset();
+}
+
+// CiA 301 §7.2.4.3, SDO block download protocol: initiate.
+void SdoServer::block_download_initiate(const sdo::BlockDownloadInitiateRequest& f, Output& out) {
+  crc_ = f.crc;
+  if (f.size) size_ = *f.size;
+  if (auto code = dict_->check_write(address_.index, address_.sub_index, size_);
+      code != SdoAbort::None) {
+    return send_abort(code, out);
+  }
+  if (size_ && *size_ > config_.max_download_size) return send_abort(SdoAbort::OutOfMemory, out);
+  buffer_.clear();
+  buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 20));
+  block_size_ = config_.block_size;
+  ack_seq_ = 0;
+  last_received_ = false;
+  state_ = State::BlockDownload;
+  respond(sdo::BlockDownloadInitiateResponse{address_, true, block_size_}, out);  // sc: CRC
+}
+
+void SdoServer::block_download_segment(const sdo::BlockSegment& f, Output& out) {
+  if (f.seq == 0 || f.seq > block_size_) return send_abort(SdoAbort::InvalidSequenceNumber, out);
+  // Segments after a lost one are ignored; the acknowledgement names the last one received in
+  // order and the client resends from there (CiA 301 block download sub-block).
+  if (f.seq == ack_seq_ + 1 && !last_received_) {
+    // Segments carry 7 bytes each, the last one padded: never more than the size needs.
+    const std::size_t limit = size_ ? *size_ : config_.max_download_size;
+    const std::size_t segments =
+        std::max<std::size_t>(1, (limit + sdo::kSegmentBytes - 1) / sdo::kSegmentBytes);
+    if (buffer_.size() + sdo::kSegmentBytes > segments * sdo::kSegmentBytes) {
+      return send_abort(size_ ? SdoAbort::LengthMismatch : SdoAbort::OutOfMemory, out);
+    }
+    buffer_.insert(buffer_.end(), f.data.begin(), f.data.end());
+    ack_seq_ = f.seq;
+    last_received_ = f.last;
+  }
+  if (f.last || f.seq == block_size_) {
+    respond(sdo::BlockDownloadAck{ack_seq_, block_size_}, out);
+    ack_seq_ = 0;
+    if (last_received_) state_ = State::BlockDownloadEnd;
+  }
+}
+
+// CiA 301 §7.2.4.3, SDO block download protocol: the end request carries n (bytes of the last
+// segment without data) and the CRC of the whole value.
+void SdoServer::block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now,
+                                   Output& out) {
+  if (f.empty_bytes > buffer_.size()) return send_abort(SdoAbort::LengthMismatch, out);
+  buffer_.resize(buffer_.size() - f.empty_bytes);
+  if (crc_ && sdo_block_crc(buffer_) != f.crc) return send_abort(SdoAbort::CrcError, out);
+  finish_download(sdo::BlockDownloadEndResponse{}, now, out);
+}
+
+// CiA 301 §7.2.4.3, SDO block upload protocol: initiate.
+void SdoServer::block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now,
+                                      Output& out) {
+  if (!sdo::valid_block_size(f.block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
+  if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now);
+      code != SdoAbort::None) {
+    return send_abort(code, out);
+  }
+  // Protocol switch threshold: small values may go by the normal upload protocol.
+  if (f.protocol_switch_threshold != 0 && buffer_.size() <= f.protocol_switch_threshold) {
+    return start_upload(out);
+  }
+  if (buffer_.size() > std::numeric_limits<std::uint32_t>::max()) {
+    return send_abort(SdoAbort::OutOfMemory, out);
+  }
+  crc_ = f.crc;
+  block_size_ = f.block_size;
+  offset_ = 0;
+  state_ = State::BlockUploadStart;
+  // sc: this server sends a CRC; s: size indicated.
+  respond(
+      sdo::BlockUploadInitiateResponse{address_, true, static_cast<std::uint32_t>(buffer_.size())},
+      out);
+}
+
+void SdoServer::block_upload_ack(const sdo::BlockUploadAck& f, Output& out) {
+  if (f.ack_seq > sent_in_block_) return send_abort(SdoAbort::InvalidSequenceNumber, out);
+  if (!sdo::valid_block_size(f.block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
+  const bool all_acknowledged = f.ack_seq == sent_in_block_;
+  offset_ = std::min(buffer_.size(), offset_ + f.ack_seq * sdo::kSegmentBytes);
+  block_size_ = f.block_size;
+  if (all_acknowledged && block_has_last_) {
+    const std::uint16_t crc = crc_ ? sdo_block_crc(buffer_) : 0;
+    state_ = State::BlockUploadEnd;
+    respond(sdo::BlockUploadEndRequest{sdo::last_segment_empty_bytes(buffer_.size()), crc}, out);
+    return;
+  }
+  send_upload_sub_block(out);
+}
+
+void SdoServer::send_upload_sub_block(Output& out) {
+  std::size_t pos = offset_;
+  sent_in_block_ = 0;
+  block_has_last_ = false;
+  for (std::uint8_t seq = 1; seq <= block_size_; ++seq) {
+    const std::size_t len = std::min(sdo::kSegmentBytes, buffer_.size() - pos);
+    sdo::BlockSegment segment;
+    segment.last = pos + len == buffer_.size();
+    segment.seq = seq;
+    std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(pos), len, segment.data.begin());
+    out.send(sdo::make_frame(config_.response_cob_id, sdo::encode(segment)));
+    pos += len;
+    sent_in_block_ = seq;
+    if (segment.last) {
+      block_has_last_ = true;
+      break;
+    }
+  }
+}
+
+}  // namespace nmt

@@ -1,0 +1,112 @@
+// EngineRef, the event-loop driver of any nmt::Engine (nmt/engine.hpp): frames out at once,
+// events to the handler, apply() from outside and from inside the handler. A fake bus with a
+// fake clock makes the order exact.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cfg/hex.hpp"
+#include "nmt/bus_event_loop.hpp"
+
+namespace nmt {
+namespace {
+
+class FakeBus final : public Bus {
+ public:
+  cfg::Status send(const CanFrame& frame) override {
+    if (fail_sends) return cfg::Error{"transmit queue full"};
+    sent.push_back(to_candump(frame));
+    return {};
+  }
+  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override {
+    now += timeout;
+    return std::optional<ReceivedFrame>{};
+  }
+  std::string url() const override { return "fake:"; }
+
+  TimePoint now{0};
+  bool fail_sends = false;
+  std::vector<std::string> sent;
+};
+
+// Sends 200#xx through its API; answers 200#xx with 201#xx and reports xx.
+struct Echo {
+  using Event = int;
+  using Output = Outbox<int>;
+  bool on_frame(const CanFrame& f, TimePoint /*now*/, Output& out) {
+    if (f.id != 0x200 || f.dlc == 0) return false;
+    out.send(*from_candump("201#" + cfg::hex_digits(f.data[0], 2)));
+    out.report(f.data[0]);
+    return true;
+  }
+  void on_timer(TimePoint /*now*/, Output& /*out*/) {}
+  std::optional<TimePoint> next_deadline() const { return std::nullopt; }
+  int say(std::uint8_t b, TimePoint /*now*/, Output& out) {
+    out.send(*from_candump("200#" + cfg::hex_digits(b, 2)));
+    return b;
+  }
+};
+
+TEST(EngineRef, ApplySendsAtOnceAndTheLoopsOtherEnginesHearIt) {
+  FakeBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  Echo a;
+  Echo b;
+  std::vector<int> heard_by_b;
+  EngineRef ref_a(a);
+  EngineRef ref_b(b, [&](const int& e, TimePoint) { heard_by_b.push_back(e); });
+  loop.add(ref_a);
+  loop.add(ref_b);
+  const int r =
+      ref_a.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(5, now, out); });
+  EXPECT_EQ(r, 5);
+  // No run() in between: the frame is on the bus, b answered it through the loop's echo.
+  EXPECT_EQ(bus.sent, (std::vector<std::string>{"200#05", "201#05"}));
+  EXPECT_EQ(heard_by_b, std::vector<int>{5});
+}
+
+TEST(EngineRef, TheEventHandlerMayApply) {
+  FakeBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  Echo a;
+  Echo b;
+  EngineRef ref_a(a);
+  EngineRef<Echo> ref_b(b);
+  ref_b.set_event_handler([&](const int& e, TimePoint) {
+    if (e == 1)
+      ref_b.apply([](Echo& x, TimePoint now, Echo::Output& out) { return x.say(2, now, out); });
+  });
+  loop.add(ref_a);
+  loop.add(ref_b);
+  ref_a.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(1, now, out); });
+  // b answers 1, its handler says 2, a answers 2: every frame in the order it was sent.
+  EXPECT_EQ(bus.sent, (std::vector<std::string>{"200#01", "201#01", "200#02", "201#02"}));
+}
+
+TEST(EngineRef, ApplyBeforeAddIsAProgrammingError) {
+  Echo a;
+  EngineRef ref(a);
+  EXPECT_THROW(
+      ref.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(1, now, out); }),
+      std::logic_error);
+}
+
+TEST(EngineRef, AFrameTheBusRefusesInApplyEndsTheNextRun) {
+  FakeBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  Echo a;
+  EngineRef ref(a);
+  loop.add(ref);
+  bus.fail_sends = true;
+  ref.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(1, now, out); });
+  auto status = loop.run_for(std::chrono::milliseconds(10));
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.error().message.find("200#01"), std::string::npos) << status.error().message;
+  EXPECT_NE(status.error().message.find("transmit queue full"), std::string::npos);
+  EXPECT_TRUE(loop.run_for(std::chrono::milliseconds(10)).ok());  // reported once
+}
+
+}  // namespace
+}  // namespace nmt
