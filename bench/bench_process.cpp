@@ -112,7 +112,7 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--runs" && i + 1 < argc) {
-      runs = std::max(1, std::atoi(argv[++i]));
+      runs = std::max(1, static_cast<int>(std::strtol(argv[++i], nullptr, 10)));
     } else if (a == "--baseline" && i + 1 < argc) {
       baseline = argv[++i];
     } else {
