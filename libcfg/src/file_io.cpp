@@ -61,7 +61,7 @@ Result<FileText> read_file(int fd) {
   // regular file that could not be mapped is read in one piece (the +1 lets the read that sees
   // end of file fit without growing).
   std::string text(
-      regular && st.st_size > 0 ? static_cast<std::size_t>(st.st_size) + 1 : std::size_t{64 * 1024},
+      regular && st.st_size > 0 ? static_cast<std::size_t>(st.st_size) + 1 : std::size_t{64} * 1024,
       '\0');
   std::size_t used = 0;
   for (;;) {

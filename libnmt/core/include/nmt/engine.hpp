@@ -25,7 +25,9 @@
 //    "as soon as possible". Any call may change it, so drivers read it after every call.
 // 5. Calls of the engine's own API that start work (an SDO transfer, an emergency, a state
 //    change) take `TimePoint now, Output& out` too and put their first frames into `out` at
-//    once: nothing started through the API waits for a timer to reach the bus.
+//    once: nothing started through the API waits for a timer to reach the bus. An engine that
+//    models a processing step may instead make the work due at `now` (a slave's boot-up ends
+//    its initialisation from the next on_timer); rule 4 makes drivers run it in the same instant.
 // 6. Engines keep no reference to `out` or to a frame after a call returns; they only append.
 // 7. Engines that contain engines (the slave node, the master) forward frames and time to them
 //    and report their parts' events as their own event type. Test faults (latency, loss,
