@@ -2,8 +2,9 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <ostream>
+
+#include "cfg/hex.hpp"
 
 namespace nmt {
 
@@ -80,9 +81,7 @@ std::string_view describe(SdoAbort code) {
 }
 
 std::string to_string(SdoAbort code) {
-  char hex[16];
-  std::snprintf(hex, sizeof hex, "0x%08X", static_cast<unsigned>(to_u32(code)));
-  std::string out = hex;
+  std::string out = cfg::hex(to_u32(code), 8);
   out += " (";
   out += describe(code);
   out += ')';
