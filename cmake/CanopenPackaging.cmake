@@ -34,7 +34,7 @@ set(CPACK_COMPONENT_RUNTIME_DESCRIPTION
 
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME libcanopen-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
-set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS "libinih-dev, zlib1g-dev, libmsgpack-dev, libpcap-dev")
+set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS "zlib1g-dev, libmsgpack-dev, libpcap-dev")
 set(CPACK_COMPONENT_DEV_DESCRIPTION
     "CANopen commissioning libraries: headers, static libraries, CMake package, pkg-config files")
 

@@ -7,7 +7,7 @@ packages=(
   # build; man pages from --help
   g++ cmake make pkg-config help2man
   # libraries the product uses
-  libinih-dev zlib1g-dev libcli11-dev libmsgpack-dev libpcap-dev
+  zlib1g-dev libcli11-dev libmsgpack-dev libpcap-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # install tier: Debian packages with CPack (dpkg-shlibdeps, file), man pages rendered

@@ -65,8 +65,7 @@ has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' 'libpcap0'
 has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/frame.hpp \
   lib/libcanopen-cfg.a lib/libcanopen-nmt-core.so lib/cmake/canopen/canopenConfig.cmake \
   lib/pkgconfig/canopen-nmt-core.pc
-has_depends "$dev" "$runtime_name \(= $version\)" libinih-dev zlib1g-dev libmsgpack-dev \
-  libpcap-dev
+has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev libpcap-dev
 # The tools and their man pages; the schemas come with the runtime package.
 has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
   share/man/man1/cfgmgr-simulate.1.gz share/man/man1/dcf2concise.1.gz

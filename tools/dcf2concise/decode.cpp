@@ -43,10 +43,9 @@ struct Row {
 
 std::string hex_bytes(std::span<const std::uint8_t> data, std::size_t limit) {
   std::string out;
-  char buf[4];
   for (std::size_t i = 0; i < data.size() && i < limit; ++i) {
-    std::snprintf(buf, sizeof buf, i == 0 ? "%02X" : " %02X", data[i]);
-    out += buf;
+    if (i != 0) out += ' ';
+    out += cfg::hex_digits(data[i], 2);
   }
   if (data.size() > limit) out += " ...";
   return out;
@@ -58,12 +57,8 @@ std::string raw_words(std::span<const std::uint8_t> data) {
   if (data.size() > 8) {
     return hex_bytes(data, kShownBytes) + " (" + std::to_string(data.size()) + " bytes)";
   }
-  std::uint64_t v = 0;
-  for (std::size_t i = 0; i < data.size(); ++i) v |= std::uint64_t{data[i]} << (8 * i);
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%llu (0x%0*llX)", static_cast<unsigned long long>(v),
-                static_cast<int>(data.size() * 2), static_cast<unsigned long long>(v));
-  return buf;
+  const std::uint64_t v = cfg::load_le(data, data.size());
+  return std::to_string(v) + " (" + cfg::hex(v, static_cast<int>(data.size() * 2)) + ")";
 }
 
 // COB-IDs and PDO mapping entries are bit fields (CiA 301 §7.5.2: bit 31 valid, bit 29 frame
@@ -97,9 +92,7 @@ class Describer {
   Row describe(std::uint16_t index, std::uint8_t sub_index, std::span<const std::uint8_t> data,
                std::uint32_t entry_number, cfg::Diagnostics& diagnostics) const {
     Row row;
-    char buf[16];
-    std::snprintf(buf, sizeof buf, "%04Xsub%X", index, sub_index);
-    row.entry = buf;
+    row.entry = cfg::hex_digits(index, 4) + "sub" + cfg::hex_digits(sub_index);  // as DCF sections
     row.index = index;
     row.sub_index = sub_index;
     row.size = data.size();
@@ -123,9 +116,7 @@ class Describer {
         object->is_var() || sub->name.empty() ? object->name : object->name + ": " + sub->name;
     auto type = sub->basic_type();
     if (!type) {
-      char type_hex[8];
-      std::snprintf(type_hex, sizeof type_hex, "%04X", sub->data_type);
-      warn(std::string("DataType 0x") + type_hex + " is not a basic type; shown as bytes");
+      warn("DataType " + cfg::hex(sub->data_type, 4) + " is not a basic type; shown as bytes");
       return row;
     }
     row.type = std::string(cfg::to_string(*type));

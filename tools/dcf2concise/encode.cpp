@@ -8,15 +8,14 @@
 #include "../common/tool_support.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
 #include "dcf2concise.hpp"
 
 namespace dcf2concise {
 namespace {
 
 std::string index_text(const cfg::ObjectWrite& w) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "%04X", w.index);
-  return buf;
+  return cfg::hex_digits(w.index, 4);
 }
 
 // Why the stream has no entries, in the terms of the selection the user made, and that this is

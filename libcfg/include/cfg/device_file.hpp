@@ -1,4 +1,4 @@
-// Reading and writing EDS/DCF files (CiA 306). The reader is built on inih and collects
+// Reading and writing EDS/DCF files (CiA 306). The reader collects
 // diagnostics with file:line; the writer is deterministic.
 #pragma once
 
