@@ -358,22 +358,24 @@ TEST(SimulatedDevice, AcceptsTheCia301MappingSequence) {
   EXPECT_EQ(rig.read_u(0x1A00, 0), 2u);
 }
 
-TEST(SimulatedDevice, ValidatesMappedObjectsWhenSubZeroIsWritten) {
+// CiA 301 §7.5.2.36/38 step 3: each entry is checked when it is written.
+TEST(SimulatedDevice, ValidatesMappedObjectsWhenEntryIsWritten) {
   Rig rig;
   rig.boot();
   ASSERT_EQ(rig.write_u(0x1800, 1, 0x80000182, 4), SdoAbort::None);
   ASSERT_EQ(rig.write_u(0x1A00, 0, 0, 1), SdoAbort::None);
   // Object 3000h does not exist.
-  ASSERT_EQ(rig.write_u(0x1A00, 1, 0x30000108, 4), SdoAbort::None);
-  EXPECT_EQ(rig.write_u(0x1A00, 0, 1, 1), SdoAbort::CannotBeMapped);
+  EXPECT_EQ(rig.write_u(0x1A00, 1, 0x30000108, 4), SdoAbort::ObjectDoesNotExist);
   // 2000h exists but PDOMapping=0.
-  ASSERT_EQ(rig.write_u(0x1A00, 1, 0x20000010, 4), SdoAbort::None);
-  EXPECT_EQ(rig.write_u(0x1A00, 0, 1, 1), SdoAbort::CannotBeMapped);
+  EXPECT_EQ(rig.write_u(0x1A00, 1, 0x20000010, 4), SdoAbort::CannotBeMapped);
   // 6200sub1 is an output (rww): it cannot go into a TPDO.
-  ASSERT_EQ(rig.write_u(0x1A00, 1, 0x62000108, 4), SdoAbort::None);
-  EXPECT_EQ(rig.write_u(0x1A00, 0, 1, 1), SdoAbort::CannotBeMapped);
+  EXPECT_EQ(rig.write_u(0x1A00, 1, 0x62000108, 4), SdoAbort::CannotBeMapped);
   // Length in bits must match the type: 6401sub1 is INTEGER16.
-  ASSERT_EQ(rig.write_u(0x1A00, 1, 0x64010108, 4), SdoAbort::None);
+  EXPECT_EQ(rig.write_u(0x1A00, 1, 0x64010108, 4), SdoAbort::CannotBeMapped);
+  // 0 clears an entry.
+  EXPECT_EQ(rig.write_u(0x1A00, 1, 0, 4), SdoAbort::None);
+  EXPECT_EQ(rig.read_u(0x1A00, 1), 0u);
+  // Step 4 still checks: an entry of 0 cannot be enabled.
   EXPECT_EQ(rig.write_u(0x1A00, 0, 1, 1), SdoAbort::CannotBeMapped);
   EXPECT_EQ(rig.read_u(0x1A00, 0), 0u);  // refused writes leave sub 0 as it was
 }
@@ -398,8 +400,9 @@ TEST(SimulatedDevice, DummyMappingFollowsDummyUsage) {
   ASSERT_EQ(rig.write_u(0x1600, 1, 0x00050008, 4), SdoAbort::None);  // dummy UNSIGNED8
   EXPECT_EQ(rig.write_u(0x1600, 0, 1, 1), SdoAbort::None);           // Dummy0005=1
   ASSERT_EQ(rig.write_u(0x1600, 0, 0, 1), SdoAbort::None);
-  ASSERT_EQ(rig.write_u(0x1600, 1, 0x00010001, 4), SdoAbort::None);   // dummy BOOLEAN
-  EXPECT_EQ(rig.write_u(0x1600, 0, 1, 1), SdoAbort::CannotBeMapped);  // Dummy0001=0
+  // dummy BOOLEAN, Dummy0001=0: refused at the entry write (CiA 301 §7.5.2.36 step 3)
+  EXPECT_EQ(rig.write_u(0x1600, 1, 0x00010001, 4), SdoAbort::CannotBeMapped);
+  EXPECT_EQ(rig.read_u(0x1600, 1), 0x00050008u);
 }
 
 TEST(SimulatedDevice, RefusesCobIdChangeWhilePdoIsValid) {

@@ -764,12 +764,10 @@ TEST_F(SlaveNodeSpec, MappingProcedureOfCiA301IsAccepted) {
   EXPECT_EQ(read(0x1A00, 1), 0x64010210u);
 }
 
-// FINDING: CiA 301 §7.5.2.36/38 step 3 (as publicly known): when the device detects, at the
-// write of a mapping entry (sub 01h-40h), that the object does not exist or cannot be mapped, it
-// answers that write with abort 0602 0000 or 0604 0041. The node confirms the entry write
-// (585#60001A0100000000) and refuses only the enable of step 4 (sub 0, 0604 0041); the test
-// below this one checks that later refusal.
-TEST_F(SlaveNodeSpec, DISABLED_MappingEntryOfObjectWithoutPdoMappingAborts06040041) {
+// CiA 301 §7.5.2.36/38 step 3 (as publicly known): when the device detects, at the write of a
+// mapping entry (sub 01h-40h), that the object does not exist or cannot be mapped, it answers
+// that write with abort 0602 0000 or 0604 0041.
+TEST_F(SlaveNodeSpec, MappingEntryOfObjectWithoutPdoMappingAborts06040041) {
   boot();
   configure(0x1800, 1, 0x80000185, 4);
   configure(0x1A00, 0, 0, 1);
@@ -777,9 +775,9 @@ TEST_F(SlaveNodeSpec, DISABLED_MappingEntryOfObjectWithoutPdoMappingAborts060400
   EXPECT_EQ(request("605#23001A0110000020"), "585#80001A0141000406");
 }
 
-// FINDING: as above, for an object the dictionary lacks (3000h): CiA 301 step 3 answers the entry
-// write with 0602 0000 or 0604 0041; the node confirms it.
-TEST_F(SlaveNodeSpec, DISABLED_MappingEntryOfMissingObjectIsRefused) {
+// As above, for an object the dictionary lacks (3000h): CiA 301 step 3 answers the entry write
+// with 0602 0000 or 0604 0041.
+TEST_F(SlaveNodeSpec, MappingEntryOfMissingObjectIsRefused) {
   boot();
   configure(0x1800, 1, 0x80000185, 4);
   configure(0x1A00, 0, 0, 1);
@@ -787,25 +785,28 @@ TEST_F(SlaveNodeSpec, DISABLED_MappingEntryOfMissingObjectIsRefused) {
   EXPECT_TRUE(answer == "585#80001A0100000206" || answer == "585#80001A0141000406") << answer;
 }
 
-TEST_F(SlaveNodeSpec, EnablingMappingOfObjectWithoutPdoMappingIsRefused) {
+// CiA 301 step 3 refuses the entry, so step 4 never enables it: the entry keeps the value it had
+// (the device file's 6000h sub 1, 8 bit), and enabling maps that one.
+TEST_F(SlaveNodeSpec, EnablingAfterRefusedEntryOfObjectWithoutPdoMappingKeepsOldEntry) {
   boot();
   configure(0x1800, 1, 0x80000185, 4);
   configure(0x1A00, 0, 0, 1);
-  request("605#23001A0110000020");  // 2000h sub 0, 16 bit; PDOMapping=0
-  // CiA 301 step 4: an invalid mapping is refused (0604 0041: cannot be mapped).
-  EXPECT_EQ(request("605#2F001A0001000000"), "585#80001A0041000406");
-  EXPECT_EQ(read(0x1A00, 0), 0u);
+  EXPECT_EQ(request("605#23001A0110000020"), "585#80001A0141000406");  // 2000h, PDOMapping=0
+  EXPECT_EQ(read(0x1A00, 1), 0x60000108u);
+  EXPECT_EQ(request("605#2F001A0001000000"), "585#60001A0000000000");
+  EXPECT_EQ(read(0x1A00, 0), 1u);
+  EXPECT_EQ(read(0x1A00, 1), 0x60000108u);
 }
 
-TEST_F(SlaveNodeSpec, EnablingMappingOfMissingObjectIsRefused) {
+TEST_F(SlaveNodeSpec, EnablingAfterRefusedEntryOfMissingObjectKeepsOldEntry) {
   boot();
   configure(0x1800, 1, 0x80000185, 4);
   configure(0x1A00, 0, 0, 1);
-  request("605#23001A0110000030");  // 3000h does not exist
-  const auto answer = request("605#2F001A0001000000");
-  // CiA 301 step 4: 0602 0000 or 0604 0041 (or 0604 0042/0043 for an invalid mapping).
-  EXPECT_EQ(answer.substr(0, 12), "585#80001A00") << answer;
-  EXPECT_EQ(read(0x1A00, 0), 0u);
+  const auto answer = request("605#23001A0110000030");  // 3000h does not exist
+  EXPECT_EQ(answer.substr(0, 12), "585#80001A01") << answer;
+  EXPECT_EQ(read(0x1A00, 1), 0x60000108u);
+  EXPECT_EQ(request("605#2F001A0001000000"), "585#60001A0000000000");
+  EXPECT_EQ(read(0x1A00, 1), 0x60000108u);
 }
 
 TEST_F(SlaveNodeSpec, MappingLongerThan64BitsAborts06040042) {
@@ -918,10 +919,9 @@ TEST_F(SlaveNodeSpec, EmergencyUsesCobIdOf1014) {
   EXPECT_EQ(to_candump(out_.frames[0]), "0A5#0010010000000000");
 }
 
-// FINDING: CiA 301 §7.5.2.5 (as publicly known): bits 0-29 of 1014h may not change while bit 31
-// is 0 (EMCY valid), the same rule as for the PDO COB-IDs. The node confirms the write
-// (585#6014100000000000), 1014h reads A5h and the next EMCY goes out on 0A5h.
-TEST_F(SlaveNodeSpec, DISABLED_EmcyCobIdChangeWhileValidIsRefused) {
+// CiA 301 §7.5.2.5 (as publicly known): bits 0-29 of 1014h may not change while bit 31 is 0
+// (EMCY valid), the same rule as for the PDO COB-IDs.
+TEST_F(SlaveNodeSpec, EmcyCobIdChangeWhileValidIsRefused) {
   boot();
   // The abort code is not fixed, so only "refused" is checked.
   const auto answer = request("605#23141000A5000000");
@@ -1013,11 +1013,10 @@ TEST_F(SlaveNodeSpec, NoHeartbeatConsumerEventWhileHeartbeatsKeepComing) {
   EXPECT_EQ(node_->state(), NmtState::Operational);
 }
 
-// FINDING: CiA 301 §7.5.2.33 (as publicly known): configuring a second non-zero consumer
-// heartbeat time for a node-ID that another sub-index of 1016h already monitors is not allowed;
-// the device answers 0604 0043 (general parameter incompatibility). The node confirms the write
-// (585#6016100200000000) and 1016h sub 2 reads 00060064h.
-TEST_F(SlaveNodeSpec, DISABLED_TwoConsumerHeartbeatTimesForOneNodeAbort06040043) {
+// CiA 301 §7.5.2.33 (as publicly known): configuring a second non-zero consumer heartbeat time
+// for a node-ID that another sub-index of 1016h already monitors is not allowed; the device
+// answers 0604 0043 (general parameter incompatibility).
+TEST_F(SlaveNodeSpec, TwoConsumerHeartbeatTimesForOneNodeAbort06040043) {
   boot();
   configure(0x1016, 1, 0x000600C8, 4);  // node 6, 200 ms
   EXPECT_EQ(request(download(0x1016, 2, 0x00060064)), "585#8016100243000406");

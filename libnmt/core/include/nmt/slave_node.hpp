@@ -21,6 +21,14 @@
 //   manager writes 1020h last).
 // - PDO mapping writes while the PDO is valid, and mapping entry writes while mapping sub 0 is
 //   not 0, abort with 0800 0022 (device state), as e.g. Turck and Bonfiglioli manuals document.
+// - A mapping entry write is checked at once (CiA 301 §7.5.2.36/38 step 3): an object the
+//   dictionary lacks aborts with 0602 0000, one that cannot go into this PDO (no PDOMapping,
+//   wrong access direction, wrong length, a dummy the device does not support) with 0604 0041.
+//   An entry value of 0 (cleared entry) is accepted. Enabling (sub 0) checks the entries again.
+// - 1014h bits 0-29 change only while bit 31 is 1 (CiA 301 §7.5.2.5), as for the PDO COB-IDs;
+//   otherwise 0609 0030. Setting bit 31 is always allowed.
+// - A 1016h write that would give a node-ID a second non-zero consumer heartbeat time aborts with
+//   0604 0043 (CiA 301 §7.5.2.33).
 // - 1F52h (verify application software) is served as the device file declares it: SDO writes
 //   follow its AccessType (0601 0002 when ro/const). A file that declares 1F50h/1F51h but no 1F52h
 //   gets none (the object is optional; real devices, e.g. Nanotec CL4-E, omit it), so a master
@@ -177,6 +185,14 @@ class SlaveNode {
   SdoAbort check_pdo_write(std::uint16_t index, std::uint8_t sub,
                            std::span<const std::uint8_t> data) const;
   SdoAbort check_pdo_mapping(std::uint16_t mapping_index, std::uint8_t count) const;
+  struct MappingCheck {
+    SdoAbort code;
+    unsigned bits;  ///< length of the mapped entry when code is None
+  };
+  MappingCheck check_mapping_entry(bool receive, std::uint64_t value) const;
+  SdoAbort check_emcy_cob_id_write(std::span<const std::uint8_t> data) const;
+  SdoAbort check_consumer_heartbeat_write(std::uint8_t sub,
+                                          std::span<const std::uint8_t> data) const;
   SdoAbort check_program_write(std::uint16_t index, std::uint8_t sub,
                                std::span<const std::uint8_t> data) const;
   void after_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
