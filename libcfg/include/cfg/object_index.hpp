@@ -22,7 +22,8 @@ inline constexpr std::uint16_t kCobIdEmcy = 0x1014;
 inline constexpr std::uint16_t kInhibitTimeEmcy = 0x1015;
 inline constexpr std::uint16_t kConsumerHeartbeatTime = 0x1016;
 inline constexpr std::uint16_t kProducerHeartbeatTime = 0x1017;
-inline constexpr std::uint16_t kIdentity = 0x1018;  ///< sub 1 vendor, 2 product, 3 revision, 4 serial
+inline constexpr std::uint16_t kIdentity =
+    0x1018;  ///< sub 1 vendor, 2 product, 3 revision, 4 serial
 inline constexpr std::uint16_t kVerifyConfiguration = 0x1020;  ///< sub 1 date, sub 2 time
 inline constexpr std::uint16_t kErrorBehaviour = 0x1029;
 inline constexpr std::uint16_t kNmtInhibitTime = 0x102A;

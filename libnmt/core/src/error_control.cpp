@@ -136,11 +136,9 @@ void HeartbeatConsumer::on_timer(TimePoint now, Output& out) {
 }
 
 std::optional<TimePoint> HeartbeatConsumer::next_deadline() const {
-  std::optional<TimePoint> earliest;
-  for (const auto& [id, node] : nodes_) {
-    if (node.expires && (!earliest || *node.expires < *earliest)) earliest = node.expires;
-  }
-  return earliest;
+  std::optional<TimePoint> due;
+  for (const auto& [id, node] : nodes_) due = earliest(due, node.expires);
+  return due;
 }
 
 // --- node guarding / life guarding (slave side) -------------------------------------------------
@@ -266,11 +264,9 @@ void NodeGuardingMaster::on_timer(TimePoint now, Output& out) {
 }
 
 std::optional<TimePoint> NodeGuardingMaster::next_deadline() const {
-  std::optional<TimePoint> earliest;
-  for (const auto& [id, node] : nodes_) {
-    if (!earliest || node.next_request < *earliest) earliest = node.next_request;
-  }
-  return earliest;
+  std::optional<TimePoint> due;
+  for (const auto& [id, node] : nodes_) due = earliest(due, node.next_request);
+  return due;
 }
 
 }  // namespace nmt

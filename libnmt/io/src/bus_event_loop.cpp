@@ -13,12 +13,9 @@ BusEventLoop::BusEventLoop(Bus& bus, BusEventLoopOptions options, Clock clock)
     : bus_(&bus), options_(options), clock_(std::move(clock)) {}
 
 std::optional<TimePoint> BusEventLoop::next_deadline() const {
-  std::optional<TimePoint> earliest;
-  for (const LoopEngine* e : engines_) {
-    auto d = e->next_deadline();
-    if (d && (!earliest || *d < *earliest)) earliest = d;
-  }
-  return earliest;
+  std::optional<TimePoint> due;
+  for (const LoopEngine* e : engines_) due = earliest(due, e->next_deadline());
+  return due;
 }
 
 cfg::Status BusEventLoop::emit(std::vector<CanFrame>& out, LoopEngine* from, TimePoint now) {

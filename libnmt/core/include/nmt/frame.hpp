@@ -9,6 +9,8 @@
 #include <string>
 #include <string_view>
 
+#include "cfg/cob_id.hpp"
+
 namespace nmt {
 
 /// Time as protocol engines see it: microseconds since an epoch the event loop chooses
@@ -19,8 +21,8 @@ using Duration = std::chrono::microseconds;
 /// A classic CAN frame (11- or 29-bit identifier, RTR, 0-8 data bytes). The data array is sized
 /// for CAN FD so FD support can be added without changing the layout users see.
 struct CanFrame {
-  static constexpr std::uint32_t kMaxStandardId = 0x7FF;
-  static constexpr std::uint32_t kMaxExtendedId = 0x1FFFFFFF;
+  static constexpr std::uint32_t kMaxStandardId = cfg::kMaxStandardCanId;
+  static constexpr std::uint32_t kMaxExtendedId = cfg::kMaxExtendedCanId;
 
   std::uint32_t id = 0;  ///< 11-bit, or 29-bit when `extended`
   bool extended = false;
