@@ -7,6 +7,7 @@
 #include "cfg/bytes.hpp"
 #include "cfg/cob_id.hpp"
 #include "cfg/hex.hpp"
+#include "cfg/master_objects.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 
@@ -15,10 +16,6 @@ namespace nmt {
 namespace obj = cfg::object;
 
 namespace {
-
-// CiA 301 §7.5.2.13/14: 'save' and 'load' as little-endian UNSIGNED32.
-constexpr std::uint32_t kSaveSignature = 0x65766173;
-constexpr std::uint32_t kLoadSignature = 0x64616F6C;
 
 bool is_program_object(std::uint16_t index) {
   return index >= obj::kProgramData && index <= obj::kFlashStatusIdentification;
@@ -439,10 +436,10 @@ bool SlaveNode::is_stored_parameter(std::uint16_t index, std::uint8_t sub) const
 
 SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
                                 std::span<const std::uint8_t> data) const {
-  if (index == obj::kStoreParameters && sub != 0 && le32(data) != kSaveSignature) {
+  if (index == obj::kStoreParameters && sub != 0 && le32(data) != cfg::kSaveSignature) {
     return SdoAbort::CannotStoreOrTransfer;  // CiA 301 §7.5.2.13: wrong signature
   }
-  if (index == obj::kRestoreDefaultParameters && sub != 0 && le32(data) != kLoadSignature) {
+  if (index == obj::kRestoreDefaultParameters && sub != 0 && le32(data) != cfg::kLoadSignature) {
     return SdoAbort::CannotStoreOrTransfer;  // CiA 301 §7.5.2.14
   }
   if (index == obj::kCobIdEmcy) return check_emcy_cob_id_write(data);

@@ -1,0 +1,297 @@
+// The CiA 302-2 NMT master as one engine of the shape of nmt/engine.hpp: NMT start-up (§3.1),
+// start process boot NMT slave (§3.3), boot NMT slave with error status A..O (§3.4, §3.8), check
+// configuration (§3.5), check NMT state (§3.6), start error control, error handler and boot-up
+// handler (§4), request NMT and request guarding (1F82h, 1F83h), the NMT inhibit time (102Ah).
+//
+// It is configured by its own object dictionary, built from a master DCF, the CiA 302 way:
+// 1F80h, 1F81h, 1F84h-1F88h, 1F89h, 1F8Ah, 102Ah, 1016h, 1F26h/1F27h, 1F53h/1F54h (values in
+// cfg/master_objects.hpp). Objects the file lacks are added with their CiA 302-2 defaults, and its
+// own SDO server (default COB-IDs 600h/580h + node-ID) serves them with the §6 value checks, so a
+// tool on the bus reads and changes them while it runs. Values are read when a process needs
+// them: a change takes effect at the next step that reads it.
+//
+//   auto master = nmt::NmtMaster::create(master_dcf, node_id, options).value();
+//   master.start(now, out);              // power-on: boot-up, then NMT start-up
+//   master.on_frame(frame, now, out);    // frames to send and MasterEvents go into `out`
+//   master.on_timer(now, out);           // when now >= master.next_deadline()
+//
+// Choices where CiA 302-2 leaves room (each tested; see the tests of nmt_master):
+// - Boot NMT slave begins, after the reset communication of NMT start-up, when the slave's
+//   boot-up message arrives or MasterOptions::boot_up_wait after the reset, whichever comes
+//   first: a device that is still initialising would not answer the 1000h upload.
+// - Any failed 1000h upload (no answer, or an abort) is status B; a failed 1018h upload or a
+//   mismatch of sub 1..4 is D, M, N, O. Revision number (N): the major revision (high 16 bits)
+//   must be equal and the minor (low 16 bits) at least the expected one (§6.9).
+// - Start process boot NMT slave (§3.3): an optional slave is tried again every
+//   MasterOptions::retry_interval after any error; a mandatory slave after status B while 1F89h
+//   boot time has not elapsed since start-up began (0: without end), and not after other errors.
+// - Each SDO transfer of the boot is repeated up to MasterOptions::sdo_retries times when it
+//   times out (frame loss), so a lost frame costs one timeout, not a boot.
+// - Check configuration (§3.5): 1F26h/1F27h both 0 mean "do not verify, download". A
+//   configuration comes from MasterOptions::configurations, else from the master's own 1F22h
+//   sub node-ID (a concise DCF); none at all means there is nothing to download (status OK).
+//   Download order: cfg::order_for_download; PDO COB-IDs the configuration does not carry are
+//   read from the slave first. Values longer than MasterOptions::block_threshold bytes go by
+//   block transfer (segmented when the slave refuses it). Then 1020h sub 1/2 = 1F26h/1F27h (when
+//   not 0) and 1010h sub 1 'save' (MasterOptions::save_configuration).
+// - Restore (1F81h bit 7): 1011h sub 1F8Ah[node] 'load' (1F8Ah defaults to 1; 0 means no
+//   restore), then reset node, then the boot-up is awaited (MasterOptions::reboot_timeout).
+// - Software update (1F81h bits 5, 6): 1F51h sub 1 = 0 (stop), 1F51h sub 1 = 3 (clear), 1F50h
+//   sub 1 = the image (block transfer), 1F51h sub 1 = 1 (start), then 1F52h is read again; a
+//   slave still reporting another version is status I.
+// - Error handler (§4.2): for a mandatory slave 1F80h bit 6 sends stop all (`000#0200`), else bit
+//   4 reset node all (`000#8100`, and NMT start-up runs again); otherwise, and for optional slaves,
+//   the slave's boot starts again when 1F81h bit 2 allows; the event is reported either way.
+// - Boot-up handler (§4.3): a boot-up of an assigned slave (outside its own boot, which awaits
+//   boot-ups itself) stops its error control and starts its boot again when 1F81h bit 2 allows;
+//   check configuration then reconfigures a replaced device, whose 1020h no longer matches. A
+//   boot-up of a node not in 1F81h is reported (CiA 302-2 §3.1: "the responsibility of the
+//   application").
+// - 1F82h (request NMT): a write sends the NMT command through the 102Ah queue, also to the
+//   master itself (sub = own node-ID, or 80h: all, the master included). 84h-8Fh need the
+//   requester's node-ID, which an SDO write does not carry: aborted 0800 0000 (§6.4). A slave
+//   whose state was changed this way is not rebooted automatically (DSP 302 §5.4) until
+//   boot_slave() or a 1F82h start. A read gives the state the master knows: heartbeat or
+//   guarding reply, else the last command, 01h (missing) after boot error B or a lost
+//   heartbeat, 00h when unknown.
+// - 1F83h (request guarding): 1 starts guarding with 1F81h's guard time and retry factor (0800
+//   0000 when either is 0), 0 stops it; a read gives 1 while the master guards the node.
+// - Flying master (1F80h bit 5) is not implemented yet: the master decision (§3.1 b) refuses to
+//   start with a message, and writes setting bit 5 abort 0609 0030 (§6.2, "a functionality that
+//   is not supported").
+// - NMT commands from other devices on the bus are ignored (there is one NMT master, §5.4).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cfg/concise_dcf.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_dictionary.hpp"
+#include "cfg/result.hpp"
+#include "nmt/engine.hpp"
+#include "nmt/error_control.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/local_dictionary.hpp"
+#include "nmt/nmt_slave.hpp"
+#include "nmt/sdo_abort.hpp"
+#include "nmt/sdo_client.hpp"
+
+namespace nmt {
+
+/// Error status of the process boot NMT slave (CiA 302-2 §3.8, Table 1).
+enum class BootError : char {
+  A = 'A',  ///< not listed in 1F81h
+  B = 'B',  ///< no response to the 1000h upload
+  C = 'C',  ///< 1000h differs from 1F84h
+  D = 'D',  ///< 1018h sub 1 differs from 1F85h
+  E = 'E',  ///< check NMT state: no heartbeat
+  F = 'F',  ///< check NMT state: no guarding reply
+  G = 'G',  ///< program download objects not configured or inconsistent
+  H = 'H',  ///< software update required but not allowed
+  I = 'I',  ///< software update required but the program download failed
+  J = 'J',  ///< configuration download failed
+  K = 'K',  ///< no heartbeat during start error control
+  L = 'L',  ///< the slave was initially operational (keep-alive)
+  M = 'M',  ///< 1018h sub 2 differs from 1F86h
+  N = 'N',  ///< 1018h sub 3 differs from 1F87h
+  O = 'O',  ///< 1018h sub 4 differs from 1F88h
+};
+/// The letter, 'A'..'O'.
+constexpr char letter(BootError error) { return static_cast<char>(error); }
+/// Table 1's words: "value of object 1000h from the device differs from 1F84h (device type)".
+std::string_view describe(BootError error);
+
+/// Where a slave's boot stands (for progress displays).
+enum class BootStep : std::uint8_t {
+  Idle,                 ///< not booting (not a slave, or left to the application)
+  AwaitBootUp,          ///< after a reset, waiting for the boot-up message
+  Identify,             ///< 1000h and 1018h uploads (§3.4 c-e)
+  CheckNmtState,        ///< keep-alive: heartbeat or one guarding RTR (§3.6)
+  CheckSoftware,        ///< 1F52h against 1F53h/1F54h
+  UpdateSoftware,       ///< program download (1F50h/1F51h)
+  VerifyConfiguration,  ///< 1020h upload (§3.5 b)
+  Restore,              ///< 1011h 'load', reset, boot-up
+  Download,             ///< configuration writes (§3.5 d)
+  Save,                 ///< 1020h, 1010h 'save'
+  ApplicationStep,      ///< the application's own configuration step (configuration_done())
+  StartErrorControl,    ///< waiting for the first heartbeat (§4.1)
+  Booted,               ///< boot NMT slave ended with status OK
+  Failed,               ///< ended with an error status; RetryWait follows for retried slaves
+  RetryWait,            ///< waiting for the next try (§3.3)
+};
+std::string_view to_string(BootStep step);
+
+/// NMT start-up as a whole (CiA 302-2 §3.1).
+enum class StartupState : std::uint8_t {
+  Off,                 ///< before start()
+  NotMaster,           ///< 1F80h bit 0 is 0 (a self-starting device went operational)
+  Refused,             ///< the master decision could not be made (flying master, see above)
+  BootingSlaves,       ///< start process boot NMT slave for every slave
+  Halted,              ///< a mandatory slave failed (§3.1 f): no start of the network
+  AwaitApplication,    ///< 1F80h bit 2: the application calls enter_operational()
+  Operational,         ///< start-up ended (§3.1 i): normal operation
+};
+std::string_view to_string(StartupState state);
+
+/// What the master reports. One line for people is in `text` ("node 3: boot error C: ...");
+/// the other fields are for programs and depend on the kind.
+struct MasterEvent {
+  enum class Kind : std::uint8_t {
+    NotMaster,             ///< 1F80h bit 0 is 0: the device is no NMT master (§3.1 a)
+    StartupRefused,        ///< NMT start-up cannot run (text says why)
+    StartupBegan,          ///< the master decided and sent its reset communication
+    BootStepChanged,       ///< node_id moved to `step`; Download also reports written/total
+    SlaveBooted,           ///< boot NMT slave: status OK (`configured`: a download happened)
+    BootError,             ///< boot NMT slave: `error`; `final` when no try follows
+    StartupHalted,         ///< a mandatory slave's error stopped NMT start-up (§3.1 f)
+    StartupComplete,       ///< NMT start-up ended (§3.1 i)
+    MasterStateChanged,    ///< the master's own NMT state is `state`
+    SlaveStateChanged,     ///< the state the master knows of node_id is `state`
+    HeartbeatLost,         ///< heartbeat event of node_id (error handler follows)
+    GuardingLost,          ///< node guarding event of node_id (error handler follows)
+    ErrorControlResolved,  ///< heartbeat or guarding replies again
+    BootUp,                ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
+    NmtCommandSent,        ///< `command` for node_id (0: all nodes) went out
+    ApplicationStep,       ///< call configuration_done(node_id, ...) to continue its boot
+    SdoFinished,           ///< an application transfer ended (`sdo`)
+  };
+  Kind kind;
+  TimePoint at{0};
+  std::uint8_t node_id = 0;
+  std::optional<BootError> error;
+  BootStep step = BootStep::Idle;
+  std::optional<NmtState> state;
+  std::optional<NmtCommand> command;
+  bool configured = false;  ///< SlaveBooted: the configuration was downloaded
+  bool final = false;       ///< BootError: the last try (mandatory, or boot time over)
+  bool assigned = false;    ///< BootUp: the node is a slave in 1F81h
+  std::size_t written = 0;  ///< Download/SlaveBooted: configuration entries written
+  std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
+  std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
+  std::optional<SdoResult> sdo;
+  std::string text;
+};
+std::string_view to_string(MasterEvent::Kind kind);
+
+/// Where check configuration (CiA 302-2 §3.5 d) and the software update find what to download.
+/// The configuration manager implements it; NmtMaster calls it while a slave boots.
+class ConfigurationSource {
+ public:
+  virtual ~ConfigurationSource() = default;
+  /// The writes that configure `node`, in any order (the master orders them for download),
+  /// without 1020h and 1010h, which the master adds. nullopt: nothing stored for the node.
+  virtual std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const = 0;
+  /// The image of program 1 (1F50h sub 1) for a software update; nullopt: none available
+  /// (status H when an update is needed).
+  virtual std::optional<std::vector<std::uint8_t>> program(cfg::NodeId /*node*/) const {
+    return std::nullopt;
+  }
+};
+
+struct MasterOptions {
+  /// nullptr: configurations from the master's own 1F22h, no program images.
+  std::shared_ptr<const ConfigurationSource> configurations;
+  /// Timeout of each SDO response, and how often a timed-out transfer is repeated.
+  Duration sdo_timeout = std::chrono::milliseconds(500);
+  unsigned sdo_retries = 2;
+  /// Values longer than this go by block transfer (falling back to segmented).
+  std::size_t block_threshold = 64;
+  /// §3.3: optional slaves (and mandatory ones after status B) are tried again this often.
+  Duration retry_interval = std::chrono::seconds(1);
+  /// How long boot NMT slave waits for a boot-up after NMT start-up's reset communication.
+  Duration boot_up_wait = std::chrono::milliseconds(500);
+  /// How long a restore or a software update waits for the boot-up after its reset node.
+  Duration reboot_timeout = std::chrono::seconds(5);
+  /// §3.6: the guarding reply to one RTR must come within this time.
+  Duration guarding_reply_timeout = std::chrono::milliseconds(100);
+  /// Write 1010h sub 1 'save' after a download.
+  bool save_configuration = true;
+  /// Download even when 1020h matches 1F26h/1F27h.
+  bool force_download = false;
+  /// After the download, wait for configuration_done() (MasterEvent::ApplicationStep).
+  bool application_step = false;
+};
+
+/// The NMT master. Movable (its state lives behind one pointer), not copyable.
+class NmtMaster {
+ public:
+  using Event = MasterEvent;
+  using Output = Outbox<MasterEvent>;
+  using TransferId = SdoClient::TransferId;
+
+  /// Builds the master of node `node_id` from its DCF (or EDS): every sub-object becomes a
+  /// dictionary entry (LocalDictionary::from_device), and the objects of CiA 302-2 §6 the file
+  /// lacks are added with their defaults (1F80h = 1: master, 1F81h..1F88h, 1F8Ah = 1 and 1F82h,
+  /// 1F83h for node-IDs 1..127, 102Ah = 0, 1F89h = 0, 1016h with 127 unused entries, 1F26h,
+  /// 1F27h, 1F53h, 1F54h). Fails with a message naming the entry when a value does not parse or
+  /// has reserved bits set.
+  static cfg::Result<NmtMaster> create(const cfg::DeviceDescription& description,
+                                       cfg::NodeId node_id, MasterOptions options = {});
+  NmtMaster(NmtMaster&&) noexcept;
+  NmtMaster& operator=(NmtMaster&&) noexcept;
+  ~NmtMaster();
+
+  // --- engine (nmt/engine.hpp) ---------------------------------------------------------------
+  /// Power-on at `now`: the master's boot-up message, then NMT start-up (§3.1): the master
+  /// decision and the reset communication go into `out`.
+  void start(TimePoint now, Output& out);
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint now, Output& out);
+  std::optional<TimePoint> next_deadline() const;
+
+  // --- application -----------------------------------------------------------------------------
+  /// §3.1 g with 1F80h bit 2 set: the master enters operational and start-up goes on (start all
+  /// nodes per bits 1 and 3). Does nothing in other start-up states.
+  void enter_operational(TimePoint now, Output& out);
+  /// 1F82h request NMT as the application on the master's own device asks it: `sub` 1..127 or
+  /// 80h (all), `value` as Table 28; `requester` (for 84h-8Fh) is excluded with the master.
+  /// Returns the abort an SDO write of the same value gets (None: done).
+  SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, TimePoint now, Output& out,
+                       std::optional<cfg::NodeId> requester = std::nullopt);
+  /// 1F83h request guarding: `sub` 1..127 or 80h, start or stop.
+  SdoAbort request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out);
+  /// Starts the process start process boot NMT slave for `node` (also for a slave left to the
+  /// application by 1F81h bit 2, or held by a request NMT). False when `node` is no slave.
+  bool boot_slave(cfg::NodeId node, TimePoint now, Output& out);
+  /// Ends the application's configuration step of `node` (MasterOptions::application_step):
+  /// `ok` false ends its boot with status J.
+  void configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out);
+  /// SDO transfers of the application to a slave, on the master's client for that slave (queued
+  /// behind the boot's own transfers). Results come as MasterEvent::SdoFinished.
+  TransferId sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub, TimePoint now,
+                        Output& out);
+  TransferId sdo_download(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
+                          std::vector<std::uint8_t> data, TimePoint now, Output& out);
+
+  // --- observation -----------------------------------------------------------------------------
+  cfg::NodeId node_id() const;
+  /// The master's own NMT state.
+  NmtState state() const;
+  StartupState startup_state() const;
+  /// The state the master knows of `node`, as a 1F82h read gives it: 00h unknown, 01h missing,
+  /// else the NmtState value.
+  std::uint8_t known_state(cfg::NodeId node) const;
+  BootStep boot_step(cfg::NodeId node) const;
+  /// The error status of the last finished try of `node`; nullopt after status OK or before.
+  std::optional<BootError> last_error(cfg::NodeId node) const;
+  /// The dictionary (its values configure the master). Writes through LocalDictionary::write
+  /// are checked as SDO writes are; the NMT commands a 1F82h write asks for are queued and due
+  /// at once (next_deadline()), so they go out from the next on_timer().
+  const LocalDictionary& dictionary() const;
+  LocalDictionary& dictionary();
+
+ private:
+  struct Impl;
+  explicit NmtMaster(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+static_assert(Engine<NmtMaster>);
+
+}  // namespace nmt
