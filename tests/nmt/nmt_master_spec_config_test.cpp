@@ -64,7 +64,8 @@ TEST(NmtMasterSpec, DifferingVerifyConfigurationDownloadsThenWrites1020hAndSaves
 
   auto booted = rig.booted(3).front();
   EXPECT_TRUE(booted.configured);
-  EXPECT_EQ(booted.written, 3U);
+  EXPECT_GE(booted.written, 3U);
+  EXPECT_EQ(booted.written, booted.total);
   auto value = rig.downloads_of(3, 0x2000, 0);
   auto date = rig.downloads_of(3, 0x1020, 1);
   auto time = rig.downloads_of(3, 0x1020, 2);

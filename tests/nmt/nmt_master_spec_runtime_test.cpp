@@ -237,6 +237,32 @@ TEST(NmtMasterSpec, BootUpOfSlaveWithoutBit2IsNotBooted) {
   EXPECT_TRUE(rig.nmt(reboot).empty());
 }
 
+// Header (boot_slave): the application starts boot NMT slave itself for a slave that 1F81h bit 2
+// leaves to it (Table 20: "The application is responsible for the NMT slave startup"); the master
+// is operational, so the slave is started individually (§3.4 l).
+TEST(NmtMasterSpec, ApplicationBootsASlaveLeftToItByBit2) {
+  MasterRig rig;
+  rig.startup(Startup::kMaster | Startup::kStartAllNodes);
+  rig.assign(3, kSlave);
+  rig.add_slave(2);
+  rig.add_slave(3);
+  rig.power_on_network();
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
+  rig.run_for(1s);
+  ASSERT_TRUE(rig.requests_to(3).empty());
+
+  const TimePoint asked = rig.bus.now();
+  const bool started = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.boot_slave(id(3), now, out);
+  });
+  EXPECT_TRUE(started);
+  ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 5s, 3));
+  rig.run_for(100ms);
+  EXPECT_FALSE(rig.uploads_of(3, 0x1000, 0, asked).empty());
+  EXPECT_EQ(rig.count_nmt("000#0103", asked), 1U);
+  EXPECT_EQ(rig.slave(3).node().state(), NmtState::Operational);
+}
+
 // Header, DSP 302 §5.4: "there is one NMT master": NMT commands of other devices do not change the
 // master's own state.
 TEST(NmtMasterSpec, NmtCommandsFromOtherDevicesAreIgnoredByTheMaster) {

@@ -139,6 +139,10 @@ TEST(NmtMasterSpec, StartAllNodesWithNodeIdZeroWhenBit1SetAndEverySlaveBooted) {
   EXPECT_EQ(master.startup_state(), StartupState::Operational);
   EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
   EXPECT_EQ(rig.slave(3).node().state(), NmtState::Operational);
+  auto sent = rig.events_of(Kind::NmtCommandSent);
+  EXPECT_TRUE(std::any_of(sent.begin(), sent.end(), [](const MasterEvent& e) {
+    return e.command == NmtCommand::Start && e.node_id == 0;
+  }));
 }
 
 // §6.2 Table 9, bit 1 = 0: "NMT service start remote node for each node-ID" (§3.4 l).
