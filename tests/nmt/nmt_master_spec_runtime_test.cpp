@@ -208,6 +208,7 @@ TEST(NmtMasterSpec, BootUpOfNodeNotIn1F81IsReportedAndLeftToTheApplication) {
   rig.run_for(50ms);
   rig.start_master();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
+  rig.run_for(200ms);  // the start-up's own start frames
   const TimePoint appeared = rig.bus.now();
   rig.power_on(5);
   rig.run_for(3s);
@@ -227,6 +228,7 @@ TEST(NmtMasterSpec, BootUpOfSlaveWithoutBit2IsNotBooted) {
   rig.add_slave(3);
   rig.power_on_network();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
+  rig.run_for(200ms);
   const TimePoint reboot = rig.bus.now();
   rig.power_on(3);
   rig.run_for(3s);
@@ -302,7 +304,8 @@ TEST(NmtMasterSpec, RequestNmtAbortsReservedValues) {
   Operational net;
   auto& rig = net.rig;
   const TimePoint from = rig.bus.now();
-  for (std::uint8_t value : {0x00, 0x01, 0x02, 0x03, 0x08, 0x40, 0x7E, 0x80, 0x83, 0x90, 0xFF}) {
+  for (std::uint8_t value : std::initializer_list<std::uint8_t>{0x00, 0x01, 0x02, 0x03, 0x08, 0x40,
+                                                                0x7E, 0x80, 0x83, 0x90, 0xFF}) {
     const SdoAbort code = rig.tool_write_u(0x1F82, 2, value, 1);
     EXPECT_TRUE(is_value_abort(code)) << hex_text(value) << ": " << code;
   }
@@ -317,7 +320,7 @@ TEST(NmtMasterSpec, RequestNmtExcludingTheRequesterAbortsOverSdo) {
   Operational net;
   auto& rig = net.rig;
   const TimePoint from = rig.bus.now();
-  for (std::uint8_t value : {0x84, 0x85, 0x86, 0x87, 0x8F}) {
+  for (std::uint8_t value : std::initializer_list<std::uint8_t>{0x84, 0x85, 0x86, 0x87, 0x8F}) {
     const SdoAbort code = rig.tool_write_u(0x1F82, 0x80, value, 1);
     EXPECT_TRUE(is_value_abort(code)) << hex_text(value) << ": " << code;
   }
@@ -421,6 +424,32 @@ TEST(NmtMasterSpec, RequestNmtAllNodesSendsNodeIdZeroAndAppliesToTheMaster) {
   EXPECT_EQ(rig.slave(3).node().state(), NmtState::PreOperational);
 }
 
+// §6.4: "These requests may apply for the NMT master itself" (sub-index = its own node-ID).
+TEST(NmtMasterSpec, RequestNmtForTheMastersOwnNodeIdChangesItsState) {
+  Operational net;
+  auto& rig = net.rig;
+  ASSERT_EQ(rig.tool_write_u(0x1F82, kMaster, 0x7F, 1), SdoAbort::None);
+  rig.run_for(100ms);
+  EXPECT_EQ(rig.engine().state(), NmtState::PreOperational);
+  EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
+  ASSERT_EQ(rig.tool_write_u(0x1F82, kMaster, 0x05, 1), SdoAbort::None);
+  rig.run_for(100ms);
+  EXPECT_EQ(rig.engine().state(), NmtState::Operational);
+}
+
+// Header: a 1F82h read gives the state the master knows from the heartbeat (§6.4 Table 28 on
+// upload), also when the slave changed it without the master.
+TEST(NmtMasterSpec, RequestNmtReadsTheStateTheHeartbeatReports) {
+  MasterRig rig;
+  boot_with_heartbeat(rig, Startup::kMaster, kSlave | kBoot);
+  EXPECT_EQ(rig.tool_read_u(0x1F82, 3), 0x05U);
+  rig.send_foreign("000#0203");  // another device stops node 3
+  rig.run_for(300ms);
+  ASSERT_EQ(rig.slave(3).node().state(), NmtState::Stopped);
+  EXPECT_EQ(rig.tool_read_u(0x1F82, 3), 0x04U);
+  EXPECT_EQ(rig.engine().known_state(id(3)), 0x04);
+}
+
 // Table 30: sub-index 80h "All nodes", access wo: a read is refused (CiA 301 abort 0601 0001).
 TEST(NmtMasterSpec, RequestNmtAllNodesIsWriteOnly) {
   Operational net;
@@ -457,7 +486,7 @@ TEST(NmtMasterSpec, RequestNmtFromTheApplicationAbortsReservedValues) {
 // (abort code: 0800 0000h or 0609 0030h)." Table 31: 02h-FFh reserved.
 TEST(NmtMasterSpec, RequestGuardingAbortsReservedValues) {
   Operational net;
-  for (std::uint8_t value : {0x02, 0x7F, 0x80, 0xFF}) {
+  for (std::uint8_t value : std::initializer_list<std::uint8_t>{0x02, 0x7F, 0x80, 0xFF}) {
     const SdoAbort code = net.rig.tool_write_u(0x1F83, 3, value, 1);
     EXPECT_TRUE(is_value_abort(code)) << hex_text(value) << ": " << code;
   }
@@ -531,7 +560,8 @@ TEST(NmtMasterSpec, NmtInhibitTimeIsReadAndWrittenOverSdo) {
 // 33), 1F84h-1F88h = 0 (Tables 35-43).
 TEST(NmtMasterSpec, ObjectsTheDcfLacksGetTheirDefaults) {
   auto dcf = master_dcf();
-  for (std::uint16_t index : {0x102A, 0x1F89, 0x1F8A, 0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88})
+  for (std::uint16_t index : std::initializer_list<std::uint16_t>{0x102A, 0x1F89, 0x1F8A, 0x1F84,
+                                                                  0x1F85, 0x1F86, 0x1F87, 0x1F88})
     dcf.objects.erase(index);
   auto created = NmtMaster::create(dcf, id(kMaster));
   ASSERT_TRUE(created.ok()) << created.error().message;
@@ -543,7 +573,8 @@ TEST(NmtMasterSpec, ObjectsTheDcfLacksGetTheirDefaults) {
   EXPECT_EQ(dict.get_unsigned(0x1F83, 0), 0x80U);
   ASSERT_NE(dict.entry(0x1F82, 0x80), nullptr);
   EXPECT_EQ(dict.entry(0x1F82, 0x80)->access, cfg::AccessType::Wo);
-  for (std::uint16_t index : {0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88})
+  for (std::uint16_t index :
+       std::initializer_list<std::uint16_t>{0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88})
     EXPECT_EQ(dict.get_unsigned(index, 0x7F), 0U) << hex_text(index);
   // What the file has stays.
   EXPECT_EQ(dict.get_unsigned(0x1F81, 2), 0x05U);

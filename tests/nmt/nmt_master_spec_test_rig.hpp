@@ -16,7 +16,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <optional>
@@ -187,6 +189,11 @@ class MasterRig {
     tool_.set_event_handler([this](const SdoResult& r, TimePoint) { results_[r.id] = r; });
     bus.add_observer([this](const CanFrame& f, TimePoint t) { seen.push_back({t, f}); });
     options.configurations = configurations;
+  }
+  ~MasterRig() {
+    if (std::getenv("MASTER_SPEC_DUMP") == nullptr) return;
+    for (const auto& s : seen) std::cerr << s.at.count() << "us " << s.text() << "\n";
+    for (const auto& e : events) std::cerr << "EVENT " << e.at.count() << "us " << e.text << "\n";
   }
   MasterRig(const MasterRig&) = delete;
   MasterRig& operator=(const MasterRig&) = delete;
