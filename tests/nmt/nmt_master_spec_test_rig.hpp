@@ -10,6 +10,7 @@
 // - slave.eds: 1000h = 000F0191h, 1018h = 0000ABCDh / 00000042h / 00020003h / 00001234h,
 //   1017h = 0, 1020h = 0/0, 1F52h = 15000 days / 3 600 000 ms, 2000h = 10 (U16), 2001h (string),
 //   2002h (DOMAIN), RPDO1/TPDO1.
+// With MASTER_SPEC_DUMP=1 in the environment each rig prints its frames and events when it ends.
 #pragma once
 
 #include <gtest/gtest.h>
