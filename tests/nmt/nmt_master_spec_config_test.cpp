@@ -25,6 +25,21 @@ std::vector<cfg::ObjectWrite> node3_configuration() {
           {0x2001, 0, std::vector<std::uint8_t>(name.begin(), name.end())}};
 }
 
+// 1F26h/1F27h sub 3 (the configuration date and time the master expects of node 3) and the
+// configuration the master downloads when 1020h differs.
+void expect_configuration_of_3(MasterRig& rig) {
+  set_value(rig.master, 0x1F26, 3, kConfDate);
+  set_value(rig.master, 0x1F27, 3, kConfTime);
+  rig.configurations->writes[3] = node3_configuration();
+}
+// slave.eds with 1020h holding that date and time, as a device configured and saved earlier.
+cfg::DeviceDescription configured_slave_eds() {
+  auto eds = slave_eds();
+  set_value(eds, 0x1020, 1, kConfDate);
+  set_value(eds, 0x1020, 2, kConfTime);
+  return eds;
+}
+
 std::uint32_t data_u32(const CanFrame& f) {
   return static_cast<std::uint32_t>(value_of(std::span<const std::uint8_t>(f.data.data() + 4, 4)));
 }
@@ -32,15 +47,8 @@ std::uint32_t data_u32(const CanFrame& f) {
 // §3.5 a-c: "If the values equals the process shall finish with status OK" - no download.
 TEST(NmtMasterSpec, MatchingVerifyConfigurationSkipsTheDownload) {
   MasterRig rig;
-  set_value(rig.master, 0x1F26, 3, kConfDate);
-  set_value(rig.master, 0x1F27, 3, kConfTime);
-  rig.configurations->writes[3] = node3_configuration();
-  auto eds = slave_eds();
-  set_value(eds, 0x1020, 1, kConfDate);
-  set_value(eds, 0x1020, 2, kConfTime);
-  rig.add_slave(2);
-  rig.add_slave(3, {}, eds);
-  rig.power_on_network();
+  expect_configuration_of_3(rig);
+  rig.two_slaves({}, configured_slave_eds());
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
 
   EXPECT_FALSE(rig.uploads_of(3, 0x1020, 1).empty()) << "1020h not requested (§3.5 b)";
@@ -54,9 +62,7 @@ TEST(NmtMasterSpec, MatchingVerifyConfigurationSkipsTheDownload) {
 // it". The device holds and has stored the configured values.
 TEST(NmtMasterSpec, DifferingVerifyConfigurationDownloadsThenWrites1020hAndSaves) {
   MasterRig rig;
-  set_value(rig.master, 0x1F26, 3, kConfDate);
-  set_value(rig.master, 0x1F27, 3, kConfTime);
-  rig.configurations->writes[3] = node3_configuration();
+  expect_configuration_of_3(rig);
   rig.add_slave(2);
   rig.add_slave(3);  // 1020h = 0/0
   rig.power_on_network();
@@ -105,12 +111,8 @@ TEST(NmtMasterSpec, DifferingVerifyConfigurationDownloadsThenWrites1020hAndSaves
 // 1020h matching: nothing is downloaded again.
 TEST(NmtMasterSpec, SlaveRebootingWithItsSavedConfigurationIsNotDownloadedAgain) {
   MasterRig rig;
-  set_value(rig.master, 0x1F26, 3, kConfDate);
-  set_value(rig.master, 0x1F27, 3, kConfTime);
-  rig.configurations->writes[3] = node3_configuration();
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  expect_configuration_of_3(rig);
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(500ms);
 
@@ -133,12 +135,8 @@ TEST(NmtMasterSpec, SlaveRebootingWithItsSavedConfigurationIsNotDownloadedAgain)
 // 1020h no longer matches". A new device (factory values) takes node 3's place.
 TEST(NmtMasterSpec, ReplacedDeviceIsConfiguredAgainAfterItsBootUp) {
   MasterRig rig;
-  set_value(rig.master, 0x1F26, 3, kConfDate);
-  set_value(rig.master, 0x1F27, 3, kConfTime);
-  rig.configurations->writes[3] = node3_configuration();
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  expect_configuration_of_3(rig);
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(500ms);
 
@@ -166,12 +164,7 @@ TEST(NmtMasterSpec, ReplacedDeviceIsConfiguredAgainAfterItsBootUp) {
 TEST(NmtMasterSpec, ZeroExpectedConfigurationDateAndTimeAlwaysDownload) {
   MasterRig rig;
   rig.configurations->writes[3] = node3_configuration();
-  auto eds = slave_eds();
-  set_value(eds, 0x1020, 1, kConfDate);
-  set_value(eds, 0x1020, 2, kConfTime);
-  rig.add_slave(2);
-  rig.add_slave(3, {}, eds);
-  rig.power_on_network();
+  rig.two_slaves({}, configured_slave_eds());
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
 
   EXPECT_TRUE(rig.uploads_of(3, 0x1020, 1).empty());
@@ -186,15 +179,8 @@ TEST(NmtMasterSpec, ZeroExpectedConfigurationDateAndTimeAlwaysDownload) {
 TEST(NmtMasterSpec, ForcedDownloadIgnoresAMatchingVerifyConfiguration) {
   MasterRig rig;
   rig.options.force_download = true;
-  set_value(rig.master, 0x1F26, 3, kConfDate);
-  set_value(rig.master, 0x1F27, 3, kConfTime);
-  rig.configurations->writes[3] = node3_configuration();
-  auto eds = slave_eds();
-  set_value(eds, 0x1020, 1, kConfDate);
-  set_value(eds, 0x1020, 2, kConfTime);
-  rig.add_slave(2);
-  rig.add_slave(3, {}, eds);
-  rig.power_on_network();
+  expect_configuration_of_3(rig);
+  rig.two_slaves({}, configured_slave_eds());
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_EQ(rig.downloads_of(3, 0x2000, 0).size(), 1U);
   EXPECT_EQ(rig.device_value(3, 0x2000, 0), 25U);
@@ -205,9 +191,7 @@ TEST(NmtMasterSpec, NoSaveWhenSaveConfigurationIsOff) {
   MasterRig rig;
   rig.options.save_configuration = false;
   rig.configurations->writes[3] = node3_configuration();
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_EQ(rig.device_value(3, 0x2000, 0), 25U);
   EXPECT_TRUE(rig.downloads_of(3, 0x1010, 1).empty());
@@ -217,9 +201,7 @@ TEST(NmtMasterSpec, NoSaveWhenSaveConfigurationIsOff) {
 // Header: "none at all means there is nothing to download (status OK)".
 TEST(NmtMasterSpec, SlaveWithoutConfigurationBootsWithoutAnyWrite) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_TRUE(rig.all_downloads(3).empty());
   EXPECT_FALSE(rig.booted(3).front().configured);
@@ -233,9 +215,7 @@ TEST(NmtMasterSpec, RestoreBit7LoadsDefaultsResetsNodeThenDownloads) {
   MasterRig rig;
   rig.assign(3, kSlave | kBoot | kRestore);
   rig.configurations->writes[3] = node3_configuration();
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
 
   auto load = rig.downloads_of(3, 0x1011, 1);
@@ -264,9 +244,7 @@ TEST(NmtMasterSpec, Restore1F8AChoosesThe1011hSubIndexAndZeroMeansNoRestore) {
     rig.assign(3, kSlave | kBoot | kRestore);
     set_value(rig.master, 0x1F8A, 3, 2);
     rig.configurations->writes[3] = node3_configuration();
-    rig.add_slave(2);
-    rig.add_slave(3);
-    rig.power_on_network();
+    rig.two_slaves();
     ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
     EXPECT_TRUE(rig.downloads_of(3, 0x1011, 1).empty());
     auto load = rig.downloads_of(3, 0x1011, 2);
@@ -278,9 +256,7 @@ TEST(NmtMasterSpec, Restore1F8AChoosesThe1011hSubIndexAndZeroMeansNoRestore) {
     rig.assign(3, kSlave | kBoot | kRestore);
     set_value(rig.master, 0x1F8A, 3, 0);
     rig.configurations->writes[3] = node3_configuration();
-    rig.add_slave(2);
-    rig.add_slave(3);
-    rig.power_on_network();
+    rig.two_slaves();
     ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
     for (std::uint8_t sub = 1; sub <= 4; ++sub)
       EXPECT_TRUE(rig.downloads_of(3, 0x1011, sub).empty());
@@ -321,9 +297,7 @@ TEST(NmtMasterSpec, PdoMappingIsDownloadedInPdoSafeOrder) {
   rig.configurations->writes[3] = {write_of(0x1A00, 1, 0x60000108, 4),
                                    write_of(0x1A00, 2, 0x60000108, 4), write_of(0x1A00, 0, 2, 1),
                                    write_of(0x1800, 2, 254, 1)};
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
   EXPECT_EQ(rig.device_value(3, 0x1A00, 0), 2U);
@@ -349,9 +323,7 @@ TEST(NmtMasterSpec, LongConfigurationValueGoesByBlockTransfer) {
   std::vector<std::uint8_t> table(200);
   for (std::size_t i = 0; i < table.size(); ++i) table[i] = static_cast<std::uint8_t>(i * 7);
   rig.configurations->writes[3] = {{0x2002, 0, table}, write_of(0x2000, 0, 25, 2)};
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
 
   auto block = rig.downloads_of(3, 0x2002, 0);

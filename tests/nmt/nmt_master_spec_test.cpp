@@ -31,9 +31,7 @@ std::string nmt_text(NmtCommand command, std::uint8_t node) {
 // message), then step d) with no keep-alive entry: reset communication with node-ID 0.
 TEST(NmtMasterSpec, StartupSendsBootUpAndResetCommunicationAllNodes) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   rig.run_for(3s);
 
   auto own = rig.on_id(0x700 + kMaster, rig.started_at);
@@ -80,9 +78,7 @@ TEST(NmtMasterSpec, DISABLED_MasterSendsItsBootUpBeforeResetCommunication) {
 TEST(NmtMasterSpec, KeepAliveEntryMakesResetCommunicationIndividualForAllButMasterAndKeepAlive) {
   MasterRig rig;
   rig.assign(3, kSlave | kBoot | kKeepAlive);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   rig.run_for(5s);
 
   EXPECT_EQ(rig.count_nmt("000#8200"), 0U);
@@ -112,9 +108,7 @@ TEST(NmtMasterSpec, KeepAliveEntryMakesResetCommunicationIndividualForAllButMast
 TEST(NmtMasterSpec, KeepAliveSlaveFoundPreOperationalIsResetAfterItsStateWasChecked) {
   MasterRig rig;
   rig.assign(3, kSlave | kBoot | kKeepAlive);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
 
   auto rtr = rig.on_id(0x703, rig.started_at);
@@ -134,9 +128,7 @@ TEST(NmtMasterSpec, KeepAliveSlaveFoundPreOperationalIsResetAfterItsStateWasChec
 TEST(NmtMasterSpec, StartAllNodesWithNodeIdZeroWhenBit1SetAndEverySlaveBooted) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(100ms);
 
@@ -165,9 +157,7 @@ TEST(NmtMasterSpec, StartAllNodesWithNodeIdZeroWhenBit1SetAndEverySlaveBooted) {
 // §6.2 Table 9, bit 1 = 0: "NMT service start remote node for each node-ID" (§3.4 l).
 TEST(NmtMasterSpec, StartRemoteNodeIndividuallyWhenBit1Clear) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3);
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(100ms);
 
@@ -184,9 +174,7 @@ TEST(NmtMasterSpec, StartRemoteNodeIndividuallyWhenBit1Clear) {
 TEST(NmtMasterSpec, StartsIndividuallyWhenBit1SetButAnOptionalSlaveDidNotBoot) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
-  rig.add_slave(2);
-  rig.add_slave(3, absent_device());
-  rig.power_on_network();
+  rig.two_slaves(absent_device());
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 15s));
   rig.run_for(100ms);
 
@@ -201,9 +189,7 @@ TEST(NmtMasterSpec, NoStartRemoteNodeWhenBit3Set) {
     SCOPED_TRACE(bit1 ? "bit 1 set" : "bit 1 clear");
     MasterRig rig;
     rig.startup(Startup::kMaster | Startup::kNoStartSlaves | bit1);
-    rig.add_slave(2);
-    rig.add_slave(3);
-    auto& master = rig.power_on_network();
+    auto& master = rig.two_slaves();
     ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
     rig.run_for(1s);
 
@@ -222,9 +208,7 @@ TEST(NmtMasterSpec, NoStartRemoteNodeWhenBit3Set) {
 TEST(NmtMasterSpec, MasterStaysPreOperationalWithBit2UntilTheApplicationAsks) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes | Startup::kNoAutoOperational);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 2));
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   rig.run_for(3s);
@@ -251,9 +235,7 @@ TEST(NmtMasterSpec, MasterStaysPreOperationalWithBit2UntilTheApplicationAsks) {
 TEST(NmtMasterSpec, DISABLED_StartupCompleteIsReportedOnceWhenTheApplicationEntersOperational) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes | Startup::kNoAutoOperational);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 2));
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   rig.run_for(3s);
@@ -273,9 +255,7 @@ TEST(NmtMasterSpec, DISABLED_StartupCompleteIsReportedOnceWhenTheApplicationEnte
 TEST(NmtMasterSpec, DeviceWithBit0ClearIsNoMasterAndSendsNoNmtCommand) {
   MasterRig rig;
   rig.startup(0);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves();
   rig.run_for(3s);
 
   EXPECT_TRUE(rig.nmt().empty());
@@ -366,9 +346,7 @@ TEST(NmtMasterSpec, SlaveWithoutBit2IsNeitherConfiguredNorStarted) {
   MasterRig rig;
   rig.assign(3, kSlave);
   rig.configurations->writes[3] = {write_of(0x2000, 0, 25, 2)};
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(2s);
 
@@ -387,9 +365,7 @@ TEST(NmtMasterSpec, SlaveWithoutBit2IsNeitherConfiguredNorStarted) {
 TEST(NmtMasterSpec, OptionalSlaveAppearingLateIsRetriedEverySecondThenBootedAndStarted) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
-  rig.add_slave(2);
-  rig.add_slave(3, absent_device());
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves(absent_device());
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 15s));
   rig.run_for(6s);
 
@@ -431,9 +407,7 @@ TEST(NmtMasterSpec, MissingMandatorySlaveHaltsStartupAndEndsAfterBootTime) {
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
   rig.assign(3, kSlave | kBoot | kMandatory);
   set_value(rig.master, 0x1F89, 0, 4000);  // ms
-  rig.add_slave(2);
-  rig.add_slave(3, absent_device());
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves(absent_device());
   ASSERT_TRUE(rig.run_until_event(
       [](const MasterEvent& e) { return e.kind == Kind::BootError && e.node_id == 3 && e.final; },
       20s));
@@ -458,9 +432,7 @@ TEST(NmtMasterSpec, MandatorySlaveWithoutBootTimeIsAwaitedUntilItAppears) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
   rig.assign(3, kSlave | kBoot | kMandatory);
-  rig.add_slave(2);
-  rig.add_slave(3, absent_device());
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves(absent_device());
   rig.run_for(12s);
 
   EXPECT_NE(master.state(), NmtState::Operational);
@@ -482,9 +454,7 @@ TEST(NmtMasterSpec, MandatorySlaveWithWrongDeviceTypeHaltsStartupWithoutRetry) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
   rig.assign(3, kSlave | kBoot | kMandatory);
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.device_type = 0x00020191; }));
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves(fault([&](DeviceFaults& f) { f.device_type = 0x00020191; }));
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupHalted, 10s));
   rig.run_for(5s);
 
@@ -502,9 +472,7 @@ TEST(NmtMasterSpec, MandatorySlaveWithWrongDeviceTypeHaltsStartupWithoutRetry) {
 // boot_up_wait after the reset when none comes.
 TEST(NmtMasterSpec, BootOfSlaveBeginsWithItsBootUpMessage) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.boot_delay = 300ms; }));
-  rig.power_on_network();
+  rig.two_slaves(fault([&](DeviceFaults& f) { f.boot_delay = 300ms; }));
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 5s, 3));
 
   auto reset = rig.nmt_seen(rig.started_at);
@@ -524,9 +492,7 @@ TEST(NmtMasterSpec, BootOfSlaveBeginsAfterBootUpWaitWhenItsBootUpIsLost) {
     return f.id == 0x703 && !f.rtr && f.dlc == 1 && f.data[0] == 0 ? FrameFate::drop()
                                                                    : FrameFate::deliver();
   });
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 5s, 3));
 
   auto reset = rig.nmt_seen(rig.started_at);
@@ -563,9 +529,7 @@ TEST(NmtMasterSpec, BootSlaveOfNodeNotIn1F81IsRefused) {
 // application removes the slave from the network list").
 TEST(NmtMasterSpec, BootReportsStatusAWhenSlaveIsRemovedFrom1F81WhileRetried) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3, absent_device());
-  rig.power_on_network();
+  rig.two_slaves(absent_device());
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
   ASSERT_EQ(rig.tool_write_u(0x1F81, 3, 0, 4), SdoAbort::None);
   ASSERT_TRUE(rig.run_until_event(
@@ -582,9 +546,7 @@ TEST(NmtMasterSpec, BootReportsStatusAWhenSlaveIsRemovedFrom1F81WhileRetried) {
 // is sent 1 + sdo_retries times. An optional slave's error does not stop start-up (§3.1 e/f).
 TEST(NmtMasterSpec, BootReportsStatusBWhenTheDeviceDoesNotAnswer) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3, absent_device());
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves(absent_device());
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
 
   auto error = rig.boot_errors(3).front();
@@ -601,11 +563,8 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenTheDeviceDoesNotAnswer) {
 // Header: "Any failed 1000h upload (no answer, or an abort) is status B".
 TEST(NmtMasterSpec, BootReportsStatusBWhenThe1000hUploadIsAborted) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3, failing_read(0x1000, std::nullopt, SdoAbort::HardwareError));
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::B);
+  EXPECT_EQ(rig.boot_error_of_3(failing_read(0x1000, std::nullopt, SdoAbort::HardwareError)),
+            BootError::B);
 }
 
 // C: "Value of object 1000h from CANopen device is different to value in object 1F84h". The boot
@@ -613,9 +572,7 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenThe1000hUploadIsAborted) {
 TEST(NmtMasterSpec, BootReportsStatusCWhenDeviceTypeDiffersFrom1F84) {
   MasterRig rig;
   rig.configurations->writes[3] = {write_of(0x2000, 0, 25, 2)};
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.device_type = 0x00020191; }));
-  auto& master = rig.power_on_network();
+  auto& master = rig.two_slaves(fault([&](DeviceFaults& f) { f.device_type = 0x00020191; }));
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
   rig.run_for(100ms);
 
@@ -629,9 +586,7 @@ TEST(NmtMasterSpec, BootReportsStatusCWhenDeviceTypeDiffersFrom1F84) {
 TEST(NmtMasterSpec, DeviceTypeIsNotCheckedWhen1F84IsZero) {
   MasterRig rig;
   set_value(rig.master, 0x1F84, 3, 0);
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.device_type = 0x12345678; }));
-  rig.power_on_network();
+  rig.two_slaves(fault([&](DeviceFaults& f) { f.device_type = 0x12345678; }));
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
 }
@@ -639,32 +594,22 @@ TEST(NmtMasterSpec, DeviceTypeIsNotCheckedWhen1F84IsZero) {
 // D: "Value of object 1018h sub-index 01h ... is different to value in object 1F85h".
 TEST(NmtMasterSpec, BootReportsStatusDWhenVendorIdDiffersFrom1F85) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.vendor_id = kVendor + 1; }));
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::D);
+  EXPECT_EQ(rig.boot_error_of_3(fault([&](DeviceFaults& f) { f.vendor_id = kVendor + 1; })),
+            BootError::D);
 }
 
 // Header: a failed 1018h sub 1 upload counts as a mismatch (D).
 TEST(NmtMasterSpec, BootReportsStatusDWhenVendorIdCannotBeRead) {
   MasterRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3, failing_read(0x1018, 1, SdoAbort::NoDataAvailable));
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::D);
+  EXPECT_EQ(rig.boot_error_of_3(failing_read(0x1018, 1, SdoAbort::NoDataAvailable)), BootError::D);
 }
 
 // M: "Value of object 1018h sub-index 02h ... is different to value in object 1F86h".
 TEST(NmtMasterSpec, BootReportsStatusMWhenProductCodeDiffersFrom1F86) {
   MasterRig rig;
   set_value(rig.master, 0x1F86, 3, kProduct);
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.product_code = kProduct + 1; }));
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::M);
+  EXPECT_EQ(rig.boot_error_of_3(fault([&](DeviceFaults& f) { f.product_code = kProduct + 1; })),
+            BootError::M);
 }
 
 // N, §6.9: "A mismatch is defined as: the major revision number is unequal to the expected major
@@ -675,11 +620,8 @@ TEST(NmtMasterSpec, BootReportsStatusNWhenMajorRevisionDiffersOrMinorIsLower) {
     SCOPED_TRACE(hex_text(revision));
     MasterRig rig;
     set_value(rig.master, 0x1F87, 3, kRevision);
-    rig.add_slave(2);
-    rig.add_slave(3, fault([&](DeviceFaults& f) { f.revision_number = revision; }));
-    rig.power_on_network();
-    ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-    EXPECT_EQ(rig.boot_errors(3).front().error, BootError::N);
+    EXPECT_EQ(rig.boot_error_of_3(fault([&](DeviceFaults& f) { f.revision_number = revision; })),
+              BootError::N);
   }
 }
 
@@ -688,9 +630,7 @@ TEST(NmtMasterSpec, RevisionWithEqualMajorAndEqualOrHigherMinorPasses) {
     SCOPED_TRACE(hex_text(revision));
     MasterRig rig;
     set_value(rig.master, 0x1F87, 3, kRevision);
-    rig.add_slave(2);
-    rig.add_slave(3, fault([&](DeviceFaults& f) { f.revision_number = revision; }));
-    rig.power_on_network();
+    rig.two_slaves(fault([&](DeviceFaults& f) { f.revision_number = revision; }));
     ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
     EXPECT_TRUE(rig.boot_errors(3).empty());
   }
@@ -700,11 +640,8 @@ TEST(NmtMasterSpec, RevisionWithEqualMajorAndEqualOrHigherMinorPasses) {
 TEST(NmtMasterSpec, BootReportsStatusOWhenSerialNumberDiffersFrom1F88) {
   MasterRig rig;
   set_value(rig.master, 0x1F88, 3, kSerial);
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.serial_number = kSerial + 1; }));
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::O);
+  EXPECT_EQ(rig.boot_error_of_3(fault([&](DeviceFaults& f) { f.serial_number = kSerial + 1; })),
+            BootError::O);
 }
 
 TEST(NmtMasterSpec, MatchingIdentityIn1F84To1F88Boots) {
@@ -712,9 +649,7 @@ TEST(NmtMasterSpec, MatchingIdentityIn1F84To1F88Boots) {
   set_value(rig.master, 0x1F86, 3, kProduct);
   set_value(rig.master, 0x1F87, 3, kRevision);
   set_value(rig.master, 0x1F88, 3, kSerial);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
   EXPECT_EQ(rig.engine().boot_step(id(3)), BootStep::Booted);
@@ -743,9 +678,7 @@ TEST(NmtMasterSpec, BootReportsStatusEWhenKeepAliveSlaveSendsNoHeartbeat) {
 TEST(NmtMasterSpec, BootReportsStatusFWhenGuardingRequestIsNotAnsweredWithin100ms) {
   MasterRig rig;
   rig.assign(3, kSlave | kBoot | kKeepAlive);
-  rig.add_slave(2);
-  rig.add_slave(3, fault([&](DeviceFaults& f) { f.ignore_guarding = true; }));
-  rig.power_on_network();
+  rig.two_slaves(fault([&](DeviceFaults& f) { f.ignore_guarding = true; }));
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
 
   auto error = rig.boot_errors(3).front();
@@ -813,11 +746,7 @@ TEST(NmtMasterSpec, BootReportsStatusLForKeepAliveSlaveAlreadyOperationalByGuard
 TEST(NmtMasterSpec, BootReportsStatusGWhenVerifyingSoftwareWithout1F53And1F54) {
   MasterRig rig;
   rig.assign(3, kSlave | kBoot | kVerifySoftware);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::G);
+  EXPECT_EQ(rig.boot_error_of_3(), BootError::G);
 }
 
 TEST(NmtMasterSpec, MatchingSoftwareVersionBoots) {
@@ -825,9 +754,7 @@ TEST(NmtMasterSpec, MatchingSoftwareVersionBoots) {
   rig.assign(3, kSlave | kBoot | kVerifySoftware);
   set_value(rig.master, 0x1F53, 3, kSoftwareDate);
   set_value(rig.master, 0x1F54, 3, kSoftwareTime);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
   EXPECT_FALSE(rig.uploads_of(3, 0x1F52, 1).empty());
@@ -840,11 +767,7 @@ TEST(NmtMasterSpec, BootReportsStatusHWhenSoftwareDiffersAndUpdateIsNotAllowed) 
   set_value(rig.master, 0x1F53, 3, kSoftwareDate + 1);
   set_value(rig.master, 0x1F54, 3, kSoftwareTime);
   rig.configurations->programs[3] = std::vector<std::uint8_t>(100, 0xA5);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::H);
+  EXPECT_EQ(rig.boot_error_of_3(), BootError::H);
   EXPECT_TRUE(rig.downloads_of(3, 0x1F50, 1).empty());
 }
 
@@ -854,11 +777,7 @@ TEST(NmtMasterSpec, BootReportsStatusHWhenUpdateIsAllowedButNoImageExists) {
   rig.assign(3, kSlave | kBoot | kVerifySoftware | kUpdateSoftware);
   set_value(rig.master, 0x1F53, 3, kSoftwareDate);
   set_value(rig.master, 0x1F54, 3, kSoftwareTime + 1);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::H);
+  EXPECT_EQ(rig.boot_error_of_3(), BootError::H);
 }
 
 // I: "Software update is required, but program download failed": the slave refuses the image.
@@ -868,11 +787,8 @@ TEST(NmtMasterSpec, BootReportsStatusIWhenTheProgramDownloadIsAborted) {
   set_value(rig.master, 0x1F53, 3, kSoftwareDate + 1);
   set_value(rig.master, 0x1F54, 3, kSoftwareTime);
   rig.configurations->programs[3] = std::vector<std::uint8_t>(300, 0x5A);
-  rig.add_slave(2);
-  rig.add_slave(3, failing_write(0x1F50, std::nullopt, SdoAbort::HardwareError));
-  rig.power_on_network();
-  ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
-  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::I);
+  EXPECT_EQ(rig.boot_error_of_3(failing_write(0x1F50, std::nullopt, SdoAbort::HardwareError)),
+            BootError::I);
 }
 
 // I, header: after the download 1F52h is read again; "In case the software version will stay
@@ -902,9 +818,7 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
   rig.configurations->programs[3] = image;
   SlaveNodeOptions updated;
   updated.downloaded_program_version = ApplicationSoftwareVersion{kSoftwareDate + 1, kSoftwareTime};
-  rig.add_slave(2);
-  rig.add_slave(3, {}, slave_eds(), updated);
-  rig.power_on_network();
+  rig.two_slaves({}, slave_eds(), updated);
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
 
@@ -926,9 +840,7 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
 TEST(NmtMasterSpec, BootReportsStatusJWhenTheSlaveAbortsAConfigurationWrite) {
   MasterRig rig;
   rig.configurations->writes[3] = {write_of(0x2000, 0, 25, 2), write_of(0x1017, 0, 100, 2)};
-  rig.add_slave(2);
-  rig.add_slave(3, failing_write(0x2000, std::nullopt, SdoAbort::ValueTooHigh));
-  rig.power_on_network();
+  rig.two_slaves(failing_write(0x2000, std::nullopt, SdoAbort::ValueTooHigh));
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
   rig.run_for(100ms);
   EXPECT_EQ(rig.boot_errors(3).front().error, BootError::J);
@@ -965,9 +877,7 @@ TEST(NmtMasterSpec, HeartbeatConfiguredByTheDownloadPassesStartErrorControl) {
   MasterRig rig;
   rig.consume_heartbeat(1, 3, 300);
   rig.configurations->writes[3] = {write_of(0x1017, 0, 100, 2)};
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.power_on_network();
+  rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   rig.run_for(1s);
   EXPECT_TRUE(rig.boot_errors(3).empty());
@@ -982,9 +892,7 @@ TEST(NmtMasterSpec, ApplicationConfigurationStepContinuesOrFailsTheBoot) {
     MasterRig rig;
     rig.options.application_step = true;
     rig.configurations->writes[3] = {write_of(0x2000, 0, 25, 2)};
-    rig.add_slave(2);
-    rig.add_slave(3);
-    rig.power_on_network();
+    rig.two_slaves();
     ASSERT_TRUE(rig.run_until_kind(Kind::ApplicationStep, 10s, 3));
     rig.run_for(1s);
     EXPECT_TRUE(rig.booted(3).empty());

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <functional>
+#include <initializer_list>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -254,6 +255,38 @@ class MasterRig {
     power_on_slaves();
     bus.run_for(50ms);
     return start_master();
+  }
+  /// The scene of most tests: node 2 from slave.eds, node 3 with `faults3` (and `eds3`,
+  /// `options3`), powered on as power_on_network() does.
+  NmtMaster& two_slaves(DeviceFaults faults3 = {}, const cfg::DeviceDescription& eds3 = slave_eds(),
+                        SlaveNodeOptions options3 = {}) {
+    add_slave(2);
+    add_slave(3, std::move(faults3), eds3, options3);
+    return power_on_network();
+  }
+  /// Node 3's boot error in that scene (nullopt when it booted first, or nothing within 20 s).
+  std::optional<BootError> boot_error_of_3(DeviceFaults faults3 = {},
+                                           const cfg::DeviceDescription& eds3 = slave_eds()) {
+    two_slaves(std::move(faults3), eds3);
+    auto ended = [](const MasterEvent& e) {
+      return e.node_id == 3 &&
+             (e.kind == MasterEvent::Kind::BootError || e.kind == MasterEvent::Kind::SlaveBooted);
+    };
+    if (!run_until_event(ended, 20s)) return std::nullopt;
+    for (const auto& e : events) {
+      if (ended(e)) return e.error;
+    }
+    return std::nullopt;
+  }
+  /// Every value written to (index, sub) by the tool is refused with an abort that CiA 302-2
+  /// §6.2-§6.5 allow for reserved values (0800 0000h or 0609 0030h).
+  void expect_writes_refused(std::uint16_t index, std::uint8_t sub,
+                             std::initializer_list<std::uint64_t> values, std::size_t size) {
+    for (std::uint64_t value : values) {
+      const SdoAbort code = tool_write_u(index, sub, value, size);
+      EXPECT_TRUE(code == SdoAbort::General || code == SdoAbort::ValueRangeExceeded)
+          << hex_text(index) << " sub " << int{sub} << " = " << hex_text(value) << ": " << code;
+    }
   }
   NmtMaster& engine() { return master_->engine(); }
   /// Runs an API call of the master at the bus time.
