@@ -1,0 +1,128 @@
+// The network description a CANopen manager works from: which nodes there are, what each is
+// configured with, and the master's own dictionary, which rules the boot (CiA 302-2 §3, DSP 302
+// §6). Two forms are read:
+//  - a CiA 306-3 project file (`nodelist.cpj`): `[Topology]` (further networks `[Topology2]`,
+//    `[Topology3]`...) with NetName, Nodes, NodeXPresent, NodeXName, NodeXDCFName, EDSBaseName,
+//    X being the node-ID in decimal; each present node's DCF path is relative to the project
+//    file's directory (an absolute path is taken as it is; '\' separators of Windows tools are
+//    tried as '/' when the path as written does not exist). A DCF whose [DeviceComissioning]
+//    has CANopenManager=1 is the master's own: its 1F80h/1F81h/1F84h-1F8Ah/1016h/1F26h/1F27h
+//    rule the boot; without one the master's dictionary is derived (derive_master, below);
+//  - a master DCF alone (CANopenManager=1): its 1F20h sub X (a DCF) or 1F22h sub X (a concise
+//    DCF, or a DCF) name node X's file with DownloadFile=, relative to the master DCF.
+// No bus I/O, no clocks: files are read once by load_network.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cfg/concise_dcf.hpp"
+#include "cfg/device_file.hpp"
+#include "cfg/diagnostics.hpp"
+#include "cfg/master_objects.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_dictionary.hpp"
+
+namespace cfg {
+
+/// One slave of the network.
+struct NetworkNode {
+  NodeId node_id = *NodeId::from(1);
+  std::string name;  ///< NodeXName, else the DCF's NodeName; may be empty
+  std::string file;  ///< the node's file as opened (relative paths joined to the description's)
+  /// The node's DCF; nullopt when the node is given by a concise DCF alone (master DCF form).
+  std::optional<DeviceDescription> dcf;
+  /// What configures the node: the DCF's ParameterValues (concise_writes_from_dcf, PDO-safe
+  /// order, $NODEID resolved with node_id) or the concise DCF's entries as stored. Never 1020h
+  /// or 1010h: the master adds them after the download (CiA 302-2 §3.5).
+  std::vector<ObjectWrite> writes;
+};
+
+/// A loaded network description.
+struct Network {
+  std::string file;  ///< the description's path as given
+  std::string name;  ///< NetName, else the master DCF's NetworkName; may be empty
+  unsigned net = 1;  ///< the [Topology] read (1: [Topology], n: [Topology<n>])
+  /// The slaves, by ascending node-ID; never the master itself.
+  std::vector<NetworkNode> nodes;
+  /// The master's dictionary: its DCF (master_from_file), else derive_master(nodes).
+  DeviceDescription master;
+  bool master_from_file = false;
+  std::string master_file;  ///< the master DCF's path when master_from_file
+  /// The master's node-ID: its topology entry, else its DCF's NodeID; nullopt when neither
+  /// says (a tool picks its default).
+  std::optional<NodeId> master_node_id;
+
+  /// The slave with this node-ID, or nullptr.
+  const NetworkNode* find(NodeId node) const;
+};
+
+struct NetworkOptions {
+  /// Which network of a project file: 1 reads [Topology], n > 1 [Topology<n>].
+  unsigned net = 1;
+  /// How the DCFs are read (cfg/device_file.hpp); the project file's own checks are the same
+  /// in both modes.
+  ReadMode mode = ReadMode::Tolerant;
+};
+
+struct NetworkLoad {
+  /// The network, unless the description could not be understood at all (unreadable file,
+  /// neither a project file nor a master DCF, no such [Topology<n>]).
+  std::optional<Network> network;
+  /// Every file's diagnostics with file:line: the project file's own (missing DCF, node-ID
+  /// clashes, bad values) and each DCF's reader and configuration diagnostics. A node whose
+  /// file has errors is left out of `nodes`.
+  Diagnostics diagnostics;
+  /// The description file itself could not be read (missing, a directory, no permission): an
+  /// I/O error rather than an error of its content.
+  bool unreadable = false;
+  bool ok() const { return network.has_value() && !diagnostics.has_errors(); }
+};
+
+/// Reads a network description (either form, told apart by content: a project file has a
+/// [Topology] section). Never throws on bad input. Reported as errors: a file that cannot be
+/// read (at the line naming it), a NodeXPresent/Nodes value that is not a number, a present
+/// node without NodeXDCFName, a DCF whose [DeviceComissioning] NodeID differs from the node-ID
+/// the project file (or the 1F20h/1F22h sub-index) gives it, two DCFs with CANopenManager=1, a
+/// DCF value that cannot be encoded. Warnings: Nodes differing from the number of present
+/// nodes.
+NetworkLoad load_network(const std::string& path, const NetworkOptions& options = {});
+
+// --- the derived master --------------------------------------------------------------------------
+// Without a master DCF, the master's dictionary follows from the nodes' DCFs:
+//  - 1F80h = 1 (NMT master; it enters operational by itself and starts every slave
+//    individually once booted, CiA 302-2 §6.2 bits 1-3 = 0);
+//  - 1F81h sub X = bits 0, 2, 3 (slave, boot and start it, mandatory) for every node X, with,
+//    when the node produces no heartbeat but its DCF configures node guarding (100Ch guard
+//    time and 100Dh life time factor both non-zero), byte 1 = 100Dh and bytes 2-3 = 100Ch;
+//  - 1F84h sub X = 1000h, 1F85h/1F86h/1F87h sub X = 1018h sub 1/2/3, each the DCF's
+//    ParameterValue, else DefaultValue, else [DeviceInfo] VendorNumber/ProductNumber/
+//    RevisionNumber (none for 1000h); 0 (not checked) when none is given; 1F88h (serial number)
+//    stays 0, as a serial number belongs to one device, not to its configuration;
+//  - 1F26h/1F27h sub X = configuration_stamp() of the node's writes as a concise DCF, so that
+//    any change of a downloaded value (or of the set of values) changes them and the next boot
+//    downloads again, while an unchanged configuration is skipped (1020h matches);
+//  - 1016h: one heartbeat consumer entry per node whose 1017h (its writes' value, else the
+//    DCF's) is non-zero, with heartbeat_consumer_time_ms() of it.
+// Every array has sub-indices 0..127 (sub 0 = 7Fh), unused entries 0.
+
+/// A valid 1020h/1F26h/1F27h date and time standing for a configuration: h = the 64-bit FNV-1a
+/// hash of `concise_dcf` (the stream encode_concise_dcf makes of the writes);
+/// days = 5844 + (h >> 32) mod 18263 (a day from 1 January 2000 to 31 December 2049, counted
+/// from 1 January 1984), ms = (h & FFFFFFFFh) mod 86 400 000. Never {0, 0}, which would mean
+/// "do not verify" (CiA 302-2 §3.5 a).
+ConfigurationStamp configuration_stamp(std::span<const std::uint8_t> concise_dcf);
+
+/// The consumer time for a producer time (both ms): 1.5 x producer + 100 ms of margin for
+/// bus load and scheduling, at most FFFFh; 0 (no heartbeat) gives 0.
+std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms);
+
+/// The master's dictionary for `nodes` by the rules above, as a DCF with CANopenManager=1 (so
+/// that it can be written out and read back as a master DCF). Nodes without a DCF get 1F81h and
+/// 1F26h/1F27h only.
+DeviceDescription derive_master(std::span<const NetworkNode> nodes);
+
+}  // namespace cfg

@@ -1,0 +1,596 @@
+#include "cfg/network.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <initializer_list>
+#include <map>
+#include <string_view>
+#include <utility>
+
+#include "cfg/bytes.hpp"
+#include "cfg/data_type.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/integer_literal.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
+#include "cfg/value.hpp"
+#include "device_file_detail.hpp"
+#include "ini_scanner.hpp"
+
+namespace cfg {
+namespace {
+
+namespace fs = std::filesystem;
+
+// --- the project file (CiA 306-3)
+// -----------------------------------------------------------------
+
+struct Entry {
+  std::string key;  // as written
+  std::string value;
+  int line = 0;
+};
+
+struct Section {
+  std::string name;
+  int line = 0;
+  std::vector<Entry> entries;
+
+  // The last entry of `key` (a key given twice takes the later value, as the DCF reader does).
+  const Entry* find(std::string_view key) const {
+    const auto it = std::find_if(entries.rbegin(), entries.rend(),
+                                 [key](const Entry& e) { return iequals(e.key, key); });
+    return it == entries.rend() ? nullptr : &*it;
+  }
+};
+
+class SectionCollector final : public detail::IniSink {
+ public:
+  std::vector<Section> sections;
+
+  void on_section(int line, std::string_view name, std::string_view, bool) override {
+    sections.push_back({std::string(name), line, {}});
+  }
+  void on_key(int line, std::string_view key, std::string_view value) override {
+    if (!sections.empty())
+      sections.back().entries.push_back({std::string(key), std::string(value), line});
+  }
+  void on_comment(int, char) override {}
+  void on_junk(int, std::string_view) override {}
+};
+
+// Messages are built in one string (no temporaries per `+`).
+std::string concat(std::initializer_list<std::string_view> parts) {
+  std::string out;
+  for (const std::string_view part : parts) out += part;
+  return out;
+}
+
+std::string_view strip_bom(std::string_view text) {
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+  return text;
+}
+
+// "Topology" is network 1, "Topology<n>" network n; 0 for any other name.
+unsigned topology_number(std::string_view name) {
+  constexpr std::string_view kTopology = "Topology";
+  if (name.size() < kTopology.size() || !iequals(name.substr(0, kTopology.size()), kTopology)) {
+    return 0;
+  }
+  const std::string_view rest = name.substr(kTopology.size());
+  if (rest.empty()) return 1;
+  unsigned n = 0;
+  for (char c : rest) {
+    if (c < '0' || c > '9' || n > 100000) return 0;
+    n = n * 10 + static_cast<unsigned>(c - '0');
+  }
+  return n;
+}
+
+// A number of the project file: CiA 306 literal, an inline comment cut off.
+std::optional<std::uint64_t> number_of(std::string_view text) {
+  if (const auto cut = detail::find_inline_comment(text); cut != std::string_view::npos) {
+    text = detail::trim_blanks(text.substr(0, cut));
+  }
+  const auto parsed = parse_integer_literal(text);
+  if (!parsed.literal) return std::nullopt;
+  return parsed.literal->value;
+}
+
+// The file a description names, relative to the directory of the naming file. Tools on Windows
+// write '\': tried as '/' when the name as written does not exist.
+std::string resolve(const fs::path& base_dir, const std::string& name) {
+  const auto join = [&base_dir](const std::string& n) {
+    const fs::path p(n);
+    return (p.is_absolute() || base_dir.empty() ? p : base_dir / p).string();
+  };
+  std::string path = join(name);
+  std::error_code ec;
+  if (name.find('\\') != std::string::npos && !fs::exists(path, ec)) {
+    std::string slashed = name;
+    std::replace(slashed.begin(), slashed.end(), '\\', '/');
+    if (fs::exists(join(slashed), ec)) path = join(slashed);
+  }
+  return path;
+}
+
+fs::path directory_of(const std::string& path) {
+  return fs::path(path).parent_path();
+}
+
+// --- reading node files --------------------------------------------------------------------------
+
+class Loader {
+ public:
+  Loader(const std::string& path, const NetworkOptions& options, Diagnostics& diagnostics)
+      : path_(path), options_(options), diagnostics_(diagnostics) {}
+
+  bool unreadable = false;
+
+  std::optional<Network> load();
+
+ private:
+  std::optional<Network> load_project(const std::vector<Section>& sections);
+  std::optional<Network> load_master_dcf(std::string_view text);
+  // Reads and parses a DCF named at `line` of `naming_file`; nullopt when it cannot be read
+  // (an error at that line) or not be parsed.
+  std::optional<DeviceDescription> read_dcf(const std::string& file, const std::string& naming_file,
+                                            int line, const std::string& what);
+  std::optional<DeviceDescription> parse_dcf(std::string_view text, const std::string& file);
+  // The node-ID of a DCF must be the one the description gives it.
+  void check_node_id(const DeviceDescription& dcf, NodeId node, const std::string& naming_file,
+                     int line, const std::string& what);
+  // A slave from its DCF: its configuration writes; nullopt when they cannot be made.
+  std::optional<NetworkNode> node_from_dcf(DeviceDescription dcf, NodeId node, std::string file,
+                                           std::string name);
+  void error(const std::string& file, int line, std::string message) {
+    diagnostics_.add(file, line, Severity::Error, std::move(message));
+  }
+
+  const std::string& path_;
+  const NetworkOptions& options_;
+  Diagnostics& diagnostics_;
+};
+
+std::optional<Network> Loader::load() {
+  auto text = read_file(path_);
+  if (!text) {
+    error(path_, 0, text.error().message);
+    unreadable = true;
+    return std::nullopt;
+  }
+  SectionCollector collector;
+  detail::scan_ini(strip_bom(text->view()), collector);
+  const bool is_project =
+      std::any_of(collector.sections.begin(), collector.sections.end(),
+                  [](const Section& s) { return topology_number(s.name) != 0; });
+  if (is_project) return load_project(collector.sections);
+  return load_master_dcf(text->view());
+}
+
+std::optional<DeviceDescription> Loader::parse_dcf(std::string_view text, const std::string& file) {
+  ReadOptions read_options;
+  read_options.mode = options_.mode;
+  read_options.file_name = file;
+  ReadResult read = parse_device_description(text, read_options);
+  diagnostics_.append(read.diagnostics);
+  if (!read.device || read.diagnostics.has_errors()) return std::nullopt;
+  return std::move(read.device);
+}
+
+std::optional<DeviceDescription> Loader::read_dcf(const std::string& file,
+                                                  const std::string& naming_file, int line,
+                                                  const std::string& what) {
+  auto text = read_file(file);
+  if (!text) {
+    error(naming_file, line, what + " '" + file + "': " + text.error().message);
+    return std::nullopt;
+  }
+  return parse_dcf(text->view(), file);
+}
+
+void Loader::check_node_id(const DeviceDescription& dcf, NodeId node,
+                           const std::string& naming_file, int line, const std::string& what) {
+  const auto own = dcf.node_id();
+  if (!own || *own == node.value()) return;
+  error(naming_file, line,
+        what + ": node-ID clash: the DCF's [DeviceComissioning] NodeID is " + std::to_string(*own) +
+            ", the network description gives node-ID " + std::to_string(node.value()));
+}
+
+std::optional<NetworkNode> Loader::node_from_dcf(DeviceDescription dcf, NodeId node,
+                                                 std::string file, std::string name) {
+  ConciseOptions concise;
+  concise.node_id = node.value();
+  concise.base_dir = directory_of(file).string();
+  concise.file_name = file;
+  auto writes = concise_writes_from_dcf(dcf, concise, diagnostics_);
+  if (!writes) return std::nullopt;
+  NetworkNode out;
+  out.node_id = node;
+  out.name = !name.empty() ? std::move(name)
+                           : (dcf.commissioning ? dcf.commissioning->node_name : std::string());
+  out.file = std::move(file);
+  out.dcf = std::move(dcf);
+  out.writes = std::move(*writes);
+  return out;
+}
+
+std::optional<Network> Loader::load_project(const std::vector<Section>& sections) {
+  const Section* topology = nullptr;
+  for (const auto& s : sections) {
+    if (topology_number(s.name) == options_.net) topology = &s;  // a repeated one: the last
+  }
+  if (topology == nullptr) {
+    std::string message =
+        "no [Topology" + (options_.net == 1 ? std::string() : std::to_string(options_.net)) +
+        "] section for network " + std::to_string(options_.net) + "; the file describes network";
+    std::string numbers;
+    for (const auto& s : sections) {
+      if (const unsigned n = topology_number(s.name); n != 0) {
+        numbers += (numbers.empty() ? " " : ", ") + std::to_string(n);
+      }
+    }
+    error(path_, 0, message + (numbers.find(',') != std::string::npos ? "s" : "") + numbers);
+    return std::nullopt;
+  }
+
+  Network network;
+  network.file = path_;
+  network.net = options_.net;
+  if (const Entry* e = topology->find("NetName")) network.name = e->value;
+  const fs::path base = directory_of(path_);
+  const std::string section_name = "[" + topology->name + "] ";
+
+  std::size_t present = 0;
+  std::optional<DeviceDescription> master;
+  for (unsigned x = kMinNodeId; x <= kMaxNodeId; ++x) {
+    const std::string prefix = "Node" + std::to_string(x);
+    const Entry* present_entry = topology->find(prefix + "Present");
+    if (present_entry == nullptr) continue;  // CiA 306-3: a missing entry means "not present"
+    const auto flag = number_of(present_entry->value);
+    if (!flag || *flag > 1) {
+      error(path_, present_entry->line,
+            section_name + present_entry->key + "=" + present_entry->value +
+                ": expected 0x00 (not present) or 0x01 (present)");
+      continue;
+    }
+    if (*flag == 0) continue;
+    ++present;
+    const NodeId node = *NodeId::from(x);
+    const Entry* dcf_entry = topology->find(prefix + "DCFName");
+    if (dcf_entry == nullptr || dcf_entry->value.empty()) {
+      error(path_, present_entry->line,
+            concat({section_name, "node ", std::to_string(x), " is present but has no ", prefix,
+                    "DCFName: nothing to configure it from"}));
+      continue;
+    }
+    const std::string file = resolve(base, dcf_entry->value);
+    auto dcf = read_dcf(file, path_, dcf_entry->line, section_name + dcf_entry->key);
+    if (!dcf) continue;
+    check_node_id(*dcf, node, path_, dcf_entry->line,
+                  concat({section_name, dcf_entry->key, " '", file, "'"}));
+    if (dcf->commissioning && dcf->commissioning->canopen_manager.value_or(false)) {
+      if (master) {
+        error(path_, dcf_entry->line,
+              concat({section_name, dcf_entry->key, " '", file,
+                      "': a second DCF with CANopenManager=1; the master's is '",
+                      network.master_file, "'"}));
+        continue;
+      }
+      network.master_from_file = true;
+      network.master_file = file;
+      network.master_node_id = node;
+      master = std::move(dcf);
+      continue;
+    }
+    const Entry* name_entry = topology->find(prefix + "Name");
+    if (auto slave = node_from_dcf(std::move(*dcf), node, file,
+                                   name_entry != nullptr ? name_entry->value : std::string())) {
+      network.nodes.push_back(std::move(*slave));
+    }
+  }
+  if (const Entry* nodes = topology->find("Nodes")) {
+    const auto count = number_of(nodes->value);
+    if (!count) {
+      error(path_, nodes->line, section_name + "Nodes=" + nodes->value + ": not a number");
+    } else if (*count != present) {
+      diagnostics_.add(path_, nodes->line, Severity::Warning,
+                       section_name + "Nodes=" + nodes->value + " but " + std::to_string(present) +
+                           " node" + (present == 1 ? " is" : "s are") + " present");
+    }
+  }
+  network.master = master ? std::move(*master) : derive_master(network.nodes);
+  return network;
+}
+
+// A node file named by 1F22h: a concise DCF, or (written by hand) a DCF.
+bool looks_like_text_dcf(std::span<const std::uint8_t> bytes) {
+  std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  text = strip_bom(text);
+  const auto first = text.find_first_not_of(" \t\r\n");
+  return first != std::string_view::npos && (text[first] == '[' || text[first] == ';');
+}
+
+std::optional<Network> Loader::load_master_dcf(std::string_view text) {
+  auto dcf = parse_dcf(text, path_);
+  if (!dcf) return std::nullopt;
+  if (!dcf->commissioning || !dcf->commissioning->canopen_manager.value_or(false)) {
+    error(path_, 0,
+          "neither a CiA 306-3 project file (no [Topology] section) nor a master DCF "
+          "([DeviceComissioning] CANopenManager=1)");
+    return std::nullopt;
+  }
+  Network network;
+  network.file = path_;
+  network.name = dcf->commissioning->network_name;
+  network.master_from_file = true;
+  network.master_file = path_;
+  if (const auto own = dcf->node_id()) network.master_node_id = NodeId::from(*own);
+  const fs::path base = directory_of(path_);
+
+  for (unsigned x = kMinNodeId; x <= kMaxNodeId; ++x) {
+    const auto sub_index = static_cast<std::uint8_t>(x);
+    const NodeId node = *NodeId::from(x);
+    // DSP 302 §6.1/§6.2: sub-index X of 1F20h (store DCF) and 1F22h (concise DCF) is node X's.
+    const SubObject* sub = nullptr;
+    std::uint16_t index = 0;
+    for (const std::uint16_t candidate : {object::kStoreDcf, object::kConciseDcf}) {
+      const SubObject* s = dcf->sub(candidate, sub_index);
+      if (s != nullptr && s->download_file && !s->download_file->empty()) {
+        sub = s;
+        index = candidate;
+        break;
+      }
+    }
+    if (sub == nullptr) continue;
+    const std::string what = to_string(ObjectAddress{index, sub_index}) + " DownloadFile";
+    if (network.master_node_id && *network.master_node_id == node) {
+      diagnostics_.add(path_, sub->line, Severity::Warning,
+                       what + ": names a file for the master's own node-ID; ignored");
+      continue;
+    }
+    const std::string file = resolve(base, *sub->download_file);
+    auto bytes = read_file(file);
+    if (!bytes) {
+      error(path_, sub->line, concat({what, " '", file, "': ", bytes.error().message}));
+      continue;
+    }
+    const std::string_view view = bytes->view();
+    const std::span<const std::uint8_t> data(reinterpret_cast<const std::uint8_t*>(view.data()),
+                                             view.size());
+    if (index == object::kStoreDcf || looks_like_text_dcf(data)) {
+      auto node_dcf = parse_dcf(view, file);
+      if (!node_dcf) continue;
+      check_node_id(*node_dcf, node, path_, sub->line, concat({what, " '", file, "'"}));
+      if (auto slave = node_from_dcf(std::move(*node_dcf), node, file, {})) {
+        network.nodes.push_back(std::move(*slave));
+      }
+      continue;
+    }
+    auto writes = decode_concise_dcf(data);
+    if (!writes) {
+      error(path_, sub->line,
+            concat({what, " '", file, "': not a concise DCF: ", writes.error().message}));
+      continue;
+    }
+    NetworkNode slave;
+    slave.node_id = node;
+    slave.file = file;
+    slave.writes = std::move(writes).value();
+    network.nodes.push_back(std::move(slave));
+  }
+  network.master = std::move(*dcf);
+  return network;
+}
+
+// --- the derived master
+// ---------------------------------------------------------------------------
+
+// An unsigned value of a DCF entry: ParameterValue, else DefaultValue.
+std::optional<std::uint32_t> configured_unsigned(const DeviceDescription& dcf, std::uint16_t index,
+                                                 std::uint8_t sub_index, NodeId node) {
+  const SubObject* sub = dcf.sub(index, sub_index);
+  if (sub == nullptr) return std::nullopt;
+  const OptionalText& text = sub->configured_value();
+  if (!text || text->empty()) return std::nullopt;
+  auto value = parse_value(DataType::Unsigned32, *text, node.value());
+  if (!value) return std::nullopt;
+  return static_cast<std::uint32_t>(value->as_unsigned());
+}
+
+// The value a node has after its configuration: the write of that entry, else the DCF's.
+std::optional<std::uint32_t> value_after_download(const NetworkNode& node, std::uint16_t index,
+                                                  std::uint8_t sub_index) {
+  for (const auto& w : node.writes) {
+    if (w.index == index && w.sub_index == sub_index && !w.data.empty() && w.data.size() <= 4) {
+      return static_cast<std::uint32_t>(load_le(w.data, w.data.size()));
+    }
+  }
+  if (!node.dcf) return std::nullopt;
+  return configured_unsigned(*node.dcf, index, sub_index, node.node_id);
+}
+
+std::optional<std::uint32_t> device_info_number(const DeviceDescription& dcf,
+                                                std::string_view key) {
+  const std::string* text = dcf.device_info.find(key);
+  if (text == nullptr) return std::nullopt;
+  const auto value = number_of(detail::trim_blanks(*text));
+  if (!value || *value > 0xFFFFFFFFU) return std::nullopt;
+  return static_cast<std::uint32_t>(*value);
+}
+
+SubObject make_entry(std::uint8_t sub_index, std::string name, DataType type, AccessType access,
+                     std::uint32_t value) {
+  SubObject sub;
+  sub.sub_index = sub_index;
+  sub.name = std::move(name);
+  sub.data_type = static_cast<std::uint16_t>(type);
+  sub.access = access;
+  sub.default_value = hex(value, type == DataType::Unsigned8 ? 2 : 8);
+  return sub;
+}
+
+Object make_var(std::uint16_t index, std::string name, DataType type, AccessType access,
+                std::uint32_t value) {
+  Object object;
+  object.index = index;
+  object.name = name;
+  object.object_type = ObjectType::Var;
+  object.subs.emplace(0, make_entry(0, std::move(name), type, access, value));
+  return object;
+}
+
+// An ARRAY of UNSIGNED32 with sub-indices 1..127, one per node-ID (CiA 302-2 §6).
+Object make_node_array(std::uint16_t index, const std::string& name, const std::string& sub_name,
+                       const std::map<std::uint8_t, std::uint32_t>& values) {
+  Object object;
+  object.index = index;
+  object.name = name;
+  object.object_type = ObjectType::Array;
+  object.sub_number = static_cast<std::uint8_t>(kMaxNodeId + 1);
+  object.subs.emplace(0, make_entry(0, "Highest sub-index supported", DataType::Unsigned8,
+                                    AccessType::Ro, kMaxNodeId));
+  for (unsigned x = kMinNodeId; x <= kMaxNodeId; ++x) {
+    const auto sub_index = static_cast<std::uint8_t>(x);
+    const auto it = values.find(sub_index);
+    SubObject sub = make_entry(sub_index, sub_name + " " + std::to_string(x), DataType::Unsigned32,
+                               AccessType::Rw, 0);
+    if (it != values.end() && it->second != 0) sub.parameter_value = hex(it->second, 8);
+    object.subs.emplace(sub_index, std::move(sub));
+  }
+  return object;
+}
+
+}  // namespace
+
+const NetworkNode* Network::find(NodeId node) const {
+  for (const auto& n : nodes) {
+    if (n.node_id == node) return &n;
+  }
+  return nullptr;
+}
+
+NetworkLoad load_network(const std::string& path, const NetworkOptions& options) {
+  NetworkLoad out;
+  Loader loader(path, options, out.diagnostics);
+  out.network = loader.load();
+  out.unreadable = loader.unreadable;
+  return out;
+}
+
+ConfigurationStamp configuration_stamp(std::span<const std::uint8_t> concise_dcf) {
+  // FNV-1a, 64 bits: every byte changes the hash; not a security measure, a change detector.
+  std::uint64_t h = 0xCBF29CE484222325ULL;
+  for (const std::uint8_t b : concise_dcf) {
+    h ^= b;
+    h *= 0x100000001B3ULL;
+  }
+  constexpr std::uint32_t kFirstDay = 5844;      // 1 January 2000, in days since 1 January 1984
+  constexpr std::uint32_t kDays = 18263;         // to 31 December 2049
+  constexpr std::uint32_t kMsPerDay = 86400000;  // CiA 301: ms after midnight
+  return {kFirstDay + static_cast<std::uint32_t>((h >> 32) % kDays),
+          static_cast<std::uint32_t>((h & 0xFFFFFFFFULL) % kMsPerDay)};
+}
+
+std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms) {
+  if (producer_ms == 0) return 0;
+  const std::uint32_t consumer = std::uint32_t{producer_ms} * 3 / 2 + 100;
+  return static_cast<std::uint16_t>(std::min<std::uint32_t>(consumer, 0xFFFF));
+}
+
+DeviceDescription derive_master(std::span<const NetworkNode> nodes) {
+  std::map<std::uint8_t, std::uint32_t> assignment, device_type, vendor, product, revision, date,
+      time;
+  std::vector<std::uint32_t> consumers;
+  for (const auto& node : nodes) {
+    const std::uint8_t x = node.node_id.value();
+    std::uint8_t retry_factor = 0;
+    std::uint16_t guard_time_ms = 0;
+    const auto producer = value_after_download(node, object::kProducerHeartbeatTime, 0);
+    if (producer && *producer != 0) {
+      const auto consumer = heartbeat_consumer_time_ms(static_cast<std::uint16_t>(*producer));
+      // CiA 301 §7.5.2.26: bits 16-23 node-ID, bits 0-15 time in ms.
+      consumers.push_back(std::uint32_t{x} << 16 | consumer);
+    } else {
+      const auto guard = value_after_download(node, object::kGuardTime, 0);
+      const auto factor = value_after_download(node, object::kLifeTimeFactor, 0);
+      if (guard && factor && *guard != 0 && *factor != 0) {
+        guard_time_ms = static_cast<std::uint16_t>(std::min<std::uint32_t>(*guard, 0xFFFF));
+        retry_factor = static_cast<std::uint8_t>(std::min<std::uint32_t>(*factor, 0xFF));
+      }
+    }
+    assignment[x] = SlaveAssignment::make(SlaveAssignment::kSlave | SlaveAssignment::kBootSlave |
+                                              SlaveAssignment::kMandatory,
+                                          retry_factor, guard_time_ms)
+                        .value;
+    const ConfigurationStamp stamp = configuration_stamp(encode_concise_dcf(node.writes));
+    date[x] = stamp.days;
+    time[x] = stamp.ms;
+    if (!node.dcf) continue;
+    const DeviceDescription& dcf = *node.dcf;
+    const auto identity = [&](std::uint8_t sub, std::string_view key) {
+      auto value = configured_unsigned(dcf, object::kIdentity, sub, node.node_id);
+      return value ? value : device_info_number(dcf, key);
+    };
+    device_type[x] = configured_unsigned(dcf, object::kDeviceType, 0, node.node_id).value_or(0);
+    vendor[x] = identity(1, "VendorNumber").value_or(0);
+    product[x] = identity(2, "ProductNumber").value_or(0);
+    revision[x] = identity(3, "RevisionNumber").value_or(0);
+  }
+
+  DeviceDescription master;
+  master.file_info.set("FileName", "master.dcf");
+  master.file_info.set("Description", "NMT master derived from the network description");
+  master.device_info.set("VendorName", "");
+  master.device_info.set("ProductName", "CANopen manager");
+  master.device_info.set("SimpleBootUpMaster", "1");
+  master.device_info.set("SimpleBootUpSlave", "0");
+  DeviceCommissioning commissioning;
+  commissioning.canopen_manager = true;
+  master.commissioning = std::move(commissioning);
+
+  auto add = [&master](Object object) { master.objects.emplace(object.index, std::move(object)); };
+  add(make_var(object::kDeviceType, "Device type", DataType::Unsigned32, AccessType::Ro, 0));
+  add(make_var(object::kErrorRegister, "Error register", DataType::Unsigned8, AccessType::Ro, 0));
+  {
+    std::map<std::uint8_t, std::uint32_t> entries;
+    for (std::size_t i = 0; i < consumers.size(); ++i) {
+      entries[static_cast<std::uint8_t>(i + 1)] = consumers[i];
+    }
+    Object heartbeat = make_node_array(object::kConsumerHeartbeatTime, "Consumer heartbeat time",
+                                       "Consumer heartbeat time", entries);
+    master.objects.emplace(heartbeat.index, std::move(heartbeat));
+  }
+  {
+    Object identity;
+    identity.index = object::kIdentity;
+    identity.name = "Identity object";
+    identity.object_type = ObjectType::Record;
+    identity.sub_number = 2;
+    identity.subs.emplace(
+        0, make_entry(0, "Highest sub-index supported", DataType::Unsigned8, AccessType::Ro, 1));
+    identity.subs.emplace(1, make_entry(1, "Vendor-ID", DataType::Unsigned32, AccessType::Ro, 0));
+    add(std::move(identity));
+  }
+  add(make_node_array(object::kExpectedConfigurationDate, "Expected configuration date",
+                      "Expected configuration date node", date));
+  add(make_node_array(object::kExpectedConfigurationTime, "Expected configuration time",
+                      "Expected configuration time node", time));
+  Object startup =
+      make_var(object::kNmtStartup, "NMT startup", DataType::Unsigned32, AccessType::Rw, 0);
+  startup.subs.at(0).parameter_value = hex(NmtStartup::kMaster, 8);
+  add(std::move(startup));
+  add(make_node_array(object::kSlaveAssignment, "NMT slave assignment", "NMT slave assignment node",
+                      assignment));
+  add(make_node_array(object::kDeviceTypeIdentification, "Device type identification",
+                      "Device type identification node", device_type));
+  add(make_node_array(object::kVendorIdentification, "Vendor identification",
+                      "Vendor identification node", vendor));
+  add(make_node_array(object::kProductCode, "Product code", "Product code node", product));
+  add(make_node_array(object::kRevisionNumber, "Revision number", "Revision number node",
+                      revision));
+  return master;
+}
+
+}  // namespace cfg
