@@ -168,11 +168,16 @@ TEST(UdpBus, MasterBootsPythonCanSlaves) {
   ASSERT_FALSE(lines.empty());
   EXPECT_EQ(lines.back(), "END");
 
-  // CiA 301: the master's own boot-up; CiA 302-2 §3.1 d): no slave is keep-alive, so one reset
-  // communication for all nodes (000#8200) comes first.
-  ASSERT_GE(sent.size(), 2u);
-  EXPECT_EQ(sent[0], "77F#00");
-  EXPECT_EQ(sent[1], "000#8200");
+  // CiA 301: the master's own boot-up (77Fh); CiA 302-2 §3.1 d): no slave is keep-alive, so the
+  // first NMT command is one reset communication for all nodes (000#8200); both before any SDO.
+  const auto first_sdo = std::find_if(sent.begin(), sent.end(),
+                                      [](const std::string& f) { return f.rfind("6", 0) == 0; });
+  EXPECT_NE(std::find(sent.begin(), first_sdo, "77F#00"), first_sdo);
+  const auto first_nmt = std::find_if(sent.begin(), sent.end(),
+                                      [](const std::string& f) { return f.rfind("000#", 0) == 0; });
+  ASSERT_NE(first_nmt, sent.end());
+  EXPECT_EQ(*first_nmt, "000#8200");
+  EXPECT_LT(first_nmt, first_sdo);
   for (const auto node : kNodes) {
     SCOPED_TRACE("node " + std::to_string(node));
     const auto seen = lines_of(lines, node);
