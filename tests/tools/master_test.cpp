@@ -7,6 +7,7 @@
 #include <chrono>
 #include <csignal>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <thread>
@@ -257,6 +258,41 @@ TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
   EXPECT_NE(err.find("node 2: booted, configured"), std::string::npos) << err;
   EXPECT_NE(err.find("node 3: booted, configured"), std::string::npos) << err;
   EXPECT_NE(err.find("NMT start-up complete"), std::string::npos) << err;
+}
+
+TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
+  if (auto why = tool_test::not_in_private_netns("Master.EndToEndOverUdp")) GTEST_SKIP() << *why;
+  ScratchDir dir;
+  const std::string bus = "udp://239.74.163.2:43120";
+  auto devices = std::make_unique<tool_test::SpawnedTool>(
+      "cfgmgr",
+      std::vector<std::string>{"simulate", "--bus", bus, "--for", "30",
+                               network("nodes/io_node2.dcf")},
+      dir / "sim.out", dir / "sim.err");
+  ASSERT_TRUE(devices->started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::string events = dir / "events.jsonl";
+  tool_test::SpawnedTool master(
+      "cfgmgr", {"master", network("heartbeat.cpj"), "--bus", bus, "--json-events", events},
+      dir / "master.out", dir / "master.err");
+  ASSERT_TRUE(master.started());
+  const auto wait_for = [&events](const std::string& event, std::chrono::seconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      if (tool_test::slurp(events).find("\"" + event + "\"") != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+  };
+  EXPECT_TRUE(wait_for("startup_complete", std::chrono::seconds(15)));
+  // The device goes away: no heartbeat within the consumer time (1600 ms, CiA 301 §7.2.8.3.2.2).
+  devices.reset();
+  EXPECT_TRUE(wait_for("heartbeat_lost", std::chrono::seconds(5)));
+  const auto code = master.stop(SIGINT, std::chrono::milliseconds(3000));
+  const std::string err = tool_test::slurp(dir / "master.err");
+  ASSERT_TRUE(code.has_value()) << "no clean exit on SIGINT\n" << err;
+  EXPECT_EQ(*code, 0) << err;
+  EXPECT_NE(err.find("node 2: heartbeat lost"), std::string::npos) << err;
 }
 
 }  // namespace
