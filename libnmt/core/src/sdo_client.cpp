@@ -242,9 +242,22 @@ void SdoClient::aborted(Transfer& t, const sdo::Abort& abort, TimePoint now, Out
   finish(code, true, now, out);
 }
 
+// An initiate response that names another object than the transfer's is a late answer to an
+// earlier request on the channel (one that timed out or was cancelled): it is ignored, and the
+// transfer waits for its own answer (or its timeout).
 void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoint now,
                                 Output& out) {
   const cfg::ObjectAddress address{t.index, t.sub};
+  const auto named = std::visit(
+      [](const auto& frame) -> std::optional<cfg::ObjectAddress> {
+        if constexpr (requires { frame.address; }) {
+          return frame.address;
+        } else {
+          return std::nullopt;
+        }
+      },
+      f);
+  if (named && *named != address) return;
   switch (t.state) {
     case State::InitiateDownload: {
       const auto* r = std::get_if<sdo::InitiateDownloadResponse>(&f);

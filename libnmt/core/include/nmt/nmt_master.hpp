@@ -104,7 +104,9 @@ enum class BootError : char {
   O = 'O',  ///< 1018h sub 4 differs from 1F88h
 };
 /// The letter, 'A'..'O'.
-constexpr char letter(BootError error) { return static_cast<char>(error); }
+constexpr char letter(BootError error) {
+  return static_cast<char>(error);
+}
 /// Table 1's words: "value of object 1000h from the device differs from 1F84h (device type)".
 std::string_view describe(BootError error);
 
@@ -130,13 +132,13 @@ std::string_view to_string(BootStep step);
 
 /// NMT start-up as a whole (CiA 302-2 §3.1).
 enum class StartupState : std::uint8_t {
-  Off,                 ///< before start()
-  NotMaster,           ///< 1F80h bit 0 is 0 (a self-starting device went operational)
-  Refused,             ///< the master decision could not be made (flying master, see above)
-  BootingSlaves,       ///< start process boot NMT slave for every slave
-  Halted,              ///< a mandatory slave failed (§3.1 f): no start of the network
-  AwaitApplication,    ///< 1F80h bit 2: the application calls enter_operational()
-  Operational,         ///< start-up ended (§3.1 i): normal operation
+  Off,               ///< before start()
+  NotMaster,         ///< 1F80h bit 0 is 0 (a self-starting device went operational)
+  Refused,           ///< the master decision could not be made (flying master, see above)
+  BootingSlaves,     ///< start process boot NMT slave for every slave
+  Halted,            ///< a mandatory slave failed (§3.1 f): no start of the network
+  AwaitApplication,  ///< 1F80h bit 2: the application calls enter_operational()
+  Operational,       ///< start-up ended (§3.1 i): normal operation
 };
 std::string_view to_string(StartupState state);
 
@@ -165,18 +167,18 @@ struct MasterEvent {
   Kind kind;
   TimePoint at{0};
   std::uint8_t node_id = 0;
-  std::optional<BootError> error;
+  std::optional<BootError> error{};
   BootStep step = BootStep::Idle;
-  std::optional<NmtState> state;
-  std::optional<NmtCommand> command;
+  std::optional<NmtState> state{};
+  std::optional<NmtCommand> command{};
   bool configured = false;  ///< SlaveBooted: the configuration was downloaded
   bool final = false;       ///< BootError: the last try (mandatory, or boot time over)
   bool assigned = false;    ///< BootUp: the node is a slave in 1F81h
   std::size_t written = 0;  ///< Download/SlaveBooted: configuration entries written
   std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
   std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
-  std::optional<SdoResult> sdo;
-  std::string text;
+  std::optional<SdoResult> sdo{};
+  std::string text{};
 };
 std::string_view to_string(MasterEvent::Kind kind);
 

@@ -6,9 +6,10 @@
 // does not come within SdoTransferOptions::timeout; in a block upload it acknowledges when it
 // sees the block's last sequence number or the "no more segments" flag.
 // Limitation of the protocol: SDO frames carry no transaction number. A response that arrives
-// after its transfer ended (a slow server answering after the client's timeout) can be taken
-// for a response of the next transfer on the channel; keep client timeouts above server
-// response times.
+// after its transfer ended (a slow server answering after the client's timeout, or the answer to
+// a cancelled request) is recognised when it is an initiate response naming another object:
+// it is ignored. A late segment response cannot be told apart and can be taken for one of the
+// next transfer; keep client timeouts above server response times.
 #pragma once
 
 #include <chrono>

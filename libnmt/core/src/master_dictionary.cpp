@@ -1,0 +1,204 @@
+// The NMT master's own objects (CiA 302-2 §6): the ones a master DCF lacks get their defaults,
+// and SDO writes get the §6 value checks; 1F82h/1F83h writes are requests, their reads report.
+#include <string>
+
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
+#include "nmt_master_impl.hpp"
+
+namespace nmt {
+
+namespace obj = cfg::object;
+
+namespace {
+
+constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (§6.4, §6.5)
+
+DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
+                           cfg::DataType type, cfg::AccessType access, std::uint64_t value) {
+  DictionaryEntry e;
+  e.index = index;
+  e.sub_index = sub;
+  e.name = std::move(name);
+  e.data_type = static_cast<std::uint16_t>(type);
+  e.basic_type = type;
+  e.access = access;
+  const std::size_t size = cfg::data_type_info(type).size_bytes;
+  e.bytes.resize(size);
+  cfg::store_le(value, e.bytes, size);
+  return e;
+}
+
+void add_var(LocalDictionary& dict, std::uint16_t index, const char* name, cfg::DataType type,
+             std::uint64_t value) {
+  if (dict.has_object(index)) return;
+  dict.insert(make_entry(index, 0, name, type, cfg::AccessType::Rw, value));
+}
+
+/// An ARRAY with sub 0 = `last` (const) and subs 1..last of `type`; `all_nodes` adds the
+/// write-only sub 80h of 1F82h/1F83h.
+void add_array(LocalDictionary& dict, std::uint16_t index, const char* name, cfg::DataType type,
+               std::uint8_t last, std::uint64_t value, bool all_nodes = false) {
+  if (dict.has_object(index)) return;
+  const std::uint8_t highest = all_nodes ? kAllNodesSub : last;
+  dict.insert(make_entry(index, 0, "Highest sub-index supported", cfg::DataType::Unsigned8,
+                         cfg::AccessType::Const, highest));
+  for (unsigned sub = 1; sub <= last; ++sub) {
+    dict.insert(make_entry(index, static_cast<std::uint8_t>(sub),
+                           std::string(name) + " node " + std::to_string(sub), type,
+                           cfg::AccessType::Rw, value));
+  }
+  if (all_nodes) {
+    dict.insert(make_entry(index, kAllNodesSub, std::string(name) + " all nodes", type,
+                           cfg::AccessType::Wo, 0));
+  }
+}
+
+}  // namespace
+
+void NmtMaster::Impl::add_missing_objects(LocalDictionary& dict) {
+  using T = cfg::DataType;
+  // Defaults of CiA 302-2 §6 (1F80h has none: 1 makes the device the master it was built as).
+  add_var(dict, obj::kNmtInhibitTime, "NMT inhibit time", T::Unsigned16, 0);
+  add_var(dict, obj::kNmtStartup, "NMT startup", T::Unsigned32, cfg::NmtStartup::kMaster);
+  add_array(dict, obj::kSlaveAssignment, "NMT slave assignment", T::Unsigned32, 127, 0);
+  add_array(dict, obj::kRequestNmt, "Request NMT", T::Unsigned8, 127, 0, true);
+  add_array(dict, obj::kRequestGuarding, "Request node guarding", T::Unsigned8, 127, 0, true);
+  add_array(dict, obj::kDeviceTypeIdentification, "Device type identification", T::Unsigned32, 127,
+            0);
+  add_array(dict, obj::kVendorIdentification, "Vendor identification", T::Unsigned32, 127, 0);
+  add_array(dict, obj::kProductCode, "Product code", T::Unsigned32, 127, 0);
+  add_array(dict, obj::kRevisionNumber, "Revision number", T::Unsigned32, 127, 0);
+  add_array(dict, obj::kSerialNumber, "Serial number", T::Unsigned32, 127, 0);
+  add_var(dict, obj::kBootTime, "Boot time", T::Unsigned32, 0);
+  // §6.12: the default is manufacturer-specific; 1 restores everything (1011h sub 1).
+  add_array(dict, obj::kRestoreConfiguration, "Restore configuration", T::Unsigned8, 127, 1);
+  add_array(dict, obj::kConsumerHeartbeatTime, "Consumer heartbeat time", T::Unsigned32, 127, 0);
+  add_array(dict, obj::kExpectedConfigurationDate, "Expected configuration date", T::Unsigned32,
+            127, 0);
+  add_array(dict, obj::kExpectedConfigurationTime, "Expected configuration time", T::Unsigned32,
+            127, 0);
+  add_array(dict, obj::kExpectedApplicationSwDate, "Expected application SW date", T::Unsigned32,
+            127, 0);
+  add_array(dict, obj::kExpectedApplicationSwTime, "Expected application SW time", T::Unsigned32,
+            127, 0);
+  // 1F82h/1F83h are requests whatever the file says: writable, and 80h for all nodes.
+  for (std::uint16_t index : {obj::kRequestNmt, obj::kRequestGuarding}) {
+    for (unsigned sub = 1; sub < kAllNodesSub; ++sub) {
+      if (const auto* e = dict.entry(index, static_cast<std::uint8_t>(sub))) {
+        auto copy = *e;
+        copy.access = cfg::AccessType::Rw;
+        dict.insert(std::move(copy));
+      }
+    }
+    if (!dict.entry(index, kAllNodesSub)) {
+      dict.insert(make_entry(index, kAllNodesSub, "all nodes", cfg::DataType::Unsigned8,
+                             cfg::AccessType::Wo, 0));
+    }
+  }
+}
+
+namespace {
+
+/// §6.2: reserved bits of 1F80h, and the flying master, which this master does not support
+/// (Table 13: a functionality that is not supported is refused).
+std::optional<std::string> startup_problem(std::uint32_t value) {
+  if ((value & ~cfg::NmtStartup::kDefinedBits) != 0) return "reserved bits 7-31 are set";
+  if ((value & cfg::NmtStartup::kFlyingMaster) != 0) {
+    return "bit 5 (flying master) is set; the NMT flying master is not supported yet";
+  }
+  return std::nullopt;
+}
+
+/// §6.3 / DSP 302 §5.2: bit 1 of 1F81h is reserved.
+bool assignment_reserved(std::uint32_t value) {
+  return (value & cfg::SlaveAssignment::kReservedBit1) != 0;
+}
+
+}  // namespace
+
+cfg::Status NmtMaster::Impl::check_configuration_values(const LocalDictionary& dict) {
+  const auto startup = dict.get_unsigned(obj::kNmtStartup, 0).value_or(0);
+  if (auto problem = startup_problem(static_cast<std::uint32_t>(startup))) {
+    return cfg::Error{cfg::to_string({obj::kNmtStartup, 0}) + ": " + *problem};
+  }
+  for (unsigned sub = 1; sub <= cfg::kMaxNodeId; ++sub) {
+    const auto value =
+        dict.get_unsigned(obj::kSlaveAssignment, static_cast<std::uint8_t>(sub)).value_or(0);
+    if (assignment_reserved(static_cast<std::uint32_t>(value))) {
+      return cfg::Error{cfg::to_string({obj::kSlaveAssignment, static_cast<std::uint8_t>(sub)}) +
+                        ": reserved bit 1 is set (" + cfg::hex(static_cast<std::uint32_t>(value)) +
+                        ")"};
+    }
+  }
+  return {};
+}
+
+void NmtMaster::Impl::install_hooks() {
+  dict.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
+                             std::span<const std::uint8_t> data,
+                             TimePoint now) { return check_write(index, sub, data, now); });
+  dict.add_read_hook([this](std::uint16_t index, std::uint8_t sub, TimePoint /*now*/) {
+    if (index == obj::kRequestNmt && cfg::is_node_id(sub)) {
+      const std::uint8_t state =
+          sub == node_id.value() ? static_cast<std::uint8_t>(own_state) : slaves[sub].known_state;
+      dict.set_unsigned(index, sub, state);
+    } else if (index == obj::kRequestGuarding && cfg::is_node_id(sub)) {
+      dict.set_unsigned(index, sub, guarding.guards(sub) ? 1 : 0);
+    }
+    return SdoAbort::None;
+  });
+}
+
+SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
+                                      std::span<const std::uint8_t> data, TimePoint now) {
+  const auto value = static_cast<std::uint32_t>(cfg::load_le(data, data.size()));
+  switch (index) {
+    case obj::kNmtStartup:
+      return startup_problem(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
+    case obj::kSlaveAssignment:
+      return sub != 0 && assignment_reserved(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
+    case obj::kRequestNmt:
+      return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now);
+    case obj::kRequestGuarding:
+      return request_guarding(sub, static_cast<std::uint8_t>(value), now);
+    default:
+      return SdoAbort::None;
+  }
+}
+
+std::uint32_t NmtMaster::Impl::value_of(std::uint16_t index, std::uint8_t sub) const {
+  return static_cast<std::uint32_t>(dict.get_unsigned(index, sub).value_or(0));
+}
+
+cfg::SlaveAssignment NmtMaster::Impl::assignment(std::uint8_t node) const {
+  // §6.3: "The sub-index corresponding to its own node-ID shall be ignored."
+  if (node == node_id.value()) return {};
+  return {value_of(obj::kSlaveAssignment, node)};
+}
+
+std::optional<Duration> NmtMaster::Impl::heartbeat_time(std::uint8_t node) const {
+  const auto count = dict.get_unsigned(obj::kConsumerHeartbeatTime, 0).value_or(0);
+  for (std::uint64_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
+    const auto entry = HeartbeatConsumerEntry::decode(
+        value_of(obj::kConsumerHeartbeatTime, static_cast<std::uint8_t>(sub)));
+    if (entry.active() && entry.node_id == node) {
+      return std::chrono::milliseconds(entry.time_ms);
+    }
+  }
+  return std::nullopt;
+}
+
+cfg::ConfigurationStamp NmtMaster::Impl::expected_configuration(std::uint8_t node) const {
+  return {value_of(obj::kExpectedConfigurationDate, node),
+          value_of(obj::kExpectedConfigurationTime, node)};
+}
+
+Duration NmtMaster::Impl::nmt_inhibit_time() const {
+  // §6.1: multiples of 100 µs.
+  return Duration{std::int64_t{100} * value_of(obj::kNmtInhibitTime, 0)};
+}
+
+}  // namespace nmt

@@ -1,0 +1,932 @@
+// NmtMaster: NMT start-up (CiA 302-2 §3.1), the error handler and boot-up handler (§4.2,
+// §4.3), request NMT and request guarding (1F82h, 1F83h, §6.4-6.5), the NMT inhibit time (102Ah,
+// §6.1), and the routing of frames, SDO results and time to the parts. Boot NMT slave lives in
+// boot_slave.cpp and check_configuration.cpp, the objects in master_dictionary.cpp.
+#include "nmt/nmt_master.hpp"
+
+#include <algorithm>
+#include <utility>
+
+#include "cfg/hex.hpp"
+#include "cfg/object_index.hpp"
+#include "nmt_master_impl.hpp"
+
+namespace nmt {
+
+namespace obj = cfg::object;
+
+std::string_view describe(BootError error) {
+  // CiA 302-2 §3.8, Table 1.
+  switch (error) {
+    case BootError::A:
+      return "the device is not listed in object 1F81h";
+    case BootError::B:
+      return "no response received for upload request of object 1000h";
+    case BootError::C:
+      return "value of object 1000h differs from object 1F84h (device type)";
+    case BootError::D:
+      return "value of object 1018h sub 01h differs from object 1F85h (vendor-ID)";
+    case BootError::E:
+      return "heartbeat event: no heartbeat message received from the device";
+    case BootError::F:
+      return "node guarding event: no confirmation for the guarding request";
+    case BootError::G:
+      return "objects for program download are not configured or inconsistent";
+    case BootError::H:
+      return "software update is required, but not allowed because of configuration or status";
+    case BootError::I:
+      return "software update is required, but program download failed";
+    case BootError::J:
+      return "configuration download failed";
+    case BootError::K:
+      return "heartbeat event during start error control: no heartbeat message received";
+    case BootError::L:
+      return "NMT slave was initially operational";
+    case BootError::M:
+      return "value of object 1018h sub 02h differs from object 1F86h (product code)";
+    case BootError::N:
+      return "value of object 1018h sub 03h differs from object 1F87h (revision number)";
+    case BootError::O:
+      return "value of object 1018h sub 04h differs from object 1F88h (serial number)";
+  }
+  return "unknown error status";
+}
+
+std::string_view to_string(BootStep step) {
+  switch (step) {
+    case BootStep::Idle:
+      return "idle";
+    case BootStep::AwaitBootUp:
+      return "waiting for boot-up";
+    case BootStep::Identify:
+      return "identify";
+    case BootStep::CheckNmtState:
+      return "check NMT state";
+    case BootStep::CheckSoftware:
+      return "check software version";
+    case BootStep::UpdateSoftware:
+      return "software update";
+    case BootStep::VerifyConfiguration:
+      return "verify configuration";
+    case BootStep::Restore:
+      return "restore";
+    case BootStep::Download:
+      return "download";
+    case BootStep::Save:
+      return "save";
+    case BootStep::ApplicationStep:
+      return "application step";
+    case BootStep::StartErrorControl:
+      return "start error control";
+    case BootStep::Booted:
+      return "booted";
+    case BootStep::Failed:
+      return "failed";
+    case BootStep::RetryWait:
+      return "waiting to retry";
+  }
+  return "?";
+}
+
+std::string_view to_string(StartupState state) {
+  switch (state) {
+    case StartupState::Off:
+      return "off";
+    case StartupState::NotMaster:
+      return "not master";
+    case StartupState::Refused:
+      return "refused";
+    case StartupState::BootingSlaves:
+      return "booting slaves";
+    case StartupState::Halted:
+      return "halted";
+    case StartupState::AwaitApplication:
+      return "waiting for the application";
+    case StartupState::Operational:
+      return "operational";
+  }
+  return "?";
+}
+
+std::string_view to_string(MasterEvent::Kind kind) {
+  using K = MasterEvent::Kind;
+  switch (kind) {
+    case K::NotMaster:
+      return "not-master";
+    case K::StartupRefused:
+      return "startup-refused";
+    case K::StartupBegan:
+      return "startup-began";
+    case K::BootStepChanged:
+      return "boot-step";
+    case K::SlaveBooted:
+      return "slave-booted";
+    case K::BootError:
+      return "boot-error";
+    case K::StartupHalted:
+      return "startup-halted";
+    case K::StartupComplete:
+      return "startup-complete";
+    case K::MasterStateChanged:
+      return "master-state";
+    case K::SlaveStateChanged:
+      return "slave-state";
+    case K::HeartbeatLost:
+      return "heartbeat-lost";
+    case K::GuardingLost:
+      return "guarding-lost";
+    case K::ErrorControlResolved:
+      return "error-control-resolved";
+    case K::BootUp:
+      return "boot-up";
+    case K::NmtCommandSent:
+      return "nmt-command";
+    case K::ApplicationStep:
+      return "application-step";
+    case K::SdoFinished:
+      return "sdo-finished";
+  }
+  return "?";
+}
+
+std::string node_text(std::uint8_t node) {
+  return "node " + std::to_string(node);
+}
+
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node,
+                         std::string text) {
+  MasterEvent e{kind};
+  e.at = at;
+  e.node_id = node;
+  e.text = std::move(text);
+  return e;
+}
+
+namespace {
+
+/// Table 28 of CiA 302-2 §6.4: the NMT service a 1F82h value requests (bit 7 set: excluding the
+/// master and the requester).
+std::optional<NmtCommand> requested_command(std::uint8_t value) {
+  switch (value & 0x7F) {
+    case 0x04:
+      return NmtCommand::Stop;
+    case 0x05:
+      return NmtCommand::Start;
+    case 0x06:
+      return NmtCommand::ResetNode;
+    case 0x07:
+      return NmtCommand::ResetCommunication;
+    case 0x7F:
+      return value == 0x7F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
+    case 0x0F:
+      return value == 0x8F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
+    default:
+      return std::nullopt;
+  }
+}
+
+/// The state a slave is in after a command, as far as the master can tell.
+std::uint8_t state_after(NmtCommand command) {
+  switch (command) {
+    case NmtCommand::Start:
+      return static_cast<std::uint8_t>(NmtState::Operational);
+    case NmtCommand::Stop:
+      return static_cast<std::uint8_t>(NmtState::Stopped);
+    case NmtCommand::EnterPreOperational:
+      return static_cast<std::uint8_t>(NmtState::PreOperational);
+    case NmtCommand::ResetNode:
+    case NmtCommand::ResetCommunication:
+      return 0;  // unknown until its boot-up
+  }
+  return 0;
+}
+
+}  // namespace
+
+// --- construction
+// ---------------------------------------------------------------------------------
+
+NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictionary)
+    : node_id(id),
+      options(std::move(opts)),
+      dict(std::move(dictionary)),
+      server(dict, SdoServerConfig::from_dictionary(dict)),
+      producer(id) {}
+
+cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& description,
+                                         cfg::NodeId node_id, MasterOptions options) {
+  auto dict = LocalDictionary::from_device(description, node_id);
+  if (!dict) return dict.error();
+  Impl::add_missing_objects(dict.value());
+  if (auto checked = Impl::check_configuration_values(dict.value()); !checked) {
+    return checked.error();
+  }
+  auto impl = std::make_unique<Impl>(node_id, std::move(options), std::move(dict.value()));
+  impl->install_hooks();
+  return NmtMaster(std::move(impl));
+}
+
+NmtMaster::NmtMaster(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+NmtMaster::NmtMaster(NmtMaster&&) noexcept = default;
+NmtMaster& NmtMaster::operator=(NmtMaster&&) noexcept = default;
+NmtMaster::~NmtMaster() = default;
+
+// --- the public calls: each sets the current Output, runs, settles
+// --------------------------------
+
+namespace {
+// A template so that it needs no access to the private NmtMaster::Impl by name.
+template <class Impl>
+struct CallScope {
+  Impl& impl;
+  CallScope(Impl& i, NmtMaster::Output& out) : impl(i) {
+    impl.current = &out;
+    impl.call_frames_begin = out.frames.size();
+    impl.nmt_frames_in_call = 0;
+  }
+  ~CallScope() { impl.current = nullptr; }
+  CallScope(const CallScope&) = delete;
+  CallScope& operator=(const CallScope&) = delete;
+};
+}  // namespace
+
+void NmtMaster::start(TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  impl_->power_on(now, out);
+  impl_->settle(now, out);
+}
+
+bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  auto& m = *impl_;
+  if (m.startup == StartupState::Off) return false;
+  bool mine = false;
+  const auto services = services_in(m.own_state);
+  if (services.sdo) {
+    Outbox<NoEvent> server_out;
+    if (m.server.on_frame(frame, now, server_out)) {
+      mine = true;
+      for (const auto& f : server_out.frames) out.send(f);
+    }
+  }
+  if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
+  if (auto message = parse_error_control(frame)) {
+    Outbox<NodeGuardingEvent> guard_out;
+    m.guarding.on_frame(frame, now, guard_out);
+    for (const auto& e : guard_out.events) {
+      if (e.kind == NodeGuardingEventKind::Resolved) {
+        m.report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
+                                   node_text(e.node_id) + ": node guarding replies again"));
+      }
+    }
+    Outbox<HeartbeatEvent> heartbeat_out;
+    m.heartbeats.on_frame(frame, now, heartbeat_out);
+    for (const auto& e : heartbeat_out.events) {
+      if (e.kind == HeartbeatEventKind::Resolved) {
+        m.report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
+                                   node_text(e.node_id) + ": heartbeat received again"));
+      }
+    }
+    m.on_error_control(*message, now, out);
+    mine = true;
+  }
+  m.settle(now, out);
+  return mine;
+}
+
+void NmtMaster::on_timer(TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  auto& m = *impl_;
+  if (m.startup == StartupState::Off) return;
+  if (m.startup_due && now >= *m.startup_due) {
+    m.startup_due.reset();
+    m.power_on(now, out);
+  }
+  if (services_in(m.own_state).sdo) {
+    Outbox<NoEvent> server_out;
+    m.server.on_timer(now, server_out);
+    for (const auto& f : server_out.frames) out.send(f);
+  }
+  m.clients.on_timer(now, m.sdo_out);
+  {
+    Outbox<NoEvent> producer_out;
+    m.producer.on_timer(now, producer_out);
+    for (const auto& f : producer_out.frames) out.send(f);
+  }
+  Outbox<HeartbeatEvent> heartbeat_out;
+  m.heartbeats.on_timer(now, heartbeat_out);
+  for (const auto& e : heartbeat_out.events) {
+    if (e.kind != HeartbeatEventKind::Timeout) continue;
+    if (m.slaves[e.node_id].phase == SlaveBoot::Phase::AwaitFirstHeartbeat) {
+      m.boot_heartbeat_timeout(e.node_id, now, out);
+    } else {
+      m.error_handler(e.node_id, true, now, out);
+    }
+  }
+  Outbox<NodeGuardingEvent> guard_out;
+  m.guarding.on_timer(now, guard_out);
+  for (const auto& f : guard_out.frames) out.send(f);
+  for (const auto& e : guard_out.events) {
+    if (e.kind == NodeGuardingEventKind::Timeout) m.error_handler(e.node_id, false, now, out);
+  }
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto& s = m.slaves[node];
+    if (s.deadline && now >= *s.deadline) m.boot_timer(static_cast<std::uint8_t>(node), now, out);
+  }
+  m.settle(now, out);
+}
+
+std::optional<TimePoint> NmtMaster::next_deadline() const {
+  const auto& m = *impl_;
+  if (m.startup == StartupState::Off) return std::nullopt;
+  if (!m.deferred.empty()) return TimePoint{0};
+  auto due = m.startup_due;
+  due = earliest(due, m.server.next_deadline());
+  due = earliest(due, m.clients.next_deadline());
+  due = earliest(due, m.producer.next_deadline());
+  due = earliest(due, m.heartbeats.next_deadline());
+  due = earliest(due, m.guarding.next_deadline());
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    due = earliest(due, m.slaves[node].deadline);
+  }
+  if (!m.nmt_queue.empty()) {
+    const auto inhibit = m.nmt_inhibit_time();
+    due = earliest(due, m.last_nmt && inhibit.count() > 0 ? *m.last_nmt + inhibit : TimePoint{0});
+  }
+  return due;
+}
+
+void NmtMaster::enter_operational(TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  if (impl_->startup == StartupState::AwaitApplication) impl_->finish_startup(now, out);
+  impl_->settle(now, out);
+}
+
+SdoAbort NmtMaster::request_nmt(std::uint8_t sub, std::uint8_t value, TimePoint now, Output& out,
+                                std::optional<cfg::NodeId> requester) {
+  CallScope scope(*impl_, out);
+  const auto code = impl_->request_nmt(sub, value, requester, now);
+  impl_->settle(now, out);
+  return code;
+}
+
+SdoAbort NmtMaster::request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  const auto code = impl_->request_guarding(sub, start ? 1 : 0, now);
+  impl_->settle(now, out);
+  return code;
+}
+
+bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  auto& m = *impl_;
+  if (!m.is_slave(node)) {
+    // §3.4 a: the process ends with status A.
+    m.start_boot(node, false, now, out);
+    m.settle(now, out);
+    return false;
+  }
+  m.slaves[node].held = false;
+  m.stop_error_control(node);
+  m.start_boot(node, false, now, out);
+  m.settle(now, out);
+  return true;
+}
+
+void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  auto& m = *impl_;
+  auto& s = m.slaves[node];
+  if (s.running && s.phase == SlaveBoot::Phase::Application) {
+    s.phase = SlaveBoot::Phase::Idle;
+    if (ok) {
+      m.start_error_control(node, now, out);
+    } else {
+      m.boot_failed(node, BootError::J, "the application's configuration step failed", now, out);
+    }
+  }
+  m.settle(now, out);
+}
+
+NmtMaster::TransferId NmtMaster::sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
+                                            TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  auto& m = *impl_;
+  MasterTransfer t;
+  t.for_application = true;
+  t.application_id = m.next_application_id++;
+  t.index = index;
+  t.sub = sub;
+  t.upload = true;
+  t.options.timeout = m.options.sdo_timeout;
+  const auto id = t.application_id;
+  m.start_transfer(node, std::move(t), now);
+  m.settle(now, out);
+  return id;
+}
+
+NmtMaster::TransferId NmtMaster::sdo_download(cfg::NodeId node, std::uint16_t index,
+                                              std::uint8_t sub, std::vector<std::uint8_t> data,
+                                              TimePoint now, Output& out) {
+  CallScope scope(*impl_, out);
+  auto& m = *impl_;
+  MasterTransfer t;
+  t.for_application = true;
+  t.application_id = m.next_application_id++;
+  t.index = index;
+  t.sub = sub;
+  t.data = std::move(data);
+  t.options.timeout = m.options.sdo_timeout;
+  if (t.data.size() > m.options.block_threshold) t.options.mode = SdoMode::Block;
+  const auto id = t.application_id;
+  m.start_transfer(node, std::move(t), now);
+  m.settle(now, out);
+  return id;
+}
+
+cfg::NodeId NmtMaster::node_id() const {
+  return impl_->node_id;
+}
+NmtState NmtMaster::state() const {
+  return impl_->own_state;
+}
+StartupState NmtMaster::startup_state() const {
+  return impl_->startup;
+}
+std::uint8_t NmtMaster::known_state(cfg::NodeId node) const {
+  return impl_->slaves[node].known_state;
+}
+BootStep NmtMaster::boot_step(cfg::NodeId node) const {
+  return impl_->slaves[node].step;
+}
+std::optional<BootError> NmtMaster::last_error(cfg::NodeId node) const {
+  return impl_->slaves[node].last_error;
+}
+const LocalDictionary& NmtMaster::dictionary() const {
+  return impl_->dict;
+}
+LocalDictionary& NmtMaster::dictionary() {
+  return impl_->dict;
+}
+
+// --- NMT start-up (§3.1)
+// --------------------------------------------------------------------------
+
+void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
+  // The master is a CANopen device (§3.1: "shall behave according to the NMT slave state
+  // machine"): initialisation ends with its boot-up message.
+  own_state = NmtState::Initialising;
+  out.send(make_boot_up(node_id));
+  producer.set_period(static_cast<std::uint16_t>(value_of(obj::kProducerHeartbeatTime, 0)), now);
+  producer.on_boot_up(now);
+  set_own_state(NmtState::PreOperational, now, out);
+  begin_startup(now, out);
+}
+
+void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
+  const auto config = startup_config();
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto n = static_cast<std::uint8_t>(node);
+    cancel_boot(n, now);
+    stop_error_control(n);
+    auto& s = slaves[n];
+    const auto held_state = s.known_state;
+    s = SlaveBoot{};
+    s.known_state = held_state;
+  }
+  // §3.1 a: not the master. Table 16: a self-starting device goes operational by itself, and
+  // with bit 1 also starts all nodes.
+  if (!config.is_master()) {
+    startup = StartupState::NotMaster;
+    report(out, master_event(MasterEvent::Kind::NotMaster, now, 0,
+                             "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
+    if (config.self_starting()) {
+      if (config.start_all_nodes()) queue_nmt(NmtCommand::Start, 0);
+      set_own_state(NmtState::Operational, now, out);
+    }
+    return;
+  }
+  // §3.1 b: the flying master negotiation would decide here; not supported (create() and the
+  // 1F80h write check refuse bit 5), so a master that gets here is the only master.
+  if (config.flying_master()) {
+    startup = StartupState::Refused;
+    report(out, master_event(MasterEvent::Kind::StartupRefused, now, 0,
+                             "1F80h bit 5: the NMT flying master is not supported"));
+    return;
+  }
+  startup = StartupState::BootingSlaves;
+  startup_began = now;
+  // §3.1 d: reset communication with node-ID 0, unless a slave is to be kept alive: then every
+  // other node-ID individually (also those not in 1F81h), never the master itself; the
+  // keep-alive slaves are checked by their boot (§3.4 part 2).
+  bool keep_alive = false;
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto n = static_cast<std::uint8_t>(node);
+    if (is_slave(n) && assignment(n).keep_alive()) keep_alive = true;
+  }
+  if (!keep_alive) {
+    queue_nmt(NmtCommand::ResetCommunication, 0);
+  } else {
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      const auto n = static_cast<std::uint8_t>(node);
+      if (n == node_id.value() || (is_slave(n) && assignment(n).keep_alive())) continue;
+      queue_nmt(NmtCommand::ResetCommunication, n);
+    }
+  }
+  report(out, master_event(MasterEvent::Kind::StartupBegan, now, 0, "NMT start-up began"));
+  // §3.1 e, §3.3: boot every slave in parallel (Annex A).
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto n = static_cast<std::uint8_t>(node);
+    if (!is_slave(n)) continue;
+    start_boot(n, !assignment(n).keep_alive(), now, out);
+  }
+}
+
+void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
+  bool all_done = true;
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto n = static_cast<std::uint8_t>(node);
+    if (!is_slave(n)) continue;
+    const auto& s = slaves[n];
+    if (assignment(n).mandatory()) {
+      // §3.1 e-f: mandatory slaves must boot; an error that ends their process stops start-up.
+      if (s.booted) continue;
+      if (s.final_error && s.last_error) {
+        startup = StartupState::Halted;
+        auto e = master_event(MasterEvent::Kind::StartupHalted, now, n,
+                              "NMT start-up halted: mandatory " + node_text(n) +
+                                  " failed with status " + std::string(1, letter(*s.last_error)) +
+                                  " (" + std::string(describe(*s.last_error)) + ")");
+        e.error = s.last_error;
+        report(out, std::move(e));
+        return;
+      }
+      all_done = false;
+    } else if (!s.tried) {
+      // §3.3: optional slaves: wait for the signal that boot NMT slave was tried.
+      all_done = false;
+    }
+  }
+  if (!all_done) return;
+  // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
+  if (startup_config().no_auto_operational()) {
+    startup = StartupState::AwaitApplication;
+    report(out, master_event(MasterEvent::Kind::StartupComplete, now, 0,
+                             "all mandatory slaves booted; waiting for the application to enter "
+                             "operational (1F80h bit 2)"));
+    return;
+  }
+  finish_startup(now, out);
+}
+
+void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
+  set_own_state(NmtState::Operational, now, out);
+  const auto config = startup_config();
+  // §3.1 h: start all with node-ID 0 only when every slave booted (and none is kept alive:
+  // a kept-alive slave was never reset, so a broadcast would not be what the start-up did);
+  // otherwise each booted slave that is not yet operational on its own.
+  if (!config.no_start_slaves() && config.start_all_nodes()) {
+    bool all_booted = true;
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      const auto n = static_cast<std::uint8_t>(node);
+      if (!is_slave(n)) continue;
+      const auto& s = slaves[n];
+      if (!s.booted || s.last_error || assignment(n).keep_alive()) all_booted = false;
+    }
+    if (all_booted) {
+      queue_nmt(NmtCommand::Start, 0);
+    } else {
+      for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+        const auto n = static_cast<std::uint8_t>(node);
+        if (!is_slave(n) || !slaves[n].booted || !assignment(n).boot_slave()) continue;
+        if (slaves[n].known_state == static_cast<std::uint8_t>(NmtState::Operational)) continue;
+        queue_nmt(NmtCommand::Start, n);
+      }
+    }
+  }
+  startup = StartupState::Operational;
+  report(out, master_event(MasterEvent::Kind::StartupComplete, now, 0, "NMT start-up complete"));
+}
+
+void NmtMaster::Impl::set_own_state(NmtState state, TimePoint now, Output& out) {
+  if (own_state == state) return;
+  own_state = state;
+  producer.set_state(state);
+  auto e = master_event(MasterEvent::Kind::MasterStateChanged, now, node_id,
+                        "master " + std::string(to_string(state)));
+  e.state = state;
+  report(out, std::move(e));
+}
+
+void NmtMaster::Impl::apply_own_command(NmtCommand command, TimePoint now, Output& out) {
+  switch (command) {
+    case NmtCommand::Start:
+      if (startup == StartupState::AwaitApplication) {
+        finish_startup(now, out);
+      } else {
+        set_own_state(NmtState::Operational, now, out);
+      }
+      break;
+    case NmtCommand::Stop:
+      set_own_state(NmtState::Stopped, now, out);
+      break;
+    case NmtCommand::EnterPreOperational:
+      set_own_state(NmtState::PreOperational, now, out);
+      break;
+    case NmtCommand::ResetNode:
+    case NmtCommand::ResetCommunication:
+      // The master resets itself: boot-up and NMT start-up again.
+      startup_due = now;
+      break;
+  }
+}
+
+// --- NMT commands and the inhibit time (§6.1)
+// ------------------------------------------------------
+
+void NmtMaster::Impl::queue_nmt(NmtCommand command, std::uint8_t node) {
+  nmt_queue.emplace_back(command, node);
+}
+
+void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
+  // §6.1: queued NMT services go out in order, at least the inhibit time apart.
+  const auto inhibit = nmt_inhibit_time();
+  while (!nmt_queue.empty()) {
+    if (inhibit.count() > 0 && last_nmt && now < *last_nmt + inhibit) return;
+    const auto [command, node] = nmt_queue.front();
+    nmt_queue.pop_front();
+    // Ahead of this call's SDO frames: a reset reaches a slave before the request that
+    // follows it, and the inhibit time is not stretched by the master's own queue.
+    const auto at = std::min(out.frames.size(), call_frames_begin + nmt_frames_in_call);
+    out.frames.insert(out.frames.begin() + static_cast<std::ptrdiff_t>(at),
+                      make_nmt_command(command, node));
+    ++nmt_frames_in_call;
+    last_nmt = now;
+    const auto state = state_after(command);
+    if (node == 0) {
+      for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {
+        if (is_slave(static_cast<std::uint8_t>(n))) {
+          set_known_state(static_cast<std::uint8_t>(n), state, now, out);
+        }
+      }
+    } else {
+      set_known_state(node, state, now, out);
+    }
+    auto e = master_event(MasterEvent::Kind::NmtCommandSent, now, node,
+                          std::string(to_string(command)) + " " +
+                              (node == 0 ? std::string("all nodes") : node_text(node)));
+    e.command = command;
+    report(out, std::move(e));
+  }
+}
+
+void NmtMaster::Impl::set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now,
+                                      Output& out) {
+  auto& s = slaves[node];
+  if (s.known_state == state) return;
+  s.known_state = state;
+  if (!is_slave(node)) return;
+  auto e = master_event(MasterEvent::Kind::SlaveStateChanged, now, node, node_text(node) + ": ");
+  if (state == 0) {
+    e.text += "state unknown";
+  } else if (state == 1) {
+    e.text += "missing";
+  } else {
+    e.state = static_cast<NmtState>(state);
+    e.text += to_string(*e.state);
+  }
+  report(out, std::move(e));
+}
+
+// --- error control messages, the boot-up handler (§4.3) and the error handler (§4.2)
+// ---------------
+
+void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimePoint now,
+                                       Output& out) {
+  const auto node = message.node_id;
+  if (node == node_id.value() || !cfg::is_node_id(node)) return;
+  auto& s = slaves[node];
+  if (message.byte == 0) {
+    on_boot_up(node, now, out);
+    return;
+  }
+  const auto state = message.state();
+  if (!state) return;
+  if (s.phase == SlaveBoot::Phase::CheckStateGuarding) {
+    boot_guard_reply(node, *state, now, out);
+    return;
+  }
+  // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
+  if (!message.toggle()) {
+    s.heartbeat_at = now;
+    if (s.phase == SlaveBoot::Phase::CheckStateHeartbeat ||
+        s.phase == SlaveBoot::Phase::AwaitFirstHeartbeat) {
+      set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+      boot_heartbeat(node, *state, now, out);
+      return;
+    }
+  }
+  set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+}
+
+void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
+  const bool assigned = is_slave(node);
+  auto e =
+      master_event(MasterEvent::Kind::BootUp, now, node,
+                   node_text(node) + ": boot-up" + (assigned ? "" : " (not a slave in 1F81h)"));
+  e.assigned = assigned;
+  report(out, std::move(e));
+  auto& s = slaves[node];
+  s.heartbeat_at.reset();
+  set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
+  if (!assigned) return;  // §3.1: unlisted devices are the application's concern
+  if (boot_took_boot_up(node, now, out)) return;
+  if (startup == StartupState::Off || startup == StartupState::NotMaster ||
+      startup == StartupState::Refused) {
+    return;
+  }
+  stop_error_control(node);
+  // DSP 302 §5.4: a slave whose state was set by request NMT is not rebooted automatically.
+  if (s.held) return;
+  // §4.3 / Table 20: 1F81h bit 2 allows configuring and starting it again.
+  if (assignment(node).boot_slave()) start_boot(node, false, now, out);
+}
+
+void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out) {
+  report(out,
+         master_event(
+             heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
+             node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
+  set_known_state(node, 1, now, out);
+  if (!is_slave(node) || slaves[node].held) return;
+  const auto a = assignment(node);
+  const auto config = startup_config();
+  // Figure 12 and the note of DSP 302 §5.3: for a mandatory slave, "stop all nodes" with 1F80h
+  // bit 6, else "reset all nodes" with bit 4 (the master included: start-up runs again).
+  if (a.mandatory() && config.stop_all_nodes()) {
+    queue_nmt(NmtCommand::Stop, 0);
+    return;
+  }
+  if (a.mandatory() && config.reset_all_nodes()) {
+    queue_nmt(NmtCommand::ResetNode, 0);
+    startup_due = now;
+    return;
+  }
+  // Otherwise the start process boot NMT slave starts again (DSP 302 §5.3), if 1F81h bit 2
+  // allows; its heartbeat or guarding is started again by the boot.
+  stop_error_control(node);
+  if (a.boot_slave()) start_boot(node, false, now, out);
+}
+
+void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
+  heartbeats.stop(node);
+  guarding.stop(node);
+}
+
+// --- request NMT (1F82h) and request guarding (1F83h)
+// ---------------------------------------------
+
+SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
+                                      std::optional<cfg::NodeId> requester, TimePoint now) {
+  constexpr std::uint8_t kAll = 0x80;
+  const auto command = requested_command(value);
+  // §6.4: a reserved value is refused with 0609 0030.
+  if (!command) return SdoAbort::ValueRangeExceeded;
+  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  const bool excluding = (value & 0x80) != 0;
+  // §6.4: 84h-8Fh need the requester's node-ID; unknown: 0800 0000.
+  if (excluding && !requester) return SdoAbort::General;
+  auto hold = [&](std::uint8_t node) {
+    // DSP 302 §5.4: no automatic re-boot after a state change by request NMT (start ends it).
+    if (is_slave(node)) slaves[node].held = *command != NmtCommand::Start;
+  };
+  Output& out = sink();
+  if (sub == kAll) {
+    if (excluding) {
+      for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+        const auto n = static_cast<std::uint8_t>(node);
+        if (n == node_id.value() || n == requester->value()) continue;
+        queue_nmt(*command, n);
+        hold(n);
+      }
+      return SdoAbort::None;
+    }
+    queue_nmt(*command, 0);
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      hold(static_cast<std::uint8_t>(node));
+    }
+    // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
+    apply_own_command(*command, now, out);
+    return SdoAbort::None;
+  }
+  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
+  if (sub == node_id.value()) {
+    apply_own_command(*command, now, out);
+    return SdoAbort::None;
+  }
+  if (excluding && sub == requester->value()) return SdoAbort::General;
+  // A request for a node that is not a slave of this master is refused.
+  if (!is_slave(sub)) return SdoAbort::General;
+  queue_nmt(*command, sub);
+  hold(sub);
+  return SdoAbort::None;
+}
+
+SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now) {
+  constexpr std::uint8_t kAll = 0x80;
+  // §6.5, Table 31: 0 stop, 1 start; the rest is reserved.
+  if (value > 1) return SdoAbort::ValueRangeExceeded;
+  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  auto apply = [&](std::uint8_t node) {
+    if (!is_slave(node)) return SdoAbort::General;
+    if (value == 0) {
+      guarding.stop(node);
+      return SdoAbort::None;
+    }
+    const auto a = assignment(node);
+    // §6.3: guard time or retry factor 0 disable guarding for the device.
+    if (a.guard_time_ms() == 0 || a.retry_factor() == 0) return SdoAbort::General;
+    guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
+    return SdoAbort::None;
+  };
+  if (sub == kAll) {
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      const auto n = static_cast<std::uint8_t>(node);
+      if (is_slave(n)) (void)apply(n);
+    }
+    return SdoAbort::None;
+  }
+  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
+  // §6.5: "The sub-index corresponding to its own node-ID shall be ignored."
+  if (sub == node_id.value()) return SdoAbort::None;
+  return apply(sub);
+}
+
+// --- SDO transfers
+// ----------------------------------------------------------------------------------
+
+SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
+                                                      TimePoint now) {
+  auto& client = clients.client(node);
+  const auto id = transfer.upload
+                      ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
+                      : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
+                                        transfer.options);
+  transfers[{node, id}] = std::move(transfer);
+  return id;
+}
+
+void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& out) {
+  const auto it = transfers.find({result.node_id, result.id});
+  if (it == transfers.end()) return;  // cancelled, or of an older boot try
+  MasterTransfer transfer = std::move(it->second);
+  transfers.erase(it);
+  // A timeout the client detected is most likely a lost frame: repeat the transfer.
+  if (result.abort == SdoAbort::Timeout && !result.aborted_by_server && transfer.retries_left > 0) {
+    --transfer.retries_left;
+    start_transfer(result.node_id, std::move(transfer), now);
+    return;
+  }
+  if (transfer.for_application) {
+    auto e = master_event(
+        MasterEvent::Kind::SdoFinished, now, result.node_id,
+        node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
+            (result.upload ? " upload " : " download ") +
+            (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
+    e.sdo = result;
+    e.sdo->id = transfer.application_id;
+    report(out, std::move(e));
+    return;
+  }
+  auto& s = slaves[result.node_id];
+  if (s.running && transfer.try_id == s.try_id) boot_sdo_result(result.node_id, result, now, out);
+}
+
+void NmtMaster::Impl::settle(TimePoint now, Output& out) {
+  for (;;) {
+    for (const auto& f : sdo_out.frames) out.send(f);
+    sdo_out.frames.clear();
+    for (auto& r : sdo_out.events) results.push_back(std::move(r));
+    sdo_out.events.clear();
+    if (!results.empty()) {
+      while (!results.empty()) {
+        const SdoResult r = std::move(results.front());
+        results.pop_front();
+        dispatch(r, now, out);
+      }
+      continue;
+    }
+    if (startup == StartupState::BootingSlaves) check_startup(now, out);
+    flush_nmt(now, out);
+    if (sdo_out.empty()) break;
+  }
+  for (const auto& f : deferred.frames) out.send(f);
+  for (auto& e : deferred.events) out.report(std::move(e));
+  deferred.clear();
+}
+
+void NmtMaster::Impl::report(Output& out, MasterEvent e) {
+  out.report(std::move(e));
+}
+
+}  // namespace nmt

@@ -1,0 +1,221 @@
+// The inside of nmt::NmtMaster, shared by its files: nmt_master.cpp (NMT start-up, the
+// handlers of §4, the NMT queue, request NMT/guarding, frame routing), master_dictionary.cpp
+// (its objects and their value checks, §6), boot_slave.cpp (boot NMT slave, §3.4, §3.6) and
+// check_configuration.cpp (§3.5). Private to the library.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cfg/master_objects.hpp"
+#include "nmt/error_control.hpp"
+#include "nmt/nmt_master.hpp"
+#include "nmt/sdo_server.hpp"
+
+namespace nmt {
+
+/// One try of the process boot NMT slave, and what the master knows of the slave between tries.
+struct SlaveBoot {
+  /// Where the try waits; each phase names the answer it waits for.
+  enum class Phase : std::uint8_t {
+    Idle,
+    AwaitBootUp,          // boot-up after the start-up's reset communication (or its timer)
+    ReadDeviceType,       // 1000h
+    ReadIdentity,         // 1018h sub identity_sub
+    CheckStateHeartbeat,  // §3.6: a heartbeat within the consumer time
+    CheckStateGuarding,   // §3.6: the reply to one RTR within 100 ms
+    AwaitResetBootUp,     // keep-alive slave not operational: reset communication sent
+    ReadSoftwareDate,     // 1F52h sub 1
+    ReadSoftwareTime,     // 1F52h sub 2
+    ProgramStop,          // 1F51h sub 1 = 0
+    ProgramClear,         // 1F51h sub 1 = 3
+    ProgramData,          // 1F50h sub 1 = image
+    ProgramStart,         // 1F51h sub 1 = 1
+    ReadVerifyDate,       // 1020h sub 1
+    ReadVerifyTime,       // 1020h sub 2
+    RestoreLoad,          // 1011h sub n = 'load'
+    AwaitRestoreBootUp,   // reset after the restore
+    ReadPdoCobId,         // a PDO COB-ID the configuration does not carry
+    Write,                // plan[next]
+    WriteVerifyDate,      // 1020h sub 1
+    WriteVerifyTime,      // 1020h sub 2
+    WriteSave,            // 1010h sub 1 = 'save'
+    Application,          // configuration_done()
+    AwaitFirstHeartbeat,  // §4.1
+    RetryWait,            // §3.3: the next try
+  };
+
+  Phase phase = Phase::Idle;
+  BootStep step = BootStep::Idle;
+  bool running = false;      ///< a try is in progress (or waits for its retry)
+  std::uint64_t try_id = 0;  ///< results of older tries are ignored
+  std::optional<TimePoint> deadline;
+  bool expect_boot_up = false;  ///< the master reset the node and has not seen its boot-up
+  bool software_updated = false;
+
+  // Data of the current try.
+  std::uint8_t identity_sub = 0;
+  cfg::ConfigurationStamp software;  ///< 1F52h as read
+  cfg::ConfigurationStamp verify;    ///< 1020h as read
+  std::vector<std::uint16_t> cob_ids_to_read;
+  std::map<std::uint16_t, std::uint32_t> cob_ids_read;
+  std::vector<cfg::ObjectWrite> configuration;  ///< as the source gave it (before ordering)
+  std::vector<cfg::ObjectWrite> plan;           ///< in download order
+  std::size_t next = 0;
+  std::uint64_t bytes = 0;
+  bool configured = false;
+  bool keep_alive_operational = false;
+  bool left_to_application = false;  ///< 1F81h bit 2 clear: booted without configuration
+  bool cob_ids_checked = false;
+
+  // Between tries.
+  bool tried = false;   ///< at least one try ended (the §3.3 signal)
+  bool booted = false;  ///< the last try ended with status OK (or L)
+  std::optional<BootError> last_error;
+  bool final_error = false;      ///< the last error ends the process (no retry)
+  bool held = false;             ///< state set by request NMT: no automatic re-boot
+  std::uint8_t known_state = 0;  ///< 1F82h read value: 0 unknown, 1 missing, else NmtState
+  std::optional<BootError> reported_error;  ///< the error last reported (retries repeat silently)
+  std::optional<TimePoint> heartbeat_at;    ///< the last heartbeat seen, for §3.6
+};
+
+/// An SDO transfer the master runs: for a boot try or for the application.
+struct MasterTransfer {
+  bool for_application = false;
+  std::uint64_t try_id = 0;                  ///< boot: the try that started it
+  SdoClient::TransferId application_id = 0;  ///< application: the id the caller got
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  bool upload = false;
+  std::vector<std::uint8_t> data;  ///< download: kept for a repetition after a timeout
+  SdoTransferOptions options;
+  unsigned retries_left = 0;
+};
+
+struct NmtMaster::Impl {
+  Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictionary);
+
+  cfg::NodeId node_id;
+  MasterOptions options;
+  LocalDictionary dict;
+  SdoServer server;
+  SdoClientMux clients;
+  HeartbeatConsumer heartbeats{HeartbeatConsumerOptions{.timeout_from_start = true}};
+  NodeGuardingMaster guarding;
+  HeartbeatProducer producer;
+
+  NmtState own_state = NmtState::Initialising;
+  StartupState startup = StartupState::Off;
+  TimePoint startup_began{0};
+  std::optional<TimePoint> startup_due;  ///< start-up (again) at this time
+  std::array<SlaveBoot, 128> slaves;     ///< by node-ID (index 0 unused)
+
+  std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer> transfers;
+  SdoClient::TransferId next_application_id = 1;
+  Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
+  std::deque<SdoResult> results;  ///< SDO results not yet dispatched
+
+  std::deque<std::pair<NmtCommand, std::uint8_t>> nmt_queue;
+  std::optional<TimePoint> last_nmt;
+
+  /// The Output of the public call in progress; events of dictionary hooks that run outside one
+  /// (a write through dictionary()) wait in `deferred` until the next call.
+  Output* current = nullptr;
+  Output deferred;
+  /// Where this call's frames begin in `current`, and how many NMT commands it put first.
+  std::size_t call_frames_begin = 0;
+  std::size_t nmt_frames_in_call = 0;
+  Output& sink() { return current != nullptr ? *current : deferred; }
+
+  // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
+  static void add_missing_objects(LocalDictionary& dict);
+  static cfg::Status check_configuration_values(const LocalDictionary& dict);
+  void install_hooks();
+  SdoAbort check_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                       TimePoint now);
+  std::uint32_t value_of(std::uint16_t index, std::uint8_t sub) const;
+  cfg::NmtStartup startup_config() const { return {value_of(cfg::object::kNmtStartup, 0)}; }
+  cfg::SlaveAssignment assignment(std::uint8_t node) const;
+  /// 1016h consumer time for `node` (the first active entry), nullopt when not a consumer.
+  std::optional<Duration> heartbeat_time(std::uint8_t node) const;
+  cfg::ConfigurationStamp expected_configuration(std::uint8_t node) const;
+  Duration nmt_inhibit_time() const;
+
+  // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
+  void power_on(TimePoint now, Output& out);
+  void begin_startup(TimePoint now, Output& out);
+  void check_startup(TimePoint now, Output& out);
+  void finish_startup(TimePoint now, Output& out);
+  void set_own_state(NmtState state, TimePoint now, Output& out);
+  void queue_nmt(NmtCommand command, std::uint8_t node);
+  void flush_nmt(TimePoint now, Output& out);
+  void apply_own_command(NmtCommand command, TimePoint now, Output& out);
+  void set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now, Output& out);
+  void on_error_control(const ErrorControlMessage& message, TimePoint now, Output& out);
+  void on_boot_up(std::uint8_t node, TimePoint now, Output& out);
+  void error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out);
+  void stop_error_control(std::uint8_t node);
+  SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, std::optional<cfg::NodeId> requester,
+                       TimePoint now);
+  SdoAbort request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now);
+  /// Dispatches SDO results, moves frames, sends due NMT commands, moves start-up on: after
+  /// every call.
+  void settle(TimePoint now, Output& out);
+  void report(Output& out, MasterEvent event);
+  bool is_slave(std::uint8_t node) const {
+    return node != node_id.value() && cfg::is_node_id(node) && assignment(node).is_slave();
+  }
+
+  // --- SDO for boot and application ------------------------------------------------------------
+  SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
+  void dispatch(const SdoResult& result, TimePoint now, Output& out);
+
+  // --- boot NMT slave (boot_slave.cpp, check_configuration.cpp) -------------------------------
+  void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out);
+  void cancel_boot(std::uint8_t node, TimePoint now);
+  void boot_continue(std::uint8_t node, TimePoint now, Output& out);
+  void boot_sdo_result(std::uint8_t node, const SdoResult& result, TimePoint now, Output& out);
+  void boot_timer(std::uint8_t node, TimePoint now, Output& out);
+  /// True when the boot of `node` took the boot-up (it was waiting for one).
+  bool boot_took_boot_up(std::uint8_t node, TimePoint now, Output& out);
+  void boot_heartbeat(std::uint8_t node, NmtState state, TimePoint now, Output& out);
+  void boot_guard_reply(std::uint8_t node, NmtState state, TimePoint now, Output& out);
+  void boot_heartbeat_timeout(std::uint8_t node, TimePoint now, Output& out);
+  void boot_upload(std::uint8_t node, SlaveBoot::Phase phase, std::uint16_t index, std::uint8_t sub,
+                   TimePoint now);
+  void boot_download(std::uint8_t node, SlaveBoot::Phase phase, std::uint16_t index,
+                     std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now);
+  void set_step(std::uint8_t node, BootStep step, TimePoint now, Output& out);
+  void boot_failed(std::uint8_t node, BootError error, const std::string& why, TimePoint now,
+                   Output& out);
+  void boot_succeeded(std::uint8_t node, TimePoint now, Output& out);
+  void after_identity(std::uint8_t node, TimePoint now, Output& out);
+  void check_software(std::uint8_t node, TimePoint now, Output& out);
+  void software_checked(std::uint8_t node, TimePoint now, Output& out);
+  void start_error_control(std::uint8_t node, TimePoint now, Output& out);
+  void error_control_started(std::uint8_t node, TimePoint now, Output& out);
+  void keep_alive_state(std::uint8_t node, NmtState state, TimePoint now, Output& out);
+  void next_identity(std::uint8_t node, TimePoint now, Output& out);
+  void start_remote_node(std::uint8_t node, TimePoint now, Output& out);
+  // check_configuration.cpp
+  void check_configuration(std::uint8_t node, TimePoint now, Output& out);
+  void begin_download(std::uint8_t node, TimePoint now, Output& out);
+  void plan_download(std::uint8_t node, TimePoint now, Output& out);
+  void write_next(std::uint8_t node, TimePoint now, Output& out);
+  void configuration_sdo_result(std::uint8_t node, const SdoResult& result, TimePoint now,
+                                Output& out);
+  std::optional<std::vector<cfg::ObjectWrite>> configuration_of(std::uint8_t node) const;
+};
+
+/// "node 3" (messages).
+std::string node_text(std::uint8_t node);
+/// An event with the fields every kind has.
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node, std::string text);
+
+}  // namespace nmt
