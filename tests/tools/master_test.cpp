@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "multicast_netns.hpp"
 #include "tool_test_support.hpp"
 
 namespace {
@@ -230,7 +231,7 @@ TEST(Master, EndToEndOverUdp) {
 }
 
 TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
-  if (auto why = tool_test::not_in_private_netns("Master.EndToEndOverUdp")) GTEST_SKIP() << *why;
+  REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   const std::string bus = "udp://239.74.163.2:43119";
   // Nodes 2 and 3 as independent processes; the master from master.dcf (node 2 mandatory from
@@ -261,7 +262,7 @@ TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
 }
 
 TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
-  if (auto why = tool_test::not_in_private_netns("Master.EndToEndOverUdp")) GTEST_SKIP() << *why;
+  REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   const std::string bus = "udp://239.74.163.2:43120";
   auto devices = std::make_unique<tool_test::SpawnedTool>(

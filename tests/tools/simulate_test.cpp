@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include "multicast_netns.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo.hpp"
@@ -115,10 +116,6 @@ TEST(Simulate, EndToEndOverUdp) {
   tool_test::run_in_private_netns("SimulateInNetns.*");
 }
 
-std::optional<std::string> not_in_private_netns() {
-  return tool_test::not_in_private_netns("Simulate.EndToEndOverUdp");
-}
-
 // cfgmgr simulate in the background, so that the test can signal it.
 class Simulator : public tool_test::SpawnedTool {
  public:
@@ -162,7 +159,7 @@ class Script {
 };
 
 TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
-  if (auto why = not_in_private_netns()) GTEST_SKIP() << *why;
+  REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   const std::string url = "udp://239.74.163.2:43171";
   auto opened = nmt::open_bus(url);
@@ -260,7 +257,7 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
 }
 
 TEST(SimulateInNetns, ForEndsTheRunByItself) {
-  if (auto why = not_in_private_netns()) GTEST_SKIP() << *why;
+  REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   auto r = run("cfgmgr",
                {"simulate", "--bus", "udp://239.74.163.2:43172", "--for", "0.3", kDevice + "@7"},

@@ -4,7 +4,6 @@
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
-#include <net/if.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -297,7 +296,8 @@ class JsonParser {
 
 // ---------------------------------------------------------------------------------------------
 // Tests over UDP multicast run inside a private network namespace whose only interface is lo
-// (tests/support/run_in_netns.sh), so that no datagram leaves the machine.
+// (tests/support/run_in_netns.sh), so that no datagram leaves the machine; inside, they check
+// that with REQUIRE_ISOLATED_MULTICAST() (tests/support/multicast_netns.hpp).
 
 /// Runs this test program's tests matching `filter` inside a private network namespace, as the
 /// current test; skips it when no namespace can be made (unshare -n needs root).
@@ -310,23 +310,6 @@ inline void run_in_private_netns(const std::string& filter) {
   ASSERT_TRUE(WIFEXITED(status));
   if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no network namespace (unshare -n needs root)";
   EXPECT_EQ(WEXITSTATUS(status), 0) << filter << " failed; output above";
-}
-
-/// Why a test that sends multicast must not run here, naming the test (`runner`) that runs it
-/// in a namespace; nullopt inside run_in_netns.sh with lo the only interface.
-inline std::optional<std::string> not_in_private_netns(const std::string& runner) {
-  const char* env = std::getenv("CANOPEN_UDP_NETNS");
-  if (env == nullptr || std::string(env) != "1") {
-    return "sends multicast: runs only inside run_in_netns.sh (" + runner + ")";
-  }
-  struct if_nameindex* names = if_nameindex();
-  if (names == nullptr) return "cannot list network interfaces";
-  std::optional<std::string> why;
-  for (auto* n = names; n->if_index != 0; ++n) {
-    if (std::string(n->if_name) != "lo") why = std::string("interface ") + n->if_name + " exists";
-  }
-  if_freenameindex(names);
-  return why;
 }
 
 /// A tool started in the background with posix_spawn, stdout and stderr to files, so that a
