@@ -298,4 +298,20 @@ TEST(Network, AnUnreadableDescriptionIsAnIoError) {
   EXPECT_EQ(load.diagnostics.items()[0].file, data("no_such_file.cpj"));
 }
 
+TEST(Network, TheSampleCellProjectLoadsWithoutDiagnostics) {
+  const auto load = cfg::load_network(std::string(CANOPEN_SAMPLES_DIR) + "/network/nodelist.cpj");
+  EXPECT_TRUE(load.diagnostics.empty()) << load.diagnostics.format();
+  ASSERT_TRUE(load.ok());
+  const auto& net = *load.network;
+  EXPECT_EQ(net.name, "sample cell");
+  ASSERT_EQ(net.nodes.size(), 3U);
+  // samples/network/io_module_node4.dcf: 1000h 0x000F0191, 1018h sub 1 0x7E57C0DE, sub 2
+  // 0x00000401, sub 3 0x00010002; 1017h ParameterValue=1000 -> consumer 1600 ms.
+  EXPECT_EQ(value_of(net.master, 0x1F84, 4), 0x000F0191U);
+  EXPECT_EQ(value_of(net.master, 0x1F85, 4), 0x7E57C0DEU);
+  EXPECT_EQ(value_of(net.master, 0x1F86, 4), 0x00000401U);
+  EXPECT_EQ(value_of(net.master, 0x1F87, 4), 0x00010002U);
+  EXPECT_EQ(value_of(net.master, 0x1016, 3), 0x00040640U);
+}
+
 }  // namespace
