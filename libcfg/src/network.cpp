@@ -240,6 +240,9 @@ std::optional<Network> Loader::load_project(const std::vector<Section>& sections
   network.net = options_.net;
   if (const Entry* e = topology->find("NetName")) network.name = e->value;
   const fs::path base = directory_of(path_);
+  if (const Entry* e = topology->find("EDSBaseName"); e != nullptr && !e->value.empty()) {
+    network.eds_base_dir = resolve(base, e->value);
+  }
   const std::string section_name = "[" + topology->name + "] ";
 
   std::size_t present = 0;

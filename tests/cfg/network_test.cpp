@@ -74,6 +74,34 @@ TEST(Network, DcfPathsAreRelativeToTheProjectFile) {
   ASSERT_TRUE(load.network->nodes[0].dcf.has_value());
 }
 
+TEST(Network, WindowsSeparatorsInDcfNamesAreTriedAsSlashes) {
+  // backslash.cpj: Node2DCFName=nodes\io_node2.dcf, as tools on Windows write it.
+  const auto load = cfg::load_network(data("backslash.cpj"));
+  ASSERT_TRUE(load.network.has_value()) << load.diagnostics.format();
+  EXPECT_EQ(find_diagnostic(load.diagnostics, "io_node2.dcf"), nullptr);
+  ASSERT_EQ(load.network->nodes.size(), 1U);
+  EXPECT_EQ(load.network->nodes[0].file, data("nodes/io_node2.dcf"));
+  EXPECT_EQ(load.network->eds_base_dir, data("eds"));
+}
+
+TEST(Network, ANodesCountThatDiffersFromThePresentNodesIsAWarning) {
+  // backslash.cpj: Nodes=0x02 with one node present (line 4).
+  const auto load = cfg::load_network(data("backslash.cpj"));
+  const cfg::Diagnostic* d = find_diagnostic(load.diagnostics, "Nodes=0x02");
+  ASSERT_NE(d, nullptr) << load.diagnostics.format();
+  EXPECT_EQ(d->severity, cfg::Severity::Warning);
+  EXPECT_EQ(d->line, 4);
+}
+
+TEST(Network, APresentFlagThatIsNotZeroOrOneIsAnError) {
+  // backslash.cpj: Node9Present=2 (line 8).
+  const auto load = cfg::load_network(data("backslash.cpj"));
+  const cfg::Diagnostic* d = find_diagnostic(load.diagnostics, "Node9Present=2");
+  ASSERT_NE(d, nullptr) << load.diagnostics.format();
+  EXPECT_EQ(d->severity, cfg::Severity::Error);
+  EXPECT_EQ(d->line, 8);
+}
+
 TEST(Network, NetOptionSelectsTopology2) {
   cfg::NetworkOptions options;
   options.net = 2;

@@ -45,6 +45,9 @@ struct NetworkNode {
 struct Network {
   std::string file;  ///< the description's path as given
   std::string name;  ///< NetName, else the master DCF's NetworkName; may be empty
+  /// EDSBaseName (where the devices' EDSs are) joined to the project file's directory; empty
+  /// when not given. Not read by load_network: a DCF is complete without its EDS.
+  std::string eds_base_dir;
   unsigned net = 1;  ///< the [Topology] read (1: [Topology], n: [Topology<n>])
   /// The slaves, by ascending node-ID; never the master itself.
   std::vector<NetworkNode> nodes;
