@@ -264,6 +264,23 @@ TEST(NmtMasterSpec, Restore1F8AChoosesThe1011hSubIndexAndZeroMeansNoRestore) {
   }
 }
 
+// §3.5 a: with 1F26h/1F27h = 0 "the process shall go to step d)", and d): "Depending on the
+// settings of 1F81h and 1F8Ah the configured restore operation shall be executed"; Table 25,
+// bit 7 = 1: "CANopen device shall be reset to factory defaults by issuing a restore to defaults
+// (object 1011h)" - also when no configuration is stored for the device.
+// Disabled on main (run it with --gtest_also_run_disabled_tests): with no configuration the
+// engine reports "configuration up to date" and sends neither 1011h nor reset node.
+TEST(NmtMasterSpec, DISABLED_RestoreBit7RestoresEvenWithoutAConfiguration) {
+  MasterRig rig;
+  rig.assign(3, kSlave | kBoot | kRestore);
+  rig.two_slaves();
+  ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
+  auto load = rig.downloads_of(3, 0x1011, 1);
+  ASSERT_EQ(load.size(), 1U);
+  EXPECT_EQ(data_u32(load[0].frame), cfg::kLoadSignature);
+  EXPECT_EQ(rig.count_nmt("000#8103"), 1U);
+}
+
 // Restore brings back the factory values before the download: a value the slave had saved is
 // gone afterwards unless the configuration sets it again.
 TEST(NmtMasterSpec, RestoreReplacesSavedValuesByFactoryDefaults) {
