@@ -151,11 +151,19 @@ struct ConfigManager::State {
                        "not a valid concise DCF: " + decoded.error().message);
           return;
         }
-        s.concise = entry.value;
+        if (!decoded->empty()) s.concise = entry.value;  // count 0: the empty data set
         break;
       }
       case object::kStoreDcf:
       case object::kStoreEds: {
+        if (entry.index == object::kStoreDcf) {
+          const std::string_view text(reinterpret_cast<const char*>(entry.value.data()),
+                                      entry.value.size());
+          if (auto writes = writes_of_dcf(text, entry.node); !writes) {
+            problems.add(path, 0, Severity::Error, writes.error().message);
+            return;
+          }
+        }
         PackedText packed{entry.stored, entry.value_size};
         if (entry.encoding == EntryEncoding::Raw)
           packed.deflated = detail::deflate_bytes(entry.value);
