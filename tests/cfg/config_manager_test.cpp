@@ -391,6 +391,19 @@ TEST(ConfigStore, TruncatedAndMisnamedFilesAreReported) {
   EXPECT_THAT(again.configured_nodes(), ElementsAre(node(2)));
 }
 
+TEST(ConfigStore, EntryWithAGoodChecksumButNoDcfInsideIsReported) {
+  // A file another program wrote with a correct CRC: the content is checked as a write is.
+  TempDir dir;
+  const Bytes file = encode_store_entry({0x1F20, node(4), bytes_of("not a DCF\n")});
+  std::ofstream(dir.file("1F20-04"), std::ios::binary)
+      .write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
+  ConfigManager manager = open_store(dir.str());
+  ASSERT_EQ(manager.problems().size(), 1U);
+  EXPECT_THAT(manager.problems().items()[0].message, HasSubstr("does not read"));
+  EXPECT_FALSE(manager.has_configuration(node(4)));
+  EXPECT_EQ(code(manager.read(0x1F20, 4).abort), kAbortDataSetEmpty);
+}
+
 TEST(ConfigStore, LeftoverTemporaryFilesAreRemovedAndOtherFilesIgnored) {
   TempDir dir;
   std::ofstream(dir.file(".1F22-01.tmp")) << "half a write";
