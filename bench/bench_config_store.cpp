@@ -63,15 +63,22 @@ void put_all(cfg::ConfigManager& manager) {
   }
 }
 
-// 127 puts into the store directory, each durable before the next.
-void BM_Put127ConciseDcfs(benchmark::State& state) {
-  const fs::path dir = store_dir("put");
+/// A manager on a fresh directory; nullopt (and the benchmark skipped) when it cannot open.
+std::optional<cfg::ConfigManager> open_fresh(benchmark::State& state, const fs::path& dir) {
   fs::remove_all(dir);
   auto manager = cfg::ConfigManager::open(dir.string());
   if (!manager) {
     state.SkipWithError(manager.error().message.c_str());
-    return;
+    return std::nullopt;
   }
+  return std::move(*manager);
+}
+
+// 127 puts into the store directory, each durable before the next.
+void BM_Put127ConciseDcfs(benchmark::State& state) {
+  const fs::path dir = store_dir("put");
+  auto manager = open_fresh(state, dir);
+  if (!manager) return;
   for (auto _ : state) put_all(*manager);
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * stream_bytes()));
   state.counters["puts/s"] = benchmark::Counter(static_cast<double>(state.iterations() * kNodes),
@@ -91,13 +98,9 @@ BENCHMARK(BM_Put127ConciseDcfsInMemory)->Unit(benchmark::kMicrosecond);
 // Opening a directory of 127 entries: read, CRC-32, decode every stream.
 void BM_Open127ConciseDcfs(benchmark::State& state) {
   const fs::path dir = store_dir("open");
-  fs::remove_all(dir);
   {
-    auto manager = cfg::ConfigManager::open(dir.string());
-    if (!manager) {
-      state.SkipWithError(manager.error().message.c_str());
-      return;
-    }
+    auto manager = open_fresh(state, dir);
+    if (!manager) return;
     put_all(*manager);
   }
   for (auto _ : state) {
