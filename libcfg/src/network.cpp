@@ -240,6 +240,9 @@ std::optional<Network> Loader::load_project(const std::vector<Section>& sections
   network.net = options_.net;
   if (const Entry* e = topology->find("NetName")) network.name = e->value;
   const fs::path base = directory_of(path_);
+  if (const Entry* e = topology->find("EDSBaseName"); e != nullptr && !e->value.empty()) {
+    network.eds_base_dir = resolve(base, e->value);
+  }
   const std::string section_name = "[" + topology->name + "] ";
 
   std::size_t present = 0;
@@ -479,6 +482,15 @@ NetworkLoad load_network(const std::string& path, const NetworkOptions& options)
   return out;
 }
 
+DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node) {
+  const auto identity = [&](std::uint8_t sub, std::string_view key) {
+    auto value = configured_unsigned(dcf, object::kIdentity, sub, node);
+    return value ? value : device_info_number(dcf, key);
+  };
+  return {configured_unsigned(dcf, object::kDeviceType, 0, node), identity(1, "VendorNumber"),
+          identity(2, "ProductNumber"), identity(3, "RevisionNumber")};
+}
+
 ConfigurationStamp configuration_stamp(std::span<const std::uint8_t> concise_dcf) {
   // FNV-1a, 64 bits: every byte changes the hash; not a security measure, a change detector.
   std::uint64_t h = 0xCBF29CE484222325ULL;
@@ -528,15 +540,11 @@ DeviceDescription derive_master(std::span<const NetworkNode> nodes) {
     date[x] = stamp.days;
     time[x] = stamp.ms;
     if (!node.dcf) continue;
-    const DeviceDescription& dcf = *node.dcf;
-    const auto identity = [&](std::uint8_t sub, std::string_view key) {
-      auto value = configured_unsigned(dcf, object::kIdentity, sub, node.node_id);
-      return value ? value : device_info_number(dcf, key);
-    };
-    device_type[x] = configured_unsigned(dcf, object::kDeviceType, 0, node.node_id).value_or(0);
-    vendor[x] = identity(1, "VendorNumber").value_or(0);
-    product[x] = identity(2, "ProductNumber").value_or(0);
-    revision[x] = identity(3, "RevisionNumber").value_or(0);
+    const DeviceIdentity identity = identity_of(*node.dcf, node.node_id);
+    device_type[x] = identity.device_type.value_or(0);
+    vendor[x] = identity.vendor_id.value_or(0);
+    product[x] = identity.product_code.value_or(0);
+    revision[x] = identity.revision_number.value_or(0);
   }
 
   DeviceDescription master;

@@ -74,6 +74,34 @@ TEST(Network, DcfPathsAreRelativeToTheProjectFile) {
   ASSERT_TRUE(load.network->nodes[0].dcf.has_value());
 }
 
+TEST(Network, WindowsSeparatorsInDcfNamesAreTriedAsSlashes) {
+  // backslash.cpj: Node2DCFName=nodes\io_node2.dcf, as tools on Windows write it.
+  const auto load = cfg::load_network(data("backslash.cpj"));
+  ASSERT_TRUE(load.network.has_value()) << load.diagnostics.format();
+  EXPECT_EQ(find_diagnostic(load.diagnostics, "io_node2.dcf"), nullptr);
+  ASSERT_EQ(load.network->nodes.size(), 1U);
+  EXPECT_EQ(load.network->nodes[0].file, data("nodes/io_node2.dcf"));
+  EXPECT_EQ(load.network->eds_base_dir, data("eds"));
+}
+
+TEST(Network, ANodesCountThatDiffersFromThePresentNodesIsAWarning) {
+  // backslash.cpj: Nodes=0x02 with one node present (line 4).
+  const auto load = cfg::load_network(data("backslash.cpj"));
+  const cfg::Diagnostic* d = find_diagnostic(load.diagnostics, "Nodes=0x02");
+  ASSERT_NE(d, nullptr) << load.diagnostics.format();
+  EXPECT_EQ(d->severity, cfg::Severity::Warning);
+  EXPECT_EQ(d->line, 4);
+}
+
+TEST(Network, APresentFlagThatIsNotZeroOrOneIsAnError) {
+  // backslash.cpj: Node9Present=2 (line 8).
+  const auto load = cfg::load_network(data("backslash.cpj"));
+  const cfg::Diagnostic* d = find_diagnostic(load.diagnostics, "Node9Present=2");
+  ASSERT_NE(d, nullptr) << load.diagnostics.format();
+  EXPECT_EQ(d->severity, cfg::Severity::Error);
+  EXPECT_EQ(d->line, 8);
+}
+
 TEST(Network, NetOptionSelectsTopology2) {
   cfg::NetworkOptions options;
   options.net = 2;
@@ -296,6 +324,22 @@ TEST(Network, AnUnreadableDescriptionIsAnIoError) {
   EXPECT_TRUE(load.unreadable);
   ASSERT_EQ(load.diagnostics.size(), 1U);
   EXPECT_EQ(load.diagnostics.items()[0].file, data("no_such_file.cpj"));
+}
+
+TEST(Network, TheSampleCellProjectLoadsWithoutDiagnostics) {
+  const auto load = cfg::load_network(std::string(CANOPEN_SAMPLES_DIR) + "/network/nodelist.cpj");
+  EXPECT_TRUE(load.diagnostics.empty()) << load.diagnostics.format();
+  ASSERT_TRUE(load.ok());
+  const auto& net = *load.network;
+  EXPECT_EQ(net.name, "sample cell");
+  ASSERT_EQ(net.nodes.size(), 3U);
+  // samples/network/io_module_node4.dcf: 1000h 0x000F0191, 1018h sub 1 0x7E57C0DE, sub 2
+  // 0x00000401, sub 3 0x00010002; 1017h ParameterValue=1000 -> consumer 1600 ms.
+  EXPECT_EQ(value_of(net.master, 0x1F84, 4), 0x000F0191U);
+  EXPECT_EQ(value_of(net.master, 0x1F85, 4), 0x7E57C0DEU);
+  EXPECT_EQ(value_of(net.master, 0x1F86, 4), 0x00000401U);
+  EXPECT_EQ(value_of(net.master, 0x1F87, 4), 0x00010002U);
+  EXPECT_EQ(value_of(net.master, 0x1016, 3), 0x00040640U);
 }
 
 }  // namespace

@@ -7,6 +7,8 @@
 #  - a program that links only canopen::nmt_core builds against the installation with the CMake
 #    package (shared and static) and with pkg-config, runs, and links neither msgpack-c nor
 #    libpcap;
+#  - samples/embed_master (a program embedding the NMT master on the simulated bus) builds with the
+#    CMake package and with pkg-config and runs;
 #  - the installed tree moved elsewhere: cfgmgr still finds its schemas; a lone copy of cfgmgr
 #    says that it found none (exit 3) unless given them;
 #  - the man pages render without warnings and name every option of the --help they come from.
@@ -49,7 +51,7 @@ for lib in cfg nmt-core nmt-sim nmt-io; do
   [ -f "$prefix/$libdir/pkgconfig/canopen-$lib.pc" ] || fail "installed: canopen-$lib.pc"
 done
 [ -f "$prefix/$libdir/pkgconfig/canopen-nmt.pc" ] || fail "installed: canopen-nmt.pc"
-for page in dcf2concise cfgmgr cfgmgr-check cfgmgr-fmt cfgmgr-simulate; do
+for page in dcf2concise cfgmgr cfgmgr-check cfgmgr-fmt cfgmgr-simulate cfgmgr-master; do
   [ -f "$prefix/share/man/man1/$page.1.gz" ] || fail "installed: man page $page.1.gz"
 done
 echo "ok: installed files checked"
@@ -132,6 +134,27 @@ io_libs=$(pkg-config --static --libs canopen-nmt-io)
 grep -q -- '-lmsgpackc' <<<"$io_libs" && grep -q -- '-lpcap' <<<"$io_libs" ||
   fail "pkg-config --static canopen-nmt-io names msgpack-c and libpcap: $io_libs"
 
+# --- the sample that embeds the NMT master --------------------------------------------------------
+sample=$source_dir/samples/embed_master
+sample_cmake() {
+  local dir=$work/embed-master
+  cmake -S "$sample" -B "$dir" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_CXX_COMPILER="$cxx" \
+    >"$dir.configure.log" 2>&1 || { cat "$dir.configure.log" >&2; return 1; }
+  cmake --build "$dir" >"$dir.build.log" 2>&1 || { cat "$dir.build.log" >&2; return 1; }
+  "$dir/embed_master" >"$dir.out" 2>&1 || { cat "$dir.out" >&2; return 1; }
+}
+check "samples/embed_master builds with the CMake package and runs" sample_cmake
+sample_pkg_config() {
+  local flags
+  flags=$(pkg-config --cflags --libs canopen-nmt-sim) || return 1
+  # shellcheck disable=SC2086
+  "$cxx" -std=c++20 "$sample/main.cpp" -o "$work/embed-master-pkg-config" $flags \
+    -Wl,-rpath,"$prefix/$libdir" || return 1
+  "$work/embed-master-pkg-config" >"$work/embed-master-pkg-config.out" 2>&1 ||
+    { cat "$work/embed-master-pkg-config.out" >&2; return 1; }
+}
+check "samples/embed_master builds with pkg-config (canopen-nmt-sim) and runs" sample_pkg_config
+
 # --- relocated tools find their schemas, or say that they did not --------------------------------
 moved=$work/moved
 mv "$prefix" "$moved"
@@ -181,7 +204,7 @@ man_page_covers() {
 man1=$moved/share/man/man1
 check "man dcf2concise covers --help" man_page_covers "$man1/dcf2concise.1.gz" "$moved/bin/dcf2concise"
 check "man cfgmgr covers --help" man_page_covers "$man1/cfgmgr.1.gz" "$moved/bin/cfgmgr"
-for sub in check fmt simulate; do
+for sub in check fmt simulate master; do
   check "man cfgmgr-$sub covers --help" \
     man_page_covers "$man1/cfgmgr-$sub.1.gz" "$moved/bin/cfgmgr" "$sub"
 done

@@ -68,7 +68,8 @@ has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/frame.h
 has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev libpcap-dev
 # The tools and their man pages; the schemas come with the runtime package.
 has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
-  share/man/man1/cfgmgr-simulate.1.gz share/man/man1/dcf2concise.1.gz
+  share/man/man1/cfgmgr-simulate.1.gz share/man/man1/cfgmgr-master.1.gz \
+  share/man/man1/dcf2concise.1.gz
 has_depends "$tools" "$runtime_name \(= $version\)" '(^|, )libc6' 'libstdc\+\+6'
 
 # The tools as the packages lay them out: cfgmgr check uses the runtime package's schemas

@@ -9,7 +9,6 @@
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <msgpack.h>
-#include <net/if.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -20,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "multicast_netns.hpp"
 #include "nmt/bus.hpp"
 #include "python_peer.hpp"
 
@@ -265,36 +265,6 @@ TEST(UdpDatagram, RefusesToEncodeFramesPythonCanWouldReject) {
 }
 
 // ---- the bus, in the private network namespace -------------------------------------------
-
-// Why multicast must not be sent here, or nullopt when this is the namespace the ctest test
-// io_udp_bus_netns created (CANOPEN_UDP_NETNS=1 and lo the only interface).
-std::optional<std::string> multicast_not_isolated() {
-  const char* env = std::getenv("CANOPEN_UDP_NETNS");
-  if (env == nullptr || std::string(env) != "1") {
-    return "sends multicast: runs only in the private network namespace of the ctest test "
-           "io_udp_bus_netns (ctest -R io_udp_bus_netns)";
-  }
-  struct if_nameindex* names = if_nameindex();
-  if (names == nullptr) return "cannot list network interfaces";
-  std::optional<std::string> why;
-  for (auto* n = names; n->if_index != 0; ++n) {
-    if (std::string(n->if_name) != "lo") {
-      why = std::string("interface ") + n->if_name + " exists: refusing to send multicast";
-    }
-  }
-  if_freenameindex(names);
-  return why;
-}
-
-#define REQUIRE_ISOLATED_MULTICAST()                                       \
-  do {                                                                     \
-    if (auto why_not = multicast_not_isolated()) GTEST_SKIP() << *why_not; \
-  } while (0)
-
-#define REQUIRE_PYTHON_CAN()                                                         \
-  do {                                                                               \
-    if (auto why_not = test_support::python_can_missing()) GTEST_SKIP() << *why_not; \
-  } while (0)
 
 // Every test has its own port (python-can binds to the port on all addresses).
 std::unique_ptr<UdpBus> open_udp(std::uint16_t port, const std::string& group = "239.74.163.2") {

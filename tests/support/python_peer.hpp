@@ -14,8 +14,12 @@
 
 namespace test_support {
 
+/// tests/io/python/`name`: the scripts of the python-can peers.
+inline std::string python_script(const std::string& name) {
+  return std::string(CANOPEN_TEST_DATA_DIR) + "/../io/python/" + name;
+}
 inline std::string can_peer_script() {
-  return std::string(CANOPEN_TEST_DATA_DIR) + "/../io/python/can_peer.py";
+  return python_script("can_peer.py");
 }
 
 /// Quotes `s` for /bin/sh.
@@ -39,11 +43,13 @@ inline std::optional<std::string> python_can_missing() {
   return std::nullopt;
 }
 
-/// can_peer.py running with its stdout piped to us. stderr goes to the test's stderr.
+/// can_peer.py (or another script) running with its stdout piped to us. stderr goes to the
+/// test's stderr.
 class PythonPeer {
  public:
-  explicit PythonPeer(const std::vector<std::string>& args) {
-    std::string command = "/usr/bin/python3 " + shell_quote(can_peer_script());
+  explicit PythonPeer(const std::vector<std::string>& args) : PythonPeer(can_peer_script(), args) {}
+  PythonPeer(const std::string& script, const std::vector<std::string>& args) {
+    std::string command = "/usr/bin/python3 " + shell_quote(script);
     for (const auto& a : args) command += " " + shell_quote(a);
     pipe_ = ::popen(command.c_str(), "r");
   }

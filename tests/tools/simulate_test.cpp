@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include "multicast_netns.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo.hpp"
@@ -112,72 +113,21 @@ TEST(Simulate, BadLossRateIsAUsageError) {
 // --------------------------------------------------------- over UDP, in a namespace ----------
 
 TEST(Simulate, EndToEndOverUdp) {
-  const std::string script = std::string(CANOPEN_TEST_DATA_DIR) + "/../support/run_in_netns.sh";
-  const auto self = std::filesystem::read_symlink("/proc/self/exe").string();
-  const std::string command = "sh " + tool_test::shell_quote(script) + " " +
-                              tool_test::shell_quote(self) +
-                              " --gtest_filter='SimulateInNetns.*' --gtest_brief=1";
-  const int status = std::system(command.c_str());
-  ASSERT_TRUE(WIFEXITED(status));
-  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no network namespace (unshare -n needs root)";
-  EXPECT_EQ(WEXITSTATUS(status), 0) << "SimulateInNetns.* failed; output above";
+  tool_test::run_in_private_netns("SimulateInNetns.*");
 }
 
-std::optional<std::string> not_in_private_netns() {
-  const char* env = std::getenv("CANOPEN_UDP_NETNS");
-  if (env == nullptr || std::string(env) != "1") {
-    return "sends multicast: runs only inside run_in_netns.sh (Simulate.EndToEndOverUdp)";
-  }
-  struct if_nameindex* names = if_nameindex();
-  if (names == nullptr) return "cannot list network interfaces";
-  std::optional<std::string> why;
-  for (auto* n = names; n->if_index != 0; ++n) {
-    if (std::string(n->if_name) != "lo") why = std::string("interface ") + n->if_name + " exists";
-  }
-  if_freenameindex(names);
-  return why;
-}
-
-// cfgmgr started with posix_spawn, stdout/stderr to files, so the test can signal it.
-class Simulator {
+// cfgmgr simulate in the background, so that the test can signal it.
+class Simulator : public tool_test::SpawnedTool {
  public:
-  Simulator(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
-    std::vector<std::string> argv_storage{tool_test::tool_path("cfgmgr"), "simulate"};
-    argv_storage.insert(argv_storage.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (auto& a : argv_storage) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
-    posix_spawn_file_actions_destroy(&actions);
-  }
-  ~Simulator() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-  bool started() const { return pid_ > 0; }
-  /// Sends `signal` and waits up to `limit` for the exit; the exit code, or nullopt.
-  std::optional<int> stop(int signal, std::chrono::milliseconds limit) {
-    ::kill(pid_, signal);
-    const auto end = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < end) {
-      int status = 0;
-      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
-      }
-      std::this_thread::sleep_for(10ms);
-    }
-    return std::nullopt;
-  }
+  Simulator(const std::vector<std::string>& args, const std::string& out, const std::string& err)
+      : SpawnedTool("cfgmgr", with_command(args), out, err) {}
 
  private:
-  pid_t pid_ = -1;
+  static std::vector<std::string> with_command(const std::vector<std::string>& args) {
+    std::vector<std::string> out{"simulate"};
+    out.insert(out.end(), args.begin(), args.end());
+    return out;
+  }
 };
 
 // Sends scripted frames from the test's side of the bus and records what it hears.
@@ -209,7 +159,7 @@ class Script {
 };
 
 TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
-  if (auto why = not_in_private_netns()) GTEST_SKIP() << *why;
+  REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   const std::string url = "udp://239.74.163.2:43171";
   auto opened = nmt::open_bus(url);
@@ -307,7 +257,7 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
 }
 
 TEST(SimulateInNetns, ForEndsTheRunByItself) {
-  if (auto why = not_in_private_netns()) GTEST_SKIP() << *why;
+  REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   auto r = run("cfgmgr",
                {"simulate", "--bus", "udp://239.74.163.2:43172", "--for", "0.3", kDevice + "@7"},

@@ -2,13 +2,17 @@
 // stderr; a scratch directory per test; a small strict JSON parser to check --json output.
 #pragma once
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/wait.h>
 
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +22,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 namespace tool_test {
@@ -287,6 +292,72 @@ class JsonParser {
   std::size_t pos_ = 0;
   int depth_ = 0;
   std::string error_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Tests over UDP multicast run inside a private network namespace whose only interface is lo
+// (tests/support/run_in_netns.sh), so that no datagram leaves the machine; inside, they check
+// that with REQUIRE_ISOLATED_MULTICAST() (tests/support/multicast_netns.hpp).
+
+/// Runs this test program's tests matching `filter` inside a private network namespace, as the
+/// current test; skips it when no namespace can be made (unshare -n needs root).
+inline void run_in_private_netns(const std::string& filter) {
+  const std::string script = std::string(CANOPEN_TEST_DATA_DIR) + "/../support/run_in_netns.sh";
+  const auto self = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string command = "sh " + shell_quote(script) + " " + shell_quote(self) +
+                              " --gtest_filter=" + shell_quote(filter) + " --gtest_brief=1";
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no network namespace (unshare -n needs root)";
+  EXPECT_EQ(WEXITSTATUS(status), 0) << filter << " failed; output above";
+}
+
+/// A tool started in the background with posix_spawn, stdout and stderr to files, so that a
+/// test can signal it. Killed (SIGKILL) at the end of its scope if still running.
+class SpawnedTool {
+ public:
+  SpawnedTool(const std::string& tool, const std::vector<std::string>& args, const std::string& out,
+              const std::string& err) {
+    std::vector<std::string> argv_storage{tool_path(tool)};
+    argv_storage.insert(argv_storage.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    argv.reserve(argv_storage.size() + 1);
+    for (auto& a : argv_storage) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~SpawnedTool() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  SpawnedTool(const SpawnedTool&) = delete;
+  SpawnedTool& operator=(const SpawnedTool&) = delete;
+
+  bool started() const { return pid_ > 0; }
+  /// Sends `signal` and waits up to `limit` for the exit; the exit code, or nullopt.
+  std::optional<int> stop(int signal, std::chrono::milliseconds limit) {
+    ::kill(pid_, signal);
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return std::nullopt;
+  }
+
+ private:
+  pid_t pid_ = -1;
 };
 
 }  // namespace tool_test

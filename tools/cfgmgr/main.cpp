@@ -13,8 +13,8 @@ namespace {
 
 int run(int argc, char** argv) {
   CLI::App app{
-      "CANopen configuration manager: check, format and (later) download device "
-      "configurations (CiA 302, CiA 306).",
+      "CANopen configuration manager: check and format device configurations, simulate "
+      "devices, and run the NMT master that boots and configures a network (CiA 302, CiA 306).",
       "cfgmgr"};
   app.require_subcommand(1);
   app.set_version_flag("--version", tools::version_text("cfgmgr"),
@@ -25,6 +25,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_check_command(app);
   cfgmgr::add_fmt_command(app);
   cfgmgr::add_simulate_command(app);
+  cfgmgr::add_master_command(app);
 
   try {
     app.parse(argc, argv);

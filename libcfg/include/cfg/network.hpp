@@ -45,6 +45,9 @@ struct NetworkNode {
 struct Network {
   std::string file;  ///< the description's path as given
   std::string name;  ///< NetName, else the master DCF's NetworkName; may be empty
+  /// EDSBaseName (where the devices' EDSs are) joined to the project file's directory; empty
+  /// when not given. Not read by load_network: a DCF is complete without its EDS.
+  std::string eds_base_dir;
   unsigned net = 1;  ///< the [Topology] read (1: [Topology], n: [Topology<n>])
   /// The slaves, by ascending node-ID; never the master itself.
   std::vector<NetworkNode> nodes;
@@ -108,6 +111,18 @@ NetworkLoad load_network(const std::string& path, const NetworkOptions& options 
 //  - 1016h: one heartbeat consumer entry per node whose 1017h (its writes' value, else the
 //    DCF's) is non-zero, with heartbeat_consumer_time_ms() of it.
 // Every array has sub-indices 0..127 (sub 0 = 7Fh), unused entries 0.
+
+/// What a device described by `dcf` reports as its identity, as derive_master expects it and
+/// a simulated device of the DCF answers: 1000h, 1018h sub 1-3 (ParameterValue, else
+/// DefaultValue, $NODEID resolved with `node`), else [DeviceInfo] VendorNumber/ProductNumber/
+/// RevisionNumber; nullopt where neither says.
+struct DeviceIdentity {
+  std::optional<std::uint32_t> device_type;
+  std::optional<std::uint32_t> vendor_id;
+  std::optional<std::uint32_t> product_code;
+  std::optional<std::uint32_t> revision_number;
+};
+DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node);
 
 /// A valid 1020h/1F26h/1F27h date and time standing for a configuration: h = the 64-bit FNV-1a
 /// hash of `concise_dcf` (the stream encode_concise_dcf makes of the writes);

@@ -36,9 +36,7 @@ void NmtMaster::Impl::set_step(std::uint8_t node, BootStep step, TimePoint now, 
   auto& s = slaves[node];
   if (s.step == step) return;
   s.step = step;
-  MasterEvent e{MasterEvent::Kind::BootStepChanged};
-  e.at = now;
-  e.node_id = node;
+  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node, "");
   e.step = step;
   e.total = s.plan.size();
   e.written = s.next;
@@ -89,18 +87,8 @@ void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint 
   }
   // §3.4 b, Table 20: with bit 2 clear the application configures and starts the slave.
   if (!a.boot_slave()) {
-    s.running = false;
-    s.booted = true;
-    s.tried = true;
-    s.last_error.reset();
-    s.step = BootStep::Idle;
-    MasterEvent e{MasterEvent::Kind::SlaveBooted};
-    e.at = now;
-    e.node_id = node;
-    e.step = BootStep::Idle;
-    e.text = node_text(node) +
-             ": left to the application (1F81h bit 2 clear: no configuration, no start)";
-    report(out, std::move(e));
+    s.left_to_application = true;
+    boot_succeeded(node, now, out);
     return;
   }
   if (after_reset) {
@@ -427,19 +415,19 @@ void NmtMaster::Impl::boot_succeeded(std::uint8_t node, TimePoint now, Output& o
   s.final_error = false;
   s.last_error.reset();
   s.reported_error.reset();
-  s.step = BootStep::Booted;
-  MasterEvent e{MasterEvent::Kind::SlaveBooted};
-  e.at = now;
-  e.node_id = node;
-  e.step = BootStep::Booted;
+  s.step = s.left_to_application ? BootStep::Idle : BootStep::Booted;
+  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node, "");
+  e.step = s.step;
   e.configured = s.configured;
   e.written = s.configured ? s.plan.size() : 0;
   e.total = s.plan.size();
   e.bytes = s.bytes;
   e.text = node_text(node) + ": booted" +
-           (s.configured ? " (configured: " + std::to_string(s.plan.size()) + " entries, " +
-                               std::to_string(s.bytes) + " bytes)"
-                         : " (configuration up to date)");
+           (s.left_to_application ? std::string(" and left to the application (1F81h bit 2 clear: "
+                                                "no configuration, no start)")
+            : s.configured ? " (configured: " + std::to_string(s.plan.size()) + " entries, " +
+                                 std::to_string(s.bytes) + " bytes)"
+                           : " (configuration up to date)");
   report(out, std::move(e));
 }
 
@@ -474,9 +462,7 @@ void NmtMaster::Impl::boot_failed(std::uint8_t node, BootError error, const std:
   // Retries that end the same way are not reported again.
   if (s.reported_error != error || !retry) {
     s.reported_error = error;
-    MasterEvent e{MasterEvent::Kind::BootError};
-    e.at = now;
-    e.node_id = node;
+    auto e = master_event(MasterEvent::Kind::BootError, now, node, "");
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;

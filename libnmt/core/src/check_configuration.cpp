@@ -201,9 +201,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
       }
       s.bytes += s.plan[s.next].data.size();
       ++s.next;
-      MasterEvent e{MasterEvent::Kind::BootStepChanged};
-      e.at = now;
-      e.node_id = node;
+      auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node, "");
       e.step = BootStep::Download;
       e.written = s.next;
       e.total = s.plan.size();
@@ -241,9 +239,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
       if (options.application_step) {
         s.phase = Phase::Application;
         set_step(node, BootStep::ApplicationStep, now, out);
-        MasterEvent e{MasterEvent::Kind::ApplicationStep};
-        e.at = now;
-        e.node_id = node;
+        auto e = master_event(MasterEvent::Kind::ApplicationStep, now, node, "");
         e.step = BootStep::ApplicationStep;
         e.text = node_text(node) + ": the application's configuration step";
         report(out, std::move(e));

@@ -153,15 +153,16 @@ std::string node_text(std::uint8_t node) {
   return "node " + std::to_string(node);
 }
 
-namespace {
-
-MasterEvent event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node, std::string text) {
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node,
+                         std::string text) {
   MasterEvent e{kind};
   e.at = at;
   e.node_id = node;
   e.text = std::move(text);
   return e;
 }
+
+namespace {
 
 /// Table 28 of CiA 302-2 §6.4: the NMT service a 1F82h value requests (bit 7 set: excluding the
 /// master and the requester).
@@ -274,16 +275,16 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     m.guarding.on_frame(frame, now, guard_out);
     for (const auto& e : guard_out.events) {
       if (e.kind == NodeGuardingEventKind::Resolved) {
-        m.report(out, event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
-                            node_text(e.node_id) + ": node guarding replies again"));
+        m.report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
+                                   node_text(e.node_id) + ": node guarding replies again"));
       }
     }
     Outbox<HeartbeatEvent> heartbeat_out;
     m.heartbeats.on_frame(frame, now, heartbeat_out);
     for (const auto& e : heartbeat_out.events) {
       if (e.kind == HeartbeatEventKind::Resolved) {
-        m.report(out, event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
-                            node_text(e.node_id) + ": heartbeat received again"));
+        m.report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
+                                   node_text(e.node_id) + ": heartbeat received again"));
       }
     }
     m.on_error_control(*message, now, out);
@@ -497,8 +498,8 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
     startup = StartupState::NotMaster;
-    report(out, event(MasterEvent::Kind::NotMaster, now, 0,
-                      "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
+    report(out, master_event(MasterEvent::Kind::NotMaster, now, 0,
+                             "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
     if (config.self_starting()) {
       if (config.start_all_nodes()) queue_nmt(NmtCommand::Start, 0);
       set_own_state(NmtState::Operational, now, out);
@@ -509,8 +510,8 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // 1F80h write check refuse bit 5), so a master that gets here is the only master.
   if (config.flying_master()) {
     startup = StartupState::Refused;
-    report(out, event(MasterEvent::Kind::StartupRefused, now, 0,
-                      "1F80h bit 5: the NMT flying master is not supported"));
+    report(out, master_event(MasterEvent::Kind::StartupRefused, now, 0,
+                             "1F80h bit 5: the NMT flying master is not supported"));
     return;
   }
   startup = StartupState::BootingSlaves;
@@ -532,7 +533,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
       queue_nmt(NmtCommand::ResetCommunication, n);
     }
   }
-  report(out, event(MasterEvent::Kind::StartupBegan, now, 0, "NMT start-up began"));
+  report(out, master_event(MasterEvent::Kind::StartupBegan, now, 0, "NMT start-up began"));
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
@@ -552,10 +553,10 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
       if (s.booted) continue;
       if (s.final_error && s.last_error) {
         startup = StartupState::Halted;
-        auto e = event(MasterEvent::Kind::StartupHalted, now, n,
-                       "NMT start-up halted: mandatory " + node_text(n) + " failed with status " +
-                           std::string(1, letter(*s.last_error)) + " (" +
-                           std::string(describe(*s.last_error)) + ")");
+        auto e = master_event(MasterEvent::Kind::StartupHalted, now, n,
+                              "NMT start-up halted: mandatory " + node_text(n) +
+                                  " failed with status " + std::string(1, letter(*s.last_error)) +
+                                  " (" + std::string(describe(*s.last_error)) + ")");
         e.error = s.last_error;
         report(out, std::move(e));
         return;
@@ -570,9 +571,9 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
   if (startup_config().no_auto_operational()) {
     startup = StartupState::AwaitApplication;
-    report(out, event(MasterEvent::Kind::StartupComplete, now, 0,
-                      "all mandatory slaves booted; waiting for the application to enter "
-                      "operational (1F80h bit 2)"));
+    report(out, master_event(MasterEvent::Kind::StartupComplete, now, 0,
+                             "all mandatory slaves booted; waiting for the application to enter "
+                             "operational (1F80h bit 2)"));
     return;
   }
   finish_startup(now, out);
@@ -604,15 +605,15 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     }
   }
   startup = StartupState::Operational;
-  report(out, event(MasterEvent::Kind::StartupComplete, now, 0, "NMT start-up complete"));
+  report(out, master_event(MasterEvent::Kind::StartupComplete, now, 0, "NMT start-up complete"));
 }
 
 void NmtMaster::Impl::set_own_state(NmtState state, TimePoint now, Output& out) {
   if (own_state == state) return;
   own_state = state;
   producer.set_state(state);
-  auto e = event(MasterEvent::Kind::MasterStateChanged, now, node_id,
-                 "master " + std::string(to_string(state)));
+  auto e = master_event(MasterEvent::Kind::MasterStateChanged, now, node_id,
+                        "master " + std::string(to_string(state)));
   e.state = state;
   report(out, std::move(e));
 }
@@ -671,9 +672,9 @@ void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
     } else {
       set_known_state(node, state, now, out);
     }
-    auto e = event(MasterEvent::Kind::NmtCommandSent, now, node,
-                   std::string(to_string(command)) + " " +
-                       (node == 0 ? std::string("all nodes") : node_text(node)));
+    auto e = master_event(MasterEvent::Kind::NmtCommandSent, now, node,
+                          std::string(to_string(command)) + " " +
+                              (node == 0 ? std::string("all nodes") : node_text(node)));
     e.command = command;
     report(out, std::move(e));
   }
@@ -685,7 +686,7 @@ void NmtMaster::Impl::set_known_state(std::uint8_t node, std::uint8_t state, Tim
   if (s.known_state == state) return;
   s.known_state = state;
   if (!is_slave(node)) return;
-  auto e = event(MasterEvent::Kind::SlaveStateChanged, now, node, node_text(node) + ": ");
+  auto e = master_event(MasterEvent::Kind::SlaveStateChanged, now, node, node_text(node) + ": ");
   if (state == 0) {
     e.text += "state unknown";
   } else if (state == 1) {
@@ -730,8 +731,9 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
 
 void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
   const bool assigned = is_slave(node);
-  auto e = event(MasterEvent::Kind::BootUp, now, node,
-                 node_text(node) + ": boot-up" + (assigned ? "" : " (not a slave in 1F81h)"));
+  auto e =
+      master_event(MasterEvent::Kind::BootUp, now, node,
+                   node_text(node) + ": boot-up" + (assigned ? "" : " (not a slave in 1F81h)"));
   e.assigned = assigned;
   report(out, std::move(e));
   auto& s = slaves[node];
@@ -752,8 +754,9 @@ void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) 
 
 void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out) {
   report(out,
-         event(heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
-               node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
+         master_event(
+             heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
+             node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
   set_known_state(node, 1, now, out);
   if (!is_slave(node) || slaves[node].held) return;
   const auto a = assignment(node);
@@ -885,11 +888,11 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
     return;
   }
   if (transfer.for_application) {
-    auto e =
-        event(MasterEvent::Kind::SdoFinished, now, result.node_id,
-              node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
-                  (result.upload ? " upload " : " download ") +
-                  (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
+    auto e = master_event(
+        MasterEvent::Kind::SdoFinished, now, result.node_id,
+        node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
+            (result.upload ? " upload " : " download ") +
+            (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
     e.sdo = result;
     e.sdo->id = transfer.application_id;
     report(out, std::move(e));

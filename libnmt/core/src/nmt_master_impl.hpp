@@ -71,6 +71,7 @@ struct SlaveBoot {
   std::uint64_t bytes = 0;
   bool configured = false;
   bool keep_alive_operational = false;
+  bool left_to_application = false;  ///< 1F81h bit 2 clear: booted without configuration
   bool cob_ids_checked = false;
 
   // Between tries.
@@ -214,5 +215,7 @@ struct NmtMaster::Impl {
 
 /// "node 3" (messages).
 std::string node_text(std::uint8_t node);
+/// An event with the fields every kind has.
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node, std::string text);
 
 }  // namespace nmt

@@ -1,0 +1,47 @@
+// Tests that send UDP multicast run only inside the private network namespace the ctest test
+// io_udp_bus_netns creates with tests/support/run_in_netns.sh (CANOPEN_UDP_NETNS=1, lo the only
+// interface, the multicast route on lo): nothing they send can leave the machine. Elsewhere they
+// skip.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <net/if.h>
+
+#include <cstdlib>
+#include <optional>
+#include <string>
+
+#include "python_peer.hpp"
+
+namespace test_support {
+
+/// Why multicast must not be sent here, or nullopt when this is that namespace.
+inline std::optional<std::string> multicast_not_isolated() {
+  const char* env = std::getenv("CANOPEN_UDP_NETNS");
+  if (env == nullptr || std::string(env) != "1") {
+    return "sends multicast: runs only in the private network namespace of the ctest test "
+           "io_udp_bus_netns (ctest -R io_udp_bus_netns)";
+  }
+  struct if_nameindex* names = if_nameindex();
+  if (names == nullptr) return "cannot list network interfaces";
+  std::optional<std::string> why;
+  for (auto* n = names; n->if_index != 0; ++n) {
+    if (std::string(n->if_name) != "lo") {
+      why = std::string("interface ") + n->if_name + " exists: refusing to send multicast";
+    }
+  }
+  if_freenameindex(names);
+  return why;
+}
+
+}  // namespace test_support
+
+#define REQUIRE_ISOLATED_MULTICAST()                                                     \
+  do {                                                                                   \
+    if (auto why_not = test_support::multicast_not_isolated()) GTEST_SKIP() << *why_not; \
+  } while (0)
+
+#define REQUIRE_PYTHON_CAN()                                                         \
+  do {                                                                               \
+    if (auto why_not = test_support::python_can_missing()) GTEST_SKIP() << *why_not; \
+  } while (0)

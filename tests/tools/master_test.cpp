@@ -1,0 +1,299 @@
+// cfgmgr master end to end on the simulated bus (sim:): the networks of tests/data/network
+// (written for these tests; README.md there), the events on stderr and in --json-events, the
+// exit codes of its --help. Once over UDP multicast against `cfgmgr simulate`, inside a private
+// network namespace (tests/support/run_in_netns.sh), as the simulate tests do.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <csignal>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "multicast_netns.hpp"
+#include "tool_test_support.hpp"
+
+namespace {
+
+using tool_test::Json;
+using tool_test::JsonParser;
+using tool_test::RunResult;
+using tool_test::ScratchDir;
+
+RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
+  return tool_test::run("cfgmgr", args, dir.path().string());
+}
+
+std::string network(const std::string& name) {
+  return tool_test::data_path("network/" + name);
+}
+
+// The JSON lines of --json-events; every line must be one JSON object.
+std::vector<Json> json_lines(const std::string& path) {
+  std::vector<Json> out;
+  const std::string text = tool_test::slurp(path);
+  std::size_t begin = 0;
+  while (begin < text.size()) {
+    const auto end = text.find('\n', begin);
+    EXPECT_NE(end, std::string::npos) << "the last line has no line end";
+    const std::string line = text.substr(begin, end - begin);
+    JsonParser parser(line);
+    auto value = parser.parse();
+    EXPECT_TRUE(value && value->is(Json::Kind::Object)) << parser.error() << ": " << line;
+    if (value) out.push_back(std::move(*value));
+    if (end == std::string::npos) break;
+    begin = end + 1;
+  }
+  return out;
+}
+
+std::vector<const Json*> events_of(const std::vector<Json>& events, const std::string& name) {
+  std::vector<const Json*> out;
+  for (const auto& e : events) {
+    const Json* kind = e.get("event");
+    if (kind != nullptr && kind->string == name) out.push_back(&e);
+  }
+  return out;
+}
+
+int node_of(const Json& e) {
+  const Json* node = e.get("node_id");
+  return node != nullptr ? static_cast<int>(node->number) : -1;
+}
+
+TEST(Master, HelpDocumentsUsageExamplesAndExitCodes) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", "--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* text : {"NETWORK", "--bus", "--node-id", "--run-for", "--json-events",
+                           "sim:", "0x7F", "Examples:", "Exit codes:", "  4  "}) {
+    EXPECT_NE(r.out.find(text), std::string::npos) << text;
+  }
+  // cfgmgr --help lists the command.
+  auto top = cfgmgr(dir, {"--help"});
+  EXPECT_NE(top.out.find("master"), std::string::npos);
+}
+
+TEST(Master, BootsEveryNodeOfAProjectOnTheSimulatedBus) {
+  ScratchDir dir;
+  const std::string events = dir / "events.jsonl";
+  auto r =
+      cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--json-events", events});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  // No master DCF: nodes 2 and 3 are mandatory slaves, booted, configured from their DCFs and
+  // started; node 5 is not present (CiA 306-3) and not booted.
+  EXPECT_NE(r.err.find("node 2: booted, configured"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("node 3: booted, configured"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("node 5"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("boot error"), std::string::npos) << r.err;
+
+  const auto lines = json_lines(events);
+  std::map<int, const Json*> booted;
+  for (const Json* e : events_of(lines, "slave_booted")) booted[node_of(*e)] = e;
+  ASSERT_EQ(booted.size(), 2U) << tool_test::slurp(events);
+  ASSERT_TRUE(booted.count(2) && booted.count(3));
+  // io_node2.dcf configures 1017h and 2000h (among others): a download happened.
+  EXPECT_TRUE(booted[2]->get("configured")->boolean);
+  EXPECT_GE(booted[2]->get("entries")->number, 2);
+  EXPECT_EQ(events_of(lines, "startup_complete").size(), 1U);
+  for (const auto& e : lines) {
+    ASSERT_NE(e.get("time_s"), nullptr);
+    EXPECT_TRUE(e.get("time_s")->is(Json::Kind::Number));
+    EXPECT_TRUE(e.get("text")->is(Json::Kind::String));
+  }
+}
+
+TEST(Master, NetSelectsTopology2WithANodeUnderGuarding) {
+  ScratchDir dir;
+  const std::string events = dir / "events.jsonl";
+  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--net", "2", "--bus",
+                        "sim:", "--json-events", events});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("node 4: booted"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("node 2"), std::string::npos) << r.err;
+}
+
+TEST(Master, MandatorySlaveWithAnotherVendorIdGivesStatusDAndHaltsStartup) {
+  // master_wrong_vendor.dcf expects vendor-ID 0x00000BAD at node 2, which has 0x00000ABC:
+  // CiA 302-2 §3.4 / Table 1 status D; a mandatory slave's error halts NMT start-up (§3.1 f).
+  ScratchDir dir;
+  const std::string events = dir / "events.jsonl";
+  auto r = cfgmgr(
+      dir, {"master", network("wrong_identity.cpj"), "--bus", "sim:", "--json-events", events});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("node 2: boot error D: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("NMT start-up halted"), std::string::npos) << r.err;
+  const auto lines = json_lines(events);
+  const auto errors = events_of(lines, "boot_error");
+  ASSERT_FALSE(errors.empty()) << tool_test::slurp(events);
+  EXPECT_EQ(node_of(*errors.back()), 2);
+  EXPECT_EQ(errors.back()->get("error")->string, "D");
+  EXPECT_TRUE(errors.back()->get("final")->boolean);
+  EXPECT_FALSE(errors.back()->get("description")->string.empty());
+  EXPECT_EQ(events_of(lines, "startup_halted").size(), 1U);
+}
+
+TEST(Master, RunForBoundsTheSimulatedRun) {
+  ScratchDir dir;
+  const std::string events = dir / "events.jsonl";
+  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--run-for", "3",
+                        "--json-events", events});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("3.000 s simulated"), std::string::npos) << r.err;
+  // Heartbeat consumer entries are derived with margin (cfg/network.hpp): nothing is lost in
+  // 3 s of a healthy network.
+  EXPECT_EQ(r.err.find("heartbeat lost"), std::string::npos) << r.err;
+  for (const auto& e : json_lines(events)) EXPECT_LE(e.get("time_s")->number, 3.0);
+}
+
+TEST(Master, AMasterDcfAloneBootsTheNodesItsFilesName) {
+  // master.dcf: node 2 from 1F20h sub 2 (a DCF, simulated), node 3 from 1F22h sub 3 (a concise
+  // DCF: nothing to simulate). Node 3 is optional (1F81h sub 3 = 05h): its status B does not
+  // halt start-up (CiA 302-2 §3.1 f).
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", network("master.dcf"), "--bus", "sim:"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("node-ID 1,"), std::string::npos) << r.err;  // the master DCF's NodeID
+  EXPECT_NE(r.err.find("node 3 has no DCF"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("node 2: booted, configured"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("node 3: boot error B: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
+}
+
+TEST(Master, TheSampleCellBootsOnTheSimulatedBus) {
+  // samples/network/README.md: nodes 2, 3 and 4 of the sample cell.
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", std::string(CANOPEN_SAMPLES_DIR) + "/network/nodelist.cpj",
+                        "--bus", "sim:", "--run-for", "5", "--node-id", "1"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  for (const char* node : {"node 2: booted", "node 3: booted", "node 4: booted"}) {
+    EXPECT_NE(r.err.find(node), std::string::npos) << node << "\n" << r.err;
+  }
+  EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("heartbeat lost"), std::string::npos) << r.err;
+}
+
+// ------------------------------------------------------------------- errors ---------------------
+
+TEST(Master, WithoutBusIsAUsageError) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", network("nodelist.cpj")});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+}
+
+TEST(Master, ABusUrlThatDoesNotParseIsAUsageError) {
+  ScratchDir dir;
+  for (const char* url : {"bogus:x", "sim:?loss=2", "sim:?speed=1", "sim:bitrate=5"}) {
+    auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", url});
+    EXPECT_EQ(r.exit_code, 2) << url << ": " << r.err;
+  }
+}
+
+TEST(Master, ANodeIdOutsideTheRangeOrOfASlaveIsAUsageError) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--node-id", "128"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("1..127"), std::string::npos) << r.err;
+  r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--node-id", "0x02"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("io_node2.dcf"), std::string::npos) << r.err;
+}
+
+TEST(Master, DescriptionErrorsAreInputErrorsWithFileAndLine) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", network("missing.cpj"), "--bus", "sim:"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(network("missing.cpj") + ":8: error: "), std::string::npos) << r.err;
+}
+
+TEST(Master, AnUnreadableDescriptionIsAnIoError) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", dir / "absent.cpj", "--bus", "sim:"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("absent.cpj"), std::string::npos) << r.err;
+}
+
+TEST(Master, AnUnwritableEventFileIsAnIoError) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--json-events",
+                        dir / "no/such/dir/events.jsonl"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+}
+
+// --------------------------------------------------------- over UDP, in a namespace ----------
+
+TEST(Master, EndToEndOverUdp) {
+  tool_test::run_in_private_netns("MasterInNetns.*");
+}
+
+TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string bus = "udp://239.74.163.2:43119";
+  // Nodes 2 and 3 as independent processes; the master from master.dcf (node 2 mandatory from
+  // its DCF, node 3 optional from a concise DCF).
+  tool_test::SpawnedTool devices("cfgmgr",
+                                 {"simulate", "--bus", bus, "--for", "30",
+                                  network("nodes/io_node2.dcf"), network("nodes/drive_node3.dcf")},
+                                 dir / "sim.out", dir / "sim.err");
+  ASSERT_TRUE(devices.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::string events = dir / "events.jsonl";
+  tool_test::SpawnedTool master(
+      "cfgmgr", {"master", network("master.dcf"), "--bus", bus, "--json-events", events},
+      dir / "master.out", dir / "master.err");
+  ASSERT_TRUE(master.started());
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(15);
+  while (std::chrono::steady_clock::now() < end &&
+         tool_test::slurp(events).find("\"startup_complete\"") == std::string::npos) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  const auto code = master.stop(SIGTERM, std::chrono::milliseconds(3000));
+  const std::string err = tool_test::slurp(dir / "master.err");
+  ASSERT_TRUE(code.has_value()) << "no clean exit on SIGTERM\n" << err;
+  EXPECT_EQ(*code, 0) << err;
+  EXPECT_NE(err.find("node 2: booted, configured"), std::string::npos) << err;
+  EXPECT_NE(err.find("node 3: booted, configured"), std::string::npos) << err;
+  EXPECT_NE(err.find("NMT start-up complete"), std::string::npos) << err;
+}
+
+TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string bus = "udp://239.74.163.2:43120";
+  auto devices = std::make_unique<tool_test::SpawnedTool>(
+      "cfgmgr",
+      std::vector<std::string>{"simulate", "--bus", bus, "--for", "30",
+                               network("nodes/io_node2.dcf")},
+      dir / "sim.out", dir / "sim.err");
+  ASSERT_TRUE(devices->started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::string events = dir / "events.jsonl";
+  tool_test::SpawnedTool master(
+      "cfgmgr", {"master", network("heartbeat.cpj"), "--bus", bus, "--json-events", events},
+      dir / "master.out", dir / "master.err");
+  ASSERT_TRUE(master.started());
+  const auto wait_for = [&events](const std::string& event, std::chrono::seconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      if (tool_test::slurp(events).find("\"" + event + "\"") != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+  };
+  EXPECT_TRUE(wait_for("startup_complete", std::chrono::seconds(15)));
+  // The device goes away: no heartbeat within the consumer time (1600 ms, CiA 301 §7.2.8.3.2.2).
+  devices.reset();
+  EXPECT_TRUE(wait_for("heartbeat_lost", std::chrono::seconds(5)));
+  const auto code = master.stop(SIGINT, std::chrono::milliseconds(3000));
+  const std::string err = tool_test::slurp(dir / "master.err");
+  ASSERT_TRUE(code.has_value()) << "no clean exit on SIGINT\n" << err;
+  EXPECT_EQ(*code, 0) << err;
+  EXPECT_NE(err.find("node 2: heartbeat lost"), std::string::npos) << err;
+}
+
+}  // namespace

@@ -1,0 +1,129 @@
+#include "network_source.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <set>
+#include <string>
+#include <utility>
+
+#include "cfg/integer_literal.hpp"
+
+namespace cfgmgr {
+
+NetworkSource::NetworkSource(std::shared_ptr<const cfg::Network> network)
+    : network_(std::move(network)) {}
+
+std::optional<std::vector<cfg::ObjectWrite>> NetworkSource::configuration(cfg::NodeId node) const {
+  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
+  if (found == nullptr) return std::nullopt;
+  return found->writes;
+}
+
+namespace {
+
+constexpr std::string_view kSimScheme = "sim:";
+
+cfg::Error sim_error(std::string message) {
+  return cfg::Error{"sim: " + std::move(message)};
+}
+
+std::optional<double> parse_number(std::string_view text) {
+  if (text.empty()) return std::nullopt;
+  const std::string copy(text);
+  std::size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(copy, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (used != copy.size() || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
+}  // namespace
+
+bool is_sim_url(std::string_view url) {
+  return url.substr(0, kSimScheme.size()) == kSimScheme;
+}
+
+cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
+  if (!is_sim_url(url)) return sim_error("not a sim: URL: " + std::string(url));
+  std::string_view rest = url.substr(kSimScheme.size());
+  SimBusOptions options;
+  if (rest.empty()) return options;
+  if (rest.front() != '?') {
+    return sim_error("expected '?' and parameters after 'sim:', got '" + std::string(rest) + "'");
+  }
+  rest.remove_prefix(1);
+  std::set<std::string, std::less<>> seen;
+  while (!rest.empty()) {
+    const auto amp = rest.find('&');
+    const std::string_view pair = rest.substr(0, amp);
+    rest = amp == std::string_view::npos ? std::string_view() : rest.substr(amp + 1);
+    const auto eq = pair.find('=');
+    const std::string name(pair.substr(0, eq));
+    const std::string_view value = eq == std::string_view::npos ? "" : pair.substr(eq + 1);
+    if (!seen.insert(name).second) return sim_error("parameter '" + name + "' given twice");
+    if (name == "bitrate") {
+      const auto parsed = cfg::parse_integer_literal(value);
+      if (!parsed.literal || parsed.literal->value < 1 || parsed.literal->value > 1'000'000'000) {
+        return sim_error("bitrate=" + std::string(value) + ": expected 1 ... 1000000000 bit/s");
+      }
+      options.bitrate_bps = static_cast<std::uint32_t>(parsed.literal->value);
+    } else if (name == "latency_ms") {
+      const auto parsed = parse_number(value);
+      if (!parsed || *parsed < 0 || *parsed > 60'000) {
+        return sim_error("latency_ms=" + std::string(value) + ": expected 0 ... 60000 ms");
+      }
+      options.latency_ms = *parsed;
+    } else if (name == "loss") {
+      const auto parsed = parse_number(value);
+      if (!parsed || *parsed < 0 || *parsed > 1) {
+        return sim_error("loss=" + std::string(value) + ": expected a probability 0 ... 1");
+      }
+      options.loss = *parsed;
+    } else if (name == "seed") {
+      const auto parsed = cfg::parse_integer_literal(value);
+      if (!parsed.literal) {
+        return sim_error("seed=" + std::string(value) + ": expected an unsigned number");
+      }
+      options.seed = parsed.literal->value;
+    } else {
+      return sim_error("unknown parameter '" + name + "' (known: bitrate, latency_ms, loss, seed)");
+    }
+  }
+  return options;
+}
+
+cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
+    const cfg::Network& network, const SimBusOptions& options, std::vector<cfg::NodeId>* skipped) {
+  nmt::DeviceFaults faults;
+  faults.sdo_latency = std::chrono::duration_cast<nmt::Duration>(
+      std::chrono::duration<double, std::milli>(options.latency_ms));
+  std::vector<nmt::SimulatedDevice> devices;
+  devices.reserve(network.nodes.size());
+  for (const auto& node : network.nodes) {
+    if (!node.dcf) {
+      if (skipped != nullptr) skipped->push_back(node.node_id);
+      continue;
+    }
+    // The device answers the identity its DCF says, [DeviceInfo] where 1018h has no value,
+    // as the real device would (and as the derived master expects it).
+    const cfg::DeviceIdentity identity = cfg::identity_of(*node.dcf, node.node_id);
+    nmt::DeviceFaults device_faults = faults;
+    device_faults.device_type = identity.device_type;
+    device_faults.vendor_id = identity.vendor_id;
+    device_faults.product_code = identity.product_code;
+    device_faults.revision_number = identity.revision_number;
+    auto device = nmt::SimulatedDevice::create(*node.dcf, node.node_id.value(), device_faults);
+    if (!device) {
+      return cfg::Error{node.file + ": error: cannot simulate node " +
+                        std::to_string(node.node_id.value()) + ": " + device.error().message};
+    }
+    devices.push_back(std::move(device).value());
+  }
+  return devices;
+}
+
+}  // namespace cfgmgr

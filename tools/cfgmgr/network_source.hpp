@@ -1,0 +1,56 @@
+// What the cfgmgr commands that run a network (master; push of the configuration-manager issue)
+// share: the loaded network as the NMT master's configuration source, and the `sim:` bus with a
+// simulated device per node built from the network's own DCFs.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "cfg/network.hpp"
+#include "cfg/result.hpp"
+#include "nmt/fault_injection.hpp"
+#include "nmt/nmt_master.hpp"
+#include "nmt/simulated_device.hpp"
+
+namespace cfgmgr {
+
+/// nmt::ConfigurationSource over a loaded network: a node's writes are its DCF's configured
+/// values (or its concise DCF's entries), as cfg::load_network made them. Shares the network.
+class NetworkSource final : public nmt::ConfigurationSource {
+ public:
+  explicit NetworkSource(std::shared_ptr<const cfg::Network> network);
+  /// The node's writes; nullopt for a node the network has no file for.
+  std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override;
+
+ private:
+  std::shared_ptr<const cfg::Network> network_;
+};
+
+/// `sim:` with optional `?bitrate=500000&latency_ms=1&loss=0.01&seed=N` (any order, each at
+/// most once).
+struct SimBusOptions {
+  std::uint32_t bitrate_bps = 500'000;  ///< 1 ... 1 000 000 000
+  double latency_ms = 0;                ///< every SDO response of a device leaves this late
+  double loss = 0;                      ///< probability of losing each frame, 0..1
+  std::uint64_t seed = 1;               ///< of the loss
+};
+
+/// True for URLs of the simulated bus ("sim:" and "sim:?...").
+bool is_sim_url(std::string_view url);
+/// Parses a `sim:` URL. Fails with a message naming the parameter that is unknown, repeated,
+/// or out of range.
+cfg::Result<SimBusOptions> parse_sim_url(std::string_view url);
+
+/// One simulated device for each node of the network that has a DCF (a node given only by a
+/// concise DCF has no dictionary to simulate: it is left out, and `skipped` gets its node-ID),
+/// with the SDO latency of `options`, answering the identity cfg::identity_of gives (its DCF's
+/// 1000h/1018h, else [DeviceInfo], as the real device would). Fails with a message naming the
+/// node's file when a device cannot be built from it.
+cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
+    const cfg::Network& network, const SimBusOptions& options,
+    std::vector<cfg::NodeId>* skipped = nullptr);
+
+}  // namespace cfgmgr
