@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
+#include <stdexcept>
 #include <system_error>
 #include <utility>
 
@@ -49,11 +50,15 @@ std::string as_text(const std::vector<std::uint8_t>& bytes) {
   return {bytes.begin(), bytes.end()};
 }
 
-std::string unpack(const PackedText& packed) {
-  auto text = detail::inflate_bytes(packed.deflated, packed.size);
+std::vector<std::uint8_t> unpack_bytes(const PackedText& packed) {
+  auto bytes = detail::inflate_bytes(packed.deflated, packed.size);
   // Held bytes were deflated here or checked when loaded: failing to inflate them is a bug.
-  if (!text) throw std::logic_error("configuration manager: " + text.error().message);
-  return as_text(*text);
+  if (!bytes) throw std::logic_error("configuration manager: " + bytes.error().message);
+  return std::move(*bytes);
+}
+
+std::string unpack(const PackedText& packed) {
+  return as_text(unpack_bytes(packed));
 }
 
 std::vector<std::uint8_t> le32(std::uint32_t value) {
@@ -438,7 +443,7 @@ ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) cons
   switch (index) {
     case object::kStoreDcf:
       if (!s.dcf) return empty();
-      return {ConfigAbort::None, detail::inflate_bytes(s.dcf->deflated, s.dcf->size).value(), {}};
+      return {ConfigAbort::None, unpack_bytes(*s.dcf), {}};
     case object::kStorageFormat:
       if (!s.dcf) return empty();
       return {ConfigAbort::None, {kStorageFormatAscii}, {}};
@@ -448,7 +453,7 @@ ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) cons
       return {ConfigAbort::None, s.concise, {}};
     case object::kStoreEds:
       if (!s.eds) return empty();
-      return {ConfigAbort::None, detail::inflate_bytes(s.eds->deflated, s.eds->size).value(), {}};
+      return {ConfigAbort::None, unpack_bytes(*s.eds), {}};
     case object::kStorageFormatEds:
       if (!s.eds) return empty();
       return {ConfigAbort::None, {kStorageFormatAscii}, {}};
