@@ -92,49 +92,6 @@ std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at) {
   return buf;
 }
 
-std::string_view event_name(nmt::MasterEvent::Kind kind) {
-  using K = nmt::MasterEvent::Kind;
-  switch (kind) {
-    case K::NotMaster:
-      return "not_master";
-    case K::StartupRefused:
-      return "startup_refused";
-    case K::StartupBegan:
-      return "startup_began";
-    case K::BootStepChanged:
-      return "boot_step";
-    case K::SlaveBooted:
-      return "slave_booted";
-    case K::BootError:
-      return "boot_error";
-    case K::StartupHalted:
-      return "startup_halted";
-    case K::StartupAwaitsApplication:
-      return "startup_awaits_application";
-    case K::StartupComplete:
-      return "startup_complete";
-    case K::MasterStateChanged:
-      return "master_state";
-    case K::SlaveStateChanged:
-      return "slave_state";
-    case K::HeartbeatLost:
-      return "heartbeat_lost";
-    case K::GuardingLost:
-      return "guarding_lost";
-    case K::ErrorControlResolved:
-      return "error_control_resolved";
-    case K::BootUp:
-      return "boot_up";
-    case K::NmtCommandSent:
-      return "nmt_command";
-    case K::ApplicationStep:
-      return "application_step";
-    case K::SdoFinished:
-      return "sdo_finished";
-  }
-  return "unknown";
-}
-
 // Prints the master's events (one line each on stderr, JSON lines in --json-events) and keeps
 // what the exit code depends on.
 class Reporter {
@@ -217,7 +174,7 @@ class Reporter {
   void write_json(const nmt::MasterEvent& e) {
     using K = nmt::MasterEvent::Kind;
     std::string out = "{\"time_s\": " + seconds_text(start_, e.at) +
-                      ", \"event\": " + tools::json_string(event_name(e.kind)) +
+                      ", \"event\": " + tools::json_string(nmt::to_string(e.kind)) +
                       ", \"node_id\": " + std::to_string(e.node_id);
     switch (e.kind) {
       case K::BootError:

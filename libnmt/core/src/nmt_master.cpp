@@ -113,41 +113,41 @@ std::string_view to_string(MasterEvent::Kind kind) {
   using K = MasterEvent::Kind;
   switch (kind) {
     case K::NotMaster:
-      return "not-master";
+      return "not_master";
     case K::StartupRefused:
-      return "startup-refused";
+      return "startup_refused";
     case K::StartupBegan:
-      return "startup-began";
+      return "startup_began";
     case K::BootStepChanged:
-      return "boot-step";
+      return "boot_step";
     case K::SlaveBooted:
-      return "slave-booted";
+      return "slave_booted";
     case K::BootError:
-      return "boot-error";
+      return "boot_error";
     case K::StartupHalted:
-      return "startup-halted";
+      return "startup_halted";
     case K::StartupAwaitsApplication:
-      return "startup-awaits-application";
+      return "startup_awaits_application";
     case K::StartupComplete:
-      return "startup-complete";
+      return "startup_complete";
     case K::MasterStateChanged:
-      return "master-state";
+      return "master_state";
     case K::SlaveStateChanged:
-      return "slave-state";
+      return "slave_state";
     case K::HeartbeatLost:
-      return "heartbeat-lost";
+      return "heartbeat_lost";
     case K::GuardingLost:
-      return "guarding-lost";
+      return "guarding_lost";
     case K::ErrorControlResolved:
-      return "error-control-resolved";
+      return "error_control_resolved";
     case K::BootUp:
-      return "boot-up";
+      return "boot_up";
     case K::NmtCommandSent:
-      return "nmt-command";
+      return "nmt_command";
     case K::ApplicationStep:
-      return "application-step";
+      return "application_step";
     case K::SdoFinished:
-      return "sdo-finished";
+      return "sdo_finished";
   }
   return "?";
 }

@@ -190,6 +190,7 @@ struct MasterEvent {
   std::optional<SdoResult> sdo{};
   std::string text{};
 };
+/// "slave_booted", "boot_error", ...: names for logs and JSON.
 std::string_view to_string(MasterEvent::Kind kind);
 
 /// Where check configuration (CiA 302-2 §3.5 d) and the software update find what to download.
