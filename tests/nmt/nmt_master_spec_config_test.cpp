@@ -270,7 +270,7 @@ TEST(NmtMasterSpec, Restore1F8AChoosesThe1011hSubIndexAndZeroMeansNoRestore) {
 // (object 1011h)" - also when no configuration is stored for the device.
 // Disabled on main (run it with --gtest_also_run_disabled_tests): with no configuration the
 // engine reports "configuration up to date" and sends neither 1011h nor reset node.
-TEST(NmtMasterSpec, DISABLED_RestoreBit7RestoresEvenWithoutAConfiguration) {
+TEST(NmtMasterSpec, RestoreBit7RestoresEvenWithoutAConfiguration) {
   MasterRig rig;
   rig.assign(3, kSlave | kBoot | kRestore);
   rig.two_slaves();

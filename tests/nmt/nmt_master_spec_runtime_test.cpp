@@ -88,7 +88,7 @@ TEST(NmtMasterSpec, HeartbeatLossOfMandatorySlaveWithBit4ResetsAllNodes) {
 // error control event shall be executed."
 // Disabled on main (run it with --gtest_also_run_disabled_tests): the engine restarts the slave's
 // boot and sends no 000#8103 (the header's error handler choice), against Table 12.
-TEST(NmtMasterSpec, DISABLED_HeartbeatLossOfMandatorySlaveWithBits4And6ClearResetsThatNode) {
+TEST(NmtMasterSpec, HeartbeatLossOfMandatorySlaveWithBits4And6ClearResetsThatNode) {
   MasterRig rig;
   boot_with_heartbeat(rig, Startup::kMaster, kSlave | kBoot | kMandatory);
   const TimePoint stopped = stop_heartbeat(rig);
@@ -237,7 +237,7 @@ TEST(NmtMasterSpec, BootUpOfSlaveWithoutBit2IsNotBooted) {
 // Disabled on main (run it with --gtest_also_run_disabled_tests): boot_slave() returns true but the
 // engine ends the boot at step b ("left to the application") without any 1000h upload, against the
 // header of boot_slave().
-TEST(NmtMasterSpec, DISABLED_ApplicationBootsASlaveLeftToItByBit2) {
+TEST(NmtMasterSpec, ApplicationBootsASlaveLeftToItByBit2) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes);
   rig.assign(3, kSlave);

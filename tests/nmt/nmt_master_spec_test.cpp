@@ -56,7 +56,7 @@ TEST(NmtMasterSpec, StartupSendsBootUpAndResetCommunicationAllNodes) {
 // (header, start(): "the master's boot-up message, then NMT start-up"). So 701#00 comes first.
 // Disabled on main (run it with --gtest_also_run_disabled_tests): the engine puts 000#8200 into the
 // output before 701#00.
-TEST(NmtMasterSpec, DISABLED_MasterSendsItsBootUpBeforeResetCommunication) {
+TEST(NmtMasterSpec, MasterSendsItsBootUpBeforeResetCommunication) {
   MasterRig rig;
   rig.add_slave(2);
   rig.power_on_network();
@@ -232,7 +232,7 @@ TEST(NmtMasterSpec, MasterStaysPreOperationalWithBit2UntilTheApplicationAsks) {
 // the application's enter_operational() (StartupState::AwaitApplication): reported once, after.
 // Disabled on main (run it with --gtest_also_run_disabled_tests): the engine reports
 // StartupComplete when it starts waiting for the application and again after enter_operational().
-TEST(NmtMasterSpec, DISABLED_StartupCompleteIsReportedOnceWhenTheApplicationEntersOperational) {
+TEST(NmtMasterSpec, StartupCompleteIsReportedOnceWhenTheApplicationEntersOperational) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kStartAllNodes | Startup::kNoAutoOperational);
   rig.two_slaves();
@@ -298,7 +298,7 @@ TEST(NmtMasterSpec, StartupCapableDeviceWithBit1SendsStartAllNodes) {
 // Disabled on main (run it with --gtest_also_run_disabled_tests): NmtMaster::create() fails on
 // 1F80h bit 5 ("the NMT flying master is not supported yet"), so StartupState::Refused and
 // StartupRefused are never reached.
-TEST(NmtMasterSpec, DISABLED_FlyingMasterBit5RefusesStartup) {
+TEST(NmtMasterSpec, FlyingMasterBit5RefusesStartup) {
   MasterRig rig;
   rig.startup(Startup::kMaster | Startup::kFlyingMaster);
   rig.add_slave(2);

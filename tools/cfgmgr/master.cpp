@@ -109,6 +109,8 @@ std::string_view event_name(nmt::MasterEvent::Kind kind) {
       return "boot_error";
     case K::StartupHalted:
       return "startup_halted";
+    case K::StartupAwaitsApplication:
+      return "startup_awaits_application";
     case K::StartupComplete:
       return "startup_complete";
     case K::MasterStateChanged:

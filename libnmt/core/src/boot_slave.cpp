@@ -54,7 +54,7 @@ void NmtMaster::Impl::cancel_boot(std::uint8_t node, TimePoint now) {
   for (auto it = transfers.begin(); it != transfers.end();) {
     if (it->first.first == node && !it->second.for_application) {
       const auto id = it->first.second;
-      it = transfers.erase(it);
+      forget_transfer(it++);
       clients.client(node).cancel(id, now, sdo_out);
     } else {
       ++it;
@@ -62,7 +62,8 @@ void NmtMaster::Impl::cancel_boot(std::uint8_t node, TimePoint now) {
   }
 }
 
-void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out) {
+void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
+                                 bool asked_by_application) {
   cancel_boot(node, now);
   auto& s = slaves[node];
   const auto keep = s;
@@ -86,14 +87,14 @@ void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint 
     return;
   }
   // §3.4 b, Table 20: with bit 2 clear the application configures and starts the slave.
-  if (!a.boot_slave()) {
+  if (!a.boot_slave() && !asked_by_application) {
     s.left_to_application = true;
     boot_succeeded(node, now, out);
     return;
   }
   if (after_reset) {
     s.phase = Phase::AwaitBootUp;
-    s.deadline = now + options.boot_up_wait;
+    s.deadline = boot_up_gate.value_or(now + options.boot_up_wait);
     set_step(node, BootStep::AwaitBootUp, now, out);
     return;
   }
@@ -491,6 +492,7 @@ void NmtMaster::Impl::boot_timer(std::uint8_t node, TimePoint now, Output& out) 
   switch (s.phase) {
     case Phase::AwaitBootUp:
       // No boot-up within boot_up_wait: identify anyway (a boot-up may have been missed).
+      boot_up_gate.reset();
       set_step(node, BootStep::Identify, now, out);
       boot_upload(node, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
       return;
@@ -523,10 +525,20 @@ bool NmtMaster::Impl::boot_took_boot_up(std::uint8_t node, TimePoint now, Output
     s.expect_boot_up = false;
     return true;
   }
+  // §3.3: waiting for the next try, and the slave is there now: try at once.
+  if (s.phase == Phase::RetryWait) {
+    start_boot(node, false, now, out);
+    return true;
+  }
   if (!s.expect_boot_up) return false;
   s.expect_boot_up = false;
   switch (s.phase) {
     case Phase::AwaitBootUp:
+      if (boot_up_gate) {
+        s.boot_up_seen = true;
+        open_boot_up_gate(now, out);  // when it was the last one
+        break;
+      }
       s.deadline.reset();
       set_step(node, BootStep::Identify, now, out);
       boot_upload(node, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
@@ -546,6 +558,26 @@ bool NmtMaster::Impl::boot_took_boot_up(std::uint8_t node, TimePoint now, Output
       break;
   }
   return true;
+}
+
+}  // namespace nmt
+
+namespace nmt {
+
+void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out) {
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto& s = slaves[node];
+    if (s.running && s.phase == Phase::AwaitBootUp && !s.boot_up_seen) return;  // not yet
+  }
+  boot_up_gate.reset();
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto n = static_cast<std::uint8_t>(node);
+    auto& s = slaves[n];
+    if (!s.running || s.phase != Phase::AwaitBootUp) continue;
+    s.deadline.reset();
+    set_step(n, BootStep::Identify, now, out);
+    boot_upload(n, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
+  }
 }
 
 }  // namespace nmt

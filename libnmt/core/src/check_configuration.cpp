@@ -67,7 +67,9 @@ void NmtMaster::Impl::begin_download(std::uint8_t node, TimePoint now, Output& o
   auto& s = slaves[node];
   const auto expected = expected_configuration(node);
   auto configuration = configuration_of(node);
-  if (!configuration) {
+  const auto restore_sub = static_cast<std::uint8_t>(value_of(obj::kRestoreConfiguration, node));
+  const bool restore = assignment(node).restore() && restore_sub != 0;
+  if (!configuration && !restore) {
     if (!expected.is_zero()) {
       boot_failed(node, BootError::J,
                   "1F26h/1F27h expect a configuration, but none is stored for the node", now, out);
@@ -78,14 +80,14 @@ void NmtMaster::Impl::begin_download(std::uint8_t node, TimePoint now, Output& o
   }
   // Storage commands are the master's to send; 1020h too when it verifies (it writes 1F26h/1F27h
   // at the end).
+  if (!configuration) configuration.emplace();  // a restore alone: factory defaults
   std::erase_if(*configuration, [&](const cfg::ObjectWrite& w) {
     return w.index == obj::kStoreParameters || w.index == obj::kRestoreDefaultParameters ||
            (w.index == obj::kVerifyConfiguration && !expected.is_zero());
   });
   s.configuration = std::move(*configuration);
   // §3.5 d, Table 25, §6.12: restore first when 1F81h bit 7 asks and 1F8Ah names a sub-index.
-  const auto restore_sub = static_cast<std::uint8_t>(value_of(obj::kRestoreConfiguration, node));
-  if (assignment(node).restore() && restore_sub != 0) {
+  if (restore) {
     set_step(node, BootStep::Restore, now, out);
     boot_download(node, Phase::RestoreLoad, obj::kRestoreDefaultParameters, restore_sub,
                   u32_bytes(cfg::kLoadSignature), now);
@@ -153,6 +155,10 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
         return;
       }
       s.verify.days = value_u32(r);
+      if (s.verify.days != expected_configuration(node).days) {
+        begin_download(node, now, out);  // sub 2 cannot make it match
+        return;
+      }
       boot_upload(node, Phase::ReadVerifyTime, obj::kVerifyConfiguration, 2, now);
       return;
     case Phase::ReadVerifyTime:

@@ -120,9 +120,12 @@ bool assignment_reserved(std::uint32_t value) {
 }  // namespace
 
 cfg::Status NmtMaster::Impl::check_configuration_values(const LocalDictionary& dict) {
+  // Reserved bits are an error of the file; the flying master bit is refused at start-up
+  // (StartupRefused), where it would be decided.
   const auto startup = dict.get_unsigned(obj::kNmtStartup, 0).value_or(0);
-  if (auto problem = startup_problem(static_cast<std::uint32_t>(startup))) {
-    return cfg::Error{cfg::to_string({obj::kNmtStartup, 0}) + ": " + *problem};
+  if ((startup & ~std::uint64_t{cfg::NmtStartup::kDefinedBits}) != 0) {
+    return cfg::Error{cfg::to_string({obj::kNmtStartup, 0}) + ": reserved bits 7-31 are set (" +
+                      cfg::hex(static_cast<std::uint32_t>(startup), 8) + ")"};
   }
   for (unsigned sub = 1; sub <= cfg::kMaxNodeId; ++sub) {
     const auto value =

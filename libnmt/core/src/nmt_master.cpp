@@ -5,6 +5,7 @@
 #include "nmt/nmt_master.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "cfg/hex.hpp"
@@ -125,6 +126,8 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "boot-error";
     case K::StartupHalted:
       return "startup-halted";
+    case K::StartupAwaitsApplication:
+      return "startup-awaits-application";
     case K::StartupComplete:
       return "startup-complete";
     case K::MasterStateChanged:
@@ -349,6 +352,11 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     due = earliest(due, m.slaves[node].deadline);
   }
+  // Waiting boot transfers are due when the pacing allows, if the window has room (else an
+  // answer frees a place, and the call that brings it starts the next).
+  if (!m.waiting.empty() && static_cast<double>(m.boot_transfers) < std::floor(m.window)) {
+    due = earliest(due, m.paced_until);
+  }
   if (!m.nmt_queue.empty()) {
     const auto inhibit = m.nmt_inhibit_time();
     due = earliest(due, m.last_nmt && inhibit.count() > 0 ? *m.last_nmt + inhibit : TimePoint{0});
@@ -388,7 +396,7 @@ bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
   }
   m.slaves[node].held = false;
   m.stop_error_control(node);
-  m.start_boot(node, false, now, out);
+  m.start_boot(node, false, now, out, /*asked_by_application=*/true);
   m.settle(now, out);
   return true;
 }
@@ -477,6 +485,7 @@ void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
   // machine"): initialisation ends with its boot-up message.
   own_state = NmtState::Initialising;
   out.send(make_boot_up(node_id));
+  call_frames_begin = out.frames.size();  // NMT commands of this call go after the boot-up
   producer.set_period(static_cast<std::uint16_t>(value_of(obj::kProducerHeartbeatTime, 0)), now);
   producer.on_boot_up(now);
   set_own_state(NmtState::PreOperational, now, out);
@@ -534,6 +543,9 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     }
   }
   report(out, master_event(MasterEvent::Kind::StartupBegan, now, 0, "NMT start-up began"));
+  // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
+  // have the lowest priority, and a device's answers would queue behind its own boot-up.
+  boot_up_gate = now + options.boot_up_wait;
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
@@ -571,7 +583,7 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
   if (startup_config().no_auto_operational()) {
     startup = StartupState::AwaitApplication;
-    report(out, master_event(MasterEvent::Kind::StartupComplete, now, 0,
+    report(out, master_event(MasterEvent::Kind::StartupAwaitsApplication, now, 0,
                              "all mandatory slaves booted; waiting for the application to enter "
                              "operational (1F80h bit 2)"));
     return;
@@ -772,9 +784,15 @@ void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint
     startup_due = now;
     return;
   }
-  // Otherwise the start process boot NMT slave starts again (DSP 302 §5.3), if 1F81h bit 2
-  // allows; its heartbeat or guarding is started again by the boot.
   stop_error_control(node);
+  // Table 12, bit 4 = 0: reset node of that mandatory slave; its boot-up starts its boot again
+  // (boot-up handler).
+  if (a.mandatory()) {
+    queue_nmt(NmtCommand::ResetNode, node);
+    return;
+  }
+  // An optional slave: start process boot NMT slave again (DSP 302 §5.3), if 1F81h bit 2
+  // allows; its heartbeat or guarding is started again by the boot.
   if (a.boot_slave()) start_boot(node, false, now, out);
 }
 
@@ -867,6 +885,19 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
 
 SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
                                                       TimePoint now) {
+  // Boot transfers beyond the window, before the pacing allows, or behind others that wait,
+  // wait too (pump_transfers), in order.
+  if (!transfer.for_application && (static_cast<double>(boot_transfers) >= std::floor(window) ||
+                                    now < paced_until || !waiting.empty())) {
+    waiting.emplace_back(node, std::move(transfer));
+    return 0;
+  }
+  return launch_transfer(node, std::move(transfer), now);
+}
+
+SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, MasterTransfer transfer,
+                                                       TimePoint now) {
+  if (!transfer.for_application) ++boot_transfers;
   auto& client = clients.client(node);
   const auto id = transfer.upload
                       ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
@@ -876,13 +907,42 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
   return id;
 }
 
+void NmtMaster::Impl::forget_transfer(
+    std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it) {
+  if (!it->second.for_application) --boot_transfers;
+  transfers.erase(it);
+}
+
+void NmtMaster::Impl::pump_transfers(TimePoint now) {
+  while (!waiting.empty() && static_cast<double>(boot_transfers) < std::floor(window) &&
+         now >= paced_until) {
+    auto [node, transfer] = std::move(waiting.front());
+    waiting.pop_front();
+    const auto& s = slaves[node];
+    if (!s.running || transfer.try_id != s.try_id) continue;  // its try ended meanwhile
+    launch_transfer(node, std::move(transfer), now);
+    if (options.bitrate != 0) return;  // settle() paces the next one after counting its frames
+  }
+}
+
 void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& out) {
   const auto it = transfers.find({result.node_id, result.id});
   if (it == transfers.end()) return;  // cancelled, or of an older boot try
   MasterTransfer transfer = std::move(it->second);
-  transfers.erase(it);
+  forget_transfer(it);
+  const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
+  if (!transfer.for_application) {
+    // The window of boot transfers in flight: halved when a response does not come (frames
+    // lost, or a bus so full that lower-priority frames, heartbeats among them, starve), grown
+    // by one per window's worth of answers (additive increase, multiplicative decrease).
+    if (timed_out) {
+      window = std::max(1.0, window / 2);
+    } else {
+      window = std::min(kMaxWindow, window + 1.0 / window);
+    }
+  }
   // A timeout the client detected is most likely a lost frame: repeat the transfer.
-  if (result.abort == SdoAbort::Timeout && !result.aborted_by_server && transfer.retries_left > 0) {
+  if (timed_out && transfer.retries_left > 0) {
     --transfer.retries_left;
     start_transfer(result.node_id, std::move(transfer), now);
     return;
@@ -904,6 +964,14 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
 
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   for (;;) {
+    if (options.bitrate != 0 && !sdo_out.frames.empty()) {
+      // Each request and the answer it causes, at 125 bits each, within the load limit.
+      constexpr double kBitsPerFrame = 125;
+      const double seconds =
+          2 * kBitsPerFrame * static_cast<double>(sdo_out.frames.size()) /
+          (static_cast<double>(options.bitrate) * std::clamp(options.bus_load_limit, 0.05, 1.0));
+      paced_until = std::max(paced_until, now) + Duration{static_cast<std::int64_t>(seconds * 1e6)};
+    }
     for (const auto& f : sdo_out.frames) out.send(f);
     sdo_out.frames.clear();
     for (auto& r : sdo_out.events) results.push_back(std::move(r));
@@ -916,6 +984,7 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
       }
       continue;
     }
+    pump_transfers(now);
     if (startup == StartupState::BootingSlaves) check_startup(now, out);
     flush_nmt(now, out);
     if (sdo_out.empty()) break;

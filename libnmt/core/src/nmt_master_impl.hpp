@@ -57,6 +57,7 @@ struct SlaveBoot {
   std::uint64_t try_id = 0;  ///< results of older tries are ignored
   std::optional<TimePoint> deadline;
   bool expect_boot_up = false;  ///< the master reset the node and has not seen its boot-up
+  bool boot_up_seen = false;    ///< AwaitBootUp: seen, waiting for the others (boot_up_gate)
   bool software_updated = false;
 
   // Data of the current try.
@@ -117,6 +118,15 @@ struct NmtMaster::Impl {
   std::array<SlaveBoot, 128> slaves;     ///< by node-ID (index 0 unused)
 
   std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer> transfers;
+  /// Boot transfers in `transfers`, the window they may fill, and those waiting for a place.
+  static constexpr double kMaxWindow = 128;
+  std::size_t boot_transfers = 0;
+  double window = kMaxWindow;
+  std::deque<std::pair<std::uint8_t, MasterTransfer>> waiting;
+  /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
+  TimePoint paced_until{0};
+  /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
+  std::optional<TimePoint> boot_up_gate;
   SdoClient::TransferId next_application_id = 1;
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
@@ -175,9 +185,15 @@ struct NmtMaster::Impl {
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
   void dispatch(const SdoResult& result, TimePoint now, Output& out);
+  void forget_transfer(
+      std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it);
+  void pump_transfers(TimePoint now);
+  SdoClient::TransferId launch_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
+  void open_boot_up_gate(TimePoint now, Output& out);
 
   // --- boot NMT slave (boot_slave.cpp, check_configuration.cpp) -------------------------------
-  void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out);
+  void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
+                  bool asked_by_application = false);
   void cancel_boot(std::uint8_t node, TimePoint now);
   void boot_continue(std::uint8_t node, TimePoint now, Output& out);
   void boot_sdo_result(std::uint8_t node, const SdoResult& result, TimePoint now, Output& out);

@@ -27,6 +27,11 @@
 //   boot time has not elapsed since start-up began (0: without end), and not after other errors.
 // - Each SDO transfer of the boot is repeated up to MasterOptions::sdo_retries times when it
 //   times out (frame loss), so a lost frame costs one timeout, not a boot.
+// - All slaves boot at once, each slave's transfers in order. After the start-up's reset
+//   communication no SDO request goes out until every reset slave sent its boot-up (or
+//   boot_up_wait passed). New transfers are paced to MasterOptions::bus_load_limit when the bit
+//   rate is known, and limited by a window of transfers in flight that halves on every
+//   response timeout and grows by one per window of answers.
 // - Check configuration (§3.5): 1F26h/1F27h both 0 mean "do not verify, download". A
 //   configuration comes from MasterOptions::configurations, else from the master's own 1F22h
 //   sub node-ID (a concise DCF); none at all means there is nothing to download (status OK).
@@ -35,13 +40,16 @@
 //   block transfer (segmented when the slave refuses it). Then 1020h sub 1/2 = 1F26h/1F27h (when
 //   not 0) and 1010h sub 1 'save' (MasterOptions::save_configuration).
 // - Restore (1F81h bit 7): 1011h sub 1F8Ah[node] 'load' (1F8Ah defaults to 1; 0 means no
-//   restore), then reset node, then the boot-up is awaited (MasterOptions::reboot_timeout).
+//   restore), then reset node, then the boot-up is awaited (MasterOptions::reboot_timeout);
+//   also when no configuration is stored (the factory defaults are then saved).
 // - Software update (1F81h bits 5, 6): 1F51h sub 1 = 0 (stop), 1F51h sub 1 = 3 (clear), 1F50h
 //   sub 1 = the image (block transfer), 1F51h sub 1 = 1 (start), then 1F52h is read again; a
 //   slave still reporting another version is status I.
 // - Error handler (§4.2): for a mandatory slave 1F80h bit 6 sends stop all (`000#0200`), else bit
-//   4 reset node all (`000#8100`, and NMT start-up runs again); otherwise, and for optional slaves,
-//   the slave's boot starts again when 1F81h bit 2 allows; the event is reported either way.
+//   4 reset node all (`000#8100`, and NMT start-up runs again), else reset node of that slave
+//   (`000#81nn`, Table 12), whose boot-up then restarts its boot (boot-up handler); for an
+//   optional slave its boot starts again when 1F81h bit 2 allows (DSP 302 §5.3). The event is
+//   reported either way.
 // - Boot-up handler (§4.3): a boot-up of an assigned slave (outside its own boot, which awaits
 //   boot-ups itself) stops its error control and starts its boot again when 1F81h bit 2 allows;
 //   check configuration then reconfigures a replaced device, whose 1020h no longer matches. A
@@ -57,8 +65,8 @@
 // - 1F83h (request guarding): 1 starts guarding with 1F81h's guard time and retry factor (0800
 //   0000 when either is 0), 0 stops it; a read gives 1 while the master guards the node.
 // - Flying master (1F80h bit 5) is not implemented yet: the master decision (§3.1 b) refuses to
-//   start with a message, and writes setting bit 5 abort 0609 0030 (§6.2, "a functionality that
-//   is not supported").
+//   start (StartupRefused, with a message), and SDO writes setting bit 5 abort 0609 0030 (§6.2,
+//   "a functionality that is not supported").
 // - NMT commands from other devices on the bus are ignored (there is one NMT master, §5.4).
 #pragma once
 
@@ -146,23 +154,25 @@ std::string_view to_string(StartupState state);
 /// the other fields are for programs and depend on the kind.
 struct MasterEvent {
   enum class Kind : std::uint8_t {
-    NotMaster,             ///< 1F80h bit 0 is 0: the device is no NMT master (§3.1 a)
-    StartupRefused,        ///< NMT start-up cannot run (text says why)
-    StartupBegan,          ///< the master decided and sent its reset communication
-    BootStepChanged,       ///< node_id moved to `step`; Download also reports written/total
-    SlaveBooted,           ///< boot NMT slave: status OK (`configured`: a download happened)
-    BootError,             ///< boot NMT slave: `error`; `final` when no try follows
-    StartupHalted,         ///< a mandatory slave's error stopped NMT start-up (§3.1 f)
-    StartupComplete,       ///< NMT start-up ended (§3.1 i)
-    MasterStateChanged,    ///< the master's own NMT state is `state`
-    SlaveStateChanged,     ///< the state the master knows of node_id is `state`
-    HeartbeatLost,         ///< heartbeat event of node_id (error handler follows)
-    GuardingLost,          ///< node guarding event of node_id (error handler follows)
-    ErrorControlResolved,  ///< heartbeat or guarding replies again
-    BootUp,                ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
-    NmtCommandSent,        ///< `command` for node_id (0: all nodes) went out
-    ApplicationStep,       ///< call configuration_done(node_id, ...) to continue its boot
-    SdoFinished,           ///< an application transfer ended (`sdo`)
+    NotMaster,                 ///< 1F80h bit 0 is 0: the device is no NMT master (§3.1 a)
+    StartupRefused,            ///< NMT start-up cannot run (text says why)
+    StartupBegan,              ///< the master decided and sent its reset communication
+    BootStepChanged,           ///< node_id moved to `step`; Download also reports written/total
+    SlaveBooted,               ///< boot NMT slave: status OK (`configured`: a download happened)
+    BootError,                 ///< boot NMT slave: `error`; `final` when no try follows
+    StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f)
+    StartupAwaitsApplication,  ///< 1F80h bit 2: every mandatory slave booted; call
+                               ///< enter_operational() (§3.1 g)
+    StartupComplete,           ///< NMT start-up ended (§3.1 i)
+    MasterStateChanged,        ///< the master's own NMT state is `state`
+    SlaveStateChanged,         ///< the state the master knows of node_id is `state`
+    HeartbeatLost,             ///< heartbeat event of node_id (error handler follows)
+    GuardingLost,              ///< node guarding event of node_id (error handler follows)
+    ErrorControlResolved,      ///< heartbeat or guarding replies again
+    BootUp,                    ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
+    NmtCommandSent,            ///< `command` for node_id (0: all nodes) went out
+    ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
+    SdoFinished,               ///< an application transfer ended (`sdo`)
   };
   Kind kind;
   TimePoint at{0};
@@ -205,6 +215,14 @@ struct MasterOptions {
   unsigned sdo_retries = 2;
   /// Values longer than this go by block transfer (falling back to segmented).
   std::size_t block_threshold = 64;
+  /// The bus bit rate, when known (0: unknown). With it the boot paces its SDO requests so that
+  /// they and their answers take at most `bus_load_limit` of the bus: CAN arbitration lets
+  /// lower identifiers starve higher ones, and on a full bus heartbeats (700h + node-ID, the
+  /// highest identifiers of a slave) and the answers a device queues behind them wait until
+  /// the master's SDO traffic leaves a gap. Each SDO request counts as itself and one answer of
+  /// 125 bits each (an 8-byte standard frame with typical stuffing and the intermission).
+  std::uint32_t bitrate = 0;
+  double bus_load_limit = 0.9;
   /// §3.3: optional slaves (and mandatory ones after status B) are tried again this often.
   Duration retry_interval = std::chrono::seconds(1);
   /// How long boot NMT slave waits for a boot-up after NMT start-up's reset communication.
@@ -260,7 +278,8 @@ class NmtMaster {
   /// 1F83h request guarding: `sub` 1..127 or 80h, start or stop.
   SdoAbort request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out);
   /// Starts the process start process boot NMT slave for `node` (also for a slave left to the
-  /// application by 1F81h bit 2, or held by a request NMT). False when `node` is no slave.
+  /// application by 1F81h bit 2: the application asks for it, so it is configured and started;
+  /// or held by a request NMT). False (and a BootError A) when `node` is no slave.
   bool boot_slave(cfg::NodeId node, TimePoint now, Output& out);
   /// Ends the application's configuration step of `node` (MasterOptions::application_step):
   /// `ok` false ends its boot with status J.
