@@ -210,7 +210,9 @@ bool parse_entry_file_name(std::string_view name, std::uint16_t& index, NodeId& 
 Status write_file_atomically(const std::string& directory, const std::string& name,
                              std::span<const std::uint8_t> bytes, const StoreWriteHooks& hooks) {
   const std::string path = directory + "/" + name;
-  const std::string temporary = directory + "/." + name + ".tmp";
+  // Named after the process too, so that two processes writing one entry at once (a tool and a
+  // running master on one store) never write into the same temporary file.
+  const std::string temporary = directory + "/." + name + "." + std::to_string(::getpid()) + ".tmp";
   const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return io_error("cannot create", temporary);
   auto fail = [&](const std::string& what) {

@@ -43,7 +43,7 @@ Result<DecodedEntry> decode_entry_file(std::span<const std::uint8_t> bytes,
 /// The index and node a file name stands for ("1F22-05"); false for any other name.
 bool parse_entry_file_name(std::string_view name, std::uint16_t& index, NodeId& node);
 
-/// Replaces `directory`/`name` atomically: a temporary file ".<name>.tmp" written, fsync'd,
+/// Replaces `directory`/`name` atomically: a temporary file ".<name>.<pid>.tmp" written, fsync'd,
 /// renamed over `name`, then the directory fsync'd. Fails (Io) naming the file and the reason;
 /// the old file is then untouched.
 Status write_file_atomically(const std::string& directory, const std::string& name,

@@ -115,7 +115,9 @@ struct StoreWriteHooks {
 //   "CoCM" magic, UNSIGNED8 format version 1, UNSIGNED16 index, UNSIGNED8 node-ID,
 //   UNSIGNED8 encoding (0 raw, 1 zlib), UNSIGNED32 stored size, UNSIGNED32 size once decoded,
 //   the stored bytes, UNSIGNED32 CRC-32 (zlib's) of everything before it.
-// Temporary files start with '.' and are removed when the store is opened.
+// Temporary files (".1F22-05.<pid>.tmp") start with '.' and are removed when the store is
+// opened. Two processes may write one store; the last rename of an entry wins, and a manager
+// sees the others' writes when it opens the store again.
 
 /// What one entry file holds: the object, the node and the value (decoded).
 struct StoreEntry {
