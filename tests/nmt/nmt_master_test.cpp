@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
 #include "nmt/sim_bus.hpp"
@@ -294,5 +295,60 @@ TEST(NmtMaster, PacedBootCompletes) {
   rig.run(2s);
   EXPECT_EQ(rig.master().startup_state(), StartupState::Operational);
 }
+}  // namespace
+}  // namespace nmt
+
+namespace nmt {
+namespace {
+
+// CiA 302-2 §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager":
+// without a ConfigurationSource the master downloads its own 1F22h sub node-ID.
+TEST(NmtMaster, DownloadsTheConciseDcfOfItsOwn1F22) {
+  cfg::DeviceDescription description;
+  MasterOptions options;
+  auto created = NmtMaster::create(description, *cfg::NodeId::from(kMaster), options);
+  ASSERT_TRUE(created.ok());
+  SimBus bus(500'000);
+  SimEngineNode<NmtMaster> master(std::move(created).value());
+  auto& dict = master.engine().dictionary();
+  DictionaryEntry stream;
+  stream.index = 0x1F22;
+  stream.sub_index = 2;
+  stream.data_type = static_cast<std::uint16_t>(cfg::DataType::Domain);
+  stream.basic_type = cfg::DataType::Domain;
+  stream.bytes = cfg::encode_concise_dcf(std::vector<cfg::ObjectWrite>{{0x2000, 0, le(42, 2)}});
+  dict.insert(stream);
+  ASSERT_TRUE(dict.set_unsigned(0x1F81, 2, kMandatory));
+  auto device = SimulatedDevice::create(sim_eds(), *cfg::NodeId::from(2), {});
+  ASSERT_TRUE(device.ok());
+  SimEngineNode<SimulatedDevice> slave(std::move(device).value());
+  bus.attach(master);
+  bus.attach(slave);
+  slave.apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+  master.apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) { m.start(now, out); });
+  bus.run_for(1s);
+  EXPECT_EQ(slave.engine().node().dictionary().get_unsigned(0x2000, 0), 42U);
+  EXPECT_EQ(master.engine().startup_state(), StartupState::Operational);
+}
+
+// §6.3 / DSP 302 §5.2: bit 1 of 1F81h is reserved: a master DCF setting it is refused, naming
+// the entry.
+TEST(NmtMaster, CreateRefusesReservedBit1Of1F81) {
+  auto eds = cfg::parse_device_description(
+      "[FileInfo]\nFileName=m.dcf\n[DeviceInfo]\nVendorName=x\n[OptionalObjects]\nSupportedObjects="
+      "1\n"
+      "1=0x1F81\n[1F81]\nParameterName=NMT slave assignment\nObjectType=0x8\nSubNumber=3\n"
+      "[1F81sub0]\nParameterName=n\nObjectType=0x7\nDataType=0x0005\nAccessType=const\n"
+      "DefaultValue=2\nPDOMapping=0\n[1F81sub1]\nParameterName=a\nObjectType=0x7\n"
+      "DataType=0x0007\nAccessType=rw\nDefaultValue=0x03\nPDOMapping=0\n[1F81sub2]\n"
+      "ParameterName=b\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=0\n"
+      "PDOMapping=0\n");
+  ASSERT_TRUE(eds.device.has_value()) << eds.diagnostics.format();
+  auto created = NmtMaster::create(*eds.device, *cfg::NodeId::from(kMaster), {});
+  ASSERT_FALSE(created.ok());
+  EXPECT_NE(created.error().message.find("1F81h sub 01h"), std::string::npos)
+      << created.error().message;
+}
+
 }  // namespace
 }  // namespace nmt
