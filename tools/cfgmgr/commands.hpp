@@ -15,6 +15,8 @@ void add_fmt_command(CLI::App& app);
 void add_simulate_command(CLI::App& app);
 /// `cfgmgr master NETWORK --bus URL`: run the CiA 302-2 NMT master for a network (master.cpp).
 void add_master_command(CLI::App& app);
+/// `cfgmgr push NETWORK --bus URL`: boot and configure a network, then report (push.cpp).
+void add_push_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

@@ -26,6 +26,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_fmt_command(app);
   cfgmgr::add_simulate_command(app);
   cfgmgr::add_master_command(app);
+  cfgmgr::add_push_command(app);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,357 @@
+// The shared run of cfgmgr master and push (master_run.hpp).
+#include "master_run.hpp"
+
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "../common/tool_support.hpp"
+#include "cfg/integer_literal.hpp"
+#include "cfg/node_id.hpp"
+#include "commands.hpp"
+#include "nmt/bus.hpp"
+#include "nmt/bus_event_loop.hpp"
+#include "nmt/sim_bus.hpp"
+#include "nmt/simulated_device.hpp"
+
+namespace cfgmgr {
+namespace {
+
+/// The master's node-ID when neither --node-id nor the master DCF gives one: 7Fh, the highest,
+/// so that the slaves keep the low node-IDs (and their higher-priority COB-IDs).
+constexpr std::uint8_t kDefaultMasterNodeId = 0x7F;
+
+// Set by SIGINT/SIGTERM; the running real-time loop is told at once.
+std::atomic<bool> g_stop{false};
+std::atomic<nmt::BusEventLoop*> g_running_loop{nullptr};
+
+extern "C" void on_master_stop_signal(int) {
+  g_stop.store(true);
+  if (auto* loop = g_running_loop.load()) loop->request_stop();
+}
+
+// Installs the handlers for the lifetime of the object.
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction action {};
+    action.sa_handler = on_master_stop_signal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+// CiA 302-2 §3.1 g, 1F80h bit 2: the application lets the master enter operational. This
+// program is the application and has nothing of its own to do first, so it does so at once.
+template <class Apply>
+void continue_when_awaited(const nmt::NmtMaster& master, bool& done, Apply&& apply) {
+  if (done || master.startup_state() != nmt::StartupState::AwaitApplication) return;
+  done = true;
+  apply([](nmt::NmtMaster& m, nmt::TimePoint now, nmt::NmtMaster::Output& out) {
+    m.enter_operational(now, out);
+  });
+}
+
+std::string prefix(std::string_view tool) {
+  return "cfgmgr " + std::string(tool) + ": ";
+}
+
+bool ended(const RunLimits& limits, const EventReporter& reporter) {
+  return reporter.finished() && (!limits.settled || limits.settled());
+}
+
+// With until_startup_ends, a start-up that did not end is a failed run (exit 4).
+void check_ended(const RunLimits& limits, const EventReporter& reporter) {
+  if (!limits.until_startup_ends || limits.run_for_s || ended(limits, reporter) || g_stop.load()) {
+    return;
+  }
+  std::cerr << prefix(limits.tool) << "NMT start-up did not end within " << limits.bound_s
+            << " s" << limits.bound_hint << '\n';
+  exit_with(kExitMandatoryFailed);
+}
+
+}  // namespace
+
+void fail_command(std::string_view tool, int code, const std::string& message) {
+  std::cerr << prefix(tool) << message << '\n';
+  exit_with(code);
+}
+
+std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", static_cast<double>((at - start).count()) / 1e6);
+  return buf;
+}
+
+nmt::Duration seconds_to_duration(double s) {
+  return nmt::Duration(static_cast<std::int64_t>(s * 1e6));
+}
+
+void EventReporter::report(const nmt::MasterEvent& e) {
+  using K = nmt::MasterEvent::Kind;
+  std::string line;
+  const std::string node = "node " + std::to_string(e.node_id) + ": ";
+  bool again = false;
+  switch (e.kind) {
+    case K::NotMaster:
+    case K::StartupRefused:
+      finished_ = true;
+      line = e.text;
+      break;
+    case K::StartupBegan:
+      line = "NMT start-up began";
+      break;
+    case K::SlaveBooted:
+      again = !booted_.insert(e.node_id).second;
+      if (e.configured) {
+        line = node + (again ? "reconfigured" : "booted, configured") + " (" +
+               std::to_string(e.written) + (e.written == 1 ? " entry" : " entries") + ", " +
+               tools::plural(e.bytes, "byte") + ")";
+      } else {
+        line = node + (again ? "booted again" : "booted") + " (configuration up to date)";
+      }
+      break;
+    case K::BootError:
+      if (e.error) {
+        line = node + "boot error " + std::string(1, nmt::letter(*e.error)) + ": " +
+               std::string(nmt::describe(*e.error));
+      } else {
+        line = node + "boot error: " + e.text;
+      }
+      if (!e.final) line += " (trying again)";
+      break;
+    case K::StartupHalted:
+      halted_ = true;
+      finished_ = true;
+      line = e.text;  // "NMT start-up halted: mandatory node N failed with status X (...)"
+      break;
+    case K::StartupComplete:
+      complete_ = true;
+      finished_ = true;
+      line = "NMT start-up complete";
+      break;
+    case K::HeartbeatLost:
+      line = node + "heartbeat lost";
+      break;
+    case K::GuardingLost:
+      line = node + "node guarding lost";
+      break;
+    case K::ErrorControlResolved:
+      line = node + "error control resolved";
+      break;
+    case K::BootUp:
+      line = node + "boot-up seen" + (e.assigned ? "" : " (not a slave of this master)");
+      break;
+    default:
+      if (verbose_) line = e.text;
+      break;
+  }
+  if (!line.empty())
+    std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
+  if (json_ != nullptr) write_json(e);
+  if (observer_) observer_(e);
+}
+
+
+void EventReporter::write_json(const nmt::MasterEvent& e) {
+  using K = nmt::MasterEvent::Kind;
+  std::string out = "{\"time_s\": " + seconds_text(start_, e.at) +
+                    ", \"event\": " + tools::json_string(nmt::to_string(e.kind)) +
+                    ", \"node_id\": " + std::to_string(e.node_id);
+  switch (e.kind) {
+    case K::BootError:
+      if (e.error) {
+        out += ", \"error\": " + tools::json_string(std::string(1, nmt::letter(*e.error))) +
+               ", \"description\": " + tools::json_string(nmt::describe(*e.error));
+      } else {
+        out += ", \"error\": null";
+      }
+      out += std::string(", \"final\": ") + (e.final ? "true" : "false");
+      break;
+    case K::SlaveBooted:
+      out += std::string(", \"configured\": ") + (e.configured ? "true" : "false") +
+             ", \"entries\": " + std::to_string(e.written) +
+             ", \"bytes\": " + std::to_string(e.bytes);
+      break;
+    case K::BootUp:
+      out += std::string(", \"assigned\": ") + (e.assigned ? "true" : "false");
+      break;
+    case K::BootStepChanged:
+      out += ", \"step\": " + tools::json_string(nmt::to_string(e.step));
+      break;
+    case K::MasterStateChanged:
+    case K::SlaveStateChanged:
+      if (e.state) out += ", \"state\": " + tools::json_string(nmt::to_string(*e.state));
+      break;
+    case K::NmtCommandSent:
+      if (e.command) out += ", \"command\": " + tools::json_string(nmt::to_string(*e.command));
+      break;
+    default:
+      break;
+  }
+  out += ", \"text\": " + tools::json_string(e.text) + "}\n";
+  *json_ << out << std::flush;
+}
+
+
+std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url) {
+  if (is_sim_url(url)) {
+    auto parsed = parse_sim_url(url);
+    if (!parsed) fail_command(tool, tools::kExitUsage, "--bus: " + parsed.error().message);
+    return parsed.value();
+  }
+  if (auto syntax = nmt::check_bus_url(url); !syntax) {
+    fail_command(tool, tools::kExitUsage, "--bus: " + syntax.error().message);
+  }
+  return std::nullopt;
+}
+
+std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net) {
+  cfg::NetworkOptions load_options;
+  load_options.net = net;
+  auto load = cfg::load_network(path, load_options);
+  tools::print_diagnostics(load.diagnostics);
+  if (load.unreadable) exit_with(tools::kExitIo);
+  if (!load.ok()) exit_with(tools::kExitInputErrors);
+  return std::make_shared<const cfg::Network>(std::move(*load.network));
+}
+
+nmt::NmtMaster build_master(std::string_view tool, const std::string& description,
+                            const std::shared_ptr<const cfg::Network>& network,
+                            const std::string& node_id_text, nmt::MasterOptions options) {
+  std::uint8_t node_id = kDefaultMasterNodeId;
+  if (!node_id_text.empty()) {
+    const auto parsed = cfg::parse_integer_literal(node_id_text);
+    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+      fail_command(tool, tools::kExitUsage,
+                   "--node-id " + node_id_text + ": expected a node-ID 1..127");
+    }
+    node_id = static_cast<std::uint8_t>(parsed.literal->value);
+  } else if (network->master_node_id) {
+    node_id = network->master_node_id->value();
+  }
+  if (const cfg::NetworkNode* clash = network->find(*cfg::NodeId::from(node_id))) {
+    fail_command(tool, node_id_text.empty() ? tools::kExitInputErrors : tools::kExitUsage,
+                 "the master's node-ID " + std::to_string(node_id) + " is also the node-ID of " +
+                     clash->file + " (give another with --node-id N)");
+  }
+  options.configurations = std::make_shared<NetworkSource>(network);
+  auto master =
+      nmt::NmtMaster::create(network->master, *cfg::NodeId::from(node_id), std::move(options));
+  if (!master) {
+    const std::string& from = network->master_from_file ? network->master_file : description;
+    std::cerr << from << ": error: " << master.error().message << '\n';
+    exit_with(tools::kExitInputErrors);
+  }
+  return std::move(master).value();
+}
+
+nmt::Duration run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
+                                const SimBusOptions& sim, const RunLimits& limits,
+                                EventReporter& reporter) {
+  std::vector<cfg::NodeId> skipped;
+  auto built = simulated_devices(network, sim, &skipped);
+  if (!built) {
+    std::cerr << built.error().message << '\n';
+    exit_with(tools::kExitInputErrors);
+  }
+  for (const cfg::NodeId node : skipped) {
+    std::cerr << prefix(limits.tool) << "note: node " << int{node.value()}
+              << " has no DCF (a concise DCF only): not simulated\n";
+  }
+  nmt::SimBus bus(sim.bitrate_bps);
+  bus.set_loss_rate(sim.loss, sim.seed);
+  std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::SimulatedDevice>>> devices;
+  for (auto& device : built.value()) {
+    devices.push_back(
+        std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
+    bus.attach(*devices.back());
+  }
+  nmt::SimEngineNode<nmt::NmtMaster> node(std::move(master));
+  bus.attach(node);
+  bool continued = false;
+  node.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
+    reporter.report(e);
+    continue_when_awaited(node.engine(), continued, [&node](auto fn) { node.apply(fn); });
+  });
+
+  std::cerr << prefix(limits.tool) << "node-ID " << int{node.engine().node_id().value()} << ", "
+            << tools::plural(devices.size(), "simulated device") << " on sim: at "
+            << sim.bitrate_bps << " bit/s\n";
+  g_stop.store(false);
+  const StopSignals signals;
+  for (auto& device : devices) {
+    device->apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, auto&) { d.power_on(now); });
+  }
+  node.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.start(now, out); });
+
+  const bool bounded = limits.run_for_s.has_value();
+  const bool until_ended = limits.until_startup_ends && !bounded;
+  const nmt::TimePoint limit =
+      nmt::TimePoint{} + seconds_to_duration(bounded ? *limits.run_for_s : limits.bound_s);
+  // Without run_for, sim: ends once NMT start-up has (there is no one to press Ctrl-C in a
+  // script, and simulated time runs far ahead of the wall clock).
+  const bool stopped = bus.run_until(
+      [&] { return g_stop.load() || (until_ended && ended(limits, reporter)); }, limit);
+  if (bounded && !stopped) bus.run_until(limit);  // the clock to the bound, nothing is due
+  check_ended(limits, reporter);
+  const auto stats = bus.statistics();
+  std::cerr << prefix(limits.tool) << seconds_text(nmt::TimePoint{}, bus.now())
+            << " s simulated, " << stats.frames << " frames, bus load "
+            << std::lround(stats.load() * 100.0) << "%\n";
+  return bus.now() - nmt::TimePoint{};
+}
+
+nmt::Duration run_master_on_bus(nmt::NmtMaster master, const std::string& url,
+                                const RunLimits& limits, EventReporter& reporter) {
+  auto opened = nmt::open_bus(url);
+  if (!opened) fail_command(limits.tool, tools::kExitIo, opened.error().message);
+  std::unique_ptr<nmt::Bus> bus = std::move(opened).value();
+  nmt::BusEventLoop loop(*bus);
+  reporter.set_start(loop.now());
+  nmt::EngineRef<nmt::NmtMaster> ref(master);
+  bool continued = false;
+  ref.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
+    reporter.report(e);
+    continue_when_awaited(master, continued, [&ref](auto fn) { ref.apply(fn); });
+    if (limits.until_startup_ends && !limits.run_for_s && ended(limits, reporter)) {
+      loop.request_stop();
+    }
+  });
+  loop.add(ref);
+  const bool forever = !limits.run_for_s && !limits.until_startup_ends;
+  std::cerr << prefix(limits.tool) << "node-ID " << int{master.node_id().value()} << " on "
+            << bus->url() << (forever ? "; stop with Ctrl-C" : "") << '\n';
+
+  g_stop.store(false);
+  const StopSignals signals;
+  g_running_loop.store(&loop);
+  ref.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.start(now, out); });
+  const nmt::TimePoint began = loop.now();
+  const cfg::Status status =
+      g_stop.load() ? cfg::Status{}
+      : forever     ? loop.run()
+                    : loop.run_for(seconds_to_duration(limits.run_for_s.value_or(limits.bound_s)));
+  g_running_loop.store(nullptr);
+  if (!status) fail_command(limits.tool, tools::kExitIo, status.error().message);
+  check_ended(limits, reporter);
+  return loop.now() - began;
+}
+
+}  // namespace cfgmgr

@@ -1,0 +1,100 @@
+// What `cfgmgr master` and `cfgmgr push` share: loading a network and building its NMT master,
+// printing the master's events, and running the master on the simulated bus (`sim:`) or on a
+// real one. Each command adds its own options and, for push, the report at the end.
+#pragma once
+
+#include <functional>
+#include <iosfwd>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+
+#include "cfg/network.hpp"
+#include "network_source.hpp"
+#include "nmt/nmt_master.hpp"
+
+namespace cfgmgr {
+
+/// Exit code when NMT start-up did not end in operation (a mandatory node failed).
+inline constexpr int kExitMandatoryFailed = 4;
+
+/// Prints "cfgmgr TOOL: message" on stderr and ends the command with `code`.
+[[noreturn]] void fail_command(std::string_view tool, int code, const std::string& message);
+
+/// Seconds from `start` to `at` with millisecond digits ("0.512").
+std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at);
+nmt::Duration seconds_to_duration(double s);
+
+/// The --bus URL checked: the `sim:` options, or nullopt for a real bus whose URL parses.
+/// Ends the command with exit 2 (usage) when it does not.
+std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url);
+
+/// The network loaded (diagnostics printed; exit 1 on errors, 3 when unreadable).
+std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net);
+
+/// The master of `network` with node-ID `node_id_text` (empty: the network's, else 7Fh) and
+/// `options` (its configurations come from the network). Ends the command with exit 2 for a bad
+/// --node-id, 1 when the master cannot be built.
+nmt::NmtMaster build_master(std::string_view tool, const std::string& description,
+                            const std::shared_ptr<const cfg::Network>& network,
+                            const std::string& node_id_text, nmt::MasterOptions options);
+
+/// Prints the master's events (one line each on stderr, JSON lines to `json` when given) and
+/// keeps what the exit code depends on.
+class EventReporter {
+ public:
+  EventReporter(bool verbose, std::ostream* json) : verbose_(verbose), json_(json) {}
+
+  /// Event times are printed as seconds since `start` (0 on sim:).
+  void set_start(nmt::TimePoint start) { start_ = start; }
+  nmt::TimePoint start() const { return start_; }
+  /// Also called with every event (after it was printed).
+  void set_observer(std::function<void(const nmt::MasterEvent&)> observer) {
+    observer_ = std::move(observer);
+  }
+
+  void report(const nmt::MasterEvent& e);
+
+  bool finished() const { return finished_; }
+  bool complete() const { return complete_; }
+  bool halted() const { return halted_; }
+
+ private:
+  void write_json(const nmt::MasterEvent& e);
+
+  nmt::TimePoint start_{0};
+  bool verbose_;
+  std::ostream* json_;
+  std::function<void(const nmt::MasterEvent&)> observer_;
+  std::set<std::uint8_t> booted_;
+  bool finished_ = false;
+  bool complete_ = false;
+  bool halted_ = false;
+};
+
+/// How long a run lasts.
+struct RunLimits {
+  std::string_view tool;              ///< "master", "push": the prefix of messages
+  std::optional<double> run_for_s;    ///< run exactly this long (bus or simulated seconds)
+  bool until_startup_ends = false;    ///< stop once NMT start-up has ended
+  double bound_s = 60.0;              ///< with until_startup_ends and no run_for_s: at most
+  std::string_view bound_hint;        ///< appended to the "did not end" message
+  /// With until_startup_ends: also wait until this is true (e.g. every optional slave tried).
+  std::function<bool()> settled;
+};
+
+/// Runs `master` with a simulated device per node of `network` on the simulated bus, in
+/// simulated time, until SIGINT/SIGTERM or `limits`. With until_startup_ends, a start-up that
+/// does not end within the bound ends the command with exit 4. Returns the bus time it ran.
+nmt::Duration run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
+                                const SimBusOptions& sim, const RunLimits& limits,
+                                EventReporter& reporter);
+
+/// Runs `master` on the real bus `url` (SocketCAN, UDP) in real time, until SIGINT/SIGTERM or
+/// `limits`. Exit 3 when the bus cannot be opened or fails; exit 4 as run_master_on_sim.
+/// Returns the bus time it ran.
+nmt::Duration run_master_on_bus(nmt::NmtMaster master, const std::string& url,
+                                const RunLimits& limits, EventReporter& reporter);
+
+}  // namespace cfgmgr

@@ -1,0 +1,465 @@
+// cfgmgr push NETWORK --bus URL: commission a network in one run. It is `cfgmgr master` (the same
+// NmtMaster, network and buses, master_run.hpp) that ends when NMT start-up has ended and every
+// selected slave was tried once, then reports per node what happened (a table, and --json). With
+// --dry-run it prints the writes the master would download instead, without a bus.
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "../common/tool_support.hpp"
+#include "cfg/download_order.hpp"
+#include "cfg/integer_literal.hpp"
+#include "cfg/master_objects.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
+#include "commands.hpp"
+#include "master_run.hpp"
+
+namespace cfgmgr {
+namespace {
+
+constexpr std::string_view kTool = "push";
+/// --boot-time when neither it nor the master DCF's 1F89h (0: without end) gives one. CiA 302-2
+/// §3.3: a mandatory slave that does not answer (status B) is tried again until it elapses.
+constexpr double kDefaultBootTimeS = 10.0;
+/// How long the run may take beyond the boot time before push gives up (downloads included).
+constexpr double kRunMarginS = 60.0;
+
+struct PushCliOptions {
+  std::string network;
+  std::string bus;
+  std::string node_id;
+  unsigned net = 1;
+  std::string json;
+  std::optional<double> boot_time_s;
+  bool dry_run = false;
+  std::string only;
+  bool force = false;
+  bool no_start = false;
+  bool no_save = false;
+  double sdo_timeout_s = 0.5;
+  unsigned retries = 2;
+  bool verbose = false;
+};
+
+enum class Result : std::uint8_t { Pending, Configured, Skipped, Error };
+
+struct NodeReport {
+  std::uint8_t node_id = 0;
+  std::string name;
+  bool mandatory = false;
+  Result result = Result::Pending;
+  std::optional<char> status;
+  std::string message;
+  std::size_t entries = 0;
+  std::uint64_t bytes = 0;
+  std::optional<nmt::TimePoint> began;
+  nmt::TimePoint ended{0};
+};
+
+std::string_view result_name(Result result) {
+  switch (result) {
+    case Result::Configured:
+      return "configured";
+    case Result::Skipped:
+      return "skipped";
+    case Result::Pending:
+    case Result::Error:
+      break;
+  }
+  return "error";
+}
+
+// "3,5-7" -> {3, 5, 6, 7}; exit 2 on anything else.
+std::set<std::uint8_t> parse_only(const std::string& text) {
+  std::set<std::uint8_t> out;
+  const auto node = [&](const std::string& part) -> std::uint8_t {
+    const auto parsed = cfg::parse_integer_literal(part);
+    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+      fail_command(kTool, tools::kExitUsage,
+                   "--only " + text + ": '" + part + "' is no node-ID 1..127");
+    }
+    return static_cast<std::uint8_t>(parsed.literal->value);
+  };
+  std::size_t begin = 0;
+  while (begin <= text.size()) {
+    const std::size_t comma = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, comma - begin);
+    const std::size_t dash = item.find('-');
+    const std::uint8_t first = node(item.substr(0, dash));
+    const std::uint8_t last = dash == std::string::npos ? first : node(item.substr(dash + 1));
+    if (last < first) {
+      fail_command(kTool, tools::kExitUsage, "--only " + text + ": range " + item + " is empty");
+    }
+    for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
+    begin = comma + 1;
+  }
+  return out;
+}
+
+// The slaves push boots: every node of the network, or those of --only (each must exist).
+std::vector<const cfg::NetworkNode*> selected_nodes(const cfg::Network& network,
+                                                    const PushCliOptions& options) {
+  std::vector<const cfg::NetworkNode*> out;
+  if (options.only.empty()) {
+    for (const auto& node : network.nodes) out.push_back(&node);
+    return out;
+  }
+  for (const std::uint8_t id : parse_only(options.only)) {
+    const cfg::NetworkNode* node = network.find(*cfg::NodeId::from(id));
+    if (node == nullptr) {
+      fail_command(kTool, tools::kExitUsage,
+                   "--only: node " + std::to_string(id) + " is not in " + options.network);
+    }
+    out.push_back(node);
+  }
+  return out;
+}
+
+std::string node_label(const cfg::NetworkNode& node) {
+  return "node " + std::to_string(node.node_id.value()) +
+         (node.name.empty() ? "" : " (" + node.name + ")");
+}
+
+// --dry-run: per node the configuration writes in the order the master downloads them
+// (cfg::order_for_download, CiA 302-2 §3.5 d), then what the master adds.
+void print_plan(const std::vector<const cfg::NetworkNode*>& nodes, const PushCliOptions& options) {
+  for (const cfg::NetworkNode* node : nodes) {
+    const cfg::DownloadOrder order = cfg::order_for_download(node->writes);
+    std::size_t bytes = 0;
+    for (const auto& w : order.writes) bytes += w.data.size();
+    std::cout << node_label(*node) << ": " << tools::plural(order.writes.size(), "write") << ", "
+              << tools::plural(bytes, "byte") << " from " << node->file << '\n';
+    for (const auto& w : order.writes) {
+      std::cout << "  " << cfg::to_string(cfg::ObjectAddress{w.index, w.sub_index}) << " = "
+                << (w.data.empty() ? "(empty)" : tools::hex_string(w.data)) << '\n';
+    }
+    for (const std::uint16_t index : order.unknown_cob_id) {
+      std::cout << "  (the COB-ID of " << cfg::object_name(index)
+                << " is read from the device first, to make the PDO invalid around its mapping)\n";
+    }
+    std::cout << "  then 1020h sub 01h/02h = the configuration's date and time (1F26h/1F27h)"
+              << (options.no_save ? "" : ", 1010h sub 01h = 'save'") << '\n';
+  }
+}
+
+// Keeps each selected node's outcome from the master's events.
+class Collector {
+ public:
+  explicit Collector(std::vector<NodeReport> nodes) : nodes_(std::move(nodes)) {}
+
+  void observe(const nmt::MasterEvent& e) {
+    using K = nmt::MasterEvent::Kind;
+    NodeReport* r = find(e.node_id);
+    if (r == nullptr || r->result != Result::Pending) return;
+    switch (e.kind) {
+      case K::BootStepChanged:
+        if (!r->began && e.step != nmt::BootStep::Idle) r->began = e.at;
+        break;
+      case K::SlaveBooted:
+        r->result = e.configured ? Result::Configured : Result::Skipped;
+        r->entries = e.written;
+        r->bytes = e.bytes;
+        r->message = e.configured ? "configured"
+                                  : "skipped: signature matches (1020h = 1F26h/1F27h)";
+        r->ended = e.at;
+        break;
+      case K::BootError:
+        // A mandatory slave is tried again after status B while the boot time lasts; an
+        // optional one forever: its first error is its result.
+        if (!e.final && r->mandatory) break;
+        r->result = Result::Error;
+        if (e.error) r->status = nmt::letter(*e.error);
+        r->message = e.error ? std::string(nmt::describe(*e.error)) : e.text;
+        r->ended = e.at;
+        break;
+      default:
+        break;
+    }
+  }
+
+  bool settled() const {
+    return std::all_of(nodes_.begin(), nodes_.end(),
+                       [](const NodeReport& r) { return r.result != Result::Pending; });
+  }
+
+  // Nodes still pending when the run ended (start-up halted by another node, or not a master).
+  void close(nmt::TimePoint now, bool halted) {
+    for (auto& r : nodes_) {
+      if (r.result != Result::Pending) continue;
+      r.result = Result::Error;
+      r.message = halted ? "not finished: NMT start-up halted" : "not booted";
+      r.ended = now;
+    }
+  }
+
+  const std::vector<NodeReport>& nodes() const { return nodes_; }
+
+ private:
+  NodeReport* find(std::uint8_t node) {
+    for (auto& r : nodes_) {
+      if (r.node_id == node) return &r;
+    }
+    return nullptr;
+  }
+  std::vector<NodeReport> nodes_;
+};
+
+double node_seconds(const NodeReport& r, nmt::TimePoint start) {
+  const nmt::TimePoint from = r.began.value_or(start);
+  return static_cast<double>((r.ended - from).count()) / 1e6;
+}
+
+std::string result_text(const NodeReport& r) {
+  if (r.result == Result::Error && r.status) {
+    return "error " + std::string(1, *r.status) + ": " + r.message;
+  }
+  if (r.result == Result::Error) return "error: " + r.message;
+  return r.message;
+}
+
+void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
+  std::size_t name_width = 4;
+  std::size_t result_width = 6;
+  for (const auto& r : nodes) {
+    name_width = std::max(name_width, r.name.size());
+    result_width = std::max(result_width, result_text(r).size());
+  }
+  const auto pad = [](std::string text, std::size_t width) {
+    text.resize(std::max(width, text.size()), ' ');
+    return text;
+  };
+  std::cout << "node  " << pad("name", name_width) << "  " << pad("result", result_width)
+            << "  entries  time\n";
+  for (const auto& r : nodes) {
+    char number[8];
+    std::snprintf(number, sizeof number, "%4d", r.node_id);
+    char entries[16];
+    std::snprintf(entries, sizeof entries, "%7zu", r.entries);
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%.3f s", node_seconds(r, start));
+    std::cout << number << "  " << pad(r.name, name_width) << "  "
+              << pad(result_text(r), result_width) << "  " << entries << "  " << seconds << '\n';
+  }
+}
+
+// The --json report (fixed keys of the configuration manager issue; "mandatory" added).
+std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Duration elapsed,
+                        nmt::TimePoint start) {
+  char number[32];
+  std::snprintf(number, sizeof number, "%.6f", static_cast<double>(elapsed.count()) / 1e6);
+  std::string out = std::string("{\"ok\": ") + (ok ? "true" : "false") +
+                    ", \"elapsed_s\": " + number + ", \"nodes\": [";
+  bool first = true;
+  for (const auto& r : nodes) {
+    std::snprintf(number, sizeof number, "%.6f", node_seconds(r, start));
+    out += std::string(first ? "" : ", ") + "{\"node_id\": " + std::to_string(r.node_id) +
+           ", \"name\": " + tools::json_string(r.name) +
+           ", \"result\": " + tools::json_string(result_name(r.result)) + ", \"status\": " +
+           (r.status ? tools::json_string(std::string(1, *r.status)) : std::string("null")) +
+           ", \"message\": " + tools::json_string(r.message) +
+           ", \"entries\": " + std::to_string(r.entries) +
+           ", \"bytes\": " + std::to_string(r.bytes) + ", \"seconds\": " + number +
+           ", \"mandatory\": " + (r.mandatory ? "true" : "false") + "}";
+    first = false;
+  }
+  return out + "]}\n";
+}
+
+void run_push(const PushCliOptions& options) {
+  // Arguments first, files next, the bus last: a typo should not touch the bus.
+  if (!options.dry_run && options.bus.empty()) {
+    fail_command(kTool, tools::kExitUsage, "--bus is required (or give --dry-run)");
+  }
+  const std::optional<SimBusOptions> sim =
+      options.bus.empty() ? std::nullopt : parse_bus_url(kTool, options.bus);
+  if (options.net == 0) {
+    fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
+  }
+  if (!options.only.empty()) parse_only(options.only);  // a usage error before any file
+  const auto network = load_network_or_exit(options.network, options.net);
+  const auto selected = selected_nodes(*network, options);
+  if (options.dry_run) {
+    print_plan(selected, options);
+    return;
+  }
+
+  nmt::MasterOptions master_options;
+  master_options.sdo_timeout = seconds_to_duration(options.sdo_timeout_s);
+  master_options.sdo_retries = options.retries;
+  master_options.save_configuration = !options.no_save;
+  master_options.force_download = options.force;
+  if (sim) master_options.bitrate = sim->bitrate_bps;
+  nmt::NmtMaster master =
+      build_master(kTool, options.network, network, options.node_id, master_options);
+
+  // The options as the master's own objects (CiA 302-2 §6), so that its boot follows them.
+  auto& dictionary = master.dictionary();
+  double boot_time_s = kDefaultBootTimeS;
+  if (options.boot_time_s) {
+    boot_time_s = *options.boot_time_s;
+  } else if (const auto ms = dictionary.get_unsigned(cfg::object::kBootTime, 0); ms && *ms != 0) {
+    boot_time_s = static_cast<double>(*ms) / 1e3;
+  }
+  dictionary.set_unsigned(cfg::object::kBootTime, 0,
+                          static_cast<std::uint64_t>(boot_time_s * 1e3));
+  if (options.no_start) {
+    const auto startup = dictionary.get_unsigned(cfg::object::kNmtStartup, 0).value_or(0);
+    dictionary.set_unsigned(cfg::object::kNmtStartup, 0,
+                            startup | cfg::NmtStartup::kNoStartSlaves);
+  }
+  std::set<std::uint8_t> chosen;
+  for (const auto* node : selected) chosen.insert(node->node_id.value());
+  std::vector<NodeReport> reports;
+  for (unsigned id = 1; id <= 127; ++id) {
+    const auto sub = static_cast<std::uint8_t>(id);
+    const cfg::SlaveAssignment assignment{static_cast<std::uint32_t>(
+        dictionary.get_unsigned(cfg::object::kSlaveAssignment, sub).value_or(0))};
+    if (!assignment.is_slave()) continue;
+    if (!chosen.contains(sub)) {
+      dictionary.set_unsigned(cfg::object::kSlaveAssignment, sub, 0);  // --only: not a slave
+      continue;
+    }
+    NodeReport r;
+    r.node_id = sub;
+    if (const auto* node = network->find(*cfg::NodeId::from(sub))) r.name = node->name;
+    r.mandatory = assignment.mandatory();
+    reports.push_back(std::move(r));
+  }
+
+  std::ofstream json_file;
+  if (!options.json.empty()) {
+    json_file.open(options.json, std::ios::binary | std::ios::trunc);
+    if (!json_file) {
+      std::cerr << tools::io_error(options.json, "cannot open for writing").message << '\n';
+      exit_with(tools::kExitIo);
+    }
+  }
+
+  Collector collector(std::move(reports));
+  EventReporter reporter(options.verbose, nullptr);
+  reporter.set_observer([&collector](const nmt::MasterEvent& e) { collector.observe(e); });
+  RunLimits limits;
+  limits.tool = kTool;
+  limits.until_startup_ends = true;
+  limits.bound_s = boot_time_s + kRunMarginS;
+  limits.bound_hint = sim ? " of simulated time" : "";
+  limits.settled = [&] { return reporter.halted() || collector.settled(); };
+  const nmt::Duration elapsed =
+      sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter)
+          : run_master_on_bus(std::move(master), options.bus, limits, reporter);
+  collector.close(reporter.start() + elapsed, reporter.halted());
+
+  bool ok = !reporter.halted();
+  for (const auto& r : collector.nodes()) {
+    if (r.mandatory && r.result == Result::Error) ok = false;
+  }
+  print_table(collector.nodes(), reporter.start());
+  if (!options.json.empty()) {
+    json_file << json_report(collector.nodes(), ok, elapsed, reporter.start());
+    if (!json_file.flush()) {
+      std::cerr << tools::io_error(options.json, "write error").message << '\n';
+      exit_with(tools::kExitIo);
+    }
+  }
+  if (!ok) exit_with(kExitMandatoryFailed);
+}
+
+}  // namespace
+
+void add_push_command(CLI::App& app) {
+  auto options = std::make_shared<PushCliOptions>();
+  auto* cmd = app.add_subcommand(
+      "push",
+      "Commission a network: boot every slave through the CiA 302-2 NMT master (identity "
+      "check, configuration download unless 1020h matches 1F26h/1F27h, save, start), stop when "
+      "NMT start-up has ended, and report per node: configured, skipped (signature matches) or "
+      "error with its CiA 302-2 status letter");
+  cmd->add_option("network", options->network,
+                  "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a "
+                  "master DCF (CANopenManager=1) whose 1F20h/1F22h name node files with "
+                  "DownloadFile=")
+      ->required()
+      ->type_name("NETWORK");
+  cmd->add_option("--bus", options->bus,
+                  "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can udp_multicast "
+                  "compatible), or sim: for the simulated bus with a simulated device per node "
+                  "built from the network's DCFs, in simulated time "
+                  "(sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N). Required unless "
+                  "--dry-run")
+      ->type_name("URL");
+  cmd->add_option("--json", options->json,
+                  "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
+                  "nodes [{node_id, name, result (configured/skipped/error), status (CiA 302-2 "
+                  "letter or null), message, entries, bytes, seconds, mandatory}]")
+      ->type_name("FILE");
+  cmd->add_option("--boot-time", options->boot_time_s,
+                  "How long a mandatory slave that does not answer is tried again (overrides "
+                  "1F89h); default: the master DCF's 1F89h when not 0, else 10 s. The run gives "
+                  "up 60 s after it")
+      ->type_name("SECONDS")
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("--dry-run", options->dry_run,
+                "Print per node the writes the master would download, in download order "
+                "(PDO-safe), without a bus");
+  cmd->add_option("--only", options->only,
+                  "Boot only these nodes, e.g. 3,5-7 (the others are no slaves of this run, "
+                  "though NMT start-up's reset communication reaches them)")
+      ->type_name("NODES");
+  cmd->add_flag("--force", options->force, "Download even when 1020h matches 1F26h/1F27h");
+  cmd->add_flag("--no-start", options->no_start,
+                "Do not start the slaves (1F80h bit 3): they stay pre-operational");
+  cmd->add_flag("--no-save", options->no_save,
+                "Do not write 1010h sub 1 'save' after a download");
+  cmd->add_option("--sdo-timeout", options->sdo_timeout_s,
+                  "Timeout of each SDO response, in seconds")
+      ->capture_default_str()
+      ->type_name("SECONDS")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--retries", options->retries,
+                  "How often a timed-out SDO transfer is repeated")
+      ->capture_default_str()
+      ->type_name("N");
+  cmd->add_option("--node-id", options->node_id,
+                  "The master's node-ID (1..127); default: the master DCF's NodeID, else 0x7F")
+      ->type_name("N");
+  cmd->add_option("--net", options->net,
+                  "Which network of the project file: 1 is [Topology], N is [TopologyN]")
+      ->capture_default_str()
+      ->type_name("N");
+  cmd->add_flag("-v,--verbose", options->verbose,
+                "Also print boot steps, NMT commands and state changes");
+  cmd->footer(std::string(
+      "Events are printed one a line on stderr as cfgmgr master prints them; the table goes to "
+      "stdout at the end: node, name, result, entries (configuration writes, PDO-safe order), "
+      "time (from the node's first boot step to its result).\n\n"
+      "Examples:\n"
+      "  cfgmgr push samples/network/nodelist.cpj --bus sim:\n"
+      "  cfgmgr push samples/network/nodelist.cpj --dry-run --only 3\n"
+      "  cfgmgr push nodelist.cpj --bus socketcan:can0 --json report.json\n"
+      "  cfgmgr push master.dcf --bus udp://239.74.163.2:43113 --force --no-save\n\n"
+      "Exit codes:\n"
+      "  0  every mandatory node configured or skipped and started (optional failures are "
+      "reported)\n"
+      "  1  the network description has errors (printed as FILE:LINE: error: ...), or the "
+      "master cannot be built from it\n"
+      "  2  usage error (bad command line, a --bus URL that does not parse, --only naming a "
+      "node that is not in the network)\n"
+      "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
+      "--json cannot be written\n"
+      "  4  a mandatory node failed (NMT start-up halted, CiA 302-2 section 3.1 f), or start-up "
+      "did not end within the boot time + 60 s\n"));
+  cmd->callback([options] { run_push(*options); });
+}
+
+}  // namespace cfgmgr
