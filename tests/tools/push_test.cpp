@@ -81,9 +81,8 @@ TEST(Push, HelpDocumentsOptionsExamplesAndExitCodes) {
   auto r = cfgmgr(dir, {"push", "--help"});
   EXPECT_EQ(r.exit_code, 0);
   for (const char* text :
-       {"NETWORK", "--bus", "--json", "--boot-time", "--dry-run", "--only", "--force",
-        "--no-start", "--no-save", "--sdo-timeout", "--retries", "10 s", "Examples:",
-        "Exit codes:", "  4  "}) {
+       {"NETWORK", "--bus", "--json", "--boot-time", "--dry-run", "--only", "--force", "--no-start",
+        "--no-save", "--sdo-timeout", "--retries", "10 s", "Examples:", "Exit codes:", "  4  "}) {
     EXPECT_NE(r.out.find(text), std::string::npos) << text;
   }
   EXPECT_NE(cfgmgr(dir, {"--help"}).out.find("push"), std::string::npos);
@@ -189,8 +188,8 @@ TEST(Push, WrongIdentityOfAMandatoryNodeIsAnErrorWithItsLetterAndExit4) {
 TEST(Push, OnlyRestrictsTheNodes) {
   ScratchDir dir;
   const std::string report = dir / "report.json";
-  auto r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--only", "3-4",
-                        "--json", report});
+  auto r = cfgmgr(
+      dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--only", "3-4", "--json", report});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Json json = parse_json(report);
   const auto nodes = nodes_of(json);

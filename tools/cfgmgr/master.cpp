@@ -21,20 +21,16 @@ namespace {
 /// How long `sim:` without --run-for may take, in simulated seconds, for NMT start-up to end.
 constexpr double kSimDefaultBoundS = 60.0;
 
-struct MasterCliOptions {
-  std::string network;
-  std::string bus;
-  std::string node_id;
-  unsigned net = 1;
+struct MasterCliOptions : NetworkRunArgs {
   std::optional<double> run_for_s;
   std::string json_events;
-  bool verbose = false;
 };
 
 void run_master(const MasterCliOptions& options) {
   // Arguments first, files next, the bus last: a typo should not touch the bus.
   const std::optional<SimBusOptions> sim = parse_bus_url("master", options.bus);
-  if (options.net == 0) fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
+  if (options.net == 0)
+    fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
   const auto network = load_network_or_exit(options.network, options.net);
   nmt::NmtMaster master = build_master("master", options.network, network, options.node_id, {});
 
@@ -79,27 +75,7 @@ void add_master_command(CLI::App& app) {
       "heartbeat or guarding control, reboot and reconfigure slaves that restart or are "
       "replaced, and serve the master's objects (1F80h-1F8Ah ...) by SDO, until Ctrl-C or "
       "--run-for");
-  cmd->add_option("network", options->network,
-                  "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a "
-                  "master DCF (CANopenManager=1) whose 1F20h/1F22h name node files with "
-                  "DownloadFile=")
-      ->required()
-      ->type_name("NETWORK");
-  cmd->add_option("--bus", options->bus,
-                  "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can udp_multicast "
-                  "compatible), or sim: for the simulated bus with a simulated device per node "
-                  "built from the network's DCFs, in simulated time "
-                  "(sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N)")
-      ->required()
-      ->type_name("URL");
-  cmd->add_option("--node-id", options->node_id,
-                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
-                  "NodeID, else 0x7F (127)")
-      ->type_name("N");
-  cmd->add_option("--net", options->net,
-                  "Which network of the project file: 1 is [Topology], N is [TopologyN]")
-      ->capture_default_str()
-      ->type_name("N");
+  add_network_run_options(*cmd, *options)->required();
   cmd->add_option("--run-for", options->run_for_s,
                   "Stop after this many seconds (simulated seconds on sim:). Without it sim: "
                   "stops when NMT start-up has ended (at most 60 simulated seconds) and a real "
@@ -112,8 +88,6 @@ void add_master_command(CLI::App& app) {
                   "node_id, text, and per event error/description/final, configured/entries/"
                   "bytes, assigned, step, state, command")
       ->type_name("FILE");
-  cmd->add_flag("-v,--verbose", options->verbose,
-                "Also print boot steps, NMT commands and state changes");
   cmd->footer(std::string(
       "Without a master DCF, every present node is a mandatory slave that is booted and "
       "started; the expected identity comes from its DCF and 1F26h/1F27h from its "

@@ -81,12 +81,38 @@ void check_ended(const RunLimits& limits, const EventReporter& reporter) {
   if (!limits.until_startup_ends || limits.run_for_s || ended(limits, reporter) || g_stop.load()) {
     return;
   }
-  std::cerr << prefix(limits.tool) << "NMT start-up did not end within " << limits.bound_s
-            << " s" << limits.bound_hint << '\n';
+  std::cerr << prefix(limits.tool) << "NMT start-up did not end within " << limits.bound_s << " s"
+            << limits.bound_hint << '\n';
   exit_with(kExitMandatoryFailed);
 }
 
 }  // namespace
+
+CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
+  cmd.add_option("network", args.network,
+                 "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a "
+                 "master DCF (CANopenManager=1) whose 1F20h/1F22h name node files with "
+                 "DownloadFile=")
+      ->required()
+      ->type_name("NETWORK");
+  auto* bus = cmd.add_option("--bus", args.bus,
+                             "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
+                             "udp_multicast compatible), or sim: for the simulated bus with a "
+                             "simulated device per node built from the network's DCFs, in "
+                             "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N)")
+                  ->type_name("URL");
+  cmd.add_option("--node-id", args.node_id,
+                 "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
+                 "NodeID, else 0x7F (127)")
+      ->type_name("N");
+  cmd.add_option("--net", args.net,
+                 "Which network of the project file: 1 is [Topology], N is [TopologyN]")
+      ->capture_default_str()
+      ->type_name("N");
+  cmd.add_flag("-v,--verbose", args.verbose,
+               "Also print boot steps, NMT commands and state changes");
+  return bus;
+}
 
 void fail_command(std::string_view tool, int code, const std::string& message) {
   std::cerr << prefix(tool) << message << '\n';
@@ -162,12 +188,10 @@ void EventReporter::report(const nmt::MasterEvent& e) {
       if (verbose_) line = e.text;
       break;
   }
-  if (!line.empty())
-    std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
+  if (!line.empty()) std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
   if (json_ != nullptr) write_json(e);
   if (observer_) observer_(e);
 }
-
 
 void EventReporter::write_json(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
@@ -208,7 +232,6 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
   out += ", \"text\": " + tools::json_string(e.text) + "}\n";
   *json_ << out << std::flush;
 }
-
 
 std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url) {
   if (is_sim_url(url)) {
@@ -312,9 +335,8 @@ nmt::Duration run_master_on_sim(nmt::NmtMaster master, const cfg::Network& netwo
   if (bounded && !stopped) bus.run_until(limit);  // the clock to the bound, nothing is due
   check_ended(limits, reporter);
   const auto stats = bus.statistics();
-  std::cerr << prefix(limits.tool) << seconds_text(nmt::TimePoint{}, bus.now())
-            << " s simulated, " << stats.frames << " frames, bus load "
-            << std::lround(stats.load() * 100.0) << "%\n";
+  std::cerr << prefix(limits.tool) << seconds_text(nmt::TimePoint{}, bus.now()) << " s simulated, "
+            << stats.frames << " frames, bus load " << std::lround(stats.load() * 100.0) << "%\n";
   return bus.now() - nmt::TimePoint{};
 }
 

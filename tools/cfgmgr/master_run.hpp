@@ -3,6 +3,8 @@
 // real one. Each command adds its own options and, for push, the report at the end.
 #pragma once
 
+#include <CLI/CLI.hpp>
+
 #include <functional>
 #include <iosfwd>
 #include <optional>
@@ -18,6 +20,19 @@ namespace cfgmgr {
 
 /// Exit code when NMT start-up did not end in operation (a mandatory node failed).
 inline constexpr int kExitMandatoryFailed = 4;
+
+/// The arguments every command that runs a network takes.
+struct NetworkRunArgs {
+  std::string network;  ///< the description (project file or master DCF)
+  std::string bus;      ///< --bus URL
+  std::string node_id;  ///< --node-id as given; empty: the default
+  unsigned net = 1;     ///< --net
+  bool verbose = false;
+};
+
+/// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
+/// required).
+CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args);
 
 /// Prints "cfgmgr TOOL: message" on stderr and ends the command with `code`.
 [[noreturn]] void fail_command(std::string_view tool, int code, const std::string& message);
@@ -75,11 +90,11 @@ class EventReporter {
 
 /// How long a run lasts.
 struct RunLimits {
-  std::string_view tool;              ///< "master", "push": the prefix of messages
-  std::optional<double> run_for_s;    ///< run exactly this long (bus or simulated seconds)
-  bool until_startup_ends = false;    ///< stop once NMT start-up has ended
-  double bound_s = 60.0;              ///< with until_startup_ends and no run_for_s: at most
-  std::string_view bound_hint;        ///< appended to the "did not end" message
+  std::string_view tool;            ///< "master", "push": the prefix of messages
+  std::optional<double> run_for_s;  ///< run exactly this long (bus or simulated seconds)
+  bool until_startup_ends = false;  ///< stop once NMT start-up has ended
+  double bound_s = 60.0;            ///< with until_startup_ends and no run_for_s: at most
+  std::string_view bound_hint;      ///< appended to the "did not end" message
   /// With until_startup_ends: also wait until this is true (e.g. every optional slave tried).
   std::function<bool()> settled;
 };

@@ -35,11 +35,7 @@ constexpr double kDefaultBootTimeS = 10.0;
 /// How long the run may take beyond the boot time before push gives up (downloads included).
 constexpr double kRunMarginS = 60.0;
 
-struct PushCliOptions {
-  std::string network;
-  std::string bus;
-  std::string node_id;
-  unsigned net = 1;
+struct PushCliOptions : NetworkRunArgs {
   std::string json;
   std::optional<double> boot_time_s;
   bool dry_run = false;
@@ -49,7 +45,6 @@ struct PushCliOptions {
   bool no_save = false;
   double sdo_timeout_s = 0.5;
   unsigned retries = 2;
-  bool verbose = false;
 };
 
 enum class Result : std::uint8_t { Pending, Configured, Skipped, Error };
@@ -170,8 +165,8 @@ class Collector {
         r->result = e.configured ? Result::Configured : Result::Skipped;
         r->entries = e.written;
         r->bytes = e.bytes;
-        r->message = e.configured ? "configured"
-                                  : "skipped: signature matches (1020h = 1F26h/1F27h)";
+        r->message =
+            e.configured ? "configured" : "skipped: signature matches (1020h = 1F26h/1F27h)";
         r->ended = e.at;
         break;
       case K::BootError:
@@ -311,12 +306,10 @@ void run_push(const PushCliOptions& options) {
   } else if (const auto ms = dictionary.get_unsigned(cfg::object::kBootTime, 0); ms && *ms != 0) {
     boot_time_s = static_cast<double>(*ms) / 1e3;
   }
-  dictionary.set_unsigned(cfg::object::kBootTime, 0,
-                          static_cast<std::uint64_t>(boot_time_s * 1e3));
+  dictionary.set_unsigned(cfg::object::kBootTime, 0, static_cast<std::uint64_t>(boot_time_s * 1e3));
   if (options.no_start) {
     const auto startup = dictionary.get_unsigned(cfg::object::kNmtStartup, 0).value_or(0);
-    dictionary.set_unsigned(cfg::object::kNmtStartup, 0,
-                            startup | cfg::NmtStartup::kNoStartSlaves);
+    dictionary.set_unsigned(cfg::object::kNmtStartup, 0, startup | cfg::NmtStartup::kNoStartSlaves);
   }
   std::set<std::uint8_t> chosen;
   for (const auto* node : selected) chosen.insert(node->node_id.value());
@@ -385,19 +378,8 @@ void add_push_command(CLI::App& app) {
       "check, configuration download unless 1020h matches 1F26h/1F27h, save, start), stop when "
       "NMT start-up has ended, and report per node: configured, skipped (signature matches) or "
       "error with its CiA 302-2 status letter");
-  cmd->add_option("network", options->network,
-                  "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a "
-                  "master DCF (CANopenManager=1) whose 1F20h/1F22h name node files with "
-                  "DownloadFile=")
-      ->required()
-      ->type_name("NETWORK");
-  cmd->add_option("--bus", options->bus,
-                  "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can udp_multicast "
-                  "compatible), or sim: for the simulated bus with a simulated device per node "
-                  "built from the network's DCFs, in simulated time "
-                  "(sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N). Required unless "
-                  "--dry-run")
-      ->type_name("URL");
+  auto* bus = add_network_run_options(*cmd, *options);
+  bus->description(bus->get_description() + ". Required unless --dry-run");
   cmd->add_option("--json", options->json,
                   "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
                   "nodes [{node_id, name, result (configured/skipped/error), status (CiA 302-2 "
@@ -419,26 +401,15 @@ void add_push_command(CLI::App& app) {
   cmd->add_flag("--force", options->force, "Download even when 1020h matches 1F26h/1F27h");
   cmd->add_flag("--no-start", options->no_start,
                 "Do not start the slaves (1F80h bit 3): they stay pre-operational");
-  cmd->add_flag("--no-save", options->no_save,
-                "Do not write 1010h sub 1 'save' after a download");
+  cmd->add_flag("--no-save", options->no_save, "Do not write 1010h sub 1 'save' after a download");
   cmd->add_option("--sdo-timeout", options->sdo_timeout_s,
                   "Timeout of each SDO response, in seconds")
       ->capture_default_str()
       ->type_name("SECONDS")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--retries", options->retries,
-                  "How often a timed-out SDO transfer is repeated")
+  cmd->add_option("--retries", options->retries, "How often a timed-out SDO transfer is repeated")
       ->capture_default_str()
       ->type_name("N");
-  cmd->add_option("--node-id", options->node_id,
-                  "The master's node-ID (1..127); default: the master DCF's NodeID, else 0x7F")
-      ->type_name("N");
-  cmd->add_option("--net", options->net,
-                  "Which network of the project file: 1 is [Topology], N is [TopologyN]")
-      ->capture_default_str()
-      ->type_name("N");
-  cmd->add_flag("-v,--verbose", options->verbose,
-                "Also print boot steps, NMT commands and state changes");
   cmd->footer(std::string(
       "Events are printed one a line on stderr as cfgmgr master prints them; the table goes to "
       "stdout at the end: node, name, result, entries (configuration writes, PDO-safe order), "
