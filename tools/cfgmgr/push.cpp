@@ -75,14 +75,21 @@ std::string_view result_name(Result result) {
   return "error";
 }
 
+[[noreturn]] void bad_only(const std::string& text, const std::string& why) {
+  std::string message = "--only ";
+  message += text;
+  message += ": ";
+  message += why;
+  fail_command(kTool, tools::kExitUsage, message);
+}
+
 // "3,5-7" -> {3, 5, 6, 7}; exit 2 on anything else.
 std::set<std::uint8_t> parse_only(const std::string& text) {
   std::set<std::uint8_t> out;
   const auto node = [&](const std::string& part) -> std::uint8_t {
     const auto parsed = cfg::parse_integer_literal(part);
     if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-      fail_command(kTool, tools::kExitUsage,
-                   "--only " + text + ": '" + part + "' is no node-ID 1..127");
+      bad_only(text, "'" + part + "' is no node-ID 1..127");
     }
     return static_cast<std::uint8_t>(parsed.literal->value);
   };
@@ -94,7 +101,7 @@ std::set<std::uint8_t> parse_only(const std::string& text) {
     const std::uint8_t first = node(item.substr(0, dash));
     const std::uint8_t last = dash == std::string::npos ? first : node(item.substr(dash + 1));
     if (last < first) {
-      fail_command(kTool, tools::kExitUsage, "--only " + text + ": range " + item + " is empty");
+      bad_only(text, "range " + item + " is empty");
     }
     for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
     begin = comma + 1;
@@ -148,6 +155,18 @@ void print_plan(const std::vector<const cfg::NetworkNode*>& nodes, const PushCli
   }
 }
 
+// The event's words without its "node N: boot error X: " prefix: Table 1's text and why (the
+// object and the SDO abort in words for J, the values compared for C, D, M, N, O).
+std::string error_message(const nmt::MasterEvent& e) {
+  if (!e.error) return e.text;
+  std::string marker = "boot error ";
+  marker += nmt::letter(*e.error);
+  marker += ": ";
+  const std::size_t at = e.text.find(marker);
+  if (at == std::string::npos) return std::string(nmt::describe(*e.error));
+  return e.text.substr(at + marker.size());
+}
+
 // Keeps each selected node's outcome from the master's events.
 class Collector {
  public:
@@ -175,7 +194,7 @@ class Collector {
         if (!e.final && r->mandatory) break;
         r->result = Result::Error;
         if (e.error) r->status = nmt::letter(*e.error);
-        r->message = e.error ? std::string(nmt::describe(*e.error)) : e.text;
+        r->message = error_message(e);
         r->ended = e.at;
         break;
       default:
