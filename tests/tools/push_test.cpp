@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
@@ -183,6 +185,32 @@ TEST(Push, WrongIdentityOfAMandatoryNodeIsAnErrorWithItsLetterAndExit4) {
   EXPECT_NE(nodes.at(2)->get("message")->string.find("1F85h"), std::string::npos)
       << nodes.at(2)->get("message")->string;
   EXPECT_NE(r.out.find("error D: "), std::string::npos) << r.out;
+}
+
+TEST(Push, AnOptionalNodesFailureIsReportedAndExits0) {
+  // wrong_identity.cpj with node 2 optional: 1F81h sub 2 = 05h (slave, boot; bit 3 mandatory
+  // clear, CiA 302-2 Table 21). Its status D is reported; start-up goes on (§3.1 f is about
+  // mandatory slaves only).
+  ScratchDir dir;
+  namespace fs = std::filesystem;
+  fs::create_directories(dir / "nodes");
+  fs::copy_file(network("wrong_identity.cpj"), dir / "net.cpj");
+  fs::copy_file(network("nodes/io_node2.dcf"), dir / "nodes/io_node2.dcf");
+  std::string master = tool_test::slurp(network("master_wrong_vendor.dcf"));
+  const std::string mandatory = "ParameterValue=0x0000000D";
+  const auto at = master.find(mandatory, master.find("[1F81sub2]"));
+  ASSERT_NE(at, std::string::npos);
+  master.replace(at, mandatory.size(), "ParameterValue=0x00000005");
+  { std::ofstream(dir / "master_wrong_vendor.dcf", std::ios::binary) << master; }
+  const std::string report = dir / "report.json";
+  auto r = cfgmgr(dir, {"push", dir / "net.cpj", "--bus", "sim:", "--json", report});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const Json json = parse_json(report);
+  EXPECT_TRUE(json.get("ok")->boolean);
+  const auto nodes = nodes_of(json);
+  ASSERT_TRUE(nodes.count(2)) << tool_test::slurp(report);
+  EXPECT_EQ(nodes.at(2)->get("result")->string, "error");
+  EXPECT_EQ(nodes.at(2)->get("status")->string, "D");
 }
 
 TEST(Push, OnlyRestrictsTheNodes) {
