@@ -48,20 +48,21 @@ void run_master(const MasterCliOptions& options) {
   RunLimits limits;
   limits.tool = "master";
   limits.run_for_s = options.run_for_s;
+  bool timed_out = false;
   if (sim) {
     // Without --run-for, sim: ends once NMT start-up has (master_run.hpp).
     limits.until_startup_ends = true;
     limits.bound_s = kSimDefaultBoundS;
     limits.bound_hint = " of simulated time (give --run-for to run longer)";
-    run_master_on_sim(std::move(master), *network, *sim, limits, reporter);
+    timed_out = run_master_on_sim(std::move(master), *network, *sim, limits, reporter).timed_out;
   } else {
-    run_master_on_bus(std::move(master), options.bus, limits, reporter);
+    timed_out = run_master_on_bus(std::move(master), options.bus, limits, reporter).timed_out;
   }
   if (json != nullptr && !json_file.flush()) {
     std::cerr << tools::io_error(options.json_events, "write error").message << '\n';
     exit_with(tools::kExitIo);
   }
-  if (reporter.halted()) exit_with(kExitMandatoryFailed);
+  if (timed_out || reporter.halted()) exit_with(kExitMandatoryFailed);
 }
 
 }  // namespace

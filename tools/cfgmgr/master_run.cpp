@@ -76,14 +76,14 @@ bool ended(const RunLimits& limits, const EventReporter& reporter) {
   return reporter.finished() && (!limits.settled || limits.settled());
 }
 
-// With until_startup_ends, a start-up that did not end is a failed run (exit 4).
-void check_ended(const RunLimits& limits, const EventReporter& reporter) {
+// With until_startup_ends, a start-up that did not end within the bound is a failed run.
+bool timed_out(const RunLimits& limits, const EventReporter& reporter) {
   if (!limits.until_startup_ends || limits.run_for_s || ended(limits, reporter) || g_stop.load()) {
-    return;
+    return false;
   }
   std::cerr << prefix(limits.tool) << "NMT start-up did not end within " << limits.bound_s << " s"
             << limits.bound_hint << '\n';
-  exit_with(kExitMandatoryFailed);
+  return true;
 }
 
 }  // namespace
@@ -285,9 +285,9 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
   return std::move(master).value();
 }
 
-nmt::Duration run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
-                                const SimBusOptions& sim, const RunLimits& limits,
-                                EventReporter& reporter) {
+RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
+                             const SimBusOptions& sim, const RunLimits& limits,
+                             EventReporter& reporter) {
   std::vector<cfg::NodeId> skipped;
   auto built = simulated_devices(network, sim, &skipped);
   if (!built) {
@@ -333,15 +333,15 @@ nmt::Duration run_master_on_sim(nmt::NmtMaster master, const cfg::Network& netwo
   const bool stopped = bus.run_until(
       [&] { return g_stop.load() || (until_ended && ended(limits, reporter)); }, limit);
   if (bounded && !stopped) bus.run_until(limit);  // the clock to the bound, nothing is due
-  check_ended(limits, reporter);
+  const bool late = timed_out(limits, reporter);
   const auto stats = bus.statistics();
   std::cerr << prefix(limits.tool) << seconds_text(nmt::TimePoint{}, bus.now()) << " s simulated, "
             << stats.frames << " frames, bus load " << std::lround(stats.load() * 100.0) << "%\n";
-  return bus.now() - nmt::TimePoint{};
+  return {bus.now() - nmt::TimePoint{}, late};
 }
 
-nmt::Duration run_master_on_bus(nmt::NmtMaster master, const std::string& url,
-                                const RunLimits& limits, EventReporter& reporter) {
+RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, const RunLimits& limits,
+                             EventReporter& reporter) {
   auto opened = nmt::open_bus(url);
   if (!opened) fail_command(limits.tool, tools::kExitIo, opened.error().message);
   std::unique_ptr<nmt::Bus> bus = std::move(opened).value();
@@ -372,8 +372,7 @@ nmt::Duration run_master_on_bus(nmt::NmtMaster master, const std::string& url,
                     : loop.run_for(seconds_to_duration(limits.run_for_s.value_or(limits.bound_s)));
   g_running_loop.store(nullptr);
   if (!status) fail_command(limits.tool, tools::kExitIo, status.error().message);
-  check_ended(limits, reporter);
-  return loop.now() - began;
+  return {loop.now() - began, timed_out(limits, reporter)};
 }
 
 }  // namespace cfgmgr

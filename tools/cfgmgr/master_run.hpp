@@ -99,17 +99,23 @@ struct RunLimits {
   std::function<bool()> settled;
 };
 
+/// How a run ended.
+struct RunOutcome {
+  nmt::Duration elapsed{0};  ///< bus time it ran (simulated time on sim:)
+  /// With until_startup_ends (and no run_for_s): start-up did not end within the bound (a
+  /// message was printed; the command exits 4).
+  bool timed_out = false;
+};
+
 /// Runs `master` with a simulated device per node of `network` on the simulated bus, in
-/// simulated time, until SIGINT/SIGTERM or `limits`. With until_startup_ends, a start-up that
-/// does not end within the bound ends the command with exit 4. Returns the bus time it ran.
-nmt::Duration run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
-                                const SimBusOptions& sim, const RunLimits& limits,
-                                EventReporter& reporter);
+/// simulated time, until SIGINT/SIGTERM or `limits`.
+RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
+                             const SimBusOptions& sim, const RunLimits& limits,
+                             EventReporter& reporter);
 
 /// Runs `master` on the real bus `url` (SocketCAN, UDP) in real time, until SIGINT/SIGTERM or
-/// `limits`. Exit 3 when the bus cannot be opened or fails; exit 4 as run_master_on_sim.
-/// Returns the bus time it ran.
-nmt::Duration run_master_on_bus(nmt::NmtMaster master, const std::string& url,
-                                const RunLimits& limits, EventReporter& reporter);
+/// `limits`. Exit 3 when the bus cannot be opened or fails.
+RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, const RunLimits& limits,
+                             EventReporter& reporter);
 
 }  // namespace cfgmgr

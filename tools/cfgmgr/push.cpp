@@ -212,7 +212,7 @@ class Collector {
     for (auto& r : nodes_) {
       if (r.result != Result::Pending) continue;
       r.result = Result::Error;
-      r.message = halted ? "not finished: NMT start-up halted" : "not booted";
+      r.message = halted ? "not finished: NMT start-up halted" : "not booted before the run ended";
       r.ended = now;
     }
   }
@@ -367,12 +367,13 @@ void run_push(const PushCliOptions& options) {
   limits.bound_s = boot_time_s + kRunMarginS;
   limits.bound_hint = sim ? " of simulated time" : "";
   limits.settled = [&] { return reporter.halted() || collector.settled(); };
-  const nmt::Duration elapsed =
+  const RunOutcome outcome =
       sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter)
           : run_master_on_bus(std::move(master), options.bus, limits, reporter);
+  const nmt::Duration elapsed = outcome.elapsed;
   collector.close(reporter.start() + elapsed, reporter.halted());
 
-  bool ok = !reporter.halted();
+  bool ok = !reporter.halted() && !outcome.timed_out;
   for (const auto& r : collector.nodes()) {
     if (r.mandatory && r.result == Result::Error) ok = false;
   }
