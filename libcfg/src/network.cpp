@@ -507,7 +507,7 @@ ConfigurationStamp configuration_stamp(std::span<const std::uint8_t> concise_dcf
 
 std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms) {
   if (producer_ms == 0) return 0;
-  const std::uint32_t consumer = std::uint32_t{producer_ms} * 3 / 2 + 100;
+  const std::uint32_t consumer = std::uint32_t{producer_ms} * 2 + 100;
   return static_cast<std::uint16_t>(std::min<std::uint32_t>(consumer, 0xFFFF));
 }
 

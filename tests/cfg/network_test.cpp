@@ -224,9 +224,9 @@ TEST(Network, DerivedMasterConsumesTheHeartbeatOfEachProducer) {
   ASSERT_TRUE(load.ok()) << load.diagnostics.format();
   const auto& m = load.network->master;
   // CiA 301 §7.5.2.26: node-ID in bits 16-23, time in ms in bits 0-15. Node 2 produces every
-  // 1000 ms -> 1.5 x 1000 + 100 = 1600 ms; node 3 every 500 ms -> 850 ms.
-  EXPECT_EQ(value_of(m, 0x1016, 1), 0x00020640U);
-  EXPECT_EQ(value_of(m, 0x1016, 2), 0x00030352U);
+  // 1000 ms -> 2 x 1000 + 100 = 2100 ms; node 3 every 500 ms -> 1100 ms.
+  EXPECT_EQ(value_of(m, 0x1016, 1), 0x00020834U);
+  EXPECT_EQ(value_of(m, 0x1016, 2), 0x0003044CU);
   EXPECT_EQ(value_of(m, 0x1016, 3), 0U);
   EXPECT_EQ(cfg::heartbeat_consumer_time_ms(0), 0);
   EXPECT_EQ(cfg::heartbeat_consumer_time_ms(60000), 0xFFFF);
@@ -334,12 +334,12 @@ TEST(Network, TheSampleCellProjectLoadsWithoutDiagnostics) {
   EXPECT_EQ(net.name, "sample cell");
   ASSERT_EQ(net.nodes.size(), 3U);
   // samples/network/io_module_node4.dcf: 1000h 0x000F0191, 1018h sub 1 0x7E57C0DE, sub 2
-  // 0x00000401, sub 3 0x00010002; 1017h ParameterValue=1000 -> consumer 1600 ms.
+  // 0x00000401, sub 3 0x00010002; 1017h ParameterValue=1000 -> consumer 2100 ms.
   EXPECT_EQ(value_of(net.master, 0x1F84, 4), 0x000F0191U);
   EXPECT_EQ(value_of(net.master, 0x1F85, 4), 0x7E57C0DEU);
   EXPECT_EQ(value_of(net.master, 0x1F86, 4), 0x00000401U);
   EXPECT_EQ(value_of(net.master, 0x1F87, 4), 0x00010002U);
-  EXPECT_EQ(value_of(net.master, 0x1016, 3), 0x00040640U);
+  EXPECT_EQ(value_of(net.master, 0x1016, 3), 0x00040834U);
 }
 
 }  // namespace

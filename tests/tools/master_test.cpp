@@ -286,7 +286,7 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
     return false;
   };
   EXPECT_TRUE(wait_for("startup_complete", std::chrono::seconds(15)));
-  // The device goes away: no heartbeat within the consumer time (1600 ms, CiA 301 §7.2.8.3.2.2).
+  // The device goes away: no heartbeat within the consumer time (2100 ms, CiA 301 §7.2.8.3.2.2).
   devices.reset();
   EXPECT_TRUE(wait_for("heartbeat_lost", std::chrono::seconds(5)));
   const auto code = master.stop(SIGINT, std::chrono::milliseconds(3000));

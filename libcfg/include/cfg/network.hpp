@@ -131,8 +131,9 @@ DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node);
 /// "do not verify" (CiA 302-2 §3.5 a).
 ConfigurationStamp configuration_stamp(std::span<const std::uint8_t> concise_dcf);
 
-/// The consumer time for a producer time (both ms): 1.5 x producer + 100 ms of margin for
-/// bus load and scheduling, at most FFFFh; 0 (no heartbeat) gives 0.
+/// The consumer time for a producer time (both ms): 2 x producer + 100 ms, so that one lost
+/// heartbeat (a disturbed frame) is no heartbeat event, with margin for bus load and
+/// scheduling; at most FFFFh; 0 (no heartbeat) gives 0.
 std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms);
 
 /// The master's dictionary for `nodes` by the rules above, as a DCF with CANopenManager=1 (so
