@@ -23,5 +23,5 @@ echo "== dcf2concise --decode $out --dcf $dcf"
 # CiA 302-2 NMT master against simulated devices built from those DCFs, in simulated time.
 network="$root/samples/network/nodelist.cpj"
 echo
-echo "== cfgmgr master $network --bus sim:"
-"$build/tools/cfgmgr" master "$network" --bus sim:
+echo "== cfgmgr push $network --bus sim:"
+"$build/tools/cfgmgr" push "$network" --bus sim:
