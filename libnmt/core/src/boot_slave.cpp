@@ -17,20 +17,27 @@ using Phase = SlaveBoot::Phase;
 
 namespace {
 
-std::uint32_t value_u32(const SdoResult& r) {
-  return static_cast<std::uint32_t>(cfg::load_le(r.data, std::min<std::size_t>(r.data.size(), 4)));
-}
-
-std::string failed(const SdoResult& r) {
-  return cfg::to_string({r.index, r.sub_index}) + (r.upload ? " upload" : " download") +
-         " failed: " + to_string(r.abort);
-}
-
 std::string stamp_text(cfg::ConfigurationStamp stamp) {
   return "day " + std::to_string(stamp.days) + ", " + std::to_string(stamp.ms) + " ms";
 }
 
 }  // namespace
+
+std::uint32_t uploaded_u32(const SdoResult& result) {
+  return static_cast<std::uint32_t>(
+      cfg::load_le(result.data, std::min<std::size_t>(result.data.size(), 4)));
+}
+
+std::string transfer_failure(const SdoResult& result) {
+  return cfg::to_string({result.index, result.sub_index}) +
+         (result.upload ? " upload" : " download") + " failed: " + to_string(result.abort);
+}
+
+std::vector<std::uint8_t> u32_bytes(std::uint32_t value) {
+  std::vector<std::uint8_t> bytes;
+  cfg::append_le(bytes, value, 4);
+  return bytes;
+}
 
 void NmtMaster::Impl::set_step(std::uint8_t node, BootStep step, TimePoint now, Output& out) {
   auto& s = slaves[node];
@@ -140,10 +147,10 @@ void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, Tim
     case Phase::ReadDeviceType: {
       // §3.4 c: no response -> B; d: 1F84h non-zero and different -> C.
       if (!r.ok()) {
-        boot_failed(node, BootError::B, failed(r), now, out);
+        boot_failed(node, BootError::B, transfer_failure(r), now, out);
         return;
       }
-      const auto actual = value_u32(r);
+      const auto actual = uploaded_u32(r);
       const auto expected = value_of(obj::kDeviceTypeIdentification, node);
       if (expected != 0 && actual != expected) {
         boot_failed(node, BootError::C,
@@ -162,10 +169,10 @@ void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, Tim
       const auto sub = s.identity_sub;
       const auto error = kLetters[sub - 1];
       if (!r.ok()) {
-        boot_failed(node, error, failed(r), now, out);
+        boot_failed(node, error, transfer_failure(r), now, out);
         return;
       }
-      const auto actual = value_u32(r);
+      const auto actual = uploaded_u32(r);
       const auto expected =
           value_of(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1), node);
       bool match = actual == expected;
@@ -190,14 +197,15 @@ void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, Tim
     case Phase::ReadSoftwareTime: {
       if (!r.ok()) {
         // The slave's program objects do not answer as CiA 302-3 has them.
-        boot_failed(node, s.software_updated ? BootError::I : BootError::G, failed(r), now, out);
+        boot_failed(node, s.software_updated ? BootError::I : BootError::G, transfer_failure(r),
+                    now, out);
         return;
       }
       if (s.phase == Phase::ReadSoftwareDate) {
-        s.software.days = value_u32(r);
+        s.software.days = uploaded_u32(r);
         boot_upload(node, Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
       } else {
-        s.software.ms = value_u32(r);
+        s.software.ms = uploaded_u32(r);
         software_checked(node, now, out);
       }
       return;
@@ -207,7 +215,7 @@ void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, Tim
     case Phase::ProgramData:
     case Phase::ProgramStart: {
       if (!r.ok()) {
-        boot_failed(node, BootError::I, "program download: " + failed(r), now, out);
+        boot_failed(node, BootError::I, "program download: " + transfer_failure(r), now, out);
         return;
       }
       // CiA 302-3 program download: stop (0), clear (3), 1F50h data, start (1).

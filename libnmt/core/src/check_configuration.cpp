@@ -18,21 +18,6 @@ using Phase = SlaveBoot::Phase;
 
 namespace {
 
-std::vector<std::uint8_t> u32_bytes(std::uint32_t value) {
-  std::vector<std::uint8_t> bytes;
-  cfg::append_le(bytes, value, 4);
-  return bytes;
-}
-
-std::uint32_t value_u32(const SdoResult& r) {
-  return static_cast<std::uint32_t>(cfg::load_le(r.data, std::min<std::size_t>(r.data.size(), 4)));
-}
-
-std::string failed(const SdoResult& r) {
-  return cfg::to_string({r.index, r.sub_index}) + (r.upload ? " upload" : " download") +
-         " failed: " + to_string(r.abort);
-}
-
 /// A device without parameter storage answers 1010h with "object/sub-index does not exist":
 /// the configuration is applied, only not kept over a power cycle.
 bool no_storage(SdoAbort code) {
@@ -154,7 +139,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
         begin_download(node, now, out);
         return;
       }
-      s.verify.days = value_u32(r);
+      s.verify.days = uploaded_u32(r);
       if (s.verify.days != expected_configuration(node).days) {
         begin_download(node, now, out);  // sub 2 cannot make it match
         return;
@@ -166,7 +151,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
         begin_download(node, now, out);
         return;
       }
-      s.verify.ms = value_u32(r);
+      s.verify.ms = uploaded_u32(r);
       if (s.verify == expected_configuration(node)) {
         s.configured = false;
         start_error_control(node, now, out);
@@ -176,7 +161,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
       return;
     case Phase::RestoreLoad: {
       if (!r.ok()) {
-        boot_failed(node, BootError::J, "restore: " + failed(r), now, out);
+        boot_failed(node, BootError::J, "restore: " + transfer_failure(r), now, out);
         return;
       }
       // CiA 301 §7.5.2.14: restored values take effect at the next reset: reset communication
@@ -188,7 +173,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
       return;
     }
     case Phase::ReadPdoCobId: {
-      if (r.ok()) s.cob_ids_read[s.cob_ids_to_read.front()] = value_u32(r);
+      if (r.ok()) s.cob_ids_read[s.cob_ids_to_read.front()] = uploaded_u32(r);
       s.cob_ids_to_read.erase(s.cob_ids_to_read.begin());
       if (!s.cob_ids_to_read.empty()) {
         boot_upload(node, Phase::ReadPdoCobId, s.cob_ids_to_read.front(), 1, now);
@@ -200,7 +185,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
     case Phase::Write: {
       if (!r.ok()) {
         boot_failed(node, BootError::J,
-                    failed(r) + " (entry " + std::to_string(s.next + 1) + " of " +
+                    transfer_failure(r) + " (entry " + std::to_string(s.next + 1) + " of " +
                         std::to_string(s.plan.size()) + ")",
                     now, out);
         return;
@@ -220,7 +205,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
     }
     case Phase::WriteVerifyDate:
       if (!r.ok()) {
-        boot_failed(node, BootError::J, failed(r), now, out);
+        boot_failed(node, BootError::J, transfer_failure(r), now, out);
         return;
       }
       boot_download(node, Phase::WriteVerifyTime, obj::kVerifyConfiguration, 2,
@@ -228,7 +213,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
       return;
     case Phase::WriteVerifyTime:
       if (!r.ok()) {
-        boot_failed(node, BootError::J, failed(r), now, out);
+        boot_failed(node, BootError::J, transfer_failure(r), now, out);
         return;
       }
       if (options.save_configuration) {
@@ -239,7 +224,7 @@ void NmtMaster::Impl::configuration_sdo_result(std::uint8_t node, const SdoResul
       [[fallthrough]];
     case Phase::WriteSave:
       if (s.phase == Phase::WriteSave && !r.ok() && !no_storage(r.abort)) {
-        boot_failed(node, BootError::J, "save: " + failed(r), now, out);
+        boot_failed(node, BootError::J, "save: " + transfer_failure(r), now, out);
         return;
       }
       if (options.application_step) {

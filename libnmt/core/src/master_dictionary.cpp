@@ -1,5 +1,6 @@
 // The NMT master's own objects (CiA 302-2 §6): the ones a master DCF lacks get their defaults,
-// and SDO writes get the §6 value checks; 1F82h/1F83h writes are requests, their reads report.
+// and SDO writes get the §6 value checks; 1F82h/1F83h writes are requests (request NMT and
+// request guarding, §6.4-6.5), their reads report.
 #include <string>
 
 #include "cfg/bytes.hpp"
@@ -13,6 +14,27 @@ namespace nmt {
 namespace obj = cfg::object;
 
 namespace {
+
+/// Table 28 of CiA 302-2 §6.4: the NMT service a 1F82h value requests (bit 7 set: excluding the
+/// master and the requester).
+std::optional<NmtCommand> requested_command(std::uint8_t value) {
+  switch (value & 0x7F) {
+    case 0x04:
+      return NmtCommand::Stop;
+    case 0x05:
+      return NmtCommand::Start;
+    case 0x06:
+      return NmtCommand::ResetNode;
+    case 0x07:
+      return NmtCommand::ResetCommunication;
+    case 0x7F:
+      return value == 0x7F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
+    case 0x0F:
+      return value == 0x8F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
+    default:
+      return std::nullopt;
+  }
+}
 
 constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (§6.4, §6.5)
 
@@ -202,6 +224,84 @@ cfg::ConfigurationStamp NmtMaster::Impl::expected_configuration(std::uint8_t nod
 Duration NmtMaster::Impl::nmt_inhibit_time() const {
   // §6.1: multiples of 100 µs.
   return Duration{std::int64_t{100} * value_of(obj::kNmtInhibitTime, 0)};
+}
+
+// --- request NMT (1F82h) and request guarding (1F83h) ---
+
+SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
+                                      std::optional<cfg::NodeId> requester, TimePoint now) {
+  constexpr std::uint8_t kAll = 0x80;
+  const auto command = requested_command(value);
+  // §6.4: a reserved value is refused with 0609 0030.
+  if (!command) return SdoAbort::ValueRangeExceeded;
+  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  const bool excluding = (value & 0x80) != 0;
+  // §6.4: 84h-8Fh need the requester's node-ID; unknown: 0800 0000.
+  if (excluding && !requester) return SdoAbort::General;
+  auto hold = [&](std::uint8_t node) {
+    // DSP 302 §5.4: no automatic re-boot after a state change by request NMT (start ends it).
+    if (is_slave(node)) slaves[node].held = *command != NmtCommand::Start;
+  };
+  Output& out = sink();
+  if (sub == kAll) {
+    if (excluding) {
+      for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+        const auto n = static_cast<std::uint8_t>(node);
+        if (n == node_id.value() || n == requester->value()) continue;
+        queue_nmt(*command, n);
+        hold(n);
+      }
+      return SdoAbort::None;
+    }
+    queue_nmt(*command, 0);
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      hold(static_cast<std::uint8_t>(node));
+    }
+    // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
+    apply_own_command(*command, now, out);
+    return SdoAbort::None;
+  }
+  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
+  if (sub == node_id.value()) {
+    apply_own_command(*command, now, out);
+    return SdoAbort::None;
+  }
+  if (excluding && sub == requester->value()) return SdoAbort::General;
+  // A request for a node that is not a slave of this master is refused.
+  if (!is_slave(sub)) return SdoAbort::General;
+  queue_nmt(*command, sub);
+  hold(sub);
+  return SdoAbort::None;
+}
+
+SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now) {
+  constexpr std::uint8_t kAll = 0x80;
+  // §6.5, Table 31: 0 stop, 1 start; the rest is reserved.
+  if (value > 1) return SdoAbort::ValueRangeExceeded;
+  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  auto apply = [&](std::uint8_t node) {
+    if (!is_slave(node)) return SdoAbort::General;
+    if (value == 0) {
+      guarding.stop(node);
+      return SdoAbort::None;
+    }
+    const auto a = assignment(node);
+    // §6.3: guard time or retry factor 0 disable guarding for the device.
+    if (a.guard_time_ms() == 0 || a.retry_factor() == 0) return SdoAbort::General;
+    guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
+    return SdoAbort::None;
+  };
+  if (sub == kAll) {
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      const auto n = static_cast<std::uint8_t>(node);
+      if (is_slave(n)) (void)apply(n);
+    }
+    return SdoAbort::None;
+  }
+  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
+  // §6.5: "The sub-index corresponding to its own node-ID shall be ignored."
+  if (sub == node_id.value()) return SdoAbort::None;
+  return apply(sub);
 }
 
 }  // namespace nmt

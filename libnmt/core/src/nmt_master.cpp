@@ -1,7 +1,7 @@
-// NmtMaster: NMT start-up (CiA 302-2 §3.1), the error handler and boot-up handler (§4.2,
-// §4.3), request NMT and request guarding (1F82h, 1F83h, §6.4-6.5), the NMT inhibit time (102Ah,
-// §6.1), and the routing of frames, SDO results and time to the parts. Boot NMT slave lives in
-// boot_slave.cpp and check_configuration.cpp, the objects in master_dictionary.cpp.
+// NmtMaster: the public calls, NMT start-up (CiA 302-2 §3.1), the error handler and boot-up
+// handler (§4.2, §4.3), the NMT inhibit time (102Ah, §6.1), and the routing of frames and time
+// to the parts. Boot NMT slave lives in boot_slave.cpp and check_configuration.cpp, the objects
+// and request NMT/guarding in master_dictionary.cpp, the SDO transfers in master_transfers.cpp.
 #include "nmt/nmt_master.hpp"
 
 #include <algorithm>
@@ -167,27 +167,6 @@ MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node
 
 namespace {
 
-/// Table 28 of CiA 302-2 §6.4: the NMT service a 1F82h value requests (bit 7 set: excluding the
-/// master and the requester).
-std::optional<NmtCommand> requested_command(std::uint8_t value) {
-  switch (value & 0x7F) {
-    case 0x04:
-      return NmtCommand::Stop;
-    case 0x05:
-      return NmtCommand::Start;
-    case 0x06:
-      return NmtCommand::ResetNode;
-    case 0x07:
-      return NmtCommand::ResetCommunication;
-    case 0x7F:
-      return value == 0x7F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
-    case 0x0F:
-      return value == 0x8F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
-    default:
-      return std::nullopt;
-  }
-}
-
 /// The state a slave is in after a command, as far as the master can tell.
 std::uint8_t state_after(NmtCommand command) {
   switch (command) {
@@ -206,8 +185,7 @@ std::uint8_t state_after(NmtCommand command) {
 
 }  // namespace
 
-// --- construction
-// ---------------------------------------------------------------------------------
+// --- construction ---
 
 NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictionary)
     : node_id(id),
@@ -234,8 +212,7 @@ NmtMaster::NmtMaster(NmtMaster&&) noexcept = default;
 NmtMaster& NmtMaster::operator=(NmtMaster&&) noexcept = default;
 NmtMaster::~NmtMaster() = default;
 
-// --- the public calls: each sets the current Output, runs, settles
-// --------------------------------
+// --- the public calls: each sets the current Output, runs, settles ---
 
 namespace {
 // A template so that it needs no access to the private NmtMaster::Impl by name.
@@ -477,8 +454,7 @@ LocalDictionary& NmtMaster::dictionary() {
   return impl_->dict;
 }
 
-// --- NMT start-up (§3.1)
-// --------------------------------------------------------------------------
+// --- NMT start-up (§3.1) ---
 
 void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
   // The master is a CANopen device (§3.1: "shall behave according to the NMT slave state
@@ -653,8 +629,7 @@ void NmtMaster::Impl::apply_own_command(NmtCommand command, TimePoint now, Outpu
   }
 }
 
-// --- NMT commands and the inhibit time (§6.1)
-// ------------------------------------------------------
+// --- NMT commands and the inhibit time (§6.1) ---
 
 void NmtMaster::Impl::queue_nmt(NmtCommand command, std::uint8_t node) {
   nmt_queue.emplace_back(command, node);
@@ -710,8 +685,7 @@ void NmtMaster::Impl::set_known_state(std::uint8_t node, std::uint8_t state, Tim
   report(out, std::move(e));
 }
 
-// --- error control messages, the boot-up handler (§4.3) and the error handler (§4.2)
-// ---------------
+// --- error control messages, the boot-up handler (§4.3) and the error handler (§4.2) ---
 
 void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimePoint now,
                                        Output& out) {
@@ -799,199 +773,6 @@ void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint
 void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
   heartbeats.stop(node);
   guarding.stop(node);
-}
-
-// --- request NMT (1F82h) and request guarding (1F83h)
-// ---------------------------------------------
-
-SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
-                                      std::optional<cfg::NodeId> requester, TimePoint now) {
-  constexpr std::uint8_t kAll = 0x80;
-  const auto command = requested_command(value);
-  // §6.4: a reserved value is refused with 0609 0030.
-  if (!command) return SdoAbort::ValueRangeExceeded;
-  if (!startup_config().is_master()) return SdoAbort::DeviceState;
-  const bool excluding = (value & 0x80) != 0;
-  // §6.4: 84h-8Fh need the requester's node-ID; unknown: 0800 0000.
-  if (excluding && !requester) return SdoAbort::General;
-  auto hold = [&](std::uint8_t node) {
-    // DSP 302 §5.4: no automatic re-boot after a state change by request NMT (start ends it).
-    if (is_slave(node)) slaves[node].held = *command != NmtCommand::Start;
-  };
-  Output& out = sink();
-  if (sub == kAll) {
-    if (excluding) {
-      for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-        const auto n = static_cast<std::uint8_t>(node);
-        if (n == node_id.value() || n == requester->value()) continue;
-        queue_nmt(*command, n);
-        hold(n);
-      }
-      return SdoAbort::None;
-    }
-    queue_nmt(*command, 0);
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      hold(static_cast<std::uint8_t>(node));
-    }
-    // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
-    apply_own_command(*command, now, out);
-    return SdoAbort::None;
-  }
-  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
-  if (sub == node_id.value()) {
-    apply_own_command(*command, now, out);
-    return SdoAbort::None;
-  }
-  if (excluding && sub == requester->value()) return SdoAbort::General;
-  // A request for a node that is not a slave of this master is refused.
-  if (!is_slave(sub)) return SdoAbort::General;
-  queue_nmt(*command, sub);
-  hold(sub);
-  return SdoAbort::None;
-}
-
-SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now) {
-  constexpr std::uint8_t kAll = 0x80;
-  // §6.5, Table 31: 0 stop, 1 start; the rest is reserved.
-  if (value > 1) return SdoAbort::ValueRangeExceeded;
-  if (!startup_config().is_master()) return SdoAbort::DeviceState;
-  auto apply = [&](std::uint8_t node) {
-    if (!is_slave(node)) return SdoAbort::General;
-    if (value == 0) {
-      guarding.stop(node);
-      return SdoAbort::None;
-    }
-    const auto a = assignment(node);
-    // §6.3: guard time or retry factor 0 disable guarding for the device.
-    if (a.guard_time_ms() == 0 || a.retry_factor() == 0) return SdoAbort::General;
-    guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
-    return SdoAbort::None;
-  };
-  if (sub == kAll) {
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      const auto n = static_cast<std::uint8_t>(node);
-      if (is_slave(n)) (void)apply(n);
-    }
-    return SdoAbort::None;
-  }
-  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
-  // §6.5: "The sub-index corresponding to its own node-ID shall be ignored."
-  if (sub == node_id.value()) return SdoAbort::None;
-  return apply(sub);
-}
-
-// --- SDO transfers
-// ----------------------------------------------------------------------------------
-
-SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
-                                                      TimePoint now) {
-  // Boot transfers beyond the window, before the pacing allows, or behind others that wait,
-  // wait too (pump_transfers), in order.
-  if (!transfer.for_application && (static_cast<double>(boot_transfers) >= std::floor(window) ||
-                                    now < paced_until || !waiting.empty())) {
-    waiting.emplace_back(node, std::move(transfer));
-    return 0;
-  }
-  return launch_transfer(node, std::move(transfer), now);
-}
-
-SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, MasterTransfer transfer,
-                                                       TimePoint now) {
-  if (!transfer.for_application) ++boot_transfers;
-  auto& client = clients.client(node);
-  const auto id = transfer.upload
-                      ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
-                      : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
-                                        transfer.options);
-  transfers[{node, id}] = std::move(transfer);
-  return id;
-}
-
-void NmtMaster::Impl::forget_transfer(
-    std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it) {
-  if (!it->second.for_application) --boot_transfers;
-  transfers.erase(it);
-}
-
-void NmtMaster::Impl::pump_transfers(TimePoint now) {
-  while (!waiting.empty() && static_cast<double>(boot_transfers) < std::floor(window) &&
-         now >= paced_until) {
-    auto [node, transfer] = std::move(waiting.front());
-    waiting.pop_front();
-    const auto& s = slaves[node];
-    if (!s.running || transfer.try_id != s.try_id) continue;  // its try ended meanwhile
-    launch_transfer(node, std::move(transfer), now);
-    if (options.bitrate != 0) return;  // settle() paces the next one after counting its frames
-  }
-}
-
-void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& out) {
-  const auto it = transfers.find({result.node_id, result.id});
-  if (it == transfers.end()) return;  // cancelled, or of an older boot try
-  MasterTransfer transfer = std::move(it->second);
-  forget_transfer(it);
-  const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
-  if (!transfer.for_application) {
-    // The window of boot transfers in flight: halved when a response does not come (frames
-    // lost, or a bus so full that lower-priority frames, heartbeats among them, starve), grown
-    // by one per window's worth of answers (additive increase, multiplicative decrease).
-    if (timed_out) {
-      window = std::max(1.0, window / 2);
-    } else {
-      window = std::min(kMaxWindow, window + 1.0 / window);
-    }
-  }
-  // A timeout the client detected is most likely a lost frame: repeat the transfer.
-  if (timed_out && transfer.retries_left > 0) {
-    --transfer.retries_left;
-    start_transfer(result.node_id, std::move(transfer), now);
-    return;
-  }
-  if (transfer.for_application) {
-    auto e = master_event(
-        MasterEvent::Kind::SdoFinished, now, result.node_id,
-        node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
-            (result.upload ? " upload " : " download ") +
-            (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
-    e.sdo = result;
-    e.sdo->id = transfer.application_id;
-    report(out, std::move(e));
-    return;
-  }
-  auto& s = slaves[result.node_id];
-  if (s.running && transfer.try_id == s.try_id) boot_sdo_result(result.node_id, result, now, out);
-}
-
-void NmtMaster::Impl::settle(TimePoint now, Output& out) {
-  for (;;) {
-    if (options.bitrate != 0 && !sdo_out.frames.empty()) {
-      // Each request and the answer it causes, at 125 bits each, within the load limit.
-      constexpr double kBitsPerFrame = 125;
-      const double seconds =
-          2 * kBitsPerFrame * static_cast<double>(sdo_out.frames.size()) /
-          (static_cast<double>(options.bitrate) * std::clamp(options.bus_load_limit, 0.05, 1.0));
-      paced_until = std::max(paced_until, now) + Duration{static_cast<std::int64_t>(seconds * 1e6)};
-    }
-    for (const auto& f : sdo_out.frames) out.send(f);
-    sdo_out.frames.clear();
-    for (auto& r : sdo_out.events) results.push_back(std::move(r));
-    sdo_out.events.clear();
-    if (!results.empty()) {
-      while (!results.empty()) {
-        const SdoResult r = std::move(results.front());
-        results.pop_front();
-        dispatch(r, now, out);
-      }
-      continue;
-    }
-    pump_transfers(now);
-    if (startup == StartupState::BootingSlaves) check_startup(now, out);
-    flush_nmt(now, out);
-    if (sdo_out.empty()) break;
-  }
-  for (const auto& f : deferred.frames) out.send(f);
-  for (auto& e : deferred.events) out.report(std::move(e));
-  deferred.clear();
 }
 
 void NmtMaster::Impl::report(Output& out, MasterEvent e) {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cfg/master_objects.hpp"
+#include "cfg/object_index.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_server.hpp"
@@ -231,6 +232,12 @@ struct NmtMaster::Impl {
 
 /// "node 3" (messages).
 std::string node_text(std::uint8_t node);
+/// The first up to 4 bytes of an upload, little-endian (UNSIGNED32 objects).
+std::uint32_t uploaded_u32(const SdoResult& result);
+/// "1018h sub 01h upload failed: 0x05040000 (SDO protocol timed out)".
+std::string transfer_failure(const SdoResult& result);
+/// An UNSIGNED32 value as download bytes.
+std::vector<std::uint8_t> u32_bytes(std::uint32_t value);
 /// An event with the fields every kind has.
 MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node, std::string text);
 

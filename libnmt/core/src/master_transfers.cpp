@@ -1,0 +1,124 @@
+// The SDO transfers of NmtMaster: those of the boot (windowed and paced, repeated after a
+// timeout) and those of the application, and settle(), which after every call dispatches their
+// results, moves their frames out, sends due NMT commands and moves start-up on.
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "cfg/object_address.hpp"
+#include "nmt_master_impl.hpp"
+
+namespace nmt {
+
+SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
+                                                      TimePoint now) {
+  // Boot transfers beyond the window, before the pacing allows, or behind others that wait,
+  // wait too (pump_transfers), in order.
+  if (!transfer.for_application && (static_cast<double>(boot_transfers) >= std::floor(window) ||
+                                    now < paced_until || !waiting.empty())) {
+    waiting.emplace_back(node, std::move(transfer));
+    return 0;
+  }
+  return launch_transfer(node, std::move(transfer), now);
+}
+
+SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, MasterTransfer transfer,
+                                                       TimePoint now) {
+  if (!transfer.for_application) ++boot_transfers;
+  auto& client = clients.client(node);
+  const auto id = transfer.upload
+                      ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
+                      : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
+                                        transfer.options);
+  transfers[{node, id}] = std::move(transfer);
+  return id;
+}
+
+void NmtMaster::Impl::forget_transfer(
+    std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it) {
+  if (!it->second.for_application) --boot_transfers;
+  transfers.erase(it);
+}
+
+void NmtMaster::Impl::pump_transfers(TimePoint now) {
+  while (!waiting.empty() && static_cast<double>(boot_transfers) < std::floor(window) &&
+         now >= paced_until) {
+    auto [node, transfer] = std::move(waiting.front());
+    waiting.pop_front();
+    const auto& s = slaves[node];
+    if (!s.running || transfer.try_id != s.try_id) continue;  // its try ended meanwhile
+    launch_transfer(node, std::move(transfer), now);
+    if (options.bitrate != 0) return;  // settle() paces the next one after counting its frames
+  }
+}
+
+void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& out) {
+  const auto it = transfers.find({result.node_id, result.id});
+  if (it == transfers.end()) return;  // cancelled, or of an older boot try
+  MasterTransfer transfer = std::move(it->second);
+  forget_transfer(it);
+  const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
+  if (!transfer.for_application) {
+    // The window of boot transfers in flight: halved when a response does not come (frames
+    // lost, or a bus so full that lower-priority frames, heartbeats among them, starve), grown
+    // by one per window's worth of answers (additive increase, multiplicative decrease).
+    if (timed_out) {
+      window = std::max(1.0, window / 2);
+    } else {
+      window = std::min(kMaxWindow, window + 1.0 / window);
+    }
+  }
+  // A timeout the client detected is most likely a lost frame: repeat the transfer.
+  if (timed_out && transfer.retries_left > 0) {
+    --transfer.retries_left;
+    start_transfer(result.node_id, std::move(transfer), now);
+    return;
+  }
+  if (transfer.for_application) {
+    auto e = master_event(
+        MasterEvent::Kind::SdoFinished, now, result.node_id,
+        node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
+            (result.upload ? " upload " : " download ") +
+            (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
+    e.sdo = result;
+    e.sdo->id = transfer.application_id;
+    report(out, std::move(e));
+    return;
+  }
+  auto& s = slaves[result.node_id];
+  if (s.running && transfer.try_id == s.try_id) boot_sdo_result(result.node_id, result, now, out);
+}
+
+void NmtMaster::Impl::settle(TimePoint now, Output& out) {
+  for (;;) {
+    if (options.bitrate != 0 && !sdo_out.frames.empty()) {
+      // Each request and the answer it causes, at 125 bits each, within the load limit.
+      constexpr double kBitsPerFrame = 125;
+      const double seconds =
+          2 * kBitsPerFrame * static_cast<double>(sdo_out.frames.size()) /
+          (static_cast<double>(options.bitrate) * std::clamp(options.bus_load_limit, 0.05, 1.0));
+      paced_until = std::max(paced_until, now) + Duration{static_cast<std::int64_t>(seconds * 1e6)};
+    }
+    for (const auto& f : sdo_out.frames) out.send(f);
+    sdo_out.frames.clear();
+    for (auto& r : sdo_out.events) results.push_back(std::move(r));
+    sdo_out.events.clear();
+    if (!results.empty()) {
+      while (!results.empty()) {
+        const SdoResult r = std::move(results.front());
+        results.pop_front();
+        dispatch(r, now, out);
+      }
+      continue;
+    }
+    pump_transfers(now);
+    if (startup == StartupState::BootingSlaves) check_startup(now, out);
+    flush_nmt(now, out);
+    if (sdo_out.empty()) break;
+  }
+  for (const auto& f : deferred.frames) out.send(f);
+  for (auto& e : deferred.events) out.report(std::move(e));
+  deferred.clear();
+}
+
+}  // namespace nmt
