@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -22,9 +23,13 @@
 
 namespace {
 
-void check(bool condition) {
-  if (!condition) std::abort();
+/// Aborts (a crash for libFuzzer) naming the check's line, so a finding says which rule broke.
+/// (A function with std::source_location would do, but clang 14 lacks it.)
+void fail_check(int line) {
+  std::fprintf(stderr, "fuzz_config_store: check at line %d failed\n", line);
+  std::abort();
 }
+#define check(condition) ((condition) ? void() : fail_check(__LINE__))
 
 const std::string& store_directory() {
   static const std::string dir = [] {
@@ -64,8 +69,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* input, std::size_t inp
     auto again =
         cfg::decode_store_entry(encoded, cfg::store_entry_file_name(entry->index, entry->node));
     check(again.ok() && *again == *entry);
-    if (entry->index == cfg::object::kConciseDcf ||
-        entry->index == cfg::object::kExpectedConfigurationDate) {
+    // The writer stores 1F22h and 1F26h raw; a file that holds them zlib-compressed (header byte
+    // 8) decodes to the same entry but is not the writer's form, so the bytes differ.
+    constexpr std::size_t kEncodingByte = 8;
+    const bool raw = size > kEncodingByte && data[kEncodingByte] == 0;
+    if (raw && (entry->index == cfg::object::kConciseDcf ||
+                entry->index == cfg::object::kExpectedConfigurationDate)) {
       check(encoded.size() == size && std::equal(encoded.begin(), encoded.end(), data));
     }
   }
