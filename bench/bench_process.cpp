@@ -8,6 +8,7 @@
 //
 //   cmake --build build --target bench_process
 //   build/bench/bench_process --runs 21 --baseline /path/to/baseline/build
+//   build/bench/bench_process --write-input /tmp/big.dcf   # only the file, for perf/heaptrack
 //
 // Not a Google Benchmark: the unit of work is a process, and the runner must see its exit.
 #include <fcntl.h>
@@ -109,18 +110,27 @@ Figures summarize(const std::vector<Sample>& samples) {
 int main(int argc, char** argv) {
   int runs = 15;
   std::string baseline;
+  std::string write_input;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--runs" && i + 1 < argc) {
       runs = std::max(1, static_cast<int>(std::strtol(argv[++i], nullptr, 10)));
     } else if (a == "--baseline" && i + 1 < argc) {
       baseline = argv[++i];
+    } else if (a == "--write-input" && i + 1 < argc) {
+      write_input = argv[++i];
     } else {
-      std::cerr << "usage: bench_process [--runs N] [--baseline BUILD_DIR]\n";
+      std::cerr << "usage: bench_process [--runs N] [--baseline BUILD_DIR] [--write-input FILE]\n";
       return 2;
     }
   }
 
+  if (!write_input.empty()) {
+    const std::string text = bench::generated_big_dcf();
+    std::ofstream out(write_input, std::ios::binary);
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    return out ? 0 : 2;
+  }
   std::string dir_template = (fs::temp_directory_path() / "bench_process.XXXXXX").string();
   if (mkdtemp(dir_template.data()) == nullptr) {
     std::perror("mkdtemp");

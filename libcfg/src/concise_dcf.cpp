@@ -395,6 +395,10 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
         "node-ID " + std::to_string(*node_id_) + " is out of range: CANopen node-IDs are 1..127");
     return std::nullopt;
   }
+  // At most one write per sub-object: one allocation instead of a doubling series.
+  std::size_t entries = 0;
+  for (const auto& [index, object] : dcf_.objects) entries += object.subs.size();
+  writes_.reserve(entries);
   for (const auto& [index, object] : dcf_.objects) {
     // 0001h-0FFFh define data types, they are not parameters (CiA 301 §7.4.1); 1010h/1011h
     // are store/restore commands, not configuration values.

@@ -12,6 +12,7 @@
 #include <bitset>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -117,8 +118,19 @@ struct RawKey {
 /// The keys of one object or sub-object section, by Key (nullptr: not given; the later of two
 /// wins).
 struct ObjectKeys {
-  std::array<const RawKey*, kKeyCount> slot{};
-  const RawKey* operator()(Key k) const { return slot[static_cast<std::size_t>(k)]; }
+  // Which slots are set; the slots themselves are left unset otherwise, so that a section does
+  // not start by clearing them (this runs once per section of the file).
+  std::uint32_t present = 0;
+  std::array<const RawKey*, kKeyCount> slot;  // NOLINT(cppcoreguidelines-pro-type-member-init)
+  const RawKey* operator()(Key k) const {
+    const auto i = static_cast<std::size_t>(k);
+    return (present >> i & 1U) != 0 ? slot[i] : nullptr;
+  }
+  void set(Key k, const RawKey* key) {
+    const auto i = static_cast<std::size_t>(k);
+    slot[i] = key;
+    present |= 1U << i;
+  }
 };
 
 // A sub-index keyed entry of [xxxxName]/[xxxxValue]/[xxxxDenotation].
@@ -226,11 +238,22 @@ class Reader final : public IniSink {
 
   Object& object(std::uint16_t index) {
     if (last_object_ == nullptr || last_object_index_ != index) {
-      last_object_ = &model_.objects[index];
+      auto [it, inserted] = model_.objects.try_emplace(index);
+      // The object's sub-objects go to the arena too (a default map is on the heap).
+      if (inserted) it->second.subs = SubObjects(model_.objects.get_allocator());
+      last_object_ = &it->second;
       last_object_->index = index;
       last_object_index_ = index;
     }
     return *last_object_;
+  }
+  // A value text of the model, kept in the arena (nullopt: none).
+  void set_text(OptionalText& field, const std::optional<std::string_view>& text) {
+    if (text) {
+      field.emplace_in(*arena_, *text);
+    } else {
+      field.reset();
+    }
   }
 
   // ---- sections (device_reader_sections.cpp)
@@ -299,6 +322,8 @@ class Reader final : public IniSink {
 
   ReadOptions options_;
   bool strict_ = false;
+  // The model's maps and value texts live here (cfg/model_memory.hpp), sealed after the read.
+  std::shared_ptr<ModelArena> arena_;
   DeviceDescription model_;
   std::vector<Diagnostic> diagnostics_;
   std::array<std::size_t, 3> suppressed_{};

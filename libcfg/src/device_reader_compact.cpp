@@ -2,12 +2,32 @@
 // expansion (CiA 306 §4.6.3.3), [xxxxName]/[xxxxValue]/[xxxxDenotation], SubNumber against the
 // sub-object sections, [xxxxObjectLinks].
 #include <algorithm>
+#include <array>
 
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
 #include "device_reader.hpp"
 
 namespace cfg::detail::reader {
+namespace {
+
+// `to = std::move(from)`, but the value texts keep their place in the arena: they are swapped,
+// where a move would copy them to the heap (OptionalText leaving a model).
+void move_entry(SubObject& to, SubObject& from) {
+  auto texts = [](SubObject& s) {
+    return std::array<OptionalText*, 7>{&s.default_value, &s.parameter_value, &s.low_limit,
+                                        &s.high_limit,    &s.denotation,      &s.upload_file,
+                                        &s.download_file};
+  };
+  std::array<OptionalText, 7> held;
+  const auto from_texts = texts(from);
+  for (std::size_t i = 0; i < held.size(); ++i) swap(held[i], *from_texts[i]);
+  to = std::move(from);
+  const auto to_texts = texts(to);
+  for (std::size_t i = 0; i < held.size(); ++i) swap(held[i], *to_texts[i]);
+}
+
+}  // namespace
 
 void Reader::sub_entry_key(SubEntrySection& s, std::string_view key, std::string_view value,
                            int line) {
@@ -74,11 +94,11 @@ void Reader::finish_object(std::uint16_t index, ObjectState& st) {
                           " and has no sub-objects; ignored");
       }
     }
-    SubObject entry = std::move(st.main);
+    SubObject& entry = obj.subs[0];
+    move_entry(entry, st.main);
     entry.sub_index = 0;
     entry.object_type = obj.object_type;
     entry.line = st.main_line;
-    obj.subs.emplace(0, std::move(entry));
     return;
   }
 
@@ -142,7 +162,7 @@ void Reader::expand_compact(Object& obj, ObjectState& st, const std::string& sec
   if (st.sub_number) {
     warn(st.sub_number_line, sec + " has both SubNumber and CompactSubObj; CompactSubObj is used");
   }
-  std::map<std::uint8_t, SubObject> explicit_subs = std::move(obj.subs);
+  SubObjects explicit_subs = std::move(obj.subs);
   obj.subs.clear();
   SubObject count;
   count.sub_index = 0;
@@ -213,7 +233,7 @@ void Reader::apply_values(Object& obj, ObjectState& st) {
     const std::string key = std::to_string(e.sub);
     RawKey raw{key, e.text, e.line};
     std::optional<Value> parsed;
-    sub->parameter_value = clean_value(name, raw, sub->data_type, &parsed);
+    set_text(sub->parameter_value, clean_value(name, raw, sub->data_type, &parsed));
     sub->parameter_value_line = sub->parameter_value ? e.line : 0;
     if (parsed && sub->basic_type()) {
       std::optional<Value> low, high;

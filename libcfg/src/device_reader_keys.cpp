@@ -2,6 +2,7 @@
 // attribute keys, DataType/AccessType/PDOMapping, DefaultValue/ParameterValue/limits checked
 // against the data type.
 #include <algorithm>
+#include <initializer_list>
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
@@ -28,10 +29,36 @@ bool equals_letters(std::string_view text, std::string_view letters) {
 }
 
 std::optional<Key> object_key(std::string_view name) {
-  for (std::size_t i = 0; i < kKeyCount; ++i) {
-    if (equals_letters(name, kKeyNames[i])) return static_cast<Key>(i);
+  if (name.empty()) return std::nullopt;
+  // By the first letter, so that a key line compares with one to four names, not fifteen.
+  auto one_of = [name](std::initializer_list<Key> keys) -> std::optional<Key> {
+    for (Key k : keys) {
+      if (equals_letters(name, kKeyNames[static_cast<std::size_t>(k)])) return k;
+    }
+    return std::nullopt;
+  };
+  switch (name.front() | 0x20) {
+    case 'a':
+      return one_of({Key::AccessType});
+    case 'c':
+      return one_of({Key::CompactSubObj});
+    case 'd':
+      return one_of({Key::DataType, Key::DefaultValue, Key::Denotation, Key::DownloadFile});
+    case 'h':
+      return one_of({Key::HighLimit});
+    case 'l':
+      return one_of({Key::LowLimit});
+    case 'o':
+      return one_of({Key::ObjectType, Key::ObjFlags});
+    case 'p':
+      return one_of({Key::ParameterName, Key::PDOMapping, Key::ParameterValue});
+    case 's':
+      return one_of({Key::SubNumber});
+    case 'u':
+      return one_of({Key::UploadFile});
+    default:
+      return std::nullopt;
   }
-  return std::nullopt;
 }
 
 }  // namespace
@@ -92,12 +119,11 @@ void Reader::close_object_section() {
       unknown_key(k);
       continue;
     }
-    const RawKey*& s = get.slot[static_cast<std::size_t>(*id)];
-    if (s != nullptr) {
+    if (const RawKey* s = get(*id)) {
       warn(k.line, where() + std::string(k.key) + " is given a second time (first at line " +
                        std::to_string(s->line) + "); the later value is used");
     }
-    s = &k;
+    get.set(*id, &k);
   }
 
   if (cur_.kind == Kind::Sub) {
@@ -211,11 +237,7 @@ void Reader::apply_entry(SubObject& s, const ObjectKeys& get, bool needs_type) {
   }
   auto text_key = [&](Key key, OptionalText& field) {
     if (const RawKey* k = get(key)) {
-      if (k->value.empty()) {
-        field.reset();
-      } else {
-        field.emplace(k->value);
-      }
+      set_text(field, k->value.empty() ? std::nullopt : std::optional(k->value));
     }
   };
   text_key(Key::Denotation, s.denotation);
@@ -226,7 +248,7 @@ void Reader::apply_entry(SubObject& s, const ObjectKeys& get, bool needs_type) {
   auto value_key = [&](Key key, OptionalText& field, std::optional<Value>& parsed,
                        int* line = nullptr) {
     if (const RawKey* k = get(key)) {
-      field = clean_value(cur_.name, *k, s.data_type, &parsed);
+      set_text(field, clean_value(cur_.name, *k, s.data_type, &parsed));
       if (line != nullptr) *line = field ? k->line : 0;
     }
   };

@@ -23,8 +23,14 @@ std::string one_line(std::string_view text) {
   return std::string(trim_blanks(out));
 }
 
+// Already what one_line() makes of it: nearly every text of a file, so no copy is made.
+bool is_one_line(std::string_view text) {
+  return text.find_first_of("\r\n") == std::string_view::npos &&
+         trim_blanks(text).size() == text.size();
+}
+
 void clean_text(std::string& text) {
-  text = one_line(text);
+  if (!is_one_line(text)) text = one_line(text);
 }
 
 void clean_text(OptionalText& text, bool drop_empty) {
@@ -145,7 +151,13 @@ void canonical_entry(SubObject& s, FileKind kind) {
   clean_text(s.name);
   for (OptionalText* v : {&s.default_value, &s.parameter_value, &s.low_limit, &s.high_limit}) {
     if (!*v) continue;
-    *v = detail::normalize_value(one_line(**v), s.data_type).text;
+    clean_text(**v);
+    auto normalized = detail::normalize_value(**v, s.data_type).text;
+    if (!normalized) {
+      v->reset();
+    } else if (*normalized != **v) {
+      **v = std::move(*normalized);
+    }
   }
   clean_text(s.denotation, true);
   clean_text(s.upload_file, true);
@@ -181,6 +193,7 @@ class Out {
     for (const auto& [k, v] : kv.entries) key(k, v);
   }
   std::string take() { return std::move(text_); }
+  std::size_t size() const { return text_.size(); }
   void reserve(std::size_t n) { text_.reserve(n); }
 
  private:
@@ -249,9 +262,37 @@ void write_commissioning(Out& out, const DeviceCommissioning& c) {
   out.key_values(c.other);
 }
 
-}  // namespace
+// canonical_form() of one object, in place; index 0000h is no object and is left to the caller.
+void canonical_object(std::uint16_t index, Object& obj, FileKind kind) {
+  obj.index = index;
+  clean_text(obj.name);
+  obj.compact_sub_obj.reset();
+  if (detail::var_like(obj.object_type)) {
+    SubObject entry;
+    if (SubObject* s = obj.sub(0)) entry = std::move(*s);
+    obj.subs.clear();
+    entry.sub_index = 0;
+    entry.name = obj.name;
+    entry.object_type = obj.object_type;
+    entry.obj_flags.reset();
+    canonical_entry(entry, kind);
+    obj.subs.emplace(0, std::move(entry));
+    obj.sub_number.reset();
+  } else {
+    for (auto& [sub, s] : obj.subs) {
+      s.sub_index = sub;
+      canonical_entry(s, kind);
+    }
+    if (obj.subs.size() <= 0xFF) {
+      obj.sub_number = static_cast<std::uint8_t>(obj.subs.size());
+    } else {
+      obj.sub_number.reset();
+    }
+  }
+}
 
-DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& options) {
+// canonical_form() of everything but the objects, in place.
+void canonical_file_parts(DeviceDescription& d, const WriteOptions& options) {
   if (options.stamp) apply_stamp(d.file_info, *options.stamp);
   d.file_info = canonical_key_values(d.file_info);
   d.device_info = canonical_key_values(d.device_info);
@@ -261,35 +302,6 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
   d.dummy_usage = canonical_key_values(d.dummy_usage);
   for (auto& [key, value] : d.dummy_usage.entries) cut_comment(value);
   for (std::string& line : d.comments) clean_text(line);
-
-  d.objects.erase(0);  // index 0000h is no object (CiA 301)
-  for (auto& [index, obj] : d.objects) {
-    obj.index = index;
-    clean_text(obj.name);
-    obj.compact_sub_obj.reset();
-    if (detail::var_like(obj.object_type)) {
-      SubObject entry;
-      if (SubObject* s = obj.sub(0)) entry = std::move(*s);
-      obj.subs.clear();
-      entry.sub_index = 0;
-      entry.name = obj.name;
-      entry.object_type = obj.object_type;
-      entry.obj_flags.reset();
-      canonical_entry(entry, options.kind);
-      obj.subs.emplace(0, std::move(entry));
-      obj.sub_number.reset();
-    } else {
-      for (auto& [sub, s] : obj.subs) {
-        s.sub_index = sub;
-        canonical_entry(s, options.kind);
-      }
-      if (obj.subs.size() <= 0xFF) {
-        obj.sub_number = static_cast<std::uint8_t>(obj.subs.size());
-      } else {
-        obj.sub_number.reset();
-      }
-    }
-  }
 
   if (options.kind == FileKind::Eds) {
     d.commissioning.reset();
@@ -321,36 +333,62 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
     merge_key_values(others[it->second].keys, section.keys);
   }
   d.other_sections = std::move(others);
+}
+
+void write_file_info(Out& out, const KeyValues& file_info) {
+  out.section("FileInfo");
+  out.key_values(file_info);
+}
+
+}  // namespace
+
+DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& options) {
+  canonical_file_parts(d, options);
+  d.objects.erase(0);  // index 0000h is no object (CiA 301)
+  for (auto& [index, obj] : d.objects) canonical_object(index, obj, options.kind);
   return d;
 }
 
 std::string write_device_description(const DeviceDescription& device, const WriteOptions& options) {
-  const DeviceDescription d = canonical_form(device, options);
+  // The file-level parts are copied and made canonical here; the objects, nearly all of a file,
+  // one at a time as they are written, so the model is never copied whole.
+  DeviceDescription head;
+  head.file_info = device.file_info;
+  head.device_info = device.device_info;
+  head.dummy_usage = device.dummy_usage;
+  head.commissioning = device.commissioning;
+  head.comments = device.comments;
+  head.other_sections = device.other_sections;
+  WriteOptions unstamped = options;
+  const bool stamp_on_change = options.stamp && options.stamp_only_if_changed_from;
+  if (stamp_on_change) unstamped.stamp.reset();
+  canonical_file_parts(head, unstamped);
+
   Out out(options.line_ending);
   std::size_t subs = 0;
-  for (const auto& [index, obj] : d.objects) subs += obj.subs.size() + 1;
+  for (const auto& [index, obj] : device.objects) subs += obj.subs.size() + 1;
   out.reserve(subs * 160 + 4096);
 
-  out.section("FileInfo");
-  out.key_values(d.file_info);
+  write_file_info(out, head.file_info);
+  const std::size_t file_info_end = out.size();
   out.section("DeviceInfo");
-  out.key_values(d.device_info);
-  if (!d.dummy_usage.entries.empty()) {
+  out.key_values(head.device_info);
+  if (!head.dummy_usage.entries.empty()) {
     out.section("DummyUsage");
-    out.key_values(d.dummy_usage);
+    out.key_values(head.dummy_usage);
   }
-  if (!d.comments.empty()) {
+  if (!head.comments.empty()) {
     out.section("Comments");
-    out.key("Lines", std::to_string(d.comments.size()));
-    for (std::size_t i = 0; i < d.comments.size(); ++i) {
-      out.key("Line" + std::to_string(i + 1), d.comments[i]);
+    out.key("Lines", std::to_string(head.comments.size()));
+    for (std::size_t i = 0; i < head.comments.size(); ++i) {
+      out.key("Line" + std::to_string(i + 1), head.comments[i]);
     }
   }
   // CiA 306 §4.5: the object lists, each with SupportedObjects and entries 1..n.
   for (ObjectList list : {ObjectList::Mandatory, ObjectList::Optional, ObjectList::Manufacturer}) {
     std::vector<std::uint16_t> indices;
-    for (const auto& [index, obj] : d.objects) {
-      if (object_list_for(index) == list) indices.push_back(index);
+    for (const auto& [index, obj] : device.objects) {
+      if (index != 0 && object_list_for(index) == list) indices.push_back(index);
     }
     out.section(to_string(list));
     out.key("SupportedObjects", std::to_string(indices.size()));
@@ -358,13 +396,29 @@ std::string write_device_description(const DeviceDescription& device, const Writ
       out.key(std::to_string(i + 1), hex(indices[i], 4));
     }
   }
-  for (const auto& [index, obj] : d.objects) write_object(out, obj, options.kind);
-  if (options.kind == FileKind::Dcf && d.commissioning) write_commissioning(out, *d.commissioning);
-  for (const RawSection& section : d.other_sections) {
+  for (const auto& [index, obj] : device.objects) {
+    if (index == 0) continue;  // index 0000h is no object (CiA 301)
+    Object copy = obj;
+    canonical_object(index, copy, options.kind);
+    write_object(out, copy, options.kind);
+  }
+  if (options.kind == FileKind::Dcf && head.commissioning) {
+    write_commissioning(out, *head.commissioning);
+  }
+  for (const RawSection& section : head.other_sections) {
     out.section(section.name);
     out.key_values(section.keys);
   }
-  return out.take();
+  std::string text = out.take();
+  if (stamp_on_change && text != *options.stamp_only_if_changed_from) {
+    // Only [FileInfo] carries the stamp: write that section again, the rest stays.
+    KeyValues stamped = device.file_info;
+    apply_stamp(stamped, *options.stamp);
+    Out file_info(options.line_ending);
+    write_file_info(file_info, canonical_key_values(stamped));
+    text.replace(0, file_info_end, file_info.take());
+  }
+  return text;
 }
 
 }  // namespace cfg

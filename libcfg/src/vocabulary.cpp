@@ -1,6 +1,5 @@
 // The shared vocabulary of both libraries: object addresses, little-endian bytes, hex digits and
 // integer literals (headers object_address.hpp, bytes.hpp, integer_literal.hpp).
-#include <charconv>
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
@@ -45,19 +44,27 @@ IntegerLiteralResult parse_integer_literal(std::string_view text) {
   }
   IntegerLiteralResult result;
   if (digits.empty()) return result;  // "", "0x"
+  // One pass: digits checked and accumulated together (this runs for nearly every value of a
+  // device file). A value past 64 bits is out of range only if every digit is valid.
+  const auto b = static_cast<std::uint64_t>(base);
+  std::uint64_t value = 0;
+  bool overflow = false;
   for (char c : digits) {
     const int d = hex_digit_value(c);
     if (d < 0 || d >= base) return result;  // "12abc", "08", "-1", "+1"
+    const auto digit = static_cast<std::uint64_t>(d);
+    // GCC and clang builtins: no division per digit.
+    if (__builtin_mul_overflow(value, b, &value) || __builtin_add_overflow(value, digit, &value)) {
+      overflow = true;
+    }
   }
-  IntegerLiteral lit;
-  lit.is_hex = base == 16;
-  const auto [end, ec] =
-      std::from_chars(digits.data(), digits.data() + digits.size(), lit.value, base);
-  if (ec == std::errc::result_out_of_range) {
+  if (overflow) {
     result.error = IntegerLiteralError::OutOfRange;
     return result;
   }
-  if (ec != std::errc{} || end != digits.data() + digits.size()) return result;
+  IntegerLiteral lit;
+  lit.is_hex = base == 16;
+  lit.value = value;
   result.literal = lit;
   return result;
 }

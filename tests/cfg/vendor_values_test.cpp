@@ -241,5 +241,51 @@ TEST(VendorValues, PythonCanopenTestEdsSpellings) {
   EXPECT_THAT(r.diagnostics.items()[0].message, HasSubstr("is not a valid DOMAIN"));
 }
 
+TEST(VendorValues, StringAndTimeSpellingsOfEditorsReachTheConciseDcf) {
+  // What the shared corpus shows beside lely's and python-canopen's forms above: editors write an
+  // empty VISIBLE_STRING as an empty key (`ParameterValue=`, CANopenEditor's export of an empty
+  // string), keep ';' inside a text (a device name), and the CiA 301 §7.1 time types also come
+  // as their raw 48-bit number, 0x-prefixed, decimal, or 'h'-suffixed as in CiA documents. Each
+  // is read as its value and becomes the bytes of CiA 301 §7.1 in the concise DCF (DSP 302 §6.2):
+  // the empty string a zero-length write, a text as its bytes, TIME_OF_DAY/TIME_DIFFERENCE 6
+  // bytes little-endian (ms in bits 0-27, days in bits 32-47).
+  const std::string text =
+      dcf(var("2010", "0x0009", "ParameterValue=") +
+              var("2011", "0x0009", "ParameterValue=Axis 1 ; left") +
+              var("2012", "0x000C", "ParameterValue=0x016D02932E00") +
+              var("2013", "0x000D", "ParameterValue=0") +
+              var("2014", "0x000C", "ParameterValue=0001 0000 0064h"),
+          "[ManufacturerObjects]\nSupportedObjects=5\n1=0x2010\n2=0x2011\n3=0x2012\n4=0x2013\n"
+          "5=0x2014\n");
+  auto r = parse(text);
+  ASSERT_TRUE(r.device) << r.diagnostics.format();
+  EXPECT_FALSE(r.diagnostics.has_errors()) << r.diagnostics.format();
+  const DeviceDescription& d = *r.device;
+  EXPECT_EQ(d.sub(0x2010, 0)->parameter_value, "");  // given, and empty: not "not given"
+  EXPECT_EQ(d.sub(0x2011, 0)->parameter_value, "Axis 1 ; left");
+  EXPECT_EQ(d.sub(0x2014, 0)->parameter_value, "0x000100000064");  // stored in 0x form
+  // 'h'-suffix hex is not CiA 306 syntax: one warning, on its line.
+  ASSERT_EQ(r.diagnostics.count(Severity::Warning), 1u) << r.diagnostics.format();
+  EXPECT_EQ(r.diagnostics.items()[0].line, line_of(text, "ParameterValue=0001 0000 0064h"));
+
+  ConciseOptions options;
+  Diagnostics diagnostics;
+  auto writes = concise_writes_from_dcf(d, options, diagnostics);
+  ASSERT_TRUE(writes) << diagnostics.format();
+  auto data_of = [&](std::uint16_t index) {
+    auto it = std::find_if(writes->begin(), writes->end(),
+                           [index](const ObjectWrite& w) { return w.index == index; });
+    EXPECT_NE(it, writes->end()) << index;
+    return it == writes->end() ? Bytes{} : it->data;
+  };
+  EXPECT_EQ(data_of(0x2010), Bytes{});
+  EXPECT_EQ(data_of(0x2011),
+            (Bytes{'A', 'x', 'i', 's', ' ', '1', ' ', ';', ' ', 'l', 'e', 'f', 't'}));
+  // 365 days (016Dh) and 43200000 ms (02932E00h): noon of the 365th day.
+  EXPECT_EQ(data_of(0x2012), (Bytes{0x00, 0x2E, 0x93, 0x02, 0x6D, 0x01}));
+  EXPECT_EQ(data_of(0x2013), (Bytes{0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(data_of(0x2014), (Bytes{0x64, 0x00, 0x00, 0x00, 0x01, 0x00}));
+}
+
 }  // namespace
 }  // namespace cfg

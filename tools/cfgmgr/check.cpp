@@ -140,9 +140,6 @@ void run_check(const CheckOptions& options) {
                 << ", " << tools::plural(report.objects, "object") << '\n';
     }
     reports.push_back(std::move(report));
-    // After the last file the process ends: let exit take that model back instead of freeing
-    // it node by node (earlier ones are freed, so many files do not add up).
-    if (&file == &options.files.back()) tools::keep_until_exit(std::move(read));
   }
   if (options.json) std::cout << json_report(reports, !any_unreadable && !any_errors);
   std::cout.flush();

@@ -65,19 +65,18 @@ void run_fmt(const FmtOptions& options) {
     write_options.kind = cfg::iequals(ext, ".eds") ? cfg::FileKind::Eds : cfg::FileKind::Dcf;
   }
   write_options.line_ending = options.lf ? cfg::LineEnding::Lf : cfg::LineEnding::Crlf;
-  std::string text = cfg::write_device_description(*read.device, write_options);
   // Stamp only a real change, so that formatting a canonical file leaves it byte-identical.
-  if (!options.no_stamp && text != input->view()) {
+  if (!options.no_stamp) {
     write_options.stamp = stamp_now();
-    std::string().swap(text);  // never both outputs in memory at once
-    text = cfg::write_device_description(*read.device, write_options);
+    write_options.stamp_only_if_changed_from = input->view();
   }
+  const std::string text = cfg::write_device_description(*read.device, write_options);
+  input->release();
+  read.device.reset();  // the model is written: give it back before the output is
   if (auto status = tools::write_output(options.output, text); !status) {
     std::cerr << status.error().message << '\n';
     exit_with(tools::exit_code_for(status.error()));
   }
-  // The process ends now: let exit take the model back instead of freeing it node by node.
-  tools::keep_until_exit(std::move(read));
 }
 
 }  // namespace

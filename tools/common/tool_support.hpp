@@ -158,18 +158,6 @@ inline int exit_code_for(const cfg::Error& error) {
   return error.category == cfg::ErrorCategory::Io ? kExitIo : kExitInputErrors;
 }
 
-/// Ends the tool's use of a large object without destroying it, when the process is about to
-/// exit: freeing a model of tens of thousands of nodes one by one costs more than reading the
-/// file did, and the kernel takes the whole heap back at exit at once (clang's -disable-free
-/// does the same with its syntax tree). The object stays reachable from a static list, so leak
-/// checkers do not report it. Only for the last use before exit: nothing is ever freed.
-template <class T>
-void keep_until_exit(T&& object) {
-  using Kept = std::remove_cvref_t<T>;
-  static auto* kept = new std::vector<std::unique_ptr<Kept>>();  // NOLINT: never freed, on purpose
-  kept->push_back(std::make_unique<Kept>(std::forward<T>(object)));
-}
-
 /// An I/O error (exit code 3) about `path`: "PATH: error: WHAT".
 inline cfg::Error io_error(const std::string& path, const std::string& what) {
   return cfg::Error{path + ": error: " + what, cfg::ErrorCategory::Io};

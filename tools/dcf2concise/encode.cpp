@@ -127,9 +127,6 @@ int run_encode(const EncodeOptions& options) {
     out += "], \"diagnostics\": " + tools::json_diagnostics(diagnostics) + "}\n";
     std::cout << out;
   }
-  // The process ends now: let exit take the model back instead of freeing it node by node.
-  tools::keep_until_exit(std::move(read));
-  tools::keep_until_exit(std::move(writes));
   return code;
 }
 

@@ -108,6 +108,11 @@ struct WriteOptions {
     std::string modified_by;
   };
   std::optional<Stamp> stamp;
+  /// With `stamp`: stamp only if the output without the stamp would differ from this text (a
+  /// tool that rewrites a file marks only a real change, so a canonical file stays
+  /// byte-identical). The text is only compared, during the call; the objects are written once
+  /// either way. canonical_form() ignores it.
+  std::optional<std::string_view> stamp_only_if_changed_from;
 };
 
 /// Writes the model as an EDS or DCF in canonical form: [FileInfo], [DeviceInfo], [DummyUsage],

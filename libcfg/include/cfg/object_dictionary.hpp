@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cfg/data_type.hpp"
+#include "cfg/model_memory.hpp"
 #include "cfg/optional_text.hpp"
 
 namespace cfg {
@@ -75,6 +76,11 @@ struct SubObject {
   bool operator==(const SubObject& other) const;
 };
 
+/// The sub-objects of an object by sub-index: a std::map whose nodes a model read from a file
+/// keeps in its arena (cfg/model_memory.hpp); used like any std::map.
+using SubObjects = std::map<std::uint8_t, SubObject, std::less<std::uint8_t>,
+                            ModelAllocator<std::pair<const std::uint8_t, SubObject>>>;
+
 struct Object {
   std::uint16_t index = 0;
   std::string name;  ///< ParameterName
@@ -85,7 +91,7 @@ struct Object {
   std::vector<std::uint16_t> object_links;      ///< [xxxxObjectLinks]
   /// VAR/DOMAIN: exactly one entry, at sub-index 0, with the object's data type, access and
   /// values. ARRAY/RECORD: the sub-objects, CompactSubObj already expanded.
-  std::map<std::uint8_t, SubObject> subs;
+  SubObjects subs;
   int line = 0;  ///< line of the [xxxx] section; 0 if not from a file
 
   bool is_var() const {
@@ -96,6 +102,10 @@ struct Object {
   SubObject* sub(std::uint8_t sub_index);
   bool operator==(const Object& other) const;  ///< every attribute but `line`
 };
+
+/// The objects of a device by index, a std::map like SubObjects.
+using Objects = std::map<std::uint16_t, Object, std::less<std::uint16_t>,
+                         ModelAllocator<std::pair<const std::uint16_t, Object>>>;
 
 /// A key=value section kept in file order with its keys' spelling ([FileInfo], [DeviceInfo],
 /// [DummyUsage], sections the model does not interpret). Keys compare case-insensitively.
@@ -138,7 +148,7 @@ struct DeviceDescription {
   KeyValues dummy_usage;                             ///< [DummyUsage]
   std::optional<DeviceCommissioning> commissioning;  ///< [DeviceComissioning]
   std::vector<std::string> comments;                 ///< [Comments] Line1..LineN
-  std::map<std::uint16_t, Object> objects;           ///< by index
+  Objects objects;                                   ///< by index
   std::vector<RawSection> other_sections;            ///< in file order
 
   const Object* object(std::uint16_t index) const;
