@@ -133,6 +133,15 @@ TEST(Store, PutDcfThenRmLeavesNothing) {
   auto get = cfgmgr(dir, {"store", "get", "2", "--what", "dcf", "--store", store});
   ASSERT_EQ(get.exit_code, 0) << get.err;
   EXPECT_EQ(get.out, tool_test::slurp(dcf));
+  auto listed = cfgmgr(dir, {"store", "list", "--json", "--store", store});
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  JsonParser parser(listed.out);
+  auto root = parser.parse();
+  ASSERT_TRUE(root.has_value()) << parser.error() << "\n" << listed.out;
+  const Json* two = node_entry(*root, 2);
+  ASSERT_NE(two, nullptr) << listed.out;
+  EXPECT_EQ(two->get("dcf_bytes")->number, static_cast<double>(tool_test::slurp(dcf).size()));
+  EXPECT_TRUE(two->get("concise_bytes")->is(Json::Kind::Null));
 
   auto rm = cfgmgr(dir, {"store", "rm", "2", "--store", store});
   ASSERT_EQ(rm.exit_code, 0) << rm.err;

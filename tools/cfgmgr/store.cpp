@@ -324,8 +324,7 @@ std::optional<std::size_t> size_or_empty(Store& store, std::uint16_t index, std:
   auto a = store.read(index, node);
   // DSP 302 §6.1/§6.5: nothing stored reads as 0800 0024h.
   if (a.abort == static_cast<std::uint32_t>(cfg::ConfigAbort::DataSetEmpty)) return std::nullopt;
-  must(std::move(a), index, node);
-  return a.data.size();
+  return must(std::move(a), index, node).data.size();
 }
 
 std::uint32_t read_u32(Store& store, std::uint16_t index, std::uint8_t node) {
