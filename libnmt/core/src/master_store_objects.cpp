@@ -144,7 +144,8 @@ SdoAbort NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
 
 SdoAbort NmtMaster::Impl::configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes,
                                            TimePoint now) {
-  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  // As request NMT: only the active master boots slaves (0800 0022 on a standby master).
+  if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   // A node the master does not boot cannot be configured by it (§3.4 a would end with A).
   if (sub != cfg::kConfigureAllNodes && !is_slave(sub)) return SdoAbort::General;
   Output& out = sink();
