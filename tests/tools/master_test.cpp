@@ -164,6 +164,31 @@ TEST(Master, AMasterDcfAloneBootsTheNodesItsFilesName) {
   EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
 }
 
+TEST(Master, AFlyingMasterDcfNegotiatesBeforeItBootsTheNetwork) {
+  // flying_master.dcf: 1F80h = 23h, 1F90h at its defaults (CiA 302-2 section 6.13: 100 ms
+  // timeout, 500 ms delay, priority 1, 1500 ms priority slot, 10 ms node slot). Alone on sim:,
+  // the master detects twice without answer (after power-on, then after its reset
+  // communication) and waits 1 x 1500 + 1 x 10 ms: active at 2 x (500 + 100) + 1510 ms.
+  ScratchDir dir;
+  const std::string events = dir / "events.jsonl";
+  auto r = cfgmgr(
+      dir, {"master", network("flying_master.dcf"), "--bus", "sim:", "--json-events", events});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("2.710  active NMT master: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
+  const auto lines = json_lines(events);
+  const auto active = events_of(lines, "active_master");
+  ASSERT_EQ(active.size(), 1U);
+  EXPECT_EQ(node_of(*active.front()), 1);
+  ASSERT_NE(active.front()->get("priority"), nullptr);
+  EXPECT_EQ(active.front()->get("priority")->number, 1.0);
+  EXPECT_EQ(active.front()->get("time_s")->number, 2.71);
+  EXPECT_GE(events_of(lines, "negotiation_began").size(), 2U);
+  const auto began = events_of(lines, "startup_began");
+  ASSERT_EQ(began.size(), 1U);
+  EXPECT_EQ(began.front()->get("time_s")->number, 2.71);
+}
+
 TEST(Master, TheSampleCellBootsOnTheSimulatedBus) {
   // samples/network/README.md: nodes 2, 3 and 4 of the sample cell.
   ScratchDir dir;
