@@ -322,3 +322,74 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
 }
 
 }  // namespace
+
+namespace {
+
+// Issue 12 over UDP: three `cfgmgr master` processes from flying_master.dcf (1F80h = 23h, 1F90h
+// defaults: all priority 1, so the lowest node-ID wins, CiA 302-2 §5.3) and node 2 as a
+// `cfgmgr simulate` process. The active master (node 1) is killed with SIGKILL; node 4, the
+// next in the waiting time order, misses its heartbeat (2 x 100 + 100 ms), resets all nodes,
+// wins the negotiation and boots the network again (§5.5.2); node 5 stands by for it.
+TEST(MasterInNetns, FlyingMastersTakeOverWhenTheActiveOneIsKilled) {
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string bus = "udp://239.74.163.2:43121";
+  tool_test::SpawnedTool devices(
+      "cfgmgr", {"simulate", "--bus", bus, "--for", "40", network("nodes/io_node2.dcf")},
+      dir / "sim.out", dir / "sim.err");
+  ASSERT_TRUE(devices.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  std::map<int, std::unique_ptr<tool_test::SpawnedTool>> masters;
+  auto events = [&dir](int node) { return dir / ("events" + std::to_string(node) + ".jsonl"); };
+  auto err = [&dir](int node) {
+    return tool_test::slurp(dir / ("master" + std::to_string(node) + ".err"));
+  };
+  for (int node : {1, 4, 5}) {
+    masters[node] = std::make_unique<tool_test::SpawnedTool>(
+        "cfgmgr",
+        std::vector<std::string>{"master", network("flying_master.dcf"), "--bus", bus, "--node-id",
+                                 std::to_string(node), "--json-events", events(node)},
+        dir / ("master" + std::to_string(node) + ".out"),
+        dir / ("master" + std::to_string(node) + ".err"));
+    ASSERT_TRUE(masters[node]->started());
+  }
+  // The number of `event` lines in `node`'s events, waiting up to `limit` for at least `count`.
+  const auto wait_for = [&](int node, const std::string& event, std::size_t count,
+                            std::chrono::seconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    std::size_t seen = 0;
+    while (std::chrono::steady_clock::now() < end) {
+      seen = events_of(json_lines(events(node)), event).size();
+      if (seen >= count) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return seen;
+  };
+  ASSERT_GE(wait_for(1, "startup_complete", 1, std::chrono::seconds(15)), 1U) << err(1);
+  ASSERT_GE(wait_for(4, "standby", 1, std::chrono::seconds(5)), 1U) << err(4);
+  ASSERT_GE(wait_for(5, "standby", 1, std::chrono::seconds(5)), 1U) << err(5);
+  EXPECT_EQ(events_of(json_lines(events(1)), "active_master").size(), 1U);
+  EXPECT_TRUE(events_of(json_lines(events(4)), "active_master").empty());
+  EXPECT_GE(wait_for(1, "slave_booted", 1, std::chrono::seconds(5)), 1U) << err(1);
+
+  masters.erase(1);  // SIGKILL: its frames stop
+  ASSERT_GE(wait_for(4, "active_master", 1, std::chrono::seconds(10)), 1U) << err(4);
+  ASSERT_GE(wait_for(4, "startup_complete", 1, std::chrono::seconds(10)), 1U) << err(4);
+  const auto after = json_lines(events(4));
+  EXPECT_FALSE(events_of(after, "active_master_lost").empty()) << err(4);
+  bool node2_booted = false;
+  for (const Json* e : events_of(after, "slave_booted")) node2_booted |= node_of(*e) == 2;
+  EXPECT_TRUE(node2_booted) << err(4);
+  EXPECT_NE(err(4).find("node 2: booted"), std::string::npos) << err(4);
+  // Node 5 stands by for node 4 now.
+  EXPECT_GE(wait_for(5, "standby", 2, std::chrono::seconds(5)), 2U) << err(5);
+  const auto standby5 = events_of(json_lines(events(5)), "standby");
+  EXPECT_EQ(node_of(*standby5.back()), 4);
+  for (int node : {4, 5}) {
+    const auto code = masters[node]->stop(SIGTERM, std::chrono::milliseconds(3000));
+    ASSERT_TRUE(code.has_value()) << err(node);
+    EXPECT_EQ(*code, 0) << err(node);
+  }
+}
+
+}  // namespace
