@@ -9,10 +9,12 @@
 #include <deque>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "cfg/config_manager.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "nmt/error_control.hpp"
@@ -77,6 +79,9 @@ struct SlaveBoot {
   bool cob_ids_checked = false;
 
   // Between tries.
+  /// 1F25h 'conf' asked for a download even when 1020h matches (DSP 302 §6.4 "request
+  /// re-configuration"); kept by the tries that follow until one ends with status OK.
+  bool reconfigure = false;
   bool tried = false;   ///< at least one try ended (the §3.3 signal)
   bool booted = false;  ///< the last try ended with status OK (or L)
   std::optional<BootError> last_error;
@@ -109,6 +114,19 @@ struct FlyingMaster {
   std::optional<Duration> watch;           ///< Standby: its heartbeat consumer time
   bool forced = false;       ///< sent 76h since it last stood by or won (DSP 302 §5.5.2 hint)
   unsigned force_tries = 0;  ///< 76h sent in a row without the reset they ask for
+};
+
+/// NMT master detection of a start-up capable device that starts all nodes (CiA 302-2 §5.1,
+/// DSP 302 §5.5.3.1, 1F91h): is there a device that will be the master?
+struct MasterDetection {
+  enum class Phase : std::uint8_t {
+    Off,
+    Delay,   // 1F91h sub 2 after entering pre-operational
+    Detect,  // 75h sent, a 74h within sub 1
+    Wait,    // no answer: node-ID x sub 3, then start all nodes
+  };
+  Phase phase = Phase::Off;
+  std::optional<TimePoint> deadline;
 };
 
 /// 1F90h, in the units of the engine.
@@ -167,6 +185,7 @@ struct NmtMaster::Impl {
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
 
   FlyingMaster flying;
+  MasterDetection detection;
 
   std::deque<std::pair<NmtCommand, std::uint8_t>> nmt_queue;
   std::optional<TimePoint> last_nmt;
@@ -183,7 +202,8 @@ struct NmtMaster::Impl {
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
   static void add_missing_objects(LocalDictionary& dict);
   static cfg::Status check_configuration_values(const LocalDictionary& dict);
-  /// 1F90h with its CiA 302-2 §6.13 defaults (sub 6: 4000 + 10 x node-ID).
+  /// 1F90h and 1F91h with their CiA 302-2 §6.13-§6.14 defaults (1F90h sub 6: 4000 + 10 x
+  /// node-ID; 1F91h: DSP 302 §5.5.6, 100, 500, 15 ms).
   static void add_flying_master_objects(LocalDictionary& dict, cfg::NodeId node);
   /// Why a 1F90h value is refused (priority above 2, priority slot not above 127 x node slot).
   static std::optional<std::string> flying_value_problem(const LocalDictionary& dict,
@@ -198,6 +218,27 @@ struct NmtMaster::Impl {
   std::optional<Duration> heartbeat_time(std::uint8_t node) const;
   cfg::ConfigurationStamp expected_configuration(std::uint8_t node) const;
   Duration nmt_inhibit_time() const;
+
+  // --- configuration manager objects 1F20h-1F27h (master_store_objects.cpp) ---------------
+  /// With MasterOptions::manager: the master DCF's own 1F22h streams by node-ID, used for a
+  /// node the manager holds no configuration for.
+  std::map<std::uint8_t, std::vector<std::uint8_t>> file_concise;
+  /// The entry whose value a read of 1F20h/1F22h/1F23h filled last (emptied at the next read, so
+  /// the dictionary keeps at most one copy of a stored file).
+  std::optional<std::pair<std::uint16_t, std::uint8_t>> store_read_entry;
+  /// Adds 1F20h-1F25h served from MasterOptions::manager and its hooks; nothing without one.
+  void install_store_objects();
+  /// The manager's 1F26h/1F27h of `node` when it holds anything for the node (a stamp or a
+  /// configuration); nullopt without a manager or when it holds nothing (the dictionary's
+  /// values apply).
+  std::optional<cfg::ConfigurationStamp> stored_stamp(std::uint8_t node) const;
+  SdoAbort store_read(std::uint16_t index, std::uint8_t sub);
+  SdoAbort store_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                       TimePoint now);
+  /// 1F25h: boot (and download to) every slave the manager named.
+  SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now);
+  /// The master's own 1F22h stream of `node` (the DCF's value); empty when none.
+  std::span<const std::uint8_t> own_concise_dcf(std::uint8_t node) const;
 
   // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
   void power_on(TimePoint now, Output& out);
@@ -233,6 +274,11 @@ struct NmtMaster::Impl {
   bool flying_frame(const CanFrame& frame, TimePoint now, Output& out);
   void flying_timer(TimePoint now, Output& out);
   std::optional<TimePoint> flying_deadline() const;
+  /// §5.1: a self-starting device with 1F80h bit 1 starts all nodes only when no master-capable
+  /// device answers (with 1F91h; without it at once).
+  void start_all_when_no_master(TimePoint now);
+  bool detection_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void detection_timer(TimePoint now, Output& out);
   void flying_restart(TimePoint now);
   void flying_wait(TimePoint now, Output& out, const std::string& why);
   void flying_win(TimePoint now, Output& out);
@@ -296,6 +342,9 @@ struct NmtMaster::Impl {
   std::optional<std::vector<cfg::ObjectWrite>> configuration_of(std::uint8_t node) const;
 };
 
+/// An entry of the master's own objects with `value` in the type's size (0 bytes for DOMAIN).
+DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
+                           cfg::DataType type, cfg::AccessType access, std::uint64_t value);
 /// "node 3" (messages).
 std::string node_text(std::uint8_t node);
 /// The first up to 4 bytes of an upload, little-endian (UNSIGNED32 objects).
