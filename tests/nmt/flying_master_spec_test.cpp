@@ -596,6 +596,21 @@ TEST(FlyingMasterSpec, ThreeMastersBestWinsAndBootsTheNetwork_5_3_1_3_7_h) {
   EXPECT_EQ(rig.slave_state(3), NmtState::Operational);
 }
 
+// §5.2.1: the service checks "if there is a CANopen device in the network available that is in
+// NMT master mode": only the active master answers, the standby masters stay silent.
+TEST(FlyingMasterSpec, OnlyTheActiveMasterAnswers73h_5_2_1) {
+  FlyRig rig;
+  start_together(rig, {{4, 1}, {5, 0}, {6, 2}});
+  ASSERT_TRUE(rig.run_until_settled_on(5, 15s));
+  rig.bus.run_for(1s);
+  const TimePoint asked = rig.bus.now();
+  rig.send_foreign("073#");
+  rig.bus.run_for(300ms);
+  auto answers = rig.on_id(kId71, asked);
+  ASSERT_EQ(answers.size(), 1U);
+  EXPECT_EQ(answers[0].text(), reply_71(0, 5));
+}
+
 // §5.3 / DSP 302 §5.5.1.3: "If the device receives again an 'ID trigger timeslot' the timers
 // have to be restarted." A foreign 72h during the wait postpones the 71h by as much.
 TEST(FlyingMasterSpec, AnotherTriggerRestartsTheWaitingTime_DSP302_5_5_1_3) {
@@ -738,30 +753,58 @@ TEST(FlyingMasterSpec, ActiveMasterSends76hEvery1F90Sub6WithoutResettingItself_5
 // set to 0." The new master is the best of the rest (§5.3.1), and its 71h comes at the latest
 // the heartbeat consumer time (1016h, configured per NOTE 2) + sub 2 + sub 1 + its waiting time
 // after the dead master's last heartbeat.
-TEST(FlyingMasterSpec, FailoverWithinConsumerTimePlusNegotiationAfterHeartbeatStops_5_5_2) {
+struct FailoverCase {
+  std::vector<Contender> masters;
+  std::uint8_t dead;  // the first active master, killed
+  std::uint8_t heir;  // the best of the rest (§5.3.1)
+  std::uint16_t consumer_ms;
+  std::uint16_t delay_ms;    // 1F90h sub 2
+  std::uint16_t timeout_ms;  // 1F90h sub 1
+  std::uint16_t priority_slot_ms;
+  std::uint16_t device_slot_ms;
+};
+
+void expect_failover(const FailoverCase& c) {
   FlyRig rig;
-  constexpr std::uint16_t kConsumer = 250;
-  rig.watch_masters({4, 5, 6}, kConsumer);
-  start_together(rig, {{4, 1}, {5, 0}, {6, 0}});
-  ASSERT_TRUE(rig.run_until_settled_on(5, 15s));
-  ASSERT_TRUE(
-      rig.bus.run_until([&] { return rig.master(5).startup_state() == StartupState::Operational; },
-                        rig.bus.now() + 10s));
+  std::vector<std::uint8_t> nodes;
+  for (const auto& m : c.masters) nodes.push_back(m.node);
+  std::uint8_t entry = 10;
+  for (auto node : nodes) {
+    set_value(rig.dcf, 0x1016, entry++, std::uint32_t{node} << 16U | c.consumer_ms);
+  }
+  rig.add_slave(2);
+  rig.add_slave(3);
+  rig.bus.run_for(50ms);
+  const Timing timing{.timeout = c.timeout_ms,
+                      .delay = c.delay_ms,
+                      .priority_slot = c.priority_slot_ms,
+                      .device_slot = c.device_slot_ms};
+  std::uint16_t heir_priority = 0;
+  for (const auto& m : c.masters) {
+    rig.add_master(m.node, m.priority, timing);
+    if (m.node == c.heir) heir_priority = m.priority;
+  }
+  for (const auto& m : c.masters) rig.start(m.node);
+  ASSERT_TRUE(rig.run_until_settled_on(c.dead, 20s));
+  ASSERT_TRUE(rig.bus.run_until(
+      [&] { return rig.master(c.dead).startup_state() == StartupState::Operational; },
+      rig.bus.now() + 10s));
   rig.bus.run_for(2s);
 
-  rig.kill(5);
+  rig.kill(c.dead);
   const TimePoint killed = rig.bus.now();
-  ASSERT_TRUE(rig.run_until_settled_on(6, 10s));
-  auto heartbeats = rig.on_id(0x705);
+  ASSERT_TRUE(rig.run_until_settled_on(c.heir, 20s));
+  rig.bus.run_for(10ms);  // the heir's 71h, sent when it decided, is on the bus
+  auto heartbeats = rig.on_id(0x700U + c.dead);
   ASSERT_FALSE(heartbeats.empty());
   const TimePoint last_heartbeat = heartbeats.back().at;
   EXPECT_LE(last_heartbeat, killed);
 
-  auto won = rig.first(reply_71(0, 6), killed);
+  auto won = rig.first(reply_71(heir_priority, c.heir), killed);
   ASSERT_TRUE(won.has_value());
-  const Duration wait = waiting_time(0, 6, kDefaultPrioritySlot, kDefaultDeviceSlot);
-  const Duration bound = ms(kConsumer) + ms(kDefaultDelay) + ms(kDefaultTimeout) + wait;
-  EXPECT_GE(won->at - last_heartbeat, ms(kConsumer)) << "before the heartbeat consumer time";
+  const Duration wait = waiting_time(heir_priority, c.heir, c.priority_slot_ms, c.device_slot_ms);
+  const Duration bound = ms(c.consumer_ms) + ms(c.delay_ms) + ms(c.timeout_ms) + wait;
+  EXPECT_GE(won->at - last_heartbeat, ms(c.consumer_ms)) << "before the heartbeat consumer time";
   EXPECT_LE(won->at - last_heartbeat, bound + 20ms);
   auto trigger = rig.last_trigger_before(won->at);
   ASSERT_TRUE(trigger.has_value());
@@ -771,18 +814,35 @@ TEST(FlyingMasterSpec, FailoverWithinConsumerTimePlusNegotiationAfterHeartbeatSt
   auto reset = rig.first_on(kNmtCobId, killed);
   ASSERT_TRUE(reset.has_value());
   EXPECT_EQ(reset->text(), "000#8200");
-  EXPECT_GE(reset->at - last_heartbeat, ms(kConsumer));
+  EXPECT_GE(reset->at - last_heartbeat, ms(c.consumer_ms));
   EXPECT_LT(reset->at, won->at);
-  EXPECT_FALSE(rig.events_of(6, Kind::ActiveMasterLost).empty());
-  EXPECT_EQ(rig.events_of(6, Kind::ActiveMasterLost).front().node_id, 5);
+  auto lost = rig.events_of(c.heir, Kind::ActiveMasterLost);
+  ASSERT_FALSE(lost.empty());
+  EXPECT_EQ(lost.front().node_id, c.dead);
 
-  EXPECT_EQ(rig.master(4).active_master(), id(6));
-  ASSERT_TRUE(
-      rig.bus.run_until([&] { return rig.master(6).startup_state() == StartupState::Operational; },
-                        rig.bus.now() + 10s));
+  // The heir's NMT start-up brings the network back to operational.
+  ASSERT_TRUE(rig.bus.run_until(
+      [&] { return rig.master(c.heir).startup_state() == StartupState::Operational; },
+      rig.bus.now() + 10s));
   rig.bus.run_for(500ms);
   EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
   EXPECT_EQ(rig.slave_state(3), NmtState::Operational);
+  EXPECT_TRUE(rig.settled_on(c.heir));
+}
+
+TEST(FlyingMasterSpec, FailoverWithinConsumerTimePlusNegotiationAfterHeartbeatStops_5_5_2) {
+  {
+    SCOPED_TRACE("3 masters, Table 50 defaults");
+    expect_failover({{{4, 1}, {5, 0}, {6, 0}}, 5, 6, 250, 500, 100, 1500, 10});
+  }
+  {
+    SCOPED_TRACE("2 masters, short delay and timeout");
+    expect_failover({{{7, 0}, {3 + 20, 2}}, 7, 23, 300, 200, 50, 1300, 10});
+  }
+  {
+    SCOPED_TRACE("3 masters, the heir by node-ID at equal priority");
+    expect_failover({{{9, 1}, {12, 1}, {11, 1}}, 9, 11, 200, 300, 80, 800, 6});
+  }
 }
 
 // Issue 12 with §3.1 d and §3.5: after a takeover the new master resets a keep-alive slave that is
@@ -926,6 +986,34 @@ TEST(FlyingMasterSpec, DISABLED_LoserDoesNotForceAgainAfterLosingTwice_DSP302_5_
   // And no further negotiation in the last 20 s: no reset communication, no trigger.
   EXPECT_EQ(rig.count("000#8200", rig.bus.now() - 20s), 0U);
   EXPECT_TRUE(rig.on_id(kId72, rig.bus.now() - 20s).empty());
+}
+
+// Issue 12 / §5.5.2 under 1 % frame loss: the active master dies; the remaining masters end with
+// one active master they agree on, and the network operational again.
+TEST(FlyingMasterSpec, OnePercentFrameLossFailoverEndsWithOneActiveMaster_5_5_2) {
+  for (std::uint64_t seed : {11U, 12U, 13U, 14U, 15U, 16U}) {
+    SCOPED_TRACE(seed);
+    FlyRig rig;
+    rig.watch_masters({4, 5, 6}, 250);
+    rig.bus.set_loss_rate(0.01, seed);
+    start_together(rig, {{4, 1}, {5, 0}, {6, 2}});
+    rig.bus.run_for(20s);
+    std::optional<std::uint8_t> first;
+    for (std::uint8_t node : NodeList{4, 5, 6}) {
+      if (rig.settled_on(node)) first = node;
+    }
+    ASSERT_TRUE(first.has_value()) << "no single active master before the failure";
+    rig.kill(*first);
+    rig.bus.run_for(30s);
+    std::optional<std::uint8_t> heir;
+    for (std::uint8_t node : NodeList{4, 5, 6}) {
+      if (node != *first && rig.settled_on(node)) heir = node;
+    }
+    ASSERT_TRUE(heir.has_value()) << "no single active master after the failure of " << int{*first};
+    EXPECT_EQ(rig.master(*heir).startup_state(), StartupState::Operational);
+    EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
+    EXPECT_EQ(rig.slave_state(3), NmtState::Operational);
+  }
 }
 
 // ---------------------------------------------------------- §3.1 a, Table 16: self starting --
