@@ -124,6 +124,14 @@ class FlyRig {
     if (timing.detect_cycle) put(6, *timing.detect_cycle);
     return slot->engine();
   }
+  /// The usual scene: slaves 2 and 3 on at once, master `node` built and powered on 50 ms later.
+  void slaves_then_master(std::uint8_t node, std::uint16_t priority, Timing timing = {}) {
+    add_slave(2);
+    add_slave(3);
+    bus.run_for(50ms);
+    add_master(node, priority, timing);
+    start(node);
+  }
   /// Power-on of a master at the bus time.
   void start(std::uint8_t node) {
     auto& slot = *masters_.at(node);
@@ -282,12 +290,8 @@ TEST(FlyingMasterSpec, PowerOnWaitsNegotiationDelayThenRequests73hWithoutData_3_
   for (std::uint16_t delay : {std::uint16_t{500}, std::uint16_t{200}}) {
     SCOPED_TRACE(delay);
     FlyRig rig;
-    rig.add_slave(2);
-    rig.add_slave(3);
-    rig.bus.run_for(50ms);
-    rig.add_master(4, 1, {.delay = delay});
+    rig.slaves_then_master(4, 1, {.delay = delay});
     const TimePoint t0 = rig.bus.now();
-    rig.start(4);
     rig.bus.run_for(ms(delay) + 50ms);
     auto request = rig.first_on(kId73);
     ASSERT_TRUE(request.has_value());
@@ -308,11 +312,7 @@ TEST(FlyingMasterSpec, PowerOnWaitsNegotiationDelayThenRequests73hWithoutData_3_
 // (DSP 302 Figure 16), and after the waiting time the 71h with priority and node-ID (§3.7 h).
 TEST(FlyingMasterSpec, PowerOnWithoutActiveMasterResetsAllThenNegotiatesWarm_3_7_d_e_h) {
   FlyRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.bus.run_for(50ms);
-  rig.add_master(4, 1, {.timeout = 150});
-  rig.start(4);
+  rig.slaves_then_master(4, 1, {.timeout = 150});
   rig.bus.run_for(6s);
 
   auto request = rig.first_on(kId73);
@@ -357,11 +357,8 @@ TEST(FlyingMasterSpec, NegotiationWaitsPriorityTimesSlotPlusNodeIdTimesSlot_5_3_
     SCOPED_TRACE("priority " + std::to_string(c.priority) + " node " + std::to_string(c.node) +
                  " slots " + std::to_string(c.priority_slot) + "/" + std::to_string(c.device_slot));
     FlyRig rig;
-    rig.add_slave(2);
-    rig.bus.run_for(50ms);
-    rig.add_master(c.node, c.priority,
-                   {.priority_slot = c.priority_slot, .device_slot = c.device_slot});
-    rig.start(c.node);
+    rig.slaves_then_master(c.node, c.priority,
+                           {.priority_slot = c.priority_slot, .device_slot = c.device_slot});
     rig.bus.run_for(10s);
     auto won = rig.first_on(kId71);
     ASSERT_TRUE(won.has_value());
@@ -401,11 +398,7 @@ TEST(FlyingMasterSpec, MasterCapableDevicesAnswer75hWith74h_5_1) {
     SCOPED_TRACE(startup);
     FlyRig rig;
     set_value(rig.dcf, 0x1F80, 0, startup);
-    rig.add_slave(2);
-    rig.add_slave(3);
-    rig.bus.run_for(50ms);
-    rig.add_master(4, 1);
-    rig.start(4);
+    rig.slaves_then_master(4, 1);
     rig.bus.run_for(8s);
     const TimePoint asked = rig.bus.now();
     rig.send_foreign("075#");
@@ -504,10 +497,7 @@ TEST(FlyingMasterSpec, Object1F90hPrioritySlotMustExceed127DeviceSlots_6_13) {
 // A 1F90h value written over SDO is the one the next negotiation uses (§5.3.1 formula).
 TEST(FlyingMasterSpec, Object1F90hWrittenOverSdoGovernsTheNegotiation_6_13_5_3_1) {
   FlyRig rig;
-  rig.add_slave(2);
-  rig.bus.run_for(50ms);
-  rig.add_master(6, 1);
-  rig.start(6);
+  rig.slaves_then_master(6, 1);
   Tool tool(rig.bus, 6);
   ASSERT_EQ(tool.write(0x1F90, 3, 2, 2).abort, SdoAbort::None);
   ASSERT_EQ(tool.write(0x1F90, 4, 1300, 2).abort, SdoAbort::None);
@@ -615,10 +605,7 @@ TEST(FlyingMasterSpec, OnlyTheActiveMasterAnswers73h_5_2_1) {
 // have to be restarted." A foreign 72h during the wait postpones the 71h by as much.
 TEST(FlyingMasterSpec, AnotherTriggerRestartsTheWaitingTime_DSP302_5_5_1_3) {
   FlyRig rig;
-  rig.add_slave(2);
-  rig.bus.run_for(50ms);
-  rig.add_master(4, 1);
-  rig.start(4);
+  rig.slaves_then_master(4, 1);
   ASSERT_TRUE(
       rig.bus.run_until([&] { return rig.first_on(kId72).has_value(); }, rig.bus.now() + 10s));
   const TimePoint first = rig.first_on(kId72)->at;
@@ -642,11 +629,7 @@ TEST(FlyingMasterSpec, AnotherTriggerRestartsTheWaitingTime_DSP302_5_5_1_3) {
 // enter the NMT slave mode" — no reset, no negotiation, no force.
 TEST(FlyingMasterSpec, LateMasterWithLowerPriorityYields_3_7_f) {
   FlyRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.bus.run_for(50ms);
-  rig.add_master(6, 0);
-  rig.start(6);
+  rig.slaves_then_master(6, 0);
   ASSERT_TRUE(rig.run_until_settled_on(6, 10s));
   rig.bus.run_for(3s);
   rig.add_master(4, 2);
@@ -679,11 +662,7 @@ TEST(FlyingMasterSpec, LateMasterWithLowerPriorityYields_3_7_f) {
 // again and the better master wins.
 TEST(FlyingMasterSpec, LateMasterWithHigherPriorityForcesNegotiationAndWins_3_7_g_5_4) {
   FlyRig rig;
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.bus.run_for(50ms);
-  rig.add_master(6, 2);
-  rig.start(6);
+  rig.slaves_then_master(6, 2);
   ASSERT_TRUE(rig.run_until_settled_on(6, 10s));
   rig.bus.run_for(1s);
   rig.add_master(4, 0);
@@ -722,11 +701,7 @@ TEST(FlyingMasterSpec, ActiveMasterSends76hEvery1F90Sub6WithoutResettingItself_5
   for (std::optional<std::uint16_t> cycle : {kDefault, std::optional<std::uint16_t>{1500}}) {
     SCOPED_TRACE(cycle.value_or(0));
     FlyRig rig;
-    rig.add_slave(2);
-    rig.add_slave(3);
-    rig.bus.run_for(50ms);
-    rig.add_master(4, 1, {.detect_cycle = cycle});
-    rig.start(4);
+    rig.slaves_then_master(4, 1, {.detect_cycle = cycle});
     ASSERT_TRUE(rig.run_until_settled_on(4, 10s));
     const TimePoint active = rig.bus.now();
     rig.bus.run_for(15s);
@@ -1018,24 +993,26 @@ TEST(FlyingMasterSpec, OnePercentFrameLossFailoverEndsWithOneActiveMaster_5_5_2)
 
 // ---------------------------------------------------------- §3.1 a, Table 16: self starting --
 
+// A device that is no NMT master takes no part in the flying master process (§3.1 a, b).
+void expect_no_flying_master_frames(const FlyRig& rig) {
+  for (std::uint32_t flying : {kId71, kId72, kId73, kId76}) {
+    EXPECT_TRUE(rig.on_id(flying).empty()) << hex_text(flying);
+  }
+}
+
 // §3.1 a: "If the CANopen device is configured as self-starting device, it shall enter the NMT
 // state Operational automatically"; Table 16: 0000 1000b. It is no NMT master: it sends no NMT
 // command and takes no part in the flying master process.
 TEST(FlyingMasterSpec, SelfStartingDeviceGoesOperationalWithoutNmtCommands_3_1_a_Table16) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kNoStartSlaves);
-  rig.add_slave(2);
-  rig.bus.run_for(50ms);
-  rig.add_master(4, 1);
-  rig.start(4);
+  rig.slaves_then_master(4, 1);
   rig.bus.run_for(3s);
   EXPECT_EQ(rig.master(4).state(), NmtState::Operational);
   EXPECT_EQ(rig.master(4).startup_state(), StartupState::NotMaster);
   EXPECT_FALSE(rig.master(4).active_master().has_value());
   EXPECT_TRUE(rig.on_id(kNmtCobId).empty());
-  for (std::uint32_t flying : {kId71, kId72, kId73, kId76}) {
-    EXPECT_TRUE(rig.on_id(flying).empty()) << hex_text(flying);
-  }
+  expect_no_flying_master_frames(rig);
   EXPECT_EQ(rig.slave_state(2), NmtState::PreOperational);
 }
 
@@ -1044,20 +1021,14 @@ TEST(FlyingMasterSpec, SelfStartingDeviceGoesOperationalWithoutNmtCommands_3_1_a
 TEST(FlyingMasterSpec, StartingDeviceStartsAllNodes_Table16) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kStartAllNodes);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.bus.run_for(50ms);
-  rig.add_master(4, 1);
-  rig.start(4);
+  rig.slaves_then_master(4, 1);
   rig.bus.run_for(3s);
   EXPECT_EQ(rig.count("000#0100"), 1U);
   EXPECT_EQ(rig.master(4).startup_state(), StartupState::NotMaster);
   EXPECT_EQ(rig.master(4).state(), NmtState::Operational);
   EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
   EXPECT_EQ(rig.slave_state(3), NmtState::Operational);
-  for (std::uint32_t flying : {kId71, kId72, kId73, kId76}) {
-    EXPECT_TRUE(rig.on_id(flying).empty()) << hex_text(flying);
-  }
+  expect_no_flying_master_frames(rig);
 }
 
 // §5.1: "The service shall be initiated by the CANopen device after the CANopen device switched
@@ -1071,12 +1042,8 @@ TEST(FlyingMasterSpec, StartingDeviceStartsAllNodes_Table16) {
 TEST(FlyingMasterSpec, DISABLED_StartingDeviceDetectsMastersBeforeStartingAll_5_1) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kStartAllNodes);
-  rig.add_slave(2);
-  rig.add_slave(3);
-  rig.bus.run_for(50ms);
-  rig.add_master(4, 1);
+  rig.slaves_then_master(4, 1);
   const TimePoint powered = rig.bus.now();
-  rig.start(4);
   rig.bus.run_for(3s);
   auto start = rig.first("000#0100");
   ASSERT_TRUE(start.has_value()) << "no start remote node with node-ID 0";
@@ -1097,15 +1064,12 @@ TEST(FlyingMasterSpec, DISABLED_StartingDeviceDetectsMastersBeforeStartingAll_5_
 TEST(FlyingMasterSpec, DISABLED_StartingDeviceLeavesTheNetworkToAnAnsweringMaster_5_1) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kStartAllNodes);
-  rig.add_slave(2);
-  rig.bus.run_for(50ms);
-  rig.add_master(4, 1);
   // A master-capable device that only answers the detection.
   FunctionNode capable([](FunctionNode& self, const CanFrame& f, TimePoint) {
     if (f.id == kId75 && !f.extended) self.send(*from_candump("074#"));
   });
   rig.bus.attach(capable);
-  rig.start(4);
+  rig.slaves_then_master(4, 1);
   rig.bus.run_for(3s);
   EXPECT_EQ(rig.count("000#0100"), 0U);
   EXPECT_EQ(rig.slave_state(2), NmtState::PreOperational);
