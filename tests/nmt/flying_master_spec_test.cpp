@@ -624,17 +624,23 @@ TEST(FlyingMasterSpec, AnotherTriggerRestartsTheWaitingTime_DSP302_5_5_1_3) {
 
 // ---------------------------------------------------------- §3.7 f, g / §5.4: late masters --
 
+// `first` alone becomes the active master; `after` that, `late` powers on (returns when).
+TimePoint join_late(FlyRig& rig, Contender first, Duration after, Contender late) {
+  rig.slaves_then_master(first.node, first.priority);
+  EXPECT_TRUE(rig.run_until_settled_on(first.node, 10s));
+  rig.bus.run_for(after);
+  rig.add_master(late.node, late.priority);
+  const TimePoint joined = rig.bus.now();
+  rig.start(late.node);
+  return joined;
+}
+
 // §3.7 f: "In case a confirmation for the service active NMT master detection is received and
 // the priority of the active NMT master is greater then the own priority the CANopen device shall
 // enter the NMT slave mode" — no reset, no negotiation, no force.
 TEST(FlyingMasterSpec, LateMasterWithLowerPriorityYields_3_7_f) {
   FlyRig rig;
-  rig.slaves_then_master(6, 0);
-  ASSERT_TRUE(rig.run_until_settled_on(6, 10s));
-  rig.bus.run_for(3s);
-  rig.add_master(4, 2);
-  const TimePoint joined = rig.bus.now();
-  rig.start(4);
+  const TimePoint joined = join_late(rig, {6, 0}, 3s, {4, 2});
   ASSERT_TRUE(rig.run_until_settled_on(6, 5s));
   rig.bus.run_for(1s);
   auto request = rig.first_on(kId73, joined);
@@ -662,12 +668,7 @@ TEST(FlyingMasterSpec, LateMasterWithLowerPriorityYields_3_7_f) {
 // again and the better master wins.
 TEST(FlyingMasterSpec, LateMasterWithHigherPriorityForcesNegotiationAndWins_3_7_g_5_4) {
   FlyRig rig;
-  rig.slaves_then_master(6, 2);
-  ASSERT_TRUE(rig.run_until_settled_on(6, 10s));
-  rig.bus.run_for(1s);
-  rig.add_master(4, 0);
-  const TimePoint joined = rig.bus.now();
-  rig.start(4);
+  const TimePoint joined = join_late(rig, {6, 2}, 1s, {4, 0});
   ASSERT_TRUE(rig.run_until_settled_on(4, 10s));
 
   auto answer = rig.first_on(kId71, joined);
