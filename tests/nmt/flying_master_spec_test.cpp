@@ -1037,10 +1037,7 @@ TEST(FlyingMasterSpec, StartingDeviceStartsAllNodes_Table16) {
 // 02h) ... In case no confirmation is received [within 1F91h sub 1] the CANopen device ... may
 // execute the NMT service Start remote node ... after ... wait time = Node-ID x Node time slot"
 // (1F91h sub 3; defaults 100, 500, 15 ms, Table 52); DSP 302 Figure 19: 75h without data.
-// DISABLED: the engine sends 000#0100 at power-on (0.2 ms after it), with no 75h and no wait;
-// the header does not offer NMT master detection for self-starting devices (§5.1 says a device
-// "may" initiate it: a missing optional service, but Table 16's start then ignores a master).
-TEST(FlyingMasterSpec, DISABLED_StartingDeviceDetectsMastersBeforeStartingAll_5_1) {
+TEST(FlyingMasterSpec, StartingDeviceDetectsMastersBeforeStartingAll_5_1) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kStartAllNodes);
   rig.slaves_then_master(4, 1);
@@ -1061,8 +1058,7 @@ TEST(FlyingMasterSpec, DISABLED_StartingDeviceDetectsMastersBeforeStartingAll_5_
 // §5.1 (DSP 302 §5.5.3.1: "If one or more devices answer ... the requesting device knows that
 // there exist at least one device with the capability to become NMT master"; only "If there is no
 // response from any device, the requesting device will send the NMT command 'Start Network'").
-// DISABLED: as above, the engine starts all nodes at power-on, master-capable device or not.
-TEST(FlyingMasterSpec, DISABLED_StartingDeviceLeavesTheNetworkToAnAnsweringMaster_5_1) {
+TEST(FlyingMasterSpec, StartingDeviceLeavesTheNetworkToAnAnsweringMaster_5_1) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kStartAllNodes);
   // A master-capable device that only answers the detection.
@@ -1076,12 +1072,33 @@ TEST(FlyingMasterSpec, DISABLED_StartingDeviceLeavesTheNetworkToAnAnsweringMaste
   EXPECT_EQ(rig.slave_state(2), NmtState::PreOperational);
 }
 
+// DSP 302 §5.5.3.1: "To avoid several start commands when a group of startup-capable nodes of
+// the same type is switched on, the devices have a node-ID-based waiting period": of two such
+// devices powered on together, the lower node-ID starts the network, the other sends nothing.
+TEST(FlyingMasterSpec, TwoStartingDevicesSendOneStartAll_DSP302_5_5_3_1) {
+  FlyRig rig;
+  set_value(rig.dcf, 0x1F80, 0, Startup::kStartAllNodes);
+  rig.add_slave(2);
+  rig.add_slave(3);
+  rig.bus.run_for(50ms);
+  rig.add_master(6, 1);
+  rig.add_master(4, 1);
+  const TimePoint powered = rig.bus.now();
+  rig.start(6);
+  rig.start(4);
+  rig.bus.run_for(3s);
+  ASSERT_EQ(rig.count("000#0100"), 1U);
+  auto start = rig.first("000#0100");
+  // 1F91h sub 2 + sub 1 + 4 x sub 3 (Table 52 defaults) after power-on: node 4's.
+  EXPECT_GE(start->at - powered, 500ms + 100ms + 4 * 15ms - kSlack);
+  EXPECT_LE(start->at - powered, 500ms + 100ms + 4 * 15ms + kSlack);
+  EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
+}
+
 // §6.14 Table 51: 1F91h "Mandatory for CANopen devices supporting self starting"; Table 52:
 // sub 0 = 03h, sub 1 = 100, sub 2 = 500, sub 3 = 15 (ms); DSP 302 §5.5.6: "Mandatory, for
 // startup-capable devices".
-// DISABLED: a self-starting NmtMaster (1F80h = 08h) has no 1F91h: every read is aborted
-// 0602 0000h (object does not exist); NmtMaster::create adds 1F90h but not 1F91h.
-TEST(FlyingMasterSpec, DISABLED_SelfStartingDeviceHas1F91hWithTable52Defaults_6_14) {
+TEST(FlyingMasterSpec, SelfStartingDeviceHas1F91hWithTable52Defaults_6_14) {
   FlyRig rig;
   set_value(rig.dcf, 0x1F80, 0, Startup::kNoStartSlaves);
   rig.add_slave(2);
