@@ -198,6 +198,42 @@ TEST(NmtMasterStore, ConfDownloadsEvenWhenVerifyConfigurationMatches) {
   EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
 }
 
+// The re-configuration request outlives a failed try: node 5 does not answer when 'conf' comes
+// (status B), and the retry (§3.3, an optional slave every retry_interval) still downloads
+// although 1020h matches.
+TEST(NmtMasterStore, ConfStillDownloadsOnTheRetryAfterAFailedTry) {
+  constexpr std::uint32_t kDate = 0x3A99;
+  constexpr std::uint32_t kTime = 0x01234567;
+  auto eds = slave_eds();
+  set_value(eds, 0x1020, 1, kDate);
+  set_value(eds, 0x1020, 2, kTime);
+  auto manager = std::make_shared<cfg::ConfigManager>();
+  const auto node = *cfg::NodeId::from(kNode);
+  ASSERT_TRUE(manager->put_concise(node, kStream));
+  ASSERT_TRUE(manager->set_expected_stamp(node, {kDate, kTime}));
+  StoreRig s(manager, eds);
+  s.start();
+  ASSERT_TRUE(s.rig.downloads_of(kNode, 0x2000, 0).empty());
+
+  s.rig.set_faults(kNode, absent_device());
+  const TimePoint from = s.rig.bus.now();
+  ASSERT_TRUE(s.rig.tool_write(0x1F25, kNode, conf_bytes()).ok());
+  ASSERT_TRUE(s.rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::BootError && e.node_id == kNode && e.at >= from &&
+               e.error == BootError::B;
+      },
+      10s));
+  s.rig.set_faults(kNode, {});
+  ASSERT_TRUE(s.rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::SlaveBooted && e.node_id == kNode && e.at >= from;
+      },
+      10s));
+  EXPECT_EQ(s.rig.downloads_of(kNode, 0x2000, 0, from).size(), 1U);
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
+}
+
 // §6.4: only 'conf' starts the process ("To avoid accidental access"); another value is refused
 // and nothing is sent to the node. 0800 0020h: CiA 301 "data cannot be transferred or stored".
 TEST(NmtMasterStore, ConfigureSlaveWithAnotherValueThanConfIsRefused) {

@@ -77,11 +77,11 @@ struct SlaveBoot {
   bool keep_alive_operational = false;
   bool left_to_application = false;  ///< 1F81h bit 2 clear: booted without configuration
   bool cob_ids_checked = false;
-  /// 1F25h 'conf' asked for this try: download even when 1020h matches (DSP 302 §6.4
-  /// "request re-configuration").
-  bool reconfigure = false;
 
   // Between tries.
+  /// 1F25h 'conf' asked for a download even when 1020h matches (DSP 302 §6.4 "request
+  /// re-configuration"); kept by the tries that follow until one ends with status OK.
+  bool reconfigure = false;
   bool tried = false;   ///< at least one try ended (the §3.3 signal)
   bool booted = false;  ///< the last try ended with status OK (or L)
   std::optional<BootError> last_error;
