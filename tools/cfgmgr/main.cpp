@@ -27,6 +27,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_simulate_command(app);
   cfgmgr::add_master_command(app);
   cfgmgr::add_push_command(app);
+  cfgmgr::add_diff_command(app);
 
   try {
     app.parse(argc, argv);
