@@ -28,6 +28,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_master_command(app);
   cfgmgr::add_push_command(app);
   cfgmgr::add_diff_command(app);
+  cfgmgr::add_build_command(app);
 
   try {
     app.parse(argc, argv);
