@@ -510,14 +510,15 @@ TEST(NmtMasterSpec, RequestGuardingStartsAndStopsGuarding) {
 
 // §6.2: "An attempt to change a bit of a functionality that is not supported by the CANopen device
 // shall be responded with an abort message (abort code: 0800 0000h or 0609 0030h)"; bits 7-31 are
-// reserved (DSP 302 §5.1). Header: bit 5 (flying master) is not supported: 0609 0030.
-TEST(NmtMasterSpec, NmtStartupAbortsReservedAndUnsupportedBits) {
+// reserved (DSP 302 §5.1). Bit 5 (flying master) is supported and accepted.
+TEST(NmtMasterSpec, NmtStartupAbortsReservedBits) {
   Operational net;
   auto& rig = net.rig;
   rig.expect_writes_refused(0x1F80, 0, {0x00000081U, 0x00000101U, 0x00010001U, 0x80000001U}, 4);
-  EXPECT_EQ(rig.tool_write_u(0x1F80, 0, Startup::kMaster | Startup::kFlyingMaster, 4),
-            SdoAbort::ValueRangeExceeded);
   EXPECT_EQ(rig.tool_read_u(0x1F80, 0), 0x01U);
+  EXPECT_EQ(rig.tool_write_u(0x1F80, 0, Startup::kMaster | Startup::kFlyingMaster, 4),
+            SdoAbort::None);
+  EXPECT_EQ(rig.tool_read_u(0x1F80, 0), 0x21U);
   EXPECT_EQ(rig.tool_write_u(0x1F80, 0, 0x03, 4), SdoAbort::None);
   EXPECT_EQ(rig.tool_read_u(0x1F80, 0), 0x03U);
 }

@@ -293,23 +293,37 @@ TEST(NmtMasterSpec, StartupCapableDeviceWithBit1SendsStartAllNodes) {
   EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
 }
 
-// §3.1 b needs the flying master negotiation (§5.3), not implemented (header): start-up is refused
-// with a message and nothing is sent to the network.
-// Disabled on main (run it with --gtest_also_run_disabled_tests): NmtMaster::create() fails on
-// 1F80h bit 5 ("the NMT flying master is not supported yet"), so StartupState::Refused and
-// StartupRefused are never reached.
-TEST(NmtMasterSpec, FlyingMasterBit5RefusesStartup) {
+// §3.1 b with 1F80h bit 5: NMT flying master start-up (§3.7) first. Alone on the bus (no other
+// master-capable device) the master waits 1F90h sub 2 (500 ms), detects (73h) without answer
+// within sub 1 (100 ms), resets communication of all nodes after power-on (§3.7 d), does it again
+// warm (500 + 100 ms), triggers the negotiation (72h), waits 1 x 1500 + 1 x 10 ms (§5.3, the
+// defaults of §6.13 and priority 1) and only then answers 71h and begins NMT start-up.
+TEST(NmtMasterSpec, FlyingMasterBit5NegotiatesBeforeStartup) {
   MasterRig rig;
-  rig.startup(Startup::kMaster | Startup::kFlyingMaster);
+  rig.startup(Startup::kMaster | Startup::kFlyingMaster | Startup::kStartAllNodes);
   rig.add_slave(2);
   auto& master = rig.power_on_network();
-  rig.run_for(2s);
-
-  EXPECT_EQ(master.startup_state(), StartupState::Refused);
-  auto refused = rig.events_of(Kind::StartupRefused);
-  ASSERT_EQ(refused.size(), 1U);
-  EXPECT_FALSE(refused.front().text.empty());
-  EXPECT_TRUE(rig.nmt().empty());
+  EXPECT_EQ(master.startup_state(), StartupState::Negotiating);
+  rig.run_for(500ms + 100ms + 500ms + 100ms + 1510ms - 1ms);
+  EXPECT_EQ(master.startup_state(), StartupState::Negotiating);
+  EXPECT_TRUE(rig.events_of(Kind::StartupBegan).empty());
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 5s));
+  rig.run_for(100ms);
+  const auto t0 = rig.started_at;
+  const auto requests = rig.on_id(0x73);
+  ASSERT_EQ(requests.size(), 2U);
+  EXPECT_GE(requests[0].at - t0, 500ms);
+  const auto won = rig.on_id(0x71);
+  ASSERT_EQ(won.size(), 1U);
+  EXPECT_EQ(won[0].text(), "071#0101");  // priority 1, node 1 (DSP 302 §5.5.1.3)
+  EXPECT_GE(won[0].at - t0, 2710ms);
+  EXPECT_LT(won[0].at - t0, 2720ms);
+  EXPECT_EQ(rig.events_of(Kind::ActiveMaster).size(), 1U);
+  EXPECT_EQ(master.active_master(), id(kMaster));
+  // The power-on reset (§3.7 d), then NMT start-up's own (§3.1 d), then start of node 2 (node 3
+  // is absent, so not every slave booted: §3.1 h).
+  EXPECT_EQ(rig.nmt(), (std::vector<std::string>{"000#8200", "000#8200", "000#0102"}));
+  EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
 }
 
 // 102Ah (§6.1): "The outstanding NMT services shall be queued and shall be issued in order of

@@ -85,9 +85,10 @@ void add_master_command(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   cmd->add_option("--json-events", options->json_events,
                   "Also write every event as one JSON object a line: time_s, event "
-                  "(slave_booted, boot_error, heartbeat_lost, boot_up, startup_complete, ...), "
-                  "node_id, text, and per event error/description/final, configured/entries/"
-                  "bytes, assigned, step, state, command")
+                  "(slave_booted, boot_error, heartbeat_lost, boot_up, startup_complete, "
+                  "active_master, standby, ...), node_id, text, and per event error/"
+                  "description/final, configured/entries/bytes, assigned, step, state, command, "
+                  "priority")
       ->type_name("FILE");
   cmd->footer(std::string(
       "Without a master DCF, every present node is a mandatory slave that is booted and "
@@ -97,7 +98,10 @@ void add_master_command(CLI::App& app) {
       "Events, one a line on stderr, seconds since the start first: node N: booted, "
       "configured (E entries, B bytes) / booted (configuration up to date) / reconfigured / "
       "boot error X: <CiA 302-2 Table 1 text> / heartbeat lost / node guarding lost / boot-up "
-      "seen; NMT start-up complete / halted.\n\n"
+      "seen; NMT start-up complete / halted. With 1F80h bit 5 in the master DCF the master takes "
+      "part in the NMT flying master negotiation (CiA 302-2 section 3.7; 1F90h sets its "
+      "priority and timing) and says who is active and why: active NMT master / node N is the "
+      "active NMT master / force / multiple masters / heartbeat of the active master lost.\n\n"
       "Examples:\n"
       "  cfgmgr master samples/network/nodelist.cpj --bus sim:\n"
       "  cfgmgr master samples/network/nodelist.cpj --bus sim:?loss=0.01 --run-for 5\n"

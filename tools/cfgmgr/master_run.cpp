@@ -184,6 +184,13 @@ void EventReporter::report(const nmt::MasterEvent& e) {
     case K::BootUp:
       line = node + "boot-up seen" + (e.assigned ? "" : " (not a slave of this master)");
       break;
+    case K::ActiveMaster:
+    case K::Standby:
+    case K::ForceNegotiation:
+    case K::MultipleMasters:
+    case K::ActiveMasterLost:
+      line = e.text;  // flying master: who is active and why
+      break;
     default:
       if (verbose_) line = e.text;
       break;
@@ -225,6 +232,14 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
       break;
     case K::NmtCommandSent:
       if (e.command) out += ", \"command\": " + tools::json_string(nmt::to_string(*e.command));
+      break;
+    case K::NegotiationBegan:
+    case K::ActiveMaster:
+    case K::Standby:
+    case K::ForceNegotiation:
+    case K::MultipleMasters:
+    case K::ActiveMasterLost:
+      if (e.priority) out += ", \"priority\": " + std::to_string(*e.priority);
       break;
     default:
       break;

@@ -1,6 +1,7 @@
 // The NMT master's own objects (CiA 302-2 §6): the ones a master DCF lacks get their defaults,
 // and SDO writes get the §6 value checks; 1F82h/1F83h writes are requests (request NMT and
 // request guarding, §6.4-6.5), their reads report.
+#include <array>
 #include <string>
 
 #include "cfg/bytes.hpp"
@@ -122,15 +123,58 @@ void NmtMaster::Impl::add_missing_objects(LocalDictionary& dict) {
   }
 }
 
+void NmtMaster::Impl::add_flying_master_objects(LocalDictionary& dict, cfg::NodeId node) {
+  if (dict.has_object(obj::kFlyingMasterParameters)) return;
+  // CiA 302-2 §6.13, Table 50, in ms; the priority's default is manufacturer-specific: 1
+  // (medium), so a device can be made more or less important than its peers.
+  struct Sub {
+    const char* name;
+    std::uint32_t value;
+  };
+  const std::array<Sub, 6> subs{{
+      {"NMT master timeout", 100},
+      {"NMT master negotiation time delay", 500},
+      {"NMT master priority", 1},
+      {"Priority time slot", 1500},
+      {"CANopen device time slot", 10},
+      {"Multiple NMT master detect cycle time", 4000 + 10 * std::uint32_t{node.value()}},
+  }};
+  dict.insert(make_entry(obj::kFlyingMasterParameters, 0, "Highest sub-index supported",
+                         cfg::DataType::Unsigned8, cfg::AccessType::Const, subs.size()));
+  for (std::size_t i = 0; i < subs.size(); ++i) {
+    dict.insert(make_entry(obj::kFlyingMasterParameters, static_cast<std::uint8_t>(i + 1),
+                           subs[i].name, cfg::DataType::Unsigned16, cfg::AccessType::Rw,
+                           subs[i].value));
+  }
+}
+
+std::optional<std::string> NmtMaster::Impl::flying_value_problem(const LocalDictionary& dict,
+                                                                 std::uint8_t sub,
+                                                                 std::uint32_t value) {
+  // §6.13, Table 48: 0 high, 1 medium, 2 low; 3..FFFFh reserved.
+  if (sub == 3 && value > 2) return "priority " + std::to_string(value) + " is reserved (0..2)";
+  if (sub == 4 || sub == 5) {
+    // §6.13: "Priority time slot > 127 x CANopen device time slot", so the priority orders
+    // the masters before the node-ID does.
+    auto current = [&](std::uint8_t s) {
+      return dict.get_unsigned(obj::kFlyingMasterParameters, s).value_or(0);
+    };
+    const std::uint64_t priority_slot = sub == 4 ? value : current(4);
+    const std::uint64_t node_slot = sub == 5 ? value : current(5);
+    if (priority_slot <= 127 * node_slot) {
+      return "priority time slot " + std::to_string(priority_slot) +
+             " ms must exceed 127 x the CANopen device time slot " + std::to_string(node_slot) +
+             " ms";
+    }
+  }
+  return std::nullopt;
+}
+
 namespace {
 
-/// §6.2: reserved bits of 1F80h, and the flying master, which this master does not support
-/// (Table 13: a functionality that is not supported is refused).
+/// §6.2: reserved bits of 1F80h.
 std::optional<std::string> startup_problem(std::uint32_t value) {
   if ((value & ~cfg::NmtStartup::kDefinedBits) != 0) return "reserved bits 7-31 are set";
-  if ((value & cfg::NmtStartup::kFlyingMaster) != 0) {
-    return "bit 5 (flying master) is set; the NMT flying master is not supported yet";
-  }
   return std::nullopt;
 }
 
@@ -142,12 +186,18 @@ bool assignment_reserved(std::uint32_t value) {
 }  // namespace
 
 cfg::Status NmtMaster::Impl::check_configuration_values(const LocalDictionary& dict) {
-  // Reserved bits are an error of the file; the flying master bit is refused at start-up
-  // (StartupRefused), where it would be decided.
+  // Reserved bits are an error of the file.
   const auto startup = dict.get_unsigned(obj::kNmtStartup, 0).value_or(0);
   if ((startup & ~std::uint64_t{cfg::NmtStartup::kDefinedBits}) != 0) {
     return cfg::Error{cfg::to_string({obj::kNmtStartup, 0}) + ": reserved bits 7-31 are set (" +
                       cfg::hex(static_cast<std::uint32_t>(startup), 8) + ")"};
+  }
+  for (std::uint8_t sub = 3; sub <= 5; ++sub) {
+    const auto value = static_cast<std::uint32_t>(
+        dict.get_unsigned(obj::kFlyingMasterParameters, sub).value_or(0));
+    if (auto problem = flying_value_problem(dict, sub, value)) {
+      return cfg::Error{cfg::to_string({obj::kFlyingMasterParameters, sub}) + ": " + *problem};
+    }
   }
   for (unsigned sub = 1; sub <= cfg::kMaxNodeId; ++sub) {
     const auto value =
@@ -185,6 +235,8 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
       return startup_problem(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
     case obj::kSlaveAssignment:
       return sub != 0 && assignment_reserved(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
+    case obj::kFlyingMasterParameters:
+      return flying_value_problem(dict, sub, value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
     case obj::kRequestNmt:
       return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now);
     case obj::kRequestGuarding:
@@ -234,7 +286,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
   const auto command = requested_command(value);
   // §6.4: a reserved value is refused with 0609 0030.
   if (!command) return SdoAbort::ValueRangeExceeded;
-  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   const bool excluding = (value & 0x80) != 0;
   // §6.4: 84h-8Fh need the requester's node-ID; unknown: 0800 0000.
   if (excluding && !requester) return SdoAbort::General;
@@ -278,7 +330,7 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
   constexpr std::uint8_t kAll = 0x80;
   // §6.5, Table 31: 0 stop, 1 start; the rest is reserved.
   if (value > 1) return SdoAbort::ValueRangeExceeded;
-  if (!startup_config().is_master()) return SdoAbort::DeviceState;
+  if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   auto apply = [&](std::uint8_t node) {
     if (!is_slave(node)) return SdoAbort::General;
     if (value == 0) {

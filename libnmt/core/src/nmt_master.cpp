@@ -97,6 +97,10 @@ std::string_view to_string(StartupState state) {
       return "not master";
     case StartupState::Refused:
       return "refused";
+    case StartupState::Negotiating:
+      return "negotiating";
+    case StartupState::Standby:
+      return "standby";
     case StartupState::BootingSlaves:
       return "booting slaves";
     case StartupState::Halted:
@@ -148,6 +152,18 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "application_step";
     case K::SdoFinished:
       return "sdo_finished";
+    case K::NegotiationBegan:
+      return "negotiation_began";
+    case K::ActiveMaster:
+      return "active_master";
+    case K::Standby:
+      return "standby";
+    case K::ForceNegotiation:
+      return "force_negotiation";
+    case K::MultipleMasters:
+      return "multiple_masters";
+    case K::ActiveMasterLost:
+      return "active_master_lost";
   }
   return "?";
 }
@@ -199,6 +215,7 @@ cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& descripti
   auto dict = LocalDictionary::from_device(description, node_id);
   if (!dict) return dict.error();
   Impl::add_missing_objects(dict.value());
+  Impl::add_flying_master_objects(dict.value(), node_id);
   if (auto checked = Impl::check_configuration_values(dict.value()); !checked) {
     return checked.error();
   }
@@ -250,6 +267,10 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     }
   }
   if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
+  if (m.flying_frame(frame, now, out)) {
+    m.settle(now, out);
+    return true;
+  }
   if (auto message = parse_error_control(frame)) {
     Outbox<NodeGuardingEvent> guard_out;
     m.guarding.on_frame(frame, now, guard_out);
@@ -288,6 +309,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     for (const auto& f : server_out.frames) out.send(f);
   }
   m.clients.on_timer(now, m.sdo_out);
+  m.flying_timer(now, out);
   {
     Outbox<NoEvent> producer_out;
     m.producer.on_timer(now, producer_out);
@@ -326,6 +348,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.producer.next_deadline());
   due = earliest(due, m.heartbeats.next_deadline());
   due = earliest(due, m.guarding.next_deadline());
+  due = earliest(due, m.flying_deadline());
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     due = earliest(due, m.slaves[node].deadline);
   }
@@ -438,6 +461,18 @@ NmtState NmtMaster::state() const {
 StartupState NmtMaster::startup_state() const {
   return impl_->startup;
 }
+std::optional<cfg::NodeId> NmtMaster::active_master() const {
+  const auto& m = *impl_;
+  if (m.flying.phase == FlyingMaster::Phase::Off) {
+    if (m.startup == StartupState::Off || m.startup == StartupState::NotMaster) return std::nullopt;
+    return m.node_id;
+  }
+  if (m.flying.phase != FlyingMaster::Phase::Active &&
+      m.flying.phase != FlyingMaster::Phase::Standby) {
+    return std::nullopt;
+  }
+  return cfg::NodeId::from(m.flying.active);
+}
 std::uint8_t NmtMaster::known_state(cfg::NodeId node) const {
   return impl_->slaves[node].known_state;
 }
@@ -479,6 +514,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     s = SlaveBoot{};
     s.known_state = held_state;
   }
+  if (!config.is_master() || !config.flying_master()) flying = FlyingMaster{};
   // §3.1 a: not the master. Table 16: a self-starting device goes operational by itself, and
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
@@ -491,33 +527,16 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     }
     return;
   }
-  // §3.1 b: the flying master negotiation would decide here; not supported (create() and the
-  // 1F80h write check refuse bit 5), so a master that gets here is the only master.
-  if (config.flying_master()) {
-    startup = StartupState::Refused;
-    report(out, master_event(MasterEvent::Kind::StartupRefused, now, 0,
-                             "1F80h bit 5: the NMT flying master is not supported"));
+  // §3.1 b: with bit 5 NMT flying master start-up (§3.7, flying_master.cpp) decides; it
+  // comes back here when this device won.
+  if (config.flying_master() && flying.phase != FlyingMaster::Phase::Active) {
+    flying_begin(now, out);
     return;
   }
   startup = StartupState::BootingSlaves;
   startup_began = now;
-  // §3.1 d: reset communication with node-ID 0, unless a slave is to be kept alive: then every
-  // other node-ID individually (also those not in 1F81h), never the master itself; the
-  // keep-alive slaves are checked by their boot (§3.4 part 2).
-  bool keep_alive = false;
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
-    if (is_slave(n) && assignment(n).keep_alive()) keep_alive = true;
-  }
-  if (!keep_alive) {
-    queue_nmt(NmtCommand::ResetCommunication, 0);
-  } else {
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      const auto n = static_cast<std::uint8_t>(node);
-      if (n == node_id.value() || (is_slave(n) && assignment(n).keep_alive())) continue;
-      queue_nmt(NmtCommand::ResetCommunication, n);
-    }
-  }
+  // §3.1 d (keep-alive slaves are checked by their boot, §3.4 part 2).
+  queue_reset_all(now);
   report(out, master_event(MasterEvent::Kind::StartupBegan, now, 0, "NMT start-up began"));
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
@@ -728,7 +747,7 @@ void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) 
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
   if (boot_took_boot_up(node, now, out)) return;
   if (startup == StartupState::Off || startup == StartupState::NotMaster ||
-      startup == StartupState::Refused) {
+      startup == StartupState::Refused || !acts_as_master()) {
     return;
   }
   stop_error_control(node);

@@ -87,6 +87,40 @@ struct SlaveBoot {
   std::optional<TimePoint> heartbeat_at;    ///< the last heartbeat seen, for §3.6
 };
 
+/// NMT flying master start-up (CiA 302-2 §3.7, §5.2-§5.5) and the active master's watch
+/// (flying_master.cpp).
+struct FlyingMaster {
+  enum class Phase : std::uint8_t {
+    Off,        // 1F80h bit 5 clear, or not a master
+    Delay,      // §3.7 b: the negotiation time delay (1F90h sub 2)
+    Detect,     // §3.7 c: 73h sent, a 71h within 1F90h sub 1
+    Negotiate,  // §5.3: 72h seen, own waiting time running
+    Forced,     // §3.7 g/i: 76h sent, waiting for the active master's reset communication
+    Active,     // this device is the NMT master
+    Standby,    // an NMT slave watching the active master's heartbeat
+  };
+  Phase phase = Phase::Off;
+  bool warm = false;  ///< this start came from a reset communication (§3.7 d/e)
+  std::optional<TimePoint> deadline;
+  std::optional<TimePoint> cycle_due;  ///< Active: the next 76h (1F90h sub 6)
+  std::uint8_t active = 0;             ///< node-ID of the active master, 0: none known
+  std::uint16_t active_priority = 0;
+  std::optional<TimePoint> heartbeat_due;  ///< Standby: the active master's heartbeat by then
+  std::optional<Duration> watch;           ///< Standby: its heartbeat consumer time
+  bool forced = false;       ///< sent 76h since it last stood by or won (DSP 302 §5.5.2 hint)
+  unsigned force_tries = 0;  ///< 76h sent in a row without the reset they ask for
+};
+
+/// 1F90h, in the units of the engine.
+struct FlyingTiming {
+  Duration timeout;        ///< sub 1: answer of the active master
+  Duration delay;          ///< sub 2: before the detection
+  std::uint16_t priority;  ///< sub 3: 0 high .. 2 low
+  Duration priority_slot;  ///< sub 4
+  Duration node_slot;      ///< sub 5
+  Duration cycle;          ///< sub 6: multiple master detection (0: off)
+};
+
 /// An SDO transfer the master runs: for a boot try or for the application.
 struct MasterTransfer {
   bool for_application = false;
@@ -132,6 +166,8 @@ struct NmtMaster::Impl {
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
 
+  FlyingMaster flying;
+
   std::deque<std::pair<NmtCommand, std::uint8_t>> nmt_queue;
   std::optional<TimePoint> last_nmt;
 
@@ -147,6 +183,11 @@ struct NmtMaster::Impl {
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
   static void add_missing_objects(LocalDictionary& dict);
   static cfg::Status check_configuration_values(const LocalDictionary& dict);
+  /// 1F90h with its CiA 302-2 §6.13 defaults (sub 6: 4000 + 10 x node-ID).
+  static void add_flying_master_objects(LocalDictionary& dict, cfg::NodeId node);
+  /// Why a 1F90h value is refused (priority above 2, priority slot not above 127 x node slot).
+  static std::optional<std::string> flying_value_problem(const LocalDictionary& dict,
+                                                         std::uint8_t sub, std::uint32_t value);
   void install_hooks();
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                        TimePoint now);
@@ -182,6 +223,31 @@ struct NmtMaster::Impl {
   bool is_slave(std::uint8_t node) const {
     return node != node_id.value() && cfg::is_node_id(node) && assignment(node).is_slave();
   }
+
+  // --- flying master (flying_master.cpp) ----------------------------------------------------
+  FlyingTiming flying_timing() const;
+  /// §3.1 b with 1F80h bit 5: flying master start-up instead of NMT start-up.
+  void flying_begin(TimePoint now, Output& out);
+  /// Frames of the flying master protocols and the NMT commands a standby master obeys; true
+  /// when the frame was taken.
+  bool flying_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void flying_timer(TimePoint now, Output& out);
+  std::optional<TimePoint> flying_deadline() const;
+  void flying_restart(TimePoint now);
+  void flying_wait(TimePoint now, Output& out, const std::string& why);
+  void flying_win(TimePoint now, Output& out);
+  void flying_standby(std::uint8_t node, std::uint16_t priority, TimePoint now, Output& out,
+                      const std::string& why);
+  void flying_force(TimePoint now, Output& out, std::uint8_t node, std::uint16_t priority);
+  void flying_master_response(std::uint16_t priority, std::uint8_t node, TimePoint now,
+                              Output& out);
+  /// False while a flying master is not the active one (standby or negotiating).
+  bool acts_as_master() const {
+    return flying.phase == FlyingMaster::Phase::Off || flying.phase == FlyingMaster::Phase::Active;
+  }
+  /// Reset communication of all nodes as §3.1 d words it (individually when a slave is kept
+  /// alive, never the master itself).
+  void queue_reset_all(TimePoint now);
 
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);

@@ -4,7 +4,7 @@
 // handler (§4), request NMT and request guarding (1F82h, 1F83h), the NMT inhibit time (102Ah).
 //
 // It is configured by its own object dictionary, built from a master DCF, the CiA 302 way:
-// 1F80h, 1F81h, 1F84h-1F88h, 1F89h, 1F8Ah, 102Ah, 1016h, 1F26h/1F27h, 1F53h/1F54h (values in
+// 1F80h, 1F81h, 1F84h-1F88h, 1F89h, 1F8Ah, 1F90h, 102Ah, 1016h, 1F26h/1F27h, 1F53h/1F54h (values in
 // cfg/master_objects.hpp). Objects the file lacks are added with their CiA 302-2 defaults, and its
 // own SDO server (default COB-IDs 600h/580h + node-ID) serves them with the §6 value checks, so a
 // tool on the bus reads and changes them while it runs. Values are read when a process needs
@@ -64,10 +64,33 @@
 //   heartbeat, 00h when unknown.
 // - 1F83h (request guarding): 1 starts guarding with 1F81h's guard time and retry factor (0800
 //   0000 when either is 0), 0 stops it; a read gives 1 while the master guards the node.
-// - Flying master (1F80h bit 5) is not implemented yet: the master decision (§3.1 b) refuses to
-//   start (StartupRefused, with a message), and SDO writes setting bit 5 abort 0609 0030 (§6.2,
-//   "a functionality that is not supported").
-// - NMT commands from other devices on the bus are ignored (there is one NMT master, §5.4).
+// - Flying master (1F80h bit 5; CiA 302-2 §3.7, §5.2-§5.5, DSP 302 §5.5 for the COB-IDs and
+//   bytes, FlyingMasterCobId below): the master decision (§3.1 b) runs NMT flying master start-up
+//   (StartupState::Negotiating): wait 1F90h sub 2, active master detection (73h, answered by
+//   71h with priority and node-ID within sub 1); no answer after a power-on: reset communication
+//   of all nodes, this device included, and so the start is a warm one; no answer after a
+//   reset communication: negotiation (72h, then priority x sub 4 + node-ID x sub 5 ms, restarted
+//   by every 72h heard; the first to finish sends 71h and runs NMT start-up). A 71h of a better
+//   master (lower priority value, then lower node-ID) makes this device an NMT slave
+//   (StartupState::Standby) watching that master's heartbeat; a 71h of a worse master makes it
+//   force a negotiation (76h) once per warm start (DSP 302 §5.5.2's hint against a deadlock),
+//   after which it waits 1F90h sub 1 + sub 2 for the reset and detects again.
+// - The active master answers 73h with 71h and sends 76h every 1F90h sub 6 ms (0: never, §5.5.3)
+//   without resetting itself; on a 76h (or another master's 71h, a second active master seen
+//   sooner) it resets communication of all nodes and itself, and the negotiation runs again.
+// - A standby master takes as the active master's heartbeat consumer time 1016h's entry for that
+//   node, else 2 x its own 1017h + 100 ms (the network's masters share one description), and
+//   watches nothing when both are 0. A lost heartbeat (§5.5.2) resets communication of all
+//   nodes, itself included. Every reset communication of all nodes the flying master sends
+//   (power-on, failover, force) follows §3.1 d: when a 1F81h entry has keep-alive set, each other
+//   node-ID is reset individually, so keep-alive slaves stay operational across a takeover, and
+//   the new master's boot then finds them operational (status L) and checks their
+//   configuration (1020h) without a download when it matches.
+// - A standby master obeys the NMT commands of the bus addressed to it or to all nodes (a reset
+//   restarts flying master start-up, warm); request NMT and request guarding are refused with
+//   0800 0022 while it is not the active master.
+// - Any device with 1F80h bit 0 set answers NMT master detection (75h) with 74h (§5.1).
+// - Other NMT commands from other devices are ignored (there is one NMT master, §5.4).
 #pragma once
 
 #include <cstddef>
@@ -142,7 +165,9 @@ std::string_view to_string(BootStep step);
 enum class StartupState : std::uint8_t {
   Off,               ///< before start()
   NotMaster,         ///< 1F80h bit 0 is 0 (a self-starting device went operational)
-  Refused,           ///< the master decision could not be made (flying master, see above)
+  Refused,           ///< the master decision could not be made (not reported by this version)
+  Negotiating,       ///< NMT flying master start-up (§3.7): detection or negotiation running
+  Standby,           ///< lost the flying master negotiation: an NMT slave watching the master
   BootingSlaves,     ///< start process boot NMT slave for every slave
   Halted,            ///< a mandatory slave failed (§3.1 f): no start of the network
   AwaitApplication,  ///< 1F80h bit 2: the application calls enter_operational()
@@ -173,6 +198,13 @@ struct MasterEvent {
     NmtCommandSent,            ///< `command` for node_id (0: all nodes) went out
     ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
     SdoFinished,               ///< an application transfer ended (`sdo`)
+    // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
+    NegotiationBegan,  ///< detection or negotiation started (after power-on, reset, 72h, ...)
+    ActiveMaster,      ///< this device (node_id) won and is the active NMT master
+    Standby,           ///< node_id is the active master; this device is an NMT slave
+    ForceNegotiation,  ///< this device sent 76h: the active master node_id has a lower priority
+    MultipleMasters,   ///< a second active master (node_id, 0: unknown) was seen
+    ActiveMasterLost,  ///< the heartbeat of the active master node_id stopped (§5.5.2)
   };
   Kind kind;
   TimePoint at{0};
@@ -188,10 +220,22 @@ struct MasterEvent {
   std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
   std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
   std::optional<SdoResult> sdo{};
+  std::optional<std::uint16_t> priority{};  ///< flying master kinds: 1F90h sub 3 of node_id
   std::string text{};
 };
 /// "slave_booted", "boot_error", ...: names for logs and JSON.
 std::string_view to_string(MasterEvent::Kind kind);
+
+/// The COB-IDs of the flying master protocols (DSP 302 §5.5, Figures 15-19; CiA 302-2 §5.1-5.4).
+/// 71h carries 2 bytes: the priority (1F90h sub 3) and the node-ID; the others carry none.
+struct FlyingMasterCobId {
+  static constexpr std::uint32_t kMasterResponse = 0x71;  ///< active master / winner: "I am master"
+  static constexpr std::uint32_t kNegotiationTrigger = 0x72;   ///< start negotiation timers
+  static constexpr std::uint32_t kActiveMasterRequest = 0x73;  ///< active NMT master detection
+  static constexpr std::uint32_t kCapableResponse = 0x74;      ///< "I am master-capable"
+  static constexpr std::uint32_t kCapableRequest = 0x75;       ///< NMT master detection (§5.1)
+  static constexpr std::uint32_t kForceNegotiation = 0x76;  ///< force NMT flying master negotiation
+};
 
 /// Where check configuration (CiA 302-2 §3.5 d) and the software update find what to download.
 /// The configuration manager implements it; NmtMaster calls it while a slave boots.
@@ -251,8 +295,9 @@ class NmtMaster {
   /// dictionary entry (LocalDictionary::from_device), and the objects of CiA 302-2 §6 the file
   /// lacks are added with their defaults (1F80h = 1: master, 1F81h..1F88h, 1F8Ah = 1 and 1F82h,
   /// 1F83h for node-IDs 1..127, 102Ah = 0, 1F89h = 0, 1016h with 127 unused entries, 1F26h,
-  /// 1F27h, 1F53h, 1F54h). Fails with a message naming the entry when a value does not parse or
-  /// has reserved bits set.
+  /// 1F27h, 1F53h, 1F54h, 1F90h = 100, 500, 1, 1500, 10, 4000 + 10 x node-ID ms). Fails with a
+  /// message naming the entry when a value does not parse, has reserved bits set, or breaks
+  /// §6.13 (1F90h priority above 2, priority time slot not above 127 x device time slot).
   static cfg::Result<NmtMaster> create(const cfg::DeviceDescription& description,
                                        cfg::NodeId node_id, MasterOptions options = {});
   NmtMaster(NmtMaster&&) noexcept;
@@ -297,6 +342,10 @@ class NmtMaster {
   /// The master's own NMT state.
   NmtState state() const;
   StartupState startup_state() const;
+  /// The active NMT master as this device knows it: its own node-ID once it won the flying
+  /// master negotiation (or without 1F80h bit 5, once start-up began), the winner's while in
+  /// standby, nullopt while negotiating or when not a master.
+  std::optional<cfg::NodeId> active_master() const;
   /// The state the master knows of `node`, as a 1F82h read gives it: 00h unknown, 01h missing,
   /// else the NmtState value.
   std::uint8_t known_state(cfg::NodeId node) const;
