@@ -9,6 +9,7 @@
 #include <cstring>
 #include <new>
 
+#include "cfg/atomic_file.hpp"
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
 #include "config_manager_store.hpp"
@@ -259,6 +260,11 @@ Status remove_file_durably(const std::string& directory, const std::string& name
 }
 
 }  // namespace detail
+
+Status write_file_atomically(const std::string& directory, const std::string& name,
+                             std::span<const std::uint8_t> bytes) {
+  return detail::write_file_atomically(directory, name, bytes, {});
+}
 
 std::string store_entry_file_name(std::uint16_t index, NodeId node) {
   return hex_digits(index, 4) + "-" + hex_digits(node.value(), 2);

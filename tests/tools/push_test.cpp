@@ -2,27 +2,36 @@
 // the test networks of tests/data/network. The expected entries and bytes per node come from the
 // nodes' concise DCFs as dcf2concise writes them from the same DCFs (CiA 302 §6.2 stream: a
 // UNSIGNED32 count, then per entry index, sub-index, size and data).
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <pty.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
-#include "tool_test_support.hpp"
+#include "push_test_support.hpp"
 
 namespace {
 
+using push_test::cfgmgr;
+using push_test::Concise;
+using push_test::concise_of;
+using push_test::nodes_of;
+using push_test::parse_json;
 using tool_test::Json;
-using tool_test::JsonParser;
 using tool_test::RunResult;
 using tool_test::ScratchDir;
-
-RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
 
 std::string sample(const std::string& name) {
   return std::string(CANOPEN_SAMPLES_DIR) + "/network/" + name;
@@ -30,52 +39,6 @@ std::string sample(const std::string& name) {
 
 std::string network(const std::string& name) {
   return tool_test::data_path("network/" + name);
-}
-
-struct Concise {
-  std::size_t entries = 0;
-  std::size_t bytes = 0;
-};
-
-// The node's concise DCF by dcf2concise, counted: CiA 302 §6.2 (count, then index u16,
-// sub-index u8, size u32, data per entry; little-endian).
-Concise concise_of(const ScratchDir& dir, const std::string& dcf) {
-  const std::string out = dir / "node.bin";
-  auto r = tool_test::run("dcf2concise", {dcf, "-o", out}, dir.path().string());
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  const std::string s = tool_test::slurp(out);
-  const auto le = [&s](std::size_t at, int n) {
-    std::uint32_t v = 0;
-    for (int i = n - 1; i >= 0; --i) v = (v << 8) | static_cast<std::uint8_t>(s.at(at + i));
-    return v;
-  };
-  Concise c;
-  c.entries = le(0, 4);
-  std::size_t at = 4;
-  for (std::size_t i = 0; i < c.entries; ++i) {
-    const std::uint32_t size = le(at + 3, 4);
-    c.bytes += size;
-    at += 7 + size;
-  }
-  EXPECT_EQ(at, s.size()) << "the stream has data after its last entry";
-  return c;
-}
-
-Json parse_json(const std::string& path) {
-  const std::string text = tool_test::slurp(path);
-  JsonParser parser(text);
-  auto value = parser.parse();
-  EXPECT_TRUE(value && value->is(Json::Kind::Object)) << parser.error() << ": " << text;
-  return value ? *value : Json{};
-}
-
-std::map<int, const Json*> nodes_of(const Json& report) {
-  std::map<int, const Json*> out;
-  const Json* nodes = report.get("nodes");
-  EXPECT_TRUE(nodes != nullptr && nodes->is(Json::Kind::Array));
-  if (nodes == nullptr) return out;
-  for (const auto& n : nodes->array) out[static_cast<int>(n.get("node_id")->number)] = &n;
-  return out;
 }
 
 TEST(Push, HelpDocumentsOptionsExamplesAndExitCodes) {
@@ -224,6 +187,134 @@ TEST(Push, OnlyRestrictsTheNodes) {
   EXPECT_EQ(nodes.size(), 2U);
   EXPECT_TRUE(nodes.count(3) && nodes.count(4));
   EXPECT_EQ(r.err.find("node 2: booted"), std::string::npos) << r.err;
+}
+
+TEST(Push, NotOnATerminalEachEventIsOneLineWithItsTime) {
+  // stderr is a file here: no live view, no escape sequences; each line is "S.mmm  text" or a
+  // "cfgmgr push: " line (the bus and the summary).
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find('\x1b'), std::string::npos) << r.err;
+  std::istringstream lines(r.err);
+  std::string line;
+  std::vector<std::string> events;
+  while (std::getline(lines, line)) {
+    if (line.rfind("cfgmgr push: ", 0) == 0) continue;
+    ASSERT_GE(line.size(), 7U) << line;
+    EXPECT_TRUE(std::isdigit(static_cast<unsigned char>(line[0])) && line.find('.') < 6 &&
+                line.find("  ") != std::string::npos)
+        << line;
+    events.push_back(line.substr(line.find("  ") + 2));
+  }
+  // One line per event, in the order they happened: start-up, each node's result, the end.
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.front(), "NMT start-up began");
+  EXPECT_EQ(events.back(), "NMT start-up complete");
+  for (const char* node : {"node 2: booted, configured (", "node 3: booted, configured (",
+                           "node 4: booted, configured ("}) {
+    EXPECT_EQ(std::count_if(events.begin(), events.end(),
+                            [node](const std::string& e) { return e.rfind(node, 0) == 0; }),
+              1)
+        << node << " in " << r.err;
+  }
+}
+
+// Runs cfgmgr with stdout and stderr on a pseudo terminal of 40 x 120 and returns what it
+// wrote there; `exit_code` gets its exit status.
+std::string run_on_terminal(const std::vector<std::string>& args, int& exit_code) {
+  int master = -1;
+  int slave = -1;
+  winsize size{};
+  size.ws_row = 40;
+  size.ws_col = 120;
+  if (::openpty(&master, &slave, nullptr, nullptr, &size) != 0) return "openpty failed";
+  std::vector<std::string> argv_text = {tool_test::tool_path("cfgmgr")};
+  argv_text.insert(argv_text.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_text) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::setsid();
+    const int null = ::open("/dev/null", O_RDONLY);
+    ::dup2(null, 0);
+    ::dup2(slave, 1);
+    ::dup2(slave, 2);
+    ::close(master);
+    ::setenv("TERM", "xterm", 1);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  ::close(slave);
+  std::string out;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(master, buf, sizeof buf);
+    if (n > 0) {
+      out.append(buf, static_cast<std::size_t>(n));
+    } else if (n < 0 && errno == EINTR) {
+      continue;
+    } else {
+      break;  // EIO once the child closed its side
+    }
+  }
+  ::close(master);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return out;
+}
+
+TEST(Push, OnATerminalALiveViewIsDrawnAndTheTableEndsTheOutput) {
+  int exit_code = -1;
+  const std::string out =
+      run_on_terminal({"push", sample("nodelist.cpj"), "--bus", "sim:?latency_ms=1"}, exit_code);
+  ASSERT_EQ(exit_code, 0) << out;
+  // The view: a progress bar and a row per node with state, step, entries, bytes, retries,
+  // redrawn in place (ANSI CSI: cursor to the previous line, erase below).
+  EXPECT_NE(out.find("] 0%"), std::string::npos) << out;
+  EXPECT_NE(out.find("retries"), std::string::npos) << out;
+  EXPECT_NE(out.find("\x1b[J"), std::string::npos) << out;
+  // Instead of event lines.
+  EXPECT_EQ(out.find("booted, configured"), std::string::npos) << out;
+  // After the view is erased for the last time: the table (samples/network: nodes 2-4) and
+  // nothing else.
+  const std::string tail = out.substr(out.rfind("\x1b[J") + 3);
+  const auto table = tail.find("node  name");
+  ASSERT_NE(table, std::string::npos) << tail;
+  std::istringstream lines(tail.substr(table));
+  std::string line;
+  std::vector<std::string> rows;
+  while (std::getline(lines, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();  // the terminal's ONLCR
+    if (!line.empty()) rows.push_back(line);
+  }
+  ASSERT_EQ(rows.size(), 4U) << tail;
+  EXPECT_EQ(rows[1].rfind("   2  io_left   configured", 0), 0U) << rows[1];
+  EXPECT_EQ(rows[2].rfind("   3  axis_x    configured", 0), 0U) << rows[2];
+  EXPECT_EQ(rows[3].rfind("   4  io_right  configured", 0), 0U) << rows[3];
+}
+
+TEST(Push, OnlyLeavesTheOtherNodesAlone) {
+  // --only 3: nodes 2 and 4 get no NMT command at all (no reset, no start; CiA 302-2 §3.1 d
+  // with keep-alive slaves: reset communication per node instead of 000#8200) and no SDO.
+  ScratchDir dir;
+  const std::string log = dir / "only.log";
+  auto r = cfgmgr(
+      dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--only", "3", "--candump", log});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string trace = tool_test::slurp(log);
+  EXPECT_EQ(trace.find(" 000#8200"), std::string::npos) << trace;
+  EXPECT_NE(trace.find(" 000#8203"), std::string::npos) << trace;
+  for (const char* untouched : {" 000#8202", " 000#8102", " 000#0102", " 000#8204", " 000#0104",
+                                " 000#0100", " 602#", " 604#"}) {
+    EXPECT_EQ(trace.find(untouched), std::string::npos) << untouched;
+  }
+  EXPECT_NE(trace.find(" 603#"), std::string::npos);
+  EXPECT_NE(trace.find(" 000#0103"), std::string::npos) << trace;
+  EXPECT_EQ(r.err.find("node 2"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("node 4"), std::string::npos) << r.err;
 }
 
 TEST(Push, BadArgumentsExit2) {

@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <sstream>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -16,8 +18,10 @@
 #include "commands.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
+#include "nmt/device_state.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
+#include "nmt/trace.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -72,17 +76,49 @@ std::string prefix(std::string_view tool) {
   return "cfgmgr " + std::string(tool) + ": ";
 }
 
+// The trace files of a run, open; exit 3 when one cannot be created.
+struct OpenTraces {
+  std::vector<std::unique_ptr<nmt::TraceWriter>> writers;
+};
+
+std::unique_ptr<nmt::TraceWriter> open_or_exit(
+    std::string_view tool, cfg::Result<std::unique_ptr<nmt::TraceWriter>> opened) {
+  if (!opened) fail_command(tool, tools::kExitIo, opened.error().message);
+  return std::move(opened).value();
+}
+
+OpenTraces open_traces(std::string_view tool, const RunTraces& traces) {
+  OpenTraces out;
+  if (!traces.pcap.empty()) out.writers.push_back(open_or_exit(tool, nmt::open_pcap(traces.pcap)));
+  if (!traces.candump.empty()) {
+    out.writers.push_back(open_or_exit(tool, nmt::open_candump_log(traces.candump)));
+  }
+  return out;
+}
+
+// The traces complete on disk; exit 3 when one failed during the run or now.
+void close_traces(std::string_view tool, std::vector<nmt::TraceWriter*> writers) {
+  for (nmt::TraceWriter* w : writers) {
+    if (auto flushed = w->flush(); !flushed) {
+      fail_command(tool, tools::kExitIo,
+                   "trace " + w->path().string() + ": " + flushed.error().message);
+    }
+  }
+}
+
 bool ended(const RunLimits& limits, const EventReporter& reporter) {
   return reporter.finished() && (!limits.settled || limits.settled());
 }
 
 // With until_startup_ends, a start-up that did not end within the bound is a failed run.
-bool timed_out(const RunLimits& limits, const EventReporter& reporter) {
+bool timed_out(const RunLimits& limits, EventReporter& reporter) {
   if (!limits.until_startup_ends || limits.run_for_s || ended(limits, reporter) || g_stop.load()) {
     return false;
   }
-  std::cerr << prefix(limits.tool) << "NMT start-up did not end within " << limits.bound_s << " s"
-            << limits.bound_hint << '\n';
+  std::ostringstream text;
+  text << prefix(limits.tool) << "NMT start-up did not end within " << limits.bound_s << " s"
+       << limits.bound_hint;
+  reporter.note(text.str());
   return true;
 }
 
@@ -95,12 +131,14 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                  "DownloadFile=")
       ->required()
       ->type_name("NETWORK");
-  auto* bus = cmd.add_option("--bus", args.bus,
-                             "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
-                             "udp_multicast compatible), or sim: for the simulated bus with a "
-                             "simulated device per node built from the network's DCFs, in "
-                             "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N)")
-                  ->type_name("URL");
+  auto* bus =
+      cmd.add_option("--bus", args.bus,
+                     "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
+                     "udp_multicast compatible), or sim: for the simulated bus with a "
+                     "simulated device per node built from the network's DCFs, in "
+                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR; "
+                     "state=DIR keeps what each device saved with 1010h between runs)")
+          ->type_name("URL");
   cmd.add_option("--node-id", args.node_id,
                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
                  "NodeID, else 0x7F (127)")
@@ -131,6 +169,10 @@ nmt::Duration seconds_to_duration(double s) {
 
 void EventReporter::report(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
+  if (e.node_id != 0 && ignored_.contains(e.node_id)) {
+    if (observer_) observer_(e);
+    return;
+  }
   std::string line;
   const std::string node = "node " + std::to_string(e.node_id) + ": ";
   bool again = false;
@@ -195,9 +237,18 @@ void EventReporter::report(const nmt::MasterEvent& e) {
       if (verbose_) line = e.text;
       break;
   }
-  if (!line.empty()) std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
+  if (!line.empty() && !quiet_)
+    std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
   if (json_ != nullptr) write_json(e);
   if (observer_) observer_(e);
+}
+
+void EventReporter::note(const std::string& line) {
+  if (note_handler_) {
+    note_handler_(line);
+  } else {
+    std::cerr << line << '\n' << std::flush;
+  }
 }
 
 void EventReporter::write_json(const nmt::MasterEvent& e) {
@@ -302,7 +353,7 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
 
 RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
                              const SimBusOptions& sim, const RunLimits& limits,
-                             EventReporter& reporter) {
+                             EventReporter& reporter, const RunTraces& traces) {
   std::vector<cfg::NodeId> skipped;
   auto built = simulated_devices(network, sim, &skipped);
   if (!built) {
@@ -313,13 +364,34 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
     std::cerr << prefix(limits.tool) << "note: node " << int{node.value()}
               << " has no DCF (a concise DCF only): not simulated\n";
   }
+  OpenTraces trace_files = open_traces(limits.tool, traces);
   nmt::SimBus bus(sim.bitrate_bps);
   bus.set_loss_rate(sim.loss, sim.seed);
+  std::vector<nmt::TraceWriter*> writers;
+  for (auto& w : trace_files.writers) {
+    writers.push_back(w.get());
+    bus.add_observer(nmt::trace_observer(*w));
+  }
   std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::SimulatedDevice>>> devices;
+  bool state_failed = false;
   for (auto& device : built.value()) {
     devices.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
     bus.attach(*devices.back());
+    if (sim.state_dir.empty()) continue;
+    // The device's non-volatile memory follows every save (1010h) and restore (1011h) at once,
+    // as on a real device: a run that is cut short keeps what was saved before.
+    auto* d = devices.back().get();
+    d->set_event_handler([d, &sim, &limits, &reporter, &state_failed](const nmt::SlaveEvent& e,
+                                                                      nmt::TimePoint) {
+      if (e.kind != nmt::SlaveEvent::Kind::Stored && e.kind != nmt::SlaveEvent::Kind::Restored) {
+        return;
+      }
+      if (auto saved = nmt::save_device_state(sim.state_dir, d->engine().node()); !saved) {
+        if (!state_failed) reporter.note(prefix(limits.tool) + saved.error().message);
+        state_failed = true;
+      }
+    });
   }
   nmt::SimEngineNode<nmt::NmtMaster> node(std::move(master));
   bus.attach(node);
@@ -348,18 +420,34 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   const bool stopped = bus.run_until(
       [&] { return g_stop.load() || (until_ended && ended(limits, reporter)); }, limit);
   if (bounded && !stopped) bus.run_until(limit);  // the clock to the bound, nothing is due
+  // Start-up ended with the master's last frames (the starts of §3.1 h) queued: let them go
+  // out, as a real master's would, so that the slaves and the traces get them.
+  if (stopped && !g_stop.load()) {
+    bus.run_until([&] { return bus.frames_queued(node) == 0; },
+                  bus.now() + std::chrono::seconds(1));
+  }
   const bool late = timed_out(limits, reporter);
+  close_traces(limits.tool, writers);
+  if (state_failed) exit_with(tools::kExitIo);
   const auto stats = bus.statistics();
-  std::cerr << prefix(limits.tool) << seconds_text(nmt::TimePoint{}, bus.now()) << " s simulated, "
-            << stats.frames << " frames, bus load " << std::lround(stats.load() * 100.0) << "%\n";
+  reporter.note(prefix(limits.tool) + seconds_text(nmt::TimePoint{}, bus.now()) + " s simulated, " +
+                std::to_string(stats.frames) + " frames, bus load " +
+                std::to_string(std::lround(stats.load() * 100.0)) + "%");
   return {bus.now() - nmt::TimePoint{}, late};
 }
 
 RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, const RunLimits& limits,
-                             EventReporter& reporter) {
+                             EventReporter& reporter, const RunTraces& traces) {
   auto opened = nmt::open_bus(url);
   if (!opened) fail_command(limits.tool, tools::kExitIo, opened.error().message);
   std::unique_ptr<nmt::Bus> bus = std::move(opened).value();
+  // Each trace wraps the bus (TracingBus records what it sends and receives).
+  std::vector<nmt::TracingBus*> tracing;
+  for (auto& w : open_traces(limits.tool, traces).writers) {
+    auto wrapped = std::make_unique<nmt::TracingBus>(std::move(bus), std::move(w));
+    tracing.push_back(wrapped.get());
+    bus = std::move(wrapped);
+  }
   nmt::BusEventLoop loop(*bus);
   reporter.set_start(loop.now());
   nmt::EngineRef<nmt::NmtMaster> ref(master);
@@ -387,6 +475,9 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
                     : loop.run_for(seconds_to_duration(limits.run_for_s.value_or(limits.bound_s)));
   g_running_loop.store(nullptr);
   if (!status) fail_command(limits.tool, tools::kExitIo, status.error().message);
+  std::vector<nmt::TraceWriter*> writers;
+  for (auto* t : tracing) writers.push_back(&t->trace());
+  close_traces(limits.tool, writers);
   return {loop.now() - began, timed_out(limits, reporter)};
 }
 

@@ -64,12 +64,23 @@ class EventReporter {
   /// Event times are printed as seconds since `start` (0 on sim:).
   void set_start(nmt::TimePoint start) { start_ = start; }
   nmt::TimePoint start() const { return start_; }
+  /// Quiet: no event lines on stderr (a live view shows the run instead); JSON lines stay.
+  void set_quiet(bool quiet) { quiet_ = quiet; }
+  /// Events of these nodes are neither printed nor written (nodes a run leaves alone); the
+  /// observer still gets them.
+  void ignore_nodes(std::set<std::uint8_t> nodes) { ignored_ = std::move(nodes); }
   /// Also called with every event (after it was printed).
   void set_observer(std::function<void(const nmt::MasterEvent&)> observer) {
     observer_ = std::move(observer);
   }
 
   void report(const nmt::MasterEvent& e);
+  /// A line for people that is no event (a summary, a warning): on stderr, or to the handler
+  /// (a live view prints it above itself).
+  void note(const std::string& line);
+  void set_note_handler(std::function<void(const std::string&)> handler) {
+    note_handler_ = std::move(handler);
+  }
 
   bool finished() const { return finished_; }
   bool complete() const { return complete_; }
@@ -80,9 +91,12 @@ class EventReporter {
 
   nmt::TimePoint start_{0};
   bool verbose_;
+  bool quiet_ = false;
   std::ostream* json_;
   std::function<void(const nmt::MasterEvent&)> observer_;
+  std::function<void(const std::string&)> note_handler_;
   std::set<std::uint8_t> booted_;
+  std::set<std::uint8_t> ignored_;
   bool finished_ = false;
   bool complete_ = false;
   bool halted_ = false;
@@ -107,15 +121,24 @@ struct RunOutcome {
   bool timed_out = false;
 };
 
+/// Files that record every frame of a run (nmt/trace.hpp); empty: none. On sim: the frames
+/// are stamped with simulated time (seconds from the start), on a real bus with the wall clock.
+struct RunTraces {
+  std::string pcap;     ///< pcap, LINKTYPE_CAN_SOCKETCAN (Wireshark, tshark)
+  std::string candump;  ///< candump log (`candump -l` format: can-utils, python-can)
+};
+
 /// Runs `master` with a simulated device per node of `network` on the simulated bus, in
-/// simulated time, until SIGINT/SIGTERM or `limits`.
+/// simulated time, until SIGINT/SIGTERM or `limits`. With `sim.state_dir`, each device writes
+/// its saved values there whenever it saves (1010h) or forgets them (1011h). Exit 3 when a trace
+/// cannot be written, 1 when a device cannot be built or its saved values are damaged.
 RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
                              const SimBusOptions& sim, const RunLimits& limits,
-                             EventReporter& reporter);
+                             EventReporter& reporter, const RunTraces& traces = {});
 
 /// Runs `master` on the real bus `url` (SocketCAN, UDP) in real time, until SIGINT/SIGTERM or
-/// `limits`. Exit 3 when the bus cannot be opened or fails.
+/// `limits`. Exit 3 when the bus cannot be opened or fails, or a trace cannot be written.
 RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, const RunLimits& limits,
-                             EventReporter& reporter);
+                             EventReporter& reporter, const RunTraces& traces = {});
 
 }  // namespace cfgmgr

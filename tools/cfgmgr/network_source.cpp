@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "cfg/integer_literal.hpp"
+#include "nmt/device_state.hpp"
 
 namespace cfgmgr {
 
@@ -89,8 +90,12 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
         return sim_error("seed=" + std::string(value) + ": expected an unsigned number");
       }
       options.seed = parsed.literal->value;
+    } else if (name == "state") {
+      if (value.empty()) return sim_error("state=: expected a directory");
+      options.state_dir = value;
     } else {
-      return sim_error("unknown parameter '" + name + "' (known: bitrate, latency_ms, loss, seed)");
+      return sim_error("unknown parameter '" + name +
+                       "' (known: bitrate, latency_ms, loss, seed, state)");
     }
   }
   return options;
@@ -120,6 +125,15 @@ cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
     if (!device) {
       return cfg::Error{node.file + ": error: cannot simulate node " +
                         std::to_string(node.node_id.value()) + ": " + device.error().message};
+    }
+    if (!options.state_dir.empty()) {
+      // Like a real device, it powers on with what it saved last time (CiA 301 §7.5.2.13).
+      auto saved = nmt::load_device_state(options.state_dir, node.node_id);
+      if (!saved) {
+        return cfg::Error{saved.error().message + " (remove the file to start from the DCF)",
+                          saved.error().category};
+      }
+      if (*saved) device->node().set_stored(std::move(**saved));
     }
     devices.push_back(std::move(device).value());
   }

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -29,13 +30,16 @@ class NetworkSource final : public nmt::ConfigurationSource {
   std::shared_ptr<const cfg::Network> network_;
 };
 
-/// `sim:` with optional `?bitrate=500000&latency_ms=1&loss=0.01&seed=N` (any order, each at
-/// most once).
+/// `sim:` with optional `?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR` (any order,
+/// each at most once).
 struct SimBusOptions {
   std::uint32_t bitrate_bps = 500'000;  ///< 1 ... 1 000 000 000
   double latency_ms = 0;                ///< every SDO response of a device leaves this late
   double loss = 0;                      ///< probability of losing each frame, 0..1
   std::uint64_t seed = 1;               ///< of the loss
+  /// Where the devices keep what 1010h 'save' stored between runs (nmt/device_state.hpp, one
+  /// file per node); empty: nowhere, every run starts from the DCFs' values.
+  std::string state_dir;
 };
 
 /// True for URLs of the simulated bus ("sim:" and "sim:?...").
@@ -47,8 +51,9 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url);
 /// One simulated device for each node of the network that has a DCF (a node given only by a
 /// concise DCF has no dictionary to simulate: it is left out, and `skipped` gets its node-ID),
 /// with the SDO latency of `options`, answering the identity cfg::identity_of gives (its DCF's
-/// 1000h/1018h, else [DeviceInfo], as the real device would). Fails with a message naming the
-/// node's file when a device cannot be built from it.
+/// 1000h/1018h, else [DeviceInfo], as the real device would), and with the values it saved in an
+/// earlier run when `options.state_dir` has them. Fails with a message naming the node's file
+/// when a device cannot be built from it, or the saved values' file when it is damaged.
 cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
     const cfg::Network& network, const SimBusOptions& options,
     std::vector<cfg::NodeId>* skipped = nullptr);

@@ -2,9 +2,14 @@
 // NmtMaster, network and buses, master_run.hpp) that ends when NMT start-up has ended and every
 // selected slave was tried once, then reports per node what happened (a table, and --json). With
 // --dry-run it prints the writes the master would download instead, without a bus.
+#include <sys/ioctl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -45,6 +50,7 @@ struct PushCliOptions : NetworkRunArgs {
   bool no_save = false;
   double sdo_timeout_s = 0.5;
   unsigned retries = 2;
+  RunTraces traces;
 };
 
 enum class Result : std::uint8_t { Pending, Configured, Skipped, Error };
@@ -56,8 +62,12 @@ struct NodeReport {
   Result result = Result::Pending;
   std::optional<char> status;
   std::string message;
-  std::size_t entries = 0;
+  std::size_t entries = 0;  ///< configuration entries written (also when the boot then failed)
+  std::size_t total = 0;    ///< entries to write, once the download was planned
   std::uint64_t bytes = 0;
+  unsigned retries = 0;  ///< boot tries repeated (CiA 302-2 §3.3)
+  nmt::BootStep step = nmt::BootStep::Idle;
+  std::optional<nmt::NmtState> state;  ///< as the master knows it
   std::optional<nmt::TimePoint> began;
   nmt::TimePoint ended{0};
 };
@@ -175,14 +185,36 @@ class Collector {
   void observe(const nmt::MasterEvent& e) {
     using K = nmt::MasterEvent::Kind;
     NodeReport* r = find(e.node_id);
-    if (r == nullptr || r->result != Result::Pending) return;
+    if (r == nullptr) return;
+    if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
+    if (r->result != Result::Pending) return;
     switch (e.kind) {
       case K::BootStepChanged:
+        if (e.step == nmt::BootStep::Identify || e.step == nmt::BootStep::AwaitBootUp) {
+          // A try begins with AwaitBootUp (after a reset) or Identify; the engine does not
+          // report a repeated error again, so a try is counted by its first step.
+          if (r->began &&
+              (e.step == nmt::BootStep::AwaitBootUp || r->step != nmt::BootStep::AwaitBootUp)) {
+            ++r->retries;
+          }
+          r->entries = 0;  // a new try downloads from its first entry
+          r->bytes = 0;
+        }
         if (!r->began && e.step != nmt::BootStep::Idle) r->began = e.at;
+        r->step = e.step;
+        if (e.step == nmt::BootStep::Download) {
+          // Each written entry is reported with the count so far: a boot that fails after
+          // (or during) its download still tells how far it got.
+          r->entries = e.written;
+          r->total = e.total;
+          r->bytes = e.bytes;
+        }
         break;
       case K::SlaveBooted:
         r->result = e.configured ? Result::Configured : Result::Skipped;
+        r->step = e.step;
         r->entries = e.written;
+        r->total = e.total;
         r->bytes = e.bytes;
         r->message =
             e.configured ? "configured" : "skipped: signature matches (1020h = 1F26h/1F27h)";
@@ -191,7 +223,11 @@ class Collector {
       case K::BootError:
         // A mandatory slave is tried again after status B while the boot time lasts; an
         // optional one forever: its first error is its result.
-        if (!e.final && r->mandatory) break;
+        if (!e.final && r->mandatory) {
+          r->step = nmt::BootStep::RetryWait;
+          break;
+        }
+        r->step = nmt::BootStep::Failed;
         r->result = Result::Error;
         if (e.error) r->status = nmt::letter(*e.error);
         r->message = error_message(e);
@@ -227,6 +263,127 @@ class Collector {
     return nullptr;
   }
   std::vector<NodeReport> nodes_;
+};
+
+// The live view on a terminal: per node its NMT state, boot step, entries written of total,
+// bytes and retries, and a progress bar for the whole network, drawn on stderr over the last
+// drawing (ANSI cursor movement), at most every kRedraw of wall-clock time.
+class LiveView {
+ public:
+  static constexpr std::chrono::milliseconds kRedraw{100};  // ~10 Hz: readable, cheap
+
+  /// On when stderr is a terminal that understands cursor movement.
+  static bool wanted() {
+    const char* term = std::getenv("TERM");
+    return ::isatty(STDERR_FILENO) == 1 && term != nullptr && std::string_view(term) != "dumb";
+  }
+
+  /// Draws `nodes` unless the last drawing is younger than kRedraw (`now`: draw anyway).
+  void update(const std::vector<NodeReport>& nodes, bool now) {
+    const auto wall = std::chrono::steady_clock::now();
+    if (!now && drawn_ && wall - last_ < kRedraw) return;
+    last_ = wall;
+    std::string text = erase();
+    shown_ = render(nodes);
+    for (const auto& line : shown_) text += line + "\x1b[K\n";
+    lines_ = shown_.size();
+    drawn_ = true;
+    std::cerr << text << std::flush;
+  }
+
+  /// Prints `line` above the view, which stays below it.
+  void note(const std::string& line) {
+    std::string text = erase() + line + "\x1b[K\n";
+    for (const auto& l : shown_) text += l + "\x1b[K\n";
+    lines_ = shown_.size();
+    std::cerr << text << std::flush;
+  }
+
+  /// Removes the drawing (before the table is printed).
+  void clear() {
+    if (!drawn_) return;
+    std::cerr << erase() << std::flush;
+    lines_ = 0;
+    shown_.clear();
+  }
+
+ private:
+  // Cursor to the first line of the last drawing, and everything below it cleared.
+  std::string erase() const {
+    if (lines_ == 0) return "";
+    return "\x1b[" + std::to_string(lines_) + "F\x1b[J";
+  }
+
+  static std::size_t rows() {
+    winsize size{};
+    if (::ioctl(STDERR_FILENO, TIOCGWINSZ, &size) == 0 && size.ws_row > 0) return size.ws_row;
+    return 24;
+  }
+
+  static std::string row(const NodeReport& r) {
+    char line[160];
+    const std::string entries = r.total == 0
+                                    ? std::to_string(r.entries)
+                                    : std::to_string(r.entries) + "/" + std::to_string(r.total);
+    const std::string step = r.result == Result::Pending ? std::string(nmt::to_string(r.step))
+                                                         : std::string(result_name(r.result));
+    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-20.20s  %9s  %7llu  %7u",
+                  r.node_id, r.name.c_str(),
+                  r.state ? std::string(nmt::to_string(*r.state)).c_str() : "-", step.c_str(),
+                  entries.c_str(), static_cast<unsigned long long>(r.bytes), r.retries);
+    return line;
+  }
+
+  static std::vector<std::string> render(const std::vector<NodeReport>& nodes) {
+    std::size_t done = 0;
+    std::size_t written = 0;
+    std::size_t total = 0;
+    double progress = 0;
+    for (const auto& r : nodes) {
+      written += r.entries;
+      total += std::max(r.total, r.entries);
+      if (r.result != Result::Pending) {
+        ++done;
+        progress += 1.0;
+      } else if (r.total > 0) {
+        // The download is most of a boot; identification and save the rest.
+        progress += 0.1 + 0.8 * static_cast<double>(r.entries) / static_cast<double>(r.total);
+      }
+    }
+    if (!nodes.empty()) progress /= static_cast<double>(nodes.size());
+    constexpr int kBar = 30;
+    const int filled = static_cast<int>(progress * kBar);
+    std::vector<std::string> lines;
+    lines.push_back("[" + std::string(static_cast<std::size_t>(filled), '#') +
+                    std::string(static_cast<std::size_t>(kBar - filled), '-') + "] " +
+                    std::to_string(static_cast<int>(progress * 100)) + "%  " +
+                    std::to_string(done) + " of " + tools::plural(nodes.size(), "node") +
+                    " done, " + std::to_string(written) + " of " + std::to_string(total) +
+                    (total == 1 ? " entry" : " entries") + " written");
+    char head[160];
+    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-20s  %9s  %7s  %7s", "node", "name",
+                  "state", "step", "entries", "bytes", "retries");
+    lines.emplace_back(head);
+    // Nodes still booting first, then those waiting, then those done; as many as fit.
+    std::vector<const NodeReport*> order;
+    for (int pass = 0; pass < 3; ++pass) {
+      for (const auto& r : nodes) {
+        const int kind = r.result != Result::Pending ? 2 : r.began ? 0 : 1;
+        if (kind == pass) order.push_back(&r);
+      }
+    }
+    const std::size_t room = std::max<std::size_t>(rows(), 6) - 4;
+    for (std::size_t i = 0; i < order.size() && i < room; ++i) lines.push_back(row(*order[i]));
+    if (order.size() > room) {
+      lines.push_back("  ... " + tools::plural(order.size() - room, "more node"));
+    }
+    return lines;
+  }
+
+  bool drawn_ = false;
+  std::size_t lines_ = 0;
+  std::vector<std::string> shown_;
+  std::chrono::steady_clock::time_point last_{};
 };
 
 double node_seconds(const NodeReport& r, nmt::TimePoint start) {
@@ -331,6 +488,7 @@ void run_push(const PushCliOptions& options) {
     dictionary.set_unsigned(cfg::object::kNmtStartup, 0, startup | cfg::NmtStartup::kNoStartSlaves);
   }
   std::set<std::uint8_t> chosen;
+  std::set<std::uint8_t> left_out;
   for (const auto* node : selected) chosen.insert(node->node_id.value());
   std::vector<NodeReport> reports;
   for (unsigned id = 1; id <= 127; ++id) {
@@ -338,8 +496,13 @@ void run_push(const PushCliOptions& options) {
     const cfg::SlaveAssignment assignment{static_cast<std::uint32_t>(
         dictionary.get_unsigned(cfg::object::kSlaveAssignment, sub).value_or(0))};
     if (!assignment.is_slave()) continue;
-    if (!chosen.contains(sub)) {
-      dictionary.set_unsigned(cfg::object::kSlaveAssignment, sub, 0);  // --only: not a slave
+    if (!options.only.empty() && !chosen.contains(sub)) {
+      // --only leaves the other nodes as they are: a keep-alive slave (1F81h bit 4, Table 22)
+      // gets no reset communication at start-up (CiA 302-2 §3.1 d), and with bit 2 clear
+      // (Table 20) it is neither configured nor started; bit 3 clear: its absence is no error.
+      dictionary.set_unsigned(cfg::object::kSlaveAssignment, sub,
+                              cfg::SlaveAssignment::kSlave | cfg::SlaveAssignment::kKeepAlive);
+      left_out.insert(sub);
       continue;
     }
     NodeReport r;
@@ -360,7 +523,17 @@ void run_push(const PushCliOptions& options) {
 
   Collector collector(std::move(reports));
   EventReporter reporter(options.verbose, nullptr);
-  reporter.set_observer([&collector](const nmt::MasterEvent& e) { collector.observe(e); });
+  reporter.ignore_nodes(left_out);
+  std::optional<LiveView> view;
+  if (LiveView::wanted()) {
+    view.emplace();
+    reporter.set_quiet(true);  // the view shows what the event lines would
+    reporter.set_note_handler([&view](const std::string& line) { view->note(line); });
+  }
+  reporter.set_observer([&collector, &view](const nmt::MasterEvent& e) {
+    collector.observe(e);
+    if (view) view->update(collector.nodes(), false);
+  });
   RunLimits limits;
   limits.tool = kTool;
   limits.until_startup_ends = true;
@@ -368,10 +541,14 @@ void run_push(const PushCliOptions& options) {
   limits.bound_hint = sim ? " of simulated time" : "";
   limits.settled = [&] { return reporter.halted() || collector.settled(); };
   const RunOutcome outcome =
-      sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter)
-          : run_master_on_bus(std::move(master), options.bus, limits, reporter);
+      sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter, options.traces)
+          : run_master_on_bus(std::move(master), options.bus, limits, reporter, options.traces);
   const nmt::Duration elapsed = outcome.elapsed;
   collector.close(reporter.start() + elapsed, reporter.halted());
+  if (view) {
+    view->update(collector.nodes(), true);  // the last state, then the table in its place
+    view->clear();
+  }
 
   bool ok = !reporter.halted() && !outcome.timed_out;
   for (const auto& r : collector.nodes()) {
@@ -415,9 +592,19 @@ void add_push_command(CLI::App& app) {
                 "Print per node the writes the master would download, in download order "
                 "(PDO-safe), without a bus");
   cmd->add_option("--only", options->only,
-                  "Boot only these nodes, e.g. 3,5-7 (the others are no slaves of this run, "
-                  "though NMT start-up's reset communication reaches them)")
+                  "Boot only these nodes, e.g. 3,5-7. The others are left as they are: no reset, "
+                  "no configuration, no start (this run makes them keep-alive slaves that are "
+                  "not booted, 1F81h = 11h: NMT start-up then resets each booted node on its "
+                  "own instead of all nodes at once)")
       ->type_name("NODES");
+  cmd->add_option("--trace", options->traces.pcap,
+                  "Record every frame of the run in a pcap file (LINKTYPE_CAN_SOCKETCAN, for "
+                  "Wireshark/tshark); on sim: stamped with simulated time")
+      ->type_name("FILE.pcap");
+  cmd->add_option("--candump", options->traces.candump,
+                  "Record every frame of the run as a candump log (candump -l format, for "
+                  "can-utils and python-can); on sim: stamped with simulated time")
+      ->type_name("FILE.log");
   cmd->add_flag("--force", options->force, "Download even when 1020h matches 1F26h/1F27h");
   cmd->add_flag("--no-start", options->no_start,
                 "Do not start the slaves (1F80h bit 3): they stay pre-operational");
@@ -431,12 +618,21 @@ void add_push_command(CLI::App& app) {
       ->capture_default_str()
       ->type_name("N");
   cmd->footer(std::string(
-      "Events are printed one a line on stderr as cfgmgr master prints them; the table goes to "
-      "stdout at the end: node, name, result, entries (configuration writes, PDO-safe order), "
-      "time (from the node's first boot step to its result).\n\n"
+      "On a terminal, stderr shows a live view while the run lasts (redrawn at most 10 times a "
+      "second): a progress bar, and per node its NMT state, boot step, entries written of "
+      "total, bytes and retries (boot tries repeated). Otherwise events are printed one a line "
+      "on stderr as cfgmgr master prints them. The table goes to stdout at the end: node, name, "
+      "result, entries (configuration writes, PDO-safe order; for an error, those written "
+      "before it), time (from the node's first boot step to its result).\n\n"
+      "With --bus sim:?state=DIR each simulated device keeps what it saved with 1010h (the "
+      "configuration and 1020h) in DIR between runs, one file per node, and loads it when it "
+      "powers on: a second push finds every 1020h as the first left it and skips every "
+      "node (\"skipped: signature matches\").\n\n"
       "Examples:\n"
       "  cfgmgr push samples/network/nodelist.cpj --bus sim:\n"
       "  cfgmgr push samples/network/nodelist.cpj --dry-run --only 3\n"
+      "  cfgmgr push samples/network/nodelist.cpj --bus 'sim:?state=/tmp/devices' "
+      "--candump boot.log\n"
       "  cfgmgr push nodelist.cpj --bus socketcan:can0 --json report.json\n"
       "  cfgmgr push master.dcf --bus udp://239.74.163.2:43113 --force --no-save\n\n"
       "Exit codes:\n"

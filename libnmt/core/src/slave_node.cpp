@@ -705,6 +705,14 @@ void SlaveNode::save(std::uint8_t area, TimePoint now) {
            cfg::to_string({obj::kStoreParameters, area}) + ")");
 }
 
+void SlaveNode::set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values) {
+  std::erase_if(values, [this](const auto& kv) {
+    return !is_stored_parameter(static_cast<std::uint16_t>(kv.first >> 8),
+                                static_cast<std::uint8_t>(kv.first & 0xFF));
+  });
+  stored_ = std::move(values);
+}
+
 void SlaveNode::restore_defaults(std::uint8_t area, TimePoint now) {
   // CiA 301 §7.5.2.14: defaults become effective at the next reset; until then nothing changes.
   std::erase_if(stored_, [area](const auto& kv) { return in_area(area, kv.first >> 8 & 0xFFFF); });

@@ -291,6 +291,12 @@ void SimBus::arm_timer(std::size_t slot, std::optional<TimePoint> deadline) {
   push(at, 0, EventKind::Timer, slot, s.timer_generation);
 }
 
+std::size_t SimBus::frames_queued(const SimNode& node) const {
+  if (node.bus_ != this) return 0;
+  const Slot& s = slots_[node.slot_];
+  return s.queue.size() - s.queue_head + (transmitting_ && current_sender_ == node.slot_ ? 1 : 0);
+}
+
 void SimBus::enqueue_frame(std::size_t slot, const CanFrame& frame) {
   slots_[slot].queue.push_back(frame);
   if (!transmitting_ && !arbitration_pending_) {

@@ -158,6 +158,11 @@ class SlaveNode {
   void set_options(SlaveNodeOptions options);
   /// Values 1010h saved, by LocalDictionary::key(); empty when nothing was saved.
   const std::map<std::uint32_t, std::vector<std::uint8_t>>& stored() const { return stored_; }
+  /// Replaces the saved values (the device's non-volatile memory), e.g. with stored() of an
+  /// earlier run kept in a file. Keys as stored(); a key that is not a stored parameter of this
+  /// node (see the top of this file) is dropped. Like a save, they act at the next power_on() or
+  /// reset.
+  void set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values);
   /// Program state of 1F51h sub `program` (1..), nullopt when the node has no such program.
   std::optional<ProgramState> program_state(std::uint8_t program) const;
 

@@ -188,6 +188,10 @@ class SimBus {
   bool step();
   /// True when nothing is scheduled: no timer, no call, no frame queued or on the bus.
   bool idle() const { return live_events_ == 0; }
+  /// Frames `node` sent that have not completed transmission yet, the one on the wire
+  /// included (0 for a node not attached here): e.g. to let a node's last frames reach the bus
+  /// before a run ends.
+  std::size_t frames_queued(const SimNode& node) const;
 
   // --- statistics ----------------------------------------------------------------------------
   SimBusStats statistics() const;
