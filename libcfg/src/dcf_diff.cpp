@@ -48,12 +48,12 @@ DiffSide side_of(const Parameter& p) {
   return {"'" + p.text + "' (as written)", p.line};
 }
 
-std::string name_of(const Object& object, const SubObject& sub) {
+}  // namespace
+
+std::string parameter_name(const Object& object, const SubObject& sub) {
   if (object.is_var() || sub.name.empty()) return object.name;
   return object.name + " / " + sub.name;
 }
-
-}  // namespace
 
 std::string_view to_string(ParameterDifference::Kind kind) {
   switch (kind) {
@@ -81,7 +81,7 @@ std::vector<ParameterDifference> diff_parameters(const DeviceDescription& a,
     d.kind = kind;
     d.address = {object.index, sub != nullptr ? sub->sub_index : std::uint8_t{0}};
     d.whole_object = sub == nullptr;
-    d.name = sub != nullptr ? name_of(object, *sub) : object.name;
+    d.name = sub != nullptr ? parameter_name(object, *sub) : object.name;
     const DiffSide side = sub != nullptr ? side_of(p) : DiffSide{"", object.line};
     (kind == Kind::OnlyInA ? d.a : d.b) = side;
     out.push_back(std::move(d));
@@ -120,7 +120,7 @@ std::vector<ParameterDifference> diff_parameters(const DeviceDescription& a,
       if (!same(pa, pb)) {
         ParameterDifference d;
         d.address = {oa.index, sa->first};
-        d.name = name_of(oa, sa->second);
+        d.name = parameter_name(oa, sa->second);
         d.a = side_of(pa);
         d.b = side_of(pb);
         out.push_back(std::move(d));

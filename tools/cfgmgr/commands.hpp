@@ -21,6 +21,8 @@ void add_push_command(CLI::App& app);
 void add_diff_command(CLI::App& app);
 /// `cfgmgr build NETWORK -o DIR`: the master DCF and every node's concise DCF (build.cpp).
 void add_build_command(CLI::App& app);
+/// `cfgmgr verify NETWORK --bus URL`: read back the configured values and compare (verify.cpp).
+void add_verify_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

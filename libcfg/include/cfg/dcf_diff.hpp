@@ -48,6 +48,10 @@ std::vector<ParameterDifference> diff_parameters(const DeviceDescription& a,
                                                  const DeviceDescription& b,
                                                  const DiffOptions& options = {});
 
+/// How messages name an entry: the object's name for a VAR, "object / sub-object" otherwise
+/// ("TPDO 1 mapping / Mapped object 1").
+std::string parameter_name(const Object& object, const SubObject& sub);
+
 /// "changed", "only_in_a", "only_in_b": names for JSON.
 std::string_view to_string(ParameterDifference::Kind kind);
 
