@@ -8,6 +8,7 @@
 // nmt::frame_bits, of the frames CiA 301/302-2 require, built here from the network's own
 // download plans, not from what the master sends), their ratio, the frames the trace holds,
 // the wall-clock time of the process and its peak RSS (wait4 ru_maxrss).
+#include <fcntl.h>
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -30,6 +31,7 @@
 #include "cfg/network.hpp"
 #include "cfg/object_index.hpp"
 #include "nmt/frame.hpp"
+#include "nmt/sim_bus.hpp"
 
 extern char** environ;  // NOLINT(readability-redundant-declaration): POSIX, for posix_spawn
 
@@ -44,6 +46,7 @@ constexpr std::uint8_t kMasterId = 127;
 struct Run {
   double bus_s = 0;
   double wall_s = 0;
+  double cpu_s = 0;  ///< user + system time of the process
   long max_rss_kib = 0;
   std::size_t frames = 0;
   int exit_code = -1;
@@ -84,6 +87,10 @@ Run push(const std::vector<std::string>& arguments, const fs::path& dir) {
   posix_spawn_file_actions_destroy(&actions);
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   run.max_rss_kib = usage.ru_maxrss;
+  const auto seconds = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_usec) / 1e6;
+  };
+  run.cpu_s = seconds(usage.ru_utime) + seconds(usage.ru_stime);
   const std::string report = slurp(json);
   const auto at = report.find("\"elapsed_s\": ");
   if (at != std::string::npos) run.bus_s = std::strtod(report.c_str() + at + 13, nullptr);
@@ -171,14 +178,20 @@ Required required_frames(const cfg::Network& network, const generated::NetworkSp
 
 void print(const char* what, const std::vector<Run>& runs, const Required& bound) {
   std::vector<double> wall;
-  for (const auto& r : runs) wall.push_back(r.wall_s);
+  std::vector<double> cpu;
+  for (const auto& r : runs) {
+    wall.push_back(r.wall_s);
+    cpu.push_back(r.cpu_s);
+  }
   std::sort(wall.begin(), wall.end());
+  std::sort(cpu.begin(), cpu.end());
   const Run& r = runs.front();
   std::printf(
-      "%-7s bus %.3f s  bound %.3f s (%zu frames)  ratio %.3f  frames %zu  wall median %.3f s "
-      "(min %.3f, max %.3f, %zu runs)  peak RSS %ld KiB  exit %d\n",
+      "%-9s bus %.3f s  bound %.3f s (%zu frames)  ratio %.3f  frames %zu  wall median %.3f s "
+      "(min %.3f, max %.3f)  CPU median %.3f s  peak RSS %ld KiB  exit %d  (%zu runs)\n",
       what, r.bus_s, bound.seconds(), bound.frames.size(), r.bus_s / bound.seconds(), r.frames,
-      wall[wall.size() / 2], wall.front(), wall.back(), runs.size(), r.max_rss_kib, r.exit_code);
+      wall[wall.size() / 2], wall.front(), wall.back(), cpu[cpu.size() / 2], r.max_rss_kib,
+      r.exit_code, runs.size());
 }
 
 }  // namespace
@@ -203,13 +216,19 @@ int main(int argc, char** argv) {
       network.nodes.size(), network.nodes.front().writes.size());
   const std::string state = (dir / "state").string();
   const std::vector<std::string> args = {cpj, "--bus", "sim:?latency_ms=1&state=" + state};
+  const std::vector<std::string> stateless = {cpj, "--bus", "sim:?latency_ms=1"};
+  std::vector<Run> plain;
   std::vector<Run> first;
   std::vector<Run> second;
   for (int i = 0; i < runs; ++i) {
+    plain.push_back(push(stateless, dir));
     fs::remove_all(state);
     first.push_back(push(args, dir));
     second.push_back(push(args, dir));
   }
+  // Without state= the devices keep nothing, so no file is written (each save is one
+  // fsync'd file per node with state=).
+  print("no state", plain, required_frames(network, spec, true));
   print("first", first, required_frames(network, spec, true));
   print("second", second, required_frames(network, spec, false));
   std::printf("second / first bus time: 1 / %.1f\n", first.front().bus_s / second.front().bus_s);

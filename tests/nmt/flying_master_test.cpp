@@ -454,7 +454,7 @@ TEST(FlyingMaster, OnePercentFrameLossStillElectsOneMaster) {
 
 // ------------------------------------------------------------------------------ objects --------
 
-// §6.13 Table 50 defaults (sub 3 manufacturer-specific: 1, header), sub 6 = 4000 + 10 x node-ID.
+// §6.13 Table 50 defaults (sub 3 manufacturer-specific: 1, header), sub 6 = 4000 + 10 x node-ID;
 TEST(FlyingMaster, TimingParametersHaveTheirDefaults) {
   auto m = NmtMaster::create(master_spec::master_dcf(), id(5)).value();
   const auto& dict = m.dictionary();
@@ -465,6 +465,11 @@ TEST(FlyingMaster, TimingParametersHaveTheirDefaults) {
   EXPECT_EQ(dict.get_unsigned(0x1F90, 4), 1500U);
   EXPECT_EQ(dict.get_unsigned(0x1F90, 5), 10U);
   EXPECT_EQ(dict.get_unsigned(0x1F90, 6), 4050U);
+  // §6.14 / DSP 302 §5.5.6: 1F91h, the self-starting device's timing.
+  EXPECT_EQ(dict.get_unsigned(0x1F91, 0), 3U);
+  EXPECT_EQ(dict.get_unsigned(0x1F91, 1), 100U);
+  EXPECT_EQ(dict.get_unsigned(0x1F91, 2), 500U);
+  EXPECT_EQ(dict.get_unsigned(0x1F91, 3), 15U);
 }
 
 // Table 48: priorities 3..FFFFh are reserved; §6.13: priority time slot > 127 x device time slot.
@@ -505,6 +510,78 @@ TEST(FlyingMaster, StandbyMasterRefusesRequestNmt) {
   EXPECT_EQ(FlyingRig::write(rig.master(10).dictionary(), 0x1F82, 2, 0x04, 1),
             SdoAbort::DeviceState);
   EXPECT_EQ(FlyingRig::write(rig.master(11).dictionary(), 0x1F82, 2, 0x04, 1), SdoAbort::None);
+}
+
+}  // namespace
+}  // namespace nmt
+
+namespace nmt {
+namespace {
+
+using master_spec::MasterRig;
+using master_spec::Startup;
+using namespace std::chrono_literals;
+using Kind = MasterEvent::Kind;
+
+// §5.1 and DSP 302 §5.5.3.1 with 1F91h's defaults (§6.14: 100 ms timeout, 500 ms delay, 15 ms
+// node slot): a self-starting device with 1F80h bit 1 (Table 16) asks for master-capable devices
+// (75h) 500 ms after start-up; nobody answers within 100 ms, so it starts all nodes after
+// node-ID (1) x 15 ms. It is operational by itself from the start.
+TEST(MasterDetection, SelfStartingDeviceStartsAllNodesWhenNoMasterCapableDeviceAnswers) {
+  MasterRig rig;
+  rig.startup(Startup::kStartAllNodes);
+  rig.add_slave(2);
+  auto& device = rig.power_on_network();
+  EXPECT_EQ(device.state(), NmtState::Operational);
+  rig.run_for(1s);
+  const auto asked = rig.on_id(0x75);
+  ASSERT_EQ(asked.size(), 1U);
+  EXPECT_GE(asked.front().at - rig.started_at, 500ms);  // delivered at its end of frame
+  EXPECT_LT(asked.front().at - rig.started_at, 501ms);
+  const auto started = rig.nmt_seen();
+  ASSERT_EQ(started.size(), 1U);
+  EXPECT_EQ(started.front().text(), "000#0100");
+  EXPECT_GE(started.front().at - rig.started_at, 615ms);
+  EXPECT_LT(started.front().at - rig.started_at, 616ms);
+  EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
+}
+
+// DSP 302 §5.5.3.1: "If one or more devices answer within [1F91h sub 1], the requesting device
+// knows that there exist at least one device with the capability to become NMT master": it
+// sends no start.
+TEST(MasterDetection, SelfStartingDeviceLeavesTheNetworkToAMasterCapableDevice) {
+  MasterRig rig;
+  rig.startup(Startup::kStartAllNodes);
+  rig.add_slave(2);
+  FunctionNode capable([](FunctionNode& self, const CanFrame& f, TimePoint) {
+    if (f.id == 0x75) self.send(CanFrame::make(0x74, {}));
+  });
+  rig.bus.attach(capable);
+  rig.power_on_network();
+  rig.run_for(2s);
+  EXPECT_EQ(rig.on_id(0x74).size(), 1U);
+  EXPECT_TRUE(rig.nmt().empty());
+  ASSERT_EQ(rig.events_of(Kind::MasterDetection).size(), 1U);
+  EXPECT_EQ(rig.slave(2).node().state(), NmtState::PreOperational);
+}
+
+// DSP 302 §5.5.3.1: the node-ID slots keep a group of self-starting devices from all sending
+// the start: node 1 waits 15 ms, node 4 60 ms and hears node 1's start first.
+TEST(MasterDetection, OfTwoSelfStartingDevicesOnlyTheLowerNodeIdStartsTheNetwork) {
+  MasterRig rig;
+  rig.startup(Startup::kStartAllNodes);
+  rig.add_slave(2);
+  auto second = NmtMaster::create(rig.master, master_spec::id(4)).value();
+  SimEngineNode<NmtMaster> node4(std::move(second));
+  rig.bus.attach(node4);
+  rig.power_on_slaves();
+  rig.run_for(50ms);
+  node4.apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) { m.start(now, out); });
+  rig.start_master();
+  rig.run_for(2s);
+  EXPECT_EQ(rig.on_id(0x75).size(), 2U);
+  EXPECT_EQ(rig.nmt(), std::vector<std::string>{"000#0100"});
+  EXPECT_EQ(node4.engine().state(), NmtState::Operational);
 }
 
 }  // namespace

@@ -164,6 +164,31 @@ TEST(Master, AMasterDcfAloneBootsTheNodesItsFilesName) {
   EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
 }
 
+TEST(Master, AFlyingMasterDcfNegotiatesBeforeItBootsTheNetwork) {
+  // flying_master.dcf: 1F80h = 23h, 1F90h at its defaults (CiA 302-2 section 6.13: 100 ms
+  // timeout, 500 ms delay, priority 1, 1500 ms priority slot, 10 ms node slot). Alone on sim:,
+  // the master detects twice without answer (after power-on, then after its reset
+  // communication) and waits 1 x 1500 + 1 x 10 ms: active at 2 x (500 + 100) + 1510 ms.
+  ScratchDir dir;
+  const std::string events = dir / "events.jsonl";
+  auto r = cfgmgr(
+      dir, {"master", network("flying_master.dcf"), "--bus", "sim:", "--json-events", events});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("2.710  active NMT master: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
+  const auto lines = json_lines(events);
+  const auto active = events_of(lines, "active_master");
+  ASSERT_EQ(active.size(), 1U);
+  EXPECT_EQ(node_of(*active.front()), 1);
+  ASSERT_NE(active.front()->get("priority"), nullptr);
+  EXPECT_EQ(active.front()->get("priority")->number, 1.0);
+  EXPECT_EQ(active.front()->get("time_s")->number, 2.71);
+  EXPECT_GE(events_of(lines, "negotiation_began").size(), 2U);
+  const auto began = events_of(lines, "startup_began");
+  ASSERT_EQ(began.size(), 1U);
+  EXPECT_EQ(began.front()->get("time_s")->number, 2.71);
+}
+
 TEST(Master, TheSampleCellBootsOnTheSimulatedBus) {
   // samples/network/README.md: nodes 2, 3 and 4 of the sample cell.
   ScratchDir dir;
@@ -294,6 +319,77 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
   ASSERT_TRUE(code.has_value()) << "no clean exit on SIGINT\n" << err;
   EXPECT_EQ(*code, 0) << err;
   EXPECT_NE(err.find("node 2: heartbeat lost"), std::string::npos) << err;
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 12 over UDP: three `cfgmgr master` processes from flying_master.dcf (1F80h = 23h, 1F90h
+// defaults: all priority 1, so the lowest node-ID wins, CiA 302-2 §5.3) and node 2 as a
+// `cfgmgr simulate` process. The active master (node 1) is killed with SIGKILL; node 4, the
+// next in the waiting time order, misses its heartbeat (2 x 100 + 100 ms), resets all nodes,
+// wins the negotiation and boots the network again (§5.5.2); node 5 stands by for it.
+TEST(MasterInNetns, FlyingMastersTakeOverWhenTheActiveOneIsKilled) {
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string bus = "udp://239.74.163.2:43121";
+  tool_test::SpawnedTool devices(
+      "cfgmgr", {"simulate", "--bus", bus, "--for", "40", network("nodes/io_node2.dcf")},
+      dir / "sim.out", dir / "sim.err");
+  ASSERT_TRUE(devices.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  std::map<int, std::unique_ptr<tool_test::SpawnedTool>> masters;
+  auto events = [&dir](int node) { return dir / ("events" + std::to_string(node) + ".jsonl"); };
+  auto err = [&dir](int node) {
+    return tool_test::slurp(dir / ("master" + std::to_string(node) + ".err"));
+  };
+  for (int node : {1, 4, 5}) {
+    masters[node] = std::make_unique<tool_test::SpawnedTool>(
+        "cfgmgr",
+        std::vector<std::string>{"master", network("flying_master.dcf"), "--bus", bus, "--node-id",
+                                 std::to_string(node), "--json-events", events(node)},
+        dir / ("master" + std::to_string(node) + ".out"),
+        dir / ("master" + std::to_string(node) + ".err"));
+    ASSERT_TRUE(masters[node]->started());
+  }
+  // The number of `event` lines in `node`'s events, waiting up to `limit` for at least `count`.
+  const auto wait_for = [&](int node, const std::string& event, std::size_t count,
+                            std::chrono::seconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    std::size_t seen = 0;
+    while (std::chrono::steady_clock::now() < end) {
+      seen = events_of(json_lines(events(node)), event).size();
+      if (seen >= count) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return seen;
+  };
+  ASSERT_GE(wait_for(1, "startup_complete", 1, std::chrono::seconds(15)), 1U) << err(1);
+  ASSERT_GE(wait_for(4, "standby", 1, std::chrono::seconds(5)), 1U) << err(4);
+  ASSERT_GE(wait_for(5, "standby", 1, std::chrono::seconds(5)), 1U) << err(5);
+  EXPECT_EQ(events_of(json_lines(events(1)), "active_master").size(), 1U);
+  EXPECT_TRUE(events_of(json_lines(events(4)), "active_master").empty());
+  EXPECT_GE(wait_for(1, "slave_booted", 1, std::chrono::seconds(5)), 1U) << err(1);
+
+  masters.erase(1);  // SIGKILL: its frames stop
+  ASSERT_GE(wait_for(4, "active_master", 1, std::chrono::seconds(10)), 1U) << err(4);
+  ASSERT_GE(wait_for(4, "startup_complete", 1, std::chrono::seconds(10)), 1U) << err(4);
+  const auto after = json_lines(events(4));
+  EXPECT_FALSE(events_of(after, "active_master_lost").empty()) << err(4);
+  bool node2_booted = false;
+  for (const Json* e : events_of(after, "slave_booted")) node2_booted |= node_of(*e) == 2;
+  EXPECT_TRUE(node2_booted) << err(4);
+  EXPECT_NE(err(4).find("node 2: booted"), std::string::npos) << err(4);
+  // Node 5 stands by for node 4 now.
+  EXPECT_GE(wait_for(5, "standby", 2, std::chrono::seconds(5)), 2U) << err(5);
+  const auto standby5 = events_of(json_lines(events(5)), "standby");
+  EXPECT_EQ(node_of(*standby5.back()), 4);
+  for (int node : {4, 5}) {
+    const auto code = masters[node]->stop(SIGTERM, std::chrono::milliseconds(3000));
+    ASSERT_TRUE(code.has_value()) << err(node);
+    EXPECT_EQ(*code, 0) << err(node);
+  }
 }
 
 }  // namespace

@@ -47,7 +47,8 @@ TEST(Push, HelpDocumentsOptionsExamplesAndExitCodes) {
   EXPECT_EQ(r.exit_code, 0);
   for (const char* text :
        {"NETWORK", "--bus", "--json", "--boot-time", "--dry-run", "--only", "--force", "--no-start",
-        "--no-save", "--sdo-timeout", "--retries", "10 s", "Examples:", "Exit codes:", "  4  "}) {
+        "--no-save", "--sdo-timeout", "--retries", "--trace", "--candump", "state=DIR",
+        "1F81h = 11h", "10 s", "Examples:", "Exit codes:", "  4  "}) {
     EXPECT_NE(r.out.find(text), std::string::npos) << text;
   }
   EXPECT_NE(cfgmgr(dir, {"--help"}).out.find("push"), std::string::npos);

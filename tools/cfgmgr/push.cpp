@@ -440,7 +440,8 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
            (r.status ? tools::json_string(std::string(1, *r.status)) : std::string("null")) +
            ", \"message\": " + tools::json_string(r.message) +
            ", \"entries\": " + std::to_string(r.entries) +
-           ", \"bytes\": " + std::to_string(r.bytes) + ", \"seconds\": " + number +
+           ", \"bytes\": " + std::to_string(r.bytes) +
+           ", \"retries\": " + std::to_string(r.retries) + ", \"seconds\": " + number +
            ", \"mandatory\": " + (r.mandatory ? "true" : "false") + "}";
     first = false;
   }
@@ -580,7 +581,7 @@ void add_push_command(CLI::App& app) {
   cmd->add_option("--json", options->json,
                   "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
                   "nodes [{node_id, name, result (configured/skipped/error), status (CiA 302-2 "
-                  "letter or null), message, entries, bytes, seconds, mandatory}]")
+                  "letter or null), message, entries, bytes, retries, seconds, mandatory}]")
       ->type_name("FILE");
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "

@@ -1,5 +1,6 @@
-// NMT flying master start-up and the watch over the active master (CiA 302-2 §3.7, §5.1-§5.5;
-// the COB-IDs and bytes of DSP 302 §5.5, whose figures the 302-2 text lacks). The choices
+// NMT flying master start-up and the watch over the active master (CiA 302-2 §3.7, §5.2-§5.5),
+// and NMT master detection (§5.1) for self-starting devices and master-capable ones; the
+// COB-IDs and bytes are DSP 302 §5.5's, whose figures the 302-2 text lacks. The choices
 // where the spec leaves room are listed at the top of nmt/nmt_master.hpp.
 #include <array>
 #include <string>
@@ -54,7 +55,7 @@ FlyingTiming NmtMaster::Impl::flying_timing() const {
 }
 
 std::optional<TimePoint> NmtMaster::Impl::flying_deadline() const {
-  auto due = flying.deadline;
+  auto due = earliest(flying.deadline, detection.deadline);
   if (flying.phase == Phase::Active) due = earliest(due, flying.cycle_due);
   if (flying.phase == Phase::Standby) due = earliest(due, flying.heartbeat_due);
   return due;
@@ -235,8 +236,79 @@ void NmtMaster::Impl::flying_master_response(std::uint16_t priority, std::uint8_
   flying_force(now, out, node, priority);
 }
 
+void NmtMaster::Impl::start_all_when_no_master(TimePoint now) {
+  detection = MasterDetection{};
+  if (!dict.has_object(obj::kSelfStartingNodesTiming)) {
+    queue_nmt(NmtCommand::Start, 0);
+    return;
+  }
+  // §5.1: "after the CANopen device switched into the NMT state Pre-operational and an
+  // additional time delay (1F91h sub 2)".
+  detection.phase = MasterDetection::Phase::Delay;
+  detection.deadline = now + std::chrono::milliseconds(value_of(obj::kSelfStartingNodesTiming, 2));
+}
+
+bool NmtMaster::Impl::detection_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  using P = MasterDetection::Phase;
+  if (detection.phase == P::Detect && frame.id == Cob::kCapableResponse) {
+    // DSP 302 §5.5.3.1: a device able to become NMT master exists; it starts the network.
+    detection = MasterDetection{};
+    report(out, master_event(MasterEvent::Kind::MasterDetection, now, 0,
+                             "an NMT master-capable device answered (74h): the network is left "
+                             "to the NMT master"));
+    return true;
+  }
+  if (detection.phase == P::Wait) {
+    const auto command = parse_nmt_command(frame);
+    if (command && command->node_id == 0 && command->command == NmtCommand::Start) {
+      // DSP 302 §5.5.3.1: the node-ID slots keep a group of self-starting devices from each
+      // sending the start: one with a lower node-ID did.
+      detection = MasterDetection{};
+      report(out, master_event(MasterEvent::Kind::MasterDetection, now, 0,
+                               "another device started all nodes first"));
+      return false;
+    }
+  }
+  return false;
+}
+
+void NmtMaster::Impl::detection_timer(TimePoint now, Output& out) {
+  using P = MasterDetection::Phase;
+  if (!detection.deadline || now < *detection.deadline) return;
+  detection.deadline.reset();
+  auto ms = [this](std::uint8_t sub) {
+    return Duration{std::chrono::milliseconds(value_of(obj::kSelfStartingNodesTiming, sub))};
+  };
+  switch (detection.phase) {
+    case P::Delay:
+      out.send(empty_frame(Cob::kCapableRequest));
+      detection.phase = P::Detect;
+      detection.deadline = now + ms(1);
+      break;
+    case P::Detect: {
+      // §5.1: no answer: start remote node after node-ID x node time slot (1F91h sub 3).
+      const auto wait = node_id.value() * ms(3);
+      detection.phase = P::Wait;
+      detection.deadline = now + wait;
+      report(out, master_event(MasterEvent::Kind::MasterDetection, now, 0,
+                               "no NMT master-capable device answered within " + ms_text(ms(1)) +
+                                   ": start all nodes in " + ms_text(wait)));
+      break;
+    }
+    case P::Wait:
+      detection = MasterDetection{};
+      queue_nmt(NmtCommand::Start, 0);
+      break;
+    case P::Off:
+      break;
+  }
+}
+
 bool NmtMaster::Impl::flying_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (frame.extended || frame.rtr || frame.error) return false;
+  if (detection.phase != MasterDetection::Phase::Off && detection_frame(frame, now, out)) {
+    return true;
+  }
   const auto config = startup_config();
   // §5.1: every device capable of the NMT master mode answers NMT master detection.
   if (frame.id == Cob::kCapableRequest) {
@@ -305,6 +377,7 @@ bool NmtMaster::Impl::flying_frame(const CanFrame& frame, TimePoint now, Output&
 }
 
 void NmtMaster::Impl::flying_timer(TimePoint now, Output& out) {
+  detection_timer(now, out);
   if (flying.phase == Phase::Off) return;
   const auto t = flying_timing();
   if (flying.phase == Phase::Active && flying.cycle_due && now >= *flying.cycle_due) {

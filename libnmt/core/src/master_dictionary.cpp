@@ -2,6 +2,7 @@
 // and SDO writes get the §6 value checks; 1F82h/1F83h writes are requests (request NMT and
 // request guarding, §6.4-6.5), their reads report.
 #include <array>
+#include <span>
 #include <string>
 
 #include "cfg/bytes.hpp"
@@ -124,14 +125,23 @@ void NmtMaster::Impl::add_missing_objects(LocalDictionary& dict) {
 }
 
 void NmtMaster::Impl::add_flying_master_objects(LocalDictionary& dict, cfg::NodeId node) {
-  if (dict.has_object(obj::kFlyingMasterParameters)) return;
-  // CiA 302-2 §6.13, Table 50, in ms; the priority's default is manufacturer-specific: 1
-  // (medium), so a device can be made more or less important than its peers.
   struct Sub {
     const char* name;
     std::uint32_t value;
   };
-  const std::array<Sub, 6> subs{{
+  // An ARRAY of UNSIGNED16 with sub 0 = the number of entries (const).
+  auto add = [&dict](std::uint16_t index, std::span<const Sub> subs) {
+    if (dict.has_object(index)) return;
+    dict.insert(make_entry(index, 0, "Highest sub-index supported", cfg::DataType::Unsigned8,
+                           cfg::AccessType::Const, subs.size()));
+    for (std::size_t i = 0; i < subs.size(); ++i) {
+      dict.insert(make_entry(index, static_cast<std::uint8_t>(i + 1), subs[i].name,
+                             cfg::DataType::Unsigned16, cfg::AccessType::Rw, subs[i].value));
+    }
+  };
+  // CiA 302-2 §6.13, Table 50, in ms; the priority's default is manufacturer-specific: 1
+  // (medium), so a device can be made more or less important than its peers.
+  const std::array<Sub, 6> flying{{
       {"NMT master timeout", 100},
       {"NMT master negotiation time delay", 500},
       {"NMT master priority", 1},
@@ -139,13 +149,14 @@ void NmtMaster::Impl::add_flying_master_objects(LocalDictionary& dict, cfg::Node
       {"CANopen device time slot", 10},
       {"Multiple NMT master detect cycle time", 4000 + 10 * std::uint32_t{node.value()}},
   }};
-  dict.insert(make_entry(obj::kFlyingMasterParameters, 0, "Highest sub-index supported",
-                         cfg::DataType::Unsigned8, cfg::AccessType::Const, subs.size()));
-  for (std::size_t i = 0; i < subs.size(); ++i) {
-    dict.insert(make_entry(obj::kFlyingMasterParameters, static_cast<std::uint8_t>(i + 1),
-                           subs[i].name, cfg::DataType::Unsigned16, cfg::AccessType::Rw,
-                           subs[i].value));
-  }
+  add(obj::kFlyingMasterParameters, flying);
+  // CiA 302-2 §6.14 / DSP 302 §5.5.6: the self-starting device's timing, in ms.
+  const std::array<Sub, 3> self_starting{{
+      {"Timeout for detection of an NMT master-capable device", 100},
+      {"Delay time for an NMT master-capable device request", 500},
+      {"Node time slot", 15},
+  }};
+  add(obj::kSelfStartingNodesTiming, self_starting);
 }
 
 std::optional<std::string> NmtMaster::Impl::flying_value_problem(const LocalDictionary& dict,

@@ -164,6 +164,8 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "multiple_masters";
     case K::ActiveMasterLost:
       return "active_master_lost";
+    case K::MasterDetection:
+      return "master_detection";
   }
   return "?";
 }
@@ -521,8 +523,9 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     startup = StartupState::NotMaster;
     report(out, master_event(MasterEvent::Kind::NotMaster, now, 0,
                              "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
+    detection = MasterDetection{};
     if (config.self_starting()) {
-      if (config.start_all_nodes()) queue_nmt(NmtCommand::Start, 0);
+      if (config.start_all_nodes()) start_all_when_no_master(now);
       set_own_state(NmtState::Operational, now, out);
     }
     return;

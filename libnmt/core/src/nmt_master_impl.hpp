@@ -111,6 +111,19 @@ struct FlyingMaster {
   unsigned force_tries = 0;  ///< 76h sent in a row without the reset they ask for
 };
 
+/// NMT master detection of a start-up capable device that starts all nodes (CiA 302-2 §5.1,
+/// DSP 302 §5.5.3.1, 1F91h): is there a device that will be the master?
+struct MasterDetection {
+  enum class Phase : std::uint8_t {
+    Off,
+    Delay,   // 1F91h sub 2 after entering pre-operational
+    Detect,  // 75h sent, a 74h within sub 1
+    Wait,    // no answer: node-ID x sub 3, then start all nodes
+  };
+  Phase phase = Phase::Off;
+  std::optional<TimePoint> deadline;
+};
+
 /// 1F90h, in the units of the engine.
 struct FlyingTiming {
   Duration timeout;        ///< sub 1: answer of the active master
@@ -167,6 +180,7 @@ struct NmtMaster::Impl {
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
 
   FlyingMaster flying;
+  MasterDetection detection;
 
   std::deque<std::pair<NmtCommand, std::uint8_t>> nmt_queue;
   std::optional<TimePoint> last_nmt;
@@ -183,7 +197,8 @@ struct NmtMaster::Impl {
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
   static void add_missing_objects(LocalDictionary& dict);
   static cfg::Status check_configuration_values(const LocalDictionary& dict);
-  /// 1F90h with its CiA 302-2 §6.13 defaults (sub 6: 4000 + 10 x node-ID).
+  /// 1F90h and 1F91h with their CiA 302-2 §6.13-§6.14 defaults (1F90h sub 6: 4000 + 10 x
+  /// node-ID; 1F91h: DSP 302 §5.5.6, 100, 500, 15 ms).
   static void add_flying_master_objects(LocalDictionary& dict, cfg::NodeId node);
   /// Why a 1F90h value is refused (priority above 2, priority slot not above 127 x node slot).
   static std::optional<std::string> flying_value_problem(const LocalDictionary& dict,
@@ -233,6 +248,11 @@ struct NmtMaster::Impl {
   bool flying_frame(const CanFrame& frame, TimePoint now, Output& out);
   void flying_timer(TimePoint now, Output& out);
   std::optional<TimePoint> flying_deadline() const;
+  /// §5.1: a self-starting device with 1F80h bit 1 starts all nodes only when no master-capable
+  /// device answers (with 1F91h; without it at once).
+  void start_all_when_no_master(TimePoint now);
+  bool detection_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void detection_timer(TimePoint now, Output& out);
   void flying_restart(TimePoint now);
   void flying_wait(TimePoint now, Output& out, const std::string& why);
   void flying_win(TimePoint now, Output& out);

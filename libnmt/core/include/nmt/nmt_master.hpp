@@ -89,7 +89,11 @@
 // - A standby master obeys the NMT commands of the bus addressed to it or to all nodes (a reset
 //   restarts flying master start-up, warm); request NMT and request guarding are refused with
 //   0800 0022 while it is not the active master.
-// - Any device with 1F80h bit 0 set answers NMT master detection (75h) with 74h (§5.1).
+// - Any device with 1F80h bit 0 set answers NMT master detection (75h) with 74h (§5.1). A
+//   self-starting device (Table 16) enters operational by itself; with bit 1 it first asks
+//   (75h, 1F91h sub 2 after start-up) and starts all nodes only when no device answered 74h
+//   within sub 1, after node-ID x sub 3 ms, and not when another device's start all came first
+//   (DSP 302 §5.5.3.1). Without 1F91h in its file it gets §6.14's defaults (100, 500, 15 ms).
 // - Other NMT commands from other devices are ignored (there is one NMT master, §5.4).
 #pragma once
 
@@ -205,6 +209,7 @@ struct MasterEvent {
     ForceNegotiation,  ///< this device sent 76h: the active master node_id has a lower priority
     MultipleMasters,   ///< a second active master (node_id, 0: unknown) was seen
     ActiveMasterLost,  ///< the heartbeat of the active master node_id stopped (§5.5.2)
+    MasterDetection,   ///< §5.1 (self-starting device, 1F80h bit 1): the outcome of 75h/74h
   };
   Kind kind;
   TimePoint at{0};
