@@ -384,9 +384,10 @@ class MasterRig {
   }
 
   // --- the tool: an SDO client of the master's server (600h/580h + master node-ID) -----------
-  SdoResult tool_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
+  SdoResult tool_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
+                       SdoTransferOptions transfer = {}) {
     auto id = tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
-      return c.download(index, sub, std::move(data), now, out);
+      return c.download(index, sub, std::move(data), now, out, transfer);
     });
     return finish(id);
   }
@@ -394,9 +395,9 @@ class MasterRig {
                         std::size_t size) {
     return tool_write(index, sub, le(value, size)).abort;
   }
-  SdoResult tool_read(std::uint16_t index, std::uint8_t sub) {
+  SdoResult tool_read(std::uint16_t index, std::uint8_t sub, SdoTransferOptions transfer = {}) {
     auto id = tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
-      return c.upload(index, sub, now, out);
+      return c.upload(index, sub, now, out, transfer);
     });
     return finish(id);
   }

@@ -23,6 +23,9 @@ void add_diff_command(CLI::App& app);
 void add_build_command(CLI::App& app);
 /// `cfgmgr verify NETWORK --bus URL`: read back the configured values and compare (verify.cpp).
 void add_verify_command(CLI::App& app);
+/// `cfgmgr store put|get|list|rm|configure`: a configuration store, local or a master's
+/// (store.cpp).
+void add_store_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "../common/tool_support.hpp"
+#include "cfg/config_manager.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
 
@@ -24,7 +25,17 @@ constexpr double kSimDefaultBoundS = 60.0;
 struct MasterCliOptions : NetworkRunArgs {
   std::optional<double> run_for_s;
   std::string json_events;
+  std::string store;
 };
+
+/// --store DIR: the configuration manager the master serves (1F20h-1F27h) and configures from
+/// first. A damaged entry is printed and left unused (cfg/config_manager.hpp).
+std::shared_ptr<cfg::ConfigManager> open_store_or_exit(const std::string& directory) {
+  auto opened = cfg::ConfigManager::open(directory);
+  if (!opened) fail_command("master", tools::kExitIo, opened.error().message);
+  tools::print_diagnostics(opened.value().problems());
+  return std::make_shared<cfg::ConfigManager>(std::move(opened).value());
+}
 
 void run_master(const MasterCliOptions& options) {
   // Arguments first, files next, the bus last: a typo should not touch the bus.
@@ -32,7 +43,10 @@ void run_master(const MasterCliOptions& options) {
   if (options.net == 0)
     fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
   const auto network = load_network_or_exit(options.network, options.net);
-  nmt::NmtMaster master = build_master("master", options.network, network, options.node_id, {});
+  nmt::MasterOptions master_options;
+  if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
+  nmt::NmtMaster master =
+      build_master("master", options.network, network, options.node_id, master_options);
 
   std::ofstream json_file;
   if (!options.json_events.empty()) {
@@ -90,6 +104,12 @@ void add_master_command(CLI::App& app) {
                   "description/final, configured/entries/bytes, assigned, step, state, command, "
                   "priority")
       ->type_name("FILE");
+  cmd->add_option("--store", options->store,
+                  "Serve the configuration manager of this store directory (created when "
+                  "missing; see cfgmgr store): 1F20h-1F27h by SDO, so a tool can write a "
+                  "node's DCF or concise DCF and start it with 1F25h 'conf'; a node's stored "
+                  "configuration and 1F26h/1F27h take the place of the network's")
+      ->type_name("DIR");
   cmd->footer(std::string(
       "Without a master DCF, every present node is a mandatory slave that is booted and "
       "started; the expected identity comes from its DCF and 1F26h/1F27h from its "
@@ -106,7 +126,8 @@ void add_master_command(CLI::App& app) {
       "  cfgmgr master samples/network/nodelist.cpj --bus sim:\n"
       "  cfgmgr master samples/network/nodelist.cpj --bus sim:?loss=0.01 --run-for 5\n"
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --json-events events.jsonl\n"
-      "  cfgmgr master master.dcf --bus udp://239.74.163.2:43113 --node-id 1\n\n"
+      "  cfgmgr master master.dcf --bus udp://239.74.163.2:43113 --node-id 1\n"
+      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --store /var/lib/canopen/store\n\n"
       "Exit codes:\n"
       "  0  stopped by Ctrl-C/SIGTERM or --run-for, or (sim: without --run-for) NMT start-up "
       "complete\n"
@@ -115,7 +136,7 @@ void add_master_command(CLI::App& app) {
       "  2  usage error (bad command line, a --bus URL that does not parse, a --node-id "
       "outside 1..127 or of a slave)\n"
       "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
-      "--json-events cannot be written\n"
+      "--json-events or the --store directory cannot be written\n"
       "  4  NMT start-up halted: a mandatory slave failed its boot (CiA 302-2 section 3.1 f); on "
       "sim: without --run-for also when start-up did not end within 60 s\n"));
   cmd->callback([options] { run_master(*options); });

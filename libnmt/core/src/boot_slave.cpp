@@ -84,6 +84,7 @@ void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint 
   s.known_state = keep.known_state;
   s.reported_error = keep.reported_error;
   s.heartbeat_at = keep.heartbeat_at;
+  s.reconfigure = keep.reconfigure;  // a 1F25h request holds until a try succeeds
   s.running = true;
   s.expect_boot_up = after_reset;
   const auto a = assignment(node);
@@ -421,6 +422,7 @@ void NmtMaster::Impl::boot_succeeded(std::uint8_t node, TimePoint now, Output& o
   s.deadline.reset();
   s.tried = true;
   s.booted = true;
+  s.reconfigure = false;
   s.final_error = false;
   s.last_error.reset();
   s.reported_error.reset();

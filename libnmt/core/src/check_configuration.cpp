@@ -29,11 +29,15 @@ bool no_storage(SdoAbort code) {
 std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::configuration_of(
     std::uint8_t node) const {
   const auto id = *cfg::NodeId::from(node);
+  // The configuration manager first (MasterOptions::manager), then the source, then 1F22h.
+  if (options.manager && options.manager->has_configuration(id)) {
+    return options.manager->configuration(id);
+  }
   if (options.configurations) return options.configurations->configuration(id);
   // §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager."
-  const auto stream = dict.get_bytes(obj::kConciseDcf, node);
-  if (!stream || stream->empty()) return std::nullopt;
-  auto decoded = cfg::decode_concise_dcf(*stream);
+  const auto stream = own_concise_dcf(node);
+  if (stream.empty()) return std::nullopt;
+  auto decoded = cfg::decode_concise_dcf(stream);
   if (!decoded) return std::nullopt;
   return std::move(decoded.value());
 }
@@ -41,7 +45,8 @@ std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::configuration_of(
 void NmtMaster::Impl::check_configuration(std::uint8_t node, TimePoint now, Output& out) {
   set_step(node, BootStep::VerifyConfiguration, now, out);
   // §3.5 a-c: verify only when 1F26h/1F27h are not 0.
-  if (!expected_configuration(node).is_zero() && !options.force_download) {
+  if (!expected_configuration(node).is_zero() && !options.force_download &&
+      !slaves[node].reconfigure) {
     boot_upload(node, Phase::ReadVerifyDate, obj::kVerifyConfiguration, 1, now);
     return;
   }

@@ -40,6 +40,8 @@ std::optional<NmtCommand> requested_command(std::uint8_t value) {
 
 constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (§6.4, §6.5)
 
+}  // namespace
+
 DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
                            cfg::DataType type, cfg::AccessType access, std::uint64_t value) {
   DictionaryEntry e;
@@ -54,6 +56,8 @@ DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string na
   cfg::store_le(value, e.bytes, size);
   return e;
 }
+
+namespace {
 
 void add_var(LocalDictionary& dict, std::uint16_t index, const char* name, cfg::DataType type,
              std::uint64_t value) {
@@ -236,6 +240,7 @@ void NmtMaster::Impl::install_hooks() {
     }
     return SdoAbort::None;
   });
+  install_store_objects();
 }
 
 SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
@@ -280,6 +285,8 @@ std::optional<Duration> NmtMaster::Impl::heartbeat_time(std::uint8_t node) const
 }
 
 cfg::ConfigurationStamp NmtMaster::Impl::expected_configuration(std::uint8_t node) const {
+  // One owner (nmt_master.hpp): the configuration manager for a node it holds anything for.
+  if (auto stamp = stored_stamp(node)) return *stamp;
   return {value_of(obj::kExpectedConfigurationDate, node),
           value_of(obj::kExpectedConfigurationTime, node)};
 }

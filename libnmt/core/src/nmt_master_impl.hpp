@@ -9,10 +9,12 @@
 #include <deque>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "cfg/config_manager.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "nmt/error_control.hpp"
@@ -77,6 +79,9 @@ struct SlaveBoot {
   bool cob_ids_checked = false;
 
   // Between tries.
+  /// 1F25h 'conf' asked for a download even when 1020h matches (DSP 302 §6.4 "request
+  /// re-configuration"); kept by the tries that follow until one ends with status OK.
+  bool reconfigure = false;
   bool tried = false;   ///< at least one try ended (the §3.3 signal)
   bool booted = false;  ///< the last try ended with status OK (or L)
   std::optional<BootError> last_error;
@@ -214,6 +219,27 @@ struct NmtMaster::Impl {
   cfg::ConfigurationStamp expected_configuration(std::uint8_t node) const;
   Duration nmt_inhibit_time() const;
 
+  // --- configuration manager objects 1F20h-1F27h (master_store_objects.cpp) ---------------
+  /// With MasterOptions::manager: the master DCF's own 1F22h streams by node-ID, used for a
+  /// node the manager holds no configuration for.
+  std::map<std::uint8_t, std::vector<std::uint8_t>> file_concise;
+  /// The entry whose value a read of 1F20h/1F22h/1F23h filled last (emptied at the next read, so
+  /// the dictionary keeps at most one copy of a stored file).
+  std::optional<std::pair<std::uint16_t, std::uint8_t>> store_read_entry;
+  /// Adds 1F20h-1F25h served from MasterOptions::manager and its hooks; nothing without one.
+  void install_store_objects();
+  /// The manager's 1F26h/1F27h of `node` when it holds anything for the node (a stamp or a
+  /// configuration); nullopt without a manager or when it holds nothing (the dictionary's
+  /// values apply).
+  std::optional<cfg::ConfigurationStamp> stored_stamp(std::uint8_t node) const;
+  SdoAbort store_read(std::uint16_t index, std::uint8_t sub);
+  SdoAbort store_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                       TimePoint now);
+  /// 1F25h: boot (and download to) every slave the manager named.
+  SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now);
+  /// The master's own 1F22h stream of `node` (the DCF's value); empty when none.
+  std::span<const std::uint8_t> own_concise_dcf(std::uint8_t node) const;
+
   // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
   void power_on(TimePoint now, Output& out);
   void begin_startup(TimePoint now, Output& out);
@@ -316,6 +342,9 @@ struct NmtMaster::Impl {
   std::optional<std::vector<cfg::ObjectWrite>> configuration_of(std::uint8_t node) const;
 };
 
+/// An entry of the master's own objects with `value` in the type's size (0 bytes for DOMAIN).
+DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
+                           cfg::DataType type, cfg::AccessType access, std::uint64_t value);
 /// "node 3" (messages).
 std::string node_text(std::uint8_t node);
 /// The first up to 4 bytes of an upload, little-endian (UNSIGNED32 objects).

@@ -95,6 +95,19 @@
 //   within sub 1, after node-ID x sub 3 ms, and not when another device's start all came first
 //   (DSP 302 §5.5.3.1). Without 1F91h in its file it gets §6.14's defaults (100, 500, 15 ms).
 // - Other NMT commands from other devices are ignored (there is one NMT master, §5.4).
+// - Configuration manager (DSP 302 §6; MasterOptions::manager): the SDO server serves 1F20h-1F25h
+//   from the cfg::ConfigManager with its abort codes (cfg/config_manager.hpp): a tool writes a
+//   node's concise DCF into 1F22h sub node-ID (any SDO protocol), a DCF into 1F20h, an EDS into
+//   1F23h, and reads them back; an empty 1F22h reads as the count-0 stream (§6.2). 1F25h sub
+//   node-ID (80h: every node with a configuration) = 'conf' starts boot NMT slave for that slave
+//   with a download even when its 1020h matches ("request re-configuration", §6.4); 0800 0024
+//   when nothing is stored, 0800 0000 for a node that is not a slave in 1F81h (sub 80h skips
+//   those), 0800 0022 while this device is not the active master (a standby flying master). Owner
+//   of 1F26h/1F27h: for a node the manager holds anything for (a configuration or a stamp), the
+//   manager's values; for other nodes the dictionary's (the master DCF's). SDO reads, SDO writes
+//   and check configuration all use that one value; a write goes to the manager, which then holds
+//   the node. A configuration comes from the manager when it holds one for the node, else as
+//   without a manager.
 #pragma once
 
 #include <cstddef>
@@ -117,6 +130,10 @@
 #include "nmt/nmt_slave.hpp"
 #include "nmt/sdo_abort.hpp"
 #include "nmt/sdo_client.hpp"
+
+namespace cfg {
+class ConfigManager;
+}
 
 namespace nmt {
 
@@ -260,6 +277,13 @@ class ConfigurationSource {
 struct MasterOptions {
   /// nullptr: configurations from the master's own 1F22h, no program images.
   std::shared_ptr<const ConfigurationSource> configurations;
+  /// The configuration manager the master serves over SDO (1F20h-1F27h, see the top) and asks
+  /// first for a node's configuration and 1F26h/1F27h. Shared: the owner may use its C++ API
+  /// between the master's calls (not from another thread). SDO writes of 1F20h-1F24h, 1F26h and
+  /// 1F27h write the manager's store directory when it has one: that disk I/O (fsync included)
+  /// happens inside on_frame(). nullptr: 1F20h-1F25h are served only as the master DCF has
+  /// them, as plain values.
+  std::shared_ptr<cfg::ConfigManager> manager;
   /// Timeout of each SDO response, and how often a timed-out transfer is repeated.
   Duration sdo_timeout = std::chrono::milliseconds(500);
   unsigned sdo_retries = 2;

@@ -1,0 +1,360 @@
+// NmtMaster serving the configuration manager (DSP 302 v3.2.1 §6) over its SDO server
+// (MasterOptions::manager): a tool on the bus writes a node's concise DCF into 1F22h and a DCF
+// into 1F20h, reads them back, and starts the configuration with 1F25h 'conf'; 1F26h/1F27h have
+// one owner. The rig (nmt_master_spec_test_rig.hpp) has the master at node 1 and the tool as
+// its SDO client (601h/581h).
+//
+// Streams are written out byte by byte from the §6.2 table (UNSIGNED32 count, then per entry
+// UNSIGNED16 index, UNSIGNED8 sub-index, UNSIGNED32 size, data; little-endian as CiA 301 §7.1).
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cfg/config_manager.hpp"
+#include "nmt_master_spec_test_rig.hpp"
+
+namespace nmt::master_spec {
+namespace {
+
+namespace fs = std::filesystem;
+using Kind = MasterEvent::Kind;
+
+constexpr std::uint8_t kNode = 5;
+// DSP 302 §6.4: "the signature 'conf' (this equals the UNSIGNED32 number 666E 6F63h)".
+constexpr std::uint32_t kConf = 0x666E6F63;
+// The tool's SDO request COB-ID: 600h + the master's node-ID (CiA 301 pre-defined set).
+constexpr std::uint32_t kToolRequestId = 0x600 + kMaster;
+
+// Node 5's configuration as a §6.2 stream: 3 entries, 2000h sub 0 = 1234h (UNSIGNED16),
+// 1017h sub 0 = 200 ms (UNSIGNED16), 2001h sub 0 = "spindle" (VISIBLE_STRING, 7 bytes).
+const std::vector<std::uint8_t> kStream = {
+    0x03, 0x00, 0x00, 0x00,                                // number of entries
+    0x00, 0x20, 0x00, 0x02, 0x00, 0x00, 0x00, 0x34, 0x12,  // 2000h sub 0, 2 bytes
+    0x17, 0x10, 0x00, 0x02, 0x00, 0x00, 0x00, 0xC8, 0x00,  // 1017h sub 0, 2 bytes
+    0x01, 0x20, 0x00, 0x07, 0x00, 0x00, 0x00,              // 2001h sub 0, 7 bytes
+    's',  'p',  'i',  'n',  'd',  'l',  'e'};
+
+SdoTransferOptions by(SdoMode mode) {
+  SdoTransferOptions o;
+  o.mode = mode;
+  return o;
+}
+
+std::vector<std::uint8_t> conf_bytes(std::uint32_t value = kConf) {
+  return le(value, 4);
+}
+
+/// The rig with node 5 (slave.eds) assigned as a booted slave, the manager given, the network
+/// started and NMT start-up complete.
+struct StoreRig {
+  explicit StoreRig(std::shared_ptr<cfg::ConfigManager> m = std::make_shared<cfg::ConfigManager>(),
+                    const cfg::DeviceDescription& eds = slave_eds())
+      : manager(std::move(m)) {
+    rig.options.manager = manager;
+    rig.assign(kNode, kSlave | kBoot);
+    rig.add_slave(kNode, {}, eds);
+  }
+  void start() {
+    rig.power_on_network();
+    ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
+  }
+  /// The first SDO request of the tool at or after `from` (the initiate frame).
+  std::optional<CanFrame> first_tool_request(TimePoint from) const {
+    for (const auto& s : rig.on_id(kToolRequestId, from)) return s.frame;
+    return std::nullopt;
+  }
+  MasterRig rig;
+  std::shared_ptr<cfg::ConfigManager> manager;
+};
+
+/// A fresh directory per test.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = fs::temp_directory_path() /
+            ("masterstore-" + std::string(info->name()) + "-" + std::to_string(::getpid()));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  std::string str() const { return path_.string(); }
+
+ private:
+  fs::path path_;
+};
+
+// §6.2: "Uploading the configuration of a device from a Configuration Tool to the Configuration
+// Manager is done by writing the stream to the object 1F22h with the sub-index equal to the
+// devices Node-ID" - here by block download (CiA 301 §7.2.4.3.9: initiate ccs 6), and reading
+// it back gives the same bytes.
+TEST(NmtMasterStore, ToolWritesConciseDcfByBlockTransferAndReadsItBack) {
+  StoreRig s;
+  s.start();
+  const TimePoint from = s.rig.bus.now();
+  auto written = s.rig.tool_write(0x1F22, kNode, kStream, by(SdoMode::Block));
+  ASSERT_TRUE(written.ok()) << written.abort;
+  auto initiate = s.first_tool_request(from);
+  ASSERT_TRUE(initiate.has_value());
+  EXPECT_EQ(initiate->data[0] >> 5U, 6U) << to_candump(*initiate);  // ccs 6: block download
+  EXPECT_EQ(s.manager->concise(*cfg::NodeId::from(kNode)), kStream);
+
+  auto block = s.rig.tool_read(0x1F22, kNode, by(SdoMode::Block));
+  ASSERT_TRUE(block.ok()) << block.abort;
+  EXPECT_EQ(block.data, kStream);
+  auto plain = s.rig.tool_read(0x1F22, kNode);
+  ASSERT_TRUE(plain.ok()) << plain.abort;
+  EXPECT_EQ(plain.data, kStream);
+}
+
+// The same by segmented download (CiA 301 §7.2.4.3.3: initiate ccs 1 with e = 0, s = 1 and the
+// size 36 = 24h in bytes 4-7).
+TEST(NmtMasterStore, ToolWritesConciseDcfBySegmentedTransferAndReadsItBack) {
+  StoreRig s;
+  s.start();
+  const TimePoint from = s.rig.bus.now();
+  auto written = s.rig.tool_write(0x1F22, kNode, kStream, by(SdoMode::Segmented));
+  ASSERT_TRUE(written.ok()) << written.abort;
+  auto initiate = s.first_tool_request(from);
+  ASSERT_TRUE(initiate.has_value());
+  EXPECT_EQ(to_candump(*initiate), "601#21221F0524000000");
+
+  auto read = s.rig.tool_read(0x1F22, kNode);
+  ASSERT_TRUE(read.ok()) << read.abort;
+  EXPECT_EQ(read.data, kStream);
+}
+
+// §6.2 application hint 2: "If no data has been stored, an SDO Read Request will return a valid
+// concise stream" with the number of entries 0 (UNSIGNED32): 00 00 00 00.
+TEST(NmtMasterStore, EmptyConciseDcfReadsAsTheStreamWithCountZero) {
+  StoreRig s;
+  s.start();
+  auto read = s.rig.tool_read(0x1F22, 9);
+  ASSERT_TRUE(read.ok()) << read.abort;
+  EXPECT_EQ(read.data, (std::vector<std::uint8_t>{0x00, 0x00, 0x00, 0x00}));
+  // §6.2: sub-index 0 "is equal to the maximum possible Node-ID (127)".
+  EXPECT_EQ(s.rig.tool_read_u(0x1F22, 0), 127U);
+}
+
+// §6.4: 'conf' written to 1F25h sub node-ID makes the manager configure that slave: the master
+// boots node 5 and downloads the stream written to 1F22h, after which the device has the values.
+TEST(NmtMasterStore, ConfToConfigureSlaveBootsTheNodeWithTheStoredValues) {
+  StoreRig s;
+  s.start();
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, kNode, kStream).ok());
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 10U);  // slave.eds default, not configured yet
+
+  const TimePoint from = s.rig.bus.now();
+  const auto conf = s.rig.tool_write(0x1F25, kNode, conf_bytes());
+  ASSERT_TRUE(conf.ok()) << conf.abort;
+  ASSERT_TRUE(s.rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::SlaveBooted && e.node_id == kNode && e.at >= from;
+      },
+      10s));
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
+  EXPECT_EQ(s.rig.device_value(kNode, 0x1017, 0), 200U);
+  const auto name = s.rig.slave(kNode).node().dictionary().get_bytes(0x2001, 0);
+  ASSERT_TRUE(name.has_value());
+  EXPECT_EQ(std::string(name->begin(), name->end()), "spindle");
+  EXPECT_EQ(s.rig.downloads_of(kNode, 0x2000, 0, from).size(), 1U);
+}
+
+// §6.4 "Request re-configuration": the download happens even when the device's 1020h matches
+// 1F26h/1F27h (which made NMT start-up skip it, §3.5 c). The stamps are the manager's (one
+// owner): the master DCF has none for node 5.
+TEST(NmtMasterStore, ConfDownloadsEvenWhenVerifyConfigurationMatches) {
+  constexpr std::uint32_t kDate = 0x3A99;
+  constexpr std::uint32_t kTime = 0x01234567;
+  auto eds = slave_eds();
+  set_value(eds, 0x1020, 1, kDate);
+  set_value(eds, 0x1020, 2, kTime);
+  auto manager = std::make_shared<cfg::ConfigManager>();
+  const auto node = *cfg::NodeId::from(kNode);
+  ASSERT_TRUE(manager->put_concise(node, kStream));
+  ASSERT_TRUE(manager->set_expected_stamp(node, {kDate, kTime}));
+  StoreRig s(manager, eds);
+  s.start();
+  EXPECT_TRUE(s.rig.downloads_of(kNode, 0x2000, 0).empty()) << "1020h matched: no download";
+  ASSERT_EQ(s.rig.uploads_of(kNode, 0x1020, 1).size(), 1U);
+
+  const TimePoint from = s.rig.bus.now();
+  ASSERT_TRUE(s.rig.tool_write(0x1F25, kNode, conf_bytes()).ok());
+  ASSERT_TRUE(s.rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::SlaveBooted && e.node_id == kNode && e.at >= from;
+      },
+      10s));
+  EXPECT_EQ(s.rig.downloads_of(kNode, 0x2000, 0, from).size(), 1U);
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
+}
+
+// The re-configuration request outlives a failed try: node 5 does not answer when 'conf' comes
+// (status B), and the retry (§3.3, an optional slave every retry_interval) still downloads
+// although 1020h matches.
+TEST(NmtMasterStore, ConfStillDownloadsOnTheRetryAfterAFailedTry) {
+  constexpr std::uint32_t kDate = 0x3A99;
+  constexpr std::uint32_t kTime = 0x01234567;
+  auto eds = slave_eds();
+  set_value(eds, 0x1020, 1, kDate);
+  set_value(eds, 0x1020, 2, kTime);
+  auto manager = std::make_shared<cfg::ConfigManager>();
+  const auto node = *cfg::NodeId::from(kNode);
+  ASSERT_TRUE(manager->put_concise(node, kStream));
+  ASSERT_TRUE(manager->set_expected_stamp(node, {kDate, kTime}));
+  StoreRig s(manager, eds);
+  s.start();
+  ASSERT_TRUE(s.rig.downloads_of(kNode, 0x2000, 0).empty());
+
+  s.rig.set_faults(kNode, absent_device());
+  const TimePoint from = s.rig.bus.now();
+  ASSERT_TRUE(s.rig.tool_write(0x1F25, kNode, conf_bytes()).ok());
+  ASSERT_TRUE(s.rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::BootError && e.node_id == kNode && e.at >= from &&
+               e.error == BootError::B;
+      },
+      10s));
+  s.rig.set_faults(kNode, {});
+  ASSERT_TRUE(s.rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::SlaveBooted && e.node_id == kNode && e.at >= from;
+      },
+      10s));
+  EXPECT_EQ(s.rig.downloads_of(kNode, 0x2000, 0, from).size(), 1U);
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
+}
+
+// §6.4: only 'conf' starts the process ("To avoid accidental access"); another value is refused
+// and nothing is sent to the node. 0800 0020h: CiA 301 "data cannot be transferred or stored".
+TEST(NmtMasterStore, ConfigureSlaveWithAnotherValueThanConfIsRefused) {
+  StoreRig s;
+  s.start();
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, kNode, kStream).ok());
+  const TimePoint from = s.rig.bus.now();
+  for (std::uint32_t value : {0x666E6F64U, 0x636F6E66U, 0U}) {  // near, byte-swapped, zero
+    const auto code = s.rig.tool_write_u(0x1F25, kNode, value, 4);
+    EXPECT_TRUE(code == SdoAbort::CannotStoreOrTransfer || code == SdoAbort::General)
+        << hex_text(value) << ": " << code;
+  }
+  s.rig.run_for(1s);
+  EXPECT_TRUE(s.rig.requests_to(kNode, from).empty());
+}
+
+// §6.4: "If no data had been stored, an SDO Write Request to 01h to 7Fh is aborted with the error
+// code 0800 0024h ... An SDO Write Request to sub-index 80h returns without error even if there
+// is no data stored." 1F25h is write-only: its read is refused (CiA 301 0601 0001h).
+TEST(NmtMasterStore, ConfigureSlaveWithNothingStoredAbortsDataSetEmptyExceptForAllNodes) {
+  StoreRig s;
+  s.start();
+  EXPECT_EQ(s.rig.tool_write_u(0x1F25, kNode, kConf, 4), SdoAbort::NoDataAvailable);
+  EXPECT_EQ(s.rig.tool_write_u(0x1F25, 0x80, kConf, 4), SdoAbort::None);
+  EXPECT_EQ(s.rig.tool_read(0x1F25, kNode).abort, SdoAbort::ReadOfWriteOnly);
+  // §6.4: "Sub-Index 00h NrOfSupportedObjects has the ro value 128".
+  EXPECT_EQ(s.rig.tool_read_u(0x1F25, 0), 128U);
+}
+
+// §6.4 sub 80h: "Request re-configuration for all Nodes" - every slave with a stored
+// configuration is booted and configured.
+TEST(NmtMasterStore, ConfToSub80hConfiguresEverySlaveWithAConfiguration) {
+  StoreRig s;
+  s.rig.add_slave(2);
+  s.start();
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, kNode, kStream).ok());
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, 2, kStream).ok());
+  const TimePoint from = s.rig.bus.now();
+  ASSERT_TRUE(s.rig.tool_write(0x1F25, 0x80, conf_bytes()).ok());
+  s.rig.run_for(3s);
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
+  EXPECT_EQ(s.rig.device_value(2, 0x2000, 0), 0x1234U);
+  EXPECT_EQ(s.rig.downloads_of(2, 0x2000, 0, from).size(), 1U);
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// §6.1: a DCF written to 1F20h sub node-ID reads back unchanged (the manager keeps it
+// compressed inside), and 1F21h storage format then reads 0 ("ASCII, not compressed").
+TEST(NmtMasterStore, DcfWrittenTo1F20hReadsBackUnchanged) {
+  StoreRig s;
+  s.start();
+  const std::string text = read_text(std::string(CANOPEN_TEST_DATA_DIR) + "/master/slave.eds");
+  ASSERT_GT(text.size(), 1000U);
+  const std::vector<std::uint8_t> bytes(text.begin(), text.end());
+  // §6.1: nothing stored: 0800 0024h.
+  EXPECT_EQ(s.rig.tool_read(0x1F20, kNode).abort, SdoAbort::NoDataAvailable);
+  auto written = s.rig.tool_write(0x1F20, kNode, bytes, by(SdoMode::Block));
+  ASSERT_TRUE(written.ok()) << written.abort;
+  auto read = s.rig.tool_read(0x1F20, kNode, by(SdoMode::Block));
+  ASSERT_TRUE(read.ok()) << read.abort;
+  EXPECT_EQ(read.data, bytes);
+  EXPECT_EQ(s.rig.tool_read_u(0x1F21, kNode), 0U);
+}
+
+// Issue 11: "The writes persist in the store directory": a manager opened again on the
+// directory has what the tool wrote over the bus.
+TEST(NmtMasterStore, WritesOverSdoPersistInTheStoreDirectory) {
+  TempDir dir;
+  auto opened = cfg::ConfigManager::open(dir.str());
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  StoreRig s(std::make_shared<cfg::ConfigManager>(std::move(opened).value()));
+  s.start();
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, kNode, kStream).ok());
+  ASSERT_EQ(s.rig.tool_write_u(0x1F26, kNode, 0x3A99, 4), SdoAbort::None);
+
+  auto again = cfg::ConfigManager::open(dir.str());
+  ASSERT_TRUE(again.ok()) << again.error().message;
+  const auto node = *cfg::NodeId::from(kNode);
+  EXPECT_EQ(again.value().concise(node), kStream);
+  EXPECT_EQ(again.value().expected_stamp(node).days, 0x3A99U);
+}
+
+// One owner of 1F26h/1F27h (nmt_master.hpp): for a node the manager holds nothing for, the
+// master DCF's value is read; an SDO write goes to the manager (keeping the other half), and the
+// C++ API's value is what SDO reads give.
+TEST(NmtMasterStore, ExpectedConfigurationHasOneOwner) {
+  auto manager = std::make_shared<cfg::ConfigManager>();
+  StoreRig s(manager);
+  set_value(s.rig.master, 0x1F26, 3, 0x1111);
+  set_value(s.rig.master, 0x1F27, 3, 0x2222);
+  s.start();
+  const auto three = *cfg::NodeId::from(3);
+  EXPECT_EQ(s.rig.tool_read_u(0x1F26, 3), 0x1111U);
+  EXPECT_EQ(s.rig.tool_read_u(0x1F27, 3), 0x2222U);
+
+  ASSERT_EQ(s.rig.tool_write_u(0x1F26, 3, 0x3333, 4), SdoAbort::None);
+  EXPECT_EQ(manager->expected_stamp(three), (cfg::ConfigurationStamp{0x3333, 0x2222}));
+  EXPECT_EQ(s.rig.tool_read_u(0x1F27, 3), 0x2222U);
+
+  ASSERT_TRUE(manager->set_expected_stamp(three, {0x4444, 0x5555}));
+  EXPECT_EQ(s.rig.tool_read_u(0x1F26, 3), 0x4444U);
+  EXPECT_EQ(s.rig.tool_read_u(0x1F27, 3), 0x5555U);
+  // §6.3: 1F27h counts ms after midnight; 86 400 000 or more is no time of day.
+  EXPECT_EQ(s.rig.tool_write_u(0x1F27, 3, 86'400'000, 4), SdoAbort::ValueRangeExceeded);
+}
+
+// A 1F22h stream that is not a concise DCF (count 2, one entry) is refused and not stored.
+TEST(NmtMasterStore, MalformedConciseDcfIsRefused) {
+  StoreRig s;
+  s.start();
+  std::vector<std::uint8_t> short_stream(kStream.begin(), kStream.begin() + 13);
+  short_stream[0] = 2;
+  EXPECT_EQ(s.rig.tool_write(0x1F22, kNode, short_stream).abort, SdoAbort::ValueRangeExceeded);
+  EXPECT_FALSE(s.manager->concise(*cfg::NodeId::from(kNode)).has_value());
+}
+
+}  // namespace
+}  // namespace nmt::master_spec
