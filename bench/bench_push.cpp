@@ -67,6 +67,7 @@ Run push(const std::vector<std::string>& arguments, const fs::path& dir) {
     args.push_back(a);
   }
   std::vector<char*> argv;
+  argv.reserve(args.size() + 1);
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   posix_spawn_file_actions_t actions;
@@ -197,7 +198,7 @@ void print(const char* what, const std::vector<Run>& runs, const Required& bound
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 5;
+  const int runs = argc > 1 ? std::max(1, static_cast<int>(std::strtol(argv[1], nullptr, 10))) : 5;
   const fs::path dir = fs::temp_directory_path() / ("bench_push_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   generated::NetworkSpec spec;

@@ -90,6 +90,11 @@ class FlyingRig {
     bus.attach(slot);
     slot.apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) { m.start(now, out); });
   }
+  /// Runs an API call of master `node` at the bus time.
+  template <class Fn>
+  decltype(auto) call(std::uint8_t node, Fn&& fn) {
+    return masters_.at(node)->apply(std::forward<Fn>(fn));
+  }
   void start_all(std::initializer_list<std::uint8_t> nodes) {
     for (auto node : nodes) start(node);
   }
@@ -510,6 +515,12 @@ TEST(FlyingMaster, StandbyMasterRefusesRequestNmt) {
   EXPECT_EQ(FlyingRig::write(rig.master(10).dictionary(), 0x1F82, 2, 0x04, 1),
             SdoAbort::DeviceState);
   EXPECT_EQ(FlyingRig::write(rig.master(11).dictionary(), 0x1F82, 2, 0x04, 1), SdoAbort::None);
+  // Nor does it boot a slave when its application asks.
+  const bool booting = rig.call(10, [](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.boot_slave(id(2), now, out);
+  });
+  EXPECT_FALSE(booting);
+  EXPECT_EQ(rig.master(10).boot_step(id(2)), BootStep::Idle);
 }
 
 }  // namespace

@@ -145,6 +145,7 @@ inline std::string slave_dcf(const NetworkSpec& spec, int node) {
   }
   w.list("OptionalObjects", optional);
   std::vector<std::uint16_t> manufacturer;
+  manufacturer.reserve(static_cast<std::size_t>(spec.values));
   for (int v = 0; v < spec.values; ++v)
     manufacturer.push_back(static_cast<std::uint16_t>(0x2000 + v));
   w.list("ManufacturerObjects", manufacturer);
@@ -245,8 +246,9 @@ inline std::string write_network(const std::filesystem::path& dir, const Network
     const std::string file = "node" + std::to_string(n) + ".dcf";
     std::ofstream(dir / file, std::ios::binary) << slave_dcf(spec, n);
     const std::string k = "Node" + std::to_string(n);
-    cpj += k + "Present=0x01\n" + k + "Name=gen" + std::to_string(n) + "\n" + k +
-           "DCFName=" + file + "\n";
+    cpj.append(k).append("Present=0x01\n").append(k).append("Name=gen");
+    cpj.append(std::to_string(n)).append("\n").append(k).append("DCFName=").append(file);
+    cpj += '\n';
   }
   if (spec.master_dcf) {
     std::ofstream(dir / "master.dcf", std::ios::binary) << master_dcf(spec);

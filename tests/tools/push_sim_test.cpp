@@ -89,6 +89,37 @@ TEST(PushSim, SecondPushWithStateSkipsEveryNodeAndIsTenTimesFasterInBusTime) {
   EXPECT_EQ(nodes_of(parse_json(dir / "third.json")).at(1)->get("result")->string, "configured");
 }
 
+TEST(PushSim, A1011hLoadErasesWhatTheDeviceKeepsInState) {
+  // CiA 301 §7.5.2.14: 1011h 'load' makes the device forget its saved values (the defaults act
+  // at the next reset). The state directory follows: after a push that restores (1F81h bit 7,
+  // CiA 302-2 Table 25) without saving again (--no-save), the next push finds the devices at
+  // their defaults and downloads, where it skipped before.
+  ScratchDir dir;
+  generated::NetworkSpec spec;
+  spec.nodes = 3;
+  const std::string derived = generated::write_network(dir.path() / "derived", spec);
+  spec.master_dcf = true;
+  for (int n = 1; n <= spec.nodes; ++n) spec.assignment[n] = 0x8D;  // restore, mandatory
+  const std::string restoring = generated::write_network(dir.path() / "restoring", spec);
+  const std::string bus = "sim:?state=" + (dir / "state");
+  const auto results = [](const std::string& report) {
+    std::string out;
+    const Json json = parse_json(report);
+    for (const auto& [id, n] : nodes_of(json)) out += n->get("result")->string + " ";
+    return out;
+  };
+  const std::string report = dir / "report.json";
+  ASSERT_EQ(cfgmgr(dir, {"push", derived, "--bus", bus, "--json", report}).exit_code, 0);
+  EXPECT_EQ(results(report), "configured configured configured ");
+  ASSERT_EQ(cfgmgr(dir, {"push", derived, "--bus", bus, "--json", report}).exit_code, 0);
+  EXPECT_EQ(results(report), "skipped skipped skipped ");
+  auto r = cfgmgr(dir, {"push", restoring, "--bus", bus, "--no-save", "--json", report});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(results(report), "configured configured configured ");
+  ASSERT_EQ(cfgmgr(dir, {"push", derived, "--bus", bus, "--json", report}).exit_code, 0);
+  EXPECT_EQ(results(report), "configured configured configured ");
+}
+
 TEST(PushSim, ADamagedStateFileIsReportedAndNotUsed) {
   ScratchDir dir;
   generated::NetworkSpec spec;

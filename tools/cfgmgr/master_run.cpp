@@ -97,7 +97,7 @@ OpenTraces open_traces(std::string_view tool, const RunTraces& traces) {
 }
 
 // The traces complete on disk; exit 3 when one failed during the run or now.
-void close_traces(std::string_view tool, std::vector<nmt::TraceWriter*> writers) {
+void close_traces(std::string_view tool, const std::vector<nmt::TraceWriter*>& writers) {
   for (nmt::TraceWriter* w : writers) {
     if (auto flushed = w->flush(); !flushed) {
       fail_command(tool, tools::kExitIo,
@@ -483,6 +483,7 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
   g_running_loop.store(nullptr);
   if (!status) fail_command(limits.tool, tools::kExitIo, status.error().message);
   std::vector<nmt::TraceWriter*> writers;
+  writers.reserve(tracing.size());
   for (auto* t : tracing) writers.push_back(&t->trace());
   close_traces(limits.tool, writers);
   return {loop.now() - began, timed_out(limits, reporter)};

@@ -390,6 +390,8 @@ SdoAbort NmtMaster::request_guarding(std::uint8_t sub, bool start, TimePoint now
 bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
   auto& m = *impl_;
+  // A flying master that is not the active one boots nobody (CiA 302-2 §3.1 b).
+  if (!m.acts_as_master()) return false;
   if (!m.is_slave(node)) {
     // §3.4 a: the process ends with status A.
     m.start_boot(node, false, now, out);

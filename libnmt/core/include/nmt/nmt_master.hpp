@@ -354,7 +354,8 @@ class NmtMaster {
   SdoAbort request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out);
   /// Starts the process start process boot NMT slave for `node` (also for a slave left to the
   /// application by 1F81h bit 2: the application asks for it, so it is configured and started;
-  /// or held by a request NMT). False (and a BootError A) when `node` is no slave.
+  /// or held by a request NMT). False (and a BootError A) when `node` is no slave; false and
+  /// nothing started while a flying master is not the active master.
   bool boot_slave(cfg::NodeId node, TimePoint now, Output& out);
   /// Ends the application's configuration step of `node` (MasterOptions::application_step):
   /// `ok` false ends its boot with status J.
