@@ -69,7 +69,9 @@ has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev libp
 # The tools and their man pages; the schemas come with the runtime package.
 has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
   share/man/man1/cfgmgr-simulate.1.gz share/man/man1/cfgmgr-master.1.gz \
-  share/man/man1/cfgmgr-push.1.gz share/man/man1/cfgmgr-store.1.gz \
+  share/man/man1/cfgmgr-push.1.gz share/man/man1/cfgmgr-diff.1.gz \
+  share/man/man1/cfgmgr-build.1.gz share/man/man1/cfgmgr-verify.1.gz \
+  share/man/man1/cfgmgr-store.1.gz \
   share/man/man1/dcf2concise.1.gz
 has_depends "$tools" "$runtime_name \(= $version\)" '(^|, )libc6' 'libstdc\+\+6'
 

@@ -1,5 +1,7 @@
 // cfgmgr check FILE...: read EDS/DCF files (CiA 306), check them against the CiA 301/302 object
-// definitions in schemas/, and print every diagnostic. Exit 0 when nothing is an error.
+// definitions in schemas/, and print every diagnostic. Exit 0 when nothing is an error. A network
+// description (CiA 306-3 project file, or a master DCF with --network) is checked as a whole:
+// every node's DCF, and across nodes (cfg/network_check.hpp).
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
@@ -11,6 +13,8 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/network.hpp"
+#include "cfg/network_check.hpp"
 #include "cfg/schema.hpp"
 #include "commands.hpp"
 
@@ -22,6 +26,8 @@ struct CheckOptions {
   bool strict = false;
   bool json = false;
   bool no_schema = false;
+  bool network = false;
+  unsigned net = 1;
   std::string schema_dir;
 };
 
@@ -29,6 +35,7 @@ struct FileReport {
   std::string file;
   bool readable = true;
   std::size_t objects = 0;
+  std::optional<std::size_t> nodes;  ///< set for a network description
   cfg::Diagnostics diagnostics;
 };
 
@@ -43,6 +50,8 @@ std::string json_report(const std::vector<FileReport>& reports, bool ok) {
            ", \"readable\": " + (r.readable ? "true" : "false") +
            ", \"ok\": " + (r.readable && !d.has_errors() ? "true" : "false") +
            ", \"objects\": " + std::to_string(r.objects) +
+           (r.nodes ? ", \"network\": true, \"nodes\": " + std::to_string(*r.nodes)
+                    : std::string(", \"network\": false")) +
            ", \"errors\": " + std::to_string(d.count(cfg::Severity::Error)) +
            ", \"warnings\": " + std::to_string(d.count(cfg::Severity::Warning)) +
            ", \"notes\": " + std::to_string(d.count(cfg::Severity::Note)) +
@@ -57,6 +66,60 @@ bool has_dcf_extension(const std::string& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext == ".dcf";
+}
+
+// True for a path whose extension is .cpj (any case): CiA 306-3 names project files by it.
+bool has_cpj_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".cpj";
+}
+
+// A CiA 306-3 project file has a [Topology] section (network 1) or [TopologyN].
+bool has_topology_section(std::string_view text) {
+  std::size_t at = 0;
+  while ((at = text.find('[', at)) != std::string_view::npos) {
+    std::string name(text.substr(at + 1, 8));
+    std::transform(name.begin(), name.end(), name.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    const bool line_start = at == 0 || text[at - 1] == '\n' || text[at - 1] == '\r';
+    if (line_start && name == "topology") return true;
+    ++at;
+  }
+  return false;
+}
+
+// The whole description: what load_network reports (unreadable node files and node-ID clashes
+// at the project file's line, each DCF's own diagnostics), each node's DCF against the schemas,
+// and the checks across nodes.
+FileReport check_network_file(const std::string& file, const CheckOptions& options,
+                              const std::vector<cfg::DeviceDescription>& schemas,
+                              bool& unreadable) {
+  FileReport report;
+  report.file = file;
+  cfg::NetworkOptions load_options;
+  load_options.net = options.net;
+  load_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
+  cfg::NetworkLoad load = cfg::load_network(file, load_options);
+  report.diagnostics = std::move(load.diagnostics);
+  if (load.unreadable) {
+    report.readable = false;
+    unreadable = true;
+    return report;
+  }
+  if (!load.network) return report;
+  const cfg::Network& network = *load.network;
+  report.nodes = network.nodes.size();
+  for (const auto& node : network.nodes) {
+    if (!node.dcf) continue;
+    report.objects += node.dcf->objects.size();
+    for (const auto& schema : schemas) {
+      cfg::check_against_schema(*node.dcf, schema, node.file, report.diagnostics);
+    }
+  }
+  cfg::check_network(network, report.diagnostics);
+  return report;
 }
 
 void run_check(const CheckOptions& options) {
@@ -112,6 +175,22 @@ void run_check(const CheckOptions& options) {
       reports.push_back(std::move(report));
       continue;
     }
+    if (!from_stdin &&
+        (options.network || has_cpj_extension(file) || has_topology_section(*text))) {
+      text->release();
+      report = check_network_file(file, options, schemas, any_unreadable);
+      if (options.strict) report.diagnostics = tools::promote_warnings(report.diagnostics);
+      tools::print_diagnostics(report.diagnostics);
+      any_errors = any_errors || report.diagnostics.has_errors();
+      if (!options.json && report.readable) {
+        std::cout << report.file << ": "
+                  << tools::plural(report.diagnostics.count(cfg::Severity::Error), "error") << ", "
+                  << tools::plural(report.diagnostics.count(cfg::Severity::Warning), "warning")
+                  << ", " << tools::plural(report.nodes.value_or(0), "node") << '\n';
+      }
+      reports.push_back(std::move(report));
+      continue;
+    }
     auto read = cfg::parse_device_description(*text, read_options);
     text->release();  // the model holds copies: give the file's bytes back now
     report.diagnostics = read.diagnostics;
@@ -158,7 +237,9 @@ void add_check_command(CLI::App& app) {
       "check",
       "Read EDS/DCF files, check them against the CiA 301/302 object definitions, and print "
       "every diagnostic (FILE:LINE: severity: message) on stderr");
-  cmd->add_option("files", options->files, "EDS or DCF files ('-': stdin)")
+  cmd->add_option("files", options->files,
+                  "EDS or DCF files ('-': stdin), or network descriptions: a CiA 306-3 project "
+                  "file (.cpj, or any file with a [Topology] section) is checked as a whole")
       ->required()
       ->type_name("FILE");
   cmd->add_flag("--strict", options->strict,
@@ -170,10 +251,21 @@ void add_check_command(CLI::App& app) {
       ->type_name("DIR");
   cmd->add_flag("--no-schema", options->no_schema,
                 "Do not check against the CiA 301/302 object definitions");
+  cmd->add_flag("--network", options->network,
+                "Check every FILE as a network description (needed for a master DCF whose "
+                "1F20h/1F22h name the node files): missing files, node-ID clashes, COB-ID "
+                "clashes between TPDOs, PDO mappings of objects that are not mappable");
+  cmd->add_option("--net", options->net,
+                  "Which network of a project file: 1 is [Topology], N is [TopologyN]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber)
+      ->type_name("N");
   cmd->footer(std::string("Examples:\n"
                           "  cfgmgr check drive.eds\n"
                           "  cfgmgr check --strict network/*.dcf\n"
-                          "  cfgmgr check --json node3.dcf | jq .files[0].errors\n\n") +
+                          "  cfgmgr check --json node3.dcf | jq .files[0].errors\n"
+                          "  cfgmgr check samples/network/nodelist.cpj\n"
+                          "  cfgmgr check --network master.dcf\n\n") +
               std::string(tools::kExitCodesHelp));
   cmd->callback([options] { run_check(*options); });
 }

@@ -17,6 +17,12 @@ void add_simulate_command(CLI::App& app);
 void add_master_command(CLI::App& app);
 /// `cfgmgr push NETWORK --bus URL`: boot and configure a network, then report (push.cpp).
 void add_push_command(CLI::App& app);
+/// `cfgmgr diff A.dcf B.dcf`: the parameters two device files configure differently (diff.cpp).
+void add_diff_command(CLI::App& app);
+/// `cfgmgr build NETWORK -o DIR`: the master DCF and every node's concise DCF (build.cpp).
+void add_build_command(CLI::App& app);
+/// `cfgmgr verify NETWORK --bus URL`: read back the configured values and compare (verify.cpp).
+void add_verify_command(CLI::App& app);
 /// `cfgmgr store put|get|list|rm|configure`: a configuration store, local or a master's
 /// (store.cpp).
 void add_store_command(CLI::App& app);

@@ -13,8 +13,9 @@ namespace {
 
 int run(int argc, char** argv) {
   CLI::App app{
-      "CANopen configuration manager: check and format device configurations, simulate "
-      "devices, and run the NMT master that boots and configures a network (CiA 302, CiA 306).",
+      "CANopen configuration manager: check, format and compare device configurations, "
+      "simulate devices, run the NMT master that boots and configures a network, build its "
+      "master DCF and concise DCFs, and verify a configured network (CiA 302, CiA 306).",
       "cfgmgr"};
   app.require_subcommand(1);
   app.set_version_flag("--version", tools::version_text("cfgmgr"),
@@ -27,6 +28,9 @@ int run(int argc, char** argv) {
   cfgmgr::add_simulate_command(app);
   cfgmgr::add_master_command(app);
   cfgmgr::add_push_command(app);
+  cfgmgr::add_diff_command(app);
+  cfgmgr::add_build_command(app);
+  cfgmgr::add_verify_command(app);
   cfgmgr::add_store_command(app);
 
   try {

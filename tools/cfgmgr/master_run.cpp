@@ -351,9 +351,9 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
   return std::move(master).value();
 }
 
-RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
-                             const SimBusOptions& sim, const RunLimits& limits,
-                             EventReporter& reporter, const RunTraces& traces) {
+std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(std::string_view tool,
+                                                            const cfg::Network& network,
+                                                            const SimBusOptions& sim) {
   std::vector<cfg::NodeId> skipped;
   auto built = simulated_devices(network, sim, &skipped);
   if (!built) {
@@ -361,9 +361,16 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
     exit_with(tools::kExitInputErrors);
   }
   for (const cfg::NodeId node : skipped) {
-    std::cerr << prefix(limits.tool) << "note: node " << int{node.value()}
+    std::cerr << prefix(tool) << "note: node " << int{node.value()}
               << " has no DCF (a concise DCF only): not simulated\n";
   }
+  return std::move(built).value();
+}
+
+RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
+                             const SimBusOptions& sim, const RunLimits& limits,
+                             EventReporter& reporter, const RunTraces& traces) {
+  std::vector<nmt::SimulatedDevice> built = simulated_devices_or_exit(limits.tool, network, sim);
   OpenTraces trace_files = open_traces(limits.tool, traces);
   nmt::SimBus bus(sim.bitrate_bps);
   bus.set_loss_rate(sim.loss, sim.seed);
@@ -374,7 +381,7 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   }
   std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::SimulatedDevice>>> devices;
   bool state_failed = false;
-  for (auto& device : built.value()) {
+  for (auto& device : built) {
     devices.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
     bus.attach(*devices.back());

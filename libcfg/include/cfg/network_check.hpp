@@ -1,0 +1,29 @@
+// Checks across the nodes of a network description that no single DCF can show: what
+// `cfgmgr check NETWORK` adds to the reader's and load_network's own diagnostics (missing files
+// and node-ID clashes are load_network's, at the project file's line).
+//  - COB-ID clashes: two valid TPDOs (of one node or of two) with one CAN identifier are an
+//    error: both would transmit it, and CiA 301 §7.2.2 gives every PDO one producer. An RPDO
+//    whose identifier no TPDO of the network produces is a note only: its producer may be a
+//    device outside the description.
+//  - PDO mappings (CiA 301 §7.5.2.36/38: entry = index << 16 | sub-index << 8 | length in bits)
+//    of an object the node's own DCF does not have, or has with PDOMapping=0, are errors (the
+//    device aborts the download with 0602 0000 or 0604 0041); a length that is not the data
+//    type's size, a TPDO mapping of a write-only entry and an RPDO mapping of a read-only one
+//    are warnings. RPDO dummy entries (indices 0001h-0007h, CiA 301 §7.4.7.1) are accepted.
+// The values are those the node has after its download: the DCF's ParameterValue, else its
+// DefaultValue (CiA 306 §4.6.3), with $NODEID resolved; a node given by a concise DCF alone is
+// checked on its writes only (its COB-IDs, nothing about mappability).
+#pragma once
+
+#include "cfg/diagnostics.hpp"
+#include "cfg/network.hpp"
+
+namespace cfg {
+
+/// Adds the cross-node diagnostics of `network` to `diagnostics`, each with the file and line
+/// of the value concerned (the node's DCF; the concise DCF's path and line 0 for a node without
+/// DCF). Never throws on bad values: a value that does not parse was reported by the reader and
+/// is skipped here.
+void check_network(const Network& network, Diagnostics& diagnostics);
+
+}  // namespace cfg

@@ -1,0 +1,85 @@
+#include "nmt/configuration_verifier.hpp"
+
+#include <map>
+
+#include "cfg/object_address.hpp"
+
+namespace nmt {
+namespace {
+
+std::uint64_t key(std::uint8_t node, SdoClient::TransferId id) {
+  return std::uint64_t{node} << 32 | id;
+}
+
+}  // namespace
+
+void ConfigurationVerifier::upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo) {
+  const std::uint8_t node = result.node_id;
+  const auto id = mux_.client(node).upload(result.index, result.sub_index, now, sdo, options_.sdo);
+  running_[key(node, id)] = Running{std::move(result)};
+}
+
+void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::ObjectWrite> writes,
+                                   TimePoint now, Output& out) {
+  // The value each entry is left with: its last write, at the place of its first.
+  std::vector<cfg::ObjectWrite> entries;
+  std::map<std::uint32_t, std::size_t> where;
+  for (const auto& w : writes) {
+    const std::uint32_t k = cfg::ObjectAddress{w.index, w.sub_index}.key();
+    if (const auto it = where.find(k); it != where.end()) {
+      entries[it->second].data = w.data;
+      continue;
+    }
+    where.emplace(k, entries.size());
+    entries.push_back(w);
+  }
+  Outbox<SdoResult> sdo;
+  for (auto& e : entries) {
+    VerifyResult r;
+    r.node_id = node.value();
+    r.index = e.index;
+    r.sub_index = e.sub_index;
+    r.expected = std::move(e.data);
+    upload(std::move(r), now, sdo);
+  }
+  take(sdo, now, out);
+}
+
+bool ConfigurationVerifier::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  Outbox<SdoResult> sdo;
+  const bool mine = mux_.on_frame(frame, now, sdo);
+  take(sdo, now, out);
+  return mine;
+}
+
+void ConfigurationVerifier::on_timer(TimePoint now, Output& out) {
+  Outbox<SdoResult> sdo;
+  mux_.on_timer(now, sdo);
+  take(sdo, now, out);
+}
+
+void ConfigurationVerifier::take(Outbox<SdoResult>& sdo, TimePoint now, Output& out) {
+  // A retry started here may end at once (a client that cannot start it): loop until no result
+  // is left.
+  while (!sdo.events.empty()) {
+    std::vector<SdoResult> results = std::move(sdo.events);
+    sdo.events.clear();
+    for (auto& result : results) {
+      const auto it = running_.find(key(result.node_id, result.id));
+      if (it == running_.end()) continue;
+      VerifyResult r = std::move(it->second.result);
+      running_.erase(it);
+      if (result.abort == SdoAbort::Timeout && r.attempts <= options_.retries) {
+        ++r.attempts;
+        upload(std::move(r), now, sdo);
+        continue;
+      }
+      r.abort = result.abort;
+      if (result.ok()) r.actual = std::move(result.data);
+      out.report(std::move(r));
+    }
+  }
+  for (const auto& f : sdo.frames) out.send(f);
+}
+
+}  // namespace nmt

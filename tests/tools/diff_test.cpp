@@ -1,0 +1,84 @@
+// cfgmgr diff end to end on tests/data/diff (README there). Exit codes as diff(1).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "tool_test_support.hpp"
+
+namespace {
+
+using ::testing::HasSubstr;
+using tool_test::Json;
+using tool_test::JsonParser;
+using tool_test::RunResult;
+using tool_test::ScratchDir;
+
+RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
+  return tool_test::run("cfgmgr", args, dir.path().string());
+}
+
+std::string data(const std::string& name) {
+  return tool_test::data_path("diff/" + name);
+}
+
+TEST(Diff, PrintsTheDifferingParametersInWordsAndExits1) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"diff", data("a.dcf"), data("b.dcf")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  // 1017h: ParameterValue 1000 in a.dcf (line 94), 500 in b.dcf.
+  EXPECT_THAT(r.out, HasSubstr("1017h sub 00h Producer heartbeat time\n  " + data("a.dcf") +
+                               ":94: 1000 (0x03E8)\n  " + data("b.dcf") + ":94: 500 (0x01F4)\n"));
+  EXPECT_THAT(r.out, HasSubstr(": \"left arm\"\n"));
+  EXPECT_THAT(r.out, HasSubstr(": 2.25\n"));
+  EXPECT_THAT(r.out, HasSubstr("2003h Only in A: only in " + data("a.dcf")));
+  EXPECT_THAT(r.out, HasSubstr("6 differences\n"));
+}
+
+TEST(Diff, SameFilesExit0) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"diff", data("a.dcf"), data("a.dcf")});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.out, "no differences\n");
+}
+
+TEST(Diff, JsonHasOneEntryPerDifference) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"diff", "--json", data("a.dcf"), data("b.dcf")});
+  EXPECT_EQ(r.exit_code, 1);
+  JsonParser parser(r.out);
+  const auto json = parser.parse();
+  ASSERT_TRUE(json) << parser.error() << "\n" << r.out;
+  EXPECT_FALSE(json->get("same")->boolean);
+  const auto& diffs = json->get("differences")->array;
+  ASSERT_EQ(diffs.size(), 6U);
+  const Json& cob = diffs[1];
+  EXPECT_EQ(cob.get("index")->number, 0x1800);
+  EXPECT_EQ(cob.get("sub_index")->number, 1);
+  EXPECT_EQ(cob.get("kind")->string, "changed");
+  EXPECT_EQ(cob.get("a")->get("value")->string, "386 (0x00000182)");  // $NODEID 2 + 0x180
+  EXPECT_EQ(cob.get("b")->get("value")->string, "387 (0x00000183)");
+  EXPECT_EQ(diffs[4].get("kind")->string, "only_in_a");
+  EXPECT_TRUE(diffs[4].get("b")->is(Json::Kind::Null));
+}
+
+TEST(Diff, NodeIdOptionResolvesBothFilesAlike) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"diff", "--node-id", "5", data("a.dcf"), data("b.dcf")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("1800h sub 01h")));
+  EXPECT_THAT(r.out, HasSubstr("5 differences\n"));
+}
+
+TEST(Diff, TroubleExits2) {
+  ScratchDir dir;
+  EXPECT_EQ(cfgmgr(dir, {"diff", data("a.dcf"), dir / "absent.dcf"}).exit_code, 2);
+  EXPECT_EQ(cfgmgr(dir, {"diff", data("a.dcf")}).exit_code, 2);
+  EXPECT_EQ(cfgmgr(dir, {"diff", "--node-id", "0", data("a.dcf"), data("b.dcf")}).exit_code, 2);
+  const auto help = cfgmgr(dir, {"diff", "--help"});
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_THAT(help.out, HasSubstr("Examples:"));
+}
+
+}  // namespace
