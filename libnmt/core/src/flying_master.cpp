@@ -230,6 +230,10 @@ void NmtMaster::Impl::flying_master_response(std::uint16_t priority, std::uint8_
   if (flying.forced && flying.phase != Phase::Forced) {
     flying_standby(node, priority, now, out,
                    "worse than ours, but it won again after this device forced a negotiation");
+    // Remembered across the resets that follow (the winner's start-up resets all nodes, and
+    // this device detects again after each): forgetting it here made every such reset force a
+    // negotiation again, a livelock. Cleared when this device wins or yields to a better master.
+    flying.forced = true;
     return;
   }
   if (flying.phase == Phase::Forced) return;  // the reset is on its way
