@@ -388,7 +388,9 @@ TEST(MasterInNetns, FlyingMastersTakeOverWhenTheActiveOneIsKilled) {
   EXPECT_NE(err(4).find("node 2: booted"), std::string::npos) << err(4);
   // Node 5 stands by for node 4 now.
   EXPECT_GE(wait_for(5, "standby", 2, std::chrono::seconds(5)), 2U) << err(5);
-  const auto standby5 = events_of(json_lines(events(5)), "standby");
+  // events_of points into the lines: they must outlive it.
+  const auto lines5 = json_lines(events(5));
+  const auto standby5 = events_of(lines5, "standby");
   EXPECT_EQ(node_of(*standby5.back()), 4);
   for (int node : {4, 5}) {
     const auto code = masters[node]->stop(SIGTERM, std::chrono::milliseconds(3000));
