@@ -48,17 +48,8 @@ void run_master(const MasterCliOptions& options) {
   nmt::NmtMaster master =
       build_master("master", options.network, network, options.node_id, master_options);
 
-  std::ofstream json_file;
-  if (!options.json_events.empty()) {
-    json_file.open(options.json_events, std::ios::binary | std::ios::trunc);
-    if (!json_file) {
-      std::cerr << tools::io_error(options.json_events, "cannot open for writing").message << '\n';
-      exit_with(tools::kExitIo);
-    }
-  }
-  std::ostream* json = options.json_events.empty() ? nullptr : &json_file;
-
-  EventReporter reporter(options.verbose, json);
+  tools::ReportFile json = open_report_or_exit(options.json_events);
+  EventReporter reporter(options.verbose, json.stream());
   RunLimits limits;
   limits.tool = "master";
   limits.run_for_s = options.run_for_s;
@@ -72,10 +63,7 @@ void run_master(const MasterCliOptions& options) {
   } else {
     timed_out = run_master_on_bus(std::move(master), options.bus, limits, reporter).timed_out;
   }
-  if (json != nullptr && !json_file.flush()) {
-    std::cerr << tools::io_error(options.json_events, "write error").message << '\n';
-    exit_with(tools::kExitIo);
-  }
+  finish_report_or_exit(json);
   if (timed_out || reporter.halted()) exit_with(kExitMandatoryFailed);
 }
 

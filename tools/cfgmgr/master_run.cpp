@@ -157,6 +157,22 @@ void fail_command(std::string_view tool, int code, const std::string& message) {
   exit_with(code);
 }
 
+tools::ReportFile open_report_or_exit(const std::string& path) {
+  auto opened = tools::ReportFile::open(path);
+  if (!opened) {
+    std::cerr << opened.error().message << '\n';
+    exit_with(tools::kExitIo);
+  }
+  return std::move(*opened);
+}
+
+void finish_report_or_exit(tools::ReportFile& report, std::string_view text) {
+  if (auto written = report.finish(text); !written) {
+    std::cerr << written.error().message << '\n';
+    exit_with(tools::kExitIo);
+  }
+}
+
 std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3f", static_cast<double>((at - start).count()) / 1e6);

@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "../common/tool_support.hpp"
 #include "cfg/network.hpp"
 #include "network_source.hpp"
 #include "nmt/nmt_master.hpp"
@@ -37,6 +38,12 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args);
 
 /// Prints "cfgmgr TOOL: message" on stderr and ends the command with `code`.
 [[noreturn]] void fail_command(std::string_view tool, int code, const std::string& message);
+
+/// The --json / --json-events file opened before any bus work ("" gives none); prints
+/// "PATH: error: cannot open for writing: ..." and ends the command with exit 3 when it cannot.
+tools::ReportFile open_report_or_exit(const std::string& path);
+/// Writes `text` to the report file and flushes it; a write error ends the command with exit 3.
+void finish_report_or_exit(tools::ReportFile& report, std::string_view text = {});
 
 /// Seconds from `start` to `at` with millisecond digits ("0.512").
 std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at);

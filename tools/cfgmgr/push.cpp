@@ -513,14 +513,7 @@ void run_push(const PushCliOptions& options) {
     reports.push_back(std::move(r));
   }
 
-  std::ofstream json_file;
-  if (!options.json.empty()) {
-    json_file.open(options.json, std::ios::binary | std::ios::trunc);
-    if (!json_file) {
-      std::cerr << tools::io_error(options.json, "cannot open for writing").message << '\n';
-      exit_with(tools::kExitIo);
-    }
-  }
+  tools::ReportFile json = open_report_or_exit(options.json);
 
   Collector collector(std::move(reports));
   EventReporter reporter(options.verbose, nullptr);
@@ -556,12 +549,8 @@ void run_push(const PushCliOptions& options) {
     if (r.mandatory && r.result == Result::Error) ok = false;
   }
   print_table(collector.nodes(), reporter.start());
-  if (!options.json.empty()) {
-    json_file << json_report(collector.nodes(), ok, elapsed, reporter.start());
-    if (!json_file.flush()) {
-      std::cerr << tools::io_error(options.json, "write error").message << '\n';
-      exit_with(tools::kExitIo);
-    }
+  if (json.stream() != nullptr) {
+    finish_report_or_exit(json, json_report(collector.nodes(), ok, elapsed, reporter.start()));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }

@@ -228,14 +228,7 @@ void run_verify(const VerifyCliOptions& options) {
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
   const auto network = load_network_or_exit(options.network, options.net);
 
-  std::ofstream json_file;
-  if (!options.json.empty()) {
-    json_file.open(options.json, std::ios::binary | std::ios::trunc);
-    if (!json_file) {
-      std::cerr << tools::io_error(options.json, "cannot open for writing").message << '\n';
-      exit_with(tools::kExitIo);
-    }
-  }
+  tools::ReportFile json = open_report_or_exit(options.json);
 
   nmt::VerifyOptions verify_options;
   verify_options.sdo.timeout = seconds_to_duration(options.sdo_timeout_s);
@@ -271,13 +264,8 @@ void run_verify(const VerifyCliOptions& options) {
     ok = ok && !e.differs();
   }
   print_report(nodes, entries);
-  if (!options.json.empty()) {
-    json_file << json_report(nodes, entries, ok, elapsed);
-    if (!json_file.flush()) {
-      std::cerr << tools::io_error(options.json, "write error").message << '\n';
-      exit_with(tools::kExitIo);
-    }
-  }
+  if (json.stream() != nullptr)
+    finish_report_or_exit(json, json_report(nodes, entries, ok, elapsed));
   std::cout.flush();
   if (!ok) exit_with(kExitMandatoryFailed);
 }

@@ -259,4 +259,40 @@ inline cfg::Status write_output(const std::string& path, std::string_view bytes)
   return {};
 }
 
+/// A report file named on the command line (`--json FILE`, `--json-events FILE`): opened (and
+/// truncated) when the command starts, so that a bad path fails before any bus work, written
+/// during or at the end of the run, and flushed at the end, where a write error (a full disk)
+/// is reported. Unlike write_output it is not atomic: event lines appear as they happen.
+class ReportFile {
+ public:
+  /// No file: stream() is nullptr and finish() succeeds.
+  ReportFile() = default;
+  /// Opens `path` for writing ("" means no file). Fails (category Io, exit code 3) with
+  /// "PATH: error: cannot open for writing: REASON".
+  static cfg::Result<ReportFile> open(const std::string& path) {
+    ReportFile file;
+    if (path.empty()) return file;
+    file.path_ = path;
+    file.out_ = std::make_unique<std::ofstream>(path, std::ios::binary | std::ios::trunc);
+    if (!*file.out_) {
+      return io_error(path, std::string("cannot open for writing: ") + std::strerror(errno));
+    }
+    return file;
+  }
+  /// The stream to write to, or nullptr when no file was named. Owned by this object.
+  std::ostream* stream() const { return out_.get(); }
+  /// Writes `text` (when a file was named), then flushes; fails (category Io) on a write error.
+  cfg::Status finish(std::string_view text = {}) {
+    if (!out_) return {};
+    out_->write(text.data(), static_cast<std::streamsize>(text.size()));
+    out_->flush();
+    if (!*out_) return io_error(path_, "write error");
+    return {};
+  }
+
+ private:
+  std::string path_;
+  std::unique_ptr<std::ofstream> out_;
+};
+
 }  // namespace tools
