@@ -19,16 +19,10 @@
 namespace {
 
 using ::testing::HasSubstr;
+using tool_test::cfgmgr;
 using tool_test::RunResult;
+using tool_test::sample_network;
 using tool_test::ScratchDir;
-
-RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
-
-std::string sample(const std::string& name) {
-  return std::string(CANOPEN_SAMPLES_DIR) + "/network/" + name;
-}
 
 std::vector<std::uint8_t> bytes_of(const std::string& path) {
   const std::string text = tool_test::slurp(path);
@@ -46,13 +40,13 @@ std::uint32_t u32(const cfg::DeviceDescription& dcf, std::uint16_t index, std::u
 class Build : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto r = cfgmgr(dir_, {"build", sample("nodelist.cpj"), "-o", dir_ / "out"});
+    const auto r = cfgmgr(dir_, {"build", sample_network("nodelist.cpj"), "-o", dir_ / "out"});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     output_ = r.out;
     auto read = cfg::read_device_file(dir_ / "out/master.dcf");
     ASSERT_TRUE(read.ok()) << read.diagnostics.format();
     master_ = std::move(*read.device);
-    auto load = cfg::load_network(sample("nodelist.cpj"));
+    auto load = cfg::load_network(sample_network("nodelist.cpj"));
     ASSERT_TRUE(load.ok()) << load.diagnostics.format();
     network_ = std::move(*load.network);
   }
@@ -125,9 +119,10 @@ TEST_F(Build, TheMasterDcfAloneLoadsAsTheSameNetwork) {
 
 TEST(BuildErrors, ExitCodes) {
   ScratchDir dir;
-  EXPECT_EQ(cfgmgr(dir, {"build", sample("nodelist.cpj")}).exit_code, 2);  // -o is required
+  EXPECT_EQ(cfgmgr(dir, {"build", sample_network("nodelist.cpj")}).exit_code, 2);  // -o is required
   EXPECT_EQ(
-      cfgmgr(dir, {"build", sample("nodelist.cpj"), "-o", dir / "o", "--node-id", "3"}).exit_code,
+      cfgmgr(dir, {"build", sample_network("nodelist.cpj"), "-o", dir / "o", "--node-id", "3"})
+          .exit_code,
       2);  // node 3 is a slave
   EXPECT_EQ(cfgmgr(dir, {"build", tool_test::data_path("network_check/clash.cpj"), "-o", dir / "o"})
                 .exit_code,

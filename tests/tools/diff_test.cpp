@@ -10,18 +10,13 @@
 namespace {
 
 using ::testing::HasSubstr;
+using tool_test::cfgmgr;
 using tool_test::Json;
 using tool_test::JsonParser;
 using tool_test::RunResult;
 using tool_test::ScratchDir;
 
-RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
-
-std::string data(const std::string& name) {
-  return tool_test::data_path("diff/" + name);
-}
+const tool_test::DataDir data("diff");
 
 TEST(Diff, PrintsTheDifferingParametersInWordsAndExits1) {
   ScratchDir dir;

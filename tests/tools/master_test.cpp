@@ -18,37 +18,13 @@
 
 namespace {
 
+using tool_test::cfgmgr;
 using tool_test::Json;
+using tool_test::json_lines;
 using tool_test::JsonParser;
 using tool_test::RunResult;
 using tool_test::ScratchDir;
-
-RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
-
-std::string network(const std::string& name) {
-  return tool_test::data_path("network/" + name);
-}
-
-// The JSON lines of --json-events; every line must be one JSON object.
-std::vector<Json> json_lines(const std::string& path) {
-  std::vector<Json> out;
-  const std::string text = tool_test::slurp(path);
-  std::size_t begin = 0;
-  while (begin < text.size()) {
-    const auto end = text.find('\n', begin);
-    EXPECT_NE(end, std::string::npos) << "the last line has no line end";
-    const std::string line = text.substr(begin, end - begin);
-    JsonParser parser(line);
-    auto value = parser.parse();
-    EXPECT_TRUE(value && value->is(Json::Kind::Object)) << parser.error() << ": " << line;
-    if (value) out.push_back(std::move(*value));
-    if (end == std::string::npos) break;
-    begin = end + 1;
-  }
-  return out;
-}
+using tool_test::test_network;
 
 std::vector<const Json*> events_of(const std::vector<Json>& events, const std::string& name) {
   std::vector<const Json*> out;
@@ -80,8 +56,8 @@ TEST(Master, HelpDocumentsUsageExamplesAndExitCodes) {
 TEST(Master, BootsEveryNodeOfAProjectOnTheSimulatedBus) {
   ScratchDir dir;
   const std::string events = dir / "events.jsonl";
-  auto r =
-      cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--json-events", events});
+  auto r = cfgmgr(
+      dir, {"master", test_network("nodelist.cpj"), "--bus", "sim:", "--json-events", events});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   // No master DCF: nodes 2 and 3 are mandatory slaves, booted, configured from their DCFs and
   // started; node 5 is not present (CiA 306-3) and not booted.
@@ -110,7 +86,7 @@ TEST(Master, BootsEveryNodeOfAProjectOnTheSimulatedBus) {
 TEST(Master, NetSelectsTopology2WithANodeUnderGuarding) {
   ScratchDir dir;
   const std::string events = dir / "events.jsonl";
-  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--net", "2", "--bus",
+  auto r = cfgmgr(dir, {"master", test_network("nodelist.cpj"), "--net", "2", "--bus",
                         "sim:", "--json-events", events});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("node 4: booted"), std::string::npos) << r.err;
@@ -122,8 +98,8 @@ TEST(Master, MandatorySlaveWithAnotherVendorIdGivesStatusDAndHaltsStartup) {
   // CiA 302-2 §3.4 / Table 1 status D; a mandatory slave's error halts NMT start-up (§3.1 f).
   ScratchDir dir;
   const std::string events = dir / "events.jsonl";
-  auto r = cfgmgr(
-      dir, {"master", network("wrong_identity.cpj"), "--bus", "sim:", "--json-events", events});
+  auto r = cfgmgr(dir, {"master", test_network("wrong_identity.cpj"), "--bus",
+                        "sim:", "--json-events", events});
   EXPECT_EQ(r.exit_code, 4) << r.err;
   EXPECT_NE(r.err.find("node 2: boot error D: "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("NMT start-up halted"), std::string::npos) << r.err;
@@ -140,7 +116,7 @@ TEST(Master, MandatorySlaveWithAnotherVendorIdGivesStatusDAndHaltsStartup) {
 TEST(Master, RunForBoundsTheSimulatedRun) {
   ScratchDir dir;
   const std::string events = dir / "events.jsonl";
-  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--run-for", "3",
+  auto r = cfgmgr(dir, {"master", test_network("nodelist.cpj"), "--bus", "sim:", "--run-for", "3",
                         "--json-events", events});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("3.000 s simulated"), std::string::npos) << r.err;
@@ -155,7 +131,7 @@ TEST(Master, AMasterDcfAloneBootsTheNodesItsFilesName) {
   // DCF: nothing to simulate). Node 3 is optional (1F81h sub 3 = 05h): its status B does not
   // halt start-up (CiA 302-2 §3.1 f).
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"master", network("master.dcf"), "--bus", "sim:"});
+  auto r = cfgmgr(dir, {"master", test_network("master.dcf"), "--bus", "sim:"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("node-ID 1,"), std::string::npos) << r.err;  // the master DCF's NodeID
   EXPECT_NE(r.err.find("node 3 has no DCF"), std::string::npos) << r.err;
@@ -172,7 +148,7 @@ TEST(Master, AFlyingMasterDcfNegotiatesBeforeItBootsTheNetwork) {
   ScratchDir dir;
   const std::string events = dir / "events.jsonl";
   auto r = cfgmgr(
-      dir, {"master", network("flying_master.dcf"), "--bus", "sim:", "--json-events", events});
+      dir, {"master", test_network("flying_master.dcf"), "--bus", "sim:", "--json-events", events});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("2.710  active NMT master: "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("NMT start-up complete"), std::string::npos) << r.err;
@@ -206,33 +182,34 @@ TEST(Master, TheSampleCellBootsOnTheSimulatedBus) {
 
 TEST(Master, WithoutBusIsAUsageError) {
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"master", network("nodelist.cpj")});
+  auto r = cfgmgr(dir, {"master", test_network("nodelist.cpj")});
   EXPECT_EQ(r.exit_code, 2) << r.err;
 }
 
 TEST(Master, ABusUrlThatDoesNotParseIsAUsageError) {
   ScratchDir dir;
   for (const char* url : {"bogus:x", "sim:?loss=2", "sim:?speed=1", "sim:bitrate=5"}) {
-    auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", url});
+    auto r = cfgmgr(dir, {"master", test_network("nodelist.cpj"), "--bus", url});
     EXPECT_EQ(r.exit_code, 2) << url << ": " << r.err;
   }
 }
 
 TEST(Master, ANodeIdOutsideTheRangeOrOfASlaveIsAUsageError) {
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--node-id", "128"});
+  auto r =
+      cfgmgr(dir, {"master", test_network("nodelist.cpj"), "--bus", "sim:", "--node-id", "128"});
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("1..127"), std::string::npos) << r.err;
-  r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--node-id", "0x02"});
+  r = cfgmgr(dir, {"master", test_network("nodelist.cpj"), "--bus", "sim:", "--node-id", "0x02"});
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("io_node2.dcf"), std::string::npos) << r.err;
 }
 
 TEST(Master, DescriptionErrorsAreInputErrorsWithFileAndLine) {
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"master", network("missing.cpj"), "--bus", "sim:"});
+  auto r = cfgmgr(dir, {"master", test_network("missing.cpj"), "--bus", "sim:"});
   EXPECT_EQ(r.exit_code, 1) << r.err;
-  EXPECT_NE(r.err.find(network("missing.cpj") + ":8: error: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(test_network("missing.cpj") + ":8: error: "), std::string::npos) << r.err;
 }
 
 TEST(Master, AnUnreadableDescriptionIsAnIoError) {
@@ -244,7 +221,7 @@ TEST(Master, AnUnreadableDescriptionIsAnIoError) {
 
 TEST(Master, AnUnwritableEventFileIsAnIoError) {
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"master", network("nodelist.cpj"), "--bus", "sim:", "--json-events",
+  auto r = cfgmgr(dir, {"master", test_network("nodelist.cpj"), "--bus", "sim:", "--json-events",
                         dir / "no/such/dir/events.jsonl"});
   EXPECT_EQ(r.exit_code, 3) << r.err;
 }
@@ -261,15 +238,16 @@ TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
   const std::string bus = "udp://239.74.163.2:43119";
   // Nodes 2 and 3 as independent processes; the master from master.dcf (node 2 mandatory from
   // its DCF, node 3 optional from a concise DCF).
-  tool_test::SpawnedTool devices("cfgmgr",
-                                 {"simulate", "--bus", bus, "--for", "30",
-                                  network("nodes/io_node2.dcf"), network("nodes/drive_node3.dcf")},
-                                 dir / "sim.out", dir / "sim.err");
+  tool_test::SpawnedTool devices(
+      "cfgmgr",
+      {"simulate", "--bus", bus, "--for", "30", test_network("nodes/io_node2.dcf"),
+       test_network("nodes/drive_node3.dcf")},
+      dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices.started());
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   const std::string events = dir / "events.jsonl";
   tool_test::SpawnedTool master(
-      "cfgmgr", {"master", network("master.dcf"), "--bus", bus, "--json-events", events},
+      "cfgmgr", {"master", test_network("master.dcf"), "--bus", bus, "--json-events", events},
       dir / "master.out", dir / "master.err");
   ASSERT_TRUE(master.started());
   const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(15);
@@ -293,13 +271,13 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
   auto devices = std::make_unique<tool_test::SpawnedTool>(
       "cfgmgr",
       std::vector<std::string>{"simulate", "--bus", bus, "--for", "30",
-                               network("nodes/io_node2.dcf")},
+                               test_network("nodes/io_node2.dcf")},
       dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices->started());
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   const std::string events = dir / "events.jsonl";
   tool_test::SpawnedTool master(
-      "cfgmgr", {"master", network("heartbeat.cpj"), "--bus", bus, "--json-events", events},
+      "cfgmgr", {"master", test_network("heartbeat.cpj"), "--bus", bus, "--json-events", events},
       dir / "master.out", dir / "master.err");
   ASSERT_TRUE(master.started());
   const auto wait_for = [&events](const std::string& event, std::chrono::seconds limit) {
@@ -336,7 +314,7 @@ TEST(MasterInNetns, FlyingMastersTakeOverWhenTheActiveOneIsKilled) {
   ScratchDir dir;
   const std::string bus = "udp://239.74.163.2:43121";
   tool_test::SpawnedTool devices(
-      "cfgmgr", {"simulate", "--bus", bus, "--for", "40", network("nodes/io_node2.dcf")},
+      "cfgmgr", {"simulate", "--bus", bus, "--for", "40", test_network("nodes/io_node2.dcf")},
       dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices.started());
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -348,8 +326,8 @@ TEST(MasterInNetns, FlyingMastersTakeOverWhenTheActiveOneIsKilled) {
   for (int node : {1, 4, 5}) {
     masters[node] = std::make_unique<tool_test::SpawnedTool>(
         "cfgmgr",
-        std::vector<std::string>{"master", network("flying_master.dcf"), "--bus", bus, "--node-id",
-                                 std::to_string(node), "--json-events", events(node)},
+        std::vector<std::string>{"master", test_network("flying_master.dcf"), "--bus", bus,
+                                 "--node-id", std::to_string(node), "--json-events", events(node)},
         dir / ("master" + std::to_string(node) + ".out"),
         dir / ("master" + std::to_string(node) + ".err"));
     ASSERT_TRUE(masters[node]->started());

@@ -31,15 +31,9 @@ using push_test::nodes_of;
 using push_test::parse_json;
 using tool_test::Json;
 using tool_test::RunResult;
+using tool_test::sample_network;
 using tool_test::ScratchDir;
-
-std::string sample(const std::string& name) {
-  return std::string(CANOPEN_SAMPLES_DIR) + "/network/" + name;
-}
-
-std::string network(const std::string& name) {
-  return tool_test::data_path("network/" + name);
-}
+using tool_test::test_network;
 
 TEST(Push, HelpDocumentsOptionsExamplesAndExitCodes) {
   ScratchDir dir;
@@ -57,7 +51,7 @@ TEST(Push, HelpDocumentsOptionsExamplesAndExitCodes) {
 TEST(Push, ConfiguresEveryNodeOfTheSampleNetworkWithTheirConciseDcfWrites) {
   ScratchDir dir;
   const std::string report = dir / "report.json";
-  auto r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--json", report});
+  auto r = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:", "--json", report});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   // Not on a terminal: one line per event on stderr, as cfgmgr master prints them.
   EXPECT_NE(r.err.find("node 3: booted, configured"), std::string::npos) << r.err;
@@ -79,7 +73,7 @@ TEST(Push, ConfiguresEveryNodeOfTheSampleNetworkWithTheirConciseDcfWrites) {
     SCOPED_TRACE("node " + std::to_string(id));
     ASSERT_TRUE(nodes.count(id));
     const Json& n = *nodes.at(id);
-    const Concise concise = concise_of(dir, sample(what.second));
+    const Concise concise = concise_of(dir, sample_network(what.second));
     EXPECT_EQ(n.get("name")->string, what.first);
     EXPECT_EQ(n.get("result")->string, "configured");
     EXPECT_TRUE(n.get("status")->is(Json::Kind::Null));
@@ -99,25 +93,26 @@ TEST(Push, ForceStillConfiguresEveryNode) {
   const std::string report = dir / "report.json";
   // --force: download even when 1020h matches (CiA 302-2 §3.5 c is skipped); --no-save and
   // --no-start change what the master does after the download, not the result.
-  auto r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--force", "--json",
-                        report, "--no-save", "--retries", "3", "--sdo-timeout", "0.2"});
+  auto r = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:", "--force",
+                        "--json", report, "--no-save", "--retries", "3", "--sdo-timeout", "0.2"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Json json = parse_json(report);
   for (const auto& [id, n] : nodes_of(json)) {
     EXPECT_EQ(n->get("result")->string, "configured") << id;
   }
-  r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--force", "--no-start"});
+  r = cfgmgr(dir,
+             {"push", sample_network("nodelist.cpj"), "--bus", "sim:", "--force", "--no-start"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
 }
 
 TEST(Push, DryRunListsTheWritesInDownloadOrderWithoutABus) {
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--dry-run", "--only", "3"});
+  auto r = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--dry-run", "--only", "3"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find("sim:"), std::string::npos) << "no bus is opened: " << r.err;
   EXPECT_NE(r.out.find("node 3 (axis_x): "), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("node 2"), std::string::npos) << r.out;
-  const Concise concise = concise_of(dir, sample("drive_node3.dcf"));
+  const Concise concise = concise_of(dir, sample_network("drive_node3.dcf"));
   EXPECT_NE(r.out.find(std::to_string(concise.entries) + " writes"), std::string::npos) << r.out;
   // drive_node3.dcf: 1017h = 500 ms (01F4h); 1601h sub 1 maps 6040h sub 0, 16 bits. CiA 301
   // §7.3.5: the mapping's sub 0 goes to 0 before the entries and to 2 after them.
@@ -138,7 +133,8 @@ TEST(Push, WrongIdentityOfAMandatoryNodeIsAnErrorWithItsLetterAndExit4) {
   // 0x00000ABC: CiA 302-2 §3.4 / Table 1 status D; a mandatory slave (§3.1 f).
   ScratchDir dir;
   const std::string report = dir / "report.json";
-  auto r = cfgmgr(dir, {"push", network("wrong_identity.cpj"), "--bus", "sim:", "--json", report});
+  auto r =
+      cfgmgr(dir, {"push", test_network("wrong_identity.cpj"), "--bus", "sim:", "--json", report});
   EXPECT_EQ(r.exit_code, 4) << r.err;
   const Json json = parse_json(report);
   EXPECT_FALSE(json.get("ok")->boolean);
@@ -158,9 +154,9 @@ TEST(Push, AnOptionalNodesFailureIsReportedAndExits0) {
   ScratchDir dir;
   namespace fs = std::filesystem;
   fs::create_directories(dir / "nodes");
-  fs::copy_file(network("wrong_identity.cpj"), dir / "net.cpj");
-  fs::copy_file(network("nodes/io_node2.dcf"), dir / "nodes/io_node2.dcf");
-  std::string master = tool_test::slurp(network("master_wrong_vendor.dcf"));
+  fs::copy_file(test_network("wrong_identity.cpj"), dir / "net.cpj");
+  fs::copy_file(test_network("nodes/io_node2.dcf"), dir / "nodes/io_node2.dcf");
+  std::string master = tool_test::slurp(test_network("master_wrong_vendor.dcf"));
   const std::string mandatory = "ParameterValue=0x0000000D";
   const auto at = master.find(mandatory, master.find("[1F81sub2]"));
   ASSERT_NE(at, std::string::npos);
@@ -180,8 +176,8 @@ TEST(Push, AnOptionalNodesFailureIsReportedAndExits0) {
 TEST(Push, OnlyRestrictsTheNodes) {
   ScratchDir dir;
   const std::string report = dir / "report.json";
-  auto r = cfgmgr(
-      dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--only", "3-4", "--json", report});
+  auto r = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:", "--only", "3-4",
+                        "--json", report});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Json json = parse_json(report);
   const auto nodes = nodes_of(json);
@@ -194,7 +190,7 @@ TEST(Push, NotOnATerminalEachEventIsOneLineWithItsTime) {
   // stderr is a file here: no live view, no escape sequences; each line is "S.mmm  text" or a
   // "cfgmgr push: " line (the bus and the summary).
   ScratchDir dir;
-  auto r = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:"});
+  auto r = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find('\x1b'), std::string::npos) << r.err;
   std::istringstream lines(r.err);
@@ -269,8 +265,8 @@ std::string run_on_terminal(const std::vector<std::string>& args, int& exit_code
 
 TEST(Push, OnATerminalALiveViewIsDrawnAndTheTableEndsTheOutput) {
   int exit_code = -1;
-  const std::string out =
-      run_on_terminal({"push", sample("nodelist.cpj"), "--bus", "sim:?latency_ms=1"}, exit_code);
+  const std::string out = run_on_terminal(
+      {"push", sample_network("nodelist.cpj"), "--bus", "sim:?latency_ms=1"}, exit_code);
   ASSERT_EQ(exit_code, 0) << out;
   // The view: a progress bar and a row per node with state, step, entries, bytes, retries,
   // redrawn in place (ANSI CSI: cursor to the previous line, erase below).
@@ -302,8 +298,8 @@ TEST(Push, OnlyLeavesTheOtherNodesAlone) {
   // with keep-alive slaves: reset communication per node instead of 000#8200) and no SDO.
   ScratchDir dir;
   const std::string log = dir / "only.log";
-  auto r = cfgmgr(
-      dir, {"push", sample("nodelist.cpj"), "--bus", "sim:", "--only", "3", "--candump", log});
+  auto r = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:", "--only", "3",
+                        "--candump", log});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string trace = tool_test::slurp(log);
   EXPECT_EQ(trace.find(" 000#8200"), std::string::npos) << trace;
@@ -320,7 +316,7 @@ TEST(Push, OnlyLeavesTheOtherNodesAlone) {
 
 TEST(Push, BadArgumentsExit2) {
   ScratchDir dir;
-  const std::string cpj = sample("nodelist.cpj");
+  const std::string cpj = sample_network("nodelist.cpj");
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"push", cpj},  // no --bus, no --dry-run
         {"push", cpj, "--bus", "sim:?speed=1"},

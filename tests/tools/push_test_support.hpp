@@ -15,9 +15,7 @@ using tool_test::Json;
 using tool_test::JsonParser;
 using tool_test::ScratchDir;
 
-inline tool_test::RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
+using tool_test::cfgmgr;
 
 struct Concise {
   std::size_t entries = 0;
@@ -49,10 +47,8 @@ inline Concise concise_of(const ScratchDir& dir, const std::string& dcf) {
 }
 
 inline Json parse_json(const std::string& path) {
-  const std::string text = tool_test::slurp(path);
-  JsonParser parser(text);
-  auto value = parser.parse();
-  EXPECT_TRUE(value && value->is(Json::Kind::Object)) << parser.error() << ": " << text;
+  auto value = tool_test::parse_json_file(path);
+  EXPECT_TRUE(value && value->is(Json::Kind::Object)) << path << " holds no JSON object";
   return value ? *value : Json{};
 }
 

@@ -19,20 +19,13 @@
 
 namespace {
 
+using tool_test::cfgmgr;
 using tool_test::Json;
 using tool_test::JsonParser;
 using tool_test::RunResult;
 using tool_test::ScratchDir;
-
-RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
-
-void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out.write(reinterpret_cast<const char*>(bytes.data()),
-            static_cast<std::streamsize>(bytes.size()));
-}
+using tool_test::test_network;
+using tool_test::write_file;
 
 std::string text_of(const std::vector<std::uint8_t>& bytes) {
   return {bytes.begin(), bytes.end()};
@@ -52,10 +45,6 @@ const std::vector<std::uint8_t> kConcise = {
 const std::vector<std::uint8_t> kNode2Concise = {0x01, 0x00, 0x00, 0x00,  // number of entries
                                                  0x17, 0x10, 0x00, 0x02, 0x00,
                                                  0x00, 0x00, 0xE8, 0x03};  // 1017h sub 0, 2 bytes
-
-std::string network(const std::string& name) {
-  return tool_test::data_path("network/" + name);
-}
 
 const Json* node_entry(const Json& root, int node) {
   const Json* nodes = root.get("nodes");
@@ -85,7 +74,7 @@ TEST(Store, HelpDocumentsActionsExamplesAndExitCodes) {
 TEST(Store, PutGetListOfAConciseDcfInAStoreDirectory) {
   ScratchDir dir;
   const std::string store = dir / "store";
-  write_bytes(dir / "node5.cdcf", kConcise);
+  write_file(dir / "node5.cdcf", kConcise);
   auto put = cfgmgr(dir, {"store", "put", "5", dir / "node5.cdcf", "--store", store});
   ASSERT_EQ(put.exit_code, 0) << put.err;
   EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(store) / "1F22-05"));
@@ -127,7 +116,7 @@ TEST(Store, PutGetListOfAConciseDcfInAStoreDirectory) {
 TEST(Store, PutDcfThenRmLeavesNothing) {
   ScratchDir dir;
   const std::string store = dir / "store";
-  const std::string dcf = network("nodes/io_node2.dcf");
+  const std::string dcf = test_network("nodes/io_node2.dcf");
   auto put = cfgmgr(dir, {"store", "put", "2", dcf, "--store", store});
   ASSERT_EQ(put.exit_code, 0) << put.err;
   auto get = cfgmgr(dir, {"store", "get", "2", "--what", "dcf", "--store", store});
@@ -163,7 +152,7 @@ TEST(Store, PutOfAMalformedConciseDcfIsRefused) {
   const std::string store = dir / "store";
   std::vector<std::uint8_t> bad(kConcise.begin(), kConcise.begin() + 12);
   bad[0] = 2;
-  write_bytes(dir / "bad.bin", bad);
+  write_file(dir / "bad.bin", bad);
   auto put = cfgmgr(dir, {"store", "put", "5", dir / "bad.bin", "--store", store});
   EXPECT_EQ(put.exit_code, 1) << put.err;
   auto list = cfgmgr(dir, {"store", "list", "--json", "--store", store});
@@ -173,8 +162,8 @@ TEST(Store, PutOfAMalformedConciseDcfIsRefused) {
 TEST(Store, UsageErrors) {
   ScratchDir dir;
   const std::string store = dir / "store";
-  write_bytes(dir / "node5.cdcf", kConcise);
-  write_bytes(dir / "node5.txt", kConcise);
+  write_file(dir / "node5.cdcf", kConcise);
+  write_file(dir / "node5.txt", kConcise);
   // NODE outside 1..127.
   EXPECT_EQ(cfgmgr(dir, {"store", "put", "0", dir / "node5.cdcf", "--store", store}).exit_code, 2);
   EXPECT_EQ(cfgmgr(dir, {"store", "rm", "128", "--store", store}).exit_code, 2);
@@ -220,18 +209,19 @@ TEST(StoreInNetns, PutGetListConfigureOnARunningMaster) {
   ScratchDir dir;
   const std::string bus = "udp://239.74.163.2:43141";
   const std::string store = dir / "store";
-  write_bytes(dir / "node2.cdcf", kNode2Concise);
-  tool_test::SpawnedTool devices("cfgmgr",
-                                 {"simulate", "--bus", bus, "--for", "60",
-                                  network("nodes/io_node2.dcf"), network("nodes/drive_node3.dcf")},
-                                 dir / "sim.out", dir / "sim.err");
+  write_file(dir / "node2.cdcf", kNode2Concise);
+  tool_test::SpawnedTool devices(
+      "cfgmgr",
+      {"simulate", "--bus", bus, "--for", "60", test_network("nodes/io_node2.dcf"),
+       test_network("nodes/drive_node3.dcf")},
+      dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices.started());
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   const std::string events = dir / "events.jsonl";
-  tool_test::SpawnedTool master(
-      "cfgmgr",
-      {"master", network("master.dcf"), "--bus", bus, "--json-events", events, "--store", store},
-      dir / "master.out", dir / "master.err");
+  tool_test::SpawnedTool master("cfgmgr",
+                                {"master", test_network("master.dcf"), "--bus", bus,
+                                 "--json-events", events, "--store", store},
+                                dir / "master.out", dir / "master.err");
   ASSERT_TRUE(master.started());
   auto count = [&events](const std::string& needle) {
     const std::string text = tool_test::slurp(events);

@@ -23,6 +23,7 @@
 #include <string>
 #include <string_view>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace tool_test {
@@ -113,6 +114,38 @@ inline RunResult run(const std::string& tool, const std::vector<std::string>& ar
   std::filesystem::remove(out_file);
   std::filesystem::remove(err_file);
   return r;
+}
+
+/// `cfgmgr ARGS` run in the test's scratch directory.
+inline RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
+  return run("cfgmgr", args, dir.path().string());
+}
+
+/// A file of the sample network shipped with the project (samples/network/NAME).
+inline std::string sample_network(const std::string& name) {
+  return std::string(CANOPEN_SAMPLES_DIR) + "/network/" + name;
+}
+/// A file of the tests' own network (tests/data/network/NAME).
+inline std::string test_network(const std::string& name) {
+  return data_path("network/" + name);
+}
+
+/// A folder of tests/data: `const DataDir data("diff"); data("a.dcf")` is tests/data/diff/a.dcf.
+class DataDir {
+ public:
+  explicit DataDir(std::string folder) : folder_(std::move(folder)) {}
+  std::string operator()(const std::string& name) const { return data_path(folder_ + "/" + name); }
+
+ private:
+  std::string folder_;
+};
+
+/// Writes `bytes` to `path` (binary, replacing it).
+template <class Bytes>
+inline void write_file(const std::string& path, const Bytes& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -293,6 +326,36 @@ class JsonParser {
   int depth_ = 0;
   std::string error_;
 };
+
+/// The JSON value in file `path`; nullopt (and a test failure naming the parse error) when the
+/// file does not hold exactly one JSON value.
+inline std::optional<Json> parse_json_file(const std::string& path) {
+  const std::string text = slurp(path);  // the parser keeps a view of it
+  JsonParser parser(text);
+  auto json = parser.parse();
+  EXPECT_TRUE(json) << path << ": " << parser.error() << ": " << text;
+  return json;
+}
+
+/// The lines of a JSON-lines file (--json-events); every line must be one JSON object ending
+/// with a line end (a test failure says which is not).
+inline std::vector<Json> json_lines(const std::string& path) {
+  std::vector<Json> out;
+  const std::string text = slurp(path);
+  std::size_t begin = 0;
+  while (begin < text.size()) {
+    const auto end = text.find('\n', begin);
+    EXPECT_NE(end, std::string::npos) << "the last line has no line end";
+    const std::string line = text.substr(begin, end - begin);
+    JsonParser parser(line);
+    auto value = parser.parse();
+    EXPECT_TRUE(value && value->is(Json::Kind::Object)) << parser.error() << ": " << line;
+    if (value) out.push_back(std::move(*value));
+    if (end == std::string::npos) break;
+    begin = end + 1;
+  }
+  return out;
+}
 
 // ---------------------------------------------------------------------------------------------
 // Tests over UDP multicast run inside a private network namespace whose only interface is lo

@@ -17,43 +17,29 @@
 namespace {
 
 using ::testing::HasSubstr;
+using tool_test::cfgmgr;
 using tool_test::Json;
-using tool_test::JsonParser;
+using tool_test::parse_json_file;
 using tool_test::RunResult;
+using tool_test::sample_network;
 using tool_test::ScratchDir;
-
-RunResult cfgmgr(const ScratchDir& dir, const std::vector<std::string>& args) {
-  return tool_test::run("cfgmgr", args, dir.path().string());
-}
-
-std::string sample(const std::string& name) {
-  return std::string(CANOPEN_SAMPLES_DIR) + "/network/" + name;
-}
-
-std::optional<Json> parse_file(const std::string& path) {
-  const std::string text = tool_test::slurp(path);  // the parser keeps a view of it
-  JsonParser parser(text);
-  auto json = parser.parse();
-  EXPECT_TRUE(json) << parser.error();
-  return json;
-}
 
 // After a push, the devices hold the network's configuration: verify reads every configured
 // address of every node back and finds none different (exit 0).
 TEST(Verify, APushedNetworkHasNoDifference) {
   ScratchDir dir;
-  const auto push = cfgmgr(dir, {"push", sample("nodelist.cpj"), "--bus", "sim:"});
+  const auto push = cfgmgr(dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:"});
   ASSERT_EQ(push.exit_code, 0) << push.err;
-  const auto r = cfgmgr(
-      dir, {"verify", sample("nodelist.cpj"), "--bus", "sim:", "--json", dir / "verify.json"});
+  const auto r = cfgmgr(dir, {"verify", sample_network("nodelist.cpj"), "--bus", "sim:", "--json",
+                              dir / "verify.json"});
   EXPECT_EQ(r.exit_code, 0) << r.err << r.out;
   EXPECT_THAT(r.out, HasSubstr("axis_x"));
   EXPECT_THAT(r.out, HasSubstr("same as the description"));
-  const auto json = parse_file(dir / "verify.json");
+  const auto json = parse_json_file(dir / "verify.json");
   ASSERT_TRUE(json);
   EXPECT_TRUE(json->get("ok")->boolean);
   EXPECT_TRUE(json->get("differences")->array.empty());
-  auto load = cfg::load_network(sample("nodelist.cpj"));
+  auto load = cfg::load_network(sample_network("nodelist.cpj"));
   ASSERT_TRUE(load.ok());
   const auto& nodes = json->get("nodes")->array;
   ASSERT_EQ(nodes.size(), load.network->nodes.size());
@@ -77,7 +63,7 @@ TEST(Verify, AValueTheDeviceHoldsOtherwiseIsListedWithBothValues) {
   std::filesystem::create_directories(dir / "net");
   for (const char* f :
        {"nodelist.cpj", "drive_node3.dcf", "io_module_node2.dcf", "io_module_node4.dcf"}) {
-    std::filesystem::copy_file(sample(f), dir / (std::string("net/") + f));
+    std::filesystem::copy_file(sample_network(f), dir / (std::string("net/") + f));
   }
   const std::string bus = "sim:?state=" + (dir / "state");
   const auto push = cfgmgr(dir, {"push", dir / "net/nodelist.cpj", "--bus", bus});
@@ -93,7 +79,7 @@ TEST(Verify, AValueTheDeviceHoldsOtherwiseIsListedWithBothValues) {
   EXPECT_EQ(r.exit_code, 4) << r.err;
   EXPECT_THAT(r.out, HasSubstr("node 3 (axis_x): 1017h sub 00h Producer heartbeat time: "
                                "expected 250 (0x00FA), device has 500 (0x01F4)"));
-  const auto json = parse_file(dir / "verify.json");
+  const auto json = parse_json_file(dir / "verify.json");
   ASSERT_TRUE(json);
   EXPECT_FALSE(json->get("ok")->boolean);
   const auto& differences = json->get("differences")->array;
@@ -111,13 +97,13 @@ TEST(Verify, AValueTheDeviceHoldsOtherwiseIsListedWithBothValues) {
 // simulate them from: nobody answers on sim:, every upload times out (0504 0000), exit 4.
 TEST(Verify, NodesThatDoNotAnswerAreReportedAndExit4) {
   ScratchDir dir;
-  ASSERT_EQ(cfgmgr(dir, {"build", sample("nodelist.cpj"), "-o", dir / "out"}).exit_code, 0);
+  ASSERT_EQ(cfgmgr(dir, {"build", sample_network("nodelist.cpj"), "-o", dir / "out"}).exit_code, 0);
   const auto r = cfgmgr(dir, {"verify", dir / "out/master.dcf", "--bus", "sim:", "--sdo-timeout",
                               "0.01", "--retries", "0", "--json", dir / "v.json"});
   EXPECT_EQ(r.exit_code, 4) << r.err;
   EXPECT_THAT(r.out, HasSubstr("upload failed: 0x05040000"));
   EXPECT_THAT(r.out, HasSubstr("not all read"));
-  const auto json = parse_file(dir / "v.json");
+  const auto json = parse_json_file(dir / "v.json");
   ASSERT_TRUE(json);
   EXPECT_FALSE(json->get("ok")->boolean);
   const auto& differences = json->get("differences")->array;
@@ -128,8 +114,11 @@ TEST(Verify, NodesThatDoNotAnswerAreReportedAndExit4) {
 
 TEST(Verify, UsageErrorsExit2) {
   ScratchDir dir;
-  EXPECT_EQ(cfgmgr(dir, {"verify", sample("nodelist.cpj")}).exit_code, 2);  // --bus required
-  EXPECT_EQ(cfgmgr(dir, {"verify", sample("nodelist.cpj"), "--bus", "sim:?bogus=1"}).exit_code, 2);
+  EXPECT_EQ(cfgmgr(dir, {"verify", sample_network("nodelist.cpj")}).exit_code,
+            2);  // --bus required
+  EXPECT_EQ(
+      cfgmgr(dir, {"verify", sample_network("nodelist.cpj"), "--bus", "sim:?bogus=1"}).exit_code,
+      2);
   EXPECT_EQ(cfgmgr(dir, {"verify", dir / "absent.cpj", "--bus", "sim:"}).exit_code, 3);
   const auto help = cfgmgr(dir, {"verify", "--help"});
   EXPECT_EQ(help.exit_code, 0);
