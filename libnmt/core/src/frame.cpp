@@ -21,14 +21,9 @@ bool CanFrame::operator==(const CanFrame& other) const {
          dlc == other.dlc && std::equal(data.begin(), data.begin() + dlc, other.data.begin());
 }
 
-namespace {
-// Linux <linux/can.h> CAN_ERR_FLAG: candump writes error frames with it in the 8-digit id.
-constexpr std::uint32_t kCanErrFlag = 0x20000000u;
-}  // namespace
-
 std::string to_candump(const CanFrame& frame) {
   // candump uses 3 hex digits for standard ids and 8 for extended (and error) ids.
-  std::string out = frame.error      ? cfg::hex_digits(frame.id | kCanErrFlag, 8)
+  std::string out = frame.error      ? cfg::hex_digits(frame.id | CanFrame::kErrorFlag, 8)
                     : frame.extended ? cfg::hex_digits(frame.id, 8)
                                      : cfg::hex_digits(frame.id, 3);
   out += '#';
@@ -49,9 +44,9 @@ std::optional<CanFrame> from_candump(std::string_view text) {
   auto id = static_cast<std::uint32_t>(*parsed_id);
   CanFrame f;
   f.extended = hash == 8;
-  if (f.extended && (id & kCanErrFlag) != 0) {
+  if (f.extended && (id & CanFrame::kErrorFlag) != 0) {
     f.error = true;
-    id &= ~kCanErrFlag;
+    id &= ~CanFrame::kErrorFlag;
   }
   if (id > (f.extended ? CanFrame::kMaxExtendedId : CanFrame::kMaxStandardId)) return std::nullopt;
   f.id = id;

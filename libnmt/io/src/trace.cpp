@@ -16,10 +16,10 @@ namespace nmt {
 
 namespace {
 
-// Linux <linux/can.h> can_id flags, as LINKTYPE_CAN_SOCKETCAN carries them.
+// Linux <linux/can.h> can_id flags, as LINKTYPE_CAN_SOCKETCAN carries them (CAN_ERR_FLAG is
+// CanFrame::kErrorFlag).
 constexpr std::uint32_t kCanEffFlag = 0x80000000u;
 constexpr std::uint32_t kCanRtrFlag = 0x40000000u;
-constexpr std::uint32_t kCanErrFlag = 0x20000000u;
 
 cfg::Status check_frame(const CanFrame& frame, TimePoint timestamp) {
   if (frame.dlc > 8) return cfg::Error{"frame " + to_candump(frame) + " has dlc > 8"};
@@ -101,7 +101,7 @@ class PcapWriter final : public TraceWriter {
     // them); data bytes of remote frames are zero.
     std::uint32_t can_id = frame.id;
     if (frame.error) {
-      can_id |= kCanErrFlag;
+      can_id |= CanFrame::kErrorFlag;
     } else {
       if (frame.extended) can_id |= kCanEffFlag;
       if (frame.rtr) can_id |= kCanRtrFlag;

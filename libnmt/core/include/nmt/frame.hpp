@@ -23,6 +23,9 @@ using Duration = std::chrono::microseconds;
 struct CanFrame {
   static constexpr std::uint32_t kMaxStandardId = cfg::kMaxStandardCanId;
   static constexpr std::uint32_t kMaxExtendedId = cfg::kMaxExtendedCanId;
+  /// Linux <linux/can.h> CAN_ERR_FLAG: marks an error frame in the id word, as candump prints
+  /// it and LINKTYPE_CAN_SOCKETCAN records it (the one definition for text and traces).
+  static constexpr std::uint32_t kErrorFlag = 0x20000000u;
 
   std::uint32_t id = 0;  ///< 11-bit, or 29-bit when `extended`
   bool extended = false;
