@@ -11,14 +11,7 @@
 //   build/bench/bench_process --write-input /tmp/big.dcf   # only the file, for perf/heaptrack
 //
 // Not a Google Benchmark: the unit of work is a process, and the runner must see its exit.
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -28,58 +21,14 @@
 #include <vector>
 
 #include "generated_dcf.hpp"
-
-extern char** environ;  // NOLINT(readability-redundant-declaration): POSIX, for posix_spawn
+#include "process_runner.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Sample {
-  double ms = 0;
-  double cpu_ms = 0;  // user + system time of the child
-  long max_rss_kib = 0;
-  int status = 0;
-};
-
-// Runs argv with stdout/stderr to /dev/null; wall time from before the spawn to after the reap.
-Sample run_once(const std::vector<std::string>& argv) {
-  std::vector<char*> args;
-  args.reserve(argv.size() + 1);
-  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
-  Sample s;
-  const auto start = std::chrono::steady_clock::now();
-  pid_t pid = 0;
-  if (posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ) != 0) {
-    std::perror(args[0]);
-    std::exit(2);
-  }
-  struct rusage usage {};
-  if (wait4(pid, &s.status, 0, &usage) < 0) {
-    std::perror("wait4");
-    std::exit(2);
-  }
-  const auto end = std::chrono::steady_clock::now();
-  posix_spawn_file_actions_destroy(&actions);
-  s.ms = std::chrono::duration<double, std::milli>(end - start).count();
-  s.max_rss_kib = usage.ru_maxrss;
-  auto to_ms = [](const timeval& t) {
-    return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_usec) / 1e3;
-  };
-  s.cpu_ms = to_ms(usage.ru_utime) + to_ms(usage.ru_stime);
-  return s;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : (v[n / 2 - 1] + v[n / 2]) / 2;
-}
+using bench::median;
+using bench::ProcessSample;
+using bench::run_process;
 
 struct Command {
   std::string label;
@@ -93,12 +42,12 @@ struct Figures {
   double rss_mib = 0;
 };
 
-Figures summarize(const std::vector<Sample>& samples) {
+Figures summarize(const std::vector<ProcessSample>& samples) {
   std::vector<double> ms;
   std::vector<double> cpu;
   std::vector<double> rss;
   for (const auto& s : samples) {
-    ms.push_back(s.ms);
+    ms.push_back(s.wall_ms);
     cpu.push_back(s.cpu_ms);
     rss.push_back(static_cast<double>(s.max_rss_kib) / 1024.0);
   }
@@ -169,16 +118,16 @@ int main(int argc, char** argv) {
     ours.insert(ours.begin(), program("", c.tool));
     std::vector<std::string> theirs = c.args;
     theirs.insert(theirs.begin(), program(baseline, c.tool));
-    std::vector<Sample> a;
-    std::vector<Sample> b;
-    run_once(ours);  // warm-up: page cache, dynamic loader
-    if (!baseline.empty()) run_once(theirs);
+    std::vector<ProcessSample> a;
+    std::vector<ProcessSample> b;
+    run_process(ours);  // warm-up: page cache, dynamic loader
+    if (!baseline.empty()) run_process(theirs);
     for (int r = 0; r < runs; ++r) {
-      a.push_back(run_once(ours));
-      if (!baseline.empty()) b.push_back(run_once(theirs));
+      a.push_back(run_process(ours));
+      if (!baseline.empty()) b.push_back(run_process(theirs));
     }
     // cfgmgr check exits 1 when the file has errors; the generated file has none.
-    for (const auto& s : a) failures += (WIFEXITED(s.status) && WEXITSTATUS(s.status) == 0) ? 0 : 1;
+    for (const auto& s : a) failures += s.exit_code == 0 ? 0 : 1;
     const Figures fa = summarize(a);
     std::printf("| `%s` | %.1f ms | %.0f MB/s | %.1f ms | %.1f MiB |", c.label.c_str(), fa.ms,
                 mb / (fa.ms / 1000.0), fa.cpu_ms, fa.rss_mib);

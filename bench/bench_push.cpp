@@ -8,10 +8,6 @@
 // nmt::frame_bits, of the frames CiA 301/302-2 require, built here from the network's own
 // download plans, not from what the master sends), their ratio, the frames the trace holds,
 // the wall-clock time of the process and its peak RSS (wait4 ru_maxrss).
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -32,8 +28,7 @@
 #include "cfg/object_index.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sim_bus.hpp"
-
-extern char** environ;  // NOLINT(readability-redundant-declaration): POSIX, for posix_spawn
+#include "process_runner.hpp"
 
 namespace {
 
@@ -66,32 +61,12 @@ Run push(const std::vector<std::string>& arguments, const fs::path& dir) {
        {std::string("--json"), json.string(), std::string("--candump"), trace.string()}) {
     args.push_back(a);
   }
-  std::vector<char*> argv;
-  argv.reserve(args.size() + 1);
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+  const bench::ProcessSample sample = bench::run_process(args);
   Run run;
-  const auto began = std::chrono::steady_clock::now();
-  pid_t pid = 0;
-  if (posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ) != 0) {
-    std::perror("posix_spawn");
-    std::exit(1);
-  }
-  int status = 0;
-  rusage usage{};
-  ::wait4(pid, &status, 0, &usage);
-  run.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
-  posix_spawn_file_actions_destroy(&actions);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  run.max_rss_kib = usage.ru_maxrss;
-  const auto seconds = [](const timeval& t) {
-    return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_usec) / 1e6;
-  };
-  run.cpu_s = seconds(usage.ru_utime) + seconds(usage.ru_stime);
+  run.wall_s = sample.wall_ms / 1e3;
+  run.cpu_s = sample.cpu_ms / 1e3;
+  run.max_rss_kib = sample.max_rss_kib;
+  run.exit_code = sample.exit_code;
   const std::string report = slurp(json);
   const auto at = report.find("\"elapsed_s\": ");
   if (at != std::string::npos) run.bus_s = std::strtod(report.c_str() + at + 13, nullptr);
@@ -184,15 +159,14 @@ void print(const char* what, const std::vector<Run>& runs, const Required& bound
     wall.push_back(r.wall_s);
     cpu.push_back(r.cpu_s);
   }
-  std::sort(wall.begin(), wall.end());
-  std::sort(cpu.begin(), cpu.end());
+  const auto [min_wall, max_wall] = std::minmax_element(wall.begin(), wall.end());
   const Run& r = runs.front();
   std::printf(
       "%-9s bus %.3f s  bound %.3f s (%zu frames)  ratio %.3f  frames %zu  wall median %.3f s "
       "(min %.3f, max %.3f)  CPU median %.3f s  peak RSS %ld KiB  exit %d  (%zu runs)\n",
       what, r.bus_s, bound.seconds(), bound.frames.size(), r.bus_s / bound.seconds(), r.frames,
-      wall[wall.size() / 2], wall.front(), wall.back(), cpu[cpu.size() / 2], r.max_rss_kib,
-      r.exit_code, runs.size());
+      bench::median(wall), *min_wall, *max_wall, bench::median(cpu), r.max_rss_kib, r.exit_code,
+      runs.size());
 }
 
 }  // namespace
