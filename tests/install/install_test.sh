@@ -52,7 +52,7 @@ for lib in cfg nmt-core nmt-sim nmt-io; do
 done
 [ -f "$prefix/$libdir/pkgconfig/canopen-nmt.pc" ] || fail "installed: canopen-nmt.pc"
 for page in dcf2concise cfgmgr cfgmgr-check cfgmgr-fmt cfgmgr-simulate cfgmgr-master cfgmgr-push \
-            cfgmgr-diff cfgmgr-build cfgmgr-verify cfgmgr-store; do
+            cfgmgr-diff cfgmgr-build cfgmgr-verify cfgmgr-store cfgmgr-sdo; do
   [ -f "$prefix/share/man/man1/$page.1.gz" ] || fail "installed: man page $page.1.gz"
 done
 echo "ok: installed files checked"
@@ -205,7 +205,7 @@ man_page_covers() {
 man1=$moved/share/man/man1
 check "man dcf2concise covers --help" man_page_covers "$man1/dcf2concise.1.gz" "$moved/bin/dcf2concise"
 check "man cfgmgr covers --help" man_page_covers "$man1/cfgmgr.1.gz" "$moved/bin/cfgmgr"
-for sub in check fmt simulate master push diff build verify store; do
+for sub in check fmt simulate master push diff build verify store sdo; do
   check "man cfgmgr-$sub covers --help" \
     man_page_covers "$man1/cfgmgr-$sub.1.gz" "$moved/bin/cfgmgr" "$sub"
 done

@@ -26,6 +26,8 @@ void add_verify_command(CLI::App& app);
 /// `cfgmgr store put|get|list|rm|configure`: a configuration store, local or a master's
 /// (store.cpp).
 void add_store_command(CLI::App& app);
+/// `cfgmgr sdo read|write --bus URL NODE INDEX[:SUB] [VALUE]`: one SDO transfer (sdo.cpp).
+void add_sdo_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

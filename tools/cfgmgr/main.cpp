@@ -32,6 +32,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_build_command(app);
   cfgmgr::add_verify_command(app);
   cfgmgr::add_store_command(app);
+  cfgmgr::add_sdo_command(app);
 
   try {
     app.parse(argc, argv);

@@ -27,8 +27,8 @@
 #include "cfg/object_index.hpp"
 #include "commands.hpp"
 #include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo_client.hpp"
+#include "sdo_session.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -119,64 +119,33 @@ class LocalStore final : public Store {
 /// A master's configuration manager over SDO (its server at 600h/580h + node-ID).
 class RemoteStore final : public Store {
  public:
-  RemoteStore(std::unique_ptr<nmt::Bus> bus, std::uint8_t master, nmt::Duration timeout)
-      : bus_(std::move(bus)),
-        loop_(*bus_),
-        client_(nmt::SdoClientConfig::for_node(master)),
-        ref_(client_),
-        timeout_(timeout) {
-    ref_.set_event_handler([this](const nmt::SdoResult& r, nmt::TimePoint) {
-      result_ = r;
-      loop_.request_stop();
-    });
-    loop_.add(ref_);
+  RemoteStore(std::unique_ptr<SdoSession> session, nmt::Duration timeout)
+      : session_(std::move(session)) {
+    options_.timeout = timeout;
+    // Files are long: block transfer (CiA 301 §7.2.4.3.9), segmented when the server has none.
+    options_.mode = nmt::SdoMode::Block;
   }
   Access read(std::uint16_t index, std::uint8_t sub) override {
-    return run([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
-      return c.upload(index, sub, now, out, transfer_options());
-    });
+    return access(session_->upload(index, sub, options_));
   }
   Access write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) override {
-    return run([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
-      return c.download(index, sub, std::move(data), now, out, transfer_options());
-    });
+    return access(session_->download(index, sub, std::move(data), options_));
   }
   bool remote() const override { return true; }
 
  private:
-  nmt::SdoTransferOptions transfer_options() const {
-    nmt::SdoTransferOptions o;
-    o.timeout = timeout_;
-    // Files are long: block transfer (CiA 301 §7.2.4.3.9), segmented when the server has none.
-    o.mode = nmt::SdoMode::Block;
-    return o;
-  }
-  template <class Start>
-  Access run(Start&& start) {
-    result_.reset();
-    loop_.clear_stop();
-    ref_.apply(std::forward<Start>(start));
-    // The client ends every transfer itself (its timeout); the bound only guards against a
-    // transfer that keeps receiving answers for ever.
-    while (!result_) {
-      auto status = loop_.run_for(std::chrono::seconds(60));
-      if (!status) fail(tools::kExitIo, status.error().message);
-      if (!result_) fail(tools::kExitIo, "the SDO transfer did not end within 60 s");
-    }
+  static Access access(cfg::Result<nmt::SdoResult> result) {
+    if (!result) fail(tools::kExitIo, result.error().message);
     Access a;
-    a.abort = static_cast<std::uint32_t>(result_->abort);
-    a.data = std::move(result_->data);
-    if (!result_->ok()) a.message = nmt::to_string(result_->abort);
-    a.io = result_->abort == nmt::SdoAbort::Timeout;
+    a.abort = static_cast<std::uint32_t>(result->abort);
+    a.data = std::move(result->data);
+    if (!result->ok()) a.message = nmt::to_string(result->abort);
+    a.io = result->abort == nmt::SdoAbort::Timeout;
     return a;
   }
 
-  std::unique_ptr<nmt::Bus> bus_;
-  nmt::BusEventLoop loop_;
-  nmt::SdoClient client_;
-  nmt::EngineRef<nmt::SdoClient> ref_;
-  nmt::Duration timeout_;
-  std::optional<nmt::SdoResult> result_;
+  std::unique_ptr<SdoSession> session_;
+  nmt::SdoTransferOptions options_;
 };
 
 std::uint8_t parse_node(const std::string& text, bool allow_all = false) {
@@ -254,11 +223,11 @@ std::unique_ptr<Store> open_store(const StoreCliOptions& o) {
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
     fail(tools::kExitUsage, checked.error().message);
   }
-  auto bus = nmt::open_bus(o.bus);
-  if (!bus) fail(tools::kExitIo, bus.error().message);
+  auto session = SdoSession::open(
+      o.bus, nmt::SdoClientConfig::for_node(static_cast<std::uint8_t>(parsed.literal->value)));
+  if (!session) fail(tools::kExitIo, session.error().message);
   const auto timeout = nmt::Duration(static_cast<std::int64_t>(o.sdo_timeout_s * 1e6));
-  return std::make_unique<RemoteStore>(std::move(bus).value(),
-                                       static_cast<std::uint8_t>(parsed.literal->value), timeout);
+  return std::make_unique<RemoteStore>(std::move(session).value(), timeout);
 }
 
 /// The stamp a configuration stands for: configuration_stamp() of its writes as a concise DCF,

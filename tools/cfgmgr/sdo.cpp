@@ -1,0 +1,401 @@
+// cfgmgr sdo read|write --bus URL NODE INDEX[:SUB] [VALUE]: one SDO transfer (CiA 301 §7.2.4)
+// with any node of a running network, from the command line. The value's data type comes from
+// --type, else from the node's EDS/DCF (--eds); the value text is the project's value parser's
+// (cfg::parse_value, the syntax of EDS/DCF values). The client is libnmt's SdoClient
+// (sdo_session.hpp); this file parses arguments and prints.
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "../common/tool_support.hpp"
+#include "cfg/bytes.hpp"
+#include "cfg/data_type.hpp"
+#include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/integer_literal.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/value.hpp"
+#include "commands.hpp"
+#include "master_run.hpp"
+#include "nmt/bus.hpp"
+#include "nmt/sdo_abort.hpp"
+#include "nmt/sdo_client.hpp"
+#include "sdo_session.hpp"
+
+namespace cfgmgr {
+namespace {
+
+constexpr std::string_view kTool = "sdo";
+
+/// Writes of more bytes than this go by block transfer without --block: one sub-block of 127
+/// segments of 7 bytes (CiA 301 §7.2.4.3.9) is 889 bytes.
+constexpr std::size_t kBlockThreshold = 889;
+
+struct SdoCliOptions {
+  std::string bus;
+  std::string node;
+  std::string address;
+  std::string value;
+  std::string type;
+  std::string eds;
+  std::string file;    ///< write: the value's bytes from this file
+  std::string output;  ///< read: the value's bytes to this file
+  bool raw = false;
+  bool json = false;
+  bool block = false;
+  double sdo_timeout_s = 1.0;
+};
+
+/// The short type names of --type (the CiA 301 names are accepted as well).
+struct TypeName {
+  std::string_view name;
+  cfg::DataType type;
+};
+constexpr TypeName kTypeNames[] = {
+    {"bool", cfg::DataType::Boolean},       {"i8", cfg::DataType::Integer8},
+    {"i16", cfg::DataType::Integer16},      {"i24", cfg::DataType::Integer24},
+    {"i32", cfg::DataType::Integer32},      {"i40", cfg::DataType::Integer40},
+    {"i48", cfg::DataType::Integer48},      {"i56", cfg::DataType::Integer56},
+    {"i64", cfg::DataType::Integer64},      {"u8", cfg::DataType::Unsigned8},
+    {"u16", cfg::DataType::Unsigned16},     {"u24", cfg::DataType::Unsigned24},
+    {"u32", cfg::DataType::Unsigned32},     {"u40", cfg::DataType::Unsigned40},
+    {"u48", cfg::DataType::Unsigned48},     {"u56", cfg::DataType::Unsigned56},
+    {"u64", cfg::DataType::Unsigned64},     {"f32", cfg::DataType::Real32},
+    {"f64", cfg::DataType::Real64},         {"str", cfg::DataType::VisibleString},
+    {"octets", cfg::DataType::OctetString}, {"unicode", cfg::DataType::UnicodeString},
+    {"domain", cfg::DataType::Domain},      {"tod", cfg::DataType::TimeOfDay},
+    {"td", cfg::DataType::TimeDifference},
+};
+
+[[noreturn]] void fail(int code, const std::string& message) {
+  fail_command(kTool, code, message);
+}
+
+cfg::DataType parse_type(const std::string& text) {
+  std::string lower = text;
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const auto& t : kTypeNames) {
+    if (t.name == lower) return t.type;
+  }
+  if (auto type = cfg::data_type_from_name(text)) return *type;
+  fail(tools::kExitUsage, "--type " + text +
+                              ": expected u8..u64, i8..i64, bool, f32, f64, str, octets, "
+                              "unicode, domain, tod, td, or a CiA 301 name such as UNSIGNED32");
+}
+
+std::uint8_t parse_node(const std::string& text) {
+  const auto parsed = cfg::parse_integer_literal(text);
+  if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+    fail(tools::kExitUsage, "NODE " + text + ": expected a node-ID 1..127");
+  }
+  return static_cast<std::uint8_t>(parsed.literal->value);
+}
+
+// One hex number of at most `digits` digits, with an optional 0x prefix or h suffix.
+std::optional<std::uint64_t> parse_hex_part(std::string_view text, std::size_t digits) {
+  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
+    text.remove_prefix(2);
+  } else if (!text.empty() && (text.back() == 'h' || text.back() == 'H')) {
+    text.remove_suffix(1);
+  }
+  if (text.empty()) return std::nullopt;
+  return cfg::parse_hex_number(text, digits);
+}
+
+// INDEX[:SUB], both hex as CiA 301 writes them: "1018:1", "0x1018:0x01", "1018h:01h".
+cfg::ObjectAddress parse_address(const std::string& text) {
+  const auto colon = text.find(':');
+  const std::string_view all(text);
+  const auto index = parse_hex_part(all.substr(0, colon), 4);
+  std::optional<std::uint64_t> sub = 0;
+  if (colon != std::string::npos) sub = parse_hex_part(all.substr(colon + 1), 2);
+  if (!index || !sub) {
+    fail(tools::kExitUsage, "INDEX[:SUB] " + text +
+                                ": expected a hex index and sub-index, e.g. 1018:1 or "
+                                "0x1017:0x00");
+  }
+  return {static_cast<std::uint16_t>(*index), static_cast<std::uint8_t>(*sub)};
+}
+
+// The data type: --type, else the object's DataType in --eds; nullopt when neither gives one.
+std::optional<cfg::DataType> data_type_of(const SdoCliOptions& o, cfg::ObjectAddress address) {
+  if (!o.type.empty()) return parse_type(o.type);
+  if (o.eds.empty()) return std::nullopt;
+  auto read = cfg::read_device_file(o.eds);
+  if (!read.device) {
+    tools::print_diagnostics(read.diagnostics);
+    // A file that cannot be read at all is one error at line 0 (cfg/device_file.hpp).
+    exit_with(read.diagnostics.items().size() == 1 && read.diagnostics.items()[0].line == 0
+                  ? tools::kExitIo
+                  : tools::kExitInputErrors);
+  }
+  const cfg::SubObject* sub = read.device->sub(address.index, address.sub_index);
+  if (sub == nullptr) {
+    fail(tools::kExitUsage, o.eds + ": has no " + cfg::to_string(address) + " (give --type)");
+  }
+  const auto type = sub->basic_type();
+  if (!type) {
+    fail(tools::kExitUsage, o.eds + ":" + std::to_string(sub->line) + ": " +
+                                cfg::to_string(address) + " has no basic data type (give --type)");
+  }
+  return type;
+}
+
+nmt::SdoTransferOptions transfer_options(const SdoCliOptions& o, std::size_t write_size = 0) {
+  nmt::SdoTransferOptions options;
+  options.timeout = seconds_to_duration(o.sdo_timeout_s);
+  // CiA 301 §7.2.4.3.9: block transfer; the client falls back to segmented when the server
+  // answers 0504 0001 (nmt/sdo_client.hpp).
+  if (o.block || write_size > kBlockThreshold) options.mode = nmt::SdoMode::Block;
+  return options;
+}
+
+std::string_view protocol_name(nmt::SdoProtocol p) {
+  switch (p) {
+    case nmt::SdoProtocol::Expedited:
+      return "expedited";
+    case nmt::SdoProtocol::Segmented:
+      return "segmented";
+    case nmt::SdoProtocol::Block:
+      break;
+  }
+  return "block";
+}
+
+// What a transfer gave, for the text line and the JSON object.
+struct Outcome {
+  std::string operation;  // "read" or "write"
+  std::uint8_t node = 0;
+  cfg::ObjectAddress address;
+  std::optional<cfg::DataType> type;
+  nmt::SdoResult result;
+  std::optional<cfg::Value> value;  // read, typed, decoded
+  std::vector<std::uint8_t> bytes;  // read: as received; write: as sent
+};
+
+std::string json_of(const Outcome& o) {
+  const auto null_or = [](bool has, const std::string& text) {
+    return has ? tools::json_string(text) : std::string("null");
+  };
+  const bool ok = o.result.ok();
+  std::string out = "{\"operation\": " + tools::json_string(o.operation) +
+                    ", \"node_id\": " + std::to_string(o.node) +
+                    ", \"index\": " + std::to_string(o.address.index) +
+                    ", \"sub_index\": " + std::to_string(o.address.sub_index) +
+                    ", \"address\": " + tools::json_string(cfg::to_string(o.address)) +
+                    ", \"ok\": " + (ok ? "true" : "false") + ", \"type\": " +
+                    null_or(o.type.has_value(), o.type ? std::string(cfg::to_string(*o.type)) : "");
+  out += ", \"value\": " + null_or(o.value.has_value(), o.value ? cfg::format_value(*o.value) : "");
+  out +=
+      ", \"text\": " + null_or(o.value.has_value(), o.value ? cfg::describe_value(*o.value) : "");
+  out += ", \"hex\": " + null_or(ok, tools::hex_string(o.bytes));
+  out += ", \"size\": " + (ok ? std::to_string(o.bytes.size()) : std::string("null"));
+  out += ", \"protocol\": " + null_or(ok, std::string(protocol_name(o.result.protocol)));
+  const std::string code = cfg::hex(nmt::to_u32(o.result.abort), 8);
+  out += ", \"abort\": " + null_or(!ok, code);
+  out += ", \"abort_text\": " + null_or(!ok, std::string(nmt::describe(o.result.abort)));
+  out += ", \"aborted_by\": " +
+         null_or(!ok, o.result.aborted_by_server ? std::string("device") : std::string("client"));
+  return out + "}\n";
+}
+
+// Ends the command after a failed transfer: the abort code in words, exit 3 when the node did
+// not answer (the client's timeout), else 1.
+[[noreturn]] void fail_transfer(const Outcome& o) {
+  std::string text = "node " + std::to_string(o.node) + ": " + cfg::to_string(o.address) + ": " +
+                     o.operation + " failed: SDO abort " + nmt::to_string(o.result.abort);
+  text += o.result.aborted_by_server ? ", sent by the device" : ", sent by this client";
+  fail(o.result.abort == nmt::SdoAbort::Timeout ? tools::kExitIo : tools::kExitInputErrors, text);
+}
+
+std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t node) {
+  if (is_sim_url(o.bus)) {
+    fail(tools::kExitUsage, "--bus " + o.bus +
+                                ": the simulated bus has no node to talk to; use the bus the "
+                                "node is on (socketcan:IF, udp://GROUP:PORT)");
+  }
+  if (auto checked = nmt::check_bus_url(o.bus); !checked) {
+    fail(tools::kExitUsage, "--bus: " + checked.error().message);
+  }
+  // CiA 301 §7.2.4.1: the default SDO of a node is 600h + node-ID (client to server) and
+  // 580h + node-ID (server to client).
+  auto session = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(node));
+  if (!session) fail(tools::kExitIo, session.error().message);
+  return std::move(session).value();
+}
+
+nmt::SdoResult transfer_or_exit(cfg::Result<nmt::SdoResult> result) {
+  if (!result) fail(tools::kExitIo, result.error().message);
+  return std::move(result).value();
+}
+
+void finish(const SdoCliOptions& o, const Outcome& outcome) {
+  if (o.json) std::cout << json_of(outcome) << std::flush;
+  if (!outcome.result.ok()) fail_transfer(outcome);
+}
+
+void run_read(const SdoCliOptions& o) {
+  Outcome out;
+  out.operation = "read";
+  out.node = parse_node(o.node);
+  out.address = parse_address(o.address);
+  out.type = data_type_of(o, out.address);
+  if (o.json && (o.raw || !o.output.empty())) {
+    fail(tools::kExitUsage, "--json prints the value as JSON; --raw and -o write its bytes");
+  }
+  auto session = open_session(o, out.node);
+  out.result = transfer_or_exit(
+      session->upload(out.address.index, out.address.sub_index, transfer_options(o)));
+  out.bytes = out.result.data;
+  if (out.result.ok()) {
+    // Untyped: the bytes as a DOMAIN (hex pairs).
+    auto decoded = cfg::decode(out.type.value_or(cfg::DataType::Domain), out.bytes);
+    if (!decoded) {
+      fail(tools::kExitInputErrors,
+           "node " + std::to_string(out.node) + ": " + cfg::to_string(out.address) + ": " +
+               decoded.error().message + " (" + std::to_string(out.bytes.size()) + " bytes read)");
+    }
+    out.value = std::move(decoded).value();
+  }
+  finish(o, out);
+  if (o.json) return;
+  const std::string_view bytes(reinterpret_cast<const char*>(out.bytes.data()), out.bytes.size());
+  if (!o.output.empty() || o.raw) {
+    if (auto written = tools::write_output(o.output.empty() ? "-" : o.output, bytes); !written) {
+      fail(tools::kExitIo, written.error().message);
+    }
+    return;
+  }
+  std::cout << cfg::describe_value(*out.value) << '\n' << std::flush;
+}
+
+void run_write(const SdoCliOptions& o) {
+  Outcome out;
+  out.operation = "write";
+  out.node = parse_node(o.node);
+  out.address = parse_address(o.address);
+  if (o.value.empty() == o.file.empty()) {
+    fail(tools::kExitUsage, "give either VALUE or --file FILE");
+  }
+  if (!o.file.empty()) {
+    // The file's bytes are the value, whatever the type (a DOMAIN such as a program).
+    auto text = tools::read_input(o.file);
+    if (!text) fail(tools::kExitIo, text.error().message);
+    const std::string_view view = text.value().view();
+    out.bytes.assign(view.begin(), view.end());
+    if (!o.type.empty() || !o.eds.empty()) out.type = data_type_of(o, out.address);
+  } else {
+    out.type = data_type_of(o, out.address);
+    if (!out.type) {
+      fail(tools::kExitUsage, "VALUE " + o.value +
+                                  ": give its data type with --type, or the node's EDS/DCF "
+                                  "with --eds");
+    }
+    // $NODEID in a value stands for NODE, as in the node's DCF (CiA 306 §4.6.3).
+    auto value = cfg::parse_value(*out.type, o.value, out.node);
+    if (!value) {
+      fail(tools::kExitUsage, "VALUE " + o.value + ": " + value.error().message);
+    }
+    out.bytes = cfg::encode(*value);
+  }
+  auto session = open_session(o, out.node);
+  out.result = transfer_or_exit(session->download(
+      out.address.index, out.address.sub_index, out.bytes, transfer_options(o, out.bytes.size())));
+  finish(o, out);
+}
+
+}  // namespace
+
+void add_sdo_command(CLI::App& app) {
+  auto o = std::make_shared<SdoCliOptions>();
+  auto* cmd = app.add_subcommand(
+      "sdo",
+      "Read or write one object of a node on a running bus over SDO (CiA 301 section 7.2.4: "
+      "expedited, segmented or block transfer), on the node's default SDO (600h/580h + "
+      "node-ID); values typed by --type or by the node's EDS/DCF");
+  cmd->require_subcommand(1);
+  // On `sdo` itself, so that they may come before or after the action (fallthrough) and
+  // `cfgmgr sdo --help` (the man page) lists them.
+  cmd->add_option("--bus", o->bus, "The bus the node is on (socketcan:IF, udp://GROUP:PORT)")
+      ->type_name("URL")
+      ->required();
+  cmd->add_option("-t,--type", o->type,
+                  "The value's data type: u8, u16, u24, u32, u40, u48, u56, u64, i8 ... i64, "
+                  "bool, f32, f64, str (VISIBLE_STRING), octets, unicode, domain, tod, td, or a "
+                  "CiA 301 name (UNSIGNED32)")
+      ->type_name("TYPE");
+  cmd->add_option("--eds", o->eds,
+                  "Take the data type from the node's EDS or DCF when --type is not given")
+      ->type_name("FILE");
+  cmd->add_option("--sdo-timeout", o->sdo_timeout_s,
+                  "Seconds to wait for each answer of the node (default 1)")
+      ->type_name("SECONDS")
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("--block", o->block,
+                "Use block transfer (segmented when the node has none); writes of more than "
+                "889 bytes use it anyway");
+  cmd->add_flag("--json", o->json,
+                "Print the outcome as one JSON object on stdout (also when the transfer fails): "
+                "operation, node_id, index, sub_index, address, ok, type, value, text, hex, "
+                "size, protocol, abort, abort_text, aborted_by");
+
+  auto* read_cmd = cmd->add_subcommand("read", "Read INDEX:SUB of NODE and print its value");
+  read_cmd->add_option("node", o->node, "The node-ID, 1..127")->required()->type_name("NODE");
+  read_cmd->add_option("address", o->address, "The object, hex: 1018:1, 0x1017:0, 1008h")
+      ->required()
+      ->type_name("INDEX[:SUB]");
+  read_cmd->add_flag("--raw", o->raw, "Write the value's bytes to stdout, as they came");
+  read_cmd->add_option("-o,--output", o->output, "Write the value's bytes to FILE")
+      ->type_name("FILE");
+  read_cmd->fallthrough();
+  read_cmd->callback([o] { run_read(*o); });
+
+  auto* write_cmd =
+      cmd->add_subcommand("write", "Write VALUE (or a file's bytes) to INDEX:SUB of NODE");
+  write_cmd->add_option("node", o->node, "The node-ID, 1..127")->required()->type_name("NODE");
+  write_cmd->add_option("address", o->address, "The object, hex: 1017:0")
+      ->required()
+      ->type_name("INDEX[:SUB]");
+  write_cmd->add_option("value", o->value, "The value, as in an EDS/DCF (1000, 0x3E8, text)")
+      ->type_name("VALUE");
+  write_cmd->add_option("--file", o->file, "Write this file's bytes instead (- for stdin)")
+      ->type_name("FILE");
+  write_cmd->fallthrough();
+  write_cmd->callback([o] { run_write(*o); });
+
+  cmd->footer(std::string(
+      "Actions:\n"
+      "  read NODE INDEX[:SUB] [--raw|-o FILE]   print the value (typed: by --type or --eds; "
+      "else its bytes in hex)\n"
+      "  write NODE INDEX[:SUB] VALUE|--file FILE   write a typed value, or a file's bytes\n\n"
+      "INDEX and SUB are hex, as CiA 301 writes them (1018:1 is 1018h sub 01h; a missing SUB "
+      "is 0). VALUE is written as in an EDS/DCF (CiA 306): decimal, 0x hex, $NODEID+0x180, "
+      "text for strings, hex pairs for octets and domain. A read prints unsigned values as "
+      "'1000 (0x000003E8)', strings quoted, bytes in hex.\n\n"
+      "Examples:\n"
+      "  cfgmgr sdo read --bus socketcan:can0 5 1018:1 --type u32\n"
+      "  cfgmgr sdo read --bus udp://239.74.163.2:43113 5 1008 --eds drive.eds\n"
+      "  cfgmgr sdo write --bus socketcan:can0 5 1017:0 500 --type u16\n"
+      "  cfgmgr sdo write --bus socketcan:can0 5 1F50:1 --file firmware.bin --block\n"
+      "  cfgmgr sdo read --bus socketcan:can0 5 1F50:1 -o program.bin --block\n"
+      "  cfgmgr sdo read --bus socketcan:can0 5 1000 --json\n\n"
+      "Exit codes:\n"
+      "  0  done\n"
+      "  1  the transfer was aborted (the SDO abort code and its words are printed; by the "
+      "device, or by this client on a protocol error), or the value read does not fit --type\n"
+      "  2  usage error (bad command line, a NODE outside 1..127, a VALUE that is not of the "
+      "type, no type for VALUE)\n"
+      "  3  I/O error: a file cannot be read or written, the bus cannot be opened, the node "
+      "does not answer (abort 0x05040000 after --sdo-timeout)\n"));
+}
+
+}  // namespace cfgmgr
