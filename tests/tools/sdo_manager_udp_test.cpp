@@ -1,4 +1,4 @@
-// The SDO manager (CiA DSP 302 §7) of `cfgmgr master --sdo-manager` over the UDP multicast bus,
+// The SDO manager (CiA DSP 302 §7) of `cfgmgr master` over the UDP multicast bus,
 // against an SDO requesting device written with python-can alone from the spec
 // (tests/io/python/sdo_requesting_device.py) and two `cfgmgr simulate` slaves. Runs inside a
 // private network namespace (tests/support/run_in_netns.sh) as the other UDP tool tests do;
@@ -26,6 +26,9 @@ constexpr const char* kPort = "43197";  // one port per test
 std::string master_data(const std::string& name) {
   return tool_test::data_path("master/" + name);
 }
+std::string manager_data(const std::string& name) {
+  return tool_test::data_path("sdo_manager/" + name);
+}
 
 std::ptrdiff_t position(const std::vector<std::string>& lines, const std::string& prefix) {
   const auto it = std::find_if(lines.begin(), lines.end(),
@@ -38,8 +41,8 @@ TEST(SdoManager, EndToEndOverUdp) {
 }
 
 // The SRD at node 127 (§7.2.4 guideline 2), slaves 2 and 3 from tests/data/master/slave.eds, the
-// master from tests/data/master/master.dcf (node 1, no SDO manager objects: --sdo-manager turns
-// the manager on with its defaults).
+// master from tests/data/sdo_manager/manager.dcf (node 1; its 1F00h turns the SDO manager on,
+// 1F02h is its pool of COB-IDs 681h-688h).
 TEST(SdoManagerInNetns, PythonSrdRegistersConnectsReadsAndReleases) {
   REQUIRE_ISOLATED_MULTICAST();
   REQUIRE_PYTHON_CAN();
@@ -54,10 +57,10 @@ TEST(SdoManagerInNetns, PythonSrdRegistersConnectsReadsAndReleases) {
                                  dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices.started());
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  tool_test::SpawnedTool master("cfgmgr",
-                                {"master", master_data("master.dcf"), "--bus", bus, "--node-id",
-                                 "1", "--sdo-manager", "--run-for", "60"},
-                                dir / "master.out", dir / "master.err");
+  tool_test::SpawnedTool master(
+      "cfgmgr",
+      {"master", manager_data("manager.dcf"), "--bus", bus, "--node-id", "1", "--run-for", "60"},
+      dir / "master.out", dir / "master.err");
   ASSERT_TRUE(master.started());
 
   // The script ends by itself: END, or TIMEOUT after 40 s.
@@ -81,10 +84,11 @@ TEST(SdoManagerInNetns, PythonSrdRegistersConnectsReadsAndReleases) {
   EXPECT_LT(position(lines, "WRITE 1280 03 00000001"), confirmed) << all;
   const auto registered = position(lines, "REGISTERED 1280 ");
   ASSERT_GE(registered, 0) << all;
-  // Both COB-IDs valid (bit 31 clear), 11-bit, and the server node-ID 1.
+  // Both COB-IDs from the pool 681h-688h of manager.dcf (bit 31 clear: valid), and the server
+  // node-ID 1.
   const std::string& entry = lines[static_cast<std::size_t>(registered)];
-  EXPECT_EQ(entry.substr(16, 5), "00000") << entry;
-  EXPECT_EQ(entry.substr(25, 5), "00000") << entry;
+  EXPECT_EQ(entry.substr(16, 7), "0000068") << entry;
+  EXPECT_EQ(entry.substr(25, 7), "0000068") << entry;
   EXPECT_EQ(entry.substr(entry.size() - 2), "01") << entry;
   // §7.2.2 / §7.1: node 2's default SDO is free, so the connection is on it (CiA 301 pre-defined
   // connection set: 602h / 582h) and 1F10h says Cnxn state 3 for 1281h.

@@ -18,9 +18,10 @@ And it does what section 7.2 asks of an SRD:
   1. Once the master started SLAVE (NMT start for it or for all), it sets 1F10h = 12800001h
      (OD index 1280h, Rq indication) and sends the Dynamic SDO Request: COB-ID 1760 (6E0h), a
      data frame without data bytes; again every 5 s while 1F10h still holds the request.
-  2. When the manager wrote 1F10h with Cnxn state 1 (bits 2-1) and Rq indication 0, it writes
-     1F00h (request SDO) = 1281h << 16 | NODE << 8 | SLAVE to the manager over the client entry
-     1280h the manager filled in, then sets 1F10h to 0 (registered: "the value has to be 0").
+  2. When the manager wrote 1F10h with Cnxn state 1 (bits 2-1) and Rq indication 0, it sets 1F10h
+     to 0 (registered: "the value has to be 0") and 300 ms later writes 1F00h (request SDO) =
+     1281h << 16 | NODE << 8 | SLAVE to the manager over the client entry 1280h the manager
+     filled in.
   3. When the manager wrote 1F10h with Cnxn state 3 and index 1281h, it reads SLAVE's 1018h sub 1
      over the client entry 1281h, then writes 1F01h (release SDO) = 1281h << 16 | NODE << 8 | SLAVE
      over 1280h and waits until the manager set bit 31 of 1281h sub 1.
@@ -84,8 +85,10 @@ class Srd:
         self.values = {}
         self.state = PRE_OPERATIONAL
         self.next_heartbeat = None
-        self.phase = "wait-start"  # wait-start, registering, requesting, connecting, reading, releasing
+        self.phase = "wait-start"  # wait-start, registering, registered, requesting, connecting,
+        # reading, releasing
         self.next_request = None
+        self.request_at = None
         self.pending = None  # (cob_id_response, what) of our own client transfer
         self.failed = False
         self.done = False
@@ -129,6 +132,11 @@ class Srd:
 
     def tick(self, now):
         self.heartbeat(now)
+        if self.phase == "registered" and now >= self.request_at:
+            # Section 7.2.2: 1F00h = index << 16 | SRD << 8 | slave, over the new channel.
+            self.client_download(0x1280, 0x1F00, 0, 0x1281 << 16 | self.node << 8 | self.slave,
+                                 "request")
+            self.phase = "requesting"
         if self.phase == "registering" and now >= self.next_request:
             if self.values[(0x1F10, 0)] & 0x1:
                 self.send(REQUEST_ID, [])
@@ -195,10 +203,10 @@ class Srd:
         elif self.phase == "registering" and cnxn == 1 and not rq:
             say("REGISTERED " + self.entry_text(od_index))
             self.values[(0x1F10, 0)] = 0
-            # Section 7.2.2: 1F00h = index << 16 | SRD << 8 | slave, over the new channel.
-            self.client_download(0x1280, 0x1F00, 0, 0x1281 << 16 | self.node << 8 | self.slave,
-                                 "request")
-            self.phase = "requesting"
+            # The application asks for its connection a moment later (the simulated-bus suite
+            # checks a request right after the confirmation).
+            self.request_at = now + 0.3
+            self.phase = "registered"
         elif self.phase in ("requesting", "connecting") and cnxn == 3 and od_index == 0x1281:
             say("CONNECTED " + self.entry_text(0x1281))
             self.values[(0x1F10, 0)] = 0
