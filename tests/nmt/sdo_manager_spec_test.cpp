@@ -249,6 +249,15 @@ class ManagerRig : public MasterRig {
     EXPECT_TRUE(result.has_value()) << "the SRD's transfer did not end";
     return result;
   }
+  /// The SRD reads (object, sub) over its client entry `index` and gets `expected`.
+  void expect_read(std::uint8_t node, std::uint16_t index, std::uint16_t object, std::uint8_t sub,
+                   std::uint64_t expected) {
+    auto read = srd_transfer(node, index, true, object, sub);
+    ASSERT_TRUE(read.has_value()) << "SRD " << int{node} << ": " << hex_text(index) << " not valid";
+    EXPECT_TRUE(read->ok()) << "SRD " << int{node} << " reading " << hex_text(object) << ": "
+                            << read->abort;
+    EXPECT_EQ(value_of(read->data), expected);
+  }
   /// 1F00h or 1F01h written by SRD `node` over its channel to the manager (1280h unless said).
   SdoAbort srd_write_manager(std::uint8_t node, std::uint16_t object, std::uint32_t value,
                              std::uint16_t channel = kClientSdo) {
@@ -276,6 +285,17 @@ class ManagerRig : public MasterRig {
     EXPECT_EQ(cnxn_of(state), 3U) << "1F10h = " << hex_text(state);
     EXPECT_EQ(index_of(state), index) << "1F10h = " << hex_text(state);
     EXPECT_EQ(error_of(state), 0U) << "1F10h = " << hex_text(state);
+  }
+  /// request() expecting §7.2.3's refusal: Cnxn 0 with `error`; the client entry stays invalid and
+  /// no COB-ID of the pool stays allocated for it.
+  void refused(std::uint8_t node, std::uint8_t slave, std::uint16_t index, std::uint8_t error,
+               Duration limit = 20s) {
+    const auto before = in_use(pool());
+    const auto state = request(node, slave, index, limit);
+    EXPECT_EQ(cnxn_of(state), 0U) << "1F10h = " << hex_text(state);
+    EXPECT_EQ(error_of(state), error) << "1F10h = " << hex_text(state);
+    EXPECT_FALSE(client_entry(node, index).valid());
+    EXPECT_EQ(in_use(pool()), before) << "no COB-ID stays allocated";
   }
   /// 1F01h from SRD `node`, then runs `settle`.
   void release(std::uint8_t node, std::uint32_t word, Duration settle = 5s) {
@@ -318,6 +338,15 @@ class ManagerRig : public MasterRig {
       if ((e & kIdBits) == (id & kIdBits)) return e;
     }
     return std::nullopt;
+  }
+  /// Both COB-IDs of `entry` come from `pool`, valid, with bit 30 (in use) as `in_use`.
+  static void expect_pool_entries(const std::vector<std::uint32_t>& pool, const ClientEntry& entry,
+                                  bool in_use) {
+    for (auto id : {entry.request, entry.response}) {
+      auto e = pool_entry(pool, id);
+      ASSERT_TRUE(e.has_value()) << hex_text(id) << " is not from 1F02h";
+      EXPECT_EQ(*e & (kNotValid | kInUse), in_use ? kInUse : 0U) << "1F02h entry " << hex_text(*e);
+    }
   }
   static std::size_t in_use(const std::vector<std::uint32_t>& pool) {
     return static_cast<std::size_t>(
@@ -453,10 +482,8 @@ TEST(SdoManagerSpec, RegistrationChannelUsesTwoPoolCobIdsMarkedInUseAndServesThe
   const auto entry = rig.client_entry(kSrd, kClientSdo);
   const auto pool = rig.pool();
   ASSERT_EQ(pool.size(), kPoolEntries);
+  ManagerRig::expect_pool_entries(pool, entry, true);
   for (auto id : {entry.request, entry.response}) {
-    auto e = ManagerRig::pool_entry(pool, id);
-    ASSERT_TRUE(e.has_value()) << hex_text(id) << " is not from 1F02h";
-    EXPECT_EQ(*e & (kNotValid | kInUse), kInUse) << "1F02h entry " << hex_text(*e);
     EXPECT_NE(id & kIdBits, kInvalidPoolId) << "an entry marked not valid was used";
   }
   EXPECT_EQ(ManagerRig::in_use(pool), 2U);
@@ -466,10 +493,7 @@ TEST(SdoManagerSpec, RegistrationChannelUsesTwoPoolCobIdsMarkedInUseAndServesThe
   EXPECT_EQ(rig.engine().dictionary().get_unsigned(*channel, 3), kSrd)
       << "sub 3: the node-ID of the client";
   // And answers over it: 1F00h is write-only (§7.2.3: wo), 1F02h is readable.
-  auto read = rig.srd_transfer(kSrd, kClientSdo, true, kPool, 0);
-  ASSERT_TRUE(read.has_value());
-  EXPECT_TRUE(read->ok()) << read->abort;
-  EXPECT_EQ(value_of(read->data), kPoolEntries);
+  rig.expect_read(kSrd, kClientSdo, kPool, 0, kPoolEntries);
 }
 
 // §7.2.2 "Requesting Access to all default SDOs" and §7.2.3 Cnxn state 2: 1F10h = 00000003h is
@@ -546,10 +570,7 @@ TEST(SdoManagerSpec, ConnectionOnAFreeDefaultSdoWritesOnlyTheSrd) {
       << "the manager wrote to the slave: " << rig.all_downloads(kWithChannels, from).front();
   EXPECT_EQ(ManagerRig::in_use(rig.pool()), 2U) << "only the registration's two COB-IDs";
   // The SRD uses the connection (slave_channels.eds: 1018h sub 1 = 0000ABCDh).
-  auto read = rig.srd_transfer(kSrd, 0x1281, true, 0x1018, 1);
-  ASSERT_TRUE(read.has_value());
-  EXPECT_TRUE(read->ok()) << read->abort;
-  EXPECT_EQ(value_of(read->data), kVendor);
+  rig.expect_read(kSrd, 0x1281, 0x1018, 1, kVendor);
 }
 
 // §7.1: "If this is occupied it will check the object dictionary of S for free additional SDOs
@@ -573,11 +594,7 @@ TEST(SdoManagerSpec, SecondSrdGetsAnAdditionalServerChannelWithPoolCobIds) {
   EXPECT_EQ(rig.device_value(kWithChannels, 0x1202, 1).value_or(0) & kNotValid, kNotValid)
       << "only one channel is needed";
   const auto pool = rig.pool();
-  for (auto id : {entry.request, entry.response}) {
-    auto e = ManagerRig::pool_entry(pool, id);
-    ASSERT_TRUE(e.has_value()) << hex_text(id) << " is not from 1F02h";
-    EXPECT_EQ(*e & (kNotValid | kInUse), kInUse) << hex_text(*e);
-  }
+  ManagerRig::expect_pool_entries(pool, entry, true);
   EXPECT_EQ(ManagerRig::in_use(pool), 6U) << "two registrations and this connection";
   // Both connections hold at once.
   EXPECT_EQ(rig.client_entry(kSrd, 0x1281).request, 0x600U + kWithChannels);
@@ -594,14 +611,8 @@ TEST(SdoManagerSpec, DISABLED_SecondSrdReadsTheSlaveOverTheAdditionalChannel) {
   rig.register_ok(kSrd2);
   rig.connect_ok(kSrd, kWithChannels, 0x1281);
   rig.connect_ok(kSrd2, kWithChannels, 0x1281);
-  auto read = rig.srd_transfer(kSrd2, 0x1281, true, 0x1018, 2);
-  ASSERT_TRUE(read.has_value());
-  EXPECT_TRUE(read->ok()) << read->abort;
-  EXPECT_EQ(value_of(read->data), kProduct);
-  auto first = rig.srd_transfer(kSrd, 0x1281, true, 0x1018, 3);
-  ASSERT_TRUE(first.has_value());
-  EXPECT_TRUE(first->ok()) << first->abort;
-  EXPECT_EQ(value_of(first->data), kRevision);
+  rig.expect_read(kSrd2, 0x1281, 0x1018, 2, kProduct);
+  rig.expect_read(kSrd, 0x1281, 0x1018, 3, kRevision);
 }
 
 // §7.1: "free additional SDOs": a server channel already valid on the slave (bit 31 of sub 1
@@ -631,12 +642,7 @@ TEST(SdoManagerSpec, SlaveWithoutAFreeServerChannelGivesError03h) {
   rig.register_ok(kSrd);
   rig.register_ok(kSrd2);
   rig.connect_ok(kSrd, kDefaultOnly, 0x1281);
-  const auto pool_before = ManagerRig::in_use(rig.pool());
-  const auto state = rig.request(kSrd2, kDefaultOnly, 0x1281);
-  EXPECT_EQ(cnxn_of(state), 0U) << hex_text(state);
-  EXPECT_EQ(error_of(state), 0x03) << hex_text(state);
-  EXPECT_FALSE(rig.client_entry(kSrd2, 0x1281).valid());
-  EXPECT_EQ(ManagerRig::in_use(rig.pool()), pool_before) << "no COB-ID stays allocated";
+  rig.refused(kSrd2, kDefaultOnly, 0x1281, 0x03);
 }
 
 // The same when the slave has additional channels but all are in use: 1201h is configured by
@@ -653,10 +659,7 @@ TEST(SdoManagerSpec, SlaveWithAllServerChannelsInUseGivesError03h) {
   rig.connect_ok(kSrd, kWithChannels, 0x1281);   // default SDO
   rig.connect_ok(kSrd2, kWithChannels, 0x1281);  // 1202h
   ASSERT_EQ(ManagerRig::in_use(rig.pool()), 6U);
-  const auto state = rig.request(kSrd2, kWithChannels, 0x1282);
-  EXPECT_EQ(cnxn_of(state), 0U) << hex_text(state);
-  EXPECT_EQ(error_of(state), 0x03) << hex_text(state);
-  EXPECT_EQ(ManagerRig::in_use(rig.pool()), 6U) << "no COB-ID stays allocated";
+  rig.refused(kSrd2, kWithChannels, 0x1282, 0x03);
 }
 
 // §7.2.3 error code 02h "No more free SDO channels available in the network": the pool (1F02h)
@@ -670,11 +673,7 @@ TEST(SdoManagerSpec, ExhaustedPoolGivesError02h) {
   rig.register_ok(kSrd);
   rig.register_ok(kSrd2);
   rig.connect_ok(kSrd, kWithChannels, 0x1281);  // the default SDO needs no COB-ID
-  const TimePoint from = rig.bus.now();
-  const auto state = rig.request(kSrd2, kWithChannels, 0x1281);
-  EXPECT_EQ(cnxn_of(state), 0U) << hex_text(state);
-  EXPECT_EQ(error_of(state), 0x02) << hex_text(state);
-  EXPECT_FALSE(rig.client_entry(kSrd2, 0x1281).valid());
+  rig.refused(kSrd2, kWithChannels, 0x1281, 0x02);
   EXPECT_EQ(rig.device_value(kWithChannels, 0x1201, 1).value_or(0) & kNotValid, kNotValid);
   // Entries 5-8 (685h-688h) are not valid: never given out, to the slave or to an SRD.
   for (auto node : {kWithChannels, kSrd, kSrd2}) {
@@ -710,12 +709,7 @@ TEST(SdoManagerSpec, SilentSlaveGivesError04h) {
   rig.register_ok(kSrd2);
   rig.connect_ok(kSrd, kWithChannels, 0x1281);
   rig.unplug(kWithChannels);
-  const auto pool_before = ManagerRig::in_use(rig.pool());
-  const auto state = rig.request(kSrd2, kWithChannels, 0x1281, 30s);
-  EXPECT_EQ(cnxn_of(state), 0U) << hex_text(state);
-  EXPECT_EQ(error_of(state), 0x04) << hex_text(state);
-  EXPECT_FALSE(rig.client_entry(kSrd2, 0x1281).valid());
-  EXPECT_EQ(ManagerRig::in_use(rig.pool()), pool_before) << "no COB-ID stays allocated";
+  rig.refused(kSrd2, kWithChannels, 0x1281, 0x04, 30s);
 }
 
 // §7.2.3: "If the Manager refuses the request this will be done by the Service 'Abort domain
@@ -812,11 +806,7 @@ TEST(SdoManagerSpec, ReleaseByIndexInvalidatesBothSidesAndFreesItsPoolEntries) {
   EXPECT_NE(rig.device_value(kWithChannels, 0x1201, 1).value_or(0) & kNotValid, 0U);
   EXPECT_NE(rig.device_value(kWithChannels, 0x1201, 2).value_or(0) & kNotValid, 0U);
   const auto pool = rig.pool();
-  for (auto id : {entry.request, entry.response}) {
-    auto e = ManagerRig::pool_entry(pool, id);
-    ASSERT_TRUE(e.has_value());
-    EXPECT_EQ(*e & kInUse, 0U) << "1F02h entry " << hex_text(*e) << " still in use";
-  }
+  ManagerRig::expect_pool_entries(pool, entry, false);
   EXPECT_EQ(ManagerRig::in_use(pool), 4U);
   const auto rows = rig.rows();
   EXPECT_FALSE(ManagerRig::has_row(rows, row_word(0x01, kSrd2, 0x01, kWithChannels)));
