@@ -19,6 +19,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
+#include "cfg/sdo_manager_objects.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_server.hpp"
@@ -184,16 +185,16 @@ struct SdoManager {
     std::uint32_t request = 0;  ///< Register: 1F10h as read
     std::uint8_t slave = 0;
     std::uint16_t client_index = 0;
-    std::uint16_t probe = 0;           ///< SearchChannel: S's server entry read now
-    Connection connection;             ///< Register/Connect: the connection being set up
-    std::vector<Connection> releases;  ///< Release: in order
-    std::string why;                   ///< Release: for the events
-    bool deregister = false;           ///< Release: the SRD goes too
-    bool srd_lost = false;             ///< Release: the SRD does not answer (no retries)
-    std::uint8_t failed = 0;           ///< Release: the slave whose failure 1F11h reports
-    std::uint8_t error = 0;            ///< Refusing: the 1F10h error code
-    bool confirm = false;              ///< Refusing: 1F10h is written
-    std::deque<Step> steps;            ///< accesses still to do, in order
+    std::uint16_t probe = 0;                    ///< SearchChannel: S's server entry read now
+    Connection connection;                      ///< Register/Connect: the connection being set up
+    std::vector<Connection> releases;           ///< Release: in order
+    std::string why;                            ///< Release: for the events
+    bool deregister = false;                    ///< Release: the SRD goes too
+    bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
+    std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
+    cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
+    bool confirm = false;                       ///< Refusing: 1F10h is written
+    std::deque<Step> steps;                     ///< accesses still to do, in order
   };
 
   bool enabled = false;
@@ -391,7 +392,8 @@ struct NmtMaster::Impl {
   void manager_start_register(std::uint32_t request, TimePoint now, Output& out);
   void manager_start_connect(TimePoint now, Output& out);
   void manager_connect_with(std::uint16_t server_index, TimePoint now, Output& out);
-  void manager_refuse(std::uint8_t error, const std::string& why, TimePoint now, Output& out);
+  void manager_refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why,
+                      TimePoint now, Output& out);
   void manager_release_job(std::uint8_t srd, std::vector<SdoManager::Connection> rows,
                            bool deregister, bool lost, std::string why);
   void manager_watch(std::uint8_t node, bool srd, std::optional<Duration> heartbeat, TimePoint now);

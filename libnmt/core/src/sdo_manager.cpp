@@ -13,6 +13,7 @@
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
+#include "cfg/sdo_manager_objects.hpp"
 #include "nmt_master_impl.hpp"
 
 namespace nmt {
@@ -21,51 +22,37 @@ namespace obj = cfg::object;
 
 namespace {
 
-// DSP 302 §7.2.1: the Dynamic SDO Request, a data frame without data bytes.
-constexpr std::uint32_t kDynamicSdoRequestId = 1760;
-// §7.2.3, 1F10h: bit 0 Rq indication, bits 2-1 Cnxn state, bit 3 Req EC, bits 15-8 error code.
-constexpr std::uint32_t kRqIndication = 0x1;
-constexpr std::uint32_t kReqEc = 0x8;
-constexpr std::uint32_t kAllDefaultSdos = 0x3;
-constexpr std::uint32_t cnxn(std::uint32_t state) {
-  return state << 1;
-}
-// §7.2.3 error codes of 1F10h.
-constexpr std::uint8_t kNoDetails = 0x00;
-constexpr std::uint8_t kNoManagerChannel = 0x01;
-constexpr std::uint8_t kNoCobIds = 0x02;
-constexpr std::uint8_t kNoServerEntry = 0x03;
-constexpr std::uint8_t kSlaveNotAvailable = 0x04;
+namespace sm = cfg::sdo_manager;
+using sm::ConnectionState;
+using sm::DynamicSdoError;
+using sm::DynamicSdoState;
+using sm::ManagerCobId;
 
-// §7.2.3: 1F03h-1F06h hold 254 connections each.
-constexpr std::uint16_t kRowsPerPart = 254;
-constexpr std::uint16_t kConnectionParts = 4;
 // The pool a master DCF without 1F02h gets: identifiers the pre-defined connection set of
 // CiA 301 neither uses nor restricts.
 constexpr std::uint32_t kPoolFirst = 0x680;
 constexpr std::uint32_t kPoolLast = 0x6DF;
-constexpr std::uint32_t kPoolFlags = cfg::kCobIdInvalidBit | cfg::kCobIdBit30;
 
 constexpr std::uint16_t kDefaultServer = obj::kSdoServerFirst;  // 1200h
-// DSP 302 §7.2.3 objects.
-constexpr std::uint16_t kSdoManagerCobIds = 0x1F02;
-constexpr std::uint16_t kSdoConnections = 0x1F03;  // parts 1..4: 1F03h..1F06h
-constexpr std::uint16_t kDynamicSdoConnectionState = 0x1F10;
-constexpr std::uint16_t kSlaveFailed = 0x1F11;
 constexpr std::uint8_t kGuardLifeTimeFactor = 3;
+// §7.2.3: 1F03h-1F06h, 254 rows each; rows are numbered from 1.
+constexpr unsigned kRows = sm::kConnectionsPerPart * sm::kConnectionParts;
 
-std::uint8_t sub_of(std::uint16_t row) {
-  return static_cast<std::uint8_t>((row - 1) % kRowsPerPart + 1);
+sm::ConnectionSlot slot_of(std::uint16_t row) {
+  return sm::connection_slot(row - 1U);
 }
-std::uint16_t part_of(std::uint16_t row) {
-  return static_cast<std::uint16_t>(kSdoConnections + (row - 1) / kRowsPerPart);
+void set_row(LocalDictionary& dict, std::uint16_t row, std::uint32_t word) {
+  const auto slot = slot_of(row);
+  dict.set_unsigned(slot.index, slot.sub_index, word);
 }
-
-/// §7.2.3: client offset from 1280h, client node-ID, server offset from 1200h, server node-ID.
+/// The COB-ID of 1F02h sub `sub` without the manager's bits.
+cfg::CobId pool_cob_id(const LocalDictionary& dict, std::uint8_t sub) {
+  return ManagerCobId::decode(
+             static_cast<std::uint32_t>(dict.get_unsigned(obj::kSdoManagerCobIds, sub).value_or(0)))
+      .cob_id();
+}
 std::uint32_t row_word(const ManagedSdoConnection& c) {
-  return (std::uint32_t(c.client_index - obj::kSdoClientFirst) << 24U) |
-         (std::uint32_t{c.srd} << 16U) |
-         (std::uint32_t(c.server_index - obj::kSdoServerFirst) << 8U) | c.server;
+  return sm::SdoConnection::of(c.client_index, c.srd, c.server_index, c.server).encode();
 }
 
 std::string cob_text(cfg::CobId id) {
@@ -118,25 +105,26 @@ void NmtMaster::Impl::install_sdo_manager() {
     entry.access = A::Wo;
     dict.insert(std::move(entry));
   }
-  if (!dict.has_object(kSdoManagerCobIds)) {
+  if (!dict.has_object(obj::kSdoManagerCobIds)) {
     const auto count = kPoolLast - kPoolFirst + 1;
-    dict.insert(make_entry(kSdoManagerCobIds, 0, "Highest sub-index supported", T::Unsigned8,
+    dict.insert(make_entry(obj::kSdoManagerCobIds, 0, "Highest sub-index supported", T::Unsigned8,
                            A::Const, count));
     for (std::uint32_t i = 0; i < count; ++i) {
-      dict.insert(make_entry(kSdoManagerCobIds, static_cast<std::uint8_t>(i + 1),
+      dict.insert(make_entry(obj::kSdoManagerCobIds, static_cast<std::uint8_t>(i + 1),
                              "SDO manager COB-ID " + std::to_string(i + 1), T::Unsigned32, A::Rw,
                              kPoolFirst + i));
     }
   }
-  for (std::uint16_t part = 0; part < kConnectionParts; ++part) {
-    const auto index = static_cast<std::uint16_t>(kSdoConnections + part);
+  for (unsigned part = 0; part < sm::kConnectionParts; ++part) {
+    const auto index = static_cast<std::uint16_t>(obj::kSdoConnectionsFirst + part);
     if (dict.has_object(index)) continue;
-    dict.insert(
-        make_entry(index, 0, "Highest sub-index supported", T::Unsigned8, A::Const, kRowsPerPart));
-    for (unsigned sub = 1; sub <= kRowsPerPart; ++sub) {
-      dict.insert(make_entry(index, static_cast<std::uint8_t>(sub),
-                             "SDO connection " + std::to_string(part * kRowsPerPart + sub),
-                             T::Unsigned32, A::Ro, 0));
+    dict.insert(make_entry(index, 0, "Highest sub-index supported", T::Unsigned8, A::Const,
+                           sm::kConnectionsPerPart));
+    for (unsigned sub = 1; sub <= sm::kConnectionsPerPart; ++sub) {
+      dict.insert(
+          make_entry(index, static_cast<std::uint8_t>(sub),
+                     "SDO connection " + std::to_string(part * sm::kConnectionsPerPart + sub),
+                     T::Unsigned32, A::Ro, 0));
     }
   }
   // The server channels SRDs get (CiA 301 1201h..), invalid until one registers.
@@ -166,23 +154,24 @@ bool NmtMaster::Impl::manager_active() const {
 SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
                                         std::span<const std::uint8_t> data) {
   const auto value = static_cast<std::uint32_t>(cfg::load_le(data, data.size()));
-  if (index == kSdoManagerCobIds) {
+  if (index == obj::kSdoManagerCobIds) {
     if (sub == 0) return SdoAbort::None;
-    for (std::uint8_t s = 1; s <= value_of(kSdoManagerCobIds, 0) && s != 0; ++s) {
-      if ((value_of(kSdoManagerCobIds, s) & cfg::kCobIdBit30) != 0) {
+    for (std::uint8_t s = 1; s <= value_of(obj::kSdoManagerCobIds, 0) && s != 0; ++s) {
+      if (ManagerCobId::decode(value_of(obj::kSdoManagerCobIds, s)).in_use()) {
         return SdoAbort::DeviceState;
       }
     }
     // Bit 30 is the manager's; an 11-bit entry has bits 28-11 clear (§7.2.3).
-    const auto id = cfg::CobId::from_word(value & ~cfg::kCobIdInvalidBit);
-    if ((value & cfg::kCobIdBit30) != 0 || !id.well_formed()) return SdoAbort::ValueRangeExceeded;
+    const auto entry = ManagerCobId::decode(value);
+    if (entry.in_use() || !entry.cob_id().well_formed()) return SdoAbort::ValueRangeExceeded;
     return SdoAbort::None;
   }
   if (index != obj::kSdoRequest && index != obj::kSdoRelease) return SdoAbort::None;
   if (!manager_active()) return SdoAbort::DeviceState;
-  const auto slave = static_cast<std::uint8_t>(value & 0xFF);
-  const auto srd = static_cast<std::uint8_t>((value >> 8U) & 0xFF);
-  const auto client_index = static_cast<std::uint16_t>(value >> 16U);
+  const auto request = sm::SdoRequest::decode(value);
+  const auto slave = request.slave_node_id;
+  const auto srd = request.srd_node_id;
+  const auto client_index = request.client_index;
   // §7.2.3: refused with 060A 0023 ("Resource not available: SDO connection").
   const auto it = sdo_manager.srds.find(srd);
   if (it == sdo_manager.srds.end()) return SdoAbort::ResourceNotAvailable;
@@ -223,7 +212,7 @@ SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
       continue;
     }
     rows.push_back(*c);
-    dict.set_unsigned(part_of(c->row.row), sub_of(c->row.row), 0);
+    set_row(dict, c->row.row, 0);
     c = sdo_manager.connections.erase(c);
   }
   if (slave == 0) {
@@ -240,7 +229,7 @@ SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
 // --- frames and time ---
 
 bool NmtMaster::Impl::manager_frame(const CanFrame& frame, TimePoint /*now*/) {
-  if (frame.id != kDynamicSdoRequestId || frame.extended || frame.rtr || frame.dlc != 0) {
+  if (frame.id != sm::kDynamicSdoRequestCanId || frame.extended || frame.rtr || frame.dlc != 0) {
     return false;
   }
   if (!manager_active()) return false;  // a standby master ignores it
@@ -292,8 +281,7 @@ std::optional<TimePoint> NmtMaster::Impl::manager_deadline() const {
 }
 
 void NmtMaster::Impl::manager_clear() {
-  for (auto& c : sdo_manager.connections)
-    dict.set_unsigned(part_of(c.row.row), sub_of(c.row.row), 0);
+  for (auto& c : sdo_manager.connections) set_row(dict, c.row.row, 0);
   sdo_manager.connections.clear();
   for (const auto& [node, srd] : sdo_manager.srds) {
     if (!is_slave(node)) stop_error_control(node);
@@ -308,7 +296,7 @@ void NmtMaster::Impl::manager_clear() {
   ++sdo_manager.serial;  // results of transfers still running are stale
   sdo_manager.rescan = false;
   while (!sdo_manager.channels.empty()) manager_close_channel(sdo_manager.channels.begin()->first);
-  const auto count = value_of(kSdoManagerCobIds, 0);
+  const auto count = value_of(obj::kSdoManagerCobIds, 0);
   for (std::uint32_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
     manager_mark_pool(static_cast<std::uint8_t>(sub), false);
   }
@@ -318,19 +306,18 @@ void NmtMaster::Impl::manager_clear() {
 
 std::vector<std::uint8_t> NmtMaster::Impl::manager_free_pool() const {
   std::vector<std::uint8_t> free;
-  const auto count = value_of(kSdoManagerCobIds, 0);
+  const auto count = value_of(obj::kSdoManagerCobIds, 0);
   for (std::uint32_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
-    const auto word = value_of(kSdoManagerCobIds, static_cast<std::uint8_t>(sub));
-    if ((word & kPoolFlags) == 0) free.push_back(static_cast<std::uint8_t>(sub));
+    const auto word = value_of(obj::kSdoManagerCobIds, static_cast<std::uint8_t>(sub));
+    if (ManagerCobId::decode(word).free()) free.push_back(static_cast<std::uint8_t>(sub));
   }
   return free;
 }
 
 void NmtMaster::Impl::manager_mark_pool(std::uint8_t sub, bool in_use) {
-  if (sub == 0 || !dict.entry(kSdoManagerCobIds, sub)) return;
-  auto word = value_of(kSdoManagerCobIds, sub);
-  word = in_use ? (word | cfg::kCobIdBit30) : (word & ~cfg::kCobIdBit30);
-  dict.set_unsigned(kSdoManagerCobIds, sub, word);
+  if (sub == 0 || !dict.entry(obj::kSdoManagerCobIds, sub)) return;
+  const auto entry = ManagerCobId::decode(value_of(obj::kSdoManagerCobIds, sub));
+  dict.set_unsigned(obj::kSdoManagerCobIds, sub, entry.with_in_use(in_use).encode());
 }
 
 void NmtMaster::Impl::manager_open_channel(std::uint16_t index, const SdoManager::Connection& c) {
@@ -351,8 +338,8 @@ void NmtMaster::Impl::manager_close_channel(std::uint16_t index) {
 }
 
 std::uint16_t NmtMaster::Impl::manager_free_row() const {
-  for (std::uint16_t row = 1; row <= kRowsPerPart * kConnectionParts; ++row) {
-    if (!dict.entry(part_of(row), sub_of(row))) break;
+  for (std::uint16_t row = 1; row <= kRows; ++row) {
+    if (!dict.entry(slot_of(row).index, slot_of(row).sub_index)) break;
     const bool used =
         std::any_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
                     [&](const SdoManager::Connection& c) { return c.row.row == row; });
@@ -402,7 +389,7 @@ void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoi
         continue;
       }
       rows.push_back(*c);
-      dict.set_unsigned(part_of(c->row.row), sub_of(c->row.row), 0);
+      set_row(dict, c->row.row, 0);
       c = sdo_manager.connections.erase(c);
     }
     sdo_manager.srds.erase(it);
@@ -428,7 +415,7 @@ void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoi
       continue;
     }
     by_srd[c->row.srd].push_back(*c);
-    dict.set_unsigned(part_of(c->row.row), sub_of(c->row.row), 0);
+    set_row(dict, c->row.row, 0);
     c = sdo_manager.connections.erase(c);
   }
   for (auto& [srd, rows] : by_srd) {
@@ -501,7 +488,7 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
   switch (job.phase) {
     case Phase::Scanning:
       // §7.2.1: an open request has Rq indication set.
-      if (result.ok() && (uploaded_u32(result) & kRqIndication) != 0) {
+      if (result.ok() && DynamicSdoState::decode(uploaded_u32(result)).request_indication) {
         manager_start_register(uploaded_u32(result), now, out);
       } else if (job.node > cfg::kMinNodeId) {
         --job.node;
@@ -522,14 +509,16 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
     }
     case Phase::ProbeSlave:
       if (!answered) {
-        manager_refuse(kSlaveNotAvailable, node_text(job.slave) + " does not answer", now, out);
+        manager_refuse(DynamicSdoError::kSlaveNotAvailable,
+                       node_text(job.slave) + " does not answer", now, out);
       } else {
         manager_connect_with(kDefaultServer, now, out);
       }
       return;
     case Phase::SearchChannel: {
       if (!answered) {
-        manager_refuse(kSlaveNotAvailable, node_text(job.slave) + " does not answer", now, out);
+        manager_refuse(DynamicSdoError::kSlaveNotAvailable,
+                       node_text(job.slave) + " does not answer", now, out);
         return;
       }
       const bool free =
@@ -541,8 +530,8 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
       if (free) {
         manager_connect_with(job.probe, now, out);
       } else if (!result.ok() || job.probe >= obj::kSdoServerLast) {
-        manager_refuse(kNoServerEntry, node_text(job.slave) + " has no free server SDO entry", now,
-                       out);
+        manager_refuse(DynamicSdoError::kNoFreeServerOnSlave,
+                       node_text(job.slave) + " has no free server SDO entry", now, out);
       } else {
         ++job.probe;
         job.steps.push_back(read_step(job.slave, job.probe, 1));
@@ -577,7 +566,8 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
       manager_mark_pool(c.pool_request, false);
       manager_mark_pool(c.pool_response, false);
       const bool timed_out = !result.aborted_by_server && result.abort == SdoAbort::Timeout;
-      manager_refuse(timed_out ? kSlaveNotAvailable : kNoDetails, why, now, out);
+      manager_refuse(timed_out ? DynamicSdoError::kSlaveNotAvailable : DynamicSdoError::kNoDetails,
+                     why, now, out);
       return;
     }
     // The SRD did not take its entry: undo S's side (best effort), no confirmation possible.
@@ -590,7 +580,7 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
     manager_mark_pool(c.pool_request, false);
     manager_mark_pool(c.pool_response, false);
     job.phase = SdoManager::Job::Phase::Refusing;
-    job.error = kNoDetails;
+    job.error = DynamicSdoError::kNoDetails;
     job.why = why;
     job.confirm = false;
     return;
@@ -598,7 +588,7 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
   manager_finish_job(now, out);
 }
 
-void NmtMaster::Impl::manager_refuse(std::uint8_t error, const std::string& why, TimePoint now,
+void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& why, TimePoint now,
                                      Output& out) {
   (void)now;
   (void)out;
@@ -611,14 +601,15 @@ void NmtMaster::Impl::manager_refuse(std::uint8_t error, const std::string& why,
   // §7.2.3: Cnxn state 0 and the reason in the error code.
   const auto srd = sdo_manager.srds.find(job.node);
   const bool ec = job.kind == SdoManager::Job::Kind::Register
-                      ? (job.request & kReqEc) != 0
+                      ? DynamicSdoState::decode(job.request).request_error_control
                       : srd != sdo_manager.srds.end() && srd->second.info.slave_error_control;
   const std::uint16_t index = job.kind == SdoManager::Job::Kind::Register
-                                  ? static_cast<std::uint16_t>(job.request >> 16U)
+                                  ? DynamicSdoState::decode(job.request).client_index
                                   : job.client_index;
-  job.steps.push_back(write_step(
-      job.node, kDynamicSdoConnectionState, 0,
-      (std::uint32_t{index} << 16U) | (std::uint32_t{error} << 8U) | (ec ? kReqEc : 0), 4, false));
+  auto state = DynamicSdoState::failure(index, error);
+  state.request_error_control = ec;
+  job.steps.push_back(
+      write_step(job.node, obj::kDynamicSdoConnectionState, 0, state.encode(), 4, false));
 }
 
 void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint now, Output& out) {
@@ -635,7 +626,8 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
     scan.kind = SdoManager::Job::Kind::Scan;
     sdo_manager.jobs.push_back(std::move(scan));
   }
-  if (request == kAllDefaultSdos) {
+  const auto state = DynamicSdoState::decode(request);
+  if (state.is_all_default_sdos_request()) {
     // §7.2.2: all default SDOs, when none is in use (Cnxn 2; no channel to the manager).
     const bool taken =
         std::any_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
@@ -645,17 +637,19 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
         std::any_of(sdo_manager.srds.begin(), sdo_manager.srds.end(),
                     [](const auto& s) { return s.second.info.all_default_sdos; });
     if (taken) {
-      manager_refuse(kNoDetails, "a default SDO is in use", now, out);
+      manager_refuse(DynamicSdoError::kNoDetails, "a default SDO is in use", now, out);
       return;
     }
     job.phase = SdoManager::Job::Phase::Confirming;
-    job.steps.push_back(write_step(srd, kDynamicSdoConnectionState, 0, cnxn(2), 4));
+    job.steps.push_back(write_step(
+        srd, obj::kDynamicSdoConnectionState, 0,
+        DynamicSdoState::confirmation(0, ConnectionState::kAllDefaultSdosOwned).encode(), 4));
     return;
   }
-  const auto index = static_cast<std::uint16_t>(request >> 16U);
+  const auto index = state.client_index;
   if (!obj::is_sdo_client_parameter(index)) {
-    manager_refuse(kNoDetails, "1F10h names " + cfg::object_name(index) + ", no client SDO entry",
-                   now, out);
+    manager_refuse(DynamicSdoError::kNoDetails,
+                   "1F10h names " + cfg::object_name(index) + ", no client SDO entry", now, out);
     return;
   }
   std::uint16_t channel = 0;
@@ -670,7 +664,7 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
   const auto row = manager_free_row();
   if (channel == 0 || pool.size() < 2 || row == 0) {
     manager_refuse(
-        kNoManagerChannel,
+        DynamicSdoError::kNoChannelToManager,
         channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h", now,
         out);
     return;
@@ -683,8 +677,8 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
   c.row.client_index = index;
   c.row.server = node_id.value();
   c.row.server_index = channel;
-  c.row.request = cfg::CobId::from_word(value_of(kSdoManagerCobIds, pool[0]) & ~kPoolFlags);
-  c.row.response = cfg::CobId::from_word(value_of(kSdoManagerCobIds, pool[1]) & ~kPoolFlags);
+  c.row.request = pool_cob_id(dict, pool[0]);
+  c.row.response = pool_cob_id(dict, pool[1]);
   c.row.to_manager = true;
   manager_open_channel(channel, c);
   job.phase = SdoManager::Job::Phase::Confirming;
@@ -692,8 +686,12 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
   job.steps.push_back(write_step(srd, index, 3, node_id.value(), 1));
   job.steps.push_back(write_step(srd, index, 1, c.row.request.word(), 4));
   job.steps.push_back(write_step(srd, index, 2, c.row.response.word(), 4));
-  job.steps.push_back(write_step(srd, kDynamicSdoConnectionState, 0,
-                                 (std::uint32_t{index} << 16U) | (request & kReqEc) | cnxn(1), 4));
+  job.steps.push_back(
+      write_step(srd, obj::kDynamicSdoConnectionState, 0,
+                 DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
+                                               state.request_error_control)
+                     .encode(),
+                 4));
 }
 
 void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
@@ -716,7 +714,8 @@ void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
     return;
   }
   if (manager_free_pool().size() < 2) {
-    manager_refuse(kNoCobIds, "no two free COB-IDs in 1F02h", now, out);
+    manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h", now,
+                   out);
     return;
   }
   job.phase = SdoManager::Job::Phase::SearchChannel;
@@ -734,15 +733,16 @@ void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index, TimePoint
   } else {
     const auto pool = manager_free_pool();
     if (pool.size() < 2) {
-      manager_refuse(kNoCobIds, "no two free COB-IDs in 1F02h", now, out);
+      manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h", now,
+                     out);
       return;
     }
     c.pool_request = pool[0];
     c.pool_response = pool[1];
     manager_mark_pool(c.pool_request, true);
     manager_mark_pool(c.pool_response, true);
-    c.row.request = cfg::CobId::from_word(value_of(kSdoManagerCobIds, pool[0]) & ~kPoolFlags);
-    c.row.response = cfg::CobId::from_word(value_of(kSdoManagerCobIds, pool[1]) & ~kPoolFlags);
+    c.row.request = pool_cob_id(dict, pool[0]);
+    c.row.response = pool_cob_id(dict, pool[1]);
     // §7.1: the free server entry of S, for the SRD.
     job.steps.push_back(write_step(job.slave, server_index, 3, job.node, 1));
     job.steps.push_back(write_step(job.slave, server_index, 1, c.row.request.word(), 4));
@@ -752,9 +752,11 @@ void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index, TimePoint
   job.steps.push_back(write_step(job.node, job.client_index, 3, job.slave, 1));
   job.steps.push_back(write_step(job.node, job.client_index, 1, c.row.request.word(), 4));
   job.steps.push_back(write_step(job.node, job.client_index, 2, c.row.response.word(), 4));
-  job.steps.push_back(
-      write_step(job.node, kDynamicSdoConnectionState, 0,
-                 (std::uint32_t{job.client_index} << 16U) | (ec ? kReqEc : 0) | cnxn(3), 4));
+  job.steps.push_back(write_step(
+      job.node, obj::kDynamicSdoConnectionState, 0,
+      DynamicSdoState::confirmation(job.client_index, ConnectionState::kSlaveConnected, ec)
+          .encode(),
+      4));
   job.phase = SdoManager::Job::Phase::Writing;
 }
 
@@ -771,9 +773,10 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
         node_text(job.node) +
             (registering ? ": registration refused"
                          : ": SDO connection to " + node_text(job.slave) + " refused") +
-            ", error " + cfg::hex(job.error, 2) + ": " + job.why);
+            ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
+            std::string(sm::describe(job.error)) + "): " + job.why);
     e.connection = job.connection.row;
-    e.connection_error = job.error;
+    e.connection_error = static_cast<std::uint8_t>(job.error);
     report(out, std::move(e));
     manager_finish_job(now, out);
     return;
@@ -801,7 +804,7 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
         }
         return;
       }
-      job.steps.push_back(read_step(job.node, kDynamicSdoConnectionState, 0, false));
+      job.steps.push_back(read_step(job.node, obj::kDynamicSdoConnectionState, 0, false));
       return;
     }
     case Kind::Register: {
@@ -818,8 +821,9 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
       }
       SdoManager::Srd srd;
       srd.info.node = job.node;
-      srd.info.all_default_sdos = job.request == kAllDefaultSdos;
-      srd.info.slave_error_control = (job.request & kReqEc) != 0;
+      const auto request = DynamicSdoState::decode(job.request);
+      srd.info.all_default_sdos = request.is_all_default_sdos_request();
+      srd.info.slave_error_control = request.request_error_control;
       auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node,
                             node_text(job.node) + ": SRD registered");
       if (!srd.info.all_default_sdos) {
@@ -827,7 +831,7 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
         c.row.row = manager_free_row();
         srd.info.client_index = c.row.client_index;
         srd.own_channel = c.row.server_index;
-        dict.set_unsigned(part_of(c.row.row), sub_of(c.row.row), row_word(c.row));
+        set_row(dict, c.row.row, row_word(c.row));
         sdo_manager.connections.push_back(c);
         e.connection = c.row;
         e.text += ", " + connection_text(c.row);
@@ -848,7 +852,7 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
       // Phase::Writing done: established (§7.2.2).
       auto c = job.connection;
       c.row.row = manager_free_row();
-      if (c.row.row != 0) dict.set_unsigned(part_of(c.row.row), sub_of(c.row.row), row_word(c.row));
+      if (c.row.row != 0) set_row(dict, c.row.row, row_word(c.row));
       sdo_manager.connections.push_back(c);
       const auto srd = sdo_manager.srds.find(job.node);
       if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control &&
@@ -872,8 +876,12 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
         job.phase = Phase::Releasing;
         if (job.failed != 0) {
           // §7.2.3 1F11h: reason 00h, the failed slave's node-ID.
-          job.steps.push_back(
-              write_step(job.node, kSlaveFailed, 0, job.failed, 2, false, !job.srd_lost));
+          job.steps.push_back(write_step(
+              job.node, obj::kSlaveFailed, 0,
+              sm::SlaveFailed{static_cast<std::uint8_t>(sm::SlaveFailedReason::kErrorControl),
+                              job.failed}
+                  .encode(),
+              2, false, !job.srd_lost));
         }
         for (const auto& c : job.releases) {
           // §7.2.1: invalidate the SRD's client entry, then S's server entry (not its default).
