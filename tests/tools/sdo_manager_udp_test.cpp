@@ -36,15 +36,14 @@ std::ptrdiff_t position(const std::vector<std::string>& lines, const std::string
   return it == lines.end() ? -1 : it - lines.begin();
 }
 
-// DISABLED until the SDO manager engine is on main (passes against sdomgr 35ba254).
-TEST(SdoManager, DISABLED_EndToEndOverUdp) {
+TEST(SdoManager, EndToEndOverUdp) {
   tool_test::run_in_private_netns("SdoManagerInNetns.*");
 }
 
 // The SRD at node 127 (§7.2.4 guideline 2), slaves 2 and 3 from tests/data/master/slave.eds, the
 // master from tests/data/sdo_manager/manager.dcf (node 1; its 1F00h turns the SDO manager on,
 // 1F02h is its pool of COB-IDs 681h-688h).
-TEST(SdoManagerInNetns, DISABLED_PythonSrdRegistersConnectsReadsAndReleases) {
+TEST(SdoManagerInNetns, PythonSrdRegistersConnectsReadsAndReleases) {
   REQUIRE_ISOLATED_MULTICAST();
   REQUIRE_PYTHON_CAN();
   ScratchDir dir;
