@@ -36,7 +36,7 @@ using Kind = MasterEvent::Kind;
 
 constexpr std::uint8_t kSrd = 127;         // §7.2.4 guideline 2: SRDs take the highest node-IDs
 constexpr std::uint8_t kSrd2 = 126;        // a second SRD
-constexpr std::uint8_t kSrd3 = 125;        // a third SRD
+constexpr std::uint8_t kSrd3 = 124;        // a third SRD
 constexpr std::uint8_t kWithChannels = 2;  // slave_channels.eds: 1201h, 1202h
 constexpr std::uint8_t kDefaultOnly = 3;   // slave.eds: 1200h only
 
@@ -422,6 +422,27 @@ TEST(SdoManagerSpec, DynamicSdoRequestScans1F10hFrom127DownAndStopsAtTheFirstOpe
   EXPECT_LT(at(126), at(125));
 }
 
+// §7.2.1: "As all nodes are attached to the Manager by default, the Manager uses the default SDO.
+// The Manager knows all default SDOs which are already allocated to other nodes": the scan does
+// not read 1F10h over a default SDO an SRD holds (node 125's, held by SRD 126), nor that of a
+// registered SRD.
+TEST(SdoManagerSpec, ScanSkipsDefaultSdosHeldByAConnection) {
+  ManagerRig rig;
+  constexpr std::uint8_t kHeld = 125;  // a device outside 1F81h, reached through the manager
+  rig.add_slave(kHeld);
+  rig.start_network({kSrd2, kSrd3});
+  rig.register_ok(kSrd2);
+  rig.connect_ok(kSrd2, kHeld, 0x1281);
+  ASSERT_EQ(rig.client_entry(kSrd2, 0x1281).request, 0x600U + kHeld);
+  const TimePoint from = rig.bus.now();
+  rig.register_ok(kSrd3);
+  EXPECT_TRUE(rig.uploads_of(kHeld, kConnectionState, 0, from).empty())
+      << "1F10h read over node 125's default SDO, which SRD 126 holds";
+  EXPECT_TRUE(rig.uploads_of(kSrd2, kConnectionState, 0, from).empty())
+      << "registered node 126 read again";
+  EXPECT_FALSE(rig.uploads_of(kSrd, kConnectionState, 0, from).empty()) << "127 was not scanned";
+}
+
 // §7.2.1: the scan uses SDO access and stops at the first open request: a second SRD with an
 // open request is not registered by the same Dynamic SDO Request, only by its own.
 TEST(SdoManagerSpec, OneDynamicSdoRequestRegistersOnlyTheFirstSrdFound) {
@@ -494,6 +515,33 @@ TEST(SdoManagerSpec, RegistrationChannelUsesTwoPoolCobIdsMarkedInUseAndServesThe
       << "sub 3: the node-ID of the client";
   // And answers over it: 1F00h is write-only (§7.2.3: wo), 1F02h is readable.
   rig.expect_read(kSrd, kClientSdo, kPool, 0, kPoolEntries);
+}
+
+// §7.2.3 1F02h: bit 29 set marks a 29-bit identifier (CAN 2.0B) with bits 28-0 the COB-ID. With
+// only such entries valid, the SRD's channel to the manager runs on extended frames.
+TEST(SdoManagerSpec, PoolEntriesWith29BitIdentifiersGiveAnExtendedChannel) {
+  ManagerRig rig;
+  constexpr std::uint32_t k29Bit = 0x20000000U;
+  set_value(rig.master, kPool, 1, k29Bit | 0x1234567U);
+  set_value(rig.master, kPool, 2, k29Bit | 0x1234568U);
+  for (std::uint8_t sub = 3; sub <= 8; ++sub) {
+    set_value(rig.master, kPool, sub, kNotValid | (0x680U + sub));
+  }
+  rig.start_network();
+  rig.register_ok(kSrd);
+  const auto entry = rig.client_entry(kSrd, kClientSdo);
+  EXPECT_EQ((std::set<std::uint32_t>{entry.request, entry.response}),
+            (std::set<std::uint32_t>{k29Bit | 0x1234567U, k29Bit | 0x1234568U}));
+  const TimePoint from = rig.bus.now();
+  rig.expect_read(kSrd, kClientSdo, kPool, 0, kPoolEntries);
+  std::size_t extended = 0;
+  for (const auto& s : rig.seen) {
+    if (s.at >= from && s.frame.extended) {
+      EXPECT_TRUE(s.frame.id == 0x1234567U || s.frame.id == 0x1234568U) << s;
+      ++extended;
+    }
+  }
+  EXPECT_EQ(extended, 2U) << "the request and its answer, as extended frames";
 }
 
 // §7.2.2 "Requesting Access to all default SDOs" and §7.2.3 Cnxn state 2: 1F10h = 00000003h is
