@@ -582,7 +582,6 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
     job.phase = SdoManager::Job::Phase::Refusing;
     job.error = DynamicSdoError::kNoDetails;
     job.why = why;
-    job.confirm = false;
     return;
   }
   manager_finish_job(now, out);
@@ -597,7 +596,6 @@ void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& w
   job.phase = SdoManager::Job::Phase::Refusing;
   job.error = error;
   job.why = why;
-  job.confirm = true;
   // §7.2.3: Cnxn state 0 and the reason in the error code.
   const auto srd = sdo_manager.srds.find(job.node);
   const bool ec = job.kind == SdoManager::Job::Kind::Register
