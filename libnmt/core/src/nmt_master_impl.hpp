@@ -193,10 +193,9 @@ struct SdoManager {
     bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
     std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
     cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
-    std::uint32_t confirmation = 0;     ///< Register: the 1F10h value that confirms
-    std::optional<Duration> heartbeat;  ///< Register: the SRD's heartbeat consumer time ///<
-                                        ///< Refusing: 1F10h is written
-    std::deque<Step> steps;             ///< accesses still to do, in order
+    std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
+    std::optional<Duration> heartbeat;          ///< Register: the SRD's heartbeat consumer time
+    std::deque<Step> steps;                     ///< accesses still to do, in order
   };
 
   bool enabled = false;
