@@ -413,7 +413,7 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
   if (failed_) return std::nullopt;
 
   auto order = order_for_download(
-      writes_, [this](std::uint16_t comm_index) { return dcf_cob_id(comm_index); });
+      std::move(writes_), [this](std::uint16_t comm_index) { return dcf_cob_id(comm_index); });
   if (failed_) return std::nullopt;
 
   // Say where the PDO rule could not be applied in full (unless the DCF makes it
