@@ -8,6 +8,7 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/cob_id.hpp"
+#include "download_order_detail.hpp"
 
 namespace cfg {
 namespace {
@@ -168,8 +169,8 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
   return order(writes, current_cob_id);
 }
 
-DownloadOrder order_for_download(std::vector<ObjectWrite>&& writes,
-                                 const CobIdLookup& current_cob_id) {
+DownloadOrder detail::order_for_download_moving(std::vector<ObjectWrite>&& writes,
+                                                const CobIdLookup& current_cob_id) {
   return order(std::span<ObjectWrite>(writes), current_cob_id);
 }
 

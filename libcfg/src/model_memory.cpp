@@ -13,54 +13,28 @@ constexpr std::size_t kFirstBlock = std::size_t{64} << 10;
 constexpr std::size_t kLargestBlock = std::size_t{4} << 20;
 constexpr std::size_t kTextsPerChunk = 1024;
 
-}  // namespace
-
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-// Large blocks (a reader's first block is 1.5x the file) are mapped 2 MiB-aligned and marked
-// for transparent huge pages: building the model of a 3 MB file then takes a few page faults
-// instead of a thousand, which were a tenth of a tool's run (issue 9, perf). Where the kernel
-// gives no huge pages the block is an ordinary mapping, faulted page by page as before.
-constexpr std::size_t kHugePage = std::size_t{2} << 20;
-
-ModelArena::Block ModelArena::new_block(std::size_t size) {
-  if (size >= kHugePage) {
-    // Not rounded up: the 2 MiB pages inside the block are huge, its tail has small pages, so a
-    // model touches at most one huge page it does not fill.
-    const std::size_t rounded = (size + 4095) & ~std::size_t{4095};
-    void* p = mmap(nullptr, rounded + kHugePage, PROT_READ | PROT_WRITE,
-                   MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p != MAP_FAILED) {
-      // Keep the 2 MiB-aligned part only (huge pages need aligned addresses).
-      const auto begin = reinterpret_cast<std::uintptr_t>(p);
-      const std::uintptr_t aligned = (begin + kHugePage - 1) & ~(std::uintptr_t{kHugePage} - 1);
-      const std::size_t head = aligned - begin;
-      if (head > 0) munmap(p, head);
-      // NOLINTNEXTLINE(performance-no-int-to-ptr): the tail of the mapping just made
-      munmap(reinterpret_cast<void*>(aligned + rounded), kHugePage - head);
-      auto* bytes = reinterpret_cast<std::byte*>(aligned);  // NOLINT(performance-no-int-to-ptr)
-      madvise(bytes, rounded, MADV_HUGEPAGE);               // a hint: failure changes nothing
-      return {bytes, rounded, true};
-    }
+// A large block (a reader's first block is 1.5x the file) is marked for transparent huge pages
+// in its 2 MiB-aligned interior: building the model of a 3 MB file then takes a few page faults
+// instead of a thousand, which were a tenth of a tool's run (issue 9, perf). A hint only: where
+// the kernel gives no huge pages the block is faulted page by page as before.
+void advise_huge_pages(std::byte* block, std::size_t size) {
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(block);
+  const std::uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1);
+  const std::uintptr_t last = (begin + size) & ~(kHugePage - 1);
+  if (first < last) {
+    // NOLINTNEXTLINE(performance-no-int-to-ptr): an address inside the block
+    madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
   }
-  return {new std::byte[size], size, false};
 }
 #else
-ModelArena::Block ModelArena::new_block(std::size_t size) {
-  return {new std::byte[size], size, false};
-}
+void advise_huge_pages(std::byte*, std::size_t) {}
 #endif
 
-ModelArena::~ModelArena() {
-  for (const Block& b : blocks_) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    if (b.mapped) {
-      munmap(b.bytes, b.size);
-      continue;
-    }
-#endif
-    delete[] b.bytes;
-  }
-}
+}  // namespace
+
+ModelArena::~ModelArena() = default;
 
 void* ModelArena::allocate(std::size_t bytes, std::size_t align) {
   if (sealed_ || align > alignof(std::max_align_t)) throw std::bad_alloc();
@@ -81,11 +55,11 @@ void* ModelArena::allocate(std::size_t bytes, std::size_t align) {
       size = next_block_;
       next_block_ = std::min(next_block_ * 2, kLargestBlock);
     }
-    size = std::max(size, bytes);         // operator new[] aligns to max_align_t
-    blocks_.reserve(blocks_.size() + 1);  // no throw after the block is allocated
-    blocks_.push_back(new_block(size));
-    next_ = blocks_.back().bytes;
-    end_ = next_ + blocks_.back().size;
+    size = std::max(size, bytes);  // operator new[] aligns to max_align_t
+    blocks_.push_back({std::make_unique_for_overwrite<std::byte[]>(size), size});
+    next_ = blocks_.back().bytes.get();
+    end_ = next_ + size;
+    advise_huge_pages(next_, size);
     at = reinterpret_cast<std::uintptr_t>(next_);
   }
   auto* p = next_ + (at - reinterpret_cast<std::uintptr_t>(next_));
@@ -96,7 +70,7 @@ void* ModelArena::allocate(std::size_t bytes, std::size_t align) {
 bool ModelArena::owns(const void* p) const {
   const auto v = reinterpret_cast<std::uintptr_t>(p);
   return std::any_of(blocks_.begin(), blocks_.end(), [v](const Block& b) {
-    const auto begin = reinterpret_cast<std::uintptr_t>(b.bytes);
+    const auto begin = reinterpret_cast<std::uintptr_t>(b.bytes.get());
     return v >= begin && v - begin < b.size;
   });
 }

@@ -196,23 +196,6 @@ TEST(DownloadOrder, InputOrderDoesNotMatter) {
   }
 }
 
-// The overload that takes the writes moves them instead of copying: the same stream, on the
-// steps of DSP 302 §6.2 with a repeated write (the last one wins) and 1020h last (§6.3).
-TEST(DownloadOrder, WritesGivenUpGiveTheSameOrderAsWritesKept) {
-  auto writes = rpdo1_configuration();
-  writes.push_back(u32(0x1020, 1, 0x12345678));
-  writes.push_back(u8(0x1400, 2, 0xFE));  // repeated: this later value wins
-  writes.push_back(u16(0x1017, 0, 1000));
-  const auto kept = order_for_download(writes);
-  auto given_up = order_for_download(std::vector<ObjectWrite>(writes));
-  EXPECT_EQ(given_up.writes, kept.writes);
-  EXPECT_THAT(given_up.writes,
-              ElementsAre(u16(0x1017, 0, 1000), u32(0x1400, 1, 0x80000202), u8(0x1400, 2, 0xFE),
-                          u8(0x1600, 0, 0), u32(0x1600, 1, 0x60400010), u32(0x1600, 2, 0x60600008),
-                          u8(0x1600, 0, 2), u32(0x1400, 1, 0x202), u32(0x1020, 1, 0x12345678)));
-  EXPECT_TRUE(given_up.complete());
-}
-
 TEST(DownloadOrder, PdoIndicesCoverCiA301Ranges) {
   EXPECT_FALSE(pdo_indices_of(0x13FF).has_value());
   EXPECT_FALSE(pdo_indices_of(0x1C00).has_value());

@@ -58,10 +58,6 @@ struct DownloadOrder {
 /// once). Mapping sub-index 0 is written as 0 first, and as n last unless n is 0.
 DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
                                  const CobIdLookup& current_cob_id = {});
-/// The same, for a caller that gives its writes up: they are moved into the result, not copied
-/// (`writes` is left with moved-from entries).
-DownloadOrder order_for_download(std::vector<ObjectWrite>&& writes,
-                                 const CobIdLookup& current_cob_id = {});
 
 /// order_for_download(...).writes: for callers that have nothing better to do about unknown
 /// COB-IDs or mapping counts than to download what can be downloaded.

@@ -50,11 +50,9 @@ class ModelArena {
 
  private:
   struct Block {
-    std::byte* bytes = nullptr;
+    std::unique_ptr<std::byte[]> bytes;
     std::size_t size = 0;
-    bool mapped = false;  // from mmap (large blocks, see model_memory.cpp), else new[]
   };
-  static Block new_block(std::size_t size);
   std::size_t first_block_ = 0;  // 0: the default size
   std::size_t next_block_ = 0;   // size of the next block after the first
   std::vector<Block> blocks_;
