@@ -127,12 +127,12 @@ TEST(ModelMemory, ArenaAlignsAndRefusesAllocationOnceSealed) {
 }  // namespace
 }  // namespace cfg
 
-// A first block of 2 MiB or more is mapped (huge pages where the kernel gives them): every byte
-// of it is usable, and owns() ends where the block ends, also for a size that is not a multiple
-// of the page size.
+// A block of 2 MiB or more gets huge pages advised on its aligned interior (madvise): every
+// byte of it stays usable, and owns() ends where the block ends, also for a size that is not a
+// multiple of the page size.
 TEST(ModelMemory, LargeBlockIsUsableToItsLastByte) {
   const std::size_t size = (std::size_t{3} << 20) + 123;
-  ModelArena arena(size);
+  cfg::ModelArena arena(size);
   auto* first = static_cast<unsigned char*>(arena.allocate(size, 1));
   std::memset(first, 0xA5, size);  // faults in every page: a short mapping would crash here
   EXPECT_EQ(first[0], 0xA5);
