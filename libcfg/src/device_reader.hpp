@@ -6,6 +6,7 @@
 //   device_reader_compact.cpp   each object assembled after the last line: CompactSubObj
 //                               (§4.6.3.3), [xxxxName]/[xxxxValue]/[xxxxDenotation], ObjectLinks
 //   device_reader_lists.cpp     [MandatoryObjects]/[OptionalObjects]/[ManufacturerObjects]
+//   device_reader_dynamic.cpp   [DynamicChannels] (CiA DSP 302 §8.4) and its checks
 #pragma once
 
 #include <array>
@@ -106,6 +107,7 @@ enum class Kind {
   Values,
   Denotations,
   ObjectLinks,
+  DynamicChannels,
   Other,
 };
 
@@ -176,6 +178,21 @@ struct ListState {
   std::optional<std::uint64_t> supported;
   int supported_line = 0;
   std::vector<std::pair<std::uint16_t, int>> entries;  // index, line
+};
+
+// [DynamicChannels] as read: the keys' texts (views into the file) and lines, parsed after the
+// last line (device_reader_dynamic.cpp), when DeviceInfo is known too.
+enum class SegmentKey : std::uint8_t { Type, Dir, Range, PPOffset, MaxCnt, MSpecific };
+inline constexpr std::size_t kSegmentKeyCount = 6;
+struct SegmentKeys {
+  std::array<RawKey, kSegmentKeyCount> keys{};  // line 0: not given
+  int first_line = 0;
+};
+struct DynamicChannelsState {
+  bool present = false;
+  int line = 0;
+  RawKey count;                                  // NrOfSeg (line 0: not given)
+  std::map<std::uint64_t, SegmentKeys> entries;  // by entry index (1..)
 };
 
 // A key=value section kept as text, with a case-insensitive index for duplicates.
@@ -308,12 +325,16 @@ class Reader final : public IniSink {
   void list_key(std::string_view key, std::string_view value, int line);
   void check_object_lists();
 
+  // ---- [DynamicChannels] (device_reader_dynamic.cpp)
+  void dynamic_channels_key(std::string_view key, std::string_view value, int line);
+  void finish_dynamic_channels();
+
   // ---- after the last line (device_reader.cpp)
   void finish();
 
   struct Seen {
     bool file_info = false, device_info = false, dummy_usage = false, comments = false,
-         commissioning = false;
+         commissioning = false, dynamic_channels = false;
   };
   struct UnknownKey {
     int line = 0;
@@ -332,6 +353,7 @@ class Reader final : public IniSink {
   std::size_t expanded_budget_ = 0;  // sub-objects CompactSubObj may still create
   Seen seen_;
   std::array<ListState, 3> lists_;
+  DynamicChannelsState dynamic_;
   std::map<std::uint16_t, ObjectState> states_;
   ObjectState* last_state_ = nullptr;
   std::uint16_t last_state_index_ = 0;

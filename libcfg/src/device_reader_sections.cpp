@@ -76,6 +76,9 @@ void Reader::on_key(int line, std::string_view key, std::string_view value) {
     case Kind::ObjectLinks:
       object_links_key(key, value, line);
       return;
+    case Kind::DynamicChannels:
+      dynamic_channels_key(key, value, line);
+      return;
   }
 }
 
@@ -114,6 +117,11 @@ void Reader::open_section() {
   if (iequals(name, "DeviceInfo")) return known(seen_.device_info, Kind::DeviceInfo);
   if (iequals(name, "DummyUsage")) return known(seen_.dummy_usage, Kind::DummyUsage);
   if (iequals(name, "Comments")) return known(seen_.comments, Kind::Comments);
+  if (iequals(name, "DynamicChannels")) {
+    if (!dynamic_.present) dynamic_.line = cur_.line;
+    dynamic_.present = true;
+    return known(seen_.dynamic_channels, Kind::DynamicChannels);
+  }
   static constexpr std::array<std::string_view, 3> kLists = {"MandatoryObjects", "OptionalObjects",
                                                              "ManufacturerObjects"};
   for (int i = 0; i < 3; ++i) {
