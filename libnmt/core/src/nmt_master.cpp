@@ -166,6 +166,22 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "active_master_lost";
     case K::MasterDetection:
       return "master_detection";
+    case K::SrdRegistered:
+      return "srd_registered";
+    case K::SrdRegistrationFailed:
+      return "srd_registration_failed";
+    case K::SdoConnectionEstablished:
+      return "sdo_connection_established";
+    case K::SdoConnectionRefused:
+      return "sdo_connection_refused";
+    case K::SdoConnectionReleased:
+      return "sdo_connection_released";
+    case K::SrdLost:
+      return "srd_lost";
+    case K::SrdDeregistered:
+      return "srd_deregistered";
+    case K::SlaveFailedReported:
+      return "slave_failed_reported";
   }
   return "?";
 }
@@ -491,6 +507,12 @@ const LocalDictionary& NmtMaster::dictionary() const {
 }
 LocalDictionary& NmtMaster::dictionary() {
   return impl_->dict;
+}
+std::vector<ManagedSdoConnection> NmtMaster::sdo_connections() const {
+  return {};
+}
+std::vector<RegisteredSrd> NmtMaster::registered_srds() const {
+  return {};
 }
 
 // --- NMT start-up (§3.1) ---

@@ -110,6 +110,59 @@
 //   and check configuration all use that one value; a write goes to the manager, which then holds
 //   the node. A configuration comes from the manager when it holds one for the node, else as
 //   without a manager.
+// - SDO manager (DSP 302 §7; MasterOptions::sdo_manager, or a master DCF that has 1F00h): it
+//   works only while this device is the active master (active_master() is its own node-ID); a
+//   standby flying master ignores the Dynamic SDO Request (6E0h) and refuses 1F00h/1F01h with
+//   0800 0022. Every reset communication of all nodes it sends (start-up, takeover) clears its
+//   tables: the SRDs and slaves lose their SDO entries with it. Its objects: 1F00h, 1F01h (wo,
+//   reads abort 0601 0001), 1F02h (rw), 1F03h-1F06h (ro, 254 rows each, writes abort 0601 0002),
+//   and MasterOptions::sdo_manager_channels own server channels 1201h.. (unless the file has
+//   them), invalid (bit 31) until an SRD registers on one.
+// - 1F02h, the pool: a master DCF without it gets 96 entries 680h..6DFh, identifiers CiA 301's
+//   pre-defined connection set neither uses nor restricts. A write is refused with 0800 0022 while
+//   any entry is in use (bit 30 is the manager's; §7.2.3 leaves that check to the tool, the
+//   manager makes it too), and with 0609 0030 when it sets bit 30 or, without bit 29, bits 28-11.
+// - Registration (§7.2.1): a 6E0h data frame of 0 bytes starts a scan of 1F10h over the default
+//   SDO, from node-ID 127 down (§7.2.4 guideline 2), skipping this device, registered SRDs and
+//   node-IDs whose default SDO a connection holds; each read is tried once and waits
+//   MasterOptions::sdo_manager_scan_timeout (no answer: nobody there; 126 silent node-IDs take
+//   126 x that time). It stops at the first value with Rq indication set; a 6E0h during a scan
+//   makes another scan follow it. The SRD then gets a channel to the manager: a free own server
+//   channel (bit 31 of its sub 1 set) and two free pool entries (marked bit 30), written to the
+//   SRD's client entry named in 1F10h (sub 3 = manager node-ID, sub 1, sub 2) and to the own
+//   channel; then 1F10h = index << 16 | Cnxn 1 | Req EC as asked (supported). None free: 1F10h =
+//   Cnxn 0 with error 01h. A 1F10h index outside 1280h-12FFh: Cnxn 0 with error 00h. 00000003h
+//   (all default SDOs) is granted with 1F10h = 00000004h (Cnxn 2) when no connection holds a
+//   default SDO and no other SRD has them, else Cnxn 0 with error 00h. Each registration is a row
+//   of 1F03h (client SRD, server this device); a grant of all default SDOs is none (§7.2.2).
+// - Error control of a registered SRD (§7.2.1): heartbeat consumption with the master's 1016h
+//   entry for it, else 2 x the SRD's 1017h + 100 ms (read at registration), else node guarding
+//   with its 1F81h guard time and retry factor, else with MasterOptions::srd_guard_time and life
+//   time factor 3. Its loss (or its boot-up: it forgot its entries) releases every connection it
+//   held on both sides and de-registers it (SrdLost, then SdoConnectionReleased per row).
+// - 1F00h (§7.2.2): the write answers at once (success means started, §7.2.3); the work runs
+//   after it, one manager job at a time in arrival order. Refused with 060A 0023 when the SRD is
+//   not registered, the SRD field is not the node-ID the writer's channel belongs to (over the
+//   default SDO the field is believed), the slave node-ID is 0 or above 127, names the SRD or this
+//   device, or the SRD's client index already carries a connection; 0609 0030 when the index is
+//   outside 1280h-12FFh. S's default SDO is used when no connection holds it and no SRD has all
+//   default SDOs (nothing is written to S; server offset 0, COB-IDs 600h/580h + S); else S's
+//   1201h.. sub 1 are read over the default SDO until one has bit 31 set (that the manager has not
+//   given out) and gets sub 3 = SRD, sub 1, sub 2 from two pool entries; then the SRD's client
+//   entry (sub 3 = S, sub 1, sub 2) and 1F10h = index << 16 | Cnxn 3 (| Req EC). Failures go into
+//   1F10h with Cnxn 0: 02h no two pool entries free, 03h S has no free server channel (an index
+//   S does not have ends the search), 04h S does not answer, 00h S refused a write.
+// - Req EC granted: S gets error control if the master does not watch it (1016h entry, else its
+//   1F81h guarding, else srd_guard_time guarding); its loss writes 1F11h = 00h << 8 | S on each
+//   SRD with EC connected to S (SlaveFailedReported), then clears their client entries.
+// - 1F01h (§7.2.3): same checks as 1F00h for the SRD; slave 0 releases everything of the SRD and
+//   de-registers it (its channel to the manager last); index 0 every connection of the SRD to S;
+//   else the one on that client index (none: success, nothing to do). A release invalidates the
+//   SRD's client entry (bit 31 on sub 1 and 2), then S's server entry unless it was the default
+//   SDO, then frees the pool entries and the row.
+// - The manager's SDO writes are repeated MasterOptions::sdo_retries times on a timeout, like the
+//   boot's. The master's own transfers to S (boot, application) still use S's default SDO when an
+//   SRD holds it: a boot while an SRD uses S's default SDO may collide on the bus.
 #pragma once
 
 #include <cstddef>
@@ -121,6 +174,7 @@
 #include <string_view>
 #include <vector>
 
+#include "cfg/cob_id.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
@@ -198,6 +252,29 @@ enum class StartupState : std::uint8_t {
 };
 std::string_view to_string(StartupState state);
 
+/// One SDO connection the SDO manager set up (DSP 302 §7.2.3, a row of 1F03h-1F06h, with the
+/// COB-IDs it gave it). The client is always an SRD.
+struct ManagedSdoConnection {
+  std::uint16_t row = 0;           ///< 1..1016: 1F03h sub 1..254, then 1F04h sub 1..254, ...
+  std::uint8_t srd = 0;            ///< client node-ID
+  std::uint16_t client_index = 0;  ///< the SRD's client entry, 1280h..12FFh
+  std::uint8_t server = 0;         ///< server node-ID: the slave S, or the manager itself
+  std::uint16_t server_index = 0;  ///< the server's entry; 1200h: S's default SDO
+  cfg::CobId request{};            ///< client -> server (sub 1 of both entries)
+  cfg::CobId response{};           ///< server -> client (sub 2)
+  bool to_manager = false;         ///< the SRD's registration channel to the manager
+  bool operator==(const ManagedSdoConnection&) const = default;
+};
+
+/// An SRD the SDO manager registered (DSP 302 §7.2.1).
+struct RegisteredSrd {
+  std::uint8_t node = 0;
+  std::uint16_t client_index = 0;    ///< its channel to the manager; 0 with all default SDOs
+  bool all_default_sdos = false;     ///< 1F10h Cnxn 2 granted
+  bool slave_error_control = false;  ///< Req EC granted (bit 3 of 1F10h)
+  bool operator==(const RegisteredSrd&) const = default;
+};
+
 /// What the master reports. One line for people is in `text` ("node 3: boot error C: ...");
 /// the other fields are for programs and depend on the kind.
 struct MasterEvent {
@@ -229,6 +306,17 @@ struct MasterEvent {
     MultipleMasters,   ///< a second active master (node_id, 0: unknown) was seen
     ActiveMasterLost,  ///< the heartbeat of the active master node_id stopped (§5.5.2)
     MasterDetection,   ///< §5.1 (self-starting device, 1F80h bit 1): the outcome of 75h/74h
+    // SDO manager (DSP 302 §7); node_id is the SRD, `connection` the row concerned.
+    SrdRegistered,             ///< node_id registered; `connection`: its channel to the manager
+                               ///< (nullopt when it was granted all default SDOs)
+    SrdRegistrationFailed,     ///< 1F10h Cnxn 0 written with `connection_error`, or the SRD did
+                               ///< not take the manager's writes (text says which)
+    SdoConnectionEstablished,  ///< `connection` from node_id to connection->server is up
+    SdoConnectionRefused,      ///< 1F10h Cnxn 0: `connection_error`; `connection` as requested
+    SdoConnectionReleased,     ///< `connection` was released (1F01h, SRD or slave lost)
+    SrdLost,                   ///< node_id's error control failed (or it booted up): released
+    SrdDeregistered,           ///< 1F01h with slave 0: node_id is no longer registered
+    SlaveFailedReported,       ///< 1F11h written on SRD node_id: connection->server failed
   };
   Kind kind;
   TimePoint at{0};
@@ -245,6 +333,11 @@ struct MasterEvent {
   std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
   std::optional<SdoResult> sdo{};
   std::optional<std::uint16_t> priority{};  ///< flying master kinds: 1F90h sub 3 of node_id
+  std::optional<ManagedSdoConnection> connection{};  ///< SDO manager kinds (see Kind)
+  /// SrdRegistrationFailed, SdoConnectionRefused: the 1F10h error code (DSP 302 §7.2.3: 00h no
+  /// details, 01h no channel SRD <-> manager, 02h no free COB-IDs in the network, 03h no free
+  /// server entry on S, 04h S not available).
+  std::uint8_t connection_error = 0;
   std::string text{};
 };
 /// "slave_booted", "boot_error", ...: names for logs and JSON.
@@ -313,6 +406,15 @@ struct MasterOptions {
   bool force_download = false;
   /// After the download, wait for configuration_done() (MasterEvent::ApplicationStep).
   bool application_step = false;
+  /// The SDO manager of DSP 302 §7 (see the top). Also on when the master DCF has 1F00h.
+  bool sdo_manager = false;
+  /// Own server channels 1201h.. the manager adds for SRDs (one per registered SRD), 1..127.
+  std::uint8_t sdo_manager_channels = 16;
+  /// The wait for each 1F10h read of the registration scan (tried once: no answer = nobody).
+  Duration sdo_manager_scan_timeout = std::chrono::milliseconds(50);
+  /// Node guard time for an SRD (or a slave watched for one) without heartbeat or 1F81h
+  /// guarding values; life time factor 3.
+  Duration srd_guard_time = std::chrono::milliseconds(500);
 };
 
 /// The NMT master. Movable (its state lives behind one pointer), not copyable.
@@ -389,6 +491,10 @@ class NmtMaster {
   /// at once (next_deadline()), so they go out from the next on_timer().
   const LocalDictionary& dictionary() const;
   LocalDictionary& dictionary();
+  /// The SDO manager's connections, the rows of 1F03h-1F06h in row order (empty without it).
+  std::vector<ManagedSdoConnection> sdo_connections() const;
+  /// The SRDs the SDO manager registered, by node-ID.
+  std::vector<RegisteredSrd> registered_srds() const;
 
  private:
   struct Impl;
