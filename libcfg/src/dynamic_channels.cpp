@@ -148,9 +148,10 @@ Result<std::vector<NetworkVariable>> parse_network_variables(std::string_view te
     if (line.empty() || line.front() == '#') continue;
     std::vector<std::string_view> fields;
     std::size_t from = 0;
-    for (std::size_t comma; (comma = line.find(',', from)) != std::string_view::npos;
-         from = comma + 1) {
+    for (std::size_t comma = line.find(','); comma != std::string_view::npos;
+         comma = line.find(',', from)) {
       fields.push_back(trim(line.substr(from, comma - from)));
+      from = comma + 1;
     }
     fields.push_back(trim(line.substr(from)));
     if (fields.size() != 3) {
@@ -245,10 +246,20 @@ Result<std::vector<AllocatedVariable>> allocate_variables(
       placed = std::move(a);
     }
     if (!any_segment) {
-      return Error{what + ": the device has no segment for " + kind +
-                   " ([DynamicChannels], CiA DSP 302 §8.2)"};
+      std::string message = what;
+      message += ": the device has no segment for ";
+      message += kind;
+      message += " ([DynamicChannels], CiA DSP 302 §8.2)";
+      return Error{std::move(message)};
     }
-    if (!placed) return Error{what + ": no room for " + kind + ": " + full};
+    if (!placed) {
+      std::string message = what;
+      message += ": no room for ";
+      message += kind;
+      message += ": ";
+      message += full;
+      return Error{std::move(message)};
+    }
     out.push_back(std::move(*placed));
   }
   return out;
