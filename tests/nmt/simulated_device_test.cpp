@@ -1036,7 +1036,9 @@ cfg::DeviceDescription programmed_plc() {
       v("q2", DataType::Boolean, VariableDirection::Output)};
   auto a = cfg::allocate_variables(*d.dynamic_channels, vars);
   EXPECT_TRUE(a.ok()) << (a.ok() ? "" : a.error().message);
-  if (a.ok()) EXPECT_TRUE(cfg::add_variable_objects(d, *d.dynamic_channels, *a).ok());
+  if (a.ok()) {
+    EXPECT_TRUE(cfg::add_variable_objects(d, *d.dynamic_channels, *a).ok());
+  }
   return d;
 }
 
