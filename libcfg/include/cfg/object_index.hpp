@@ -42,6 +42,11 @@ inline constexpr std::uint16_t kPdoCount = 0x200;  ///< PDOs per direction (512)
 // CiA 302 (DSP 302) manager objects.
 inline constexpr std::uint16_t kSdoRequest = 0x1F00;
 inline constexpr std::uint16_t kSdoRelease = 0x1F01;
+inline constexpr std::uint16_t kSdoManagerCobIds = 0x1F02;           ///< the manager's COB-ID pool
+inline constexpr std::uint16_t kSdoConnectionsFirst = 0x1F03;        ///< part 1 (mandatory)
+inline constexpr std::uint16_t kSdoConnectionsLast = 0x1F06;         ///< part 4
+inline constexpr std::uint16_t kDynamicSdoConnectionState = 0x1F10;  ///< on the SRD
+inline constexpr std::uint16_t kSlaveFailed = 0x1F11;                ///< on the SRD
 inline constexpr std::uint16_t kStoreDcf = 0x1F20;
 inline constexpr std::uint16_t kStorageFormat = 0x1F21;
 inline constexpr std::uint16_t kConciseDcf = 0x1F22;
@@ -85,6 +90,10 @@ constexpr bool is_sdo_server_parameter(std::uint16_t index) {
 }
 constexpr bool is_sdo_client_parameter(std::uint16_t index) {
   return index >= kSdoClientFirst && index <= kSdoClientLast;
+}
+/// 1F03h-1F06h SDO connections (DSP 302 §7.2.3).
+constexpr bool is_sdo_connections(std::uint16_t index) {
+  return index >= kSdoConnectionsFirst && index <= kSdoConnectionsLast;
 }
 
 /// PDO parameter indices (CiA 301 §7.5.2.35-38): the communication and mapping index of the

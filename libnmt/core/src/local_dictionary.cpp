@@ -187,6 +187,12 @@ std::optional<std::uint64_t> LocalDictionary::get_unsigned(std::uint16_t index,
   return size == 0 ? 0 : cfg::load_le(e->bytes, size);
 }
 
+std::optional<cfg::CobId> LocalDictionary::get_cob_id(std::uint16_t index, std::uint8_t sub) const {
+  const auto word = get_unsigned(index, sub);
+  if (!word || *word > 0xFFFFFFFFu) return std::nullopt;
+  return cfg::CobId::from_word(static_cast<std::uint32_t>(*word));
+}
+
 std::optional<cfg::Value> LocalDictionary::get_value(std::uint16_t index, std::uint8_t sub) const {
   const auto* e = entry(index, sub);
   if (!e || !e->basic_type) return std::nullopt;

@@ -14,8 +14,9 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
                                                       TimePoint now) {
   // Boot transfers beyond the window, before the pacing allows, or behind others that wait,
   // wait too (pump_transfers), in order.
-  if (!transfer.for_application && (static_cast<double>(boot_transfers) >= std::floor(window) ||
-                                    now < paced_until || !waiting.empty())) {
+  if (!transfer.for_application && !transfer.for_manager &&
+      (static_cast<double>(boot_transfers) >= std::floor(window) || now < paced_until ||
+       !waiting.empty())) {
     waiting.emplace_back(node, std::move(transfer));
     return 0;
   }
@@ -24,7 +25,7 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
 
 SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, MasterTransfer transfer,
                                                        TimePoint now) {
-  if (!transfer.for_application) ++boot_transfers;
+  if (!transfer.for_application && !transfer.for_manager) ++boot_transfers;
   auto& client = clients.client(node);
   const auto id = transfer.upload
                       ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
@@ -36,7 +37,7 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, Master
 
 void NmtMaster::Impl::forget_transfer(
     std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it) {
-  if (!it->second.for_application) --boot_transfers;
+  if (!it->second.for_application && !it->second.for_manager) --boot_transfers;
   transfers.erase(it);
 }
 
@@ -58,7 +59,7 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   MasterTransfer transfer = std::move(it->second);
   forget_transfer(it);
   const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
-  if (!transfer.for_application) {
+  if (!transfer.for_application && !transfer.for_manager) {
     // The window of boot transfers in flight: halved when a response does not come (frames
     // lost, or a bus so full that lower-priority frames, heartbeats among them, starve), grown
     // by one per window's worth of answers (additive increase, multiplicative decrease).
@@ -72,6 +73,11 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   if (timed_out && transfer.retries_left > 0) {
     --transfer.retries_left;
     start_transfer(result.node_id, std::move(transfer), now);
+    return;
+  }
+  if (transfer.for_manager) {
+    if (sdo_manager.in_flight && transfer.try_id == sdo_manager.serial)
+      manager_result(result, now, out);
     return;
   }
   if (transfer.for_application) {
@@ -112,6 +118,7 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
       continue;
     }
     pump_transfers(now);
+    manager_pump(now, out);
     if (startup == StartupState::BootingSlaves) check_startup(now, out);
     flush_nmt(now, out);
     if (sdo_out.empty()) break;

@@ -239,6 +239,7 @@ cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& descripti
   }
   auto impl = std::make_unique<Impl>(node_id, std::move(options), std::move(dict.value()));
   impl->install_hooks();
+  impl->install_sdo_manager();
   return NmtMaster(std::move(impl));
 }
 
@@ -283,6 +284,11 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
       mine = true;
       for (const auto& f : server_out.frames) out.send(f);
     }
+    if (m.manager_servers_frame(frame, now, out)) mine = true;
+  }
+  if (m.manager_frame(frame, now)) {
+    m.settle(now, out);
+    return true;
   }
   if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
   if (m.flying_frame(frame, now, out)) {
@@ -325,6 +331,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     Outbox<NoEvent> server_out;
     m.server.on_timer(now, server_out);
     for (const auto& f : server_out.frames) out.send(f);
+    m.manager_servers_timer(now, out);
   }
   m.clients.on_timer(now, m.sdo_out);
   m.flying_timer(now, out);
@@ -342,12 +349,15 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     } else {
       m.error_handler(e.node_id, true, now, out);
     }
+    m.manager_node_lost(e.node_id, false, now, out);
   }
   Outbox<NodeGuardingEvent> guard_out;
   m.guarding.on_timer(now, guard_out);
   for (const auto& f : guard_out.frames) out.send(f);
   for (const auto& e : guard_out.events) {
-    if (e.kind == NodeGuardingEventKind::Timeout) m.error_handler(e.node_id, false, now, out);
+    if (e.kind != NodeGuardingEventKind::Timeout) continue;
+    m.error_handler(e.node_id, false, now, out);
+    m.manager_node_lost(e.node_id, false, now, out);
   }
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto& s = m.slaves[node];
@@ -367,6 +377,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.heartbeats.next_deadline());
   due = earliest(due, m.guarding.next_deadline());
   due = earliest(due, m.flying_deadline());
+  due = earliest(due, m.manager_deadline());
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     due = earliest(due, m.slaves[node].deadline);
   }
@@ -508,12 +519,6 @@ const LocalDictionary& NmtMaster::dictionary() const {
 LocalDictionary& NmtMaster::dictionary() {
   return impl_->dict;
 }
-std::vector<ManagedSdoConnection> NmtMaster::sdo_connections() const {
-  return {};
-}
-std::vector<RegisteredSrd> NmtMaster::registered_srds() const {
-  return {};
-}
 
 // --- NMT start-up (§3.1) ---
 
@@ -531,6 +536,9 @@ void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
 
 void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   const auto config = startup_config();
+  // Every path here resets communication of all nodes (or this device stops being the master):
+  // the SDO entries the manager gave out are gone.
+  manager_clear();
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
     cancel_boot(n, now);
@@ -762,6 +770,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
 }
 
 void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
+  manager_node_lost(node, true, now, out);  // an SRD that booted forgot its entries
   const bool assigned = is_slave(node);
   auto e =
       master_event(MasterEvent::Kind::BootUp, now, node,

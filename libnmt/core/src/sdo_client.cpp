@@ -4,6 +4,8 @@
 #include <limits>
 #include <variant>
 
+#include "cfg/object_index.hpp"
+#include "nmt/local_dictionary.hpp"
 #include "saturating_time.hpp"
 
 namespace nmt {
@@ -13,6 +15,21 @@ SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
   c.request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId + node_id);
   c.response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId + node_id);
   c.node_id = node_id;
+  return c;
+}
+
+std::optional<SdoClientConfig> SdoClientConfig::from_dictionary(const LocalDictionary& dict,
+                                                                std::uint16_t index) {
+  if (!cfg::object::is_sdo_client_parameter(index)) return std::nullopt;
+  const auto request = dict.get_cob_id(index, 1);
+  const auto response = dict.get_cob_id(index, 2);
+  if (!request || !response || !cfg::usable_can_id(*request) || !cfg::usable_can_id(*response)) {
+    return std::nullopt;
+  }
+  SdoClientConfig c;
+  c.request_cob_id = *request;
+  c.response_cob_id = *response;
+  c.node_id = static_cast<std::uint8_t>(dict.get_unsigned(index, 3).value_or(0));
   return c;
 }
 

@@ -20,10 +20,8 @@ SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
   auto c = for_node(dict.node_id());
   // CiA 301 object 1200h sub 1/2: the COB-IDs of the default SDO server channel.
   auto cob = [&](std::uint8_t sub) -> std::optional<cfg::CobId> {
-    const auto word = dict.get_unsigned(cfg::object::kSdoServerFirst, sub);
-    if (!word || *word > std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
-    const auto id = cfg::CobId::from_word(static_cast<std::uint32_t>(*word));
-    return cfg::usable_can_id(id) ? std::optional(id) : std::nullopt;
+    const auto id = dict.get_cob_id(cfg::object::kSdoServerFirst, sub);
+    return id && cfg::usable_can_id(*id) ? id : std::nullopt;
   };
   auto rx = cob(1);
   auto tx = cob(2);
@@ -31,6 +29,19 @@ SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
     c.request_cob_id = *rx;
     c.response_cob_id = *tx;
   }
+  return c;
+}
+
+SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict, std::uint16_t index) {
+  if (index == cfg::object::kSdoServerFirst) return from_dictionary(dict);
+  SdoServerConfig c;
+  // CiA 301 §7.5.2.33: an additional channel exists only while bit 31 of both COB-IDs is 0;
+  // a word that does not fit 32 bits or is absent is taken as "not valid".
+  auto cob = [&](std::uint8_t sub) {
+    return dict.get_cob_id(index, sub).value_or(cfg::CobId::from_word(cfg::kCobIdInvalidBit));
+  };
+  c.request_cob_id = cob(1);
+  c.response_cob_id = cob(2);
   return c;
 }
 

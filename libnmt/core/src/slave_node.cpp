@@ -109,7 +109,6 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
       dict_(factory_),
       options_(options),
       nmt_(node_id),
-      sdo_(dict_, SdoServerConfig::for_node(node_id)),
       heartbeat_(node_id),
       guarding_(node_id),
       emcy_(default_emcy_cob_id(node_id)) {
@@ -122,10 +121,52 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
                                  : v == 3         ? ProgramState::NoProgram
                                                   : ProgramState::Running;
   }
+  // CiA 301 §7.5.2.33: the default channel always, the additional ones the file declares.
+  sdo_.push_back({obj::kSdoServerFirst, SdoServer(dict_, SdoServerConfig::for_node(node_id))});
+  for (std::uint16_t index = obj::kSdoServerFirst + 1; index <= obj::kSdoServerLast; ++index) {
+    if (dict_.has_object(index)) {
+      sdo_.push_back({index, SdoServer(dict_, SdoServerConfig::from_dictionary(dict_, index))});
+    }
+  }
   install_hooks();
 }
 
 SlaveNode::~SlaveNode() = default;
+
+std::vector<std::uint16_t> SlaveNode::sdo_server_channels() const {
+  std::vector<std::uint16_t> indices;
+  indices.reserve(sdo_.size());
+  for (const auto& c : sdo_) indices.push_back(c.index);
+  return indices;
+}
+
+const SdoServerConfig* SlaveNode::sdo_config(std::uint16_t index) const {
+  for (const auto& c : sdo_) {
+    if (c.index == index) return &c.server.config();
+  }
+  return nullptr;
+}
+
+bool SlaveNode::sdo_busy(std::uint16_t index) const {
+  for (const auto& c : sdo_) {
+    if (c.index == index) return c.server.busy();
+  }
+  return false;
+}
+
+void SlaveNode::reconfigure_sdo_channels() {
+  sdo_changed_ = false;
+  for (auto& c : sdo_) {
+    auto config = SdoServerConfig::from_dictionary(dict_, c.index);
+    config.timeout = options_.sdo_server_timeout;
+    const auto& current = c.server.config();
+    // Only a changed channel restarts (set_config drops its transfer in progress).
+    if (config.request_cob_id != current.request_cob_id ||
+        config.response_cob_id != current.response_cob_id || config.timeout != current.timeout) {
+      c.server.set_config(config);
+    }
+  }
+}
 
 void SlaveNode::install_hooks() {
   dict_.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
@@ -142,9 +183,11 @@ void SlaveNode::set_options(SlaveNodeOptions options) {
   const bool timeout_changed = options.sdo_server_timeout != options_.sdo_server_timeout;
   options_ = options;
   if (timeout_changed) {
-    auto config = sdo_.config();
-    config.timeout = options_.sdo_server_timeout;
-    sdo_.set_config(config);
+    for (auto& c : sdo_) {
+      auto config = c.server.config();
+      config.timeout = options_.sdo_server_timeout;
+      c.server.set_config(config);
+    }
   }
 }
 
@@ -217,9 +260,12 @@ void SlaveNode::restore(ResetScope scope) {
 }
 
 void SlaveNode::configure_services(TimePoint now) {
-  auto sdo_config = SdoServerConfig::from_dictionary(dict_);
-  sdo_config.timeout = options_.sdo_server_timeout;
-  sdo_.set_config(sdo_config);  // drops a transfer in progress without a frame
+  for (auto& c : sdo_) {
+    auto config = SdoServerConfig::from_dictionary(dict_, c.index);
+    config.timeout = options_.sdo_server_timeout;
+    c.server.set_config(config);  // drops a transfer in progress without a frame
+  }
+  sdo_changed_ = false;
 
   heartbeat_.set_node_id(nmt_.node_id());
   heartbeat_.set_period(
@@ -266,8 +312,16 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
 
   if (services.sdo && !frame.rtr && !frame.error) {
     SdoServer::Output sdo_out;
-    taken = sdo_.on_frame(frame, now, sdo_out) || taken;
+    in_sdo_ = true;
+    for (auto& c : sdo_) {
+      if (c.server.on_frame(frame, now, sdo_out)) {
+        taken = true;
+        break;
+      }
+    }
+    in_sdo_ = false;
     forward_frames(sdo_out, out);
+    if (sdo_changed_) reconfigure_sdo_channels();
   }
 
   if (services.error_control) {
@@ -338,7 +392,7 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     emcy_.on_timer(now, emcy_out);
     forward_frames(emcy_out, out);
     SdoServer::Output sdo_out;
-    sdo_.on_timer(now, sdo_out);
+    for (auto& c : sdo_) c.server.on_timer(now, sdo_out);
     // Stopped: a transfer that times out now is not answered.
     if (nmt_.services().sdo) forward_frames(sdo_out, out);
   }
@@ -353,7 +407,7 @@ std::optional<TimePoint> SlaveNode::next_deadline() const {
     next = earliest(next, guarding_.next_deadline());
     next = earliest(next, consumer_.next_deadline());
     next = earliest(next, emcy_.next_deadline());
-    next = earliest(next, sdo_.next_deadline());
+    for (const auto& c : sdo_) next = earliest(next, c.server.next_deadline());
   }
   return next;
 }
@@ -450,6 +504,9 @@ SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
     return check_consumer_heartbeat_write(sub, data);
   }
   if (auto code = check_pdo_write(index, sub, data); code != SdoAbort::None) return code;
+  if (auto code = check_sdo_parameter_write(index, sub, data); code != SdoAbort::None) {
+    return code;
+  }
   return check_program_write(index, sub, data);
 }
 
@@ -473,6 +530,23 @@ bool is_dummy_index(std::uint16_t index) {
 SdoAbort SlaveNode::check_emcy_cob_id_write(std::span<const std::uint8_t> data) const {
   const auto current = dict_.get_unsigned(obj::kCobIdEmcy, 0);
   // CiA 301 §7.5.2.5: 0609 0030 (invalid value), as for the PDO COB-IDs.
+  return current && !cob_id_change_allowed(*current, le32(data)) ? SdoAbort::ValueRangeExceeded
+                                                                 : SdoAbort::None;
+}
+
+SdoAbort SlaveNode::check_sdo_parameter_write(std::uint16_t index, std::uint8_t sub,
+                                              std::span<const std::uint8_t> data) const {
+  if (!obj::is_sdo_server_parameter(index) && !obj::is_sdo_client_parameter(index)) {
+    return SdoAbort::None;
+  }
+  if (sub != 1 && sub != 2) return SdoAbort::None;
+  const auto current = dict_.get_unsigned(index, sub);
+  // CiA 301 §7.5.2.33: 1200h holds the pre-defined connection set; its COB-IDs are fixed. The
+  // value it has is accepted, so a tool downloading a whole DCF that declares them rw succeeds.
+  if (index == obj::kSdoServerFirst) {
+    return current && *current == le32(data) && data.size() == 4 ? SdoAbort::None
+                                                                 : SdoAbort::WriteOfReadOnly;
+  }
   return current && !cob_id_change_allowed(*current, le32(data)) ? SdoAbort::ValueRangeExceeded
                                                                  : SdoAbort::None;
 }
@@ -638,6 +712,12 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
   if (index != obj::kVerifyConfiguration && is_stored_parameter(index, sub)) {
     dict_.set_unsigned(obj::kVerifyConfiguration, 1, 0);
     dict_.set_unsigned(obj::kVerifyConfiguration, 2, 0);
+  }
+
+  if (obj::is_sdo_server_parameter(index) && (sub == 1 || sub == 2)) {
+    // Takes effect without a reset (CiA 301 §7.5.2.33); inside an SDO call after its answer.
+    sdo_changed_ = true;
+    if (!in_sdo_) reconfigure_sdo_channels();
   }
 
   switch (index) {

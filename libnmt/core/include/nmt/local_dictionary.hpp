@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "cfg/cob_id.hpp"
 #include "cfg/data_type.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
@@ -129,6 +130,9 @@ class LocalDictionary {
   /// The value as a little-endian unsigned number (first up to 8 bytes; BOOLEAN and integer
   /// types). nullopt when absent or when the entry is not BOOLEAN/integer.
   std::optional<std::uint64_t> get_unsigned(std::uint16_t index, std::uint8_t sub) const;
+  /// The value as a CiA 301 COB-ID word (1200h-12FFh sub 1/2, 1014h, PDO sub 1); nullopt when
+  /// absent, not an integer, or above 32 bits.
+  std::optional<cfg::CobId> get_cob_id(std::uint16_t index, std::uint8_t sub) const;
   /// The value decoded as its basic type; nullopt when absent, of unknown type or undecodable.
   std::optional<cfg::Value> get_value(std::uint16_t index, std::uint8_t sub) const;
   /// Replaces the bytes as they are. False when the entry is absent.

@@ -29,6 +29,8 @@
 
 namespace nmt {
 
+class LocalDictionary;
+
 /// How a transfer went over the bus.
 enum class SdoProtocol : std::uint8_t { Expedited, Segmented, Block };
 
@@ -40,6 +42,11 @@ struct SdoClientConfig {
   std::uint8_t node_id = 0;  ///< the server's node-ID, for reports (0: unknown)
 
   static SdoClientConfig for_node(std::uint8_t node_id);
+  /// The channel of client parameter `index` (1280h-12FFh, CiA 301 §7.5.2.34): sub 1 request,
+  /// sub 2 response, sub 3 the server's node-ID (0 when absent). nullopt when `index` is no
+  /// client entry of `dict`, or when either COB-ID is not usable (bit 31 set, ill-formed).
+  static std::optional<SdoClientConfig> from_dictionary(const LocalDictionary& dict,
+                                                        std::uint16_t index);
 };
 
 enum class SdoMode : std::uint8_t {

@@ -49,6 +49,11 @@ struct SdoServerConfig {
   /// COB-IDs from 1200h sub 1/2 of the dictionary when both are present and usable (bit 31
   /// clear, well formed), else the pre-defined ones for the dictionary's node-ID.
   static SdoServerConfig from_dictionary(const LocalDictionary& dict);
+  /// The channel of server parameter `index` (1200h-127Fh, CiA 301 §7.5.2.33). 1200h: as
+  /// from_dictionary(dict). 1201h-127Fh: sub 1/2 as the dictionary holds them, also when bit 31
+  /// is set (the server then answers nothing); a missing sub-index reads as not valid
+  /// (80000000h).
+  static SdoServerConfig from_dictionary(const LocalDictionary& dict, std::uint16_t index);
 };
 
 /// The SDO server of one node, serving one LocalDictionary (which must outlive it). One transfer

@@ -35,6 +35,18 @@
 //   reading it sees 0602 0000. A download of program 1 sets it from
 //   SlaveNodeOptions::downloaded_program_version, or leaves it unchanged when that is unset.
 //   Like 1F50h-1F57h as a whole, it lives in program memory: resets and power cycles keep it.
+// - SDO server channels (CiA 301 §7.5.2.33): the default channel 1200h and every 1201h-127Fh
+//   entry of the device file, each served by its own SdoServer (one transfer per channel, so
+//   clients on different channels never disturb each other). An additional channel answers while
+//   bit 31 of both sub 1 and sub 2 is 0; a frame is served by the first channel in index order
+//   whose request COB-ID it carries.
+// - 1200h sub 1/2 are the pre-defined connection set: writes of another value abort with
+//   0601 0002 even when a file declares them rw (the value they hold is accepted, so a whole-DCF
+//   download succeeds). 1201h-12FFh sub 1/2: bits 0-29 change only while bit 31 is 1,
+//   otherwise 0609 0030 (CiA 301 §7.5.2.33/34, the rule of 1014h and the PDO COB-IDs); setting
+//   bit 31 is always allowed. A written 1201h-127Fh entry takes effect without a reset, once the
+//   response to the write is sent (a client that rewrites the channel it talks on gets its
+//   confirmation on the COB-ID it used).
 #pragma once
 
 #include <cstdint>
@@ -148,8 +160,17 @@ class SlaveNode {
   bool powered() const { return powered_; }
   LocalDictionary& dictionary() { return dict_; }
   const LocalDictionary& dictionary() const { return dict_; }
-  /// The SDO server's COB-IDs and settings as the last reset configured them (1200h).
-  const SdoServerConfig& sdo_config() const { return sdo_.config(); }
+  /// The default SDO server channel's COB-IDs and settings as the last reset configured them
+  /// (1200h).
+  const SdoServerConfig& sdo_config() const { return sdo_.front().server.config(); }
+  /// The SDO server channels the node serves: 1200h, then the 1201h-127Fh entries of its device
+  /// file in index order.
+  std::vector<std::uint16_t> sdo_server_channels() const;
+  /// The current configuration of server channel `index` (1200h-127Fh); nullptr when the node
+  /// has no such channel. Valid until the node is destroyed.
+  const SdoServerConfig* sdo_config(std::uint16_t index) const;
+  /// True while a segmented or block transfer runs on server channel `index`.
+  bool sdo_busy(std::uint16_t index) const;
   /// The heartbeat producer as 1017h configured it (its next_deadline() is the next heartbeat).
   const HeartbeatProducer& heartbeat_producer() const { return heartbeat_; }
   const SlaveNodeOptions& options() const { return options_; }
@@ -200,6 +221,9 @@ class SlaveNode {
                                           std::span<const std::uint8_t> data) const;
   SdoAbort check_program_write(std::uint16_t index, std::uint8_t sub,
                                std::span<const std::uint8_t> data) const;
+  SdoAbort check_sdo_parameter_write(std::uint16_t index, std::uint8_t sub,
+                                     std::span<const std::uint8_t> data) const;
+  void reconfigure_sdo_channels();
   void after_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                    TimePoint now);
   bool is_stored_parameter(std::uint16_t index, std::uint8_t sub) const;
@@ -213,7 +237,16 @@ class SlaveNode {
   LocalDictionary dict_;
   SlaveNodeOptions options_;
   NmtSlave nmt_;
-  SdoServer sdo_;
+  /// One SDO server per channel, 1200h first.
+  struct SdoChannel {
+    std::uint16_t index;
+    SdoServer server;
+  };
+  std::vector<SdoChannel> sdo_;
+  /// A server parameter was written: the channels are reconfigured when the SDO call that wrote
+  /// it has answered (at once for writes outside an SDO call).
+  bool sdo_changed_ = false;
+  bool in_sdo_ = false;
   HeartbeatProducer heartbeat_;
   HeartbeatConsumer consumer_;
   NodeGuardingSlave guarding_;

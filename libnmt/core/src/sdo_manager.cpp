@@ -1,0 +1,953 @@
+// The SDO manager of NmtMaster (DSP 302 §7): registration of SDO requesting devices (SRDs) after
+// the Dynamic SDO Request, the connections an SRD asks for with 1F00h and gives back with 1F01h,
+// the error control of SRDs (and of slaves for SRDs that asked), and its objects 1F00h-1F06h.
+// The choices where §7 leaves room are listed at the top of nmt/nmt_master.hpp.
+//
+// The work runs as jobs, one at a time (SdoManager::jobs), each a sequence of SDO accesses over
+// the master's default SDO clients; a 1F00h/1F01h write only queues one (§7.2.3: a successful
+// response means the manager started).
+#include <algorithm>
+#include <utility>
+
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
+#include "cfg/sdo_manager_objects.hpp"
+#include "nmt_master_impl.hpp"
+
+namespace nmt {
+
+namespace obj = cfg::object;
+
+namespace {
+
+namespace sm = cfg::sdo_manager;
+using sm::ConnectionState;
+using sm::DynamicSdoError;
+using sm::DynamicSdoState;
+using sm::ManagerCobId;
+
+// The pool a master DCF without 1F02h gets: identifiers the pre-defined connection set of
+// CiA 301 neither uses nor restricts.
+constexpr std::uint32_t kPoolFirst = 0x680;
+constexpr std::uint32_t kPoolLast = 0x6DF;
+
+constexpr std::uint16_t kDefaultServer = obj::kSdoServerFirst;  // 1200h
+constexpr std::uint8_t kGuardLifeTimeFactor = 3;
+// §7.2.3: 1F03h-1F06h, 254 rows each; rows are numbered from 1.
+constexpr unsigned kRows = sm::kConnectionsPerPart * sm::kConnectionParts;
+
+sm::ConnectionSlot slot_of(std::uint16_t row) {
+  return sm::connection_slot(row - 1U);
+}
+void set_row(LocalDictionary& dict, std::uint16_t row, std::uint32_t word) {
+  const auto slot = slot_of(row);
+  dict.set_unsigned(slot.index, slot.sub_index, word);
+}
+/// The COB-ID of 1F02h sub `sub` without the manager's bits.
+cfg::CobId pool_cob_id(const LocalDictionary& dict, std::uint8_t sub) {
+  return ManagerCobId::decode(
+             static_cast<std::uint32_t>(dict.get_unsigned(obj::kSdoManagerCobIds, sub).value_or(0)))
+      .cob_id();
+}
+std::uint32_t row_word(const ManagedSdoConnection& c) {
+  return sm::SdoConnection::of(c.client_index, c.srd, c.server_index, c.server).encode();
+}
+
+std::string cob_text(cfg::CobId id) {
+  return cfg::hex(id.can_id().id, 3);
+}
+
+std::string connection_text(const ManagedSdoConnection& c) {
+  return node_text(c.srd) + " " + cfg::object_name(c.client_index) + " -> " + node_text(c.server) +
+         " " + cfg::object_name(c.server_index) + " (COB-IDs " + cob_text(c.request) + "/" +
+         cob_text(c.response) + ")";
+}
+
+SdoManager::Step write_step(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
+                            std::uint32_t value, std::size_t size, bool must_succeed = true,
+                            bool retry = true) {
+  SdoManager::Step s;
+  s.node = node;
+  s.index = index;
+  s.sub = sub;
+  s.value = value;
+  s.size = size;
+  s.must_succeed = must_succeed;
+  s.retry = retry;
+  return s;
+}
+
+SdoManager::Step read_step(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
+                           bool retry = true) {
+  // must_succeed false: the phase looks at the result.
+  auto s = write_step(node, index, sub, 0, 0, false, retry);
+  s.upload = true;
+  return s;
+}
+
+}  // namespace
+
+// --- objects ---
+
+void NmtMaster::Impl::install_sdo_manager() {
+  sdo_manager.enabled = options.sdo_manager || dict.has_object(obj::kSdoRequest);
+  if (!sdo_manager.enabled) return;
+  using T = cfg::DataType;
+  using A = cfg::AccessType;
+  // §7.2.3: 1F00h and 1F01h are write-only requests, whatever the file says.
+  for (const auto& [index, name] :
+       {std::pair{obj::kSdoRequest, "Request SDO"}, std::pair{obj::kSdoRelease, "Release SDO"}}) {
+    auto entry = dict.entry(index, 0) != nullptr
+                     ? *dict.entry(index, 0)
+                     : make_entry(index, 0, name, T::Unsigned32, A::Wo, 0);
+    entry.access = A::Wo;
+    dict.insert(std::move(entry));
+  }
+  if (!dict.has_object(obj::kSdoManagerCobIds)) {
+    const auto count = kPoolLast - kPoolFirst + 1;
+    dict.insert(make_entry(obj::kSdoManagerCobIds, 0, "Highest sub-index supported", T::Unsigned8,
+                           A::Const, count));
+    for (std::uint32_t i = 0; i < count; ++i) {
+      dict.insert(make_entry(obj::kSdoManagerCobIds, static_cast<std::uint8_t>(i + 1),
+                             "SDO manager COB-ID " + std::to_string(i + 1), T::Unsigned32, A::Rw,
+                             kPoolFirst + i));
+    }
+  }
+  for (unsigned part = 0; part < sm::kConnectionParts; ++part) {
+    const auto index = static_cast<std::uint16_t>(obj::kSdoConnectionsFirst + part);
+    if (dict.has_object(index)) continue;
+    dict.insert(make_entry(index, 0, "Highest sub-index supported", T::Unsigned8, A::Const,
+                           sm::kConnectionsPerPart));
+    for (unsigned sub = 1; sub <= sm::kConnectionsPerPart; ++sub) {
+      dict.insert(
+          make_entry(index, static_cast<std::uint8_t>(sub),
+                     "SDO connection " + std::to_string(part * sm::kConnectionsPerPart + sub),
+                     T::Unsigned32, A::Ro, 0));
+    }
+  }
+  // The server channels SRDs get (CiA 301 1201h..), invalid until one registers.
+  const unsigned channels = std::clamp<unsigned>(options.sdo_manager_channels, 1, 127);
+  for (unsigned i = 1; i <= channels; ++i) {
+    const auto index = static_cast<std::uint16_t>(obj::kSdoServerFirst + i);
+    if (dict.has_object(index)) continue;
+    dict.insert(make_entry(index, 0, "Highest sub-index supported", T::Unsigned8, A::Const, 3));
+    dict.insert(make_entry(index, 1, "COB-ID client -> server", T::Unsigned32, A::Rw,
+                           cfg::kCobIdInvalidBit));
+    dict.insert(make_entry(index, 2, "COB-ID server -> client", T::Unsigned32, A::Rw,
+                           cfg::kCobIdInvalidBit));
+    dict.insert(make_entry(index, 3, "Node-ID of the SDO client", T::Unsigned8, A::Rw, 0));
+  }
+  dict.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
+                             std::span<const std::uint8_t> data,
+                             TimePoint /*now*/) { return manager_write(index, sub, data); });
+}
+
+bool NmtMaster::Impl::manager_active() const {
+  // §7: "The SDO Manager is active only if the NMT Master residing on the same device is active."
+  if (!sdo_manager.enabled || !startup_config().is_master() || !acts_as_master()) return false;
+  return startup == StartupState::BootingSlaves || startup == StartupState::Halted ||
+         startup == StartupState::AwaitApplication || startup == StartupState::Operational;
+}
+
+SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
+                                        std::span<const std::uint8_t> data) {
+  const auto value = static_cast<std::uint32_t>(cfg::load_le(data, data.size()));
+  if (index == obj::kSdoManagerCobIds) {
+    if (sub == 0) return SdoAbort::None;
+    for (std::uint8_t s = 1; s <= value_of(obj::kSdoManagerCobIds, 0) && s != 0; ++s) {
+      if (ManagerCobId::decode(value_of(obj::kSdoManagerCobIds, s)).in_use()) {
+        return SdoAbort::DeviceState;
+      }
+    }
+    // Bit 30 is the manager's; an 11-bit entry has bits 28-11 clear (§7.2.3).
+    const auto entry = ManagerCobId::decode(value);
+    if (entry.in_use() || !entry.cob_id().well_formed()) return SdoAbort::ValueRangeExceeded;
+    return SdoAbort::None;
+  }
+  if (index != obj::kSdoRequest && index != obj::kSdoRelease) return SdoAbort::None;
+  if (!manager_active()) return SdoAbort::DeviceState;
+  const auto request = sm::SdoRequest::decode(value);
+  const auto slave = request.slave_node_id;
+  const auto srd = request.srd_node_id;
+  const auto client_index = request.client_index;
+  // §7.2.3: refused with 060A 0023 ("Resource not available: SDO connection").
+  const auto it = sdo_manager.srds.find(srd);
+  if (it == sdo_manager.srds.end()) return SdoAbort::ResourceNotAvailable;
+  if (sdo_manager.writer != 0 && sdo_manager.writer != srd) return SdoAbort::ResourceNotAvailable;
+  if (index == obj::kSdoRequest) {
+    if (!cfg::is_node_id(slave) || slave == srd || slave == node_id.value()) {
+      return SdoAbort::ResourceNotAvailable;
+    }
+    if (!obj::is_sdo_client_parameter(client_index)) return SdoAbort::ValueRangeExceeded;
+    const bool taken = it->second.info.client_index == client_index ||
+                       std::any_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
+                                   [&](const SdoManager::Connection& c) {
+                                     return c.row.srd == srd && c.row.client_index == client_index;
+                                   }) ||
+                       std::any_of(sdo_manager.jobs.begin(), sdo_manager.jobs.end(),
+                                   [&](const SdoManager::Job& j) {
+                                     return j.kind == SdoManager::Job::Kind::Connect &&
+                                            j.node == srd && j.client_index == client_index;
+                                   });
+    if (taken) return SdoAbort::ResourceNotAvailable;
+    SdoManager::Job job;
+    job.kind = SdoManager::Job::Kind::Connect;
+    job.node = srd;
+    job.slave = slave;
+    job.client_index = client_index;
+    sdo_manager.jobs.push_back(std::move(job));
+    return SdoAbort::None;
+  }
+  // 1F01h: slave 0 releases everything and de-registers; index 0 every connection to the slave.
+  if (slave != 0 && !cfg::is_node_id(slave)) return SdoAbort::ResourceNotAvailable;
+  std::vector<SdoManager::Connection> rows;
+  for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
+    const bool match = c->row.srd == srd &&
+                       (slave == 0 || (!c->row.to_manager && c->row.server == slave &&
+                                       (client_index == 0 || c->row.client_index == client_index)));
+    if (!match) {
+      ++c;
+      continue;
+    }
+    rows.push_back(*c);
+    set_row(dict, c->row.row, 0);
+    c = sdo_manager.connections.erase(c);
+  }
+  if (slave == 0) {
+    manager_release_job(srd, std::move(rows), true, false,
+                        "1F01h: " + node_text(srd) + " de-registers");
+    sdo_manager.srds.erase(srd);
+  } else if (!rows.empty()) {
+    manager_release_job(srd, std::move(rows), false, false,
+                        "1F01h: " + node_text(srd) + " releases");
+  }
+  return SdoAbort::None;
+}
+
+// --- frames and time ---
+
+bool NmtMaster::Impl::manager_frame(const CanFrame& frame, TimePoint /*now*/) {
+  if (frame.id != sm::kDynamicSdoRequestCanId || frame.extended || frame.rtr || frame.dlc != 0) {
+    return false;
+  }
+  if (!manager_active()) return false;  // a standby master ignores it
+  using Kind = SdoManager::Job::Kind;
+  const auto scan = std::find_if(sdo_manager.jobs.begin(), sdo_manager.jobs.end(),
+                                 [](const SdoManager::Job& j) { return j.kind == Kind::Scan; });
+  if (scan == sdo_manager.jobs.end()) {
+    SdoManager::Job job;
+    job.kind = Kind::Scan;
+    sdo_manager.jobs.push_back(std::move(job));
+  } else if (scan->phase != SdoManager::Job::Phase::Start) {
+    sdo_manager.rescan = true;  // the running scan may have passed the new SRD
+  }
+  return true;
+}
+
+bool NmtMaster::Impl::manager_servers_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  bool taken = false;
+  for (auto& [index, channel] : sdo_manager.channels) {
+    Outbox<NoEvent> server_out;
+    // 1F00h/1F01h learn the writer from the channel (its sub 3: the SRD).
+    sdo_manager.writer = static_cast<std::uint8_t>(value_of(index, 3));
+    const bool mine = channel->on_frame(frame, now, server_out);
+    sdo_manager.writer = 0;
+    for (const auto& f : server_out.frames) out.send(f);
+    if (mine) {
+      taken = true;
+      break;
+    }
+  }
+  return taken;
+}
+
+void NmtMaster::Impl::manager_servers_timer(TimePoint now, Output& out) {
+  for (auto& [index, channel] : sdo_manager.channels) {
+    Outbox<NoEvent> server_out;
+    channel->on_timer(now, server_out);
+    for (const auto& f : server_out.frames) out.send(f);
+  }
+}
+
+std::optional<TimePoint> NmtMaster::Impl::manager_deadline() const {
+  std::optional<TimePoint> due;
+  for (const auto& [index, channel] : sdo_manager.channels)
+    due = earliest(due, channel->next_deadline());
+  // Queued work starts from the next call.
+  if (!sdo_manager.in_flight && !sdo_manager.jobs.empty() && manager_active()) due = TimePoint{0};
+  return due;
+}
+
+void NmtMaster::Impl::manager_clear() {
+  for (auto& c : sdo_manager.connections) set_row(dict, c.row.row, 0);
+  sdo_manager.connections.clear();
+  for (const auto& [node, srd] : sdo_manager.srds) {
+    if (!is_slave(node)) stop_error_control(node);
+  }
+  for (auto node : sdo_manager.watched) {
+    if (!is_slave(node)) stop_error_control(node);
+  }
+  sdo_manager.srds.clear();
+  sdo_manager.watched.clear();
+  sdo_manager.jobs.clear();
+  sdo_manager.in_flight = false;
+  ++sdo_manager.serial;  // results of transfers still running are stale
+  sdo_manager.rescan = false;
+  while (!sdo_manager.channels.empty()) manager_close_channel(sdo_manager.channels.begin()->first);
+  const auto count = value_of(obj::kSdoManagerCobIds, 0);
+  for (std::uint32_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
+    manager_mark_pool(static_cast<std::uint8_t>(sub), false);
+  }
+}
+
+// --- tables ---
+
+std::vector<std::uint8_t> NmtMaster::Impl::manager_free_pool() const {
+  std::vector<std::uint8_t> free;
+  const auto count = value_of(obj::kSdoManagerCobIds, 0);
+  for (std::uint32_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
+    const auto word = value_of(obj::kSdoManagerCobIds, static_cast<std::uint8_t>(sub));
+    if (ManagerCobId::decode(word).free()) free.push_back(static_cast<std::uint8_t>(sub));
+  }
+  return free;
+}
+
+void NmtMaster::Impl::manager_mark_pool(std::uint8_t sub, bool in_use) {
+  if (sub == 0 || !dict.entry(obj::kSdoManagerCobIds, sub)) return;
+  const auto entry = ManagerCobId::decode(value_of(obj::kSdoManagerCobIds, sub));
+  dict.set_unsigned(obj::kSdoManagerCobIds, sub, entry.with_in_use(in_use).encode());
+}
+
+void NmtMaster::Impl::manager_open_channel(std::uint16_t index, const SdoManager::Connection& c) {
+  dict.set_unsigned(index, 3, c.row.srd);
+  dict.set_unsigned(index, 1, c.row.request.word());
+  dict.set_unsigned(index, 2, c.row.response.word());
+  SdoServerConfig config = server.config();
+  config.request_cob_id = c.row.request;
+  config.response_cob_id = c.row.response;
+  sdo_manager.channels[index] = std::make_unique<SdoServer>(dict, config);
+}
+
+void NmtMaster::Impl::manager_close_channel(std::uint16_t index) {
+  dict.set_unsigned(index, 1, value_of(index, 1) | cfg::kCobIdInvalidBit);
+  dict.set_unsigned(index, 2, value_of(index, 2) | cfg::kCobIdInvalidBit);
+  dict.set_unsigned(index, 3, 0);
+  sdo_manager.channels.erase(index);
+}
+
+std::uint16_t NmtMaster::Impl::manager_free_row() const {
+  for (std::uint16_t row = 1; row <= kRows; ++row) {
+    if (!dict.entry(slot_of(row).index, slot_of(row).sub_index)) break;
+    const bool used =
+        std::any_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
+                    [&](const SdoManager::Connection& c) { return c.row.row == row; });
+    if (!used) return row;
+  }
+  return 0;
+}
+
+bool NmtMaster::Impl::default_sdo_taken(std::uint8_t node) const {
+  return std::any_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
+                     [&](const SdoManager::Connection& c) {
+                       return c.row.server == node && c.row.server_index == kDefaultServer;
+                     });
+}
+
+void NmtMaster::Impl::manager_watch(std::uint8_t node, bool srd, std::optional<Duration> heartbeat,
+                                    TimePoint now) {
+  if (srd || !heartbeat) heartbeat = heartbeat_time(node);
+  if (heartbeat && heartbeat->count() > 0) {
+    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(*heartbeat).count();
+    heartbeats.monitor({node, static_cast<std::uint16_t>(std::min<std::int64_t>(ms, 0xFFFF))}, now);
+    return;
+  }
+  const auto a = assignment(node);
+  auto id = *cfg::NodeId::from(node);
+  if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
+    guarding.start(id, a.guard_time_ms(), a.retry_factor(), now);
+    return;
+  }
+  const auto guard_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(options.srd_guard_time).count();
+  guarding.start(id, static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
+                 kGuardLifeTimeFactor, now);
+}
+
+// --- losses ---
+
+void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoint now,
+                                        Output& out) {
+  if (!sdo_manager.enabled) return;
+  if (auto it = sdo_manager.srds.find(node); it != sdo_manager.srds.end()) {
+    // §7.2.1: "the Manager forces all SDOs requested by that SRD to be released".
+    std::vector<SdoManager::Connection> rows;
+    for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
+      if (c->row.srd != node) {
+        ++c;
+        continue;
+      }
+      rows.push_back(*c);
+      set_row(dict, c->row.row, 0);
+      c = sdo_manager.connections.erase(c);
+    }
+    sdo_manager.srds.erase(it);
+    if (!is_slave(node)) stop_error_control(node);
+    const std::string why = node_text(node) + (boot_up ? ": SRD booted up" : ": SRD lost");
+    report(out,
+           master_event(MasterEvent::Kind::SrdLost, now, node,
+                        why + ", releasing " + std::to_string(rows.size()) + " SDO connection(s)"));
+    manager_release_job(node, std::move(rows), true, true, why);
+    return;
+  }
+  if (boot_up || sdo_manager.watched.count(node) == 0) return;
+  // §7.2.2 "Error Control of Slave Devices": 1F11h on each SRD with Req EC, then its client
+  // entry cleared.
+  sdo_manager.watched.erase(node);
+  if (!is_slave(node)) stop_error_control(node);
+  std::map<std::uint8_t, std::vector<SdoManager::Connection>> by_srd;
+  for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
+    const auto srd = sdo_manager.srds.find(c->row.srd);
+    if (c->row.server != node || c->row.to_manager || srd == sdo_manager.srds.end() ||
+        !srd->second.info.slave_error_control) {
+      ++c;
+      continue;
+    }
+    by_srd[c->row.srd].push_back(*c);
+    set_row(dict, c->row.row, 0);
+    c = sdo_manager.connections.erase(c);
+  }
+  for (auto& [srd, rows] : by_srd) {
+    SdoManager::Job job;
+    job.kind = SdoManager::Job::Kind::Release;
+    job.node = srd;
+    job.failed = node;  // 1F11h first
+    job.why = node_text(node) + " failed (error control)";
+    job.releases = std::move(rows);
+    sdo_manager.jobs.push_back(std::move(job));
+  }
+  (void)now;
+}
+
+void NmtMaster::Impl::manager_release_job(std::uint8_t srd,
+                                          std::vector<SdoManager::Connection> rows, bool deregister,
+                                          bool lost, std::string why) {
+  // The SRD's channel to the manager goes last: the SRD keeps its line until the end.
+  std::stable_partition(rows.begin(), rows.end(),
+                        [](const SdoManager::Connection& c) { return !c.row.to_manager; });
+  SdoManager::Job job;
+  job.kind = SdoManager::Job::Kind::Release;
+  job.node = srd;
+  job.releases = std::move(rows);
+  job.deregister = deregister;
+  job.srd_lost = lost;
+  job.why = std::move(why);
+  sdo_manager.jobs.push_back(std::move(job));
+}
+
+// --- jobs ---
+
+void NmtMaster::Impl::manager_pump(TimePoint now, Output& out) {
+  if (!sdo_manager.enabled) return;
+  while (!sdo_manager.in_flight && !sdo_manager.jobs.empty()) {
+    if (!manager_active()) return;  // resumes when the master is active again
+    auto& job = sdo_manager.jobs.front();
+    if (job.steps.empty()) {
+      manager_advance(now, out);
+      continue;
+    }
+    const auto& step = job.steps.front();
+    MasterTransfer t;
+    t.for_manager = true;
+    t.try_id = ++sdo_manager.serial;
+    t.index = step.index;
+    t.sub = step.sub;
+    t.upload = step.upload;
+    if (!step.upload) cfg::append_le(t.data, step.value, step.size);
+    t.options.timeout = job.kind == SdoManager::Job::Kind::Scan ? options.sdo_manager_scan_timeout
+                                                                : options.sdo_timeout;
+    t.retries_left = step.retry ? options.sdo_retries : 0;
+    sdo_manager.in_flight = true;
+    launch_transfer(step.node, std::move(t), now);
+  }
+}
+
+void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Output& out) {
+  using Phase = SdoManager::Job::Phase;
+  sdo_manager.in_flight = false;
+  if (sdo_manager.jobs.empty() || sdo_manager.jobs.front().steps.empty()) return;
+  auto& job = sdo_manager.jobs.front();
+  const auto step = job.steps.front();
+  job.steps.pop_front();
+  if (!result.ok() && step.must_succeed) {
+    manager_job_failed(result, now, out);
+    return;
+  }
+  const bool answered = result.ok() || result.aborted_by_server;
+  switch (job.phase) {
+    case Phase::Scanning:
+      // §7.2.1: an open request has Rq indication set.
+      if (result.ok() && DynamicSdoState::decode(uploaded_u32(result)).request_indication) {
+        manager_start_register(uploaded_u32(result), now, out);
+      } else if (job.node > cfg::kMinNodeId) {
+        --job.node;
+      } else {
+        job.node = 0;
+      }
+      return;
+    case Phase::ReadHeartbeat: {
+      // Consumer time 2 x the SRD's producer time + 100 ms (its 1017h; 0: guarding).
+      const auto ms = result.ok() ? (uploaded_u32(result) & 0xFFFF) : 0;
+      std::optional<Duration> hb;
+      if (!heartbeat_time(job.node) && ms != 0) {
+        hb = 2 * std::chrono::milliseconds(ms) + std::chrono::milliseconds(100);
+      }
+      manager_watch(job.node, true, hb, now);
+      job.phase = Phase::Writing;  // registration complete (manager_advance)
+      return;
+    }
+    case Phase::ProbeSlave:
+      if (!answered) {
+        manager_refuse(DynamicSdoError::kSlaveNotAvailable,
+                       node_text(job.slave) + " does not answer", now, out);
+      } else {
+        manager_connect_with(kDefaultServer, now, out);
+      }
+      return;
+    case Phase::SearchChannel: {
+      if (!answered) {
+        manager_refuse(DynamicSdoError::kSlaveNotAvailable,
+                       node_text(job.slave) + " does not answer", now, out);
+        return;
+      }
+      const bool free =
+          result.ok() && (uploaded_u32(result) & cfg::kCobIdInvalidBit) != 0 &&
+          std::none_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
+                       [&](const SdoManager::Connection& c) {
+                         return c.row.server == job.slave && c.row.server_index == job.probe;
+                       });
+      if (free) {
+        manager_connect_with(job.probe, now, out);
+      } else if (!result.ok() || job.probe >= obj::kSdoServerLast) {
+        manager_refuse(DynamicSdoError::kNoFreeServerOnSlave,
+                       node_text(job.slave) + " has no free server SDO entry", now, out);
+      } else {
+        ++job.probe;
+        job.steps.push_back(read_step(job.slave, job.probe, 1));
+      }
+      return;
+    }
+    default:
+      return;
+  }
+}
+
+void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now, Output& out) {
+  using Kind = SdoManager::Job::Kind;
+  auto& job = sdo_manager.jobs.front();
+  const std::string why = node_text(result.node_id) + ": " + transfer_failure(result);
+  job.steps.clear();
+  auto& c = job.connection;
+  if (job.kind == Kind::Register) {
+    // The SRD did not take the channel: give it back.
+    if (c.row.server_index != 0) manager_close_channel(c.row.server_index);
+    manager_mark_pool(c.pool_request, false);
+    manager_mark_pool(c.pool_response, false);
+    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, job.node,
+                          node_text(job.node) + ": registration failed: " + why);
+    e.connection = c.row;
+    report(out, std::move(e));
+    manager_finish_job(now, out);
+    return;
+  }
+  if (job.kind == Kind::Connect) {
+    if (result.node_id == job.slave) {
+      manager_mark_pool(c.pool_request, false);
+      manager_mark_pool(c.pool_response, false);
+      const bool timed_out = !result.aborted_by_server && result.abort == SdoAbort::Timeout;
+      manager_refuse(timed_out ? DynamicSdoError::kSlaveNotAvailable : DynamicSdoError::kNoDetails,
+                     why, now, out);
+      return;
+    }
+    // The SRD did not take its entry: undo S's side (best effort), no confirmation possible.
+    if (c.row.server_index != kDefaultServer) {
+      job.steps.push_back(write_step(job.slave, c.row.server_index, 1,
+                                     c.row.request.with_valid(false).word(), 4, false));
+      job.steps.push_back(write_step(job.slave, c.row.server_index, 2,
+                                     c.row.response.with_valid(false).word(), 4, false));
+    }
+    manager_mark_pool(c.pool_request, false);
+    manager_mark_pool(c.pool_response, false);
+    job.phase = SdoManager::Job::Phase::Refusing;
+    job.error = DynamicSdoError::kNoDetails;
+    job.why = why;
+    job.confirm = false;
+    return;
+  }
+  manager_finish_job(now, out);
+}
+
+void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& why, TimePoint now,
+                                     Output& out) {
+  (void)now;
+  (void)out;
+  auto& job = sdo_manager.jobs.front();
+  job.steps.clear();
+  job.phase = SdoManager::Job::Phase::Refusing;
+  job.error = error;
+  job.why = why;
+  job.confirm = true;
+  // §7.2.3: Cnxn state 0 and the reason in the error code.
+  const auto srd = sdo_manager.srds.find(job.node);
+  const bool ec = job.kind == SdoManager::Job::Kind::Register
+                      ? DynamicSdoState::decode(job.request).request_error_control
+                      : srd != sdo_manager.srds.end() && srd->second.info.slave_error_control;
+  const std::uint16_t index = job.kind == SdoManager::Job::Kind::Register
+                                  ? DynamicSdoState::decode(job.request).client_index
+                                  : job.client_index;
+  auto state = DynamicSdoState::failure(index, error);
+  state.request_error_control = ec;
+  job.steps.push_back(
+      write_step(job.node, obj::kDynamicSdoConnectionState, 0, state.encode(), 4, false));
+}
+
+void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint now, Output& out) {
+  auto& job = sdo_manager.jobs.front();
+  const auto srd = job.node;
+  job.kind = SdoManager::Job::Kind::Register;
+  job.request = request;
+  job.connection = {};
+  job.connection.row.srd = srd;
+  if (sdo_manager.rescan) {
+    // Another 6E0h came during the scan: scan again after this registration.
+    sdo_manager.rescan = false;
+    SdoManager::Job scan;
+    scan.kind = SdoManager::Job::Kind::Scan;
+    sdo_manager.jobs.push_back(std::move(scan));
+  }
+  const auto state = DynamicSdoState::decode(request);
+  if (state.is_all_default_sdos_request()) {
+    // §7.2.2: all default SDOs, when none is in use (Cnxn 2; no channel to the manager).
+    const bool taken =
+        std::any_of(sdo_manager.connections.begin(), sdo_manager.connections.end(),
+                    [](const SdoManager::Connection& c) {
+                      return !c.row.to_manager && c.row.server_index == kDefaultServer;
+                    }) ||
+        std::any_of(sdo_manager.srds.begin(), sdo_manager.srds.end(),
+                    [](const auto& s) { return s.second.info.all_default_sdos; });
+    if (taken) {
+      manager_refuse(DynamicSdoError::kNoDetails, "a default SDO is in use", now, out);
+      return;
+    }
+    job.phase = SdoManager::Job::Phase::Confirming;
+    job.steps.push_back(write_step(
+        srd, obj::kDynamicSdoConnectionState, 0,
+        DynamicSdoState::confirmation(0, ConnectionState::kAllDefaultSdosOwned).encode(), 4));
+    return;
+  }
+  const auto index = state.client_index;
+  if (!obj::is_sdo_client_parameter(index)) {
+    manager_refuse(DynamicSdoError::kNoDetails,
+                   "1F10h names " + cfg::object_name(index) + ", no client SDO entry", now, out);
+    return;
+  }
+  std::uint16_t channel = 0;
+  for (unsigned i = obj::kSdoServerFirst + 1; i <= obj::kSdoServerLast; ++i) {
+    const auto candidate = static_cast<std::uint16_t>(i);
+    if (!dict.entry(candidate, 1) || sdo_manager.channels.count(candidate) != 0) continue;
+    if ((value_of(candidate, 1) & cfg::kCobIdInvalidBit) == 0) continue;
+    channel = candidate;
+    break;
+  }
+  const auto pool = manager_free_pool();
+  const auto row = manager_free_row();
+  if (channel == 0 || pool.size() < 2 || row == 0) {
+    manager_refuse(
+        DynamicSdoError::kNoChannelToManager,
+        channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h", now,
+        out);
+    return;
+  }
+  auto& c = job.connection;
+  c.pool_request = pool[0];
+  c.pool_response = pool[1];
+  manager_mark_pool(c.pool_request, true);
+  manager_mark_pool(c.pool_response, true);
+  c.row.client_index = index;
+  c.row.server = node_id.value();
+  c.row.server_index = channel;
+  c.row.request = pool_cob_id(dict, pool[0]);
+  c.row.response = pool_cob_id(dict, pool[1]);
+  c.row.to_manager = true;
+  manager_open_channel(channel, c);
+  job.phase = SdoManager::Job::Phase::Confirming;
+  // §7.2.1: enable the SRD's client entry named in 1F10h, then reset 1F10h (Cnxn 1).
+  job.steps.push_back(write_step(srd, index, 3, node_id.value(), 1));
+  job.steps.push_back(write_step(srd, index, 1, c.row.request.word(), 4));
+  job.steps.push_back(write_step(srd, index, 2, c.row.response.word(), 4));
+  job.steps.push_back(
+      write_step(srd, obj::kDynamicSdoConnectionState, 0,
+                 DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
+                                               state.request_error_control)
+                     .encode(),
+                 4));
+}
+
+void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
+  auto& job = sdo_manager.jobs.front();
+  if (sdo_manager.srds.count(job.node) == 0) {  // lost or gone meanwhile
+    manager_finish_job(now, out);
+    return;
+  }
+  job.connection = {};
+  job.connection.row.srd = job.node;
+  job.connection.row.client_index = job.client_index;
+  job.connection.row.server = job.slave;
+  const bool all_default =
+      std::any_of(sdo_manager.srds.begin(), sdo_manager.srds.end(),
+                  [](const auto& s) { return s.second.info.all_default_sdos; });
+  if (!default_sdo_taken(job.slave) && !all_default) {
+    // Is S there? Its default SDO needs no write (§7.1).
+    job.phase = SdoManager::Job::Phase::ProbeSlave;
+    job.steps.push_back(read_step(job.slave, obj::kDeviceType, 0));
+    return;
+  }
+  if (manager_free_pool().size() < 2) {
+    manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h", now,
+                   out);
+    return;
+  }
+  job.phase = SdoManager::Job::Phase::SearchChannel;
+  job.probe = obj::kSdoServerFirst + 1;
+  job.steps.push_back(read_step(job.slave, job.probe, 1));
+}
+
+void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index, TimePoint now, Output& out) {
+  auto& job = sdo_manager.jobs.front();
+  auto& c = job.connection;
+  c.row.server_index = server_index;
+  if (server_index == kDefaultServer) {
+    c.row.request = cfg::CobId::standard(sdo::kDefaultRequestId + job.slave);
+    c.row.response = cfg::CobId::standard(sdo::kDefaultResponseId + job.slave);
+  } else {
+    const auto pool = manager_free_pool();
+    if (pool.size() < 2) {
+      manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h", now,
+                     out);
+      return;
+    }
+    c.pool_request = pool[0];
+    c.pool_response = pool[1];
+    manager_mark_pool(c.pool_request, true);
+    manager_mark_pool(c.pool_response, true);
+    c.row.request = pool_cob_id(dict, pool[0]);
+    c.row.response = pool_cob_id(dict, pool[1]);
+    // §7.1: the free server entry of S, for the SRD.
+    job.steps.push_back(write_step(job.slave, server_index, 3, job.node, 1));
+    job.steps.push_back(write_step(job.slave, server_index, 1, c.row.request.word(), 4));
+    job.steps.push_back(write_step(job.slave, server_index, 2, c.row.response.word(), 4));
+  }
+  const bool ec = sdo_manager.srds.at(job.node).info.slave_error_control;
+  job.steps.push_back(write_step(job.node, job.client_index, 3, job.slave, 1));
+  job.steps.push_back(write_step(job.node, job.client_index, 1, c.row.request.word(), 4));
+  job.steps.push_back(write_step(job.node, job.client_index, 2, c.row.response.word(), 4));
+  job.steps.push_back(write_step(
+      job.node, obj::kDynamicSdoConnectionState, 0,
+      DynamicSdoState::confirmation(job.client_index, ConnectionState::kSlaveConnected, ec)
+          .encode(),
+      4));
+  job.phase = SdoManager::Job::Phase::Writing;
+}
+
+void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
+  using Kind = SdoManager::Job::Kind;
+  using Phase = SdoManager::Job::Phase;
+  auto& job = sdo_manager.jobs.front();
+  if (job.phase == Phase::Refusing) {
+    const bool registering = job.kind == Kind::Register;
+    auto e = master_event(
+        registering ? MasterEvent::Kind::SrdRegistrationFailed
+                    : MasterEvent::Kind::SdoConnectionRefused,
+        now, job.node,
+        node_text(job.node) +
+            (registering ? ": registration refused"
+                         : ": SDO connection to " + node_text(job.slave) + " refused") +
+            ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
+            std::string(sm::describe(job.error)) + "): " + job.why);
+    e.connection = job.connection.row;
+    e.connection_error = static_cast<std::uint8_t>(job.error);
+    report(out, std::move(e));
+    manager_finish_job(now, out);
+    return;
+  }
+  switch (job.kind) {
+    case Kind::Scan: {
+      if (job.phase == Phase::Start) {
+        job.phase = Phase::Scanning;
+        job.node = cfg::kMaxNodeId;
+      }
+      // §7.2.1 / §7.2.4 guideline 2: from 127 down, node-IDs not registered, whose default SDO
+      // no connection holds.
+      while (job.node >= cfg::kMinNodeId &&
+             (job.node == node_id.value() || sdo_manager.srds.count(job.node) != 0 ||
+              default_sdo_taken(job.node))) {
+        --job.node;
+      }
+      if (job.node < cfg::kMinNodeId) {
+        manager_finish_job(now, out);
+        if (sdo_manager.rescan) {
+          sdo_manager.rescan = false;
+          SdoManager::Job scan;
+          scan.kind = Kind::Scan;
+          sdo_manager.jobs.push_back(std::move(scan));
+        }
+        return;
+      }
+      job.steps.push_back(read_step(job.node, obj::kDynamicSdoConnectionState, 0, false));
+      return;
+    }
+    case Kind::Register: {
+      if (job.phase == Phase::Confirming) {
+        // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h.
+        if (auto hb = heartbeat_time(job.node)) {
+          manager_watch(job.node, true, hb, now);
+          job.phase = Phase::Writing;
+        } else {
+          job.phase = Phase::ReadHeartbeat;
+          job.steps.push_back(read_step(job.node, obj::kProducerHeartbeatTime, 0));
+          return;
+        }
+      }
+      SdoManager::Srd srd;
+      srd.info.node = job.node;
+      const auto request = DynamicSdoState::decode(job.request);
+      srd.info.all_default_sdos = request.is_all_default_sdos_request();
+      srd.info.slave_error_control = request.request_error_control;
+      auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node,
+                            node_text(job.node) + ": SRD registered");
+      if (!srd.info.all_default_sdos) {
+        auto c = job.connection;
+        c.row.row = manager_free_row();
+        srd.info.client_index = c.row.client_index;
+        srd.own_channel = c.row.server_index;
+        set_row(dict, c.row.row, row_word(c.row));
+        sdo_manager.connections.push_back(c);
+        e.connection = c.row;
+        e.text += ", " + connection_text(c.row);
+      } else {
+        e.text += " with all default SDOs";
+      }
+      if (srd.info.slave_error_control) e.text += ", error control of its slaves";
+      sdo_manager.srds[job.node] = srd;
+      report(out, std::move(e));
+      manager_finish_job(now, out);
+      return;
+    }
+    case Kind::Connect: {
+      if (job.phase == Phase::Start) {
+        manager_start_connect(now, out);
+        return;
+      }
+      // Phase::Writing done: established (§7.2.2).
+      auto c = job.connection;
+      c.row.row = manager_free_row();
+      if (c.row.row != 0) set_row(dict, c.row.row, row_word(c.row));
+      sdo_manager.connections.push_back(c);
+      const auto srd = sdo_manager.srds.find(job.node);
+      if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control &&
+          sdo_manager.watched.count(job.slave) == 0 && !heartbeats.monitors(job.slave) &&
+          !guarding.guards(job.slave)) {
+        // §7.2.5 step 4.4: error control of S for the SRD.
+        manager_watch(job.slave, false, std::nullopt, now);
+        sdo_manager.watched.insert(job.slave);
+      } else if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control) {
+        sdo_manager.watched.insert(job.slave);
+      }
+      auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node,
+                            "SDO connection established: " + connection_text(c.row));
+      e.connection = c.row;
+      report(out, std::move(e));
+      manager_finish_job(now, out);
+      return;
+    }
+    case Kind::Release: {
+      if (job.phase == Phase::Start) {
+        job.phase = Phase::Releasing;
+        if (job.failed != 0) {
+          // §7.2.3 1F11h: reason 00h, the failed slave's node-ID.
+          job.steps.push_back(write_step(
+              job.node, obj::kSlaveFailed, 0,
+              sm::SlaveFailed{static_cast<std::uint8_t>(sm::SlaveFailedReason::kErrorControl),
+                              job.failed}
+                  .encode(),
+              2, false, !job.srd_lost));
+        }
+        for (const auto& c : job.releases) {
+          // §7.2.1: invalidate the SRD's client entry, then S's server entry (not its default).
+          job.steps.push_back(write_step(job.node, c.row.client_index, 1,
+                                         c.row.request.with_valid(false).word(), 4, false,
+                                         !job.srd_lost));
+          job.steps.push_back(write_step(job.node, c.row.client_index, 2,
+                                         c.row.response.with_valid(false).word(), 4, false,
+                                         !job.srd_lost));
+          if (!c.row.to_manager && c.row.server_index != kDefaultServer && job.failed == 0) {
+            job.steps.push_back(write_step(c.row.server, c.row.server_index, 1,
+                                           c.row.request.with_valid(false).word(), 4, false));
+            job.steps.push_back(write_step(c.row.server, c.row.server_index, 2,
+                                           c.row.response.with_valid(false).word(), 4, false));
+          }
+        }
+        if (!job.steps.empty()) return;
+      }
+      if (job.failed != 0) {
+        ManagedSdoConnection failed;
+        failed.srd = job.node;
+        failed.server = job.failed;
+        auto e = master_event(
+            MasterEvent::Kind::SlaveFailedReported, now, job.node,
+            node_text(job.node) + ": 1F11h reports " + node_text(job.failed) + " failed");
+        e.connection = failed;
+        report(out, std::move(e));
+      }
+      for (const auto& c : job.releases) {
+        manager_mark_pool(c.pool_request, false);
+        manager_mark_pool(c.pool_response, false);
+        if (c.row.to_manager) manager_close_channel(c.row.server_index);
+        auto e =
+            master_event(MasterEvent::Kind::SdoConnectionReleased, now, job.node,
+                         "SDO connection released (" + job.why + "): " + connection_text(c.row));
+        e.connection = c.row;
+        report(out, std::move(e));
+      }
+      if (job.deregister && !job.srd_lost) {
+        if (!is_slave(job.node)) stop_error_control(job.node);
+        report(out, master_event(MasterEvent::Kind::SrdDeregistered, now, job.node,
+                                 node_text(job.node) + ": SRD de-registered"));
+      }
+      manager_finish_job(now, out);
+      return;
+    }
+  }
+}
+
+void NmtMaster::Impl::manager_finish_job(TimePoint /*now*/, Output& /*out*/) {
+  if (!sdo_manager.jobs.empty()) sdo_manager.jobs.pop_front();
+}
+
+// --- the public accessors ---
+
+std::vector<ManagedSdoConnection> NmtMaster::sdo_connections() const {
+  std::vector<ManagedSdoConnection> rows;
+  for (const auto& c : impl_->sdo_manager.connections) rows.push_back(c.row);
+  std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.row < b.row; });
+  return rows;
+}
+
+std::vector<RegisteredSrd> NmtMaster::registered_srds() const {
+  std::vector<RegisteredSrd> srds;
+  for (const auto& [node, srd] : impl_->sdo_manager.srds) srds.push_back(srd.info);
+  return srds;
+}
+
+}  // namespace nmt
