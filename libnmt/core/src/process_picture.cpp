@@ -46,7 +46,7 @@ class ProcessPicture {
     const auto window = selected();
     if (!window) return SdoAbort::NoDataAvailable;
     std::vector<std::uint8_t> bytes(window->size, 0);
-    for_each_variable(*window, [&](const VariableBits& v) {
+    for_each_variable(*window, false, [&](const VariableBits& v) {
       const auto value = dict_.get_bytes(v.index, v.sub);
       if (!value) return;
       std::uint64_t bits = 0;
@@ -55,6 +55,7 @@ class ProcessPicture {
       }
       for (std::uint32_t i = 0; i < v.width; ++i) {
         const std::uint64_t at = v.bit - window->first_bit + i;
+        if (at >= bytes.size() * 8) break;  // the part of a variable cut by the length
         const auto mask = static_cast<std::uint8_t>(1U << (at % 8));
         if ((bits >> i & 1U) != 0) {
           bytes[at / 8] |= mask;
@@ -73,7 +74,7 @@ class ProcessPicture {
     if (!window) return SdoAbort::NoDataAvailable;
     if (data.size() > window->size) return SdoAbort::LengthTooHigh;
     window->size = data.size();
-    for_each_variable(*window, [&](const VariableBits& v) {
+    for_each_variable(*window, true, [&](const VariableBits& v) {
       const DictionaryEntry* e = dict_.entry(v.index, v.sub);
       if (e == nullptr) return;
       std::uint64_t bits = 0;
@@ -119,9 +120,10 @@ class ProcessPicture {
                   static_cast<std::size_t>(size)};
   }
 
-  // Every variable of the window's picture present in the dictionary that lies wholly inside it.
+  // Every variable of the window's picture present in the dictionary that starts in it (and,
+  // when `whole`, ends in it too).
   template <class F>
-  void for_each_variable(const Window& w, F&& f) const {
+  void for_each_variable(const Window& w, bool whole, F&& f) const {
     const std::uint64_t end_bit = w.first_bit + std::uint64_t{w.size} * 8;
     for (const cfg::DynamicSegment& s : channels_.segments) {
       if (!cfg::is_usable(s) || cfg::direction_of(s) != w.direction) continue;
@@ -134,7 +136,7 @@ class ProcessPicture {
         if (!p) continue;
         const std::uint64_t bit = cfg::process_picture_bit_offset(s, *p);
         const std::uint32_t width = cfg::width_bits(s);
-        if (bit < w.first_bit || bit + width > end_bit) continue;
+        if (bit < w.first_bit || bit >= end_bit || (whole && bit + width > end_bit)) continue;
         f(VariableBits{e.index, e.sub_index, bit, width});
       }
     }

@@ -17,7 +17,8 @@ namespace nmt::detail {
 /// 0609 0030 (CiA 301: value range of parameter exceeded); 0 (the default) selects nothing.
 /// Sub 2 reads the selected segment's part of the process picture (from its PPOffset, bytes as
 /// the variables lie in it, §8.2 offsets; inputs and outputs are two pictures, and every
-/// variable of a segment of the same direction that lies in the part is in it), and a write sets
+/// variable of a segment of the same direction that starts in the part is in it, cut at the
+/// length), and a write sets
 /// every variable that lies wholly inside the bytes written. With nothing selected, sub 2
 /// aborts with 0800 0024 (no data available); a write longer than the selected length or the
 /// segment aborts with 0607 0012.
