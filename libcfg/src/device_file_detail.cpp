@@ -15,7 +15,7 @@ bool is_hex_digit(char c) {
 bool is_reserved_section_name(std::string_view name) {
   for (std::string_view known :
        {"FileInfo", "DeviceInfo", "DummyUsage", "Comments", "MandatoryObjects", "OptionalObjects",
-        "ManufacturerObjects", "DeviceComissioning", "DeviceCommissioning", "DynamicChannels"}) {
+        "ManufacturerObjects", "DeviceComissioning", "DeviceCommissioning"}) {
     if (iequals(name, known)) return true;
   }
   if (name.size() < 4) return false;

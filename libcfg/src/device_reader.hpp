@@ -24,6 +24,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/value.hpp"
 #include "device_file_detail.hpp"
+#include "dynamic_channels_read.hpp"
 #include "ini_scanner.hpp"
 
 namespace cfg::detail::reader {
@@ -180,19 +181,12 @@ struct ListState {
   std::vector<std::pair<std::uint16_t, int>> entries;  // index, line
 };
 
-// [DynamicChannels] as read: the keys' texts (views into the file) and lines, parsed after the
-// last line (device_reader_dynamic.cpp), when DeviceInfo is known too.
-enum class SegmentKey : std::uint8_t { Type, Dir, Range, PPOffset, MaxCnt, MSpecific };
-inline constexpr std::size_t kSegmentKeyCount = 6;
-struct SegmentKeys {
-  std::array<RawKey, kSegmentKeyCount> keys{};  // line 0: not given
-  int first_line = 0;
-};
+// [DynamicChannels] as read: its keys (views into the file) in file order, checked after the last
+// line (device_reader_dynamic.cpp). The section itself is kept as a RawSection.
 struct DynamicChannelsState {
   bool present = false;
   int line = 0;
-  RawKey count;                                  // NrOfSeg (line 0: not given)
-  std::map<std::uint64_t, SegmentKeys> entries;  // by entry index (1..)
+  std::vector<DynamicChannelsKey> keys;
 };
 
 // A key=value section kept as text, with a case-insensitive index for duplicates.
@@ -326,7 +320,6 @@ class Reader final : public IniSink {
   void check_object_lists();
 
   // ---- [DynamicChannels] (device_reader_dynamic.cpp)
-  void dynamic_channels_key(std::string_view key, std::string_view value, int line);
   void finish_dynamic_channels();
 
   // ---- after the last line (device_reader.cpp)
@@ -334,7 +327,7 @@ class Reader final : public IniSink {
 
   struct Seen {
     bool file_info = false, device_info = false, dummy_usage = false, comments = false,
-         commissioning = false, dynamic_channels = false;
+         commissioning = false;
   };
   struct UnknownKey {
     int line = 0;

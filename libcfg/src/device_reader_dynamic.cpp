@@ -1,21 +1,33 @@
-// The reader's [DynamicChannels] section and [DeviceInfo] DynamicChannelsSupported (CiA DSP 302
-// §8.4): the keys are collected as they come and read after the last line, when DeviceInfo is
-// known. What makes a segment unusable for dynamic index assignment (a missing or unreadable key,
+// [DynamicChannels] and [DeviceInfo] DynamicChannelsSupported (CiA DSP 302 §8.4): the reader
+// keeps the section as written (a RawSection) and collects its keys, read and checked after the
+// last line, when DeviceInfo is known; cfg::dynamic_channels_of reads the kept section the same
+// way. What makes a segment unusable for dynamic index assignment (a missing or unreadable key,
 // a range that is reversed, overlaps another or lies outside the manufacturer/profile areas, a
 // type no process picture can hold) is an error in both modes; a segment the model cannot
-// represent (a missing key, unreadable values) is left out of the model.
+// represent (a missing key, unreadable values) is left out of the segments.
 #include <algorithm>
+#include <array>
 #include <limits>
+#include <map>
 
 #include "cfg/data_type.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
 #include "device_reader.hpp"
+#include "dynamic_channels_read.hpp"
 
-namespace cfg::detail::reader {
+namespace cfg::detail {
 namespace {
 
 constexpr std::string_view kSection = "[DynamicChannels] ";
+
+// The keys of one segment, in SegmentKey order (line 0: not given).
+enum class SegmentKey : std::uint8_t { Type, Dir, Range, PPOffset, MaxCnt, MSpecific };
+constexpr std::size_t kSegmentKeyCount = 6;
+struct SegmentKeys {
+  std::array<DynamicChannelsKey, kSegmentKeyCount> keys{};
+  int first_line = 0;
+};
 
 // CiA DSP 302 §8.4 keywords counted with an entry index, in SegmentKey order.
 constexpr std::array<std::string_view, kSegmentKeyCount> kSegmentKeyNames = {
@@ -64,91 +76,83 @@ std::string range_text(const DynamicSegment& s) {
 
 }  // namespace
 
-void Reader::dynamic_channels_key(std::string_view key, std::string_view value, int line) {
-  if (iequals(key, "NrOfSeg")) {
-    if (dynamic_.count.line != 0) {
-      warn(line, where() + "NrOfSeg is given a second time (first at line " +
-                     std::to_string(dynamic_.count.line) + "); the later value is used");
+DynamicChannels read_dynamic_channels(std::span<const DynamicChannelsKey> raw_keys,
+                                      int section_line, const DynamicChannelsReport& report) {
+  auto error = [&](int line, std::string message) {
+    if (report.error) report.error(line, std::move(message));
+  };
+  auto warn = [&](int line, std::string message) {
+    if (report.warn) report.warn(line, std::move(message));
+  };
+  // The keys by entry index; numbers and words lose an inline comment (MSpecific is text).
+  struct Count {
+    std::string_view value;
+    int line = 0;
+  } count_key;
+  std::map<std::uint64_t, SegmentKeys> entries;
+  for (const DynamicChannelsKey& k : raw_keys) {
+    std::string_view value = k.value;
+    if (iequals(k.key, "NrOfSeg")) {
+      const std::size_t c = find_inline_comment(value);
+      if (c != std::string_view::npos) value = trim_blanks(value.substr(0, c));
+      count_key = {value, k.line};
+      continue;
     }
-    dynamic_.count = {key, without_comment(value, key, line), line};
-    return;
-  }
-  for (std::size_t i = 0; i < kSegmentKeyCount; ++i) {
-    const std::string_view name = kSegmentKeyNames[i];
-    if (!istarts_with(key, name)) continue;
-    const std::optional<std::uint64_t> n = entry_index(key.substr(name.size()));
-    if (!n) {
-      warn(line, where() + "key " + std::string(key) + ": the entry index after " +
-                     std::string(name) + " is a decimal number from 1 (CiA DSP 302 §8.4); ignored");
-      return;
+    bool known = false;
+    for (std::size_t i = 0; i < kSegmentKeyCount && !known; ++i) {
+      const std::string_view name = kSegmentKeyNames[i];
+      if (!reader::istarts_with(k.key, name)) continue;
+      known = true;
+      const std::optional<std::uint64_t> n = entry_index(k.key.substr(name.size()));
+      if (!n) {
+        warn(k.line, std::string(kSection) + "key " + std::string(k.key) +
+                         ": the entry index after " + std::string(name) +
+                         " is a decimal number from 1 (CiA DSP 302 §8.4); ignored");
+        break;
+      }
+      if (static_cast<SegmentKey>(i) != SegmentKey::MSpecific) {
+        const std::size_t c = find_inline_comment(value);
+        if (c != std::string_view::npos) value = trim_blanks(value.substr(0, c));
+      }
+      SegmentKeys& entry = entries[*n];
+      entry.keys[i] = {k.key, value, k.line};
+      if (entry.first_line == 0) entry.first_line = k.line;
     }
-    SegmentKeys& entry = dynamic_.entries[*n];
-    RawKey& slot = entry.keys[i];
-    if (slot.line != 0) {
-      warn(line, where() + std::string(key) + " is given a second time (first at line " +
-                     std::to_string(slot.line) + "); the later value is used");
+    if (!known) {
+      warn(k.line, std::string(kSection) + "key " + std::string(k.key) +
+                       " is not a [DynamicChannels] key (NrOfSeg, TypeN, DirN, RangeN, "
+                       "PPOffsetN, MaxCntN, MSpecificN: CiA DSP 302 §8.4); ignored");
     }
-    // MSpecific is manufacturer text, kept verbatim; the others are numbers and words.
-    const bool text = static_cast<SegmentKey>(i) == SegmentKey::MSpecific;
-    slot = {key, text ? value : without_comment(value, key, line), line};
-    if (entry.first_line == 0) entry.first_line = line;
-    return;
-  }
-  warn(line, where() + "key " + std::string(key) +
-                 " is not a [DynamicChannels] key (NrOfSeg, TypeN, DirN, RangeN, PPOffsetN, "
-                 "MaxCntN, MSpecificN: CiA DSP 302 §8.4); ignored");
-}
-
-void Reader::finish_dynamic_channels() {
-  const std::optional<std::uint32_t> supported = model_.dynamic_channels_supported();
-  auto supported_it = device_info_.index.find(std::string_view("DynamicChannelsSupported"));
-  const int supported_line =
-      supported_it == device_info_.index.end() ? 0 : supported_it->second.second;
-  if (!dynamic_.present) {
-    // §8.4: "If the entry DynamicChannelsSupported is non-zero, the section DynamicChannels
-    // describes the usable segments" (bit 2: DS-405 predefines them instead).
-    if (supported && *supported != 0 &&
-        (*supported & dynamic_channels_bit::kPredefinedSegments) == 0) {
-      warn(supported_line, "[DeviceInfo] DynamicChannelsSupported is " + hex(*supported, 0) +
-                               " but the file has no [DynamicChannels] section to describe the "
-                               "segments (CiA DSP 302 §8.4)");
-    }
-    return;
-  }
-  if (supported && *supported == 0) {
-    warn(dynamic_.line, "[DynamicChannels] is given but [DeviceInfo] DynamicChannelsSupported is " +
-                            std::string(supported_line == 0 ? "absent (0)" : "0") +
-                            ": the segments are not used (CiA DSP 302 §8.4)");
   }
 
-  DynamicChannels& out = model_.dynamic_channels.emplace();
+  DynamicChannels out;
   std::optional<std::uint64_t> count;
-  if (dynamic_.count.line == 0) {
-    error(dynamic_.line, "[DynamicChannels] has no NrOfSeg (CiA DSP 302 §8.4)");
+  if (count_key.line == 0) {
+    error(section_line, "[DynamicChannels] has no NrOfSeg (CiA DSP 302 §8.4)");
   } else {
-    const std::string_view text = trim_blanks(dynamic_.count.value);
-    auto n = parse_number(text);
+    const std::string_view text = trim_blanks(count_key.value);
+    auto n = reader::parse_number(text);
     if (!n || n->h_suffix || n->value > std::numeric_limits<std::uint32_t>::max()) {
-      error(dynamic_.count.line, std::string(kSection) + "NrOfSeg " + shown(text) +
-                                     " is not a decimal or 0x number (CiA DSP 302 §8.4)");
+      error(count_key.line, std::string(kSection) + "NrOfSeg " + reader::shown(text) +
+                                " is not a decimal or 0x number (CiA DSP 302 §8.4)");
     } else {
       count = n->value;
     }
   }
 
   std::vector<ReadSegment> segments;
-  for (const auto& item : dynamic_.entries) {
+  for (const auto& item : entries) {
     // Named, not a structured binding: clang 14 does not let lambdas capture those.
     const std::uint64_t entry = item.first;
     const SegmentKeys& keys = item.second;
-    auto given = [&](SegmentKey k) -> const RawKey* {
-      const RawKey& r = keys.keys[static_cast<std::size_t>(k)];
+    auto given = [&](SegmentKey k) -> const DynamicChannelsKey* {
+      const DynamicChannelsKey& r = keys.keys[static_cast<std::size_t>(k)];
       return r.line == 0 ? nullptr : &r;
     };
     if (count && entry > *count) {
       error(keys.first_line, std::string(kSection) + "segment " + std::to_string(entry) +
                                  " is beyond NrOfSeg " + std::to_string(*count) + " (line " +
-                                 std::to_string(dynamic_.count.line) + ")");
+                                 std::to_string(count_key.line) + ")");
     }
     bool usable = true;
     for (SegmentKey k : {SegmentKey::Type, SegmentKey::Dir, SegmentKey::Range, SegmentKey::PPOffset,
@@ -164,14 +168,15 @@ void Reader::finish_dynamic_channels() {
     ReadSegment r;
     r.entry = entry;
     DynamicSegment& s = r.segment;
-    auto bad = [&](const RawKey& k, const std::string& why) {
-      error(k.line, std::string(kSection) + std::string(k.key) + " " + shown(trim_blanks(k.value)) +
-                        " " + why + " (CiA DSP 302 §8.4); the segment is left out");
+    auto bad = [&](const DynamicChannelsKey& k, const std::string& why) {
+      error(k.line, std::string(kSection) + std::string(k.key) + " " +
+                        reader::shown(trim_blanks(k.value)) + " " + why +
+                        " (CiA DSP 302 §8.4); the segment is left out");
       usable = false;
     };
-    auto unsigned_number = [&](const RawKey& k, std::string_view text,
+    auto unsigned_number = [&](const DynamicChannelsKey& k, std::string_view text,
                                std::uint64_t max) -> std::optional<std::uint64_t> {
-      auto n = parse_number(trim_blanks(text));
+      auto n = reader::parse_number(trim_blanks(text));
       if (!n || n->h_suffix || n->value > max) {
         bad(k, "is not an unsigned number (decimal or 0x hex) up to " + std::to_string(max));
         return std::nullopt;
@@ -179,26 +184,26 @@ void Reader::finish_dynamic_channels() {
       return n->value;
     };
 
-    const RawKey& type = *given(SegmentKey::Type);
+    const DynamicChannelsKey& type = *given(SegmentKey::Type);
     r.type_line = type.line;
     if (auto n = unsigned_number(type, type.value, 0xFFFF)) {
       s.data_type = static_cast<std::uint16_t>(*n);
     }
 
-    const RawKey& dir = *given(SegmentKey::Dir);
+    const DynamicChannelsKey& dir = *given(SegmentKey::Dir);
     const std::string_view dir_text = trim_blanks(dir.value);
     if (auto d = segment_direction_from_string(dir_text)) {
       s.direction = *d;
       if (dir_text != to_string(*d)) {
-        warn(dir.line, std::string(kSection) + std::string(dir.key) + " " + shown(dir_text) +
-                           ": CiA DSP 302 §8.4 writes it in lower case");
+        warn(dir.line, std::string(kSection) + std::string(dir.key) + " " +
+                           reader::shown(dir_text) + ": CiA DSP 302 §8.4 writes it in lower case");
       }
     } else {
       bad(dir, "is not ro, wo or rww");
     }
 
     // §8.4: "pair of numbers ... unsigned16 hexadecimal with leading 0x", "0x7001-0x7017".
-    const RawKey& range = *given(SegmentKey::Range);
+    const DynamicChannelsKey& range = *given(SegmentKey::Range);
     r.range_line = range.line;
     const std::string_view range_value = trim_blanks(range.value);
     const std::size_t dash = range_value.find('-');
@@ -220,7 +225,7 @@ void Reader::finish_dynamic_channels() {
     }
 
     // §8.4: the offset, and for BOOLEAN segments ",bit distance".
-    const RawKey& pp = *given(SegmentKey::PPOffset);
+    const DynamicChannelsKey& pp = *given(SegmentKey::PPOffset);
     r.pp_line = pp.line;
     const std::string_view pp_value = trim_blanks(pp.value);
     const std::size_t comma = pp_value.find(',');
@@ -233,20 +238,19 @@ void Reader::finish_dynamic_channels() {
       }
     }
 
-    const RawKey& max = *given(SegmentKey::MaxCnt);
+    const DynamicChannelsKey& max = *given(SegmentKey::MaxCnt);
     r.max_line = max.line;
     if (auto n = unsigned_number(max, max.value, 0xFFFFFFFF)) {
       s.max_count = static_cast<std::uint32_t>(*n);
     }
-    if (const RawKey* m = given(SegmentKey::MSpecific)) s.m_specific.emplace(m->value);
+    if (const DynamicChannelsKey* m = given(SegmentKey::MSpecific)) s.m_specific.emplace(m->value);
     if (usable) segments.push_back(std::move(r));
   }
-  if (count && *count != dynamic_.entries.size()) {
-    error(dynamic_.count.line,
-          std::string(kSection) + "NrOfSeg is " + std::to_string(*count) + " but " +
-              std::to_string(dynamic_.entries.size()) +
-              (dynamic_.entries.size() == 1 ? " segment is" : " segments are") +
-              " described (CiA DSP 302 §8.4: entries 1..NrOfSeg)");
+  if (count && *count != entries.size()) {
+    error(count_key.line, std::string(kSection) + "NrOfSeg is " + std::to_string(*count) + " but " +
+                              std::to_string(entries.size()) +
+                              (entries.size() == 1 ? " segment is" : " segments are") +
+                              " described (CiA DSP 302 §8.4: entries 1..NrOfSeg)");
   }
 
   for (ReadSegment& r : segments) {
@@ -318,6 +322,37 @@ void Reader::finish_dynamic_channels() {
     if (furthest == nullptr || r->segment.last_index > furthest->segment.last_index) furthest = r;
   }
   for (ReadSegment& r : segments) out.segments.push_back(std::move(r.segment));
+  return out;
 }
 
-}  // namespace cfg::detail::reader
+namespace reader {
+
+void Reader::finish_dynamic_channels() {
+  const std::optional<std::uint32_t> supported = dynamic_channels_supported(model_);
+  auto supported_it = device_info_.index.find(std::string_view("DynamicChannelsSupported"));
+  const int supported_line =
+      supported_it == device_info_.index.end() ? 0 : supported_it->second.second;
+  if (!dynamic_.present) {
+    // §8.4: "If the entry DynamicChannelsSupported is non-zero, the section DynamicChannels
+    // describes the usable segments" (bit 2: DS-405 predefines them instead).
+    if (supported && *supported != 0 &&
+        (*supported & dynamic_channels_bit::kPredefinedSegments) == 0) {
+      warn(supported_line, "[DeviceInfo] DynamicChannelsSupported is " + hex(*supported, 0) +
+                               " but the file has no [DynamicChannels] section to describe the "
+                               "segments (CiA DSP 302 §8.4)");
+    }
+    return;
+  }
+  if (supported && *supported == 0) {
+    warn(dynamic_.line, "[DynamicChannels] is given but [DeviceInfo] DynamicChannelsSupported is " +
+                            std::string(supported_line == 0 ? "absent (0)" : "0") +
+                            ": the segments are not used (CiA DSP 302 §8.4)");
+  }
+  DynamicChannelsReport report;
+  report.error = [this](int line, std::string message) { error(line, std::move(message)); };
+  report.warn = [this](int line, std::string message) { warn(line, std::move(message)); };
+  (void)read_dynamic_channels(dynamic_.keys, dynamic_.line, report);
+}
+
+}  // namespace reader
+}  // namespace cfg::detail

@@ -77,7 +77,8 @@ void Reader::on_key(int line, std::string_view key, std::string_view value) {
       object_links_key(key, value, line);
       return;
     case Kind::DynamicChannels:
-      dynamic_channels_key(key, value, line);
+      add_key_value(*cur_.other, key, value, line);  // kept as written
+      dynamic_.keys.push_back({key, value, line});
       return;
   }
 }
@@ -118,9 +119,12 @@ void Reader::open_section() {
   if (iequals(name, "DummyUsage")) return known(seen_.dummy_usage, Kind::DummyUsage);
   if (iequals(name, "Comments")) return known(seen_.comments, Kind::Comments);
   if (iequals(name, "DynamicChannels")) {
+    // CiA DSP 302 §8.4: kept as written like any other section, and checked at the end.
     if (!dynamic_.present) dynamic_.line = cur_.line;
     dynamic_.present = true;
-    return known(seen_.dynamic_channels, Kind::DynamicChannels);
+    open_other_section();
+    if (cur_.kind == Kind::Other) cur_.kind = Kind::DynamicChannels;
+    return;
   }
   static constexpr std::array<std::string_view, 3> kLists = {"MandatoryObjects", "OptionalObjects",
                                                              "ManufacturerObjects"};

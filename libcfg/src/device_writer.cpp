@@ -323,14 +323,6 @@ void canonical_file_parts(DeviceDescription& d, const WriteOptions& options) {
     }
   }
 
-  if (d.dynamic_channels) {
-    for (DynamicSegment& s : d.dynamic_channels->segments) {
-      if (s.m_specific) clean_text(*s.m_specific);
-      // The reader keeps a bit distance only on BOOLEAN segments (CiA DSP 302 §8.4).
-      if (s.data_type != static_cast<std::uint16_t>(DataType::Boolean)) s.bit_distance.reset();
-    }
-  }
-
   std::vector<RawSection> others;
   std::unordered_map<std::string, std::size_t, CaseInsensitiveHash, CaseInsensitiveEqual> index;
   for (RawSection& section : d.other_sections) {
@@ -341,23 +333,6 @@ void canonical_file_parts(DeviceDescription& d, const WriteOptions& options) {
     merge_key_values(others[it->second].keys, section.keys);
   }
   d.other_sections = std::move(others);
-}
-
-// CiA DSP 302 §8.4, in the order of its example; Type as DataType= is written.
-void write_dynamic_channels(Out& out, const DynamicChannels& channels) {
-  out.section("DynamicChannels");
-  out.key("NrOfSeg", std::to_string(channels.segments.size()));
-  for (std::size_t i = 0; i < channels.segments.size(); ++i) {
-    const DynamicSegment& s = channels.segments[i];
-    const std::string n = std::to_string(i + 1);
-    out.key("Type" + n, hex(s.data_type, 4));
-    out.key("Dir" + n, to_string(s.direction));
-    out.key("Range" + n, hex(s.first_index, 4) + "-" + hex(s.last_index, 4));
-    out.key("PPOffset" + n, std::to_string(s.pp_offset) +
-                                (s.bit_distance ? "," + std::to_string(*s.bit_distance) : ""));
-    out.key("MaxCnt" + n, std::to_string(s.max_count));
-    if (s.m_specific) out.key("MSpecific" + n, *s.m_specific);
-  }
 }
 
 void write_file_info(Out& out, const KeyValues& file_info) {
@@ -383,7 +358,6 @@ std::string write_device_description(const DeviceDescription& device, const Writ
   head.dummy_usage = device.dummy_usage;
   head.commissioning = device.commissioning;
   head.comments = device.comments;
-  head.dynamic_channels = device.dynamic_channels;
   head.other_sections = device.other_sections;
   WriteOptions unstamped = options;
   const bool stamp_on_change = options.stamp && options.stamp_only_if_changed_from;
@@ -399,7 +373,6 @@ std::string write_device_description(const DeviceDescription& device, const Writ
   const std::size_t file_info_end = out.size();
   out.section("DeviceInfo");
   out.key_values(head.device_info);
-  if (head.dynamic_channels) write_dynamic_channels(out, *head.dynamic_channels);
   if (!head.dummy_usage.entries.empty()) {
     out.section("DummyUsage");
     out.key_values(head.dummy_usage);

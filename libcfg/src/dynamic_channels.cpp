@@ -8,6 +8,7 @@
 
 #include "cfg/data_type.hpp"
 #include "cfg/integer_literal.hpp"
+#include "dynamic_channels_read.hpp"
 
 namespace cfg {
 namespace {
@@ -51,6 +52,44 @@ class Occupied {
 };
 
 }  // namespace
+
+std::string_view to_string(SegmentDirection direction) {
+  switch (direction) {
+    case SegmentDirection::Ro:
+      return "ro";
+    case SegmentDirection::Wo:
+      return "wo";
+    case SegmentDirection::Rww:
+      return "rww";
+  }
+  return "?";
+}
+
+std::optional<SegmentDirection> segment_direction_from_string(std::string_view text) {
+  for (auto d : {SegmentDirection::Ro, SegmentDirection::Wo, SegmentDirection::Rww}) {
+    if (iequals(text, to_string(d))) return d;
+  }
+  return std::nullopt;
+}
+
+std::optional<DynamicChannels> dynamic_channels_of(const DeviceDescription& device) {
+  for (const RawSection& section : device.other_sections) {
+    if (!iequals(section.name, "DynamicChannels")) continue;
+    std::vector<detail::DynamicChannelsKey> keys;
+    keys.reserve(section.keys.entries.size());
+    for (const auto& [key, value] : section.keys.entries) keys.push_back({key, value, 0});
+    return detail::read_dynamic_channels(keys, 0, {});
+  }
+  return std::nullopt;
+}
+
+std::optional<std::uint32_t> dynamic_channels_supported(const DeviceDescription& device) {
+  const std::string* text = device.device_info.find("DynamicChannelsSupported");
+  if (text == nullptr) return 0;  // CiA DSP 302 §8.4: "If the entry does not exist, it is 0"
+  const IntegerLiteralResult n = parse_integer_literal(*text);
+  if (!n.literal || n.literal->value > 0xFFFFFFFFU) return std::nullopt;
+  return static_cast<std::uint32_t>(n.literal->value);
+}
 
 std::string_view to_string(VariableDirection direction) {
   return direction == VariableDirection::Input ? "in" : "out";

@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <tuple>
 
-#include "cfg/integer_literal.hpp"
-
 namespace cfg {
 
 bool iequals(std::string_view a, std::string_view b) {
@@ -86,33 +84,6 @@ bool is_writable(AccessType access) {
 
 bool is_readable(AccessType access) {
   return access != AccessType::Wo;
-}
-
-std::string_view to_string(SegmentDirection direction) {
-  switch (direction) {
-    case SegmentDirection::Ro:
-      return "ro";
-    case SegmentDirection::Wo:
-      return "wo";
-    case SegmentDirection::Rww:
-      return "rww";
-  }
-  return "?";
-}
-
-std::optional<SegmentDirection> segment_direction_from_string(std::string_view text) {
-  for (auto d : {SegmentDirection::Ro, SegmentDirection::Wo, SegmentDirection::Rww}) {
-    if (iequals(text, to_string(d))) return d;
-  }
-  return std::nullopt;
-}
-
-std::optional<std::uint32_t> DeviceDescription::dynamic_channels_supported() const {
-  const std::string* text = device_info.find("DynamicChannelsSupported");
-  if (text == nullptr) return 0;  // CiA DSP 302 §8.4: "If the entry does not exist, it is 0"
-  const IntegerLiteralResult n = parse_integer_literal(*text);
-  if (!n.literal || n.literal->value > 0xFFFFFFFFU) return std::nullopt;
-  return static_cast<std::uint32_t>(n.literal->value);
 }
 
 std::optional<DataType> SubObject::basic_type() const {

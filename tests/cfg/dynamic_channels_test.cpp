@@ -52,11 +52,12 @@ DeviceDescription read_ok(const std::string& name) {
 
 TEST(DynamicChannels, ReadsTheTwoSegmentsOfTheSpecExample) {
   const DeviceDescription d = read_ok("spec_example.eds");
-  EXPECT_EQ(d.dynamic_channels_supported(), 1U);  // §8.4 example: DynamicChannelsSupported=1
-  ASSERT_TRUE(d.dynamic_channels);
-  ASSERT_EQ(d.dynamic_channels->segments.size(), 2U);
+  EXPECT_EQ(dynamic_channels_supported(d), 1U);  // §8.4 example: DynamicChannelsSupported=1
+  const std::optional<DynamicChannels> c = dynamic_channels_of(d);
+  ASSERT_TRUE(c);
+  ASSERT_EQ(c->segments.size(), 2U);
   // §8.4: "4 kByte of byte input variables" and "64 Boolean input variables".
-  const DynamicSegment& bytes = d.dynamic_channels->segments[0];
+  const DynamicSegment& bytes = c->segments[0];
   EXPECT_EQ(bytes.data_type, 0x0005);
   EXPECT_EQ(bytes.direction, SegmentDirection::Ro);
   EXPECT_EQ(bytes.first_index, 0x7001);
@@ -64,7 +65,7 @@ TEST(DynamicChannels, ReadsTheTwoSegmentsOfTheSpecExample) {
   EXPECT_EQ(bytes.pp_offset, 0U);
   EXPECT_FALSE(bytes.bit_distance);
   EXPECT_EQ(bytes.max_count, 4096U);
-  const DynamicSegment& bits = d.dynamic_channels->segments[1];
+  const DynamicSegment& bits = c->segments[1];
   EXPECT_EQ(bits.data_type, 0x0001);
   EXPECT_EQ(bits.first_index, 0x7018);
   EXPECT_EQ(bits.last_index, 0x7018);
@@ -76,21 +77,21 @@ TEST(DynamicChannels, ReadsTheTwoSegmentsOfTheSpecExample) {
 TEST(DynamicChannels, DynamicChannelsSupportedIsZeroWhenAbsent) {
   // §8.4: "If the entry does not exist, it is assumed to be 0."
   DeviceDescription d;
-  EXPECT_EQ(d.dynamic_channels_supported(), 0U);
+  EXPECT_EQ(dynamic_channels_supported(d), 0U);
   d.device_info.set("DynamicChannelsSupported", "0x0000000D");
-  EXPECT_EQ(d.dynamic_channels_supported(), 0xDU);
+  EXPECT_EQ(dynamic_channels_supported(d), 0xDU);
   d.device_info.set("DynamicChannelsSupported", "many");
-  EXPECT_FALSE(d.dynamic_channels_supported());
+  EXPECT_FALSE(dynamic_channels_supported(d));
 }
 
 TEST(DynamicChannels, ReadsEverySegmentOfADs405LikeFile) {
-  const DeviceDescription d = read_ok("ds405_like.eds");
-  ASSERT_TRUE(d.dynamic_channels);
-  ASSERT_EQ(d.dynamic_channels->segments.size(), 6U);
-  EXPECT_EQ(d.dynamic_channels->segments[0].bit_distance, 8U);
-  EXPECT_EQ(d.dynamic_channels->segments[4].direction, SegmentDirection::Rww);
-  EXPECT_EQ(d.dynamic_channels->segments[5].m_specific, "PLC2:REAL outputs, word aligned");
-  EXPECT_FALSE(d.dynamic_channels->segments[4].m_specific);
+  const std::optional<DynamicChannels> c = dynamic_channels_of(read_ok("ds405_like.eds"));
+  ASSERT_TRUE(c);
+  ASSERT_EQ(c->segments.size(), 6U);
+  EXPECT_EQ(c->segments[0].bit_distance, 8U);
+  EXPECT_EQ(c->segments[4].direction, SegmentDirection::Rww);
+  EXPECT_EQ(c->segments[5].m_specific, "PLC2:REAL outputs, word aligned");
+  EXPECT_FALSE(c->segments[4].m_specific);
 }
 
 TEST(DynamicChannels, EachFaultIsReportedOnTheLineOfItsKey) {
@@ -124,8 +125,9 @@ TEST(DynamicChannels, EachFaultIsReportedOnTheLineOfItsKey) {
   EXPECT_THAT(at_line(d, line_of(f, "[DynamicChannels]"), Severity::Warning),
               HasSubstr("DynamicChannelsSupported is 0"));
   // Left out: segment 4 (Dir unreadable) and 8 (no MaxCnt); the others are kept as written.
-  ASSERT_TRUE(r.device->dynamic_channels);
-  EXPECT_EQ(r.device->dynamic_channels->segments.size(), 8U);
+  const std::optional<DynamicChannels> c = dynamic_channels_of(*r.device);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->segments.size(), 8U);
 }
 
 TEST(DynamicChannels, DynamicChannelsSupportedWithoutTheSectionIsAWarningOnItsLine) {
@@ -135,7 +137,7 @@ TEST(DynamicChannels, DynamicChannelsSupportedWithoutTheSectionIsAWarningOnItsLi
   EXPECT_FALSE(r.diagnostics.has_errors()) << r.diagnostics.format();
   EXPECT_THAT(at_line(r.diagnostics, line_of(f, "DynamicChannelsSupported="), Severity::Warning),
               HasSubstr("no [DynamicChannels] section"));
-  EXPECT_FALSE(r.device->dynamic_channels);
+  EXPECT_FALSE(dynamic_channels_of(*r.device));
 }
 
 TEST(DynamicChannels, UpperCaseDirIsAWarningAndAStrictError) {
@@ -143,8 +145,10 @@ TEST(DynamicChannels, UpperCaseDirIsAWarningAndAStrictError) {
       "[DeviceInfo]\nDynamicChannelsSupported=1\n[DynamicChannels]\nNrOfSeg=1\nType1=5\n"
       "Dir1=RO\nRange1=0x2000-0x2000\nPPOffset1=0\nMaxCnt1=254\n";
   const ReadResult tolerant = parse_device_description(text);
-  ASSERT_TRUE(tolerant.device && tolerant.device->dynamic_channels);
-  EXPECT_EQ(tolerant.device->dynamic_channels->segments.at(0).direction, SegmentDirection::Ro);
+  ASSERT_TRUE(tolerant.device);
+  const std::optional<DynamicChannels> c = dynamic_channels_of(*tolerant.device);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->segments.at(0).direction, SegmentDirection::Ro);
   EXPECT_THAT(at_line(tolerant.diagnostics, 6, Severity::Warning), HasSubstr("lower case"));
   const ReadResult strict = parse_device_description(text, {ReadMode::Strict, "x.eds"});
   EXPECT_THAT(at_line(strict.diagnostics, 6, Severity::Error), HasSubstr("lower case"));
@@ -157,8 +161,10 @@ TEST(DynamicChannels, RangeNumbersNeedTheLeading0xOfHex) {
       "Dir1=ro\nRange1=7001-7017\nPPOffset1=0\nMaxCnt1=254\n";
   const ReadResult r = parse_device_description(text);
   EXPECT_THAT(at_line(r.diagnostics, 7, Severity::Error), HasSubstr("leading 0x"));
-  ASSERT_TRUE(r.device && r.device->dynamic_channels);
-  EXPECT_TRUE(r.device->dynamic_channels->segments.empty());
+  ASSERT_TRUE(r.device);
+  const std::optional<DynamicChannels> c = dynamic_channels_of(*r.device);
+  ASSERT_TRUE(c);
+  EXPECT_TRUE(c->segments.empty());
 }
 
 TEST(DynamicChannels, MaxCntBeyondWhatTheRangeHoldsIsAWarning) {
@@ -187,7 +193,7 @@ TEST(DynamicChannels, WriterWritesTheSpecSyntaxAndReadsBackTheSameSegments) {
     const ReadResult back = parse_device_description(text);
     ASSERT_TRUE(back.device);
     EXPECT_FALSE(back.diagnostics.has_errors()) << back.diagnostics.format();
-    EXPECT_EQ(back.device->dynamic_channels, d.dynamic_channels);
+    EXPECT_EQ(dynamic_channels_of(*back.device), dynamic_channels_of(d));
     EXPECT_EQ(*back.device, canonical_form(d, o));
     EXPECT_EQ(write_device_description(*back.device, o), text);
   }
@@ -205,7 +211,7 @@ TEST(DynamicChannels, BrokenSegmentsRoundTripAsRead) {
 // ---- dynamic index assignment (§8.2)
 
 DynamicChannels spec_segments() {
-  return *read_ok("spec_example.eds").dynamic_channels;
+  return dynamic_channels_of(read_ok("spec_example.eds")).value_or(DynamicChannels{});
 }
 
 NetworkVariable var(std::string name, DataType type, VariableDirection d) {
@@ -247,7 +253,8 @@ TEST(DynamicIndexAssignment, PackedBooleansTakeOneBitEachAfterPPOffset) {
 
 TEST(DynamicIndexAssignment, BooleansInByteCellsTakeOneByteEach) {
   // ds405_like.eds segment 1: PPOffset1=0,8 ("each stored in a byte cell", §8.2).
-  const DynamicChannels c = *read_ok("ds405_like.eds").dynamic_channels;
+  const DynamicChannels c =
+      dynamic_channels_of(read_ok("ds405_like.eds")).value_or(DynamicChannels{});
   const std::vector<NetworkVariable> vars = {var("x", DataType::Boolean, VariableDirection::Input),
                                              var("y", DataType::Boolean, VariableDirection::Input)};
   auto a = allocate_variables(c, vars);
@@ -307,7 +314,8 @@ TEST(DynamicIndexAssignment, MixedTypeSegmentsAtPPOffset0LeaveOutOverlappingIndi
   // §8.2: "Other devices mix different data types in the same segment. For those devices all
   // PPOffset attributes will have the value 0 ... indexes have to be left out to avoid
   // overlapping." mixed_offsets.eds: UNSIGNED8 2000h-, UNSIGNED16 2010h-, UNSIGNED32 2020h.
-  const DynamicChannels c = *read_ok("mixed_offsets.eds").dynamic_channels;
+  const DynamicChannels c =
+      dynamic_channels_of(read_ok("mixed_offsets.eds")).value_or(DynamicChannels{});
   const std::vector<NetworkVariable> vars = {
       var("a", DataType::Unsigned8, VariableDirection::Input),   // byte 0
       var("b", DataType::Unsigned16, VariableDirection::Input),  // 2010sub1 = bytes 0-1: taken
@@ -329,7 +337,8 @@ TEST(DynamicIndexAssignment, MixedTypeSegmentsAtPPOffset0LeaveOutOverlappingIndi
 
 TEST(DynamicIndexAssignment, InputsAndOutputsAreSeparateProcessPictures) {
   // ds405_like.eds: BOOLEAN inputs at PPOffset 0 and BOOLEAN outputs at PPOffset 0.
-  const DynamicChannels c = *read_ok("ds405_like.eds").dynamic_channels;
+  const DynamicChannels c =
+      dynamic_channels_of(read_ok("ds405_like.eds")).value_or(DynamicChannels{});
   const std::vector<NetworkVariable> vars = {
       var("i", DataType::Boolean, VariableDirection::Input),
       var("o", DataType::Boolean, VariableDirection::Output)};
@@ -342,13 +351,14 @@ TEST(DynamicIndexAssignment, InputsAndOutputsAreSeparateProcessPictures) {
 
 TEST(DynamicIndexAssignment, WritesArrayObjectsNamedAfterTheVariablesIntoTheDcf) {
   DeviceDescription d = read_ok("ds405_like.eds");
+  const DynamicChannels c = dynamic_channels_of(d).value_or(DynamicChannels{});
   const std::vector<NetworkVariable> vars = {
       var("start_button", DataType::Boolean, VariableDirection::Input),
       var("level", DataType::Unsigned8, VariableDirection::Input),
       var("setpoint", DataType::Unsigned16, VariableDirection::Output)};
-  auto a = allocate_variables(*d.dynamic_channels, vars);
+  auto a = allocate_variables(c, vars);
   ASSERT_TRUE(a) << a.error().message;
-  ASSERT_TRUE(add_variable_objects(d, *d.dynamic_channels, *a));
+  ASSERT_TRUE(add_variable_objects(d, c, *a));
   WriteOptions o;
   o.line_ending = LineEnding::Lf;
   const std::string dcf = write_device_description(d, o);
@@ -374,7 +384,7 @@ TEST(DynamicIndexAssignment, WritesArrayObjectsNamedAfterTheVariablesIntoTheDcf)
   EXPECT_EQ(setpoint->access, AccessType::Rww);  // Dir5=rww
   EXPECT_EQ(back.device->sub(0xA000, 1)->name, "start_button");
   // A second allocation into the programmed description is refused: the objects exist.
-  auto again = add_variable_objects(d, *d.dynamic_channels, *a);
+  auto again = add_variable_objects(d, c, *a);
   ASSERT_FALSE(again);
   EXPECT_THAT(again.error().message, HasSubstr("object A000h exists already"));
 }

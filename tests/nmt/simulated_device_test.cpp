@@ -1034,10 +1034,12 @@ cfg::DeviceDescription programmed_plc() {
       v("q0", DataType::Boolean, VariableDirection::Output),
       v("q1", DataType::Boolean, VariableDirection::Output),
       v("q2", DataType::Boolean, VariableDirection::Output)};
-  auto a = cfg::allocate_variables(*d.dynamic_channels, vars);
+  const cfg::DynamicChannels segments =
+      cfg::dynamic_channels_of(d).value_or(cfg::DynamicChannels{});
+  auto a = cfg::allocate_variables(segments, vars);
   EXPECT_TRUE(a.ok()) << (a.ok() ? "" : a.error().message);
   if (a.ok()) {
-    EXPECT_TRUE(cfg::add_variable_objects(d, *d.dynamic_channels, *a).ok());
+    EXPECT_TRUE(cfg::add_variable_objects(d, segments, *a).ok());
   }
   return d;
 }

@@ -11,6 +11,7 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/dynamic_channels.hpp"
 #include "cfg/network.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
@@ -161,8 +162,8 @@ TEST(BuildVariables, WritesTheProgrammedDcfOfTheNode) {
   EXPECT_EQ(dcf.sub(0xA100, 1)->access, cfg::AccessType::Wo);
   EXPECT_TRUE(dcf.sub(0xA100, 1)->pdo_mapping);
   EXPECT_EQ(dcf.node_id(), 5);
-  ASSERT_TRUE(dcf.dynamic_channels);
-  EXPECT_EQ(dcf.dynamic_channels->segments.size(), 6U);
+  ASSERT_TRUE(cfg::dynamic_channels_of(dcf));
+  EXPECT_EQ(cfg::dynamic_channels_of(dcf)->segments.size(), 6U);
 }
 
 TEST(BuildVariables, ABadVariablesFileOrNodeIsAnErrorNamingIt) {

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -60,7 +61,8 @@ void write_programmed_node(const std::string& spec, const cfg::Network& network,
                      (node == nullptr ? " is not in the network" : " has no DCF in the network"));
   }
   cfg::DeviceDescription device = *node->dcf;
-  if (!device.dynamic_channels || device.dynamic_channels->segments.empty()) {
+  const std::optional<cfg::DynamicChannels> channels = cfg::dynamic_channels_of(device);
+  if (!channels || channels->segments.empty()) {
     fail_command(kTool, tools::kExitInputErrors,
                  "--variables: node " + std::to_string(id->value) + " (" + node->file +
                      ") has no [DynamicChannels] segments to allocate variables in");
@@ -69,11 +71,10 @@ void write_programmed_node(const std::string& spec, const cfg::Network& network,
   if (!text) fail_command(kTool, tools::exit_code_for(text.error()), text.error().message);
   auto vars = cfg::parse_network_variables(*text, file);
   if (!vars) fail_command(kTool, tools::kExitInputErrors, vars.error().message);
-  auto allocation = cfg::allocate_variables(*device.dynamic_channels, *vars);
+  auto allocation = cfg::allocate_variables(*channels, *vars);
   if (!allocation)
     fail_command(kTool, tools::kExitInputErrors, file + ": " + allocation.error().message);
-  if (auto added = cfg::add_variable_objects(device, *device.dynamic_channels, *allocation);
-      !added) {
+  if (auto added = cfg::add_variable_objects(device, *channels, *allocation); !added) {
     fail_command(kTool, tools::kExitInputErrors, node->file + ": " + added.error().message);
   }
   cfg::WriteOptions write_options;

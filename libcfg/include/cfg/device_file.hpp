@@ -44,12 +44,6 @@ struct ReadResult {
 /// - an inline comment (';' or '#' after a blank) is cut from numbers, kept in strings;
 /// - an empty value of a fixed-size type is "not given";
 /// - objects come from their sections; the object lists are only checked against them;
-/// - [DynamicChannels] (CiA DSP 302 §8.4) is read into DeviceDescription::dynamic_channels and
-///   checked: NrOfSeg against the segments given, each segment's keys, overlapping or reversed
-///   ranges, ranges outside 2000h-AFFFh, types that are not fixed-size basic types, a bit
-///   distance on a non-BOOLEAN segment (errors, with the line of the key at fault; a segment with
-///   a missing or unreadable key is left out); the section without DynamicChannelsSupported, or
-///   the reverse (warnings);
 /// - CompactSubObj is expanded (sub-index 0 "NrOfObjects", 1..n named "<ParameterName><n>" unless
 ///   [xxxxName] names them), with [xxxxValue]/[xxxxDenotation] applied.
 /// Rejected (no model, one error): an empty file, and text without any [section].
@@ -121,9 +115,7 @@ struct WriteOptions {
   std::optional<std::string_view> stamp_only_if_changed_from;
 };
 
-/// Writes the model as an EDS or DCF in canonical form: [FileInfo], [DeviceInfo],
-/// [DynamicChannels] (NrOfSeg from the segments, Type as 0x hex, Range 0xAAAA-0xBBBB, the
-/// numbers of PPOffset and MaxCnt in decimal), [DummyUsage],
+/// Writes the model as an EDS or DCF in canonical form: [FileInfo], [DeviceInfo], [DummyUsage],
 /// [Comments], the three object lists (derived from the objects by object_list_for), the objects
 /// by index each followed by its sub-objects and [xxxxObjectLinks], [DeviceComissioning] (DCF
 /// only), then other_sections in model order. Deterministic: the same model and options give the

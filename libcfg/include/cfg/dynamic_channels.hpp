@@ -31,6 +31,55 @@
 
 namespace cfg {
 
+/// DirN= of a dynamic channel segment (CiA DSP 302 §8.4): ro holds inputs (mapped into transmit
+/// PDOs), wo and rww hold outputs (mapped into receive PDOs).
+enum class SegmentDirection : std::uint8_t { Ro, Wo, Rww };
+std::string_view to_string(SegmentDirection direction);  ///< "ro", "wo", "rww"
+/// Case-insensitive ("RO" reads as ro).
+std::optional<SegmentDirection> segment_direction_from_string(std::string_view text);
+
+/// One segment of [DynamicChannels] (CiA DSP 302 §8.2, §8.4): a range of indices where network
+/// variables of one data type and direction are allocated, as ARRAY objects of sub-index
+/// 01h..FEh, and where they sit in the device's process picture.
+struct DynamicSegment {
+  std::uint16_t data_type = 0;  ///< TypeN: the DataType index of the variables (0001h BOOLEAN)
+  SegmentDirection direction = SegmentDirection::Ro;  ///< DirN
+  std::uint16_t first_index = 0;                      ///< RangeN, start index
+  std::uint16_t last_index = 0;                       ///< RangeN, end index (inclusive)
+  /// PPOffsetN: offset of the first variable in the process picture, in bytes.
+  std::uint32_t pp_offset = 0;
+  /// PPOffsetN's second number, BOOLEAN segments only: the distance of two variables in the
+  /// process picture, in bits (1: packed, 8: one per byte). nullopt when not given.
+  std::optional<std::uint32_t> bit_distance;
+  std::uint32_t max_count = 0;            ///< MaxCntN: the most variables the segment holds
+  std::optional<std::string> m_specific;  ///< MSpecificN, manufacturer-specific, verbatim
+  bool operator==(const DynamicSegment&) const = default;
+};
+
+/// [DynamicChannels] (CiA DSP 302 §8.4): the segments, entry index N = position + 1.
+struct DynamicChannels {
+  std::vector<DynamicSegment> segments;
+  bool operator==(const DynamicChannels&) const = default;
+};
+
+/// The segments a device description's [DynamicChannels] section describes (the model keeps the
+/// section as it is written, a RawSection in other_sections; the reader checks it, with the line
+/// of each fault, and this reads it the same way): segments in entry order, a segment with a
+/// missing or unreadable key left out, a bit distance kept only on BOOLEAN segments. nullopt
+/// when the description has no [DynamicChannels].
+std::optional<DynamicChannels> dynamic_channels_of(const DeviceDescription& device);
+
+/// [DeviceInfo] DynamicChannelsSupported bits (CiA DSP 302 §8.4); bits 4-31 are reserved.
+namespace dynamic_channels_bit {
+inline constexpr std::uint32_t kGeneralFacility = 1U << 0;     ///< allocates dynamic variables
+inline constexpr std::uint32_t kPredefinedSegments = 1U << 2;  ///< DS-405 predefined segments
+inline constexpr std::uint32_t kObjectsDescribed = 1U << 3;    ///< the EDS describes the objects
+}  // namespace dynamic_channels_bit
+
+/// [DeviceInfo] DynamicChannelsSupported (CiA DSP 302 §8.4: 0 when absent); nullopt when the
+/// key's value is not a number.
+std::optional<std::uint32_t> dynamic_channels_supported(const DeviceDescription& device);
+
 /// The direction of a network variable (§8.2): an input of the device is read from the network
 /// (mapped into a transmit PDO; ro segments); an output is written from the network (mapped into
 /// a receive PDO; wo and rww segments).

@@ -149,11 +149,12 @@ class ProcessPicture {
 }  // namespace
 
 void install_process_picture(LocalDictionary& dict, const cfg::DeviceDescription& device) {
-  if (!device.dynamic_channels || dict.entry(kPicture, kSelectedRange) == nullptr ||
+  std::optional<cfg::DynamicChannels> channels = cfg::dynamic_channels_of(device);
+  if (!channels || dict.entry(kPicture, kSelectedRange) == nullptr ||
       dict.entry(kPicture, kDomain) == nullptr) {
     return;
   }
-  auto picture = std::make_shared<ProcessPicture>(dict, *device.dynamic_channels);
+  auto picture = std::make_shared<ProcessPicture>(dict, std::move(*channels));
   dict.add_write_hook([picture](std::uint16_t index, std::uint8_t sub,
                                 std::span<const std::uint8_t> data, TimePoint) {
     if (index != kPicture) return SdoAbort::None;
