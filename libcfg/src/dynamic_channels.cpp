@@ -77,7 +77,9 @@ std::optional<DynamicChannels> dynamic_channels_of(const DeviceDescription& devi
     if (!iequals(section.name, "DynamicChannels")) continue;
     std::vector<detail::DynamicChannelsKey> keys;
     keys.reserve(section.keys.entries.size());
-    for (const auto& [key, value] : section.keys.entries) keys.push_back({key, value, 0});
+    // Line numbers mark a key as given; nothing is reported, so any positive number does.
+    int line = 0;
+    for (const auto& [key, value] : section.keys.entries) keys.push_back({key, value, ++line});
     return detail::read_dynamic_channels(keys, 0, {});
   }
   return std::nullopt;
