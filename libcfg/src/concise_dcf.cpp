@@ -16,6 +16,7 @@
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/value.hpp"
+#include "download_order_detail.hpp"
 
 namespace cfg {
 namespace {
@@ -412,8 +413,8 @@ std::optional<std::vector<ObjectWrite>> WriteBuilder::build() {
   complete_pdo_mappings();
   if (failed_) return std::nullopt;
 
-  auto order = order_for_download(
-      writes_, [this](std::uint16_t comm_index) { return dcf_cob_id(comm_index); });
+  auto order = detail::order_for_download_moving(
+      std::move(writes_), [this](std::uint16_t comm_index) { return dcf_cob_id(comm_index); });
   if (failed_) return std::nullopt;
 
   // Say where the PDO rule could not be applied in full (unless the DCF makes it

@@ -2,6 +2,8 @@
 
 #include <array>
 #include <cassert>
+#include <cstddef>
+#include <cstdint>
 
 #include "cfg/object_dictionary.hpp"
 
@@ -37,13 +39,24 @@ constexpr std::array<DataTypeInfo, 25> kDataTypes{{
     {DataType::Unsigned64, "UNSIGNED64", TypeClass::Unsigned, 8},
 }};
 
+// Position in kDataTypes by index (0001h-001Bh), -1 where CiA 301 defines no basic type: a
+// value check asks for its type's entry several times per value (issue 9: tens of thousands of
+// values per file), so the lookup is one load, not a scan.
+constexpr std::size_t kLastBasicIndex = 0x1B;
+constexpr auto kPositionByIndex = [] {
+  std::array<std::int8_t, kLastBasicIndex + 1> positions{};
+  positions.fill(-1);
+  for (std::size_t i = 0; i < kDataTypes.size(); ++i) {
+    positions[static_cast<std::size_t>(kDataTypes[i].type)] = static_cast<std::int8_t>(i);
+  }
+  return positions;
+}();
+
 }  // namespace
 
 const DataTypeInfo* find_data_type(std::uint16_t index) {
-  for (const auto& info : kDataTypes) {
-    if (static_cast<std::uint16_t>(info.type) == index) return &info;
-  }
-  return nullptr;
+  if (index > kLastBasicIndex || kPositionByIndex[index] < 0) return nullptr;
+  return &kDataTypes[static_cast<std::size_t>(kPositionByIndex[index])];
 }
 
 const DataTypeInfo& data_type_info(DataType type) {

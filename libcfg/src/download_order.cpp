@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <map>
 #include <span>
+#include <type_traits>
 #include <utility>
 
 #include "cfg/bytes.hpp"
 #include "cfg/cob_id.hpp"
+#include "download_order_detail.hpp"
 
 namespace cfg {
 namespace {
@@ -31,21 +33,35 @@ bool all_zero(const std::vector<std::uint8_t>& data) {
 }
 
 // The writes of one object, by sub-index, one per sub-index (views into the caller's writes:
-// no copy until a write goes out).
-using ObjectWrites = std::span<const ObjectWrite* const>;
+// no copy until a write goes out). W is `const ObjectWrite` (the caller keeps its writes: each
+// one that goes out is copied) or `ObjectWrite` (the caller gave them up: each one is moved,
+// which is one allocation fewer per write; each input write goes out at most once).
+template <class W>
+using ObjectWrites = std::span<W* const>;
 
-const ObjectWrite* find_sub(const ObjectWrites* writes, std::uint8_t sub) {
+template <class W>
+W* find_sub(const ObjectWrites<W>* writes, std::uint8_t sub) {
   if (writes == nullptr) return nullptr;
-  for (const ObjectWrite* w : *writes) {
+  for (W* w : *writes) {
     if (w->sub_index == sub) return w;
   }
   return nullptr;
 }
 
+template <class W>
+void emit(W* write, DownloadOrder& out) {
+  if constexpr (std::is_const_v<W>) {
+    out.writes.push_back(*write);
+  } else {
+    out.writes.push_back(std::move(*write));
+  }
+}
+
 // DSP 302 v3.2.1 §6.2 application hint, steps 1-5, for one PDO.
-void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrites* mapping,
+template <class W>
+void order_pdo(const PdoIndices& pdo, const ObjectWrites<W>* comm, const ObjectWrites<W>* mapping,
                const CobIdLookup& current_cob_id, DownloadOrder& out) {
-  const ObjectWrite* configured_cob = find_sub(comm, 1);
+  W* configured_cob = find_sub(comm, 1);
   std::optional<CobId> cob_id =
       configured_cob != nullptr ? as_cob_id(configured_cob->data) : std::nullopt;
   bool cob_id_from_lookup = false;
@@ -63,13 +79,14 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
   // Step 2: communication sub-indices other than the COB-ID (sub-index order; a writable sub 0
   // is unusual but goes here too).
   if (comm != nullptr) {
-    for (const ObjectWrite* write : *comm) {
-      if (write->sub_index != 1) out.writes.push_back(*write);
+    for (W* write : *comm) {
+      if (write->sub_index != 1) emit(write, out);
     }
   }
   // Steps 3 and 4: deactivate the mapping, write the entries, activate with n entries.
   if (mapping != nullptr) {
-    const ObjectWrite* count = find_sub(mapping, 0);
+    W* count = find_sub(mapping, 0);
+    const bool count_is_zero = count != nullptr && all_zero(count->data);
     if (count != nullptr) {
       ObjectWrite zero = *count;
       std::fill(zero.data.begin(), zero.data.end(), std::uint8_t{0});
@@ -77,44 +94,42 @@ void order_pdo(const PdoIndices& pdo, const ObjectWrites* comm, const ObjectWrit
     } else {
       out.unknown_mapping_count.push_back(pdo.mapping_index);
     }
-    for (const ObjectWrite* write : *mapping) {
-      if (write->sub_index != 0) out.writes.push_back(*write);
+    for (W* write : *mapping) {
+      if (write->sub_index != 0) emit(write, out);
     }
-    if (count != nullptr && !all_zero(count->data)) out.writes.push_back(*count);
+    if (count != nullptr && !count_is_zero) emit(count, out);
   }
   // Step 5: create the PDO with the configured COB-ID. A COB-ID that is itself invalid was
   // already written in step 1.
   if (configured_cob != nullptr) {
-    if (!(cob_id && !cob_id->valid())) out.writes.push_back(*configured_cob);
+    if (!(cob_id && !cob_id->valid())) emit(configured_cob, out);
   } else if (cob_id_from_lookup && cob_id->valid()) {
     out.writes.push_back(cob_id_write(pdo.comm_index, *cob_id));
   }
 }
 
-}  // namespace
-
-DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
-                                 const CobIdLookup& current_cob_id) {
+template <class W>
+DownloadOrder order(std::span<W> writes, const CobIdLookup& current_cob_id) {
   // Last write of an (index, sub-index) wins, as on a device: a stable sort keeps equal keys in
   // input order, and the last of each run is kept. Pointers, not copies: a DCF has tens of
   // thousands of writes.
-  std::vector<const ObjectWrite*> sorted;
+  std::vector<W*> sorted;
   sorted.reserve(writes.size());
-  for (const auto& write : writes) sorted.push_back(&write);
-  auto key = [](const ObjectWrite* w) { return (std::uint32_t{w->index} << 8) | w->sub_index; };
+  for (auto& write : writes) sorted.push_back(&write);
+  auto key = [](const W* w) { return (std::uint32_t{w->index} << 8) | w->sub_index; };
   std::stable_sort(sorted.begin(), sorted.end(),
-                   [&key](const ObjectWrite* a, const ObjectWrite* b) { return key(a) < key(b); });
+                   [&key](const W* a, const W* b) { return key(a) < key(b); });
   std::size_t kept = 0;
   for (std::size_t i = 0; i < sorted.size(); ++i) {
     if (i + 1 < sorted.size() && key(sorted[i]) == key(sorted[i + 1])) continue;
     sorted[kept++] = sorted[i];
   }
   sorted.resize(kept);
-  std::map<std::uint16_t, ObjectWrites> by_object;
+  std::map<std::uint16_t, ObjectWrites<W>> by_object;
   for (std::size_t begin = 0; begin < sorted.size();) {
     std::size_t end = begin + 1;
     while (end < sorted.size() && sorted[end]->index == sorted[begin]->index) ++end;
-    by_object.emplace(sorted[begin]->index, ObjectWrites(sorted).subspan(begin, end - begin));
+    by_object.emplace(sorted[begin]->index, ObjectWrites<W>(sorted).subspan(begin, end - begin));
     begin = end;
   }
 
@@ -125,7 +140,7 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
     auto pdo = pdo_indices_of(entry.first);
     sequence[pdo ? pdo->comm_index : entry.first] = pdo;
   }
-  auto find = [&by_object](std::uint16_t i) -> const ObjectWrites* {
+  auto find = [&by_object](std::uint16_t i) -> const ObjectWrites<W>* {
     auto it = by_object.find(i);
     return it == by_object.end() ? nullptr : &it->second;
   };
@@ -136,15 +151,27 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
     if (pdo) {
       order_pdo(*pdo, find(pdo->comm_index), find(pdo->mapping_index), current_cob_id, out);
     } else if (index != kVerifyConfiguration) {
-      for (const ObjectWrite* write : by_object.at(index)) out.writes.push_back(*write);
+      for (W* write : by_object.at(index)) emit(write, out);
     }
   }
   // DSP 302 v3.2.1 §6.3: "If any other command changes boot-up configuration values, the device
   // has to reset the object Verify Configuration to 0" - so 1020h goes last.
-  if (const ObjectWrites* verify = find(kVerifyConfiguration)) {
-    for (const ObjectWrite* write : *verify) out.writes.push_back(*write);
+  if (const ObjectWrites<W>* verify = find(kVerifyConfiguration)) {
+    for (W* write : *verify) emit(write, out);
   }
   return out;
+}
+
+}  // namespace
+
+DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
+                                 const CobIdLookup& current_cob_id) {
+  return order(writes, current_cob_id);
+}
+
+DownloadOrder detail::order_for_download_moving(std::vector<ObjectWrite>&& writes,
+                                                const CobIdLookup& current_cob_id) {
+  return order(std::span<ObjectWrite>(writes), current_cob_id);
 }
 
 std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,

@@ -1,5 +1,7 @@
 #include "cfg/model_memory.hpp"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 
 namespace cfg {
@@ -10,6 +12,25 @@ namespace {
 constexpr std::size_t kFirstBlock = std::size_t{64} << 10;
 constexpr std::size_t kLargestBlock = std::size_t{4} << 20;
 constexpr std::size_t kTextsPerChunk = 1024;
+
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+// A large block (a reader's first block is 1.5x the file) is marked for transparent huge pages
+// in its 2 MiB-aligned interior: building the model of a 3 MB file then takes a few page faults
+// instead of a thousand, which were a tenth of a tool's run (issue 9, perf). A hint only: where
+// the kernel gives no huge pages the block is faulted page by page as before.
+void advise_huge_pages(std::byte* block, std::size_t size) {
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(block);
+  const std::uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1);
+  const std::uintptr_t last = (begin + size) & ~(kHugePage - 1);
+  if (first < last) {
+    // NOLINTNEXTLINE(performance-no-int-to-ptr): an address inside the block
+    madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+  }
+}
+#else
+void advise_huge_pages(std::byte*, std::size_t) {}
+#endif
 
 }  // namespace
 
@@ -38,6 +59,7 @@ void* ModelArena::allocate(std::size_t bytes, std::size_t align) {
     blocks_.push_back({std::make_unique_for_overwrite<std::byte[]>(size), size});
     next_ = blocks_.back().bytes.get();
     end_ = next_ + size;
+    advise_huge_pages(next_, size);
     at = reinterpret_cast<std::uintptr_t>(next_);
   }
   auto* p = next_ + (at - reinterpret_cast<std::uintptr_t>(next_));

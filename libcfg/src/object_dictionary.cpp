@@ -70,6 +70,9 @@ std::string_view to_string(AccessType access) {
 }
 
 std::optional<AccessType> access_type_from_string(std::string_view text) {
+  // Files write it in lower case nearly always: exact matches first, then any case.
+  if (text == "rw") return AccessType::Rw;
+  if (text == "ro") return AccessType::Ro;
   for (auto a : {AccessType::Ro, AccessType::Wo, AccessType::Rw, AccessType::Rwr, AccessType::Rww,
                  AccessType::Const}) {
     if (iequals(text, to_string(a))) return a;

@@ -409,8 +409,8 @@ std::uint64_t unsigned_max(DataType type) {
 }
 
 bool mentions_node_id(std::string_view text) {
-  if (text.size() < kNodeIdToken.size()) return false;
-  for (std::size_t i = 0; i + kNodeIdToken.size() <= text.size(); ++i) {
+  // The token starts with '$', which nearly no value has: look for that byte first.
+  for (std::size_t i = text.find('$'); i != std::string_view::npos; i = text.find('$', i + 1)) {
     if (iequals(text.substr(i, kNodeIdToken.size()), kNodeIdToken)) return true;
   }
   return false;

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstring>
 #include <optional>
 #include <string>
 #include <utility>
@@ -125,3 +126,22 @@ TEST(ModelMemory, ArenaAlignsAndRefusesAllocationOnceSealed) {
 
 }  // namespace
 }  // namespace cfg
+
+// A block of 2 MiB or more gets huge pages advised on its aligned interior (madvise): every
+// byte of it stays usable, and owns() ends where the block ends, also for a size that is not a
+// multiple of the page size.
+TEST(ModelMemory, LargeBlockIsUsableToItsLastByte) {
+  const std::size_t size = (std::size_t{3} << 20) + 123;
+  cfg::ModelArena arena(size);
+  auto* first = static_cast<unsigned char*>(arena.allocate(size, 1));
+  std::memset(first, 0xA5, size);  // faults in every page: a short mapping would crash here
+  EXPECT_EQ(first[0], 0xA5);
+  EXPECT_EQ(first[size - 1], 0xA5);
+  EXPECT_TRUE(arena.owns(first));
+  EXPECT_TRUE(arena.owns(first + size - 1));
+  EXPECT_GE(arena.capacity(), size);
+  // The next allocation never overlaps the bytes handed out.
+  auto* next = static_cast<unsigned char*>(arena.allocate(16, 1));
+  EXPECT_TRUE(arena.owns(next));
+  EXPECT_TRUE(next < first || next >= first + size);
+}

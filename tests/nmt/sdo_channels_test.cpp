@@ -155,6 +155,25 @@ TEST(SdoChannels, TwoClientsOnTwoChannelsOfOneNodeDoNotDisturbEachOther) {
   EXPECT_EQ(std::string(stored->begin(), stored->end()), "abcdefghij");
 }
 
+TEST(SdoChannels, ServerEntryInsertedAfterCreationIsServedOnceWritten) {
+  Node n;
+  for (std::uint8_t sub = 1; sub <= 2; ++sub) {
+    DictionaryEntry e;
+    e.index = 0x1203;
+    e.sub_index = sub;
+    e.name = "COB-ID";
+    e.data_type = 0x0007;
+    e.basic_type = cfg::DataType::Unsigned32;
+    e.bytes = {0x00, 0x00, 0x00, 0x80};  // 80000000h: not valid
+    n.node->dictionary().insert(e);
+  }
+  EXPECT_EQ(n.frame("605#23031201E5060000"), Frames{"585#6003120100000000"});
+  EXPECT_EQ(n.frame("605#23031202E6060000"), Frames{"585#6003120200000000"});
+  EXPECT_EQ(n.node->sdo_server_channels(),
+            (std::vector<std::uint16_t>{0x1200, 0x1201, 0x1202, 0x1203}));
+  EXPECT_EQ(n.frame("6E5#4000100000000000"), Frames{"6E6#4300100000000000"});
+}
+
 TEST(SdoChannels, ClientChannelComesFromA1280hEntry_Cia301_7_5_2_34) {
   Node n;
   auto& dict = n.node->dictionary();

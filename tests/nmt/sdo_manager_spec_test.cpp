@@ -889,10 +889,7 @@ TEST(SdoManagerSpec, ReleaseWithIndex0ReleasesEveryConnectionToThatSlave) {
 // has taken the confirmation, it is registered and may write 1F00h over the new channel at once.
 // The SRD here answers SDO requests 5 ms late (a tool behind a gateway); it sends its request as
 // soon as its answer to the confirmation is on the bus.
-// DISABLED: the engine confirms in 1F10h first and reads the SRD's 1017h afterwards; a 1F00h that
-// comes before that read's answer is refused with 060A 0023 (the SRD is not registered yet).
-// Fixed on sdomgr 5c802ae (not on main at this commit): enable it with that.
-TEST(SdoManagerSpec, DISABLED_RequestRightAfterTheRegistrationConfirmationIsServed) {
+TEST(SdoManagerSpec, RequestRightAfterTheRegistrationConfirmationIsServed) {
   ManagerRig rig;
   rig.forget_srd_heartbeats();  // the manager may then read the SRD's 1017h (see the top)
   rig.start_network({});
@@ -981,10 +978,7 @@ TEST(SdoManagerSpec, SrdHeartbeatLossReleasesItsConnectionsOnBothSides) {
 // manager's DCF stays registered while its heartbeat runs (CiA 301: a device whose heartbeat
 // producer time is not 0 uses the heartbeat protocol and does not answer node guarding), and
 // loses its connections once its heartbeat stops.
-// DISABLED: the engine node-guards the SRD (77F#R1 every 500 ms) although it read 1017h = 100 ms,
-// gets no answer from the heartbeat producer and releases everything after about 2 s.
-// Fixed on sdomgr 5c802ae (not on main at this commit): enable it with that.
-TEST(SdoManagerSpec, DISABLED_RegisteredSrdIsWatchedByItsOwnHeartbeatWithoutA1016hEntry) {
+TEST(SdoManagerSpec, RegisteredSrdIsWatchedByItsOwnHeartbeatWithoutA1016hEntry) {
   ManagerRig rig;
   rig.forget_srd_heartbeats();
   rig.start_network();

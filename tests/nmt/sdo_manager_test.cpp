@@ -273,6 +273,26 @@ TEST_F(SdoManagerTest, SrdErrorControlLossReleasesItsConnectionsOnBothSides) {
   EXPECT_EQ(rig.engine().registered_srds()[0].node, 120);
 }
 
+TEST_F(SdoManagerTest, SrdWithHeartbeatIsWatchedByItsHeartbeatNotGuarded) {
+  add_srd(120);
+  start_network();
+  // The SRD produces heartbeats every 100 ms (CiA 301 1017h); the manager reads it at the
+  // registration and consumes it with 2 x 100 + 100 ms (header), without guarding RTRs.
+  ASSERT_EQ(
+      rig.slave(120).node().dictionary().write(0x1017, 0, master_spec::le(100, 2), rig.bus.now()),
+      SdoAbort::None);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  const auto registered = rig.bus.now();
+  rig.run_for(2s);
+  EXPECT_TRUE(rig.events_of(Kind::SrdLost, 120).empty());
+  for (const auto& s : rig.on_id(0x700 + 120, registered)) EXPECT_FALSE(s.frame.rtr) << s;
+  rig.unplug(120);
+  const auto unplugged = rig.bus.now();
+  ASSERT_TRUE(wait_for(Kind::SrdLost, 120, 2s));
+  const auto lost = rig.events_of(Kind::SrdLost, 120).front().at;
+  EXPECT_LE(lost - unplugged, 300ms + 1ms);
+}
+
 TEST_F(SdoManagerTest, RequestFromAnUnregisteredNodeIsAbortedWith060A0023) {
   add_srd(120);
   start_network();

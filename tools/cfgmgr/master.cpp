@@ -26,6 +26,7 @@ struct MasterCliOptions : NetworkRunArgs {
   std::optional<double> run_for_s;
   std::string json_events;
   std::string store;
+  bool sdo_manager = false;
 };
 
 /// --store DIR: the configuration manager the master serves (1F20h-1F27h) and configures from
@@ -45,6 +46,7 @@ void run_master(const MasterCliOptions& options) {
   const auto network = load_network_or_exit(options.network, options.net);
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
+  master_options.sdo_manager = options.sdo_manager;
   nmt::NmtMaster master =
       build_master("master", options.network, network, options.node_id, master_options);
 
@@ -102,7 +104,8 @@ void add_master_command(CLI::App& app) {
                   "(slave_booted, boot_error, heartbeat_lost, boot_up, startup_complete, "
                   "active_master, standby, ...), node_id, text, and per event error/"
                   "description/final, configured/entries/bytes, assigned, step, state, command, "
-                  "priority")
+                  "priority, connection_error and connection (row, client_node_id, client_index, "
+                  "server_node_id, server_index, request_cob_id, response_cob_id)")
       ->type_name("FILE");
   cmd->add_option("--store", options->store,
                   "Serve the configuration manager of this store directory (created when "
@@ -110,6 +113,12 @@ void add_master_command(CLI::App& app) {
                   "node's DCF or concise DCF and start it with 1F25h 'conf'; a node's stored "
                   "configuration and 1F26h/1F27h take the place of the network's")
       ->type_name("DIR");
+  cmd->add_flag("--sdo-manager", options->sdo_manager,
+                "Be the SDO manager too (DSP 302 section 7; also on when the master DCF has "
+                "1F00h): register SDO requesting devices after their Dynamic SDO Request (6E0h), "
+                "set up the SDO connections they ask for with 1F00h from the COB-IDs of 1F02h "
+                "(680h-6DFh when the DCF has none) and release them (1F01h, or when the "
+                "requester's heartbeat or guarding stops)");
   cmd->footer(std::string(
       "Without a master DCF, every present node is a mandatory slave that is booted and "
       "started; the expected identity comes from its DCF and 1F26h/1F27h from its "
@@ -121,13 +130,16 @@ void add_master_command(CLI::App& app) {
       "seen; NMT start-up complete / halted. With 1F80h bit 5 in the master DCF the master takes "
       "part in the NMT flying master negotiation (CiA 302-2 section 3.7; 1F90h sets its "
       "priority and timing) and says who is active and why: active NMT master / node N is the "
-      "active NMT master / force / multiple masters / heartbeat of the active master lost.\n\n"
+      "active NMT master / force / multiple masters / heartbeat of the active master lost. With "
+      "--sdo-manager: SRD registered / refused, SDO connection established / refused / "
+      "released, SRD lost, 1F11h slave failed.\n\n"
       "Examples:\n"
       "  cfgmgr master samples/network/nodelist.cpj --bus sim:\n"
       "  cfgmgr master samples/network/nodelist.cpj --bus sim:?loss=0.01 --run-for 5\n"
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --json-events events.jsonl\n"
       "  cfgmgr master master.dcf --bus udp://239.74.163.2:43113 --node-id 1\n"
-      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --store /var/lib/canopen/store\n\n"
+      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --store /var/lib/canopen/store\n"
+      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --sdo-manager\n\n"
       "Exit codes:\n"
       "  0  stopped by Ctrl-C/SIGTERM or --run-for, or (sim: without --run-for) NMT start-up "
       "complete\n"

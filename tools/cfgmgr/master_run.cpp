@@ -231,7 +231,15 @@ void EventReporter::report(const nmt::MasterEvent& e) {
     case K::ForceNegotiation:
     case K::MultipleMasters:
     case K::ActiveMasterLost:
-      line = e.text;  // flying master: who is active and why
+    case K::SrdRegistered:
+    case K::SrdRegistrationFailed:
+    case K::SdoConnectionEstablished:
+    case K::SdoConnectionRefused:
+    case K::SdoConnectionReleased:
+    case K::SrdLost:
+    case K::SrdDeregistered:
+    case K::SlaveFailedReported:
+      line = e.text;  // flying master: who is active and why; SDO manager: what it did
       break;
     default:
       if (verbose_) line = e.text;
@@ -292,8 +300,23 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
     case K::ActiveMasterLost:
       if (e.priority) out += ", \"priority\": " + std::to_string(*e.priority);
       break;
+    case K::SrdRegistrationFailed:
+    case K::SdoConnectionRefused:
+      out += ", \"connection_error\": " + std::to_string(e.connection_error);
+      break;
     default:
       break;
+  }
+  if (e.connection) {
+    // SDO manager kinds (DSP 302 §7.2.3): the connection, as 1F03h describes it, and its COB-IDs.
+    const auto& c = *e.connection;
+    out += ", \"connection\": {\"row\": " + std::to_string(c.row) +
+           ", \"client_node_id\": " + std::to_string(c.srd) +
+           ", \"client_index\": " + std::to_string(c.client_index) +
+           ", \"server_node_id\": " + std::to_string(c.server) +
+           ", \"server_index\": " + std::to_string(c.server_index) +
+           ", \"request_cob_id\": " + std::to_string(c.request.word()) +
+           ", \"response_cob_id\": " + std::to_string(c.response.word()) + "}";
   }
   out += ", \"text\": " + tools::json_string(e.text) + "}\n";
   *json_ << out << std::flush;

@@ -171,11 +171,11 @@ struct SdoManager {
     enum class Phase : std::uint8_t {
       Start,
       Scanning,       // 1F10h of `node`
-      Confirming,     // registration writes
+      Confirming,     // registration: the SRD's client entry
       ReadHeartbeat,  // the SRD's 1017h
       ProbeSlave,     // S's 1000h (its default SDO is given)
       SearchChannel,  // S's `probe` sub 1
-      Writing,        // connection writes
+      Writing,        // connection writes; registration: the 1F10h confirmation
       Releasing,      // release writes (best effort)
       Refusing,       // 1F10h with Cnxn 0 (or S's side undone), then the event
     };
@@ -193,7 +193,8 @@ struct SdoManager {
     bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
     std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
     cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
-    bool confirm = false;                       ///< Refusing: 1F10h is written
+    std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
+    std::optional<Duration> heartbeat;          ///< Register: the SRD's heartbeat consumer time
     std::deque<Step> steps;                     ///< accesses still to do, in order
   };
 
@@ -396,7 +397,7 @@ struct NmtMaster::Impl {
                       TimePoint now, Output& out);
   void manager_release_job(std::uint8_t srd, std::vector<SdoManager::Connection> rows,
                            bool deregister, bool lost, std::string why);
-  void manager_watch(std::uint8_t node, bool srd, std::optional<Duration> heartbeat, TimePoint now);
+  void manager_watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now);
   std::vector<std::uint8_t> manager_free_pool() const;
   void manager_mark_pool(std::uint8_t sub, bool in_use);
   void manager_open_channel(std::uint16_t index, const SdoManager::Connection& c);

@@ -355,9 +355,9 @@ bool NmtMaster::Impl::default_sdo_taken(std::uint8_t node) const {
                      });
 }
 
-void NmtMaster::Impl::manager_watch(std::uint8_t node, bool srd, std::optional<Duration> heartbeat,
+void NmtMaster::Impl::manager_watch(std::uint8_t node, std::optional<Duration> heartbeat,
                                     TimePoint now) {
-  if (srd || !heartbeat) heartbeat = heartbeat_time(node);
+  if (!heartbeat) heartbeat = heartbeat_time(node);
   if (heartbeat && heartbeat->count() > 0) {
     const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(*heartbeat).count();
     heartbeats.monitor({node, static_cast<std::uint16_t>(std::min<std::int64_t>(ms, 0xFFFF))}, now);
@@ -499,12 +499,12 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
     case Phase::ReadHeartbeat: {
       // Consumer time 2 x the SRD's producer time + 100 ms (its 1017h; 0: guarding).
       const auto ms = result.ok() ? (uploaded_u32(result) & 0xFFFF) : 0;
-      std::optional<Duration> hb;
-      if (!heartbeat_time(job.node) && ms != 0) {
-        hb = 2 * std::chrono::milliseconds(ms) + std::chrono::milliseconds(100);
-      }
-      manager_watch(job.node, true, hb, now);
-      job.phase = Phase::Writing;  // registration complete (manager_advance)
+      if (ms != 0)
+        job.heartbeat = 2 * std::chrono::milliseconds(ms) + std::chrono::milliseconds(100);
+      // Confirmed last (§7.2.3: reset 1F10h): the SRD may use its channel as soon as it sees it.
+      job.phase = Phase::Writing;
+      job.steps.push_back(
+          write_step(job.node, obj::kDynamicSdoConnectionState, 0, job.confirmation, 4));
       return;
     }
     case Phase::ProbeSlave:
@@ -582,7 +582,6 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
     job.phase = SdoManager::Job::Phase::Refusing;
     job.error = DynamicSdoError::kNoDetails;
     job.why = why;
-    job.confirm = false;
     return;
   }
   manager_finish_job(now, out);
@@ -597,7 +596,6 @@ void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& w
   job.phase = SdoManager::Job::Phase::Refusing;
   job.error = error;
   job.why = why;
-  job.confirm = true;
   // §7.2.3: Cnxn state 0 and the reason in the error code.
   const auto srd = sdo_manager.srds.find(job.node);
   const bool ec = job.kind == SdoManager::Job::Kind::Register
@@ -641,9 +639,8 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
       return;
     }
     job.phase = SdoManager::Job::Phase::Confirming;
-    job.steps.push_back(write_step(
-        srd, obj::kDynamicSdoConnectionState, 0,
-        DynamicSdoState::confirmation(0, ConnectionState::kAllDefaultSdosOwned).encode(), 4));
+    job.confirmation =
+        DynamicSdoState::confirmation(0, ConnectionState::kAllDefaultSdosOwned).encode();
     return;
   }
   const auto index = state.client_index;
@@ -686,12 +683,9 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
   job.steps.push_back(write_step(srd, index, 3, node_id.value(), 1));
   job.steps.push_back(write_step(srd, index, 1, c.row.request.word(), 4));
   job.steps.push_back(write_step(srd, index, 2, c.row.response.word(), 4));
-  job.steps.push_back(
-      write_step(srd, obj::kDynamicSdoConnectionState, 0,
-                 DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
-                                               state.request_error_control)
-                     .encode(),
-                 4));
+  job.confirmation = DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
+                                                   state.request_error_control)
+                         .encode();
 }
 
 void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
@@ -809,16 +803,20 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
     }
     case Kind::Register: {
       if (job.phase == Phase::Confirming) {
-        // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h.
-        if (auto hb = heartbeat_time(job.node)) {
-          manager_watch(job.node, true, hb, now);
+        // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h; known
+        // before the confirmation, so the SRD is registered once it has taken it.
+        job.heartbeat = heartbeat_time(job.node);
+        if (job.heartbeat) {
           job.phase = Phase::Writing;
+          job.steps.push_back(
+              write_step(job.node, obj::kDynamicSdoConnectionState, 0, job.confirmation, 4));
         } else {
           job.phase = Phase::ReadHeartbeat;
           job.steps.push_back(read_step(job.node, obj::kProducerHeartbeatTime, 0));
-          return;
         }
+        return;
       }
+      manager_watch(job.node, job.heartbeat, now);
       SdoManager::Srd srd;
       srd.info.node = job.node;
       const auto request = DynamicSdoState::decode(job.request);
@@ -859,7 +857,7 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
           sdo_manager.watched.count(job.slave) == 0 && !heartbeats.monitors(job.slave) &&
           !guarding.guards(job.slave)) {
         // §7.2.5 step 4.4: error control of S for the SRD.
-        manager_watch(job.slave, false, std::nullopt, now);
+        manager_watch(job.slave, std::nullopt, now);
         sdo_manager.watched.insert(job.slave);
       } else if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control) {
         sdo_manager.watched.insert(job.slave);

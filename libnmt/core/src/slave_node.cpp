@@ -123,11 +123,7 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
   }
   // CiA 301 §7.5.2.33: the default channel always, the additional ones the file declares.
   sdo_.push_back({obj::kSdoServerFirst, SdoServer(dict_, SdoServerConfig::for_node(node_id))});
-  for (std::uint16_t index = obj::kSdoServerFirst + 1; index <= obj::kSdoServerLast; ++index) {
-    if (dict_.has_object(index)) {
-      sdo_.push_back({index, SdoServer(dict_, SdoServerConfig::from_dictionary(dict_, index))});
-    }
-  }
+  add_sdo_channels();
   install_hooks();
 }
 
@@ -154,8 +150,21 @@ bool SlaveNode::sdo_busy(std::uint16_t index) const {
   return false;
 }
 
+void SlaveNode::add_sdo_channels() {
+  // Entries a device model inserted after creation (LocalDictionary::insert) count too.
+  for (std::uint16_t index = obj::kSdoServerFirst + 1; index <= obj::kSdoServerLast; ++index) {
+    if (!dict_.has_object(index) || sdo_config(index) != nullptr) continue;
+    auto config = SdoServerConfig::from_dictionary(dict_, index);
+    config.timeout = options_.sdo_server_timeout;
+    const auto at = std::find_if(sdo_.begin(), sdo_.end(),
+                                 [index](const SdoChannel& c) { return c.index > index; });
+    sdo_.insert(at, {index, SdoServer(dict_, config)});
+  }
+}
+
 void SlaveNode::reconfigure_sdo_channels() {
   sdo_changed_ = false;
+  add_sdo_channels();
   for (auto& c : sdo_) {
     auto config = SdoServerConfig::from_dictionary(dict_, c.index);
     config.timeout = options_.sdo_server_timeout;
@@ -260,6 +269,7 @@ void SlaveNode::restore(ResetScope scope) {
 }
 
 void SlaveNode::configure_services(TimePoint now) {
+  add_sdo_channels();
   for (auto& c : sdo_) {
     auto config = SdoServerConfig::from_dictionary(dict_, c.index);
     config.timeout = options_.sdo_server_timeout;

@@ -130,7 +130,9 @@
 //   makes another scan follow it. The SRD then gets a channel to the manager: a free own server
 //   channel (bit 31 of its sub 1 set) and two free pool entries (marked bit 30), written to the
 //   SRD's client entry named in 1F10h (sub 3 = manager node-ID, sub 1, sub 2) and to the own
-//   channel; then 1F10h = index << 16 | Cnxn 1 | Req EC as asked (supported). None free: 1F10h =
+//   channel; the SRD's 1017h is read (error control, below); then 1F10h = index << 16 | Cnxn 1 |
+//   Req EC as asked (supported), and once the SRD took that write it is registered and may
+//   write 1F00h at once. None free: 1F10h =
 //   Cnxn 0 with error 01h. A 1F10h index outside 1280h-12FFh: Cnxn 0 with error 00h. 00000003h
 //   (all default SDOs) is granted with 1F10h = 00000004h (Cnxn 2) when no connection holds a
 //   default SDO and no other SRD has them, else Cnxn 0 with error 00h. Each registration is a row

@@ -36,7 +36,8 @@
 //   SlaveNodeOptions::downloaded_program_version, or leaves it unchanged when that is unset.
 //   Like 1F50h-1F57h as a whole, it lives in program memory: resets and power cycles keep it.
 // - SDO server channels (CiA 301 §7.5.2.33): the default channel 1200h and every 1201h-127Fh
-//   entry of the device file, each served by its own SdoServer (one transfer per channel, so
+//   entry of the device file (or inserted into the dictionary later: found at the next reset or
+//   write of a server entry), each served by its own SdoServer (one transfer per channel, so
 //   clients on different channels never disturb each other). An additional channel answers while
 //   bit 31 of both sub 1 and sub 2 is 0; a frame is served by the first channel in index order
 //   whose request COB-ID it carries.
@@ -163,11 +164,11 @@ class SlaveNode {
   /// The default SDO server channel's COB-IDs and settings as the last reset configured them
   /// (1200h).
   const SdoServerConfig& sdo_config() const { return sdo_.front().server.config(); }
-  /// The SDO server channels the node serves: 1200h, then the 1201h-127Fh entries of its device
-  /// file in index order.
+  /// The SDO server channels the node serves: 1200h, then the 1201h-127Fh entries of its
+  /// dictionary in index order.
   std::vector<std::uint16_t> sdo_server_channels() const;
   /// The current configuration of server channel `index` (1200h-127Fh); nullptr when the node
-  /// has no such channel. Valid until the node is destroyed.
+  /// has no such channel. Valid until the next call of the node (a new channel may move it).
   const SdoServerConfig* sdo_config(std::uint16_t index) const;
   /// True while a segmented or block transfer runs on server channel `index`.
   bool sdo_busy(std::uint16_t index) const;
@@ -223,6 +224,7 @@ class SlaveNode {
                                std::span<const std::uint8_t> data) const;
   SdoAbort check_sdo_parameter_write(std::uint16_t index, std::uint8_t sub,
                                      std::span<const std::uint8_t> data) const;
+  void add_sdo_channels();
   void reconfigure_sdo_channels();
   void after_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                    TimePoint now);
