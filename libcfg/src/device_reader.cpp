@@ -137,6 +137,7 @@ void Reader::finish() {
   for (auto& [index, st] : states_) finish_object(index, st);
   check_object_lists();
   finish_comments();
+  finish_dynamic_channels();
   if (!strict_ && dropped_comments_ > 1) {
     warn(0, std::to_string(dropped_comments_ - 1) +
                 " more values have a comment after them, dropped the same way (strict mode lists "

@@ -6,6 +6,7 @@
 //   device_reader_compact.cpp   each object assembled after the last line: CompactSubObj
 //                               (§4.6.3.3), [xxxxName]/[xxxxValue]/[xxxxDenotation], ObjectLinks
 //   device_reader_lists.cpp     [MandatoryObjects]/[OptionalObjects]/[ManufacturerObjects]
+//   device_reader_dynamic.cpp   [DynamicChannels] (CiA DSP 302 §8.4) and its checks
 #pragma once
 
 #include <array>
@@ -23,6 +24,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/value.hpp"
 #include "device_file_detail.hpp"
+#include "dynamic_channels_read.hpp"
 #include "ini_scanner.hpp"
 
 namespace cfg::detail::reader {
@@ -106,6 +108,7 @@ enum class Kind {
   Values,
   Denotations,
   ObjectLinks,
+  DynamicChannels,
   Other,
 };
 
@@ -176,6 +179,14 @@ struct ListState {
   std::optional<std::uint64_t> supported;
   int supported_line = 0;
   std::vector<std::pair<std::uint16_t, int>> entries;  // index, line
+};
+
+// [DynamicChannels] as read: its keys (views into the file) in file order, checked after the last
+// line (device_reader_dynamic.cpp). The section itself is kept as a RawSection.
+struct DynamicChannelsState {
+  bool present = false;
+  int line = 0;
+  std::vector<DynamicChannelsKey> keys;
 };
 
 // A key=value section kept as text, with a case-insensitive index for duplicates.
@@ -308,6 +319,9 @@ class Reader final : public IniSink {
   void list_key(std::string_view key, std::string_view value, int line);
   void check_object_lists();
 
+  // ---- [DynamicChannels] (device_reader_dynamic.cpp)
+  void finish_dynamic_channels();
+
   // ---- after the last line (device_reader.cpp)
   void finish();
 
@@ -332,6 +346,7 @@ class Reader final : public IniSink {
   std::size_t expanded_budget_ = 0;  // sub-objects CompactSubObj may still create
   Seen seen_;
   std::array<ListState, 3> lists_;
+  DynamicChannelsState dynamic_;
   std::map<std::uint16_t, ObjectState> states_;
   ObjectState* last_state_ = nullptr;
   std::uint16_t last_state_index_ = 0;

@@ -76,6 +76,10 @@ void Reader::on_key(int line, std::string_view key, std::string_view value) {
     case Kind::ObjectLinks:
       object_links_key(key, value, line);
       return;
+    case Kind::DynamicChannels:
+      add_key_value(*cur_.other, key, value, line);  // kept as written
+      dynamic_.keys.push_back({key, value, line});
+      return;
   }
 }
 
@@ -114,6 +118,14 @@ void Reader::open_section() {
   if (iequals(name, "DeviceInfo")) return known(seen_.device_info, Kind::DeviceInfo);
   if (iequals(name, "DummyUsage")) return known(seen_.dummy_usage, Kind::DummyUsage);
   if (iequals(name, "Comments")) return known(seen_.comments, Kind::Comments);
+  if (iequals(name, "DynamicChannels")) {
+    // CiA DSP 302 §8.4: kept as written like any other section, and checked at the end.
+    if (!dynamic_.present) dynamic_.line = cur_.line;
+    dynamic_.present = true;
+    open_other_section();
+    if (cur_.kind == Kind::Other) cur_.kind = Kind::DynamicChannels;
+    return;
+  }
   static constexpr std::array<std::string_view, 3> kLists = {"MandatoryObjects", "OptionalObjects",
                                                              "ManufacturerObjects"};
   for (int i = 0; i < 3; ++i) {

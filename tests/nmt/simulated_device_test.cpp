@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "cfg/device_file.hpp"
+#include "cfg/dynamic_channels.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
 
@@ -1007,6 +1008,111 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     ++ran;
   }
   EXPECT_GE(ran, 3);
+}
+
+// ------------------------------------------------------- 1F70h process picture (DSP 302 §8.3) ---
+
+// tests/data/dynamic/ds405_like.eds programmed with network variables by dynamic index
+// assignment (§8.2): BOOLEAN inputs x, y in byte cells (A000h, bytes 0-1), UNSIGNED8 inputs l1,
+// l2 (A001h, bytes 16-17), UNSIGNED16 rww outputs s1, s2 (A101h, bytes 2-5 of the output
+// picture), packed BOOLEAN wo outputs q0..q2 (A100h, bits 0-2 of the output picture).
+cfg::DeviceDescription programmed_plc() {
+  cfg::DeviceDescription d =
+      load_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/dynamic/ds405_like.eds");
+  using cfg::DataType;
+  using cfg::VariableDirection;
+  auto v = [](std::string name, DataType t, VariableDirection dir) {
+    return cfg::NetworkVariable{std::move(name), static_cast<std::uint16_t>(t), dir};
+  };
+  const std::vector<cfg::NetworkVariable> vars = {
+      v("x", DataType::Boolean, VariableDirection::Input),
+      v("y", DataType::Boolean, VariableDirection::Input),
+      v("l1", DataType::Unsigned8, VariableDirection::Input),
+      v("l2", DataType::Unsigned8, VariableDirection::Input),
+      v("s1", DataType::Unsigned16, VariableDirection::Output),
+      v("s2", DataType::Unsigned16, VariableDirection::Output),
+      v("q0", DataType::Boolean, VariableDirection::Output),
+      v("q1", DataType::Boolean, VariableDirection::Output),
+      v("q2", DataType::Boolean, VariableDirection::Output)};
+  const cfg::DynamicChannels segments =
+      cfg::dynamic_channels_of(d).value_or(cfg::DynamicChannels{});
+  auto a = cfg::allocate_variables(segments, vars);
+  EXPECT_TRUE(a.ok()) << (a.ok() ? "" : a.error().message);
+  if (a.ok()) {
+    EXPECT_TRUE(cfg::add_variable_objects(d, segments, *a).ok());
+  }
+  return d;
+}
+
+// Selected range, COMMON13.md layout (the figure is missing from our spec text): bits 31-16 the
+// segment's index, bits 15-0 the data length in bytes (0: the whole segment).
+constexpr std::uint32_t selected_range(std::uint16_t index, std::uint16_t length) {
+  return std::uint32_t{index} << 16 | length;
+}
+
+TEST(SimulatedDeviceProcessPicture, ReadOfSub2ReturnsTheVariablesOfTheSelectedSegment) {
+  Rig rig({}, programmed_plc());
+  rig.boot();
+  ASSERT_EQ(rig.write_u(0xA101, 1, 0x1234, 2), SdoAbort::None);  // s1
+  ASSERT_EQ(rig.write_u(0xA101, 2, 0xABCD, 2), SdoAbort::None);  // s2
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA101, 0), 4), SdoAbort::None);
+  const SdoResult whole = rig.read(0x1F70, 2);
+  ASSERT_TRUE(whole.ok()) << whole.abort;
+  // Segment 5: PPOffset 2, MaxCnt 8 UNSIGNED16: 16 bytes, s1 and s2 first, little-endian.
+  std::vector<std::uint8_t> expected(16, 0);
+  expected[0] = 0x34;
+  expected[1] = 0x12;
+  expected[2] = 0xCD;
+  expected[3] = 0xAB;
+  EXPECT_EQ(whole.data, expected);
+  // §8.3: "The Data Length gives the maximum amount in bytes for the transfer."
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA101, 3), 4), SdoAbort::None);
+  EXPECT_EQ(rig.read(0x1F70, 2).data, (std::vector<std::uint8_t>{0x34, 0x12, 0xCD}));
+}
+
+TEST(SimulatedDeviceProcessPicture, WriteOfSub2ChangesTheVariables) {
+  Rig rig({}, programmed_plc());
+  rig.boot();
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA101, 0), 4), SdoAbort::None);
+  ASSERT_EQ(rig.write(0x1F70, 2, {0x01, 0x00, 0x02, 0x00}).abort, SdoAbort::None);
+  EXPECT_EQ(rig.read_u(0xA101, 1), 1U);
+  EXPECT_EQ(rig.read_u(0xA101, 2), 2U);
+  // Inputs (ro over SDO) are set through the picture: l1, l2 are bytes 16, 17 (segment 2).
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA002, 0), 4), SdoAbort::None);
+  ASSERT_EQ(rig.write(0x1F70, 2, {0x11, 0x22}).abort, SdoAbort::None);
+  EXPECT_EQ(rig.read_u(0xA001, 1), 0x11U);
+  EXPECT_EQ(rig.read_u(0xA001, 2), 0x22U);
+  // BOOLEANs in byte cells (PPOffset1=0,8): byte 1 is y.
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA000, 2), 4), SdoAbort::None);
+  ASSERT_EQ(rig.write(0x1F70, 2, {0x00, 0x01}).abort, SdoAbort::None);
+  EXPECT_EQ(rig.read_u(0xA000, 1), 0U);
+  EXPECT_EQ(rig.read_u(0xA000, 2), 1U);
+  EXPECT_EQ(rig.read(0x1F70, 2).data, (std::vector<std::uint8_t>{0x00, 0x01}));
+}
+
+TEST(SimulatedDeviceProcessPicture, PackedBooleansAreOneBitEach) {
+  Rig rig({}, programmed_plc());
+  rig.boot();
+  // Segment 4: PPOffset4=0,1, MaxCnt 16: two bytes, q0..q2 in bits 0..2.
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA100, 0), 4), SdoAbort::None);
+  ASSERT_EQ(rig.write(0x1F70, 2, {0x05, 0x00}).abort, SdoAbort::None);
+  const LocalDictionary& dict = rig.device().node().dictionary();
+  EXPECT_EQ(dict.get_unsigned(0xA100, 1), 1U);  // wo: read on the device side
+  EXPECT_EQ(dict.get_unsigned(0xA100, 2), 0U);
+  EXPECT_EQ(dict.get_unsigned(0xA100, 3), 1U);
+  EXPECT_EQ(rig.read(0x1F70, 2).data, (std::vector<std::uint8_t>{0x05, 0x00}));
+}
+
+TEST(SimulatedDeviceProcessPicture, ARangeOfNoSegmentAbortsWithValueRangeExceeded) {
+  Rig rig({}, programmed_plc());
+  rig.boot();
+  // CiA 301 Table 22: 0609 0030 "value range of parameter exceeded (only for write access)".
+  EXPECT_EQ(rig.write_u(0x1F70, 1, selected_range(0x7000, 0), 4), SdoAbort::ValueRangeExceeded);
+  // Nothing selected (the default 0000 0000h): no data (0800 0024).
+  EXPECT_EQ(rig.read(0x1F70, 2).abort, SdoAbort::NoDataAvailable);
+  // More bytes than the selected length: 0607 0012 (length too high).
+  ASSERT_EQ(rig.write_u(0x1F70, 1, selected_range(0xA101, 2), 4), SdoAbort::None);
+  EXPECT_EQ(rig.write(0x1F70, 2, {1, 2, 3}).abort, SdoAbort::LengthTooHigh);
 }
 
 }  // namespace

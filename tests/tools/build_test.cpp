@@ -11,6 +11,7 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/dynamic_channels.hpp"
 #include "cfg/network.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
@@ -129,6 +130,51 @@ TEST(BuildErrors, ExitCodes) {
             1);
   EXPECT_FALSE(std::filesystem::exists(dir / "o"));
   EXPECT_EQ(cfgmgr(dir, {"build", dir / "absent.cpj", "-o", dir / "o"}).exit_code, 3);
+}
+
+// --variables NODE=FILE (CiA DSP 302 §8.2, §8.5): node 5 (tests/data/dynamic/network, the
+// segments of ds405_like.eds) gets the variables of plc5.csv as ARRAY objects in DIR/node5.dcf.
+TEST(BuildVariables, WritesTheProgrammedDcfOfTheNode) {
+  ScratchDir dir;
+  const std::string net = tool_test::data_path("dynamic/network/nodelist.cpj");
+  const auto r = cfgmgr(dir, {"build", net, "-o", dir / "out", "--variables",
+                              "5=" + tool_test::data_path("dynamic/network/plc5.csv")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("node 5 programmed, 5 network variables"));
+  auto read = cfg::read_device_file(dir / "out/node5.dcf");
+  ASSERT_TRUE(read.ok()) << read.diagnostics.format();
+  const cfg::DeviceDescription& dcf = *read.device;
+  // Segment 1 (BOOLEAN ro, A000h): start_button, stop_button; segment 2 (UNSIGNED8 ro, A001h):
+  // level; segment 5 (UNSIGNED16 rww, A101h): setpoint; segment 4 (BOOLEAN wo, A100h): valve.
+  ASSERT_NE(dcf.sub(0xA000, 2), nullptr);
+  EXPECT_EQ(dcf.sub(0xA000, 1)->name, "start_button");
+  EXPECT_EQ(dcf.sub(0xA000, 2)->name, "stop_button");
+  EXPECT_EQ(dcf.sub(0xA000, 0)->default_value, "2");
+  EXPECT_EQ(dcf.sub(0xA001, 1)->name, "level");
+  EXPECT_EQ(dcf.sub(0xA101, 1)->name, "setpoint");
+  EXPECT_EQ(dcf.sub(0xA101, 1)->access, cfg::AccessType::Rww);
+  EXPECT_EQ(dcf.sub(0xA100, 1)->name, "valve");
+  EXPECT_EQ(dcf.sub(0xA100, 1)->access, cfg::AccessType::Wo);
+  EXPECT_TRUE(dcf.sub(0xA100, 1)->pdo_mapping);
+  EXPECT_EQ(dcf.node_id(), 5);
+  ASSERT_TRUE(cfg::dynamic_channels_of(dcf));
+  EXPECT_EQ(cfg::dynamic_channels_of(dcf)->segments.size(), 6U);
+}
+
+TEST(BuildVariables, ABadVariablesFileOrNodeIsAnErrorNamingIt) {
+  ScratchDir dir;
+  const std::string net = tool_test::data_path("dynamic/network/nodelist.cpj");
+  const std::string bad = tool_test::data_path("dynamic/network/bad.csv");
+  const auto r = cfgmgr(dir, {"build", net, "-o", dir / "o", "--variables", "5=" + bad});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.err, HasSubstr(bad + ":2: expected name,type,direction"));
+  EXPECT_EQ(cfgmgr(dir, {"build", net, "-o", dir / "o", "--variables", "6=" + bad}).exit_code, 1);
+  EXPECT_EQ(cfgmgr(dir, {"build", net, "-o", dir / "o", "--variables", "x"}).exit_code, 2);
+  // The sample network's nodes have no [DynamicChannels].
+  const auto none = cfgmgr(dir, {"build", sample("nodelist.cpj"), "-o", dir / "o", "--variables",
+                                 "3=" + tool_test::data_path("dynamic/network/plc5.csv")});
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_THAT(none.err, HasSubstr("has no [DynamicChannels] segments"));
 }
 
 }  // namespace

@@ -4,13 +4,18 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include "../common/tool_support.hpp"
 #include "cfg/device_file.hpp"
+#include "cfg/dynamic_channels.hpp"
+#include "cfg/integer_literal.hpp"
 #include "cfg/network.hpp"
 #include "cfg/network_build.hpp"
+#include "cfg/node_id.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
 
@@ -25,6 +30,7 @@ struct BuildCliOptions {
   unsigned net = 1;
   std::string node_id;
   bool lf = false;
+  std::vector<std::string> variables;  ///< NODE=FILE
 };
 
 void write_or_exit(const std::string& path, std::string_view bytes) {
@@ -32,6 +38,54 @@ void write_or_exit(const std::string& path, std::string_view bytes) {
     std::cerr << written.error().message << '\n';
     exit_with(tools::kExitIo);
   }
+}
+
+// --variables NODE=FILE: node NODE's DCF with the network variables of FILE allocated into its
+// [DynamicChannels] (CiA DSP 302 §8.2), as the DCF of the programmed device (§8.5).
+void write_programmed_node(const std::string& spec, const cfg::Network& network,
+                           const std::filesystem::path& dir, const BuildCliOptions& options) {
+  const std::size_t eq = spec.find('=');
+  const auto id = cfg::parse_integer_literal(std::string_view(spec).substr(0, eq)).literal;
+  if (eq == std::string::npos || !id || !cfg::is_node_id(id->value)) {
+    fail_command(kTool, tools::kExitUsage,
+                 "--variables " + spec + ": expected NODE=FILE with NODE a node-ID (1..127)");
+  }
+  const std::string file = spec.substr(eq + 1);
+  const cfg::NetworkNode* node = nullptr;
+  for (const auto& n : network.nodes) {
+    if (n.node_id.value() == id->value) node = &n;
+  }
+  if (node == nullptr || !node->dcf) {
+    fail_command(kTool, tools::kExitInputErrors,
+                 "--variables: node " + std::to_string(id->value) +
+                     (node == nullptr ? " is not in the network" : " has no DCF in the network"));
+  }
+  cfg::DeviceDescription device = *node->dcf;
+  const std::optional<cfg::DynamicChannels> channels = cfg::dynamic_channels_of(device);
+  if (!channels || channels->segments.empty()) {
+    fail_command(kTool, tools::kExitInputErrors,
+                 "--variables: node " + std::to_string(id->value) + " (" + node->file +
+                     ") has no [DynamicChannels] segments to allocate variables in");
+  }
+  auto text = tools::read_input(file);
+  if (!text) fail_command(kTool, tools::exit_code_for(text.error()), text.error().message);
+  auto vars = cfg::parse_network_variables(*text, file);
+  if (!vars) fail_command(kTool, tools::kExitInputErrors, vars.error().message);
+  auto allocation = cfg::allocate_variables(*channels, *vars);
+  if (!allocation)
+    fail_command(kTool, tools::kExitInputErrors, file + ": " + allocation.error().message);
+  if (auto added = cfg::add_variable_objects(device, *channels, *allocation); !added) {
+    fail_command(kTool, tools::kExitInputErrors, node->file + ": " + added.error().message);
+  }
+  cfg::WriteOptions write_options;
+  write_options.kind = cfg::FileKind::Dcf;
+  write_options.line_ending = options.lf ? cfg::LineEnding::Lf : cfg::LineEnding::Crlf;
+  const std::string name = "node" + std::to_string(id->value) + ".dcf";
+  device.file_info.set("FileName", name);
+  const std::string path = (dir / name).string();
+  write_or_exit(path, cfg::write_device_description(device, write_options));
+  std::cout << path << ": node " << id->value << " programmed, "
+            << tools::plural(allocation->size(), "network variable") << " from " << file << '\n';
 }
 
 void run_build(const BuildCliOptions& options) {
@@ -56,6 +110,9 @@ void run_build(const BuildCliOptions& options) {
     exit_with(tools::kExitIo);
   }
   const fs::path dir(options.output_dir);
+  for (const std::string& spec : options.variables) {
+    write_programmed_node(spec, *network, dir, options);
+  }
   for (const auto& node : build.nodes) {
     const std::string path = (dir / node.file_name).string();
     write_or_exit(path, std::string_view(reinterpret_cast<const char*>(node.concise_dcf.data()),
@@ -108,11 +165,24 @@ void add_build_command(CLI::App& app) {
                   "network's, else 0x7F (127), as cfgmgr master takes it")
       ->type_name("N");
   cmd->add_flag("--lf", options->lf, "End the master DCF's lines with LF instead of CRLF");
+  cmd->add_option("--variables", options->variables,
+                  "Program node NODE (a programmable device whose DCF has [DynamicChannels]): "
+                  "allocate the network variables of FILE into its segments (CiA DSP 302 §8.2) "
+                  "and write its DCF with them as DIR/nodeNODE.dcf (§8.5). FILE has one variable "
+                  "per line, name,type,direction: a CiA 301 type name or number, in or out; "
+                  "'#' starts a comment line. May be given for several nodes")
+      ->type_name("NODE=FILE");
   cmd->footer(std::string("cfgmgr push DIR/master.dcf configures the network as cfgmgr push "
                           "NETWORK does (the same writes, the same 1F26h/1F27h).\n\n"
                           "Examples:\n"
                           "  cfgmgr build samples/network/nodelist.cpj -o out\n"
                           "  cfgmgr build plant.cpj --net 2 -o net2\n"
+                          "  cfgmgr build plant.cpj -o out --variables 5=plc5.csv\n"
+                          "    with plc5.csv:\n"
+                          "      # name,type,direction\n"
+                          "      start_button,BOOLEAN,in\n"
+                          "      level,UNSIGNED8,in\n"
+                          "      setpoint,UNSIGNED16,out\n"
                           "  cfgmgr push out/master.dcf --bus socketcan:can0\n\n") +
               std::string(tools::kExitCodesHelp));
   cmd->callback([options] { run_build(*options); });

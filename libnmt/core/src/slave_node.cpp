@@ -10,6 +10,7 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
+#include "process_picture.hpp"
 
 namespace nmt {
 
@@ -183,6 +184,8 @@ void SlaveNode::install_hooks() {
   dict_.add_write_observer([this](std::uint16_t index, std::uint8_t sub,
                                   std::span<const std::uint8_t> data,
                                   TimePoint now) { after_write(index, sub, data, now); });
+  // CiA DSP 302 §8.3: 1F70h of a programmable device (process_picture.hpp).
+  detail::install_process_picture(dict_, description_);
 }
 
 void SlaveNode::set_options(SlaveNodeOptions options) {
