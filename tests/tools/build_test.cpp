@@ -171,8 +171,9 @@ TEST(BuildVariables, ABadVariablesFileOrNodeIsAnErrorNamingIt) {
   EXPECT_EQ(cfgmgr(dir, {"build", net, "-o", dir / "o", "--variables", "6=" + bad}).exit_code, 1);
   EXPECT_EQ(cfgmgr(dir, {"build", net, "-o", dir / "o", "--variables", "x"}).exit_code, 2);
   // The sample network's nodes have no [DynamicChannels].
-  const auto none = cfgmgr(dir, {"build", sample("nodelist.cpj"), "-o", dir / "o", "--variables",
-                                 "3=" + tool_test::data_path("dynamic/network/plc5.csv")});
+  const auto none =
+      cfgmgr(dir, {"build", sample_network("nodelist.cpj"), "-o", dir / "o", "--variables",
+                   "3=" + tool_test::data_path("dynamic/network/plc5.csv")});
   EXPECT_EQ(none.exit_code, 1);
   EXPECT_THAT(none.err, HasSubstr("has no [DynamicChannels] segments"));
 }
