@@ -1044,13 +1044,13 @@ cfg::DeviceDescription programmed_plc() {
   return d;
 }
 
-// Selected range, COMMON13.md layout (the figure is missing from our spec text): bits 31-16 the
+// Selected range, an assumed layout (the figure is missing from our DSP 302 text): bits 31-16 the
 // segment's index, bits 15-0 the data length in bytes (0: the whole segment).
 constexpr std::uint32_t selected_range(std::uint16_t index, std::uint16_t length) {
   return std::uint32_t{index} << 16 | length;
 }
 
-TEST(SimulatedDeviceProcessPicture, ReadOfSub2ReturnsTheVariablesOfTheSelectedSegment) {
+TEST(SimulatedDeviceProcessPicture, ReadOfSub2ReturnsTheSelectedSegmentAssumingIndexHighLengthLow) {
   Rig rig({}, programmed_plc());
   rig.boot();
   ASSERT_EQ(rig.write_u(0xA101, 1, 0x1234, 2), SdoAbort::None);  // s1

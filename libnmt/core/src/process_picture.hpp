@@ -11,7 +11,8 @@ namespace nmt::detail {
 /// dictionary has 1F70h sub 1 and sub 2; does nothing otherwise. The hooks keep pointers to
 /// `dict` and a copy of the segments: `dict` must outlive them (they live in it).
 ///
-/// Sub 1 "selected range" (COMMON13.md layout, the figure is missing from our spec text): bits
+/// Sub 1 "selected range": the figure of its layout is missing from our DSP 302 text, which
+/// names an "Index" and then a "Data Length"; assumed (MSB first, as CiA draws words): bits
 /// 31-16 an index of a segment's range (it selects that whole segment), bits 15-0 the most bytes
 /// to transfer (0: the whole segment). A write of an index that is in no segment aborts with
 /// 0609 0030 (CiA 301: value range of parameter exceeded); 0 (the default) selects nothing.
