@@ -192,6 +192,7 @@ struct SdoManager {
     bool deregister = false;                    ///< Release: the SRD goes too
     bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
     std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
+    bool server_gone = false;                   ///< Release: no write to S (failed, or reset)
     cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
     std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
     std::optional<Duration> heartbeat;          ///< Register: the SRD's heartbeat consumer time
@@ -250,6 +251,9 @@ struct NmtMaster::Impl {
   std::size_t boot_transfers = 0;
   double window = kMaxWindow;
   std::deque<std::pair<std::uint8_t, MasterTransfer>> waiting;
+  /// Boot and application transfers to a slave whose default SDO the SDO manager gave to an SRD
+  /// (DSP 302 §7.1): they wait here, in order, until it is free again (release_held).
+  std::deque<std::pair<std::uint8_t, MasterTransfer>> held;
   /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
   TimePoint paced_until{0};
   /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
@@ -385,6 +389,8 @@ struct NmtMaster::Impl {
   void manager_clear();
   /// Error control of `node` failed, or it booted up: an SRD is released, a slave reported.
   void manager_node_lost(std::uint8_t node, bool boot_up, TimePoint now, Output& out);
+  /// A boot-up of slave `node`: the connections on its additional server entries are released.
+  void manager_slave_booted(std::uint8_t node);
   void manager_pump(TimePoint now, Output& out);
   void manager_result(const SdoResult& result, TimePoint now, Output& out);
   void manager_advance(TimePoint now, Output& out);
@@ -404,6 +410,9 @@ struct NmtMaster::Impl {
   void manager_close_channel(std::uint16_t index);
   std::uint16_t manager_free_row() const;
   bool default_sdo_taken(std::uint8_t node) const;
+  /// The master's own transfers must not use `node`'s default SDO: a connection holds it, or an
+  /// SRD owns all default SDOs (DSP 302 §7.1, §7.2.4 guideline 4).
+  bool default_sdo_given_out(std::uint8_t node) const;
 
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
@@ -411,6 +420,8 @@ struct NmtMaster::Impl {
   void forget_transfer(
       std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it);
   void pump_transfers(TimePoint now);
+  /// Starts the `held` transfers whose slave's default SDO is free again.
+  void release_held(TimePoint now);
   SdoClient::TransferId launch_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
   void open_boot_up_gate(TimePoint now, Output& out);
 

@@ -3,9 +3,9 @@
 // the error control of SRDs (and of slaves for SRDs that asked), and its objects 1F00h-1F06h.
 // The choices where §7 leaves room are listed at the top of nmt/nmt_master.hpp.
 //
-// The work runs as jobs, one at a time (SdoManager::jobs), each a sequence of SDO accesses over
-// the master's default SDO clients; a 1F00h/1F01h write only queues one (§7.2.3: a successful
-// response means the manager started).
+// The work runs as jobs, one at a time (SdoManager::jobs; a scan lets the others go first between
+// its reads), each a sequence of SDO accesses over the master's default SDO clients; a
+// 1F00h/1F01h write only queues one (§7.2.3: a successful response means the manager started).
 #include <algorithm>
 #include <utility>
 
@@ -165,6 +165,11 @@ SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
     const auto entry = ManagerCobId::decode(value);
     if (entry.in_use() || !entry.cob_id().well_formed()) return SdoAbort::ValueRangeExceeded;
     return SdoAbort::None;
+  }
+  if (obj::is_sdo_server_parameter(index) && index != kDefaultServer) {
+    // The manager's own server channels for SRDs (choice, nmt/nmt_master.hpp): it opens and
+    // closes them; §7.2.3 lets tools change connections only through 1F00h/1F01h.
+    return SdoAbort::LocalControl;
   }
   if (index != obj::kSdoRequest && index != obj::kSdoRelease) return SdoAbort::None;
   if (!manager_active()) return SdoAbort::DeviceState;
@@ -355,6 +360,13 @@ bool NmtMaster::Impl::default_sdo_taken(std::uint8_t node) const {
                      });
 }
 
+bool NmtMaster::Impl::default_sdo_given_out(std::uint8_t node) const {
+  if (!sdo_manager.enabled) return false;
+  return default_sdo_taken(node) ||
+         std::any_of(sdo_manager.srds.begin(), sdo_manager.srds.end(),
+                     [](const auto& s) { return s.second.info.all_default_sdos; });
+}
+
 void NmtMaster::Impl::manager_watch(std::uint8_t node, std::optional<Duration> heartbeat,
                                     TimePoint now) {
   if (!heartbeat) heartbeat = heartbeat_time(node);
@@ -401,7 +413,11 @@ void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoi
     manager_release_job(node, std::move(rows), true, true, why);
     return;
   }
-  if (boot_up || sdo_manager.watched.count(node) == 0) return;
+  if (boot_up) {
+    manager_slave_booted(node);
+    return;
+  }
+  if (sdo_manager.watched.count(node) == 0) return;
   // §7.2.2 "Error Control of Slave Devices": 1F11h on each SRD with Req EC, then its client
   // entry cleared.
   sdo_manager.watched.erase(node);
@@ -423,11 +439,38 @@ void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoi
     job.kind = SdoManager::Job::Kind::Release;
     job.node = srd;
     job.failed = node;  // 1F11h first
+    job.server_gone = true;
     job.why = node_text(node) + " failed (error control)";
     job.releases = std::move(rows);
     sdo_manager.jobs.push_back(std::move(job));
   }
   (void)now;
+}
+
+void NmtMaster::Impl::manager_slave_booted(std::uint8_t node) {
+  // CiA 301: the server entries 1201h.. a slave had written into it are not kept over a reset
+  // (a boot-up follows every reset, the master's own too): those connections are gone on S, so
+  // their rows go and each SRD's client entry is invalidated. S's default SDO survives (its
+  // COB-IDs are fixed): a connection on it stays.
+  std::map<std::uint8_t, std::vector<SdoManager::Connection>> by_srd;
+  for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
+    if (c->row.server != node || c->row.to_manager || c->row.server_index == kDefaultServer) {
+      ++c;
+      continue;
+    }
+    by_srd[c->row.srd].push_back(*c);
+    set_row(dict, c->row.row, 0);
+    c = sdo_manager.connections.erase(c);
+  }
+  for (auto& [srd, rows] : by_srd) {
+    SdoManager::Job job;
+    job.kind = SdoManager::Job::Kind::Release;
+    job.node = srd;
+    job.server_gone = true;
+    job.why = node_text(node) + " booted up: its server entry is gone";
+    job.releases = std::move(rows);
+    sdo_manager.jobs.push_back(std::move(job));
+  }
 }
 
 void NmtMaster::Impl::manager_release_job(std::uint8_t srd,
@@ -452,6 +495,17 @@ void NmtMaster::Impl::manager_pump(TimePoint now, Output& out) {
   if (!sdo_manager.enabled) return;
   while (!sdo_manager.in_flight && !sdo_manager.jobs.empty()) {
     if (!manager_active()) return;  // resumes when the master is active again
+    if (sdo_manager.jobs.front().kind == SdoManager::Job::Kind::Scan) {
+      // Between two reads of a scan (126 silent node-IDs take 126 x the scan timeout), the
+      // requests and releases that came meanwhile go first: a scan step costs them one read.
+      const auto other = std::find_if(
+          sdo_manager.jobs.begin(), sdo_manager.jobs.end(),
+          [](const SdoManager::Job& j) { return j.kind != SdoManager::Job::Kind::Scan; });
+      if (other != sdo_manager.jobs.end()) {
+        std::rotate(sdo_manager.jobs.begin(), other, std::next(other));
+        continue;
+      }
+    }
     auto& job = sdo_manager.jobs.front();
     if (job.steps.empty()) {
       manager_advance(now, out);
@@ -889,7 +943,7 @@ void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
           job.steps.push_back(write_step(job.node, c.row.client_index, 2,
                                          c.row.response.with_valid(false).word(), 4, false,
                                          !job.srd_lost));
-          if (!c.row.to_manager && c.row.server_index != kDefaultServer && job.failed == 0) {
+          if (!c.row.to_manager && c.row.server_index != kDefaultServer && !job.server_gone) {
             job.steps.push_back(write_step(c.row.server, c.row.server_index, 1,
                                            c.row.request.with_valid(false).word(), 4, false));
             job.steps.push_back(write_step(c.row.server, c.row.server_index, 2,
