@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -207,8 +208,14 @@ struct SdoManager {
   std::uint64_t serial = 0;  ///< of the transfer in flight (MasterTransfer::try_id)
   bool rescan = false;       ///< a 6E0h came during a scan
   std::uint8_t writer = 0;   ///< the SRD whose channel carries the SDO request being served
-  /// This device's server channels for SRDs, by entry (1201h..).
-  std::map<std::uint16_t, std::unique_ptr<SdoServer>> channels;
+  /// One of this device's server channels for SRDs, and the SRD it was opened for (its sub 3):
+  /// the writer of a 1F00h/1F01h that arrives on it.
+  struct OwnChannel {
+    std::unique_ptr<SdoServer> server;
+    std::uint8_t client = 0;
+  };
+  /// By entry (1201h..).
+  std::map<std::uint16_t, OwnChannel> channels;
   /// Slaves the manager watches for SRDs with Req EC.
   std::set<std::uint8_t> watched;
 };
@@ -391,16 +398,28 @@ struct NmtMaster::Impl {
   void manager_node_lost(std::uint8_t node, bool boot_up, TimePoint now, Output& out);
   /// A boot-up of slave `node`: the connections on its additional server entries are released.
   void manager_slave_booted(std::uint8_t node);
+  /// Removes the connections `match` selects from the tables (rows cleared), in row order.
+  std::vector<SdoManager::Connection> manager_take_connections(
+      const std::function<bool(const ManagedSdoConnection&)>& match);
+  /// One release job per SRD for `rows` whose server side is gone; `failed` (not 0): 1F11h first.
+  void manager_release_per_srd(std::vector<SdoManager::Connection> rows, std::uint8_t failed,
+                               const std::string& why);
   void manager_pump(TimePoint now, Output& out);
   void manager_result(const SdoResult& result, TimePoint now, Output& out);
   void manager_advance(TimePoint now, Output& out);
-  void manager_finish_job(TimePoint now, Output& out);
+  // One step of the front job, by its kind (manager_advance dispatches).
+  void manager_report_refusal(TimePoint now, Output& out);
+  void manager_advance_scan();
+  void manager_advance_register(TimePoint now, Output& out);
+  void manager_advance_connect(TimePoint now, Output& out);
+  void manager_advance_release(TimePoint now, Output& out);
+  void manager_finish_job();
   void manager_job_failed(const SdoResult& result, TimePoint now, Output& out);
-  void manager_start_register(std::uint32_t request, TimePoint now, Output& out);
-  void manager_start_connect(TimePoint now, Output& out);
-  void manager_connect_with(std::uint16_t server_index, TimePoint now, Output& out);
-  void manager_refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why,
-                      TimePoint now, Output& out);
+  void manager_start_register(std::uint32_t request);
+  void manager_start_connect();
+  void manager_connect_with(std::uint16_t server_index);
+  /// Ends the front job with 1F10h Cnxn 0 and `error`, then its event.
+  void manager_refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why);
   void manager_release_job(std::uint8_t srd, std::vector<SdoManager::Connection> rows,
                            bool deregister, bool lost, std::string why);
   void manager_watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now);
