@@ -226,7 +226,8 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
       options(std::move(opts)),
       dict(std::move(dictionary)),
       server(dict, SdoServerConfig::from_dictionary(dict)),
-      producer(id) {}
+      producer(id),
+      sdo_manager(dict) {}
 
 cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& description,
                                          cfg::NodeId node_id, MasterOptions options) {

@@ -146,6 +146,7 @@ struct FlyingTiming {
 /// The SDO manager (DSP 302 §7, sdo_manager.cpp): its SRDs, connections and the jobs that set
 /// them up and take them down, one at a time.
 struct SdoManager {
+  explicit SdoManager(LocalDictionary& dict) : channels(dict) {}
   struct Srd {
     RegisteredSrd info;
     std::uint16_t own_channel = 0;  ///< this device's server entry 1201h.. (0: none)
@@ -208,14 +209,10 @@ struct SdoManager {
   std::uint64_t serial = 0;  ///< of the transfer in flight (MasterTransfer::try_id)
   bool rescan = false;       ///< a 6E0h came during a scan
   std::uint8_t writer = 0;   ///< the SRD whose channel carries the SDO request being served
-  /// One of this device's server channels for SRDs, and the SRD it was opened for (its sub 3):
-  /// the writer of a 1F00h/1F01h that arrives on it.
-  struct OwnChannel {
-    std::unique_ptr<SdoServer> server;
-    std::uint8_t client = 0;
-  };
-  /// By entry (1201h..).
-  std::map<std::uint16_t, OwnChannel> channels;
+  /// This device's server channels for SRDs (1201h..), served from its dictionary, and the SRD
+  /// each was opened for (its sub 3): the writer of a 1F00h/1F01h that arrives on it.
+  SdoServerChannels channels;
+  std::map<std::uint16_t, std::uint8_t> channel_clients;
   /// Slaves the manager watches for SRDs with Req EC.
   std::set<std::uint8_t> watched;
 };

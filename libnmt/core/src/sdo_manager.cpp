@@ -243,34 +243,24 @@ bool NmtMaster::Impl::manager_frame(const CanFrame& frame, TimePoint /*now*/) {
 }
 
 bool NmtMaster::Impl::manager_servers_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  bool taken = false;
-  for (auto& [index, channel] : sdo_manager.channels) {
-    Outbox<NoEvent> server_out;
-    // 1F00h/1F01h learn the writer from the channel: the SRD it was opened for.
-    sdo_manager.writer = channel.client;
-    const bool mine = channel.server->on_frame(frame, now, server_out);
-    sdo_manager.writer = 0;
-    for (const auto& f : server_out.frames) out.send(f);
-    if (mine) {
-      taken = true;
-      break;
-    }
-  }
-  return taken;
+  Outbox<NoEvent> server_out;
+  // 1F00h/1F01h learn the writer from the channel: the SRD it was opened for.
+  const auto taken = sdo_manager.channels.on_frame(
+      frame, now, server_out,
+      [this](std::uint16_t index) { sdo_manager.writer = sdo_manager.channel_clients[index]; });
+  sdo_manager.writer = 0;
+  for (const auto& f : server_out.frames) out.send(f);
+  return taken.has_value();
 }
 
 void NmtMaster::Impl::manager_servers_timer(TimePoint now, Output& out) {
-  for (auto& [index, channel] : sdo_manager.channels) {
-    Outbox<NoEvent> server_out;
-    channel.server->on_timer(now, server_out);
-    for (const auto& f : server_out.frames) out.send(f);
-  }
+  Outbox<NoEvent> server_out;
+  sdo_manager.channels.on_timer(now, server_out);
+  for (const auto& f : server_out.frames) out.send(f);
 }
 
 std::optional<TimePoint> NmtMaster::Impl::manager_deadline() const {
-  std::optional<TimePoint> due;
-  for (const auto& [index, channel] : sdo_manager.channels)
-    due = earliest(due, channel.server->next_deadline());
+  std::optional<TimePoint> due = sdo_manager.channels.next_deadline();
   // Queued work starts from the next call.
   if (!sdo_manager.in_flight && !sdo_manager.jobs.empty() && manager_active()) due = TimePoint{0};
   return due;
@@ -291,7 +281,7 @@ void NmtMaster::Impl::manager_clear() {
   sdo_manager.in_flight = false;
   ++sdo_manager.serial;  // results of transfers still running are stale
   sdo_manager.rescan = false;
-  while (!sdo_manager.channels.empty()) manager_close_channel(sdo_manager.channels.begin()->first);
+  for (const auto index : sdo_manager.channels.indices()) manager_close_channel(index);
   const auto count = value_of(obj::kSdoManagerCobIds, 0);
   for (std::uint32_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
     manager_mark_pool(static_cast<std::uint8_t>(sub), false);
@@ -320,17 +310,20 @@ void NmtMaster::Impl::manager_open_channel(std::uint16_t index, const SdoManager
   dict.set_unsigned(index, 3, c.row.srd);
   dict.set_unsigned(index, 1, c.row.request.word());
   dict.set_unsigned(index, 2, c.row.response.word());
-  SdoServerConfig config = server.config();
-  config.request_cob_id = c.row.request;
-  config.response_cob_id = c.row.response;
-  sdo_manager.channels[index] = {std::make_unique<SdoServer>(dict, config), c.row.srd};
+  // Served as the dictionary now says (CiA 301 §7.5.2.33), with the default channel's settings.
+  SdoServerConfig config = SdoServerConfig::from_dictionary(dict, index);
+  config.timeout = server.config().timeout;
+  config.block_transfer = server.config().block_transfer;
+  sdo_manager.channels.open(index, config);
+  sdo_manager.channel_clients[index] = c.row.srd;
 }
 
 void NmtMaster::Impl::manager_close_channel(std::uint16_t index) {
   dict.set_unsigned(index, 1, value_of(index, 1) | cfg::kCobIdInvalidBit);
   dict.set_unsigned(index, 2, value_of(index, 2) | cfg::kCobIdInvalidBit);
   dict.set_unsigned(index, 3, 0);
-  sdo_manager.channels.erase(index);
+  sdo_manager.channels.close(index);
+  sdo_manager.channel_clients.erase(index);
 }
 
 std::uint16_t NmtMaster::Impl::manager_free_row() const {
@@ -687,7 +680,7 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request) {
   std::uint16_t channel = 0;
   for (unsigned i = obj::kSdoServerFirst + 1; i <= obj::kSdoServerLast; ++i) {
     const auto candidate = static_cast<std::uint16_t>(i);
-    if (!dict.entry(candidate, 1) || sdo_manager.channels.count(candidate) != 0) continue;
+    if (!dict.entry(candidate, 1) || sdo_manager.channels.is_open(candidate)) continue;
     if ((value_of(candidate, 1) & cfg::kCobIdInvalidBit) == 0) continue;
     channel = candidate;
     break;

@@ -393,4 +393,73 @@ void SdoServer::send_upload_sub_block(Output& out) {
   }
 }
 
+// --- SdoServerChannels ---
+
+void SdoServerChannels::open(std::uint16_t index, SdoServerConfig config) {
+  const auto at = std::find_if(channels_.begin(), channels_.end(),
+                               [index](const Channel& c) { return c.index >= index; });
+  if (at != channels_.end() && at->index == index) {
+    at->server = SdoServer(*dict_, config);
+    return;
+  }
+  channels_.insert(at, {index, SdoServer(*dict_, config)});
+}
+
+void SdoServerChannels::open_from_dictionary(std::uint16_t index, Duration timeout) {
+  if (is_open(index)) return;
+  auto config = SdoServerConfig::from_dictionary(*dict_, index);
+  config.timeout = timeout;
+  open(index, config);
+}
+
+void SdoServerChannels::close(std::uint16_t index) {
+  std::erase_if(channels_, [index](const Channel& c) { return c.index == index; });
+}
+
+void SdoServerChannels::reconfigure(Duration timeout, bool restart_all) {
+  for (auto& c : channels_) {
+    auto config = SdoServerConfig::from_dictionary(*dict_, c.index);
+    config.timeout = timeout;
+    const auto& current = c.server.config();
+    if (restart_all || config.request_cob_id != current.request_cob_id ||
+        config.response_cob_id != current.response_cob_id || config.timeout != current.timeout) {
+      c.server.set_config(config);
+    }
+  }
+}
+
+std::vector<std::uint16_t> SdoServerChannels::indices() const {
+  std::vector<std::uint16_t> out;
+  out.reserve(channels_.size());
+  for (const auto& c : channels_) out.push_back(c.index);
+  return out;
+}
+
+const SdoServer* SdoServerChannels::find(std::uint16_t index) const {
+  for (const auto& c : channels_) {
+    if (c.index == index) return &c.server;
+  }
+  return nullptr;
+}
+
+std::optional<std::uint16_t> SdoServerChannels::on_frame(
+    const CanFrame& frame, TimePoint now, SdoServer::Output& out,
+    const std::function<void(std::uint16_t)>& before) {
+  for (auto& c : channels_) {
+    if (before) before(c.index);
+    if (c.server.on_frame(frame, now, out)) return c.index;
+  }
+  return std::nullopt;
+}
+
+void SdoServerChannels::on_timer(TimePoint now, SdoServer::Output& out) {
+  for (auto& c : channels_) c.server.on_timer(now, out);
+}
+
+std::optional<TimePoint> SdoServerChannels::next_deadline() const {
+  std::optional<TimePoint> next;
+  for (const auto& c : channels_) next = earliest(next, c.server.next_deadline());
+  return next;
+}
+
 }  // namespace nmt

@@ -122,7 +122,7 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
                                                   : ProgramState::Running;
   }
   // CiA 301 §7.5.2.33: the default channel always, the additional ones the file declares.
-  sdo_.push_back({obj::kSdoServerFirst, SdoServer(dict_, SdoServerConfig::for_node(node_id))});
+  sdo_.open(obj::kSdoServerFirst, SdoServerConfig::for_node(node_id));
   add_sdo_channels();
   install_hooks();
 }
@@ -130,51 +130,31 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
 SlaveNode::~SlaveNode() = default;
 
 std::vector<std::uint16_t> SlaveNode::sdo_server_channels() const {
-  std::vector<std::uint16_t> indices;
-  indices.reserve(sdo_.size());
-  for (const auto& c : sdo_) indices.push_back(c.index);
-  return indices;
+  return sdo_.indices();
 }
 
 const SdoServerConfig* SlaveNode::sdo_config(std::uint16_t index) const {
-  for (const auto& c : sdo_) {
-    if (c.index == index) return &c.server.config();
-  }
-  return nullptr;
+  const SdoServer* server = sdo_.find(index);
+  return server != nullptr ? &server->config() : nullptr;
 }
 
 bool SlaveNode::sdo_busy(std::uint16_t index) const {
-  for (const auto& c : sdo_) {
-    if (c.index == index) return c.server.busy();
-  }
-  return false;
+  const SdoServer* server = sdo_.find(index);
+  return server != nullptr && server->busy();
 }
 
 void SlaveNode::add_sdo_channels() {
   // Entries a device model inserted after creation (LocalDictionary::insert) count too.
   for (std::uint16_t index = obj::kSdoServerFirst + 1; index <= obj::kSdoServerLast; ++index) {
-    if (!dict_.has_object(index) || sdo_config(index) != nullptr) continue;
-    auto config = SdoServerConfig::from_dictionary(dict_, index);
-    config.timeout = options_.sdo_server_timeout;
-    const auto at = std::find_if(sdo_.begin(), sdo_.end(),
-                                 [index](const SdoChannel& c) { return c.index > index; });
-    sdo_.insert(at, {index, SdoServer(dict_, config)});
+    if (dict_.has_object(index)) sdo_.open_from_dictionary(index, options_.sdo_server_timeout);
   }
 }
 
 void SlaveNode::reconfigure_sdo_channels() {
   sdo_changed_ = false;
   add_sdo_channels();
-  for (auto& c : sdo_) {
-    auto config = SdoServerConfig::from_dictionary(dict_, c.index);
-    config.timeout = options_.sdo_server_timeout;
-    const auto& current = c.server.config();
-    // Only a changed channel restarts (set_config drops its transfer in progress).
-    if (config.request_cob_id != current.request_cob_id ||
-        config.response_cob_id != current.response_cob_id || config.timeout != current.timeout) {
-      c.server.set_config(config);
-    }
-  }
+  // Only a changed channel restarts (set_config drops its transfer in progress).
+  sdo_.reconfigure(options_.sdo_server_timeout, false);
 }
 
 void SlaveNode::install_hooks() {
@@ -191,13 +171,7 @@ void SlaveNode::install_hooks() {
 void SlaveNode::set_options(SlaveNodeOptions options) {
   const bool timeout_changed = options.sdo_server_timeout != options_.sdo_server_timeout;
   options_ = options;
-  if (timeout_changed) {
-    for (auto& c : sdo_) {
-      auto config = c.server.config();
-      config.timeout = options_.sdo_server_timeout;
-      c.server.set_config(config);
-    }
-  }
+  if (timeout_changed) sdo_.reconfigure(options_.sdo_server_timeout, false);
 }
 
 std::optional<ProgramState> SlaveNode::program_state(std::uint8_t program) const {
@@ -270,11 +244,7 @@ void SlaveNode::restore(ResetScope scope) {
 
 void SlaveNode::configure_services(TimePoint now) {
   add_sdo_channels();
-  for (auto& c : sdo_) {
-    auto config = SdoServerConfig::from_dictionary(dict_, c.index);
-    config.timeout = options_.sdo_server_timeout;
-    c.server.set_config(config);  // drops a transfer in progress without a frame
-  }
+  sdo_.reconfigure(options_.sdo_server_timeout, true);  // drops transfers without a frame
   sdo_changed_ = false;
 
   heartbeat_.set_node_id(nmt_.node_id());
@@ -323,12 +293,7 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (services.sdo && !frame.rtr && !frame.error) {
     SdoServer::Output sdo_out;
     in_sdo_ = true;
-    for (auto& c : sdo_) {
-      if (c.server.on_frame(frame, now, sdo_out)) {
-        taken = true;
-        break;
-      }
-    }
+    taken = sdo_.on_frame(frame, now, sdo_out).has_value();
     in_sdo_ = false;
     forward_frames(sdo_out, out);
     if (sdo_changed_) reconfigure_sdo_channels();
@@ -402,7 +367,7 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     emcy_.on_timer(now, emcy_out);
     forward_frames(emcy_out, out);
     SdoServer::Output sdo_out;
-    for (auto& c : sdo_) c.server.on_timer(now, sdo_out);
+    sdo_.on_timer(now, sdo_out);
     // Stopped: a transfer that times out now is not answered.
     if (nmt_.services().sdo) forward_frames(sdo_out, out);
   }
@@ -417,7 +382,7 @@ std::optional<TimePoint> SlaveNode::next_deadline() const {
     next = earliest(next, guarding_.next_deadline());
     next = earliest(next, consumer_.next_deadline());
     next = earliest(next, emcy_.next_deadline());
-    for (const auto& c : sdo_) next = earliest(next, c.server.next_deadline());
+    next = earliest(next, sdo_.next_deadline());
   }
   return next;
 }

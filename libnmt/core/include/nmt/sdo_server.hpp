@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -132,5 +133,47 @@ class SdoServer {
   std::optional<TimePoint> timeout_at_;
 };
 static_assert(Engine<SdoServer>);
+
+/// The SDO server channels of one dictionary (CiA 301 §7.5.2.33: 1200h and 1201h-127Fh), each
+/// its own SdoServer (one transfer per channel, so clients on different channels never disturb
+/// each other), kept in index order; a frame goes to the first channel that takes it. SlaveNode
+/// serves every channel its dictionary has; NmtMaster's SDO manager the ones it opens for SRDs.
+/// The dictionary must outlive it (the servers point at it).
+class SdoServerChannels {
+ public:
+  explicit SdoServerChannels(LocalDictionary& dict) : dict_(&dict) {}
+
+  /// Serves channel `index` (1200h-127Fh) with `config`; an open channel of that index is
+  /// replaced (its transfer dropped without a frame).
+  void open(std::uint16_t index, SdoServerConfig config);
+  /// Channel `index` from the dictionary (SdoServerConfig::from_dictionary) with `timeout`,
+  /// unless it is open already.
+  void open_from_dictionary(std::uint16_t index, Duration timeout);
+  void close(std::uint16_t index);
+  /// Every open channel again from the dictionary, with `timeout`. `restart_all` false: only a
+  /// channel whose COB-IDs or timeout changed restarts (its transfer is dropped).
+  void reconfigure(Duration timeout, bool restart_all);
+  bool is_open(std::uint16_t index) const { return find(index) != nullptr; }
+  /// The open channels, in index order.
+  std::vector<std::uint16_t> indices() const;
+  /// nullptr when `index` is not open. Valid until the next open().
+  const SdoServer* find(std::uint16_t index) const;
+
+  /// The channel that took `frame` (nullopt: none). `before`, when given, runs with each
+  /// channel's index before that channel sees the frame (a hook may need to know the channel).
+  std::optional<std::uint16_t> on_frame(const CanFrame& frame, TimePoint now,
+                                        SdoServer::Output& out,
+                                        const std::function<void(std::uint16_t)>& before = {});
+  void on_timer(TimePoint now, SdoServer::Output& out);
+  std::optional<TimePoint> next_deadline() const;
+
+ private:
+  struct Channel {
+    std::uint16_t index;
+    SdoServer server;
+  };
+  LocalDictionary* dict_;
+  std::vector<Channel> channels_;
+};
 
 }  // namespace nmt

@@ -163,7 +163,7 @@ class SlaveNode {
   const LocalDictionary& dictionary() const { return dict_; }
   /// The default SDO server channel's COB-IDs and settings as the last reset configured them
   /// (1200h).
-  const SdoServerConfig& sdo_config() const { return sdo_.front().server.config(); }
+  const SdoServerConfig& sdo_config() const { return *sdo_config(0x1200); }
   /// The SDO server channels the node serves: 1200h, then the 1201h-127Fh entries of its
   /// dictionary in index order.
   std::vector<std::uint16_t> sdo_server_channels() const;
@@ -240,11 +240,7 @@ class SlaveNode {
   SlaveNodeOptions options_;
   NmtSlave nmt_;
   /// One SDO server per channel, 1200h first.
-  struct SdoChannel {
-    std::uint16_t index;
-    SdoServer server;
-  };
-  std::vector<SdoChannel> sdo_;
+  SdoServerChannels sdo_{dict_};
   /// A server parameter was written: the channels are reconfigured when the SDO call that wrote
   /// it has answered (at once for writes outside an SDO call).
   bool sdo_changed_ = false;
