@@ -169,22 +169,32 @@ void canonical_entry(SubObject& s, FileKind kind) {
 }
 
 // ---- output
+// Collects the text in a block of about kBlock bytes and hands each full block to the sink, so
+// that a whole file's text is never held at once. Once the sink says stop, nothing more is kept.
 class Out {
  public:
-  explicit Out(LineEnding ending) : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n") {}
+  static constexpr std::size_t kBlock = 64 * 1024;
+
+  Out(LineEnding ending, const TextSink& sink)
+      : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n"), sink_(sink) {
+    text_.reserve(kBlock + 512);
+  }
 
   void section(std::string_view name) {
-    if (!text_.empty()) text_ += eol_;  // a blank line between sections
+    if (started_) text_ += eol_;  // a blank line between sections
+    started_ = true;
     text_ += '[';
     text_ += name;
     text_ += ']';
     text_ += eol_;
+    flush_full();
   }
   void key(std::string_view key, std::string_view value) {
     text_ += key;
     text_ += '=';
     text_ += value;
     text_ += eol_;
+    flush_full();
   }
   void optional_key(std::string_view k, const OptionalText& value) {
     if (value) key(k, *value);
@@ -192,13 +202,26 @@ class Out {
   void key_values(const KeyValues& kv) {
     for (const auto& [k, v] : kv.entries) key(k, v);
   }
-  std::string take() { return std::move(text_); }
-  std::size_t size() const { return text_.size(); }
-  void reserve(std::size_t n) { text_.reserve(n); }
+  /// Hands what is left to the sink; false when the sink stopped the output.
+  bool finish() {
+    if (!stopped_ && !text_.empty()) stopped_ = !sink_(text_);
+    text_.clear();
+    return !stopped_;
+  }
+  bool stopped() const { return stopped_; }
 
  private:
+  void flush_full() {
+    if (text_.size() < kBlock) return;
+    if (!stopped_) stopped_ = !sink_(text_);
+    text_.clear();
+  }
+
   std::string_view eol_;
+  const TextSink& sink_;
   std::string text_;
+  bool started_ = false;
+  bool stopped_ = false;
 };
 
 std::string index_name(std::uint16_t index) {
@@ -349,9 +372,11 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
   return d;
 }
 
-std::string write_device_description(const DeviceDescription& device, const WriteOptions& options) {
-  // The file-level parts are copied and made canonical here; the objects, nearly all of a file,
-  // one at a time as they are written, so the model is never copied whole.
+namespace {
+
+// The file-level parts of `device`, copied and made canonical (the objects, nearly all of a
+// file, are made canonical one at a time as they are written, so the model is never copied).
+DeviceDescription canonical_head(const DeviceDescription& device, const WriteOptions& options) {
   DeviceDescription head;
   head.file_info = device.file_info;
   head.device_info = device.device_info;
@@ -359,18 +384,15 @@ std::string write_device_description(const DeviceDescription& device, const Writ
   head.commissioning = device.commissioning;
   head.comments = device.comments;
   head.other_sections = device.other_sections;
-  WriteOptions unstamped = options;
-  const bool stamp_on_change = options.stamp && options.stamp_only_if_changed_from;
-  if (stamp_on_change) unstamped.stamp.reset();
-  canonical_file_parts(head, unstamped);
+  canonical_file_parts(head, options);
+  return head;
+}
 
-  Out out(options.line_ending);
-  std::size_t subs = 0;
-  for (const auto& [index, obj] : device.objects) subs += obj.subs.size() + 1;
-  out.reserve(subs * 160 + 4096);
-
+// The whole text, `head` standing for device's file-level parts; stops early when the sink does.
+bool write_text(const DeviceDescription& device, const DeviceDescription& head,
+                const WriteOptions& options, const TextSink& sink) {
+  Out out(options.line_ending, sink);
   write_file_info(out, head.file_info);
-  const std::size_t file_info_end = out.size();
   out.section("DeviceInfo");
   out.key_values(head.device_info);
   if (!head.dummy_usage.entries.empty()) {
@@ -397,6 +419,7 @@ std::string write_device_description(const DeviceDescription& device, const Writ
     }
   }
   for (const auto& [index, obj] : device.objects) {
+    if (out.stopped()) return false;
     if (index == 0) continue;  // index 0000h is no object (CiA 301)
     Object copy = obj;
     canonical_object(index, copy, options.kind);
@@ -409,15 +432,39 @@ std::string write_device_description(const DeviceDescription& device, const Writ
     out.section(section.name);
     out.key_values(section.keys);
   }
-  std::string text = out.take();
-  if (stamp_on_change && text != *options.stamp_only_if_changed_from) {
-    // Only [FileInfo] carries the stamp: write that section again, the rest stays.
-    KeyValues stamped = device.file_info;
-    apply_stamp(stamped, *options.stamp);
-    Out file_info(options.line_ending);
-    write_file_info(file_info, canonical_key_values(stamped));
-    text.replace(0, file_info_end, file_info.take());
+  return out.finish();
+}
+
+}  // namespace
+
+bool write_device_description(const DeviceDescription& device, const WriteOptions& options,
+                              const TextSink& sink) {
+  if (!options.stamp || !options.stamp_only_if_changed_from) {
+    return write_text(device, canonical_head(device, options), options, sink);
   }
+  // Stamp only a change: the unstamped text is compared with the old one block by block as it
+  // is made (nothing kept), stopping at the first difference.
+  const std::string_view old_text = *options.stamp_only_if_changed_from;
+  WriteOptions unstamped = options;
+  unstamped.stamp.reset();
+  std::size_t compared = 0;
+  const bool same = write_text(device, canonical_head(device, unstamped), unstamped,
+                               [&](std::string_view block) {
+                                 if (old_text.substr(compared, block.size()) != block) return false;
+                                 compared += block.size();
+                                 return true;
+                               }) &&
+                    compared == old_text.size();
+  if (same) return old_text.empty() || sink(old_text);  // the unstamped text is the old one
+  return write_text(device, canonical_head(device, options), options, sink);
+}
+
+std::string write_device_description(const DeviceDescription& device, const WriteOptions& options) {
+  std::string text;
+  write_device_description(device, options, [&text](std::string_view block) {
+    text += block;
+    return true;
+  });
   return text;
 }
 
