@@ -147,12 +147,25 @@ void apply_stamp(KeyValues& file_info, const WriteOptions::Stamp& stamp) {
   file_info.set("ModifiedBy", stamp.modified_by);
 }
 
+// The text itself when it is already one line (nearly always: no copy), else its one_line(),
+// kept in `scratch`.
+std::string_view clean_view(std::string_view text, std::string& scratch) {
+  if (is_one_line(text)) return text;
+  scratch = one_line(text);
+  return scratch;
+}
+
+// A value as canonical_form() stores it; nullopt when it is dropped.
+std::optional<std::string> canonical_value(std::string_view text, std::uint16_t data_type) {
+  std::string scratch;
+  return detail::normalize_value(clean_view(text, scratch), data_type).text;
+}
+
 void canonical_entry(SubObject& s, FileKind kind) {
   clean_text(s.name);
   for (OptionalText* v : {&s.default_value, &s.parameter_value, &s.low_limit, &s.high_limit}) {
     if (!*v) continue;
-    clean_text(**v);
-    auto normalized = detail::normalize_value(**v, s.data_type).text;
+    auto normalized = canonical_value(**v, s.data_type);
     if (!normalized) {
       v->reset();
     } else if (*normalized != **v) {
@@ -228,37 +241,51 @@ std::string index_name(std::uint16_t index) {
   return hex_digits(index, 4);
 }
 
-// The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them).
+// The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them), as
+// canonical_entry() makes them, written from the model as it is (no copy of the entry).
 void write_entry(Out& out, const SubObject& s, const std::optional<std::uint32_t>& obj_flags,
                  FileKind kind) {
+  std::string scratch;
+  auto value = [&](std::string_view key, const OptionalText& text) {
+    if (!text) return;
+    if (auto normalized = canonical_value(*text, s.data_type)) out.key(key, *normalized);
+  };
+  auto text = [&](std::string_view key, const OptionalText& t) {
+    if (!t) return;
+    const std::string_view clean = clean_view(*t, scratch);
+    if (!clean.empty()) out.key(key, clean);
+  };
   out.key("DataType", hex(s.data_type, 4));
   out.key("AccessType", to_string(s.access));
-  out.optional_key("DefaultValue", s.default_value);
+  value("DefaultValue", s.default_value);
   out.key("PDOMapping", s.pdo_mapping ? "1" : "0");
-  out.optional_key("LowLimit", s.low_limit);
-  out.optional_key("HighLimit", s.high_limit);
+  value("LowLimit", s.low_limit);
+  value("HighLimit", s.high_limit);
   if (obj_flags) out.key("ObjFlags", hex(*obj_flags, 0));
   if (kind == FileKind::Dcf) {
-    out.optional_key("ParameterValue", s.parameter_value);
-    out.optional_key("Denotation", s.denotation);
+    value("ParameterValue", s.parameter_value);
+    text("Denotation", s.denotation);
   }
-  out.optional_key("UploadFile", s.upload_file);
-  out.optional_key("DownloadFile", s.download_file);
+  text("UploadFile", s.upload_file);
+  text("DownloadFile", s.download_file);
 }
 
-void write_object(Out& out, const Object& obj, FileKind kind) {
-  const std::string name = index_name(obj.index);
+// canonical_object() of `obj`, written from the model as it is (no copy of the object).
+void write_object(Out& out, std::uint16_t index, const Object& obj, FileKind kind) {
+  std::string scratch;
+  const std::string name = index_name(index);
   out.section(name);
-  out.key("ParameterName", obj.name);
+  out.key("ParameterName", clean_view(obj.name, scratch));
   out.key("ObjectType", hex(static_cast<unsigned>(obj.object_type), 0));
   if (detail::var_like(obj.object_type)) {
-    if (const SubObject* s = obj.sub(0)) write_entry(out, *s, obj.obj_flags, kind);
+    const SubObject* s = obj.sub(0);
+    write_entry(out, s != nullptr ? *s : SubObject{}, obj.obj_flags, kind);
   } else {
-    if (obj.sub_number) out.key("SubNumber", hex(*obj.sub_number, 0));
+    if (obj.subs.size() <= 0xFF) out.key("SubNumber", hex(obj.subs.size(), 0));
     if (obj.obj_flags) out.key("ObjFlags", hex(*obj.obj_flags, 0));
     for (const auto& [sub, s] : obj.subs) {
       out.section(name + "sub" + hex_digits(sub));
-      out.key("ParameterName", s.name);
+      out.key("ParameterName", clean_view(s.name, scratch));
       out.key("ObjectType", hex(static_cast<unsigned>(s.object_type), 0));
       write_entry(out, s, s.obj_flags, kind);
     }
@@ -421,9 +448,7 @@ bool write_text(const DeviceDescription& device, const DeviceDescription& head,
   for (const auto& [index, obj] : device.objects) {
     if (out.stopped()) return false;
     if (index == 0) continue;  // index 0000h is no object (CiA 301)
-    Object copy = obj;
-    canonical_object(index, copy, options.kind);
-    write_object(out, copy, options.kind);
+    write_object(out, index, obj, options.kind);
   }
   if (options.kind == FileKind::Dcf && head.commissioning) {
     write_commissioning(out, *head.commissioning);
