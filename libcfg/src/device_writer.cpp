@@ -25,8 +25,11 @@ std::string one_line(std::string_view text) {
 
 // Already what one_line() makes of it: nearly every text of a file, so no copy is made.
 bool is_one_line(std::string_view text) {
-  return text.find_first_of("\r\n") == std::string_view::npos &&
-         trim_blanks(text).size() == text.size();
+  // A plain loop: find_first_of("\r\n") calls memchr on the set for every character.
+  for (const char c : text) {
+    if (c == '\r' || c == '\n') return false;
+  }
+  return trim_blanks(text).size() == text.size();
 }
 
 void clean_text(std::string& text) {
@@ -203,10 +206,14 @@ class Out {
     flush_full();
   }
   void key(std::string_view key, std::string_view value) {
-    text_ += key;
-    text_ += '=';
-    text_ += value;
-    text_ += eol_;
+    // One append of the whole line (this runs for every key of a file).
+    const std::size_t at = text_.size();
+    text_.resize(at + key.size() + 1 + value.size() + eol_.size());
+    char* p = text_.data() + at;
+    p = std::copy(key.begin(), key.end(), p);
+    *p++ = '=';
+    p = std::copy(value.begin(), value.end(), p);
+    std::copy(eol_.begin(), eol_.end(), p);
     flush_full();
   }
   void optional_key(std::string_view k, const OptionalText& value) {
