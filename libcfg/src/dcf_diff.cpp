@@ -1,8 +1,13 @@
 #include "cfg/dcf_diff.hpp"
 
+#include <map>
 #include <string_view>
 #include <utility>
 
+#include "cfg/data_type.hpp"
+#include "cfg/dynamic_channels.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/value.hpp"
 
 namespace cfg {
@@ -48,7 +53,47 @@ DiffSide side_of(const Parameter& p) {
   return {"'" + p.text + "' (as written)", p.line};
 }
 
+// A segment in words, every field §8.4 gives it.
+std::string segment_text(const DynamicSegment& s) {
+  const DataTypeInfo* type = find_data_type(s.data_type);
+  std::string text = type != nullptr ? std::string(type->name) : cfg::hex(s.data_type, 4) + "h";
+  text += " " + std::string(to_string(s.direction)) + " " + object_name(s.first_index);
+  if (s.last_index != s.first_index) text += "-" + object_name(s.last_index);
+  text += ", PPOffset " + std::to_string(s.pp_offset);
+  if (s.bit_distance) text += " (bit distance " + std::to_string(*s.bit_distance) + ")";
+  text += ", MaxCnt " + std::to_string(s.max_count);
+  if (s.m_specific) text += ", MSpecific '" + *s.m_specific + "'";
+  return text;
+}
+
 }  // namespace
+
+std::vector<SegmentDifference> diff_dynamic_channels(const DeviceDescription& a,
+                                                     const DeviceDescription& b) {
+  const auto segments_a = dynamic_channels_of(a).value_or(DynamicChannels{}).segments;
+  const auto segments_b = dynamic_channels_of(b).value_or(DynamicChannels{}).segments;
+  // By range start: N of each side (1-based).
+  std::map<std::uint16_t, std::pair<std::size_t, std::size_t>> by_start;
+  for (std::size_t i = 0; i < segments_a.size(); ++i)
+    by_start[segments_a[i].first_index].first = i + 1;
+  for (std::size_t i = 0; i < segments_b.size(); ++i)
+    by_start[segments_b[i].first_index].second = i + 1;
+  using Kind = ParameterDifference::Kind;
+  std::vector<SegmentDifference> out;
+  for (const auto& [start, n] : by_start) {
+    const auto [na, nb] = n;
+    if (na != 0 && nb != 0 && segments_a[na - 1] == segments_b[nb - 1]) continue;
+    SegmentDifference d;
+    d.kind = na == 0 ? Kind::OnlyInB : nb == 0 ? Kind::OnlyInA : Kind::Changed;
+    d.first_index = start;
+    d.segment_a = na;
+    d.segment_b = nb;
+    if (na != 0) d.a = DiffSide{segment_text(segments_a[na - 1]), 0};
+    if (nb != 0) d.b = DiffSide{segment_text(segments_b[nb - 1]), 0};
+    out.push_back(std::move(d));
+  }
+  return out;
+}
 
 std::string parameter_name(const Object& object, const SubObject& sub) {
   if (object.is_var() || sub.name.empty()) return object.name;

@@ -95,4 +95,43 @@ TEST(DcfDiff, AFileComparedWithItselfHasNoDifference) {
   EXPECT_TRUE(cfg::diff_parameters(read("a.dcf"), read("a.dcf")).empty());
 }
 
+// CiA DSP 302 §8.4 [DynamicChannels]: channels_b.dcf keeps the 2000h segment, changes MaxCnt of
+// the 2010h one (16 -> 24), lacks the 2020h one and adds one at 2100h (tests/data/diff/README.md).
+TEST(DcfDiff, DynamicChannelSegmentsAddedRemovedAndChanged_8_4) {
+  const auto a = read("channels_a.dcf");
+  const auto b = read("channels_b.dcf");
+  // Same objects: no parameter differs, only the section.
+  EXPECT_TRUE(cfg::diff_parameters(a, b).empty());
+  const auto diffs = cfg::diff_dynamic_channels(a, b);
+  ASSERT_EQ(diffs.size(), 3U);
+  const auto& changed = diffs[0];
+  EXPECT_EQ(changed.kind, Kind::Changed);
+  EXPECT_EQ(changed.first_index, 0x2010);
+  EXPECT_EQ(changed.segment_a, 2U);
+  EXPECT_EQ(changed.segment_b, 2U);
+  EXPECT_EQ(changed.a->text, "UNSIGNED16 ro 2010h-2011h, PPOffset 0, MaxCnt 16");
+  EXPECT_EQ(changed.b->text, "UNSIGNED16 ro 2010h-2011h, PPOffset 0, MaxCnt 24");
+  const auto& removed = diffs[1];
+  EXPECT_EQ(removed.kind, Kind::OnlyInA);
+  EXPECT_EQ(removed.first_index, 0x2020);
+  EXPECT_EQ(removed.segment_a, 3U);
+  EXPECT_EQ(removed.segment_b, 0U);
+  EXPECT_EQ(removed.a->text, "UNSIGNED32 ro 2020h, PPOffset 0, MaxCnt 8");
+  EXPECT_FALSE(removed.b.has_value());
+  const auto& added = diffs[2];
+  EXPECT_EQ(added.kind, Kind::OnlyInB);
+  EXPECT_EQ(added.first_index, 0x2100);
+  EXPECT_EQ(added.segment_b, 3U);
+  EXPECT_EQ(added.b->text, "UNSIGNED8 wo 2100h-2101h, PPOffset 0, MaxCnt 16");
+  EXPECT_FALSE(added.a.has_value());
+}
+
+TEST(DcfDiff, DynamicChannelsOnlyInOneFileAreEverySegmentAddedOrRemoved) {
+  const auto diffs = cfg::diff_dynamic_channels(read("a.dcf"), read("channels_a.dcf"));
+  ASSERT_EQ(diffs.size(), 3U);
+  for (const auto& d : diffs) EXPECT_EQ(d.kind, Kind::OnlyInB);
+  EXPECT_TRUE(cfg::diff_dynamic_channels(read("channels_a.dcf"), read("channels_a.dcf")).empty());
+  EXPECT_TRUE(cfg::diff_dynamic_channels(read("a.dcf"), read("b.dcf")).empty());
+}
+
 }  // namespace

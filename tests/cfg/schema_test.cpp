@@ -175,6 +175,49 @@ TEST(Schema, Cia302ManagerObjectsAreAsTheSpecDefinesThem) {
   }
 }
 
+TEST(Schema, SdoManagerObjectsAreAsDsp302_7_2_3DefinesThem) {
+  const auto& s = cia302();
+  // DSP 302 §7.2.3: 1F00h Request SDO and 1F01h Release SDO, VAR UNSIGNED32 wo.
+  for (std::uint16_t index : {std::uint16_t{0x1F00}, std::uint16_t{0x1F01}}) {
+    ASSERT_NE(s.object(index), nullptr) << std::hex << index;
+    EXPECT_EQ(s.object(index)->object_type, ObjectType::Var);
+    EXPECT_EQ(s.sub(index, 0)->data_type, 0x0007);
+    EXPECT_EQ(s.sub(index, 0)->access, AccessType::Wo);
+  }
+  // 1F02h SDO manager COB-IDs: ARRAY of UNSIGNED32 rw.
+  ASSERT_NE(s.object(0x1F02), nullptr);
+  EXPECT_EQ(s.object(0x1F02)->object_type, ObjectType::Array);
+  EXPECT_EQ(s.sub(0x1F02, 1)->data_type, 0x0007);
+  EXPECT_EQ(s.sub(0x1F02, 1)->access, AccessType::Rw);
+  // 1F03h-1F06h SDO connections parts 1-4: ARRAY of UNSIGNED32 ro, 254 entries each.
+  for (std::uint16_t index = 0x1F03; index <= 0x1F06; ++index) {
+    ASSERT_NE(s.object(index), nullptr) << std::hex << index;
+    EXPECT_EQ(s.object(index)->object_type, ObjectType::Array);
+    EXPECT_EQ(s.sub(index, 1)->data_type, 0x0007);
+    EXPECT_EQ(s.sub(index, 1)->access, AccessType::Ro);
+    EXPECT_EQ(*s.sub(index, 0)->default_value, "0xFE");
+  }
+  // SRD objects: 1F10h Dynamic SDO connection state VAR UNSIGNED32 rw; 1F11h Slave failed VAR
+  // UNSIGNED16 wo.
+  EXPECT_EQ(s.sub(0x1F10, 0)->data_type, 0x0007);
+  EXPECT_EQ(s.sub(0x1F10, 0)->access, AccessType::Rw);
+  EXPECT_EQ(s.sub(0x1F11, 0)->data_type, 0x0006);
+  EXPECT_EQ(s.sub(0x1F11, 0)->access, AccessType::Wo);
+  // §7.2.3 defines nothing at 1F07h-1F0Fh.
+  for (std::uint16_t index = 0x1F07; index <= 0x1F0F; ++index) {
+    EXPECT_EQ(s.object(index), nullptr) << std::hex << index;
+  }
+}
+
+TEST(Schema, ReportsAReadableRequestSdoAndAnUnsigned32SlaveFailed) {
+  // DSP 302 §7.2.3: 1F00h is wo, 1F11h UNSIGNED16.
+  const auto d = device("Optional", {0x1F00, 0x1F11},
+                        var("1F00", "0x0007", "rw") + var("1F11", "0x0007", "wo"));
+  const Diagnostics diags = check(d, cia302());
+  ASSERT_EQ(diags.size(), 2U) << diags.format();
+  EXPECT_THAT(diags.format(), AllOf(HasSubstr("1F00h"), HasSubstr("1F11h")));
+}
+
 TEST(Schema, Cia301DefinesHeartbeatAndIdentity) {
   const auto& s = cia301();
   // CiA 301: 1017h producer heartbeat time VAR UNSIGNED16 rw; 1016h ARRAY UNSIGNED32.

@@ -375,6 +375,120 @@ TEST_F(SdoManagerTest, SlaveFailureIsReportedIn1F11hToAnSrdThatAskedForErrorCont
   EXPECT_EQ(at(120, 0x1282, 1) & kInvalid, kInvalid);
 }
 
+// §7.1: "The SDO Manager manages all SDO connections in the network": a default SDO it gave to
+// an SRD is the SRD's. The master's own transfers to that slave (application and boot) wait
+// until it is released (choice, nmt/nmt_master.hpp): two clients on one channel would collide.
+TEST_F(SdoManagerTest, MasterTransfersToASlaveWaitWhileAnSrdHoldsItsDefaultSdo) {
+  add_srd(120);
+  start_network();
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));
+  const auto from = rig.bus.now();
+  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.sdo_upload(master_spec::id(2), 0x1000, 0, now, out);
+  });
+  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.boot_slave(master_spec::id(2), now, out);
+  });
+  rig.run_for(2s);
+  EXPECT_TRUE(rig.requests_to(2, from).empty());
+  EXPECT_TRUE(rig.events_of(Kind::SdoFinished, 2).empty());
+  // Released (§7.2.3 1F01h): both go out on the default SDO and end.
+  const auto released = rig.bus.now();
+  ASSERT_EQ(srd_write(120, 0x1281, 0x1F01, request_word(0x1282, 120, 2)), SdoAbort::None);
+  ASSERT_TRUE(wait_for(Kind::SdoConnectionReleased, 120));
+  ASSERT_TRUE(wait_for(Kind::SdoFinished, 2, 2s));
+  EXPECT_TRUE(rig.events_of(Kind::SdoFinished, 2).front().sdo->ok());
+  ASSERT_TRUE(wait_for(Kind::SlaveBooted, 2, 5s));
+  EXPECT_FALSE(rig.requests_to(2, released).empty());
+}
+
+TEST_F(SdoManagerTest, MasterTransfersWaitWhileAnSrdOwnsAllDefaultSdos) {
+  add_srd(120);
+  start_network();
+  ASSERT_TRUE(register_srd(120, 0x00000003));  // §7.2.3: all default SDOs, Cnxn 2
+  const auto from = rig.bus.now();
+  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.sdo_upload(master_spec::id(3), 0x1000, 0, now, out);
+  });
+  rig.run_for(2s);
+  EXPECT_TRUE(rig.requests_to(3, from).empty());
+  // §7.2.2: the SRD gives them back only by ending its error control (de-registered).
+  rig.unplug(120);
+  ASSERT_TRUE(wait_for(Kind::SrdLost, 120, 5s));
+  ASSERT_TRUE(wait_for(Kind::SdoFinished, 3, 2s));
+  EXPECT_TRUE(rig.events_of(Kind::SdoFinished, 3).front().sdo->ok());
+}
+
+// Jobs run one at a time, but a scan (126 silent node-IDs x the scan timeout) lets a request
+// that came meanwhile go before its next read (choice, nmt/nmt_master.hpp).
+TEST_F(SdoManagerTest, RequestIsServedBetweenTheReadsOfAScanNotAfterIt) {
+  add_srd(120);
+  start_network();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  // A 6E0h nobody else answers: the scan reads 127..2 (about 2.4 s at 20 ms each).
+  rig.send_foreign("6E0#");
+  rig.run_for(100ms);
+  const auto asked = rig.bus.now();
+  ASSERT_EQ(srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 2)), SdoAbort::None);
+  ASSERT_TRUE(wait_for(Kind::SdoConnectionEstablished, 120, 5s));
+  const auto established = rig.events_of(Kind::SdoConnectionEstablished, 120).front().at;
+  EXPECT_LT(established - asked, 300ms);
+  // The scan goes on afterwards, down to node 3 (2's default SDO is now held: skipped).
+  rig.run_for(4s);
+  bool scanned_3_after = false;
+  for (const auto& s : rig.requests_to(3, established)) {
+    if (master_spec::is_upload_initiate(s.frame) && master_spec::addresses(s.frame, 0x1F10, 0)) {
+      scanned_3_after = true;
+    }
+  }
+  EXPECT_TRUE(scanned_3_after);
+}
+
+// CiA 301: a slave's additional server entries (1201h..) are not kept over a reset; the manager
+// releases the connections on them when the slave boots up (choice, nmt/nmt_master.hpp).
+TEST_F(SdoManagerTest, SlaveBootUpReleasesTheConnectionsOnItsAdditionalServerEntries) {
+  add_srd(120);
+  add_srd(110);
+  start_network();
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));  // 2's default SDO
+  ASSERT_NO_FATAL_FAILURE(connect(110, 2));  // 2's 1201h, pool subs 5/6
+  ASSERT_EQ(rig.tool_read_u(0x1F03, 4), 0x026E0102U);
+  const auto from = rig.bus.now();
+  rig.power_on(2);  // boot-up 702#00
+  ASSERT_TRUE(wait_for(Kind::SdoConnectionReleased, 110, 5s));
+  const auto released = rig.events_of(Kind::SdoConnectionReleased, 110).front();
+  EXPECT_EQ(released.connection->server, 2);
+  EXPECT_EQ(released.connection->server_index, 0x1201);
+  // The SRD's client entry is invalidated (§7.2.3: it observes a release in 1280h..12FFh);
+  // nothing is written to S, which lost the entry itself.
+  EXPECT_EQ(at(110, 0x1282, 1), kInvalid | 0x684);
+  EXPECT_EQ(at(110, 0x1282, 2), kInvalid | 0x685);
+  EXPECT_TRUE(rig.downloads_of(2, 0x1201, 1, from).empty());
+  EXPECT_EQ(rig.tool_read_u(0x1F03, 4), 0U);
+  EXPECT_EQ(rig.tool_read_u(0x1F02, 5), 0x684U);
+  EXPECT_EQ(rig.tool_read_u(0x1F02, 6), 0x685U);
+  // The connection on 2's default SDO (fixed COB-IDs) stays.
+  EXPECT_EQ(rig.tool_read_u(0x1F03, 2), 0x02780002U);
+  EXPECT_EQ(at(120, 0x1282, 1), 0x602U);
+}
+
+// The manager's own server channels 1201h.. are opened and closed by it; an SDO write from a
+// tool is refused with 0800 0021 (CiA 301: "because of local control"; choice,
+// nmt/nmt_master.hpp) and changes nothing.
+TEST_F(SdoManagerTest, ToolWritesToTheManagersServerChannelsAreRefusedWith08000021) {
+  add_srd(120);
+  start_network();
+  EXPECT_EQ(rig.tool_write_u(0x1202, 1, 0x6F0, 4), SdoAbort::LocalControl);
+  EXPECT_EQ(rig.tool_write_u(0x1202, 3, 100, 1), SdoAbort::LocalControl);
+  EXPECT_EQ(rig.tool_read_u(0x1202, 1), kInvalid);
+  EXPECT_EQ(rig.tool_read_u(0x1202, 3), 0U);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  // The channel in use (1201h, 680h/681h) is not closed by a tool either, and still serves.
+  EXPECT_EQ(rig.tool_write_u(0x1201, 1, kInvalid | 0x680, 4), SdoAbort::LocalControl);
+  EXPECT_EQ(rig.tool_read_u(0x1201, 1), 0x680U);
+  EXPECT_EQ(srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 2)), SdoAbort::None);
+}
+
 /// Two flying masters: the standby one ignores 6E0h and refuses 1F00h with 0800 0022.
 TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
   SimBus bus{500'000};

@@ -76,4 +76,39 @@ TEST(Diff, TroubleExits2) {
   EXPECT_THAT(help.out, HasSubstr("Examples:"));
 }
 
+// CiA DSP 302 §8.4: [DynamicChannels] segments changed, removed and added (README in
+// tests/data/diff); the objects of the two files are the same.
+TEST(Diff, DynamicChannelSegmentsAreCompared) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"diff", data("channels_a.dcf"), data("channels_b.dcf")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_THAT(r.out,
+              HasSubstr("[DynamicChannels] segment at 2010h\n  " + data("channels_a.dcf") +
+                        " (segment 2): UNSIGNED16 ro 2010h-2011h, PPOffset 0, MaxCnt 16\n  " +
+                        data("channels_b.dcf") +
+                        " (segment 2): UNSIGNED16 ro 2010h-2011h, PPOffset 0, MaxCnt 24\n"));
+  EXPECT_THAT(r.out, HasSubstr("[DynamicChannels] segment at 2020h: only in " +
+                               data("channels_a.dcf") + " (segment 3): UNSIGNED32 ro 2020h"));
+  EXPECT_THAT(r.out, HasSubstr("[DynamicChannels] segment at 2100h: only in " +
+                               data("channels_b.dcf") + " (segment 3): UNSIGNED8 wo 2100h-2101h"));
+  EXPECT_THAT(r.out, HasSubstr("3 differences\n"));
+
+  const auto j = cfgmgr(dir, {"diff", "--json", data("channels_a.dcf"), data("channels_b.dcf")});
+  EXPECT_EQ(j.exit_code, 1);
+  JsonParser parser(j.out);
+  const auto json = parser.parse();
+  ASSERT_TRUE(json) << parser.error() << "\n" << j.out;
+  EXPECT_FALSE(json->get("same")->boolean);
+  EXPECT_TRUE(json->get("differences")->array.empty());
+  const auto& segments = json->get("dynamic_channels")->array;
+  ASSERT_EQ(segments.size(), 3U);
+  EXPECT_EQ(segments[0].get("first_index")->number, 0x2010);
+  EXPECT_EQ(segments[0].get("kind")->string, "changed");
+  EXPECT_EQ(segments[1].get("kind")->string, "only_in_a");
+  EXPECT_TRUE(segments[1].get("segment_b")->is(Json::Kind::Null));
+  EXPECT_EQ(segments[2].get("kind")->string, "only_in_b");
+
+  EXPECT_EQ(cfgmgr(dir, {"diff", data("channels_a.dcf"), data("channels_a.dcf")}).exit_code, 0);
+}
+
 }  // namespace

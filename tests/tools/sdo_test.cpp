@@ -107,12 +107,7 @@ class SdoInNetns : public ::testing::Test {
     args.insert(args.begin(), {"sdo", "--bus", kUrl});
     return cfgmgr(dir_, args);
   }
-  static Json json_of(const tool_test::RunResult& r) {
-    JsonParser parser(r.out);
-    auto json = parser.parse();
-    EXPECT_TRUE(json && json->is(Json::Kind::Object)) << parser.error() << ": " << r.out;
-    return json ? *json : Json{};
-  }
+  static Json json_of(const tool_test::RunResult& r) { return tool_test::json_object_of(r.out); }
 
   ScratchDir dir_;
   std::optional<tool_test::SpawnedTool> sim_;

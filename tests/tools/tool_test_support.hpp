@@ -337,6 +337,15 @@ inline std::optional<Json> parse_json_file(const std::string& path) {
   return json;
 }
 
+/// The JSON object a command printed (its --json output); an empty Json and a test failure
+/// naming the parse error when `text` holds no object.
+inline Json json_object_of(const std::string& text) {
+  JsonParser parser(text);
+  auto json = parser.parse();
+  EXPECT_TRUE(json && json->is(Json::Kind::Object)) << parser.error() << ": " << text;
+  return json ? *json : Json{};
+}
+
 /// The lines of a JSON-lines file (--json-events); every line must be one JSON object ending
 /// with a line end (a test failure says which is not).
 inline std::vector<Json> json_lines(const std::string& path) {

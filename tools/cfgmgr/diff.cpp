@@ -1,5 +1,6 @@
 // cfgmgr diff A.dcf B.dcf: the parameters two device files configure differently, by index,
-// sub-index and name, with the values in words (cfg/dcf_diff.hpp). Exit codes as diff(1).
+// sub-index and name, with the values in words, and the [DynamicChannels] segments they declare
+// differently (cfg/dcf_diff.hpp). Exit codes as diff(1).
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -52,7 +53,27 @@ std::string address_text(const cfg::ParameterDifference& d) {
   return d.whole_object ? cfg::object_name(d.address.index) : cfg::to_string(d.address);
 }
 
-void print_text(const std::vector<cfg::ParameterDifference>& diffs, const DiffCliOptions& o) {
+std::string segment_title(const cfg::SegmentDifference& d) {
+  return "[DynamicChannels] segment at " + cfg::object_name(d.first_index);
+}
+
+void print_segments(const std::vector<cfg::SegmentDifference>& diffs, const DiffCliOptions& o) {
+  using Kind = cfg::ParameterDifference::Kind;
+  for (const auto& d : diffs) {
+    std::cout << segment_title(d);
+    if (d.kind == Kind::Changed) {
+      std::cout << "\n  " << o.a << " (segment " << d.segment_a << "): " << d.a->text << "\n  "
+                << o.b << " (segment " << d.segment_b << "): " << d.b->text << '\n';
+      continue;
+    }
+    const bool in_a = d.kind == Kind::OnlyInA;
+    std::cout << ": only in " << (in_a ? o.a : o.b) << " (segment "
+              << (in_a ? d.segment_a : d.segment_b) << "): " << (in_a ? d.a : d.b)->text << '\n';
+  }
+}
+
+void print_text(const std::vector<cfg::ParameterDifference>& diffs,
+                const std::vector<cfg::SegmentDifference>& segments, const DiffCliOptions& o) {
   using Kind = cfg::ParameterDifference::Kind;
   for (const auto& d : diffs) {
     std::cout << address_text(d) << ' ' << d.name;
@@ -68,8 +89,9 @@ void print_text(const std::vector<cfg::ParameterDifference>& diffs, const DiffCl
     if (!d.whole_object) std::cout << ": " << side.text;
     std::cout << '\n';
   }
-  std::cout << (diffs.empty() ? "no differences" : tools::plural(diffs.size(), "difference"))
-            << '\n';
+  print_segments(segments, o);
+  const auto total = diffs.size() + segments.size();
+  std::cout << (total == 0 ? "no differences" : tools::plural(total, "difference")) << '\n';
 }
 
 std::string json_side(const std::optional<cfg::DiffSide>& side, bool whole_object) {
@@ -79,8 +101,10 @@ std::string json_side(const std::optional<cfg::DiffSide>& side, bool whole_objec
 }
 
 std::string json_report(const std::vector<cfg::ParameterDifference>& diffs,
+                        const std::vector<cfg::SegmentDifference>& segments,
                         const DiffCliOptions& o) {
-  std::string out = "{\"same\": " + std::string(diffs.empty() ? "true" : "false") +
+  const bool same = diffs.empty() && segments.empty();
+  std::string out = "{\"same\": " + std::string(same ? "true" : "false") +
                     ", \"a\": " + tools::json_string(o.a) + ", \"b\": " + tools::json_string(o.b) +
                     ", \"differences\": [";
   bool first = true;
@@ -92,6 +116,16 @@ std::string json_report(const std::vector<cfg::ParameterDifference>& diffs,
            ", \"kind\": " + tools::json_string(cfg::to_string(d.kind)) +
            ", \"a\": " + json_side(d.a, d.whole_object) +
            ", \"b\": " + json_side(d.b, d.whole_object) + "}";
+    first = false;
+  }
+  out += "], \"dynamic_channels\": [";
+  first = true;
+  for (const auto& d : segments) {
+    out += std::string(first ? "" : ", ") + "{\"first_index\": " + std::to_string(d.first_index) +
+           ", \"segment_a\": " + (d.segment_a != 0 ? std::to_string(d.segment_a) : "null") +
+           ", \"segment_b\": " + (d.segment_b != 0 ? std::to_string(d.segment_b) : "null") +
+           ", \"kind\": " + tools::json_string(cfg::to_string(d.kind)) +
+           ", \"a\": " + json_side(d.a, false) + ", \"b\": " + json_side(d.b, false) + "}";
     first = false;
   }
   return out + "]}\n";
@@ -110,14 +144,15 @@ void run_diff(const DiffCliOptions& options) {
   const cfg::DeviceDescription a = read_or_exit(options.a);
   const cfg::DeviceDescription b = read_or_exit(options.b);
   const auto diffs = cfg::diff_parameters(a, b, diff_options);
+  const auto segments = cfg::diff_dynamic_channels(a, b);
   if (options.json) {
-    std::cout << json_report(diffs, options);
+    std::cout << json_report(diffs, segments, options);
   } else {
-    print_text(diffs, options);
+    print_text(diffs, segments, options);
   }
   std::cout.flush();
   if (!std::cout) trouble("write error on standard output");
-  exit_with(diffs.empty() ? kExitSame : kExitDifferent);
+  exit_with(diffs.empty() && segments.empty() ? kExitSame : kExitDifferent);
 }
 
 }  // namespace
@@ -129,7 +164,8 @@ void add_diff_command(CLI::App& app) {
       "Print the parameters two EDS/DCF files configure differently: per entry the value a "
       "download writes (ParameterValue, else DefaultValue, CiA 306), compared as typed values, "
       "with index, sub-index, name and both values in words; objects and sub-objects only in "
-      "one file");
+      "one file; and the [DynamicChannels] segments (CiA DSP 302 §8.4) added, removed or "
+      "changed, matched by the start of their range");
   cmd->add_option("a", options->a, "The first file (shown first)")->required()->type_name("A.dcf");
   cmd->add_option("b", options->b, "The second file")->required()->type_name("B.dcf");
   cmd->add_option("--node-id", options->node_id,
@@ -139,7 +175,8 @@ void add_diff_command(CLI::App& app) {
       ->type_name("N");
   cmd->add_flag("--json", options->json,
                 "Print JSON: same, a, b, differences [{index, sub_index, address, name, kind "
-                "(changed/only_in_a/only_in_b), a {value, line}, b {value, line}}]");
+                "(changed/only_in_a/only_in_b), a {value, line}, b {value, line}}], "
+                "dynamic_channels [{first_index, segment_a, segment_b, kind, a, b}]");
   cmd->footer(
       "Values in words: integers in decimal, unsigned ones with their hex (COB-IDs, mapping "
       "entries), strings quoted, REAL as a number, octet strings and domains as hex bytes.\n\n"

@@ -2,7 +2,9 @@
 // with any node of a running network, from the command line. The value's data type comes from
 // --type, else from the node's EDS/DCF (--eds); the value text is the project's value parser's
 // (cfg::parse_value, the syntax of EDS/DCF values). The client is libnmt's SdoClient
-// (sdo_session.hpp); this file parses arguments and prints.
+// (sdo_session.hpp); this file parses arguments and prints. With --via-manager the tool is an
+// SDO requesting device (DSP 302 §7) and transfers on the channel the network's SDO manager
+// grants instead of the node's default SDO.
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
@@ -13,6 +15,8 @@
 #include <string_view>
 #include <utility>
 #include <vector>
+
+#include <unistd.h>
 
 #include "../common/tool_support.hpp"
 #include "cfg/bytes.hpp"
@@ -52,6 +56,10 @@ struct SdoCliOptions {
   bool json = false;
   bool block = false;
   double sdo_timeout_s = 1.0;
+  bool via_manager = false;
+  std::string own_node_id;  ///< --node-id: the tool's node-ID as an SRD
+  double manager_timeout_s = 10.0;
+  bool verbose = false;
 };
 
 /// The short type names of --type (the CiA 301 names are accepted as well).
@@ -92,10 +100,10 @@ cfg::DataType parse_type(const std::string& text) {
                               "unicode, domain, tod, td, or a CiA 301 name such as UNSIGNED32");
 }
 
-std::uint8_t parse_node(const std::string& text) {
+std::uint8_t parse_node(const std::string& text, std::string_view what = "NODE") {
   const auto parsed = cfg::parse_integer_literal(text);
   if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-    fail(tools::kExitUsage, "NODE " + text + ": expected a node-ID 1..127");
+    fail(tools::kExitUsage, std::string(what) + " " + text + ": expected a node-ID 1..127");
   }
   return static_cast<std::uint8_t>(parsed.literal->value);
 }
@@ -180,6 +188,7 @@ struct Outcome {
   nmt::SdoResult result;
   std::optional<cfg::Value> value;  // read, typed, decoded
   std::vector<std::uint8_t> bytes;  // read: as received; write: as sent
+  SessionChannel channel;           // the channel the transfer used
 };
 
 std::string json_of(const Outcome& o) {
@@ -205,6 +214,17 @@ std::string json_of(const Outcome& o) {
   out += ", \"abort_text\": " + null_or(!ok, std::string(nmt::describe(o.result.abort)));
   out += ", \"aborted_by\": " +
          null_or(!ok, o.result.aborted_by_server ? std::string("device") : std::string("client"));
+  out += ", \"cob_id_client_to_server\": " +
+         std::to_string(o.channel.config.request_cob_id.can_id().id) +
+         ", \"cob_id_server_to_client\": " +
+         std::to_string(o.channel.config.response_cob_id.can_id().id);
+  out += ", \"via_manager\": ";
+  if (o.channel.srd_node_id) {
+    out += "{\"node_id\": " + std::to_string(*o.channel.srd_node_id) +
+           ", \"client_index\": " + std::to_string(o.channel.client_index) + "}";
+  } else {
+    out += "null";
+  }
   return out + "}\n";
 }
 
@@ -217,6 +237,22 @@ std::string json_of(const Outcome& o) {
   fail(o.result.abort == nmt::SdoAbort::Timeout ? tools::kExitIo : tools::kExitInputErrors, text);
 }
 
+// --via-manager: the node-ID the tool takes as an SRD must be free; a node that answers an
+// upload of 1000h on its default SDO (CiA 301 §7.2.4.1) holds it. 300 ms is ample on a live bus.
+void require_free_node_id(SdoSession& session, std::uint8_t own) {
+  nmt::SdoTransferOptions probe;
+  probe.timeout = std::chrono::milliseconds(300);
+  auto answer = session.upload(0x1000, 0, probe);
+  if (!answer) fail(tools::kExitIo, answer.error().message);
+  const auto& r = answer.value();
+  if (r.ok() || r.aborted_by_server) {
+    fail(tools::kExitUsage, "--node-id " + std::to_string(own) + ": node " + std::to_string(own) +
+                                " answers on the bus (its default SDO " + cfg::hex(0x600 + own, 3) +
+                                "h/" + cfg::hex(0x580 + own, 3) +
+                                "h); give a free node-ID for this tool");
+  }
+}
+
 std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t node) {
   if (is_sim_url(o.bus)) {
     fail(tools::kExitUsage, "--bus " + o.bus +
@@ -226,11 +262,49 @@ std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t no
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
     fail(tools::kExitUsage, "--bus: " + checked.error().message);
   }
-  // CiA 301 §7.2.4.1: the default SDO of a node is 600h + node-ID (client to server) and
-  // 580h + node-ID (server to client).
-  auto session = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(node));
-  if (!session) fail(tools::kExitIo, session.error().message);
-  return std::move(session).value();
+  if (!o.via_manager) {
+    if (!o.own_node_id.empty()) fail(tools::kExitUsage, "--node-id is for --via-manager");
+    // CiA 301 §7.2.4.1: the default SDO of a node is 600h + node-ID (client to server) and
+    // 580h + node-ID (server to client).
+    auto session = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(node));
+    if (!session) fail(tools::kExitIo, session.error().message);
+    return std::move(session).value();
+  }
+  if (o.own_node_id.empty()) {
+    fail(tools::kExitUsage, "--via-manager needs --node-id: a free node-ID for this tool");
+  }
+  const auto own = parse_node(o.own_node_id, "--node-id");
+  if (own == node) {
+    fail(tools::kExitUsage, "--node-id " + o.own_node_id + ": that is NODE; give this tool a " +
+                                "free node-ID of its own");
+  }
+  auto opened = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(own));
+  if (!opened) fail(tools::kExitIo, opened.error().message);
+  auto session = std::move(opened).value();
+  require_free_node_id(*session, own);
+  ManagerRoute route;
+  route.own_node_id = *cfg::NodeId::from(own);
+  route.slave = node;
+  route.manager_timeout = seconds_to_duration(o.manager_timeout_s);
+  // Steps on stderr with -v, or when a person watches (registration may take seconds while
+  // the manager scans node-IDs, DSP 302 §7.2.4).
+  if (o.verbose || ::isatty(STDERR_FILENO) == 1) {
+    route.progress = [](const std::string& line) {
+      std::cerr << "cfgmgr sdo: " << line << '\n' << std::flush;
+    };
+  }
+  if (auto connected = session->connect_via_manager(std::move(route)); !connected) {
+    fail(tools::exit_code_for(connected.error()), connected.error().message);
+  }
+  return session;
+}
+
+// Via the manager: release the connection and de-register before the outcome is printed (the
+// manager frees both when the tool's heartbeat stops anyway, so a failure is only a warning).
+void close_session(SdoSession& session) {
+  if (auto closed = session.close(); !closed) {
+    std::cerr << "cfgmgr sdo: warning: " << closed.error().message << '\n' << std::flush;
+  }
 }
 
 nmt::SdoResult transfer_or_exit(cfg::Result<nmt::SdoResult> result) {
@@ -255,6 +329,8 @@ void run_read(const SdoCliOptions& o) {
   auto session = open_session(o, out.node);
   out.result = transfer_or_exit(
       session->upload(out.address.index, out.address.sub_index, transfer_options(o)));
+  out.channel = session->channel();
+  close_session(*session);
   out.bytes = out.result.data;
   if (out.result.ok()) {
     // Untyped: the bytes as a DOMAIN (hex pairs).
@@ -310,6 +386,8 @@ void run_write(const SdoCliOptions& o) {
   auto session = open_session(o, out.node);
   out.result = transfer_or_exit(session->download(
       out.address.index, out.address.sub_index, out.bytes, transfer_options(o, out.bytes.size())));
+  out.channel = session->channel();
+  close_session(*session);
   finish(o, out);
 }
 
@@ -321,7 +399,8 @@ void add_sdo_command(CLI::App& app) {
       "sdo",
       "Read or write one object of a node on a running bus over SDO (CiA 301 section 7.2.4: "
       "expedited, segmented or block transfer), on the node's default SDO (600h/580h + "
-      "node-ID); values typed by --type or by the node's EDS/DCF");
+      "node-ID) or on a channel the network's SDO manager grants (--via-manager, DSP 302 "
+      "section 7); values typed by --type or by the node's EDS/DCF");
   cmd->require_subcommand(1);
   // On `sdo` itself, so that they may come before or after the action (fallthrough) and
   // `cfgmgr sdo --help` (the man page) lists them.
@@ -343,10 +422,29 @@ void add_sdo_command(CLI::App& app) {
   cmd->add_flag("--block", o->block,
                 "Use block transfer (segmented when the node has none); writes of more than "
                 "889 bytes use it anyway");
+  cmd->add_flag("--via-manager", o->via_manager,
+                "Ask the network's SDO manager for a connection to NODE (DSP 302 section 7) "
+                "instead of taking its default SDO, which the master or another tool may be "
+                "using: the tool registers as an SDO requesting device with --node-id, asks "
+                "for the connection, transfers, then releases it and de-registers");
+  cmd->add_option("--node-id", o->own_node_id,
+                  "With --via-manager: this tool's own node-ID on the bus, a free one (the "
+                  "manager scans node-IDs from 127 down, so a high one registers fastest)")
+      ->type_name("ID");
+  cmd->add_option("--manager-timeout", o->manager_timeout_s,
+                  "With --via-manager: seconds to wait for each answer of the SDO manager "
+                  "(registration, connection, release; default 10)")
+      ->type_name("SECONDS")
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("-v,--verbose", o->verbose,
+                "With --via-manager: print each step on stderr (also done when stderr is a "
+                "terminal)");
   cmd->add_flag("--json", o->json,
                 "Print the outcome as one JSON object on stdout (also when the transfer fails): "
                 "operation, node_id, index, sub_index, address, ok, type, value, text, hex, "
-                "size, protocol, abort, abort_text, aborted_by");
+                "size, protocol, abort, abort_text, aborted_by, cob_id_client_to_server, "
+                "cob_id_server_to_client, via_manager (null, or node_id and client_index of "
+                "this tool as an SRD)");
 
   auto* read_cmd = cmd->add_subcommand("read", "Read INDEX:SUB of NODE and print its value");
   read_cmd->add_option("node", o->node, "The node-ID, 1..127")->required()->type_name("NODE");
@@ -387,15 +485,24 @@ void add_sdo_command(CLI::App& app) {
       "  cfgmgr sdo write --bus socketcan:can0 5 1017:0 500 --type u16\n"
       "  cfgmgr sdo write --bus socketcan:can0 5 1F50:1 --file firmware.bin --block\n"
       "  cfgmgr sdo read --bus socketcan:can0 5 1F50:1 -o program.bin --block\n"
-      "  cfgmgr sdo read --bus socketcan:can0 5 1000 --json\n\n"
+      "  cfgmgr sdo read --bus socketcan:can0 5 1000 --json\n"
+      "  cfgmgr sdo read --bus socketcan:can0 5 1018:1 --type u32 --via-manager --node-id 120\n\n"
+      "With --via-manager the tool is an SDO requesting device (DSP 302 section 7) with node-ID "
+      "--node-id: it boots (a boot-up message and a heartbeat every 200 ms), sends the Dynamic "
+      "SDO Request (6E0h), waits until the SDO manager registered it, asks for a connection to "
+      "NODE (1F00h), transfers on the channel the manager granted (NODE's default SDO when no "
+      "one holds it, else another server channel of NODE), and releases everything (1F01h) "
+      "before it exits.\n\n"
       "Exit codes:\n"
       "  0  done\n"
       "  1  the transfer was aborted (the SDO abort code and its words are printed; by the "
-      "device, or by this client on a protocol error), or the value read does not fit --type\n"
+      "device, or by this client on a protocol error), or the value read does not fit --type, "
+      "or the SDO manager refused the registration or the connection (its reason is printed)\n"
       "  2  usage error (bad command line, a NODE outside 1..127, a VALUE that is not of the "
-      "type, no type for VALUE)\n"
+      "type, no type for VALUE, a --node-id that another node answers on)\n"
       "  3  I/O error: a file cannot be read or written, the bus cannot be opened, the node "
-      "does not answer (abort 0x05040000 after --sdo-timeout)\n"));
+      "does not answer (abort 0x05040000 after --sdo-timeout), no SDO manager answers within "
+      "--manager-timeout\n"));
 }
 
 }  // namespace cfgmgr

@@ -1,19 +1,46 @@
 // One SDO client on a real bus, one transfer at a time, each run to its end before the call
 // returns: what the cfgmgr commands that read or write single objects of a running node share
-// (`cfgmgr sdo`, `cfgmgr store --bus`). The protocol is libnmt's SdoClient; this only owns the
-// bus and its event loop.
+// (`cfgmgr sdo`, `cfgmgr store --bus`). The protocol is libnmt's: an SdoClient on a node's
+// default SDO, or, after connect_via_manager(), an nmt::SdoRequestingDevice that asked the
+// network's SDO manager (DSP 302 §7) for the channel. This only owns the bus and its event loop.
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "cfg/node_id.hpp"
 #include "cfg/result.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo_client.hpp"
+#include "nmt/sdo_requesting_device.hpp"
 
 namespace cfgmgr {
+
+/// How the session reaches a node through the SDO manager (connect_via_manager).
+struct ManagerRoute {
+  cfg::NodeId own_node_id = *cfg::NodeId::from(127);  ///< the session's node-ID as an SRD
+  std::uint8_t slave = 0;                             ///< the node to reach, 1..127
+  /// Longest wait for each answer of the manager: the registration (which includes its scan of
+  /// node-IDs, DSP 302 §7.2.4), the connection, the release.
+  nmt::Duration manager_timeout = std::chrono::seconds(10);
+  /// Called with one line for people at each step (registered, connected, released); may be
+  /// empty.
+  std::function<void(const std::string&)> progress{};
+};
+
+/// The channel transfers use, for reports.
+struct SessionChannel {
+  nmt::SdoClientConfig config;
+  /// Set when the SDO manager granted the channel: the session's node-ID as an SRD and its
+  /// client entry (1281h).
+  std::optional<std::uint8_t> srd_node_id{};
+  std::uint16_t client_index = 0;
+};
 
 class SdoSession {
  public:
@@ -36,21 +63,47 @@ class SdoSession {
                                        std::vector<std::uint8_t> data,
                                        const nmt::SdoTransferOptions& options);
 
-  /// The channel transfers use from now on (e.g. one a manager granted).
-  void use_channel(nmt::SdoClientConfig config);
-  /// The loop, for engines that share the bus with the client (added before a transfer runs).
-  nmt::BusEventLoop& loop() { return loop_; }
+  /// Becomes an SDO requesting device with node-ID route.own_node_id (DSP 302 §7.2.1: boot-up,
+  /// 1F10h, the Dynamic SDO Request), waits until the manager registered it, asks for a
+  /// connection to route.slave (§7.2.2, 1F00h) and makes it the channel of later transfers.
+  /// Fails with category Input when the manager refused (its words: 1F10h error code or SDO
+  /// abort), with category Io when no manager answered within route.manager_timeout or the bus
+  /// failed. After a failure the session is de-registered again (best effort).
+  cfg::Status connect_via_manager(ManagerRoute route);
+  /// Via the manager: releases the connection and de-registers (1F01h with slave 0), waiting
+  /// for the manager's answer up to route.manager_timeout. Does nothing on a default SDO. The
+  /// manager releases everything anyway when the session's heartbeat stops (§7.2.1), so a
+  /// failure here leaves nothing behind for long.
+  cfg::Status close();
+
+  /// The channel transfers use now.
+  const SessionChannel& channel() const { return channel_; }
 
  private:
   SdoSession(std::unique_ptr<nmt::Bus> bus, nmt::SdoClientConfig config);
   template <class Start>
   cfg::Result<nmt::SdoResult> run(Start&& start);
+  /// Runs the loop until `done()` holds (checked after each event) or `timeout` passed; false
+  /// on timeout. A bus failure is returned as an Error.
+  cfg::Result<bool> run_until(const std::function<bool()>& done, nmt::Duration timeout);
+  /// The first event of `kinds` reported since the last call, removed from the list.
+  std::optional<nmt::SrdEvent> take_event(std::initializer_list<nmt::SrdEvent::Kind> kinds);
+  cfg::Result<nmt::SdoResult> run_srd(
+      const std::function<std::optional<nmt::SdoRequestingDevice::TransferId>(
+          nmt::SdoRequestingDevice&, nmt::TimePoint, nmt::SdoRequestingDevice::Output&)>& start);
+  void progress(const std::string& line) const;
 
   std::unique_ptr<nmt::Bus> bus_;
   nmt::BusEventLoop loop_;
   nmt::SdoClient client_;
   nmt::EngineRef<nmt::SdoClient> ref_;
   std::optional<nmt::SdoResult> result_;
+  SessionChannel channel_;
+  // Via the SDO manager: the SRD, its loop adapter, the events it reported, the route.
+  std::unique_ptr<nmt::SdoRequestingDevice> srd_;
+  std::unique_ptr<nmt::EngineRef<nmt::SdoRequestingDevice>> srd_ref_;
+  std::vector<nmt::SrdEvent> srd_events_;
+  ManagerRoute route_;
 };
 
 }  // namespace cfgmgr

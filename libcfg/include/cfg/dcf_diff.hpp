@@ -2,8 +2,10 @@
 // An entry's parameter is the value a download writes (CiA 306 §4.6.3: ParameterValue is the
 // value configured for the device; without one, the DefaultValue stands; concise_writes_from_dcf
 // takes the same one), compared as the typed value, so "0x10" and "16" are one UNSIGNED8 value.
+// The segments of [DynamicChannels] (CiA DSP 302 §8.4) are compared too (diff_dynamic_channels).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -47,6 +49,25 @@ struct DiffOptions {
 std::vector<ParameterDifference> diff_parameters(const DeviceDescription& a,
                                                  const DeviceDescription& b,
                                                  const DiffOptions& options = {});
+
+/// One difference of [DynamicChannels] (CiA DSP 302 §8.4). Segments are matched by the start of
+/// their range (RangeN; §8.4 forbids overlapping ranges, so it names a segment), not by N: a
+/// segment inserted before the others is one added segment, not every later one changed.
+struct SegmentDifference {
+  ParameterDifference::Kind kind = ParameterDifference::Kind::Changed;
+  std::uint16_t first_index = 0;  ///< the segment's RangeN start
+  std::size_t segment_a = 0;      ///< N in A (1-based), 0 when only in B
+  std::size_t segment_b = 0;      ///< N in B, 0 when only in A
+  /// The segment in words ("UNSIGNED16 ro 2010h-2011h, PPOffset 0, MaxCnt 16"); line 0 (the
+  /// model keeps no lines for the section). nullopt on the side that lacks it.
+  std::optional<DiffSide> a;
+  std::optional<DiffSide> b;
+};
+
+/// The [DynamicChannels] segments two descriptions declare differently (changed, removed, added),
+/// by range start. A description without the section has no segments.
+std::vector<SegmentDifference> diff_dynamic_channels(const DeviceDescription& a,
+                                                     const DeviceDescription& b);
 
 /// How messages name an entry: the object's name for a VAR, "object / sub-object" otherwise
 /// ("TPDO 1 mapping / Mapped object 1").

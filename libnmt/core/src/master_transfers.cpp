@@ -12,6 +12,12 @@ namespace nmt {
 
 SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
                                                       TimePoint now) {
+  // DSP 302 §7.1: the manager "manages all SDO connections"; a default SDO it gave to an SRD is
+  // the SRD's until released, and a second client on it would collide with the SRD's.
+  if (!transfer.for_manager && default_sdo_given_out(node)) {
+    held.emplace_back(node, std::move(transfer));
+    return 0;
+  }
   // Boot transfers beyond the window, before the pacing allows, or behind others that wait,
   // wait too (pump_transfers), in order.
   if (!transfer.for_application && !transfer.for_manager &&
@@ -50,6 +56,20 @@ void NmtMaster::Impl::pump_transfers(TimePoint now) {
     if (!s.running || transfer.try_id != s.try_id) continue;  // its try ended meanwhile
     launch_transfer(node, std::move(transfer), now);
     if (options.bitrate != 0) return;  // settle() paces the next one after counting its frames
+  }
+}
+
+void NmtMaster::Impl::release_held(TimePoint now) {
+  for (std::size_t i = 0; i < held.size();) {
+    if (default_sdo_given_out(held[i].first)) {
+      ++i;
+      continue;
+    }
+    auto [node, transfer] = std::move(held[i]);
+    held.erase(held.begin() + static_cast<std::ptrdiff_t>(i));
+    const auto& s = slaves[node];
+    if (!transfer.for_application && (!s.running || transfer.try_id != s.try_id)) continue;
+    start_transfer(node, std::move(transfer), now);
   }
 }
 
@@ -117,6 +137,7 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
       }
       continue;
     }
+    release_held(now);
     pump_transfers(now);
     manager_pump(now, out);
     if (startup == StartupState::BootingSlaves) check_startup(now, out);

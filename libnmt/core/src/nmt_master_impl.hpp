@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -192,6 +193,7 @@ struct SdoManager {
     bool deregister = false;                    ///< Release: the SRD goes too
     bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
     std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
+    bool server_gone = false;                   ///< Release: no write to S (failed, or reset)
     cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
     std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
     std::optional<Duration> heartbeat;          ///< Register: the SRD's heartbeat consumer time
@@ -206,8 +208,14 @@ struct SdoManager {
   std::uint64_t serial = 0;  ///< of the transfer in flight (MasterTransfer::try_id)
   bool rescan = false;       ///< a 6E0h came during a scan
   std::uint8_t writer = 0;   ///< the SRD whose channel carries the SDO request being served
-  /// This device's server channels for SRDs, by entry (1201h..).
-  std::map<std::uint16_t, std::unique_ptr<SdoServer>> channels;
+  /// One of this device's server channels for SRDs, and the SRD it was opened for (its sub 3):
+  /// the writer of a 1F00h/1F01h that arrives on it.
+  struct OwnChannel {
+    std::unique_ptr<SdoServer> server;
+    std::uint8_t client = 0;
+  };
+  /// By entry (1201h..).
+  std::map<std::uint16_t, OwnChannel> channels;
   /// Slaves the manager watches for SRDs with Req EC.
   std::set<std::uint8_t> watched;
 };
@@ -250,6 +258,9 @@ struct NmtMaster::Impl {
   std::size_t boot_transfers = 0;
   double window = kMaxWindow;
   std::deque<std::pair<std::uint8_t, MasterTransfer>> waiting;
+  /// Boot and application transfers to a slave whose default SDO the SDO manager gave to an SRD
+  /// (DSP 302 §7.1): they wait here, in order, until it is free again (release_held).
+  std::deque<std::pair<std::uint8_t, MasterTransfer>> held;
   /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
   TimePoint paced_until{0};
   /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
@@ -385,16 +396,30 @@ struct NmtMaster::Impl {
   void manager_clear();
   /// Error control of `node` failed, or it booted up: an SRD is released, a slave reported.
   void manager_node_lost(std::uint8_t node, bool boot_up, TimePoint now, Output& out);
+  /// A boot-up of slave `node`: the connections on its additional server entries are released.
+  void manager_slave_booted(std::uint8_t node);
+  /// Removes the connections `match` selects from the tables (rows cleared), in row order.
+  std::vector<SdoManager::Connection> manager_take_connections(
+      const std::function<bool(const ManagedSdoConnection&)>& match);
+  /// One release job per SRD for `rows` whose server side is gone; `failed` (not 0): 1F11h first.
+  void manager_release_per_srd(std::vector<SdoManager::Connection> rows, std::uint8_t failed,
+                               const std::string& why);
   void manager_pump(TimePoint now, Output& out);
   void manager_result(const SdoResult& result, TimePoint now, Output& out);
   void manager_advance(TimePoint now, Output& out);
-  void manager_finish_job(TimePoint now, Output& out);
+  // One step of the front job, by its kind (manager_advance dispatches).
+  void manager_report_refusal(TimePoint now, Output& out);
+  void manager_advance_scan();
+  void manager_advance_register(TimePoint now, Output& out);
+  void manager_advance_connect(TimePoint now, Output& out);
+  void manager_advance_release(TimePoint now, Output& out);
+  void manager_finish_job();
   void manager_job_failed(const SdoResult& result, TimePoint now, Output& out);
-  void manager_start_register(std::uint32_t request, TimePoint now, Output& out);
-  void manager_start_connect(TimePoint now, Output& out);
-  void manager_connect_with(std::uint16_t server_index, TimePoint now, Output& out);
-  void manager_refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why,
-                      TimePoint now, Output& out);
+  void manager_start_register(std::uint32_t request);
+  void manager_start_connect();
+  void manager_connect_with(std::uint16_t server_index);
+  /// Ends the front job with 1F10h Cnxn 0 and `error`, then its event.
+  void manager_refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why);
   void manager_release_job(std::uint8_t srd, std::vector<SdoManager::Connection> rows,
                            bool deregister, bool lost, std::string why);
   void manager_watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now);
@@ -404,6 +429,9 @@ struct NmtMaster::Impl {
   void manager_close_channel(std::uint16_t index);
   std::uint16_t manager_free_row() const;
   bool default_sdo_taken(std::uint8_t node) const;
+  /// The master's own transfers must not use `node`'s default SDO: a connection holds it, or an
+  /// SRD owns all default SDOs (DSP 302 §7.1, §7.2.4 guideline 4).
+  bool default_sdo_given_out(std::uint8_t node) const;
 
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
@@ -411,6 +439,8 @@ struct NmtMaster::Impl {
   void forget_transfer(
       std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it);
   void pump_transfers(TimePoint now);
+  /// Starts the `held` transfers whose slave's default SDO is free again.
+  void release_held(TimePoint now);
   SdoClient::TransferId launch_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
   void open_boot_up_gate(TimePoint now, Output& out);
 

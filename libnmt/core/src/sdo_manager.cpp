@@ -3,9 +3,9 @@
 // the error control of SRDs (and of slaves for SRDs that asked), and its objects 1F00h-1F06h.
 // The choices where §7 leaves room are listed at the top of nmt/nmt_master.hpp.
 //
-// The work runs as jobs, one at a time (SdoManager::jobs), each a sequence of SDO accesses over
-// the master's default SDO clients; a 1F00h/1F01h write only queues one (§7.2.3: a successful
-// response means the manager started).
+// The work runs as jobs, one at a time (SdoManager::jobs; a scan lets the others go first between
+// its reads), each a sequence of SDO accesses over the master's default SDO clients; a
+// 1F00h/1F01h write only queues one (§7.2.3: a successful response means the manager started).
 #include <algorithm>
 #include <utility>
 
@@ -166,6 +166,11 @@ SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
     if (entry.in_use() || !entry.cob_id().well_formed()) return SdoAbort::ValueRangeExceeded;
     return SdoAbort::None;
   }
+  if (obj::is_sdo_server_parameter(index) && index != kDefaultServer) {
+    // The manager's own server channels for SRDs (choice, nmt/nmt_master.hpp): it opens and
+    // closes them; §7.2.3 lets tools change connections only through 1F00h/1F01h.
+    return SdoAbort::LocalControl;
+  }
   if (index != obj::kSdoRequest && index != obj::kSdoRelease) return SdoAbort::None;
   if (!manager_active()) return SdoAbort::DeviceState;
   const auto request = sm::SdoRequest::decode(value);
@@ -202,19 +207,10 @@ SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
   }
   // 1F01h: slave 0 releases everything and de-registers; index 0 every connection to the slave.
   if (slave != 0 && !cfg::is_node_id(slave)) return SdoAbort::ResourceNotAvailable;
-  std::vector<SdoManager::Connection> rows;
-  for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
-    const bool match = c->row.srd == srd &&
-                       (slave == 0 || (!c->row.to_manager && c->row.server == slave &&
-                                       (client_index == 0 || c->row.client_index == client_index)));
-    if (!match) {
-      ++c;
-      continue;
-    }
-    rows.push_back(*c);
-    set_row(dict, c->row.row, 0);
-    c = sdo_manager.connections.erase(c);
-  }
+  auto rows = manager_take_connections([&](const ManagedSdoConnection& c) {
+    return c.srd == srd && (slave == 0 || (!c.to_manager && c.server == slave &&
+                                           (client_index == 0 || c.client_index == client_index)));
+  });
   if (slave == 0) {
     manager_release_job(srd, std::move(rows), true, false,
                         "1F01h: " + node_text(srd) + " de-registers");
@@ -250,9 +246,9 @@ bool NmtMaster::Impl::manager_servers_frame(const CanFrame& frame, TimePoint now
   bool taken = false;
   for (auto& [index, channel] : sdo_manager.channels) {
     Outbox<NoEvent> server_out;
-    // 1F00h/1F01h learn the writer from the channel (its sub 3: the SRD).
-    sdo_manager.writer = static_cast<std::uint8_t>(value_of(index, 3));
-    const bool mine = channel->on_frame(frame, now, server_out);
+    // 1F00h/1F01h learn the writer from the channel: the SRD it was opened for.
+    sdo_manager.writer = channel.client;
+    const bool mine = channel.server->on_frame(frame, now, server_out);
     sdo_manager.writer = 0;
     for (const auto& f : server_out.frames) out.send(f);
     if (mine) {
@@ -266,7 +262,7 @@ bool NmtMaster::Impl::manager_servers_frame(const CanFrame& frame, TimePoint now
 void NmtMaster::Impl::manager_servers_timer(TimePoint now, Output& out) {
   for (auto& [index, channel] : sdo_manager.channels) {
     Outbox<NoEvent> server_out;
-    channel->on_timer(now, server_out);
+    channel.server->on_timer(now, server_out);
     for (const auto& f : server_out.frames) out.send(f);
   }
 }
@@ -274,7 +270,7 @@ void NmtMaster::Impl::manager_servers_timer(TimePoint now, Output& out) {
 std::optional<TimePoint> NmtMaster::Impl::manager_deadline() const {
   std::optional<TimePoint> due;
   for (const auto& [index, channel] : sdo_manager.channels)
-    due = earliest(due, channel->next_deadline());
+    due = earliest(due, channel.server->next_deadline());
   // Queued work starts from the next call.
   if (!sdo_manager.in_flight && !sdo_manager.jobs.empty() && manager_active()) due = TimePoint{0};
   return due;
@@ -327,7 +323,7 @@ void NmtMaster::Impl::manager_open_channel(std::uint16_t index, const SdoManager
   SdoServerConfig config = server.config();
   config.request_cob_id = c.row.request;
   config.response_cob_id = c.row.response;
-  sdo_manager.channels[index] = std::make_unique<SdoServer>(dict, config);
+  sdo_manager.channels[index] = {std::make_unique<SdoServer>(dict, config), c.row.srd};
 }
 
 void NmtMaster::Impl::manager_close_channel(std::uint16_t index) {
@@ -353,6 +349,13 @@ bool NmtMaster::Impl::default_sdo_taken(std::uint8_t node) const {
                      [&](const SdoManager::Connection& c) {
                        return c.row.server == node && c.row.server_index == kDefaultServer;
                      });
+}
+
+bool NmtMaster::Impl::default_sdo_given_out(std::uint8_t node) const {
+  if (!sdo_manager.enabled) return false;
+  return default_sdo_taken(node) ||
+         std::any_of(sdo_manager.srds.begin(), sdo_manager.srds.end(),
+                     [](const auto& s) { return s.second.info.all_default_sdos; });
 }
 
 void NmtMaster::Impl::manager_watch(std::uint8_t node, std::optional<Duration> heartbeat,
@@ -382,16 +385,8 @@ void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoi
   if (!sdo_manager.enabled) return;
   if (auto it = sdo_manager.srds.find(node); it != sdo_manager.srds.end()) {
     // §7.2.1: "the Manager forces all SDOs requested by that SRD to be released".
-    std::vector<SdoManager::Connection> rows;
-    for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
-      if (c->row.srd != node) {
-        ++c;
-        continue;
-      }
-      rows.push_back(*c);
-      set_row(dict, c->row.row, 0);
-      c = sdo_manager.connections.erase(c);
-    }
+    auto rows =
+        manager_take_connections([node](const ManagedSdoConnection& c) { return c.srd == node; });
     sdo_manager.srds.erase(it);
     if (!is_slave(node)) stop_error_control(node);
     const std::string why = node_text(node) + (boot_up ? ": SRD booted up" : ": SRD lost");
@@ -401,33 +396,65 @@ void NmtMaster::Impl::manager_node_lost(std::uint8_t node, bool boot_up, TimePoi
     manager_release_job(node, std::move(rows), true, true, why);
     return;
   }
-  if (boot_up || sdo_manager.watched.count(node) == 0) return;
+  if (boot_up) {
+    manager_slave_booted(node);
+    return;
+  }
+  if (sdo_manager.watched.count(node) == 0) return;
   // §7.2.2 "Error Control of Slave Devices": 1F11h on each SRD with Req EC, then its client
   // entry cleared.
   sdo_manager.watched.erase(node);
   if (!is_slave(node)) stop_error_control(node);
-  std::map<std::uint8_t, std::vector<SdoManager::Connection>> by_srd;
+  auto rows = manager_take_connections([&](const ManagedSdoConnection& c) {
+    const auto srd = sdo_manager.srds.find(c.srd);
+    return c.server == node && !c.to_manager && srd != sdo_manager.srds.end() &&
+           srd->second.info.slave_error_control;
+  });
+  manager_release_per_srd(std::move(rows), node, node_text(node) + " failed (error control)");
+}
+
+void NmtMaster::Impl::manager_slave_booted(std::uint8_t node) {
+  // CiA 301: the server entries 1201h.. a slave had written into it are not kept over a reset
+  // (a boot-up follows every reset, the master's own too): those connections are gone on S, so
+  // their rows go and each SRD's client entry is invalidated. S's default SDO survives (its
+  // COB-IDs are fixed): a connection on it stays.
+  auto rows = manager_take_connections([node](const ManagedSdoConnection& c) {
+    return c.server == node && !c.to_manager && c.server_index != kDefaultServer;
+  });
+  manager_release_per_srd(std::move(rows), 0,
+                          node_text(node) + " booted up: its server entry is gone");
+}
+
+std::vector<SdoManager::Connection> NmtMaster::Impl::manager_take_connections(
+    const std::function<bool(const ManagedSdoConnection&)>& match) {
+  std::vector<SdoManager::Connection> taken;
   for (auto c = sdo_manager.connections.begin(); c != sdo_manager.connections.end();) {
-    const auto srd = sdo_manager.srds.find(c->row.srd);
-    if (c->row.server != node || c->row.to_manager || srd == sdo_manager.srds.end() ||
-        !srd->second.info.slave_error_control) {
+    if (!match(c->row)) {
       ++c;
       continue;
     }
-    by_srd[c->row.srd].push_back(*c);
+    taken.push_back(*c);
     set_row(dict, c->row.row, 0);
     c = sdo_manager.connections.erase(c);
   }
-  for (auto& [srd, rows] : by_srd) {
+  return taken;
+}
+
+void NmtMaster::Impl::manager_release_per_srd(std::vector<SdoManager::Connection> rows,
+                                              std::uint8_t failed, const std::string& why) {
+  // S's side is gone (it failed, or its reset dropped the entry): only the SRDs are written.
+  std::map<std::uint8_t, std::vector<SdoManager::Connection>> by_srd;
+  for (auto& c : rows) by_srd[c.row.srd].push_back(std::move(c));
+  for (auto& [srd, its_rows] : by_srd) {
     SdoManager::Job job;
     job.kind = SdoManager::Job::Kind::Release;
     job.node = srd;
-    job.failed = node;  // 1F11h first
-    job.why = node_text(node) + " failed (error control)";
-    job.releases = std::move(rows);
+    job.failed = failed;  // 1F11h first when not 0
+    job.server_gone = true;
+    job.why = why;
+    job.releases = std::move(its_rows);
     sdo_manager.jobs.push_back(std::move(job));
   }
-  (void)now;
 }
 
 void NmtMaster::Impl::manager_release_job(std::uint8_t srd,
@@ -452,6 +479,17 @@ void NmtMaster::Impl::manager_pump(TimePoint now, Output& out) {
   if (!sdo_manager.enabled) return;
   while (!sdo_manager.in_flight && !sdo_manager.jobs.empty()) {
     if (!manager_active()) return;  // resumes when the master is active again
+    if (sdo_manager.jobs.front().kind == SdoManager::Job::Kind::Scan) {
+      // Between two reads of a scan (126 silent node-IDs take 126 x the scan timeout), the
+      // requests and releases that came meanwhile go first: a scan step costs them one read.
+      const auto other = std::find_if(
+          sdo_manager.jobs.begin(), sdo_manager.jobs.end(),
+          [](const SdoManager::Job& j) { return j.kind != SdoManager::Job::Kind::Scan; });
+      if (other != sdo_manager.jobs.end()) {
+        std::rotate(sdo_manager.jobs.begin(), other, std::next(other));
+        continue;
+      }
+    }
     auto& job = sdo_manager.jobs.front();
     if (job.steps.empty()) {
       manager_advance(now, out);
@@ -489,7 +527,7 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
     case Phase::Scanning:
       // §7.2.1: an open request has Rq indication set.
       if (result.ok() && DynamicSdoState::decode(uploaded_u32(result)).request_indication) {
-        manager_start_register(uploaded_u32(result), now, out);
+        manager_start_register(uploaded_u32(result));
       } else if (job.node > cfg::kMinNodeId) {
         --job.node;
       } else {
@@ -510,15 +548,15 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
     case Phase::ProbeSlave:
       if (!answered) {
         manager_refuse(DynamicSdoError::kSlaveNotAvailable,
-                       node_text(job.slave) + " does not answer", now, out);
+                       node_text(job.slave) + " does not answer");
       } else {
-        manager_connect_with(kDefaultServer, now, out);
+        manager_connect_with(kDefaultServer);
       }
       return;
     case Phase::SearchChannel: {
       if (!answered) {
         manager_refuse(DynamicSdoError::kSlaveNotAvailable,
-                       node_text(job.slave) + " does not answer", now, out);
+                       node_text(job.slave) + " does not answer");
         return;
       }
       const bool free =
@@ -528,10 +566,10 @@ void NmtMaster::Impl::manager_result(const SdoResult& result, TimePoint now, Out
                          return c.row.server == job.slave && c.row.server_index == job.probe;
                        });
       if (free) {
-        manager_connect_with(job.probe, now, out);
+        manager_connect_with(job.probe);
       } else if (!result.ok() || job.probe >= obj::kSdoServerLast) {
         manager_refuse(DynamicSdoError::kNoFreeServerOnSlave,
-                       node_text(job.slave) + " has no free server SDO entry", now, out);
+                       node_text(job.slave) + " has no free server SDO entry");
       } else {
         ++job.probe;
         job.steps.push_back(read_step(job.slave, job.probe, 1));
@@ -558,7 +596,7 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
                           node_text(job.node) + ": registration failed: " + why);
     e.connection = c.row;
     report(out, std::move(e));
-    manager_finish_job(now, out);
+    manager_finish_job();
     return;
   }
   if (job.kind == Kind::Connect) {
@@ -567,7 +605,7 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
       manager_mark_pool(c.pool_response, false);
       const bool timed_out = !result.aborted_by_server && result.abort == SdoAbort::Timeout;
       manager_refuse(timed_out ? DynamicSdoError::kSlaveNotAvailable : DynamicSdoError::kNoDetails,
-                     why, now, out);
+                     why);
       return;
     }
     // The SRD did not take its entry: undo S's side (best effort), no confirmation possible.
@@ -584,13 +622,10 @@ void NmtMaster::Impl::manager_job_failed(const SdoResult& result, TimePoint now,
     job.why = why;
     return;
   }
-  manager_finish_job(now, out);
+  manager_finish_job();
 }
 
-void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& why, TimePoint now,
-                                     Output& out) {
-  (void)now;
-  (void)out;
+void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& why) {
   auto& job = sdo_manager.jobs.front();
   job.steps.clear();
   job.phase = SdoManager::Job::Phase::Refusing;
@@ -610,7 +645,7 @@ void NmtMaster::Impl::manager_refuse(DynamicSdoError error, const std::string& w
       write_step(job.node, obj::kDynamicSdoConnectionState, 0, state.encode(), 4, false));
 }
 
-void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint now, Output& out) {
+void NmtMaster::Impl::manager_start_register(std::uint32_t request) {
   auto& job = sdo_manager.jobs.front();
   const auto srd = job.node;
   job.kind = SdoManager::Job::Kind::Register;
@@ -635,7 +670,7 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
         std::any_of(sdo_manager.srds.begin(), sdo_manager.srds.end(),
                     [](const auto& s) { return s.second.info.all_default_sdos; });
     if (taken) {
-      manager_refuse(DynamicSdoError::kNoDetails, "a default SDO is in use", now, out);
+      manager_refuse(DynamicSdoError::kNoDetails, "a default SDO is in use");
       return;
     }
     job.phase = SdoManager::Job::Phase::Confirming;
@@ -646,7 +681,7 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
   const auto index = state.client_index;
   if (!obj::is_sdo_client_parameter(index)) {
     manager_refuse(DynamicSdoError::kNoDetails,
-                   "1F10h names " + cfg::object_name(index) + ", no client SDO entry", now, out);
+                   "1F10h names " + cfg::object_name(index) + ", no client SDO entry");
     return;
   }
   std::uint16_t channel = 0;
@@ -662,8 +697,7 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
   if (channel == 0 || pool.size() < 2 || row == 0) {
     manager_refuse(
         DynamicSdoError::kNoChannelToManager,
-        channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h", now,
-        out);
+        channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h");
     return;
   }
   auto& c = job.connection;
@@ -688,10 +722,10 @@ void NmtMaster::Impl::manager_start_register(std::uint32_t request, TimePoint no
                          .encode();
 }
 
-void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
+void NmtMaster::Impl::manager_start_connect() {
   auto& job = sdo_manager.jobs.front();
   if (sdo_manager.srds.count(job.node) == 0) {  // lost or gone meanwhile
-    manager_finish_job(now, out);
+    manager_finish_job();
     return;
   }
   job.connection = {};
@@ -708,8 +742,7 @@ void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
     return;
   }
   if (manager_free_pool().size() < 2) {
-    manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h", now,
-                   out);
+    manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
     return;
   }
   job.phase = SdoManager::Job::Phase::SearchChannel;
@@ -717,7 +750,7 @@ void NmtMaster::Impl::manager_start_connect(TimePoint now, Output& out) {
   job.steps.push_back(read_step(job.slave, job.probe, 1));
 }
 
-void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index, TimePoint now, Output& out) {
+void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index) {
   auto& job = sdo_manager.jobs.front();
   auto& c = job.connection;
   c.row.server_index = server_index;
@@ -727,8 +760,7 @@ void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index, TimePoint
   } else {
     const auto pool = manager_free_pool();
     if (pool.size() < 2) {
-      manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h", now,
-                     out);
+      manager_refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
       return;
     }
     c.pool_request = pool[0];
@@ -756,180 +788,205 @@ void NmtMaster::Impl::manager_connect_with(std::uint16_t server_index, TimePoint
 
 void NmtMaster::Impl::manager_advance(TimePoint now, Output& out) {
   using Kind = SdoManager::Job::Kind;
-  using Phase = SdoManager::Job::Phase;
   auto& job = sdo_manager.jobs.front();
-  if (job.phase == Phase::Refusing) {
-    const bool registering = job.kind == Kind::Register;
-    auto e = master_event(
-        registering ? MasterEvent::Kind::SrdRegistrationFailed
-                    : MasterEvent::Kind::SdoConnectionRefused,
-        now, job.node,
-        node_text(job.node) +
-            (registering ? ": registration refused"
-                         : ": SDO connection to " + node_text(job.slave) + " refused") +
-            ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
-            std::string(sm::describe(job.error)) + "): " + job.why);
-    e.connection = job.connection.row;
-    e.connection_error = static_cast<std::uint8_t>(job.error);
-    report(out, std::move(e));
-    manager_finish_job(now, out);
+  if (job.phase == SdoManager::Job::Phase::Refusing) {
+    manager_report_refusal(now, out);
     return;
   }
   switch (job.kind) {
-    case Kind::Scan: {
-      if (job.phase == Phase::Start) {
-        job.phase = Phase::Scanning;
-        job.node = cfg::kMaxNodeId;
-      }
-      // §7.2.1 / §7.2.4 guideline 2: from 127 down, node-IDs not registered, whose default SDO
-      // no connection holds.
-      while (job.node >= cfg::kMinNodeId &&
-             (job.node == node_id.value() || sdo_manager.srds.count(job.node) != 0 ||
-              default_sdo_taken(job.node))) {
-        --job.node;
-      }
-      if (job.node < cfg::kMinNodeId) {
-        manager_finish_job(now, out);
-        if (sdo_manager.rescan) {
-          sdo_manager.rescan = false;
-          SdoManager::Job scan;
-          scan.kind = Kind::Scan;
-          sdo_manager.jobs.push_back(std::move(scan));
-        }
-        return;
-      }
-      job.steps.push_back(read_step(job.node, obj::kDynamicSdoConnectionState, 0, false));
+    case Kind::Scan:
+      manager_advance_scan();
       return;
-    }
-    case Kind::Register: {
-      if (job.phase == Phase::Confirming) {
-        // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h; known
-        // before the confirmation, so the SRD is registered once it has taken it.
-        job.heartbeat = heartbeat_time(job.node);
-        if (job.heartbeat) {
-          job.phase = Phase::Writing;
-          job.steps.push_back(
-              write_step(job.node, obj::kDynamicSdoConnectionState, 0, job.confirmation, 4));
-        } else {
-          job.phase = Phase::ReadHeartbeat;
-          job.steps.push_back(read_step(job.node, obj::kProducerHeartbeatTime, 0));
-        }
-        return;
-      }
-      manager_watch(job.node, job.heartbeat, now);
-      SdoManager::Srd srd;
-      srd.info.node = job.node;
-      const auto request = DynamicSdoState::decode(job.request);
-      srd.info.all_default_sdos = request.is_all_default_sdos_request();
-      srd.info.slave_error_control = request.request_error_control;
-      auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node,
-                            node_text(job.node) + ": SRD registered");
-      if (!srd.info.all_default_sdos) {
-        auto c = job.connection;
-        c.row.row = manager_free_row();
-        srd.info.client_index = c.row.client_index;
-        srd.own_channel = c.row.server_index;
-        set_row(dict, c.row.row, row_word(c.row));
-        sdo_manager.connections.push_back(c);
-        e.connection = c.row;
-        e.text += ", " + connection_text(c.row);
-      } else {
-        e.text += " with all default SDOs";
-      }
-      if (srd.info.slave_error_control) e.text += ", error control of its slaves";
-      sdo_manager.srds[job.node] = srd;
-      report(out, std::move(e));
-      manager_finish_job(now, out);
+    case Kind::Register:
+      manager_advance_register(now, out);
       return;
-    }
-    case Kind::Connect: {
-      if (job.phase == Phase::Start) {
-        manager_start_connect(now, out);
-        return;
-      }
-      // Phase::Writing done: established (§7.2.2).
-      auto c = job.connection;
-      c.row.row = manager_free_row();
-      if (c.row.row != 0) set_row(dict, c.row.row, row_word(c.row));
-      sdo_manager.connections.push_back(c);
-      const auto srd = sdo_manager.srds.find(job.node);
-      if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control &&
-          sdo_manager.watched.count(job.slave) == 0 && !heartbeats.monitors(job.slave) &&
-          !guarding.guards(job.slave)) {
-        // §7.2.5 step 4.4: error control of S for the SRD.
-        manager_watch(job.slave, std::nullopt, now);
-        sdo_manager.watched.insert(job.slave);
-      } else if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control) {
-        sdo_manager.watched.insert(job.slave);
-      }
-      auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node,
-                            "SDO connection established: " + connection_text(c.row));
-      e.connection = c.row;
-      report(out, std::move(e));
-      manager_finish_job(now, out);
+    case Kind::Connect:
+      manager_advance_connect(now, out);
       return;
-    }
-    case Kind::Release: {
-      if (job.phase == Phase::Start) {
-        job.phase = Phase::Releasing;
-        if (job.failed != 0) {
-          // §7.2.3 1F11h: reason 00h, the failed slave's node-ID.
-          job.steps.push_back(write_step(
-              job.node, obj::kSlaveFailed, 0,
-              sm::SlaveFailed{static_cast<std::uint8_t>(sm::SlaveFailedReason::kErrorControl),
-                              job.failed}
-                  .encode(),
-              2, false, !job.srd_lost));
-        }
-        for (const auto& c : job.releases) {
-          // §7.2.1: invalidate the SRD's client entry, then S's server entry (not its default).
-          job.steps.push_back(write_step(job.node, c.row.client_index, 1,
-                                         c.row.request.with_valid(false).word(), 4, false,
-                                         !job.srd_lost));
-          job.steps.push_back(write_step(job.node, c.row.client_index, 2,
-                                         c.row.response.with_valid(false).word(), 4, false,
-                                         !job.srd_lost));
-          if (!c.row.to_manager && c.row.server_index != kDefaultServer && job.failed == 0) {
-            job.steps.push_back(write_step(c.row.server, c.row.server_index, 1,
-                                           c.row.request.with_valid(false).word(), 4, false));
-            job.steps.push_back(write_step(c.row.server, c.row.server_index, 2,
-                                           c.row.response.with_valid(false).word(), 4, false));
-          }
-        }
-        if (!job.steps.empty()) return;
-      }
-      if (job.failed != 0) {
-        ManagedSdoConnection failed;
-        failed.srd = job.node;
-        failed.server = job.failed;
-        auto e = master_event(
-            MasterEvent::Kind::SlaveFailedReported, now, job.node,
-            node_text(job.node) + ": 1F11h reports " + node_text(job.failed) + " failed");
-        e.connection = failed;
-        report(out, std::move(e));
-      }
-      for (const auto& c : job.releases) {
-        manager_mark_pool(c.pool_request, false);
-        manager_mark_pool(c.pool_response, false);
-        if (c.row.to_manager) manager_close_channel(c.row.server_index);
-        auto e =
-            master_event(MasterEvent::Kind::SdoConnectionReleased, now, job.node,
-                         "SDO connection released (" + job.why + "): " + connection_text(c.row));
-        e.connection = c.row;
-        report(out, std::move(e));
-      }
-      if (job.deregister && !job.srd_lost) {
-        if (!is_slave(job.node)) stop_error_control(job.node);
-        report(out, master_event(MasterEvent::Kind::SrdDeregistered, now, job.node,
-                                 node_text(job.node) + ": SRD de-registered"));
-      }
-      manager_finish_job(now, out);
+    case Kind::Release:
+      manager_advance_release(now, out);
       return;
-    }
   }
 }
 
-void NmtMaster::Impl::manager_finish_job(TimePoint /*now*/, Output& /*out*/) {
+void NmtMaster::Impl::manager_report_refusal(TimePoint now, Output& out) {
+  using Kind = SdoManager::Job::Kind;
+  auto& job = sdo_manager.jobs.front();
+  const bool registering = job.kind == Kind::Register;
+  auto e =
+      master_event(registering ? MasterEvent::Kind::SrdRegistrationFailed
+                               : MasterEvent::Kind::SdoConnectionRefused,
+                   now, job.node,
+                   node_text(job.node) +
+                       (registering ? ": registration refused"
+                                    : ": SDO connection to " + node_text(job.slave) + " refused") +
+                       ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
+                       std::string(sm::describe(job.error)) + "): " + job.why);
+  e.connection = job.connection.row;
+  e.connection_error = static_cast<std::uint8_t>(job.error);
+  report(out, std::move(e));
+  manager_finish_job();
+}
+
+void NmtMaster::Impl::manager_advance_scan() {
+  using Kind = SdoManager::Job::Kind;
+  using Phase = SdoManager::Job::Phase;
+  auto& job = sdo_manager.jobs.front();
+  if (job.phase == Phase::Start) {
+    job.phase = Phase::Scanning;
+    job.node = cfg::kMaxNodeId;
+  }
+  // §7.2.1 / §7.2.4 guideline 2: from 127 down, node-IDs not registered, whose default SDO
+  // no connection holds.
+  while (job.node >= cfg::kMinNodeId &&
+         (job.node == node_id.value() || sdo_manager.srds.count(job.node) != 0 ||
+          default_sdo_taken(job.node))) {
+    --job.node;
+  }
+  if (job.node < cfg::kMinNodeId) {
+    manager_finish_job();
+    if (sdo_manager.rescan) {
+      sdo_manager.rescan = false;
+      SdoManager::Job scan;
+      scan.kind = Kind::Scan;
+      sdo_manager.jobs.push_back(std::move(scan));
+    }
+    return;
+  }
+  job.steps.push_back(read_step(job.node, obj::kDynamicSdoConnectionState, 0, false));
+}
+
+void NmtMaster::Impl::manager_advance_register(TimePoint now, Output& out) {
+  using Phase = SdoManager::Job::Phase;
+  auto& job = sdo_manager.jobs.front();
+  if (job.phase == Phase::Confirming) {
+    // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h; known
+    // before the confirmation, so the SRD is registered once it has taken it.
+    job.heartbeat = heartbeat_time(job.node);
+    if (job.heartbeat) {
+      job.phase = Phase::Writing;
+      job.steps.push_back(
+          write_step(job.node, obj::kDynamicSdoConnectionState, 0, job.confirmation, 4));
+    } else {
+      job.phase = Phase::ReadHeartbeat;
+      job.steps.push_back(read_step(job.node, obj::kProducerHeartbeatTime, 0));
+    }
+    return;
+  }
+  manager_watch(job.node, job.heartbeat, now);
+  SdoManager::Srd srd;
+  srd.info.node = job.node;
+  const auto request = DynamicSdoState::decode(job.request);
+  srd.info.all_default_sdos = request.is_all_default_sdos_request();
+  srd.info.slave_error_control = request.request_error_control;
+  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node,
+                        node_text(job.node) + ": SRD registered");
+  if (!srd.info.all_default_sdos) {
+    auto c = job.connection;
+    c.row.row = manager_free_row();
+    srd.info.client_index = c.row.client_index;
+    srd.own_channel = c.row.server_index;
+    set_row(dict, c.row.row, row_word(c.row));
+    sdo_manager.connections.push_back(c);
+    e.connection = c.row;
+    e.text += ", " + connection_text(c.row);
+  } else {
+    e.text += " with all default SDOs";
+  }
+  if (srd.info.slave_error_control) e.text += ", error control of its slaves";
+  sdo_manager.srds[job.node] = srd;
+  report(out, std::move(e));
+  manager_finish_job();
+}
+
+void NmtMaster::Impl::manager_advance_connect(TimePoint now, Output& out) {
+  using Phase = SdoManager::Job::Phase;
+  auto& job = sdo_manager.jobs.front();
+  if (job.phase == Phase::Start) {
+    manager_start_connect();
+    return;
+  }
+  // Phase::Writing done: established (§7.2.2).
+  auto c = job.connection;
+  c.row.row = manager_free_row();
+  if (c.row.row != 0) set_row(dict, c.row.row, row_word(c.row));
+  sdo_manager.connections.push_back(c);
+  const auto srd = sdo_manager.srds.find(job.node);
+  if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control &&
+      sdo_manager.watched.count(job.slave) == 0 && !heartbeats.monitors(job.slave) &&
+      !guarding.guards(job.slave)) {
+    // §7.2.5 step 4.4: error control of S for the SRD.
+    manager_watch(job.slave, std::nullopt, now);
+    sdo_manager.watched.insert(job.slave);
+  } else if (srd != sdo_manager.srds.end() && srd->second.info.slave_error_control) {
+    sdo_manager.watched.insert(job.slave);
+  }
+  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node,
+                        "SDO connection established: " + connection_text(c.row));
+  e.connection = c.row;
+  report(out, std::move(e));
+  manager_finish_job();
+}
+
+void NmtMaster::Impl::manager_advance_release(TimePoint now, Output& out) {
+  using Phase = SdoManager::Job::Phase;
+  auto& job = sdo_manager.jobs.front();
+  if (job.phase == Phase::Start) {
+    job.phase = Phase::Releasing;
+    if (job.failed != 0) {
+      // §7.2.3 1F11h: reason 00h, the failed slave's node-ID.
+      job.steps.push_back(write_step(
+          job.node, obj::kSlaveFailed, 0,
+          sm::SlaveFailed{static_cast<std::uint8_t>(sm::SlaveFailedReason::kErrorControl),
+                          job.failed}
+              .encode(),
+          2, false, !job.srd_lost));
+    }
+    for (const auto& c : job.releases) {
+      // §7.2.1: invalidate the SRD's client entry, then S's server entry (not its default).
+      job.steps.push_back(write_step(job.node, c.row.client_index, 1,
+                                     c.row.request.with_valid(false).word(), 4, false,
+                                     !job.srd_lost));
+      job.steps.push_back(write_step(job.node, c.row.client_index, 2,
+                                     c.row.response.with_valid(false).word(), 4, false,
+                                     !job.srd_lost));
+      if (!c.row.to_manager && c.row.server_index != kDefaultServer && !job.server_gone) {
+        job.steps.push_back(write_step(c.row.server, c.row.server_index, 1,
+                                       c.row.request.with_valid(false).word(), 4, false));
+        job.steps.push_back(write_step(c.row.server, c.row.server_index, 2,
+                                       c.row.response.with_valid(false).word(), 4, false));
+      }
+    }
+    if (!job.steps.empty()) return;
+  }
+  if (job.failed != 0) {
+    ManagedSdoConnection failed;
+    failed.srd = job.node;
+    failed.server = job.failed;
+    auto e =
+        master_event(MasterEvent::Kind::SlaveFailedReported, now, job.node,
+                     node_text(job.node) + ": 1F11h reports " + node_text(job.failed) + " failed");
+    e.connection = failed;
+    report(out, std::move(e));
+  }
+  for (const auto& c : job.releases) {
+    manager_mark_pool(c.pool_request, false);
+    manager_mark_pool(c.pool_response, false);
+    if (c.row.to_manager) manager_close_channel(c.row.server_index);
+    auto e = master_event(MasterEvent::Kind::SdoConnectionReleased, now, job.node,
+                          "SDO connection released (" + job.why + "): " + connection_text(c.row));
+    e.connection = c.row;
+    report(out, std::move(e));
+  }
+  if (job.deregister && !job.srd_lost) {
+    if (!is_slave(job.node)) stop_error_control(job.node);
+    report(out, master_event(MasterEvent::Kind::SrdDeregistered, now, job.node,
+                             node_text(job.node) + ": SRD de-registered"));
+  }
+  manager_finish_job();
+}
+
+void NmtMaster::Impl::manager_finish_job() {
   if (!sdo_manager.jobs.empty()) sdo_manager.jobs.pop_front();
 }
 

@@ -3,7 +3,7 @@
 the spec: the independent peer of the SDO manager test over the UDP multicast bus
 (tests/tools/sdo_manager_udp_test.cpp). Nothing here uses our C++ code.
 
-Usage: sdo_requesting_device.py GROUP PORT TIMEOUT_S NODE SLAVE
+Usage: sdo_requesting_device.py GROUP PORT TIMEOUT_S NODE SLAVE [HOLD_S]
 
 The device at NODE is a small CiA 301 slave with the SRD objects of DSP 302 section 7.2.3:
   - NMT (CiA 301 section 7.2.8.3.1) for its node-ID or all nodes; a reset (81h, 82h) restores
@@ -23,7 +23,8 @@ And it does what section 7.2 asks of an SRD:
      1281h << 16 | NODE << 8 | SLAVE to the manager over the client entry 1280h the manager
      filled in.
   3. When the manager wrote 1F10h with Cnxn state 3 and index 1281h, it reads SLAVE's 1018h sub 1
-     over the client entry 1281h, then writes 1F01h (release SDO) = 1281h << 16 | NODE << 8 | SLAVE
+     over the client entry 1281h, keeps the connection HOLD_S seconds (default 0: another
+     SRD's request meanwhile finds SLAVE's default SDO taken), then writes 1F01h (release SDO) = 1281h << 16 | NODE << 8 | SLAVE
      over 1280h and waits until the manager set bit 31 of 1281h sub 1.
 
 It prints READY once the bus is open and its boot-up is out, then one line per event, flushed:
@@ -77,16 +78,18 @@ def say(text):
 
 
 class Srd:
-    def __init__(self, bus, node, slave):
+    def __init__(self, bus, node, slave, hold):
         self.bus = bus
         self.node = node
         self.slave = slave
+        self.hold = hold
+        self.release_at = None
         self.objects = objects_of()
         self.values = {}
         self.state = PRE_OPERATIONAL
         self.next_heartbeat = None
         self.phase = "wait-start"  # wait-start, registering, registered, requesting, connecting,
-        # reading, releasing
+        # reading, holding, releasing
         self.next_request = None
         self.request_at = None
         self.pending = None  # (cob_id_response, what) of our own client transfer
@@ -132,6 +135,11 @@ class Srd:
 
     def tick(self, now):
         self.heartbeat(now)
+        if self.phase == "holding" and now >= self.release_at:
+            # Section 7.2.3 1F01h: release the connection on 1281h to the slave.
+            self.client_download(0x1280, 0x1F01, 0, 0x1281 << 16 | self.node << 8 | self.slave,
+                                 "release")
+            self.phase = "releasing"
         if self.phase == "registered" and now >= self.request_at:
             # Section 7.2.2: 1F00h = index << 16 | SRD << 8 | slave, over the new channel.
             self.client_download(0x1280, 0x1F00, 0, 0x1281 << 16 | self.node << 8 | self.slave,
@@ -240,10 +248,8 @@ class Srd:
             size = 4 - (data[0] >> 2 & 3)
             value = int.from_bytes(bytes(data[4:4 + size]), "little")
             say("READ %04X %02X %08X" % (index, sub, value))
-            # Section 7.2.3 1F01h: release the connection on 1281h to the slave.
-            self.client_download(0x1280, 0x1F01, 0, 0x1281 << 16 | self.node << 8 | self.slave,
-                                 "release")
-            self.phase = "releasing"
+            self.release_at = time.monotonic() + self.hold
+            self.phase = "holding"
         elif what == "release" and data[0] == 0x60:
             say("RELEASE")
         else:
@@ -254,9 +260,10 @@ class Srd:
 def main(argv):
     group, port, timeout = argv[1], int(argv[2]), float(argv[3])
     node, slave = int(argv[4]), int(argv[5])
+    hold = float(argv[6]) if len(argv) > 6 else 0.0
     with can.Bus(interface="udp_multicast", channel=group, port=port) as bus:
         now = time.monotonic()
-        srd = Srd(bus, node, slave)
+        srd = Srd(bus, node, slave, hold)
         srd.reset(now)
         say("READY")
         deadline = now + timeout

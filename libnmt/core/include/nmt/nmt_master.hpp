@@ -143,17 +143,17 @@
 //   time factor 3. Its loss (or its boot-up: it forgot its entries) releases every connection it
 //   held on both sides and de-registers it (SrdLost, then SdoConnectionReleased per row).
 // - 1F00h (§7.2.2): the write answers at once (success means started, §7.2.3); the work runs
-//   after it, one manager job at a time in arrival order. Refused with 060A 0023 when the SRD is
-//   not registered, the SRD field is not the node-ID the writer's channel belongs to (over the
-//   default SDO the field is believed), the slave node-ID is 0 or above 127, names the SRD or this
-//   device, or the SRD's client index already carries a connection; 0609 0030 when the index is
-//   outside 1280h-12FFh. S's default SDO is used when no connection holds it and no SRD has all
-//   default SDOs (nothing is written to S; server offset 0, COB-IDs 600h/580h + S); else S's
-//   1201h.. sub 1 are read over the default SDO until one has bit 31 set (that the manager has not
-//   given out) and gets sub 3 = SRD, sub 1, sub 2 from two pool entries; then the SRD's client
-//   entry (sub 3 = S, sub 1, sub 2) and 1F10h = index << 16 | Cnxn 3 (| Req EC). Failures go into
-//   1F10h with Cnxn 0: 02h no two pool entries free, 03h S has no free server channel (an index
-//   S does not have ends the search), 04h S does not answer, 00h S refused a write.
+//   after it, one manager job at a time in arrival order (a scan yields, below). Refused with
+//   060A 0023 when the SRD is not registered, the SRD field is not the node-ID the writer's channel
+//   belongs to (over the default SDO the field is believed), the slave node-ID is 0 or above 127,
+//   names the SRD or this device, or the SRD's client index already carries a connection; 0609 0030
+//   when the index is outside 1280h-12FFh. S's default SDO is used when no connection holds it and
+//   no SRD has all default SDOs (nothing is written to S; server offset 0, COB-IDs 600h/580h + S);
+//   else S's 1201h.. sub 1 are read over the default SDO until one has bit 31 set (that the manager
+//   has not given out) and gets sub 3 = SRD, sub 1, sub 2 from two pool entries; then the SRD's
+//   client entry (sub 3 = S, sub 1, sub 2) and 1F10h = index << 16 | Cnxn 3 (| Req EC). Failures go
+//   into 1F10h with Cnxn 0: 02h no two pool entries free, 03h S has no free server channel (an
+//   index S does not have ends the search), 04h S does not answer, 00h S refused a write.
 // - Req EC granted: S gets error control if the master does not watch it (1016h entry, else its
 //   1F81h guarding, else srd_guard_time guarding); its loss writes 1F11h = 00h << 8 | S on each
 //   SRD with EC connected to S (SlaveFailedReported), then clears their client entries.
@@ -163,8 +163,25 @@
 //   SRD's client entry (bit 31 on sub 1 and 2), then S's server entry unless it was the default
 //   SDO, then frees the pool entries and the row.
 // - The manager's SDO writes are repeated MasterOptions::sdo_retries times on a timeout, like the
-//   boot's. The master's own transfers to S (boot, application) still use S's default SDO when an
-//   SRD holds it: a boot while an SRD uses S's default SDO may collide on the bus.
+//   boot's.
+// - A default SDO given out is the SRD's (§7.1: the manager "manages all SDO connections"):
+//   the master's own transfers to S (boot, check configuration, downloads, software checks,
+//   sdo_upload/sdo_download) wait, in order, while a connection holds S's default SDO or an SRD
+//   owns all default SDOs, and go out once it is released (1F01h, SRD lost, reset of all nodes);
+//   a boot of S meanwhile stays in its step. The manager's own accesses to S for a connection
+//   (the search of S's 1201h.., writing and invalidating them) still use S's default SDO, the only
+//   channel §7.1 gives it.
+// - Jobs run one at a time, but a scan is a background job: before each of its 1F10h reads, any
+//   other job queued meanwhile (1F00h, 1F01h, a release) runs first, so a request waits for at
+//   most one scan read, not for the whole scan.
+// - A boot-up of S (every reset ends in one, the master's reset node too) releases the
+//   connections on S's additional server entries (CiA 301 does not keep 1201h.. over a reset):
+//   rows, pool entries and the SRD's client entry (bit 31 on sub 1 and 2, SdoConnectionReleased;
+//   nothing is written to S, no 1F11h: its reasons name error control only). A connection on S's
+//   default SDO stays (its COB-IDs are fixed).
+// - The manager's own server channels 1201h.. are its to open and close: an SDO write to them
+//   (or LocalDictionary::write) is refused with 0800 0021 (local control); tools change
+//   connections through 1F00h/1F01h (§7.2.3).
 #pragma once
 
 #include <cstddef>
