@@ -3,6 +3,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cfg/bytes.hpp"
@@ -83,9 +84,84 @@ struct Producer {
   int line;
 };
 
+// CiA 301 §7.3.5 (Table "restricted CAN-IDs"): 11-bit identifiers that no configurable
+// communication object (PDO, SDO channel, ...) may use, and what each range is kept for.
+struct RestrictedRange {
+  std::uint32_t first;
+  std::uint32_t last;
+  std::string_view use;
+};
+constexpr RestrictedRange kRestrictedCanIds[] = {
+    {0x000, 0x000, "NMT"},
+    {0x001, 0x07F, "reserved"},
+    {0x101, 0x180, "reserved"},
+    {0x581, 0x5FF, "default SDO, server to client"},
+    {0x601, 0x67F, "default SDO, client to server"},
+    {0x6E0, 0x6FF, "reserved; 6E0h is the Dynamic SDO Request of DSP 302 §7.2.1"},
+    {0x701, 0x77F, "NMT error control"},
+    {0x780, 0x7FF, "reserved"},
+};
+
+// ", which CiA 301 restricts (581h-5FFh: default SDO, server to client)", or "" when `id` is
+// free to use.
+std::string restriction_of(CanId id) {
+  if (id.extended) return {};
+  for (const auto& r : kRestrictedCanIds) {
+    if (id.id < r.first || id.id > r.last) continue;
+    const std::string range = r.first == r.last
+                                  ? hex_digits(r.first, 3) + "h"
+                                  : hex_digits(r.first, 3) + "h-" + hex_digits(r.last, 3) + "h";
+    return ", which CiA 301 restricts (" + range + ": " + std::string(r.use) + ")";
+  }
+  return {};
+}
+
+// An identifier a device of the network uses for something other than a PDO.
+struct OtherUse {
+  const Member* member;
+  std::string what;  // "the EMCY COB-ID (1014h)"
+  int line;
+};
+
 class Checker {
  public:
   explicit Checker(Diagnostics& diagnostics) : diagnostics_(diagnostics) {}
+
+  // The identifiers `m` uses besides PDOs: its EMCY (1014h, CiA 301 §7.5.2.17), SYNC (1005h,
+  // §7.5.2.5) and TIME (1012h, §7.5.2.13) COB-IDs, and the SDO manager's pool of COB-IDs for
+  // dynamic SDO channels (1F02h, DSP 302 §7.2.3), each when the DCF configures it.
+  void other_uses_of(const Member& m) {
+    // 1014h: bit 31 set = no EMCY. 1005h/1012h: bits 30/31 say who produces or consumes; the
+    // identifier is in use on the bus either way.
+    const auto add = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t ignored_bits,
+                         const std::string& what) {
+      const auto cob = value_of(m, index, sub);
+      if (!cob) return;
+      const auto id = usable_can_id(CobId::from_word(cob->value & ~ignored_bits));
+      if (id) other_uses_[CobId::of(*id).word()].push_back({&m, what, cob->line});
+    };
+    add(object::kCobIdEmcy, 0, 0, "the EMCY COB-ID (" + object_name(object::kCobIdEmcy) + ")");
+    add(object::kCobIdSync, 0, kCobIdInvalidBit | kCobIdBit30,
+        "the SYNC COB-ID (" + object_name(object::kCobIdSync) + ")");
+    add(object::kCobIdTime, 0, kCobIdInvalidBit | kCobIdBit30,
+        "the TIME COB-ID (" + object_name(object::kCobIdTime) + ")");
+    const auto pool = value_of(m, object::kSdoManagerCobIds, 0);
+    for (std::uint32_t sub = 1; pool && sub <= pool->value && sub <= 0xFF; ++sub) {
+      const auto s = static_cast<std::uint8_t>(sub);
+      const auto cob = value_of(m, object::kSdoManagerCobIds, s);
+      // Bit 30 (in use) is the manager's own bookkeeping.
+      const auto id =
+          cob ? usable_can_id(CobId::from_word(cob->value & ~kCobIdBit30)) : std::nullopt;
+      if (!id) continue;
+      const std::string what = to_string(ObjectAddress{object::kSdoManagerCobIds, s}) +
+                               " (a COB-ID of the SDO manager's pool for dynamic SDO channels)";
+      if (const auto restricted = restriction_of(*id); !restricted.empty()) {
+        diagnostics_.add(m.file, cob->line, Severity::Error,
+                         m.label + "'s " + what + " is CAN-ID " + can_id_text(*id) + restricted);
+      }
+      other_uses_[CobId::of(*id).word()].push_back({&m, what, cob->line});
+    }
+  }
 
   void pdos_of(const Member& m) {
     for (std::uint16_t n = 0; n < object::kPdoCount; ++n) {
@@ -109,7 +185,31 @@ class Checker {
   }
 
   // CiA 301 §7.2.2: one producer per PDO; consumers without a producer are only noted.
+  // CiA 301 §7.3.5: no PDO on a restricted CAN-ID. A TPDO on an identifier another object of
+  // the network uses (EMCY, SYNC, TIME, the SDO manager's pool) is a second producer: an error;
+  // an RPDO on one takes those frames for PDOs: a warning.
   void clashes() {
+    for (const bool receive : {false, true}) {
+      for (const auto& [word, list] : receive ? consumers_ : producers_) {
+        const CanId id = CobId::from_word(word).can_id();
+        const std::string restricted = restriction_of(id);
+        const auto other = other_uses_.find(word);
+        for (const Producer& p : list) {
+          const std::string pdo =
+              p.member->label + " " + pdo_name(p.pdo) + " (" + object_name(p.pdo.comm_index) +
+              " sub 01h) " + (receive ? "receives" : "transmits") + " CAN-ID " + can_id_text(id);
+          if (!restricted.empty()) {
+            diagnostics_.add(p.member->file, p.line, Severity::Error, pdo + restricted);
+          }
+          if (other == other_uses_.end()) continue;
+          for (const OtherUse& o : other->second) {
+            diagnostics_.add(p.member->file, p.line, receive ? Severity::Warning : Severity::Error,
+                             pdo + ", " + o.what + " of " + o.member->label + " (" +
+                                 at(o.member->file, o.line) + ")");
+          }
+        }
+      }
+    }
     for (const auto& [word, list] : producers_) {
       const CanId id = CobId::from_word(word).can_id();
       for (std::size_t i = 1; i < list.size(); ++i) {
@@ -197,6 +297,7 @@ class Checker {
   // By COB-ID word of the identifier (frame format included).
   std::map<std::uint32_t, std::vector<Producer>> producers_;
   std::map<std::uint32_t, std::vector<Producer>> consumers_;
+  std::map<std::uint32_t, std::vector<OtherUse>> other_uses_;
 };
 
 }  // namespace
@@ -218,7 +319,10 @@ void check_network(const Network& network, Diagnostics& diagnostics) {
         {node.node_id, std::move(label), node.file, node.dcf ? &*node.dcf : nullptr, &node.writes});
   }
   Checker checker(diagnostics);
-  for (const auto& m : members) checker.pdos_of(m);
+  for (const auto& m : members) {
+    checker.other_uses_of(m);
+    checker.pdos_of(m);
+  }
   checker.clashes();
 }
 

@@ -91,6 +91,19 @@ TEST(Verify, AValueTheDeviceHoldsOtherwiseIsListedWithBothValues) {
   EXPECT_EQ(differences[0].get("expected_hex")->string, "fa00");  // UNSIGNED16 250
   EXPECT_EQ(differences[0].get("actual_hex")->string, "f401");    // 500
   EXPECT_EQ(json->get("nodes")->array[1].get("differ")->number, 1);
+
+  // --only: nodes not listed are not read, so node 3's difference is not seen.
+  const auto others = cfgmgr(dir, {"verify", dir / "net/nodelist.cpj", "--bus", bus, "--only",
+                                   "2,4", "--json", dir / "only.json"});
+  EXPECT_EQ(others.exit_code, 0) << others.err << others.out;
+  const auto only = parse_json_file(dir / "only.json");
+  ASSERT_TRUE(only);
+  const auto& read = only->get("nodes")->array;
+  ASSERT_EQ(read.size(), 2U);
+  EXPECT_EQ(read[0].get("node_id")->number, 2);
+  EXPECT_EQ(read[1].get("node_id")->number, 4);
+  EXPECT_EQ(
+      cfgmgr(dir, {"verify", dir / "net/nodelist.cpj", "--bus", bus, "--only", "3"}).exit_code, 4);
 }
 
 // A master DCF whose nodes are given by concise DCFs alone (cfgmgr build's output) has no DCF to
@@ -114,6 +127,13 @@ TEST(Verify, NodesThatDoNotAnswerAreReportedAndExit4) {
 
 TEST(Verify, UsageErrorsExit2) {
   ScratchDir dir;
+  const auto absent =
+      cfgmgr(dir, {"verify", sample_network("nodelist.cpj"), "--bus", "sim:", "--only", "9"});
+  EXPECT_EQ(absent.exit_code, 2);
+  EXPECT_THAT(absent.err, HasSubstr("--only: node 9 is not in"));
+  EXPECT_EQ(cfgmgr(dir, {"verify", sample_network("nodelist.cpj"), "--bus", "sim:", "--only", "0"})
+                .exit_code,
+            2);
   EXPECT_EQ(cfgmgr(dir, {"verify", sample_network("nodelist.cpj")}).exit_code,
             2);  // --bus required
   EXPECT_EQ(

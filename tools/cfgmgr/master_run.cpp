@@ -1,6 +1,7 @@
 // The shared run of cfgmgr master and push (master_run.hpp).
 #include "master_run.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -348,6 +349,32 @@ std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::str
     fail_command(tool, tools::kExitUsage, "--bus: " + syntax.error().message);
   }
   return std::nullopt;
+}
+
+std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text) {
+  const auto bad = [&](const std::string& why) {
+    fail_command(tool, tools::kExitUsage, "--only " + text + ": " + why);
+  };
+  std::set<std::uint8_t> out;
+  const auto node = [&](const std::string& part) -> std::uint8_t {
+    const auto parsed = cfg::parse_integer_literal(part);
+    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+      bad("'" + part + "' is no node-ID 1..127");
+    }
+    return static_cast<std::uint8_t>(parsed.literal->value);
+  };
+  std::size_t begin = 0;
+  while (begin <= text.size()) {
+    const std::size_t comma = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, comma - begin);
+    const std::size_t dash = item.find('-');
+    const std::uint8_t first = node(item.substr(0, dash));
+    const std::uint8_t last = dash == std::string::npos ? first : node(item.substr(dash + 1));
+    if (last < first) bad("range " + item + " is empty");
+    for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
+    begin = comma + 1;
+  }
+  return out;
 }
 
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net) {

@@ -53,6 +53,10 @@ nmt::Duration seconds_to_duration(double s);
 /// Ends the command with exit 2 (usage) when it does not.
 std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url);
 
+/// The node-IDs of an --only list ("3,5-7" -> {3, 5, 6, 7}); prints "cfgmgr TOOL: --only ..."
+/// and ends the command with exit 2 on anything else.
+std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text);
+
 /// The network loaded (diagnostics printed; exit 1 on errors, 3 when unreadable).
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net);
 

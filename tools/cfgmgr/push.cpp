@@ -22,7 +22,6 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/download_order.hpp"
-#include "cfg/integer_literal.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
@@ -85,40 +84,6 @@ std::string_view result_name(Result result) {
   return "error";
 }
 
-[[noreturn]] void bad_only(const std::string& text, const std::string& why) {
-  std::string message = "--only ";
-  message += text;
-  message += ": ";
-  message += why;
-  fail_command(kTool, tools::kExitUsage, message);
-}
-
-// "3,5-7" -> {3, 5, 6, 7}; exit 2 on anything else.
-std::set<std::uint8_t> parse_only(const std::string& text) {
-  std::set<std::uint8_t> out;
-  const auto node = [&](const std::string& part) -> std::uint8_t {
-    const auto parsed = cfg::parse_integer_literal(part);
-    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-      bad_only(text, "'" + part + "' is no node-ID 1..127");
-    }
-    return static_cast<std::uint8_t>(parsed.literal->value);
-  };
-  std::size_t begin = 0;
-  while (begin <= text.size()) {
-    const std::size_t comma = std::min(text.find(',', begin), text.size());
-    const std::string item = text.substr(begin, comma - begin);
-    const std::size_t dash = item.find('-');
-    const std::uint8_t first = node(item.substr(0, dash));
-    const std::uint8_t last = dash == std::string::npos ? first : node(item.substr(dash + 1));
-    if (last < first) {
-      bad_only(text, "range " + item + " is empty");
-    }
-    for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
-    begin = comma + 1;
-  }
-  return out;
-}
-
 // The slaves push boots: every node of the network, or those of --only (each must exist).
 std::vector<const cfg::NetworkNode*> selected_nodes(const cfg::Network& network,
                                                     const PushCliOptions& options) {
@@ -127,7 +92,7 @@ std::vector<const cfg::NetworkNode*> selected_nodes(const cfg::Network& network,
     for (const auto& node : network.nodes) out.push_back(&node);
     return out;
   }
-  for (const std::uint8_t id : parse_only(options.only)) {
+  for (const std::uint8_t id : parse_only(kTool, options.only)) {
     const cfg::NetworkNode* node = network.find(*cfg::NodeId::from(id));
     if (node == nullptr) {
       fail_command(kTool, tools::kExitUsage,
@@ -458,7 +423,7 @@ void run_push(const PushCliOptions& options) {
   if (options.net == 0) {
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
   }
-  if (!options.only.empty()) parse_only(options.only);  // a usage error before any file
+  if (!options.only.empty()) parse_only(kTool, options.only);  // a usage error before any file
   const auto network = load_network_or_exit(options.network, options.net);
   const auto selected = selected_nodes(*network, options);
   if (options.dry_run) {

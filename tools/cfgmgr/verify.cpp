@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,7 @@ struct VerifyCliOptions {
   std::string json;
   double sdo_timeout_s = 0.5;
   unsigned retries = 2;
+  std::string only;
 };
 
 // One entry as reported: the engine's result with what the description says about it.
@@ -226,7 +228,22 @@ void run_verify(const VerifyCliOptions& options) {
   const std::optional<SimBusOptions> sim = parse_bus_url(kTool, options.bus);
   if (options.net == 0)
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network = load_network_or_exit(options.network, options.net);
+  std::set<std::uint8_t> only;
+  if (!options.only.empty()) only = parse_only(kTool, options.only);  // before any file
+  auto network = load_network_or_exit(options.network, options.net);
+  if (!only.empty()) {
+    // Only these nodes are read (and, on sim:, simulated); each must be in the network.
+    for (const std::uint8_t id : only) {
+      if (network->find(*cfg::NodeId::from(id)) == nullptr) {
+        fail_command(kTool, tools::kExitUsage,
+                     "--only: node " + std::to_string(id) + " is not in " + options.network);
+      }
+    }
+    auto part = std::make_shared<cfg::Network>(*network);
+    std::erase_if(part->nodes,
+                  [&](const cfg::NetworkNode& n) { return !only.contains(n.node_id.value()); });
+    network = std::move(part);
+  }
 
   tools::ReportFile json = open_report_or_exit(options.json);
 
@@ -309,6 +326,9 @@ void add_verify_command(CLI::App& app) {
   cmd->add_option("--retries", options->retries, "How often a timed-out upload is repeated")
       ->capture_default_str()
       ->type_name("N");
+  cmd->add_option("--only", options->only,
+                  "Read back only these nodes, e.g. 3,5-7 (each must be in the network)")
+      ->type_name("NODES");
   cmd->footer(std::string(
       "The table goes to stdout: per node the entries read, how many are the same as the "
       "description, differ, or could not be read; then one line per entry that is not the "
@@ -319,11 +339,13 @@ void add_verify_command(CLI::App& app) {
       "Examples:\n"
       "  cfgmgr verify samples/network/nodelist.cpj --bus sim:\n"
       "  cfgmgr verify nodelist.cpj --bus socketcan:can0 --json verify.json\n"
+      "  cfgmgr verify nodelist.cpj --bus socketcan:can0 --only 3,5-7\n"
       "  cfgmgr verify master.dcf --bus udp://239.74.163.2:43113 --sdo-timeout 1\n\n"
       "Exit codes:\n"
       "  0  every value was read and is the same as the description\n"
       "  1  the network description has errors (printed as FILE:LINE: error: ...)\n"
-      "  2  usage error (bad command line, a --bus URL that does not parse)\n"
+      "  2  usage error (bad command line, a --bus URL that does not parse, --only naming a "
+      "node that is not in the network)\n"
       "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
       "--json cannot be written\n"
       "  4  a value differs, or could not be read (no answer, or an abort)\n"));

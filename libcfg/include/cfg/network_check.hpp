@@ -5,6 +5,11 @@
 //    error: both would transmit it, and CiA 301 §7.2.2 gives every PDO one producer. An RPDO
 //    whose identifier no TPDO of the network produces is a note only: its producer may be a
 //    device outside the description.
+//  - Identifiers PDOs must not use: CiA 301 §7.3.5's restricted CAN-IDs (000h, 001h-07Fh,
+//    101h-180h, 581h-5FFh, 601h-67Fh, 6E0h-6FFh, 701h-77Fh, 780h-7FFh) are an error for any PDO
+//    and for the SDO manager's pool (1F02h, DSP 302 §7.2.3). A TPDO on an identifier a device of
+//    the network uses otherwise (its EMCY 1014h, SYNC 1005h or TIME 1012h COB-ID, or a 1F02h
+//    pool entry) is an error (a second producer); an RPDO on one is a warning.
 //  - PDO mappings (CiA 301 §7.5.2.36/38: entry = index << 16 | sub-index << 8 | length in bits)
 //    of an object the node's own DCF does not have, or has with PDOMapping=0, are errors (the
 //    device aborts the download with 0602 0000 or 0604 0041); a length that is not the data
