@@ -25,8 +25,11 @@ std::string one_line(std::string_view text) {
 
 // Already what one_line() makes of it: nearly every text of a file, so no copy is made.
 bool is_one_line(std::string_view text) {
-  return text.find_first_of("\r\n") == std::string_view::npos &&
-         trim_blanks(text).size() == text.size();
+  // A plain loop: find_first_of("\r\n") calls memchr on the set for every character.
+  for (const char c : text) {
+    if (c == '\r' || c == '\n') return false;
+  }
+  return trim_blanks(text).size() == text.size();
 }
 
 void clean_text(std::string& text) {
@@ -147,12 +150,25 @@ void apply_stamp(KeyValues& file_info, const WriteOptions::Stamp& stamp) {
   file_info.set("ModifiedBy", stamp.modified_by);
 }
 
+// The text itself when it is already one line (nearly always: no copy), else its one_line(),
+// kept in `scratch`.
+std::string_view clean_view(std::string_view text, std::string& scratch) {
+  if (is_one_line(text)) return text;
+  scratch = one_line(text);
+  return scratch;
+}
+
+// A value as canonical_form() stores it; nullopt when it is dropped.
+std::optional<std::string> canonical_value(std::string_view text, std::uint16_t data_type) {
+  std::string scratch;
+  return detail::normalize_value(clean_view(text, scratch), data_type).text;
+}
+
 void canonical_entry(SubObject& s, FileKind kind) {
   clean_text(s.name);
   for (OptionalText* v : {&s.default_value, &s.parameter_value, &s.low_limit, &s.high_limit}) {
     if (!*v) continue;
-    clean_text(**v);
-    auto normalized = detail::normalize_value(**v, s.data_type).text;
+    auto normalized = canonical_value(**v, s.data_type);
     if (!normalized) {
       v->reset();
     } else if (*normalized != **v) {
@@ -169,22 +185,36 @@ void canonical_entry(SubObject& s, FileKind kind) {
 }
 
 // ---- output
+// Collects the text in a block of about kBlock bytes and hands each full block to the sink, so
+// that a whole file's text is never held at once. Once the sink says stop, nothing more is kept.
 class Out {
  public:
-  explicit Out(LineEnding ending) : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n") {}
+  static constexpr std::size_t kBlock = 64 * 1024;
+
+  Out(LineEnding ending, const TextSink& sink)
+      : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n"), sink_(sink) {
+    text_.reserve(kBlock + 512);
+  }
 
   void section(std::string_view name) {
-    if (!text_.empty()) text_ += eol_;  // a blank line between sections
+    if (started_) text_ += eol_;  // a blank line between sections
+    started_ = true;
     text_ += '[';
     text_ += name;
     text_ += ']';
     text_ += eol_;
+    flush_full();
   }
   void key(std::string_view key, std::string_view value) {
-    text_ += key;
-    text_ += '=';
-    text_ += value;
-    text_ += eol_;
+    // One append of the whole line (this runs for every key of a file).
+    const std::size_t at = text_.size();
+    text_.resize(at + key.size() + 1 + value.size() + eol_.size());
+    char* p = text_.data() + at;
+    p = std::copy(key.begin(), key.end(), p);
+    *p++ = '=';
+    p = std::copy(value.begin(), value.end(), p);
+    std::copy(eol_.begin(), eol_.end(), p);
+    flush_full();
   }
   void optional_key(std::string_view k, const OptionalText& value) {
     if (value) key(k, *value);
@@ -192,50 +222,77 @@ class Out {
   void key_values(const KeyValues& kv) {
     for (const auto& [k, v] : kv.entries) key(k, v);
   }
-  std::string take() { return std::move(text_); }
-  std::size_t size() const { return text_.size(); }
-  void reserve(std::size_t n) { text_.reserve(n); }
+  /// Hands what is left to the sink; false when the sink stopped the output.
+  bool finish() {
+    if (!stopped_ && !text_.empty()) stopped_ = !sink_(text_);
+    text_.clear();
+    return !stopped_;
+  }
+  bool stopped() const { return stopped_; }
 
  private:
+  void flush_full() {
+    if (text_.size() < kBlock) return;
+    if (!stopped_) stopped_ = !sink_(text_);
+    text_.clear();
+  }
+
   std::string_view eol_;
+  const TextSink& sink_;
   std::string text_;
+  bool started_ = false;
+  bool stopped_ = false;
 };
 
 std::string index_name(std::uint16_t index) {
   return hex_digits(index, 4);
 }
 
-// The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them).
+// The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them), as
+// canonical_entry() makes them, written from the model as it is (no copy of the entry).
 void write_entry(Out& out, const SubObject& s, const std::optional<std::uint32_t>& obj_flags,
                  FileKind kind) {
+  std::string scratch;
+  auto value = [&](std::string_view key, const OptionalText& text) {
+    if (!text) return;
+    if (auto normalized = canonical_value(*text, s.data_type)) out.key(key, *normalized);
+  };
+  auto text = [&](std::string_view key, const OptionalText& t) {
+    if (!t) return;
+    const std::string_view clean = clean_view(*t, scratch);
+    if (!clean.empty()) out.key(key, clean);
+  };
   out.key("DataType", hex(s.data_type, 4));
   out.key("AccessType", to_string(s.access));
-  out.optional_key("DefaultValue", s.default_value);
+  value("DefaultValue", s.default_value);
   out.key("PDOMapping", s.pdo_mapping ? "1" : "0");
-  out.optional_key("LowLimit", s.low_limit);
-  out.optional_key("HighLimit", s.high_limit);
+  value("LowLimit", s.low_limit);
+  value("HighLimit", s.high_limit);
   if (obj_flags) out.key("ObjFlags", hex(*obj_flags, 0));
   if (kind == FileKind::Dcf) {
-    out.optional_key("ParameterValue", s.parameter_value);
-    out.optional_key("Denotation", s.denotation);
+    value("ParameterValue", s.parameter_value);
+    text("Denotation", s.denotation);
   }
-  out.optional_key("UploadFile", s.upload_file);
-  out.optional_key("DownloadFile", s.download_file);
+  text("UploadFile", s.upload_file);
+  text("DownloadFile", s.download_file);
 }
 
-void write_object(Out& out, const Object& obj, FileKind kind) {
-  const std::string name = index_name(obj.index);
+// canonical_object() of `obj`, written from the model as it is (no copy of the object).
+void write_object(Out& out, std::uint16_t index, const Object& obj, FileKind kind) {
+  std::string scratch;
+  const std::string name = index_name(index);
   out.section(name);
-  out.key("ParameterName", obj.name);
+  out.key("ParameterName", clean_view(obj.name, scratch));
   out.key("ObjectType", hex(static_cast<unsigned>(obj.object_type), 0));
   if (detail::var_like(obj.object_type)) {
-    if (const SubObject* s = obj.sub(0)) write_entry(out, *s, obj.obj_flags, kind);
+    const SubObject* s = obj.sub(0);
+    write_entry(out, s != nullptr ? *s : SubObject{}, obj.obj_flags, kind);
   } else {
-    if (obj.sub_number) out.key("SubNumber", hex(*obj.sub_number, 0));
+    if (obj.subs.size() <= 0xFF) out.key("SubNumber", hex(obj.subs.size(), 0));
     if (obj.obj_flags) out.key("ObjFlags", hex(*obj.obj_flags, 0));
     for (const auto& [sub, s] : obj.subs) {
       out.section(name + "sub" + hex_digits(sub));
-      out.key("ParameterName", s.name);
+      out.key("ParameterName", clean_view(s.name, scratch));
       out.key("ObjectType", hex(static_cast<unsigned>(s.object_type), 0));
       write_entry(out, s, s.obj_flags, kind);
     }
@@ -349,9 +406,11 @@ DeviceDescription canonical_form(DeviceDescription d, const WriteOptions& option
   return d;
 }
 
-std::string write_device_description(const DeviceDescription& device, const WriteOptions& options) {
-  // The file-level parts are copied and made canonical here; the objects, nearly all of a file,
-  // one at a time as they are written, so the model is never copied whole.
+namespace {
+
+// The file-level parts of `device`, copied and made canonical (the objects, nearly all of a
+// file, are made canonical one at a time as they are written, so the model is never copied).
+DeviceDescription canonical_head(const DeviceDescription& device, const WriteOptions& options) {
   DeviceDescription head;
   head.file_info = device.file_info;
   head.device_info = device.device_info;
@@ -359,18 +418,15 @@ std::string write_device_description(const DeviceDescription& device, const Writ
   head.commissioning = device.commissioning;
   head.comments = device.comments;
   head.other_sections = device.other_sections;
-  WriteOptions unstamped = options;
-  const bool stamp_on_change = options.stamp && options.stamp_only_if_changed_from;
-  if (stamp_on_change) unstamped.stamp.reset();
-  canonical_file_parts(head, unstamped);
+  canonical_file_parts(head, options);
+  return head;
+}
 
-  Out out(options.line_ending);
-  std::size_t subs = 0;
-  for (const auto& [index, obj] : device.objects) subs += obj.subs.size() + 1;
-  out.reserve(subs * 160 + 4096);
-
+// The whole text, `head` standing for device's file-level parts; stops early when the sink does.
+bool write_text(const DeviceDescription& device, const DeviceDescription& head,
+                const WriteOptions& options, const TextSink& sink) {
+  Out out(options.line_ending, sink);
   write_file_info(out, head.file_info);
-  const std::size_t file_info_end = out.size();
   out.section("DeviceInfo");
   out.key_values(head.device_info);
   if (!head.dummy_usage.entries.empty()) {
@@ -397,10 +453,9 @@ std::string write_device_description(const DeviceDescription& device, const Writ
     }
   }
   for (const auto& [index, obj] : device.objects) {
+    if (out.stopped()) return false;
     if (index == 0) continue;  // index 0000h is no object (CiA 301)
-    Object copy = obj;
-    canonical_object(index, copy, options.kind);
-    write_object(out, copy, options.kind);
+    write_object(out, index, obj, options.kind);
   }
   if (options.kind == FileKind::Dcf && head.commissioning) {
     write_commissioning(out, *head.commissioning);
@@ -409,15 +464,39 @@ std::string write_device_description(const DeviceDescription& device, const Writ
     out.section(section.name);
     out.key_values(section.keys);
   }
-  std::string text = out.take();
-  if (stamp_on_change && text != *options.stamp_only_if_changed_from) {
-    // Only [FileInfo] carries the stamp: write that section again, the rest stays.
-    KeyValues stamped = device.file_info;
-    apply_stamp(stamped, *options.stamp);
-    Out file_info(options.line_ending);
-    write_file_info(file_info, canonical_key_values(stamped));
-    text.replace(0, file_info_end, file_info.take());
+  return out.finish();
+}
+
+}  // namespace
+
+bool write_device_description(const DeviceDescription& device, const WriteOptions& options,
+                              const TextSink& sink) {
+  if (!options.stamp || !options.stamp_only_if_changed_from) {
+    return write_text(device, canonical_head(device, options), options, sink);
   }
+  // Stamp only a change: the unstamped text is compared with the old one block by block as it
+  // is made (nothing kept), stopping at the first difference.
+  const std::string_view old_text = *options.stamp_only_if_changed_from;
+  WriteOptions unstamped = options;
+  unstamped.stamp.reset();
+  std::size_t compared = 0;
+  const bool same = write_text(device, canonical_head(device, unstamped), unstamped,
+                               [&](std::string_view block) {
+                                 if (old_text.substr(compared, block.size()) != block) return false;
+                                 compared += block.size();
+                                 return true;
+                               }) &&
+                    compared == old_text.size();
+  if (same) return old_text.empty() || sink(old_text);  // the unstamped text is the old one
+  return write_text(device, canonical_head(device, options), options, sink);
+}
+
+std::string write_device_description(const DeviceDescription& device, const WriteOptions& options) {
+  std::string text;
+  write_device_description(device, options, [&text](std::string_view block) {
+    text += block;
+    return true;
+  });
   return text;
 }
 

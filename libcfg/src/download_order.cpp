@@ -117,8 +117,12 @@ DownloadOrder order(std::span<W> writes, const CobIdLookup& current_cob_id) {
   sorted.reserve(writes.size());
   for (auto& write : writes) sorted.push_back(&write);
   auto key = [](const W* w) { return (std::uint32_t{w->index} << 8) | w->sub_index; };
-  std::stable_sort(sorted.begin(), sorted.end(),
-                   [&key](const W* a, const W* b) { return key(a) < key(b); });
+  auto by_key = [&key](const W* a, const W* b) { return key(a) < key(b); };
+  // Writes made from a DCF come in index order nearly always: then there is nothing to sort
+  // (stable_sort would still take a buffer of the writes' size).
+  if (!std::is_sorted(sorted.begin(), sorted.end(), by_key)) {
+    std::stable_sort(sorted.begin(), sorted.end(), by_key);
+  }
   std::size_t kept = 0;
   for (std::size_t i = 0; i < sorted.size(); ++i) {
     if (i + 1 < sorted.size() && key(sorted[i]) == key(sorted[i + 1])) continue;

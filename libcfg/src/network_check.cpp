@@ -156,8 +156,10 @@ class Checker {
       const std::string what = to_string(ObjectAddress{object::kSdoManagerCobIds, s}) +
                                " (a COB-ID of the SDO manager's pool for dynamic SDO channels)";
       if (const auto restricted = restriction_of(*id); !restricted.empty()) {
-        diagnostics_.add(m.file, cob->line, Severity::Error,
-                         m.label + "'s " + what + " is CAN-ID " + can_id_text(*id) + restricted);
+        std::string message = m.label + "'s ";
+        message += what;
+        message += " is CAN-ID " + can_id_text(*id) + restricted;
+        diagnostics_.add(m.file, cob->line, Severity::Error, message);
       }
       other_uses_[CobId::of(*id).word()].push_back({&m, what, cob->line});
     }

@@ -30,6 +30,7 @@ const cfg::ParameterDifference* find(const std::vector<cfg::ParameterDifference>
 TEST(DcfDiff, ListsEveryParameterThatDiffersByIndexAndSubIndex) {
   const auto diffs = cfg::diff_parameters(read("a.dcf"), read("b.dcf"));
   std::vector<cfg::ObjectAddress> got;
+  got.reserve(diffs.size());
   for (const auto& d : diffs) got.push_back(d.address);
   const std::vector<cfg::ObjectAddress> want = {{0x1017, 0}, {0x1800, 1}, {0x2000, 0},
                                                 {0x2001, 0}, {0x2003, 0}, {0x2004, 0}};

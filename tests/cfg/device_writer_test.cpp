@@ -335,5 +335,69 @@ TEST(DeviceWriter, OutputOfACompleteModelIsCleanEvenForTheStrictReader) {
   }
 }
 
+// A model whose text is several of the writer's 64 KiB pieces: 2000h-25FFh, VARs with values.
+DeviceDescription large_model() {
+  DeviceDescription d = model();
+  for (std::uint16_t i = 0; i < 0x600; ++i) {
+    Object v = var(static_cast<std::uint16_t>(0x2100 + i),
+                   "Manufacturer parameter number " + std::to_string(i), DataType::Unsigned32,
+                   AccessType::Rw, "0x00000010");
+    v.subs.at(0).parameter_value = "0x00000020";
+    d.objects.emplace(v.index, std::move(v));
+  }
+  return d;
+}
+
+TEST(DeviceWriter, StreamedTextIsTheWholeTextInPieces) {
+  const DeviceDescription d = large_model();
+  const std::string whole = write_device_description(d);
+  ASSERT_GT(whole.size(), std::size_t{3} * 64 * 1024);
+  std::string streamed;
+  std::size_t pieces = 0;
+  EXPECT_TRUE(write_device_description(d, {}, [&](std::string_view piece) {
+    ++pieces;
+    EXPECT_LE(piece.size(), std::size_t{65 * 1024});  // about 64 KiB: never the whole text
+    streamed += piece;
+    return true;
+  }));
+  EXPECT_EQ(streamed, whole);
+  EXPECT_GT(pieces, std::size_t{3});
+}
+
+TEST(DeviceWriter, ASinkThatSaysStopEndsTheWriter) {
+  std::size_t pieces = 0;
+  EXPECT_FALSE(write_device_description(large_model(), {}, [&](std::string_view) {
+    ++pieces;
+    return false;  // e.g. the disk is full
+  }));
+  EXPECT_EQ(pieces, 1U);
+}
+
+TEST(DeviceWriter, StampOnChangeLeavesAnUnchangedTextAsItIs) {
+  const DeviceDescription d = large_model();
+  const std::string old_text = write_device_description(d);
+  WriteOptions options;
+  options.stamp = WriteOptions::Stamp{1700000000, "cfgmgr"};
+  options.stamp_only_if_changed_from = old_text;
+  EXPECT_EQ(write_device_description(d, options), old_text);
+}
+
+TEST(DeviceWriter, StampOnChangeStampsADifferenceInTheLastPiece) {
+  const DeviceDescription d = large_model();
+  std::string old_text = write_device_description(d);
+  WriteOptions options;
+  options.stamp = WriteOptions::Stamp{1700000000, "cfgmgr"};
+  const std::string stamped = write_device_description(d, options);
+  ASSERT_THAT(stamped, HasSubstr("ModifiedBy=cfgmgr"));
+  // The model's text differs from the old file only near its end (its last value), or only by
+  // the old file being longer: both are a change, so the output is stamped.
+  old_text[old_text.size() - 8] = 'X';
+  options.stamp_only_if_changed_from = old_text;
+  EXPECT_EQ(write_device_description(d, options), stamped);
+  const std::string longer = write_device_description(d) + "\r\n";
+  options.stamp_only_if_changed_from = longer;
+  EXPECT_EQ(write_device_description(d, options), stamped);
+}
+
 }  // namespace
 }  // namespace cfg

@@ -198,6 +198,22 @@ TEST(Cfgmgr, FmtStampsFileInfoOnlyWhenItChangesTheFile) {
   EXPECT_THAT(plain.out, Not(HasSubstr("ModifiedBy=cfgmgr")));
 }
 
+// fmt writes its output in pieces as it makes it: a write error on the way is reported (exit
+// code 3), and an output file that is not complete never replaces the old one.
+TEST(Cfgmgr, FmtReportsAWriteErrorAndLeavesNoTemporaryFile) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  ScratchDir dir;
+  auto full = run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "-o", "/dev/full"}, dir.path());
+  EXPECT_EQ(full.exit_code, 3);
+  EXPECT_THAT(full.err, HasSubstr("/dev/full: error: write error"));
+  // Into a directory that does not exist: nothing is created.
+  auto absent =
+      run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "-o", dir / "no/out.dcf"}, dir.path());
+  EXPECT_EQ(absent.exit_code, 3);
+  EXPECT_THAT(absent.err, HasSubstr("cannot create"));
+  EXPECT_TRUE(fs::is_empty(dir.path()));
+}
+
 TEST(Cfgmgr, FmtDoesNotWriteAFileWithErrors) {
   ScratchDir dir;
   auto r = run("cfgmgr", {"fmt", data_path("check/not_a_device.eds"), "-o", dir / "out.eds"},

@@ -13,7 +13,6 @@ using ::testing::HasSubstr;
 using tool_test::cfgmgr;
 using tool_test::Json;
 using tool_test::JsonParser;
-using tool_test::RunResult;
 using tool_test::ScratchDir;
 
 const tool_test::DataDir data("diff");

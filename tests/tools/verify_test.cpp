@@ -20,7 +20,6 @@ using ::testing::HasSubstr;
 using tool_test::cfgmgr;
 using tool_test::Json;
 using tool_test::parse_json_file;
-using tool_test::RunResult;
 using tool_test::sample_network;
 using tool_test::ScratchDir;
 

@@ -70,12 +70,22 @@ void run_fmt(const FmtOptions& options) {
     write_options.stamp = stamp_now();
     write_options.stamp_only_if_changed_from = input->view();
   }
-  const std::string text = cfg::write_device_description(*read.device, write_options);
-  input->release();
-  read.device.reset();  // the model is written: give it back before the output is
-  if (auto status = tools::write_output(options.output, text); !status) {
-    std::cerr << status.error().message << '\n';
-    exit_with(tools::exit_code_for(status.error()));
+  // The text goes to the output in blocks as it is made (never whole in memory); the output
+  // replaces the old file only once complete.
+  auto output = tools::OutputFile::open(options.output);
+  if (!output) {
+    std::cerr << output.error().message << '\n';
+    exit_with(tools::exit_code_for(output.error()));
+  }
+  cfg::Status written;
+  cfg::write_device_description(*read.device, write_options, [&](std::string_view piece) {
+    written = output->write(piece);
+    return written.ok();
+  });
+  if (written) written = output->commit();
+  if (!written) {
+    std::cerr << written.error().message << '\n';
+    exit_with(tools::exit_code_for(written.error()));
   }
 }
 

@@ -188,75 +188,133 @@ inline cfg::Status write_all(int fd, std::string_view bytes, const std::string& 
   return {};
 }
 
-/// Writes `bytes` to `path` ("-": stdout). A regular file (new or existing) appears complete or
-/// not at all: a temporary file beside it, then rename(2) over it, keeping an existing file's
-/// permission bits; on failure nothing is left behind and the old file is untouched. A symbolic
-/// link is followed (the link stays, its target is replaced). Anything else that exists (a
-/// device such as /dev/null, a FIFO) is opened and written in place, never replaced.
-inline cfg::Status write_output(const std::string& path, std::string_view bytes) {
-  if (path == "-") {
+/// An output named on the command line ("-": stdout), written in pieces and committed at the
+/// end. A regular file (new or existing) appears complete or not at all: the pieces go to a
+/// temporary file beside it, which commit() renames over it (rename(2)), keeping an existing
+/// file's permission bits; an output never committed (an error on the way) is removed and the
+/// old file is untouched. A symbolic link is followed (the link stays, its target is replaced).
+/// Anything else that exists (a device such as /dev/null, a FIFO) is opened and written in
+/// place, never replaced. Failures are category Io, naming the path.
+class OutputFile {
+ public:
+  static cfg::Result<OutputFile> open(const std::string& path) {
+    OutputFile out;
+    out.path_ = path;
+    if (path == "-") {
+      out.stdout_ = true;
+      return out;
+    }
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    fs::path target(path);
+    if (fs::is_symlink(fs::symlink_status(target, ec))) {
+      const fs::path resolved = fs::weakly_canonical(target, ec);
+      if (ec) return io_error(path, "cannot follow the link: " + ec.message());
+      target = resolved;
+    }
+    const fs::file_status status = fs::status(target, ec);
+    if (fs::is_directory(status)) return io_error(path, "is a directory");
+    mode_t mode = 0;
+    if (fs::exists(status)) {
+      if (!fs::is_regular_file(status)) {
+        // A device or FIFO: write into it, as a shell redirection would.
+        out.fd_ = ::open(target.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC);
+        if (out.fd_ < 0)
+          return io_error(path, std::string("cannot open for writing: ") + std::strerror(errno));
+        return out;
+      }
+      struct stat st {};
+      if (::stat(target.c_str(), &st) == 0) mode = st.st_mode & 07777;
+    } else {
+      // A new file gets the mode a plain create would (0666 & ~umask).
+      const mode_t mask = ::umask(0);
+      ::umask(mask);
+      mode = 0666 & ~mask;
+    }
+    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    // Hidden temporary beside the target: ".NAME.tmpXXXXXX" (built by append: GCC 12 -O2 reports
+    // a false -Wrestrict on `"." + std::string`, GCC bug 105329).
+    std::string temp_name = ".";
+    temp_name += target.filename().string();
+    temp_name += ".tmpXXXXXX";
+    out.temp_ = (dir / temp_name).string();
+    out.fd_ = ::mkstemp(out.temp_.data());
+    if (out.fd_ < 0) {
+      out.temp_.clear();
+      return io_error(path, std::string("cannot create: ") + std::strerror(errno));
+    }
+    ::fchmod(out.fd_, mode);
+    out.target_ = target.string();
+    return out;
+  }
+
+  OutputFile(OutputFile&& other) noexcept { *this = std::move(other); }
+  OutputFile& operator=(OutputFile&& other) noexcept {
+    std::swap(path_, other.path_);
+    std::swap(target_, other.target_);
+    std::swap(temp_, other.temp_);
+    std::swap(fd_, other.fd_);
+    std::swap(stdout_, other.stdout_);
+    return *this;
+  }
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+  ~OutputFile() { abandon(); }
+
+  /// Appends `bytes`.
+  cfg::Status write(std::string_view bytes) {
+    if (!stdout_) return write_all(fd_, bytes, path_);
     std::cout.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    std::cout.flush();
     if (!std::cout) return io_error("<stdout>", "write error");
     return {};
   }
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::path target(path);
-  if (fs::is_symlink(fs::symlink_status(target, ec))) {
-    const fs::path resolved = fs::weakly_canonical(target, ec);
-    if (ec) return io_error(path, "cannot follow the link: " + ec.message());
-    target = resolved;
-  }
-  const fs::file_status status = fs::status(target, ec);
-  if (fs::is_directory(status)) return io_error(path, "is a directory");
-  mode_t mode = 0;
-  if (fs::exists(status)) {
-    if (!fs::is_regular_file(status)) {
-      // A device or FIFO: write into it, as a shell redirection would.
-      const int fd = ::open(target.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC);
-      if (fd < 0)
-        return io_error(path, std::string("cannot open for writing: ") + std::strerror(errno));
-      cfg::Status written = write_all(fd, bytes, path);
-      if (::close(fd) != 0 && written) {
-        return io_error(path, std::string("write error: ") + std::strerror(errno));
-      }
-      return written;
+
+  /// Closes the output; a regular file replaces the old one now. Call once, after the last write.
+  cfg::Status commit() {
+    if (stdout_) {
+      std::cout.flush();
+      if (!std::cout) return io_error("<stdout>", "write error");
+      return {};
     }
-    struct stat st {};
-    if (::stat(target.c_str(), &st) == 0) mode = st.st_mode & 07777;
-  } else {
-    // A new file gets the mode a plain create would (0666 & ~umask).
-    const mode_t mask = ::umask(0);
-    ::umask(mask);
-    mode = 0666 & ~mask;
+    const int fd = std::exchange(fd_, -1);
+    if (::close(fd) != 0) {
+      const std::string why = std::strerror(errno);
+      abandon();
+      return io_error(path_, "write error: " + why);
+    }
+    if (temp_.empty()) return {};
+    if (std::rename(temp_.c_str(), target_.c_str()) != 0) {
+      const std::string why = std::strerror(errno);
+      abandon();
+      return io_error(path_, "cannot write: " + why);
+    }
+    temp_.clear();
+    return {};
   }
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  // Hidden temporary beside the target: ".NAME.tmpXXXXXX" (built by append: GCC 12 -O2 reports
-  // a false -Wrestrict on `"." + std::string`, GCC bug 105329).
-  std::string temp_name = ".";
-  temp_name += target.filename().string();
-  temp_name += ".tmpXXXXXX";
-  std::string temp = (dir / temp_name).string();
-  const int fd = ::mkstemp(temp.data());
-  if (fd < 0) return io_error(path, std::string("cannot create: ") + std::strerror(errno));
-  ::fchmod(fd, mode);
-  if (cfg::Status written = write_all(fd, bytes, path); !written) {
-    ::close(fd);
-    ::unlink(temp.c_str());
-    return written;
+
+ private:
+  OutputFile() = default;
+  // Not committed: close and remove the temporary file, if any.
+  void abandon() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    if (!temp_.empty()) ::unlink(temp_.c_str());
+    temp_.clear();
   }
-  if (::close(fd) != 0) {
-    const std::string why = std::strerror(errno);
-    ::unlink(temp.c_str());
-    return io_error(path, "write error: " + why);
-  }
-  if (std::rename(temp.c_str(), target.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    ::unlink(temp.c_str());
-    return io_error(path, "cannot write: " + why);
-  }
-  return {};
+
+  std::string path_;    // as given, for messages
+  std::string target_;  // the file a temporary replaces
+  std::string temp_;    // the temporary file, until committed
+  int fd_ = -1;
+  bool stdout_ = false;  // "-": through std::cout, in order with what else the tool prints
+};
+
+/// Writes `bytes` to `path` ("-": stdout) in one piece, as OutputFile does.
+inline cfg::Status write_output(const std::string& path, std::string_view bytes) {
+  auto out = OutputFile::open(path);
+  if (!out) return out.error();
+  if (auto written = out->write(bytes); !written) return written;
+  return out->commit();
 }
 
 /// A report file named on the command line (`--json FILE`, `--json-events FILE`): opened (and

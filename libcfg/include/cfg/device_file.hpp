@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -110,8 +111,9 @@ struct WriteOptions {
   std::optional<Stamp> stamp;
   /// With `stamp`: stamp only if the output without the stamp would differ from this text (a
   /// tool that rewrites a file marks only a real change, so a canonical file stays
-  /// byte-identical). The text is only compared, during the call; the objects are written once
-  /// either way. canonical_form() ignores it.
+  /// byte-identical). The text is only compared, during the call, and not copied; the comparison
+  /// stops at the first difference, after which the stamped text is written. canonical_form()
+  /// ignores it.
   std::optional<std::string_view> stamp_only_if_changed_from;
 };
 
@@ -129,6 +131,18 @@ struct WriteOptions {
 /// interprets, like "1000" or "FileInfo") are left out.
 std::string write_device_description(const DeviceDescription& device,
                                      const WriteOptions& options = {});
+
+/// Receives a writer's text in pieces, in order (the concatenation is the file); returns false
+/// to stop the writer, e.g. after a write error.
+using TextSink = std::function<bool(std::string_view piece)>;
+
+/// The same text as write_device_description() above, handed to `sink` in pieces of about
+/// 64 KiB as it is made, so that a large file is written without its whole text in memory. With
+/// `stamp_only_if_changed_from`, the unstamped text is first compared with that text as it is
+/// made (up to the first difference); when they are the same, `sink` gets that text itself.
+/// Returns false when the sink stopped it.
+bool write_device_description(const DeviceDescription& device, const WriteOptions& options,
+                              const TextSink& sink);
 
 /// The model as write_device_description() with these options represents it, i.e. what reading
 /// its output back gives (ignoring `line` fields): FileInfo stamped, CompactSubObj expanded

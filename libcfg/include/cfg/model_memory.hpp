@@ -50,8 +50,9 @@ class ModelArena {
 
  private:
   struct Block {
-    std::unique_ptr<std::byte[]> bytes;
+    std::byte* bytes = nullptr;  // owned: operator new[], or mmap when `mapped`
     std::size_t size = 0;
+    bool mapped = false;
   };
   std::size_t first_block_ = 0;  // 0: the default size
   std::size_t next_block_ = 0;   // size of the next block after the first

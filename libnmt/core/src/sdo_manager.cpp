@@ -437,7 +437,7 @@ void NmtMaster::Impl::manager_release_per_srd(std::vector<SdoManager::Connection
                                               std::uint8_t failed, const std::string& why) {
   // S's side is gone (it failed, or its reset dropped the entry): only the SRDs are written.
   std::map<std::uint8_t, std::vector<SdoManager::Connection>> by_srd;
-  for (auto& c : rows) by_srd[c.row.srd].push_back(std::move(c));
+  for (const auto& c : rows) by_srd[c.row.srd].push_back(c);
   for (auto& [srd, its_rows] : by_srd) {
     SdoManager::Job job;
     job.kind = SdoManager::Job::Kind::Release;
