@@ -246,10 +246,10 @@ void require_free_node_id(SdoSession& session, std::uint8_t own) {
   if (!answer) fail(tools::kExitIo, answer.error().message);
   const auto& r = answer.value();
   if (r.ok() || r.aborted_by_server) {
-    fail(tools::kExitUsage, "--node-id " + std::to_string(own) + ": node " + std::to_string(own) +
-                                " answers on the bus (its default SDO " + cfg::hex(0x600 + own, 3) +
-                                "h/" + cfg::hex(0x580 + own, 3) +
-                                "h); give a free node-ID for this tool");
+    fail(tools::kExitUsage,
+         "--node-id " + std::to_string(own) + ": node " + std::to_string(own) +
+             " answers on the bus (its default SDO " + cfg::hex_digits(0x600 + own, 3) + "h/" +
+             cfg::hex_digits(0x580 + own, 3) + "h); give this tool a free node-ID with --node-id");
   }
 }
 

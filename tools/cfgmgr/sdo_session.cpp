@@ -8,6 +8,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
+#include "master_run.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -327,9 +328,14 @@ cfg::Result<bool> SdoSession::run_until(const std::function<bool()>& done, nmt::
 
 std::optional<nmt::SrdEvent> SdoSession::take_event(
     std::initializer_list<nmt::SrdEvent::Kind> kinds) {
-  const auto it = std::find_if(srd_events_.begin(), srd_events_.end(), [&](const auto& e) {
+  return take_event([&](const nmt::SrdEvent& e) {
     return std::find(kinds.begin(), kinds.end(), e.kind) != kinds.end();
   });
+}
+
+std::optional<nmt::SrdEvent> SdoSession::take_event(
+    const std::function<bool(const nmt::SrdEvent&)>& wanted) {
+  const auto it = std::find_if(srd_events_.begin(), srd_events_.end(), wanted);
   if (it == srd_events_.end()) return std::nullopt;
   auto event = std::move(*it);
   srd_events_.erase(it);
@@ -375,20 +381,22 @@ cfg::Status SdoSession::connect_via_manager(ManagerRoute route) {
       },
       route_.manager_timeout + std::chrono::seconds(1));
   if (!answered) return answered.error();
-  if (!registered) {
+  // A refusal carries an abort or a 1F10h word; a missing answer (the SRD's own timeout, or
+  // none reported yet) neither.
+  const bool refused =
+      registered && registered->kind == Kind::RegistrationFailed &&
+      (registered->abort != nmt::SdoAbort::None || registered->state.encode() != 0);
+  if (refused) {
+    return cfg::Error{"the SDO manager did not register " + own + ": " + registered->text,
+                      cfg::ErrorCategory::Input};
+  }
+  if (!registered || registered->kind == Kind::RegistrationFailed) {
     return cfg::Error{
         "no SDO manager answered the Dynamic SDO Request (DSP 302 §7.2.1) of " + own + " within " +
-            std::to_string(
-                std::chrono::duration_cast<std::chrono::seconds>(route_.manager_timeout).count()) +
-            " s; is an SDO manager running on the bus?",
+            seconds_text(nmt::TimePoint{}, nmt::TimePoint{} + route_.manager_timeout) +
+            " s: is an SDO manager running on the bus (e.g. `cfgmgr master NETWORK --bus URL "
+            "--sdo-manager`)? A larger --manager-timeout helps when it scans many node-IDs",
         cfg::ErrorCategory::Io};
-  }
-  if (registered->kind == Kind::RegistrationFailed) {
-    // A refusal carries an abort or a 1F10h word; a missing answer neither.
-    const bool refused =
-        registered->abort != nmt::SdoAbort::None || registered->state.encode() != 0;
-    return cfg::Error{"the SDO manager did not register " + own + ": " + registered->text,
-                      refused ? cfg::ErrorCategory::Input : cfg::ErrorCategory::Io};
   }
   if (const auto to_manager =
           nmt::SdoClientConfig::from_dictionary(srd_->node().dictionary(), kManagerClientIndex)) {
@@ -437,15 +445,10 @@ cfg::Result<nmt::SdoResult> SdoSession::run_srd(
   // keeps answering for ever.
   auto done = run_until(
       [&] {
-        for (auto it = srd_events_.begin(); it != srd_events_.end(); ++it) {
-          if (it->kind == nmt::SrdEvent::Kind::Transfer && it->transfer &&
-              it->transfer->id == *id) {
-            ended = std::move(*it);
-            srd_events_.erase(it);
-            return true;
-          }
-        }
-        return false;
+        ended = take_event([&](const nmt::SrdEvent& e) {
+          return e.kind == nmt::SrdEvent::Kind::Transfer && e.transfer && e.transfer->id == *id;
+        });
+        return ended.has_value();
       },
       std::chrono::seconds(60));
   if (!done) return done.error();

@@ -88,6 +88,7 @@ class SdoSession {
   cfg::Result<bool> run_until(const std::function<bool()>& done, nmt::Duration timeout);
   /// The first event of `kinds` reported since the last call, removed from the list.
   std::optional<nmt::SrdEvent> take_event(std::initializer_list<nmt::SrdEvent::Kind> kinds);
+  std::optional<nmt::SrdEvent> take_event(const std::function<bool(const nmt::SrdEvent&)>& wanted);
   cfg::Result<nmt::SdoResult> run_srd(
       const std::function<std::optional<nmt::SdoRequestingDevice::TransferId>(
           nmt::SdoRequestingDevice&, nmt::TimePoint, nmt::SdoRequestingDevice::Output&)>& start);
