@@ -219,6 +219,8 @@ void run_check(const CheckOptions& options) {
                 << ", " << tools::plural(report.objects, "object") << '\n';
     }
     reports.push_back(std::move(report));
+    // After the last file the process exits: that model goes with it, unfreed.
+    if (&file == &options.files.back()) tools::keep_until_exit(std::move(read));
   }
   if (options.json) std::cout << json_report(reports, !any_unreadable && !any_errors);
   std::cout.flush();
