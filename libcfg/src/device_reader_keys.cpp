@@ -343,9 +343,9 @@ std::optional<std::string> Reader::clean_value(std::string_view section_name, co
   auto section = [&] { return "[" + std::string(section_name) + "] "; };
   // Most values of a device file are plain integer literals of an integer type: digits only, so
   // normalize_value would keep them as they are (no comment, no 'h' suffix, not empty).
-  if (info != nullptr && (info->type_class == TypeClass::Unsigned ||
-                          info->type_class == TypeClass::Signed ||
-                          info->type_class == TypeClass::Boolean) &&
+  if (info != nullptr &&
+      (info->type_class == TypeClass::Unsigned || info->type_class == TypeClass::Signed ||
+       info->type_class == TypeClass::Boolean) &&
       parse_integer_literal(k.value).literal) {
     auto v = parse_value(info->type, k.value, kValidationNodeId);
     if (v) {

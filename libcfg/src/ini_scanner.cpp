@@ -25,7 +25,7 @@ std::size_t first_marked(std::uint64_t mask) {
 
 // Where a physical line ends: at the first LF or CR from `begin`, and the first '=' before it.
 struct LineEnd {
-  std::size_t end = 0;                        // offset of the terminator (or the text's size)
+  std::size_t end = 0;                          // offset of the terminator (or the text's size)
   std::size_t equals = std::string_view::npos;  // offset of the first '=' before `end`
 };
 

@@ -96,6 +96,10 @@ Result<IntegerText> parse_node_id_sum(std::string_view text, std::optional<std::
 }
 
 Result<IntegerText> parse_integer_text(std::string_view text, std::optional<std::uint8_t> node_id) {
+  // Nearly every value is a plain literal (no sign, no $NODEID): read it as one first.
+  if (const IntegerLiteralResult plain = parse_integer_literal(text); plain.literal) {
+    return IntegerText{plain.literal->value, false, plain.literal->is_hex};
+  }
   if (mentions_node_id(text)) return parse_node_id_sum(text, node_id);
   bool negative = false;
   std::string_view body = text;
