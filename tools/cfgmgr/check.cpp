@@ -71,7 +71,10 @@ bool has_extension(const std::string& path, std::string_view ext) {
 bool has_topology_section(std::string_view text) {
   for (std::size_t at = 0; (at = text.find('[', at)) != std::string_view::npos; ++at) {
     const bool line_start = at == 0 || text[at - 1] == '\n' || text[at - 1] == '\r';
-    if (line_start && cfg::iequals(text.substr(at + 1, 8), "topology")) return true;
+    if (line_start && at + 1 < text.size() && (text[at + 1] | 0x20) == 't' &&
+        cfg::iequals(text.substr(at + 1, 8), "topology")) {
+      return true;
+    }
   }
   return false;
 }
