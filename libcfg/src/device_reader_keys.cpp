@@ -342,15 +342,16 @@ std::optional<std::string> Reader::clean_value(std::string_view section_name, co
   const DataTypeInfo* info = find_data_type(data_type);
   auto section = [&] { return "[" + std::string(section_name) + "] "; };
   // Most values of a device file are plain integer literals of an integer type: digits only, so
-  // normalize_value would keep them as they are (no comment, no 'h' suffix, not empty).
+  // normalize_value would keep them as they are (no comment, no 'h' suffix, not empty), and the
+  // literal gives the value without parse_value reading the text again.
   if (info != nullptr &&
       (info->type_class == TypeClass::Unsigned || info->type_class == TypeClass::Signed ||
-       info->type_class == TypeClass::Boolean) &&
-      parse_integer_literal(k.value).literal) {
-    auto v = parse_value(info->type, k.value, kValidationNodeId);
-    if (v) {
-      if (parsed != nullptr) *parsed = std::move(v.value());
-      return std::string(k.value);
+       info->type_class == TypeClass::Boolean)) {
+    if (const auto plain = parse_integer_literal(k.value).literal) {
+      if (auto v = integer_value(info->type, *plain)) {
+        if (parsed != nullptr) *parsed = std::move(v.value());
+        return std::string(k.value);
+      }
     }
   }
   detail::NormalizedValue n = detail::normalize_value(k.value, data_type);
