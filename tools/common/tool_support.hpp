@@ -80,7 +80,14 @@ inline std::string plural(std::size_t count, std::string_view noun) {
 
 /// Prints diagnostics compiler-style (`file.dcf:42: error: ...`) on stderr, one a line.
 inline void print_diagnostics(const cfg::Diagnostics& diagnostics) {
-  for (const auto& d : diagnostics.items()) std::cerr << d.format() << '\n';
+  // One write for all: std::cerr is unbuffered, so each << was a system call of its own (two a
+  // line: a file with 260 warnings made 520 writes).
+  std::string text;
+  for (const auto& d : diagnostics.items()) {
+    text += d.format();
+    text += '\n';
+  }
+  std::cerr.write(text.data(), static_cast<std::streamsize>(text.size()));
   std::cerr.flush();
 }
 
