@@ -23,8 +23,8 @@ namespace test_paths {
 /// when the file or the name is missing (no test can run without it).
 inline const std::string& get(const std::string& name) {
   static const std::map<std::string, std::string> paths = [] {
-    const auto file = std::filesystem::read_symlink("/proc/self/exe").parent_path() /
-                      "test_paths.txt";
+    const auto file =
+        std::filesystem::read_symlink("/proc/self/exe").parent_path() / "test_paths.txt";
     std::map<std::string, std::string> read;
     std::ifstream in(file);
     for (std::string line; std::getline(in, line);) {
@@ -32,8 +32,7 @@ inline const std::string& get(const std::string& name) {
       if (equals != std::string::npos) read[line.substr(0, equals)] = line.substr(equals + 1);
     }
     if (read.empty()) {
-      std::fprintf(stderr, "%s: missing or empty (tests/CMakeLists.txt writes it)\n",
-                   file.c_str());
+      std::fprintf(stderr, "%s: missing or empty (tests/CMakeLists.txt writes it)\n", file.c_str());
       std::abort();
     }
     return read;
