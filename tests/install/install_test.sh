@@ -139,9 +139,10 @@ fi
 # libnmt_io loads libpcap with dlopen() when a pcap trace is opened: a static link needs
 # msgpack-c and the dynamic loader's library, not libpcap.
 io_libs=$(pkg-config --static --libs canopen-nmt-io)
-grep -q -- '-lmsgpackc' <<<"$io_libs" && grep -q -- '-ldl' <<<"$io_libs" &&
-  ! grep -q -- '-lpcap' <<<"$io_libs" ||
+if ! grep -q -- '-lmsgpackc' <<<"$io_libs" || ! grep -q -- '-ldl' <<<"$io_libs" ||
+   grep -q -- '-lpcap' <<<"$io_libs"; then
   fail "pkg-config --static canopen-nmt-io names msgpack-c and libdl, not libpcap: $io_libs"
+fi
 
 # --- a program that writes a pcap trace with the installed canopen::nmt_io -------------------------
 # It links no libpcap (NEEDED); the installed library loads it when the trace is opened, shared and
@@ -159,9 +160,13 @@ trace_consumer() {  # trace_consumer NAME EXTRA_CMAKE_ARGS...
     return 1
   fi
   "$dir/trace_consumer" "$dir/out.pcap" || return 1
-  [ "$(od -An -tx1 -N4 "$dir/out.pcap" | tr -d ' ')" = d4c3b2a1 ] &&
-    [ "$(od -An -tu1 -j20 -N1 "$dir/out.pcap" | tr -d ' ')" = 227 ] ||
-    { echo "$dir/out.pcap is not a LINKTYPE_CAN_SOCKETCAN pcap file" >&2; return 1; }
+  local magic link_type
+  magic=$(od -An -tx1 -N4 "$dir/out.pcap" | tr -d ' ')
+  link_type=$(od -An -tu1 -j20 -N1 "$dir/out.pcap" | tr -d ' ')
+  if [ "$magic" != d4c3b2a1 ] || [ "$link_type" != 227 ]; then
+    echo "$dir/out.pcap is not a LINKTYPE_CAN_SOCKETCAN pcap file ($magic, $link_type)" >&2
+    return 1
+  fi
 }
 check "CMake package, shared: a canopen::nmt_io program writes a pcap trace, libpcap not linked" \
   trace_consumer shared
