@@ -15,8 +15,8 @@ constexpr bool is_node_id(std::uint64_t value) {
   return value >= kMinNodeId && value <= kMaxNodeId;
 }
 
-/// A node-ID known to be 1..127. Build it with NodeId::from (checked) or NodeId::of (asserted by
-/// the caller's own check, e.g. a constant); converts to its number.
+/// A node-ID known to be 1..127: NodeId::from is the only way to build one (checked); converts to
+/// its number.
 class NodeId {
  public:
   /// nullopt outside 1..127.
