@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,11 @@ struct ReportCommand {
   std::string command;  // the subcommand
   std::string option;   // its report option
 };
+
+// What a failing test names: "push --json", not the struct's bytes.
+void PrintTo(const ReportCommand& c, std::ostream* out) {
+  *out << c.command << ' ' << c.option;
+}
 
 class ReportFile : public ::testing::TestWithParam<ReportCommand> {
  protected:
