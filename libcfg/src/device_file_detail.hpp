@@ -43,4 +43,9 @@ struct NormalizedValue {
 };
 NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type);
 
+/// True only when normalize_value(text, data_type).text is `text` itself (which the reader's
+/// stored texts nearly always are), decided in one pass without a copy: the writer's fast path.
+/// False when it is not, or may not be, so (then call normalize_value). `text` is trimmed.
+bool is_normalized_value(std::string_view text, std::uint16_t data_type);
+
 }  // namespace cfg::detail
