@@ -116,10 +116,18 @@ NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type) 
 
 // Each test mirrors one step of normalize_value above that could change the text.
 bool is_normalized_value(std::string_view text, std::uint16_t data_type) {
+  // One pass: a line break (the writer's one-line rule) or a ';'/'#' anywhere (an inline
+  // comment starts with one) sends the text to the exact path.
+  constexpr std::uint64_t kStop =
+      (1ULL << '\r') | (1ULL << '\n') | (1ULL << ';') | (1ULL << '#');
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 64 && ((kStop >> u) & 1U) != 0) return false;
+  }
   const DataTypeInfo* info = find_data_type(data_type);
   if (text.empty()) return info != nullptr && is_variable_size(info->type);  // kept as ""
+  if (is_blank(text.front()) || is_blank(text.back())) return false;
   if (is_free_text(info)) return true;
-  if (find_inline_comment(text) != std::string_view::npos) return false;
   const TypeClass tc = info->type_class;
   if (tc == TypeClass::Signed || tc == TypeClass::Unsigned || tc == TypeClass::Boolean ||
       tc == TypeClass::Time) {

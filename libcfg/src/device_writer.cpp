@@ -195,9 +195,11 @@ void canonical_entry(SubObject& s, FileKind kind) {
 class Out {
  public:
   static constexpr std::size_t kBlock = 64 * 1024;
+  static constexpr std::size_t kSlack = 16;
 
   Out(LineEnding ending, const TextSink& sink)
       : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n"),
+        eol_size_(ending == LineEnding::Crlf ? 2 : 1),
         capacity_(kBlock + 512),
         text_(std::make_unique<char[]>(capacity_)),
         sink_(sink) {}
@@ -217,14 +219,14 @@ class Out {
   }
   // `prefix` is the key with its '=' ("DataType="): a line of a key of the standard.
   void line(std::string_view prefix, std::string_view value) {
-    char* p = room(prefix.size() + value.size() + eol_.size());
+    char* p = room(prefix.size() + value.size());
     p = put(p, prefix);
     p = put(p, value);
     end_line(p);
   }
   // `prefix` followed by "0x" and hex_digits(value, min_digits).
   void hex_line(std::string_view prefix, std::uint64_t value, int min_digits = 1) {
-    char* p = room(prefix.size() + 2 + 16 + eol_.size());
+    char* p = room(prefix.size() + 2 + 16);
     p = put(p, prefix);
     p = put(p, "0x");
     p = write_hex_digits(p, value, min_digits);
@@ -232,13 +234,13 @@ class Out {
   }
   // `prefix` followed by `value` in decimal.
   void number_line(std::string_view prefix, std::uint64_t value) {
-    char* p = room(prefix.size() + 20 + eol_.size());
+    char* p = room(prefix.size() + 20);
     p = put(p, prefix);
     p = std::to_chars(p, p + 20, value).ptr;
     end_line(p);
   }
   void key(std::string_view key, std::string_view value) {
-    char* p = room(key.size() + 1 + value.size() + eol_.size());
+    char* p = room(key.size() + 1 + value.size());
     p = put(p, key);
     *p++ = '=';
     p = put(p, value);
@@ -267,15 +269,19 @@ class Out {
     } else if (n >= 4 && n < 8) {
       std::memcpy(p, from, 4);
       std::memcpy(p + n - 4, from + n - 4, 4);
-    } else if (n < 4) {
-      for (std::size_t i = 0; i < n; ++i) p[i] = from[i];
-    } else {
+    } else if (n != 0 && n < 4) {
+      p[0] = from[0];
+      p[n / 2] = from[n / 2];
+      p[n - 1] = from[n - 1];
+    } else if (n != 0) {
       std::memcpy(p, from, n);
     }
     return p + n;
   }
-  // Room for `n` more characters at the end of the text; returns where they go.
+  // Room for `n` more characters and a line end at the end of the text, plus slack for the
+  // fixed-size stores of put_eol; returns where they go.
   char* room(std::size_t n) {
+    n += kSlack;
     if (capacity_ - size_ < n) grow(n);
     return text_.get() + size_;
   }
@@ -285,9 +291,14 @@ class Out {
     std::memcpy(bigger.get(), text_.get(), size_);
     text_ = std::move(bigger);
   }
+  // The line end as one 2-byte store (the second byte of "\n" is overwritten or unused).
+  char* put_eol(char* p) const {
+    std::memcpy(p, eol_, 2);
+    return p + eol_size_;
+  }
   char* section_start(std::size_t name_size) {
-    char* p = room(2 * eol_.size() + 2 + name_size);
-    if (started_) p = put(p, eol_);  // a blank line between sections
+    char* p = room(2 + 2 + name_size + 2);
+    if (started_) p = put_eol(p);  // a blank line between sections
     started_ = true;
     *p++ = '[';
     return p;
@@ -297,14 +308,15 @@ class Out {
     end_line(p);
   }
   void end_line(char* p) {
-    p = put(p, eol_);
+    p = put_eol(p);
     size_ = static_cast<std::size_t>(p - text_.get());
     if (size_ < kBlock) return;
     if (!stopped_) stopped_ = !sink_(std::string_view(text_.get(), size_));
     size_ = 0;
   }
 
-  std::string_view eol_;
+  const char* eol_;  // 2 characters are there: "\r\n", or "\n" and its terminator
+  std::size_t eol_size_;
   std::size_t capacity_;
   std::unique_ptr<char[]> text_;
   std::size_t size_ = 0;
@@ -318,7 +330,7 @@ class Out {
 std::optional<std::string_view> canonical_value_view(std::string_view text,
                                                      std::uint16_t data_type,
                                                      std::string& scratch) {
-  if (is_one_line(text) && detail::is_normalized_value(text, data_type)) return text;
+  if (detail::is_normalized_value(text, data_type)) return text;
   auto normalized = canonical_value(text, data_type);
   if (!normalized) return std::nullopt;
   scratch = std::move(*normalized);

@@ -1,15 +1,16 @@
 #include "cfg/hex.hpp"
 
+#include <algorithm>
 #include <bit>
 
 namespace cfg {
 
 char* write_hex_digits(char* out, std::uint64_t value, int min_digits) {
   static constexpr char kDigits[] = "0123456789ABCDEF";
-  const int n = value == 0 ? 1 : static_cast<int>((std::bit_width(value) + 3) / 4);  // >= 1 digit
-  for (int i = n; i < min_digits; ++i) *out++ = '0';
-  for (int i = n - 1; i >= 0; --i) *out++ = kDigits[(value >> (4 * i)) & 0xF];
-  return out;
+  const int digits = value == 0 ? 1 : static_cast<int>((std::bit_width(value) + 3) / 4);
+  char* const end = out + std::max(digits, min_digits);
+  for (char* p = end; p != out; value >>= 4) *--p = kDigits[value & 0xF];  // pads with '0'
+  return end;
 }
 
 std::string hex_digits(std::uint64_t value, int min_digits) {
