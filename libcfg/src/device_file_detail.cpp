@@ -118,8 +118,7 @@ NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type) 
 bool is_normalized_value(std::string_view text, std::uint16_t data_type) {
   // One pass: a line break (the writer's one-line rule) or a ';'/'#' anywhere (an inline
   // comment starts with one) sends the text to the exact path.
-  constexpr std::uint64_t kStop =
-      (1ULL << '\r') | (1ULL << '\n') | (1ULL << ';') | (1ULL << '#');
+  constexpr std::uint64_t kStop = (1ULL << '\r') | (1ULL << '\n') | (1ULL << ';') | (1ULL << '#');
   for (const char c : text) {
     const auto u = static_cast<unsigned char>(c);
     if (u < 64 && ((kStop >> u) & 1U) != 0) return false;

@@ -327,8 +327,7 @@ class Out {
 
 // The value text canonical_form() stores for `text` (nullopt: it is dropped). The text itself
 // when the reader made it canonical already (nearly always: no copy); else made in `scratch`.
-std::optional<std::string_view> canonical_value_view(std::string_view text,
-                                                     std::uint16_t data_type,
+std::optional<std::string_view> canonical_value_view(std::string_view text, std::uint16_t data_type,
                                                      std::string& scratch) {
   if (detail::is_normalized_value(text, data_type)) return text;
   auto normalized = canonical_value(text, data_type);
@@ -370,9 +369,8 @@ void write_entry(Out& out, const SubObject& s, const std::optional<std::uint32_t
 void write_object(Out& out, std::uint16_t index, const Object& obj, FileKind kind) {
   std::string scratch;
   char name_buf[16];
-  const std::string_view name(name_buf,
-                              static_cast<std::size_t>(write_hex_digits(name_buf, index, 4) -
-                                                       name_buf));
+  const std::string_view name(
+      name_buf, static_cast<std::size_t>(write_hex_digits(name_buf, index, 4) - name_buf));
   out.section(name);
   out.line("ParameterName=", clean_view(obj.name, scratch));
   out.hex_line("ObjectType=", static_cast<unsigned>(obj.object_type));

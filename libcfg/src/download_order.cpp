@@ -153,11 +153,9 @@ DownloadOrder order(std::span<W> writes, const CobIdLookup& current_cob_id) {
                              [](const auto& a, const auto& b) { return a.first == b.first; }),
                  sequence.end());
   auto find = [&by_object](std::uint16_t i) -> const ObjectWrites<W>* {
-    auto it = std::lower_bound(
-        by_object.begin(), by_object.end(), i,
-        [](const std::pair<std::uint16_t, ObjectWrites<W>>& e, std::uint16_t k) {
-          return e.first < k;
-        });
+    auto it = std::lower_bound(by_object.begin(), by_object.end(), i,
+                               [](const std::pair<std::uint16_t, ObjectWrites<W>>& e,
+                                  std::uint16_t k) { return e.first < k; });
     return it == by_object.end() || it->first != i ? nullptr : &it->second;
   };
 

@@ -407,15 +407,15 @@ TEST(DeviceWriter, ValuesSetInCodeAreWrittenAsTheReaderStoresThem) {
   auto add = [&d](std::uint16_t index, DataType type, std::string value) {
     d.objects.emplace(index, var(index, "Value", type, AccessType::Rw, std::move(value)));
   };
-  add(0x2001, DataType::Unsigned16, "0180h");      // CiA 301 document style: read as 0x hex
-  add(0x2002, DataType::Unsigned8, "5 ; five");    // an inline comment after a number is cut
-  add(0x2003, DataType::OctetString, "0x0A0B");    // vendor form of issue 9: the digits are kept
-  add(0x2004, DataType::Domain, "0XABCD");         // the same, upper-case prefix
-  add(0x2005, DataType::VisibleString, "a ; b");   // a string keeps what looks like a comment
-  add(0x2006, DataType::Unsigned8, "");            // empty fixed-size value: not given
-  add(0x2007, DataType::VisibleString, "");        // empty string: given, empty
-  add(0x2008, DataType::Unsigned32, " 0x10 ");     // blanks around it go
-  add(0x2009, DataType::Unsigned32, "0x10\r\n");  // as does a line break
+  add(0x2001, DataType::Unsigned16, "0180h");       // CiA 301 document style: read as 0x hex
+  add(0x2002, DataType::Unsigned8, "5 ; five");     // an inline comment after a number is cut
+  add(0x2003, DataType::OctetString, "0x0A0B");     // vendor form of issue 9: the digits are kept
+  add(0x2004, DataType::Domain, "0XABCD");          // the same, upper-case prefix
+  add(0x2005, DataType::VisibleString, "a ; b");    // a string keeps what looks like a comment
+  add(0x2006, DataType::Unsigned8, "");             // empty fixed-size value: not given
+  add(0x2007, DataType::VisibleString, "");         // empty string: given, empty
+  add(0x2008, DataType::Unsigned32, " 0x10 ");      // blanks around it go
+  add(0x2009, DataType::Unsigned32, "0x10\r\n");    // as does a line break
   add(0x200A, DataType::Unsigned32, "0x00000191");  // already canonical
   WriteOptions lf;
   lf.line_ending = LineEnding::Lf;

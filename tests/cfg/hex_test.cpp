@@ -28,10 +28,11 @@ TEST(Hex, WriteHexDigitsFillsTheBufferAndReturnsItsEnd) {
     int min_digits;
     std::string_view text;
   };
-  for (const Case& c : {Case{0, 1, "0"}, Case{0, 16, "0000000000000000"}, Case{0xF, 1, "F"},
-                        Case{0x10, 1, "10"}, Case{0x1A, 4, "001A"}, Case{0x1017, 4, "1017"},
-                        Case{0xABCDEF, 2, "ABCDEF"}, Case{0x0123456789ABCDEF, 1, "123456789ABCDEF"},
-                        Case{UINT64_MAX, 1, "FFFFFFFFFFFFFFFF"}, Case{0x7, 20, "00000000000000000007"}}) {
+  for (const Case& c :
+       {Case{0, 1, "0"}, Case{0, 16, "0000000000000000"}, Case{0xF, 1, "F"}, Case{0x10, 1, "10"},
+        Case{0x1A, 4, "001A"}, Case{0x1017, 4, "1017"}, Case{0xABCDEF, 2, "ABCDEF"},
+        Case{0x0123456789ABCDEF, 1, "123456789ABCDEF"}, Case{UINT64_MAX, 1, "FFFFFFFFFFFFFFFF"},
+        Case{0x7, 20, "00000000000000000007"}}) {
     char buf[32];
     std::string(sizeof buf, '#').copy(buf, sizeof buf);
     char* end = write_hex_digits(buf, c.value, c.min_digits);
