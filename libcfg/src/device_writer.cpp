@@ -194,7 +194,7 @@ void canonical_entry(SubObject& s, FileKind kind) {
 // strings).
 class Out {
  public:
-  static constexpr std::size_t kBlock = 64 * 1024;
+  static constexpr std::size_t kBlock = std::size_t{64} * 1024;
   static constexpr std::size_t kSlack = 16;
 
   Out(LineEnding ending, const TextSink& sink)

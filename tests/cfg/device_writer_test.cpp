@@ -357,7 +357,7 @@ TEST(DeviceWriter, StreamedTextIsTheWholeTextInPieces) {
   std::size_t pieces = 0;
   EXPECT_TRUE(write_device_description(d, {}, [&](std::string_view piece) {
     ++pieces;
-    EXPECT_LE(piece.size(), std::size_t{65 * 1024});  // about 64 KiB: never the whole text
+    EXPECT_LE(piece.size(), std::size_t{65} * 1024);  // about 64 KiB: never the whole text
     streamed += piece;
     return true;
   }));
