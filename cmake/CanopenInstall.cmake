@@ -46,11 +46,16 @@ install(FILES ${PROJECT_BINARY_DIR}/canopenConfig.cmake
 file(RELATIVE_PATH CANOPEN_PC_PREFIX_FROM_PCFILEDIR ${CMAKE_INSTALL_FULL_LIBDIR}/pkgconfig
      ${CMAKE_INSTALL_PREFIX})
 string(REGEX REPLACE "/$" "" CANOPEN_PC_PREFIX_FROM_PCFILEDIR "${CANOPEN_PC_PREFIX_FROM_PCFILEDIR}")
+# canopen_pkg_config(MODULE DESCRIPTION REQUIRES REQUIRES_PRIVATE LIBRARY [SYSTEM_LIBS...]):
+# SYSTEM_LIBS (names without -l) go to Libs.private: what a static link needs beyond the
+# Requires.private modules.
 function(canopen_pkg_config module description requires requires_private library)
   set(PC_MODULE ${module})
   set(PC_DESCRIPTION ${description})
   set(PC_REQUIRES ${requires})
   set(PC_REQUIRES_PRIVATE ${requires_private})
+  list(TRANSFORM ARGN PREPEND "-l" OUTPUT_VARIABLE system_libs)
+  list(JOIN system_libs " " PC_LIBS_PRIVATE)
   if(library)
     set(PC_LIBS "-L\${libdir} -l${library}")
   else()
@@ -69,8 +74,10 @@ canopen_pkg_config(canopen-nmt-core
                    canopen-cfg "" canopen-nmt-core)
 canopen_pkg_config(canopen-nmt-sim "CANopen simulated bus and simulated devices"
                    canopen-nmt-core "" canopen-nmt-sim)
+# libpcap is loaded with dlopen() when a pcap trace is opened (libnmt/CMakeLists.txt): a static
+# link needs the dynamic loader's library (libdl before glibc 2.34), not libpcap.
 canopen_pkg_config(canopen-nmt-io "CANopen bus drivers: SocketCAN, UDP multicast, traces"
-                   canopen-nmt-core "msgpack libpcap" canopen-nmt-io)
+                   canopen-nmt-core msgpack canopen-nmt-io ${CMAKE_DL_LIBS})
 canopen_pkg_config(canopen-nmt "CANopen libnmt: protocol engines, simulation and bus drivers"
                    "canopen-nmt-core canopen-nmt-sim canopen-nmt-io" "" "")
 

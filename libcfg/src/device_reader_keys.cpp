@@ -110,6 +110,12 @@ void Reader::dropped_comment(int line, std::string message) {
 // or larger than `max`.
 std::optional<std::uint64_t> Reader::number(std::string_view key, std::string_view value, int line,
                                             std::uint64_t max) {
+  // Nearly every attribute number is a plain literal ("7", "0x1A00"): digits only, so there is
+  // no comment to cut and no 'h' suffix, and what follows would read the same value.
+  if (const IntegerLiteralResult plain = parse_integer_literal(value);
+      plain.literal && plain.literal->value <= max) {
+    return plain.literal->value;
+  }
   const std::string_view text = without_comment(value, key, line);
   auto n = parse_number(text);
   if (!n) {
@@ -335,6 +341,19 @@ std::optional<std::string> Reader::clean_value(std::string_view section_name, co
                                                std::optional<Value>* parsed) {
   const DataTypeInfo* info = find_data_type(data_type);
   auto section = [&] { return "[" + std::string(section_name) + "] "; };
+  // Most values of a device file are plain integer literals of an integer type: digits only, so
+  // normalize_value would keep them as they are (no comment, no 'h' suffix, not empty), and the
+  // literal gives the value without parse_value reading the text again.
+  if (info != nullptr &&
+      (info->type_class == TypeClass::Unsigned || info->type_class == TypeClass::Signed ||
+       info->type_class == TypeClass::Boolean)) {
+    if (const auto plain = parse_integer_literal(k.value).literal) {
+      if (auto v = integer_value(info->type, *plain)) {
+        if (parsed != nullptr) *parsed = std::move(v.value());
+        return std::string(k.value);
+      }
+    }
+  }
   detail::NormalizedValue n = detail::normalize_value(k.value, data_type);
   if (!n.comment.empty()) {
     dropped_comment(k.line, section() + std::string(k.key) + ": " + shown(n.comment) +

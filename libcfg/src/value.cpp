@@ -96,6 +96,10 @@ Result<IntegerText> parse_node_id_sum(std::string_view text, std::optional<std::
 }
 
 Result<IntegerText> parse_integer_text(std::string_view text, std::optional<std::uint8_t> node_id) {
+  // Nearly every value is a plain literal (no sign, no $NODEID): read it as one first.
+  if (const IntegerLiteralResult plain = parse_integer_literal(text); plain.literal) {
+    return IntegerText{plain.literal->value, false, plain.literal->is_hex};
+  }
   if (mentions_node_id(text)) return parse_node_id_sum(text, node_id);
   bool negative = false;
   std::string_view body = text;
@@ -121,16 +125,18 @@ Error out_of_range(std::string_view value, DataType type) {
                " (" + range_text(type) + ")"};
 }
 
+Result<Value> unsigned_value(DataType type, std::uint64_t magnitude) {
+  if (magnitude > unsigned_max(type)) return out_of_range(std::to_string(magnitude), type);
+  if (type == DataType::Boolean) return Value::from_bool(magnitude != 0);
+  return Value::from_unsigned(type, magnitude);
+}
+
 Result<Value> parse_unsigned(DataType type, std::string_view text,
                              std::optional<std::uint8_t> node_id) {
   auto parsed = parse_integer_text(text, node_id);
   if (!parsed) return parsed.error();
   if (parsed->negative) return out_of_range(text, type);
-  if (parsed->magnitude > unsigned_max(type)) {
-    return out_of_range(std::to_string(parsed->magnitude), type);
-  }
-  if (type == DataType::Boolean) return Value::from_bool(parsed->magnitude != 0);
-  return Value::from_unsigned(type, parsed->magnitude);
+  return unsigned_value(type, parsed->magnitude);
 }
 
 // Two's complement value of the low `bits` bits of `pattern`.
@@ -142,27 +148,32 @@ std::int64_t sign_extend(std::uint64_t pattern, unsigned bits) {
   return std::bit_cast<std::int64_t>(pattern);
 }
 
+// `text` is what a message quotes for a negative value out of range.
+Result<Value> signed_value(DataType type, const IntegerText& parsed, std::string_view text) {
+  const auto bits = static_cast<unsigned>(data_type_info(type).size_bytes) * 8U;
+  const std::uint64_t width_max =
+      bits == 64 ? std::numeric_limits<std::uint64_t>::max() : (std::uint64_t{1} << bits) - 1;
+  if (parsed.is_hex && !parsed.negative && parsed.magnitude <= width_max) {
+    return Value::from_signed(type, sign_extend(parsed.magnitude, bits));
+  }
+  const std::uint64_t max = static_cast<std::uint64_t>(signed_max(type));
+  if (parsed.negative) {
+    // |min| = max + 1
+    if (parsed.magnitude > max + 1) return out_of_range(text, type);
+    const std::int64_t v = parsed.magnitude == max + 1
+                               ? signed_min(type)
+                               : -static_cast<std::int64_t>(parsed.magnitude);
+    return Value::from_signed(type, v);
+  }
+  if (parsed.magnitude > max) return out_of_range(std::to_string(parsed.magnitude), type);
+  return Value::from_signed(type, static_cast<std::int64_t>(parsed.magnitude));
+}
+
 Result<Value> parse_signed(DataType type, std::string_view text,
                            std::optional<std::uint8_t> node_id) {
   auto parsed = parse_integer_text(text, node_id);
   if (!parsed) return parsed.error();
-  const auto bits = static_cast<unsigned>(data_type_info(type).size_bytes) * 8U;
-  const std::uint64_t width_max =
-      bits == 64 ? std::numeric_limits<std::uint64_t>::max() : (std::uint64_t{1} << bits) - 1;
-  if (parsed->is_hex && !parsed->negative && parsed->magnitude <= width_max) {
-    return Value::from_signed(type, sign_extend(parsed->magnitude, bits));
-  }
-  const std::uint64_t max = static_cast<std::uint64_t>(signed_max(type));
-  if (parsed->negative) {
-    // |min| = max + 1
-    if (parsed->magnitude > max + 1) return out_of_range(text, type);
-    const std::int64_t v = parsed->magnitude == max + 1
-                               ? signed_min(type)
-                               : -static_cast<std::int64_t>(parsed->magnitude);
-    return Value::from_signed(type, v);
-  }
-  if (parsed->magnitude > max) return out_of_range(std::to_string(parsed->magnitude), type);
-  return Value::from_signed(type, static_cast<std::int64_t>(parsed->magnitude));
+  return signed_value(type, *parsed, text);
 }
 
 Result<Value> parse_real(DataType type, std::string_view text) {
@@ -414,6 +425,18 @@ bool mentions_node_id(std::string_view text) {
     if (iequals(text.substr(i, kNodeIdToken.size()), kNodeIdToken)) return true;
   }
   return false;
+}
+
+Result<Value> integer_value(DataType type, IntegerLiteral literal) {
+  switch (data_type_info(type).type_class) {
+    case TypeClass::Boolean:
+    case TypeClass::Unsigned:
+      return unsigned_value(type, literal.value);
+    case TypeClass::Signed:
+      return signed_value(type, IntegerText{literal.value, false, literal.is_hex}, {});
+    default:
+      return Error{std::string(to_string(type)) + " is not an integer type"};
+  }
 }
 
 Result<Value> parse_value(DataType type, std::string_view text,

@@ -48,6 +48,17 @@ IntegerLiteralResult parse_integer_literal(std::string_view text) {
   // device file). A value past 64 bits is out of range only if every digit is valid.
   const auto b = static_cast<std::uint64_t>(base);
   std::uint64_t value = 0;
+  // Up to 16 hex, 21 octal or 19 decimal digits cannot pass 64 bits: no check per digit then.
+  const std::size_t safe_digits = base == 16 ? 16 : base == 8 ? 21 : 19;
+  if (digits.size() <= safe_digits) {
+    for (char c : digits) {
+      const int d = hex_digit_value(c);
+      if (d < 0 || d >= base) return result;  // "12abc", "08", "-1", "+1"
+      value = value * b + static_cast<std::uint64_t>(d);
+    }
+    result.literal = IntegerLiteral{value, base == 16};
+    return result;
+  }
   bool overflow = false;
   for (char c : digits) {
     const int d = hex_digit_value(c);

@@ -22,6 +22,7 @@
 
 #include "cfg/device_file.hpp"
 #include "concise_test_support.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {

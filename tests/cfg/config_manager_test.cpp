@@ -20,6 +20,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/download_order.hpp"
 #include "concise_test_support.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {

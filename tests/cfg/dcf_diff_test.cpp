@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "test_paths.hpp"
 
 namespace {
 

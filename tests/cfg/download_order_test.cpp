@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "concise_test_support.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {

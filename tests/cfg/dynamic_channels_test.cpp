@@ -11,6 +11,7 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/dynamic_channels.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cfg/network.hpp"
+#include "test_paths.hpp"
 
 namespace {
 

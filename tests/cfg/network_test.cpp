@@ -12,6 +12,7 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/value.hpp"
+#include "test_paths.hpp"
 
 namespace {
 

@@ -12,6 +12,7 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/value.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {

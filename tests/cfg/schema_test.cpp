@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {

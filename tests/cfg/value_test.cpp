@@ -462,3 +462,48 @@ TEST(Value, FormatThenParseRoundTripsStringsAndBytes) {
 
 }  // namespace
 }  // namespace cfg
+
+// integer_value is the reader's shortcut for plain literals: it must give what parse_value gives
+// for the same text, range checks (the widths of CiA 301's basic types) and signed hex bit patterns
+// included.
+TEST(Value, IntegerValueOfALiteralIsWhatParseValueReads) {
+  struct Case {
+    cfg::DataType type;
+    const char* text;
+  };
+  const std::vector<Case> cases = {
+      {cfg::DataType::Boolean, "0"},
+      {cfg::DataType::Boolean, "1"},
+      {cfg::DataType::Boolean, "2"},
+      {cfg::DataType::Unsigned8, "255"},
+      {cfg::DataType::Unsigned8, "0x100"},
+      {cfg::DataType::Unsigned8, "017"},
+      {cfg::DataType::Unsigned24, "0xFFFFFF"},
+      {cfg::DataType::Unsigned24, "16777216"},
+      {cfg::DataType::Unsigned64, "0xFFFFFFFFFFFFFFFF"},
+      {cfg::DataType::Integer8, "0x80"},
+      {cfg::DataType::Integer8, "127"},
+      {cfg::DataType::Integer8, "128"},
+      {cfg::DataType::Integer8, "0x1FF"},
+      {cfg::DataType::Integer24, "0x800000"},
+      {cfg::DataType::Integer32, "2147483648"},
+      {cfg::DataType::Integer64, "0xFFFFFFFFFFFFFFF6"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    const auto literal = cfg::parse_integer_literal(c.text).literal;
+    ASSERT_TRUE(literal.has_value());
+    const auto direct = cfg::integer_value(c.type, *literal);
+    const auto parsed = cfg::parse_value(c.type, c.text);
+    ASSERT_EQ(direct.ok(), parsed.ok());
+    if (direct.ok()) {
+      EXPECT_EQ(direct.value(), parsed.value());
+    } else {
+      EXPECT_EQ(direct.error().message, parsed.error().message);
+    }
+  }
+  // The spec's own ranges, not just agreement: INTEGER8 0x80 is -128, UNSIGNED8 0x100 is out.
+  EXPECT_EQ(cfg::integer_value(cfg::DataType::Integer8, {0x80, true}).value().as_signed(), -128);
+  EXPECT_FALSE(cfg::integer_value(cfg::DataType::Unsigned8, {0x100, true}).ok());
+  EXPECT_FALSE(cfg::integer_value(cfg::DataType::Real32, {1, false}).ok());
+}

@@ -7,6 +7,8 @@
 #  - a program that links only canopen::nmt_core builds against the installation with the CMake
 #    package (shared and static) and with pkg-config, runs, and links neither msgpack-c nor
 #    libpcap;
+#  - a program that writes a pcap trace with canopen::nmt_io (shared and static) runs without
+#    linking libpcap, which the library loads when the trace is opened;
 #  - samples/embed_master (a program embedding the NMT master on the simulated bus) builds with the
 #    CMake package and with pkg-config and runs;
 #  - the installed tree moved elsewhere: cfgmgr still finds its schemas; a lone copy of cfgmgr
@@ -69,11 +71,14 @@ check "every installed header compiles from the installed include path" \
 
 # --- consumers -------------------------------------------------------------------------------------
 expected=$'000#0105\n1017h 0x0006'
+# msgpack-c or libpcap named in a link line or a NEEDED entry (not a directory that happens to be
+# called pcap, as a checkout may be).
+io_library='msgpack|libpcap|-lpcap'
 # needs_only_own_libraries FILE KIND: NEEDED entries of FILE have no msgpack-c or libpcap.
 needs_no_io_libraries() {
   local needed
   needed=$(readelf -d "$1" | grep NEEDED || true)
-  if grep -Eq 'msgpack|pcap' <<<"$needed"; then
+  if grep -Eq "$io_library" <<<"$needed"; then
     echo "$1 needs: $needed" >&2
     return 1
   fi
@@ -86,7 +91,7 @@ cmake_consumer() {  # cmake_consumer NAME EXTRA_CMAKE_ARGS...
     "$@" >"$dir.configure.log" 2>&1 || { cat "$dir.configure.log" >&2; return 1; }
   cmake --build "$dir" --verbose >"$dir.build.log" 2>&1 || { cat "$dir.build.log" >&2; return 1; }
   [ "$("$dir/consumer")" = "$expected" ] || { echo "unexpected output of $dir/consumer" >&2; return 1; }
-  if grep -Eq 'msgpack|pcap' "$dir.build.log"; then
+  if grep -Eq "$io_library" "$dir.build.log"; then
     echo "the link of $name mentions msgpack-c or libpcap" >&2
     return 1
   fi
@@ -128,12 +133,45 @@ pkg_consumer() {
 }
 check "pkg-config: a canopen-nmt-core program builds and runs without msgpack/pcap" pkg_consumer
 static_libs=$(pkg-config --static --libs canopen-nmt-core)
-if grep -Eq 'msgpack|pcap' <<<"$static_libs"; then
+if grep -Eq "$io_library" <<<"$static_libs"; then
   fail "pkg-config --static canopen-nmt-core: $static_libs"
 fi
+# libnmt_io loads libpcap with dlopen() when a pcap trace is opened: a static link needs
+# msgpack-c and the dynamic loader's library, not libpcap.
 io_libs=$(pkg-config --static --libs canopen-nmt-io)
-grep -q -- '-lmsgpackc' <<<"$io_libs" && grep -q -- '-lpcap' <<<"$io_libs" ||
-  fail "pkg-config --static canopen-nmt-io names msgpack-c and libpcap: $io_libs"
+if ! grep -q -- '-lmsgpackc' <<<"$io_libs" || ! grep -q -- '-ldl' <<<"$io_libs" ||
+   grep -q -- '-lpcap' <<<"$io_libs"; then
+  fail "pkg-config --static canopen-nmt-io names msgpack-c and libdl, not libpcap: $io_libs"
+fi
+
+# --- a program that writes a pcap trace with the installed canopen::nmt_io -------------------------
+# It links no libpcap (NEEDED); the installed library loads it when the trace is opened, shared and
+# static. pcap-savefile(5): magic a1b2c3d4 (little-endian here), link type 227 at offset 20.
+trace_consumer() {  # trace_consumer NAME EXTRA_CMAKE_ARGS...
+  local name=$1
+  shift
+  local dir=$work/trace-consumer-$name
+  cmake -S "$here/trace_consumer" -B "$dir" -DCMAKE_PREFIX_PATH="$prefix" \
+    -DCMAKE_CXX_COMPILER="$cxx" "$@" >"$dir.configure.log" 2>&1 ||
+    { cat "$dir.configure.log" >&2; return 1; }
+  cmake --build "$dir" >"$dir.build.log" 2>&1 || { cat "$dir.build.log" >&2; return 1; }
+  if readelf -d "$dir/trace_consumer" | grep NEEDED | grep -q libpcap; then
+    echo "$dir/trace_consumer needs libpcap" >&2
+    return 1
+  fi
+  "$dir/trace_consumer" "$dir/out.pcap" || return 1
+  local magic link_type
+  magic=$(od -An -tx1 -N4 "$dir/out.pcap" | tr -d ' ')
+  link_type=$(od -An -tu1 -j20 -N1 "$dir/out.pcap" | tr -d ' ')
+  if [ "$magic" != d4c3b2a1 ] || [ "$link_type" != 227 ]; then
+    echo "$dir/out.pcap is not a LINKTYPE_CAN_SOCKETCAN pcap file ($magic, $link_type)" >&2
+    return 1
+  fi
+}
+check "CMake package, shared: a canopen::nmt_io program writes a pcap trace, libpcap not linked" \
+  trace_consumer shared
+check "CMake package, static: a canopen::nmt_io program writes a pcap trace, libpcap not linked" \
+  trace_consumer static -DCANOPEN_USE_STATIC_LIBS=ON
 
 # --- the sample that embeds the NMT master --------------------------------------------------------
 sample=$source_dir/samples/embed_master

@@ -57,15 +57,17 @@ dev=$(package libcanopen-dev)
 tools=$(package canopen-tools)
 runtime_name=$(dpkg-deb -f "$runtime" Package)
 
-# Shared libraries with their SONAME, the schemas; what they link comes from dpkg-shlibdeps.
+# Shared libraries with their SONAME, the schemas; what they link comes from dpkg-shlibdeps, and
+# libpcap, which libnmt_io loads with dlopen() when a pcap trace is opened, from the package.
 has_files "$runtime" "lib/libcanopen-cfg.so.$version" "lib/libcanopen-nmt-core.so.$version" \
   "lib/libcanopen-nmt-io.so.$version" share/canopen/schemas/cia301_communication.eds
-has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' 'libpcap0'
-# Headers, archives, .so links, CMake and pkg-config; a static link needs the deps' -dev packages.
+has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' '(^|, )libpcap0'
+# Headers, archives, .so links, CMake and pkg-config; a static link needs the deps' -dev packages
+# (not libpcap-dev: no installed header includes pcap.h and no archive links libpcap).
 has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/frame.hpp \
   lib/libcanopen-cfg.a lib/libcanopen-nmt-core.so lib/cmake/canopen/canopenConfig.cmake \
   lib/pkgconfig/canopen-nmt-core.pc
-has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev libpcap-dev
+has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev
 # The tools and their man pages; the schemas come with the runtime package.
 has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
   share/man/man1/cfgmgr-simulate.1.gz share/man/man1/cfgmgr-master.1.gz \
@@ -73,7 +75,8 @@ has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
   share/man/man1/cfgmgr-build.1.gz share/man/man1/cfgmgr-verify.1.gz \
   share/man/man1/cfgmgr-store.1.gz share/man/man1/cfgmgr-sdo.1.gz \
   share/man/man1/dcf2concise.1.gz
-has_depends "$tools" "$runtime_name \(= $version\)" '(^|, )libc6' 'libstdc\+\+6'
+# cfgmgr is linked with the static libraries: its --trace loads libpcap, named by the package.
+has_depends "$tools" "$runtime_name \(= $version\)" '(^|, )libc6' 'libstdc\+\+6' '(^|, )libpcap0'
 
 # The tools as the packages lay them out: cfgmgr check uses the runtime package's schemas
 # (CiA 301 defines 1017h as UNSIGNED16; tests/data/check/schema_mismatch.eds says UNSIGNED32).

@@ -2,6 +2,7 @@
 // candump logs; libpcap and tshark (Wireshark's CANopen dissector) for pcap files.
 #include "nmt/trace.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <pcap/pcap.h>
 #include <unistd.h>
@@ -14,9 +15,11 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "nmt/sim_bus.hpp"
+#include "pcap_library.hpp"
 #include "python_peer.hpp"
 
 namespace nmt {
@@ -202,6 +205,28 @@ TEST_F(Trace, PcapRecordsAreSocketCanFrames) {
   pcap_close(p);
 }
 
+TEST_F(Trace, PcapFileIsTheClassicFormatByteForByte) {
+  // pcap-savefile(5) (tcpdump.org): the global header in the writer's byte order (little-endian
+  // here): magic a1b2c3d4, version 2.4, thiszone 0, sigfigs 0, snaplen 65535, link type 227;
+  // then each record: ts_sec, ts_usec, caplen, len, and the 16-byte struct can_frame.
+  const auto path = write_all("exact.pcap");
+  const std::vector<std::uint8_t> header = {0xD4, 0xC3, 0xB2, 0xA1, 0x02, 0x00, 0x04, 0x00,
+                                            0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+                                            0xFF, 0xFF, 0x00, 0x00, 0xE3, 0x00, 0x00, 0x00};
+  // 1700000000 s = 0x6553F100, 123456 us = 0x0001E240; 123#DEADBEEF as in
+  // PcapRecordsAreSocketCanFrames.
+  const std::vector<std::uint8_t> first_record = {0x00, 0xF1, 0x53, 0x65, 0x40, 0xE2, 0x01, 0x00,
+                                                  0x10, 0x00, 0x00, 0x00, 0x10, 0x00, 0x00, 0x00,
+                                                  0x00, 0x00, 0x01, 0x23, 0x04, 0x00, 0x00, 0x00,
+                                                  0xDE, 0xAD, 0xBE, 0xEF, 0x00, 0x00, 0x00, 0x00};
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<std::uint8_t> file{std::istreambuf_iterator<char>(in),
+                                       std::istreambuf_iterator<char>()};
+  ASSERT_EQ(file.size(), header.size() + kFrames.size() * first_record.size());
+  EXPECT_EQ(std::vector<std::uint8_t>(file.begin(), file.begin() + 24), header);
+  EXPECT_EQ(std::vector<std::uint8_t>(file.begin() + 24, file.begin() + 56), first_record);
+}
+
 TEST_F(Trace, TsharkDecodesCanopenFromPcap) {
   if (!have_program("tshark")) GTEST_SKIP() << "tshark missing: apt-get install tshark";
   auto writer = open_pcap(dir_ / "canopen.pcap");
@@ -283,6 +308,44 @@ TEST_F(Trace, WriteErrorOnFullDeviceIsReported) {
   ASSERT_FALSE(flushed.ok());
   EXPECT_NE(flushed.error().message.find("/dev/full"), std::string::npos);
   EXPECT_FALSE((*writer)->write(frame("123#"), at(1)).ok());
+}
+
+// ---- libpcap, loaded when the first pcap trace is opened ---------------------------------------
+
+TEST(PcapLibrary, LoadsOnceForAllThreads) {
+  // Threads opening their first pcap trace at once share one loaded library.
+  std::vector<const detail::PcapLibrary*> seen(4, nullptr);
+  std::vector<std::thread> threads;
+  for (auto& s : seen) {
+    threads.emplace_back([&s] {
+      auto library = detail::pcap_library();
+      s = library.ok() ? *library : nullptr;
+    });
+  }
+  for (auto& t : threads) t.join();
+  ASSERT_NE(seen[0], nullptr) << detail::pcap_library().error().message;
+  for (const auto* s : seen) EXPECT_EQ(s, seen[0]);
+  EXPECT_NE(seen[0]->dump, nullptr);
+  EXPECT_NE(seen[0]->dump_close, nullptr);
+}
+
+TEST(PcapLibrary, MissingLibraryIsAnIoErrorNamingThePackageAndTheLoadersReason) {
+  auto loaded = detail::load_pcap_library("libcanopen-test-no-such-library.so.0");
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.error().category, cfg::ErrorCategory::Io);
+  EXPECT_THAT(
+      loaded.error().message,
+      testing::StartsWith("writing a pcap trace needs libpcap (Debian package libpcap0.8): "
+                          "libcanopen-test-no-such-library.so.0: cannot open shared object file"));
+}
+
+TEST(PcapLibrary, LibraryWithoutThePcapFunctionsIsRefusedNamingTheFirstMissing) {
+  // zlib: loaded into every test program (libcfg links it), and it has no pcap_* function.
+  auto loaded = detail::load_pcap_library("libz.so.1");
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_THAT(loaded.error().message,
+              testing::AllOf(testing::StartsWith("writing a pcap trace needs libpcap"),
+                             testing::HasSubstr("undefined symbol: pcap_open_dead")));
 }
 
 // ---- any bus can be traced --------------------------------------------------------------------

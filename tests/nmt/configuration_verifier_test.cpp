@@ -13,6 +13,7 @@
 #include "cfg/device_file.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
+#include "test_paths.hpp"
 
 namespace {
 

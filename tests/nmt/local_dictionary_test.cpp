@@ -11,6 +11,7 @@
 
 #include "cfg/device_file.hpp"
 #include "sdo_test_device.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -36,6 +36,7 @@
 #include "nmt/sdo_client.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
+#include "test_paths.hpp"
 
 namespace nmt::master_spec {
 

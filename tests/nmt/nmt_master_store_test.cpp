@@ -19,6 +19,7 @@
 
 #include "cfg/config_manager.hpp"
 #include "nmt_master_spec_test_rig.hpp"
+#include "test_paths.hpp"
 
 namespace nmt::master_spec {
 namespace {

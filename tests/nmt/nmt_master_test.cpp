@@ -17,6 +17,7 @@
 #include "cfg/master_objects.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

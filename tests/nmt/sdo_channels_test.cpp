@@ -15,6 +15,7 @@
 #include "nmt/sdo_client.hpp"
 #include "nmt/sdo_server.hpp"
 #include "nmt/slave_node.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "nmt_master_spec_test_rig.hpp"
+#include "test_paths.hpp"
 
 namespace nmt::master_spec {
 namespace {

@@ -8,6 +8,7 @@
 #include "cfg/device_file.hpp"
 #include "nmt/sdo_requesting_device.hpp"
 #include "nmt_master_spec_test_rig.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -11,6 +11,7 @@
 #include "nmt/sdo.hpp"
 #include "nmt/simulated_device.hpp"
 #include "nmt/slave_node.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -18,6 +18,7 @@
 #include "cfg/dynamic_channels.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -27,6 +27,7 @@
 
 #include "cfg/device_file.hpp"
 #include "nmt/slave_node.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {

@@ -12,6 +12,8 @@
 #include <utility>
 #include <vector>
 
+#include "test_paths.hpp"
+
 namespace test_support {
 
 /// tests/io/python/`name`: the scripts of the python-can peers.

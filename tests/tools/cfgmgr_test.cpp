@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "test_paths.hpp"
 #include "tool_test_support.hpp"
 
 namespace {

@@ -13,6 +13,7 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "concise_test_support.hpp"
+#include "test_paths.hpp"
 #include "tool_test_support.hpp"
 
 namespace {
@@ -355,7 +356,7 @@ TEST(Dcf2Concise, DecodePrintsNamesAndValuesInWords) {
 TEST(Dcf2Concise, DecodeWithoutDeviceFileShowsBytes) {
   ScratchDir dir;
   auto r = run("dcf2concise", {"--decode", "-"}, dir.path(), "",
-               CANOPEN_TEST_DATA_DIR "/concise/heartbeat_1000.bin");
+               data_path("concise/heartbeat_1000.bin"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out, "1017sub0    2 bytes  = 1000 (0x03E8)\n");
 }

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "multicast_netns.hpp"
+#include "test_paths.hpp"
 #include "tool_test_support.hpp"
 
 namespace {

@@ -26,6 +26,8 @@
 #include <utility>
 #include <vector>
 
+#include "test_paths.hpp"
+
 namespace tool_test {
 
 inline std::string tool_path(const std::string& name) {

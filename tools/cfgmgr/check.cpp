@@ -60,32 +60,21 @@ std::string json_report(const std::vector<FileReport>& reports, bool ok) {
   return out + "]}\n";
 }
 
-// True for a path whose extension is .dcf (any case): CiA 306 §2 names DCFs by it.
-bool has_dcf_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext == ".dcf";
+// True for a path whose extension is `ext` (any case): CiA 306 §2 names DCFs .dcf, CiA 306-3
+// project files .cpj.
+bool has_extension(const std::string& path, std::string_view ext) {
+  return cfg::iequals(std::filesystem::path(path).extension().string(), ext);
 }
 
-// True for a path whose extension is .cpj (any case): CiA 306-3 names project files by it.
-bool has_cpj_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext == ".cpj";
-}
-
-// A CiA 306-3 project file has a [Topology] section (network 1) or [TopologyN].
+// A CiA 306-3 project file has a [Topology] section (network 1) or [TopologyN]. Looks at every
+// '[' of the file: no copy per section (a device file has thousands).
 bool has_topology_section(std::string_view text) {
-  std::size_t at = 0;
-  while ((at = text.find('[', at)) != std::string_view::npos) {
-    std::string name(text.substr(at + 1, 8));
-    std::transform(name.begin(), name.end(), name.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (std::size_t at = 0; (at = text.find('[', at)) != std::string_view::npos; ++at) {
     const bool line_start = at == 0 || text[at - 1] == '\n' || text[at - 1] == '\r';
-    if (line_start && name == "topology") return true;
-    ++at;
+    if (line_start && at + 1 < text.size() && (text[at + 1] | 0x20) == 't' &&
+        cfg::iequals(text.substr(at + 1, 8), "topology")) {
+      return true;
+    }
   }
   return false;
 }
@@ -176,7 +165,7 @@ void run_check(const CheckOptions& options) {
       continue;
     }
     if (!from_stdin &&
-        (options.network || has_cpj_extension(file) || has_topology_section(*text))) {
+        (options.network || has_extension(file, ".cpj") || has_topology_section(*text))) {
       text->release();
       report = check_network_file(file, options, schemas, any_unreadable);
       if (options.strict) report.diagnostics = tools::promote_warnings(report.diagnostics);
@@ -200,7 +189,7 @@ void run_check(const CheckOptions& options) {
         cfg::check_against_schema(*read.device, schema, report.file, report.diagnostics);
       }
       // CiA 306 §4.7: a DCF describes one configured node, so it says which node-ID it is for.
-      if (has_dcf_extension(file) && !read.device->node_id()) {
+      if (has_extension(file, ".dcf") && !read.device->node_id()) {
         report.diagnostics.add(report.file, 0, cfg::Severity::Warning,
                                "a DCF should give the node-ID in [DeviceComissioning] NodeID "
                                "(CiA 306)");
@@ -219,6 +208,8 @@ void run_check(const CheckOptions& options) {
                 << ", " << tools::plural(report.objects, "object") << '\n';
     }
     reports.push_back(std::move(report));
+    // After the last file the process exits: that model goes with it, unfreed.
+    if (&file == &options.files.back()) tools::keep_until_exit(std::move(read));
   }
   if (options.json) std::cout << json_report(reports, !any_unreadable && !any_errors);
   std::cout.flush();

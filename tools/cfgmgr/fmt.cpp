@@ -87,6 +87,7 @@ void run_fmt(const FmtOptions& options) {
     std::cerr << written.error().message << '\n';
     exit_with(tools::exit_code_for(written.error()));
   }
+  tools::keep_until_exit(std::move(read));  // the process exits next: the model goes with it
 }
 
 }  // namespace

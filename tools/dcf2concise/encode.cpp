@@ -127,6 +127,9 @@ int run_encode(const EncodeOptions& options) {
     out += "], \"diagnostics\": " + tools::json_diagnostics(diagnostics) + "}\n";
     std::cout << out;
   }
+  // The process exits next: the model and the writes go with it, unfreed.
+  tools::keep_until_exit(std::move(read));
+  tools::keep_until_exit(std::move(writes));
   return code;
 }
 

@@ -2,6 +2,7 @@
 // §7.1.2: "little endian"), and hex digits of text. The one place of these conversions.
 #pragma once
 
+#include <array>
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
@@ -36,11 +37,24 @@ constexpr void store_le(std::uint64_t value, std::span<std::uint8_t> out, std::s
 void append_le(std::vector<std::uint8_t>& out, std::uint64_t value, std::size_t size);
 
 /// 0..15 for a hex digit (either case), -1 for any other character.
+namespace detail {
+// A table, not three range tests: digits and letters mix in device files ("0x1A00"), and a
+// lookup has no branch to mispredict.
+inline constexpr std::array<std::int8_t, 256> kHexDigitValues = [] {
+  std::array<std::int8_t, 256> t{};
+  for (int c = 0; c < 256; ++c) {
+    t[static_cast<std::size_t>(c)] =
+        static_cast<std::int8_t>((c >= '0' && c <= '9')   ? c - '0'
+                                 : (c >= 'a' && c <= 'f') ? c - 'a' + 10
+                                 : (c >= 'A' && c <= 'F') ? c - 'A' + 10
+                                                          : -1);
+  }
+  return t;
+}();
+}  // namespace detail
+
 constexpr int hex_digit_value(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  return -1;
+  return detail::kHexDigitValues[static_cast<unsigned char>(c)];
 }
 
 /// `text` read as hex digits only (no prefix), 1..max_digits of them (max_digits <= 16);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cfg/data_type.hpp"
+#include "cfg/integer_literal.hpp"
 #include "cfg/result.hpp"
 
 namespace cfg {
@@ -73,6 +74,12 @@ std::vector<std::uint8_t> encode(const Value& value);
 
 /// Reads bytes as a value of the type. Fixed-size types need exactly their size.
 Result<Value> decode(DataType type, std::span<const std::uint8_t> bytes);
+
+/// The value of a plain integer literal (cfg/integer_literal.hpp: no sign, no $NODEID) for
+/// BOOLEAN, UNSIGNEDn or INTEGERn: what parse_value gives for the literal's text, range checks
+/// and hex bit patterns of signed types included, without reading the text again. Fails for a
+/// value out of range or another type.
+Result<Value> integer_value(DataType type, IntegerLiteral literal);
 
 /// Canonical EDS/DCF text that parse_value reads back to the same value: unsigned as 0x hex,
 /// signed as decimal, REAL with enough digits to round-trip, BOOLEAN as 0/1, OCTET_STRING and

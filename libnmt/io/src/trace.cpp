@@ -2,8 +2,6 @@
 // log (lib.c sprint_canframe / parse_canframe), and the tcpdump.org LINKTYPE_CAN_SOCKETCAN page.
 #include "nmt/trace.hpp"
 
-#include <pcap/pcap.h>
-
 #include <array>
 #include <cassert>
 #include <cerrno>
@@ -11,6 +9,8 @@
 #include <cstdio>
 #include <cstring>
 #include <utility>
+
+#include "pcap_library.hpp"
 
 namespace nmt {
 
@@ -83,11 +83,12 @@ class CandumpLogWriter final : public TraceWriter {
 
 class PcapWriter final : public TraceWriter {
  public:
-  PcapWriter(std::filesystem::path path, pcap_t* handle, pcap_dumper_t* dumper)
-      : path_(std::move(path)), handle_(handle), dumper_(dumper) {}
+  PcapWriter(std::filesystem::path path, const detail::PcapLibrary& pcap, pcap_t* handle,
+             pcap_dumper_t* dumper)
+      : path_(std::move(path)), pcap_(pcap), handle_(handle), dumper_(dumper) {}
   ~PcapWriter() override {
-    pcap_dump_close(dumper_);
-    pcap_close(handle_);
+    pcap_.dump_close(dumper_);
+    pcap_.close(handle_);
   }
   PcapWriter(const PcapWriter&) = delete;
   PcapWriter& operator=(const PcapWriter&) = delete;
@@ -119,15 +120,15 @@ class PcapWriter final : public TraceWriter {
     header.ts.tv_usec = static_cast<suseconds_t>(timestamp.count() % 1'000'000);
     header.caplen = record.size();
     header.len = record.size();
-    pcap_dump(reinterpret_cast<u_char*>(dumper_), &header, record.data());
-    if (std::ferror(pcap_dump_file(dumper_))) {
+    pcap_.dump(reinterpret_cast<u_char*>(dumper_), &header, record.data());
+    if (std::ferror(pcap_.dump_file(dumper_))) {
       return keeper_.fail(path_, std::string("write failed: ") + std::strerror(errno));
     }
     return {};
   }
   cfg::Status flush() override {
     if (!keeper_.status()) return keeper_.status();
-    if (pcap_dump_flush(dumper_) != 0) {
+    if (pcap_.dump_flush(dumper_) != 0) {
       return keeper_.fail(path_, std::string("write failed: ") + std::strerror(errno));
     }
     return {};
@@ -137,6 +138,7 @@ class PcapWriter final : public TraceWriter {
 
  private:
   std::filesystem::path path_;
+  const detail::PcapLibrary& pcap_;
   pcap_t* handle_;
   pcap_dumper_t* dumper_;
   StatusKeeper keeper_;
@@ -159,16 +161,21 @@ cfg::Result<std::unique_ptr<TraceWriter>> open_candump_log(const std::filesystem
 }
 
 cfg::Result<std::unique_ptr<TraceWriter>> open_pcap(const std::filesystem::path& path) {
+  const auto library = detail::pcap_library();
+  if (!library) {
+    return cfg::Error{path.string() + ": " + library.error().message, library.error().category};
+  }
+  const detail::PcapLibrary& pcap = **library;
   // Snapshot length: one struct can_frame (16 bytes) always fits.
-  pcap_t* handle = pcap_open_dead(DLT_CAN_SOCKETCAN, 65535);
+  pcap_t* handle = pcap.open_dead(DLT_CAN_SOCKETCAN, 65535);
   if (handle == nullptr) return cfg::Error{path.string() + ": libpcap cannot open a dead handle"};
-  pcap_dumper_t* dumper = pcap_dump_open(handle, path.c_str());
+  pcap_dumper_t* dumper = pcap.dump_open(handle, path.c_str());
   if (dumper == nullptr) {
-    std::string message = path.string() + ": cannot create: " + pcap_geterr(handle);
-    pcap_close(handle);
+    std::string message = path.string() + ": cannot create: " + pcap.geterr(handle);
+    pcap.close(handle);
     return cfg::Error{message};
   }
-  return std::unique_ptr<TraceWriter>(std::make_unique<PcapWriter>(path, handle, dumper));
+  return std::unique_ptr<TraceWriter>(std::make_unique<PcapWriter>(path, pcap, handle, dumper));
 }
 
 cfg::Result<std::unique_ptr<TraceWriter>> open_trace(const std::filesystem::path& path) {
