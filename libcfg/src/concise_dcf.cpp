@@ -1,6 +1,7 @@
 #include "cfg/concise_dcf.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -34,10 +35,6 @@ std::vector<std::uint8_t> encode_concise_dcf(std::span<const ObjectWrite> entrie
     throw std::length_error("concise DCF: more than 2^32-1 entries");
   }
   std::size_t total = kCountSize;
-  for (const auto& e : entries) total += kHeaderSize + e.data.size();
-  std::vector<std::uint8_t> out;
-  out.reserve(total);
-  append_le(out, entries.size(), 4);
   for (const auto& e : entries) {
     // The size field is UNSIGNED32; a larger entry cannot be represented (programming error:
     // concise_writes_from_dcf rejects such DOMAIN files with a diagnostic).
@@ -46,10 +43,20 @@ std::vector<std::uint8_t> encode_concise_dcf(std::span<const ObjectWrite> entrie
                               to_string(ObjectAddress{e.index, e.sub_index}) +
                               " larger than 4 GiB");
     }
-    append_le(out, e.index, 2);
-    append_le(out, e.sub_index, 1);
-    append_le(out, e.data.size(), 4);
-    out.insert(out.end(), e.data.begin(), e.data.end());
+    total += kHeaderSize + e.data.size();
+  }
+  // Sized once and filled in place: a DCF gives tens of thousands of entries.
+  std::vector<std::uint8_t> out(total);
+  std::uint8_t* p = out.data();
+  store_le(entries.size(), {p, kCountSize}, kCountSize);
+  p += kCountSize;
+  for (const auto& e : entries) {
+    store_le(e.index, {p, 2}, 2);
+    p[2] = e.sub_index;
+    store_le(e.data.size(), {p + 3, 4}, 4);
+    p += kHeaderSize;
+    if (!e.data.empty()) std::memcpy(p, e.data.data(), e.data.size());
+    p += e.data.size();
   }
   return out;
 }

@@ -67,11 +67,19 @@ std::optional<std::string> h_suffix_digits(std::string_view text) {
   return digits;
 }
 
+namespace {
+
+bool is_free_text(const DataTypeInfo* info) {
+  return info == nullptr || info->type_class == TypeClass::VisibleString ||
+         info->type_class == TypeClass::UnicodeString;
+}
+
+}  // namespace
+
 NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type) {
   NormalizedValue out;
   const DataTypeInfo* info = find_data_type(data_type);
-  const bool free_text = info == nullptr || info->type_class == TypeClass::VisibleString ||
-                         info->type_class == TypeClass::UnicodeString;
+  const bool free_text = is_free_text(info);
   if (!free_text) {
     const std::size_t c = find_inline_comment(text);
     if (c != std::string_view::npos) {
@@ -104,6 +112,30 @@ NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type) 
   }
   out.text.emplace(text);
   return out;
+}
+
+// Each test mirrors one step of normalize_value above that could change the text.
+bool is_normalized_value(std::string_view text, std::uint16_t data_type) {
+  // One pass: a line break (the writer's one-line rule) or a ';'/'#' anywhere (an inline
+  // comment starts with one) sends the text to the exact path.
+  constexpr std::uint64_t kStop = (1ULL << '\r') | (1ULL << '\n') | (1ULL << ';') | (1ULL << '#');
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 64 && ((kStop >> u) & 1U) != 0) return false;
+  }
+  const DataTypeInfo* info = find_data_type(data_type);
+  if (text.empty()) return info != nullptr && is_variable_size(info->type);  // kept as ""
+  if (is_blank(text.front()) || is_blank(text.back())) return false;
+  if (is_free_text(info)) return true;
+  const TypeClass tc = info->type_class;
+  if (tc == TypeClass::Signed || tc == TypeClass::Unsigned || tc == TypeClass::Boolean ||
+      tc == TypeClass::Time) {
+    return text.back() != 'h' && text.back() != 'H';  // maybe 'h'-suffix hex
+  }
+  if (tc == TypeClass::OctetString || tc == TypeClass::Domain) {
+    return !(text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X'));
+  }
+  return true;
 }
 
 }  // namespace cfg::detail

@@ -43,4 +43,10 @@ struct NormalizedValue {
 };
 NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type);
 
+/// True only when `text` is one line without blanks at its ends and normalize_value(text,
+/// data_type).text is `text` itself, as the reader's stored texts nearly always are; decided in
+/// one pass without a copy (the writer's fast path). False when it is not, or may not be, so:
+/// also for any text with ';' or '#' in it (then trim it and call normalize_value).
+bool is_normalized_value(std::string_view text, std::uint16_t data_type);
+
 }  // namespace cfg::detail

@@ -2,6 +2,9 @@
 // writes reads back as exactly that model (the round-trip contract in cfg/device_file.hpp).
 #include <algorithm>
 #include <array>
+#include <charconv>
+#include <cstring>
+#include <memory>
 #include <unordered_map>
 
 #include "cfg/device_file.hpp"
@@ -187,65 +190,150 @@ void canonical_entry(SubObject& s, FileKind kind) {
 // ---- output
 // Collects the text in a block of about kBlock bytes and hands each full block to the sink, so
 // that a whole file's text is never held at once. Once the sink says stop, nothing more is kept.
+// Lines are formatted straight into the block (this runs for every key of a file: no temporary
+// strings).
 class Out {
  public:
-  static constexpr std::size_t kBlock = 64 * 1024;
+  static constexpr std::size_t kBlock = std::size_t{64} * 1024;
+  static constexpr std::size_t kSlack = 16;
 
   Out(LineEnding ending, const TextSink& sink)
-      : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n"), sink_(sink) {
-    text_.reserve(kBlock + 512);
-  }
+      : eol_(ending == LineEnding::Crlf ? "\r\n" : "\n"),
+        eol_size_(ending == LineEnding::Crlf ? 2 : 1),
+        capacity_(kBlock + 512),
+        text_(std::make_unique<char[]>(capacity_)),
+        sink_(sink) {}
 
   void section(std::string_view name) {
-    if (started_) text_ += eol_;  // a blank line between sections
-    started_ = true;
-    text_ += '[';
-    text_ += name;
-    text_ += ']';
-    text_ += eol_;
-    flush_full();
+    char* p = section_start(name.size());
+    p = put(p, name);
+    section_end(p);
+  }
+  // [XXXXsubYY] of a sub-object (CiA 306 §4.6.2).
+  void sub_section(std::uint16_t index, std::uint8_t sub) {
+    char* p = section_start(16 + 3 + 16);  // write_hex_digits needs room for 16
+    p = write_hex_digits(p, index, 4);
+    p = put(p, "sub");
+    p = write_hex_digits(p, sub);
+    section_end(p);
+  }
+  // `prefix` is the key with its '=' ("DataType="): a line of a key of the standard.
+  void line(std::string_view prefix, std::string_view value) {
+    char* p = room(prefix.size() + value.size());
+    p = put(p, prefix);
+    p = put(p, value);
+    end_line(p);
+  }
+  // `prefix` followed by "0x" and hex_digits(value, min_digits).
+  void hex_line(std::string_view prefix, std::uint64_t value, int min_digits = 1) {
+    char* p = room(prefix.size() + 2 + 16);
+    p = put(p, prefix);
+    p = put(p, "0x");
+    p = write_hex_digits(p, value, min_digits);
+    end_line(p);
+  }
+  // `prefix` followed by `value` in decimal.
+  void number_line(std::string_view prefix, std::uint64_t value) {
+    char* p = room(prefix.size() + 20);
+    p = put(p, prefix);
+    p = std::to_chars(p, p + 20, value).ptr;
+    end_line(p);
   }
   void key(std::string_view key, std::string_view value) {
-    // One append of the whole line (this runs for every key of a file).
-    const std::size_t at = text_.size();
-    text_.resize(at + key.size() + 1 + value.size() + eol_.size());
-    char* p = text_.data() + at;
-    p = std::copy(key.begin(), key.end(), p);
+    char* p = room(key.size() + 1 + value.size());
+    p = put(p, key);
     *p++ = '=';
-    p = std::copy(value.begin(), value.end(), p);
-    std::copy(eol_.begin(), eol_.end(), p);
-    flush_full();
-  }
-  void optional_key(std::string_view k, const OptionalText& value) {
-    if (value) key(k, *value);
+    p = put(p, value);
+    end_line(p);
   }
   void key_values(const KeyValues& kv) {
     for (const auto& [k, v] : kv.entries) key(k, v);
   }
   /// Hands what is left to the sink; false when the sink stopped the output.
   bool finish() {
-    if (!stopped_ && !text_.empty()) stopped_ = !sink_(text_);
-    text_.clear();
+    if (!stopped_ && size_ != 0) stopped_ = !sink_(std::string_view(text_.get(), size_));
+    size_ = 0;
     return !stopped_;
   }
   bool stopped() const { return stopped_; }
 
  private:
-  void flush_full() {
-    if (text_.size() < kBlock) return;
-    if (!stopped_) stopped_ = !sink_(text_);
-    text_.clear();
+  // Nearly every piece is short (a key name, a number): copied inline with at most two
+  // overlapping moves, which costs less than a call of memcpy.
+  static char* put(char* p, std::string_view s) {
+    const char* from = s.data();
+    const std::size_t n = s.size();
+    if (n >= 8 && n <= 16) {
+      std::memcpy(p, from, 8);
+      std::memcpy(p + n - 8, from + n - 8, 8);
+    } else if (n >= 4 && n < 8) {
+      std::memcpy(p, from, 4);
+      std::memcpy(p + n - 4, from + n - 4, 4);
+    } else if (n != 0 && n < 4) {
+      p[0] = from[0];
+      p[n / 2] = from[n / 2];
+      p[n - 1] = from[n - 1];
+    } else if (n != 0) {
+      std::memcpy(p, from, n);
+    }
+    return p + n;
+  }
+  // Room for `n` more characters and a line end at the end of the text, plus slack for the
+  // fixed-size stores of put_eol; returns where they go.
+  char* room(std::size_t n) {
+    n += kSlack;
+    if (capacity_ - size_ < n) grow(n);
+    return text_.get() + size_;
+  }
+  void grow(std::size_t n) {  // only for a line longer than the slack (a long DOMAIN value)
+    capacity_ = std::max(2 * capacity_, size_ + n);
+    auto bigger = std::make_unique<char[]>(capacity_);
+    std::memcpy(bigger.get(), text_.get(), size_);
+    text_ = std::move(bigger);
+  }
+  // The line end as one 2-byte store (the second byte of "\n" is overwritten or unused).
+  char* put_eol(char* p) const {
+    std::memcpy(p, eol_, 2);
+    return p + eol_size_;
+  }
+  char* section_start(std::size_t name_size) {
+    char* p = room(2 + 2 + name_size + 2);
+    if (started_) p = put_eol(p);  // a blank line between sections
+    started_ = true;
+    *p++ = '[';
+    return p;
+  }
+  void section_end(char* p) {
+    *p++ = ']';
+    end_line(p);
+  }
+  void end_line(char* p) {
+    p = put_eol(p);
+    size_ = static_cast<std::size_t>(p - text_.get());
+    if (size_ < kBlock) return;
+    if (!stopped_) stopped_ = !sink_(std::string_view(text_.get(), size_));
+    size_ = 0;
   }
 
-  std::string_view eol_;
+  const char* eol_;  // 2 characters are there: "\r\n", or "\n" and its terminator
+  std::size_t eol_size_;
+  std::size_t capacity_;
+  std::unique_ptr<char[]> text_;
+  std::size_t size_ = 0;
   const TextSink& sink_;
-  std::string text_;
   bool started_ = false;
   bool stopped_ = false;
 };
 
-std::string index_name(std::uint16_t index) {
-  return hex_digits(index, 4);
+// The value text canonical_form() stores for `text` (nullopt: it is dropped). The text itself
+// when the reader made it canonical already (nearly always: no copy); else made in `scratch`.
+std::optional<std::string_view> canonical_value_view(std::string_view text, std::uint16_t data_type,
+                                                     std::string& scratch) {
+  if (detail::is_normalized_value(text, data_type)) return text;
+  auto normalized = canonical_value(text, data_type);
+  if (!normalized) return std::nullopt;
+  scratch = std::move(*normalized);
+  return scratch;
 }
 
 // The keys of an entry in CiA 306 §4.6.3 order (DCF keys of §4.7 after them), as
@@ -253,55 +341,57 @@ std::string index_name(std::uint16_t index) {
 void write_entry(Out& out, const SubObject& s, const std::optional<std::uint32_t>& obj_flags,
                  FileKind kind) {
   std::string scratch;
-  auto value = [&](std::string_view key, const OptionalText& text) {
+  auto value = [&](std::string_view prefix, const OptionalText& text) {
     if (!text) return;
-    if (auto normalized = canonical_value(*text, s.data_type)) out.key(key, *normalized);
+    if (auto v = canonical_value_view(*text, s.data_type, scratch)) out.line(prefix, *v);
   };
-  auto text = [&](std::string_view key, const OptionalText& t) {
+  auto text = [&](std::string_view prefix, const OptionalText& t) {
     if (!t) return;
     const std::string_view clean = clean_view(*t, scratch);
-    if (!clean.empty()) out.key(key, clean);
+    if (!clean.empty()) out.line(prefix, clean);
   };
-  out.key("DataType", hex(s.data_type, 4));
-  out.key("AccessType", to_string(s.access));
-  value("DefaultValue", s.default_value);
-  out.key("PDOMapping", s.pdo_mapping ? "1" : "0");
-  value("LowLimit", s.low_limit);
-  value("HighLimit", s.high_limit);
-  if (obj_flags) out.key("ObjFlags", hex(*obj_flags, 0));
+  out.hex_line("DataType=", s.data_type, 4);
+  out.line("AccessType=", to_string(s.access));
+  value("DefaultValue=", s.default_value);
+  out.line("PDOMapping=", s.pdo_mapping ? "1" : "0");
+  value("LowLimit=", s.low_limit);
+  value("HighLimit=", s.high_limit);
+  if (obj_flags) out.hex_line("ObjFlags=", *obj_flags);
   if (kind == FileKind::Dcf) {
-    value("ParameterValue", s.parameter_value);
-    text("Denotation", s.denotation);
+    value("ParameterValue=", s.parameter_value);
+    text("Denotation=", s.denotation);
   }
-  text("UploadFile", s.upload_file);
-  text("DownloadFile", s.download_file);
+  text("UploadFile=", s.upload_file);
+  text("DownloadFile=", s.download_file);
 }
 
 // canonical_object() of `obj`, written from the model as it is (no copy of the object).
 void write_object(Out& out, std::uint16_t index, const Object& obj, FileKind kind) {
   std::string scratch;
-  const std::string name = index_name(index);
+  char name_buf[16];
+  const std::string_view name(
+      name_buf, static_cast<std::size_t>(write_hex_digits(name_buf, index, 4) - name_buf));
   out.section(name);
-  out.key("ParameterName", clean_view(obj.name, scratch));
-  out.key("ObjectType", hex(static_cast<unsigned>(obj.object_type), 0));
+  out.line("ParameterName=", clean_view(obj.name, scratch));
+  out.hex_line("ObjectType=", static_cast<unsigned>(obj.object_type));
   if (detail::var_like(obj.object_type)) {
     const SubObject* s = obj.sub(0);
     write_entry(out, s != nullptr ? *s : SubObject{}, obj.obj_flags, kind);
   } else {
-    if (obj.subs.size() <= 0xFF) out.key("SubNumber", hex(obj.subs.size(), 0));
-    if (obj.obj_flags) out.key("ObjFlags", hex(*obj.obj_flags, 0));
+    if (obj.subs.size() <= 0xFF) out.hex_line("SubNumber=", obj.subs.size());
+    if (obj.obj_flags) out.hex_line("ObjFlags=", *obj.obj_flags);
     for (const auto& [sub, s] : obj.subs) {
-      out.section(name + "sub" + hex_digits(sub));
-      out.key("ParameterName", clean_view(s.name, scratch));
-      out.key("ObjectType", hex(static_cast<unsigned>(s.object_type), 0));
+      out.sub_section(index, sub);
+      out.line("ParameterName=", clean_view(s.name, scratch));
+      out.hex_line("ObjectType=", static_cast<unsigned>(s.object_type));
       write_entry(out, s, s.obj_flags, kind);
     }
   }
   if (!obj.object_links.empty()) {
-    out.section(name + "ObjectLinks");
-    out.key("ObjectLinks", std::to_string(obj.object_links.size()));
+    out.section(std::string(name) + "ObjectLinks");
+    out.number_line("ObjectLinks=", obj.object_links.size());
     for (std::size_t i = 0; i < obj.object_links.size(); ++i) {
-      out.key(std::to_string(i + 1), hex(obj.object_links[i], 4));
+      out.hex_line(std::to_string(i + 1) + "=", obj.object_links[i], 4);
     }
   }
 }
@@ -447,9 +537,12 @@ bool write_text(const DeviceDescription& device, const DeviceDescription& head,
       if (index != 0 && object_list_for(index) == list) indices.push_back(index);
     }
     out.section(to_string(list));
-    out.key("SupportedObjects", std::to_string(indices.size()));
+    out.number_line("SupportedObjects=", indices.size());
     for (std::size_t i = 0; i < indices.size(); ++i) {
-      out.key(std::to_string(i + 1), hex(indices[i], 4));
+      char prefix[24];
+      char* end = std::to_chars(prefix, prefix + 20, i + 1).ptr;
+      *end++ = '=';
+      out.hex_line(std::string_view(prefix, static_cast<std::size_t>(end - prefix)), indices[i], 4);
     }
   }
   for (const auto& [index, obj] : device.objects) {

@@ -1,7 +1,6 @@
 #include "cfg/download_order.hpp"
 
 #include <algorithm>
-#include <map>
 #include <span>
 #include <type_traits>
 #include <utility>
@@ -129,24 +128,35 @@ DownloadOrder order(std::span<W> writes, const CobIdLookup& current_cob_id) {
     sorted[kept++] = sorted[i];
   }
   sorted.resize(kept);
-  std::map<std::uint16_t, ObjectWrites<W>> by_object;
+  // The writes of each object, in index order (sorted above): vectors, not maps, as a DCF
+  // writes to a thousand objects or more.
+  std::vector<std::pair<std::uint16_t, ObjectWrites<W>>> by_object;
   for (std::size_t begin = 0; begin < sorted.size();) {
     std::size_t end = begin + 1;
     while (end < sorted.size() && sorted[end]->index == sorted[begin]->index) ++end;
-    by_object.emplace(sorted[begin]->index, ObjectWrites<W>(sorted).subspan(begin, end - begin));
+    by_object.emplace_back(sorted[begin]->index,
+                           ObjectWrites<W>(sorted).subspan(begin, end - begin));
     begin = end;
   }
 
   // What to emit, by sort index: a PDO sorts at its communication index even when only its
-  // mapping is written.
-  std::map<std::uint16_t, std::optional<PdoIndices>> sequence;
+  // mapping is written (its entry then appears twice, with the same PdoIndices).
+  std::vector<std::pair<std::uint16_t, std::optional<PdoIndices>>> sequence;
+  sequence.reserve(by_object.size());
   for (const auto& entry : by_object) {
     auto pdo = pdo_indices_of(entry.first);
-    sequence[pdo ? pdo->comm_index : entry.first] = pdo;
+    sequence.emplace_back(pdo ? pdo->comm_index : entry.first, pdo);
   }
+  auto by_index = [](const auto& a, const auto& b) { return a.first < b.first; };
+  std::stable_sort(sequence.begin(), sequence.end(), by_index);
+  sequence.erase(std::unique(sequence.begin(), sequence.end(),
+                             [](const auto& a, const auto& b) { return a.first == b.first; }),
+                 sequence.end());
   auto find = [&by_object](std::uint16_t i) -> const ObjectWrites<W>* {
-    auto it = by_object.find(i);
-    return it == by_object.end() ? nullptr : &it->second;
+    auto it = std::lower_bound(by_object.begin(), by_object.end(), i,
+                               [](const std::pair<std::uint16_t, ObjectWrites<W>>& e,
+                                  std::uint16_t k) { return e.first < k; });
+    return it == by_object.end() || it->first != i ? nullptr : &it->second;
   };
 
   DownloadOrder out;
@@ -155,7 +165,7 @@ DownloadOrder order(std::span<W> writes, const CobIdLookup& current_cob_id) {
     if (pdo) {
       order_pdo(*pdo, find(pdo->comm_index), find(pdo->mapping_index), current_cob_id, out);
     } else if (index != kVerifyConfiguration) {
-      for (W* write : by_object.at(index)) emit(write, out);
+      for (W* write : *find(index)) emit(write, out);
     }
   }
   // DSP 302 v3.2.1 §6.3: "If any other command changes boot-up configuration values, the device

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "cfg/hex.hpp"
 
 namespace cfg {
 namespace {
@@ -356,7 +357,7 @@ TEST(DeviceWriter, StreamedTextIsTheWholeTextInPieces) {
   std::size_t pieces = 0;
   EXPECT_TRUE(write_device_description(d, {}, [&](std::string_view piece) {
     ++pieces;
-    EXPECT_LE(piece.size(), std::size_t{65 * 1024});  // about 64 KiB: never the whole text
+    EXPECT_LE(piece.size(), std::size_t{65} * 1024);  // about 64 KiB: never the whole text
     streamed += piece;
     return true;
   }));
@@ -397,6 +398,68 @@ TEST(DeviceWriter, StampOnChangeStampsADifferenceInTheLastPiece) {
   const std::string longer = write_device_description(d) + "\r\n";
   options.stamp_only_if_changed_from = longer;
   EXPECT_EQ(write_device_description(d, options), stamped);
+}
+
+// Values set in code, not read: written as the reader would have stored them (the rules of
+// cfg/device_file.hpp's canonical_form), and the same as writing canonical_form() of the model.
+TEST(DeviceWriter, ValuesSetInCodeAreWrittenAsTheReaderStoresThem) {
+  DeviceDescription d = model();
+  auto add = [&d](std::uint16_t index, DataType type, std::string value) {
+    d.objects.emplace(index, var(index, "Value", type, AccessType::Rw, std::move(value)));
+  };
+  add(0x2001, DataType::Unsigned16, "0180h");       // CiA 301 document style: read as 0x hex
+  add(0x2002, DataType::Unsigned8, "5 ; five");     // an inline comment after a number is cut
+  add(0x2003, DataType::OctetString, "0x0A0B");     // vendor form of issue 9: the digits are kept
+  add(0x2004, DataType::Domain, "0XABCD");          // the same, upper-case prefix
+  add(0x2005, DataType::VisibleString, "a ; b");    // a string keeps what looks like a comment
+  add(0x2006, DataType::Unsigned8, "");             // empty fixed-size value: not given
+  add(0x2007, DataType::VisibleString, "");         // empty string: given, empty
+  add(0x2008, DataType::Unsigned32, " 0x10 ");      // blanks around it go
+  add(0x2009, DataType::Unsigned32, "0x10\r\n");    // as does a line break
+  add(0x200A, DataType::Unsigned32, "0x00000191");  // already canonical
+  WriteOptions lf;
+  lf.line_ending = LineEnding::Lf;
+  const std::string text = write_device_description(d, lf);
+  auto value_of = [&text](std::uint16_t index) {
+    const std::string section = "[" + hex_digits(index, 4) + "]\n";
+    const std::size_t at = text.find(section);
+    if (at == std::string::npos) return std::string("(no section)");
+    const std::size_t end = text.find("\n\n", at);
+    const std::string body = text.substr(at, end - at);
+    const std::size_t key = body.find("DefaultValue=");
+    if (key == std::string::npos) return std::string("(no DefaultValue)");
+    const std::size_t eol = body.find('\n', key);
+    return body.substr(key + 13, eol - key - 13);
+  };
+  EXPECT_EQ(value_of(0x2001), "0x0180");
+  EXPECT_EQ(value_of(0x2002), "5");
+  EXPECT_EQ(value_of(0x2003), "0A0B");
+  EXPECT_EQ(value_of(0x2004), "ABCD");
+  EXPECT_EQ(value_of(0x2005), "a ; b");
+  EXPECT_EQ(value_of(0x2006), "(no DefaultValue)");
+  EXPECT_EQ(value_of(0x2007), "");
+  EXPECT_EQ(value_of(0x2008), "0x10");
+  EXPECT_EQ(value_of(0x2009), "0x10");
+  EXPECT_EQ(value_of(0x200A), "0x00000191");
+  EXPECT_EQ(write_device_description(canonical_form(d, lf), lf), text);
+  auto r = parse(text);
+  ASSERT_TRUE(r.device);
+  EXPECT_EQ(*r.device, canonical_form(d, lf));
+}
+
+// A DOMAIN value can be far longer than the writer's 64 KiB pieces (vendor tools export
+// firmware-sized DOMAIN values on one line, issue 9): it is written whole.
+TEST(DeviceWriter, AValueLongerThanAPieceIsWrittenWhole) {
+  DeviceDescription d = model();
+  std::string digits;
+  for (int i = 0; i < 100000; ++i) digits += "A5";
+  Object blob = var(0x2010, "Blob", DataType::Domain, AccessType::Rw, digits);
+  d.objects.emplace(0x2010, blob);
+  const std::string text = write_device_description(d);
+  EXPECT_THAT(text, HasSubstr("DefaultValue=" + digits + "\r\nPDOMapping=0\r\n"));
+  auto r = parse(text);
+  ASSERT_TRUE(r.device);
+  EXPECT_EQ(*r.device, canonical_form(d));
 }
 
 }  // namespace

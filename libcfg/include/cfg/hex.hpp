@@ -16,4 +16,9 @@ inline std::string hex(std::uint64_t value, int min_digits = 1) {
   return "0x" + hex_digits(value, min_digits);
 }
 
+/// The characters of hex_digits(value, min_digits) written to `out` (no allocation, no
+/// terminator), for writers that fill a buffer. `out` must have room for max(16, min_digits)
+/// characters. Returns the end of what was written.
+char* write_hex_digits(char* out, std::uint64_t value, int min_digits = 1);
+
 }  // namespace cfg
