@@ -301,8 +301,10 @@ class Reader final : public IniSink {
                     const std::optional<Value>& param);
   // The stored text of a value key: inline comment cut (numbers), empty fixed-size value
   // dropped, h-suffix hex normalised; then checked against the data type.
-  std::optional<std::string> clean_value(std::string_view section_name, const RawKey& k,
-                                         std::uint16_t data_type, std::optional<Value>* parsed);
+  // The view is into the file, or into value_scratch_ until the next call.
+  std::optional<std::string_view> clean_value(std::string_view section_name, const RawKey& k,
+                                              std::uint16_t data_type,
+                                              std::optional<Value>* parsed);
   void unknown_key(const RawKey& k);
 
   // ---- objects after the last line (device_reader_compact.cpp)
@@ -358,6 +360,7 @@ class Reader final : public IniSink {
   CaseInsensitiveMap<int> first_section_line_;
   CaseInsensitiveMap<int> commissioning_keys_;
   CaseInsensitiveMap<UnknownKey> unknown_keys_;
+  std::string value_scratch_;  // a value text clean_value had to rewrite ('h' suffix, comment)
   std::size_t dropped_comments_ = 0;  // inline comments cut from numeric values
   std::optional<std::uint64_t> comment_lines_;
   int comment_lines_line_ = 0;

@@ -336,9 +336,9 @@ void Reader::check_limits(const SubObject& s, const ObjectKeys& get, std::option
 
 // The stored text of a value key: inline comment cut (numbers), empty fixed-size value
 // dropped, h-suffix hex normalised; then checked against the data type.
-std::optional<std::string> Reader::clean_value(std::string_view section_name, const RawKey& k,
-                                               std::uint16_t data_type,
-                                               std::optional<Value>* parsed) {
+std::optional<std::string_view> Reader::clean_value(std::string_view section_name, const RawKey& k,
+                                                    std::uint16_t data_type,
+                                                    std::optional<Value>* parsed) {
   const DataTypeInfo* info = find_data_type(data_type);
   auto section = [&] { return "[" + std::string(section_name) + "] "; };
   // Most values of a device file are plain integer literals of an integer type: digits only, so
@@ -350,28 +350,34 @@ std::optional<std::string> Reader::clean_value(std::string_view section_name, co
     if (const auto plain = parse_integer_literal(k.value).literal) {
       if (auto v = integer_value(info->type, *plain)) {
         if (parsed != nullptr) *parsed = std::move(v.value());
-        return std::string(k.value);
+        return k.value;
       }
     }
   }
-  detail::NormalizedValue n = detail::normalize_value(k.value, data_type);
-  if (!n.comment.empty()) {
-    dropped_comment(k.line, section() + std::string(k.key) + ": " + shown(n.comment) +
-                                " after the " + std::string(info->name) +
-                                " value is a comment and is dropped");
+  // Texts normalize_value would keep as they are (nearly all) are not copied.
+  std::string_view text = k.value;
+  if (!detail::is_normalized_value(k.value, data_type)) {
+    detail::NormalizedValue n = detail::normalize_value(k.value, data_type);
+    if (!n.comment.empty()) {
+      dropped_comment(k.line, section() + std::string(k.key) + ": " + shown(n.comment) +
+                                  " after the " + std::string(info->name) +
+                                  " value is a comment and is dropped");
+    }
+    if (!n.text) {
+      if (strict_) error(k.line, section() + std::string(k.key) + " is empty");
+      return std::nullopt;
+    }
+    if (n.h_suffix) {
+      warn(k.line, section() + std::string(k.key) + " " + shown(k.value) +
+                       ": 'h'-suffix hex is not CiA 306 syntax; read as " + *n.text);
+    }
+    value_scratch_ = std::move(*n.text);  // set_text copies it before the next value
+    text = value_scratch_;
   }
-  if (!n.text) {
-    if (strict_) error(k.line, section() + std::string(k.key) + " is empty");
-    return std::nullopt;
-  }
-  if (n.h_suffix) {
-    warn(k.line, section() + std::string(k.key) + " " + shown(k.value) +
-                     ": 'h'-suffix hex is not CiA 306 syntax; read as " + *n.text);
-  }
-  if (info == nullptr || info->type_class == TypeClass::VisibleString) return n.text;
-  auto v = parse_value(info->type, *n.text, kValidationNodeId);
+  if (info == nullptr || info->type_class == TypeClass::VisibleString) return text;
+  auto v = parse_value(info->type, text, kValidationNodeId);
   if (!v) {
-    const std::string msg = section() + std::string(k.key) + " " + shown(*n.text) +
+    const std::string msg = section() + std::string(k.key) + " " + shown(text) +
                             " is not a valid " + std::string(info->name) + " (DataType " +
                             hex(data_type, 4) + "): " + v.error().message;
     // A ParameterValue is what a configuration manager downloads: one that cannot be encoded
@@ -381,10 +387,10 @@ std::optional<std::string> Reader::clean_value(std::string_view section_name, co
     } else {
       warn(k.line, msg);
     }
-  } else if (parsed != nullptr && !mentions_node_id(*n.text)) {
+  } else if (parsed != nullptr && !mentions_node_id(text)) {
     *parsed = std::move(v.value());
   }
-  return n.text;
+  return text;
 }
 
 void Reader::unknown_key(const RawKey& k) {
