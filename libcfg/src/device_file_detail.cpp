@@ -1,5 +1,7 @@
 #include "device_file_detail.hpp"
 
+#include <array>
+
 #include "cfg/data_type.hpp"
 #include "ini_scanner.hpp"
 
@@ -118,10 +120,13 @@ NormalizedValue normalize_value(std::string_view text, std::uint16_t data_type) 
 bool is_normalized_value(std::string_view text, std::uint16_t data_type) {
   // One pass: a line break (the writer's one-line rule) or a ';'/'#' anywhere (an inline
   // comment starts with one) sends the text to the exact path.
-  constexpr std::uint64_t kStop = (1ULL << '\r') | (1ULL << '\n') | (1ULL << ';') | (1ULL << '#');
+  static constexpr std::array<bool, 256> kStop = [] {
+    std::array<bool, 256> t{};
+    for (const char c : {'\r', '\n', ';', '#'}) t[static_cast<unsigned char>(c)] = true;
+    return t;
+  }();
   for (const char c : text) {
-    const auto u = static_cast<unsigned char>(c);
-    if (u < 64 && ((kStop >> u) & 1U) != 0) return false;
+    if (kStop[static_cast<unsigned char>(c)]) return false;
   }
   const DataTypeInfo* info = find_data_type(data_type);
   if (text.empty()) return info != nullptr && is_variable_size(info->type);  // kept as ""
