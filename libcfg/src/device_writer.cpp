@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cstring>
 #include <memory>
+#include <span>
 #include <unordered_map>
 
 #include "cfg/device_file.hpp"
@@ -239,6 +240,19 @@ class Out {
     p = std::to_chars(p, p + 20, value).ptr;
     end_line(p);
   }
+  // `count_prefix` with the number of entries, then "1=0xXXXX" .. "n=0xXXXX": the index lists
+  // of CiA 306 (the object lists of §4.5, [xxxxObjectLinks]).
+  void index_list(std::string_view count_prefix, std::span<const std::uint16_t> indices) {
+    number_line(count_prefix, indices.size());
+    for (std::size_t i = 0; i < indices.size(); ++i) {
+      char* p = room(20 + 1 + 2 + 16);
+      p = std::to_chars(p, p + 20, i + 1).ptr;
+      *p++ = '=';
+      p = put(p, "0x");
+      p = write_hex_digits(p, indices[i], 4);
+      end_line(p);
+    }
+  }
   void key(std::string_view key, std::string_view value) {
     char* p = room(key.size() + 1 + value.size());
     p = put(p, key);
@@ -389,10 +403,7 @@ void write_object(Out& out, std::uint16_t index, const Object& obj, FileKind kin
   }
   if (!obj.object_links.empty()) {
     out.section(std::string(name) + "ObjectLinks");
-    out.number_line("ObjectLinks=", obj.object_links.size());
-    for (std::size_t i = 0; i < obj.object_links.size(); ++i) {
-      out.hex_line(std::to_string(i + 1) + "=", obj.object_links[i], 4);
-    }
+    out.index_list("ObjectLinks=", obj.object_links);
   }
 }
 
@@ -537,13 +548,7 @@ bool write_text(const DeviceDescription& device, const DeviceDescription& head,
       if (index != 0 && object_list_for(index) == list) indices.push_back(index);
     }
     out.section(to_string(list));
-    out.number_line("SupportedObjects=", indices.size());
-    for (std::size_t i = 0; i < indices.size(); ++i) {
-      char prefix[24];
-      char* end = std::to_chars(prefix, prefix + 20, i + 1).ptr;
-      *end++ = '=';
-      out.hex_line(std::string_view(prefix, static_cast<std::size_t>(end - prefix)), indices[i], 4);
-    }
+    out.index_list("SupportedObjects=", indices);
   }
   for (const auto& [index, obj] : device.objects) {
     if (out.stopped()) return false;

@@ -10,22 +10,24 @@
 #endif
 
 namespace cfg::detail {
-namespace {
 
 constexpr std::size_t kBlock = 64;
 constexpr std::size_t kNone = std::string_view::npos;
 
-// Where the line ends and the '=' are, 64 bytes at a time: every byte of a device file is looked
-// at once here, so the whole text is read as bitmaps (bit i for byte i of a block) rather than
-// byte by byte or with three memchr calls a line.
-struct BlockMarks {
-  std::uint64_t ends = 0;    // LF or CR
-  std::uint64_t equals = 0;  // '='
-};
-
-BlockMarks marks_of(const char* p) {  // p: 64 readable bytes
+// Every byte of a device file is looked at once here, so the whole text is read as bitmaps
+// rather than byte by byte or with three memchr calls a line.
+BlockMarks block_marks_portable(const char* p) {
   BlockMarks m;
+  for (std::size_t i = 0; i < kBlock; ++i) {
+    m.ends |= std::uint64_t{p[i] == '\n' || p[i] == '\r'} << i;
+    m.equals |= std::uint64_t{p[i] == '='} << i;
+  }
+  return m;
+}
+
+BlockMarks block_marks(const char* p) {
 #if defined(__SSE2__)
+  BlockMarks m;
   const __m128i lf = _mm_set1_epi8('\n');
   const __m128i cr = _mm_set1_epi8('\r');
   const __m128i eq = _mm_set1_epi8('=');
@@ -37,14 +39,13 @@ BlockMarks marks_of(const char* p) {  // p: 64 readable bytes
     m.ends |= std::uint64_t{ends} << (16 * k);
     m.equals |= std::uint64_t{equals} << (16 * k);
   }
-#else
-  for (std::size_t i = 0; i < kBlock; ++i) {
-    m.ends |= std::uint64_t{p[i] == '\n' || p[i] == '\r'} << i;
-    m.equals |= std::uint64_t{p[i] == '='} << i;
-  }
-#endif
   return m;
+#else
+  return block_marks_portable(p);
+#endif
 }
+
+namespace {
 
 // The physical lines of a text, in order.
 class LineFinder {
@@ -91,11 +92,11 @@ class LineFinder {
     block_ = block;
     const std::size_t begin = block * kBlock;
     if (begin + kBlock <= text_.size()) {
-      marks_ = marks_of(text_.data() + begin);
+      marks_ = block_marks(text_.data() + begin);
     } else {  // the last, short block: padded with bytes that mark nothing
       std::array<char, kBlock> tail{};
       std::memcpy(tail.data(), text_.data() + begin, text_.size() - begin);
-      marks_ = marks_of(tail.data());
+      marks_ = block_marks(tail.data());
     }
   }
 

@@ -7,6 +7,7 @@
 // rule touches data, and nothing is allocated per line.
 #pragma once
 
+#include <cstdint>
 #include <string_view>
 
 namespace cfg::detail {
@@ -32,6 +33,19 @@ class IniSink {
 /// Scans `text` (no BOM handling: strip it first). Lines end at LF, CRLF or a lone CR; a
 /// missing final line end is fine. Every line is handed to the sink, in order; nothing fails.
 void scan_ini(std::string_view text, IniSink& sink);
+
+/// Where the line ends (LF or CR) and the '=' are among 64 bytes: bit i stands for byte i. The
+/// scanner reads the whole text this way, 64 bytes at a time.
+struct BlockMarks {
+  std::uint64_t ends = 0;
+  std::uint64_t equals = 0;
+  bool operator==(const BlockMarks&) const = default;
+};
+/// The marks of the 64 bytes at `p`: with SSE2 compares where the target has them, else
+/// block_marks_portable.
+BlockMarks block_marks(const char* p);
+/// The same, byte by byte: what targets without SSE2 run, and what tests hold the SSE2 path to.
+BlockMarks block_marks_portable(const char* p);
 
 /// Blank for the purposes of trimming: space, tab, vertical tab, form feed.
 constexpr bool is_blank(char c) {

@@ -59,9 +59,9 @@ inline std::string version_text(std::string_view tool) {
 
 /// Keeps `value` until the process exits, never destroying it: for a large model a tool is done
 /// with just before it exits. Its memory goes back to the system with the process in one piece;
-/// destroying it first walks every map node only to free it (about 6 % of `cfgmgr check` on a
-/// 3 MB DCF, BENCHMARKS.md), which is what clang's -disable-free avoids too. Tool boundary only,
-/// and only for values that own nothing but memory (no open files, nothing to flush). The
+/// destroying it first walks every map node only to free it (2-6 M instructions, 2-4 % of a
+/// run on a 3 MB DCF, BENCHMARKS.md), which is what clang's -disable-free avoids too. Tool boundary
+/// only, and only for values that own nothing but memory (no open files, nothing to flush). The
 /// values stay reachable, so LeakSanitizer does not report them.
 template <class T>
 void keep_until_exit(T&& value) {

@@ -13,7 +13,9 @@ namespace nmt::detail {
 namespace {
 
 cfg::Error missing(const std::string& reason) {
-  return cfg::Error{"writing a pcap trace needs libpcap (Debian package libpcap0.8): " + reason,
+  return cfg::Error{"writing a pcap trace needs libpcap (Debian package libpcap0.8): " + reason +
+                        "; install it (apt-get install libpcap0.8), or give a .log trace "
+                        "(candump format), which needs no library",
                     cfg::ErrorCategory::Io};
 }
 
