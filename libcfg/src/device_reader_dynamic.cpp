@@ -343,13 +343,24 @@ void Reader::finish_dynamic_channels() {
     }
     return;
   }
-  if (supported && *supported == 0) {
+  // Unreadable (reported where it is read): taken as used, so the section's faults stay errors.
+  const bool used = !supported || *supported != 0;
+  if (!used) {
     warn(dynamic_.line, "[DynamicChannels] is given but [DeviceInfo] DynamicChannelsSupported is " +
                             std::string(supported_line == 0 ? "absent (0)" : "0") +
                             ": the segments are not used (CiA DSP 302 §8.4)");
   }
   DynamicChannelsReport report;
-  report.error = [this](int line, std::string message) { error(line, std::move(message)); };
+  // A section the device says it does not use changes nothing it is configured with: vendor
+  // tools write placeholders there (NrOfSeg=1, Type1=0x0000, Range1=0x0000-0x0000). Its faults
+  // are warnings in tolerant mode and errors under strict, as any deviation from the standard.
+  report.error = [this, used](int line, std::string message) {
+    if (used) {
+      error(line, std::move(message));
+    } else {
+      warn(line, std::move(message) + " (the device does not use the section)");
+    }
+  };
   report.warn = [this](int line, std::string message) { warn(line, std::move(message)); };
   (void)read_dynamic_channels(dynamic_.keys, dynamic_.line, report);
 }

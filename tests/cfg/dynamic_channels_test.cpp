@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cfg/device_file.hpp"
@@ -123,12 +124,53 @@ TEST(DynamicChannels, EachFaultIsReportedOnTheLineOfItsKey) {
               HasSubstr("BOOLEAN segment's PPOffset needs the bit distance"));
   EXPECT_THAT(at_line(d, line_of(f, "Colour1="), Severity::Warning),
               HasSubstr("not a [DynamicChannels] key"));
-  EXPECT_THAT(at_line(d, line_of(f, "[DynamicChannels]"), Severity::Warning),
-              HasSubstr("DynamicChannelsSupported is 0"));
   // Left out: segment 4 (Dir unreadable) and 8 (no MaxCnt); the others are kept as written.
   const std::optional<DynamicChannels> c = dynamic_channels_of(*r.device);
   ASSERT_TRUE(c);
   EXPECT_EQ(c->segments.size(), 8U);
+}
+
+// What vendor tools write into a device that has no dynamic channels (DynamicChannelsSupported=0
+// or absent, which §8.4 reads as 0): one placeholder segment of type 0000h over 0000h-0000h.
+std::string placeholder_eds(std::string_view supported_line) {
+  return "[DeviceInfo]\nVendorNumber=0x1\n" + std::string(supported_line) +
+         "[DynamicChannels]\nNrOfSeg=1\nType1=0x0000\nDir1=ro\nRange1=0x0000-0x0000\n"
+         "PPOffset1=0\nMaxCnt1=0\n";
+}
+
+TEST(DynamicChannels, PlaceholderSectionOfADeviceWithoutDynamicChannelsIsOnlyAWarning) {
+  // §8.4: "If the entry DynamicChannelsSupported is non-zero, the section DynamicChannels
+  // describes the usable segments": with 0 the device uses none, so the placeholder changes
+  // nothing it is configured with. Tolerant: warnings on the keys' lines; strict: errors.
+  for (const std::string_view supported : {"DynamicChannelsSupported=0\n", ""}) {
+    const std::string text = placeholder_eds(supported);
+    const int offset = supported.empty() ? 0 : 1;
+    const ReadResult tolerant = parse_device_description(text);
+    ASSERT_TRUE(tolerant.device);
+    EXPECT_FALSE(tolerant.diagnostics.has_errors()) << tolerant.diagnostics.format();
+    EXPECT_THAT(at_line(tolerant.diagnostics, 3 + offset, Severity::Warning),
+                HasSubstr("DynamicChannelsSupported is"));
+    EXPECT_THAT(at_line(tolerant.diagnostics, 5 + offset, Severity::Warning),
+                HasSubstr("Type 0x0000 is not a basic data type"));
+    EXPECT_THAT(at_line(tolerant.diagnostics, 7 + offset, Severity::Warning),
+                HasSubstr("range 0000h-0000h is outside the manufacturer"));
+    EXPECT_THAT(at_line(tolerant.diagnostics, 7 + offset, Severity::Warning),
+                HasSubstr("the device does not use the section"));
+    const ReadResult strict = parse_device_description(text, {ReadMode::Strict, "x.eds"});
+    EXPECT_THAT(at_line(strict.diagnostics, 5 + offset, Severity::Error),
+                HasSubstr("Type 0x0000 is not a basic data type"));
+    EXPECT_THAT(at_line(strict.diagnostics, 7 + offset, Severity::Error),
+                HasSubstr("is outside the manufacturer"));
+  }
+}
+
+TEST(DynamicChannels, PlaceholderSectionOfADeviceThatUsesDynamicChannelsIsAnError) {
+  // The same segment where DynamicChannelsSupported is non-zero: the device says it uses it, and
+  // network variables cannot be allocated into it.
+  const ReadResult r = parse_device_description(placeholder_eds("DynamicChannelsSupported=1\n"));
+  ASSERT_TRUE(r.device);
+  EXPECT_THAT(at_line(r.diagnostics, 6, Severity::Error), HasSubstr("Type 0x0000 is not a basic"));
+  EXPECT_THAT(at_line(r.diagnostics, 8, Severity::Error), HasSubstr("is outside the manufacturer"));
 }
 
 TEST(DynamicChannels, DynamicChannelsSupportedWithoutTheSectionIsAWarningOnItsLine) {

@@ -88,6 +88,23 @@ TEST(Cfgmgr, CheckWarningIsNotAFailureUnlessStrict) {
   EXPECT_THAT(strict.err, HasSubstr("bad_access_type.eds:75: error: [2000] AccessType"));
 }
 
+TEST(Cfgmgr, CheckToleratesAPlaceholderDynamicChannelsSectionTheDeviceDoesNotUse) {
+  // CiA DSP 302 §8.4: with DynamicChannelsSupported=0 the device uses no segment, so the
+  // placeholder a vendor tool wrote (Type1=0x0000 at line 83, Range1=0x0000-0x0000 at 85)
+  // configures nothing: the file loads (exit 0) with warnings; --strict makes them errors.
+  ScratchDir dir;
+  const std::string file = data_path("check/dynamic_placeholder.eds");
+  auto tolerant = run("cfgmgr", {"check", file}, dir.path());
+  EXPECT_EQ(tolerant.exit_code, 0) << tolerant.err;
+  EXPECT_THAT(tolerant.err, HasSubstr("dynamic_placeholder.eds:83: warning: [DynamicChannels] "));
+  EXPECT_THAT(tolerant.err, HasSubstr("dynamic_placeholder.eds:85: warning: [DynamicChannels] "));
+  EXPECT_THAT(tolerant.err, Not(HasSubstr("error")));
+  auto strict = run("cfgmgr", {"check", "--strict", file}, dir.path());
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_THAT(strict.err, HasSubstr("dynamic_placeholder.eds:83: error: [DynamicChannels] "));
+  EXPECT_THAT(strict.err, HasSubstr("dynamic_placeholder.eds:85: error: [DynamicChannels] "));
+}
+
 TEST(Cfgmgr, CheckComparesWithTheCiA301Schema) {
   ScratchDir dir;
   // schema_mismatch.eds declares 1017h UNSIGNED32; CiA 301 defines UNSIGNED16.
