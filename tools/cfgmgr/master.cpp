@@ -1,6 +1,7 @@
 // cfgmgr master NETWORK --bus URL: the CiA 302-2 NMT master (nmt::NmtMaster) as a program. It
 // loads the network description (cfg/network.hpp), builds the master from the master's DCF or
-// the derived one, gives it the nodes' configurations (NetworkSource) and runs it until
+// the derived one, gives it the nodes' configurations (NetworkSource), which it also serves as
+// the configuration manager (1F20h-1F27h, in memory or --store DIR), and runs it until
 // SIGINT/SIGTERM or --run-for: on a real bus through BusEventLoop, on `sim:` on the simulated
 // bus with a simulated device per node. All protocol behaviour is the engine's; this file parses
 // arguments, wires the pieces and prints the events.
