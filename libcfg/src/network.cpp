@@ -467,6 +467,10 @@ Object make_node_array(std::uint16_t index, const std::string& name, const std::
 
 }  // namespace
 
+std::vector<std::uint8_t> node_concise_dcf(const NetworkNode& node) {
+  return encode_concise_dcf(node.writes);
+}
+
 const NetworkNode* Network::find(NodeId node) const {
   for (const auto& n : nodes) {
     if (n.node_id == node) return &n;
@@ -536,7 +540,7 @@ DeviceDescription derive_master(std::span<const NetworkNode> nodes) {
                                               SlaveAssignment::kMandatory,
                                           retry_factor, guard_time_ms)
                         .value;
-    const ConfigurationStamp stamp = configuration_stamp(encode_concise_dcf(node.writes));
+    const ConfigurationStamp stamp = configuration_stamp(node_concise_dcf(node));
     date[x] = stamp.days;
     time[x] = stamp.ms;
     if (!node.dcf) continue;

@@ -57,7 +57,7 @@ NetworkBuild build_network(const Network& network, const NodeFileName& file_name
     built.node_id = node.node_id;
     built.name = node.name;
     built.file_name = file_name ? file_name(node) : default_file_name(node);
-    built.concise_dcf = encode_concise_dcf(node.writes);
+    built.concise_dcf = node_concise_dcf(node);
     built.entries = node.writes.size();
     out.nodes.push_back(std::move(built));
   }

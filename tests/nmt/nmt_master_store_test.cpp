@@ -66,6 +66,19 @@ struct StoreRig {
     rig.power_on_network();
     ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   }
+  /// Writes 'conf' to 1F25h sub `sub` and runs until node 5 has booted after it; the time of
+  /// the write, nullopt when the write was refused or no boot followed.
+  std::optional<TimePoint> configure(std::uint8_t sub) {
+    const TimePoint from = rig.bus.now();
+    if (!rig.tool_write(0x1F25, sub, conf_bytes()).ok()) return std::nullopt;
+    const bool booted = rig.run_until_event(
+        [&](const MasterEvent& e) {
+          // Later than `from`: an earlier boot's event may carry that very time.
+          return e.kind == Kind::SlaveBooted && e.node_id == kNode && e.at > from;
+        },
+        10s);
+    return booted ? std::optional(from) : std::nullopt;
+  }
   /// The first SDO request of the tool at or after `from` (the initiate frame).
   std::optional<CanFrame> first_tool_request(TimePoint from) const {
     for (const auto& s : rig.on_id(kToolRequestId, from)) return s.frame;
@@ -355,6 +368,109 @@ TEST(NmtMasterStore, MalformedConciseDcfIsRefused) {
   short_stream[0] = 2;
   EXPECT_EQ(s.rig.tool_write(0x1F22, kNode, short_stream).abort, SdoAbort::ValueRangeExceeded);
   EXPECT_FALSE(s.manager->concise(*cfg::NodeId::from(kNode)).has_value());
+}
+
+// --- "stored, else the network" (nmt_master.hpp) -------------------------------------------
+
+// Node 5's configuration as the network gives it (cfgmgr's NetworkSource): 2 entries, 2000h
+// sub 0 = 5678h (UNSIGNED16), 1017h sub 0 = 300 ms (UNSIGNED16); 4 + 9 + 9 = 22 bytes.
+const std::vector<std::uint8_t> kNetworkStream = {
+    0x02, 0x00, 0x00, 0x00,                                 // number of entries
+    0x00, 0x20, 0x00, 0x02, 0x00, 0x00, 0x00, 0x78, 0x56,   // 2000h sub 0, 2 bytes
+    0x17, 0x10, 0x00, 0x02, 0x00, 0x00, 0x00, 0x2C, 0x01};  // 1017h sub 0, 2 bytes
+const std::string kNetworkDcf = "[DeviceInfo]\r\nProductName=node 5 as the network has it\r\n";
+
+/// A source that has node 5's configuration, its concise DCF and its DCF (as cfgmgr's
+/// NetworkSource has a network node's), and for node 6 a DCF it cannot read.
+class NetworkLikeSource final : public ConfigurationSource {
+ public:
+  std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override {
+    if (node.value() != kNode) return std::nullopt;
+    return cfg::decode_concise_dcf(kNetworkStream).value();
+  }
+  std::optional<std::vector<std::uint8_t>> concise_dcf(cfg::NodeId node) const override {
+    if (node.value() != kNode) return std::nullopt;
+    return kNetworkStream;
+  }
+  cfg::Result<std::optional<std::string>> dcf(cfg::NodeId node) const override {
+    if (node.value() == 6)
+      return cfg::Error{"node6.dcf: cannot open the file", cfg::ErrorCategory::Io};
+    if (node.value() != kNode) return std::optional<std::string>{};
+    return std::optional<std::string>{kNetworkDcf};
+  }
+};
+
+struct NetworkStoreRig : StoreRig {
+  NetworkStoreRig() { rig.options.configurations = std::make_shared<NetworkLikeSource>(); }
+};
+
+std::vector<std::uint8_t> bytes_of(const std::string& text) {
+  return {text.begin(), text.end()};
+}
+
+// DSP 302 §6.2: 1F22h sub node-ID is the concise DCF the manager configures the node with; with
+// nothing stored that is the network's (the source's), by segmented and by block upload.
+TEST(NmtMasterStore, UnstoredNodeReadsTheNetworksConciseDcfBySegmentedAndBlockUpload) {
+  NetworkStoreRig s;
+  s.start();
+  auto segmented = s.rig.tool_read(0x1F22, kNode, by(SdoMode::Segmented));
+  ASSERT_TRUE(segmented.ok()) << segmented.abort;
+  EXPECT_EQ(segmented.data, kNetworkStream);
+  auto block = s.rig.tool_read(0x1F22, kNode, by(SdoMode::Block));
+  ASSERT_TRUE(block.ok()) << block.abort;
+  EXPECT_EQ(block.data, kNetworkStream);
+  // §6.2 application hint 2: a node neither stored nor in the network: the count-0 stream.
+  EXPECT_EQ(s.rig.tool_read(0x1F22, 9).data, (std::vector<std::uint8_t>{0, 0, 0, 0}));
+}
+
+// DSP 302 §6.1: 1F20h sub node-ID is the node's DCF, 1F21h its storage format 0 (ASCII); a node
+// the network names no DCF for reads 0800 0024h (no data available), one whose DCF cannot be
+// read 0800 0020h.
+TEST(NmtMasterStore, UnstoredNodeReadsTheNetworksDcfIn1F20h) {
+  NetworkStoreRig s;
+  s.start();
+  auto dcf = s.rig.tool_read(0x1F20, kNode);
+  ASSERT_TRUE(dcf.ok()) << dcf.abort;
+  EXPECT_EQ(dcf.data, bytes_of(kNetworkDcf));
+  EXPECT_EQ(s.rig.tool_read_u(0x1F21, kNode), 0U);
+  EXPECT_EQ(s.rig.tool_read(0x1F20, 9).abort, SdoAbort::NoDataAvailable);
+  EXPECT_EQ(s.rig.tool_read(0x1F21, 9).abort, SdoAbort::NoDataAvailable);
+  EXPECT_EQ(s.rig.tool_read(0x1F20, 6).abort, SdoAbort::CannotStoreOrTransfer);
+}
+
+// A stored configuration takes the place of the network's (DSP 302 §6: the manager downloads
+// what 1F22h holds): 1F22h reads it, 1F20h no longer reads the network's DCF, 'conf' downloads
+// it; removing it (the count-0 stream, §6.2 hint 1) gives the node back to the network.
+TEST(NmtMasterStore, StoredConciseDcfTakesThePlaceOfTheNetworksUntilRemoved) {
+  NetworkStoreRig s;
+  s.start();
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x5678U);  // start-up: the network's
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, kNode, kStream).ok());
+  EXPECT_EQ(s.rig.tool_read(0x1F22, kNode).data, kStream);
+  EXPECT_EQ(s.rig.tool_read(0x1F20, kNode).abort, SdoAbort::NoDataAvailable);
+
+  ASSERT_TRUE(s.configure(kNode).has_value());
+  EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
+  EXPECT_EQ(s.rig.device_value(kNode, 0x1017, 0), 200U);
+
+  ASSERT_TRUE(s.rig.tool_write(0x1F22, kNode, {0, 0, 0, 0}).ok());
+  EXPECT_EQ(s.rig.tool_read(0x1F22, kNode).data, kNetworkStream);
+  EXPECT_EQ(s.rig.tool_read(0x1F20, kNode).data, bytes_of(kNetworkDcf));
+}
+
+// DSP 302 §6.4: 'conf' re-configures a node; one with nothing stored gets the network's
+// configuration downloaded again (by sub node-ID and by sub 80h, "all nodes").
+TEST(NmtMasterStore, ConfDownloadsTheNetworksConfigurationOfAnUnstoredNode) {
+  NetworkStoreRig s;
+  s.start();
+  for (const std::uint8_t sub : {kNode, cfg::kConfigureAllNodes}) {
+    const auto from = s.configure(sub);
+    ASSERT_TRUE(from.has_value()) << int{sub};
+    EXPECT_EQ(s.rig.downloads_of(kNode, 0x2000, 0, *from).size(), 1U) << int{sub};
+    EXPECT_EQ(s.rig.downloads_of(kNode, 0x1017, 0, *from).size(), 1U) << int{sub};
+  }
+  // Neither stored nor in the network: still 0800 0024h (§6.4).
+  EXPECT_EQ(s.rig.tool_write_u(0x1F25, 9, kConf, 4), SdoAbort::NoDataAvailable);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // cfgmgr master NETWORK --bus URL: the CiA 302-2 NMT master (nmt::NmtMaster) as a program. It
 // loads the network description (cfg/network.hpp), builds the master from the master's DCF or
-// the derived one, gives it the nodes' configurations (NetworkSource) and runs it until
+// the derived one, gives it the nodes' configurations (NetworkSource), which it also serves as
+// the configuration manager (1F20h-1F27h, in memory or --store DIR), and runs it until
 // SIGINT/SIGTERM or --run-for: on a real bus through BusEventLoop, on `sim:` on the simulated
 // bus with a simulated device per node. All protocol behaviour is the engine's; this file parses
 // arguments, wires the pieces and prints the events.
@@ -30,7 +31,8 @@ struct MasterCliOptions : NetworkRunArgs {
 };
 
 /// --store DIR: the configuration manager the master serves (1F20h-1F27h) and configures from
-/// first. A damaged entry is printed and left unused (cfg/config_manager.hpp).
+/// first, kept on disk (without it build_master gives one in memory). A damaged entry is
+/// printed and left unused (cfg/config_manager.hpp).
 std::shared_ptr<cfg::ConfigManager> open_store_or_exit(const std::string& directory) {
   auto opened = cfg::ConfigManager::open(directory);
   if (!opened) fail_command("master", tools::kExitIo, opened.error().message);
@@ -96,10 +98,10 @@ void add_master_command(CLI::App& app) {
                   "server_node_id, server_index, request_cob_id, response_cob_id)")
       ->type_name("FILE");
   cmd->add_option("--store", options->store,
-                  "Serve the configuration manager of this store directory (created when "
-                  "missing; see cfgmgr store): 1F20h-1F27h by SDO, so a tool can write a "
-                  "node's DCF or concise DCF and start it with 1F25h 'conf'; a node's stored "
-                  "configuration and 1F26h/1F27h take the place of the network's")
+                  "Keep what tools write to 1F20h-1F27h in this store directory (created when "
+                  "missing; see cfgmgr store), so that it outlives the process: a node's stored "
+                  "configuration and 1F26h/1F27h take the place of the network's, and a node "
+                  "with nothing stored keeps the network's")
       ->type_name("DIR");
   cmd->add_flag("--sdo-manager", options->sdo_manager,
                 "Be the SDO manager too (DSP 302 section 7; also on when the master DCF has "
@@ -108,6 +110,14 @@ void add_master_command(CLI::App& app) {
                 "(680h-6DFh when the DCF has none) and release them (1F01h, or when the "
                 "requester's heartbeat or guarding stops)");
   cmd->footer(std::string(
+      "The master is the network's configuration manager (DSP 302 section 6) and serves "
+      "1F20h-1F27h by SDO: 1F22h sub N reads the concise DCF it downloads to node N (the bytes "
+      "cfgmgr build writes as nodeN.bin), 1F20h sub N the node's DCF file (0800 0024 when the "
+      "network has none), 1F26h/1F27h the date and time it compares with 1020h. A tool may "
+      "write a node's DCF (1F20h), concise DCF (1F22h) or 1F26h/1F27h, which then take the "
+      "place of the network's, and start a download with 1F25h sub N (80h: all) = 'conf' (see "
+      "cfgmgr store). Without --store those writes are held in memory until the master "
+      "stops; with --store DIR they are kept in DIR.\n\n"
       "Without a master DCF, every present node is a mandatory slave that is booted and "
       "started; the expected identity comes from its DCF and 1F26h/1F27h from its "
       "configuration (rules in cfg/network.hpp). With 1F80h bit 2 set, cfgmgr master is the "
@@ -127,6 +137,7 @@ void add_master_command(CLI::App& app) {
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --json-events events.jsonl\n"
       "  cfgmgr master master.dcf --bus udp://239.74.163.2:43113 --node-id 1\n"
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --store /var/lib/canopen/store\n"
+      "  cfgmgr sdo read --bus socketcan:can0 0x7F 1F22:3 --type domain -o node3.bin\n"
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --sdo-manager\n\n"
       "Exit codes:\n"
       "  0  stopped by Ctrl-C/SIGTERM or --run-for, or (sim: without --run-for) NMT start-up "

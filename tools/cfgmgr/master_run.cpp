@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/config_manager.hpp"
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
 #include "commands.hpp"
@@ -407,6 +408,10 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
                      clash->file + " (give another with --node-id N)");
   }
   options.configurations = std::make_shared<NetworkSource>(network);
+  // DSP 302 §6: the master is the network's configuration manager, 1F20h-1F27h included; a
+  // node with nothing stored reads the network's configuration (NetworkSource). Without a store
+  // directory, what a tool writes over SDO lives as long as the process.
+  if (!options.manager) options.manager = std::make_shared<cfg::ConfigManager>();
   auto master =
       nmt::NmtMaster::create(network->master, *cfg::NodeId::from(node_id), std::move(options));
   if (!master) {

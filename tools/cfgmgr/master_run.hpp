@@ -61,8 +61,10 @@ std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net);
 
 /// The master of `network` with node-ID `node_id_text` (empty: the network's, else 7Fh) and
-/// `options` (its configurations come from the network). Ends the command with exit 2 for a bad
-/// --node-id, 1 when the master cannot be built.
+/// `options` (its configurations come from the network). It is the configuration manager
+/// (1F20h-1F27h): of options.manager when given (a store directory), else of one in memory,
+/// and a node with nothing stored reads the network's configuration. Ends the command with
+/// exit 2 for a bad --node-id, 1 when the master cannot be built.
 nmt::NmtMaster build_master(std::string_view tool, const std::string& description,
                             const std::shared_ptr<const cfg::Network>& network,
                             const std::string& node_id_text, nmt::MasterOptions options);

@@ -6,6 +6,7 @@
 #include <string>
 #include <utility>
 
+#include "cfg/device_file.hpp"
 #include "cfg/integer_literal.hpp"
 #include "nmt/device_state.hpp"
 
@@ -18,6 +19,20 @@ std::optional<std::vector<cfg::ObjectWrite>> NetworkSource::configuration(cfg::N
   const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
   if (found == nullptr) return std::nullopt;
   return found->writes;
+}
+
+std::optional<std::vector<std::uint8_t>> NetworkSource::concise_dcf(cfg::NodeId node) const {
+  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
+  if (found == nullptr) return std::nullopt;
+  return cfg::node_concise_dcf(*found);
+}
+
+cfg::Result<std::optional<std::string>> NetworkSource::dcf(cfg::NodeId node) const {
+  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
+  if (found == nullptr || !found->dcf) return std::optional<std::string>{};
+  auto text = cfg::read_file(found->file);
+  if (!text) return cfg::Error{found->file + ": " + text.error().message, text.error().category};
+  return std::optional<std::string>{std::string(text->view())};
 }
 
 namespace {

@@ -25,6 +25,13 @@ class NetworkSource final : public nmt::ConfigurationSource {
   explicit NetworkSource(std::shared_ptr<const cfg::Network> network);
   /// The node's writes; nullopt for a node the network has no file for.
   std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override;
+  /// The node's concise DCF as `cfgmgr build` writes it (cfg::node_concise_dcf), the master's
+  /// 1F22h for a node with nothing stored; nullopt for a node the network has no file for.
+  std::optional<std::vector<std::uint8_t>> concise_dcf(cfg::NodeId node) const override;
+  /// The node's DCF file as it is on disk now (read at each call: nothing is kept in memory),
+  /// the master's 1F20h for a node with nothing stored; nullopt for a node given by a concise
+  /// DCF alone or not in the network; an error (naming the file) when it cannot be read.
+  cfg::Result<std::optional<std::string>> dcf(cfg::NodeId node) const override;
 
  private:
   std::shared_ptr<const cfg::Network> network_;

@@ -470,7 +470,9 @@ void add_store_command(CLI::App& app) {
   cmd->footer(std::string(
       "Actions (each with --store DIR, a store directory, or --bus URL --master N, the "
       "configuration manager of a running master such as cfgmgr master NETWORK --bus URL "
-      "--store DIR, over SDO: block transfer, segmented when the master has none):\n"
+      "[--store DIR], over SDO: block transfer, segmented when the master has none; a node "
+      "with nothing stored there reads the network's configuration, what the master "
+      "downloads):\n"
       "  put NODE FILE [--what dcf|concise|eds]   store FILE for NODE\n"
       "  get NODE [--what dcf|concise|eds] [-o FILE|--output FILE]   write what is stored "
       "(default: the concise DCF, to stdout)\n"

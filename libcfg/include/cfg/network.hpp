@@ -124,6 +124,12 @@ struct DeviceIdentity {
 };
 DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node);
 
+/// A node's concise DCF: its writes in the network's (PDO-safe) order as a DSP 302 §6.2 stream.
+/// The one encoding of a node's configuration: `cfgmgr build` writes it as nodeN.bin, the
+/// derived master's 1F26h/1F27h are its configuration_stamp, and the configuration manager
+/// (`cfgmgr master`) serves it as 1F22h sub node-ID when nothing is stored for the node.
+std::vector<std::uint8_t> node_concise_dcf(const NetworkNode& node);
+
 /// A valid 1020h/1F26h/1F27h date and time standing for a configuration: h = the 64-bit FNV-1a
 /// hash of `concise_dcf` (the stream encode_concise_dcf makes of the writes);
 /// days = 5844 + (h >> 32) mod 18263 (a day from 1 January 2000 to 31 December 2049, counted

@@ -112,10 +112,9 @@ SdoAbort NmtMaster::Impl::store_read(std::uint16_t index, std::uint8_t sub) {
     // The one owner's value (expected_configuration), also for a node the manager lacks.
     const auto stamp = expected_configuration(sub);
     value = u32_bytes(index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms);
-  } else if (index == obj::kConciseDcf && node && !options.manager->concise(*node) &&
-             !own_concise_dcf(sub).empty()) {
-    const auto own = own_concise_dcf(sub);
-    value.assign(own.begin(), own.end());
+  } else if (auto unstored = node ? unstored_read(index, *node) : std::nullopt) {
+    if (unstored->abort != SdoAbort::None) return unstored->abort;
+    value = std::move(unstored->data);
   } else {
     auto read = options.manager->read(index, sub);
     if (!read.ok()) return to_sdo_abort(read.abort);
@@ -124,6 +123,32 @@ SdoAbort NmtMaster::Impl::store_read(std::uint16_t index, std::uint8_t sub) {
   dict.set_bytes(index, sub, value);
   if (holds_files(index)) store_read_entry = {index, sub};
   return SdoAbort::None;
+}
+
+std::optional<NmtMaster::Impl::StoreValue> NmtMaster::Impl::unstored_read(std::uint16_t index,
+                                                                          cfg::NodeId node) const {
+  // "Stored, else the network" (nmt_master.hpp): a stored configuration takes the place of the
+  // source's, as in configuration_of.
+  if (options.manager->has_configuration(node)) return std::nullopt;
+  const ConfigurationSource* source = options.configurations.get();
+  if (index == obj::kConciseDcf) {
+    if (source != nullptr) {
+      if (auto stream = source->concise_dcf(node)) {
+        return StoreValue{SdoAbort::None, std::move(*stream)};
+      }
+    }
+    const auto own = own_concise_dcf(node.value());
+    if (own.empty()) return std::nullopt;  // DSP 302 §6.2 hint 2: the count-0 stream
+    return StoreValue{SdoAbort::None, {own.begin(), own.end()}};
+  }
+  if ((index != obj::kStoreDcf && index != obj::kStorageFormat) || source == nullptr) {
+    return std::nullopt;
+  }
+  auto text = source->dcf(node);
+  if (!text) return StoreValue{SdoAbort::CannotStoreOrTransfer, {}};
+  if (!*text) return std::nullopt;  // 0800 0024h, as the manager answers
+  if (index == obj::kStorageFormat) return StoreValue{SdoAbort::None, {cfg::kStorageFormatAscii}};
+  return StoreValue{SdoAbort::None, {(*text)->begin(), (*text)->end()}};
 }
 
 SdoAbort NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
@@ -136,10 +161,32 @@ SdoAbort NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
       return SdoAbort::CannotStoreOrTransfer;
     }
   }
-  const auto written = manager.write(index, sub, data);
+  auto written = manager.write(index, sub, data);
+  if (index == obj::kConfigureSlave) add_unstored_configurations(sub, written);
   if (!written.ok()) return to_sdo_abort(written.abort);
   if (index == obj::kConfigureSlave) return configure_slaves(sub, written.configure, now);
   return SdoAbort::None;
+}
+
+void NmtMaster::Impl::add_unstored_configurations(std::uint8_t sub,
+                                                  cfg::ConfigWrite& written) const {
+  // DSP 302 §6.4: 'conf' configures a node "with the stored configuration"; a node the manager
+  // stores nothing for has the source's (or the master DCF's) configuration, which the master
+  // downloads just the same (nmt_master.hpp), so 1F25h takes those nodes too.
+  const auto has_configuration = [this](std::uint8_t node) {
+    return configuration_of(node).has_value();
+  };
+  if (sub == cfg::kConfigureAllNodes && written.ok()) {
+    std::vector<cfg::NodeId> nodes;
+    for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {
+      const auto id = static_cast<std::uint8_t>(n);
+      if (is_slave(id) && has_configuration(id)) nodes.push_back(*cfg::NodeId::from(id));
+    }
+    written.configure = std::move(nodes);
+  } else if (written.abort == cfg::ConfigAbort::DataSetEmpty && cfg::is_node_id(sub) &&
+             has_configuration(sub)) {
+    written = cfg::ConfigWrite{cfg::ConfigAbort::None, {}, {*cfg::NodeId::from(sub)}};
+  }
 }
 
 SdoAbort NmtMaster::Impl::configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes,

@@ -316,6 +316,17 @@ struct NmtMaster::Impl {
   /// values apply).
   std::optional<cfg::ConfigurationStamp> stored_stamp(std::uint8_t node) const;
   SdoAbort store_read(std::uint16_t index, std::uint8_t sub);
+  /// A read's value, or the abort that answers it.
+  struct StoreValue {
+    SdoAbort abort = SdoAbort::None;
+    std::vector<std::uint8_t> data;
+  };
+  /// 1F20h-1F22h of a node the manager stores no configuration for: the configuration source's
+  /// concise DCF and DCF, else the master DCF's own 1F22h (nmt_master.hpp). nullopt: the
+  /// manager's answer applies.
+  std::optional<StoreValue> unstored_read(std::uint16_t index, cfg::NodeId node) const;
+  /// 1F25h: the nodes with a configuration that is not stored join the manager's answer.
+  void add_unstored_configurations(std::uint8_t sub, cfg::ConfigWrite& written) const;
   SdoAbort store_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                        TimePoint now);
   /// 1F25h: boot (and download to) every slave the manager named.

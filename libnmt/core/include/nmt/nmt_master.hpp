@@ -103,13 +103,18 @@
 //   1F23h, and reads them back; an empty 1F22h reads as the count-0 stream (§6.2). 1F25h sub
 //   node-ID (80h: every node with a configuration) = 'conf' starts boot NMT slave for that slave
 //   with a download even when its 1020h matches ("request re-configuration", §6.4); 0800 0024
-//   when nothing is stored, 0800 0000 for a node that is not a slave in 1F81h (sub 80h skips
-//   those), 0800 0022 while this device is not the active master (a standby flying master). Owner
+//   when the node has no configuration (below), 0800 0000 for a node that is not a slave in
+//   1F81h (sub 80h skips those), 0800 0022 while this device is not the active master (a
+//   standby flying master). Owner
 //   of 1F26h/1F27h: for a node the manager holds anything for (a configuration or a stamp), the
 //   manager's values; for other nodes the dictionary's (the master DCF's). SDO reads, SDO writes
 //   and check configuration all use that one value; a write goes to the manager, which then holds
 //   the node. A configuration comes from the manager when it holds one for the node, else as
-//   without a manager.
+//   without a manager; SDO reads of 1F20h-1F22h follow that rule ("stored, else the network"):
+//   for a node the manager has no configuration for, 1F22h reads MasterOptions::configurations'
+//   concise_dcf(), else the master DCF's own 1F22h, else the count-0 stream, and 1F20h/1F21h its
+//   dcf(), so that a tool reads what the master downloads. 1F25h 'conf' configures every slave
+//   with a configuration from any of them (sub 80h: all of them).
 // - SDO manager (DSP 302 §7; MasterOptions::sdo_manager, or a master DCF that has 1F00h): it
 //   works only while this device is the active master (active_master() is its own node-ID); a
 //   standby flying master ignores the Dynamic SDO Request (6E0h) and refuses 1F00h/1F01h with
@@ -385,6 +390,18 @@ class ConfigurationSource {
   /// (status H when an update is needed).
   virtual std::optional<std::vector<std::uint8_t>> program(cfg::NodeId /*node*/) const {
     return std::nullopt;
+  }
+  /// What the configuration manager's 1F22h sub node-ID reads for a node the manager stores no
+  /// configuration for (DSP 302 §6.2): the concise DCF stream of configuration(), in the order
+  /// the source gives it out. nullopt: none (the master DCF's own 1F22h, else the count-0 stream).
+  virtual std::optional<std::vector<std::uint8_t>> concise_dcf(cfg::NodeId /*node*/) const {
+    return std::nullopt;
+  }
+  /// What 1F20h sub node-ID reads for such a node (DSP 302 §6.1): the text of the DCF the
+  /// configuration comes from. nullopt: the source has no DCF for the node (0800 0024h); an
+  /// error: it has one that cannot be read now (0800 0020h, the message says why).
+  virtual cfg::Result<std::optional<std::string>> dcf(cfg::NodeId /*node*/) const {
+    return std::optional<std::string>{};
   }
 };
 
