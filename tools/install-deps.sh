@@ -10,6 +10,8 @@ packages=(
   zlib1g-dev libcli11-dev libmsgpack-dev libpcap-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # bench_ini_vs_inih: our INI scanner against inih, which the product's first plan named
+  libinih-dev
   # install tier: Debian packages with CPack (dpkg-shlibdeps, file), man pages rendered
   dpkg-dev file man-db
   # fuzzing (libFuzzer ships with clang's runtime) and the sanitizer build
