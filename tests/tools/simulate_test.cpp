@@ -256,6 +256,51 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
   EXPECT_EQ(static_cast<unsigned char>(pcap[20]), 227);
 }
 
+TEST(SimulateInNetns, AnswersTheIdentityOfItsFileWhere1018hHasNoValue) {
+  // tests/data/network/nodes/drive_node3.dcf has 1018h sub 1 only; its [DeviceInfo] says
+  // ProductNumber 0x00000402 and RevisionNumber 0x00020004. The device answers those in 1018h
+  // sub 2/3, as a `sim:` device of the same file and the real device do, so a master derived
+  // from the file accepts it (without them it ends the boot with status M/N).
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string url = "udp://239.74.163.2:43173";
+  auto opened = nmt::open_bus(url);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  auto bus = std::move(opened).value();
+  Simulator sim({"--bus", url, tool_test::test_network("nodes/drive_node3.dcf") + "@3"},
+                dir / "out.txt", dir / "err.txt");
+  ASSERT_TRUE(sim.started());
+
+  nmt::BusEventLoop loop(*bus);
+  Script script;
+  nmt::SdoClient client(nmt::SdoClientConfig::for_node(3));
+  std::map<nmt::SdoClient::TransferId, nmt::SdoResult> results;
+  nmt::EngineRef script_ref(script);
+  nmt::EngineRef client_ref(client,
+                            [&](const nmt::SdoResult& r, nmt::TimePoint) { results[r.id] = r; });
+  loop.add(script_ref);
+  loop.add(client_ref);
+  const auto run_until = [&](const std::function<bool()>& done, nmt::Duration limit) {
+    const auto end = loop.now() + limit;
+    while (!done() && loop.now() < end) ASSERT_TRUE(loop.run_for(10ms).ok());
+  };
+  run_until([&] { return script.count("703#00") == 1; }, 5s);
+  ASSERT_EQ(script.count("703#00"), 1u) << tool_test::slurp(dir / "err.txt");
+  const auto read_u32 = [&](std::uint8_t sub) -> std::optional<std::vector<std::uint8_t>> {
+    const auto id =
+        client_ref.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+          return c.upload(0x1018, sub, now, out);
+        });
+    run_until([&] { return results.contains(id); }, 3s);
+    if (!results.contains(id) || !results[id].ok()) return std::nullopt;
+    return results[id].data;
+  };
+  EXPECT_EQ(read_u32(1), (std::vector<std::uint8_t>{0xBC, 0x0A, 0x00, 0x00}));  // 1018h sub 1
+  EXPECT_EQ(read_u32(2), (std::vector<std::uint8_t>{0x02, 0x04, 0x00, 0x00}));  // ProductNumber
+  EXPECT_EQ(read_u32(3), (std::vector<std::uint8_t>{0x04, 0x00, 0x02, 0x00}));  // RevisionNumber
+  EXPECT_EQ(sim.stop(SIGINT, 3000ms), 0);
+}
+
 TEST(SimulateInNetns, ForEndsTheRunByItself) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;

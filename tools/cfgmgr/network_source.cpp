@@ -116,6 +116,16 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
   return options;
 }
 
+nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId node,
+                                   nmt::DeviceFaults faults) {
+  const cfg::DeviceIdentity identity = cfg::identity_of(file, node);
+  faults.device_type = identity.device_type;
+  faults.vendor_id = identity.vendor_id;
+  faults.product_code = identity.product_code;
+  faults.revision_number = identity.revision_number;
+  return faults;
+}
+
 cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
     const cfg::Network& network, const SimBusOptions& options, std::vector<cfg::NodeId>* skipped) {
   nmt::DeviceFaults faults;
@@ -128,15 +138,8 @@ cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
       if (skipped != nullptr) skipped->push_back(node.node_id);
       continue;
     }
-    // The device answers the identity its DCF says, [DeviceInfo] where 1018h has no value,
-    // as the real device would (and as the derived master expects it).
-    const cfg::DeviceIdentity identity = cfg::identity_of(*node.dcf, node.node_id);
-    nmt::DeviceFaults device_faults = faults;
-    device_faults.device_type = identity.device_type;
-    device_faults.vendor_id = identity.vendor_id;
-    device_faults.product_code = identity.product_code;
-    device_faults.revision_number = identity.revision_number;
-    auto device = nmt::SimulatedDevice::create(*node.dcf, node.node_id.value(), device_faults);
+    auto device = nmt::SimulatedDevice::create(*node.dcf, node.node_id.value(),
+                                               with_identity_of(*node.dcf, node.node_id, faults));
     if (!device) {
       return cfg::Error{node.file + ": error: cannot simulate node " +
                         std::to_string(node.node_id.value()) + ": " + device.error().message};

@@ -55,6 +55,13 @@ bool is_sim_url(std::string_view url);
 /// or out of range.
 cfg::Result<SimBusOptions> parse_sim_url(std::string_view url);
 
+/// `faults` with the identity a device built from `file` answers at node `node`: its 1000h and
+/// 1018h sub 1-4, [DeviceInfo] where 1018h has no value (cfg::identity_of), as the real device
+/// would and as a master derived from the same file expects. `sim:` and `cfgmgr simulate` both
+/// build their devices with it.
+nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId node,
+                                   nmt::DeviceFaults faults);
+
 /// One simulated device for each node of the network that has a DCF (a node given only by a
 /// concise DCF has no dictionary to simulate: it is left out, and `skipped` gets its node-ID),
 /// with the SDO latency of `options`, answering the identity cfg::identity_of gives (its DCF's

@@ -17,6 +17,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/node_id.hpp"
 #include "commands.hpp"
+#include "network_source.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/simulated_device.hpp"
@@ -120,14 +121,21 @@ void run_simulate(const SimulateOptions& options) {
                 << "@ID) or set NodeID in [DeviceComissioning]\n";
       exit_with(tools::kExitInputErrors);
     }
-    auto device = nmt::SimulatedDevice::create(*read.device, parsed->node_id, faults);
+    const std::uint8_t node_id = parsed->node_id ? *parsed->node_id : *read.device->node_id();
+    const auto node = cfg::NodeId::from(node_id);
+    if (!node) {
+      std::cerr << parsed->path << ": error: node-ID " << int{node_id} << " is not 1..127\n";
+      exit_with(tools::kExitInputErrors);
+    }
+    // The identity the file says, as `sim:` devices and the real device answer it.
+    auto device = nmt::SimulatedDevice::create(*read.device, node_id,
+                                               with_identity_of(*read.device, *node, faults));
     if (!device) {
       std::cerr << parsed->path << ": error: " << device.error().message << '\n';
       exit_with(tools::kExitInputErrors);
     }
-    const std::uint8_t node = device.value().node().node_id();
-    if (auto [it, inserted] = by_node.emplace(node, parsed->path); !inserted) {
-      std::cerr << "cfgmgr simulate: node-ID " << int{node} << " given twice (" << it->second
+    if (auto [it, inserted] = by_node.emplace(node_id, parsed->path); !inserted) {
+      std::cerr << "cfgmgr simulate: node-ID " << int{node_id} << " given twice (" << it->second
                 << " and " << parsed->path << ")\n";
       exit_with(tools::kExitUsage);
     }
