@@ -23,8 +23,6 @@ namespace {
 using tool_test::cfgmgr;
 using tool_test::Json;
 using tool_test::json_lines;
-using tool_test::JsonParser;
-using tool_test::RunResult;
 using tool_test::ScratchDir;
 using tool_test::test_network;
 
