@@ -482,6 +482,154 @@ TEST(NmtMasterSpec, MandatorySlaveWithWrongDeviceTypeHaltsStartupWithoutRetry) {
   for (const auto& text : rig.nmt()) EXPECT_NE(text.substr(0, 6), "000#01") << text;
 }
 
+// §3.1 f stops "the process NMT startup", not the other slaves' processes boot NMT slave, which
+// §3.3 runs "asynchronously to other processes": three mandatory slaves, node 2 with another
+// device type (status C, 1000h against 1F84h), node 3 with another vendor-ID (D, 1018h sub 1
+// against 1F85h), node 4 as expected. Each gets its own verdict; start-up halts once all are in
+// (header), so no slave is started (1F80h bit 1 clear: §3.4 l waits for §3.1 h) and the master
+// stays pre-operational.
+TEST(NmtMasterSpec, EveryMandatorySlaveBootsToItsOwnEndWhenAnotherFailsAndNoneIsStarted) {
+  MasterRig rig;
+  for (const std::uint8_t node : {std::uint8_t{2}, std::uint8_t{3}, std::uint8_t{4}})
+    rig.assign(node, kSlave | kBoot | kMandatory);
+  set_value(rig.master, 0x1F84, 4, kDeviceType);
+  set_value(rig.master, 0x1F85, 4, kVendor);
+  rig.configurations->writes[4] = {write_of(0x2000, 0, 25, 2)};
+  rig.add_slave(2, fault([](DeviceFaults& f) { f.device_type = 0x00020191; }));
+  rig.add_slave(3, fault([](DeviceFaults& f) { f.vendor_id = 0x0000ABCE; }));
+  rig.add_slave(4);
+  auto& master = rig.power_on_network();
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupHalted, 10s));
+  rig.run_for(2s);
+
+  const auto errors2 = rig.boot_errors(2);
+  const auto errors3 = rig.boot_errors(3);
+  ASSERT_EQ(errors2.size(), 1U);
+  ASSERT_EQ(errors3.size(), 1U);
+  EXPECT_EQ(errors2.front().error, BootError::C);
+  EXPECT_EQ(errors3.front().error, BootError::D);
+  EXPECT_TRUE(errors2.front().final);
+  EXPECT_TRUE(errors3.front().final);
+  // Node 4 was identified, configured and saved though nodes 2 and 3 had failed before.
+  const auto booted4 = rig.booted(4);
+  ASSERT_EQ(booted4.size(), 1U);
+  EXPECT_TRUE(booted4.front().configured);
+  EXPECT_TRUE(rig.boot_errors(4).empty());
+  EXPECT_EQ(rig.device_value(4, 0x2000, 0), 25U);
+  EXPECT_GT(booted4.front().at, errors2.front().at);
+  // One halt, after every verdict, naming both failures.
+  const auto halted = rig.events_of(Kind::StartupHalted);
+  ASSERT_EQ(halted.size(), 1U);
+  EXPECT_GE(halted.front().at, booted4.front().at);
+  EXPECT_EQ(halted.front().node_id, 2);
+  EXPECT_EQ(halted.front().error, BootError::C);
+  EXPECT_NE(halted.front().text.find("node 2"), std::string::npos) << halted.front().text;
+  EXPECT_NE(halted.front().text.find("node 3"), std::string::npos) << halted.front().text;
+  EXPECT_EQ(master.startup_state(), StartupState::Halted);
+  EXPECT_EQ(master.state(), NmtState::PreOperational);
+  EXPECT_TRUE(rig.events_of(Kind::StartupComplete).empty());
+  for (const auto& text : rig.nmt()) EXPECT_NE(text.substr(0, 6), "000#01") << text;
+  EXPECT_EQ(rig.slave(4).node().state(), NmtState::PreOperational);
+}
+
+// §3.3: a mandatory slave that does not answer (B) is tried until 1F89h boot time (here 3 s) has
+// elapsed, "then the application shall be informed". The other mandatory slaves are configured
+// meanwhile, long before, and not started (header: no slave is started while start-up runs), so
+// the halt that follows leaves the whole network pre-operational.
+TEST(NmtMasterSpec, AbsentMandatorySlaveIsBAfterBootTimeWhileTheOthersAreConfiguredNotStarted) {
+  MasterRig rig;
+  for (const std::uint8_t node : {std::uint8_t{2}, std::uint8_t{3}, std::uint8_t{4}})
+    rig.assign(node, kSlave | kBoot | kMandatory);
+  set_value(rig.master, 0x1F89, 0, 3000);  // ms
+  rig.configurations->writes[2] = {write_of(0x2000, 0, 25, 2)};
+  rig.configurations->writes[4] = {write_of(0x2000, 0, 26, 2)};
+  rig.add_slave(2);
+  rig.add_slave(3, absent_device());
+  rig.add_slave(4);
+  auto& master = rig.power_on_network();
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupHalted, 20s));
+  rig.run_for(2s);
+
+  for (const std::uint8_t node : {std::uint8_t{2}, std::uint8_t{4}}) {
+    SCOPED_TRACE("node " + std::to_string(node));
+    const auto booted = rig.booted(node);
+    ASSERT_EQ(booted.size(), 1U);
+    EXPECT_TRUE(booted.front().configured);
+    EXPECT_LT(booted.front().at - rig.started_at, 1500ms);
+    EXPECT_EQ(rig.slave(node).node().state(), NmtState::PreOperational);
+  }
+  EXPECT_EQ(rig.device_value(2, 0x2000, 0), 25U);
+  EXPECT_EQ(rig.device_value(4, 0x2000, 0), 26U);
+  const auto errors3 = rig.boot_errors(3);
+  ASSERT_FALSE(errors3.empty());
+  EXPECT_EQ(errors3.back().error, BootError::B);
+  EXPECT_TRUE(errors3.back().final);
+  EXPECT_GE(errors3.back().at - rig.started_at, 3000ms);
+  const auto halted = rig.events_of(Kind::StartupHalted);
+  ASSERT_EQ(halted.size(), 1U);
+  EXPECT_EQ(halted.front().node_id, 3);
+  EXPECT_EQ(halted.front().error, BootError::B);
+  EXPECT_GE(halted.front().at, errors3.back().at);
+  EXPECT_EQ(master.startup_state(), StartupState::Halted);
+  EXPECT_EQ(master.state(), NmtState::PreOperational);
+  for (const auto& text : rig.nmt()) EXPECT_NE(text.substr(0, 6), "000#01") << text;
+}
+
+// Header: with 1F80h bit 1 clear, a slave that booted while start-up ran is started (§3.4 l)
+// only at §3.1 h, once every mandatory slave booted and the master entered operational. Node 3
+// (mandatory) answers each SDO request 100 ms late, so node 2 boots first.
+TEST(NmtMasterSpec, WithBit1ClearSlavesAreStartedOnceEveryMandatorySlaveBooted) {
+  MasterRig rig;
+  rig.assign(3, kSlave | kBoot | kMandatory);
+  auto& master = rig.two_slaves(fault([](DeviceFaults& f) { f.sdo_latency = 100ms; }));
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
+  rig.run_for(100ms);
+
+  const auto booted2 = rig.booted(2);
+  const auto booted3 = rig.booted(3);
+  ASSERT_EQ(booted2.size(), 1U);
+  ASSERT_EQ(booted3.size(), 1U);
+  ASSERT_LT(booted2.front().at, booted3.front().at) << "node 2 should boot first";
+  const auto commands = rig.nmt_seen();
+  for (const char* start : {"000#0102", "000#0103"}) {
+    const auto it = std::find_if(commands.begin(), commands.end(),
+                                 [&](const Seen& s) { return s.text() == start; });
+    ASSERT_NE(it, commands.end()) << start;
+    EXPECT_GE(it->at, booted3.front().at) << start;
+  }
+  EXPECT_EQ(rig.count_nmt("000#0100"), 0U);
+  EXPECT_EQ(master.state(), NmtState::Operational);
+  EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
+  EXPECT_EQ(rig.slave(3).node().state(), NmtState::Operational);
+}
+
+// Header: with 1F89h = 0 a mandatory slave that does not answer is tried without end (§6.11);
+// when another mandatory slave failed for good, start-up halts without waiting for it, and it is
+// still tried afterwards.
+TEST(NmtMasterSpec, HaltDoesNotWaitForAMandatorySlaveTriedWithoutEnd) {
+  MasterRig rig;
+  rig.assign(2, kSlave | kBoot | kMandatory);
+  rig.assign(3, kSlave | kBoot | kMandatory);
+  rig.add_slave(2, fault([](DeviceFaults& f) { f.device_type = 0x00020191; }));
+  rig.add_slave(3, absent_device());
+  auto& master = rig.power_on_network();
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupHalted, 10s));
+  const TimePoint halted_at = rig.bus.now();
+  rig.run_for(3s);
+
+  const auto halted = rig.events_of(Kind::StartupHalted);
+  ASSERT_EQ(halted.size(), 1U);
+  EXPECT_EQ(halted.front().node_id, 2);
+  EXPECT_EQ(halted.front().error, BootError::C);
+  EXPECT_EQ(halted.front().text.find("node 3"), std::string::npos) << halted.front().text;
+  ASSERT_FALSE(rig.boot_errors(3).empty());
+  EXPECT_EQ(rig.boot_errors(3).front().error, BootError::B);
+  EXPECT_FALSE(rig.boot_errors(3).back().final);
+  EXPECT_FALSE(rig.uploads_of(3, 0x1000, 0, halted_at + 1ms).empty()) << "no longer tried";
+  EXPECT_EQ(master.startup_state(), StartupState::Halted);
+  for (const auto& text : rig.nmt()) EXPECT_NE(text.substr(0, 6), "000#01") << text;
+}
+
 // Header: boot NMT slave begins at the slave's boot-up message after the reset communication, or
 // boot_up_wait after the reset when none comes.
 TEST(NmtMasterSpec, BootOfSlaveBeginsWithItsBootUpMessage) {

@@ -235,6 +235,22 @@ inline std::string master_dcf(const NetworkSpec& spec) {
   return w.text();
 }
 
+/// Three mandatory slaves (1F81h = 0Dh) of whom the master DCF expects at node 1 another device
+/// type (CiA 302-2 Table 1 status C, 1000h against 1F84h) and at node 2 another vendor-ID (D,
+/// 1018h sub 1 against 1F85h); node 3 is as expected.
+inline NetworkSpec wrong_type_and_vendor() {
+  NetworkSpec spec;
+  spec.nodes = 3;
+  spec.master_dcf = true;
+  Identity other = spec.identity;
+  other.device_type = 0x000F0192;
+  spec.expected[1] = other;
+  other = spec.identity;
+  other.vendor_id = 0x00000BAD;
+  spec.expected[2] = other;
+  return spec;
+}
+
 /// Writes the network into `dir`: nodelist.cpj, node<N>.dcf, and master.dcf when asked for.
 /// Returns the project file's path.
 inline std::string write_network(const std::filesystem::path& dir, const NetworkSpec& spec) {

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "generated_network.hpp"
 #include "multicast_netns.hpp"
 #include "test_paths.hpp"
 #include "tool_test_support.hpp"
@@ -22,8 +23,6 @@ namespace {
 using tool_test::cfgmgr;
 using tool_test::Json;
 using tool_test::json_lines;
-using tool_test::JsonParser;
-using tool_test::RunResult;
 using tool_test::ScratchDir;
 using tool_test::test_network;
 
@@ -112,6 +111,37 @@ TEST(Master, MandatorySlaveWithAnotherVendorIdGivesStatusDAndHaltsStartup) {
   EXPECT_TRUE(errors.back()->get("final")->boolean);
   EXPECT_FALSE(errors.back()->get("description")->string.empty());
   EXPECT_EQ(events_of(lines, "startup_halted").size(), 1U);
+}
+
+TEST(Master, EveryMandatorySlaveIsBootedToItsOwnEndBeforeStartupHalts) {
+  // CiA 302-2 §3.1 f stops NMT start-up, not the other slaves' boots (§3.3): node 1 expected
+  // with another device type (C), node 2 with another vendor-ID (D), node 3 as it is, all
+  // mandatory (1F81h = 0Dh). The events give each its result, then one startup_halted; no
+  // slave is started and the master does not go operational.
+  ScratchDir dir;
+  const std::string cpj =
+      generated::write_network(dir.path() / "net", generated::wrong_type_and_vendor());
+  const std::string events = dir / "events.jsonl";
+  auto r = cfgmgr(dir, {"master", cpj, "--bus", "sim:", "--json-events", events});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  const auto lines = json_lines(events);
+  std::map<int, std::string> letters;
+  for (const Json* e : events_of(lines, "boot_error")) {
+    EXPECT_TRUE(e->get("final")->boolean);
+    letters[node_of(*e)] = e->get("error")->string;
+  }
+  EXPECT_EQ(letters, (std::map<int, std::string>{{1, "C"}, {2, "D"}}));
+  const auto booted = events_of(lines, "slave_booted");
+  ASSERT_EQ(booted.size(), 1U) << tool_test::slurp(events);
+  EXPECT_EQ(node_of(*booted.front()), 3);
+  EXPECT_TRUE(booted.front()->get("configured")->boolean);
+  const auto halted = events_of(lines, "startup_halted");
+  ASSERT_EQ(halted.size(), 1U) << tool_test::slurp(events);
+  EXPECT_GT(halted.front(), booted.front()) << "the halt comes after node 3's result";
+  for (const Json* e : events_of(lines, "nmt_command_sent")) {
+    EXPECT_NE(e->get("command")->string, "start") << e->get("text")->string;
+  }
+  EXPECT_TRUE(events_of(lines, "startup_complete").empty());
 }
 
 TEST(Master, RunForBoundsTheSimulatedRun) {

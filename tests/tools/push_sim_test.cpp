@@ -3,8 +3,10 @@
 // and the error paths with their CiA 302-2 status letters (Table 1).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
@@ -25,6 +27,138 @@ using tool_test::ScratchDir;
 // The entries of a node's concise DCF as dcf2concise writes it: what the master downloads.
 std::size_t concise_entries(const ScratchDir& dir, const std::string& dcf) {
   return push_test::concise_of(dir, dcf).entries;
+}
+
+// The frames of a candump log (`(time) can0 ID#DATA`), as candump text.
+std::vector<std::string> candump_frames(const std::string& path) {
+  std::istringstream lines(tool_test::slurp(path));
+  std::string line;
+  std::vector<std::string> frames;
+  while (std::getline(lines, line)) {
+    const auto space = line.rfind(' ');
+    if (space != std::string::npos) frames.push_back(line.substr(space + 1));
+  }
+  return frames;
+}
+
+struct HaltedPush {
+  tool_test::RunResult result;
+  Json report;                      // --json
+  std::vector<std::string> frames;  // --candump
+};
+
+// push of `spec` on sim: with `args`, which a mandatory node's failure makes exit 4 with ok false.
+HaltedPush push_halted(const ScratchDir& dir, const generated::NetworkSpec& spec,
+                       std::vector<std::string> args) {
+  const std::string cpj = generated::write_network(dir.path() / "net", spec);
+  const std::string report = dir / "report.json";
+  const std::string log = dir / "boot.log";
+  args.insert(args.begin(), {"push", cpj, "--bus", "sim:", "--json", report, "--candump", log});
+  HaltedPush run{cfgmgr(dir, args), parse_json(report), candump_frames(log)};
+  EXPECT_EQ(run.result.exit_code, 4) << run.result.err;
+  EXPECT_FALSE(run.report.get("ok")->boolean);
+  return run;
+}
+
+// The table push prints: the lines up to the first empty one (the details follow it).
+std::vector<std::string> table_lines(const std::string& out) {
+  std::istringstream lines(out);
+  std::string line;
+  std::vector<std::string> table;
+  while (std::getline(lines, line) && !line.empty()) table.push_back(line);
+  return table;
+}
+
+// CiA 302-2 §3.1 f stops NMT start-up, not the other slaves' boots (§3.3: asynchronous): three
+// mandatory nodes (1F81h = 0Dh), node 1 expected with another device type (C: 1000h against
+// 1F84h), node 2 with another vendor-ID (D: 1018h sub 1 against 1F85h), node 3 as it is. Each
+// node's own result, exit 4, and no start remote node (000#01nn, CiA 301 §7.2.8.3.1) on the bus.
+TEST(PushSim, EachMandatoryNodeGetsItsOwnResultWhenOthersFailAndNoneIsStarted) {
+  ScratchDir dir;
+  const auto run = push_halted(dir, generated::wrong_type_and_vendor(), {});
+  const auto& r = run.result;
+  const auto nodes = nodes_of(run.report);
+  ASSERT_EQ(nodes.size(), 3U) << r.err;
+  EXPECT_EQ(nodes.at(1)->get("result")->string, "error");
+  EXPECT_EQ(nodes.at(1)->get("status")->string, "C");
+  EXPECT_EQ(nodes.at(2)->get("result")->string, "error");
+  EXPECT_EQ(nodes.at(2)->get("status")->string, "D");
+  EXPECT_EQ(nodes.at(3)->get("result")->string, "configured");
+  EXPECT_TRUE(nodes.at(3)->get("status")->is(Json::Kind::Null));
+  EXPECT_EQ(nodes.at(3)->get("entries")->number,
+            static_cast<double>(concise_entries(dir, (dir.path() / "net" / "node3.dcf").string())));
+  EXPECT_NE(std::find(run.frames.begin(), run.frames.end(), "000#8200"), run.frames.end());
+  for (const auto& f : run.frames) EXPECT_NE(f.substr(0, 6), "000#01") << f;
+  // stderr: each node's result, then the halt naming both failures.
+  const auto halt = r.err.find("NMT start-up halted");
+  ASSERT_NE(halt, std::string::npos) << r.err;
+  EXPECT_LT(r.err.find("node 3: booted, configured"), halt) << r.err;
+  EXPECT_NE(r.err.find("node 2", halt), std::string::npos) << r.err;
+  // The table: "error C", "error D", "configured" in the result column, the words under it.
+  const auto table = table_lines(r.out);
+  ASSERT_EQ(table.size(), 4U) << r.out;
+  EXPECT_NE(table[1].find("  error C  "), std::string::npos) << table[1];
+  EXPECT_NE(table[2].find("  error D  "), std::string::npos) << table[2];
+  EXPECT_NE(table[3].find("  configured  "), std::string::npos) << table[3];
+  EXPECT_NE(r.out.find("\nnode 1 (gen1): error C: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\nnode 2 (gen2): error D: "), std::string::npos) << r.out;
+}
+
+// §3.3: a mandatory node that does not answer is tried again until the boot time (1F89h,
+// --boot-time 3 s) has elapsed and then is status B; the others are configured meanwhile, and none
+// is started (the master starts no slave while start-up runs, nmt_master.hpp), exit 4.
+TEST(PushSim, AnAbsentMandatoryNodeIsBAfterTheBootTimeAndTheOthersAreConfigured) {
+  ScratchDir dir;
+  generated::NetworkSpec spec;
+  spec.nodes = 2;
+  spec.master_dcf = true;
+  spec.absent = {3};
+  const auto run = push_halted(dir, spec, {"--boot-time", "3"});
+  const auto& r = run.result;
+  const auto nodes = nodes_of(run.report);
+  ASSERT_EQ(nodes.size(), 3U) << r.err;
+  for (int id : {1, 2}) {
+    EXPECT_EQ(nodes.at(id)->get("result")->string, "configured") << id;
+    EXPECT_LT(nodes.at(id)->get("seconds")->number, 3.0) << id;
+  }
+  EXPECT_EQ(nodes.at(3)->get("result")->string, "error");
+  EXPECT_EQ(nodes.at(3)->get("status")->string, "B");
+  EXPECT_GE(nodes.at(3)->get("seconds")->number, 3.0);
+  EXPECT_GE(nodes.at(3)->get("retries")->number, 1.0);
+  EXPECT_GE(run.report.get("elapsed_s")->number, 3.0);
+  for (const auto& f : run.frames) EXPECT_NE(f.substr(0, 6), "000#01") << f;
+  EXPECT_NE(r.out.find("\nnode 3: error B: "), std::string::npos) << r.out;
+}
+
+// A node whose boot never reached its end gets a status that says so, never null: here the
+// master DCF's 1F80h bit 0 is clear (CiA 302-2 §3.1 a: not the NMT master), so no slave is
+// tried at all.
+TEST(PushSim, NodesNotTriedHaveAStatusAndWordsThatSaySo) {
+  ScratchDir dir;
+  generated::NetworkSpec spec;
+  spec.nodes = 2;
+  spec.master_dcf = true;
+  const std::string cpj = generated::write_network(dir.path() / "net", spec);
+  const auto master = dir.path() / "net" / "master.dcf";
+  std::string text = tool_test::slurp(master.string());
+  const std::string startup = "ParameterValue=0x00000001";
+  const auto at = text.find(startup, text.find("[1F80]"));
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, startup.size(), "ParameterValue=0x00000000");
+  { std::ofstream(master, std::ios::binary) << text; }
+  const std::string report = dir / "report.json";
+  auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:", "--json", report});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  const Json json = parse_json(report);
+  const auto nodes = nodes_of(json);
+  ASSERT_EQ(nodes.size(), 2U);
+  for (const auto& [id, n] : nodes) {
+    EXPECT_EQ(n->get("result")->string, "error") << id;
+    ASSERT_TRUE(n->get("status")->is(Json::Kind::String)) << id;
+    EXPECT_EQ(n->get("status")->string, "not_tried") << id;
+    EXPECT_EQ(n->get("message")->string, "not tried (1F80h is 0x00000000: not the NMT master)");
+  }
+  EXPECT_NE(r.out.find("error not_tried"), std::string::npos) << r.out;
 }
 
 TEST(PushSim, GeneratedNetworkOf126SlavesConfiguresEveryNode) {
@@ -223,6 +357,10 @@ TEST(PushSim, EveryErrorPathShowsItsLetterAndWords) {
     EXPECT_NE(r.out.find("error " + std::string(what.letter) + ": "), std::string::npos) << r.out;
   }
   EXPECT_EQ(nodes.at(6)->get("result")->string, "configured");
+  // The table fits 100 columns whatever the messages: the words are under it.
+  const auto table = table_lines(r.out);
+  ASSERT_EQ(table.size(), 8U) << r.out;
+  for (const auto& line : table) EXPECT_LE(line.size(), 100U) << line;
   // §3.3: after B a mandatory slave is tried again (every second here) until the boot time
   // (3 s) has elapsed; the other results came at their first try.
   EXPECT_GE(nodes.at(9)->get("retries")->number, 1.0);

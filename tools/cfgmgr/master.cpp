@@ -148,8 +148,10 @@ void add_master_command(CLI::App& app) {
       "outside 1..127 or of a slave)\n"
       "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
       "--json-events or the --store directory cannot be written\n"
-      "  4  NMT start-up halted: a mandatory slave failed its boot (CiA 302-2 section 3.1 f); on "
-      "sim: without --run-for also when start-up did not end within 60 s\n"));
+      "  4  NMT start-up halted: a mandatory slave failed its boot (CiA 302-2 section 3.1 f; the "
+      "others still boot to their own end, then start-up halts: no slave started, the master "
+      "stays pre-operational); on sim: without --run-for also when start-up did not end "
+      "within 60 s\n"));
   cmd->callback([options] { run_master(*options); });
 }
 

@@ -59,8 +59,11 @@ struct NodeReport {
   std::string name;
   bool mandatory = false;
   Result result = Result::Pending;
-  std::optional<char> status;
+  /// The CiA 302-2 Table 1 letter ("C"), or for a boot that did not end before the run did
+  /// "not_tried" (it never began) or "unfinished"; empty when configured or skipped.
+  std::string status;
   std::string message;
+  std::string last_try;     ///< "B: words" of the last try that failed and was repeated
   std::size_t entries = 0;  ///< configuration entries written (also when the boot then failed)
   std::size_t total = 0;    ///< entries to write, once the download was planned
   std::uint64_t bytes = 0;
@@ -149,6 +152,9 @@ class Collector {
 
   void observe(const nmt::MasterEvent& e) {
     using K = nmt::MasterEvent::Kind;
+    if (e.kind == K::StartupHalted || e.kind == K::NotMaster || e.kind == K::StartupRefused) {
+      stop_ = e.text;
+    }
     NodeReport* r = find(e.node_id);
     if (r == nullptr) return;
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
@@ -190,11 +196,13 @@ class Collector {
         // optional one forever: its first error is its result.
         if (!e.final && r->mandatory) {
           r->step = nmt::BootStep::RetryWait;
+          if (e.error)
+            r->last_try = std::string(1, nmt::letter(*e.error)) + ": " + error_message(e);
           break;
         }
         r->step = nmt::BootStep::Failed;
         r->result = Result::Error;
-        if (e.error) r->status = nmt::letter(*e.error);
+        if (e.error) r->status = std::string(1, nmt::letter(*e.error));
         r->message = error_message(e);
         r->ended = e.at;
         break;
@@ -208,13 +216,23 @@ class Collector {
                        [](const NodeReport& r) { return r.result != Result::Pending; });
   }
 
-  // Nodes still pending when the run ended (start-up halted by another node, or not a master).
-  void close(nmt::TimePoint now, bool halted) {
+  // Nodes whose boot had not ended when the run did: the run's bound, a signal, a device that
+  // is not the master. Start-up halted by another node leaves none (the master reports the halt
+  // once every slave's boot ended); should one remain, it says so too.
+  void close(nmt::TimePoint now) {
+    const std::string why = " (" + (stop_.empty() ? std::string("the run ended") : stop_) + ")";
     for (auto& r : nodes_) {
       if (r.result != Result::Pending) continue;
       r.result = Result::Error;
-      r.message = halted ? "not finished: NMT start-up halted" : "not booted before the run ended";
       r.ended = now;
+      if (!r.began) {
+        r.status = "not_tried";
+        r.message = "not tried" + why;
+        continue;
+      }
+      r.status = "unfinished";
+      r.message = "not finished" + why + " at step " + std::string(nmt::to_string(r.step));
+      if (!r.last_try.empty()) r.message += "; its last try ended with status " + r.last_try;
     }
   }
 
@@ -228,6 +246,7 @@ class Collector {
     return nullptr;
   }
   std::vector<NodeReport> nodes_;
+  std::string stop_;  ///< the words of the event that ended start-up (halted, not master)
 };
 
 // The live view on a terminal: per node its NMT state, boot step, entries written of total,
@@ -356,23 +375,25 @@ double node_seconds(const NodeReport& r, nmt::TimePoint start) {
   return static_cast<double>((r.ended - from).count()) / 1e6;
 }
 
+// The result column: "configured", "skipped", "error C"; the words go under the table.
 std::string result_text(const NodeReport& r) {
-  if (r.result == Result::Error && r.status) {
-    return "error " + std::string(1, *r.status) + ": " + r.message;
-  }
-  if (r.result == Result::Error) return "error: " + r.message;
-  return r.message;
+  if (r.result == Result::Error && !r.status.empty()) return "error " + r.status;
+  return std::string(result_name(r.result));
 }
 
+// The table (node, name, result, entries, time) within 100 columns whatever the messages, then
+// one line per node whose result has words to it: "node 2 (io): error D: ...".
 void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
+  constexpr std::size_t kNameWidth = 32;  // longer names are cut ("...") in the table only
   std::size_t name_width = 4;
   std::size_t result_width = 6;
   for (const auto& r : nodes) {
-    name_width = std::max(name_width, r.name.size());
+    name_width = std::max(name_width, std::min(r.name.size(), kNameWidth));
     result_width = std::max(result_width, result_text(r).size());
   }
   const auto pad = [](std::string text, std::size_t width) {
-    text.resize(std::max(width, text.size()), ' ');
+    if (text.size() > width) text = text.substr(0, width - 3) + "...";
+    text.resize(width, ' ');
     return text;
   };
   std::cout << "node  " << pad("name", name_width) << "  " << pad("result", result_width)
@@ -387,6 +408,15 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
     std::cout << number << "  " << pad(r.name, name_width) << "  "
               << pad(result_text(r), result_width) << "  " << entries << "  " << seconds << '\n';
   }
+  bool first = true;
+  for (const auto& r : nodes) {
+    if (r.result != Result::Error) continue;
+    if (first) std::cout << '\n';
+    first = false;
+    std::cout << "node " << static_cast<int>(r.node_id)
+              << (r.name.empty() ? "" : " (" + r.name + ")") << ": " << result_text(r) << ": "
+              << r.message << '\n';
+  }
 }
 
 // The --json report (fixed keys of the configuration manager issue; "mandatory" added).
@@ -399,11 +429,11 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
   bool first = true;
   for (const auto& r : nodes) {
     std::snprintf(number, sizeof number, "%.6f", node_seconds(r, start));
+    const std::string status = r.status.empty() ? "null" : tools::json_string(r.status);
     out += std::string(first ? "" : ", ") + "{\"node_id\": " + std::to_string(r.node_id) +
            ", \"name\": " + tools::json_string(r.name) +
-           ", \"result\": " + tools::json_string(result_name(r.result)) + ", \"status\": " +
-           (r.status ? tools::json_string(std::string(1, *r.status)) : std::string("null")) +
-           ", \"message\": " + tools::json_string(r.message) +
+           ", \"result\": " + tools::json_string(result_name(r.result)) +
+           ", \"status\": " + status + ", \"message\": " + tools::json_string(r.message) +
            ", \"entries\": " + std::to_string(r.entries) +
            ", \"bytes\": " + std::to_string(r.bytes) +
            ", \"retries\": " + std::to_string(r.retries) + ", \"seconds\": " + number +
@@ -498,12 +528,14 @@ void run_push(const PushCliOptions& options) {
   limits.until_startup_ends = true;
   limits.bound_s = boot_time_s + kRunMarginS;
   limits.bound_hint = sim ? " of simulated time" : "";
+  // StartupHalted comes once every slave's boot ended (nmt_master.hpp), so each node has its
+  // own result by then.
   limits.settled = [&] { return reporter.halted() || collector.settled(); };
   const RunOutcome outcome =
       sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter, options.traces)
           : run_master_on_bus(std::move(master), options.bus, limits, reporter, options.traces);
   const nmt::Duration elapsed = outcome.elapsed;
-  collector.close(reporter.start() + elapsed, reporter.halted());
+  collector.close(reporter.start() + elapsed);
   if (view) {
     view->update(collector.nodes(), true);  // the last state, then the table in its place
     view->clear();
@@ -532,10 +564,13 @@ void add_push_command(CLI::App& app) {
       "error with its CiA 302-2 status letter");
   auto* bus = add_network_run_options(*cmd, *options);
   bus->description(bus->get_description() + ". Required unless --dry-run");
-  cmd->add_option("--json", options->json,
-                  "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
-                  "nodes [{node_id, name, result (configured/skipped/error), status (CiA 302-2 "
-                  "letter or null), message, entries, bytes, retries, seconds, mandatory}]")
+  cmd->add_option(
+         "--json", options->json,
+         "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
+         "nodes [{node_id, name, result (configured/skipped/error), status (with an error: "
+         "its CiA 302-2 letter, or not_tried / unfinished when its boot did not end "
+         "before the run did; null otherwise), message, entries, bytes, retries, "
+         "seconds, mandatory}]")
       ->type_name("FILE");
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "
@@ -577,8 +612,13 @@ void add_push_command(CLI::App& app) {
       "second): a progress bar, and per node its NMT state, boot step, entries written of "
       "total, bytes and retries (boot tries repeated). Otherwise events are printed one a line "
       "on stderr as cfgmgr master prints them. The table goes to stdout at the end: node, name, "
-      "result, entries (configuration writes, PDO-safe order; for an error, those written "
-      "before it), time (from the node's first boot step to its result).\n\n"
+      "result (configured, skipped, error X with the CiA 302-2 status letter), entries "
+      "(configuration writes, PDO-safe order; for an error, those written before it), time "
+      "(from the node's first boot step to its result); under it one line per error with its "
+      "words (\"node 2 (io): error D: ...\").\n\n"
+      "A mandatory node that fails halts NMT start-up (CiA 302-2 section 3.1 f): no node is "
+      "started and the master stays pre-operational, but every other node's boot still runs "
+      "to its own end, so one run reports each node's own result.\n\n"
       "While it runs, push is the network's configuration manager as cfgmgr master is (DSP "
       "302 section 6): 1F22h sub N reads the concise DCF it downloads to node N (as cfgmgr "
       "build writes it), 1F20h sub N the node's DCF, 1F26h/1F27h the stamps it compares with "
@@ -603,8 +643,9 @@ void add_push_command(CLI::App& app) {
       "node that is not in the network)\n"
       "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
       "--json cannot be written\n"
-      "  4  a mandatory node failed (NMT start-up halted, CiA 302-2 section 3.1 f), or start-up "
-      "did not end within the boot time + 60 s\n"));
+      "  4  a mandatory node failed (NMT start-up halted, CiA 302-2 section 3.1 f: no node "
+      "started; every node's result is still reported), or start-up did not end within the "
+      "boot time + 60 s\n"));
   cmd->callback([options] { run_push(*options); });
 }
 

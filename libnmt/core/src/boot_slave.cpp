@@ -404,12 +404,13 @@ void NmtMaster::Impl::error_control_started(std::uint8_t node, TimePoint now, Ou
 
 void NmtMaster::Impl::start_remote_node(std::uint8_t node, TimePoint now, Output& out) {
   const auto config = startup_config();
-  // §3.4 part 3 g-l.
+  // §3.4 part 3 g-l. While NMT start-up runs, no slave is started: §3.1 h starts them once every
+  // mandatory slave booted (finish_startup), and a halted start-up (§3.1 f) starts none.
   const bool operational =
       slaves[node].known_state == static_cast<std::uint8_t>(NmtState::Operational);
   const bool broadcast_later = config.start_all_nodes() && own_state != NmtState::Operational;
   if (!operational && !config.no_start_slaves() && !broadcast_later &&
-      startup != StartupState::Halted) {
+      startup == StartupState::Operational) {
     queue_nmt(NmtCommand::Start, node);
   }
   boot_succeeded(node, now, out);

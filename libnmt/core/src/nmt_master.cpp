@@ -586,31 +586,49 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
 }
 
 void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
-  bool all_done = true;
+  // §3.1 e-f. A mandatory slave's final error stops NMT start-up (the start of the network), not
+  // the other slaves' processes boot NMT slave, which §3.3 runs asynchronously: start-up ends
+  // (halted or not) once every slave's process has its verdict, so each slave gets its own.
+  const bool endless_boot_time = value_of(obj::kBootTime, 0) == 0;
+  bool all_ended = true;
+  bool mandatory_waiting = false;
+  std::vector<std::uint8_t> failed;  // mandatory slaves whose process ended with an error
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
     if (!is_slave(n)) continue;
     const auto& s = slaves[n];
     if (assignment(n).mandatory()) {
-      // §3.1 e-f: mandatory slaves must boot; an error that ends their process stops start-up.
       if (s.booted) continue;
       if (s.final_error && s.last_error) {
-        startup = StartupState::Halted;
-        auto e = master_event(MasterEvent::Kind::StartupHalted, now, n,
-                              "NMT start-up halted: mandatory " + node_text(n) +
-                                  " failed with status " + std::string(1, letter(*s.last_error)) +
-                                  " (" + std::string(describe(*s.last_error)) + ")");
-        e.error = s.last_error;
-        report(out, std::move(e));
-        return;
+        failed.push_back(n);
+      } else if (s.tried && s.last_error == BootError::B && endless_boot_time) {
+        // §3.3, 1F89h = 0: tried again without end. Its verdict (B) is in; start-up goes on
+        // only when it boots, but a start-up another slave halts need not wait for it.
+        mandatory_waiting = true;
+      } else {
+        all_ended = false;
       }
-      all_done = false;
     } else if (!s.tried) {
       // §3.3: optional slaves: wait for the signal that boot NMT slave was tried.
-      all_done = false;
+      all_ended = false;
     }
   }
-  if (!all_done) return;
+  if (!all_ended) return;
+  if (!failed.empty()) {
+    startup = StartupState::Halted;
+    std::string text = "NMT start-up halted: mandatory ";
+    for (std::size_t i = 0; i < failed.size(); ++i) {
+      const auto error = *slaves[failed[i]].last_error;
+      text += (i == 0 ? "" : ", ") + node_text(failed[i]) + (i == 0 ? " failed with" : " with") +
+              " status " + std::string(1, letter(error)) + " (" + std::string(describe(error)) +
+              ")";
+    }
+    auto e = master_event(MasterEvent::Kind::StartupHalted, now, failed.front(), text);
+    e.error = slaves[failed.front()].last_error;
+    report(out, std::move(e));
+    return;
+  }
+  if (mandatory_waiting) return;
   // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
   if (startup_config().no_auto_operational()) {
     startup = StartupState::AwaitApplication;
@@ -627,9 +645,10 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
   const auto config = startup_config();
   // §3.1 h: start all with node-ID 0 only when every slave booted (and none is kept alive:
   // a kept-alive slave was never reset, so a broadcast would not be what the start-up did);
-  // otherwise each booted slave that is not yet operational on its own.
-  if (!config.no_start_slaves() && config.start_all_nodes()) {
-    bool all_booted = true;
+  // otherwise each booted slave that is not yet operational on its own. With bit 1 clear these
+  // are the starts §3.4 l held back while start-up ran (start_remote_node).
+  if (!config.no_start_slaves()) {
+    bool all_booted = config.start_all_nodes();
     for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
       const auto n = static_cast<std::uint8_t>(node);
       if (!is_slave(n)) continue;

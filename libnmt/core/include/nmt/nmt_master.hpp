@@ -25,6 +25,22 @@
 // - Start process boot NMT slave (§3.3): an optional slave is tried again every
 //   MasterOptions::retry_interval after any error; a mandatory slave after status B while 1F89h
 //   boot time has not elapsed since start-up began (0: without end), and not after other errors.
+// - NMT start-up (§3.1 e-f) ends once every slave's start process has its verdict: each
+//   mandatory slave booted or ended with a final error, each optional one tried once, and a
+//   mandatory slave tried without end after B (1F89h = 0) counts as decided only when another
+//   mandatory slave failed. A mandatory slave's final error stops NMT start-up, the start of the
+//   network, not the other slaves' processes boot NMT slave (§3.3 runs them asynchronously):
+//   every slave is booted to its own end (configured, up to date or its own error status), and
+//   only then is StartupHalted reported, naming every mandatory slave that failed (node_id and
+//   error: the lowest of them). The BootError with `final` of a mandatory slave is the early
+//   sign that start-up will halt. A halted start-up leaves the master pre-operational and
+//   starts no slave.
+// - No slave is started while NMT start-up runs: with 1F80h bit 1 clear, the start remote node
+//   of §3.4 l for a slave that booted during start-up waits for §3.1 h, when every mandatory
+//   slave booted and the master entered operational (Table 21: a mandatory device "shall be
+//   present prior to network startup"); so the outcome of a halted start-up does not depend on
+//   which slave finished first. A slave that boots after start-up ended is started at the end
+//   of its boot (§3.4 l).
 // - Each SDO transfer of the boot is repeated up to MasterOptions::sdo_retries times when it
 //   times out (frame loss), so a lost frame costs one timeout, not a boot.
 // - All slaves boot at once, each slave's transfers in order. After the start-up's reset
@@ -270,7 +286,8 @@ enum class StartupState : std::uint8_t {
   Negotiating,       ///< NMT flying master start-up (§3.7): detection or negotiation running
   Standby,           ///< lost the flying master negotiation: an NMT slave watching the master
   BootingSlaves,     ///< start process boot NMT slave for every slave
-  Halted,            ///< a mandatory slave failed (§3.1 f): no start of the network
+  Halted,            ///< a mandatory slave failed (§3.1 f) and every slave's boot ended: no
+                     ///< start of the network
   AwaitApplication,  ///< 1F80h bit 2: the application calls enter_operational()
   Operational,       ///< start-up ended (§3.1 i): normal operation
 };
@@ -309,7 +326,8 @@ struct MasterEvent {
     BootStepChanged,           ///< node_id moved to `step`; Download also reports written/total
     SlaveBooted,               ///< boot NMT slave: status OK (`configured`: a download happened)
     BootError,                 ///< boot NMT slave: `error`; `final` when no try follows
-    StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f)
+    StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f);
+                               ///< reported once every slave's boot ended (see the top)
     StartupAwaitsApplication,  ///< 1F80h bit 2: every mandatory slave booted; call
                                ///< enter_operational() (§3.1 g)
     StartupComplete,           ///< NMT start-up ended (§3.1 i)
