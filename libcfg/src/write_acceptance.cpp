@@ -6,6 +6,7 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/cob_id.hpp"
+#include "cfg/download_order.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/object_address.hpp"
@@ -490,14 +491,29 @@ void check_download(const DeviceDescription& dcf, NodeId node, std::span<const O
   if (!built) return;  // a value that does not parse: the reader said so
   DeviceEntries& device = *built;
   const DeviceWriteRules rules{&dcf.dummy_usage};
+  // The writes as the master orders them (CiA 302-2 §3.5 d): a PDO whose COB-ID the writes do
+  // not carry gets the invalid/valid pair around its parameters with the COB-ID the master reads
+  // from the device (DSP 302 §6.2; an ro COB-ID refuses it).
+  const auto current_cob_id = [&device](std::uint16_t comm_index) -> std::optional<std::uint32_t> {
+    const DeviceEntry* e = find_entry(device, comm_index, 1);
+    const auto value = e != nullptr ? e->unsigned_value() : std::nullopt;
+    if (!value) return std::nullopt;
+    return static_cast<std::uint32_t>(*value);
+  };
+  std::set<std::uint32_t> configured;
+  for (const ObjectWrite& w : writes) configured.insert(ObjectAddress{w.index, w.sub_index}.key());
+  const std::vector<ObjectWrite> plan = pdo_safe_order(writes, current_cob_id);
   std::set<std::uint16_t> reported_mappings;
-  for (const ObjectWrite& w : writes) {
+  std::set<std::uint32_t> reported;
+  for (const ObjectWrite& w : plan) {
     const WriteVerdict verdict = check_device_write(device, rules, w.index, w.sub_index, w.data);
     if (verdict.accepted()) {
       auto it = device.find(ObjectAddress{w.index, w.sub_index}.key());
       if (it != device.end()) it->second.bytes = w.data;
       continue;
     }
+    // A second refusal of one entry (the master's COB-ID pair) says the same again.
+    if (!reported.insert(ObjectAddress{w.index, w.sub_index}.key()).second) continue;
     // After a refusal in a mapping, its count (which checks the entries again) and another
     // "not while the PDO is valid" say the same again.
     const auto pdo = obj::pdo_indices_of(w.index);
@@ -508,8 +524,11 @@ void check_download(const DeviceDescription& dcf, NodeId node, std::span<const O
     }
     if (mapping) reported_mappings.insert(w.index);
     std::string message(label);
-    message += to_string(ObjectAddress{w.index, w.sub_index}) + " = " + written_text(w.data) +
-               ": the download will be refused with SDO abort " + abort_text(verdict.code) + ": " +
+    message += to_string(ObjectAddress{w.index, w.sub_index}) + " = " + written_text(w.data);
+    if (!configured.contains(ObjectAddress{w.index, w.sub_index}.key())) {
+      message += " (the master's, to make the PDO invalid around its parameters)";
+    }
+    message += ": the download will be refused with SDO abort " + abort_text(verdict.code) + ": " +
                verdict.reason +
                " (a CiA 301 device refuses this write; some vendor devices are laxer)";
     diagnostics.add(file, line_of(dcf, w.index, w.sub_index), Severity::Warning,

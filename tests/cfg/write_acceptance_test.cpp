@@ -91,10 +91,10 @@ INSTANTIATE_TEST_SUITE_P(
         // "value of parameter written too high" against HighLimit=100.
         Refusal{"above_high_limit.dcf", "2002h sub 00h", "0609 0031", 352,
                 "above its HighLimit 100"},
-        // §7.5.2.38: the mapping may change only while the PDO is invalid; the COB-ID is const,
-        // so the download cannot make it invalid. The first write of the mapping is refused.
-        Refusal{"mapping_while_valid.dcf", "1A00h sub 00h", "0800 0022", 310,
-                "only while the PDO is invalid"},
+        // DSP 302 §6.2: the master makes TPDO 1 invalid (1800h sub 1 with bit 31) around its
+        // mapping; the COB-ID is const: "attempt to write a read only object".
+        Refusal{"mapping_while_valid.dcf", "1800h sub 01h", "0601 0002", 279,
+                "its access type is const", 2},
         // §7.5.2.38: entries only while sub-index 0 is 0; here it is ro and 1.
         Refusal{"entry_while_counted.dcf", "1A00h sub 01h", "0800 0022", 319,
                 "only while sub-index 0 is 0, and it is 1"},
@@ -103,6 +103,18 @@ INSTANTIATE_TEST_SUITE_P(
         // writes are refused.
         Refusal{"heartbeat_twice.dcf", "1016h sub 01h", "0604 0043", 96,
                 "already consumes the heartbeat of node 2", 2}));
+
+// §7.5.2.38: the mapping may change only while the PDO is invalid, which the refused COB-ID
+// write left it not: the first write of the mapping (sub 0 = 0, line 310) is refused too.
+TEST(DownloadCheck, AMappingWrittenWhileThePdoIsValidIsRefusedWith08000022) {
+  const cfg::Diagnostics d = download_findings("mapping_while_valid.dcf");
+  ASSERT_EQ(d.size(), 2U) << d.format();
+  const cfg::Diagnostic& found = d.items()[1];
+  EXPECT_EQ(found.line, 310);
+  EXPECT_EQ(found.message.rfind("1A00h sub 00h = 0x00: ", 0), 0U) << found.message;
+  EXPECT_THAT(found.message, HasSubstr("SDO abort 0800 0022"));
+  EXPECT_THAT(found.message, HasSubstr("only while the PDO is invalid"));
+}
 
 TEST(DownloadCheck, ADcfWhoseWritesADeviceAcceptsHasNoFinding) {
   // RPDO 1 and TPDO 1 remapped in the PDO-safe order (DSP 302 §6.2), 2002h within its limits,

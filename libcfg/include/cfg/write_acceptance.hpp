@@ -122,13 +122,15 @@ WriteVerdict check_device_write(const DeviceEntries& entries, const DeviceWriteR
                                 std::uint16_t index, std::uint8_t sub,
                                 std::span<const std::uint8_t> data);
 
-/// Runs a node's download through the device's rules: `writes` in their order (as the master
-/// sends them: concise_writes_from_dcf, PDO-safe) against a device built from `dcf` for `node`
+/// Runs a node's download through the device's rules: `writes` (concise_writes_from_dcf) in the
+/// order the master sends them (pdo_safe_order with the COB-IDs the device holds for PDOs the
+/// writes do not make invalid themselves) against a device built from `dcf` for `node`
 /// (device_entries), each accepted write changing the device's value as it would. Each refused
 /// write is a Warning at the line of the DCF value it comes from, naming the object, the value,
 /// the abort code and why, prefixed by `label` (e.g. "node 3 (axis): "): CiA 301 devices refuse
 /// it, so the download will fail there, though some vendor devices are laxer (a tool's strict
-/// mode makes it an error). A refused write leaves the device's value. After a refusal in a
+/// mode makes it an error). A refused write leaves the device's value; one entry is reported
+/// once. After a refusal in a
 /// PDO mapping, a refusal of its sub-index 0 or another 0800 0022 in it is not reported again
 /// (the same cause). A DCF whose values do not parse (the reader reported them) is not run.
 void check_download(const DeviceDescription& dcf, NodeId node, std::span<const ObjectWrite> writes,
