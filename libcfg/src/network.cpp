@@ -402,6 +402,16 @@ std::optional<std::uint32_t> configured_unsigned(const DeviceDescription& dcf, s
   return static_cast<std::uint32_t>(value->as_unsigned());
 }
 
+// True when a device built from `dcf` accepts 1020h sub 1 and 2 (DSP 302 §6.3 verify
+// configuration): both there and writable.
+bool has_verify_configuration(const DeviceDescription& dcf) {
+  for (const int sub : {1, 2}) {
+    const SubObject* s = dcf.sub(object::kVerifyConfiguration, static_cast<std::uint8_t>(sub));
+    if (s == nullptr || !is_writable(s->access)) return false;
+  }
+  return true;
+}
+
 // The value a node has after its configuration: the write of that entry, else the DCF's.
 std::optional<std::uint32_t> value_after_download(const NetworkNode& node, std::uint16_t index,
                                                   std::uint8_t sub_index) {
@@ -540,9 +550,14 @@ DeviceDescription derive_master(std::span<const NetworkNode> nodes) {
                                               SlaveAssignment::kMandatory,
                                           retry_factor, guard_time_ms)
                         .value;
-    const ConfigurationStamp stamp = configuration_stamp(node_concise_dcf(node));
-    date[x] = stamp.days;
-    time[x] = stamp.ms;
+    // CiA 302-2 §3.5 a: 0 = the configuration is not verified. A device whose DCF has no
+    // writable 1020h sub 1/2 refuses the master's 1020h writes after the download (0602 0000,
+    // 0601 0002): it is downloaded at every boot instead.
+    if (!node.dcf || has_verify_configuration(*node.dcf)) {
+      const ConfigurationStamp stamp = configuration_stamp(node_concise_dcf(node));
+      date[x] = stamp.days;
+      time[x] = stamp.ms;
+    }
     if (!node.dcf) continue;
     const DeviceIdentity identity = identity_of(*node.dcf, node.node_id);
     device_type[x] = identity.device_type.value_or(0);

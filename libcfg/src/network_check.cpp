@@ -13,6 +13,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
+#include "cfg/write_acceptance.hpp"
 
 namespace cfg {
 namespace {
@@ -181,7 +182,6 @@ class Checker {
                 {&m, pdo, cob->line});
           }
         }
-        mapping_of(m, pdo);
       }
     }
   }
@@ -240,61 +240,6 @@ class Checker {
   }
 
  private:
-  void mapping_of(const Member& m, const object::PdoIndices& pdo) {
-    if (m.dcf == nullptr) return;  // a concise DCF alone says nothing about mappability
-    const Object* mapping = m.dcf->object(pdo.mapping_index);
-    if (mapping == nullptr) return;
-    const auto count = value_of(m, pdo.mapping_index, 0);
-    for (const auto& [sub_index, sub] : mapping->subs) {
-      if (sub_index == 0) continue;
-      if (count && sub_index > count->value) break;
-      const auto entry = value_of(m, pdo.mapping_index, sub_index);
-      if (!entry || entry->value == 0) continue;
-      check_entry(m, pdo, sub_index, *entry);
-    }
-  }
-
-  void check_entry(const Member& m, const object::PdoIndices& pdo, std::uint8_t entry_sub,
-                   const Located& entry) {
-    const auto index = static_cast<std::uint16_t>(entry.value >> 16);
-    const auto sub_index = static_cast<std::uint8_t>(entry.value >> 8);
-    const unsigned bits = entry.value & 0xFFU;
-    const std::string where = m.label + " " + pdo_name(pdo) + " " +
-                              to_string(ObjectAddress{pdo.mapping_index, entry_sub}) + " = " +
-                              hex(entry.value, 8) + " maps " +
-                              to_string(ObjectAddress{index, sub_index});
-    // CiA 301 §7.4.7.1: an RPDO may map a data type index (0001h-0007h) as a dummy entry.
-    if (pdo.receive && index >= 0x0001 && index <= 0x0007) return;
-    const SubObject* target = m.dcf->sub(index, sub_index);
-    if (target == nullptr) {
-      diagnostics_.add(m.file, entry.line, Severity::Error,
-                       where + ", which the DCF does not have (the device aborts 0602 0000)");
-      return;
-    }
-    if (!target->pdo_mapping) {
-      diagnostics_.add(m.file, entry.line, Severity::Error,
-                       where + ", which is not mappable: PDOMapping=0 at " +
-                           at(m.file, target->line) + " (the device aborts 0604 0041)");
-      return;
-    }
-    // BOOLEAN may be mapped as one bit or as its byte; other fixed-size types with their size.
-    if (const auto type = target->basic_type(); type && *type != DataType::Boolean) {
-      const unsigned size_bits = data_type_info(*type).size_bytes * 8U;
-      if (size_bits != 0 && size_bits != bits) {
-        diagnostics_.add(m.file, entry.line, Severity::Warning,
-                         where + " with " + std::to_string(bits) + " bits, but its type " +
-                             std::string(data_type_info(*type).name) + " has " +
-                             std::to_string(size_bits));
-      }
-    }
-    if (pdo.receive ? !is_writable(target->access) : !is_readable(target->access)) {
-      diagnostics_.add(
-          m.file, entry.line, Severity::Warning,
-          where + ", whose access type " + std::string(to_string(target->access)) +
-              (pdo.receive ? " cannot be written by an RPDO" : " cannot be read for a TPDO"));
-    }
-  }
-
   Diagnostics& diagnostics_;
   // By COB-ID word of the identifier (frame format included).
   std::map<std::uint32_t, std::vector<Producer>> producers_;
@@ -326,6 +271,11 @@ void check_network(const Network& network, Diagnostics& diagnostics) {
     checker.pdos_of(m);
   }
   checker.clashes();
+  // Each node's own writes, as `cfgmgr check` runs a single DCF's (write_acceptance.hpp).
+  for (const auto& m : members) {
+    if (m.dcf == nullptr || m.writes == nullptr || !m.node_id) continue;
+    check_download(*m.dcf, *m.node_id, *m.writes, m.file, m.label + ": ", diagnostics);
+  }
 }
 
 }  // namespace cfg

@@ -1,7 +1,9 @@
 // cfgmgr check FILE...: read EDS/DCF files (CiA 306), check them against the CiA 301/302 object
 // definitions in schemas/, and print every diagnostic. Exit 0 when nothing is an error. A network
 // description (CiA 306-3 project file, or a master DCF with --network) is checked as a whole:
-// every node's DCF, and across nodes (cfg/network_check.hpp).
+// every node's DCF, and across nodes (cfg/network_check.hpp). A DCF's own download (a single file
+// as each node of a network) runs through the write rules of a CiA 301 device
+// (cfg/write_acceptance.hpp): a write the device will refuse is a warning, an error with --strict.
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
@@ -12,10 +14,12 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/network.hpp"
 #include "cfg/network_check.hpp"
 #include "cfg/schema.hpp"
+#include "cfg/write_acceptance.hpp"
 #include "commands.hpp"
 
 namespace cfgmgr {
@@ -77,6 +81,28 @@ bool has_topology_section(std::string_view text) {
     }
   }
   return false;
+}
+
+// The writes the file configures, as the master downloads them (concise_writes_from_dcf,
+// PDO-safe order), against a device built from the file: what a CiA 301 device would refuse
+// (cfg/write_acceptance.hpp). Needs the node-ID the DCF is for; a file whose writes cannot be
+// made (the reader or the node-ID warning said why) is not run. A master's DCF
+// (CANopenManager=1) configures the master itself, which no download configures: not run, as
+// the network check runs only the nodes'.
+void check_own_download(const cfg::DeviceDescription& device, const std::string& path,
+                        FileReport& report) {
+  if (device.commissioning && device.commissioning->canopen_manager.value_or(false)) return;
+  const auto id = device.node_id();
+  const auto node = id ? cfg::NodeId::from(*id) : std::nullopt;
+  if (!node) return;
+  cfg::ConciseOptions concise;
+  concise.node_id = node->value();
+  concise.base_dir = std::filesystem::path(path).parent_path().string();
+  concise.file_name = report.file;
+  cfg::Diagnostics ignored;  // dcf2concise's findings; the reader's are already in the report
+  const auto writes = cfg::concise_writes_from_dcf(device, concise, ignored);
+  if (!writes) return;
+  cfg::check_download(device, *node, *writes, report.file, "", report.diagnostics);
 }
 
 // The whole description: what load_network reports (unreadable node files and node-ID clashes
@@ -194,6 +220,7 @@ void run_check(const CheckOptions& options) {
                                "a DCF should give the node-ID in [DeviceComissioning] NodeID "
                                "(CiA 306)");
       }
+      check_own_download(*read.device, from_stdin ? std::string() : file, report);
     } else if (!report.diagnostics.has_errors()) {
       report.diagnostics.add(report.file, 0, cfg::Severity::Error, "not a device description");
     }
@@ -223,8 +250,10 @@ void add_check_command(CLI::App& app) {
   auto options = std::make_shared<CheckOptions>();
   auto* cmd = app.add_subcommand(
       "check",
-      "Read EDS/DCF files, check them against the CiA 301/302 object definitions, and print "
-      "every diagnostic (FILE:LINE: severity: message) on stderr");
+      "Read EDS/DCF files, check them against the CiA 301/302 object definitions and a DCF's "
+      "download against the write rules of a CiA 301 device (a write the device will refuse: a "
+      "warning naming the SDO abort code), and print every diagnostic (FILE:LINE: severity: "
+      "message) on stderr");
   cmd->add_option("files", options->files,
                   "EDS or DCF files ('-': stdin), or network descriptions: a CiA 306-3 project "
                   "file (.cpj, or any file with a [Topology] section) is checked as a whole")

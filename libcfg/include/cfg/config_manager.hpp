@@ -10,8 +10,8 @@
 // CRC-32, and a damaged file is reported and never used.
 //
 // SDO abort codes (CiA 301 §7.2.4.3.17) as this manager answers them; libcfg cannot use libnmt's
-// nmt::SdoAbort, so ConfigAbort carries the same numbers (an SDO server converts with
-// static_cast<nmt::SdoAbort>(static_cast<std::uint32_t>(abort))):
+// nmt::SdoAbort, so ConfigAbort (config_abort.hpp) carries the same numbers (an SDO server
+// converts with nmt::to_sdo_abort):
 //   0601 0001h  read of 1F25h (write only: it is a command)
 //   0601 0002h  write of sub-index 0 (NrOfEntries is read only)
 //   0602 0000h  an index that is not 1F20h-1F27h
@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "cfg/concise_dcf.hpp"
+#include "cfg/config_abort.hpp"
 #include "cfg/diagnostics.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
@@ -51,19 +52,6 @@ inline constexpr std::uint8_t kConfigureAllNodes = 0x80;
 inline constexpr std::uint8_t kStorageFormatAscii = 0;
 /// Milliseconds in a day: 1F27h/1020h sub 2 count ms after midnight.
 inline constexpr std::uint32_t kMsPerDay = 86'400'000;
-
-/// The CiA 301 SDO abort codes the manager answers with (see the table at the top).
-enum class ConfigAbort : std::uint32_t {
-  None = 0,
-  ReadOfWriteOnly = 0x06010001,
-  WriteOfReadOnly = 0x06010002,
-  ObjectDoesNotExist = 0x06020000,
-  LengthMismatch = 0x06070010,
-  SubIndexDoesNotExist = 0x06090011,
-  ValueRangeExceeded = 0x06090030,
-  CannotStoreOrTransfer = 0x08000020,
-  DataSetEmpty = 0x08000024,
-};
 
 /// The answer to an SDO upload: the value's bytes, or an abort code and why.
 struct ConfigRead {

@@ -107,7 +107,9 @@ NetworkLoad load_network(const std::string& path, const NetworkOptions& options 
 //    stays 0, as a serial number belongs to one device, not to its configuration;
 //  - 1F26h/1F27h sub X = configuration_stamp() of the node's writes as a concise DCF, so that
 //    any change of a downloaded value (or of the set of values) changes them and the next boot
-//    downloads again, while an unchanged configuration is skipped (1020h matches);
+//    downloads again, while an unchanged configuration is skipped (1020h matches); 0 (not
+//    verified: downloaded at every boot, 1020h not written) for a node whose DCF has no
+//    writable 1020h sub 1/2, which would refuse the master's 1020h writes;
 //  - 1016h: one heartbeat consumer entry per node whose 1017h (its writes' value, else the
 //    DCF's) is non-zero, with heartbeat_consumer_time_ms() of it.
 // Every array has sub-indices 0..127 (sub 0 = 7Fh), unused entries 0.

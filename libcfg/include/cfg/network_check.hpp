@@ -10,14 +10,12 @@
 //    and for the SDO manager's pool (1F02h, DSP 302 §7.2.3). A TPDO on an identifier a device of
 //    the network uses otherwise (its EMCY 1014h, SYNC 1005h or TIME 1012h COB-ID, or a 1F02h
 //    pool entry) is an error (a second producer); an RPDO on one is a warning.
-//  - PDO mappings (CiA 301 §7.5.2.36/38: entry = index << 16 | sub-index << 8 | length in bits)
-//    of an object the node's own DCF does not have, or has with PDOMapping=0, are errors (the
-//    device aborts the download with 0602 0000 or 0604 0041); a length that is not the data
-//    type's size, a TPDO mapping of a write-only entry and an RPDO mapping of a read-only one
-//    are warnings. RPDO dummy entries (indices 0001h-0007h, CiA 301 §7.4.7.1) are accepted.
+//  - Each node's own writes (mapping length and mappability, access, limits, sizes, PDO rules)
+//    run through the rules a CiA 301 device applies, as for a single DCF (check_download of
+//    write_acceptance.hpp): a write the device will refuse is a warning naming the abort code.
 // The values are those the node has after its download: the DCF's ParameterValue, else its
 // DefaultValue (CiA 306 §4.6.3), with $NODEID resolved; a node given by a concise DCF alone is
-// checked on its writes only (its COB-IDs, nothing about mappability).
+// checked on its COB-IDs only (there is no dictionary to run its writes against).
 #pragma once
 
 #include "cfg/diagnostics.hpp"

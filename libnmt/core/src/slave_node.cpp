@@ -10,6 +10,7 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
+#include "cfg/write_acceptance.hpp"
 #include "process_picture.hpp"
 
 namespace nmt {
@@ -468,170 +469,14 @@ bool SlaveNode::is_stored_parameter(std::uint16_t index, std::uint8_t sub) const
 
 SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
                                 std::span<const std::uint8_t> data) const {
-  if (index == obj::kStoreParameters && sub != 0 && le32(data) != cfg::kSaveSignature) {
-    return SdoAbort::CannotStoreOrTransfer;  // CiA 301 §7.5.2.13: wrong signature
-  }
-  if (index == obj::kRestoreDefaultParameters && sub != 0 && le32(data) != cfg::kLoadSignature) {
-    return SdoAbort::CannotStoreOrTransfer;  // CiA 301 §7.5.2.14
-  }
-  if (index == obj::kCobIdEmcy) return check_emcy_cob_id_write(data);
-  if (index == obj::kConsumerHeartbeatTime && sub != 0) {
-    return check_consumer_heartbeat_write(sub, data);
-  }
-  if (auto code = check_pdo_write(index, sub, data); code != SdoAbort::None) return code;
-  if (auto code = check_sdo_parameter_write(index, sub, data); code != SdoAbort::None) {
-    return code;
+  // CiA 301's rules of the communication objects (signatures, COB-IDs, consumer heartbeat, PDO
+  // parameters and mapping): libcfg's, which `cfgmgr check` applies to a file's download.
+  const cfg::DeviceWriteRules rules{&description_.dummy_usage};
+  if (auto verdict = cfg::check_object_rules(dict_.entries(), rules, index, sub, data);
+      !verdict.accepted()) {
+    return to_sdo_abort(verdict.code);
   }
   return check_program_write(index, sub, data);
-}
-
-namespace {
-
-// CiA 301 §7.5.2.5/35/37: bits 0-29 of a COB-ID may only change while the object does not exist
-// (bit 31 = 1); setting bit 31 (destroying it) is always allowed.
-bool cob_id_change_allowed(std::uint64_t current, std::uint32_t written) {
-  const auto value = cfg::CobId::from_word(written);
-  return !cfg::CobId::from_word(static_cast<std::uint32_t>(current)).valid() || !value.valid() ||
-         value.word() == current;
-}
-
-// CiA 301 §7.4.7.1: mapping entries with a data type index (0001h-0007h) are dummies.
-bool is_dummy_index(std::uint16_t index) {
-  return index >= 0x0001 && index <= 0x0007;
-}
-
-}  // namespace
-
-SdoAbort SlaveNode::check_emcy_cob_id_write(std::span<const std::uint8_t> data) const {
-  const auto current = dict_.get_unsigned(obj::kCobIdEmcy, 0);
-  // CiA 301 §7.5.2.5: 0609 0030 (invalid value), as for the PDO COB-IDs.
-  return current && !cob_id_change_allowed(*current, le32(data)) ? SdoAbort::ValueRangeExceeded
-                                                                 : SdoAbort::None;
-}
-
-SdoAbort SlaveNode::check_sdo_parameter_write(std::uint16_t index, std::uint8_t sub,
-                                              std::span<const std::uint8_t> data) const {
-  if (!obj::is_sdo_server_parameter(index) && !obj::is_sdo_client_parameter(index)) {
-    return SdoAbort::None;
-  }
-  if (sub != 1 && sub != 2) return SdoAbort::None;
-  const auto current = dict_.get_unsigned(index, sub);
-  // CiA 301 §7.5.2.33: 1200h holds the pre-defined connection set; its COB-IDs are fixed. The
-  // value it has is accepted, so a tool downloading a whole DCF that declares them rw succeeds.
-  if (index == obj::kSdoServerFirst) {
-    return current && *current == le32(data) && data.size() == 4 ? SdoAbort::None
-                                                                 : SdoAbort::WriteOfReadOnly;
-  }
-  return current && !cob_id_change_allowed(*current, le32(data)) ? SdoAbort::ValueRangeExceeded
-                                                                 : SdoAbort::None;
-}
-
-SdoAbort SlaveNode::check_consumer_heartbeat_write(std::uint8_t sub,
-                                                   std::span<const std::uint8_t> data) const {
-  // CiA 301 §7.5.2.33: at most one non-zero consumer heartbeat time per node-ID; a second one
-  // aborts with 0604 0043.
-  const auto written = HeartbeatConsumerEntry::decode(le32(data));
-  if (!written.active()) return SdoAbort::None;
-  for (std::uint8_t other = 1; other != 0 && dict_.entry(obj::kConsumerHeartbeatTime, other);
-       ++other) {
-    if (other == sub) continue;
-    const auto entry = HeartbeatConsumerEntry::decode(static_cast<std::uint32_t>(
-        dict_.get_unsigned(obj::kConsumerHeartbeatTime, other).value_or(0)));
-    if (entry.active() && entry.node_id == written.node_id) {
-      return SdoAbort::ParameterIncompatibility;
-    }
-  }
-  return SdoAbort::None;
-}
-
-SdoAbort SlaveNode::check_pdo_write(std::uint16_t index, std::uint8_t sub,
-                                    std::span<const std::uint8_t> data) const {
-  const auto pdo = obj::pdo_indices_of(index);
-  if (!pdo) return SdoAbort::None;
-  const auto comm_cob_id = dict_.get_unsigned(pdo->comm_index, 1);
-  const bool pdo_valid =
-      comm_cob_id && cfg::CobId::from_word(static_cast<std::uint32_t>(*comm_cob_id)).valid();
-  if (index == pdo->comm_index) {
-    if (!pdo_valid) return SdoAbort::None;
-    if (sub == 1 && !cob_id_change_allowed(*comm_cob_id, le32(data))) {
-      return SdoAbort::ValueRangeExceeded;
-    }
-    // CiA 301 §7.5.2.37: inhibit time (3) and SYNC start value (6) of a TPDO shall not change
-    // while the PDO exists.
-    if (!pdo->receive && (sub == 3 || sub == 6)) {
-      const DictionaryEntry* e = dict_.entry(index, sub);
-      if (e && !std::equal(e->bytes.begin(), e->bytes.end(), data.begin(), data.end())) {
-        return SdoAbort::ValueRangeExceeded;
-      }
-    }
-    return SdoAbort::None;
-  }
-  // CiA 301 §7.5.2.36/38: mapping changes only while the PDO is invalid, entries only while
-  // sub 0 is 0; writing sub 0 = n validates the n entries.
-  if (pdo_valid) return SdoAbort::DeviceState;
-  if (sub != 0) {
-    if (dict_.get_unsigned(index, 0).value_or(0) != 0) return SdoAbort::DeviceState;
-    // CiA 301 §7.5.2.36/38 step 3: the device checks each entry as it is written (0602 0000 or
-    // 0604 0041). 0 clears the entry (sub 0 never counts it), so it stays accepted.
-    const auto value = le32(data);
-    if (value == 0) return SdoAbort::None;
-    if (!is_dummy_index(static_cast<std::uint16_t>(value >> 16)) &&
-        !dict_.has_object(static_cast<std::uint16_t>(value >> 16))) {
-      return SdoAbort::ObjectDoesNotExist;
-    }
-    return check_mapping_entry(pdo->receive, value).code;
-  }
-  return data.empty() ? SdoAbort::None : check_pdo_mapping(index, data[0]);
-}
-
-SlaveNode::MappingCheck SlaveNode::check_mapping_entry(bool receive, std::uint64_t value) const {
-  const auto index = static_cast<std::uint16_t>(value >> 16);
-  const auto sub = static_cast<std::uint8_t>((value >> 8) & 0xFF);
-  const auto bits = static_cast<unsigned>(value & 0xFF);
-  if (bits == 0) return {SdoAbort::CannotBeMapped, 0};
-
-  if (is_dummy_index(index) && sub == 0) {
-    // Dummy mapping (CiA 301 §7.4.7.1): a data type index, allowed when [DummyUsage] says so.
-    const auto* type = cfg::find_data_type(index);
-    const std::string key = "Dummy" + cfg::hex_digits(index, 4);
-    const std::string* usage = description_.dummy_usage.find(key);
-    if (!type || !usage || *usage == "0" || !receive) return {SdoAbort::CannotBeMapped, 0};
-    const unsigned type_bits = index == 0x0001 ? 1u : type->size_bytes * 8u;
-    if (bits != type_bits) return {SdoAbort::CannotBeMapped, 0};
-    return {SdoAbort::None, bits};
-  }
-  const DictionaryEntry* e = dict_.entry(index, sub);
-  if (e == nullptr || !e->pdo_mapping) return {SdoAbort::CannotBeMapped, 0};
-  // CiA 306 §4.6.3: rww entries go into RPDOs, rwr entries into TPDOs.
-  using cfg::AccessType;
-  const bool fits = receive ? (e->access == AccessType::Rw || e->access == AccessType::Wo ||
-                               e->access == AccessType::Rww)
-                            : (e->access == AccessType::Rw || e->access == AccessType::Ro ||
-                               e->access == AccessType::Rwr || e->access == AccessType::Const);
-  if (!fits) return {SdoAbort::CannotBeMapped, 0};
-  if (auto size = e->fixed_size()) {
-    // BOOLEAN maps as 1 bit (CiA 301) or as its byte.
-    const bool boolean = e->basic_type == cfg::DataType::Boolean;
-    if (bits != *size * 8 && !(boolean && bits == 1)) return {SdoAbort::CannotBeMapped, 0};
-  } else if (bits % 8 != 0) {
-    return {SdoAbort::CannotBeMapped, 0};
-  }
-  return {SdoAbort::None, bits};
-}
-
-SdoAbort SlaveNode::check_pdo_mapping(std::uint16_t mapping_index, std::uint8_t count) const {
-  const bool receive = obj::pdo_indices_of(mapping_index)->receive;
-  unsigned total_bits = 0;
-  for (std::uint8_t i = 1; i <= count && i != 0; ++i) {
-    auto value = dict_.get_unsigned(mapping_index, i);
-    if (!value) return SdoAbort::CannotBeMapped;
-    const auto check = check_mapping_entry(receive, *value);
-    if (check.code != SdoAbort::None) return check.code;
-    total_bits += check.bits;
-  }
-  // CiA 301 §7.5.2.36: a classic CAN PDO carries at most 64 bits.
-  if (total_bits > 64) return SdoAbort::PdoLengthExceeded;
-  return SdoAbort::None;
 }
 
 SdoAbort SlaveNode::check_program_write(std::uint16_t index, std::uint8_t sub,

@@ -31,21 +31,4 @@ class ConfigurationManagerSource final : public ConfigurationSource {
   std::shared_ptr<const cfg::ConfigManager> manager_;
 };
 
-/// The manager's abort code as the SDO server sends it: the same CiA 301 number.
-constexpr SdoAbort to_sdo_abort(cfg::ConfigAbort abort) {
-  return static_cast<SdoAbort>(static_cast<std::uint32_t>(abort));
-}
-
-static_assert(to_sdo_abort(cfg::ConfigAbort::None) == SdoAbort::None);
-static_assert(to_sdo_abort(cfg::ConfigAbort::ReadOfWriteOnly) == SdoAbort::ReadOfWriteOnly);
-static_assert(to_sdo_abort(cfg::ConfigAbort::WriteOfReadOnly) == SdoAbort::WriteOfReadOnly);
-static_assert(to_sdo_abort(cfg::ConfigAbort::ObjectDoesNotExist) == SdoAbort::ObjectDoesNotExist);
-static_assert(to_sdo_abort(cfg::ConfigAbort::LengthMismatch) == SdoAbort::LengthMismatch);
-static_assert(to_sdo_abort(cfg::ConfigAbort::SubIndexDoesNotExist) ==
-              SdoAbort::SubIndexDoesNotExist);
-static_assert(to_sdo_abort(cfg::ConfigAbort::ValueRangeExceeded) == SdoAbort::ValueRangeExceeded);
-static_assert(to_sdo_abort(cfg::ConfigAbort::CannotStoreOrTransfer) ==
-              SdoAbort::CannotStoreOrTransfer);
-static_assert(to_sdo_abort(cfg::ConfigAbort::DataSetEmpty) == SdoAbort::NoDataAvailable);
-
 }  // namespace nmt

@@ -21,37 +21,20 @@
 #include "cfg/object_dictionary.hpp"
 #include "cfg/result.hpp"
 #include "cfg/value.hpp"
+#include "cfg/write_acceptance.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
 
 namespace nmt {
 
-/// One value-carrying entry (index, sub-index) of the dictionary.
-struct DictionaryEntry {
-  std::uint16_t index = 0;
-  std::uint8_t sub_index = 0;
-  std::string name;             ///< ParameterName of the sub-object (or object for a VAR)
-  std::uint16_t data_type = 0;  ///< DataType= index as in the device file
-  /// The basic type; nullopt for unknown or complex types (treated as DOMAIN bytes).
-  std::optional<cfg::DataType> basic_type;
-  cfg::AccessType access = cfg::AccessType::Rw;
-  bool pdo_mapping = false;
-  std::optional<cfg::Value> low_limit;   ///< LowLimit, $NODEID resolved (numeric types only)
-  std::optional<cfg::Value> high_limit;  ///< HighLimit, $NODEID resolved (numeric types only)
-  /// Largest value in bytes a write may store. Fixed-size types: their size. Variable-size
-  /// types (strings, DOMAIN, unknown types): LocalDictionary::kDefaultMaxVariableSize unless
-  /// changed with set_max_size().
-  std::size_t max_size = 0;
-  std::vector<std::uint8_t> bytes;  ///< current value, little-endian as on the bus
-
-  /// Size in bytes for fixed-size types, nullopt for variable-size ones.
-  std::optional<std::size_t> fixed_size() const;
-};
+/// One value-carrying entry (index, sub-index) of the dictionary: its attributes and current
+/// value, as the write rules of libcfg (cfg/write_acceptance.hpp) see a device's entries.
+using DictionaryEntry = cfg::DeviceEntry;
 
 class LocalDictionary {
  public:
   /// Default max_size of variable-size entries (strings, DOMAIN): 1 MiB.
-  static constexpr std::size_t kDefaultMaxVariableSize = std::size_t{1} << 20;
+  static constexpr std::size_t kDefaultMaxVariableSize = cfg::kDefaultMaxVariableSize;
 
   /// Called by write() after all dictionary checks passed and before the value is stored, with
   /// the time of the write. A result other than SdoAbort::None rejects the write with that code
@@ -103,7 +86,8 @@ class LocalDictionary {
                  TimePoint now);
 
   /// The checks write() does before seeing the data: existence, access, and (when the size is
-  /// known) the size. The SDO server uses it to refuse a download at its initiate request.
+  /// known) the size (cfg::check_entry_access). The SDO server uses it to refuse a download at
+  /// its initiate request.
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
                        std::optional<std::size_t> size) const;
 
@@ -156,10 +140,9 @@ class LocalDictionary {
 
  private:
   DictionaryEntry* find(std::uint16_t index, std::uint8_t sub);
-  SdoAbort check_value(const DictionaryEntry& entry, std::span<const std::uint8_t> data) const;
 
   std::optional<cfg::NodeId> node_id_;
-  std::map<std::uint32_t, DictionaryEntry> entries_;
+  cfg::DeviceEntries entries_;
   std::vector<WriteHook> write_hooks_;
   std::vector<WriteObserver> observers_;
   std::vector<ReadHook> read_hooks_;

@@ -8,6 +8,8 @@
 #include <string>
 #include <string_view>
 
+#include "cfg/config_abort.hpp"
+
 namespace nmt {
 
 /// An SDO abort code as sent on the bus (bytes 4..7 of an abort frame, little-endian).
@@ -75,5 +77,33 @@ std::ostream& operator<<(std::ostream& os, SdoAbort code);
 constexpr std::uint32_t to_u32(SdoAbort code) {
   return static_cast<std::uint32_t>(code);
 }
+
+/// libcfg's abort code (the configuration manager's, the device write rules') as the SDO server
+/// sends it: the same CiA 301 number.
+constexpr SdoAbort to_sdo_abort(cfg::ConfigAbort abort) {
+  return static_cast<SdoAbort>(static_cast<std::uint32_t>(abort));
+}
+
+static_assert(to_sdo_abort(cfg::ConfigAbort::None) == SdoAbort::None);
+static_assert(to_sdo_abort(cfg::ConfigAbort::ReadOfWriteOnly) == SdoAbort::ReadOfWriteOnly);
+static_assert(to_sdo_abort(cfg::ConfigAbort::WriteOfReadOnly) == SdoAbort::WriteOfReadOnly);
+static_assert(to_sdo_abort(cfg::ConfigAbort::ObjectDoesNotExist) == SdoAbort::ObjectDoesNotExist);
+static_assert(to_sdo_abort(cfg::ConfigAbort::CannotBeMapped) == SdoAbort::CannotBeMapped);
+static_assert(to_sdo_abort(cfg::ConfigAbort::PdoLengthExceeded) == SdoAbort::PdoLengthExceeded);
+static_assert(to_sdo_abort(cfg::ConfigAbort::ParameterIncompatibility) ==
+              SdoAbort::ParameterIncompatibility);
+static_assert(to_sdo_abort(cfg::ConfigAbort::LengthMismatch) == SdoAbort::LengthMismatch);
+static_assert(to_sdo_abort(cfg::ConfigAbort::LengthTooHigh) == SdoAbort::LengthTooHigh);
+static_assert(to_sdo_abort(cfg::ConfigAbort::LengthTooLow) == SdoAbort::LengthTooLow);
+static_assert(to_sdo_abort(cfg::ConfigAbort::SubIndexDoesNotExist) ==
+              SdoAbort::SubIndexDoesNotExist);
+static_assert(to_sdo_abort(cfg::ConfigAbort::ValueRangeExceeded) == SdoAbort::ValueRangeExceeded);
+static_assert(to_sdo_abort(cfg::ConfigAbort::ValueTooHigh) == SdoAbort::ValueTooHigh);
+static_assert(to_sdo_abort(cfg::ConfigAbort::ValueTooLow) == SdoAbort::ValueTooLow);
+static_assert(to_sdo_abort(cfg::ConfigAbort::MaxLessThanMin) == SdoAbort::MaxLessThanMin);
+static_assert(to_sdo_abort(cfg::ConfigAbort::CannotStoreOrTransfer) ==
+              SdoAbort::CannotStoreOrTransfer);
+static_assert(to_sdo_abort(cfg::ConfigAbort::DeviceState) == SdoAbort::DeviceState);
+static_assert(to_sdo_abort(cfg::ConfigAbort::DataSetEmpty) == SdoAbort::NoDataAvailable);
 
 }  // namespace nmt

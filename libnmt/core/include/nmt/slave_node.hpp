@@ -209,21 +209,8 @@ class SlaveNode {
 
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
                        std::span<const std::uint8_t> data) const;
-  SdoAbort check_pdo_write(std::uint16_t index, std::uint8_t sub,
-                           std::span<const std::uint8_t> data) const;
-  SdoAbort check_pdo_mapping(std::uint16_t mapping_index, std::uint8_t count) const;
-  struct MappingCheck {
-    SdoAbort code;
-    unsigned bits;  ///< length of the mapped entry when code is None
-  };
-  MappingCheck check_mapping_entry(bool receive, std::uint64_t value) const;
-  SdoAbort check_emcy_cob_id_write(std::span<const std::uint8_t> data) const;
-  SdoAbort check_consumer_heartbeat_write(std::uint8_t sub,
-                                          std::span<const std::uint8_t> data) const;
   SdoAbort check_program_write(std::uint16_t index, std::uint8_t sub,
                                std::span<const std::uint8_t> data) const;
-  SdoAbort check_sdo_parameter_write(std::uint16_t index, std::uint8_t sub,
-                                     std::span<const std::uint8_t> data) const;
   void add_sdo_channels();
   void reconfigure_sdo_channels();
   void after_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
