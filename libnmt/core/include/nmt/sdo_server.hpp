@@ -132,7 +132,7 @@ class SdoServer {
   std::uint8_t sent_in_block_ = 0;  // upload: segments in the sub-block on the wire
   bool last_received_ = false;      // download: segment with c=1 received in order
   bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
-  bool stalled_ = false;  // the frame in hand moved the block transfer nowhere
+  bool stalled_ = false;            // the frame in hand moved the block transfer nowhere
   std::optional<TimePoint> timeout_at_;
 };
 static_assert(Engine<SdoServer>);
