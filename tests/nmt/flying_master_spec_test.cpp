@@ -821,6 +821,138 @@ TEST(FlyingMasterSpec, FailoverWithinConsumerTimePlusNegotiationAfterHeartbeatSt
   }
 }
 
+// Issue 22: masters 7Dh, 7Eh, 7Fh of priority level 1; 7Dh wins, dies, 7Eh takes over (§5.5.2);
+// then 7Dh powers on again with 1F90h sub 3 = `rejoin_priority` (the same device, or one
+// reconfigured). What decides is the level alone: §3.7 g "the priority of the active NMT master is
+// lower then the own priority" forces (DSP 302 §5.5: "If in the system already an NMT Master is
+// active and the priority of the active NMT Master is less than the new device, then a new NMT
+// Master negotiation is forced"); §3.7 f: a higher one makes it an NMT slave. The node-ID orders
+// the time slots of one negotiation only (§5.3.1), so it is no reason to force.
+struct Rejoin {
+  FlyRig rig;
+  TimePoint rejoined{};
+  TimePoint answered{};
+};
+void rejoin_after_takeover(Rejoin& r, std::uint16_t rejoin_priority) {
+  auto& rig = r.rig;
+  rig.watch_masters({0x7D, 0x7E, 0x7F}, 300);
+  start_together(rig, {{0x7D, 1}, {0x7E, 1}, {0x7F, 1}});
+  ASSERT_TRUE(rig.run_until_settled_on(0x7D, 15s));
+  ASSERT_TRUE(rig.bus.run_until(
+      [&] { return rig.master(0x7D).startup_state() == StartupState::Operational; },
+      rig.bus.now() + 10s));
+  rig.kill(0x7D);
+  ASSERT_TRUE(rig.run_until_settled_on(0x7E, 20s));
+  ASSERT_TRUE(rig.bus.run_until(
+      [&] { return rig.master(0x7E).startup_state() == StartupState::Operational; },
+      rig.bus.now() + 10s));
+  rig.bus.run_for(1s);
+  rig.add_master(0x7D, rejoin_priority);
+  r.rejoined = rig.bus.now();
+  rig.start(0x7D);
+  // §3.7 c: 73h after the negotiation time delay; the active master 7Eh answers "071#017E".
+  ASSERT_TRUE(
+      rig.bus.run_until([&] { return rig.first(reply_71(1, 0x7E), r.rejoined).has_value(); },
+                        r.rejoined + ms(kDefaultDelay + kDefaultTimeout)));
+  r.answered = rig.first(reply_71(1, 0x7E), r.rejoined)->at;
+}
+
+// The events of `node` of `kind` from `from` on.
+std::vector<MasterEvent> events_since(FlyRig& rig, std::uint8_t node, Kind kind, TimePoint from) {
+  std::vector<MasterEvent> out;
+  for (const auto& e : rig.events_of(node, kind)) {
+    if (e.at >= from) out.push_back(e);
+  }
+  return out;
+}
+
+// A master that comes back and finds an active master of its own level stands by: no 76h, no
+// reset of the running network (000#8200), no negotiation (72h); the slaves stay operational.
+void expect_rejoiner_stands_by(std::uint16_t rejoin_priority) {
+  Rejoin r;
+  rejoin_after_takeover(r, rejoin_priority);
+  if (::testing::Test::HasFatalFailure()) return;
+  auto& rig = r.rig;
+  rig.bus.run_for(10s);
+  EXPECT_TRUE(events_since(rig, 0x7D, Kind::ForceNegotiation, r.rejoined).empty());
+  // The only 76h are 7Eh's cycle (§5.5.3, 4000 + 10 x 126 ms), none in answer to the 71h.
+  for (const auto& force : rig.on_id(kId76, r.answered)) {
+    EXPECT_GT(force.at - r.answered, ms(kDefaultTimeout)) << force;
+  }
+  EXPECT_EQ(rig.count("000#8200", r.rejoined), 0U);
+  EXPECT_TRUE(rig.on_id(kNmtCobId, r.rejoined).empty());
+  EXPECT_TRUE(rig.on_id(kId72, r.rejoined).empty());
+  EXPECT_TRUE(rig.settled_on(0x7E));
+  auto standby = events_since(rig, 0x7D, Kind::Standby, r.rejoined);
+  ASSERT_EQ(standby.size(), 1U);
+  EXPECT_EQ(standby.front().node_id, 0x7E);
+  EXPECT_EQ(standby.front().priority, std::uint16_t{1});
+  EXPECT_EQ(events_since(rig, 0x7E, Kind::ActiveMaster, r.rejoined).size(), 0U);
+  EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
+  EXPECT_EQ(rig.slave_state(3), NmtState::Operational);
+}
+
+TEST(FlyingMasterSpec, RejoiningMasterOfEqualLevelStandsByWithoutForceOrReset_3_7_f_g) {
+  expect_rejoiner_stands_by(1);
+}
+
+TEST(FlyingMasterSpec, RejoiningMasterOfLowerLevelStandsBy_3_7_f) {
+  expect_rejoiner_stands_by(2);
+}
+
+// §3.7 g, §5.4: back with a higher level (0), 7Dh forces (76h), 7Eh resets all nodes and 7Dh
+// wins the negotiation that follows.
+TEST(FlyingMasterSpec, RejoiningMasterOfHigherLevelForcesNegotiationAndWins_3_7_g_5_4) {
+  Rejoin r;
+  rejoin_after_takeover(r, 0);
+  if (::testing::Test::HasFatalFailure()) return;
+  auto& rig = r.rig;
+  ASSERT_TRUE(rig.run_until_settled_on(0x7D, 15s));
+  auto force = rig.first_on(kId76, r.answered);
+  ASSERT_TRUE(force.has_value());
+  EXPECT_LE(force->at - r.answered, kSlack);
+  auto forced = events_since(rig, 0x7D, Kind::ForceNegotiation, r.rejoined);
+  ASSERT_EQ(forced.size(), 1U);
+  EXPECT_EQ(forced.front().node_id, 0x7E);
+  auto reset = rig.first_on(kNmtCobId, force->at);
+  ASSERT_TRUE(reset.has_value());
+  EXPECT_EQ(reset->text(), "000#8200");
+  auto won = rig.first(reply_71(0, 0x7D), reset->at);
+  ASSERT_TRUE(won.has_value());
+  for (std::uint8_t loser : NodeList{0x7E, 0x7F}) {
+    EXPECT_EQ(rig.master(loser).startup_state(), StartupState::Standby) << int{loser};
+    EXPECT_EQ(rig.master(loser).active_master(), id(0x7D)) << int{loser};
+  }
+}
+
+// §3.7 i: "In case a confirmation for the service NMT flying master negotiation is received and
+// the priority of the active NMT master is lower then the own priority" it forces; a winner of the
+// same level (a 71h sooner than the node-ID slots say, timing parameters that differ) is taken.
+TEST(FlyingMasterSpec, NegotiationWonByEqualLevelIsTakenByLowerLevelForced_3_7_i) {
+  for (std::uint16_t winner : {std::uint16_t{1}, std::uint16_t{2}}) {
+    SCOPED_TRACE(winner);
+    FlyRig rig;
+    rig.slaves_then_master(4, 1);
+    ASSERT_TRUE(
+        rig.bus.run_until([&] { return rig.first_on(kId72).has_value(); }, rig.bus.now() + 10s));
+    rig.bus.run_for(100ms);
+    const TimePoint sent = rig.bus.now();
+    rig.send_foreign(reply_71(winner, 9));
+    rig.bus.run_for(50ms);
+    if (winner == 1) {
+      EXPECT_TRUE(rig.on_id(kId76, sent).empty());
+      EXPECT_EQ(rig.master(4).startup_state(), StartupState::Standby);
+      EXPECT_EQ(rig.master(4).active_master(), id(9));
+    } else {
+      auto force = rig.first_on(kId76, sent);
+      ASSERT_TRUE(force.has_value());
+      EXPECT_EQ(force->text(), "076#");
+      EXPECT_EQ(rig.events_of(4, Kind::ForceNegotiation).size(), 1U);
+    }
+    EXPECT_TRUE(rig.events_of(4, Kind::ActiveMaster).empty());
+  }
+}
+
 // Issue 12 with §3.1 d and §3.5: after a takeover the new master resets a keep-alive slave that is
 // operational not at all ("If at least for one entry of object 1F81h bit 4 is set to 1b and the
 // corresponding CANopen device is in NMT state Operational the NMT master shall not issue the

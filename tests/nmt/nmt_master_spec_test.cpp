@@ -729,6 +729,30 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenThe1000hUploadIsAborted) {
             BootError::B);
 }
 
+// Issue 22: a device that answers the 1000h upload with no data (segmented upload, size 0
+// indicated, one empty last segment) gave the boot nothing to read as UNSIGNED32 (an assert in
+// cfg::load_le). It is a failed upload with words, status B like any other, CiA 301 0607 0010
+// ("length of service parameter does not match"), not a device type of 0 (status C).
+TEST(NmtMasterSpec, BootReportsStatusBWhenThe1000hUploadReturnsNoBytes) {
+  MasterRig rig;
+  FunctionNode device([](FunctionNode& self, const CanFrame& f, TimePoint) {
+    if (f.id != 0x603 || f.dlc != 8) return;
+    if (f.data[0] == 0x40 && f.data[1] == 0x00 && f.data[2] == 0x10) {
+      self.send(*from_candump("583#4100100000000000"));  // scs 2, s=1: 0 bytes follow
+    } else if ((f.data[0] & 0xEF) == 0x60) {
+      // scs 0, toggle as asked, n = 7 (no data byte), c = 1.
+      self.send(
+          *from_candump((f.data[0] & 0x10) != 0 ? "583#1F00000000000000" : "583#0F00000000000000"));
+    }
+  });
+  rig.bus.attach(device);
+  ASSERT_EQ(rig.boot_error_of_3(absent_device()), BootError::B);
+  const auto error = rig.boot_errors(3).front();
+  EXPECT_NE(error.text.find("1000h"), std::string::npos) << error.text;
+  EXPECT_NE(error.text.find(to_string(SdoAbort::LengthMismatch)), std::string::npos) << error.text;
+  EXPECT_EQ(rig.uploads_of(3, 0x1000, 0).size(), 1U);  // an answer: not retried as a timeout
+}
+
 // C: "Value of object 1000h from CANopen device is different to value in object 1F84h". The boot
 // ends there: no configuration, no start.
 TEST(NmtMasterSpec, BootReportsStatusCWhenDeviceTypeDiffersFrom1F84) {

@@ -287,6 +287,45 @@ TEST_F(SdoClientTest, BlockUploadWithCrc) {
   EXPECT_EQ(result(id)->data, Bytes(text.begin(), text.end()));
 }
 
+// Issue 22 (fuzz_sdo_client): inside a sub-block every frame is a segment (CiA 301 block
+// upload), so a server's block download acknowledgement (A2h: c=1, seqno 34) reads as an
+// out-of-order last segment, which the client answers with an acknowledgement of no segment.
+// Such rounds bring nothing forward: 0504 0000 comes the timeout after the last progress.
+TEST_F(SdoClientTest, BlockUploadRoundsAcknowledgingNoSegmentDoNotExtendTheTimeout) {
+  SdoTransferOptions o = block();
+  o.timeout = 100ms;
+  auto id = upload(0x1017, 0, o);
+  EXPECT_EQ(first, Frames{"605#A41710007F000000"});
+  EXPECT_EQ(respond("585#C617100002000000"), Frames{"605#A300000000000000"});
+  for (now = TimePoint{1'000}; now < TimePoint{100'000}; now += 1ms) {
+    ASSERT_EQ(respond("585#A200590000000000"), Frames{"605#A2007F0000000000"});
+    ASSERT_EQ(client.next_deadline(), TimePoint{100'000});
+  }
+  EXPECT_EQ(tick(TimePoint{100'000}), Frames{"605#8017100000000405"});
+  ASSERT_NE(result(id), nullptr);
+  EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
+  EXPECT_FALSE(client.busy());
+}
+
+// Block download: a server acknowledging no segment gets the sub-block again, but the timeout
+// runs from the last progress.
+TEST_F(SdoClientTest, BlockDownloadAcknowledgementsOfNoSegmentDoNotExtendTheTimeout) {
+  SdoTransferOptions o = block();
+  o.timeout = 100ms;
+  auto id = download(0x2000, 0, {1, 2, 3, 4, 5, 6, 7, 8, 9, 10}, o);
+  EXPECT_EQ(first, Frames{"605#C60020000A000000"});
+  now = TimePoint{20'000};
+  EXPECT_EQ(respond("585#A40020007F000000"),
+            (Frames{"605#0101020304050607", "605#8208090A00000000"}));
+  EXPECT_EQ(client.next_deadline(), TimePoint{120'000});
+  for (now = TimePoint{21'000}; now < TimePoint{120'000}; now += 1ms) {
+    ASSERT_EQ(respond("585#A2007F0000000000").size(), 2U);
+    ASSERT_EQ(client.next_deadline(), TimePoint{120'000});
+  }
+  EXPECT_EQ(tick(TimePoint{120'000}), Frames{"605#8000200000000405"});
+  EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
+}
+
 TEST_F(SdoClientTest, BlockUploadAcknowledgesLastSegmentReceivedInOrder) {
   auto id = upload(0x1008, 0, block());
   respond("585#C608100014000000");

@@ -208,6 +208,32 @@ TEST_F(SdoServerTest, BlockDownloadAcknowledgesLastSegmentReceivedInOrder) {
   EXPECT_EQ(value(0x2000, 0), (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
 }
 
+// Issue 22 (fuzz_sdo_client): inside a sub-block every frame is a segment (CiA 301 block
+// download), so a client's block upload acknowledgement (A2h: c=1, seqno 34) reads as an
+// out-of-order last segment, which the server answers with an acknowledgement of no segment.
+// Such rounds bring nothing forward and do not extend the timeout: 0504 0000 comes the server
+// timeout (2 s) after the initiate, however many arrive.
+TEST_F(SdoServerTest, BlockDownloadRoundsAcknowledgingNoSegmentDoNotExtendTheTimeout) {
+  EXPECT_EQ(request("605#C6052000D3030000"), Frames{"585#A40520007F000000"});  // 979 bytes
+  for (now = TimePoint{10'000}; now < TimePoint{2'000'000}; now += 10ms) {
+    ASSERT_EQ(request("605#A2007F0000000000"), Frames{"585#A2007F0000000000"});
+    ASSERT_EQ(server.next_deadline(), TimePoint{2'000'000});
+  }
+  EXPECT_EQ(timer(TimePoint{2'000'000}), Frames{"585#8005200000000405"});  // 0504 0000
+  EXPECT_FALSE(server.busy());
+}
+
+// A round that brought a segment in sequence does extend it.
+TEST_F(SdoServerTest, BlockDownloadSegmentsInSequenceExtendTheTimeout) {
+  EXPECT_EQ(request("605#C60020000A000000"), Frames{"585#A40020007F000000"});
+  now = TimePoint{1'500'000};
+  EXPECT_EQ(request("605#0101020304050607"), Frames{});
+  EXPECT_EQ(server.next_deadline(), TimePoint{3'500'000});
+  now = TimePoint{3'000'000};
+  EXPECT_EQ(request("605#8208090A00000000"), Frames{"585#A2027F0000000000"});
+  EXPECT_EQ(server.next_deadline(), TimePoint{5'000'000});
+}
+
 TEST_F(SdoServerTest, BlockDownloadSequenceNumberZeroAborts) {
   EXPECT_EQ(request("605#C60020000A000000"), Frames{"585#A40020007F000000"});
   EXPECT_EQ(request("605#0001020304050607"), Frames{"585#8000200003000405"});  // 0504 0003
@@ -258,6 +284,18 @@ TEST_F(SdoServerTest, BlockUploadSwitchesToExpeditedBelowProtocolSwitchThreshold
   // pst = 4 and the value has 4 bytes: a normal expedited upload response.
   EXPECT_EQ(request("605#A40010007F040000"), Frames{"585#4300100091010200"});
   EXPECT_FALSE(server.busy());
+}
+
+// The same for block upload: acknowledging no segment (ackseq 0) makes the server send the
+// sub-block again, but the timeout keeps running from the last progress.
+TEST_F(SdoServerTest, BlockUploadAcknowledgementsOfNoSegmentDoNotExtendTheTimeout) {
+  EXPECT_EQ(request("605#A40810007F000000"), Frames{"585#C608100014000000"});
+  EXPECT_EQ(request("605#A300000000000000").size(), 3U);
+  for (now = TimePoint{10'000}; now < TimePoint{2'000'000}; now += 10ms) {
+    ASSERT_EQ(request("605#A2007F0000000000").size(), 3U);  // the same three segments again
+    ASSERT_EQ(server.next_deadline(), TimePoint{2'000'000});
+  }
+  EXPECT_EQ(timer(TimePoint{2'000'000}), Frames{"585#8008100000000405"});
 }
 
 TEST_F(SdoServerTest, BlockUploadWithBlockSizeZeroAborts) {

@@ -301,5 +301,98 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
   EXPECT_FALSE(server.sdo().busy());
 }
 
+// Issue 22, the fuzz_sdo_client finding (seeds/sdo_client/lost_abort_block_livelock) in words.
+// Two CiA 301 facts meet: an SDO abort is not confirmed (a lost one leaves the server in its
+// transfer), SDO frames carry no transaction number (a late answer naming the same object is
+// taken for the running transfer's), and inside a sub-block every frame is a segment (byte 0:
+// c, seqno). Client timeout 100 ms, server timeout 2 s; frames are handed over one by one.
+TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsByTheClientsTimeout) {
+  auto dict = LocalDictionary::from_device(test_support::sdo_test_device(), 5).value();
+  SdoServer server{dict, SdoServerConfig::for_node(5)};
+  SdoClient client{SdoClientConfig::for_node(5)};
+  std::vector<SdoResult> results;
+  TimePoint now{0};
+  auto text = [](const std::vector<CanFrame>& frames) {
+    std::vector<std::string> s;
+    for (const auto& f : frames) s.push_back(to_candump(f));
+    return s;
+  };
+  auto to_server = [&](const std::string& frame) {
+    SdoServer::Output out;
+    server.on_frame(*from_candump(frame), now, out);
+    return text(out.frames);
+  };
+  auto take = [&](SdoClient::Output& out) {
+    for (auto& r : out.events) results.push_back(r);
+    auto frames = text(out.frames);
+    out.clear();
+    return frames;
+  };
+  auto to_client = [&](const std::string& frame) {
+    SdoClient::Output out;
+    client.on_frame(*from_candump(frame), now, out);
+    return take(out);
+  };
+  using Frames = std::vector<std::string>;
+  SdoTransferOptions o = block_mode();
+  o.timeout = 100ms;
+
+  // t = 0: block upload A of 1017h. The server answers C6h (2 bytes), but the answer is slow;
+  // the application cancels A first, and the server takes the abort.
+  SdoClient::Output out;
+  const auto a = client.upload(0x1017, 0, now, out, o);
+  EXPECT_EQ(take(out), Frames{"605#A41710007F000000"});
+  const Frames late_a = to_server("605#A41710007F000000");
+  EXPECT_EQ(late_a, Frames{"585#C617100002000000"});
+  client.cancel(a, now, out);
+  EXPECT_EQ(take(out), Frames{"605#8017100000000008"});  // 0800 0000
+  EXPECT_EQ(to_server("605#8017100000000008"), Frames{});
+  // Block download B of 979 bytes to 2005h: the server enters the block download and answers
+  // A4h (block size 127), slow too. B is cancelled; its abort is lost on the bus.
+  const auto b = client.download(0x2005, 0, Bytes(979, 0x55), now, out, o);
+  EXPECT_EQ(take(out), Frames{"605#C6052000D3030000"});
+  const Frames late_b = to_server("605#C6052000D3030000");
+  EXPECT_EQ(late_b, Frames{"585#A40520007F000000"});
+  client.cancel(b, now, out);
+  EXPECT_EQ(take(out), Frames{"605#8005200000000008"});  // lost
+  ASSERT_TRUE(server.busy());
+  // Block upload C of 1017h: the server, still in B's sub-block, reads its initiate as segment
+  // 36 with c=1, out of order, and acknowledges no segment.
+  const auto c = client.upload(0x1017, 0, now, out, o);
+  EXPECT_EQ(take(out), Frames{"605#A41710007F000000"});
+  EXPECT_EQ(to_server("605#A41710007F000000"), Frames{"585#A2007F0000000000"});
+  // t = 1 ms: A's late C6h names 1017h: the client takes it for C's and starts the upload (A3h),
+  // which the server reads as segment 35 with c=1.
+  now = TimePoint{1'000};
+  EXPECT_EQ(to_client(late_a[0]), Frames{"605#A300000000000000"});
+  EXPECT_EQ(to_server("605#A300000000000000"), Frames{"585#A2007F0000000000"});
+  // From 2 ms on, every millisecond: B's late A4h, then each acknowledgement, reads as segment
+  // 36 or 34 with c=1 on the other side, which acknowledges no segment at once.
+  std::string next = late_b[0];
+  int rounds = 0;
+  for (now = TimePoint{2'000}; now <= TimePoint{101'000}; now += 1ms) {
+    if (auto d = client.next_deadline(); d && *d <= now) {
+      client.on_timer(now, out);
+      for (const auto& f : take(out)) to_server(f);
+      break;
+    }
+    const Frames ack = to_client(next);
+    ASSERT_EQ(ack, Frames{"605#A2007F0000000000"});
+    const Frames answer = to_server(ack[0]);
+    ASSERT_EQ(answer, Frames{"585#A2007F0000000000"});
+    next = answer[0];
+    ++rounds;
+  }
+  // C's timeout runs from its last progress, A3h at 1 ms: 0504 0000 at 101 ms. The server takes
+  // 605#80... as an abort (no segment has seqno 0) and is free again.
+  ASSERT_EQ(results.size(), 3U);
+  EXPECT_EQ(results[2].id, c);
+  EXPECT_EQ(results[2].abort, SdoAbort::Timeout);
+  EXPECT_EQ(results[2].finished, TimePoint{101'000});
+  EXPECT_EQ(rounds, 99);
+  EXPECT_FALSE(client.busy());
+  EXPECT_FALSE(server.busy());
+}
+
 }  // namespace
 }  // namespace nmt

@@ -24,8 +24,7 @@ std::string stamp_text(cfg::ConfigurationStamp stamp) {
 }  // namespace
 
 std::uint32_t uploaded_u32(const SdoResult& result) {
-  return static_cast<std::uint32_t>(
-      cfg::load_le(result.data, std::min<std::size_t>(result.data.size(), 4)));
+  return low_u32(result.data);
 }
 
 std::string transfer_failure(const SdoResult& result) {
@@ -144,6 +143,15 @@ void NmtMaster::Impl::boot_download(std::uint8_t node, Phase phase, std::uint16_
 void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, TimePoint now,
                                       Output& out) {
   auto& s = slaves[node];
+  const bool reads_u32 = s.phase == Phase::ReadDeviceType || s.phase == Phase::ReadIdentity ||
+                         s.phase == Phase::ReadSoftwareDate || s.phase == Phase::ReadSoftwareTime;
+  if (reads_u32 && r.ok() && r.data.empty()) {
+    // A 0-byte answer (a segmented or block upload of nothing) has no UNSIGNED32 to compare: the
+    // step fails as a failed upload does, with CiA 301 0607 0010 (length does not match).
+    auto failed = r;
+    failed.abort = SdoAbort::LengthMismatch;
+    return boot_sdo_result(node, failed, now, out);
+  }
   switch (s.phase) {
     case Phase::ReadDeviceType: {
       // §3.4 c: no response -> B; d: 1F84h non-zero and different -> C.

@@ -27,11 +27,12 @@ CanFrame master_response(std::uint16_t priority, cfg::NodeId node) {
   return CanFrame::make(Cob::kMasterResponse, bytes);
 }
 
-/// §5.3: the waiting time orders the masters by priority level, then by node-ID (priority time
-/// slot > 127 x node time slot): lower wins.
-bool better(std::uint16_t priority_a, std::uint8_t node_a, std::uint16_t priority_b,
-            std::uint8_t node_b) {
-  return std::pair{priority_a, node_a} < std::pair{priority_b, node_b};
+/// CiA 302-2 §3.7 f/g/i, §5.4.1 and DSP 302 §5.5: an active master stays unless its priority
+/// level is lower (a higher 1F90h sub 3 value, Table 48: 0 is high) than this device's. The
+/// node-ID only orders the time slots within one negotiation (§5.3); comparing it too made a
+/// master of the same level that came back reset the running network for nothing (issue 22).
+bool forces_negotiation(std::uint16_t active_priority, std::uint16_t own_priority) {
+  return active_priority > own_priority;
 }
 
 std::string ms_text(Duration d) {
@@ -218,11 +219,13 @@ void NmtMaster::Impl::flying_master_response(std::uint16_t priority, std::uint8_
     if (flying.watch) flying.heartbeat_due = now + *flying.watch;
     return;
   }
-  if (better(priority, node, t.priority, node_id.value())) {
-    // §3.7 f, §5.3: a master with a higher priority (or the same and a lower node-ID).
-    flying_standby(
-        node, priority, now, out,
-        "better than ours (" + priority_text(t.priority) + ", " + node_text(node_id.value()) + ")");
+  if (!forces_negotiation(priority, t.priority)) {
+    // §3.7 f: a master with a higher priority level, or the same level (only "lower then the own
+    // priority" forces, §3.7 g/i): this device becomes an NMT slave.
+    flying_standby(node, priority, now, out,
+                   std::string(priority == t.priority ? "the same priority level as ours"
+                                                      : "a higher priority level than ours") +
+                       " (" + priority_text(t.priority) + ")");
     return;
   }
   // DSP 302 §5.5.2 implementation hint: no second force after one that a worse master won

@@ -42,6 +42,11 @@ constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (
 
 }  // namespace
 
+std::uint32_t low_u32(std::span<const std::uint8_t> data) {
+  const std::size_t size = std::min<std::size_t>(data.size(), 4);
+  return size == 0 ? 0 : static_cast<std::uint32_t>(cfg::load_le(data, size));
+}
+
 DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
                            cfg::DataType type, cfg::AccessType access, std::uint64_t value) {
   DictionaryEntry e;
@@ -245,7 +250,9 @@ void NmtMaster::Impl::install_hooks() {
 
 SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
                                       std::span<const std::uint8_t> data, TimePoint now) {
-  const auto value = static_cast<std::uint32_t>(cfg::load_le(data, data.size()));
+  // Every write comes here, DOMAINs of any length too; the numeric objects below have had their
+  // size checked by the dictionary (0607 0010).
+  const auto value = low_u32(data);
   switch (index) {
     case obj::kNmtStartup:
       return startup_problem(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;

@@ -388,8 +388,13 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
                         sdo::last_segment_empty_bytes(t.data.size()), crc}),
                     now, out);
       }
-      // Resend from the segment after the last one acknowledged, numbering from 1 again.
-      return send_download_sub_block(t, now, out);
+      // Resend from the segment after the last one acknowledged, numbering from 1 again. An
+      // acknowledgement of no segment is no progress: the timeout keeps running (see
+      // block_upload_segment).
+      const auto deadline = t.deadline;
+      send_download_sub_block(t, now, out);
+      if (r->ack_seq == 0) t.deadline = deadline;
+      return;
     }
 
     case State::BlockDownloadEnd:
@@ -435,7 +440,12 @@ void SdoClient::block_upload_segment(Transfer& t, const sdo::BlockSegment& f, Ti
     t.block_size = t.options.block_size;
     t.ack_seq = 0;
     if (t.last_received) t.state = State::BlockUploadEnd;
-    return send(t, sdo::encode(ack), now, out);
+    if (ack.ack_seq != 0) return send(t, sdo::encode(ack), now, out);
+    // A sub-block with no segment in sequence brought nothing: the timeout keeps running.
+    // Otherwise a server still in an earlier block download (the client's abort lost) and this
+    // client acknowledge each other's acknowledgements for ever (A2h reads as c=1, seqno 34).
+    out.send(sdo::make_frame(config_.request_cob_id, sdo::encode(ack)));
+    return;
   }
   t.deadline = later(now, t.options.timeout);  // segments keep the transfer alive
 }

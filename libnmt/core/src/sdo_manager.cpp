@@ -153,7 +153,9 @@ bool NmtMaster::Impl::manager_active() const {
 
 SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
                                         std::span<const std::uint8_t> data) {
-  const auto value = static_cast<std::uint32_t>(cfg::load_le(data, data.size()));
+  // Every write comes here, DOMAINs of any length too (1F22h, 1F50h); the objects below have had
+  // their size checked by the dictionary (0607 0010).
+  const auto value = low_u32(data);
   if (index == obj::kSdoManagerCobIds) {
     if (sub == 0) return SdoAbort::None;
     for (std::uint8_t s = 1; s <= value_of(obj::kSdoManagerCobIds, 0) && s != 0; ++s) {

@@ -87,8 +87,18 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   }
   auto d = sdo::sdo_payload(frame);
   if (!d) return false;
+  stalled_ = false;
   handle(*d, now, out);
-  timeout_at_ = state_ == State::Idle ? std::nullopt : std::optional(later(now, config_.timeout));
+  // A block round that brought nothing forward (an acknowledgement of no segment, sent or
+  // received) does not extend the timeout. Otherwise two ends that disagree on the state answer
+  // each other for ever: after a lost client abort, this server's block download takes the
+  // acknowledgement of the client's next block upload (A2h: c=1, seqno 34) for an out-of-order
+  // last segment and acknowledges no segment (A2h), which the client reads the same way.
+  if (state_ == State::Idle) {
+    timeout_at_.reset();
+  } else if (!stalled_ || !timeout_at_) {
+    timeout_at_ = later(now, config_.timeout);
+  }
   return true;
 }
 
@@ -318,6 +328,7 @@ void SdoServer::block_download_segment(const sdo::BlockSegment& f, Output& out) 
   }
   if (f.last || f.seq == block_size_) {
     respond(sdo::BlockDownloadAck{ack_seq_, block_size_}, out);
+    stalled_ = ack_seq_ == 0;
     ack_seq_ = 0;
     if (last_received_) state_ = State::BlockDownloadEnd;
   }
@@ -362,6 +373,7 @@ void SdoServer::block_upload_ack(const sdo::BlockUploadAck& f, Output& out) {
   if (f.ack_seq > sent_in_block_) return send_abort(SdoAbort::InvalidSequenceNumber, out);
   if (!sdo::valid_block_size(f.block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
   const bool all_acknowledged = f.ack_seq == sent_in_block_;
+  stalled_ = f.ack_seq == 0 && !all_acknowledged;  // the same sub-block again
   offset_ = std::min(buffer_.size(), offset_ + f.ack_seq * sdo::kSegmentBytes);
   block_size_ = f.block_size;
   if (all_acknowledged && block_has_last_) {

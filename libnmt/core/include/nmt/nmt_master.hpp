@@ -86,13 +86,15 @@
 //   71h with priority and node-ID within sub 1); no answer after a power-on: reset communication
 //   of all nodes, this device included, and so the start is a warm one; no answer after a
 //   reset communication: negotiation (72h, then priority x sub 4 + node-ID x sub 5 ms, restarted
-//   by every 72h heard; the first to finish sends 71h and runs NMT start-up). A 71h of a better
-//   master (lower priority value, then lower node-ID) makes this device an NMT slave
-//   (StartupState::Standby) watching that master's heartbeat; a 71h of a worse master makes it
-//   force a negotiation (76h), after which it waits 1F90h sub 1 + sub 2 for the reset and
-//   detects again. When the worse master wins that negotiation too, this device stands by and
-//   forces no more (DSP 302 §5.5.2's hint against a deadlock) until it wins a negotiation itself
-//   or yields to a better master; resets in between do not make it forget.
+//   by every 72h heard; the first to finish sends 71h and runs NMT start-up). A 71h of a master
+//   with a higher or the same priority level (1F90h sub 3 lower or equal; the node-ID only
+//   orders the time slots within one negotiation) makes this device an NMT slave
+//   (StartupState::Standby) watching that master's heartbeat, so a master of the same level that
+//   comes back leaves the running network alone; only a 71h of a lower priority level makes it
+//   force a negotiation (76h; §3.7 g/i, §5.4.1), after which it waits 1F90h sub 1 + sub 2 for
+//   the reset and detects again. When the worse master wins that negotiation too, this device
+//   stands by and forces no more (DSP 302 §5.5.2's hint against a deadlock) until it wins a
+//   negotiation itself or yields to a better master; resets in between do not make it forget.
 // - The active master answers 73h with 71h and sends 76h every 1F90h sub 6 ms (0: never, §5.5.3)
 //   without resetting itself; on a 76h (or another master's 71h, a second active master seen
 //   sooner) it resets communication of all nodes and itself, and the negotiation runs again.

@@ -4,7 +4,9 @@
 //
 // Protocol choices where CiA 301 leaves room: the client aborts with 0504 0000 when a response
 // does not come within SdoTransferOptions::timeout; in a block upload it acknowledges when it
-// sees the block's last sequence number or the "no more segments" flag.
+// sees the block's last sequence number or the "no more segments" flag. A block round that
+// acknowledges no segment (sent or received) brings nothing forward and does not restart the
+// timeout, so a transfer the server reads as another one (after a lost abort) still ends.
 // Limitation of the protocol: SDO frames carry no transaction number. A response that arrives
 // after its transfer ended (a slow server answering after the client's timeout, or the answer to
 // a cancelled request) is recognised when it is an initiate response naming another object:

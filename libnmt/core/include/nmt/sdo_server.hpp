@@ -39,6 +39,8 @@ struct SdoServerConfig {
   /// When false, block requests are answered with abort 0504 0001 (clients fall back).
   bool block_transfer = true;
   /// A segmented or block transfer with no request for this long is aborted with 0504 0000.
+  /// Block frames that bring nothing forward (a segment out of sequence, an acknowledgement of
+  /// no segment) do not restart it.
   Duration timeout = std::chrono::milliseconds(2000);
   /// Block size the server asks for in block downloads, 1..127.
   std::uint8_t block_size = 127;
@@ -130,6 +132,7 @@ class SdoServer {
   std::uint8_t sent_in_block_ = 0;  // upload: segments in the sub-block on the wire
   bool last_received_ = false;      // download: segment with c=1 received in order
   bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
+  bool stalled_ = false;            // the frame in hand moved the block transfer nowhere
   std::optional<TimePoint> timeout_at_;
 };
 static_assert(Engine<SdoServer>);
