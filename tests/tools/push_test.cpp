@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "generated_network.hpp"
 #include "push_test_support.hpp"
 
 namespace {
@@ -291,6 +292,21 @@ TEST(Push, OnATerminalALiveViewIsDrawnAndTheTableEndsTheOutput) {
   EXPECT_EQ(rows[1].rfind("   2  io_left   configured", 0), 0U) << rows[1];
   EXPECT_EQ(rows[2].rfind("   3  axis_x    configured", 0), 0U) << rows[2];
   EXPECT_EQ(rows[3].rfind("   4  io_right  configured", 0), 0U) << rows[3];
+}
+
+TEST(Push, OnATerminalTheLiveViewShowsEachFailedNodesStatusLetter) {
+  // CiA 302-2 Table 1: node 1 expected with another device type (C), node 2 with another
+  // vendor-ID (D). The view's step column says "error C"/"error D" once they end, as the table's
+  // result column does.
+  ScratchDir dir;
+  const std::string cpj =
+      generated::write_network(dir.path() / "net", generated::wrong_type_and_vendor());
+  int exit_code = -1;
+  const std::string out = run_on_terminal({"push", cpj, "--bus", "sim:"}, exit_code);
+  EXPECT_EQ(exit_code, 4) << out;
+  const std::string view = out.substr(0, out.rfind("node  name"));
+  EXPECT_NE(view.find("error C"), std::string::npos) << view;
+  EXPECT_NE(view.find("error D"), std::string::npos) << view;
 }
 
 TEST(Push, OnlyLeavesTheOtherNodesAlone) {

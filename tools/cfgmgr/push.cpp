@@ -249,6 +249,13 @@ class Collector {
   std::string stop_;  ///< the words of the event that ended start-up (halted, not master)
 };
 
+// The result column: "configured", "skipped", "error C"; the words go under the table
+// (the live view shows the same).
+std::string result_text(const NodeReport& r) {
+  if (r.result == Result::Error && !r.status.empty()) return "error " + r.status;
+  return std::string(result_name(r.result));
+}
+
 // The live view on a terminal: per node its NMT state, boot step, entries written of total,
 // bytes and retries, and a progress bar for the whole network, drawn on stderr over the last
 // drawing (ANSI cursor movement), at most every kRedraw of wall-clock time.
@@ -309,8 +316,8 @@ class LiveView {
     const std::string entries = r.total == 0
                                     ? std::to_string(r.entries)
                                     : std::to_string(r.entries) + "/" + std::to_string(r.total);
-    const std::string step = r.result == Result::Pending ? std::string(nmt::to_string(r.step))
-                                                         : std::string(result_name(r.result));
+    const std::string step =
+        r.result == Result::Pending ? std::string(nmt::to_string(r.step)) : result_text(r);
     std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-20.20s  %9s  %7llu  %7u",
                   r.node_id, r.name.c_str(),
                   r.state ? std::string(nmt::to_string(*r.state)).c_str() : "-", step.c_str(),
@@ -373,12 +380,6 @@ class LiveView {
 double node_seconds(const NodeReport& r, nmt::TimePoint start) {
   const nmt::TimePoint from = r.began.value_or(start);
   return static_cast<double>((r.ended - from).count()) / 1e6;
-}
-
-// The result column: "configured", "skipped", "error C"; the words go under the table.
-std::string result_text(const NodeReport& r) {
-  if (r.result == Result::Error && !r.status.empty()) return "error " + r.status;
-  return std::string(result_name(r.result));
 }
 
 // The table (node, name, result, entries, time) within 100 columns whatever the messages, then
