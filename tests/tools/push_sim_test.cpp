@@ -161,6 +161,29 @@ TEST(PushSim, NodesNotTriedHaveAStatusAndWordsThatSaySo) {
   EXPECT_NE(r.out.find("error not_tried"), std::string::npos) << r.out;
 }
 
+// CiA 302-2 §6.3 (1F81h): node 2 is a slave (bit 0) the master does not boot (bit 2 clear): the
+// application configures and starts it, so the master's boot ends without either; the report
+// says so instead of "signature matches", which would claim its 1020h was compared.
+TEST(PushSim, ASlaveLeftToTheApplicationIsReportedAsSuch) {
+  ScratchDir dir;
+  generated::NetworkSpec spec;
+  spec.nodes = 2;
+  spec.master_dcf = true;
+  spec.assignment[2] = 0x01;
+  const std::string cpj = generated::write_network(dir.path() / "net", spec);
+  const std::string report = dir / "report.json";
+  auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:", "--json", report});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const Json json = parse_json(report);
+  const auto nodes = nodes_of(json);
+  ASSERT_EQ(nodes.size(), 2U);
+  EXPECT_EQ(nodes.at(1)->get("result")->string, "configured");
+  EXPECT_EQ(nodes.at(2)->get("result")->string, "skipped");
+  EXPECT_EQ(nodes.at(2)->get("message")->string,
+            "skipped: left to the application (1F81h bit 2 clear: no configuration, no start)");
+  EXPECT_EQ(nodes.at(2)->get("entries")->number, 0);
+}
+
 TEST(PushSim, GeneratedNetworkOf126SlavesConfiguresEveryNode) {
   ScratchDir dir;
   generated::NetworkSpec spec;  // 126 slaves + the master (127): every node-ID in use

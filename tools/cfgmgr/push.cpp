@@ -187,8 +187,13 @@ class Collector {
         r->entries = e.written;
         r->total = e.total;
         r->bytes = e.bytes;
-        r->message =
-            e.configured ? "configured" : "skipped: signature matches (1020h = 1F26h/1F27h)";
+        // A slave 1F81h bit 2 leaves to the application ends its boot at step Idle (no
+        // configuration, no start: CiA 302-2 §3.3, Table 22).
+        r->message = e.configured ? "configured"
+                     : e.step == nmt::BootStep::Idle
+                         ? "skipped: left to the application (1F81h bit 2 clear: no "
+                           "configuration, no start)"
+                         : "skipped: signature matches (1020h = 1F26h/1F27h)";
         r->ended = e.at;
         break;
       case K::BootError:
