@@ -159,6 +159,9 @@ TEST(PushSim, NodesNotTriedHaveAStatusAndWordsThatSaySo) {
     EXPECT_EQ(n->get("message")->string, "not tried (1F80h is 0x00000000: not the NMT master)");
   }
   EXPECT_NE(r.out.find("error not_tried"), std::string::npos) << r.out;
+  // The run ends when the master says it is not the NMT master, not at the start-up's bound.
+  EXPECT_EQ(r.err.find("did not end within"), std::string::npos) << r.err;
+  EXPECT_LT(json.get("elapsed_s")->number, 1.0) << r.err;
 }
 
 // CiA 302-2 §6.3 (1F81h): node 2 is a slave (bit 0) the master does not boot (bit 2 clear): the

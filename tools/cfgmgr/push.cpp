@@ -216,9 +216,12 @@ class Collector {
     }
   }
 
+  // Every node has its result, or the master said why no (more) boot will run: not the NMT
+  // master (1F80h bit 0 clear), start-up refused or halted.
   bool settled() const {
-    return std::all_of(nodes_.begin(), nodes_.end(),
-                       [](const NodeReport& r) { return r.result != Result::Pending; });
+    return !stop_.empty() || std::all_of(nodes_.begin(), nodes_.end(), [](const NodeReport& r) {
+      return r.result != Result::Pending;
+    });
   }
 
   // Nodes whose boot had not ended when the run did: the run's bound, a signal, a device that
