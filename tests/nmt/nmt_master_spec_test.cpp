@@ -665,6 +665,32 @@ TEST(NmtMasterSpec, BootOfSlaveBeginsAfterBootUpWaitWhenItsBootUpIsLost) {
   EXPECT_LE(upload.front().at - reset.front().at, rig.options.boot_up_wait + 20ms);
 }
 
+// Header: with the bit rate known (paced), a lost boot-up holds only its own slave: the slaves
+// that booted up start when no boot-up came for 20 ms, not after boot_up_wait; the slave whose
+// boot-up was lost still starts after boot_up_wait.
+TEST(NmtMasterSpec, PacedBootStartsTheBootedUpSlavesWhenAnotherBootUpIsLost) {
+  MasterRig rig;
+  rig.options.bitrate = 500'000;
+  rig.bus.set_filter([](const CanFrame& f, TimePoint) {
+    return f.id == 0x703 && !f.rtr && f.dlc == 1 && f.data[0] == 0 ? FrameFate::drop()
+                                                                   : FrameFate::deliver();
+  });
+  rig.two_slaves();
+  ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 5s, 3));
+
+  auto reset = rig.nmt_seen(rig.started_at);
+  ASSERT_FALSE(reset.empty());
+  auto boot_up = rig.on_id(0x702, reset.front().at);
+  ASSERT_FALSE(boot_up.empty());
+  auto upload2 = rig.uploads_of(2, 0x1000, 0, reset.front().at);
+  ASSERT_FALSE(upload2.empty());
+  EXPECT_GE(upload2.front().at - boot_up.front().at, 20ms);
+  EXPECT_LE(upload2.front().at - boot_up.front().at, 25ms);
+  auto upload3 = rig.uploads_of(3, 0x1000, 0, reset.front().at);
+  ASSERT_FALSE(upload3.empty());
+  EXPECT_GE(upload3.front().at - reset.front().at, rig.options.boot_up_wait - 1ms);
+}
+
 // ------------------------------------------------------ boot NMT slave: status A..O (Table 1) ---
 
 // A: "The CANopen device is not listed in object 1F81h" (§3.4 a). The API refuses to boot it.

@@ -512,6 +512,7 @@ void NmtMaster::Impl::boot_timer(std::uint8_t node, TimePoint now, Output& out) 
     case Phase::AwaitBootUp:
       // No boot-up within boot_up_wait: identify anyway (a boot-up may have been missed).
       boot_up_gate.reset();
+      boot_up_quiet.reset();
       set_step(node, BootStep::Identify, now, out);
       boot_upload(node, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
       return;
@@ -555,6 +556,7 @@ bool NmtMaster::Impl::boot_took_boot_up(std::uint8_t node, TimePoint now, Output
     case Phase::AwaitBootUp:
       if (boot_up_gate) {
         s.boot_up_seen = true;
+        if (options.bitrate != 0) boot_up_quiet = now + kBootUpQuiet;
         open_boot_up_gate(now, out);  // when it was the last one
         break;
       }
@@ -583,16 +585,18 @@ bool NmtMaster::Impl::boot_took_boot_up(std::uint8_t node, TimePoint now, Output
 
 namespace nmt {
 
-void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out) {
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) {
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId && !quiet; ++node) {
     const auto& s = slaves[node];
     if (s.running && s.phase == Phase::AwaitBootUp && !s.boot_up_seen) return;  // not yet
   }
   boot_up_gate.reset();
+  boot_up_quiet.reset();
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
     auto& s = slaves[n];
-    if (!s.running || s.phase != Phase::AwaitBootUp) continue;
+    // One not booted up yet keeps its deadline (boot_up_wait) and starts at its boot-up.
+    if (!s.running || s.phase != Phase::AwaitBootUp || !s.boot_up_seen) continue;
     s.deadline.reset();
     set_step(n, BootStep::Identify, now, out);
     boot_upload(n, Phase::ReadDeviceType, obj::kDeviceType, 0, now);

@@ -2,13 +2,29 @@
 // timeout) and those of the application, and settle(), which after every call dispatches their
 // results, moves their frames out, sends due NMT commands and moves start-up on.
 #include <algorithm>
+#include <bitset>
 #include <cmath>
 #include <utility>
 
 #include "cfg/object_address.hpp"
+#include "nmt/frame_bits.hpp"
 #include "nmt_master_impl.hpp"
 
 namespace nmt {
+
+Duration NmtMaster::Impl::paced_time(double bits) const {
+  const double seconds =
+      bits / (static_cast<double>(options.bitrate) * std::clamp(options.bus_load_limit, 0.05, 1.0));
+  return Duration{static_cast<std::int64_t>(seconds * 1e6)};
+}
+
+void NmtMaster::Impl::pace_frame_of_others(const CanFrame& frame, TimePoint now) {
+  // Only while the boot is paced (its next request waits); SDO responses on the default
+  // channels (581h-5FFh) were counted with their requests.
+  if (options.bitrate == 0 || paced_until <= now || frame.error) return;
+  if (!frame.extended && frame.id >= 0x581 && frame.id <= 0x5FF) return;
+  paced_until += paced_time(frame_bits(frame).total());
+}
 
 SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
                                                       TimePoint now) {
@@ -32,6 +48,7 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
 SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, MasterTransfer transfer,
                                                        TimePoint now) {
   if (!transfer.for_application && !transfer.for_manager) ++boot_transfers;
+  transfer.launched = now;
   auto& client = clients.client(node);
   const auto id = transfer.upload
                       ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
@@ -50,8 +67,18 @@ void NmtMaster::Impl::forget_transfer(
 void NmtMaster::Impl::pump_transfers(TimePoint now) {
   while (!waiting.empty() && static_cast<double>(boot_transfers) < std::floor(window) &&
          now >= paced_until) {
-    auto [node, transfer] = std::move(waiting.front());
-    waiting.pop_front();
+    // The slave whose try is furthest behind goes first (each slave's own transfers in order):
+    // a slave that lost a frame waited one timeout and catches up while the bus is full,
+    // instead of ending its boot alone after the others.
+    auto pick = waiting.begin();
+    std::bitset<128> seen;
+    for (auto it = waiting.begin(); it != waiting.end(); ++it) {
+      if (seen[it->first]) continue;
+      seen[it->first] = true;
+      if (slaves[it->first].transfers_done < slaves[pick->first].transfers_done) pick = it;
+    }
+    auto [node, transfer] = std::move(*pick);
+    waiting.erase(pick);
     const auto& s = slaves[node];
     if (!s.running || transfer.try_id != s.try_id) continue;  // its try ended meanwhile
     launch_transfer(node, std::move(transfer), now);
@@ -78,13 +105,23 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   if (it == transfers.end()) return;  // cancelled, or of an older boot try
   MasterTransfer transfer = std::move(it->second);
   forget_transfer(it);
+  if (!transfer.for_application && !transfer.for_manager &&
+      transfer.try_id == slaves[result.node_id].try_id) {
+    ++slaves[result.node_id].transfers_done;
+  }
   const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
   if (!transfer.for_application && !transfer.for_manager) {
-    // The window of boot transfers in flight: halved when a response does not come (frames
-    // lost, or a bus so full that lower-priority frames, heartbeats among them, starve), grown
-    // by one per window's worth of answers (additive increase, multiplicative decrease).
+    // The window of boot transfers in flight, grown by one per window's worth of answers. Paced
+    // (bit rate known), the pacing keeps the bus below its load limit, so a response that does
+    // not come was lost or is slow: its transfer pays one timeout and is repeated, the others
+    // keep their places. Unpaced, the window is the only brake on a bus so full that the
+    // highest identifiers (heartbeats, and answers a device queues behind them) starve: it
+    // halves once per loss event, not again for the transfers launched before the last cut.
     if (timed_out) {
-      window = std::max(1.0, window / 2);
+      if (options.bitrate == 0 && (!window_cut || transfer.launched >= *window_cut)) {
+        window = std::max(1.0, window / 2);
+        window_cut = now;
+      }
     } else {
       window = std::min(kMaxWindow, window + 1.0 / window);
     }
@@ -118,12 +155,10 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   for (;;) {
     if (options.bitrate != 0 && !sdo_out.frames.empty()) {
-      // Each request and the answer it causes, at 125 bits each, within the load limit.
-      constexpr double kBitsPerFrame = 125;
-      const double seconds =
-          2 * kBitsPerFrame * static_cast<double>(sdo_out.frames.size()) /
-          (static_cast<double>(options.bitrate) * std::clamp(options.bus_load_limit, 0.05, 1.0));
-      paced_until = std::max(paced_until, now) + Duration{static_cast<std::int64_t>(seconds * 1e6)};
+      // Each request and the answer it causes (taken to be as long), within the load limit.
+      double bits = 0;
+      for (const auto& f : sdo_out.frames) bits += 2.0 * frame_bits(f).total();
+      paced_until = std::max(paced_until, now) + paced_time(bits);
     }
     for (const auto& f : sdo_out.frames) out.send(f);
     sdo_out.frames.clear();

@@ -277,6 +277,7 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
   auto& m = *impl_;
   if (m.startup == StartupState::Off) return false;
+  m.pace_frame_of_others(frame, now);
   bool mine = false;
   const auto services = services_in(m.own_state);
   if (services.sdo) {
@@ -360,6 +361,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.error_handler(e.node_id, false, now, out);
     m.manager_node_lost(e.node_id, false, now, out);
   }
+  if (m.boot_up_quiet && now >= *m.boot_up_quiet) m.open_boot_up_gate(now, out, true);
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto& s = m.slaves[node];
     if (s.deadline && now >= *s.deadline) m.boot_timer(static_cast<std::uint8_t>(node), now, out);
@@ -379,6 +381,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.guarding.next_deadline());
   due = earliest(due, m.flying_deadline());
   due = earliest(due, m.manager_deadline());
+  due = earliest(due, m.boot_up_quiet);
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     due = earliest(due, m.slaves[node].deadline);
   }
@@ -577,6 +580,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
   boot_up_gate = now + options.boot_up_wait;
+  boot_up_quiet.reset();
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);

@@ -66,6 +66,7 @@ struct SlaveBoot {
   bool expect_boot_up = false;  ///< the master reset the node and has not seen its boot-up
   bool boot_up_seen = false;    ///< AwaitBootUp: seen, waiting for the others (boot_up_gate)
   bool software_updated = false;
+  std::size_t transfers_done = 0;  ///< boot transfers of this try that ended (pump_transfers)
 
   // Data of the current try.
   std::uint8_t identity_sub = 0;
@@ -229,6 +230,7 @@ struct MasterTransfer {
   std::vector<std::uint8_t> data;  ///< download: kept for a repetition after a timeout
   SdoTransferOptions options;
   unsigned retries_left = 0;
+  TimePoint launched{0};  ///< when its (latest) request went out: the window's loss events
 };
 
 struct NmtMaster::Impl {
@@ -254,6 +256,9 @@ struct NmtMaster::Impl {
   static constexpr double kMaxWindow = 128;
   std::size_t boot_transfers = 0;
   double window = kMaxWindow;
+  /// When the window was last halved (unpaced): timeouts of transfers launched before are the
+  /// same loss event and do not halve it again.
+  std::optional<TimePoint> window_cut;
   std::deque<std::pair<std::uint8_t, MasterTransfer>> waiting;
   /// Boot and application transfers to a slave whose default SDO the SDO manager gave to an SRD
   /// (DSP 302 §7.1): they wait here, in order, until it is free again (release_held).
@@ -262,6 +267,10 @@ struct NmtMaster::Impl {
   TimePoint paced_until{0};
   /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
   std::optional<TimePoint> boot_up_gate;
+  /// Paced: the gate also opens for the slaves that booted up when no boot-up came for
+  /// kBootUpQuiet (the others' were lost or are late; pacing leaves room for them).
+  static constexpr Duration kBootUpQuiet = std::chrono::milliseconds(20);
+  std::optional<TimePoint> boot_up_quiet;
   SdoClient::TransferId next_application_id = 1;
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
@@ -450,7 +459,14 @@ struct NmtMaster::Impl {
   /// Starts the `held` transfers whose slave's default SDO is free again.
   void release_held(TimePoint now);
   SdoClient::TransferId launch_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
-  void open_boot_up_gate(TimePoint now, Output& out);
+  /// Starts the slaves waiting at the gate that booted up: when every one did, or (`quiet`) when
+  /// no boot-up came for kBootUpQuiet.
+  void open_boot_up_gate(TimePoint now, Output& out, bool quiet = false);
+  /// Pacing (MasterOptions::bitrate): the bus time `bits` take within bus_load_limit.
+  Duration paced_time(double bits) const;
+  /// Pacing: a frame of another node (heartbeats, PDOs, others' SDO) takes its share of the
+  /// load limit too, so the boot's requests leave room for it.
+  void pace_frame_of_others(const CanFrame& frame, TimePoint now);
 
   // --- boot NMT slave (boot_slave.cpp, check_configuration.cpp) -------------------------------
   void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
