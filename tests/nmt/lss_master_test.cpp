@@ -351,8 +351,9 @@ TEST_F(LssBus, ScanConfiguresFiftyDevicesWithRandomSerialNumbers) {
   scan_all();
   expect_all_configured(addresses);
   // Per device: the Fastscan reset, 4 x (32 bit queries + confirmation), configure node-ID,
-  // store configuration, switch state global; then the reset nobody answers.
-  EXPECT_EQ(requests, 50 * (1 + 4 * 33 + 3) + 1);
+  // store configuration, switch state global; before them the switch of all devices to
+  // waiting, after them the reset nobody answers.
+  EXPECT_EQ(requests, 1 + 50 * (1 + 4 * 33 + 3) + 1);
 }
 
 TEST_F(LssBus, ScanLooksPastADeviceItGivesNoNodeId) {
@@ -381,6 +382,18 @@ TEST_F(LssBus, ScanLooksPastADeviceItGivesNoNodeId) {
   for (const auto& s : slaves) {
     EXPECT_EQ(s->engine().configured(), skip.count(s->engine().address()) == 0);
   }
+}
+
+TEST_F(LssBus, ScanFirstSwitchesADeviceLeftInConfigurationBackToWaiting) {
+  auto& bystander = add({0x0000019A, 0x00020001, 0x00010000, 0x00000001}, 9);
+  LssSlave::Output ignored;
+  bystander.engine().on_frame(*from_candump("7E5#0401000000000000"), TimePoint{0}, ignored);
+  ASSERT_EQ(bystander.engine().state(), LssState::Configuration);
+  auto addresses = std::vector<LssAddress>{{0x0000019A, 0x00020001, 0x00010000, 0x00000002}};
+  add(addresses[0]);
+  scan_all();
+  EXPECT_EQ(bystander.engine().pending_node_id(), 9);  // the node-ID 1 went to the new device
+  EXPECT_EQ(slaves[1]->engine().active_node_id(), 1);
 }
 
 TEST_F(LssBus, FastscanAfterAnAddressFindsTheNextHigherOne) {

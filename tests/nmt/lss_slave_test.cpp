@@ -4,10 +4,14 @@
 // code byte 1, manufacturer-specific error byte 2, unused bytes 0, always 8 data bytes.
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "cfg/device_file.hpp"
 #include "nmt/lss_slave.hpp"
+#include "nmt/slave_node.hpp"
+#include "test_paths.hpp"
 
 namespace nmt {
 namespace {
@@ -242,6 +246,131 @@ TEST_F(LssSlaveTest, FramesWithoutEightDataBytesAreIgnored) {
   EXPECT_TRUE(feed("7E5#04010000000000", false).empty());
   EXPECT_TRUE(feed("7E5#4C", false).empty());
   EXPECT_EQ(slave.state(), LssState::Waiting);
+}
+
+}  // namespace
+}  // namespace nmt
+
+// --- the LSS slave inside SlaveNode (tests/data/sim_device.eds with LSS_Supported=1) -----------
+
+namespace nmt {
+namespace {
+
+cfg::DeviceDescription lss_device() {
+  auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sim_device.eds");
+  EXPECT_TRUE(result.device.has_value()) << result.diagnostics.format();
+  auto device = result.device.value_or(cfg::DeviceDescription{});
+  device.device_info.set("LSS_Supported", "1");
+  return device;
+}
+
+struct LssNode {
+  std::unique_ptr<SlaveNode> node;
+  Frames sent;
+  explicit LssNode(std::unique_ptr<SlaveNode> n) : node(std::move(n)) {}
+  bool frame(std::string_view candump, TimePoint now = TimePoint{0}) {
+    SlaveNode::Output out;
+    const bool taken = node->on_frame(*from_candump(candump), now, out);
+    sent.clear();
+    for (const auto& f : out.frames) sent.push_back(to_candump(f));
+    return taken;
+  }
+  Frames timer(TimePoint now = TimePoint{0}) {
+    SlaveNode::Output out;
+    node->on_timer(now, out);
+    sent.clear();
+    for (const auto& f : out.frames) sent.push_back(to_candump(f));
+    return sent;
+  }
+};
+
+LssNode unconfigured() {
+  auto created = SlaveNode::create_unconfigured(lss_device());
+  EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
+  return LssNode(std::move(created).value());
+}
+
+TEST(SlaveNodeLss, UnconfiguredDevicePowersOnWithoutBootUpAndServesNoNmtOrSdo) {
+  auto d = unconfigured();
+  d.node->power_on(TimePoint{0});
+  EXPECT_FALSE(d.node->has_node_id());
+  EXPECT_FALSE(d.node->next_deadline().has_value());
+  EXPECT_TRUE(d.timer().empty());
+  EXPECT_FALSE(d.frame("000#0100"));
+  EXPECT_FALSE(d.frame("601#4000100000000000"));
+  EXPECT_TRUE(d.sent.empty());
+  // It answers LSS: identify non-configured remote slave.
+  EXPECT_TRUE(d.frame("7E5#4C00000000000000"));
+  EXPECT_EQ(d.sent, Frames{"7E4#5000000000000000"});
+}
+
+TEST(SlaveNodeLss, LssAddressIs1018hSub1To4) {
+  auto d = unconfigured();
+  ASSERT_NE(d.node->lss(), nullptr);
+  // sim_device.eds: vendor 7E57C0DEh, product 00000508h, revision 00020001h, serial 0.
+  EXPECT_EQ(d.node->lss()->address(), (LssAddress{0x7E57C0DE, 0x00000508, 0x00020001, 0}));
+  auto dcf = lss_device();
+  dcf.commissioning.emplace();
+  dcf.commissioning->lss_serial_number = 0x00C0FFEE;
+  auto node = SlaveNode::create(dcf, *cfg::NodeId::from(3));
+  ASSERT_TRUE(node.ok());
+  EXPECT_EQ(node.value()->lss()->address().serial, 0x00C0FFEEu);
+}
+
+TEST(SlaveNodeLss, DeviceFileWithoutLssSupportedCannotStartUnconfigured) {
+  auto device = lss_device();
+  device.device_info.set("LSS_Supported", "0");
+  EXPECT_FALSE(SlaveNode::create_unconfigured(device).ok());
+  auto node = SlaveNode::create(device, *cfg::NodeId::from(3));
+  ASSERT_TRUE(node.ok());
+  EXPECT_EQ(node.value()->lss(), nullptr);
+}
+
+TEST(SlaveNodeLss, NodeIdByLssThenBootUpAndTheDictionaryOfThatNodeId) {
+  auto d = unconfigured();
+  d.node->power_on(TimePoint{0});
+  d.frame("7E5#0401000000000000");
+  d.frame("7E5#1105000000000000");
+  EXPECT_EQ(d.sent, Frames{"7E4#1100000000000000"});
+  d.frame("7E5#1700000000000000");
+  EXPECT_EQ(d.sent, Frames{"7E4#1700000000000000"});
+  d.frame("7E5#0400000000000000", TimePoint{1000});
+  EXPECT_TRUE(d.node->has_node_id());
+  EXPECT_EQ(d.node->next_deadline(), TimePoint{1000});
+  EXPECT_EQ(d.timer(TimePoint{1000}), Frames{"705#00"});  // boot-up of node 5
+  // 1014h = $NODEID+80h of node 5; SDO on 605h/585h.
+  EXPECT_TRUE(d.frame("605#4014100000000000"));
+  EXPECT_EQ(d.sent, Frames{"585#4314100085000000"});
+  // Stored: the next power-on boots as node 5 at once.
+  d.node->power_on(TimePoint{2000});
+  EXPECT_EQ(d.timer(TimePoint{2000}), Frames{"705#00"});
+}
+
+TEST(SlaveNodeLss, UnstoredNodeIdIsLostAtPowerOn) {
+  auto d = unconfigured();
+  d.node->power_on(TimePoint{0});
+  d.frame("7E5#0401000000000000");
+  d.frame("7E5#1105000000000000");
+  d.frame("7E5#0400000000000000");
+  EXPECT_EQ(d.timer(), Frames{"705#00"});
+  d.node->power_on(TimePoint{1000});
+  EXPECT_FALSE(d.node->has_node_id());
+  EXPECT_TRUE(d.timer(TimePoint{1000}).empty());
+}
+
+TEST(SlaveNodeLss, ConfiguredNodeTakesANewNodeIdAtResetCommunication) {
+  auto created = SlaveNode::create(lss_device(), *cfg::NodeId::from(3));
+  ASSERT_TRUE(created.ok());
+  LssNode d(std::move(created).value());
+  d.node->power_on(TimePoint{0});
+  EXPECT_EQ(d.timer(), Frames{"703#00"});
+  d.frame("7E5#0401000000000000");
+  d.frame("7E5#1109000000000000");
+  d.frame("7E5#0400000000000000");
+  EXPECT_TRUE(d.timer().empty());  // still node 3 until the reset
+  EXPECT_TRUE(d.frame("000#8203"));
+  EXPECT_EQ(d.timer(), Frames{"709#00"});
+  EXPECT_EQ(d.node->node_id(), *cfg::NodeId::from(9));
 }
 
 }  // namespace

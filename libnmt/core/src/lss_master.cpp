@@ -198,8 +198,11 @@ bool LssMaster::fastscan(TimePoint now, Output& out, std::optional<LssAddress> a
 
 bool LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out) {
   if (!start(LssService::Scan, now, out)) return false;
-  scan_.emplace();
+  scan_ = ScanState{};
   scan_->chooser = std::move(chooser);
+  // No device someone left in configuration may take the node-IDs the scan hands out.
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
+                           {static_cast<std::uint8_t>(LssState::Waiting)}));
   fastscan_start(std::nullopt, now, out);
   return true;
 }

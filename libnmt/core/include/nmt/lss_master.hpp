@@ -28,12 +28,13 @@
 //   unconfigured LSS address (ordered as LssAddress), or with `after` the lowest above it: it
 //   probes, from the deepest bit up, the branches of `after`'s address that hold higher
 //   addresses. A device that stops answering in the middle ends the scan with Timeout.
-// - Scan (find all): Fastscan; the chooser gives the found device its node-ID, configured,
-//   stored (LssMasterOptions::store) and then the device is switched back to waiting, where it
-//   starts with its node-ID and no longer answers Fastscan. A device the chooser gives none,
-//   or whose configure node-ID fails, is switched back unconfigured and the next Fastscan looks
-//   above its address, so every device is found once. A device that appears during the scan
-//   with an address below one already skipped is not found: scan again.
+// - Scan (find all) first switches every device to LSS waiting, so that no device someone left
+//   in configuration takes the node-IDs it hands out. Then Fastscan; the chooser gives the found
+//   device its node-ID, configured, stored (LssMasterOptions::store) and then the device is
+//   switched back to waiting, where it starts with its node-ID and no longer answers Fastscan. A
+//   device the chooser gives none, or whose configure node-ID fails, is switched back unconfigured
+//   and the next Fastscan looks above its address, so every device is found once. A device that
+//   appears during the scan with an address below one already skipped is not found: scan again.
 #pragma once
 
 #include <chrono>
