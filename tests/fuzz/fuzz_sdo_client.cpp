@@ -15,6 +15,7 @@
 #include <map>
 #include <vector>
 
+#include "../support/fuzz_support.hpp"
 #include "../support/sdo_test_device.hpp"
 #include "nmt/fault_injection.hpp"
 #include "nmt/local_dictionary.hpp"
@@ -26,21 +27,7 @@ using nmt::CanFrame;
 using nmt::TimePoint;
 using namespace std::chrono_literals;
 
-// Stops with the failed condition and its line, so a crash report says which promise broke.
-#define check(condition) check_at((condition), #condition, __LINE__)
-void check_at(bool ok, const char* what, int line) {
-  if (ok) return;
-  std::fprintf(stderr, "check failed at line %d: %s\n", line, what);
-  std::abort();
-}
-
-struct Input {
-  const std::uint8_t* data;
-  std::size_t size;
-  std::size_t pos = 0;
-  bool empty() const { return pos >= size; }
-  std::uint8_t next() { return pos < size ? data[pos++] : 0; }
-};
+using fuzz_support::Input;
 
 constexpr std::uint16_t kIndices[] = {0x1000, 0x1008, 0x1017, 0x2000, 0x2005, 0x3000, 0x1018};
 

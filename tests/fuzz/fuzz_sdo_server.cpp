@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <vector>
 
+#include "../support/fuzz_support.hpp"
 #include "../support/sdo_test_device.hpp"
 #include "nmt/fault_injection.hpp"
 #include "nmt/local_dictionary.hpp"
@@ -20,14 +21,6 @@ namespace {
 
 using nmt::CanFrame;
 using nmt::TimePoint;
-
-// Stops with the failed condition and its line, so a crash report says which promise broke.
-#define check(condition) check_at((condition), #condition, __LINE__)
-void check_at(bool ok, const char* what, int line) {
-  if (ok) return;
-  std::fprintf(stderr, "check failed at line %d: %s\n", line, what);
-  std::abort();
-}
 
 // Requests a client could send to node 5 (candump bytes after "605#").
 constexpr std::array<std::array<std::uint8_t, 8>, 14> kTemplates{{
@@ -47,13 +40,7 @@ constexpr std::array<std::array<std::uint8_t, 8>, 14> kTemplates{{
     {0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x00, 0x08},  // abort
 }};
 
-struct Input {
-  const std::uint8_t* data;
-  std::size_t size;
-  std::size_t pos = 0;
-  bool empty() const { return pos >= size; }
-  std::uint8_t next() { return pos < size ? data[pos++] : 0; }
-};
+using fuzz_support::Input;
 
 struct Harness {
   nmt::LocalDictionary dict;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdlib>
 #include <utility>
 
 #include "cfg/bytes.hpp"
@@ -88,6 +89,8 @@ std::string_view to_string(SlaveEvent::Kind kind) {
       return "program";
     case SlaveEvent::Kind::Fault:
       return "fault";
+    case SlaveEvent::Kind::Lss:
+      return "lss";
   }
   return "event";
 }
@@ -101,6 +104,20 @@ cfg::Result<std::unique_ptr<SlaveNode>> SlaveNode::create(const cfg::DeviceDescr
   if (!factory) return factory.error();
   return std::make_unique<SlaveNode>(Key{}, description, std::move(factory).value(), node_id,
                                      options);
+}
+
+cfg::Result<std::unique_ptr<SlaveNode>> SlaveNode::create_unconfigured(
+    const cfg::DeviceDescription& description, SlaveNodeOptions options) {
+  // The dictionary is built for node-ID 1 until LSS gives the real one (take_node_id).
+  auto node = create(description, *cfg::NodeId::from(1), options);
+  if (!node) return node.error();
+  if (!node.value()->lss_) {
+    return cfg::Error{
+        "the device file does not say [DeviceInfo] LSS_Supported=1: a device "
+        "without node-ID needs LSS to get one"};
+  }
+  node.value()->power_on_node_id_ = lss::kUnconfigured;
+  return node;
 }
 
 SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary factory,
@@ -126,6 +143,20 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
   sdo_.open(obj::kSdoServerFirst, SdoServerConfig::for_node(node_id));
   add_sdo_channels();
   install_hooks();
+  power_on_node_id_ = node_id;
+  const std::string* lss_supported = description_.device_info.find("LSS_Supported");
+  if (lss_supported != nullptr && std::strtoul(lss_supported->c_str(), nullptr, 0) != 0) {
+    // CiA 305: the LSS address is the identity object; a DCF's LSS_SerialNumber names sub 4.
+    LssAddress address;
+    for (int part = 0; part < 4; ++part) {
+      address.part(part) = static_cast<std::uint32_t>(
+          factory_.get_unsigned(obj::kIdentity, static_cast<std::uint8_t>(part + 1)).value_or(0));
+    }
+    if (description_.commissioning && description_.commissioning->lss_serial_number) {
+      address.serial = *description_.commissioning->lss_serial_number;
+    }
+    lss_.emplace(address, node_id);
+  }
 }
 
 SlaveNode::~SlaveNode() = default;
@@ -202,8 +233,59 @@ void SlaveNode::sync_parts() {
 
 void SlaveNode::power_on(TimePoint now) {
   powered_ = true;
+  if (lss_) {
+    const std::uint8_t id = lss_stored_node_id_.value_or(power_on_node_id_);
+    lss_->power_on(id);
+    if (id == lss::kUnconfigured) {
+      nmt_.power_on();
+      become_unconfigured(now);
+      return;
+    }
+    unconfigured_ = false;
+    if (id != nmt_.node_id()) {
+      take_node_id(id, ResetScope::Application, now);
+      return;
+    }
+  }
   nmt_.power_on();
   enter_initialisation(ResetScope::Application, now);
+}
+
+void SlaveNode::become_unconfigured(TimePoint now) {
+  // Parameters load as at any reset; then the node waits for LSS without boot-up.
+  unconfigured_ = true;
+  enter_initialisation(ResetScope::Application, now);
+  boot_at_.reset();
+}
+
+void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now) {
+  const auto id = cfg::NodeId::from(node_id);
+  auto factory = id ? LocalDictionary::from_device(description_, *id)
+                    : cfg::Result<LocalDictionary>(cfg::Error{"no node-ID"});
+  if (!factory) return;  // the file built a dictionary before: not for another node-ID only
+  // $NODEID values (COB-IDs) of the new node-ID; stored values keep what was stored.
+  factory_ = std::move(factory).value();
+  nmt_ = NmtSlave(*id);
+  unconfigured_ = false;
+  lss_->activate_pending_node_id();
+  emit(SlaveEvent::Kind::Lss, now, "LSS: node-ID " + std::to_string(node_id));
+  enter_initialisation(scope, now);
+}
+
+bool SlaveNode::on_lss_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  LssSlave::Output lss_out;
+  const bool taken = lss_->on_frame(frame, now, lss_out);
+  forward_frames(lss_out, out);
+  for (const auto& e : lss_out.events) {
+    emit(SlaveEvent::Kind::Lss, now, e.text);
+    if (e.kind == LssSlaveEvent::Kind::StoreRequested) lss_stored_node_id_ = e.node_id;
+    // CiA 305 (CANopenNode): a device without node-ID starts with the one it got.
+    if (e.kind == LssSlaveEvent::Kind::NodeIdActivate && unconfigured_) {
+      take_node_id(e.node_id, ResetScope::Application, now);
+    }
+  }
+  take_events(out);
+  return taken;
 }
 
 void SlaveNode::enter_initialisation(ResetScope scope, TimePoint now) {
@@ -279,7 +361,9 @@ void SlaveNode::restart_consumer(TimePoint now) {
 // ---------------------------------------------------------------------------------------
 
 bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  if (!powered_ || nmt_.state() == NmtState::Initialising) return false;  // not on the bus yet
+  if (!powered_) return false;
+  if (lss_ && lss::is_lss_frame(frame, lss::kMasterCobId)) return on_lss_frame(frame, now, out);
+  if (unconfigured_ || nmt_.state() == NmtState::Initialising) return false;  // not on the bus
 
   NmtSlave::Output nmt_out;
   if (nmt_.on_frame(frame, now, nmt_out)) {
@@ -329,11 +413,23 @@ void SlaveNode::apply_nmt(const NmtTransition& t, TimePoint now) {
   emit(SlaveEvent::Kind::StateChange, now,
        std::string(to_string(t.command)) + ": " + std::string(to_string(t.from)) + " -> " +
            std::string(t.reset ? to_string(*t.reset) : to_string(t.to)));
-  if (t.reset) enter_initialisation(*t.reset, now);
+  if (!t.reset) return;
+  // CiA 305: a node-ID configured by LSS takes effect at the reset.
+  if (lss_ && lss_->pending_node_id() != lss_->active_node_id()) {
+    if (lss_->pending_node_id() == lss::kUnconfigured) {
+      lss_->activate_pending_node_id();
+      emit(SlaveEvent::Kind::Lss, now, "LSS: no node-ID");
+      become_unconfigured(now);
+      return;
+    }
+    take_node_id(lss_->pending_node_id(), *t.reset, now);
+    return;
+  }
+  enter_initialisation(*t.reset, now);
 }
 
 void SlaveNode::on_timer(TimePoint now, Output& out) {
-  if (!powered_) return;
+  if (!powered_ || unconfigured_) return;
   if (boot_at_ && now >= *boot_at_) {
     boot_at_.reset();
     NmtSlave::Output nmt_out;
@@ -376,7 +472,7 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
 }
 
 std::optional<TimePoint> SlaveNode::next_deadline() const {
-  if (!powered_) return std::nullopt;
+  if (!powered_ || unconfigured_) return std::nullopt;
   std::optional<TimePoint> next = boot_at_;
   if (nmt_.state() != NmtState::Initialising) {
     next = earliest(next, heartbeat_.next_deadline());

@@ -48,6 +48,14 @@
 //   bit 31 is always allowed. A written 1201h-127Fh entry takes effect without a reset, once the
 //   response to the write is sent (a client that rewrites the channel it talks on gets its
 //   confirmation on the COB-ID it used).
+// - LSS (CiA 305, nmt/lss_slave.hpp) when the device file says [DeviceInfo] LSS_Supported=1: the
+//   LSS address is 1018h sub 1-4 (sub 4 from a DCF's [DeviceComissioning] LSS_SerialNumber when
+//   given). A node created unconfigured (create_unconfigured) powers on without boot-up and
+//   serves only LSS (no NMT, SDO, heartbeat) until LSS gives it a node-ID and switches it back
+//   to waiting; then it boots as usual with the dictionary of that node-ID. A node-ID configured
+//   by LSS on a running node takes effect at its next NMT reset (communication or application),
+//   FFh there makes it unconfigured. Store configuration keeps the node-ID over power cycles
+//   (like 1010h values, in stored()'s memory of this object).
 #pragma once
 
 #include <cstdint>
@@ -66,6 +74,7 @@
 #include "nmt/error_control.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/local_dictionary.hpp"
+#include "nmt/lss_slave.hpp"
 #include "nmt/nmt_slave.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/sdo_abort.hpp"
@@ -85,6 +94,7 @@ struct SlaveEvent {
     Emergency,     ///< an EMCY was raised
     Program,       ///< program control (1F51h) or program download (1F50h)
     Fault,         ///< an injected fault acted (reported by nmt/fault_injection.hpp, never here)
+    Lss,           ///< an LSS service acted (node-ID configured, stored, bit timing)
   };
   Kind kind;
   TimePoint at;
@@ -131,6 +141,10 @@ class SlaveNode {
   static cfg::Result<std::unique_ptr<SlaveNode>> create(const cfg::DeviceDescription& description,
                                                         cfg::NodeId node_id,
                                                         SlaveNodeOptions options = {});
+  /// Builds a node that powers on without a node-ID (FFh): it needs [DeviceInfo]
+  /// LSS_Supported=1 and waits for LSS to give it one (see the top of this file).
+  static cfg::Result<std::unique_ptr<SlaveNode>> create_unconfigured(
+      const cfg::DeviceDescription& description, SlaveNodeOptions options = {});
 
   SlaveNode(const SlaveNode&) = delete;
   SlaveNode& operator=(const SlaveNode&) = delete;
@@ -155,7 +169,12 @@ class SlaveNode {
                        Output& out);
 
   // --- observation ---------------------------------------------------------------------------
+  /// The node-ID (meaningless while !has_node_id()).
   cfg::NodeId node_id() const { return nmt_.node_id(); }
+  /// False while the node waits for LSS to give it a node-ID.
+  bool has_node_id() const { return !unconfigured_; }
+  /// The LSS slave; nullptr when the device file does not say LSS_Supported=1.
+  const LssSlave* lss() const { return lss_ ? &*lss_ : nullptr; }
   NmtState state() const { return nmt_.state(); }
   NmtServices services() const { return nmt_.services(); }
   bool powered() const { return powered_; }
@@ -220,6 +239,9 @@ class SlaveNode {
   void restore_defaults(std::uint8_t area, TimePoint now);
   void restart_consumer(TimePoint now);
   void set_program_state(std::uint8_t program, ProgramState state);
+  bool on_lss_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now);
+  void become_unconfigured(TimePoint now);
 
   cfg::DeviceDescription description_;
   LocalDictionary factory_;  ///< values as the device file gives them (no hooks)
@@ -243,6 +265,13 @@ class SlaveNode {
   /// access to that output.
   std::vector<SlaveEvent> events_;
 
+  std::optional<LssSlave> lss_;
+  /// No node-ID: only LSS is served, no boot-up.
+  bool unconfigured_ = false;
+  /// The node-ID LSS store configuration saved (FFh: unconfigured); survives power cycles.
+  std::optional<std::uint8_t> lss_stored_node_id_;
+  /// The node-ID the node powers on with when LSS stored none (FFh: created unconfigured).
+  std::uint8_t power_on_node_id_ = lss::kUnconfigured;
   bool powered_ = false;
   std::optional<TimePoint> boot_at_;
   int communication_errors_ = 0;  ///< active life guarding / heartbeat consumer errors

@@ -1,0 +1,213 @@
+// The LSS master of CiA 305 (nmt/lss.hpp has the protocol and its sources), an engine of the
+// shape of nmt/engine.hpp: services are started with `TimePoint now, Output& out` and put their
+// first frames into `out` at once; each ends with one LssMasterEvent (Scan: one per device found
+// and a last one). One service at a time: a start while one runs is answered with a Busy event.
+//
+//   LssMaster master;
+//   master.switch_state_selective(address, now, out);   // 40h..43h, answer 44h
+//   master.configure_node_id(5, now, out);              // 11h, answer 11h + error code
+//   master.store_configuration(now, out);               // 17h
+//   master.switch_state_global(LssState::Waiting, now, out);
+//   master.scan(chooser, now, out);   // every unconfigured device: Fastscan, node-ID, store
+//
+// Behaviour where CiA 305 leaves room (each says why):
+// - Services one device answers (switch state selective, configure, store, inquire) end at the
+//   answer or after LssMasterOptions::timeout. Services many devices may answer at once
+//   (identify remote slave, identify non-configured remote slave, each Fastscan step) end when
+//   LssMasterOptions::scan_step has passed since the request and since the last answer: a
+//   slower device's answer cannot be taken for the answer to the next request (LSS answers
+//   carry no address), and many devices answering one after another on the bus are all heard.
+// - Switch state global has no answer (python-canopen, CANopenNode): it ends at once.
+//   Activate bit timing ends after twice the switch delay: CiA 305 has the devices stay silent
+//   for the delay, switch, and stay silent for the delay again, so the master sends nothing
+//   before that.
+// - Frames of one request (switch state selective, identify remote slave) are handed out back
+//   to back; the driver's transmit queue paces them.
+// - Fastscan queries each bit with the bit 0 and reads no answer as 1 (lely-core), 32 queries
+//   and a confirmation per part: 1 + 4 x 33 = 133 requests find one device. It finds the lowest
+//   unconfigured LSS address (ordered as LssAddress), or with `after` the lowest above it: it
+//   probes, from the deepest bit up, the branches of `after`'s address that hold higher
+//   addresses. A device that stops answering in the middle ends the scan with Timeout.
+// - Scan (find all) first switches every device to LSS waiting, so that no device someone left
+//   in configuration takes the node-IDs it hands out. Then Fastscan; the chooser gives the found
+//   device its node-ID, configured, stored (LssMasterOptions::store) and then the device is
+//   switched back to waiting, where it starts with its node-ID and no longer answers Fastscan. A
+//   device the chooser gives none, or whose configure node-ID fails, is switched back unconfigured
+//   and the next Fastscan looks above its address, so every device is found once. A device that
+//   appears during the scan with an address below one already skipped is not found: scan again.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "nmt/engine.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/lss.hpp"
+
+namespace nmt {
+
+enum class LssService : std::uint8_t {
+  SwitchStateGlobal,
+  SwitchStateSelective,
+  ConfigureNodeId,
+  ConfigureBitTiming,
+  ActivateBitTiming,
+  StoreConfiguration,
+  InquireVendorId,
+  InquireProductCode,
+  InquireRevision,
+  InquireSerial,
+  InquireNodeId,
+  IdentifyRemoteSlaves,
+  IdentifyNonConfigured,
+  Fastscan,
+  Scan,
+};
+std::string_view to_string(LssService service);  ///< "configure node-ID", ...
+
+struct LssMasterEvent {
+  enum class Kind : std::uint8_t {
+    Done,      ///< the service ended as asked (Identify*: a device answered; Fastscan: found)
+    NotFound,  ///< Identify* / Fastscan: no device answered in its time (an answer, not a fault)
+    Refused,   ///< the device answered with an error code (`error_code`, `spec_error`)
+    Timeout,   ///< no answer within the timeout
+    Busy,      ///< not started: another service runs
+    Assigned,  ///< Scan: a found device got `node_id` (stored unless `error_code` says why not)
+    Skipped,   ///< Scan: a found device was left without node-ID (`text` says why)
+  };
+  LssService service = LssService::SwitchStateGlobal;
+  Kind kind = Kind::Done;
+  TimePoint at{0};
+  LssAddress address{};      ///< Fastscan / Scan: the device's LSS address
+  std::uint32_t value = 0;   ///< inquire: the value (InquireNodeId: the node-ID); Scan end: found
+  std::uint8_t node_id = 0;  ///< ConfigureNodeId / Assigned: the node-ID
+  std::uint8_t error_code = 0;
+  std::uint8_t spec_error = 0;
+  std::string text;  ///< one line for people, e.g. "configure node-ID refused: node-ID out of
+                     ///< range (error code 1)"
+
+  bool ok() const { return kind == Kind::Done || kind == Kind::Assigned; }
+};
+
+struct LssMasterOptions {
+  /// Longest wait for the answer of a service one device answers.
+  Duration timeout = std::chrono::milliseconds(100);
+  /// The time a step of a service many devices may answer lasts (identify, each Fastscan
+  /// request): from the request and from each answer. Choose it above the devices' answer time
+  /// and the air time of all devices' answers (at 125 kbit/s one LSS frame takes about 1 ms).
+  Duration scan_step = std::chrono::milliseconds(10);
+  /// Scan: store each assigned node-ID (17h) before switching the device back.
+  bool store = true;
+};
+
+/// The identify remote slave range: vendor-ID and product code exact, revision and serial
+/// number ranges with both bounds included.
+struct LssAddressRange {
+  std::uint32_t vendor_id = 0;
+  std::uint32_t product_code = 0;
+  std::uint32_t revision_low = 0;
+  std::uint32_t revision_high = 0xFFFFFFFF;
+  std::uint32_t serial_low = 0;
+  std::uint32_t serial_high = 0xFFFFFFFF;
+};
+
+class LssMaster {
+ public:
+  using Event = LssMasterEvent;
+  using Output = Outbox<Event>;
+  /// Scan: the node-ID a found device gets (1..127), or nullopt to leave it unconfigured.
+  using NodeIdChooser = std::function<std::optional<std::uint8_t>(const LssAddress&)>;
+
+  explicit LssMaster(LssMasterOptions options = {}) : options_(options) {}
+
+  // --- services (each returns false, with a Busy event, when another one runs) -------------
+  bool switch_state_global(LssState state, TimePoint now, Output& out);
+  bool switch_state_selective(const LssAddress& address, TimePoint now, Output& out);
+  /// 1..127, or FFh (back to unconfigured); other values are sent as given (the device refuses).
+  bool configure_node_id(std::uint8_t node_id, TimePoint now, Output& out);
+  /// `table_index` of table selector 0 (lss::bit_timing_index gives it for a rate).
+  bool configure_bit_timing(std::uint8_t table_index, TimePoint now, Output& out,
+                            std::uint8_t table_selector = 0);
+  bool activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now, Output& out);
+  bool store_configuration(TimePoint now, Output& out);
+  /// One of InquireVendorId .. InquireNodeId (others: false, nothing sent, no event).
+  bool inquire(LssService what, TimePoint now, Output& out);
+  bool identify_remote_slaves(const LssAddressRange& range, TimePoint now, Output& out);
+  bool identify_non_configured(TimePoint now, Output& out);
+  /// Finds one unconfigured device (the lowest address, above `after` when given) and leaves it
+  /// in LSS configuration: Done with its address, or NotFound.
+  bool fastscan(TimePoint now, Output& out, std::optional<LssAddress> after = std::nullopt);
+  /// Finds every unconfigured device one by one and gives each the node-ID `chooser` says (see
+  /// the top of this file); one Assigned or Skipped event per device, then Done (value: the
+  /// number of devices found) or, when a device stopped answering mid-scan, Timeout.
+  bool scan(NodeIdChooser chooser, TimePoint now, Output& out);
+
+  // --- engine --------------------------------------------------------------------------------
+  /// True for answers (8-byte frames on 7E4h) the running service waited for.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  void on_timer(TimePoint now, Output& out);
+  std::optional<TimePoint> next_deadline() const { return deadline_; }
+
+  bool busy() const { return service_.has_value(); }
+  const LssMasterOptions& options() const { return options_; }
+  void set_options(LssMasterOptions options) { options_ = options; }
+
+ private:
+  enum class Wait : std::uint8_t { Answer, Collect, Delay };
+  enum class Step : std::uint8_t { Reset, Position, Probe, Descend, Confirm };
+  struct FastscanState {
+    std::optional<LssAddress> after;
+    LssAddress id;
+    Step step = Step::Reset;
+    int sub = 0;       // Descend/Confirm: the part being found
+    int bit = 31;      // Descend: the bit queried
+    int level = 3;     // Position/Probe: the part whose branches are probed
+    int position = 0;  // Position: the part being confirmed
+  };
+  enum class ScanPhase : std::uint8_t { Searching, Configuring, Storing };
+  struct ScanState {
+    NodeIdChooser chooser;
+    std::optional<LssAddress> cursor;  // the highest address skipped
+    LssAddress current;
+    std::uint8_t node_id = 0;
+    ScanPhase phase = ScanPhase::Searching;
+    std::uint32_t found = 0;
+  };
+
+  bool start(LssService service, TimePoint now, Output& out);
+  void await(lss::Cs cs, Wait wait, Duration d, TimePoint now);
+  void finish(Event event, Output& out);
+  void answered(const CanFrame& frame, TimePoint now, Output& out);
+  void step_ended(TimePoint now, Output& out);
+  void timed_out(TimePoint now, Output& out);
+  Event event(LssService service, LssMasterEvent::Kind kind, TimePoint now, std::string text) const;
+
+  void send_fastscan(std::uint32_t id, int bit_check, int sub, int next, Output& out,
+                     TimePoint now);
+  void fastscan_start(std::optional<LssAddress> after, TimePoint now, Output& out);
+  void fastscan_step(bool answer, TimePoint now, Output& out);
+  void fastscan_probe(TimePoint now, Output& out, int from_bit);
+  void fastscan_descend(TimePoint now, Output& out);
+  void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text);
+  void scan_next(TimePoint now, Output& out);
+  void scan_found(TimePoint now, Output& out);
+  void scan_device_done(LssMasterEvent::Kind kind, std::string text, std::uint8_t error_code,
+                        TimePoint now, Output& out);
+
+  LssMasterOptions options_;
+  std::optional<LssService> service_;
+  std::optional<TimePoint> deadline_;
+  Wait wait_ = Wait::Answer;
+  lss::Cs expect_{};
+  bool heard_ = false;        // Collect: an answer came in this step
+  std::uint8_t node_id_ = 0;  // configure node-ID: the node-ID asked for
+  FastscanState fs_;
+  std::optional<ScanState> scan_;
+};
+static_assert(Engine<LssMaster>);
+
+}  // namespace nmt

@@ -1,0 +1,504 @@
+#include "nmt/lss_master.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <utility>
+
+#include "cfg/bytes.hpp"
+
+namespace nmt {
+
+using lss::Cs;
+using Kind = LssMasterEvent::Kind;
+
+std::string_view to_string(LssService service) {
+  switch (service) {
+    case LssService::SwitchStateGlobal:
+      return "switch state global";
+    case LssService::SwitchStateSelective:
+      return "switch state selective";
+    case LssService::ConfigureNodeId:
+      return "configure node-ID";
+    case LssService::ConfigureBitTiming:
+      return "configure bit timing";
+    case LssService::ActivateBitTiming:
+      return "activate bit timing";
+    case LssService::StoreConfiguration:
+      return "store configuration";
+    case LssService::InquireVendorId:
+      return "inquire vendor-ID";
+    case LssService::InquireProductCode:
+      return "inquire product code";
+    case LssService::InquireRevision:
+      return "inquire revision number";
+    case LssService::InquireSerial:
+      return "inquire serial number";
+    case LssService::InquireNodeId:
+      return "inquire node-ID";
+    case LssService::IdentifyRemoteSlaves:
+      return "identify remote slave";
+    case LssService::IdentifyNonConfigured:
+      return "identify non-configured remote slave";
+    case LssService::Fastscan:
+      return "Fastscan";
+    case LssService::Scan:
+      return "scan";
+  }
+  return "LSS service";
+}
+
+namespace {
+CanFrame request(Cs cs, std::uint32_t value = 0) {
+  return lss::make_frame(lss::kMasterCobId, cs, value);
+}
+std::string ms(Duration d) {
+  return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()) + " ms";
+}
+}  // namespace
+
+LssMasterEvent LssMaster::event(LssService service, Kind kind, TimePoint now,
+                                std::string text) const {
+  LssMasterEvent e;
+  e.service = service;
+  e.kind = kind;
+  e.at = now;
+  e.text = std::string(to_string(service)) + ": " + std::move(text);
+  return e;
+}
+
+bool LssMaster::start(LssService service, TimePoint now, Output& out) {
+  if (service_) {
+    out.report(event(service, Kind::Busy, now,
+                     "not started, " + std::string(to_string(*service_)) + " runs"));
+    return false;
+  }
+  service_ = service;
+  return true;
+}
+
+void LssMaster::await(Cs cs, Wait wait, Duration d, TimePoint now) {
+  expect_ = cs;
+  wait_ = wait;
+  heard_ = false;
+  deadline_ = now + d;
+}
+
+void LssMaster::finish(Event e, Output& out) {
+  service_.reset();
+  deadline_.reset();
+  scan_.reset();
+  out.report(std::move(e));
+}
+
+// --- services ----------------------------------------------------------------------------------
+
+bool LssMaster::switch_state_global(LssState state, TimePoint now, Output& out) {
+  if (!start(LssService::SwitchStateGlobal, now, out)) return false;
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
+                           {static_cast<std::uint8_t>(state)}));
+  finish(event(LssService::SwitchStateGlobal, Kind::Done, now,
+               "all devices to LSS " + std::string(to_string(state))),
+         out);
+  return true;
+}
+
+bool LssMaster::switch_state_selective(const LssAddress& address, TimePoint now, Output& out) {
+  if (!start(LssService::SwitchStateSelective, now, out)) return false;
+  fs_.id = address;  // reported with the result
+  out.send(request(Cs::SwitchSelectiveVendor, address.vendor_id));
+  out.send(request(Cs::SwitchSelectiveProduct, address.product_code));
+  out.send(request(Cs::SwitchSelectiveRevision, address.revision));
+  out.send(request(Cs::SwitchSelectiveSerial, address.serial));
+  await(Cs::SwitchSelectiveAnswer, Wait::Answer, options_.timeout, now);
+  return true;
+}
+
+bool LssMaster::configure_node_id(std::uint8_t node_id, TimePoint now, Output& out) {
+  if (!start(LssService::ConfigureNodeId, now, out)) return false;
+  node_id_ = node_id;
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {node_id}));
+  await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
+  return true;
+}
+
+bool LssMaster::configure_bit_timing(std::uint8_t table_index, TimePoint now, Output& out,
+                                     std::uint8_t table_selector) {
+  if (!start(LssService::ConfigureBitTiming, now, out)) return false;
+  out.send(
+      lss::make_frame(lss::kMasterCobId, Cs::ConfigureBitTiming, {table_selector, table_index}));
+  await(Cs::ConfigureBitTiming, Wait::Answer, options_.timeout, now);
+  return true;
+}
+
+bool LssMaster::activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now, Output& out) {
+  if (!start(LssService::ActivateBitTiming, now, out)) return false;
+  out.send(request(Cs::ActivateBitTiming, switch_delay_ms));
+  await(Cs::ActivateBitTiming, Wait::Delay, std::chrono::milliseconds(2 * switch_delay_ms), now);
+  return true;
+}
+
+bool LssMaster::store_configuration(TimePoint now, Output& out) {
+  if (!start(LssService::StoreConfiguration, now, out)) return false;
+  out.send(request(Cs::StoreConfiguration));
+  await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
+  return true;
+}
+
+bool LssMaster::inquire(LssService what, TimePoint now, Output& out) {
+  Cs cs{};
+  switch (what) {
+    case LssService::InquireVendorId:
+      cs = Cs::InquireVendor;
+      break;
+    case LssService::InquireProductCode:
+      cs = Cs::InquireProduct;
+      break;
+    case LssService::InquireRevision:
+      cs = Cs::InquireRevision;
+      break;
+    case LssService::InquireSerial:
+      cs = Cs::InquireSerial;
+      break;
+    case LssService::InquireNodeId:
+      cs = Cs::InquireNodeId;
+      break;
+    default:
+      return false;
+  }
+  if (!start(what, now, out)) return false;
+  out.send(request(cs));
+  await(cs, Wait::Answer, options_.timeout, now);
+  return true;
+}
+
+bool LssMaster::identify_remote_slaves(const LssAddressRange& range, TimePoint now, Output& out) {
+  if (!start(LssService::IdentifyRemoteSlaves, now, out)) return false;
+  out.send(request(Cs::IdentifyVendor, range.vendor_id));
+  out.send(request(Cs::IdentifyProduct, range.product_code));
+  out.send(request(Cs::IdentifyRevisionLow, range.revision_low));
+  out.send(request(Cs::IdentifyRevisionHigh, range.revision_high));
+  out.send(request(Cs::IdentifySerialLow, range.serial_low));
+  out.send(request(Cs::IdentifySerialHigh, range.serial_high));
+  await(Cs::IdentifyAnswer, Wait::Collect, options_.scan_step, now);
+  return true;
+}
+
+bool LssMaster::identify_non_configured(TimePoint now, Output& out) {
+  if (!start(LssService::IdentifyNonConfigured, now, out)) return false;
+  out.send(request(Cs::IdentifyNonConfigured));
+  await(Cs::IdentifyNonConfiguredAnswer, Wait::Collect, options_.scan_step, now);
+  return true;
+}
+
+bool LssMaster::fastscan(TimePoint now, Output& out, std::optional<LssAddress> after) {
+  if (!start(LssService::Fastscan, now, out)) return false;
+  fastscan_start(after, now, out);
+  return true;
+}
+
+bool LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out) {
+  if (!start(LssService::Scan, now, out)) return false;
+  scan_ = ScanState{};
+  scan_->chooser = std::move(chooser);
+  // No device someone left in configuration may take the node-IDs the scan hands out.
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
+                           {static_cast<std::uint8_t>(LssState::Waiting)}));
+  fastscan_start(std::nullopt, now, out);
+  return true;
+}
+
+// --- engine ------------------------------------------------------------------------------------
+
+bool LssMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  if (!deadline_ || wait_ == Wait::Delay || !lss::is_lss_frame(frame, lss::kSlaveCobId)) {
+    return false;
+  }
+  if (now > *deadline_) {
+    // It arrived after the service's time: the service ended before it (receive time counts).
+    on_timer(now, out);
+    return false;
+  }
+  if (frame.data[0] != static_cast<std::uint8_t>(expect_)) return false;
+  if (wait_ == Wait::Collect) {
+    heard_ = true;
+    deadline_ = std::max(*deadline_, now + options_.scan_step);
+    return true;
+  }
+  answered(frame, now, out);
+  return true;
+}
+
+void LssMaster::on_timer(TimePoint now, Output& out) {
+  if (!deadline_ || now < *deadline_) return;
+  switch (wait_) {
+    case Wait::Answer:
+      timed_out(now, out);
+      break;
+    case Wait::Collect:
+      step_ended(now, out);
+      break;
+    case Wait::Delay:
+      finish(event(LssService::ActivateBitTiming, Kind::Done, now,
+                   "devices switched after twice the switch delay"),
+             out);
+      break;
+  }
+}
+
+void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
+  const LssService service = *service_;
+  const std::uint8_t code = frame.data[1];
+  const std::uint8_t spec = frame.data[2];
+  switch (expect_) {
+    case Cs::SwitchSelectiveAnswer: {
+      auto e = event(service, Kind::Done, now, to_string(fs_.id) + " in LSS configuration");
+      e.address = fs_.id;
+      finish(std::move(e), out);
+      return;
+    }
+    case Cs::ConfigureNodeId:
+    case Cs::ConfigureBitTiming:
+    case Cs::StoreConfiguration: {
+      if (scan_) {
+        const std::string words = lss::error_text(expect_, code, spec);
+        if (scan_->phase == ScanPhase::Configuring && code != 0) {
+          scan_device_done(Kind::Skipped, "configure node-ID refused: " + words, code, now, out);
+        } else if (scan_->phase == ScanPhase::Configuring && options_.store) {
+          scan_->phase = ScanPhase::Storing;
+          out.send(request(Cs::StoreConfiguration));
+          await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
+        } else if (scan_->phase == ScanPhase::Storing && code != 0) {
+          scan_device_done(Kind::Assigned, "not stored: store configuration refused: " + words,
+                           code, now, out);
+        } else {
+          scan_device_done(Kind::Assigned, options_.store ? "stored" : "not stored (as asked)", 0,
+                           now, out);
+        }
+        return;
+      }
+      auto e = code == 0 ? event(service, Kind::Done, now, "done")
+                         : event(service, Kind::Refused, now,
+                                 "refused: " + lss::error_text(expect_, code, spec));
+      e.error_code = code;
+      e.spec_error = code == 0xFF ? spec : 0;
+      if (expect_ == Cs::ConfigureNodeId) e.node_id = node_id_;
+      finish(std::move(e), out);
+      return;
+    }
+    case Cs::InquireNodeId: {
+      auto e = event(service, Kind::Done, now, "node-ID " + std::to_string(code));
+      e.value = code;
+      finish(std::move(e), out);
+      return;
+    }
+    default: {  // inquire identity
+      const std::uint32_t value = cfg::load_le32(std::span(frame.data).subspan(1, 4));
+      char hex[16];
+      std::snprintf(hex, sizeof hex, "%08Xh", value);
+      auto e = event(service, Kind::Done, now, hex);
+      e.value = value;
+      finish(std::move(e), out);
+      return;
+    }
+  }
+}
+
+void LssMaster::timed_out(TimePoint now, Output& out) {
+  const std::string text = "no answer within " + ms(options_.timeout);
+  if (scan_) {
+    if (scan_->phase == ScanPhase::Configuring) {
+      scan_device_done(Kind::Skipped, "configure node-ID: " + text, 0, now, out);
+    } else {
+      scan_device_done(Kind::Assigned, "not stored: store configuration: " + text, 0, now, out);
+    }
+    return;
+  }
+  auto e = event(*service_, Kind::Timeout, now, text);
+  if (*service_ == LssService::SwitchStateSelective) e.address = fs_.id;
+  finish(std::move(e), out);
+}
+
+void LssMaster::step_ended(TimePoint now, Output& out) {
+  const LssService service = *service_;
+  if (service == LssService::IdentifyRemoteSlaves || service == LssService::IdentifyNonConfigured) {
+    finish(heard_ ? event(service, Kind::Done, now, "a device answered")
+                  : event(service, Kind::NotFound, now, "no device answered"),
+           out);
+    return;
+  }
+  fastscan_step(heard_, now, out);
+}
+
+// --- Fastscan ----------------------------------------------------------------------------------
+
+void LssMaster::send_fastscan(std::uint32_t id, int bit_check, int sub, int next, Output& out,
+                              TimePoint now) {
+  out.send(lss::make_fastscan(id, static_cast<std::uint8_t>(bit_check),
+                              static_cast<std::uint8_t>(sub), static_cast<std::uint8_t>(next)));
+  await(Cs::IdentifyAnswer, Wait::Collect, options_.scan_step, now);
+}
+
+void LssMaster::fastscan_start(std::optional<LssAddress> after, TimePoint now, Output& out) {
+  fs_ = FastscanState{};
+  fs_.after = after;
+  send_fastscan(0, lss::kFastscanReset, 0, 0, out, now);
+}
+
+void LssMaster::fastscan_descend(TimePoint now, Output& out) {
+  if (fs_.bit < 0) {
+    // The part is known: confirm it; the devices that match move on to the next part, and after
+    // the serial number (LSSNext 0 < LSSSub 3) the one found enters LSS configuration.
+    fs_.step = Step::Confirm;
+    send_fastscan(fs_.id.part(fs_.sub), 0, fs_.sub, fs_.sub == 3 ? 0 : fs_.sub + 1, out, now);
+    return;
+  }
+  // Bit `bit` queried as 0 (bits below it are 0 too and not compared).
+  fs_.step = Step::Descend;
+  send_fastscan(fs_.id.part(fs_.sub), fs_.bit, fs_.sub, fs_.sub, out, now);
+}
+
+void LssMaster::fastscan_probe(TimePoint now, Output& out, int from_bit) {
+  const std::uint32_t x = fs_.after->part(fs_.level);
+  for (int b = from_bit; b < 32; ++b) {
+    if ((x >> b & 1U) != 0) continue;
+    // Is there a device whose part `level` has the bits of `after` above b and a 1 at b?
+    fs_.step = Step::Probe;
+    fs_.bit = b;
+    send_fastscan(((x >> b) | 1U) << b, b, fs_.level, fs_.level, out, now);
+    return;
+  }
+  if (fs_.level == 0) {
+    fastscan_end(Kind::NotFound, now, out, "no unconfigured device above " + to_string(*fs_.after));
+    return;
+  }
+  // Nothing higher below this part: probe the part before it, from a fresh start.
+  --fs_.level;
+  fs_.step = Step::Reset;
+  send_fastscan(0, lss::kFastscanReset, 0, 0, out, now);
+}
+
+void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
+  switch (fs_.step) {
+    case Step::Reset:
+      if (!answer) {
+        fastscan_end(Kind::NotFound, now, out, "no unconfigured device answered");
+        return;
+      }
+      if (!fs_.after) {
+        fs_.sub = 0;
+        fs_.bit = 31;
+        fastscan_descend(now, out);
+        return;
+      }
+      fs_.position = 0;
+      [[fallthrough]];
+    case Step::Position:
+      // Move the devices that share `after`'s parts before `level` to that part.
+      if (fs_.step == Step::Position) {
+        if (!answer) {
+          // None has `after`'s part `position`: higher addresses branch off before it.
+          fs_.level = fs_.position;
+          fastscan_probe(now, out, 0);
+          return;
+        }
+        ++fs_.position;
+      }
+      if (fs_.position >= fs_.level) {
+        fastscan_probe(now, out, 0);
+        return;
+      }
+      fs_.step = Step::Position;
+      send_fastscan(fs_.after->part(fs_.position), 0, fs_.position, fs_.position + 1, out, now);
+      return;
+    case Step::Probe:
+      if (!answer) {
+        fastscan_probe(now, out, fs_.bit + 1);
+        return;
+      }
+      fs_.id = *fs_.after;
+      for (int s = fs_.level + 1; s < 4; ++s) fs_.id.part(s) = 0;
+      fs_.id.part(fs_.level) = ((fs_.after->part(fs_.level) >> fs_.bit) | 1U) << fs_.bit;
+      fs_.sub = fs_.level;
+      --fs_.bit;
+      fastscan_descend(now, out);
+      return;
+    case Step::Descend:
+      if (!answer) fs_.id.part(fs_.sub) |= 1U << fs_.bit;  // nobody has a 0 there
+      --fs_.bit;
+      fastscan_descend(now, out);
+      return;
+    case Step::Confirm:
+      if (!answer) {
+        fastscan_end(Kind::Timeout, now, out,
+                     "the device stopped answering (part " + std::to_string(fs_.sub) + ")");
+        return;
+      }
+      if (fs_.sub == 3) {
+        fastscan_end(Kind::Done, now, out, "found " + to_string(fs_.id));
+        return;
+      }
+      ++fs_.sub;
+      fs_.bit = 31;
+      fs_.id.part(fs_.sub) = 0;
+      fastscan_descend(now, out);
+      return;
+  }
+}
+
+void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text) {
+  if (!scan_) {
+    auto e = event(LssService::Fastscan, kind, now, std::move(text));
+    if (kind == Kind::Done) e.address = fs_.id;
+    finish(std::move(e), out);
+    return;
+  }
+  if (kind == Kind::Done) {
+    scan_found(now, out);
+    return;
+  }
+  auto e = kind == Kind::NotFound
+               ? event(LssService::Scan, Kind::Done, now,
+                       std::to_string(scan_->found) + " unconfigured devices found")
+               : event(LssService::Scan, kind, now, std::move(text));
+  e.value = scan_->found;
+  finish(std::move(e), out);
+}
+
+// --- scan --------------------------------------------------------------------------------------
+
+void LssMaster::scan_found(TimePoint now, Output& out) {
+  ++scan_->found;
+  scan_->current = fs_.id;
+  std::optional<std::uint8_t> node_id;
+  if (scan_->chooser) node_id = scan_->chooser(scan_->current);
+  if (!node_id) {
+    scan_device_done(Kind::Skipped, "no node-ID for it", 0, now, out);
+    return;
+  }
+  scan_->node_id = *node_id;
+  scan_->phase = ScanPhase::Configuring;
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {*node_id}));
+  await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
+}
+
+void LssMaster::scan_device_done(Kind kind, std::string text, std::uint8_t error_code,
+                                 TimePoint now, Output& out) {
+  const std::string head =
+      to_string(scan_->current) + (kind == Kind::Assigned
+                                       ? " got node-ID " + std::to_string(scan_->node_id) + ", "
+                                       : " left unconfigured: ");
+  auto e = event(LssService::Scan, kind, now, head + text);
+  e.address = scan_->current;
+  e.node_id = kind == Kind::Assigned ? scan_->node_id : 0;
+  e.error_code = error_code;
+  out.report(std::move(e));
+  if (kind == Kind::Skipped) scan_->cursor = scan_->current;
+  // Back to waiting: a device with its new node-ID starts with it and no longer answers
+  // Fastscan; a skipped one is looked past.
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
+                           {static_cast<std::uint8_t>(LssState::Waiting)}));
+  scan_->phase = ScanPhase::Searching;
+  fastscan_start(scan_->cursor, now, out);
+}
+
+}  // namespace nmt
