@@ -1,4 +1,5 @@
 // nmt::open_bus (bus.hpp): picks the driver by the URL's scheme.
+#include <chrono>
 #include <string>
 #include <string_view>
 
@@ -16,6 +17,10 @@ constexpr std::string_view kAcceptedForms =
 constexpr std::string_view kUdp = "udp://";
 constexpr std::string_view kSocketCan = "socketcan:";
 }  // namespace
+
+TimePoint wall_clock_now() {
+  return std::chrono::duration_cast<TimePoint>(std::chrono::system_clock::now().time_since_epoch());
+}
 
 cfg::Status check_bus_url(std::string_view url) {
   if (url.substr(0, kUdp.size()) == kUdp) {

@@ -186,10 +186,6 @@ cfg::Result<std::unique_ptr<TraceWriter>> open_trace(const std::filesystem::path
                     ": unknown trace format; use .log (candump log) or .pcap (pcap, SocketCAN)"};
 }
 
-TimePoint wall_clock_now() {
-  return std::chrono::duration_cast<TimePoint>(std::chrono::system_clock::now().time_since_epoch());
-}
-
 TracingBus::TracingBus(std::unique_ptr<Bus> inner, std::unique_ptr<TraceWriter> trace,
                        std::function<TimePoint()> clock)
     : inner_(std::move(inner)), trace_(std::move(trace)), clock_(std::move(clock)) {

@@ -3,9 +3,21 @@
 // received frames and due timers to the engines and sends what they answer. The engines are
 // the same objects that run on the simulated bus; only this loop knows about clocks and
 // sockets. EngineRef<E> is the one adapter from any engine to the loop.
+//
+// Time. Engines judge by when frames arrived, not by when the loop got round to reading them
+// (issue 22): a received frame is given to the engines at its receive stamp (ReceivedFrame:
+// the kernel's, for the SocketCAN and UDP drivers), moved onto the loop's clock by
+// arrival_on_loop_clock(). Frames and timers are merged on that one time line: for each frame
+// still queued in the socket, in arrival order, the timers due at or before its stamp fire
+// first (at the stamp), then the frame is delivered; only when the queue is empty do the timers
+// due up to now fire. So after a stall of the process (a scheduler hiccup, SIGSTOP, a debugger)
+// a heartbeat that arrived in time counts as in time, and a real loss (no frame before the
+// deadline) is still seen. The time given to engines never goes back (engine.hpp rule 1).
 #pragma once
 
+#include <algorithm>
 #include <atomic>
+#include <cstddef>
 #include <functional>
 #include <optional>
 #include <stdexcept>
@@ -104,9 +116,27 @@ class EngineRef final : public LoopEngine {
 /// Microseconds of std::chrono::steady_clock, the loop's default clock.
 TimePoint steady_now();
 
+/// Where a received frame sits on the loop's clock. A StampClock::Realtime stamp keeps its age:
+/// it is moved by the offset between the wall clock and the loop's clock, read together as
+/// `realtime_now` and `loop_now` (a step of the wall clock between reception and this call
+/// shifts it by that step, hence the clamp). A StampClock::Loop stamp is taken as it is. The
+/// result is clamped into [not_before, loop_now]: a frame cannot have arrived after the loop
+/// read it, and the time given to engines never goes back (`not_before`, the last time given,
+/// wins when the two disagree).
+TimePoint arrival_on_loop_clock(const ReceivedFrame& received, TimePoint loop_now,
+                                TimePoint realtime_now, TimePoint not_before);
+
 struct BusEventLoopOptions {
   /// Longest single wait for a frame, so that a stop request is noticed within this time.
   Duration max_wait = std::chrono::milliseconds(100);
+  /// Most frames read from the queue in one pass before the loop checks for a stop request and
+  /// for the end of run_until() again. Timers cannot starve under a flood whatever this is:
+  /// each frame is preceded by the timers due by its stamp. What a flood the process cannot
+  /// keep up with does delay is the time: engines are then given the arrival times of frames
+  /// that waited in the socket, at most the receive buffer's worth behind the clock (beyond
+  /// that the kernel drops frames: SocketCanBus::receive_overflows()). The timers due after the
+  /// last of them fire once the queue is empty.
+  std::size_t max_frames_per_pass = 1024;
   /// Deliver every frame an engine sends to the loop's other engines as well: on a CAN bus
   /// every node hears every frame, but drivers do not hand our own frames back to us.
   bool local_echo = true;
@@ -118,7 +148,8 @@ class BusEventLoop {
  public:
   using Clock = std::function<TimePoint()>;
   enum class Direction { Received, Sent };
-  /// Sees every frame received from the bus and every frame sent to it, with the loop's time.
+  /// Sees every frame received from the bus (at its arrival time) and every frame sent to it
+  /// (at the time of the engine call that sent it), as engines see them.
   using Observer = std::function<void(const CanFrame&, TimePoint, Direction)>;
 
   explicit BusEventLoop(Bus& bus, BusEventLoopOptions options = {}, Clock clock = steady_now);
@@ -129,11 +160,15 @@ class BusEventLoop {
     engines_.push_back(&engine);
   }
   void set_observer(Observer observer) { observer_ = std::move(observer); }
-  /// The loop's clock (the time engines are given).
-  TimePoint now() const { return clock_(); }
+  /// The time engines are given: inside a callback of the loop (an event handler, the
+  /// observer, EngineRef::apply from either) the time of the frame or timer being handled,
+  /// else the loop's clock.
+  TimePoint now() const { return in_callback_ ? last_given_ : std::max(clock_(), last_given_); }
 
   /// Runs until the clock reaches `until`, request_stop() is called, or the bus fails (a
-  /// receive error, or a frame that could not be sent: the error names the frame).
+  /// receive error, or a frame that could not be sent: the error names the frame). Each pass
+  /// first reads every frame already queued (see "Time" above), so a stall of the caller
+  /// between two run*() calls is no different from one inside.
   cfg::Status run_until(TimePoint until);
   cfg::Status run_for(Duration duration) { return run_until(now() + duration); }
   /// Runs until request_stop() or a bus failure.
@@ -157,6 +192,9 @@ class BusEventLoop {
     LoopEngine* from;  // nullptr: received from the bus
   };
   cfg::Status fire_timers(TimePoint now);
+  cfg::Status handle_received(const ReceivedFrame& received);
+  /// Records `now` as the time given to engines; returns it, never less than the last one.
+  TimePoint give(TimePoint now);
   cfg::Status deliver(const CanFrame& frame, LoopEngine* from, TimePoint now);
   cfg::Status emit(std::vector<CanFrame>& out, LoopEngine* from, TimePoint now);
   cfg::Status send_and_echo(LoopEngine* from, std::vector<CanFrame>& frames, TimePoint now);
@@ -172,8 +210,10 @@ class BusEventLoop {
   std::vector<Pending> pending_;
   std::uint64_t received_ = 0;
   std::uint64_t sent_ = 0;
-  bool delivering_ = false;           // inside deliver(): pending_ is being worked through
-  std::optional<cfg::Error> failed_;  // a send_now failure for the next run*()
+  bool delivering_ = false;                  // inside deliver(): pending_ is being worked through
+  bool in_callback_ = false;                 // inside an engine call, handler or observer
+  TimePoint last_given_ = TimePoint::min();  // the latest time given to an engine
+  std::optional<cfg::Error> failed_;         // a send_now failure for the next run*()
 };
 
 template <Engine E>

@@ -54,8 +54,9 @@ class SocketCanBus final : public Bus {
   cfg::Status send(const CanFrame& frame) override;
   /// Waits up to `timeout` for a frame. Error frames come back with `error` set, `extended`
   /// set and `id` holding the error class bits (as candump prints them); data bytes 0..7 hold
-  /// the details (linux/can/error.h). The timestamp is the kernel's receive time, moved onto
-  /// the steady (monotonic) clock, in microseconds since that clock's epoch.
+  /// the details (linux/can/error.h). The timestamp is the kernel's receive time
+  /// (SO_TIMESTAMPNS), StampClock::Realtime: microseconds since the Unix epoch, taken when the
+  /// frame reached the socket, not when it was read.
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// "socketcan:" followed by the interface name.
   std::string url() const override;

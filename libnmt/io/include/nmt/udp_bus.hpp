@@ -89,8 +89,9 @@ class UdpBus final : public Bus {
   /// `send_timeout` for buffer space, then fails.
   cfg::Status send(const CanFrame& frame) override;
   /// Waits up to `timeout` for a frame from another member, skipping our own datagrams and
-  /// malformed ones (counted in counters()). The timestamp is the steady (monotonic) clock at
-  /// reception, microseconds since that clock's epoch. Fails only on a socket error.
+  /// malformed ones (counted in counters()). The timestamp is the kernel's receive time
+  /// (SO_TIMESTAMPNS), StampClock::Realtime: microseconds since the Unix epoch, taken when the
+  /// datagram reached the socket, not when it was read. Fails only on a socket error.
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// The URL that opens an equivalent bus (to_udp_url).
   std::string url() const override;
