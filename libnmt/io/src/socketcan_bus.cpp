@@ -170,18 +170,20 @@ std::string SocketCanBus::url() const {
   return "socketcan:" + interface_name_;
 }
 
-cfg::Status SocketCanBus::send(const CanFrame& frame) {
+SendResult SocketCanBus::try_send(const CanFrame& frame) {
+  using Status = SendResult::Status;
   if (frame.error) {
-    return cfg::Error{url() + ": error frames are reported by the driver, not sent"};
+    return {Status::Refused, url() + ": error frames are reported by the driver, not sent"};
   }
   if (frame.dlc > CAN_MAX_DLEN) {
-    return cfg::Error{url() + ": a classic CAN frame carries at most 8 data bytes, not " +
-                      std::to_string(frame.dlc)};
+    return {Status::Refused, url() + ": a classic CAN frame carries at most 8 data bytes, not " +
+                                 std::to_string(frame.dlc)};
   }
   const std::uint32_t max_id = frame.extended ? CanFrame::kMaxExtendedId : CanFrame::kMaxStandardId;
   if (frame.id > max_id) {
-    return cfg::Error{url() + ": identifier " + std::to_string(frame.id) + " is out of range for " +
-                      (frame.extended ? "an extended" : "a standard") + " frame"};
+    return {Status::Refused, url() + ": identifier " + std::to_string(frame.id) +
+                                 " is out of range for " +
+                                 (frame.extended ? "an extended" : "a standard") + " frame"};
   }
   // can.rst, "How to use SocketCAN": a struct can_frame with the EFF/RTR flags in can_id and
   // the payload length in len. A remote frame carries its DLC in len and no data.
@@ -189,25 +191,35 @@ cfg::Status SocketCanBus::send(const CanFrame& frame) {
   raw.can_id = frame.id | (frame.extended ? CAN_EFF_FLAG : 0u) | (frame.rtr ? CAN_RTR_FLAG : 0u);
   raw.len = frame.dlc;
   if (!frame.rtr) std::copy_n(frame.data.begin(), frame.dlc, raw.data);
-
-  // A full transmit queue is not in can.rst. Measured and in the kernel source
-  // (net/can/af_can.c can_send): when the interface's queueing discipline is full, write()
-  // fails with ENOBUFS while the socket still reports POLLOUT, because the socket send
-  // buffer has room. So poll alone would spin: after each ENOBUFS we also sleep a backoff
-  // (50 us doubling to 2 ms). EAGAIN (send buffer full) is the case poll(POLLOUT) covers.
-  // The total wait is bounded by send_timeout; the frame is then reported as not sent.
-  const auto deadline = steady_clock::now() + options_.send_timeout;
-  Duration backoff{50};
   for (;;) {
     const ssize_t n = ::write(fd_, &raw, sizeof raw);
     if (n == static_cast<ssize_t>(sizeof raw)) return {};
     if (n >= 0) {
       // can.rst: a raw socket takes whole frames; a short write would be a kernel bug.
-      return cfg::Error{url() + ": short write of a CAN frame (" + std::to_string(n) + " bytes)"};
+      return {Status::Failed,
+              url() + ": short write of a CAN frame (" + std::to_string(n) + " bytes)"};
     }
     const int err = errno;
     if (err == EINTR) continue;
-    if (err != ENOBUFS && err != EAGAIN) return failure(interface_name_, "cannot send", err);
+    // A full transmit queue is not in can.rst. Measured and in the kernel source
+    // (net/can/af_can.c can_send): when the interface's queueing discipline is full, write()
+    // fails with ENOBUFS; EAGAIN when the socket's send buffer is full.
+    return {send_status_of_errno(err),
+            url() + ": cannot send " + to_candump(frame) + ": " + errno_text(err)};
+  }
+}
+
+cfg::Status SocketCanBus::send(const CanFrame& frame) {
+  // ENOBUFS comes while the socket still reports POLLOUT (its send buffer has room), so poll
+  // alone would spin: after each refusal we also sleep a backoff (50 us doubling to 2 ms).
+  // EAGAIN (send buffer full) is the case poll(POLLOUT) covers. The total wait is bounded by
+  // send_timeout; the frame is then reported as not sent.
+  const auto deadline = steady_clock::now() + options_.send_timeout;
+  Duration backoff{50};
+  for (;;) {
+    auto attempt = try_send(frame);
+    if (attempt.status == SendResult::Status::Sent) return {};
+    if (attempt.status != SendResult::Status::QueueFull) return cfg::Error{attempt.message};
     const Duration left = remaining(deadline);
     if (left == Duration::zero()) {
       return cfg::Error{url() + ": transmit queue full for " +
@@ -221,11 +233,9 @@ cfg::Status SocketCanBus::send(const CanFrame& frame) {
       const int poll_err = errno;
       return failure(interface_name_, "poll for transmit room failed", poll_err);
     }
-    if (err == ENOBUFS) {
-      const timespec sleep_for = to_timespec(std::min(backoff, remaining(deadline)));
-      ::nanosleep(&sleep_for, nullptr);
-      backoff = std::min(backoff * 2, Duration{2000});
-    }
+    const timespec sleep_for = to_timespec(std::min(backoff, remaining(deadline)));
+    ::nanosleep(&sleep_for, nullptr);
+    backoff = std::min(backoff * 2, Duration{2000});
   }
 }
 

@@ -198,6 +198,12 @@ cfg::Status TracingBus::send(const CanFrame& frame) {
   return status;
 }
 
+SendResult TracingBus::try_send(const CanFrame& frame) {
+  auto result = inner_->try_send(frame);
+  if (result.status == SendResult::Status::Sent) (void)trace_->write(frame, clock_());
+  return result;
+}
+
 cfg::Result<std::optional<ReceivedFrame>> TracingBus::receive(Duration timeout) {
   auto received = inner_->receive(timeout);
   if (received && received->has_value()) (void)trace_->write((*received)->frame, clock_());

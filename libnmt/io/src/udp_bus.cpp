@@ -509,31 +509,39 @@ cfg::Result<std::unique_ptr<UdpBus>> UdpBus::open(const UdpBusOptions& options) 
   return bus;
 }
 
-cfg::Status UdpBus::send(const CanFrame& frame) {
+SendResult UdpBus::try_send(const CanFrame& frame) {
+  using Status = SendResult::Status;
   const auto now = std::chrono::system_clock::now().time_since_epoch();
   // python-can stamps with time.time(): seconds since the Unix epoch as a float.
   const double timestamp_s = std::chrono::duration<double>(now).count();
   auto datagram = encode_udp_datagram(frame, timestamp_s);
   if (!datagram) {
-    return cfg::Error{url() + ": cannot send " + to_candump(frame) + ": " +
-                      datagram.error().message};
+    return {Status::Refused,
+            url() + ": cannot send " + to_candump(frame) + ": " + datagram.error().message};
   }
   sockaddr_in to{};
   to.sin_family = AF_INET;
   to.sin_port = htons(options_.port);
   to.sin_addr.s_addr = group_be_;
-  const auto deadline = std::chrono::steady_clock::now() + options_.send_timeout;
   for (;;) {
     const ssize_t n =
         ::sendto(send_fd_, datagram->data(), datagram->size(), MSG_DONTWAIT | MSG_NOSIGNAL,
                  reinterpret_cast<const sockaddr*>(&to), sizeof to);
     if (n == static_cast<ssize_t>(datagram->size())) return {};
-    if (n >= 0) return cfg::Error{url() + ": short send of " + to_candump(frame)};
+    if (n >= 0) return {Status::Failed, url() + ": short send of " + to_candump(frame)};
     const int error = errno;
     if (error == EINTR) continue;
-    if (error != EAGAIN && error != EWOULDBLOCK && error != ENOBUFS) {
-      return cfg::Error{url() + ": cannot send " + to_candump(frame) + ": " + errno_text(error)};
-    }
+    return {send_status_of_errno(error),
+            url() + ": cannot send " + to_candump(frame) + ": " + errno_text(error)};
+  }
+}
+
+cfg::Status UdpBus::send(const CanFrame& frame) {
+  const auto deadline = std::chrono::steady_clock::now() + options_.send_timeout;
+  for (;;) {
+    auto attempt = try_send(frame);
+    if (attempt.status == SendResult::Status::Sent) return {};
+    if (attempt.status != SendResult::Status::QueueFull) return cfg::Error{attempt.message};
     // Buffer full: wait for room, but never past the deadline. ENOBUFS does not wake poll(), so
     // wait at most 10 ms at a time and retry.
     ++counters_.send_waits;

@@ -35,6 +35,23 @@ struct ReceivedFrame {
 /// of the kernel's receive stamps and the default trace clock.
 TimePoint wall_clock_now();
 
+/// What one attempt to send a frame did (Bus::try_send).
+struct SendResult {
+  enum class Status : std::uint8_t {
+    Sent,       ///< the driver took the frame
+    QueueFull,  ///< the transmit queue is full (ENOBUFS, EAGAIN): back-pressure, try again later
+    Failed,     ///< another error the interface may recover from: try again later
+    Refused,    ///< the driver can never send this frame (invalid for it): do not retry
+    InterfaceGone,  ///< the interface vanished or went down (ENODEV, ENXIO, ENETDOWN)
+  };
+  Status status = Status::Sent;
+  std::string message;  ///< why, for every status but Sent
+};
+
+/// The status of a failed send(2)/write(2) on a socket by its errno: QueueFull for ENOBUFS,
+/// EAGAIN/EWOULDBLOCK; InterfaceGone for ENODEV, ENXIO, ENETDOWN; Failed for anything else.
+SendResult::Status send_status_of_errno(int error_number);
+
 /// A CAN bus driver. Not thread-safe: one event loop owns it.
 class Bus {
  public:
@@ -42,6 +59,9 @@ class Bus {
   /// Sends a frame. When the driver's transmit queue is full it waits (up to a bounded time)
   /// rather than dropping; fails with a message only when the frame could not be sent.
   virtual cfg::Status send(const CanFrame& frame) = 0;
+  /// Tries once to send a frame without waiting; BusEventLoop's transmit path, which keeps
+  /// the frames in order and retries itself. The default calls send() (Sent or Failed).
+  virtual SendResult try_send(const CanFrame& frame);
   /// Waits up to `timeout` of wall time for a frame. nullopt when none arrived in time. With a
   /// zero timeout it only looks at what is already queued, which BusEventLoop relies on to read
   /// every queued frame before it fires timers.

@@ -52,6 +52,9 @@ class SocketCanBus final : public Bus {
   /// queue is full it polls for room and retries for up to `send_timeout` in total. Fails on
   /// an invalid frame (error flag set, id out of range, dlc > 8), a timeout or a socket error.
   cfg::Status send(const CanFrame& frame) override;
+  /// One write without waiting: QueueFull on ENOBUFS/EAGAIN, InterfaceGone on ENODEV, ENXIO,
+  /// ENETDOWN, Refused for a frame send() would refuse.
+  SendResult try_send(const CanFrame& frame) override;
   /// Waits up to `timeout` for a frame. Error frames come back with `error` set, `extended`
   /// set and `id` holding the error class bits (as candump prints them); data bytes 0..7 hold
   /// the details (linux/can/error.h). The timestamp is the kernel's receive time

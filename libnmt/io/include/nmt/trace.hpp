@@ -63,6 +63,8 @@ class TracingBus final : public Bus {
              std::function<TimePoint()> clock = wall_clock_now);
 
   cfg::Status send(const CanFrame& frame) override;
+  /// The inner bus's try_send; a frame it took is traced.
+  SendResult try_send(const CanFrame& frame) override;
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// The inner bus's URL.
   std::string url() const override;
