@@ -119,6 +119,15 @@ TEST(BusEventLoopTransmit, AFullQueueIsBackPressureFramesGoOutInOrderWhileFrames
   }
 }
 
+TEST(BusEventLoopTransmit, RunUntilSentEndsOnceTheQueuedFramesWentOut) {
+  Rig rig;
+  rig.bus.answers = {Status::QueueFull, Status::QueueFull, Status::QueueFull};
+  say(rig.ref, {"605#A100000000000000"});  // a client's last frame
+  ASSERT_TRUE(rig.loop.run_until_sent(1s).ok());
+  EXPECT_EQ(rig.bus.sent, std::vector<std::string>{"605#A100000000000000"});
+  EXPECT_LT(rig.bus.now, at(1ms));  // 50 + 100 + 200 us of backoff, not the limit
+}
+
 TEST(BusEventLoopTransmit, ASendFailureIsReportedAndRetried) {
   Rig rig;
   rig.bus.answers = {Status::Failed, Status::Failed};

@@ -553,6 +553,14 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
                     : loop.run_for(seconds_to_duration(limits.run_for_s.value_or(limits.bound_s)));
   g_running_loop.store(nullptr);
   if (!status) fail_command(limits.tool, tools::kExitIo, status.error().message);
+  // Start-up's last frames (the starts of §3.1 h) may wait in the loop's transmit queue behind
+  // a full interface queue: out with them, unless a signal asked to stop.
+  if (!g_stop.load()) {
+    loop.clear_stop();
+    if (auto sent = loop.run_until_sent(std::chrono::seconds(1)); !sent) {
+      fail_command(limits.tool, tools::kExitIo, sent.error().message);
+    }
+  }
   std::vector<nmt::TraceWriter*> writers;
   writers.reserve(tracing.size());
   for (auto* t : tracing) writers.push_back(&t->trace());

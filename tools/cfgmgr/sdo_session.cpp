@@ -297,6 +297,12 @@ cfg::Result<nmt::SdoResult> SdoSession::run(Start&& start) {
   if (!result_) {
     return cfg::Error{"the SDO transfer did not end within 60 s", cfg::ErrorCategory::Io};
   }
+  // The client's last frame (e.g. the end of a block upload) may still wait in the loop's
+  // transmit queue behind a full interface queue: it goes out before the session moves on.
+  loop_.clear_stop();
+  if (auto sent = loop_.run_until_sent(std::chrono::seconds(1)); !sent) {
+    return cfg::Error{sent.error().message, cfg::ErrorCategory::Io};
+  }
   return std::move(*result_);
 }
 

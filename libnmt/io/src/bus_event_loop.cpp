@@ -307,6 +307,13 @@ std::string_view to_string(BusEvent::Kind kind) {
   return "unknown";
 }
 
+cfg::Status BusEventLoop::run_until_sent(Duration limit) {
+  until_sent_ = true;
+  auto status = run_until(clock_() + limit);
+  until_sent_ = false;
+  return status;
+}
+
 cfg::Status BusEventLoop::run_until(TimePoint until) {
   if (failed_) {
     cfg::Error e = std::move(*failed_);
@@ -321,6 +328,7 @@ cfg::Status BusEventLoop::run_until(TimePoint until) {
     if (clock >= until) break;
     const TimePoint now = engine_time(clock);
     if (auto s = flush_transmit(std::max(now, last_given_)); !s) return s;
+    if (until_sent_ && transmit_.empty()) break;
     std::size_t read = 0;
     bool empty = false;
     while (read < options_.max_frames_per_pass && !stop_requested()) {

@@ -242,6 +242,11 @@ class BusEventLoop {
   cfg::Status run_for(Duration duration) { return run_until(clock_() + duration); }
   /// Runs until request_stop() or a bus failure.
   cfg::Status run() { return run_until(TimePoint::max()); }
+  /// Runs (receiving, firing timers) until the transmit queue is empty, at most `limit`, or
+  /// as run_until() ends. Frames still queued when the loop is destroyed are never sent, so a
+  /// program calls this before it ends, after its last run (clear_stop() first if it requested
+  /// the stop itself).
+  cfg::Status run_until_sent(Duration limit);
   /// Makes run*() return within options.max_wait. Async-signal-safe (a lock-free atomic
   /// store), so a SIGINT handler may call it. The request stays until clear_stop().
   void request_stop() { stop_.store(true, std::memory_order_relaxed); }
@@ -297,6 +302,7 @@ class BusEventLoop {
   BusEventHandler bus_event_handler_;
   std::deque<CanFrame> transmit_;      // frames not yet taken by the bus, in order
   bool flushing_ = false;              // inside flush_transmit()
+  bool until_sent_ = false;            // inside run_until_sent(): end once transmit_ is empty
   std::optional<TimePoint> retry_at_;  // the clock reading before which no send is tried
   Duration retry_delay_{0};
   BusCounters counters_;
