@@ -16,6 +16,7 @@
 
 #include "generated_network.hpp"
 #include "multicast_netns.hpp"
+#include "nmt/udp_bus.hpp"
 #include "test_paths.hpp"
 #include "tool_test_support.hpp"
 
@@ -414,6 +415,65 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
     if (kind != nullptr && kind->string == "heartbeat_lost") lost.push_back(node_of(all[i]));
   }
   EXPECT_EQ(lost, std::vector<int>{2}) << err;
+}
+
+// Issue 22: CAN error frames reach cfgmgr master as events (python-can's UDP bus carries them as
+// SocketCAN reports them: CAN_ERR_BUSOFF 40h, CAN_ERR_RESTARTED 100h, linux/can/error.h): on
+// stderr, in --json-events, and summed up at the end of the run. (That the bus-off time is not
+// charged to the slaves' timers is shown in tests/nmt/bus_event_loop_transmit_test.cpp: here
+// the slave's heartbeats keep arriving over UDP.)
+TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string bus = "udp://239.74.163.2:43123";
+  generated::NetworkSpec spec;
+  spec.nodes = 1;
+  spec.values = 2;
+  spec.pdos = 0;
+  spec.heartbeat_ms = 100;
+  const std::string cpj = generated::write_network(dir.path() / "net", spec);
+  tool_test::SpawnedTool slave(
+      "cfgmgr",
+      {"simulate", "--bus", bus, "--for", "30", (dir.path() / "net" / "node1.dcf").string()},
+      dir / "sim.out", dir / "sim.err");
+  ASSERT_TRUE(slave.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::string events = dir / "events.jsonl";
+  tool_test::SpawnedTool master("cfgmgr", {"master", cpj, "--bus", bus, "--json-events", events},
+                                dir / "master.out", dir / "master.err");
+  ASSERT_TRUE(master.started());
+  const auto wait_for = [&events](const std::string& event, std::chrono::milliseconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      if (tool_test::slurp(events).find("\"" + event + "\"") != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  };
+  ASSERT_TRUE(wait_for("startup_complete", std::chrono::seconds(15)))
+      << tool_test::slurp(dir / "master.err");
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  auto options = nmt::parse_udp_url(bus);
+  ASSERT_TRUE(options.ok());
+  auto controller = nmt::UdpBus::open(*options);
+  ASSERT_TRUE(controller.ok()) << controller.error().message;
+  ASSERT_TRUE((*controller)->send(*nmt::from_candump("20000040#0000000000000000")).ok());
+  EXPECT_TRUE(wait_for("bus_off", std::chrono::seconds(2)));
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  ASSERT_TRUE((*controller)->send(*nmt::from_candump("20000100#0000000000000000")).ok());
+  EXPECT_TRUE(wait_for("restarted", std::chrono::seconds(2)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const auto code = master.stop(SIGTERM, std::chrono::milliseconds(3000));
+  const std::string err = tool_test::slurp(dir / "master.err");
+  ASSERT_TRUE(code.has_value()) << "no clean exit on SIGTERM\n" << err;
+  EXPECT_EQ(*code, 0) << err;
+  const auto all = json_lines(events);
+  ASSERT_EQ(events_of(all, "bus_off").size(), 1U) << err;
+  EXPECT_EQ(events_of(all, "bus_off")[0]->get("frame")->string, "20000040#0000000000000000");
+  EXPECT_EQ(events_of(all, "restarted").size(), 1U) << err;
+  EXPECT_TRUE(events_of(all, "heartbeat_lost").empty()) << err;
+  EXPECT_NE(err.find("bus: the controller is bus-off"), std::string::npos) << err;
+  EXPECT_NE(err.find("bus: 2 error frames (1 bus-off, 1 restarted)"), std::string::npos) << err;
 }
 
 }  // namespace
