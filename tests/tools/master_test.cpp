@@ -332,6 +332,59 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
   EXPECT_NE(err.find("node 2: heartbeat lost"), std::string::npos) << err;
 }
 
+// `nodes` generated slaves heartbeating every 100 ms (consumed with 1.5 x 100 + 100 = 250 ms,
+// cfg/network.hpp), each a `cfgmgr simulate` process of its own, and `cfgmgr master` for them
+// with --json-events, on `bus`. started() once NMT start-up is complete.
+class HeartbeatingNetwork {
+ public:
+  HeartbeatingNetwork(const ScratchDir& dir, const std::string& bus, int nodes)
+      : dir_(dir), events_(dir / "events.jsonl") {
+    generated::NetworkSpec spec;
+    spec.nodes = nodes;
+    spec.values = 2;
+    spec.pdos = 0;
+    spec.heartbeat_ms = 100;
+    const std::string cpj = generated::write_network(dir.path() / "net", spec);
+    for (int node = 1; node <= nodes; ++node) {
+      const std::string name = "sim" + std::to_string(node);
+      slaves[node] = std::make_unique<tool_test::SpawnedTool>(
+          "cfgmgr",
+          std::vector<std::string>{
+              "simulate", "--bus", bus, "--for", "40",
+              (dir.path() / "net" / ("node" + std::to_string(node) + ".dcf")).string()},
+          dir / (name + ".out"), dir / (name + ".err"));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    master = std::make_unique<tool_test::SpawnedTool>(
+        "cfgmgr", std::vector<std::string>{"master", cpj, "--bus", bus, "--json-events", events_},
+        dir / "master.out", dir / "master.err");
+  }
+  bool started() {
+    for (const auto& [node, slave] : slaves) {
+      if (!slave->started()) return false;
+    }
+    return master->started() && wait_for("startup_complete", std::chrono::seconds(15));
+  }
+  // Whether an `event` line is in the events within `limit`.
+  bool wait_for(const std::string& event, std::chrono::milliseconds limit) const {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      if (tool_test::slurp(events_).find("\"" + event + "\"") != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  }
+  const std::string& events() const { return events_; }
+  std::string master_err() const { return tool_test::slurp(dir_ / "master.err"); }
+
+  std::map<int, std::unique_ptr<tool_test::SpawnedTool>> slaves;
+  std::unique_ptr<tool_test::SpawnedTool> master;
+
+ private:
+  const ScratchDir& dir_;
+  std::string events_;
+};
+
 // Issue 22: the master process is frozen for 2 s (SIGSTOP, SIGCONT: what a scheduler hiccup or
 // a debugger does) while two independent slaves heartbeat every 100 ms (consumed with
 // 1.5 x 100 + 100 = 250 ms, cfg/network.hpp) and their heartbeats wait in its socket. They
@@ -340,39 +393,13 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
 TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = "udp://239.74.163.2:43122";
-  generated::NetworkSpec spec;
-  spec.nodes = 2;
-  spec.values = 2;
-  spec.pdos = 0;
-  spec.heartbeat_ms = 100;
-  const std::string cpj = generated::write_network(dir.path() / "net", spec);
-  std::map<int, std::unique_ptr<tool_test::SpawnedTool>> slaves;
-  for (int node : {1, 2}) {
-    const std::string name = "sim" + std::to_string(node);
-    slaves[node] = std::make_unique<tool_test::SpawnedTool>(
-        "cfgmgr",
-        std::vector<std::string>{
-            "simulate", "--bus", bus, "--for", "40",
-            (dir.path() / "net" / ("node" + std::to_string(node) + ".dcf")).string()},
-        dir / (name + ".out"), dir / (name + ".err"));
-    ASSERT_TRUE(slaves[node]->started());
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const std::string events = dir / "events.jsonl";
-  tool_test::SpawnedTool master("cfgmgr", {"master", cpj, "--bus", bus, "--json-events", events},
-                                dir / "master.out", dir / "master.err");
-  ASSERT_TRUE(master.started());
-  const auto wait_for = [&events](const std::string& event, std::chrono::milliseconds limit) {
-    const auto end = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < end) {
-      if (tool_test::slurp(events).find("\"" + event + "\"") != std::string::npos) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return false;
+  HeartbeatingNetwork network(dir, "udp://239.74.163.2:43122", 2);
+  ASSERT_TRUE(network.started()) << network.master_err();
+  const std::string& events = network.events();
+  auto& master = *network.master;
+  const auto wait_for = [&network](const std::string& event, std::chrono::milliseconds limit) {
+    return network.wait_for(event, limit);
   };
-  ASSERT_TRUE(wait_for("startup_complete", std::chrono::seconds(15)))
-      << tool_test::slurp(dir / "master.err");
   // The start commands follow start-up's end (issue 20); the network is quiet after them.
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const auto lines_in = [&events] {
@@ -388,7 +415,7 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
 
   // Node 2 really stops: reported within its consumer time (plus the loop's wake-up).
   const auto killed = std::chrono::steady_clock::now();
-  slaves.erase(2);
+  network.slaves.erase(2);
   EXPECT_TRUE(wait_for("heartbeat_lost", std::chrono::seconds(2)));
   const auto seen_after = std::chrono::steady_clock::now() - killed;
   EXPECT_LT(seen_after, std::chrono::milliseconds(1000));
@@ -426,32 +453,13 @@ TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
   const std::string bus = "udp://239.74.163.2:43123";
-  generated::NetworkSpec spec;
-  spec.nodes = 1;
-  spec.values = 2;
-  spec.pdos = 0;
-  spec.heartbeat_ms = 100;
-  const std::string cpj = generated::write_network(dir.path() / "net", spec);
-  tool_test::SpawnedTool slave(
-      "cfgmgr",
-      {"simulate", "--bus", bus, "--for", "30", (dir.path() / "net" / "node1.dcf").string()},
-      dir / "sim.out", dir / "sim.err");
-  ASSERT_TRUE(slave.started());
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const std::string events = dir / "events.jsonl";
-  tool_test::SpawnedTool master("cfgmgr", {"master", cpj, "--bus", bus, "--json-events", events},
-                                dir / "master.out", dir / "master.err");
-  ASSERT_TRUE(master.started());
-  const auto wait_for = [&events](const std::string& event, std::chrono::milliseconds limit) {
-    const auto end = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < end) {
-      if (tool_test::slurp(events).find("\"" + event + "\"") != std::string::npos) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return false;
+  HeartbeatingNetwork network(dir, bus, 1);
+  ASSERT_TRUE(network.started()) << network.master_err();
+  const std::string& events = network.events();
+  auto& master = *network.master;
+  const auto wait_for = [&network](const std::string& event, std::chrono::milliseconds limit) {
+    return network.wait_for(event, limit);
   };
-  ASSERT_TRUE(wait_for("startup_complete", std::chrono::seconds(15)))
-      << tool_test::slurp(dir / "master.err");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   auto options = nmt::parse_udp_url(bus);
   ASSERT_TRUE(options.ok());
