@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "heartbeat_stall.hpp"
+#include "nmt/bus_event_loop.hpp"
 
 namespace nmt {
 namespace {
@@ -468,6 +469,61 @@ TEST_F(SocketCan, FullTransmitQueueMakesSendWaitNotDrop) {
   // ... and still every frame arrived, in order.
   ASSERT_EQ(got.size(), kCount) << "receiver overflows: " << rx_->receive_overflows();
   for (std::uint32_t i = 0; i < kCount; ++i) ASSERT_EQ(got[i], numbered(i)) << "frame " << i;
+}
+
+// Issue 22, "The transmit path survives a real controller": the event loop meets the full
+// queue (ENOBUFS) of the paced vcan0 as back-pressure. Every frame of a burst goes out, in
+// order, none is reported failed, and the loop keeps receiving while its queue holds frames.
+struct Burst {
+  using Event = NoEvent;
+  using Output = Outbox<NoEvent>;
+  bool on_frame(const CanFrame& f, TimePoint /*now*/, Output& /*out*/) {
+    heard.push_back(to_candump(f));
+    if (loop != nullptr) queued_when_heard = loop->counters().queued;
+    return true;
+  }
+  void on_timer(TimePoint /*now*/, Output& /*out*/) {}
+  std::optional<TimePoint> next_deadline() const { return std::nullopt; }
+  const BusEventLoop* loop = nullptr;
+  std::vector<std::string> heard;
+  std::size_t queued_when_heard = 0;
+};
+
+TEST_F(SocketCan, TheEventLoopSendsABurstThroughAFullQueueInOrderWhileItKeepsReceiving) {
+  if (!transmit_queue_can_fill()) GTEST_SKIP() << kNeedsPacedInterface;
+  constexpr std::uint32_t kCount = 500;
+  auto peer = open_or_fail(can_if());
+  ASSERT_TRUE(peer);
+  Collector collector(*rx_, kCount + 1);  // the burst and the peer's frame
+  BusEventLoop loop(*tx_);
+  Burst burst;
+  burst.loop = &loop;
+  EngineRef ref(burst);
+  loop.add(ref);
+  std::vector<BusEvent> reported;
+  loop.set_bus_event_handler([&](const BusEvent& e, TimePoint) { reported.push_back(e); });
+  ref.apply([&](Burst&, TimePoint, Burst::Output& out) {
+    for (std::uint32_t i = 0; i < kCount; ++i) out.send(numbered(i));
+  });
+  std::thread peer_thread([&] {
+    std::this_thread::sleep_for(50ms);
+    EXPECT_TRUE(peer->send(frame("181#01")).ok());
+  });
+  auto sent = loop.run_until_sent(10s);
+  peer_thread.join();
+  ASSERT_TRUE(sent.ok()) << sent.error().message;
+  auto got = collector.join();
+  EXPECT_GT(loop.counters().queue_full, 0u) << "the transmit queue never filled";
+  EXPECT_EQ(loop.counters().queued, 0u);
+  EXPECT_TRUE(reported.empty()) << reported.front().text;
+  EXPECT_EQ(burst.heard, std::vector<std::string>{"181#01"});
+  EXPECT_GT(burst.queued_when_heard, 0u) << "the peer's frame came after the burst was out";
+  std::vector<CanFrame> ours;
+  for (const auto& f : got) {
+    if (f.id != 0x181) ours.push_back(f);
+  }
+  ASSERT_EQ(ours.size(), kCount) << "receiver overflows: " << rx_->receive_overflows();
+  for (std::uint32_t i = 0; i < kCount; ++i) ASSERT_EQ(ours[i], numbered(i)) << "frame " << i;
 }
 
 TEST_F(SocketCan, SendWithoutWaitTimeReportsEveryFrameItCouldNotSend) {
