@@ -232,6 +232,8 @@ class BusEventLoop {
   /// observer, EngineRef::apply from either) the time of the frame or timer being handled,
   /// else the loop's clock less the time spent in bus-off (see "Transmit" above).
   TimePoint now() const;
+  /// The loop's clock itself (bus-off time included): what run_until() keeps to.
+  TimePoint clock() const { return clock_(); }
 
   /// Runs until the loop's clock (the Clock itself, bus-off time included) reaches `until`,
   /// request_stop() is called, or the bus fails: a receive error, or the interface is gone
