@@ -189,13 +189,14 @@ struct BusCounters {
 struct BusEventLoopOptions {
   /// Longest single wait for a frame, so that a stop request is noticed within this time.
   Duration max_wait = std::chrono::milliseconds(100);
-  /// Most frames read from the queue in one pass before the loop checks for a stop request and
-  /// for the end of run_until() again. Timers cannot starve under a flood whatever this is:
-  /// each frame is preceded by the timers due by its stamp. What a flood the process cannot
-  /// keep up with does delay is the time: engines are then given the arrival times of frames
-  /// that waited in the socket, at most the receive buffer's worth behind the clock (beyond
-  /// that the kernel drops frames: SocketCanBus::receive_overflows()). The timers due after the
-  /// last of them fire once the queue is empty.
+  /// Most frames read from the queue in one pass before the loop checks for the end of
+  /// run_until() and retries its transmit queue again (a stop request ends a pass at once). Timers
+  /// cannot starve under a flood whatever this is: each frame is preceded by the timers due by its
+  /// stamp. What a flood the process cannot keep up with does delay is the time: engines are then
+  /// given the arrival times of frames that waited in the socket, at most the receive buffer's
+  /// worth behind the clock (beyond that the kernel drops frames:
+  /// SocketCanBus::receive_overflows()). The timers due after the last of them fire once the queue
+  /// is empty.
   std::size_t max_frames_per_pass = 1024;
   /// Deliver every frame an engine sends to the loop's other engines as well: on a CAN bus
   /// every node hears every frame, but drivers do not hand our own frames back to us.
