@@ -142,6 +142,10 @@ cfg::Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(const std::string&
     const int err = errno;
     return failure(interface_name, "cannot enable SO_TIMESTAMPNS", err);
   }
+  // A bigger receive buffer keeps what arrives while the process is stopped (issue 22); the
+  // kernel silently caps the request at net.core.rmem_max, which is fine.
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes,
+                     sizeof options.receive_buffer_bytes);
   // SO_RXQ_OVFL (socket(7)): the count of frames dropped for a full receive buffer comes with
   // each frame, so a reader that falls behind is visible rather than silent.
   if (::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) < 0) {

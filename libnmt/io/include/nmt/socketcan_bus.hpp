@@ -34,6 +34,10 @@ struct SocketCanOptions {
   std::uint32_t error_mask = 0x1FFFFFFF;
   /// Also receive the frames this socket sent itself (CAN_RAW_RECV_OWN_MSGS).
   bool receive_own_frames = false;
+  /// Requested receive buffer (SO_RCVBUF), bytes, as UdpBusOptions: frames that arrive while
+  /// the process is stopped wait there (and keep their receive time) rather than being dropped
+  /// (receive_overflows()). The kernel caps it at net.core.rmem_max (212992 by default).
+  int receive_buffer_bytes = 4 << 20;
 };
 
 /// A CAN_RAW socket on one interface. Owns the socket and closes it on destruction.
