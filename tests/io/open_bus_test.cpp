@@ -2,6 +2,8 @@
 // group, so that case runs with the other multicast tests (UdpBus.OpensThroughOpenBus).
 #include <gtest/gtest.h>
 
+#include <cerrno>
+
 #include <string>
 
 #include "nmt/bus.hpp"
@@ -16,6 +18,21 @@ void expect_names_url_and_forms(const std::string& url) {
   EXPECT_NE(message.find("'" + url + "'"), std::string::npos) << message;
   EXPECT_NE(message.find("socketcan:IFNAME"), std::string::npos) << message;
   EXPECT_NE(message.find("udp://GROUP:PORT"), std::string::npos) << message;
+}
+
+// Issue 22: a full transmit queue is back-pressure (ENOBUFS from the qdisc, net/can/af_can.c
+// can_send; EAGAIN from a full socket buffer), a vanished or downed interface ends the loop,
+// anything else is retried.
+TEST(SendStatusOfErrno, TellsBackPressureAVanishedInterfaceAndOtherFailuresApart) {
+  using S = SendResult::Status;
+  EXPECT_EQ(send_status_of_errno(ENOBUFS), S::QueueFull);
+  EXPECT_EQ(send_status_of_errno(EAGAIN), S::QueueFull);
+  EXPECT_EQ(send_status_of_errno(EWOULDBLOCK), S::QueueFull);
+  EXPECT_EQ(send_status_of_errno(ENODEV), S::InterfaceGone);
+  EXPECT_EQ(send_status_of_errno(ENXIO), S::InterfaceGone);
+  EXPECT_EQ(send_status_of_errno(ENETDOWN), S::InterfaceGone);
+  EXPECT_EQ(send_status_of_errno(EIO), S::Failed);
+  EXPECT_EQ(send_status_of_errno(EMSGSIZE), S::Failed);
 }
 
 TEST(OpenBus, RejectsUnknownSchemesNamingTheAcceptedForms) {

@@ -25,6 +25,9 @@
 #include <thread>
 #include <vector>
 
+#include "heartbeat_stall.hpp"
+#include "nmt/bus_event_loop.hpp"
+
 namespace nmt {
 namespace {
 
@@ -289,18 +292,24 @@ TEST_F(SocketCan, ZeroTimeoutDoesNotWait) {
   EXPECT_FALSE(r->has_value());
 }
 
-TEST_F(SocketCan, TimestampIsTheReceiveTimeOnTheMonotonicClock) {
-  using std::chrono::duration_cast;
-  const auto now_us = [] {
-    return duration_cast<Duration>(std::chrono::steady_clock::now().time_since_epoch());
-  };
-  const auto before = now_us();
+// can.rst, "How to use SocketCAN" and socket(7), SO_TIMESTAMPNS: the kernel stamps a frame as it
+// is received (CLOCK_REALTIME), so a frame read late keeps the time it arrived (issue 22).
+TEST_F(SocketCan, TimestampIsTheKernelReceiveTimeNotWhenTheFrameWasRead) {
+  const TimePoint before = wall_clock_now();
   send_all({"080#"});  // CiA 301 SYNC
+  const TimePoint sent = wall_clock_now();
+  std::this_thread::sleep_for(300ms);  // the frame waits in the socket
   auto r = rx_->receive(2s);
-  const auto after = now_us();
   ASSERT_TRUE(r.ok() && r->has_value());
+  EXPECT_EQ((*r)->clock, StampClock::Realtime);
   EXPECT_GE((*r)->timestamp, before);
-  EXPECT_LE((*r)->timestamp, after);
+  EXPECT_LE((*r)->timestamp, sent + 100ms);  // vcan forwards at once
+}
+
+// Issue 22 on vcan (in the VM tier): a 2 s stall of the event loop while a peer keeps sending
+// heartbeats is no heartbeat loss; a peer that stops is (tests/support/heartbeat_stall.hpp).
+TEST_F(SocketCan, HeartbeatsQueuedWhileTheLoopStallsCountAsInTimeAndARealLossIsSeen) {
+  test_support::check_stall_is_not_a_heartbeat_loss(*rx_, std::move(tx_));
 }
 
 TEST_F(SocketCan, FramesOnAnotherInterfaceAreNotReceived) {
@@ -460,6 +469,61 @@ TEST_F(SocketCan, FullTransmitQueueMakesSendWaitNotDrop) {
   // ... and still every frame arrived, in order.
   ASSERT_EQ(got.size(), kCount) << "receiver overflows: " << rx_->receive_overflows();
   for (std::uint32_t i = 0; i < kCount; ++i) ASSERT_EQ(got[i], numbered(i)) << "frame " << i;
+}
+
+// Issue 22, "The transmit path survives a real controller": the event loop meets the full
+// queue (ENOBUFS) of the paced vcan0 as back-pressure. Every frame of a burst goes out, in
+// order, none is reported failed, and the loop keeps receiving while its queue holds frames.
+struct Burst {
+  using Event = NoEvent;
+  using Output = Outbox<NoEvent>;
+  bool on_frame(const CanFrame& f, TimePoint /*now*/, Output& /*out*/) {
+    heard.push_back(to_candump(f));
+    if (loop != nullptr) queued_when_heard = loop->counters().queued;
+    return true;
+  }
+  void on_timer(TimePoint /*now*/, Output& /*out*/) {}
+  std::optional<TimePoint> next_deadline() const { return std::nullopt; }
+  const BusEventLoop* loop = nullptr;
+  std::vector<std::string> heard;
+  std::size_t queued_when_heard = 0;
+};
+
+TEST_F(SocketCan, TheEventLoopSendsABurstThroughAFullQueueInOrderWhileItKeepsReceiving) {
+  if (!transmit_queue_can_fill()) GTEST_SKIP() << kNeedsPacedInterface;
+  constexpr std::uint32_t kCount = 500;
+  auto peer = open_or_fail(can_if());
+  ASSERT_TRUE(peer);
+  Collector collector(*rx_, kCount + 1);  // the burst and the peer's frame
+  BusEventLoop loop(*tx_);
+  Burst burst;
+  burst.loop = &loop;
+  EngineRef ref(burst);
+  loop.add(ref);
+  std::vector<BusEvent> reported;
+  loop.set_bus_event_handler([&](const BusEvent& e, TimePoint) { reported.push_back(e); });
+  ref.apply([&](Burst&, TimePoint, Burst::Output& out) {
+    for (std::uint32_t i = 0; i < kCount; ++i) out.send(numbered(i));
+  });
+  std::thread peer_thread([&] {
+    std::this_thread::sleep_for(50ms);
+    EXPECT_TRUE(peer->send(frame("181#01")).ok());
+  });
+  auto sent = loop.run_until_sent(10s);
+  peer_thread.join();
+  ASSERT_TRUE(sent.ok()) << sent.error().message;
+  auto got = collector.join();
+  EXPECT_GT(loop.counters().queue_full, 0u) << "the transmit queue never filled";
+  EXPECT_EQ(loop.counters().queued, 0u);
+  EXPECT_TRUE(reported.empty()) << reported.front().text;
+  EXPECT_EQ(burst.heard, std::vector<std::string>{"181#01"});
+  EXPECT_GT(burst.queued_when_heard, 0u) << "the peer's frame came after the burst was out";
+  std::vector<CanFrame> ours;
+  for (const auto& f : got) {
+    if (f.id != 0x181) ours.push_back(f);
+  }
+  ASSERT_EQ(ours.size(), kCount) << "receiver overflows: " << rx_->receive_overflows();
+  for (std::uint32_t i = 0; i < kCount; ++i) ASSERT_EQ(ours[i], numbered(i)) << "frame " << i;
 }
 
 TEST_F(SocketCan, SendWithoutWaitTimeReportsEveryFrameItCouldNotSend) {

@@ -159,6 +159,10 @@ class SocketCanSdo : public ::testing::Test {
       ASSERT_TRUE(status.ok()) << status.error().message;
     }
     ASSERT_FALSE(mux_.busy()) << "transfers still running after 30 s";
+    // The clients' last frames (the end of a block upload) out of the loop's transmit queue,
+    // which a full vcan0 queue (tbf) can hold back.
+    auto sent = loop_->run_until_sent(1s);
+    ASSERT_TRUE(sent.ok()) << sent.error().message;
   }
 
   // The result the mux reported for transfer `id` of `node_id`'s client.

@@ -402,6 +402,23 @@ TEST_F(Trace, TracingBusRecordsSentAndReceivedFrames) {
                                       "(0000000001.002000) can0 581#4B00100091010000"}));
 }
 
+// The event loop sends with try_send (issue 22): a frame the inner bus took is traced, one it did
+// not take (retried later by the loop) is not.
+TEST_F(Trace, TracingBusTracesWhatTrySendHandedOver) {
+  auto inner = std::make_unique<ScriptedBus>();
+  ScriptedBus& scripted = *inner;
+  auto writer = open_candump_log(dir_ / "try_send.log");
+  ASSERT_TRUE(writer.ok());
+  TracingBus bus(std::move(inner), std::move(*writer), [] { return TimePoint{2'000'000}; });
+  scripted.fail_sends = true;
+  EXPECT_EQ(bus.try_send(frame("000#8100")).status, SendResult::Status::Failed);
+  scripted.fail_sends = false;
+  EXPECT_EQ(bus.try_send(frame("000#0100")).status, SendResult::Status::Sent);
+  ASSERT_TRUE(bus.trace().flush().ok());
+  EXPECT_EQ(read_lines(dir_ / "try_send.log"),
+            std::vector<std::string>{"(0000000002.000000) can0 000#0100"});
+}
+
 TEST_F(Trace, SimulatedBusTraceHasDeliveryTimes) {
   SimBus sim(500'000);
   auto writer = open_candump_log(dir_ / "sim.log");

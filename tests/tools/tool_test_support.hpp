@@ -415,6 +415,10 @@ class SpawnedTool {
   SpawnedTool& operator=(const SpawnedTool&) = delete;
 
   bool started() const { return pid_ > 0; }
+  /// Sends `signal` (e.g. SIGSTOP, SIGCONT) without waiting for anything.
+  void signal(int signal) const {
+    if (pid_ > 0) ::kill(pid_, signal);
+  }
   /// Sends `signal` and waits up to `limit` for the exit; the exit code, or nullopt.
   std::optional<int> stop(int signal, std::chrono::milliseconds limit) {
     ::kill(pid_, signal);

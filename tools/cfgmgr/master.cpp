@@ -92,7 +92,9 @@ void add_master_command(CLI::App& app) {
   cmd->add_option("--json-events", options->json_events,
                   "Also write every event as one JSON object a line: time_s, event "
                   "(slave_booted, boot_error, heartbeat_lost, boot_up, startup_complete, "
-                  "active_master, standby, ...), node_id, text, and per event error/"
+                  "active_master, standby, ...; of the bus itself: bus_off, restarted, "
+                  "send_failed, ... with node_id 0 and the frame), node_id, text, and per event "
+                  "error/"
                   "description/final, configured/entries/bytes, assigned, step, state, command, "
                   "priority, connection_error and connection (row, client_node_id, client_index, "
                   "server_node_id, server_index, request_cob_id, response_cob_id)")

@@ -340,6 +340,61 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
   *json_ << out << std::flush;
 }
 
+void EventReporter::report_bus(const nmt::BusEvent& e, nmt::TimePoint at) {
+  using K = nmt::BusEvent::Kind;
+  const bool routine =
+      e.kind == K::LostArbitration || e.kind == K::BusError || e.kind == K::ErrorWarning;
+  if (!quiet_ && (verbose_ || !routine)) {
+    note(seconds_text(start_, at) + "  bus: " + e.text);
+  }
+  if (json_ == nullptr) return;
+  *json_ << "{\"time_s\": " << seconds_text(start_, at)
+         << ", \"event\": " << tools::json_string(nmt::to_string(e.kind))
+         << ", \"node_id\": 0, \"frame\": " << tools::json_string(nmt::to_candump(e.frame))
+         << ", \"text\": " << tools::json_string(e.text) << "}\n"
+         << std::flush;
+}
+
+namespace {
+// The loop's transmit and error-frame counters in one line, or nothing when all are zero.
+std::string bus_counters_text(const nmt::BusCounters& c) {
+  std::vector<std::string> parts;
+  if (c.queue_full != 0) {
+    parts.push_back(tools::plural(c.queue_full, "send") + " waited for a full transmit queue");
+  }
+  if (c.send_failures != 0)
+    parts.push_back(tools::plural(c.send_failures, "send") + " failed and retried");
+  if (c.refused != 0) parts.push_back(tools::plural(c.refused, "frame") + " refused by the driver");
+  if (c.error_frames != 0) {
+    std::string text = tools::plural(c.error_frames, "error frame");
+    std::vector<std::string> kinds;
+    const auto add = [&kinds](std::uint64_t n, const char* what) {
+      if (n != 0) kinds.push_back(std::to_string(n) + " " + what);
+    };
+    add(c.bus_off, "bus-off");
+    add(c.restarted, "restarted");
+    add(c.error_passive, "error passive");
+    add(c.error_warning, "warning level");
+    add(c.lost_arbitration, "lost arbitration");
+    add(c.controller_overflows, "controller overflow");
+    add(c.bus_errors, "bus error");
+    if (!kinds.empty()) {
+      text += " (";
+      for (std::size_t i = 0; i < kinds.size(); ++i) text += (i == 0 ? "" : ", ") + kinds[i];
+      text += ")";
+    }
+    parts.push_back(text);
+  }
+  if (c.bus_off_time != nmt::Duration::zero()) {
+    parts.push_back(seconds_text(nmt::TimePoint{}, nmt::TimePoint{} + c.bus_off_time) +
+                    " s in bus-off");
+  }
+  std::string out;
+  for (std::size_t i = 0; i < parts.size(); ++i) out += (i == 0 ? "" : ", ") + parts[i];
+  return out;
+}
+}  // namespace
+
 std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url) {
   if (is_sim_url(url)) {
     auto parsed = parse_sim_url(url);
@@ -538,6 +593,8 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
     }
   });
   loop.add(ref);
+  loop.set_bus_event_handler(
+      [&reporter](const nmt::BusEvent& e, nmt::TimePoint at) { reporter.report_bus(e, at); });
   const bool forever = !limits.run_for_s && !limits.until_startup_ends;
   std::cerr << prefix(limits.tool) << "node-ID " << int{master.node_id().value()} << " on "
             << bus->url() << (forever ? "; stop with Ctrl-C" : "") << '\n';
@@ -553,6 +610,17 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
                     : loop.run_for(seconds_to_duration(limits.run_for_s.value_or(limits.bound_s)));
   g_running_loop.store(nullptr);
   if (!status) fail_command(limits.tool, tools::kExitIo, status.error().message);
+  // Start-up's last frames (the starts of §3.1 h) may wait in the loop's transmit queue behind
+  // a full interface queue: out with them, unless a signal asked to stop.
+  if (!g_stop.load()) {
+    loop.clear_stop();
+    if (auto sent = loop.run_until_sent(std::chrono::seconds(1)); !sent) {
+      fail_command(limits.tool, tools::kExitIo, sent.error().message);
+    }
+  }
+  if (const std::string counters = bus_counters_text(loop.counters()); !counters.empty()) {
+    reporter.note(prefix(limits.tool) + "bus: " + counters);
+  }
   std::vector<nmt::TraceWriter*> writers;
   writers.reserve(tracing.size());
   for (auto* t : tracing) writers.push_back(&t->trace());

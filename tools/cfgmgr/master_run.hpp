@@ -16,6 +16,7 @@
 #include "../common/tool_support.hpp"
 #include "cfg/network.hpp"
 #include "network_source.hpp"
+#include "nmt/bus_event_loop.hpp"
 #include "nmt/nmt_master.hpp"
 
 namespace cfgmgr {
@@ -89,6 +90,11 @@ class EventReporter {
   }
 
   void report(const nmt::MasterEvent& e);
+  /// What the event loop says about the bus itself (issue 22): send failures, refused frames
+  /// and the controller's state from error frames. On stderr as "bus: ..." (lost arbitration,
+  /// bus errors and the warning level only with verbose), in JSON as an event named after the
+  /// kind (bus_off, restarted, send_failed, ...) with node_id 0 and the frame.
+  void report_bus(const nmt::BusEvent& e, nmt::TimePoint at);
   /// A line for people that is no event (a summary, a warning): on stderr, or to the handler
   /// (a live view prints it above itself).
   void note(const std::string& line);

@@ -297,6 +297,12 @@ cfg::Result<nmt::SdoResult> SdoSession::run(Start&& start) {
   if (!result_) {
     return cfg::Error{"the SDO transfer did not end within 60 s", cfg::ErrorCategory::Io};
   }
+  // The client's last frame (e.g. the end of a block upload) may still wait in the loop's
+  // transmit queue behind a full interface queue: it goes out before the session moves on.
+  loop_.clear_stop();
+  if (auto sent = loop_.run_until_sent(std::chrono::seconds(1)); !sent) {
+    return cfg::Error{sent.error().message, cfg::ErrorCategory::Io};
+  }
   return std::move(*result_);
 }
 
@@ -307,12 +313,14 @@ void SdoSession::progress(const std::string& line) const {
 }
 
 cfg::Result<bool> SdoSession::run_until(const std::function<bool()>& done, nmt::Duration timeout) {
-  const auto end = loop_.now() + timeout;
+  // On the loop's clock, which run_until() keeps to (the engines' time stands still during a
+  // bus-off, the clock does not).
+  const auto end = loop_.clock() + timeout;
   // `done` may depend on any frame (a write into the SRD's dictionary), not only on events.
   loop_.set_observer([this](const nmt::CanFrame&, nmt::TimePoint, auto) { loop_.request_stop(); });
   cfg::Result<bool> outcome = true;
   while (!done()) {
-    if (loop_.now() >= end) {
+    if (loop_.clock() >= end) {
       outcome = false;
       break;
     }

@@ -218,8 +218,11 @@ nmt::Duration run_on_bus(const cfg::Network& network, const std::string& url,
   });
   // Every upload ends (answer, abort or timeout), so the loop stops by itself; the bound only
   // guards against a clock that does not advance.
-  const cfg::Status status =
+  cfg::Status status =
       verifier.pending() == 0 ? cfg::Status{} : loop.run_for(std::chrono::hours(24));
+  // The last frames (e.g. the end of a block upload) out of the loop's transmit queue.
+  loop.clear_stop();
+  if (status) status = loop.run_until_sent(std::chrono::seconds(1));
   if (!status) fail_command(kTool, tools::kExitIo, status.error().message);
   return loop.now() - began;
 }

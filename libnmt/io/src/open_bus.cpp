@@ -1,4 +1,6 @@
 // nmt::open_bus (bus.hpp): picks the driver by the URL's scheme.
+#include <cerrno>
+#include <chrono>
 #include <string>
 #include <string_view>
 
@@ -16,6 +18,30 @@ constexpr std::string_view kAcceptedForms =
 constexpr std::string_view kUdp = "udp://";
 constexpr std::string_view kSocketCan = "socketcan:";
 }  // namespace
+
+TimePoint wall_clock_now() {
+  return std::chrono::duration_cast<TimePoint>(std::chrono::system_clock::now().time_since_epoch());
+}
+
+SendResult::Status send_status_of_errno(int error_number) {
+  switch (error_number) {
+    case ENOBUFS:  // the interface's queue (qdisc) is full: net/can/af_can.c can_send
+    case EAGAIN:   // the socket's send buffer is full (EWOULDBLOCK is the same number on Linux)
+      return SendResult::Status::QueueFull;
+    case ENODEV:  // the interface was removed (a USB adapter unplugged)
+    case ENXIO:
+    case ENETDOWN:  // the interface is down (ip link set ... down)
+      return SendResult::Status::InterfaceGone;
+    default:
+      return SendResult::Status::Failed;
+  }
+}
+
+SendResult Bus::try_send(const CanFrame& frame) {
+  auto sent = send(frame);
+  if (sent) return {};
+  return {SendResult::Status::Failed, sent.error().message};
+}
 
 cfg::Status check_bus_url(std::string_view url) {
   if (url.substr(0, kUdp.size()) == kUdp) {

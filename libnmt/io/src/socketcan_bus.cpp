@@ -10,7 +10,6 @@
 #include <poll.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -18,6 +17,8 @@
 #include <cerrno>
 #include <cstring>
 #include <vector>
+
+#include "kernel_time.hpp"
 
 namespace nmt {
 namespace {
@@ -34,38 +35,15 @@ cfg::Error failure(const std::string& interface_name, const std::string& what, i
   return cfg::Error{"socketcan:" + interface_name + ": " + what + ": " + errno_text(err)};
 }
 
-timespec to_timespec(Duration d) {
-  if (d.count() < 0) d = Duration::zero();
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(d.count() / 1'000'000);
-  ts.tv_nsec = static_cast<long>((d.count() % 1'000'000) * 1000);
-  return ts;
-}
-
 Duration remaining(steady_clock::time_point deadline) {
   return std::max(Duration::zero(), duration_cast<microseconds>(deadline - steady_clock::now()));
 }
 
-// The kernel stamps received frames with CLOCK_REALTIME (can.rst, "How to use SocketCAN":
-// "set automatically at the reception of a CAN frame", resolution one microsecond). Protocol
-// engines run on the monotonic clock, so the stamp is moved by the current offset between the
-// two clocks; a wall-clock step between reception and this call shifts it by that step, and
-// the result is never later than now.
-TimePoint monotonic_from_realtime(const timeval& rx_realtime) {
-  timespec real_now{};
-  clock_gettime(CLOCK_REALTIME, &real_now);
-  const auto steady_now = duration_cast<microseconds>(steady_clock::now().time_since_epoch());
-  const auto rx =
-      microseconds(static_cast<std::int64_t>(rx_realtime.tv_sec) * 1'000'000 + rx_realtime.tv_usec);
-  const auto now = microseconds(static_cast<std::int64_t>(real_now.tv_sec) * 1'000'000 +
-                                real_now.tv_nsec / 1000);
-  const auto age = std::max(microseconds::zero(), now - rx);
-  return steady_now - age;
-}
-
-TimePoint monotonic_now() {
-  return duration_cast<microseconds>(steady_clock::now().time_since_epoch());
-}
+// The kernel stamps received frames with CLOCK_REALTIME (can.rst, "How to use SocketCAN": "set
+// automatically at the reception of a CAN frame"; socket(7), SO_TIMESTAMPNS: a struct timespec).
+// It is passed on as it is, StampClock::Realtime: BusEventLoop moves it onto its own clock.
+using detail::from_timespec;
+using detail::to_timespec;
 
 // can.rst, "RAW socket option CAN_RAW_FILTER", "CAN Filter Usage Optimisation": CAN_EFF_FLAG
 // in the mask makes the frame format matter (without it a filter for SFF 0x123 also passes
@@ -155,13 +133,19 @@ cfg::Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(const std::string&
   // Loopback stays on (the default): other applications on this host, e.g. candump, see the
   // frames we send (can.rst, "Local Loopback of Sent Frames").
   //
-  // SO_TIMESTAMP delivers the receive time with each frame as a control message; the same
-  // stamp SIOCGSTAMP would return, without a second system call per frame.
+  // SO_TIMESTAMPNS delivers the receive time with each frame as a control message (socket(7));
+  // the stamp SIOCGSTAMPNS would return, without a second system call per frame. The event loop
+  // judges frames by it (issue 22): a frame that waited in the socket while the process was
+  // stopped keeps the time it arrived.
   const int on = 1;
-  if (::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &on, sizeof on) < 0) {
+  if (::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) < 0) {
     const int err = errno;
-    return failure(interface_name, "cannot enable SO_TIMESTAMP", err);
+    return failure(interface_name, "cannot enable SO_TIMESTAMPNS", err);
   }
+  // A bigger receive buffer keeps what arrives while the process is stopped (issue 22); the
+  // kernel silently caps the request at net.core.rmem_max, which is fine.
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes,
+                     sizeof options.receive_buffer_bytes);
   // SO_RXQ_OVFL (socket(7)): the count of frames dropped for a full receive buffer comes with
   // each frame, so a reader that falls behind is visible rather than silent.
   if (::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) < 0) {
@@ -190,18 +174,20 @@ std::string SocketCanBus::url() const {
   return "socketcan:" + interface_name_;
 }
 
-cfg::Status SocketCanBus::send(const CanFrame& frame) {
+SendResult SocketCanBus::try_send(const CanFrame& frame) {
+  using Status = SendResult::Status;
   if (frame.error) {
-    return cfg::Error{url() + ": error frames are reported by the driver, not sent"};
+    return {Status::Refused, url() + ": error frames are reported by the driver, not sent"};
   }
   if (frame.dlc > CAN_MAX_DLEN) {
-    return cfg::Error{url() + ": a classic CAN frame carries at most 8 data bytes, not " +
-                      std::to_string(frame.dlc)};
+    return {Status::Refused, url() + ": a classic CAN frame carries at most 8 data bytes, not " +
+                                 std::to_string(frame.dlc)};
   }
   const std::uint32_t max_id = frame.extended ? CanFrame::kMaxExtendedId : CanFrame::kMaxStandardId;
   if (frame.id > max_id) {
-    return cfg::Error{url() + ": identifier " + std::to_string(frame.id) + " is out of range for " +
-                      (frame.extended ? "an extended" : "a standard") + " frame"};
+    return {Status::Refused, url() + ": identifier " + std::to_string(frame.id) +
+                                 " is out of range for " +
+                                 (frame.extended ? "an extended" : "a standard") + " frame"};
   }
   // can.rst, "How to use SocketCAN": a struct can_frame with the EFF/RTR flags in can_id and
   // the payload length in len. A remote frame carries its DLC in len and no data.
@@ -209,25 +195,35 @@ cfg::Status SocketCanBus::send(const CanFrame& frame) {
   raw.can_id = frame.id | (frame.extended ? CAN_EFF_FLAG : 0u) | (frame.rtr ? CAN_RTR_FLAG : 0u);
   raw.len = frame.dlc;
   if (!frame.rtr) std::copy_n(frame.data.begin(), frame.dlc, raw.data);
-
-  // A full transmit queue is not in can.rst. Measured and in the kernel source
-  // (net/can/af_can.c can_send): when the interface's queueing discipline is full, write()
-  // fails with ENOBUFS while the socket still reports POLLOUT, because the socket send
-  // buffer has room. So poll alone would spin: after each ENOBUFS we also sleep a backoff
-  // (50 us doubling to 2 ms). EAGAIN (send buffer full) is the case poll(POLLOUT) covers.
-  // The total wait is bounded by send_timeout; the frame is then reported as not sent.
-  const auto deadline = steady_clock::now() + options_.send_timeout;
-  Duration backoff{50};
   for (;;) {
     const ssize_t n = ::write(fd_, &raw, sizeof raw);
     if (n == static_cast<ssize_t>(sizeof raw)) return {};
     if (n >= 0) {
       // can.rst: a raw socket takes whole frames; a short write would be a kernel bug.
-      return cfg::Error{url() + ": short write of a CAN frame (" + std::to_string(n) + " bytes)"};
+      return {Status::Failed,
+              url() + ": short write of a CAN frame (" + std::to_string(n) + " bytes)"};
     }
     const int err = errno;
     if (err == EINTR) continue;
-    if (err != ENOBUFS && err != EAGAIN) return failure(interface_name_, "cannot send", err);
+    // A full transmit queue is not in can.rst. Measured and in the kernel source
+    // (net/can/af_can.c can_send): when the interface's queueing discipline is full, write()
+    // fails with ENOBUFS; EAGAIN when the socket's send buffer is full.
+    return {send_status_of_errno(err),
+            url() + ": cannot send " + to_candump(frame) + ": " + errno_text(err)};
+  }
+}
+
+cfg::Status SocketCanBus::send(const CanFrame& frame) {
+  // ENOBUFS comes while the socket still reports POLLOUT (its send buffer has room), so poll
+  // alone would spin: after each refusal we also sleep a backoff (50 us doubling to 2 ms).
+  // EAGAIN (send buffer full) is the case poll(POLLOUT) covers. The total wait is bounded by
+  // send_timeout; the frame is then reported as not sent.
+  const auto deadline = steady_clock::now() + options_.send_timeout;
+  Duration backoff{50};
+  for (;;) {
+    auto attempt = try_send(frame);
+    if (attempt.status == SendResult::Status::Sent) return {};
+    if (attempt.status != SendResult::Status::QueueFull) return cfg::Error{attempt.message};
     const Duration left = remaining(deadline);
     if (left == Duration::zero()) {
       return cfg::Error{url() + ": transmit queue full for " +
@@ -241,11 +237,9 @@ cfg::Status SocketCanBus::send(const CanFrame& frame) {
       const int poll_err = errno;
       return failure(interface_name_, "poll for transmit room failed", poll_err);
     }
-    if (err == ENOBUFS) {
-      const timespec sleep_for = to_timespec(std::min(backoff, remaining(deadline)));
-      ::nanosleep(&sleep_for, nullptr);
-      backoff = std::min(backoff * 2, Duration{2000});
-    }
+    const timespec sleep_for = to_timespec(std::min(backoff, remaining(deadline)));
+    ::nanosleep(&sleep_for, nullptr);
+    backoff = std::min(backoff * 2, Duration{2000});
   }
 }
 
@@ -272,7 +266,7 @@ cfg::Result<std::optional<ReceivedFrame>> SocketCanBus::receive(Duration timeout
     // get the timestamp and drop count as control messages.
     can_frame raw{};
     iovec iov{&raw, sizeof raw};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timeval)) + CMSG_SPACE(sizeof(std::uint32_t))];
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
     msghdr msg{};
     msg.msg_iov = &iov;
     msg.msg_iovlen = 1;
@@ -294,10 +288,10 @@ cfg::Result<std::optional<ReceivedFrame>> SocketCanBus::receive(Duration timeout
     std::optional<TimePoint> stamp;
     for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
       if (c->cmsg_level != SOL_SOCKET) continue;
-      if (c->cmsg_type == SO_TIMESTAMP) {
-        timeval tv{};
-        std::memcpy(&tv, CMSG_DATA(c), sizeof tv);
-        stamp = monotonic_from_realtime(tv);
+      if (c->cmsg_type == SO_TIMESTAMPNS) {
+        timespec ts{};
+        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+        stamp = from_timespec(ts);
       } else if (c->cmsg_type == SO_RXQ_OVFL) {
         std::memcpy(&receive_overflows_, CMSG_DATA(c), sizeof receive_overflows_);
       }
@@ -308,7 +302,9 @@ cfg::Result<std::optional<ReceivedFrame>> SocketCanBus::receive(Duration timeout
       return cfg::Error{url() + ": received a frame with length " + std::to_string(raw.len) +
                         " (more than 8 bytes)"};
     }
-    return std::optional<ReceivedFrame>{ReceivedFrame{*frame, stamp.value_or(monotonic_now())}};
+    // Without a stamp (the kernel always sends one once enabled) the frame is as old as now.
+    return std::optional<ReceivedFrame>{
+        ReceivedFrame{*frame, stamp.value_or(wall_clock_now()), StampClock::Realtime}};
   }
 }
 

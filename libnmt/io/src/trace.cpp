@@ -186,10 +186,6 @@ cfg::Result<std::unique_ptr<TraceWriter>> open_trace(const std::filesystem::path
                     ": unknown trace format; use .log (candump log) or .pcap (pcap, SocketCAN)"};
 }
 
-TimePoint wall_clock_now() {
-  return std::chrono::duration_cast<TimePoint>(std::chrono::system_clock::now().time_since_epoch());
-}
-
 TracingBus::TracingBus(std::unique_ptr<Bus> inner, std::unique_ptr<TraceWriter> trace,
                        std::function<TimePoint()> clock)
     : inner_(std::move(inner)), trace_(std::move(trace)), clock_(std::move(clock)) {
@@ -200,6 +196,12 @@ cfg::Status TracingBus::send(const CanFrame& frame) {
   auto status = inner_->send(frame);
   if (status) (void)trace_->write(frame, clock_());
   return status;
+}
+
+SendResult TracingBus::try_send(const CanFrame& frame) {
+  auto result = inner_->try_send(frame);
+  if (result.status == SendResult::Status::Sent) (void)trace_->write(frame, clock_());
+  return result;
 }
 
 cfg::Result<std::optional<ReceivedFrame>> TracingBus::receive(Duration timeout) {

@@ -20,6 +20,7 @@
 #include <utility>
 
 #include "cfg/hex.hpp"
+#include "kernel_time.hpp"
 
 namespace nmt {
 
@@ -29,6 +30,7 @@ constexpr std::string_view kUrlForm =
     "expected udp://GROUP:PORT[?iface=ADDR&ttl=N] with an IPv4 multicast GROUP, e.g. "
     "udp://239.74.163.2:43113";
 const UdpBusOptions kDefaults{};
+using detail::to_timespec;
 
 // python-can receives with a 4096-byte buffer (GeneralPurposeUdpMulticastBus.max_buffer);
 // anything longer is not a frame it could have sent.
@@ -81,14 +83,6 @@ class Fd {
  private:
   int fd_;
 };
-
-timespec to_timespec(Duration d) {
-  if (d.count() < 0) d = Duration::zero();
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(d.count() / 1'000'000);
-  ts.tv_nsec = static_cast<long>(d.count() % 1'000'000) * 1000;
-  return ts;
-}
 
 // ---- MessagePack encoding (msgpack-c) -------------------------------------------------------
 
@@ -454,6 +448,11 @@ cfg::Result<std::unique_ptr<UdpBus>> UdpBus::open(const UdpBusOptions& options) 
   // kernel silently caps the request at net.core.rmem_max, which is fine.
   (void)setsockopt(rx.get(), SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes,
                    sizeof options.receive_buffer_bytes);
+  // SO_TIMESTAMPNS (socket(7)): the kernel's receive time comes with each datagram, so a datagram
+  // that waited in the socket while the process was stopped keeps the time it arrived (issue 22).
+  if (setsockopt(rx.get(), SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one) != 0) {
+    return fail("cannot enable receive timestamps (SO_TIMESTAMPNS)", errno);
+  }
   // Binding to the group address (not INADDR_ANY) makes the kernel deliver only datagrams sent
   // to this group, so groups sharing a port stay apart for us.
   sockaddr_in bind_address{};
@@ -510,31 +509,39 @@ cfg::Result<std::unique_ptr<UdpBus>> UdpBus::open(const UdpBusOptions& options) 
   return bus;
 }
 
-cfg::Status UdpBus::send(const CanFrame& frame) {
+SendResult UdpBus::try_send(const CanFrame& frame) {
+  using Status = SendResult::Status;
   const auto now = std::chrono::system_clock::now().time_since_epoch();
   // python-can stamps with time.time(): seconds since the Unix epoch as a float.
   const double timestamp_s = std::chrono::duration<double>(now).count();
   auto datagram = encode_udp_datagram(frame, timestamp_s);
   if (!datagram) {
-    return cfg::Error{url() + ": cannot send " + to_candump(frame) + ": " +
-                      datagram.error().message};
+    return {Status::Refused,
+            url() + ": cannot send " + to_candump(frame) + ": " + datagram.error().message};
   }
   sockaddr_in to{};
   to.sin_family = AF_INET;
   to.sin_port = htons(options_.port);
   to.sin_addr.s_addr = group_be_;
-  const auto deadline = std::chrono::steady_clock::now() + options_.send_timeout;
   for (;;) {
     const ssize_t n =
         ::sendto(send_fd_, datagram->data(), datagram->size(), MSG_DONTWAIT | MSG_NOSIGNAL,
                  reinterpret_cast<const sockaddr*>(&to), sizeof to);
     if (n == static_cast<ssize_t>(datagram->size())) return {};
-    if (n >= 0) return cfg::Error{url() + ": short send of " + to_candump(frame)};
+    if (n >= 0) return {Status::Failed, url() + ": short send of " + to_candump(frame)};
     const int error = errno;
     if (error == EINTR) continue;
-    if (error != EAGAIN && error != EWOULDBLOCK && error != ENOBUFS) {
-      return cfg::Error{url() + ": cannot send " + to_candump(frame) + ": " + errno_text(error)};
-    }
+    return {send_status_of_errno(error),
+            url() + ": cannot send " + to_candump(frame) + ": " + errno_text(error)};
+  }
+}
+
+cfg::Status UdpBus::send(const CanFrame& frame) {
+  const auto deadline = std::chrono::steady_clock::now() + options_.send_timeout;
+  for (;;) {
+    auto attempt = try_send(frame);
+    if (attempt.status == SendResult::Status::Sent) return {};
+    if (attempt.status != SendResult::Status::QueueFull) return cfg::Error{attempt.message};
     // Buffer full: wait for room, but never past the deadline. ENOBUFS does not wake poll(), so
     // wait at most 10 ms at a time and retry.
     ++counters_.send_waits;
@@ -555,13 +562,27 @@ cfg::Result<std::optional<ReceivedFrame>> UdpBus::receive(Duration timeout) {
   std::array<std::uint8_t, kMaxDatagram> buffer;
   for (;;) {
     sockaddr_in from{};
-    socklen_t from_size = sizeof from;
-    // MSG_TRUNC: the return value is the datagram's real length even when it did not fit.
-    const ssize_t n =
-        ::recvfrom(receive_fd_, buffer.data(), buffer.size(), MSG_DONTWAIT | MSG_TRUNC,
-                   reinterpret_cast<sockaddr*>(&from), &from_size);
+    // recvmsg for the receive time (SO_TIMESTAMPNS, a control message). MSG_TRUNC: the return
+    // value is the datagram's real length even when it did not fit.
+    iovec iov{buffer.data(), buffer.size()};
+    alignas(cmsghdr) std::array<char, CMSG_SPACE(sizeof(timespec))> control{};
+    msghdr msg{};
+    msg.msg_name = &from;
+    msg.msg_namelen = sizeof from;
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control.data();
+    msg.msg_controllen = control.size();
+    const ssize_t n = ::recvmsg(receive_fd_, &msg, MSG_DONTWAIT | MSG_TRUNC);
     if (n >= 0) {
-      const auto received_at = std::chrono::steady_clock::now().time_since_epoch();
+      TimePoint received_at = wall_clock_now();  // without a stamp: as old as now
+      for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_TIMESTAMPNS) {
+          timespec ts{};
+          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+          received_at = detail::from_timespec(ts);
+        }
+      }
       if (from.sin_port == own_port_be_ && from.sin_addr.s_addr == own_address_be_) {
         ++counters_.own_datagrams;  // IP_MULTICAST_LOOP hands every member its own datagrams
         continue;
@@ -578,8 +599,7 @@ cfg::Result<std::optional<ReceivedFrame>> UdpBus::receive(Duration timeout) {
         last_rejection_ = frame.error().message;
         continue;
       }
-      return std::optional<ReceivedFrame>(
-          ReceivedFrame{*frame, std::chrono::duration_cast<TimePoint>(received_at)});
+      return std::optional<ReceivedFrame>(ReceivedFrame{*frame, received_at, StampClock::Realtime});
     }
     const int error = errno;
     if (error == EINTR) continue;

@@ -102,6 +102,14 @@
 // - The active master answers 73h with 71h and sends 76h every 1F90h sub 6 ms (0: never, §5.5.3)
 //   without resetting itself; on a 76h (or another master's 71h, a second active master seen
 //   sooner) it resets communication of all nodes and itself, and the negotiation runs again.
+// - Error frames shifting the time slots (DSP 302 §5.5.4.4): the slots are this engine's timers,
+//   measured against when the other masters' 72h/71h arrived (the event loop hands frames over
+//   at their receive stamps, bus_event_loop.hpp "Time"). Error frames short of bus-off cost a
+//   retransmission, a few frame times, far below a node time slot; on bus-off the event loop
+//   stops sending and stops the engines' clock until the controller is back (bus_event_loop.hpp
+//   "Transmit"), so a slot cannot end, nor a 71h be lost, while this device is off the bus. If
+//   two masters still overlap, the fallback is §5.5.4.2: the second active master seen makes
+//   both reset and negotiate again (above).
 // - A standby master takes as the active master's heartbeat consumer time 1016h's entry for that
 //   node, else 2 x its own 1017h + 100 ms (the network's masters share one description), and
 //   watches nothing when both are 0. A lost heartbeat (§5.5.2) resets communication of all

@@ -2,6 +2,7 @@
 // (sim_bus.hpp) runs on simulated time and connects protocol engines directly.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -12,10 +13,44 @@
 
 namespace nmt {
 
+/// The clock a received frame's timestamp is on.
+enum class StampClock : std::uint8_t {
+  /// CLOCK_REALTIME (wall_clock_now()): the kernel's receive time, which the SocketCAN and UDP
+  /// drivers deliver (SO_TIMESTAMPNS). BusEventLoop moves it onto its own clock.
+  Realtime,
+  /// The clock of the BusEventLoop that reads the bus: buses that share the loop's clock, such
+  /// as the scripted buses of tests.
+  Loop,
+};
+
 struct ReceivedFrame {
   CanFrame frame;
-  TimePoint timestamp;  ///< when the driver received it (driver's clock)
+  /// When the frame arrived: for the real drivers the kernel stamped it as it came off the wire
+  /// (or the network), before it waited in the socket for the program to read it.
+  TimePoint timestamp;
+  StampClock clock = StampClock::Loop;
 };
+
+/// Microseconds since the Unix epoch (std::chrono::system_clock, i.e. CLOCK_REALTIME): the clock
+/// of the kernel's receive stamps and the default trace clock.
+TimePoint wall_clock_now();
+
+/// What one attempt to send a frame did (Bus::try_send).
+struct SendResult {
+  enum class Status : std::uint8_t {
+    Sent,       ///< the driver took the frame
+    QueueFull,  ///< the transmit queue is full (ENOBUFS, EAGAIN): back-pressure, try again later
+    Failed,     ///< another error the interface may recover from: try again later
+    Refused,    ///< the driver can never send this frame (invalid for it): do not retry
+    InterfaceGone,  ///< the interface vanished or went down (ENODEV, ENXIO, ENETDOWN)
+  };
+  Status status = Status::Sent;
+  std::string message;  ///< why, for every status but Sent
+};
+
+/// The status of a failed send(2)/write(2) on a socket by its errno: QueueFull for ENOBUFS,
+/// EAGAIN/EWOULDBLOCK; InterfaceGone for ENODEV, ENXIO, ENETDOWN; Failed for anything else.
+SendResult::Status send_status_of_errno(int error_number);
 
 /// A CAN bus driver. Not thread-safe: one event loop owns it.
 class Bus {
@@ -24,7 +59,12 @@ class Bus {
   /// Sends a frame. When the driver's transmit queue is full it waits (up to a bounded time)
   /// rather than dropping; fails with a message only when the frame could not be sent.
   virtual cfg::Status send(const CanFrame& frame) = 0;
-  /// Waits up to `timeout` of wall time for a frame. nullopt when none arrived in time.
+  /// Tries once to send a frame without waiting; BusEventLoop's transmit path, which keeps
+  /// the frames in order and retries itself. The default calls send() (Sent or Failed).
+  virtual SendResult try_send(const CanFrame& frame);
+  /// Waits up to `timeout` of wall time for a frame. nullopt when none arrived in time. With a
+  /// zero timeout it only looks at what is already queued, which BusEventLoop relies on to read
+  /// every queued frame before it fires timers.
   virtual cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) = 0;
   /// The URL the bus was opened with, e.g. "socketcan:can0".
   virtual std::string url() const = 0;

@@ -3,12 +3,44 @@
 // received frames and due timers to the engines and sends what they answer. The engines are
 // the same objects that run on the simulated bus; only this loop knows about clocks and
 // sockets. EngineRef<E> is the one adapter from any engine to the loop.
+//
+// Time. Engines judge by when frames arrived, not by when the loop got round to reading them
+// (issue 22): a received frame is given to the engines at its receive stamp (ReceivedFrame:
+// the kernel's, for the SocketCAN and UDP drivers), moved onto the loop's clock by
+// arrival_on_loop_clock(). Frames and timers are merged on that one time line: for each frame
+// still queued in the socket, in arrival order, the timers due at or before its stamp fire
+// first (at the stamp), then the frame is delivered; only when the queue is empty do the timers
+// due up to now fire. So after a stall of the process (a scheduler hiccup, SIGSTOP, a debugger)
+// a heartbeat that arrived in time counts as in time, and a real loss (no frame before the
+// deadline) is still seen. The time given to engines never goes back (engine.hpp rule 1).
+//
+// Transmit (issue 22, "The transmit path survives a real controller"). Frames the engines send
+// join one ordered transmit queue and go out in that order. A full transmit queue (ENOBUFS,
+// EAGAIN) is back-pressure: the frame stays first in the queue and is retried after a short
+// backoff while the loop keeps receiving and firing timers; nothing is dropped, the loop goes
+// on. Another send failure is reported (BusEvent::SendFailed, counted) and retried with a longer
+// backoff. A frame the driver can never send (invalid for it) is reported and dropped. Only an
+// interface that vanished or went down (ENODEV, ENXIO, ENETDOWN) ends run*(), with a message
+// saying so. CAN error frames are not delivered to the engines (they are the controller's
+// reports, not CANopen messages); they are counted (BusCounters) and reported (BusEvent). On
+// bus-off the loop stops sending until an error frame says the controller is back (restarted,
+// or error active), then sends the queue in order. The rule for time during bus-off: the
+// engines' clock stands still. The controller neither sends nor receives then, so no engine
+// can have seen or missed anything: a heartbeat consumer's timer, an SDO timeout or a boot
+// timer is not charged with the bus-off time, and the engines' time goes on from where it
+// stopped (now() is the loop's clock less the bus-off time). run_until() keeps to the clock
+// itself, so a bounded run ends during a bus-off too.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
+#include <cstddef>
+#include <deque>
 #include <functional>
 #include <optional>
 #include <stdexcept>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "cfg/result.hpp"
@@ -104,12 +136,76 @@ class EngineRef final : public LoopEngine {
 /// Microseconds of std::chrono::steady_clock, the loop's default clock.
 TimePoint steady_now();
 
+/// Where a received frame sits on the loop's clock. A StampClock::Realtime stamp keeps its age:
+/// it is moved by the offset between the wall clock and the loop's clock, read together as
+/// `realtime_now` and `loop_now` (a step of the wall clock between reception and this call
+/// shifts it by that step, hence the clamp). A StampClock::Loop stamp is taken as it is. The
+/// result is clamped into [not_before, loop_now]: a frame cannot have arrived after the loop
+/// read it, and the time given to engines never goes back (`not_before`, the last time given,
+/// wins when the two disagree).
+TimePoint arrival_on_loop_clock(const ReceivedFrame& received, TimePoint loop_now,
+                                TimePoint realtime_now, TimePoint not_before);
+
+/// What the loop reports about the bus itself (BusEventLoop::set_bus_event_handler): sends it
+/// retries, frames it cannot send, and the CAN controller's state from error frames (the
+/// CAN_ERR_* classes of linux/can/error.h, as SocketCanBus delivers them and the UDP bus
+/// carries them).
+struct BusEvent {
+  enum class Kind : std::uint8_t {
+    SendFailed,          ///< a send failed (not a full queue); the frame is retried (text: why)
+    FrameRefused,        ///< the driver can never send `frame`: it is dropped (text: why)
+    ErrorWarning,        ///< the controller's error counters reached the warning level
+    ErrorPassive,        ///< the controller is error passive
+    BusOff,              ///< the controller is bus-off: the loop stops sending
+    Restarted,           ///< the controller is back (restarted, or error active): sending resumes
+    LostArbitration,     ///< a frame of ours lost arbitration (the controller retransmits it)
+    ControllerOverflow,  ///< the controller's receive or transmit buffer overflowed
+    BusError,  ///< a protocol violation, missing ACK, transceiver problem or transmit timeout
+  };
+  Kind kind;
+  std::string text;
+  CanFrame frame;  ///< the frame not sent (SendFailed, FrameRefused) or the error frame
+};
+std::string_view to_string(BusEvent::Kind kind);
+
+/// Counters of the loop's transmit path and of the error frames it read.
+struct BusCounters {
+  std::uint64_t queue_full = 0;     ///< send attempts that met a full transmit queue (retried)
+  std::uint64_t send_failures = 0;  ///< other failed attempts (reported, retried)
+  std::uint64_t refused = 0;        ///< frames the driver can never send (reported, dropped)
+  std::size_t queued = 0;           ///< frames waiting in the loop's transmit queue now
+  std::size_t max_queued = 0;       ///< the most that ever waited there
+  std::uint64_t error_frames = 0;   ///< CAN error frames read (each counted below by class)
+  std::uint64_t error_warning = 0;
+  std::uint64_t error_passive = 0;
+  std::uint64_t bus_off = 0;
+  std::uint64_t restarted = 0;
+  std::uint64_t lost_arbitration = 0;
+  std::uint64_t controller_overflows = 0;
+  std::uint64_t bus_errors = 0;
+  Duration bus_off_time{0};  ///< time spent in bus-off (periods that ended)
+};
+
 struct BusEventLoopOptions {
   /// Longest single wait for a frame, so that a stop request is noticed within this time.
   Duration max_wait = std::chrono::milliseconds(100);
+  /// Most frames read from the queue in one pass before the loop checks for the end of
+  /// run_until() and retries its transmit queue again (a stop request ends a pass at once). Timers
+  /// cannot starve under a flood whatever this is: each frame is preceded by the timers due by its
+  /// stamp. What a flood the process cannot keep up with does delay is the time: engines are then
+  /// given the arrival times of frames that waited in the socket, at most the receive buffer's
+  /// worth behind the clock (beyond that the kernel drops frames:
+  /// SocketCanBus::receive_overflows()). The timers due after the last of them fire once the queue
+  /// is empty.
+  std::size_t max_frames_per_pass = 1024;
   /// Deliver every frame an engine sends to the loop's other engines as well: on a CAN bus
   /// every node hears every frame, but drivers do not hand our own frames back to us.
   bool local_echo = true;
+  /// Retry delays of the transmit queue: after a full transmit queue from `queue_full_retry`
+  /// doubling up to 2 ms (ENOBUFS does not wake poll(): measured, socketcan_bus.cpp); after
+  /// another send failure from `send_failure_retry` doubling up to 1 s.
+  Duration queue_full_retry = std::chrono::microseconds(50);
+  Duration send_failure_retry = std::chrono::milliseconds(10);
 };
 
 /// Drives engines over one bus. Not thread-safe, except request_stop(). Owns neither the bus
@@ -118,7 +214,8 @@ class BusEventLoop {
  public:
   using Clock = std::function<TimePoint()>;
   enum class Direction { Received, Sent };
-  /// Sees every frame received from the bus and every frame sent to it, with the loop's time.
+  /// Sees every frame received from the bus (at its arrival time) and every frame sent to it
+  /// (at the time of the engine call that sent it), as engines see them.
   using Observer = std::function<void(const CanFrame&, TimePoint, Direction)>;
 
   explicit BusEventLoop(Bus& bus, BusEventLoopOptions options = {}, Clock clock = steady_now);
@@ -129,15 +226,30 @@ class BusEventLoop {
     engines_.push_back(&engine);
   }
   void set_observer(Observer observer) { observer_ = std::move(observer); }
-  /// The loop's clock (the time engines are given).
-  TimePoint now() const { return clock_(); }
+  using BusEventHandler = std::function<void(const BusEvent&, TimePoint)>;
+  /// Sees send failures, refused frames and the controller's state changes (BusEvent).
+  void set_bus_event_handler(BusEventHandler handler) { bus_event_handler_ = std::move(handler); }
+  /// The time engines are given: inside a callback of the loop (an event handler, the
+  /// observer, EngineRef::apply from either) the time of the frame or timer being handled,
+  /// else the loop's clock less the time spent in bus-off (see "Transmit" above).
+  TimePoint now() const;
+  /// The loop's clock itself (bus-off time included): what run_until() keeps to.
+  TimePoint clock() const { return clock_(); }
 
-  /// Runs until the clock reaches `until`, request_stop() is called, or the bus fails (a
-  /// receive error, or a frame that could not be sent: the error names the frame).
+  /// Runs until the loop's clock (the Clock itself, bus-off time included) reaches `until`,
+  /// request_stop() is called, or the bus fails: a receive error, or the interface is gone
+  /// (a send found it vanished or down: the error says so). Each pass first reads every frame
+  /// already queued (see "Time" above), so a stall of the caller between two run*() calls is
+  /// no different from one inside.
   cfg::Status run_until(TimePoint until);
-  cfg::Status run_for(Duration duration) { return run_until(now() + duration); }
+  cfg::Status run_for(Duration duration) { return run_until(clock_() + duration); }
   /// Runs until request_stop() or a bus failure.
   cfg::Status run() { return run_until(TimePoint::max()); }
+  /// Runs (receiving, firing timers) until the transmit queue is empty, at most `limit`, or
+  /// as run_until() ends. Frames still queued when the loop is destroyed are never sent, so a
+  /// program calls this before it ends, after its last run (clear_stop() first if it requested
+  /// the stop itself).
+  cfg::Status run_until_sent(Duration limit);
   /// Makes run*() return within options.max_wait. Async-signal-safe (a lock-free atomic
   /// store), so a SIGINT handler may call it. The request stays until clear_stop().
   void request_stop() { stop_.store(true, std::memory_order_relaxed); }
@@ -145,10 +257,15 @@ class BusEventLoop {
   bool stop_requested() const { return stop_.load(std::memory_order_relaxed); }
 
   std::uint64_t frames_received() const { return received_; }
+  /// Frames the bus took (the transmit queue's frames are not yet counted).
   std::uint64_t frames_sent() const { return sent_; }
+  BusCounters counters() const;
+  /// Whether the last error frame said bus-off (and none since said the controller is back).
+  bool bus_off() const { return bus_off_since_.has_value(); }
 
-  /// Sends frames `from` produced outside a loop callback (EngineRef::apply) at once and
-  /// delivers them to the loop's other engines. A failure is also kept for the next run*().
+  /// Sends frames `from` produced outside a loop callback (EngineRef::apply) at once (queued
+  /// behind earlier ones, see "Transmit") and delivers them to the loop's other engines. Fails
+  /// only when the interface is gone; that failure is also kept for the next run*().
   cfg::Status send_now(LoopEngine& from, std::vector<CanFrame>& frames, TimePoint now);
 
  private:
@@ -157,10 +274,19 @@ class BusEventLoop {
     LoopEngine* from;  // nullptr: received from the bus
   };
   cfg::Status fire_timers(TimePoint now);
+  cfg::Status handle_received(const ReceivedFrame& received);
+  /// Records `now` as the time given to engines; returns it, never less than the last one.
+  TimePoint give(TimePoint now);
   cfg::Status deliver(const CanFrame& frame, LoopEngine* from, TimePoint now);
   cfg::Status emit(std::vector<CanFrame>& out, LoopEngine* from, TimePoint now);
   cfg::Status send_and_echo(LoopEngine* from, std::vector<CanFrame>& frames, TimePoint now);
   std::optional<TimePoint> next_deadline() const;
+  /// Sends what the transmit queue holds, in order, until the bus pushes back.
+  cfg::Status flush_transmit(TimePoint now);
+  void handle_error_frame(const CanFrame& frame, TimePoint now);
+  void report(BusEvent::Kind kind, std::string text, const CanFrame& frame, TimePoint now);
+  /// The engines' time at the loop's clock reading `clock`: bus-off time is cut out.
+  TimePoint engine_time(TimePoint clock) const;
 
   Bus* bus_;
   BusEventLoopOptions options_;
@@ -172,8 +298,19 @@ class BusEventLoop {
   std::vector<Pending> pending_;
   std::uint64_t received_ = 0;
   std::uint64_t sent_ = 0;
-  bool delivering_ = false;           // inside deliver(): pending_ is being worked through
-  std::optional<cfg::Error> failed_;  // a send_now failure for the next run*()
+  bool delivering_ = false;                  // inside deliver(): pending_ is being worked through
+  bool in_callback_ = false;                 // inside an engine call, handler or observer
+  TimePoint last_given_ = TimePoint::min();  // the latest time given to an engine
+  std::optional<cfg::Error> failed_;         // a send_now failure for the next run*()
+  BusEventHandler bus_event_handler_;
+  std::deque<CanFrame> transmit_;      // frames not yet taken by the bus, in order
+  bool flushing_ = false;              // inside flush_transmit()
+  bool until_sent_ = false;            // inside run_until_sent(): end once transmit_ is empty
+  std::optional<TimePoint> retry_at_;  // the clock reading before which no send is tried
+  Duration retry_delay_{0};
+  BusCounters counters_;
+  std::optional<TimePoint> bus_off_since_;  // the clock reading when bus-off began
+  Duration paused_{0};                      // bus-off time of the periods that ended
 };
 
 template <Engine E>

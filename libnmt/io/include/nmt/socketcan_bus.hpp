@@ -34,6 +34,10 @@ struct SocketCanOptions {
   std::uint32_t error_mask = 0x1FFFFFFF;
   /// Also receive the frames this socket sent itself (CAN_RAW_RECV_OWN_MSGS).
   bool receive_own_frames = false;
+  /// Requested receive buffer (SO_RCVBUF), bytes, as UdpBusOptions: frames that arrive while
+  /// the process is stopped wait there (and keep their receive time) rather than being dropped
+  /// (receive_overflows()). The kernel caps it at net.core.rmem_max (212992 by default).
+  int receive_buffer_bytes = 4 << 20;
 };
 
 /// A CAN_RAW socket on one interface. Owns the socket and closes it on destruction.
@@ -52,10 +56,14 @@ class SocketCanBus final : public Bus {
   /// queue is full it polls for room and retries for up to `send_timeout` in total. Fails on
   /// an invalid frame (error flag set, id out of range, dlc > 8), a timeout or a socket error.
   cfg::Status send(const CanFrame& frame) override;
+  /// One write without waiting: QueueFull on ENOBUFS/EAGAIN, InterfaceGone on ENODEV, ENXIO,
+  /// ENETDOWN, Refused for a frame send() would refuse.
+  SendResult try_send(const CanFrame& frame) override;
   /// Waits up to `timeout` for a frame. Error frames come back with `error` set, `extended`
   /// set and `id` holding the error class bits (as candump prints them); data bytes 0..7 hold
-  /// the details (linux/can/error.h). The timestamp is the kernel's receive time, moved onto
-  /// the steady (monotonic) clock, in microseconds since that clock's epoch.
+  /// the details (linux/can/error.h). The timestamp is the kernel's receive time
+  /// (SO_TIMESTAMPNS), StampClock::Realtime: microseconds since the Unix epoch, taken when the
+  /// frame reached the socket, not when it was read.
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// "socketcan:" followed by the interface name.
   std::string url() const override;

@@ -51,9 +51,6 @@ cfg::Result<std::unique_ptr<TraceWriter>> open_pcap(const std::filesystem::path&
 /// message naming the accepted extensions otherwise.
 cfg::Result<std::unique_ptr<TraceWriter>> open_trace(const std::filesystem::path& path);
 
-/// Microseconds since the Unix epoch (std::chrono::system_clock), the default trace clock.
-TimePoint wall_clock_now();
-
 /// A Bus that records every frame it sends (once the inner bus accepted it) and every frame it
 /// receives into a trace, stamped with `clock` at the moment of the call (one clock for both
 /// directions keeps the trace in order; the inner driver's receive timestamps are passed through
@@ -66,6 +63,8 @@ class TracingBus final : public Bus {
              std::function<TimePoint()> clock = wall_clock_now);
 
   cfg::Status send(const CanFrame& frame) override;
+  /// The inner bus's try_send; a frame it took is traced.
+  SendResult try_send(const CanFrame& frame) override;
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// The inner bus's URL.
   std::string url() const override;

@@ -88,9 +88,13 @@ class UdpBus final : public Bus {
   /// encode_udp_datagram); error frames may be sent (python-can carries them too). Waits up to
   /// `send_timeout` for buffer space, then fails.
   cfg::Status send(const CanFrame& frame) override;
+  /// One sendto without waiting: QueueFull when the send buffer is full, Refused for a frame
+  /// python-can would reject.
+  SendResult try_send(const CanFrame& frame) override;
   /// Waits up to `timeout` for a frame from another member, skipping our own datagrams and
-  /// malformed ones (counted in counters()). The timestamp is the steady (monotonic) clock at
-  /// reception, microseconds since that clock's epoch. Fails only on a socket error.
+  /// malformed ones (counted in counters()). The timestamp is the kernel's receive time
+  /// (SO_TIMESTAMPNS), StampClock::Realtime: microseconds since the Unix epoch, taken when the
+  /// datagram reached the socket, not when it was read. Fails only on a socket error.
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// The URL that opens an equivalent bus (to_udp_url).
   std::string url() const override;
