@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "../support/sdo_test_device.hpp"
+#include "fuzz_input.hpp"
 #include "nmt/fault_injection.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/sdo.hpp"
@@ -34,13 +35,7 @@ void check_at(bool ok, const char* what, int line) {
   std::abort();
 }
 
-struct Input {
-  const std::uint8_t* data;
-  std::size_t size;
-  std::size_t pos = 0;
-  bool empty() const { return pos >= size; }
-  std::uint8_t next() { return pos < size ? data[pos++] : 0; }
-};
+using fuzz::Input;
 
 constexpr std::uint16_t kIndices[] = {0x1000, 0x1008, 0x1017, 0x2000, 0x2005, 0x3000, 0x1018};
 

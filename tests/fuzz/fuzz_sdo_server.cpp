@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "../support/sdo_test_device.hpp"
+#include "fuzz_input.hpp"
 #include "nmt/fault_injection.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/sdo.hpp"
@@ -47,13 +48,7 @@ constexpr std::array<std::array<std::uint8_t, 8>, 14> kTemplates{{
     {0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x00, 0x08},  // abort
 }};
 
-struct Input {
-  const std::uint8_t* data;
-  std::size_t size;
-  std::size_t pos = 0;
-  bool empty() const { return pos >= size; }
-  std::uint8_t next() { return pos < size ? data[pos++] : 0; }
-};
+using fuzz::Input;
 
 struct Harness {
   nmt::LocalDictionary dict;
