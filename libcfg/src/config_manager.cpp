@@ -46,6 +46,18 @@ std::span<const std::uint8_t> as_bytes(std::string_view text) {
   return {reinterpret_cast<const std::uint8_t*>(text.data()), text.size()};
 }
 
+/// The node's 1F20h, 1F22h and 1F23h values as written (ConfigManager::value_bytes()).
+std::size_t value_bytes_of(const NodeSlot& s) {
+  return s.concise.size() + (s.dcf ? s.dcf->size : 0) + (s.eds ? s.eds->size : 0);
+}
+
+/// The size of the node's value of a file object as written.
+std::size_t file_size_of(const NodeSlot& s, std::uint16_t index) {
+  if (index == object::kConciseDcf) return s.concise.size();
+  const auto& text = index == object::kStoreDcf ? s.dcf : s.eds;
+  return text ? text->size : 0;
+}
+
 std::string as_text(const std::vector<std::uint8_t>& bytes) {
   return {bytes.begin(), bytes.end()};
 }
@@ -110,6 +122,7 @@ struct ConfigManager::State {
   StoreWriteHooks hooks;
   Diagnostics problems;
   std::array<NodeSlot, kMaxNodeId + 1> nodes{};  // by node-ID; [0] unused
+  ConfigManagerLimits limits;
 
   NodeSlot& slot(NodeId node) { return nodes[node.value()]; }
   const NodeSlot& slot(NodeId node) const { return nodes[node.value()]; }
@@ -392,6 +405,12 @@ Result<DownloadPlan> ConfigManager::download_plan(NodeId node, const PlanOptions
   return plan;
 }
 
+std::size_t ConfigManager::value_bytes() const {
+  std::size_t total = 0;
+  for (const NodeSlot& s : state_->nodes) total += value_bytes_of(s);
+  return total;
+}
+
 std::size_t ConfigManager::stored_bytes() const {
   std::size_t total = 0;
   for (const NodeSlot& s : state_->nodes) {
@@ -419,6 +438,27 @@ std::string address(std::uint16_t index, std::uint8_t sub_index) {
 }
 
 }  // namespace
+
+const ConfigManagerLimits& ConfigManager::limits() const {
+  return state_->limits;
+}
+
+void ConfigManager::set_limits(ConfigManagerLimits limits) {
+  state_->limits = limits;
+}
+
+ConfigAbort ConfigManager::admits(std::uint16_t index, std::uint8_t sub_index,
+                                  std::size_t size) const {
+  const bool file =
+      index == object::kStoreDcf || index == object::kConciseDcf || index == object::kStoreEds;
+  const auto node = NodeId::from(sub_index);
+  if (!file || !node) return ConfigAbort::None;
+  const auto& limits = state_->limits;
+  if (size > limits.max_entry_bytes) return ConfigAbort::OutOfMemory;
+  // The written value takes the place of the node's value of that object.
+  const std::size_t others = value_bytes() - file_size_of(state_->slot(*node), index);
+  return others + size > limits.max_total_bytes ? ConfigAbort::OutOfMemory : ConfigAbort::None;
+}
 
 ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) const {
   if (!is_manager_index(index)) {
@@ -502,6 +542,15 @@ ConfigWrite ConfigManager::write(std::uint16_t index, std::uint8_t sub_index,
               {}};
     }
     return {ConfigAbort::None, {}, {node}};
+  }
+  if (const auto abort = admits(index, sub_index, data.size()); abort != ConfigAbort::None) {
+    const auto& limits = state_->limits;
+    return {abort,
+            address(index, sub_index) + ": out of memory: " + std::to_string(data.size()) +
+                " bytes; the manager takes at most " + std::to_string(limits.max_entry_bytes) +
+                " bytes per entry and " + std::to_string(limits.max_total_bytes) +
+                " bytes for all nodes (" + std::to_string(value_bytes()) + " stored)",
+            {}};
   }
   const NodeId node = *NodeId::from(sub_index);
   switch (index) {

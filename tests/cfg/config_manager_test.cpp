@@ -39,6 +39,7 @@ using ::testing::IsEmpty;
 using Bytes = std::vector<std::uint8_t>;
 
 // CiA 301 §7.2.4.3.17 abort codes, written out as the spec's numbers.
+constexpr std::uint32_t kAbortOutOfMemory = 0x05040005;
 constexpr std::uint32_t kAbortReadOfWriteOnly = 0x06010001;
 constexpr std::uint32_t kAbortWriteOfReadOnly = 0x06010002;
 constexpr std::uint32_t kAbortNoObject = 0x06020000;
@@ -248,6 +249,83 @@ TEST(ConfigManager, AddressesOutsideTheObjectsAbort) {
   EXPECT_EQ(code(manager.read(0x1F22, 0x80).abort), kAbortNoSubIndex);
   EXPECT_EQ(code(manager.write(0x1F25, 0x81, le(0x666E6F63, 4)).abort), kAbortNoSubIndex);
   EXPECT_EQ(code(manager.write(0x1F22, 0, Bytes{0, 0, 0, 0}).abort), kAbortWriteOfReadOnly);
+}
+
+// --- memory a peer can make the manager use (ConfigManagerLimits) --------------------------------
+
+/// A concise DCF stream of `total` bytes: one DOMAIN entry (2002h) filling it (CiA 302 §5.2:
+/// count, then index, sub-index, size and data of each entry: 4 + 7 bytes of framing).
+Bytes concise_of_size(std::size_t total, std::uint8_t fill = 0x5A) {
+  const Bytes stream =
+      encode_concise_dcf(std::vector<ObjectWrite>{{0x2002, 0, Bytes(total - 11, fill)}});
+  EXPECT_EQ(stream.size(), total);
+  return stream;
+}
+
+TEST(ConfigManagerLimits, StreamOf1F22hWritesForEveryNodeStaysWithinTheTotalThenAbortsOutOfMemory) {
+  ConfigManager manager;
+  manager.set_limits({.max_entry_bytes = 4096, .max_total_bytes = 40 * 4096});
+  // A tool writes the largest entry the manager takes for node after node, twice over.
+  std::size_t accepted = 0;
+  std::optional<unsigned> first_refused;
+  for (int round = 0; round < 2; ++round) {
+    for (unsigned n = 1; n <= 127; ++n) {
+      const ConfigWrite write = manager.write(0x1F22, static_cast<std::uint8_t>(n),
+                                              concise_of_size(4096, static_cast<std::uint8_t>(n)));
+      EXPECT_LE(manager.value_bytes(), 40U * 4096);
+      if (write.ok()) {
+        ++accepted;
+        continue;
+      }
+      EXPECT_EQ(code(write.abort), kAbortOutOfMemory) << "node " << n;
+      EXPECT_THAT(write.message, HasSubstr("out of memory"));
+      if (!first_refused) first_refused = n;
+      EXPECT_FALSE(manager.has_configuration(node(n))) << "node " << n;
+    }
+  }
+  // 40 nodes fit; the 41st is refused, and the second round replaces the 40 in place.
+  EXPECT_EQ(first_refused, 41U);
+  EXPECT_EQ(accepted, 80U);
+  EXPECT_EQ(manager.value_bytes(), 40U * 4096);
+  // Still working after the refusals: a node's entry is replaced, and a removal (the count-0
+  // stream) makes room for another node.
+  const Bytes smaller = concise_of_size(100);
+  ASSERT_TRUE(manager.write(0x1F22, 1, smaller).ok());
+  EXPECT_EQ(manager.read(0x1F22, 1).data, smaller);
+  ASSERT_TRUE(manager.write(0x1F22, 2, Bytes{0, 0, 0, 0}).ok());
+  ASSERT_TRUE(manager.write(0x1F22, 100, concise_of_size(4096)).ok());
+  EXPECT_TRUE(manager.has_configuration(node(100)));
+}
+
+TEST(ConfigManagerLimits, EntryLongerThanMaxEntryBytesAbortsOutOfMemoryWithoutTouchingTheStore) {
+  ConfigManager manager;
+  manager.set_limits({.max_entry_bytes = 1000, .max_total_bytes = 1 << 20});
+  const Bytes kept = concise_of_size(1000);
+  ASSERT_TRUE(manager.write(0x1F22, 5, kept).ok());
+  EXPECT_EQ(code(manager.write(0x1F22, 5, concise_of_size(1001)).abort), kAbortOutOfMemory);
+  EXPECT_EQ(manager.read(0x1F22, 5).data, kept);
+  // 1F20h and 1F23h (texts) are limited by their length as written, compressed or not.
+  const std::string text(1001, ' ');
+  EXPECT_EQ(code(manager.write(0x1F20, 5, bytes_of(text)).abort), kAbortOutOfMemory);
+  EXPECT_EQ(code(manager.write(0x1F23, 5, bytes_of(text)).abort), kAbortOutOfMemory);
+  EXPECT_EQ(code(manager.read(0x1F23, 5).abort), kAbortDataSetEmpty);
+}
+
+TEST(ConfigManagerLimits, AdmitsAnswersForASizeBeforeTheDataIsThere) {
+  // What an SDO server asks at the initiate request (indicated size) or as segments arrive.
+  ConfigManager manager;
+  manager.set_limits({.max_entry_bytes = 1000, .max_total_bytes = 1500});
+  EXPECT_EQ(manager.admits(0x1F22, 5, 1000), ConfigAbort::None);
+  EXPECT_EQ(manager.admits(0x1F20, 5, 1001), ConfigAbort::OutOfMemory);
+  ASSERT_TRUE(manager.write(0x1F22, 5, concise_of_size(1000)).ok());
+  // Node 6 has room for 500 more; node 5's own entry would be replaced, so it has 1000.
+  EXPECT_EQ(manager.admits(0x1F22, 6, 500), ConfigAbort::None);
+  EXPECT_EQ(manager.admits(0x1F22, 6, 501), ConfigAbort::OutOfMemory);
+  EXPECT_EQ(manager.admits(0x1F22, 5, 1000), ConfigAbort::None);
+  EXPECT_EQ(manager.admits(0x1F23, 5, 501), ConfigAbort::OutOfMemory);
+  // Objects whose values are no files are not limited here.
+  EXPECT_EQ(manager.admits(0x1F26, 5, 4), ConfigAbort::None);
+  EXPECT_EQ(manager.admits(0x1F25, 5, 1 << 30), ConfigAbort::None);
 }
 
 // --- the download plan (CiA 302-2 §3.5) -------------------------------------------------------

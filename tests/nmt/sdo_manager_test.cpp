@@ -546,5 +546,54 @@ TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
             SdoAbort::DeviceState);
 }
 
+// Memory a peer can make the master use (nmt_master.hpp): 1F00h requests wait in the manager's
+// queue; beyond MasterOptions::sdo_manager_max_queued_requests a request is refused with
+// 0504 0005 (CiA 301 "Out of memory"), and once the queue has room requests are taken again.
+TEST_F(SdoManagerTest, RequestsBeyondTheQueueBoundAreRefusedOutOfMemory) {
+  rig.options.sdo_manager_max_queued_requests = 1;
+  add_srd(120);
+  start_network();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  // Over the default SDO the SRD field is believed: two requests back to back, the second while
+  // the first still runs.
+  ASSERT_EQ(rig.tool_write_u(0x1F00, 0, request_word(0x1282, 120, 2), 4), SdoAbort::None);
+  EXPECT_EQ(rig.tool_write_u(0x1F00, 0, request_word(0x1280, 120, 3), 4), SdoAbort::OutOfMemory);
+  ASSERT_TRUE(wait_for(Kind::SdoConnectionEstablished, 120));
+  const auto rows = rig.engine().sdo_connections();
+  EXPECT_EQ(std::count_if(rows.begin(), rows.end(), [](const auto& c) { return !c.to_manager; }),
+            1);
+  // The queue is empty again: the refused request goes through now.
+  ASSERT_EQ(rig.tool_write_u(0x1F00, 0, request_word(0x1280, 120, 3), 4), SdoAbort::None);
+  // Rows: the SRD's channel to the manager and its two connections.
+  EXPECT_TRUE(rig.bus.run_until([&] { return rig.engine().sdo_connections().size() == 3U; },
+                                rig.bus.now() + 10s));
+}
+
+// DSP 302 §7.2.3 error 01h "No SDO channel free": registrations are bounded by
+// MasterOptions::sdo_manager_channels; an SRD refused for it registers once an SRD gave its
+// channel back (1F01h with slave 0, §7.2.3).
+TEST_F(SdoManagerTest, SrdRefusedForLackOfAChannelRegistersOnceAnotherDeregisters) {
+  rig.options.sdo_manager_channels = 1;
+  add_srd(110);
+  add_srd(120);
+  start_network();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  EXPECT_FALSE(register_srd(110, 0x12810001));
+  EXPECT_EQ(at(110, 0x1F10, 0) >> 8U & 0xFFU, 0x01U);  // Cnxn 0, error 01h
+  EXPECT_EQ(rig.engine().registered_srds().size(), 1U);
+  ASSERT_EQ(srd_write(120, 0x1281, 0x1F01, request_word(0, 120, 0)), SdoAbort::None);
+  ASSERT_TRUE(wait_for(Kind::SrdDeregistered, 120));
+  // register_srd() would find the refusal reported above: wait for the registration itself.
+  rig.slave(110).node().dictionary().set_unsigned(0x1F10, 0, 0x12810001);
+  rig.send_foreign("6E0#");
+  EXPECT_TRUE(rig.bus.run_until(
+      [&] {
+        const auto srds = rig.engine().registered_srds();
+        return srds.size() == 1 && srds[0].node == 110;
+      },
+      rig.bus.now() + 10s));
+  EXPECT_EQ(at(110, 0x1F10, 0), 0x12810002U);  // Cnxn 1, no error
+}
+
 }  // namespace
 }  // namespace nmt

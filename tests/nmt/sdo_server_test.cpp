@@ -115,6 +115,45 @@ TEST_F(SdoServerTest, SegmentedDownloadRefusedAtInitiateWhenTheObjectIsReadOnly)
   EXPECT_EQ(request("605#2108100005000000"), Frames{"585#8008100002000106"});
 }
 
+// CiA 301 §7.2.4.3.3: s = 0, no size indicated. The data is checked as it grows: 2000h (DOMAIN)
+// limited to 10 bytes takes two segments of 7 bytes no further than the first; the second (14
+// bytes) is answered with 0607 0012 (length too high), as the write of 14 bytes would be.
+TEST_F(SdoServerTest, SegmentedDownloadWithoutSizeIsAbortedOnceItsDataPassesTheEntrysLimit) {
+  ASSERT_TRUE(dict.set_max_size(0x2000, 0, 10));
+  EXPECT_EQ(request("605#2000200000000000"), Frames{"585#6000200000000000"});
+  EXPECT_EQ(request("605#0001020304050607"), Frames{"585#2000000000000000"});
+  EXPECT_EQ(request("605#1008090A0B0C0D0E"), Frames{"585#8000200012000706"});
+  EXPECT_FALSE(server.busy());
+}
+
+// A size hook (LocalDictionary::SizeHook) refuses with its own code: at the initiate request of a
+// download that indicates its size, else as the data passes the hook's limit, in segmented and
+// block transfers alike (block segments count as at least one byte: the last may be padding).
+TEST_F(SdoServerTest, SizeHookRefusesAtInitiateOrAsTheDataGrows) {
+  dict.add_size_hook([](std::uint16_t index, std::uint8_t, std::size_t size) {
+    return index == 0x2000 && size > 8 ? SdoAbort::OutOfMemory : SdoAbort::None;
+  });
+  // Segmented, size 9 indicated: 0504 0005 in the answer to the initiate.
+  EXPECT_EQ(request("605#2100200009000000"), Frames{"585#8000200005000405"});
+  // Block, size 9 indicated: the same.
+  EXPECT_EQ(request("605#C600200009000000"), Frames{"585#8000200005000405"});
+  // Segmented without size: 7 bytes taken, 14 refused.
+  EXPECT_EQ(request("605#2000200000000000"), Frames{"585#6000200000000000"});
+  EXPECT_EQ(request("605#0001020304050607"), Frames{"585#2000000000000000"});
+  EXPECT_EQ(request("605#1008090A0B0C0D0E"), Frames{"585#8000200005000405"});
+  // Block without size (C4h: cc = 1, s = 0): segment 1 (7 bytes) and 2 (at least 8) are
+  // taken, segment 3 (at least 15) is refused.
+  EXPECT_EQ(request("605#C400200000000000"), Frames{"585#A40020007F000000"});
+  EXPECT_EQ(request("605#0101020304050607"), Frames{});
+  EXPECT_EQ(request("605#0208090A0B0C0D0E"), Frames{});
+  EXPECT_EQ(request("605#030F101112131415"), Frames{"585#8000200005000405"});
+  // Within the limit all is well: 8 bytes, segmented with the size indicated.
+  EXPECT_EQ(request("605#2100200008000000"), Frames{"585#6000200000000000"});
+  EXPECT_EQ(request("605#0001020304050607"), Frames{"585#2000000000000000"});
+  EXPECT_EQ(request("605#1D08000000000000"), Frames{"585#3000000000000000"});
+  EXPECT_EQ(value(0x2000, 0), (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8}));
+}
+
 // --- aborts from the dictionary --------------------------------------------------------------
 
 TEST_F(SdoServerTest, AbortFramesCarryTheCodeLittleEndian) {

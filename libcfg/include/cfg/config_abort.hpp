@@ -11,6 +11,7 @@ namespace cfg {
 /// A CiA 301 SDO abort code; `None` (0) is no abort.
 enum class ConfigAbort : std::uint32_t {
   None = 0,
+  OutOfMemory = 0x05040005,
   ReadOfWriteOnly = 0x06010001,
   WriteOfReadOnly = 0x06010002,
   ObjectDoesNotExist = 0x06020000,

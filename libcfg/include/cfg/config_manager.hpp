@@ -12,6 +12,9 @@
 // SDO abort codes (CiA 301 §7.2.4.3.17) as this manager answers them; libcfg cannot use libnmt's
 // nmt::SdoAbort, so ConfigAbort (config_abort.hpp) carries the same numbers (an SDO server
 // converts with nmt::to_sdo_abort):
+//   0504 0005h  (out of memory) an SDO write of 1F20h/1F22h/1F23h longer than
+//               ConfigManagerLimits::max_entry_bytes, or one after which the values stored for
+//               all nodes would exceed max_total_bytes (see ConfigManagerLimits, admits())
 //   0601 0001h  read of 1F25h (write only: it is a command)
 //   0601 0002h  write of sub-index 0 (NrOfEntries is read only)
 //   0602 0000h  an index that is not 1F20h-1F27h
@@ -130,6 +133,23 @@ Result<StoreEntry> decode_store_entry(std::span<const std::uint8_t> bytes,
 
 // --- the manager --------------------------------------------------------------------------------
 
+/// How much memory a peer on the bus can make the manager hold through SDO writes (write()):
+/// a tool may write 1F20h, 1F22h and 1F23h for every node-ID, again and again. Beyond these
+/// limits write() (and admits(), which an SDO server asks before it buffers a download) answers
+/// 0504 0005h "out of memory": the manager has no room for the value, the value itself may be
+/// fine (so not 0607 0012h, which says the data type's length is exceeded; a DOMAIN has none).
+/// The owner's C++ API (put_dcf(), put_concise(), put_eds()) and the store directory are not
+/// limited: a value stored that way counts against max_total_bytes all the same.
+struct ConfigManagerLimits {
+  /// Largest value of one 1F20h, 1F22h or 1F23h entry, in bytes as written (a DCF's text, a
+  /// concise DCF's stream). The largest real DCF the project knows is about 290 KiB.
+  std::size_t max_entry_bytes = std::size_t{1} << 20;
+  /// Largest sum of the values of 1F20h, 1F22h and 1F23h of all nodes, in bytes as written
+  /// (value_bytes(); texts are held zlib-compressed, so the heap they take, stored_bytes(), is
+  /// at most this plus zlib's small overhead, about 0.03 % and 13 bytes per entry).
+  std::size_t max_total_bytes = std::size_t{16} << 20;
+};
+
 class ConfigManager {
  public:
   /// An empty manager kept in memory only.
@@ -151,8 +171,19 @@ class ConfigManager {
   /// The directory, empty for a manager in memory.
   const std::string& directory() const;
 
+  /// The limits of SDO writes (ConfigManagerLimits); a change applies to the next write.
+  const ConfigManagerLimits& limits() const;
+  void set_limits(ConfigManagerLimits limits);
+
   // SDO access, as the master's SDO server sees it (see the abort table at the top).
   ConfigRead read(std::uint16_t index, std::uint8_t sub_index) const;
+  /// Whether an SDO write of `size` bytes to (index, sub_index) fits the limits: OutOfMemory
+  /// when a 1F20h/1F22h/1F23h value of that size is longer than max_entry_bytes or would, in
+  /// place of the node's value of that object, take value_bytes() above max_total_bytes; None
+  /// otherwise (any other object, or a sub-index write() refuses for another reason). An SDO
+  /// server asks it with the size a download indicates, else with the size received so far,
+  /// so that an oversized download is refused before it is buffered; write() checks it too.
+  ConfigAbort admits(std::uint16_t index, std::uint8_t sub_index, std::size_t size) const;
   ConfigWrite write(std::uint16_t index, std::uint8_t sub_index,
                     std::span<const std::uint8_t> data);
 
@@ -195,6 +226,9 @@ class ConfigManager {
 
   /// Bytes of heap the stored values take (their capacities; not the bookkeeping).
   std::size_t stored_bytes() const;
+  /// The size of the stored 1F20h, 1F22h and 1F23h values of all nodes as written (texts
+  /// before compression): what ConfigManagerLimits::max_total_bytes bounds.
+  std::size_t value_bytes() const;
 
  private:
   struct State;

@@ -46,6 +46,12 @@ SdoAbort LocalDictionary::read(std::uint16_t index, std::uint8_t sub,
 
 SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
                                       std::optional<std::size_t> size) const {
+  if (size && !size_hooks_.empty()) {
+    if (auto code = check_write(index, sub, std::nullopt); code != SdoAbort::None) return code;
+    for (const auto& hook : size_hooks_) {
+      if (auto code = hook(index, sub, *size); code != SdoAbort::None) return code;
+    }
+  }
   return to_sdo_abort(cfg::check_entry_access(entries_, index, sub, size).code);
 }
 

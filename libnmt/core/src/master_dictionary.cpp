@@ -319,9 +319,16 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
     // DSP 302 §5.4: no automatic re-boot after a state change by request NMT (start ends it).
     if (is_slave(node)) slaves[node].held = *command != NmtCommand::Start;
   };
+  // Each queued command waits for the inhibit time (102Ah, which a peer may set to 6.5 s):
+  // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (nmt_master.hpp).
+  auto no_room_for = [&](std::size_t commands) {
+    return nmt_queue.size() + commands > options.max_queued_nmt_requests;
+  };
   Output& out = sink();
   if (sub == kAll) {
     if (excluding) {
+      const bool self = requester->value() == node_id.value();
+      if (no_room_for(cfg::kMaxNodeId - (self ? 1 : 2))) return SdoAbort::OutOfMemory;
       for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
         const auto n = static_cast<std::uint8_t>(node);
         if (n == node_id.value() || n == requester->value()) continue;
@@ -330,6 +337,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
       }
       return SdoAbort::None;
     }
+    if (no_room_for(1)) return SdoAbort::OutOfMemory;
     queue_nmt(*command, 0);
     for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
       hold(static_cast<std::uint8_t>(node));
@@ -346,6 +354,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
   if (excluding && sub == requester->value()) return SdoAbort::General;
   // A request for a node that is not a slave of this master is refused.
   if (!is_slave(sub)) return SdoAbort::General;
+  if (no_room_for(1)) return SdoAbort::OutOfMemory;
   queue_nmt(*command, sub);
   hold(sub);
   return SdoAbort::None;

@@ -75,6 +75,12 @@ void NmtMaster::Impl::install_store_objects() {
   dict.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
                              std::span<const std::uint8_t> data,
                              TimePoint now) { return store_write(index, sub, data, now); });
+  // A peer's files are bounded before they are buffered (cfg::ConfigManagerLimits): the SDO
+  // server asks with the indicated size, else with the size received so far.
+  dict.add_size_hook([this](std::uint16_t index, std::uint8_t sub, std::size_t size) {
+    if (!holds_files(index)) return SdoAbort::None;
+    return to_sdo_abort(options.manager->admits(index, sub, size));
+  });
   // The manager has the value now; the dictionary need not keep a second copy of a file.
   dict.add_write_observer(
       [this](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>, TimePoint) {

@@ -199,6 +199,14 @@ SdoAbort NmtMaster::Impl::manager_write(std::uint16_t index, std::uint8_t sub,
                                             j.node == srd && j.client_index == client_index;
                                    });
     if (taken) return SdoAbort::ResourceNotAvailable;
+    // A bounded queue (MasterOptions::sdo_manager_max_queued_requests): 0504 0005, the request
+    // is valid but there is no room to keep it.
+    const auto queued = std::count_if(
+        sdo_manager.jobs.begin(), sdo_manager.jobs.end(),
+        [](const SdoManager::Job& j) { return j.kind == SdoManager::Job::Kind::Connect; });
+    if (static_cast<std::size_t>(queued) >= options.sdo_manager_max_queued_requests) {
+      return SdoAbort::OutOfMemory;
+    }
     SdoManager::Job job;
     job.kind = SdoManager::Job::Kind::Connect;
     job.node = srd;

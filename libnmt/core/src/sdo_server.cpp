@@ -238,12 +238,24 @@ void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint
   if (buffer_.size() + f.size > config_.max_download_size) {
     return send_abort(SdoAbort::OutOfMemory, out);
   }
+  if (!size_) {
+    if (auto code = check_running_size(buffer_.size() + f.size); code != SdoAbort::None) {
+      return send_abort(code, out);
+    }
+  }
   buffer_.insert(buffer_.end(), f.data.begin(), f.data.begin() + f.size);
   const sdo::DownloadSegmentResponse response{f.toggle};
   // The response to the last segment confirms the write, so it is sent only after it.
   if (f.last) return finish_download(response, now, out);
   toggle_ = !toggle_;
   respond(response, out);
+}
+
+// A download without an indicated size, `size` bytes into its data: the dictionary's verdict
+// on a value of that size, except "too short" (more data may follow).
+SdoAbort SdoServer::check_running_size(std::size_t size) const {
+  const auto code = dict_->check_write(address_.index, address_.sub_index, size);
+  return code == SdoAbort::LengthTooLow ? SdoAbort::None : code;
 }
 
 template <class Frame>
@@ -321,6 +333,13 @@ void SdoServer::block_download_segment(const sdo::BlockSegment& f, Output& out) 
         std::max<std::size_t>(1, (limit + sdo::kSegmentBytes - 1) / sdo::kSegmentBytes);
     if (buffer_.size() + sdo::kSegmentBytes > segments * sdo::kSegmentBytes) {
       return send_abort(size_ ? SdoAbort::LengthMismatch : SdoAbort::OutOfMemory, out);
+    }
+    // The last segment may carry padding (the end request says how much): only the bytes
+    // before this segment are surely data.
+    if (!size_) {
+      if (auto code = check_running_size(buffer_.size() + 1); code != SdoAbort::None) {
+        return send_abort(code, out);
+      }
     }
     buffer_.insert(buffer_.end(), f.data.begin(), f.data.end());
     ack_seq_ = f.seq;

@@ -49,6 +49,13 @@ class LocalDictionary {
   /// read: it may refresh the value with set_bytes() or refuse the read with a code (e.g.
   /// NoDataAvailable).
   using ReadHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub, TimePoint now)>;
+  /// Called by check_write() (so by write() and by the SDO server) when the size of a write is
+  /// known: an SDO download's indicated size at its initiate request, the size received so far
+  /// while segments of a download without one arrive, or write()'s data. Runs after the
+  /// existence and access checks, before the size check against the entry: a result other than
+  /// SdoAbort::None refuses the write with that code before the data is buffered (e.g. 0504 0005
+  /// for a value the device has no memory for).
+  using SizeHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub, std::size_t size)>;
   /// Where add_*_hook puts a hook among those already there: hooks run in that order and the
   /// first refusal wins.
   enum class HookPosition : std::uint8_t { Last, First };
@@ -86,8 +93,9 @@ class LocalDictionary {
                  TimePoint now);
 
   /// The checks write() does before seeing the data: existence, access, and (when the size is
-  /// known) the size (cfg::check_entry_access). The SDO server uses it to refuse a download at
-  /// its initiate request.
+  /// known) the size hooks, then the size (cfg::check_entry_access). The SDO server uses it to
+  /// refuse a download at its initiate request, and as the data of one without an indicated
+  /// size grows.
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
                        std::optional<std::size_t> size) const;
 
@@ -95,6 +103,7 @@ class LocalDictionary {
     write_hooks_.insert(where == HookPosition::First ? write_hooks_.begin() : write_hooks_.end(),
                         std::move(hook));
   }
+  void add_size_hook(SizeHook hook) { size_hooks_.push_back(std::move(hook)); }
   void add_write_observer(WriteObserver observer) { observers_.push_back(std::move(observer)); }
   void add_read_hook(ReadHook hook, HookPosition where = HookPosition::Last) {
     read_hooks_.insert(where == HookPosition::First ? read_hooks_.begin() : read_hooks_.end(),
@@ -144,6 +153,7 @@ class LocalDictionary {
   std::optional<cfg::NodeId> node_id_;
   cfg::DeviceEntries entries_;
   std::vector<WriteHook> write_hooks_;
+  std::vector<SizeHook> size_hooks_;
   std::vector<WriteObserver> observers_;
   std::vector<ReadHook> read_hooks_;
 };

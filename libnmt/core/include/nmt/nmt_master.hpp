@@ -127,6 +127,14 @@
 //   within sub 1, after node-ID x sub 3 ms, and not when another device's start all came first
 //   (DSP 302 §5.5.3.1). Without 1F91h in its file it gets §6.14's defaults (100, 500, 15 ms).
 // - Other NMT commands from other devices are ignored (there is one NMT master, §5.4).
+// - Memory a peer can make the master use is bounded, and a write beyond a bound is refused
+//   with 0504 0005 (out of memory; the request is valid, the device has no room for it, which
+//   0800 0000 would not say): 1F20h/1F22h/1F23h values by cfg::ConfigManagerLimits (one entry,
+//   all nodes), checked at the initiate request when the download indicates its size, else as
+//   its data arrives (LocalDictionary::SizeHook), so nothing oversized is buffered; SRDs by
+//   MasterOptions::sdo_manager_channels; queued 1F00h requests and 1F82h NMT commands by
+//   MasterOptions::sdo_manager_max_queued_requests and max_queued_nmt_requests. An SDO download
+//   buffers at most one value per server channel (the default one and the SDO manager's).
 // - Configuration manager (DSP 302 §6; MasterOptions::manager): the SDO server serves 1F20h-1F25h
 //   from the cfg::ConfigManager with its abort codes (cfg/config_manager.hpp): a tool writes a
 //   node's concise DCF into 1F22h sub node-ID (any SDO protocol), a DCF into 1F20h, an EDS into
@@ -479,8 +487,18 @@ struct MasterOptions {
   bool application_step = false;
   /// The SDO manager of DSP 302 §7 (see the top). Also on when the master DCF has 1F00h.
   bool sdo_manager = false;
-  /// Own server channels 1201h.. the manager adds for SRDs (one per registered SRD), 1..127.
+  /// Own server channels 1201h.. the manager adds for SRDs (one per registered SRD), 1..127:
+  /// also the bound of registrations (this many SRDs, plus one granted all default SDOs); the
+  /// next SRD's 1F10h gets Cnxn 0 with error 01h.
   std::uint8_t sdo_manager_channels = 16;
+  /// 1F00h requests waiting in the SDO manager's queue (jobs run one at a time) at most; a
+  /// 1F00h write beyond is refused with 0504 0005 (out of memory). 1F01h is never refused for
+  /// it (a release frees resources and is bounded by the connections).
+  std::size_t sdo_manager_max_queued_requests = 64;
+  /// 1F82h request NMT: NMT commands waiting for the 102Ah inhibit time at most; a request that
+  /// would queue more (80h excluding a requester queues one per node) is refused with 0504 0005.
+  /// The master's own commands (start-up, error handler) are always queued.
+  std::size_t max_queued_nmt_requests = 256;
   /// The wait for each 1F10h read of the registration scan (tried once: no answer = nobody).
   Duration sdo_manager_scan_timeout = std::chrono::milliseconds(50);
   /// Node guard time for an SRD (or a slave watched for one) without heartbeat or 1F81h

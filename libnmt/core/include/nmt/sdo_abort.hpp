@@ -85,6 +85,7 @@ constexpr SdoAbort to_sdo_abort(cfg::ConfigAbort abort) {
 }
 
 static_assert(to_sdo_abort(cfg::ConfigAbort::None) == SdoAbort::None);
+static_assert(to_sdo_abort(cfg::ConfigAbort::OutOfMemory) == SdoAbort::OutOfMemory);
 static_assert(to_sdo_abort(cfg::ConfigAbort::ReadOfWriteOnly) == SdoAbort::ReadOfWriteOnly);
 static_assert(to_sdo_abort(cfg::ConfigAbort::WriteOfReadOnly) == SdoAbort::WriteOfReadOnly);
 static_assert(to_sdo_abort(cfg::ConfigAbort::ObjectDoesNotExist) == SdoAbort::ObjectDoesNotExist);

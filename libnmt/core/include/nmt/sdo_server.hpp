@@ -7,6 +7,10 @@
 // - A request that does not fit the server's state (e.g. a new initiate during a segmented
 //   transfer) is answered with abort 0504 0001 and the server returns to idle. An abort names
 //   the transfer's object, or 0000h sub 00h when the request that caused it carries none.
+// - A download without an indicated size is checked as its data grows (LocalDictionary::
+//   check_write with the size received so far): it is aborted with the code the write of that
+//   many bytes would get (0607 0012 above the entry's largest size, or a size hook's code) as
+//   soon as it passes the limit, not after the whole value was buffered.
 // - Block transfer: the server acknowledges when it sees the block's last sequence number or
 //   the "no more segments" flag, with the last sequence number received in order; the client
 //   then resends from the segment after it. Sequence number 0 or above the block size aborts
@@ -115,6 +119,7 @@ class SdoServer {
   template <class Frame>
   void respond(const Frame& f, Output& out);
   void send_abort(SdoAbort code, Output& out);
+  SdoAbort check_running_size(std::size_t size) const;
   void reset();
 
   LocalDictionary* dict_;
