@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bytes.hpp"
 #include "cfg/config_manager.hpp"
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
@@ -350,6 +351,16 @@ std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::str
     fail_command(tool, tools::kExitUsage, "--bus: " + syntax.error().message);
   }
   return std::nullopt;
+}
+
+std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size_t digits) {
+  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
+    text.remove_prefix(2);
+  } else if (!text.empty() && (text.back() == 'h' || text.back() == 'H')) {
+    text.remove_suffix(1);
+  }
+  if (text.empty()) return std::nullopt;
+  return cfg::parse_hex_number(text, digits);
 }
 
 std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text) {

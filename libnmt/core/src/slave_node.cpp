@@ -265,6 +265,7 @@ void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint n
   if (!factory) return;  // the file built a dictionary before: not for another node-ID only
   // $NODEID values (COB-IDs) of the new node-ID; stored values keep what was stored.
   factory_ = std::move(factory).value();
+  dict_.set_node_id(*id);  // the default SDO channel (600h/580h + node-ID) follows
   nmt_ = NmtSlave(*id);
   unconfigured_ = false;
   lss_->activate_pending_node_id();
