@@ -55,7 +55,7 @@ nmt::LssAddress address_or_exit(const std::string& text) {
   if (!address) {
     fail(tools::kExitUsage, "ADDRESS " + text +
                                 ": expected VENDOR:PRODUCT:REVISION:SERIAL, four hex numbers "
-                                "(1018h sub 1-4), e.g. 7E57C0DE:508:20001:101 (as `cfgmgr lss "
+                                "(1018h sub 1-4), e.g. 7E57C0DE:305:10002:1001 (as `cfgmgr lss "
                                 "scan` prints them)");
   }
   return *address;
@@ -398,8 +398,8 @@ void add_lss_command(CLI::App& app) {
       "Examples:\n"
       "  cfgmgr lss scan --bus socketcan:can0\n"
       "  cfgmgr lss scan --bus udp://239.74.163.2:43113 --json\n"
-      "  cfgmgr lss set-id --bus socketcan:can0 7E57C0DE:00000508:00020001:00000101 5\n"
-      "  cfgmgr lss inquire --bus socketcan:can0 7E57C0DE:508:20001:101\n"
+      "  cfgmgr lss set-id --bus socketcan:can0 7E57C0DE:00000305:00010002:00001001 5\n"
+      "  cfgmgr lss inquire --bus socketcan:can0 7E57C0DE:305:10002:1001\n"
       "  cfgmgr lss set-bitrate --bus socketcan:can0 250 --delay-ms 200\n\n"
       "Exit codes:\n"
       "  0  done (scan: also when it found no device)\n"
