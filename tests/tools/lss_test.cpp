@@ -85,6 +85,38 @@ TEST(Lss, SimulateUnconfiguredNeedsLssSupportedInTheFile) {
   EXPECT_THAT(range.err, HasSubstr("255 or 'unconfigured'"));
 }
 
+// sim:?unconfigured=LIST: the devices of those nodes power on without node-ID, as out of the box;
+// without LSS the master cannot reach them. tests/data/lss/nodelist.cpj: node 16, lss_io_1003.dcf.
+TEST(Lss, SimUnconfiguredDeviceSendsNoBootUpSoTheMasterMissesIt) {
+  ScratchDir dir;
+  const std::string cpj = tool_test::data_path("lss/nodelist.cpj");
+  const auto node16 = [](const tool_test::Json& report) -> const tool_test::Json* {
+    for (const auto& n : report.get("nodes")->array) {
+      if (n.get("node_id")->number == 16) return &n;
+    }
+    return nullptr;
+  };
+  const auto configured =
+      cfgmgr(dir, {"push", cpj, "--bus", "sim:", "--json", dir / "configured.json"});
+  EXPECT_EQ(configured.exit_code, 0) << configured.err;
+  const auto unconfigured = cfgmgr(dir, {"push", cpj, "--bus", "sim:?unconfigured=16",
+                                         "--boot-time", "1", "--json", dir / "unconfigured.json"});
+  // CiA 302-2 Table 1: status B, the mandatory slave did not answer.
+  EXPECT_EQ(unconfigured.exit_code, 4) << unconfigured.err;
+  const auto report = tool_test::json_object_of(tool_test::slurp(dir / "unconfigured.json"));
+  ASSERT_NE(node16(report), nullptr);
+  EXPECT_EQ(node16(report)->get("status")->string, "B");
+  // A node whose DCF does not say LSS_Supported=1 cannot start unconfigured.
+  const auto no_lss = cfgmgr(
+      dir, {"push", tool_test::test_network("nodelist.cpj"), "--bus", "sim:?unconfigured=3"});
+  EXPECT_NE(no_lss.exit_code, 0);
+  EXPECT_THAT(no_lss.err, HasSubstr("cannot simulate node 3 unconfigured"));
+  EXPECT_THAT(no_lss.err, HasSubstr("LSS_Supported=1"));
+  const auto bad = cfgmgr(dir, {"push", cpj, "--bus", "sim:?unconfigured=200"});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_THAT(bad.err, HasSubstr("unconfigured=200: '200' is no node-ID 1..127"));
+}
+
 // --------------------------------------------------------- over UDP, in a namespace ----------
 
 TEST(Lss, EndToEndOverUdp) {

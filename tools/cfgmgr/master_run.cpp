@@ -139,8 +139,10 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                      "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
                      "udp_multicast compatible), or sim: for the simulated bus with a "
                      "simulated device per node built from the network's DCFs, in "
-                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR; "
-                     "state=DIR keeps what each device saved with 1010h between runs)")
+                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR"
+                     "&unconfigured=3,5-7; state=DIR keeps what each device saved with 1010h "
+                     "between runs; the devices of the unconfigured= nodes power on without "
+                     "node-ID and wait for LSS, CiA 305)")
           ->type_name("URL");
   cmd.add_option("--node-id", args.node_id,
                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
@@ -364,29 +366,10 @@ std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size
 }
 
 std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text) {
-  const auto bad = [&](const std::string& why) {
-    fail_command(tool, tools::kExitUsage, "--only " + text + ": " + why);
-  };
-  std::set<std::uint8_t> out;
-  const auto node = [&](const std::string& part) -> std::uint8_t {
-    const auto parsed = cfg::parse_integer_literal(part);
-    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-      bad("'" + part + "' is no node-ID 1..127");
-    }
-    return static_cast<std::uint8_t>(parsed.literal->value);
-  };
-  std::size_t begin = 0;
-  while (begin <= text.size()) {
-    const std::size_t comma = std::min(text.find(',', begin), text.size());
-    const std::string item = text.substr(begin, comma - begin);
-    const std::size_t dash = item.find('-');
-    const std::uint8_t first = node(item.substr(0, dash));
-    const std::uint8_t last = dash == std::string::npos ? first : node(item.substr(dash + 1));
-    if (last < first) bad("range " + item + " is empty");
-    for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
-    begin = comma + 1;
-  }
-  return out;
+  auto nodes = parse_node_list(text);
+  if (!nodes)
+    fail_command(tool, tools::kExitUsage, "--only " + text + ": " + nodes.error().message);
+  return std::move(nodes).value();
 }
 
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net) {
