@@ -318,6 +318,18 @@ TEST(SlaveNodeLss, LssAddressIs1018hSub1To4) {
   EXPECT_EQ(node.value()->lss()->address().serial, 0x00C0FFEEu);
 }
 
+TEST(SlaveNodeLss, LssAddressTakesDeviceInfoWhere1018hHasNoValue) {
+  // drive_node3.dcf has 1018h sub 1 (00000ABCh) only; [DeviceInfo] says ProductNumber 402h and
+  // RevisionNumber 00020004h, which the device answers in 1018h sub 2/3 as well.
+  auto read =
+      cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/network/nodes/drive_node3.dcf");
+  ASSERT_TRUE(read.device.has_value());
+  read.device->device_info.set("LSS_Supported", "1");
+  auto node = SlaveNode::create_unconfigured(*read.device);
+  ASSERT_TRUE(node.ok()) << node.error().message;
+  EXPECT_EQ(node.value()->lss()->address(), (LssAddress{0x00000ABC, 0x00000402, 0x00020004, 0}));
+}
+
 TEST(SlaveNodeLss, DeviceFileWithoutLssSupportedCannotStartUnconfigured) {
   auto device = lss_device();
   device.device_info.set("LSS_Supported", "0");
