@@ -213,8 +213,8 @@ TEST_F(LssInNetns, ARefusedNodeIdOrAnAbsentDeviceExits4InWords) {
   EXPECT_EQ(addresses_of(scan), (std::vector<std::string>{kAddress1001}));
   const auto absent = lss({"set-id", kAddress1003, "5"});
   EXPECT_EQ(absent.exit_code, 4);
-  EXPECT_THAT(absent.err, HasSubstr(std::string("no device with LSS address ") + kAddress1003 +
-                                    " answered switch state selective"));
+  EXPECT_THAT(absent.err, HasSubstr(std::string("LSS address ") + kAddress1003 +
+                                    ": switch state selective: no answer within 500 ms"));
 }
 
 TEST_F(LssInNetns, PythonCanLssMasterGivesTheSimulatedDeviceItsNodeId) {

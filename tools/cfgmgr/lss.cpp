@@ -120,8 +120,8 @@ void select_or_exit(LssSession& session, const nmt::LssAddress& address) {
     return m.switch_state_selective(address, now, out);
   });
   if (!e.ok()) {
-    fail(kExitDevice, "no device with LSS address " + lss_address_text(address) +
-                          " answered switch state selective: " + e.text);
+    fail(kExitDevice, "LSS address " + lss_address_text(address) + ": " + e.text +
+                          " (no device with this address on the bus, or not in LSS waiting)");
   }
 }
 
