@@ -10,6 +10,7 @@
 
 #include "cfg/device_file.hpp"
 #include "nmt/lss_slave.hpp"
+#include "nmt/simulated_device.hpp"
 #include "nmt/slave_node.hpp"
 #include "test_paths.hpp"
 
@@ -317,6 +318,18 @@ TEST(SlaveNodeLss, LssAddressIs1018hSub1To4) {
   EXPECT_EQ(node.value()->lss()->address().serial, 0x00C0FFEEu);
 }
 
+TEST(SlaveNodeLss, LssAddressTakesDeviceInfoWhere1018hHasNoValue) {
+  // drive_node3.dcf has 1018h sub 1 (00000ABCh) only; [DeviceInfo] says ProductNumber 402h and
+  // RevisionNumber 00020004h, which the device answers in 1018h sub 2/3 as well.
+  auto read =
+      cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/network/nodes/drive_node3.dcf");
+  ASSERT_TRUE(read.device.has_value());
+  read.device->device_info.set("LSS_Supported", "1");
+  auto node = SlaveNode::create_unconfigured(*read.device);
+  ASSERT_TRUE(node.ok()) << node.error().message;
+  EXPECT_EQ(node.value()->lss()->address(), (LssAddress{0x00000ABC, 0x00000402, 0x00020004, 0}));
+}
+
 TEST(SlaveNodeLss, DeviceFileWithoutLssSupportedCannotStartUnconfigured) {
   auto device = lss_device();
   device.device_info.set("LSS_Supported", "0");
@@ -371,6 +384,45 @@ TEST(SlaveNodeLss, ConfiguredNodeTakesANewNodeIdAtResetCommunication) {
   EXPECT_TRUE(d.frame("000#8203"));
   EXPECT_EQ(d.timer(), Frames{"709#00"});
   EXPECT_EQ(d.node->node_id(), *cfg::NodeId::from(9));
+}
+
+// tests/data/lss/lss_io.eds has no 1200h: the default SDO channel is 600h/580h + the node-ID
+// (CiA 301 §7.3.3), the one LSS gave, not the one the dictionary was first built for.
+cfg::DeviceDescription lss_io_without_1200h() {
+  auto read = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/lss/lss_io.eds");
+  EXPECT_TRUE(read.device.has_value());
+  return *read.device;
+}
+
+TEST(SlaveNodeLss, DefaultSdoOfAFileWithout1200hFollowsTheNodeIdLssGave) {
+  auto created = SlaveNode::create_unconfigured(lss_io_without_1200h());
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  LssNode d(std::move(created).value());
+  d.node->power_on(TimePoint{0});
+  d.frame("7E5#0401000000000000");
+  d.frame("7E5#1105000000000000");
+  d.frame("7E5#0400000000000000");
+  EXPECT_EQ(d.timer(), Frames{"705#00"});
+  // 1000h of lss_io.eds: 00030191h.
+  EXPECT_TRUE(d.frame("605#4000100000000000"));
+  EXPECT_EQ(d.sent, Frames{"585#4300100091010300"});
+  EXPECT_FALSE(d.frame("601#4000100000000000"));
+}
+
+TEST(SimulatedDeviceLss, UnconfiguredDeviceAnswersLssThroughItsFaults) {
+  // The fault wrapper keeps frames from a node that has not booted; a node without node-ID
+  // never boots until LSS gives it one, so LSS frames must reach it.
+  auto created = SimulatedDevice::create_unconfigured(lss_io_without_1200h());
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  auto device = std::move(created).value();
+  device.power_on(TimePoint{0});
+  SimulatedDevice::Output out;
+  EXPECT_TRUE(device.on_frame(*from_candump("7E5#4C00000000000000"), TimePoint{0}, out));
+  ASSERT_EQ(out.frames.size(), 1u);
+  EXPECT_EQ(to_candump(out.frames[0]), "7E4#5000000000000000");
+  auto without_lss = lss_io_without_1200h();
+  without_lss.device_info.set("LSS_Supported", "0");
+  EXPECT_FALSE(SimulatedDevice::create_unconfigured(without_lss).ok());
 }
 
 }  // namespace

@@ -28,6 +28,8 @@ void add_verify_command(CLI::App& app);
 void add_store_command(CLI::App& app);
 /// `cfgmgr sdo read|write --bus URL NODE INDEX[:SUB] [VALUE]`: one SDO transfer (sdo.cpp).
 void add_sdo_command(CLI::App& app);
+/// `cfgmgr lss scan|set-id|inquire|set-bitrate --bus URL`: LSS, CiA 305 (lss.cpp).
+void add_lss_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

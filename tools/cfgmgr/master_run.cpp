@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bytes.hpp"
 #include "cfg/config_manager.hpp"
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
@@ -138,8 +139,10 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                      "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
                      "udp_multicast compatible), or sim: for the simulated bus with a "
                      "simulated device per node built from the network's DCFs, in "
-                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR; "
-                     "state=DIR keeps what each device saved with 1010h between runs)")
+                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR"
+                     "&unconfigured=3,5-7; state=DIR keeps what each device saved with 1010h "
+                     "between runs; the devices of the unconfigured= nodes power on without "
+                     "node-ID and wait for LSS, CiA 305)")
           ->type_name("URL");
   cmd.add_option("--node-id", args.node_id,
                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
@@ -407,30 +410,21 @@ std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::str
   return std::nullopt;
 }
 
-std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text) {
-  const auto bad = [&](const std::string& why) {
-    fail_command(tool, tools::kExitUsage, "--only " + text + ": " + why);
-  };
-  std::set<std::uint8_t> out;
-  const auto node = [&](const std::string& part) -> std::uint8_t {
-    const auto parsed = cfg::parse_integer_literal(part);
-    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-      bad("'" + part + "' is no node-ID 1..127");
-    }
-    return static_cast<std::uint8_t>(parsed.literal->value);
-  };
-  std::size_t begin = 0;
-  while (begin <= text.size()) {
-    const std::size_t comma = std::min(text.find(',', begin), text.size());
-    const std::string item = text.substr(begin, comma - begin);
-    const std::size_t dash = item.find('-');
-    const std::uint8_t first = node(item.substr(0, dash));
-    const std::uint8_t last = dash == std::string::npos ? first : node(item.substr(dash + 1));
-    if (last < first) bad("range " + item + " is empty");
-    for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
-    begin = comma + 1;
+std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size_t digits) {
+  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
+    text.remove_prefix(2);
+  } else if (!text.empty() && (text.back() == 'h' || text.back() == 'H')) {
+    text.remove_suffix(1);
   }
-  return out;
+  if (text.empty()) return std::nullopt;
+  return cfg::parse_hex_number(text, digits);
+}
+
+std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text) {
+  auto nodes = parse_node_list(text);
+  if (!nodes)
+    fail_command(tool, tools::kExitUsage, "--only " + text + ": " + nodes.error().message);
+  return std::move(nodes).value();
 }
 
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net) {

@@ -54,6 +54,10 @@ nmt::Duration seconds_to_duration(double s);
 /// Ends the command with exit 2 (usage) when it does not.
 std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url);
 
+/// One hex number of at most `digits` digits as a command line writes it: "1018", "0x1018" or
+/// "1018h"; nullopt for anything else.
+std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size_t digits);
+
 /// The node-IDs of an --only list ("3,5-7" -> {3, 5, 6, 7}); prints "cfgmgr TOOL: --only ..."
 /// and ends the command with exit 2 on anything else.
 std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text);

@@ -1,13 +1,16 @@
 #include "network_source.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
 
 #include "cfg/device_file.hpp"
 #include "cfg/integer_literal.hpp"
+#include "cfg/node_id.hpp"
 #include "nmt/device_state.hpp"
 
 namespace cfgmgr {
@@ -59,6 +62,33 @@ std::optional<double> parse_number(std::string_view text) {
 
 }  // namespace
 
+cfg::Result<std::set<std::uint8_t>> parse_node_list(std::string_view text) {
+  std::set<std::uint8_t> out;
+  std::optional<cfg::Error> error;
+  const auto node = [&](std::string_view part) -> std::uint8_t {
+    const auto parsed = cfg::parse_integer_literal(part);
+    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+      if (!error) error = cfg::Error{"'" + std::string(part) + "' is no node-ID 1..127"};
+      return 1;
+    }
+    return static_cast<std::uint8_t>(parsed.literal->value);
+  };
+  std::size_t begin = 0;
+  while (begin <= text.size() && !error) {
+    const std::size_t comma = std::min(text.find(',', begin), text.size());
+    const std::string_view item = text.substr(begin, comma - begin);
+    const std::size_t dash = item.find('-');
+    const std::uint8_t first = node(item.substr(0, dash));
+    const std::uint8_t last = dash == std::string_view::npos ? first : node(item.substr(dash + 1));
+    if (error) break;
+    if (last < first) return cfg::Error{"range " + std::string(item) + " is empty"};
+    for (unsigned n = first; n <= last; ++n) out.insert(static_cast<std::uint8_t>(n));
+    begin = comma + 1;
+  }
+  if (error) return *error;
+  return out;
+}
+
 bool is_sim_url(std::string_view url) {
   return url.substr(0, kSimScheme.size()) == kSimScheme;
 }
@@ -108,9 +138,14 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
     } else if (name == "state") {
       if (value.empty()) return sim_error("state=: expected a directory");
       options.state_dir = value;
+    } else if (name == "unconfigured") {
+      auto nodes = parse_node_list(value);
+      if (!nodes)
+        return sim_error("unconfigured=" + std::string(value) + ": " + nodes.error().message);
+      options.unconfigured = std::move(nodes).value();
     } else {
       return sim_error("unknown parameter '" + name +
-                       "' (known: bitrate, latency_ms, loss, seed, state)");
+                       "' (known: bitrate, latency_ms, loss, seed, state, unconfigured)");
     }
   }
   return options;
@@ -138,11 +173,17 @@ cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
       if (skipped != nullptr) skipped->push_back(node.node_id);
       continue;
     }
-    auto device = nmt::SimulatedDevice::create(*node.dcf, node.node_id.value(),
-                                               with_identity_of(*node.dcf, node.node_id, faults));
+    // unconfigured=: the device of the node powers on without node-ID and waits for LSS to
+    // give it one (CiA 305); the node-ID is only where its DCF says it belongs.
+    const bool unconfigured = options.unconfigured.contains(node.node_id.value());
+    const auto identity = with_identity_of(*node.dcf, node.node_id, faults);
+    auto device = unconfigured
+                      ? nmt::SimulatedDevice::create_unconfigured(*node.dcf, identity)
+                      : nmt::SimulatedDevice::create(*node.dcf, node.node_id.value(), identity);
     if (!device) {
       return cfg::Error{node.file + ": error: cannot simulate node " +
-                        std::to_string(node.node_id.value()) + ": " + device.error().message};
+                        std::to_string(node.node_id.value()) +
+                        (unconfigured ? " unconfigured: " : ": ") + device.error().message};
     }
     if (!options.state_dir.empty()) {
       // Like a real device, it powers on with what it saved last time (CiA 301 §7.5.2.13).

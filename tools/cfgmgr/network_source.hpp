@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -37,8 +38,9 @@ class NetworkSource final : public nmt::ConfigurationSource {
   std::shared_ptr<const cfg::Network> network_;
 };
 
-/// `sim:` with optional `?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR` (any order,
-/// each at most once).
+/// `sim:` with optional
+/// `?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR&unconfigured=3,5-7` (any order, each at
+/// most once).
 struct SimBusOptions {
   std::uint32_t bitrate_bps = 500'000;  ///< 1 ... 1 000 000 000
   double latency_ms = 0;                ///< every SDO response of a device leaves this late
@@ -47,7 +49,13 @@ struct SimBusOptions {
   /// Where the devices keep what 1010h 'save' stored between runs (nmt/device_state.hpp, one
   /// file per node); empty: nowhere, every run starts from the DCFs' values.
   std::string state_dir;
+  /// Nodes whose devices power on without node-ID and wait for LSS (CiA 305) to give them one;
+  /// their DCFs must say LSS_Supported=1.
+  std::set<std::uint8_t> unconfigured;
 };
+
+/// A list of node-IDs as "3,5-7" -> {3, 5, 6, 7}; fails with a message naming the bad part.
+cfg::Result<std::set<std::uint8_t>> parse_node_list(std::string_view text);
 
 /// True for URLs of the simulated bus ("sim:" and "sim:?...").
 bool is_sim_url(std::string_view url);

@@ -108,24 +108,13 @@ std::uint8_t parse_node(const std::string& text, std::string_view what = "NODE")
   return static_cast<std::uint8_t>(parsed.literal->value);
 }
 
-// One hex number of at most `digits` digits, with an optional 0x prefix or h suffix.
-std::optional<std::uint64_t> parse_hex_part(std::string_view text, std::size_t digits) {
-  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
-    text.remove_prefix(2);
-  } else if (!text.empty() && (text.back() == 'h' || text.back() == 'H')) {
-    text.remove_suffix(1);
-  }
-  if (text.empty()) return std::nullopt;
-  return cfg::parse_hex_number(text, digits);
-}
-
 // INDEX[:SUB], both hex as CiA 301 writes them: "1018:1", "0x1018:0x01", "1018h:01h".
 cfg::ObjectAddress parse_address(const std::string& text) {
   const auto colon = text.find(':');
   const std::string_view all(text);
-  const auto index = parse_hex_part(all.substr(0, colon), 4);
+  const auto index = parse_hex_argument(all.substr(0, colon), 4);
   std::optional<std::uint64_t> sub = 0;
-  if (colon != std::string::npos) sub = parse_hex_part(all.substr(colon + 1), 2);
+  if (colon != std::string::npos) sub = parse_hex_argument(all.substr(colon + 1), 2);
   if (!index || !sub) {
     fail(tools::kExitUsage, "INDEX[:SUB] " + text +
                                 ": expected a hex index and sub-index, e.g. 1018:1 or "

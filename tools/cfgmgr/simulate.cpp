@@ -17,6 +17,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/node_id.hpp"
 #include "commands.hpp"
+#include "lss_session.hpp"
 #include "network_source.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
@@ -48,14 +49,19 @@ extern "C" void on_stop_signal(int) {
 struct DeviceArg {
   std::string path;
   std::optional<std::uint8_t> node_id;
+  /// @255 or @unconfigured: the device powers on without node-ID (CiA 305 FFh) and waits for
+  /// LSS to give it one.
+  bool unconfigured = false;
 };
 
-// "file.eds@5" / "file.eds@0x05" -> path and node-ID. A suffix that is not a number is part of
-// the path. Fails on a number outside 1..127.
+// "file.eds@5" / "file.eds@0x05" -> path and node-ID; "file.eds@255" / "file.eds@0xFF" /
+// "file.eds@unconfigured" -> unconfigured. A suffix that is not a number is part of the path.
+// Fails on a number outside 1..127 and 255.
 cfg::Result<DeviceArg> parse_device_arg(const std::string& arg) {
   const auto at = arg.rfind('@');
   if (at == std::string::npos || at + 1 == arg.size()) return DeviceArg{arg, std::nullopt};
   const std::string suffix = arg.substr(at + 1);
+  if (suffix == "unconfigured") return DeviceArg{arg.substr(0, at), std::nullopt, true};
   unsigned long value = 0;
   std::size_t used = 0;
   try {
@@ -64,8 +70,12 @@ cfg::Result<DeviceArg> parse_device_arg(const std::string& arg) {
     return DeviceArg{arg, std::nullopt};
   }
   if (used != suffix.size()) return DeviceArg{arg, std::nullopt};
+  // CiA 305: node-ID FFh is "not configured".
+  if (value == nmt::lss::kUnconfigured) return DeviceArg{arg.substr(0, at), std::nullopt, true};
   if (!cfg::is_node_id(value)) {
-    return cfg::Error{arg + ": node-ID " + suffix + " is out of range 1..127"};
+    return cfg::Error{arg + ": node-ID " + suffix +
+                      " is out of range 1..127 (255 or 'unconfigured': a device without node-ID "
+                      "that waits for LSS)"};
   }
   return DeviceArg{arg.substr(0, at), static_cast<std::uint8_t>(value)};
 }
@@ -74,6 +84,12 @@ std::string seconds_since(nmt::TimePoint start, nmt::TimePoint now) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%10.6f", static_cast<double>((now - start).count()) / 1e6);
   return buf;
+}
+
+// "node 5", or "unconfigured" while the device waits for LSS to give it a node-ID.
+std::string device_label(const nmt::SlaveNode& node) {
+  if (!node.has_node_id()) return "unconfigured";
+  return "node " + std::to_string(node.node_id().value());
 }
 
 nmt::Duration ms_to_duration(double ms) {
@@ -99,6 +115,7 @@ void run_simulate(const SimulateOptions& options) {
   // Held by pointer: the loop's EngineRefs keep their addresses.
   std::vector<std::unique_ptr<nmt::SimulatedDevice>> devices;
   std::vector<std::string> names;
+  std::vector<bool> unconfigured;  // per device: powers on without node-ID
   std::map<std::uint8_t, std::string> by_node;
   for (const auto& arg : options.devices) {
     auto parsed = parse_device_arg(arg);
@@ -116,9 +133,26 @@ void run_simulate(const SimulateOptions& options) {
     auto read = cfg::parse_device_description(*text, read_options);
     tools::print_diagnostics(read.diagnostics);
     if (!read.ok()) exit_with(tools::kExitInputErrors);
+    if (parsed->unconfigured) {
+      // The identity the file says, as for a device with a node-ID (node-ID 1 stands in for
+      // $NODEID until LSS gives the real one, as in SlaveNode::create_unconfigured).
+      auto device = nmt::SimulatedDevice::create_unconfigured(
+          *read.device, with_identity_of(*read.device, *cfg::NodeId::from(1), faults));
+      if (!device) {
+        std::cerr << parsed->path
+                  << ": error: cannot simulate it unconfigured (@255): " << device.error().message
+                  << '\n';
+        exit_with(tools::kExitInputErrors);
+      }
+      devices.push_back(std::make_unique<nmt::SimulatedDevice>(std::move(device).value()));
+      names.push_back(parsed->path);
+      unconfigured.push_back(true);
+      continue;
+    }
     if (!parsed->node_id && !read.device->node_id()) {
       std::cerr << parsed->path << ": error: no node-ID: give one (" << parsed->path
-                << "@ID) or set NodeID in [DeviceComissioning]\n";
+                << "@ID, or @255 for a device that waits for LSS) or set NodeID in "
+                   "[DeviceComissioning]\n";
       exit_with(tools::kExitInputErrors);
     }
     const std::uint8_t node_id = parsed->node_id ? *parsed->node_id : *read.device->node_id();
@@ -141,6 +175,7 @@ void run_simulate(const SimulateOptions& options) {
     }
     devices.push_back(std::make_unique<nmt::SimulatedDevice>(std::move(device).value()));
     names.push_back(parsed->path);
+    unconfigured.push_back(false);
   }
 
   auto opened = nmt::open_bus(options.bus);
@@ -177,16 +212,22 @@ void run_simulate(const SimulateOptions& options) {
     auto& device = *devices[i];
     nmt::EngineRef<nmt::SimulatedDevice>::EventHandler print;
     if (options.verbose) {
-      const int node = device.node().node_id();
-      print = [node, start](const nmt::SlaveEvent& e, nmt::TimePoint) {
-        std::cout << seconds_since(start, e.at) << "  node " << node << "  "
+      // The node-ID it has now: an unconfigured device gets one by LSS while it runs.
+      print = [&device, start](const nmt::SlaveEvent& e, nmt::TimePoint) {
+        std::cout << seconds_since(start, e.at) << "  " << device_label(device.node()) << "  "
                   << nmt::to_string(e.kind) << ": " << e.text << '\n'
                   << std::flush;
       };
     }
     refs.push_back(std::make_unique<nmt::EngineRef<nmt::SimulatedDevice>>(device, print));
     loop.add(*refs.back());
-    std::cout << "node " << int{device.node().node_id()} << ": " << names[i] << '\n';
+    if (unconfigured[i]) {
+      std::cout << "unconfigured (LSS address " << lss_address_text(device.node().lss()->address())
+                << ")";
+    } else {
+      std::cout << "node " << int{device.node().node_id().value()};
+    }
+    std::cout << ": " << names[i] << '\n';
   }
   if (options.verbose) {
     loop.set_observer(

@@ -9,6 +9,7 @@
 #include "cfg/cob_id.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/master_objects.hpp"
+#include "cfg/network.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/write_acceptance.hpp"
@@ -147,11 +148,15 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
   const std::string* lss_supported = description_.device_info.find("LSS_Supported");
   if (lss_supported != nullptr && std::strtoul(lss_supported->c_str(), nullptr, 0) != 0) {
     // CiA 305: the LSS address is the identity object; a DCF's LSS_SerialNumber names sub 4.
+    // Where 1018h has no value, [DeviceInfo] gives it (cfg::identity_of), as the identity a
+    // simulated device answers and a master derived from the same file expects.
+    const cfg::DeviceIdentity identity = cfg::identity_of(description_, node_id);
     LssAddress address;
-    for (int part = 0; part < 4; ++part) {
-      address.part(part) = static_cast<std::uint32_t>(
-          factory_.get_unsigned(obj::kIdentity, static_cast<std::uint8_t>(part + 1)).value_or(0));
-    }
+    address.vendor_id = identity.vendor_id.value_or(0);
+    address.product_code = identity.product_code.value_or(0);
+    address.revision = identity.revision_number.value_or(0);
+    address.serial =
+        static_cast<std::uint32_t>(factory_.get_unsigned(obj::kIdentity, 4).value_or(0));
     if (description_.commissioning && description_.commissioning->lss_serial_number) {
       address.serial = *description_.commissioning->lss_serial_number;
     }
@@ -265,6 +270,7 @@ void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint n
   if (!factory) return;  // the file built a dictionary before: not for another node-ID only
   // $NODEID values (COB-IDs) of the new node-ID; stored values keep what was stored.
   factory_ = std::move(factory).value();
+  dict_.set_node_id(*id);  // the default SDO channel (600h/580h + node-ID) follows
   nmt_ = NmtSlave(*id);
   unconfigured_ = false;
   lss_->activate_pending_node_id();

@@ -141,7 +141,9 @@ bool FaultInjectedSlave::on_frame(const CanFrame& frame, TimePoint now, Output& 
   const DeviceFaults& f = state_->faults;
   if (!node_->powered() || f.absent) return false;
   if (state_->lose()) return false;
-  if (node_->state() == NmtState::Initialising) return false;  // not on the bus yet
+  // Not on the bus yet; but a node without node-ID stays initialising and serves LSS only
+  // (nmt/slave_node.hpp), so its frames go to it.
+  if (node_->state() == NmtState::Initialising && node_->has_node_id()) return false;
 
   const bool sdo_request = on_cob_id(frame, node_->sdo_config().request_cob_id) && !frame.rtr &&
                            !frame.error && node_->services().sdo;

@@ -20,4 +20,11 @@ cfg::Result<SimulatedDevice> SimulatedDevice::create(const cfg::DeviceDescriptio
   return SimulatedDevice(std::move(node).value(), std::move(faults));
 }
 
+cfg::Result<SimulatedDevice> SimulatedDevice::create_unconfigured(
+    const cfg::DeviceDescription& description, DeviceFaults faults, SlaveNodeOptions options) {
+  auto node = SlaveNode::create_unconfigured(description, options);
+  if (!node) return node.error();
+  return SimulatedDevice(std::move(node).value(), std::move(faults));
+}
+
 }  // namespace nmt

@@ -73,6 +73,10 @@ class LocalDictionary {
 
   /// The node-ID the values were resolved for; 0 for a dictionary built empty.
   std::uint8_t node_id() const { return node_id_ ? node_id_->value() : 0; }
+  /// The node got another node-ID (LSS, CiA 305): its values are copied in from a dictionary
+  /// built for `node_id` by the owner; this only changes what node_id() says (the default SDO
+  /// channel of a dictionary without 1200h follows it).
+  void set_node_id(cfg::NodeId node_id) { node_id_ = node_id; }
 
   // --- SDO side: checked, answers with CiA 301 abort codes ----------------------------------
 

@@ -28,6 +28,12 @@ class SimulatedDevice : public FaultInjectedSlave {
                                              std::optional<std::uint8_t> node_id,
                                              DeviceFaults faults = {},
                                              SlaveNodeOptions options = {});
+  /// Builds a device that powers on without a node-ID and waits for LSS to give it one
+  /// (SlaveNode::create_unconfigured). Fails with a message when the file does not say
+  /// [DeviceInfo] LSS_Supported=1 or a value of the file does not parse.
+  static cfg::Result<SimulatedDevice> create_unconfigured(const cfg::DeviceDescription& description,
+                                                          DeviceFaults faults = {},
+                                                          SlaveNodeOptions options = {});
 
   using FaultInjectedSlave::FaultInjectedSlave;
 };

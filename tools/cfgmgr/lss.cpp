@@ -1,0 +1,413 @@
+// cfgmgr lss scan|set-id|inquire|set-bitrate --bus URL: the Layer Setting Services of CiA 305
+// from the command line, for devices straight out of the box (no node-ID, or the factory's
+// one) on a running bus. The protocol is libnmt's LssMaster (nmt/lss_master.hpp, which cites
+// its sources) run by LssSession (lss_session.hpp); this file parses arguments and prints.
+#include <cstdint>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "../common/tool_support.hpp"
+#include "cfg/hex.hpp"
+#include "cfg/integer_literal.hpp"
+#include "commands.hpp"
+#include "lss_session.hpp"
+#include "master_run.hpp"
+#include "nmt/bus.hpp"
+#include "nmt/lss.hpp"
+#include "nmt/lss_master.hpp"
+
+namespace cfgmgr {
+namespace {
+
+constexpr std::string_view kTool = "lss";
+/// A device refused a service (its error code in words) or no device answered.
+constexpr int kExitDevice = 4;
+
+using Kind = nmt::LssMasterEvent::Kind;
+
+struct LssCliOptions {
+  std::string bus;
+  bool json = false;
+  double timeout_ms = 100;
+  double scan_step_ms = 20;
+  std::string address;  ///< set-id, inquire: VENDOR:PRODUCT:REVISION:SERIAL
+  std::string node_id;  ///< set-id
+  bool no_store = false;
+  std::string kbit;  ///< set-bitrate
+  unsigned delay_ms = 100;
+};
+
+[[noreturn]] void fail(int code, const std::string& message) {
+  fail_command(kTool, code, message);
+}
+
+nmt::Duration ms(double value) {
+  return nmt::Duration(static_cast<std::int64_t>(value * 1000.0));
+}
+
+nmt::LssAddress address_or_exit(const std::string& text) {
+  auto address = parse_lss_address(text);
+  if (!address) {
+    fail(tools::kExitUsage, "ADDRESS " + text +
+                                ": expected VENDOR:PRODUCT:REVISION:SERIAL, four hex numbers "
+                                "(1018h sub 1-4), e.g. 7E57C0DE:305:10002:1001 (as `cfgmgr lss "
+                                "scan` prints them)");
+  }
+  return *address;
+}
+
+// CiA 305: configure node-ID takes 1..127, or FFh (not configured). The LSS master sends other
+// values as given (nmt/lss_master.hpp) and the device refuses them, so they are passed on.
+std::uint8_t node_id_or_exit(const std::string& text) {
+  if (text == "unconfigured") return nmt::lss::kUnconfigured;
+  const auto parsed = cfg::parse_integer_literal(text);
+  if (!parsed.literal || parsed.literal->value > 0xFF) {
+    fail(tools::kExitUsage,
+         "NODE-ID " + text + ": expected a node-ID 1..127 (or 255, 'unconfigured')");
+  }
+  return static_cast<std::uint8_t>(parsed.literal->value);
+}
+
+std::unique_ptr<LssSession> open_or_exit(const LssCliOptions& o) {
+  if (is_sim_url(o.bus)) {
+    fail(tools::kExitUsage, "--bus " + o.bus +
+                                ": the simulated bus has no device to talk to; use the bus the "
+                                "devices are on (socketcan:IF, udp://GROUP:PORT)");
+  }
+  if (auto checked = nmt::check_bus_url(o.bus); !checked) {
+    fail(tools::kExitUsage, "--bus: " + checked.error().message);
+  }
+  nmt::LssMasterOptions options;
+  options.timeout = ms(o.timeout_ms);
+  options.scan_step = ms(o.scan_step_ms);
+  auto session = LssSession::open(o.bus, options);
+  if (!session) fail(tools::kExitIo, session.error().message);
+  return std::move(session).value();
+}
+
+nmt::LssMasterEvent run_or_exit(LssSession& session, const LssSession::Start& start) {
+  auto event = session.run_one(start);
+  if (!event) fail(tools::kExitIo, event.error().message);
+  return std::move(event).value();
+}
+
+void switch_all(LssSession& session, nmt::LssState state) {
+  (void)run_or_exit(session, [state](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+    return m.switch_state_global(state, now, out);
+  });
+}
+
+// Ends the command after a service that did not end as asked: every device back to LSS waiting
+// (so none is left in configuration), then exit 4 with the master's words.
+[[noreturn]] void fail_service(LssSession& session, const std::string& who,
+                               const nmt::LssMasterEvent& e) {
+  switch_all(session, nmt::LssState::Waiting);
+  std::string text = who.empty() ? e.text : who + ": " + e.text;
+  if (e.kind == Kind::Timeout) text += " (is the device on this bus and at this bit rate?)";
+  fail(kExitDevice, text);
+}
+
+// Switch state selective (40h-43h): only the device with `address` goes to LSS configuration.
+// Everything first to waiting: selective switching is obeyed in waiting only.
+void select_or_exit(LssSession& session, const nmt::LssAddress& address) {
+  switch_all(session, nmt::LssState::Waiting);
+  const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+    return m.switch_state_selective(address, now, out);
+  });
+  if (!e.ok()) {
+    fail(kExitDevice, "LSS address " + lss_address_text(address) + ": " + e.text +
+                          " (no device with this address on the bus, or not in LSS waiting)");
+  }
+}
+
+std::string json_address(const nmt::LssAddress& a) {
+  return "{\"address\": " + tools::json_string(lss_address_text(a)) +
+         ", \"vendor_id\": " + std::to_string(a.vendor_id) +
+         ", \"product_code\": " + std::to_string(a.product_code) +
+         ", \"revision\": " + std::to_string(a.revision) +
+         ", \"serial\": " + std::to_string(a.serial) + "}";
+}
+
+// --- scan ---------------------------------------------------------------------------------------
+
+// Fastscan finds the lowest unconfigured address (above the last one found) and leaves that
+// device in LSS configuration; switch state global to waiting puts it back, still without
+// node-ID, and the next Fastscan looks above it (nmt/lss_master.hpp), so each is listed once.
+void run_scan(const LssCliOptions& o) {
+  auto session = open_or_exit(o);
+  switch_all(*session, nmt::LssState::Waiting);
+  std::vector<nmt::LssAddress> found;
+  std::optional<nmt::LssAddress> after;
+  for (;;) {
+    const auto e = run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+      return m.fastscan(now, out, after);
+    });
+    if (e.kind == Kind::NotFound) break;
+    if (!e.ok()) fail_service(*session, "Fastscan", e);
+    found.push_back(e.address);
+    after = e.address;
+    switch_all(*session, nmt::LssState::Waiting);
+  }
+  if (o.json) {
+    std::string out = "{\"unconfigured\": [";
+    for (std::size_t i = 0; i < found.size(); ++i) {
+      out += (i ? ", " : "") + json_address(found[i]);
+    }
+    std::cout << out << "]}\n" << std::flush;
+    return;
+  }
+  for (const auto& a : found) std::cout << lss_address_text(a) << '\n';
+  std::cout << std::flush;
+  std::cerr << "cfgmgr lss: " << tools::plural(found.size(), "unconfigured device") << '\n';
+}
+
+// --- set-id
+// ---------------------------------------------------------------------------------------
+
+void run_set_id(const LssCliOptions& o) {
+  const auto address = address_or_exit(o.address);
+  const auto node_id = node_id_or_exit(o.node_id);
+  auto session = open_or_exit(o);
+  const std::string who = "LSS address " + lss_address_text(address);
+  select_or_exit(*session, address);
+  // The node-ID it runs with now: one that had a node-ID takes the new one only at its next
+  // NMT reset (communication or application); an unconfigured one boots as soon as it is back
+  // in waiting.
+  const auto before = run_or_exit(*session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+    return m.inquire(nmt::LssService::InquireNodeId, now, out);
+  });
+  const auto configured =
+      run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+        return m.configure_node_id(node_id, now, out);
+      });
+  if (!configured.ok()) fail_service(*session, who, configured);
+  if (!o.no_store) {
+    const auto stored = run_or_exit(*session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+      return m.store_configuration(now, out);
+    });
+    if (!stored.ok()) fail_service(*session, who, stored);
+  }
+  switch_all(*session, nmt::LssState::Waiting);
+  const bool was_unconfigured = before.ok() && before.value == nmt::lss::kUnconfigured;
+  if (o.json) {
+    std::cout << "{\"address\": " << tools::json_string(lss_address_text(address))
+              << ", \"node_id\": " << int{node_id}
+              << ", \"stored\": " << (o.no_store ? "false" : "true") << ", \"previous_node_id\": "
+              << (before.ok() ? std::to_string(before.value) : std::string("null")) << "}\n"
+              << std::flush;
+    return;
+  }
+  std::cout << who << ": node-ID " << int{node_id} << " configured"
+            << (o.no_store ? " (not stored: lost at power-off)" : " and stored") << "; "
+            << (was_unconfigured ? "the device boots with it now"
+                                 : "the device takes it at its next NMT reset communication")
+            << '\n'
+            << std::flush;
+}
+
+// --- inquire
+// --------------------------------------------------------------------------------------
+
+void run_inquire(const LssCliOptions& o) {
+  std::optional<nmt::LssAddress> address;
+  if (!o.address.empty()) address = address_or_exit(o.address);
+  auto session = open_or_exit(o);
+  if (address) {
+    select_or_exit(*session, *address);
+  } else {
+    switch_all(*session, nmt::LssState::Configuration);
+  }
+  constexpr nmt::LssService kInquiries[] = {
+      nmt::LssService::InquireVendorId, nmt::LssService::InquireProductCode,
+      nmt::LssService::InquireRevision, nmt::LssService::InquireSerial,
+      nmt::LssService::InquireNodeId};
+  std::uint32_t values[5] = {};
+  for (int i = 0; i < 5; ++i) {
+    const auto e = run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+      return m.inquire(kInquiries[i], now, out);
+    });
+    if (!e.ok()) fail_service(*session, "", e);
+    values[i] = e.value;
+  }
+  switch_all(*session, nmt::LssState::Waiting);
+  const nmt::LssAddress found{values[0], values[1], values[2], values[3]};
+  const auto node_id = values[4];
+  if (o.json) {
+    std::string out = json_address(found);
+    out.pop_back();
+    std::cout << out << ", \"node_id\": "
+              << (node_id == nmt::lss::kUnconfigured ? std::string("null")
+                                                     : std::to_string(node_id))
+              << "}\n"
+              << std::flush;
+    return;
+  }
+  std::cout << lss_address_text(found) << "  node-ID "
+            << (node_id == nmt::lss::kUnconfigured ? std::string("FFh (unconfigured)")
+                                                   : std::to_string(node_id))
+            << '\n'
+            << std::flush;
+}
+
+// --- set-bitrate
+// ----------------------------------------------------------------------------------
+
+void run_set_bitrate(const LssCliOptions& o) {
+  const auto kbit = cfg::parse_integer_literal(o.kbit);
+  std::optional<std::uint8_t> index;
+  if (kbit.literal && kbit.literal->value <= 0xFFFF) {
+    index = nmt::lss::bit_timing_index(static_cast<std::uint16_t>(kbit.literal->value));
+  }
+  if (!index) {
+    fail(tools::kExitUsage, "KBIT " + o.kbit +
+                                ": expected a rate of the CiA 305 bit timing table: 1000, 800, "
+                                "500, 250, 125, 50, 20 or 10");
+  }
+  if (o.delay_ms > 0xFFFF) fail(tools::kExitUsage, "--delay-ms: at most 65535");
+  auto session = open_or_exit(o);
+  std::cerr << "cfgmgr lss: warning: this changes the bit rate of every LSS device on the bus "
+               "to "
+            << o.kbit << " kbit/s: the whole network must follow (this bus too)\n"
+            << std::flush;
+  switch_all(*session, nmt::LssState::Configuration);
+  // Every device answers configure bit timing and store; the first answer is taken, a refusal
+  // of any device that comes first ends the command.
+  const auto configured =
+      run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+        return m.configure_bit_timing(*index, now, out);
+      });
+  if (!configured.ok()) fail_service(*session, "", configured);
+  if (!o.no_store) {
+    const auto stored = run_or_exit(*session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+      return m.store_configuration(now, out);
+    });
+    if (!stored.ok()) fail_service(*session, "", stored);
+  }
+  const auto delay = static_cast<std::uint16_t>(o.delay_ms);
+  const auto activated =
+      run_or_exit(*session, [delay](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+        return m.activate_bit_timing(delay, now, out);
+      });
+  if (!activated.ok()) fail(kExitDevice, activated.text);
+  if (o.json) {
+    std::cout << "{\"kbit\": " << o.kbit << ", \"table_index\": " << int{*index}
+              << ", \"delay_ms\": " << o.delay_ms
+              << ", \"stored\": " << (o.no_store ? "false" : "true") << "}\n"
+              << std::flush;
+    return;
+  }
+  std::cout << "bit rate " << o.kbit << " kbit/s activated"
+            << (o.no_store ? " (not stored: the devices return to their stored rate at power-off)"
+                           : " and stored")
+            << "; the devices stay in LSS configuration until the next `cfgmgr lss` command or "
+               "LSS master switches them to waiting\n"
+            << std::flush;
+}
+
+}  // namespace
+
+void add_lss_command(CLI::App& app) {
+  auto o = std::make_shared<LssCliOptions>();
+  auto* cmd = app.add_subcommand(
+      "lss",
+      "Layer Setting Services (CiA 305) on a running bus: find devices without node-ID "
+      "(Fastscan), give a device its node-ID by its LSS address (1018h sub 1-4), inquire a "
+      "device's identity and node-ID, set the bit rate of every device");
+  cmd->require_subcommand(1);
+  cmd->add_option("--bus", o->bus, "The bus the devices are on (socketcan:IF, udp://GROUP:PORT)")
+      ->type_name("URL")
+      ->required();
+  cmd->add_flag("--json", o->json, "Print the outcome as one JSON object on stdout");
+  cmd->add_option("--timeout", o->timeout_ms,
+                  "Milliseconds to wait for a device's answer (default 100)")
+      ->type_name("MS")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--scan-step", o->scan_step_ms,
+                  "Milliseconds each Fastscan request waits for answers; above the devices' "
+                  "answer time (default 20)")
+      ->type_name("MS")
+      ->check(CLI::PositiveNumber);
+
+  auto* scan = cmd->add_subcommand(
+      "scan", "List the LSS addresses of all devices without node-ID (Fastscan); assigns nothing");
+  scan->fallthrough();
+  scan->callback([o] { run_scan(*o); });
+
+  auto* set_id = cmd->add_subcommand(
+      "set-id",
+      "Give the device with LSS address ADDRESS the node-ID NODE-ID: switch state selective, "
+      "configure node-ID, store configuration, switch state global to waiting");
+  set_id->add_option("address", o->address, "VENDOR:PRODUCT:REVISION:SERIAL, hex")
+      ->required()
+      ->type_name("ADDRESS");
+  set_id
+      ->add_option("node_id", o->node_id,
+                   "1..127, or 255 / 'unconfigured' (the device forgets its node-ID)")
+      ->required()
+      ->type_name("NODE-ID");
+  set_id->add_flag("--no-store", o->no_store,
+                   "Do not store the node-ID in the device (it is lost at power-off)");
+  set_id->fallthrough();
+  set_id->callback([o] { run_set_id(*o); });
+
+  auto* inquire = cmd->add_subcommand(
+      "inquire",
+      "Print the LSS address and node-ID of the device with ADDRESS, or without ADDRESS of the "
+      "only LSS device on the bus");
+  inquire->add_option("address", o->address, "VENDOR:PRODUCT:REVISION:SERIAL, hex")
+      ->type_name("ADDRESS");
+  inquire->fallthrough();
+  inquire->callback([o] { run_inquire(*o); });
+
+  auto* bitrate = cmd->add_subcommand(
+      "set-bitrate",
+      "Set the bit rate of every LSS device on the bus: switch state global to configuration, "
+      "configure bit timing, store, activate bit timing with the switch delay");
+  bitrate->add_option("kbit", o->kbit, "1000, 800, 500, 250, 125, 50, 20 or 10")
+      ->required()
+      ->type_name("KBIT");
+  bitrate
+      ->add_option("--delay-ms", o->delay_ms,
+                   "The switch delay: the devices wait this long before and after they "
+                   "switch (default 100)")
+      ->type_name("N");
+  bitrate->add_flag("--no-store", o->no_store,
+                    "Do not store the bit rate in the devices (they return to their stored "
+                    "rate at power-off)");
+  bitrate->fallthrough();
+  bitrate->callback([o] { run_set_bitrate(*o); });
+
+  cmd->footer(std::string(
+      "Actions:\n"
+      "  scan                      the LSS addresses of all devices without node-ID, one a line\n"
+      "  set-id ADDRESS NODE-ID    give one device its node-ID (and store it)\n"
+      "  inquire [ADDRESS]         a device's LSS address and node-ID\n"
+      "  set-bitrate KBIT          the bit rate of the whole network\n\n"
+      "An LSS address is the device's 1018h sub 1-4: VENDOR:PRODUCT:REVISION:SERIAL, each hex "
+      "(a DCF's [DeviceComissioning] LSS_SerialNumber gives the serial number). A device without "
+      "node-ID (FFh) sends no boot-up and does not answer SDO until LSS gives it one; then it "
+      "boots (boot-up 700h + node-ID). inquire without ADDRESS switches every device to LSS "
+      "configuration: use it with one LSS device on the bus only. set-bitrate changes the rate "
+      "of every device at once; switch the bus (ip link set can0 type can bitrate ...) and "
+      "every other node along with them.\n\n"
+      "Examples:\n"
+      "  cfgmgr lss scan --bus socketcan:can0\n"
+      "  cfgmgr lss scan --bus udp://239.74.163.2:43113 --json\n"
+      "  cfgmgr lss set-id --bus socketcan:can0 7E57C0DE:00000305:00010002:00001001 5\n"
+      "  cfgmgr lss inquire --bus socketcan:can0 7E57C0DE:305:10002:1001\n"
+      "  cfgmgr lss set-bitrate --bus socketcan:can0 250 --delay-ms 200\n\n"
+      "Exit codes:\n"
+      "  0  done (scan: also when it found no device)\n"
+      "  2  usage error (bad command line, an ADDRESS or KBIT that does not parse, a --bus URL "
+      "that does not parse or is sim:)\n"
+      "  3  I/O error: the bus cannot be opened or fails\n"
+      "  4  a device refused (its error code in words: node-ID out of range, bit rate not "
+      "supported, storage not supported) or no device answered\n"));
+}
+
+}  // namespace cfgmgr
