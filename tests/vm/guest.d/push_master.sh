@@ -160,6 +160,7 @@ if start_devices "$ids" $devices; then
     diff $out/big_sim.nodes $out/big_can.nodes
     cat $out/big_can.log
   }
+  grep 'bus:' $out/big_can.log
   say "37 nodes: $(grep -c ' configured ' $out/big_can.nodes) configured, $(wc -l <$out/candump.log) frames on $can_if"
   stop_devices
 fi
