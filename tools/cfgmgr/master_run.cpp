@@ -139,8 +139,8 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                      "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
                      "udp_multicast compatible), or sim: for the simulated bus with a "
                      "simulated device per node built from the network's DCFs, in "
-                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR"
-                     "&unconfigured=3,5-7; state=DIR keeps what each device saved with 1010h "
+                     "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR, "
+                     "and &unconfigured=3,5-7; state=DIR keeps what each device saved with 1010h "
                      "between runs; the devices of the unconfigured= nodes power on without "
                      "node-ID and wait for LSS, CiA 305)")
           ->type_name("URL");
