@@ -62,6 +62,13 @@ cfg::Result<std::vector<LssSession::Event>> LssSession::run(const Start& start) 
   if (master_.busy() || events_.empty()) {
     return cfg::Error{"the LSS service did not end within 10 minutes", cfg::ErrorCategory::Io};
   }
+  // A service's last frame (e.g. the switch back to waiting, which has no answer) may still
+  // wait in the loop's transmit queue behind a full interface queue: it goes out before the
+  // session moves on or the program ends, as SdoSession's transfers do.
+  loop_.clear_stop();
+  if (auto sent = loop_.run_until_sent(std::chrono::seconds(1)); !sent) {
+    return cfg::Error{sent.error().message, cfg::ErrorCategory::Io};
+  }
   return std::move(events_);
 }
 

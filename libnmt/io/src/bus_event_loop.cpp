@@ -255,10 +255,13 @@ void BusEventLoop::handle_error_frame(const CanFrame& frame, TimePoint now) {
   if ((cls & (CAN_ERR_PROT | CAN_ERR_TRX | CAN_ERR_ACK | CAN_ERR_BUSERROR | CAN_ERR_TX_TIMEOUT)) !=
       0) {
     ++counters_.bus_errors;
-    report(
-        K::BusError,
-        (cls & CAN_ERR_ACK) != 0 ? "no acknowledgement (is anyone else on the bus?)" : "bus error",
-        frame, now);
+    const char* text =
+        (cls & CAN_ERR_ACK) != 0 ? "no acknowledgement (is anyone else on the bus?)"
+        : (cls & CAN_ERR_TX_TIMEOUT) != 0
+            ? "a frame could not be sent in time (bus busy, or no node acknowledges)"
+            : "bus error (a protocol or transceiver fault: check the cabling, the 120 ohm "
+              "termination at both ends and that every node uses the same bit rate)";
+    report(K::BusError, text, frame, now);
   }
   if ((cls & CAN_ERR_BUSOFF) != 0 && !bus_off_since_) {
     ++counters_.bus_off;
