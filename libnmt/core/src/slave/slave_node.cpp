@@ -13,7 +13,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/write_acceptance.hpp"
-#include "process_picture.hpp"
+#include "slave/process_picture.hpp"
 
 namespace nmt {
 

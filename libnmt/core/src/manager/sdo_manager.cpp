@@ -14,7 +14,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_manager_objects.hpp"
-#include "nmt_master_impl.hpp"
+#include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 

@@ -1,6 +1,6 @@
 // Object 1F70h "Process picture" (CiA DSP 302 §8.3); the behaviour is documented in
 // process_picture.hpp, the layout rules of §8.2 in cfg/dynamic_channels.hpp.
-#include "process_picture.hpp"
+#include "slave/process_picture.hpp"
 
 #include <algorithm>
 #include <memory>

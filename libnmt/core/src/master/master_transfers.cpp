@@ -8,7 +8,7 @@
 
 #include "cfg/object_address.hpp"
 #include "nmt/frame_bits.hpp"
-#include "nmt_master_impl.hpp"
+#include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 

@@ -6,7 +6,7 @@
 
 #include "cfg/object_index.hpp"
 #include "nmt/local_dictionary.hpp"
-#include "saturating_time.hpp"
+#include "sdo/saturating_time.hpp"
 
 namespace nmt {
 

@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "cfg/object_index.hpp"
-#include "nmt_master_impl.hpp"
+#include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 

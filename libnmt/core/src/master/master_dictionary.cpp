@@ -9,7 +9,7 @@
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt_master_impl.hpp"
+#include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 

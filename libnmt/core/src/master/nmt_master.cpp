@@ -10,7 +10,7 @@
 
 #include "cfg/hex.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt_master_impl.hpp"
+#include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 

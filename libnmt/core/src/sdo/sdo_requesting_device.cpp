@@ -6,7 +6,7 @@
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
-#include "saturating_time.hpp"
+#include "sdo/saturating_time.hpp"
 
 namespace nmt {
 

@@ -5,7 +5,7 @@
 #include <variant>
 
 #include "cfg/object_index.hpp"
-#include "saturating_time.hpp"
+#include "sdo/saturating_time.hpp"
 
 namespace nmt {
 
