@@ -1,9 +1,17 @@
 #include "nmt/bus_event_loop.hpp"
 
 #include <linux/can/error.h>
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <cerrno>
 #include <chrono>
+#include <cstdint>
+#include <cstring>
+#include <ctime>
 
 namespace nmt {
 
@@ -38,7 +46,72 @@ class InCallback {
 }  // namespace
 
 BusEventLoop::BusEventLoop(Bus& bus, BusEventLoopOptions options, Clock clock)
-    : bus_(&bus), options_(options), clock_(std::move(clock)) {}
+    : bus_(&bus),
+      options_(options),
+      clock_(std::move(clock)),
+      // eventfd(2): a counter post() adds to and the loop's poll sees. Without one (out of
+      // descriptors) post() still works, the loop then notices within max_wait.
+      wake_fd_(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)) {}
+
+BusEventLoop::~BusEventLoop() {
+  if (wake_fd_ >= 0) ::close(wake_fd_);
+}
+
+void BusEventLoop::post(Task fn) {
+  {
+    const std::lock_guard lock(posted_mutex_);
+    posted_.push_back(std::move(fn));
+  }
+  if (wake_fd_ >= 0) {
+    const std::uint64_t one = 1;
+    // Only EAGAIN (the counter at its maximum) can fail here, and then the loop is awake anyway.
+    (void)!::write(wake_fd_, &one, sizeof one);
+  }
+}
+
+std::size_t BusEventLoop::posted() const {
+  const std::lock_guard lock(posted_mutex_);
+  return posted_.size();
+}
+
+void BusEventLoop::run_posted() {
+  // Only the functions queued now: one a function posts waits for the next pass. One at a time
+  // under the lock, so an exception leaves the rest queued, in order.
+  std::size_t count = 0;
+  {
+    const std::lock_guard lock(posted_mutex_);
+    count = posted_.size();
+  }
+  for (; count > 0 && !stop_requested(); --count) {
+    std::optional<Task> task;
+    {
+      const std::lock_guard lock(posted_mutex_);
+      if (posted_.empty()) return;
+      task.emplace(std::move(posted_.front()));
+      posted_.pop_front();
+    }
+    (*task)();
+  }
+}
+
+cfg::Result<std::optional<ReceivedFrame>> BusEventLoop::wait_for_frame(Duration wait) {
+  const int bus_fd = bus_->readable_fd();
+  if (bus_fd < 0 || wake_fd_ < 0) return bus_->receive(wait);
+  std::array<pollfd, 2> fds{{{bus_fd, POLLIN, 0}, {wake_fd_, POLLIN, 0}}};
+  const auto seconds = std::chrono::duration_cast<std::chrono::seconds>(wait);
+  const timespec timeout{static_cast<std::time_t>(seconds.count()),
+                         static_cast<long>((wait - seconds).count() * 1000)};
+  if (::ppoll(fds.data(), fds.size(), &timeout, nullptr) < 0 && errno != EINTR) {
+    return cfg::Error{"cannot wait for frames on " + bus_->url() + ": " + std::strerror(errno)};
+  }
+  if ((fds[1].revents & POLLIN) != 0) {
+    std::uint64_t count = 0;
+    (void)!::read(wake_fd_, &count, sizeof count);  // reset the counter; the pass runs them all
+  }
+  // The bus says what it has (an error on its descriptor included).
+  if (fds[0].revents != 0) return bus_->receive(Duration::zero());
+  return std::optional<ReceivedFrame>{};
+}
 
 TimePoint BusEventLoop::give(TimePoint now) {
   last_given_ = std::max(last_given_, now);
@@ -324,6 +397,8 @@ cfg::Status BusEventLoop::run_until(TimePoint until) {
     return e;
   }
   while (!stop_requested()) {
+    run_posted();
+    if (stop_requested()) break;
     // `now` is read before the queue is looked at: everything that arrived up to `now` is in
     // the queue by then, so once it is read out, the timers due up to `now` may fire. A stall
     // of the process anywhere in this pass leaves its frames in the queue for the next pass.
@@ -364,7 +439,7 @@ cfg::Status BusEventLoop::run_until(TimePoint until) {
     }
     if (until != TimePoint::max()) wait = std::min(wait, until - t);
     if (wait <= Duration::zero()) continue;
-    auto received = bus_->receive(wait);
+    auto received = wait_for_frame(wait);
     if (!received) {
       return cfg::Error{"cannot receive on " + bus_->url() + ": " + received.error().message};
     }

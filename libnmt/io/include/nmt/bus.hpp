@@ -68,6 +68,11 @@ class Bus {
   virtual cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) = 0;
   /// The URL the bus was opened with, e.g. "socketcan:can0".
   virtual std::string url() const = 0;
+  /// A file descriptor poll(2) reports readable (POLLIN) when receive() may have a frame, so
+  /// that BusEventLoop can wait on it together with its own wake-up descriptor (post()); -1
+  /// (the default): none, the loop waits in receive() (a posted function then runs within
+  /// BusEventLoopOptions::max_wait).
+  virtual int readable_fd() const { return -1; }
 };
 
 /// Opens a bus by URL: `socketcan:IFNAME`, `udp://GROUP:PORT` (default

@@ -30,13 +30,24 @@
 // timer is not charged with the bus-off time, and the engines' time goes on from where it
 // stopped (now() is the loop's clock less the bus-off time). run_until() keeps to the clock
 // itself, so a bounded run ends during a bus-off too.
+//
+// Threads (issue 21, "The embedder's API"). The loop and its engines belong to the thread that
+// runs it. Another thread (a UI, an RPC server) calls into them with post(fn): fn is queued
+// under a mutex and the loop is woken (an eventfd it waits on together with the bus's
+// descriptor, Bus::readable_fd()); it runs fn on its own thread between two engine calls, at the
+// start of its next pass, in the order the functions were posted. fn reaches an engine with
+// EngineRef::apply (the engine's `now` and Output, frames sent at once), or directly
+// EngineRef::post(fn), which does both.
 #pragma once
 
 #include <algorithm>
 #include <atomic>
+#include <concepts>
 #include <cstddef>
 #include <deque>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -102,6 +113,12 @@ class EngineRef final : public LoopEngine {
   /// std::logic_error); a frame the bus refuses makes the loop's next run*() return that error.
   template <class Fn>
   decltype(auto) apply(Fn&& fn);
+  /// Thread-safe: BusEventLoop::post() of apply(fn), for another thread (a UI, an RPC server)
+  /// that calls into the engine while the loop runs; fn's result is dropped (hand it back
+  /// through a std::promise or a queue of the caller's). The EngineRef must have been added to
+  /// a loop before (else std::logic_error) and outlive the posted call.
+  template <class Fn>
+  void post(Fn fn);
 
   bool on_frame(const CanFrame& frame, TimePoint now, std::vector<CanFrame>& frames) override {
     const bool mine = engine_->on_frame(frame, now, out_);
@@ -208,10 +225,33 @@ struct BusEventLoopOptions {
   Duration send_failure_retry = std::chrono::milliseconds(10);
 };
 
-/// Drives engines over one bus. Not thread-safe, except request_stop(). Owns neither the bus
-/// nor the engines; both must outlive the loop's use of them.
+/// Drives engines over one bus. Not thread-safe, except post() and request_stop(). Owns neither
+/// the bus nor the engines; both must outlive the loop's use of them.
 class BusEventLoop {
  public:
+  /// A function post() runs on the loop's thread: any callable of no arguments, move-only ones
+  /// too (a lambda that owns a std::promise).
+  class Task {
+   public:
+    template <class F>
+    requires std::invocable<F&> &&(!std::same_as<std::decay_t<F>, Task>)
+        Task(F fn)  // NOLINT(google-explicit-constructor): post([..] { .. })
+        : fn_(std::make_unique<Holder<F>>(std::move(fn))) {}
+    void operator()() { fn_->run(); }
+
+   private:
+    struct Callable {
+      virtual ~Callable() = default;
+      virtual void run() = 0;
+    };
+    template <class F>
+    struct Holder final : Callable {
+      explicit Holder(F f) : fn(std::move(f)) {}
+      void run() override { (void)fn(); }
+      F fn;
+    };
+    std::unique_ptr<Callable> fn_;
+  };
   using Clock = std::function<TimePoint()>;
   enum class Direction { Received, Sent };
   /// Sees every frame received from the bus (at its arrival time) and every frame sent to it
@@ -219,6 +259,9 @@ class BusEventLoop {
   using Observer = std::function<void(const CanFrame&, TimePoint, Direction)>;
 
   explicit BusEventLoop(Bus& bus, BusEventLoopOptions options = {}, Clock clock = steady_now);
+  BusEventLoop(const BusEventLoop&) = delete;
+  BusEventLoop& operator=(const BusEventLoop&) = delete;
+  ~BusEventLoop();
 
   /// Adds an engine; it sees frames and timers from the next loop iteration on.
   void add(LoopEngine& engine) {
@@ -253,6 +296,16 @@ class BusEventLoop {
   /// Makes run*() return within options.max_wait. Async-signal-safe (a lock-free atomic
   /// store), so a SIGINT handler may call it. The request stays until clear_stop().
   void request_stop() { stop_.store(true, std::memory_order_relaxed); }
+  /// Thread-safe: queues `fn` to run on the thread that runs the loop, between two engine calls
+  /// (at the start of the loop's next pass, after the frames and timers of the current one), and
+  /// wakes the loop. Functions run once each, in the order they were posted (so in each thread's
+  /// order); one posted from inside a posted function runs in the next pass. Functions posted
+  /// while no run*() is running wait for the next one. An exception fn throws leaves run*()
+  /// (the functions after it stay queued). Inside fn the loop is the caller's to use:
+  /// EngineRef::apply, request_stop(), counters(). Not async-signal-safe (it locks a mutex).
+  void post(Task fn);
+  /// Functions posted and not yet run.
+  std::size_t posted() const;
   void clear_stop() { stop_.store(false, std::memory_order_relaxed); }
   bool stop_requested() const { return stop_.load(std::memory_order_relaxed); }
 
@@ -287,6 +340,11 @@ class BusEventLoop {
   void report(BusEvent::Kind kind, std::string text, const CanFrame& frame, TimePoint now);
   /// The engines' time at the loop's clock reading `clock`: bus-off time is cut out.
   TimePoint engine_time(TimePoint clock) const;
+  /// Runs the posted functions queued now (post()).
+  void run_posted();
+  /// Waits up to `wait` for a frame: on the bus's descriptor and the wake-up eventfd together
+  /// when the bus has one (else in Bus::receive). nullopt also when woken by post().
+  cfg::Result<std::optional<ReceivedFrame>> wait_for_frame(Duration wait);
 
   Bus* bus_;
   BusEventLoopOptions options_;
@@ -311,6 +369,9 @@ class BusEventLoop {
   BusCounters counters_;
   std::optional<TimePoint> bus_off_since_;  // the clock reading when bus-off began
   Duration paused_{0};                      // bus-off time of the periods that ended
+  mutable std::mutex posted_mutex_;         // guards posted_
+  std::deque<Task> posted_;                 // post()ed functions not yet run, in order
+  int wake_fd_ = -1;                        // eventfd post() writes; -1: none could be made
 };
 
 template <Engine E>
@@ -327,6 +388,13 @@ decltype(auto) EngineRef<E>::apply(Fn&& fn) {
     }
   } flush_on_exit{this, {}, loop()->now()};
   return std::forward<Fn>(fn)(*engine_, flush_on_exit.now, flush_on_exit.out);
+}
+
+template <Engine E>
+template <class Fn>
+void EngineRef<E>::post(Fn fn) {
+  if (loop() == nullptr) throw std::logic_error("EngineRef::post before BusEventLoop::add");
+  loop()->post([this, fn = std::move(fn)]() mutable { (void)apply(fn); });
 }
 
 }  // namespace nmt

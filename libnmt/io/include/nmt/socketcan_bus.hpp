@@ -67,6 +67,7 @@ class SocketCanBus final : public Bus {
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// "socketcan:" followed by the interface name.
   std::string url() const override;
+  int readable_fd() const override { return fd_; }
 
   /// Replaces the receive filters (CAN_RAW_FILTER). A frame passes when any filter accepts
   /// it; an empty list receives no data or remote frames at all (as the kernel does).

@@ -68,6 +68,8 @@ class TracingBus final : public Bus {
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// The inner bus's URL.
   std::string url() const override;
+  /// The inner bus's.
+  int readable_fd() const override { return inner_->readable_fd(); }
 
   Bus& inner() { return *inner_; }
   TraceWriter& trace() { return *trace_; }

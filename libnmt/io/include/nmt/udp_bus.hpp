@@ -98,6 +98,7 @@ class UdpBus final : public Bus {
   cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override;
   /// The URL that opens an equivalent bus (to_udp_url).
   std::string url() const override;
+  int readable_fd() const override { return receive_fd_; }
 
   /// The receive socket, for an event loop that polls several sources. Stays owned by the bus.
   int native_handle() const { return receive_fd_; }
