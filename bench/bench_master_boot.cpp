@@ -358,8 +358,7 @@ BootResult boot(Network& net, std::uint16_t heartbeat_ms) {
       ++result.boot_errors;
       if (result.first_boot_error.empty()) result.first_boot_error = e.text;
     }
-    if ((e.kind == Kind::StartupHalted || e.kind == Kind::StartupRefused ||
-         (e.kind == Kind::BootError && e.final)) &&
+    if ((e.kind == Kind::StartupHalted || (e.kind == Kind::BootError && e.final)) &&
         result.error.empty()) {
       result.error = e.text;
     }

@@ -199,7 +199,6 @@ void EventReporter::report(const nmt::MasterEvent& e) {
   bool again = false;
   switch (e.kind) {
     case K::NotMaster:
-    case K::StartupRefused:
       finished_ = true;
       line = e.text;
       break;

@@ -152,7 +152,7 @@ class Collector {
 
   void observe(const nmt::MasterEvent& e) {
     using K = nmt::MasterEvent::Kind;
-    if (e.kind == K::StartupHalted || e.kind == K::NotMaster || e.kind == K::StartupRefused) {
+    if (e.kind == K::StartupHalted || e.kind == K::NotMaster) {
       stop_ = e.text;
     }
     NodeReport* r = find(e.node_id);
@@ -217,7 +217,7 @@ class Collector {
   }
 
   // Every node has its result, or the master said why no (more) boot will run: not the NMT
-  // master (1F80h bit 0 clear), start-up refused or halted.
+  // master (1F80h bit 0 clear), or start-up halted.
   bool settled() const {
     return !stop_.empty() || std::all_of(nodes_.begin(), nodes_.end(), [](const NodeReport& r) {
       return r.result != Result::Pending;

@@ -304,7 +304,6 @@ std::string_view to_string(BootStep step);
 enum class StartupState : std::uint8_t {
   Off,               ///< before start()
   NotMaster,         ///< 1F80h bit 0 is 0 (a self-starting device went operational)
-  Refused,           ///< the master decision could not be made (not reported by this version)
   Negotiating,       ///< NMT flying master start-up (§3.7): detection or negotiation running
   Standby,           ///< lost the flying master negotiation: an NMT slave watching the master
   BootingSlaves,     ///< start process boot NMT slave for every slave
@@ -343,7 +342,6 @@ struct RegisteredSrd {
 struct MasterEvent {
   enum class Kind : std::uint8_t {
     NotMaster,                 ///< 1F80h bit 0 is 0: the device is no NMT master (§3.1 a)
-    StartupRefused,            ///< NMT start-up cannot run (text says why)
     StartupBegan,              ///< the master decided and sent its reset communication
     BootStepChanged,           ///< node_id moved to `step`; Download also reports written/total
     SlaveBooted,               ///< boot NMT slave: status OK (`configured`: a download happened)

@@ -95,8 +95,6 @@ std::string_view to_string(StartupState state) {
       return "off";
     case StartupState::NotMaster:
       return "not master";
-    case StartupState::Refused:
-      return "refused";
     case StartupState::Negotiating:
       return "negotiating";
     case StartupState::Standby:
@@ -118,8 +116,6 @@ std::string_view to_string(MasterEvent::Kind kind) {
   switch (kind) {
     case K::NotMaster:
       return "not_master";
-    case K::StartupRefused:
-      return "startup_refused";
     case K::StartupBegan:
       return "startup_began";
     case K::BootStepChanged:
@@ -806,8 +802,7 @@ void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) 
   set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
   if (boot_took_boot_up(node, now, out)) return;
-  if (startup == StartupState::Off || startup == StartupState::NotMaster ||
-      startup == StartupState::Refused || !acts_as_master()) {
+  if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master()) {
     return;
   }
   stop_error_control(node);
