@@ -1,9 +1,9 @@
 // Embedding the CiA 302-2 NMT master: two simulated devices on a simulated 500 kbit/s bus and a
-// master (node 1) that checks their vendor-ID, downloads a configuration from the application's
-// own ConfigurationSource, waits for the application's configuration step and starts them; the
-// device at node 3 reports a wrong vendor-ID and fails with boot error D. Every event is printed
-// with its simulated time. Exit status 0 when node 2 ended stopped (by a request NMT) and node 3
-// with error D.
+// master (node 1), configured through nmt::MasterConfig, that checks their vendor-ID, downloads a
+// configuration from the application's own ConfigurationSource, waits for the application's
+// configuration step and starts them; the device at node 3 reports a wrong vendor-ID and fails with
+// boot error D. Every event is printed with its simulated time. Exit status 0 when node 2 ended
+// stopped (by a request NMT) and node 3 with error D.
 #include <cstdint>
 #include <iostream>
 #include <memory>
@@ -11,9 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
-#include "cfg/master_objects.hpp"
+#include "nmt/master_config.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
@@ -84,26 +83,21 @@ int main() {
     devices.back()->apply([](auto& d, nmt::TimePoint now, auto&) { d.power_on(now); });
   }
 
-  nmt::MasterOptions options;
-  options.configurations = std::make_shared<MyConfigurations>();
-  options.application_step = true;  // MasterEvent::ApplicationStep, then configuration_done()
-  auto created = nmt::NmtMaster::create({}, node(1), options);
+  // The master's configuration (CiA 302-2 §6) as types: no object indices, no bytes.
+  nmt::MasterConfig config(node(1));
+  config.startup.master = true;  // 1F80h: the NMT master, which starts each slave once booted
+  for (const std::uint8_t id : kSlaves) {
+    nmt::SlaveConfig& slave = config.add_slave(node(id));  // 1F81h: boot and start it, optional
+    slave.identity.vendor_id = kVendor;                    // 1F85h: checked against 1018h sub 1
+    slave.heartbeat = 300ms;                               // 1016h: the master consumes it
+  }
+  config.options.configurations = std::make_shared<MyConfigurations>();
+  config.options.application_step =
+      true;  // MasterEvent::ApplicationStep, then configuration_done()
+  auto created = config.build();
   if (!created.ok()) return std::cerr << created.error().message << "\n", 1;
   nmt::SimEngineNode<nmt::NmtMaster> master(std::move(created).value());
   bus.attach(master);
-  // The master's own objects (CiA 302-2 §6), set as a master DCF or an SDO write would set them.
-  auto set = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
-    std::vector<std::uint8_t> bytes;
-    cfg::append_le(bytes, value, 4);
-    return master.engine().dictionary().write(index, sub, bytes, bus.now()) == nmt::SdoAbort::None;
-  };
-  using Slave = cfg::SlaveAssignment;
-  bool ok = set(0x1F80, 0, cfg::NmtStartup::kMaster);  // start each slave when it booted
-  for (const std::uint8_t id : kSlaves) {
-    ok = ok && set(0x1F81, id, Slave::make(Slave::kSlave | Slave::kBootSlave).value);  // optional
-    ok = ok && set(0x1F85, id, kVendor) && set(0x1016, id, std::uint32_t{id} << 16 | 300U);
-  }
-  if (!ok) return std::cerr << "the master refused its configuration\n", 1;
 
   master.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint now) {
     std::cout << now.count() / 1000 << " ms  " << nmt::to_string(e.kind) << ": " << e.text << "\n";

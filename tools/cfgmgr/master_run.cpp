@@ -22,6 +22,7 @@
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/device_state.hpp"
+#include "nmt/master_config.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
 #include "nmt/trace.hpp"
@@ -460,8 +461,10 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
   // node with nothing stored reads the network's configuration (NetworkSource). Without a store
   // directory, what a tool writes over SDO lives as long as the process.
   if (!options.manager) options.manager = std::make_shared<cfg::ConfigManager>();
-  auto master =
-      nmt::NmtMaster::create(network->master, *cfg::NodeId::from(node_id), std::move(options));
+  // The master DCF goes through the typed configuration, as an embedder's master does.
+  auto config =
+      nmt::MasterConfig::from_dcf(network->master, *cfg::NodeId::from(node_id), std::move(options));
+  auto master = config ? config->build() : cfg::Result<nmt::NmtMaster>(config.error());
   if (!master) {
     const std::string& from = network->master_from_file ? network->master_file : description;
     std::cerr << from << ": error: " << master.error().message << '\n';

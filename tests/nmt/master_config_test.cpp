@@ -1,0 +1,334 @@
+// nmt::MasterConfig (nmt/master_config.hpp; issue 21, "The embedder's API"): the master's objects
+// of CiA 302-2 §6 as types. The bit positions and units are the spec's (Tables 8-14 for 1F80h,
+// Tables 19-25 and §6.3 bytes 1-3 for 1F81h, §6.1 102Ah in 100 us, §6.11 1F89h in ms, §6.13
+// 1F90h), the heartbeat entry CiA 301's (node-ID in bits 16-23, time in ms in bits 0-15). The
+// DCF path (from_dcf, then build) gives the dictionary NmtMaster::create gives, and a typed
+// config of the same values gives it too.
+#include "nmt/master_config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cfg/device_file.hpp"
+#include "test_paths.hpp"
+
+namespace nmt {
+namespace {
+
+using namespace std::chrono_literals;
+
+cfg::NodeId id(unsigned n) {
+  return cfg::NodeId::from(n).value();
+}
+
+std::uint64_t value(const NmtMaster& m, std::uint16_t index, std::uint8_t sub) {
+  return m.dictionary().get_unsigned(index, sub).value_or(0xDEADBEEF);
+}
+
+NmtMaster built(const MasterConfig& config) {
+  auto m = config.build();
+  EXPECT_TRUE(m.ok()) << (m.ok() ? "" : m.error().message);
+  return std::move(m).value();
+}
+
+std::string error_of(const MasterConfig& config) {
+  auto s = config.validate();
+  return s ? std::string("(valid)") : s.error().message;
+}
+
+TEST(MasterConfig, StartupFlagsAreTheBitsOf1F80hTables8To14) {
+  const std::vector<std::pair<bool StartupFlags::*, std::uint32_t>> bits{
+      {&StartupFlags::master, 1U << 0},               // Table 8
+      {&StartupFlags::start_all_nodes, 1U << 1},      // Table 9
+      {&StartupFlags::no_auto_operational, 1U << 2},  // Table 10
+      {&StartupFlags::no_start_slaves, 1U << 3},      // Table 11
+      {&StartupFlags::reset_all_nodes, 1U << 4},      // Table 12
+      {&StartupFlags::flying_master, 1U << 5},        // Table 13
+      {&StartupFlags::stop_all_nodes, 1U << 6},       // Table 14
+  };
+  for (const auto& [flag, bit] : bits) {
+    StartupFlags f;
+    f.master = false;
+    f.*flag = true;
+    EXPECT_EQ(f.value().value, bit);
+    EXPECT_EQ(StartupFlags::from({bit}), f) << bit;
+  }
+  EXPECT_EQ(StartupFlags{}.value().value, 1U);  // the default: the NMT master, nothing else
+}
+
+TEST(MasterConfig, SlaveFlagsAreTheBitsOf1F81hTables19To25WithGuardingInBytes1To3) {
+  const std::vector<std::pair<bool SlaveConfig::*, std::uint32_t>> bits{
+      {&SlaveConfig::slave, 1U << 0},            // Table 19
+      {&SlaveConfig::boot, 1U << 2},             // Table 20
+      {&SlaveConfig::mandatory, 1U << 3},        // Table 21
+      {&SlaveConfig::keep_alive, 1U << 4},       // Table 22
+      {&SlaveConfig::verify_software, 1U << 5},  // Table 23
+      {&SlaveConfig::update_software, 1U << 6},  // Table 24
+      {&SlaveConfig::restore, 1U << 7},          // Table 25
+  };
+  for (const auto& [flag, bit] : bits) {
+    SlaveConfig s(id(2));
+    s.slave = false;
+    s.boot = false;
+    s.*flag = true;
+    EXPECT_EQ(s.assignment().value, bit);
+  }
+  SlaveConfig guarded(id(2));
+  guarded.guarding = GuardingConfig{500ms, 3};
+  // §6.3: byte 1 retry factor, bytes 2-3 guard time in ms; bits 0 and 2 by default.
+  EXPECT_EQ(guarded.assignment().value, 0x01F40305U);
+}
+
+TEST(MasterConfig, BuildsTheObjectsOfCiA302_2Section6WithoutBytesFromTheEmbedder) {
+  MasterConfig config(id(1));
+  config.startup.start_all_nodes = true;
+  config.startup.stop_all_nodes = true;
+  SlaveConfig& drive = config.add_slave(id(3));
+  drive.mandatory = true;
+  drive.keep_alive = true;
+  drive.identity.device_type = 0x000F0192;
+  drive.identity.vendor_id = 0x0000ABCD;
+  drive.identity.product_code = 0x302;
+  drive.identity.revision = 0x00010000;
+  drive.identity.serial_number = 7;
+  drive.heartbeat = 300ms;
+  SlaveConfig& io = config.add_slave(id(5));
+  io.guarding = GuardingConfig{200ms, 2};
+  io.restore = true;
+  io.restore_subindex = 2;
+  config.boot_time = 10s;
+  config.nmt_inhibit_time = 1500us;
+  config.flying_master.priority = FlyingMasterConfig::Priority::High;
+  config.flying_master.detect_cycle = 0ms;
+  const NmtMaster m = built(config);
+
+  EXPECT_EQ(value(m, 0x1F80, 0), 0x43U);  // bits 0, 1 and 6
+  EXPECT_EQ(value(m, 0x1F81, 3), 0x1DU);  // slave, boot, mandatory, keep-alive
+  EXPECT_EQ(value(m, 0x1F81, 5), 0x00C80285U);
+  EXPECT_EQ(value(m, 0x1F81, 4), 0U);
+  EXPECT_EQ(value(m, 0x1F84, 3), 0x000F0192U);
+  EXPECT_EQ(value(m, 0x1F85, 3), 0x0000ABCDU);
+  EXPECT_EQ(value(m, 0x1F86, 3), 0x302U);
+  EXPECT_EQ(value(m, 0x1F87, 3), 0x00010000U);
+  EXPECT_EQ(value(m, 0x1F88, 3), 7U);
+  EXPECT_EQ(value(m, 0x1F85, 5), 0U);  // not checked
+  EXPECT_EQ(value(m, 0x1F8A, 5), 2U);
+  EXPECT_EQ(value(m, 0x1016, 1), 0x0003012CU);  // node 3, 300 ms
+  EXPECT_EQ(value(m, 0x1016, 2), 0U);
+  EXPECT_EQ(value(m, 0x1F89, 0), 10000U);  // ms
+  EXPECT_EQ(value(m, 0x102A, 0), 15U);     // 100 us units
+  EXPECT_EQ(value(m, 0x1F90, 1), 100U);    // Table 50 defaults, priority and sub 6 as set
+  EXPECT_EQ(value(m, 0x1F90, 2), 500U);
+  EXPECT_EQ(value(m, 0x1F90, 3), 0U);
+  EXPECT_EQ(value(m, 0x1F90, 4), 1500U);
+  EXPECT_EQ(value(m, 0x1F90, 5), 10U);
+  EXPECT_EQ(value(m, 0x1F90, 6), 0U);
+  EXPECT_EQ(m.node_id(), id(1));
+}
+
+std::string master_dcf_text() {
+  std::ifstream in(std::string(CANOPEN_TEST_DATA_DIR) + "/master/master.dcf");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string lines = text.str();  // CRLF in the file: the replacements below say \n
+  std::erase(lines, '\r');
+  return lines;
+}
+
+void replace(std::string& text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+}
+
+cfg::DeviceDescription parse(const std::string& text) {
+  auto r = cfg::parse_device_description(text);
+  EXPECT_TRUE(r.device.has_value()) << r.diagnostics.format();
+  return r.device.value_or(cfg::DeviceDescription{});
+}
+
+// tests/data/master/master.dcf with 1F80h 0x43, slave 2 guarded, slave 3 mandatory with a
+// heartbeat in 1016h sub 4, 1F89h 10 s and 102Ah 1.5 ms.
+cfg::DeviceDescription changed_master_dcf() {
+  std::string text = master_dcf_text();
+  replace(text, "ParameterValue=0x00000001", "ParameterValue=0x00000043");
+  replace(text, "[1F81Value]\nNrOfEntries=2\n2=0x00000005\n3=0x00000005",
+          "[1F81Value]\nNrOfEntries=2\n2=0x00C80205\n3=0x0000000D");
+  replace(text, "CompactSubObj=127\n\n[1017]",
+          "CompactSubObj=127\n\n[1016Value]\nNrOfEntries=1\n4=0x0003012C\n\n[1017]");
+  replace(text,
+          "ParameterName=Boot time\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\n"
+          "DefaultValue=0",
+          "ParameterName=Boot time\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\n"
+          "DefaultValue=10000");
+  replace(text,
+          "ParameterName=NMT inhibit time\nObjectType=0x7\nDataType=0x0006\nAccessType=rw\n"
+          "DefaultValue=0",
+          "ParameterName=NMT inhibit time\nObjectType=0x7\nDataType=0x0006\nAccessType=rw\n"
+          "DefaultValue=15");
+  return parse(text);
+}
+
+// The 1016h entries in use, wherever they stand.
+std::multiset<std::uint64_t> heartbeat_entries(const NmtMaster& m) {
+  std::multiset<std::uint64_t> in_use;
+  for (std::uint8_t sub = 1; sub <= 127; ++sub) {
+    if (const auto v = value(m, 0x1016, sub); v != 0) in_use.insert(v);
+  }
+  return in_use;
+}
+
+// Every value build() owns (master_config.hpp); the 1016h entries in the same sub-indices when
+// `same_1016_layout`, else the same entries anywhere.
+void expect_same_master_objects(const NmtMaster& a, const NmtMaster& b, bool same_1016_layout) {
+  std::vector<std::pair<std::uint16_t, std::uint8_t>> entries{
+      {0x1F80, 0}, {0x1F89, 0}, {0x102A, 0}, {0x1016, 0}};
+  for (std::uint8_t sub = 1; sub <= 6; ++sub) entries.emplace_back(0x1F90, sub);
+  for (std::uint8_t n = 1; n <= 127; ++n) {
+    for (int index : {0x1F81, 0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88, 0x1F8A}) {
+      entries.emplace_back(static_cast<std::uint16_t>(index), n);
+    }
+    if (same_1016_layout) entries.emplace_back(0x1016, n);
+  }
+  EXPECT_EQ(heartbeat_entries(a), heartbeat_entries(b));
+  for (const auto& [index, sub] : entries) {
+    EXPECT_EQ(value(a, index, sub), value(b, index, sub)) << std::hex << index << " sub " << +sub;
+  }
+}
+
+TEST(MasterConfig, TheDcfPathAndATypedConfigOfTheSameValuesGiveTheSameDictionary) {
+  const cfg::DeviceDescription dcf = changed_master_dcf();
+  auto direct = NmtMaster::create(dcf, id(1));
+  ASSERT_TRUE(direct.ok()) << direct.error().message;
+  ASSERT_EQ(value(direct.value(), 0x1016, 4), 0x0003012CU);  // the DCF says what we think
+
+  auto read = MasterConfig::from_dcf(dcf, id(1));
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  const MasterConfig& from_dcf = read.value();
+  EXPECT_EQ(from_dcf.startup.value().value, 0x43U);
+  ASSERT_EQ(from_dcf.slaves.size(), 2U);
+  const SlaveConfig* two = from_dcf.slave(id(2));
+  const SlaveConfig* three = from_dcf.slave(id(3));
+  ASSERT_TRUE(two && three);
+  EXPECT_EQ(two->guarding, (GuardingConfig{200ms, 2}));
+  EXPECT_FALSE(two->mandatory);
+  EXPECT_TRUE(three->mandatory);
+  EXPECT_EQ(three->heartbeat, Duration{300ms});
+  EXPECT_EQ(three->identity.vendor_id, 0x0000ABCDU);
+  EXPECT_EQ(three->identity.product_code, std::nullopt);
+  EXPECT_EQ(from_dcf.boot_time, Duration{10s});
+  EXPECT_EQ(from_dcf.nmt_inhibit_time, Duration{1500us});
+  expect_same_master_objects(built(from_dcf), direct.value(), true);
+
+  // The same in code, on the same DCF (its other objects), but the values typed.
+  MasterConfig typed(id(1));
+  typed.dcf = parse(master_dcf_text());
+  typed.startup.start_all_nodes = true;
+  typed.startup.stop_all_nodes = true;
+  for (unsigned n : {2U, 3U}) {
+    SlaveConfig& s = typed.add_slave(id(n));
+    s.identity.device_type = 0x000F0191;
+    s.identity.vendor_id = 0x0000ABCD;
+  }
+  typed.add_slave(id(2)).guarding = GuardingConfig{200ms, 2};
+  typed.add_slave(id(3)).mandatory = true;
+  typed.add_slave(id(3)).heartbeat = 300ms;
+  typed.boot_time = 10s;
+  typed.nmt_inhibit_time = 1500us;
+  const NmtMaster from_code = built(typed);
+  expect_same_master_objects(from_code, direct.value(), false);
+  EXPECT_EQ(value(from_code, 0x1016, 1), 0x0003012CU);  // the first free entry
+}
+
+TEST(MasterConfig, ASlaveRemovedInCodeFromADcfConfigIsNoLongerAssigned) {
+  auto read = MasterConfig::from_dcf(changed_master_dcf(), id(1));
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  MasterConfig config = std::move(read).value();
+  std::erase_if(config.slaves, [](const SlaveConfig& s) { return s.node == id(3); });
+  const NmtMaster m = built(config);
+  EXPECT_EQ(value(m, 0x1F81, 3), 0U);
+  EXPECT_EQ(value(m, 0x1F85, 3), 0U);
+  EXPECT_EQ(value(m, 0x1016, 4), 0U);  // its heartbeat entry is cleared
+  EXPECT_EQ(value(m, 0x1F81, 2), 0x00C80205U);
+}
+
+TEST(MasterConfig, ADcfWithFewerHeartbeatEntriesThanConfiguredFailsSayingSo) {
+  std::string text = master_dcf_text();
+  replace(text, "CompactSubObj=127\n\n[1017]", "CompactSubObj=1\n\n[1017]");
+  MasterConfig config(id(1));
+  config.dcf = parse(text);
+  config.add_slave(id(2)).heartbeat = 100ms;
+  config.add_slave(id(3)).heartbeat = 100ms;
+  auto m = config.build();
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.error().message,
+            "1016h has 1 entries: no room for the heartbeat of node 3 (2 wanted)");
+}
+
+TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
+  MasterConfig config(id(1));
+  EXPECT_EQ(error_of(config), "(valid)");
+
+  config.add_slave(id(1));
+  EXPECT_EQ(error_of(config), "slave 1: is the master's own node-ID");
+  config.slaves.clear();
+
+  config.slaves.emplace_back(id(2));
+  config.slaves.emplace_back(id(2));
+  EXPECT_EQ(error_of(config), "slave 2: listed twice");
+  config.slaves.pop_back();
+
+  config.add_slave(id(2)).heartbeat = 70s;
+  EXPECT_EQ(error_of(config),
+            "slave 2: heartbeat time 70000 ms is above 65535 ms (1016h: 1..65535 ms)");
+  config.add_slave(id(2)).heartbeat = 1500us;
+  EXPECT_EQ(error_of(config),
+            "slave 2: heartbeat time 1500 us is not a whole number of "
+            "milliseconds (1016h: 1..65535 ms)");
+  config.add_slave(id(2)).heartbeat = 0ms;
+  EXPECT_EQ(error_of(config), "slave 2: heartbeat time 0 ms is below 1 ms (1016h: 1..65535 ms)");
+  config.add_slave(id(2)).heartbeat.reset();
+
+  config.add_slave(id(2)).guarding = GuardingConfig{100ms, 0};
+  EXPECT_EQ(error_of(config),
+            "slave 2: retry factor 0 disables guarding (1F81h byte 1: 1..255); "
+            "leave guarding unset instead");
+  config.add_slave(id(2)).guarding = GuardingConfig{0ms, 3};
+  EXPECT_EQ(error_of(config),
+            "slave 2: guard time 0 ms is below 1 ms (1F81h bytes 2-3: 1..65535 ms)");
+  config.add_slave(id(2)).guarding.reset();
+
+  config.add_slave(id(2)).identity.vendor_id = 0;
+  EXPECT_EQ(error_of(config),
+            "slave 2: expected vendor-ID 0 means 'not checked' in 1F85h sub 02h; leave it unset");
+  config.add_slave(id(2)).identity.vendor_id.reset();
+
+  config.nmt_inhibit_time = 150us;
+  EXPECT_EQ(error_of(config),
+            "NMT inhibit time (102Ah) 150 us is not a multiple of 100 us up to 6553500 us");
+  config.nmt_inhibit_time = 6553600us;
+  EXPECT_NE(error_of(config), "(valid)");
+  config.nmt_inhibit_time = 6553500us;
+  EXPECT_EQ(error_of(config), "(valid)");
+
+  // §6.13: priority time slot > 127 x device time slot.
+  config.flying_master.device_time_slot = 12ms;
+  EXPECT_EQ(error_of(config),
+            "flying master priority time slot 1500 ms must exceed 127 x the "
+            "device time slot 12 ms (CiA 302-2 §6.13)");
+  config.flying_master.device_time_slot = 11ms;
+  EXPECT_EQ(error_of(config), "(valid)");
+
+  config.boot_time = 1500us;
+  auto m = config.build();
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.error().message, "boot time (1F89h) 1500 us is not a whole number of milliseconds");
+}
+
+}  // namespace
+}  // namespace nmt
