@@ -11,6 +11,9 @@
 #    linking libpcap, which the library loads when the trace is opened;
 #  - samples/embed_master (a program embedding the NMT master on the simulated bus) builds with the
 #    CMake package and with pkg-config and runs;
+#  - samples/socketcan_master (the master on SocketCAN, called into from a console thread with
+#    post()) builds with the CMake package and with pkg-config, and says so when its bus cannot be
+#    opened (exit 1; no CAN interface is needed);
 #  - the installed tree moved elsewhere: cfgmgr still finds its schemas; a lone copy of cfgmgr
 #    says that it found none (exit 3) unless given them;
 #  - the man pages render without warnings and name every option of the --help they come from.
@@ -22,16 +25,8 @@ cxx=$3
 here=$(cd "$(dirname "$0")" && pwd)
 source_dir=$(cd "$here/../.." && pwd)
 
-failures=0
-fail() {
-  echo "FAIL: $*" >&2
-  failures=$((failures + 1))
-}
-check() {  # check DESCRIPTION COMMAND...: the command must succeed
-  local what=$1
-  shift
-  if "$@"; then echo "ok: $what"; else fail "$what"; fi
-}
+# shellcheck source=SCRIPTDIR/checks.sh
+source "$here/checks.sh"
 
 rm -rf "$work"
 mkdir -p "$work"
@@ -193,6 +188,37 @@ sample_pkg_config() {
     { cat "$work/embed-master-pkg-config.out" >&2; return 1; }
 }
 check "samples/embed_master builds with pkg-config (canopen-nmt-sim) and runs" sample_pkg_config
+
+# --- the sample that runs the master on SocketCAN and posts into it from another thread ----------
+socketcan_sample=$source_dir/samples/socketcan_master
+# No interface of that name exists: the program must end at once with exit 1, naming the URL.
+missing_bus=socketcan:nocanopen0
+runs_without_bus() {  # runs_without_bus PROGRAM
+  local out status=0
+  out=$("$1" "$missing_bus" 2 </dev/null 2>&1) || status=$?
+  if [ "$status" -ne 1 ] || ! grep -q "nocanopen0" <<<"$out"; then
+    echo "$1 $missing_bus: exit $status: $out" >&2
+    return 1
+  fi
+}
+socketcan_sample_cmake() {
+  local dir=$work/socketcan-master
+  cmake -S "$socketcan_sample" -B "$dir" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_CXX_COMPILER="$cxx" \
+    >"$dir.configure.log" 2>&1 || { cat "$dir.configure.log" >&2; return 1; }
+  cmake --build "$dir" >"$dir.build.log" 2>&1 || { cat "$dir.build.log" >&2; return 1; }
+  runs_without_bus "$dir/socketcan_master"
+}
+check "samples/socketcan_master builds with the CMake package and runs" socketcan_sample_cmake
+socketcan_sample_pkg_config() {
+  local flags
+  flags=$(pkg-config --cflags --libs canopen-nmt-io) || return 1
+  # shellcheck disable=SC2086
+  "$cxx" -std=c++20 -pthread "$socketcan_sample/main.cpp" -o "$work/socketcan-master-pkg-config" \
+    $flags -Wl,-rpath,"$prefix/$libdir" || return 1
+  runs_without_bus "$work/socketcan-master-pkg-config"
+}
+check "samples/socketcan_master builds with pkg-config (canopen-nmt-io) and runs" \
+  socketcan_sample_pkg_config
 
 # --- relocated tools find their schemas, or say that they did not --------------------------------
 moved=$work/moved
