@@ -14,8 +14,13 @@ include(CMakePackageConfigHelpers)
 
 set(CANOPEN_CMAKE_INSTALL_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/canopen)
 
-# Headers keep their "cfg/x.hpp" / "nmt/x.hpp" names under <includedir>/canopen.
-foreach(dir libcfg/include libnmt/core/include libnmt/sim/include libnmt/io/include)
+# Headers keep their "cfg/x.hpp" / "nmt/x.hpp" names under <includedir>/canopen. CANOPEN_CORE_ONLY
+# installs canopen::cfg and canopen::nmt_core with their headers and pkg-config files only.
+set(header_dirs libcfg/include libnmt/core/include)
+if(NOT CANOPEN_CORE_ONLY)
+  list(APPEND header_dirs libnmt/sim/include libnmt/io/include)
+endif()
+foreach(dir ${header_dirs})
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/canopen
           COMPONENT dev FILES_MATCHING PATTERN "*.hpp")
 endforeach()
@@ -72,14 +77,16 @@ canopen_pkg_config(canopen-cfg
 canopen_pkg_config(canopen-nmt-core
                    "CANopen protocol engines (frames, SDO, NMT slave, error control, EMCY)"
                    canopen-cfg "" canopen-nmt-core)
-canopen_pkg_config(canopen-nmt-sim "CANopen simulated bus and simulated devices"
-                   canopen-nmt-core "" canopen-nmt-sim)
-# libpcap is loaded with dlopen() when a pcap trace is opened (libnmt/CMakeLists.txt): a static
-# link needs the dynamic loader's library (libdl before glibc 2.34), not libpcap.
-canopen_pkg_config(canopen-nmt-io "CANopen bus drivers: SocketCAN, UDP multicast, traces"
-                   canopen-nmt-core msgpack canopen-nmt-io ${CMAKE_DL_LIBS})
-canopen_pkg_config(canopen-nmt "CANopen libnmt: protocol engines, simulation and bus drivers"
-                   "canopen-nmt-core canopen-nmt-sim canopen-nmt-io" "" "")
+if(NOT CANOPEN_CORE_ONLY)
+  canopen_pkg_config(canopen-nmt-sim "CANopen simulated bus and simulated devices"
+                     canopen-nmt-core "" canopen-nmt-sim)
+  # libpcap is loaded with dlopen() when a pcap trace is opened (libnmt/CMakeLists.txt): a static
+  # link needs the dynamic loader's library (libdl before glibc 2.34), not libpcap.
+  canopen_pkg_config(canopen-nmt-io "CANopen bus drivers: SocketCAN, UDP multicast, traces"
+                     canopen-nmt-core msgpack canopen-nmt-io ${CMAKE_DL_LIBS})
+  canopen_pkg_config(canopen-nmt "CANopen libnmt: protocol engines, simulation and bus drivers"
+                     "canopen-nmt-core canopen-nmt-sim canopen-nmt-io" "" "")
+endif()
 
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/schemas/ DESTINATION ${CANOPEN_SCHEMA_INSTALL_DIR}
         COMPONENT runtime FILES_MATCHING PATTERN "*.eds")
