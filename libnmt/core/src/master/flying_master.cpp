@@ -145,7 +145,6 @@ void NmtMaster::Impl::flying_win(TimePoint now, Output& out) {
   flying.force_tries = 0;
   // §3.7 h: the winner answers the negotiation with its priority and node-ID ...
   out.send(master_response(t.priority, node_id));
-  call_frames_begin = out.frames.size();  // the start-up's NMT commands go after it
   // ... and checks for other active masters every 1F90h sub 6 (§5.5.3).
   flying.cycle_due.reset();
   if (t.cycle.count() > 0) flying.cycle_due = now + t.cycle;

@@ -322,7 +322,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
   // Each queued command waits for the inhibit time (102Ah, which a peer may set to 6.5 s):
   // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (nmt_master.hpp).
   auto no_room_for = [&](std::size_t commands) {
-    return nmt_queue.size() + commands > options.max_queued_nmt_requests;
+    return nmt_commands.size() + commands > options.max_queued_nmt_requests;
   };
   Output& out = sink();
   if (sub == kAll) {

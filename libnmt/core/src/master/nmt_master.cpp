@@ -1,6 +1,7 @@
 // NmtMaster: the public calls, NMT start-up (CiA 302-2 §3.1), the error handler and boot-up
-// handler (§4.2, §4.3), the NMT inhibit time (102Ah, §6.1), and the routing of frames and time
-// to the parts. Boot NMT slave lives in boot_slave.cpp and check_configuration.cpp, the objects
+// handler (§4.2, §4.3), the slave states the NMT command queue's commands set (the queue and
+// its inhibit time, §6.1: nmt_command_queue.hpp), and the routing of frames and time to the
+// parts. Boot NMT slave lives in boot_slave.cpp and check_configuration.cpp, the objects
 // and request NMT/guarding in master_dictionary.cpp, the SDO transfers in master_transfers.cpp.
 #include "nmt/nmt_master.hpp"
 
@@ -256,11 +257,7 @@ namespace {
 template <class Impl>
 struct CallScope {
   Impl& impl;
-  CallScope(Impl& i, NmtMaster::Output& out) : impl(i) {
-    impl.current = &out;
-    impl.call_frames_begin = out.frames.size();
-    impl.nmt_frames_in_call = 0;
-  }
+  CallScope(Impl& i, NmtMaster::Output& out) : impl(i) { impl.current = &out; }
   ~CallScope() { impl.current = nullptr; }
   CallScope(const CallScope&) = delete;
   CallScope& operator=(const CallScope&) = delete;
@@ -390,10 +387,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   if (!m.waiting.empty() && static_cast<double>(m.boot_transfers) < std::floor(m.window)) {
     due = earliest(due, m.paced_until);
   }
-  if (!m.nmt_queue.empty()) {
-    const auto inhibit = m.nmt_inhibit_time();
-    due = earliest(due, m.last_nmt && inhibit.count() > 0 ? *m.last_nmt + inhibit : TimePoint{0});
-  }
+  due = earliest(due, m.nmt_commands.next_deadline());
   return due;
 }
 
@@ -531,7 +525,6 @@ void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
   // machine"): initialisation ends with its boot-up message.
   own_state = NmtState::Initialising;
   out.send(make_boot_up(node_id));
-  call_frames_begin = out.frames.size();  // NMT commands of this call go after the boot-up
   producer.set_period(static_cast<std::uint16_t>(value_of(obj::kProducerHeartbeatTime, 0)), now);
   producer.on_boot_up(now);
   set_own_state(NmtState::PreOperational, now, out);
@@ -709,24 +702,14 @@ void NmtMaster::Impl::apply_own_command(NmtCommand command, TimePoint now, Outpu
 
 // --- NMT commands and the inhibit time (§6.1) ---
 
-void NmtMaster::Impl::queue_nmt(NmtCommand command, std::uint8_t node) {
-  nmt_queue.emplace_back(command, node);
-}
-
 void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
-  // §6.1: queued NMT services go out in order, at least the inhibit time apart.
-  const auto inhibit = nmt_inhibit_time();
-  while (!nmt_queue.empty()) {
-    if (inhibit.count() > 0 && last_nmt && now < *last_nmt + inhibit) return;
-    const auto [command, node] = nmt_queue.front();
-    nmt_queue.pop_front();
-    // Ahead of this call's SDO frames: a reset reaches a slave before the request that
-    // follows it, and the inhibit time is not stretched by the master's own queue.
-    const auto at = std::min(out.frames.size(), call_frames_begin + nmt_frames_in_call);
-    out.frames.insert(out.frames.begin() + static_cast<std::ptrdiff_t>(at),
-                      make_nmt_command(command, node));
-    ++nmt_frames_in_call;
-    last_nmt = now;
+  // §6.1: the queue sends what the inhibit time allows; settle() runs it before it hands out
+  // the call's SDO requests, so a reset reaches a slave before the request that follows it.
+  nmt_commands.set_inhibit_time(nmt_inhibit_time());
+  nmt_out.clear();
+  nmt_commands.on_timer(now, nmt_out);
+  for (const auto& f : nmt_out.frames) out.send(f);
+  for (const auto& [command, node] : nmt_out.events) {
     const auto state = state_after(command);
     if (node == 0) {
       for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {

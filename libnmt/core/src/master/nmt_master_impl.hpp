@@ -1,7 +1,7 @@
 // The inside of nmt::NmtMaster, shared by its files: nmt_master.cpp (NMT start-up, the
-// handlers of §4, the NMT queue, request NMT/guarding, frame routing), master_dictionary.cpp
-// (its objects and their value checks, §6), boot_slave.cpp (boot NMT slave, §3.4, §3.6) and
-// check_configuration.cpp (§3.5). Private to the library.
+// handlers of §4, running the NMT command queue, request NMT/guarding, frame routing),
+// master_dictionary.cpp (its objects and their value checks, §6), boot_slave.cpp (boot NMT slave,
+// §3.4, §3.6) and check_configuration.cpp (§3.5). Private to the library.
 #pragma once
 
 #include <array>
@@ -21,6 +21,7 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_manager_objects.hpp"
+#include "master/nmt_command_queue.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_server.hpp"
@@ -279,16 +280,14 @@ struct NmtMaster::Impl {
   MasterDetection detection;
   SdoManager sdo_manager;
 
-  std::deque<std::pair<NmtCommand, std::uint8_t>> nmt_queue;
-  std::optional<TimePoint> last_nmt;
+  /// The NMT commands and their inhibit time (§6.1); run by flush_nmt() from settle().
+  NmtCommandQueue nmt_commands;
+  NmtCommandQueue::Output nmt_out;  ///< scratch output of nmt_commands
 
   /// The Output of the public call in progress; events of dictionary hooks that run outside one
   /// (a write through dictionary()) wait in `deferred` until the next call.
   Output* current = nullptr;
   Output deferred;
-  /// Where this call's frames begin in `current`, and how many NMT commands it put first.
-  std::size_t call_frames_begin = 0;
-  std::size_t nmt_frames_in_call = 0;
   Output& sink() { return current != nullptr ? *current : deferred; }
 
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
@@ -349,7 +348,8 @@ struct NmtMaster::Impl {
   void check_startup(TimePoint now, Output& out);
   void finish_startup(TimePoint now, Output& out);
   void set_own_state(NmtState state, TimePoint now, Output& out);
-  void queue_nmt(NmtCommand command, std::uint8_t node);
+  void queue_nmt(NmtCommand command, std::uint8_t node) { nmt_commands.queue(command, node); }
+  /// Runs the NMT command queue: its due commands go out, and the slaves' states they set.
   void flush_nmt(TimePoint now, Output& out);
   void apply_own_command(NmtCommand command, TimePoint now, Output& out);
   void set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now, Output& out);
