@@ -259,7 +259,12 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
     case obj::kSlaveAssignment:
       return sub != 0 && assignment_reserved(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
     case obj::kFlyingMasterParameters:
-      return flying_value_problem(dict, sub, value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
+      if (flying_value_problem(dict, sub, value)) return SdoAbort::ValueRangeExceeded;
+      flying.set_timing(flying_timing(sub, value));  // the engine's next steps use it
+      return SdoAbort::None;
+    case obj::kSelfStartingNodesTiming:
+      if (auto timing = detection_timing(sub, value)) flying.set_detection_timing(*timing);
+      return SdoAbort::None;
     case obj::kRequestNmt:
       return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now);
     case obj::kRequestGuarding:

@@ -290,7 +290,7 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     return true;
   }
   if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
-  if (m.flying_frame(frame, now, out)) {
+  if (m.flying.on_frame(frame, now, out)) {
     m.settle(now, out);
     return true;
   }
@@ -333,7 +333,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.manager_servers_timer(now, out);
   }
   m.clients.on_timer(now, m.sdo_out);
-  m.flying_timer(now, out);
+  m.flying.on_timer(now, out);
   {
     Outbox<NoEvent> producer_out;
     m.producer.on_timer(now, producer_out);
@@ -376,7 +376,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.producer.next_deadline());
   due = earliest(due, m.heartbeats.next_deadline());
   due = earliest(due, m.guarding.next_deadline());
-  due = earliest(due, m.flying_deadline());
+  due = earliest(due, m.flying.next_deadline());
   due = earliest(due, m.manager_deadline());
   due = earliest(due, m.boot_up_quiet);
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
@@ -492,15 +492,11 @@ StartupState NmtMaster::startup_state() const {
 }
 std::optional<cfg::NodeId> NmtMaster::active_master() const {
   const auto& m = *impl_;
-  if (m.flying.phase == FlyingMaster::Phase::Off) {
+  if (m.flying.phase() == FlyingMasterProcess::Phase::Off) {
     if (m.startup == StartupState::Off || m.startup == StartupState::NotMaster) return std::nullopt;
     return m.node_id;
   }
-  if (m.flying.phase != FlyingMaster::Phase::Active &&
-      m.flying.phase != FlyingMaster::Phase::Standby) {
-    return std::nullopt;
-  }
-  return cfg::NodeId::from(m.flying.active);
+  return m.flying.active_master();
 }
 std::uint8_t NmtMaster::known_state(cfg::NodeId node) const {
   return impl_->slaves[node].known_state;
@@ -545,24 +541,25 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     s = SlaveBoot{};
     s.known_state = held_state;
   }
-  if (!config.is_master() || !config.flying_master()) flying = FlyingMaster{};
+  if (!config.is_master() || !config.flying_master()) flying.stop();
   // §3.1 a: not the master. Table 16: a self-starting device goes operational by itself, and
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
     startup = StartupState::NotMaster;
     report(out, master_event(MasterEvent::Kind::NotMaster, now, 0,
                              "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
-    detection = MasterDetection{};
+    flying.stop_detection();
     if (config.self_starting()) {
-      if (config.start_all_nodes()) start_all_when_no_master(now);
+      // §5.1: all nodes only when no master-capable device answers (flying_master.hpp).
+      if (config.start_all_nodes()) flying.detect_master(detection_timing(), now);
       set_own_state(NmtState::Operational, now, out);
     }
     return;
   }
   // §3.1 b: with bit 5 NMT flying master start-up (§3.7, flying_master.cpp) decides; it
   // comes back here when this device won.
-  if (config.flying_master() && flying.phase != FlyingMaster::Phase::Active) {
-    flying_begin(now, out);
+  if (config.flying_master() && flying.phase() != FlyingMasterProcess::Phase::Active) {
+    flying.start(flying_timing(), now, out);
     return;
   }
   startup = StartupState::BootingSlaves;
