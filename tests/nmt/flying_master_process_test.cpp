@@ -15,8 +15,13 @@
 #include <utility>
 #include <vector>
 
+#include "nmt_master_spec_test_rig.hpp"
+
 namespace nmt {
 namespace {
+
+using master_spec::id;
+using master_spec::reply_71;
 
 using namespace std::chrono_literals;
 using Kind = MasterEvent::Kind;
@@ -24,10 +29,6 @@ using Phase = FlyingMasterProcess::Phase;
 
 Duration ms(std::int64_t value) {
   return std::chrono::milliseconds(value);
-}
-
-cfg::NodeId id(std::uint8_t node) {
-  return cfg::NodeId::from(node).value();
 }
 
 // 1F90h with the CiA 302-2 §6.13 Table 50 defaults (sub 6: 4000 + 10 x node-ID).
@@ -41,17 +42,6 @@ constexpr DetectionTiming kDetectionDefaults{100ms, 500ms, 15ms};
 // §5.3.1: waiting time = priority level x priority time slot + node-ID x device time slot.
 Duration waiting_time(const FlyingTiming& t, std::uint8_t node) {
   return t.priority * t.priority_slot + node * t.node_slot;
-}
-
-// "071#PPNN": DSP 302 §5.5.1.1 / §5.5.1.3.
-std::string reply_71(std::uint16_t priority, std::uint8_t node) {
-  static constexpr char kDigits[] = "0123456789ABCDEF";
-  std::string text = "071#";
-  for (unsigned byte : {unsigned{priority} & 0xFFU, unsigned{node}}) {
-    text += kDigits[byte >> 4U];
-    text += kDigits[byte & 0xFU];
-  }
-  return text;
 }
 
 // What the engine asked of the NMT master.

@@ -56,17 +56,6 @@ Duration waiting_time(std::uint16_t priority, std::uint8_t node, std::uint16_t p
   return ms(std::int64_t{priority} * priority_slot + std::int64_t{node} * device_slot);
 }
 
-// "071#PPNN": DSP 302 §5.5.1.1 / §5.5.1.3, data byte 0 the priority level, byte 1 the node-ID.
-std::string reply_71(std::uint16_t priority, std::uint8_t node) {
-  static constexpr char kDigits[] = "0123456789ABCDEF";
-  std::string text = "071#";
-  for (unsigned byte : {unsigned{priority} & 0xFFU, unsigned{node}}) {
-    text += kDigits[byte >> 4U];
-    text += kDigits[byte & 0xFU];
-  }
-  return text;
-}
-
 // 1F90h sub 1..6 of one master (§6.13); nullopt: the default.
 struct Timing {
   std::optional<std::uint16_t> timeout{};
