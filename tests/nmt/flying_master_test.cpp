@@ -492,22 +492,6 @@ TEST(FlyingMaster, TimingParameterWritesAreChecked) {
   EXPECT_EQ(dict.get_unsigned(0x1F90, 5), 5U);
 }
 
-// §5.1: a device with 1F80h bit 0 answers NMT master detection (75h) with 74h, no data.
-TEST(FlyingMaster, MasterCapableDeviceAnswersMasterDetection) {
-  FlyingRig rig;
-  rig.add_master(10, 1);
-  rig.start(10);
-  FunctionNode asker;
-  rig.bus.attach(asker);
-  rig.run_for(10ms);
-  const auto asked = rig.bus.now();
-  asker.send(CanFrame::make(0x75, {}));
-  rig.run_for(10ms);
-  const auto answers = rig.on_id(0x74, asked);
-  ASSERT_EQ(answers.size(), 1U);
-  EXPECT_EQ(answers.front().text(), "074#");
-}
-
 // Header: a standby master is no NMT master: request NMT (1F82h) is refused with 0800 0022.
 TEST(FlyingMaster, StandbyMasterRefusesRequestNmt) {
   Running net;

@@ -68,6 +68,17 @@ inline cfg::NodeId id(std::uint8_t node) {
   return cfg::NodeId::from(node).value();
 }
 
+// "071#PPNN": DSP 302 §5.5.1.1 / §5.5.1.3, data byte 0 the priority level, byte 1 the node-ID.
+inline std::string reply_71(std::uint16_t priority, std::uint8_t node) {
+  static constexpr char kDigits[] = "0123456789ABCDEF";
+  std::string text = "071#";
+  for (unsigned byte : {unsigned{priority} & 0xFFU, unsigned{node}}) {
+    text += kDigits[byte >> 4U];
+    text += kDigits[byte & 0xFU];
+  }
+  return text;
+}
+
 inline cfg::DeviceDescription load_file(const std::string& name) {
   auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/master/" + name);
   EXPECT_TRUE(result.ok()) << result.diagnostics.format();

@@ -259,7 +259,12 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
     case obj::kSlaveAssignment:
       return sub != 0 && assignment_reserved(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
     case obj::kFlyingMasterParameters:
-      return flying_value_problem(dict, sub, value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;
+      if (flying_value_problem(dict, sub, value)) return SdoAbort::ValueRangeExceeded;
+      flying.set_timing(flying_timing(sub, value));  // the engine's next steps use it
+      return SdoAbort::None;
+    case obj::kSelfStartingNodesTiming:
+      if (auto timing = detection_timing(sub, value)) flying.set_detection_timing(*timing);
+      return SdoAbort::None;
     case obj::kRequestNmt:
       return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now);
     case obj::kRequestGuarding:
@@ -322,7 +327,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
   // Each queued command waits for the inhibit time (102Ah, which a peer may set to 6.5 s):
   // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (nmt_master.hpp).
   auto no_room_for = [&](std::size_t commands) {
-    return nmt_queue.size() + commands > options.max_queued_nmt_requests;
+    return nmt_commands.size() + commands > options.max_queued_nmt_requests;
   };
   Output& out = sink();
   if (sub == kAll) {

@@ -153,15 +153,19 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
 }
 
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {
+  // The call's SDO requests stay in sdo_out until the end: the NMT commands of the call (each
+  // round's flush_nmt) go out ahead of them, by output order (§6.1 queue, nmt_command_queue.hpp).
+  std::size_t counted = 0;  // sdo_out frames the pacing has counted
   for (;;) {
-    if (options.bitrate != 0 && !sdo_out.frames.empty()) {
+    if (options.bitrate != 0 && sdo_out.frames.size() > counted) {
       // Each request and the answer it causes (taken to be as long), within the load limit.
       double bits = 0;
-      for (const auto& f : sdo_out.frames) bits += 2.0 * frame_bits(f).total();
+      for (std::size_t i = counted; i < sdo_out.frames.size(); ++i) {
+        bits += 2.0 * frame_bits(sdo_out.frames[i]).total();
+      }
       paced_until = std::max(paced_until, now) + paced_time(bits);
     }
-    for (const auto& f : sdo_out.frames) out.send(f);
-    sdo_out.frames.clear();
+    counted = sdo_out.frames.size();
     for (auto& r : sdo_out.events) results.push_back(std::move(r));
     sdo_out.events.clear();
     if (!results.empty()) {
@@ -177,8 +181,10 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
     manager_pump(now, out);
     if (startup == StartupState::BootingSlaves) check_startup(now, out);
     flush_nmt(now, out);
-    if (sdo_out.empty()) break;
+    if (sdo_out.events.empty() && sdo_out.frames.size() == counted) break;
   }
+  for (const auto& f : sdo_out.frames) out.send(f);
+  sdo_out.frames.clear();
   for (const auto& f : deferred.frames) out.send(f);
   for (auto& e : deferred.events) out.report(std::move(e));
   deferred.clear();

@@ -1,7 +1,9 @@
 // NmtMaster: the public calls, NMT start-up (CiA 302-2 §3.1), the error handler and boot-up
-// handler (§4.2, §4.3), the NMT inhibit time (102Ah, §6.1), and the routing of frames and time
-// to the parts. Boot NMT slave lives in boot_slave.cpp and check_configuration.cpp, the objects
-// and request NMT/guarding in master_dictionary.cpp, the SDO transfers in master_transfers.cpp.
+// handler (§4.2, §4.3), the slave states the NMT command queue's commands set (the queue and
+// its inhibit time, §6.1: nmt_command_queue.hpp), and the routing of frames and time to the
+// parts. Boot NMT slave lives in boot_slave.cpp and check_configuration.cpp, the objects
+// and request NMT/guarding in master_dictionary.cpp, the SDO transfers in master_transfers.cpp,
+// the texts of the enums and events in master_text.cpp.
 #include "nmt/nmt_master.hpp"
 
 #include <algorithm>
@@ -15,185 +17,6 @@
 namespace nmt {
 
 namespace obj = cfg::object;
-
-std::string_view describe(BootError error) {
-  // CiA 302-2 §3.8, Table 1.
-  switch (error) {
-    case BootError::A:
-      return "the device is not listed in object 1F81h";
-    case BootError::B:
-      return "no response received for upload request of object 1000h";
-    case BootError::C:
-      return "value of object 1000h differs from object 1F84h (device type)";
-    case BootError::D:
-      return "value of object 1018h sub 01h differs from object 1F85h (vendor-ID)";
-    case BootError::E:
-      return "heartbeat event: no heartbeat message received from the device";
-    case BootError::F:
-      return "node guarding event: no confirmation for the guarding request";
-    case BootError::G:
-      return "objects for program download are not configured or inconsistent";
-    case BootError::H:
-      return "software update is required, but not allowed because of configuration or status";
-    case BootError::I:
-      return "software update is required, but program download failed";
-    case BootError::J:
-      return "configuration download failed";
-    case BootError::K:
-      return "heartbeat event during start error control: no heartbeat message received";
-    case BootError::L:
-      return "NMT slave was initially operational";
-    case BootError::M:
-      return "value of object 1018h sub 02h differs from object 1F86h (product code)";
-    case BootError::N:
-      return "value of object 1018h sub 03h differs from object 1F87h (revision number)";
-    case BootError::O:
-      return "value of object 1018h sub 04h differs from object 1F88h (serial number)";
-  }
-  return "unknown error status";
-}
-
-std::string_view to_string(BootStep step) {
-  switch (step) {
-    case BootStep::Idle:
-      return "idle";
-    case BootStep::AwaitBootUp:
-      return "waiting for boot-up";
-    case BootStep::Identify:
-      return "identify";
-    case BootStep::CheckNmtState:
-      return "check NMT state";
-    case BootStep::CheckSoftware:
-      return "check software version";
-    case BootStep::UpdateSoftware:
-      return "software update";
-    case BootStep::VerifyConfiguration:
-      return "verify configuration";
-    case BootStep::Restore:
-      return "restore";
-    case BootStep::Download:
-      return "download";
-    case BootStep::Save:
-      return "save";
-    case BootStep::ApplicationStep:
-      return "application step";
-    case BootStep::StartErrorControl:
-      return "start error control";
-    case BootStep::Booted:
-      return "booted";
-    case BootStep::Failed:
-      return "failed";
-    case BootStep::RetryWait:
-      return "waiting to retry";
-  }
-  return "?";
-}
-
-std::string_view to_string(StartupState state) {
-  switch (state) {
-    case StartupState::Off:
-      return "off";
-    case StartupState::NotMaster:
-      return "not master";
-    case StartupState::Negotiating:
-      return "negotiating";
-    case StartupState::Standby:
-      return "standby";
-    case StartupState::BootingSlaves:
-      return "booting slaves";
-    case StartupState::Halted:
-      return "halted";
-    case StartupState::AwaitApplication:
-      return "waiting for the application";
-    case StartupState::Operational:
-      return "operational";
-  }
-  return "?";
-}
-
-std::string_view to_string(MasterEvent::Kind kind) {
-  using K = MasterEvent::Kind;
-  switch (kind) {
-    case K::NotMaster:
-      return "not_master";
-    case K::StartupBegan:
-      return "startup_began";
-    case K::BootStepChanged:
-      return "boot_step";
-    case K::SlaveBooted:
-      return "slave_booted";
-    case K::BootError:
-      return "boot_error";
-    case K::StartupHalted:
-      return "startup_halted";
-    case K::StartupAwaitsApplication:
-      return "startup_awaits_application";
-    case K::StartupComplete:
-      return "startup_complete";
-    case K::MasterStateChanged:
-      return "master_state";
-    case K::SlaveStateChanged:
-      return "slave_state";
-    case K::HeartbeatLost:
-      return "heartbeat_lost";
-    case K::GuardingLost:
-      return "guarding_lost";
-    case K::ErrorControlResolved:
-      return "error_control_resolved";
-    case K::BootUp:
-      return "boot_up";
-    case K::NmtCommandSent:
-      return "nmt_command";
-    case K::ApplicationStep:
-      return "application_step";
-    case K::SdoFinished:
-      return "sdo_finished";
-    case K::NegotiationBegan:
-      return "negotiation_began";
-    case K::ActiveMaster:
-      return "active_master";
-    case K::Standby:
-      return "standby";
-    case K::ForceNegotiation:
-      return "force_negotiation";
-    case K::MultipleMasters:
-      return "multiple_masters";
-    case K::ActiveMasterLost:
-      return "active_master_lost";
-    case K::MasterDetection:
-      return "master_detection";
-    case K::SrdRegistered:
-      return "srd_registered";
-    case K::SrdRegistrationFailed:
-      return "srd_registration_failed";
-    case K::SdoConnectionEstablished:
-      return "sdo_connection_established";
-    case K::SdoConnectionRefused:
-      return "sdo_connection_refused";
-    case K::SdoConnectionReleased:
-      return "sdo_connection_released";
-    case K::SrdLost:
-      return "srd_lost";
-    case K::SrdDeregistered:
-      return "srd_deregistered";
-    case K::SlaveFailedReported:
-      return "slave_failed_reported";
-  }
-  return "?";
-}
-
-std::string node_text(std::uint8_t node) {
-  return "node " + std::to_string(node);
-}
-
-MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node,
-                         std::string text) {
-  MasterEvent e{kind};
-  e.at = at;
-  e.node_id = node;
-  e.text = std::move(text);
-  return e;
-}
 
 namespace {
 
@@ -252,11 +75,7 @@ namespace {
 template <class Impl>
 struct CallScope {
   Impl& impl;
-  CallScope(Impl& i, NmtMaster::Output& out) : impl(i) {
-    impl.current = &out;
-    impl.call_frames_begin = out.frames.size();
-    impl.nmt_frames_in_call = 0;
-  }
+  CallScope(Impl& i, NmtMaster::Output& out) : impl(i) { impl.current = &out; }
   ~CallScope() { impl.current = nullptr; }
   CallScope(const CallScope&) = delete;
   CallScope& operator=(const CallScope&) = delete;
@@ -289,7 +108,7 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     return true;
   }
   if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
-  if (m.flying_frame(frame, now, out)) {
+  if (m.flying.on_frame(frame, now, out)) {
     m.settle(now, out);
     return true;
   }
@@ -332,7 +151,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.manager_servers_timer(now, out);
   }
   m.clients.on_timer(now, m.sdo_out);
-  m.flying_timer(now, out);
+  m.flying.on_timer(now, out);
   {
     Outbox<NoEvent> producer_out;
     m.producer.on_timer(now, producer_out);
@@ -375,7 +194,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.producer.next_deadline());
   due = earliest(due, m.heartbeats.next_deadline());
   due = earliest(due, m.guarding.next_deadline());
-  due = earliest(due, m.flying_deadline());
+  due = earliest(due, m.flying.next_deadline());
   due = earliest(due, m.manager_deadline());
   due = earliest(due, m.boot_up_quiet);
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
@@ -386,10 +205,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   if (!m.waiting.empty() && static_cast<double>(m.boot_transfers) < std::floor(m.window)) {
     due = earliest(due, m.paced_until);
   }
-  if (!m.nmt_queue.empty()) {
-    const auto inhibit = m.nmt_inhibit_time();
-    due = earliest(due, m.last_nmt && inhibit.count() > 0 ? *m.last_nmt + inhibit : TimePoint{0});
-  }
+  due = earliest(due, m.nmt_commands.next_deadline());
   return due;
 }
 
@@ -494,15 +310,11 @@ StartupState NmtMaster::startup_state() const {
 }
 std::optional<cfg::NodeId> NmtMaster::active_master() const {
   const auto& m = *impl_;
-  if (m.flying.phase == FlyingMaster::Phase::Off) {
+  if (m.flying.phase() == FlyingMasterProcess::Phase::Off) {
     if (m.startup == StartupState::Off || m.startup == StartupState::NotMaster) return std::nullopt;
     return m.node_id;
   }
-  if (m.flying.phase != FlyingMaster::Phase::Active &&
-      m.flying.phase != FlyingMaster::Phase::Standby) {
-    return std::nullopt;
-  }
-  return cfg::NodeId::from(m.flying.active);
+  return m.flying.active_master();
 }
 std::uint8_t NmtMaster::known_state(cfg::NodeId node) const {
   return impl_->slaves[node].known_state;
@@ -527,7 +339,6 @@ void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
   // machine"): initialisation ends with its boot-up message.
   own_state = NmtState::Initialising;
   out.send(make_boot_up(node_id));
-  call_frames_begin = out.frames.size();  // NMT commands of this call go after the boot-up
   producer.set_period(static_cast<std::uint16_t>(value_of(obj::kProducerHeartbeatTime, 0)), now);
   producer.on_boot_up(now);
   set_own_state(NmtState::PreOperational, now, out);
@@ -548,24 +359,25 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     s = SlaveBoot{};
     s.known_state = held_state;
   }
-  if (!config.is_master() || !config.flying_master()) flying = FlyingMaster{};
+  if (!config.is_master() || !config.flying_master()) flying.stop();
   // §3.1 a: not the master. Table 16: a self-starting device goes operational by itself, and
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
     startup = StartupState::NotMaster;
     report(out, master_event(MasterEvent::Kind::NotMaster, now, 0,
                              "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
-    detection = MasterDetection{};
+    flying.stop_detection();
     if (config.self_starting()) {
-      if (config.start_all_nodes()) start_all_when_no_master(now);
+      // §5.1: all nodes only when no master-capable device answers (flying_master.hpp).
+      if (config.start_all_nodes()) flying.detect_master(detection_timing(), now);
       set_own_state(NmtState::Operational, now, out);
     }
     return;
   }
   // §3.1 b: with bit 5 NMT flying master start-up (§3.7, flying_master.cpp) decides; it
   // comes back here when this device won.
-  if (config.flying_master() && flying.phase != FlyingMaster::Phase::Active) {
-    flying_begin(now, out);
+  if (config.flying_master() && flying.phase() != FlyingMasterProcess::Phase::Active) {
+    flying.start(flying_timing(), now, out);
     return;
   }
   startup = StartupState::BootingSlaves;
@@ -705,24 +517,14 @@ void NmtMaster::Impl::apply_own_command(NmtCommand command, TimePoint now, Outpu
 
 // --- NMT commands and the inhibit time (§6.1) ---
 
-void NmtMaster::Impl::queue_nmt(NmtCommand command, std::uint8_t node) {
-  nmt_queue.emplace_back(command, node);
-}
-
 void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
-  // §6.1: queued NMT services go out in order, at least the inhibit time apart.
-  const auto inhibit = nmt_inhibit_time();
-  while (!nmt_queue.empty()) {
-    if (inhibit.count() > 0 && last_nmt && now < *last_nmt + inhibit) return;
-    const auto [command, node] = nmt_queue.front();
-    nmt_queue.pop_front();
-    // Ahead of this call's SDO frames: a reset reaches a slave before the request that
-    // follows it, and the inhibit time is not stretched by the master's own queue.
-    const auto at = std::min(out.frames.size(), call_frames_begin + nmt_frames_in_call);
-    out.frames.insert(out.frames.begin() + static_cast<std::ptrdiff_t>(at),
-                      make_nmt_command(command, node));
-    ++nmt_frames_in_call;
-    last_nmt = now;
+  // §6.1: the queue sends what the inhibit time allows; settle() runs it before it hands out
+  // the call's SDO requests, so a reset reaches a slave before the request that follows it.
+  nmt_commands.set_inhibit_time(nmt_inhibit_time());
+  nmt_out.clear();
+  nmt_commands.on_timer(now, nmt_out);
+  for (const auto& f : nmt_out.frames) out.send(f);
+  for (const auto& [command, node] : nmt_out.events) {
     const auto state = state_after(command);
     if (node == 0) {
       for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {

@@ -1,7 +1,7 @@
 // The inside of nmt::NmtMaster, shared by its files: nmt_master.cpp (NMT start-up, the
-// handlers of §4, the NMT queue, request NMT/guarding, frame routing), master_dictionary.cpp
-// (its objects and their value checks, §6), boot_slave.cpp (boot NMT slave, §3.4, §3.6) and
-// check_configuration.cpp (§3.5). Private to the library.
+// handlers of §4, running the NMT command queue, request NMT/guarding, frame routing),
+// master_dictionary.cpp (its objects and their value checks, §6), boot_slave.cpp (boot NMT slave,
+// §3.4, §3.6) and check_configuration.cpp (§3.5). Private to the library.
 #pragma once
 
 #include <array>
@@ -21,6 +21,9 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_manager_objects.hpp"
+#include "master/flying_master.hpp"
+#include "master/master_text.hpp"
+#include "master/nmt_command_queue.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_server.hpp"
@@ -95,53 +98,6 @@ struct SlaveBoot {
   std::uint8_t known_state = 0;  ///< 1F82h read value: 0 unknown, 1 missing, else NmtState
   std::optional<BootError> reported_error;  ///< the error last reported (retries repeat silently)
   std::optional<TimePoint> heartbeat_at;    ///< the last heartbeat seen, for §3.6
-};
-
-/// NMT flying master start-up (CiA 302-2 §3.7, §5.2-§5.5) and the active master's watch
-/// (flying_master.cpp).
-struct FlyingMaster {
-  enum class Phase : std::uint8_t {
-    Off,        // 1F80h bit 5 clear, or not a master
-    Delay,      // §3.7 b: the negotiation time delay (1F90h sub 2)
-    Detect,     // §3.7 c: 73h sent, a 71h within 1F90h sub 1
-    Negotiate,  // §5.3: 72h seen, own waiting time running
-    Forced,     // §3.7 g/i: 76h sent, waiting for the active master's reset communication
-    Active,     // this device is the NMT master
-    Standby,    // an NMT slave watching the active master's heartbeat
-  };
-  Phase phase = Phase::Off;
-  bool warm = false;  ///< this start came from a reset communication (§3.7 d/e)
-  std::optional<TimePoint> deadline;
-  std::optional<TimePoint> cycle_due;  ///< Active: the next 76h (1F90h sub 6)
-  std::uint8_t active = 0;             ///< node-ID of the active master, 0: none known
-  std::uint16_t active_priority = 0;
-  std::optional<TimePoint> heartbeat_due;  ///< Standby: the active master's heartbeat by then
-  std::optional<Duration> watch;           ///< Standby: its heartbeat consumer time
-  bool forced = false;       ///< sent 76h since it last stood by or won (DSP 302 §5.5.2 hint)
-  unsigned force_tries = 0;  ///< 76h sent in a row without the reset they ask for
-};
-
-/// NMT master detection of a start-up capable device that starts all nodes (CiA 302-2 §5.1,
-/// DSP 302 §5.5.3.1, 1F91h): is there a device that will be the master?
-struct MasterDetection {
-  enum class Phase : std::uint8_t {
-    Off,
-    Delay,   // 1F91h sub 2 after entering pre-operational
-    Detect,  // 75h sent, a 74h within sub 1
-    Wait,    // no answer: node-ID x sub 3, then start all nodes
-  };
-  Phase phase = Phase::Off;
-  std::optional<TimePoint> deadline;
-};
-
-/// 1F90h, in the units of the engine.
-struct FlyingTiming {
-  Duration timeout;        ///< sub 1: answer of the active master
-  Duration delay;          ///< sub 2: before the detection
-  std::uint16_t priority;  ///< sub 3: 0 high .. 2 low
-  Duration priority_slot;  ///< sub 4
-  Duration node_slot;      ///< sub 5
-  Duration cycle;          ///< sub 6: multiple master detection (0: off)
 };
 
 /// The SDO manager (DSP 302 §7, sdo_manager.cpp): its SRDs, connections and the jobs that set
@@ -275,20 +231,33 @@ struct NmtMaster::Impl {
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
 
-  FlyingMaster flying;
-  MasterDetection detection;
+  /// The flying master's port to this master (master_flying_port.cpp).
+  struct FlyingPort final : FlyingMasterPort {
+    explicit FlyingPort(Impl& master) : m(master) {}
+    void became_active(TimePoint now, Output& out) override;
+    void set_startup(StartupState state) override;
+    void restart(TimePoint now) override;
+    void reset_all_nodes() override;
+    void queue_nmt(NmtCommand command, std::uint8_t node) override;
+    void obey(NmtCommand command, TimePoint now, Output& out) override;
+    bool master_capable() const override;
+    std::optional<Duration> heartbeat_time(std::uint8_t node) const override;
+    std::uint32_t own_heartbeat_ms() const override;
+    Impl& m;
+  };
+  FlyingPort flying_port{*this};
+  /// NMT flying master start-up and master detection (§3.7, §5.1-§5.5; flying_master.hpp).
+  FlyingMasterProcess flying{node_id, flying_port};
   SdoManager sdo_manager;
 
-  std::deque<std::pair<NmtCommand, std::uint8_t>> nmt_queue;
-  std::optional<TimePoint> last_nmt;
+  /// The NMT commands and their inhibit time (§6.1); run by flush_nmt() from settle().
+  NmtCommandQueue nmt_commands;
+  NmtCommandQueue::Output nmt_out;  ///< scratch output of nmt_commands
 
   /// The Output of the public call in progress; events of dictionary hooks that run outside one
   /// (a write through dictionary()) wait in `deferred` until the next call.
   Output* current = nullptr;
   Output deferred;
-  /// Where this call's frames begin in `current`, and how many NMT commands it put first.
-  std::size_t call_frames_begin = 0;
-  std::size_t nmt_frames_in_call = 0;
   Output& sink() { return current != nullptr ? *current : deferred; }
 
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
@@ -349,7 +318,8 @@ struct NmtMaster::Impl {
   void check_startup(TimePoint now, Output& out);
   void finish_startup(TimePoint now, Output& out);
   void set_own_state(NmtState state, TimePoint now, Output& out);
-  void queue_nmt(NmtCommand command, std::uint8_t node);
+  void queue_nmt(NmtCommand command, std::uint8_t node) { nmt_commands.queue(command, node); }
+  /// Runs the NMT command queue: its due commands go out, and the slaves' states they set.
   void flush_nmt(TimePoint now, Output& out);
   void apply_own_command(NmtCommand command, TimePoint now, Output& out);
   void set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now, Output& out);
@@ -368,32 +338,15 @@ struct NmtMaster::Impl {
     return node != node_id.value() && cfg::is_node_id(node) && assignment(node).is_slave();
   }
 
-  // --- flying master (flying_master.cpp) ----------------------------------------------------
-  FlyingTiming flying_timing() const;
-  /// §3.1 b with 1F80h bit 5: flying master start-up instead of NMT start-up.
-  void flying_begin(TimePoint now, Output& out);
-  /// Frames of the flying master protocols and the NMT commands a standby master obeys; true
-  /// when the frame was taken.
-  bool flying_frame(const CanFrame& frame, TimePoint now, Output& out);
-  void flying_timer(TimePoint now, Output& out);
-  std::optional<TimePoint> flying_deadline() const;
-  /// §5.1: a self-starting device with 1F80h bit 1 starts all nodes only when no master-capable
-  /// device answers (with 1F91h; without it at once).
-  void start_all_when_no_master(TimePoint now);
-  bool detection_frame(const CanFrame& frame, TimePoint now, Output& out);
-  void detection_timer(TimePoint now, Output& out);
-  void flying_restart(TimePoint now);
-  void flying_wait(TimePoint now, Output& out, const std::string& why);
-  void flying_win(TimePoint now, Output& out);
-  void flying_standby(std::uint8_t node, std::uint16_t priority, TimePoint now, Output& out,
-                      const std::string& why);
-  void flying_force(TimePoint now, Output& out, std::uint8_t node, std::uint16_t priority);
-  void flying_master_response(std::uint16_t priority, std::uint8_t node, TimePoint now,
-                              Output& out);
+  // --- the flying master's side in the master (master_flying_port.cpp) -----------------------
+  /// 1F90h; with `written_sub` (not 0) `written` in place of the dictionary's value (a write
+  /// being checked).
+  FlyingTiming flying_timing(std::uint8_t written_sub = 0, std::uint32_t written = 0) const;
+  /// 1F91h, the same way; nullopt without the object.
+  std::optional<DetectionTiming> detection_timing(std::uint8_t written_sub = 0,
+                                                  std::uint32_t written = 0) const;
   /// False while a flying master is not the active one (standby or negotiating).
-  bool acts_as_master() const {
-    return flying.phase == FlyingMaster::Phase::Off || flying.phase == FlyingMaster::Phase::Active;
-  }
+  bool acts_as_master() const { return flying.acts_as_master(); }
   /// Reset communication of all nodes as §3.1 d words it (individually when a slave is kept
   /// alive, never the master itself).
   void queue_reset_all(TimePoint now);
@@ -509,8 +462,6 @@ struct NmtMaster::Impl {
 /// An entry of the master's own objects with `value` in the type's size (0 bytes for DOMAIN).
 DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
                            cfg::DataType type, cfg::AccessType access, std::uint64_t value);
-/// "node 3" (messages).
-std::string node_text(std::uint8_t node);
 /// The first up to 4 bytes of `data`, little-endian, 0 when empty: the low 32 bits of a number
 /// from the bus, whose length the bus decides (cfg::load_le asserts 1..8 bytes).
 std::uint32_t low_u32(std::span<const std::uint8_t> data);
@@ -520,7 +471,5 @@ std::uint32_t uploaded_u32(const SdoResult& result);
 std::string transfer_failure(const SdoResult& result);
 /// An UNSIGNED32 value as download bytes.
 std::vector<std::uint8_t> u32_bytes(std::uint32_t value);
-/// An event with the fields every kind has.
-MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node, std::string text);
 
 }  // namespace nmt
