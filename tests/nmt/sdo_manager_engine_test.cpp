@@ -1,0 +1,600 @@
+// The SDO manager engine alone (SdoManagerProcess, DSP 302 §7), driven through a fake of its
+// port: no master, no bus. The fake answers each SDO access the engine starts from the
+// dictionaries of the devices on its "network" (a node without one is silent: the access times
+// out), records every access in order, and says what the engine asked of error control. The
+// engine's own frames (its server channels) are checked byte for byte. Values are the bit
+// layouts of DSP 302 §7.2.3 (1F10h, 1F00h/1F01h, 1F02h, 1F03h) and the choices the top of
+// nmt/nmt_master.hpp documents (the pool 680h.. of a dictionary without 1F02h, the scan from
+// 127 down), the same as the whole-master cases these came from (sdo_manager_test.cpp).
+//
+// Devices: SRDs from tests/data/sdo_manager/srd.eds (1F10h, 1F11h, client entries 1280h-1283h
+// not valid, 1017h = 100 ms); slave 2 from slave_channels.eds (1201h, 1202h not valid), slave 3
+// from tests/data/master/slave.eds (its default SDO only). The manager is node 1.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <deque>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "cfg/bytes.hpp"
+#include "cfg/device_file.hpp"
+#include "manager/sdo_manager_process.hpp"
+#include "nmt_master_spec_test_rig.hpp"
+#include "test_paths.hpp"
+
+namespace nmt {
+namespace {
+
+using namespace std::chrono_literals;
+using Kind = MasterEvent::Kind;
+using master_spec::le;
+
+constexpr std::uint8_t kManager = 1;
+constexpr std::uint32_t kInvalid = 0x80000000;
+constexpr std::uint32_t kInUse = 0x40000000;  // 1F02h bit 30 (§7.2.3)
+
+/// 1F00h/1F01h value (§7.2.3): index << 16 | SRD node-ID << 8 | slave node-ID.
+constexpr std::uint32_t request_word(std::uint16_t index, std::uint8_t srd, std::uint8_t slave) {
+  return (std::uint32_t{index} << 16U) | (std::uint32_t{srd} << 8U) | slave;
+}
+
+const cfg::DeviceDescription& device_file(const std::string& path) {
+  static std::map<std::string, cfg::DeviceDescription> files;
+  auto it = files.find(path);
+  if (it != files.end()) return it->second;
+  auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/" + path);
+  EXPECT_TRUE(result.ok()) << path << ": " << result.diagnostics.format();
+  return files.emplace(path, result.device.value_or(cfg::DeviceDescription{})).first->second;
+}
+
+/// One SDO access the engine started, as the fake port saw it.
+struct Access {
+  std::uint8_t node;
+  std::uint16_t index;
+  std::uint8_t sub;
+  bool upload;
+  std::uint32_t value;  ///< download
+  bool operator==(const Access&) const = default;
+};
+std::ostream& operator<<(std::ostream& os, const Access& a) {
+  return os << "node " << int{a.node} << (a.upload ? " read " : " write ") << std::hex << a.index
+            << " sub " << int{a.sub} << (a.upload ? "" : " = " + std::to_string(a.value))
+            << std::dec;
+}
+Access read(std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
+  return {node, index, sub, true, 0};
+}
+Access write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
+  return {node, index, sub, false, value};
+}
+
+/// The master as the engine sees it, and the devices its transfers reach.
+class FakeMaster final : public SdoManagerPort {
+ public:
+  bool active = true;
+  std::map<std::uint8_t, LocalDictionary> devices;
+  std::vector<Access> accesses;
+  std::deque<SdoManagerTransfer> pending;
+  std::map<std::uint8_t, Duration> consumer;  ///< the master's 1016h entries
+  std::set<std::uint8_t> master_watches;      ///< error control the master runs anyway
+  std::map<std::uint8_t, std::optional<Duration>> watched;  ///< watch() calls
+  std::vector<std::uint8_t> unwatched;
+
+  bool master_active() const override { return active; }
+  bool serves_sdo() const override { return true; }
+  void start_transfer(SdoManagerTransfer t, TimePoint) override {
+    accesses.push_back(
+        {t.node, t.index, t.sub, t.upload,
+         t.upload ? 0 : static_cast<std::uint32_t>(cfg::load_le(t.data, t.data.size()))});
+    pending.push_back(std::move(t));
+  }
+  std::optional<Duration> consumer_time(std::uint8_t node) const override {
+    auto it = consumer.find(node);
+    return it == consumer.end() ? std::nullopt : std::optional<Duration>(it->second);
+  }
+  bool watches(std::uint8_t node) const override {
+    return master_watches.count(node) != 0 || watched.count(node) != 0;
+  }
+  void watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint) override {
+    watched[node] = heartbeat;
+  }
+  void unwatch(std::uint8_t node) override {
+    watched.erase(node);
+    unwatched.push_back(node);
+  }
+
+  /// The result of `t` as the device (or its absence) gives it.
+  SdoResult answer(const SdoManagerTransfer& t, TimePoint now) {
+    SdoResult r;
+    r.node_id = t.node;
+    r.index = t.index;
+    r.sub_index = t.sub;
+    r.upload = t.upload;
+    auto it = devices.find(t.node);
+    if (it == devices.end()) {
+      r.abort = SdoAbort::Timeout;  // the client detected it
+      return r;
+    }
+    r.abort = t.upload ? it->second.read(t.index, t.sub, r.data, now)
+                       : it->second.write(t.index, t.sub, t.data, now);
+    r.aborted_by_server = r.abort != SdoAbort::None;
+    return r;
+  }
+};
+
+class SdoManagerEngine : public ::testing::Test {
+ protected:
+  SdoManagerEngine() { settings.enabled = true; }
+
+  /// Builds and installs the engine (settings may be changed before).
+  SdoManagerProcess& engine() {
+    if (!engine_) {
+      engine_.emplace(dict, port, *cfg::NodeId::from(kManager), settings);
+      engine_->install();
+    }
+    return *engine_;
+  }
+  void add_device(std::uint8_t node, const std::string& file) {
+    auto d = LocalDictionary::from_device(device_file(file), node);
+    ASSERT_TRUE(d.ok());
+    port.devices.emplace(node, std::move(d).value());
+  }
+  void add_srd(std::uint8_t node) { add_device(node, "sdo_manager/srd.eds"); }
+  /// Slaves 2 (1201h, 1202h) and 3 (default SDO only).
+  void add_slaves() {
+    add_device(2, "sdo_manager/slave_channels.eds");
+    add_device(3, "master/slave.eds");
+  }
+  std::uint32_t at(std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
+    return static_cast<std::uint32_t>(
+        port.devices.at(node).get_unsigned(index, sub).value_or(0xDEADBEEF));
+  }
+  std::uint32_t own(std::uint16_t index, std::uint8_t sub) {
+    return static_cast<std::uint32_t>(dict.get_unsigned(index, sub).value_or(0xDEADBEEF));
+  }
+
+  /// Runs the engine as a driver would until nothing is due and no access waits: on_timer when
+  /// due, each access answered after its response time (a silent node: the scan's or the SDO
+  /// timeout).
+  void run() {
+    for (int i = 0; i < 100000; ++i) {
+      auto due = engine().next_deadline();
+      if (due && *due <= now) {
+        engine().on_timer(now, out);
+        continue;
+      }
+      if (port.pending.empty()) return;
+      const auto t = port.pending.front();
+      port.pending.pop_front();
+      const auto result = port.answer(t, now);
+      now += result.abort == SdoAbort::Timeout ? t.timeout : 1ms;
+      engine().on_transfer_result(t.tag, result, now, out);
+    }
+    FAIL() << "the engine does not settle";
+  }
+  std::vector<MasterEvent> events_of(Kind kind, std::uint8_t node) const {
+    std::vector<MasterEvent> found;
+    for (const auto& e : out.events) {
+      if (e.kind == kind && e.node_id == node) found.push_back(e);
+    }
+    return found;
+  }
+  /// The SRD sets 1F10h and sends 6E0h; true when the engine reported the registration.
+  bool register_srd(std::uint8_t node, std::uint32_t request) {
+    port.devices.at(node).set_unsigned(0x1F10, 0, request);
+    EXPECT_TRUE(engine().on_frame(*from_candump("6E0#"), now, out));
+    run();
+    return !events_of(Kind::SrdRegistered, node).empty();
+  }
+  /// An expedited download of `value` to `index` sub 0 over the SRD's channel to the manager
+  /// (its client entry `client`, as the manager wrote it); the frame the engine answers with.
+  std::optional<CanFrame> srd_write(std::uint8_t node, std::uint16_t client, std::uint16_t index,
+                                    std::uint32_t value) {
+    // CiA 301 expedited download initiate, 4 bytes: 23h, index, sub, value (little-endian).
+    std::vector<std::uint8_t> bytes{0x23, static_cast<std::uint8_t>(index & 0xFF),
+                                    static_cast<std::uint8_t>(index >> 8U), 0};
+    for (auto b : le(value, 4)) bytes.push_back(b);
+    const CanFrame request = CanFrame::make(at(node, client, 1), bytes);
+    const auto before = out.frames.size();
+    EXPECT_TRUE(engine().on_frame(request, now, out));
+    if (out.frames.size() != before + 1) return std::nullopt;
+    return out.frames.back();
+  }
+  /// §7.2.2 over the SRD's channel 1281h, on client entry 1282h; runs the job.
+  void connect(std::uint8_t srd, std::uint8_t slave) {
+    const auto answer = srd_write(srd, 0x1281, 0x1F00, request_word(0x1282, srd, slave));
+    ASSERT_TRUE(answer.has_value());
+    ASSERT_EQ(answer->data[0], 0x60);  // download initiate response
+    run();
+    ASSERT_FALSE(events_of(Kind::SdoConnectionEstablished, srd).empty());
+  }
+
+  SdoManagerSettings settings{};
+  LocalDictionary dict;
+  FakeMaster port;
+  TimePoint now{0};
+  SdoManagerProcess::Output out;
+
+ private:
+  std::optional<SdoManagerProcess> engine_;
+};
+
+// §7.2.1, §7.2.4 guideline 2: the scan reads 1F10h from 127 down, one access each, and stops at
+// the first open request (Rq indication); the SRD's client entry named in 1F10h gets the
+// manager's node-ID and two pool COB-IDs, its 1017h is read (no 1016h entry here), and 1F10h
+// is confirmed last with Cnxn 1.
+TEST_F(SdoManagerEngine, RegistrationScansFrom127DownAndEnablesTheClientEntryNamedIn1F10h) {
+  add_srd(120);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  std::vector<Access> expected;
+  for (std::uint8_t node = 127; node >= 120; --node) expected.push_back(read(node, 0x1F10, 0));
+  expected.push_back(write(120, 0x1281, 3, kManager));
+  expected.push_back(write(120, 0x1281, 1, 0x680));
+  expected.push_back(write(120, 0x1281, 2, 0x681));
+  expected.push_back(read(120, 0x1017, 0));
+  expected.push_back(write(120, 0x1F10, 0, 0x12810002));
+  EXPECT_EQ(port.accesses, expected);
+  EXPECT_EQ(at(120, 0x1281, 1), 0x680U);
+  EXPECT_EQ(at(120, 0x1281, 2), 0x681U);
+  EXPECT_EQ(at(120, 0x1281, 3), kManager);
+  EXPECT_EQ(at(120, 0x1F10, 0), 0x12810002U);
+  EXPECT_EQ(own(0x1F02, 1), kInUse | 0x680);
+  EXPECT_EQ(own(0x1F02, 2), kInUse | 0x681);
+  // 1F03h sub 1 = client offset 01h, client 78h (120), server offset 01h (1201h), server 01h.
+  EXPECT_EQ(own(0x1F03, 1), 0x01780101U);
+  // The own channel 1201h serves the SRD; its heartbeat (1017h = 100 ms) is consumed with
+  // 2 x 100 + 100 ms.
+  EXPECT_EQ(own(0x1201, 1), 0x680U);
+  EXPECT_EQ(own(0x1201, 3), 120U);
+  ASSERT_EQ(port.watched.count(120), 1U);
+  ASSERT_TRUE(port.watched[120].has_value());
+  EXPECT_EQ(port.watched[120]->count(), Duration(300ms).count());
+  const auto srds = engine().srds();
+  ASSERT_EQ(srds.size(), 1U);
+  EXPECT_EQ(srds[0].node, 120);
+  EXPECT_EQ(srds[0].client_index, 0x1281);
+}
+
+// §7.1: a free default SDO of S needs no write to S; the SRD's entry gets 600h/580h + S.
+TEST_F(SdoManagerEngine, RequestGetsTheFreeDefaultSdoOfTheSlaveWithoutWritingToIt) {
+  add_srd(120);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  port.accesses.clear();
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));
+  const std::vector<Access> expected{read(2, 0x1000, 0), write(120, 0x1282, 3, 2),
+                                     write(120, 0x1282, 1, 0x602), write(120, 0x1282, 2, 0x582),
+                                     write(120, 0x1F10, 0, 0x12820006)};
+  EXPECT_EQ(port.accesses, expected);
+  // 1F03h sub 2: client offset 02h, client 78h, server offset 00h (default), server 02h.
+  EXPECT_EQ(own(0x1F03, 2), 0x02780002U);
+}
+
+// §7.1: a second SRD for the same slave gets S's free 1201h with the next two pool COB-IDs.
+TEST_F(SdoManagerEngine, SecondSrdForTheSameSlaveGetsAnAdditionalServerChannel) {
+  add_srd(120);
+  add_srd(110);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));
+  ASSERT_TRUE(register_srd(110, 0x12810001));
+  EXPECT_EQ(at(110, 0x1281, 1), 0x682U);
+  port.accesses.clear();
+  ASSERT_NO_FATAL_FAILURE(connect(110, 2));
+  const std::vector<Access> expected{
+      read(2, 0x1201, 1),           write(2, 0x1201, 3, 110),         write(2, 0x1201, 1, 0x684),
+      write(2, 0x1201, 2, 0x685),   write(110, 0x1282, 3, 2),         write(110, 0x1282, 1, 0x684),
+      write(110, 0x1282, 2, 0x685), write(110, 0x1F10, 0, 0x12820006)};
+  EXPECT_EQ(port.accesses, expected);
+  EXPECT_EQ(at(2, 0x1201, 3), 110U);
+  // 1F03h: client offset 02h, client 6Eh (110), server offset 01h (1201h), server 02h.
+  EXPECT_EQ(own(0x1F03, 4), 0x026E0102U);
+}
+
+// §7.2.3: the 1F00h write succeeds (the manager started); 1F10h says why not: Cnxn 0, 03h.
+TEST_F(SdoManagerEngine, NoFreeServerChannelOnTheSlaveIsReportedIn1F10hWithError03h) {
+  add_srd(120);
+  add_srd(110);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 3));
+  ASSERT_TRUE(register_srd(110, 0x12810001));
+  const auto answer = srd_write(110, 0x1281, 0x1F00, request_word(0x1282, 110, 3));
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->data[0], 0x60);
+  run();
+  EXPECT_EQ(at(110, 0x1F10, 0), 0x12820300U);
+  ASSERT_EQ(events_of(Kind::SdoConnectionRefused, 110).size(), 1U);
+  EXPECT_EQ(events_of(Kind::SdoConnectionRefused, 110).back().connection_error, 0x03);
+  EXPECT_EQ(at(110, 0x1282, 1) & kInvalid, kInvalid);
+  EXPECT_EQ(own(0x1F02, 5), 0x684U);  // the pool entries it would have taken stay free
+}
+
+TEST_F(SdoManagerEngine, SilentSlaveIsReportedWithError04h) {
+  add_srd(120);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_TRUE(srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 50)).has_value());
+  run();
+  EXPECT_EQ(at(120, 0x1F10, 0), 0x12820400U);  // §7.2.3 error 04h: slave S not available
+}
+
+// §7.2.3: index 0 releases all connections of the SRD to the slave, on both sides.
+TEST_F(SdoManagerEngine, ReleaseWithIndex0ReleasesEveryConnectionToTheSlaveOnBothSides) {
+  add_srd(120);
+  add_srd(110);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));
+  ASSERT_TRUE(register_srd(110, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(110, 2));
+  ASSERT_TRUE(srd_write(110, 0x1281, 0x1F01, request_word(0, 110, 2)).has_value());
+  run();
+  ASSERT_EQ(events_of(Kind::SdoConnectionReleased, 110).size(), 1U);
+  EXPECT_EQ(at(110, 0x1282, 1), kInvalid | 0x684);
+  EXPECT_EQ(at(110, 0x1282, 2), kInvalid | 0x685);
+  EXPECT_EQ(at(2, 0x1201, 1), kInvalid | 0x684);
+  EXPECT_EQ(at(2, 0x1201, 2), kInvalid | 0x685);
+  EXPECT_EQ(own(0x1F02, 5), 0x684U);  // bit 30 cleared
+  EXPECT_EQ(own(0x1F03, 4), 0U);
+  EXPECT_EQ(at(110, 0x1281, 1), 0x682U);
+  EXPECT_EQ(engine().connections().size(), 3U);
+}
+
+// §7.2.3: "If the Manager refuses the request ... abort code 060A 0023h", frame for frame on the
+// SRD's channel (CiA 301 abort transfer: 80h, index, sub, code).
+TEST_F(SdoManagerEngine, RequestFromAnUnregisteredNodeIsAbortedWith060A0023) {
+  add_srd(120);
+  engine();
+  EXPECT_EQ(dict.write(0x1F00, 0, le(request_word(0x1282, 100, 2), 4), now),
+            SdoAbort::ResourceNotAvailable);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  // Registered, but the SRD field is not the node of the channel it writes on.
+  auto answer = srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 100, 2));
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(*answer, *from_candump("681#80001F0023000A06"));
+  // "The requested Node-ID must not be 0."
+  answer = srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 0));
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(*answer, *from_candump("681#80001F0023000A06"));
+}
+
+TEST_F(SdoManagerEngine, ManagerObjectsKeepTheirAccessTypes) {
+  engine();
+  std::vector<std::uint8_t> data;
+  // §7.2.3: 1F00h/1F01h wo, 1F03h ro.
+  EXPECT_EQ(dict.read(0x1F00, 0, data, now), SdoAbort::ReadOfWriteOnly);
+  EXPECT_EQ(dict.read(0x1F01, 0, data, now), SdoAbort::ReadOfWriteOnly);
+  EXPECT_EQ(dict.write(0x1F03, 1, le(0x01780101, 4), now), SdoAbort::WriteOfReadOnly);
+  EXPECT_EQ(own(0x1F03, 0), 254U);
+  EXPECT_EQ(own(0x1F06, 0), 254U);
+  // 1F02h: bit 30 belongs to the manager.
+  EXPECT_EQ(dict.write(0x1F02, 1, le(kInUse | 0x690, 4), now), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(dict.write(0x1F02, 1, le(0x690, 4), now), SdoAbort::None);
+}
+
+TEST_F(SdoManagerEngine, PoolIsNotWritableWhileConnectionsUseIt) {
+  add_srd(120);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  EXPECT_EQ(dict.write(0x1F02, 10, le(0x6F0, 4), now), SdoAbort::DeviceState);
+}
+
+TEST_F(SdoManagerEngine, AllDefaultSdosAreGrantedWithCnxnState2) {
+  add_srd(120);
+  // §7.2.3: 00000003h asks for all default SDOs; Cnxn state 2 grants them.
+  ASSERT_TRUE(register_srd(120, 0x00000003));
+  EXPECT_EQ(at(120, 0x1F10, 0), 0x00000004U);
+  EXPECT_TRUE(engine().connections().empty());
+  ASSERT_EQ(engine().srds().size(), 1U);
+  EXPECT_TRUE(engine().srds()[0].all_default_sdos);
+  // §7.1: the master's own transfers keep off every default SDO now.
+  EXPECT_TRUE(engine().default_sdo_given_out(3));
+}
+
+TEST_F(SdoManagerEngine, DeregistrationReleasesEverythingAndTheChannelToTheManagerLast) {
+  add_srd(120);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));
+  EXPECT_TRUE(engine().default_sdo_given_out(2));
+  // §7.2.3: slave node-ID 0 releases all connections and de-registers.
+  const auto answer = srd_write(120, 0x1281, 0x1F01, request_word(0, 120, 0));
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(*answer, *from_candump("681#60011F0000000000"));
+  run();
+  ASSERT_EQ(events_of(Kind::SrdDeregistered, 120).size(), 1U);
+  EXPECT_EQ(at(120, 0x1282, 1), kInvalid | 0x602);
+  EXPECT_EQ(at(120, 0x1281, 1), kInvalid | 0x680);
+  const auto released = events_of(Kind::SdoConnectionReleased, 120);
+  ASSERT_EQ(released.size(), 2U);
+  EXPECT_FALSE(released[0].connection->to_manager);
+  EXPECT_TRUE(released[1].connection->to_manager);
+  EXPECT_TRUE(engine().srds().empty());
+  EXPECT_EQ(own(0x1F03, 1), 0U);
+  EXPECT_EQ(own(0x1F02, 1), 0x680U);
+  EXPECT_EQ(own(0x1201, 1), kInvalid | 0x680);  // the own channel is closed
+  EXPECT_FALSE(engine().default_sdo_given_out(2));
+  EXPECT_EQ(std::count(port.unwatched.begin(), port.unwatched.end(), 120), 1);
+}
+
+// §7.2.1: the loss of an SRD's error control releases everything it held (S's server entry
+// too; the SRD itself is not written, each write to it tried once) and de-registers it.
+TEST_F(SdoManagerEngine, SrdErrorControlLossReleasesItsConnectionsOnBothSides) {
+  add_srd(120);
+  add_srd(110);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));
+  ASSERT_TRUE(register_srd(110, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(110, 2));
+  ASSERT_EQ(at(2, 0x1201, 3), 110U);
+  port.devices.erase(110);
+  port.accesses.clear();
+  engine().node_lost(110, now, out);
+  ASSERT_EQ(events_of(Kind::SrdLost, 110).size(), 1U);
+  run();
+  // The connection to S first, the SRD's channel to the manager last.
+  const std::vector<Access> expected{
+      write(110, 0x1282, 1, kInvalid | 0x684), write(110, 0x1282, 2, kInvalid | 0x685),
+      write(2, 0x1201, 1, kInvalid | 0x684),   write(2, 0x1201, 2, kInvalid | 0x685),
+      write(110, 0x1281, 1, kInvalid | 0x682), write(110, 0x1281, 2, kInvalid | 0x683)};
+  EXPECT_EQ(port.accesses, expected);
+  EXPECT_EQ(events_of(Kind::SdoConnectionReleased, 110).size(), 2U);
+  EXPECT_TRUE(events_of(Kind::SrdDeregistered, 110).empty());  // lost, not de-registered
+  EXPECT_EQ(at(2, 0x1201, 1) & kInvalid, kInvalid);
+  EXPECT_EQ(own(0x1F02, 3), 0x682U);
+  EXPECT_EQ(own(0x1F02, 5), 0x684U);
+  for (const auto& row : engine().connections()) EXPECT_NE(row.srd, 110);
+  ASSERT_EQ(engine().srds().size(), 1U);
+  EXPECT_EQ(engine().srds()[0].node, 120);
+}
+
+// §7.2.3 xxxx0009h (Req EC): the manager watches the slave for the SRD; its loss is written to
+// the SRD's 1F11h (reason 00h, node-ID), then the client entry is cleared.
+TEST_F(SdoManagerEngine, SlaveFailureIsReportedIn1F11hToAnSrdThatAskedForErrorControl) {
+  add_srd(120);
+  add_device(5, "master/slave.eds");
+  ASSERT_TRUE(register_srd(120, 0x12810009));
+  EXPECT_EQ(at(120, 0x1F10, 0), 0x1281000AU);  // Req EC kept: supported
+  ASSERT_NO_FATAL_FAILURE(connect(120, 5));
+  EXPECT_EQ(at(120, 0x1F10, 0), 0x1282000EU);
+  ASSERT_EQ(port.watched.count(5), 1U);  // §7.2.5 step 4.4
+  port.devices.erase(5);
+  engine().node_lost(5, now, out);
+  run();
+  ASSERT_EQ(events_of(Kind::SlaveFailedReported, 120).size(), 1U);
+  EXPECT_EQ(at(120, 0x1F11, 0), 0x0005U);
+  ASSERT_EQ(events_of(Kind::SdoConnectionReleased, 120).size(), 1U);
+  EXPECT_EQ(at(120, 0x1282, 1) & kInvalid, kInvalid);
+}
+
+// A scan (126 silent node-IDs x the scan timeout) lets a request that came meanwhile go before
+// its next read (choice, nmt/nmt_master.hpp).
+TEST_F(SdoManagerEngine, RequestIsServedBetweenTheReadsOfAScanNotAfterIt) {
+  add_srd(120);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  port.accesses.clear();
+  ASSERT_TRUE(engine().on_frame(*from_candump("6E0#"), now, out));
+  engine().on_timer(now, out);
+  ASSERT_EQ(port.accesses.size(), 1U);  // 127's 1F10h
+  ASSERT_TRUE(srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 2)).has_value());
+  run();
+  // 127, then the request's accesses, then the scan goes on from 126 down to node 3 (2's
+  // default SDO is now held: skipped).
+  ASSERT_GE(port.accesses.size(), 7U);
+  EXPECT_EQ(port.accesses[0], read(127, 0x1F10, 0));
+  EXPECT_EQ(port.accesses[1], read(2, 0x1000, 0));
+  EXPECT_EQ(port.accesses[5], write(120, 0x1F10, 0, 0x12820006));
+  EXPECT_EQ(port.accesses[6], read(126, 0x1F10, 0));
+  EXPECT_EQ(port.accesses.back(), read(3, 0x1F10, 0));
+  EXPECT_EQ(std::count(port.accesses.begin(), port.accesses.end(), read(2, 0x1F10, 0)), 0);
+}
+
+// CiA 301: a slave's additional server entries (1201h..) are not kept over a reset; the manager
+// releases the connections on them when the slave boots up, writing only the SRD.
+TEST_F(SdoManagerEngine, SlaveBootUpReleasesTheConnectionsOnItsAdditionalServerEntries) {
+  add_srd(120);
+  add_srd(110);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));  // 2's default SDO
+  ASSERT_TRUE(register_srd(110, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(110, 2));  // 2's 1201h, pool subs 5/6
+  ASSERT_EQ(own(0x1F03, 4), 0x026E0102U);
+  port.accesses.clear();
+  engine().node_booted(2, now, out);
+  run();
+  const std::vector<Access> expected{write(110, 0x1282, 1, kInvalid | 0x684),
+                                     write(110, 0x1282, 2, kInvalid | 0x685)};
+  EXPECT_EQ(port.accesses, expected);
+  const auto released = events_of(Kind::SdoConnectionReleased, 110);
+  ASSERT_EQ(released.size(), 1U);
+  EXPECT_EQ(released[0].connection->server, 2);
+  EXPECT_EQ(released[0].connection->server_index, 0x1201);
+  EXPECT_EQ(own(0x1F03, 4), 0U);
+  EXPECT_EQ(own(0x1F02, 5), 0x684U);
+  EXPECT_EQ(own(0x1F02, 6), 0x685U);
+  EXPECT_EQ(own(0x1F03, 2), 0x02780002U);  // the connection on 2's default SDO stays
+}
+
+// The own server channels 1201h.. are the manager's: a tool's write is refused with 0800 0021.
+TEST_F(SdoManagerEngine, ToolWritesToTheManagersServerChannelsAreRefusedWith08000021) {
+  add_srd(120);
+  EXPECT_EQ(engine().on_frame(*from_candump("6E1#"), now, out), false);
+  EXPECT_EQ(dict.write(0x1202, 1, le(0x6F0, 4), now), SdoAbort::LocalControl);
+  EXPECT_EQ(dict.write(0x1202, 3, le(100, 1), now), SdoAbort::LocalControl);
+  EXPECT_EQ(own(0x1202, 1), kInvalid);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  EXPECT_EQ(dict.write(0x1201, 1, le(kInvalid | 0x680, 4), now), SdoAbort::LocalControl);
+  EXPECT_EQ(own(0x1201, 1), 0x680U);
+}
+
+// §7: an inactive manager (the master is not active) ignores 6E0h and refuses 1F00h with
+// 0800 0022.
+TEST_F(SdoManagerEngine, InactiveManagerIgnoresTheDynamicSdoRequestAndRefuses1F00h) {
+  add_srd(120);
+  port.devices.at(120).set_unsigned(0x1F10, 0, 0x12810001);
+  port.active = false;
+  EXPECT_FALSE(engine().on_frame(*from_candump("6E0#"), now, out));
+  run();
+  EXPECT_TRUE(port.accesses.empty());
+  EXPECT_EQ(dict.write(0x1F00, 0, le(request_word(0x1282, 120, 2), 4), now), SdoAbort::DeviceState);
+}
+
+// 1F00h requests beyond SdoManagerSettings::max_queued_requests are refused with 0504 0005.
+TEST_F(SdoManagerEngine, RequestsBeyondTheQueueBoundAreRefusedOutOfMemory) {
+  settings.max_queued_requests = 1;
+  add_srd(120);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_EQ(dict.write(0x1F00, 0, le(request_word(0x1282, 120, 2), 4), now), SdoAbort::None);
+  EXPECT_EQ(dict.write(0x1F00, 0, le(request_word(0x1280, 120, 3), 4), now), SdoAbort::OutOfMemory);
+  run();
+  ASSERT_EQ(events_of(Kind::SdoConnectionEstablished, 120).size(), 1U);
+  ASSERT_EQ(dict.write(0x1F00, 0, le(request_word(0x1280, 120, 3), 4), now), SdoAbort::None);
+  run();
+  EXPECT_EQ(engine().connections().size(), 3U);
+}
+
+// §7.2.3 error 01h "No SDO channel free": registrations are bounded by the own channels; a
+// refused SRD registers once another gave its channel back.
+TEST_F(SdoManagerEngine, SrdRefusedForLackOfAChannelRegistersOnceAnotherDeregisters) {
+  settings.channels = 1;
+  add_srd(110);
+  add_srd(120);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  EXPECT_FALSE(register_srd(110, 0x12810001));
+  EXPECT_EQ(at(110, 0x1F10, 0) >> 8U & 0xFFU, 0x01U);  // Cnxn 0, error 01h
+  ASSERT_TRUE(srd_write(120, 0x1281, 0x1F01, request_word(0, 120, 0)).has_value());
+  run();
+  ASSERT_EQ(events_of(Kind::SrdDeregistered, 120).size(), 1U);
+  EXPECT_TRUE(register_srd(110, 0x12810001));
+  EXPECT_EQ(at(110, 0x1F10, 0), 0x12810002U);  // Cnxn 1, no error
+}
+
+// Reset communication of all nodes: the tables go, and a result of a transfer that still ran
+// is stale.
+TEST_F(SdoManagerEngine, ClearEmptiesTheTablesAndDropsStaleResults) {
+  add_srd(120);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_TRUE(srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 2)).has_value());
+  engine().on_timer(now, out);
+  ASSERT_EQ(port.pending.size(), 1U);
+  engine().clear();
+  run();
+  EXPECT_TRUE(events_of(Kind::SdoConnectionEstablished, 120).empty());
+  EXPECT_TRUE(engine().srds().empty());
+  EXPECT_TRUE(engine().connections().empty());
+  EXPECT_EQ(own(0x1F03, 1), 0U);
+  EXPECT_EQ(own(0x1F02, 1), 0x680U);
+  EXPECT_EQ(own(0x1201, 1), kInvalid | 0x680);
+  EXPECT_FALSE(engine().next_deadline().has_value());
+}
+
+}  // namespace
+}  // namespace nmt
