@@ -23,6 +23,7 @@
 #include "cfg/bytes.hpp"
 #include "cfg/device_file.hpp"
 #include "manager/sdo_manager_process.hpp"
+#include "master/master_support.hpp"
 #include "nmt_master_spec_test_rig.hpp"
 #include "test_paths.hpp"
 
@@ -418,6 +419,45 @@ TEST_F(SdoManagerEngine, DeregistrationReleasesEverythingAndTheChannelToTheManag
   EXPECT_EQ(own(0x1201, 1), kInvalid | 0x680);  // the own channel is closed
   EXPECT_FALSE(engine().default_sdo_given_out(2));
   EXPECT_EQ(std::count(port.unwatched.begin(), port.unwatched.end(), 120), 1);
+}
+
+// §7.2.3 Cnxn state 2 needs "all default SDOs in the system are unused": with slave 2's default
+// SDO held by a connection, 00000003h gets Cnxn 0 with error 00h, and nothing is given.
+TEST_F(SdoManagerEngine, AllDefaultSdosAreNotGrantedWhileOneIsHeld) {
+  add_srd(126);
+  add_srd(127);
+  add_slaves();
+  ASSERT_TRUE(register_srd(126, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(126, 2));
+  EXPECT_FALSE(register_srd(127, 0x00000003));
+  EXPECT_EQ(at(127, 0x1F10, 0), 0x00000000U);
+  ASSERT_EQ(events_of(Kind::SrdRegistrationFailed, 127).size(), 1U);
+  EXPECT_EQ(events_of(Kind::SrdRegistrationFailed, 127)[0].connection_error, 0x00);
+  EXPECT_EQ(engine().srds().size(), 1U);
+}
+
+// §7.2.3 1F02h bit 29: a 29-bit identifier. With only such entries free, the SRD's channel to
+// the manager runs on extended frames, and the engine's own channel answers on them.
+TEST_F(SdoManagerEngine, PoolEntriesWith29BitIdentifiersGiveAnExtendedChannel) {
+  constexpr std::uint32_t k29Bit = 0x20000000U;
+  dict.insert(make_entry(0x1F02, 0, "pool", cfg::DataType::Unsigned8, cfg::AccessType::Const, 3));
+  dict.insert(make_entry(0x1F02, 1, "pool 1", cfg::DataType::Unsigned32, cfg::AccessType::Rw,
+                         k29Bit | 0x1234567U));
+  dict.insert(make_entry(0x1F02, 2, "pool 2", cfg::DataType::Unsigned32, cfg::AccessType::Rw,
+                         k29Bit | 0x1234568U));
+  dict.insert(make_entry(0x1F02, 3, "pool 3", cfg::DataType::Unsigned32, cfg::AccessType::Rw,
+                         kInvalid | 0x680U));
+  add_srd(120);
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  EXPECT_EQ(at(120, 0x1281, 1), k29Bit | 0x1234567U);
+  EXPECT_EQ(at(120, 0x1281, 2), k29Bit | 0x1234568U);
+  EXPECT_EQ(own(0x1F02, 1), kInUse | k29Bit | 0x1234567U);
+  // The SRD reads 1F02h sub 0 over it: upload initiate 40h, answered expedited with 1 byte.
+  auto request = *from_candump("01234567#40021F0000000000");
+  ASSERT_TRUE(request.extended);
+  ASSERT_TRUE(engine().on_frame(request, now, out));
+  EXPECT_EQ(out.frames.back(), *from_candump("01234568#4F021F0003000000"));
+  EXPECT_TRUE(out.frames.back().extended);
 }
 
 // §7.2.1: the loss of an SRD's error control releases everything it held (S's server entry
