@@ -61,103 +61,6 @@ SdoManagerProcess::Step SdoManagerProcess::read_step(std::uint8_t node, std::uin
   return s;
 }
 
-void SdoManagerProcess::queue_scan() {
-  const auto scan = std::find_if(jobs_.begin(), jobs_.end(),
-                                 [](const Job& j) { return j.kind == Job::Kind::Scan; });
-  if (scan == jobs_.end()) {
-    Job job;
-    job.kind = Job::Kind::Scan;
-    jobs_.push_back(std::move(job));
-  } else if (scan->phase != Job::Phase::Start) {
-    rescan_ = true;  // the running scan may have passed the new SRD
-  }
-}
-
-// --- losses ---
-
-void SdoManagerProcess::node_lost(std::uint8_t node, TimePoint now, Output& out) {
-  if (!enabled_) return;
-  if (srds_.count(node) != 0) {
-    srd_gone(node, false, now, out);
-    return;
-  }
-  if (watched_.count(node) == 0) return;
-  // §7.2.2 "Error Control of Slave Devices": 1F11h on each SRD with Req EC, then its client
-  // entry cleared.
-  watched_.erase(node);
-  port_.unwatch(node);
-  auto rows = take_connections([&](const ManagedSdoConnection& c) {
-    const auto srd = srds_.find(c.srd);
-    return c.server == node && !c.to_manager && srd != srds_.end() &&
-           srd->second.info.slave_error_control;
-  });
-  release_per_srd(std::move(rows), node, node_text(node) + " failed (error control)");
-}
-
-void SdoManagerProcess::node_booted(std::uint8_t node, TimePoint now, Output& out) {
-  if (!enabled_) return;
-  if (srds_.count(node) != 0) {
-    srd_gone(node, true, now, out);  // an SRD that booted forgot its entries
-    return;
-  }
-  slave_booted(node);
-}
-
-void SdoManagerProcess::srd_gone(std::uint8_t node, bool boot_up, TimePoint now, Output& out) {
-  // §7.2.1: "the Manager forces all SDOs requested by that SRD to be released".
-  auto rows = take_connections([node](const ManagedSdoConnection& c) { return c.srd == node; });
-  srds_.erase(node);
-  port_.unwatch(node);
-  const std::string why = node_text(node) + (boot_up ? ": SRD booted up" : ": SRD lost");
-  out.report(
-      master_event(MasterEvent::Kind::SrdLost, now, node,
-                   why + ", releasing " + std::to_string(rows.size()) + " SDO connection(s)"));
-  release_job(node, std::move(rows), true, true, why);
-}
-
-void SdoManagerProcess::slave_booted(std::uint8_t node) {
-  // CiA 301: the server entries 1201h.. a slave had written into it are not kept over a reset
-  // (a boot-up follows every reset, the master's own too): those connections are gone on S, so
-  // their rows go and each SRD's client entry is invalidated. S's default SDO survives (its
-  // COB-IDs are fixed): a connection on it stays.
-  auto rows = take_connections([node](const ManagedSdoConnection& c) {
-    return c.server == node && !c.to_manager && c.server_index != kDefaultServer;
-  });
-  release_per_srd(std::move(rows), 0, node_text(node) + " booted up: its server entry is gone");
-}
-
-void SdoManagerProcess::release_per_srd(std::vector<Connection> rows, std::uint8_t failed,
-                                        const std::string& why) {
-  // S's side is gone (it failed, or its reset dropped the entry): only the SRDs are written.
-  std::map<std::uint8_t, std::vector<Connection>> by_srd;
-  for (const auto& c : rows) by_srd[c.row.srd].push_back(c);
-  for (auto& [srd, its_rows] : by_srd) {
-    Job job;
-    job.kind = Job::Kind::Release;
-    job.node = srd;
-    job.failed = failed;  // 1F11h first when not 0
-    job.server_gone = true;
-    job.why = why;
-    job.releases = std::move(its_rows);
-    jobs_.push_back(std::move(job));
-  }
-}
-
-void SdoManagerProcess::release_job(std::uint8_t srd, std::vector<Connection> rows, bool deregister,
-                                    bool lost, std::string why) {
-  // The SRD's channel to the manager goes last: the SRD keeps its line until the end.
-  std::stable_partition(rows.begin(), rows.end(),
-                        [](const Connection& c) { return !c.row.to_manager; });
-  Job job;
-  job.kind = Job::Kind::Release;
-  job.node = srd;
-  job.releases = std::move(rows);
-  job.deregister = deregister;
-  job.srd_lost = lost;
-  job.why = std::move(why);
-  jobs_.push_back(std::move(job));
-}
-
 // --- jobs ---
 
 void SdoManagerProcess::pump(TimePoint now, Output& out) {
@@ -550,7 +453,7 @@ void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
     srd.own_channel = c.row.server_index;
     e.connection = c.row;
     e.text += ", " + connection_text(c.row);
-    add_row(std::move(c));
+    add_row(c);
   } else {
     e.text += " with all default SDOs";
   }

@@ -26,7 +26,7 @@
 //
 // The dictionary it serves is the master's: the engine adds 1F00h-1F06h and the own channels at
 // install() and checks their writes in a write hook (value checks, 1F00h/1F01h queue jobs). Its
-// sources: sdo_manager_objects.cpp (the dictionary side, the tables and channels) and
+// sources: sdo_manager_objects.cpp (the dictionary side, the tables and channels, losses) and
 // sdo_manager_jobs.cpp (scan, register, connect, release).
 #pragma once
 
@@ -220,22 +220,24 @@ class SdoManagerProcess {
   void close_channel(std::uint16_t index);
   std::uint16_t free_row() const;
   void set_row(std::uint16_t row, std::uint32_t word);
-  void add_row(Connection c);
+  void add_row(const Connection& c);
   /// Removes the connections `match` selects from the tables (rows cleared), in row order.
   std::vector<Connection> take_connections(
       const std::function<bool(const ManagedSdoConnection&)>& match);
   bool default_sdo_taken(std::uint8_t node) const;
   bool all_default_sdos_owned() const;
-
-  // --- jobs (sdo_manager_jobs.cpp) ---
+  // Losses and the jobs they (and 6E0h, 1F01h) queue.
   void queue_scan();
   /// A boot-up of slave `node`: the connections on its additional server entries are released.
   void slave_booted(std::uint8_t node);
   void srd_gone(std::uint8_t node, bool boot_up, TimePoint now, Output& out);
   /// One release job per SRD for `rows` whose server side is gone; `failed` (not 0): 1F11h first.
-  void release_per_srd(std::vector<Connection> rows, std::uint8_t failed, const std::string& why);
+  void release_per_srd(const std::vector<Connection>& rows, std::uint8_t failed,
+                       const std::string& why);
   void release_job(std::uint8_t srd, std::vector<Connection> rows, bool deregister, bool lost,
                    std::string why);
+
+  // --- jobs (sdo_manager_jobs.cpp) ---
   void advance(TimePoint now, Output& out);
   // One step of the front job, by its kind (advance dispatches).
   void report_refusal(TimePoint now, Output& out);
