@@ -20,22 +20,19 @@
 #include "cfg/device_file.hpp"
 #include "manager/sdo_manager_process.hpp"
 #include "nmt_master_spec_test_rig.hpp"
+#include "sdo_manager_spec_words.hpp"
 #include "test_paths.hpp"
 
 namespace nmt::engine_test {
 
 using namespace std::chrono_literals;
 using master_spec::le;
+using master_spec::request_word;
 using Kind = MasterEvent::Kind;
 
 constexpr std::uint8_t kManager = 1;
 constexpr std::uint32_t kInvalid = 0x80000000;
 constexpr std::uint32_t kInUse = 0x40000000;  // 1F02h bit 30 (§7.2.3)
-
-/// 1F00h/1F01h value (§7.2.3): index << 16 | SRD node-ID << 8 | slave node-ID.
-constexpr std::uint32_t request_word(std::uint16_t index, std::uint8_t srd, std::uint8_t slave) {
-  return (std::uint32_t{index} << 16U) | (std::uint32_t{srd} << 8U) | slave;
-}
 
 inline const cfg::DeviceDescription& device_file(const std::string& path) {
   static std::map<std::string, cfg::DeviceDescription> files;
@@ -56,9 +53,11 @@ struct Access {
   bool operator==(const Access&) const = default;
 };
 inline std::ostream& operator<<(std::ostream& os, const Access& a) {
-  return os << "node " << int{a.node} << (a.upload ? " read " : " write ") << std::hex << a.index
-            << " sub " << int{a.sub} << (a.upload ? "" : " = " + std::to_string(a.value))
-            << std::dec;
+  // "node 120 write 0x1281 sub 1 = 0x680"
+  os << "node " << int{a.node} << (a.upload ? " read " : " write ")
+     << master_spec::hex_text(a.index) << " sub " << int{a.sub};
+  if (!a.upload) os << " = " << master_spec::hex_text(a.value);
+  return os;
 }
 inline Access read(std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
   return {node, index, sub, true, 0};
