@@ -7,8 +7,8 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/object_index.hpp"
-#include "master/nmt_master_impl.hpp"
 #include "nmt/configuration_manager_source.hpp"
+#include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 
