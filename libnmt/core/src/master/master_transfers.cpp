@@ -30,7 +30,7 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
                                                       TimePoint now) {
   // DSP 302 §7.1: the manager "manages all SDO connections"; a default SDO it gave to an SRD is
   // the SRD's until released, and a second client on it would collide with the SRD's.
-  if (!transfer.for_manager && default_sdo_given_out(node)) {
+  if (!transfer.for_manager && sdo_manager.default_sdo_given_out(node)) {
     held.emplace_back(node, std::move(transfer));
     return 0;
   }
@@ -88,7 +88,7 @@ void NmtMaster::Impl::pump_transfers(TimePoint now) {
 
 void NmtMaster::Impl::release_held(TimePoint now) {
   for (std::size_t i = 0; i < held.size();) {
-    if (default_sdo_given_out(held[i].first)) {
+    if (sdo_manager.default_sdo_given_out(held[i].first)) {
       ++i;
       continue;
     }
@@ -133,8 +133,7 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
     return;
   }
   if (transfer.for_manager) {
-    if (sdo_manager.in_flight && transfer.try_id == sdo_manager.serial)
-      manager_result(result, now, out);
+    sdo_manager.on_transfer_result(transfer.try_id, result, now, out);
     return;
   }
   if (transfer.for_application) {
@@ -178,7 +177,7 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
     }
     release_held(now);
     pump_transfers(now);
-    manager_pump(now, out);
+    sdo_manager.pump(now, out);
     if (startup == StartupState::BootingSlaves) check_startup(now, out);
     flush_nmt(now, out);
     if (sdo_out.events.empty() && sdo_out.frames.size() == counted) break;

@@ -46,7 +46,7 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
       dict(std::move(dictionary)),
       server(dict, SdoServerConfig::from_dictionary(dict)),
       producer(id),
-      sdo_manager(dict) {}
+      sdo_manager(dict, manager_port, id, manager_settings(options, server.config())) {}
 
 cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& description,
                                          cfg::NodeId node_id, MasterOptions options) {
@@ -59,7 +59,7 @@ cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& descripti
   }
   auto impl = std::make_unique<Impl>(node_id, std::move(options), std::move(dict.value()));
   impl->install_hooks();
-  impl->install_sdo_manager();
+  impl->sdo_manager.install();
   return NmtMaster(std::move(impl));
 }
 
@@ -101,12 +101,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
       mine = true;
       for (const auto& f : server_out.frames) out.send(f);
     }
-    if (m.manager_servers_frame(frame, now, out)) mine = true;
   }
-  if (m.manager_frame(frame, now)) {
-    m.settle(now, out);
-    return true;
-  }
+  if (m.sdo_manager.on_frame(frame, now, out)) mine = true;
   if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
   if (m.flying.on_frame(frame, now, out)) {
     m.settle(now, out);
@@ -148,8 +144,8 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     Outbox<NoEvent> server_out;
     m.server.on_timer(now, server_out);
     for (const auto& f : server_out.frames) out.send(f);
-    m.manager_servers_timer(now, out);
   }
+  m.sdo_manager.on_timer(now, out);
   m.clients.on_timer(now, m.sdo_out);
   m.flying.on_timer(now, out);
   {
@@ -166,7 +162,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     } else {
       m.error_handler(e.node_id, true, now, out);
     }
-    m.manager_node_lost(e.node_id, false, now, out);
+    m.sdo_manager.node_lost(e.node_id, now, out);
   }
   Outbox<NodeGuardingEvent> guard_out;
   m.guarding.on_timer(now, guard_out);
@@ -174,7 +170,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
   for (const auto& e : guard_out.events) {
     if (e.kind != NodeGuardingEventKind::Timeout) continue;
     m.error_handler(e.node_id, false, now, out);
-    m.manager_node_lost(e.node_id, false, now, out);
+    m.sdo_manager.node_lost(e.node_id, now, out);
   }
   if (m.boot_up_quiet && now >= *m.boot_up_quiet) m.open_boot_up_gate(now, out, true);
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
@@ -195,7 +191,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.heartbeats.next_deadline());
   due = earliest(due, m.guarding.next_deadline());
   due = earliest(due, m.flying.next_deadline());
-  due = earliest(due, m.manager_deadline());
+  due = earliest(due, m.sdo_manager.next_deadline());
   due = earliest(due, m.boot_up_quiet);
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     due = earliest(due, m.slaves[node].deadline);
@@ -349,7 +345,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   const auto config = startup_config();
   // Every path here resets communication of all nodes (or this device stops being the master):
   // the SDO entries the manager gave out are gone.
-  manager_clear();
+  sdo_manager.clear();
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
     cancel_boot(n, now);
@@ -592,7 +588,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
 }
 
 void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
-  manager_node_lost(node, true, now, out);  // an SRD that booted forgot its entries
+  sdo_manager.node_booted(node, now, out);  // an SRD that booted forgot its entries
   const bool assigned = is_slave(node);
   auto e =
       master_event(MasterEvent::Kind::BootUp, now, node,

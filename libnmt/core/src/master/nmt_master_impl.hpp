@@ -21,7 +21,9 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_manager_objects.hpp"
+#include "manager/sdo_manager_process.hpp"
 #include "master/flying_master.hpp"
+#include "master/master_support.hpp"
 #include "master/master_text.hpp"
 #include "master/nmt_command_queue.hpp"
 #include "nmt/error_control.hpp"
@@ -100,84 +102,10 @@ struct SlaveBoot {
   std::optional<TimePoint> heartbeat_at;    ///< the last heartbeat seen, for §3.6
 };
 
-/// The SDO manager (DSP 302 §7, sdo_manager.cpp): its SRDs, connections and the jobs that set
-/// them up and take them down, one at a time.
-struct SdoManager {
-  explicit SdoManager(LocalDictionary& dict) : channels(dict) {}
-  struct Srd {
-    RegisteredSrd info;
-    std::uint16_t own_channel = 0;  ///< this device's server entry 1201h.. (0: none)
-  };
-  /// A row of 1F03h-1F06h and the pool entries (1F02h subs, 0: none) it took.
-  struct Connection {
-    ManagedSdoConnection row;
-    std::uint8_t pool_request = 0;
-    std::uint8_t pool_response = 0;
-  };
-  /// One SDO access of a job.
-  struct Step {
-    std::uint8_t node = 0;
-    std::uint16_t index = 0;
-    std::uint8_t sub = 0;
-    bool upload = false;
-    std::uint32_t value = 0;   ///< download
-    std::size_t size = 4;      ///< download bytes
-    bool must_succeed = true;  ///< a failure ends the job (job-specific handling)
-    bool retry = true;         ///< repeated after a timeout (MasterOptions::sdo_retries)
-  };
-  struct Job {
-    enum class Kind : std::uint8_t { Scan, Register, Connect, Release };
-    enum class Phase : std::uint8_t {
-      Start,
-      Scanning,       // 1F10h of `node`
-      Confirming,     // registration: the SRD's client entry
-      ReadHeartbeat,  // the SRD's 1017h
-      ProbeSlave,     // S's 1000h (its default SDO is given)
-      SearchChannel,  // S's `probe` sub 1
-      Writing,        // connection writes; registration: the 1F10h confirmation
-      Releasing,      // release writes (best effort)
-      Refusing,       // 1F10h with Cnxn 0 (or S's side undone), then the event
-    };
-    Kind kind = Kind::Scan;
-    Phase phase = Phase::Start;
-    std::uint8_t node = 0;      ///< Scan: the node-ID read now; else the SRD
-    std::uint32_t request = 0;  ///< Register: 1F10h as read
-    std::uint8_t slave = 0;
-    std::uint16_t client_index = 0;
-    std::uint16_t probe = 0;                    ///< SearchChannel: S's server entry read now
-    Connection connection;                      ///< Register/Connect: the connection being set up
-    std::vector<Connection> releases;           ///< Release: in order
-    std::string why;                            ///< Release: for the events
-    bool deregister = false;                    ///< Release: the SRD goes too
-    bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
-    std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
-    bool server_gone = false;                   ///< Release: no write to S (failed, or reset)
-    cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
-    std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
-    std::optional<Duration> heartbeat;          ///< Register: the SRD's heartbeat consumer time
-    std::deque<Step> steps;                     ///< accesses still to do, in order
-  };
-
-  bool enabled = false;
-  std::map<std::uint8_t, Srd> srds;
-  std::vector<Connection> connections;  ///< in row order
-  std::deque<Job> jobs;
-  bool in_flight = false;    ///< a transfer of jobs.front() runs
-  std::uint64_t serial = 0;  ///< of the transfer in flight (MasterTransfer::try_id)
-  bool rescan = false;       ///< a 6E0h came during a scan
-  std::uint8_t writer = 0;   ///< the SRD whose channel carries the SDO request being served
-  /// This device's server channels for SRDs (1201h..), served from its dictionary, and the SRD
-  /// each was opened for (its sub 3): the writer of a 1F00h/1F01h that arrives on it.
-  SdoServerChannels channels;
-  std::map<std::uint16_t, std::uint8_t> channel_clients;
-  /// Slaves the manager watches for SRDs with Req EC.
-  std::set<std::uint8_t> watched;
-};
-
 /// An SDO transfer the master runs: for a boot try or for the application.
 struct MasterTransfer {
   bool for_application = false;
-  bool for_manager = false;                  ///< of SdoManager::jobs.front()
+  bool for_manager = false;                  ///< of the SDO manager (try_id: its tag)
   std::uint64_t try_id = 0;                  ///< boot: the try that started it
   SdoClient::TransferId application_id = 0;  ///< application: the id the caller got
   std::uint16_t index = 0;
@@ -248,7 +176,6 @@ struct NmtMaster::Impl {
   FlyingPort flying_port{*this};
   /// NMT flying master start-up and master detection (§3.7, §5.1-§5.5; flying_master.hpp).
   FlyingMasterProcess flying{node_id, flying_port};
-  SdoManager sdo_manager;
 
   /// The NMT commands and their inhibit time (§6.1); run by flush_nmt() from settle().
   NmtCommandQueue nmt_commands;
@@ -351,57 +278,23 @@ struct NmtMaster::Impl {
   /// alive, never the master itself).
   void queue_reset_all(TimePoint now);
 
-  // --- SDO manager (sdo_manager.cpp, DSP 302 §7) ---------------------------------------------
-  /// Adds 1F00h-1F06h, the own server channels and the hooks when the manager is on.
-  void install_sdo_manager();
-  bool manager_active() const;
-  /// The Dynamic SDO Request (6E0h); true when the frame was one.
-  bool manager_frame(const CanFrame& frame, TimePoint now);
-  /// Frames for the own server channels (the writer of 1F00h/1F01h is known there).
-  bool manager_servers_frame(const CanFrame& frame, TimePoint now, Output& out);
-  void manager_servers_timer(TimePoint now, Output& out);
-  std::optional<TimePoint> manager_deadline() const;
-  SdoAbort manager_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data);
-  /// Reset communication of all nodes: the tables are gone on every device.
-  void manager_clear();
-  /// Error control of `node` failed, or it booted up: an SRD is released, a slave reported.
-  void manager_node_lost(std::uint8_t node, bool boot_up, TimePoint now, Output& out);
-  /// A boot-up of slave `node`: the connections on its additional server entries are released.
-  void manager_slave_booted(std::uint8_t node);
-  /// Removes the connections `match` selects from the tables (rows cleared), in row order.
-  std::vector<SdoManager::Connection> manager_take_connections(
-      const std::function<bool(const ManagedSdoConnection&)>& match);
-  /// One release job per SRD for `rows` whose server side is gone; `failed` (not 0): 1F11h first.
-  void manager_release_per_srd(std::vector<SdoManager::Connection> rows, std::uint8_t failed,
-                               const std::string& why);
-  void manager_pump(TimePoint now, Output& out);
-  void manager_result(const SdoResult& result, TimePoint now, Output& out);
-  void manager_advance(TimePoint now, Output& out);
-  // One step of the front job, by its kind (manager_advance dispatches).
-  void manager_report_refusal(TimePoint now, Output& out);
-  void manager_advance_scan();
-  void manager_advance_register(TimePoint now, Output& out);
-  void manager_advance_connect(TimePoint now, Output& out);
-  void manager_advance_release(TimePoint now, Output& out);
-  void manager_finish_job();
-  void manager_job_failed(const SdoResult& result, TimePoint now, Output& out);
-  void manager_start_register(std::uint32_t request);
-  void manager_start_connect();
-  void manager_connect_with(std::uint16_t server_index);
-  /// Ends the front job with 1F10h Cnxn 0 and `error`, then its event.
-  void manager_refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why);
-  void manager_release_job(std::uint8_t srd, std::vector<SdoManager::Connection> rows,
-                           bool deregister, bool lost, std::string why);
-  void manager_watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now);
-  std::vector<std::uint8_t> manager_free_pool() const;
-  void manager_mark_pool(std::uint8_t sub, bool in_use);
-  void manager_open_channel(std::uint16_t index, const SdoManager::Connection& c);
-  void manager_close_channel(std::uint16_t index);
-  std::uint16_t manager_free_row() const;
-  bool default_sdo_taken(std::uint8_t node) const;
-  /// The master's own transfers must not use `node`'s default SDO: a connection holds it, or an
-  /// SRD owns all default SDOs (DSP 302 §7.1, §7.2.4 guideline 4).
-  bool default_sdo_given_out(std::uint8_t node) const;
+  // --- SDO manager (manager/sdo_manager_process.hpp, DSP 302 §7) ----------------------------
+  /// The master's side of the SDO manager's port (sdo_manager_port.cpp).
+  struct ManagerPort final : SdoManagerPort {
+    explicit ManagerPort(Impl& impl) : m(impl) {}
+    bool master_active() const override;
+    bool serves_sdo() const override;
+    void start_transfer(SdoManagerTransfer transfer, TimePoint now) override;
+    std::optional<Duration> consumer_time(std::uint8_t node) const override;
+    bool watches(std::uint8_t node) const override;
+    void watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now) override;
+    void unwatch(std::uint8_t node) override;
+    Impl& m;
+  };
+  ManagerPort manager_port{*this};
+  SdoManagerProcess sdo_manager;
+  static SdoManagerSettings manager_settings(const MasterOptions& options,
+                                             const SdoServerConfig& server);
 
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
@@ -458,18 +351,5 @@ struct NmtMaster::Impl {
                                 Output& out);
   std::optional<std::vector<cfg::ObjectWrite>> configuration_of(std::uint8_t node) const;
 };
-
-/// An entry of the master's own objects with `value` in the type's size (0 bytes for DOMAIN).
-DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
-                           cfg::DataType type, cfg::AccessType access, std::uint64_t value);
-/// The first up to 4 bytes of `data`, little-endian, 0 when empty: the low 32 bits of a number
-/// from the bus, whose length the bus decides (cfg::load_le asserts 1..8 bytes).
-std::uint32_t low_u32(std::span<const std::uint8_t> data);
-/// The first up to 4 bytes of an upload, little-endian (UNSIGNED32 objects); 0 when empty.
-std::uint32_t uploaded_u32(const SdoResult& result);
-/// "1018h sub 01h upload failed: 0x05040000 (SDO protocol timed out)".
-std::string transfer_failure(const SdoResult& result);
-/// An UNSIGNED32 value as download bytes.
-std::vector<std::uint8_t> u32_bytes(std::uint32_t value);
 
 }  // namespace nmt

@@ -1,0 +1,98 @@
+// The master's side of the SDO manager's port (manager/sdo_manager_process.hpp, DSP 302 §7):
+// what the manager may ask of the NMT master (is it active, run this transfer, watch this node)
+// answered from the master's state, and the master's public accessors of the manager's tables.
+#include <algorithm>
+#include <utility>
+
+#include "cfg/object_index.hpp"
+#include "master/nmt_master_impl.hpp"
+
+namespace nmt {
+
+namespace {
+constexpr std::uint8_t kGuardLifeTimeFactor = 3;
+}  // namespace
+
+SdoManagerSettings NmtMaster::Impl::manager_settings(const MasterOptions& options,
+                                                     const SdoServerConfig& server) {
+  SdoManagerSettings s;
+  s.enabled = options.sdo_manager;
+  s.channels = options.sdo_manager_channels;
+  s.max_queued_requests = options.sdo_manager_max_queued_requests;
+  s.scan_timeout = options.sdo_manager_scan_timeout;
+  s.sdo_timeout = options.sdo_timeout;
+  s.sdo_retries = options.sdo_retries;
+  s.server_timeout = server.timeout;
+  s.server_block_transfer = server.block_transfer;
+  return s;
+}
+
+bool NmtMaster::Impl::ManagerPort::master_active() const {
+  // §7: "The SDO Manager is active only if the NMT Master residing on the same device is active."
+  if (!m.startup_config().is_master() || !m.acts_as_master()) return false;
+  return m.startup == StartupState::BootingSlaves || m.startup == StartupState::Halted ||
+         m.startup == StartupState::AwaitApplication || m.startup == StartupState::Operational;
+}
+
+bool NmtMaster::Impl::ManagerPort::serves_sdo() const {
+  return services_in(m.own_state).sdo;
+}
+
+void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, TimePoint now) {
+  MasterTransfer t;
+  t.for_manager = true;
+  t.try_id = transfer.tag;
+  t.index = transfer.index;
+  t.sub = transfer.sub;
+  t.upload = transfer.upload;
+  t.data = std::move(transfer.data);
+  t.options.timeout = transfer.timeout;
+  t.retries_left = transfer.retries;
+  m.launch_transfer(transfer.node, std::move(t), now);
+}
+
+std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(std::uint8_t node) const {
+  return m.heartbeat_time(node);
+}
+
+bool NmtMaster::Impl::ManagerPort::watches(std::uint8_t node) const {
+  return m.heartbeats.monitors(node) || m.guarding.guards(node);
+}
+
+void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Duration> heartbeat,
+                                         TimePoint now) {
+  if (!heartbeat) heartbeat = m.heartbeat_time(node);
+  if (heartbeat && heartbeat->count() > 0) {
+    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(*heartbeat).count();
+    m.heartbeats.monitor({node, static_cast<std::uint16_t>(std::min<std::int64_t>(ms, 0xFFFF))},
+                         now);
+    return;
+  }
+  const auto a = m.assignment(node);
+  auto id = *cfg::NodeId::from(node);
+  if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
+    m.guarding.start(id, a.guard_time_ms(), a.retry_factor(), now);
+    return;
+  }
+  const auto guard_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
+  m.guarding.start(id, static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
+                   kGuardLifeTimeFactor, now);
+}
+
+void NmtMaster::Impl::ManagerPort::unwatch(std::uint8_t node) {
+  // A slave's error control is the master's own (boot NMT slave starts and stops it).
+  if (!m.is_slave(node)) m.stop_error_control(node);
+}
+
+// --- the public accessors ---
+
+std::vector<ManagedSdoConnection> NmtMaster::sdo_connections() const {
+  return impl_->sdo_manager.connections();
+}
+
+std::vector<RegisteredSrd> NmtMaster::registered_srds() const {
+  return impl_->sdo_manager.srds();
+}
+
+}  // namespace nmt
