@@ -18,6 +18,7 @@
 #include "cfg/dynamic_channels.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {
@@ -701,7 +702,7 @@ TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareIsNotAddedWhenTheFileLack
   // Nanotec CL4-E declares 1F50h/1F51h but not 1F52h (real devices omit it; corpus).
   const std::filesystem::path path =
       std::filesystem::path(CANOPEN_CORPUS_DIR) / "nanotec/CL4-E-1-12.eds";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus file not found at " << path;
+  if (!std::filesystem::exists(path)) PREREQUISITE_MISSING("corpus file not found at ", path);
   auto read = cfg::read_device_file(path.string());
   ASSERT_TRUE(read.device.has_value()) << read.diagnostics.format();
   expect_no_1f52_added(*read.device);
@@ -948,7 +949,7 @@ TEST(SimulatedDevice, DeviceWithoutDeviceTypeBootsAndAnswersObjectDoesNotExist) 
 
 TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
   const std::filesystem::path corpus(CANOPEN_CORPUS_DIR);
-  if (!std::filesystem::exists(corpus)) GTEST_SKIP() << "corpus not found at " << corpus;
+  if (!std::filesystem::exists(corpus)) PREREQUISITE_MISSING("corpus not found at ", corpus);
   // Vendor files of different generators (see corpus/MANIFEST.tsv).
   const std::vector<std::string> files = {
       "canopennode/DS301_profile.eds",

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <string>
 
+#include "prerequisite.hpp"
 #include "push_test_support.hpp"
 
 namespace {
@@ -115,7 +116,7 @@ TEST(CheckPredictsPush, AFileADeviceAcceptsChecksCleanAndIsConfigured) {
 // wrote 1020h to devices without it (a J the check could not predict).
 TEST(CheckPredictsPush, CorpusSlaveDcfsCheckWithoutRefusalAndAreConfiguredOnSim) {
   const std::filesystem::path corpus(CANOPEN_CORPUS_DIR);
-  if (!std::filesystem::exists(corpus)) GTEST_SKIP() << "corpus not found at " << corpus;
+  if (!std::filesystem::exists(corpus)) PREREQUISITE_MISSING("corpus not found at ", corpus);
   struct Slave {
     const char* file;
     int node;  // its [DeviceComissioning] NodeID

@@ -74,7 +74,7 @@ class MasterConfigManagerInNetns : public ::testing::Test {
                                  test_network("nodes/drive_node3.dcf")},
         dir_ / "sim.out", dir_ / "sim.err");
     ASSERT_TRUE(devices_->started());
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
   }
 
   /// Starts `cfgmgr master NETWORK` (of tests/data/network) with `extra` and waits for NMT
