@@ -801,7 +801,9 @@ TEST(SimulatedDevice, FaultSlowResponsesDelayEverySdoAnswer) {
   rig.boot();
   auto r = rig.read(0x1000, 0);
   ASSERT_TRUE(r.ok());
+  // The latency and two frames' times at 500 kbit/s (under 0.6 ms), nothing more.
   EXPECT_GE(r.finished - r.started, 300ms);
+  EXPECT_LT(r.finished - r.started, 301ms);
   SdoTransferOptions quick;
   quick.timeout = 100ms;
   auto id = rig.write(0x2000, 0, le(5, 2), quick);
@@ -821,6 +823,9 @@ TEST(SimulatedDevice, FaultLatencyAboveTheServerTimeoutStillCompletesASegmentedT
   auto r = rig.write(0x2001, 0, std::vector<std::uint8_t>(name.begin(), name.end()), patient);
   ASSERT_TRUE(r.ok()) << r.abort;
   EXPECT_GE(r.finished - r.started, 3 * 2500ms);
+  // Plus six frames at 500 kbit/s, each at most 138 bits with stuff bits and intermission
+  // (ISO 11898-1): under 1.7 ms.
+  EXPECT_LT(r.finished - r.started, 3 * 2500ms + 2ms);
 }
 
 TEST(SimulatedDevice, FaultFrameLossLosesSomeFrames) {

@@ -111,7 +111,10 @@ TEST(Master, MandatorySlaveWithAnotherVendorIdGivesStatusDAndHaltsStartup) {
   EXPECT_EQ(node_of(*errors.back()), 2);
   EXPECT_EQ(errors.back()->get("error")->string, "D");
   EXPECT_TRUE(errors.back()->get("final")->boolean);
-  EXPECT_FALSE(errors.back()->get("description")->string.empty());
+  // CiA 302-2 Table 1, D: "Value of object 1018h sub-index 01h from CANopen device is
+  // different to value in object 1F85h (Vendor-ID)".
+  EXPECT_EQ(errors.back()->get("description")->string,
+            "value of object 1018h sub 01h differs from object 1F85h (vendor-ID)");
   EXPECT_EQ(events_of(lines, "startup_halted").size(), 1U);
 }
 

@@ -173,7 +173,8 @@ TEST_F(SdoInNetns, AnAbortIsReportedInWordsWithExit1) {
   EXPECT_FALSE(json.get("ok")->boolean);
   EXPECT_EQ(json.get("abort")->string, "0x06010002");
   EXPECT_EQ(json.get("aborted_by")->string, "device");
-  EXPECT_FALSE(json.get("abort_text")->string.empty());
+  // CiA 301 abort code table: 0601 0002 "Attempt to write a read only object".
+  EXPECT_EQ(json.get("abort_text")->string, "attempt to write a read only object");
 }
 
 TEST_F(SdoInNetns, ANodeThatDoesNotAnswerTimesOutWithExit3) {
