@@ -4,8 +4,8 @@
 set -euo pipefail
 
 packages=(
-  # build; man pages from --help
-  g++ cmake make pkg-config help2man
+  # build; man pages from --help; clang-format for the lint.clang_format test (tools/lint.sh)
+  g++ cmake make pkg-config help2man clang-format
   # libraries the product uses
   zlib1g-dev libcli11-dev libmsgpack-dev libpcap-dev
   # tests and benchmarks

@@ -7,7 +7,8 @@
 #   bash tools/lint.sh --base HEAD~3 # ... changed since HEAD~3
 #   bash tools/lint.sh --all         # ... on every file (slow: about 15 s a file on 2 cores)
 #   bash tools/lint.sh --format-only # the clang-format check alone (what the test suite runs)
-# Exit 0 when clean, 1 with the findings printed, 77 without clang-format or a git checkout.
+# Exit 0 when clean, 1 with the findings printed, 77 without clang-format or a git checkout (1
+# under CI=true: tests/support/prerequisite.sh).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -26,8 +27,8 @@ done
 
 # Exit 77 (CTest's skip) when there is nothing to check with: no clang-format, or no git checkout.
 if ! command -v clang-format > /dev/null || ! git rev-parse --git-dir > /dev/null 2>&1; then
-  echo "lint.sh: needs clang-format and a git checkout; skipping" >&2
-  exit 77
+  . tests/support/prerequisite.sh
+  prerequisite_missing lint.sh "needs clang-format (apt-get install clang-format) and a git checkout"
 fi
 status=0
 mapfile -t sources < <(git ls-files '*.cpp' '*.hpp')

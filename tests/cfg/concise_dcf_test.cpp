@@ -22,6 +22,7 @@
 
 #include "cfg/device_file.hpp"
 #include "concise_test_support.hpp"
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
@@ -114,7 +115,7 @@ TEST(ConciseDcf, ZeroSizeEntryIsDelivered) {
 // MANIFEST.tsv): CanFestival's TestMaster 1F22h sub 2 and lely's CO_DevDCF buffer.
 TEST(ConciseDcf, DecodesCanFestivalKerneltestStream) {
   const auto path = corpus("_derived/canfestival_kerneltest_TestMaster_obj1F22_sub2.bin");
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus not found: " << path;
+  if (!std::filesystem::exists(path)) PREREQUISITE_MISSING("corpus not found: ", path);
   const Bytes bytes = read_bytes(path);
   auto entries = decode_concise_dcf(bytes);
   ASSERT_TRUE(entries.ok()) << entries.error().message;
@@ -125,7 +126,7 @@ TEST(ConciseDcf, DecodesCanFestivalKerneltestStream) {
 
 TEST(ConciseDcf, DecodesLelyDevDcfStream) {
   const auto path = corpus("_derived/lely_test-dev_CoDevDCF_buf.bin");
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus not found: " << path;
+  if (!std::filesystem::exists(path)) PREREQUISITE_MISSING("corpus not found: ", path);
   const Bytes bytes = read_bytes(path);
   auto entries = decode_concise_dcf(bytes);
   ASSERT_TRUE(entries.ok()) << entries.error().message;
@@ -138,7 +139,8 @@ TEST(ConciseDcf, DecodesLelyDevDcfStream) {
 // ("concise-dcf entries=N", counted by the corpus' own tooling), and encodes back to its bytes.
 TEST(ConciseDcf, DecodesEveryCorpusStreamWithTheManifestEntryCount) {
   const auto manifest_path = corpus("MANIFEST.tsv");
-  if (!std::filesystem::exists(manifest_path)) GTEST_SKIP() << "corpus not found";
+  if (!std::filesystem::exists(manifest_path))
+    PREREQUISITE_MISSING("corpus not found: ", manifest_path);
   std::istringstream manifest(test_support::read_text(manifest_path));
   std::string line;
   int checked = 0;

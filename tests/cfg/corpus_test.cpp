@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
@@ -21,9 +22,9 @@ using ::testing::HasSubstr;
 
 const fs::path kCorpus = CANOPEN_CORPUS_DIR;
 
-#define REQUIRE_CORPUS()                                                                  \
-  if (!fs::is_directory(kCorpus)) {                                                       \
-    GTEST_SKIP() << "corpus not found at " << kCorpus << " (../shared/corpus); skipping"; \
+#define REQUIRE_CORPUS()                                                          \
+  if (!fs::is_directory(kCorpus)) {                                               \
+    PREREQUISITE_MISSING("corpus not found at ", kCorpus, " (../shared/corpus)"); \
   }
 
 std::vector<fs::path> device_files() {

@@ -28,6 +28,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/download_order.hpp"
 #include "concise_test_support.hpp"
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
@@ -40,9 +41,9 @@ std::string corpus(const std::string& relative) {
   return std::string(CANOPEN_CORPUS_DIR) + "/" + relative;
 }
 
-#define SKIP_WITHOUT_CORPUS()                                   \
-  if (!std::filesystem::exists(corpus("MANIFEST.tsv"))) {       \
-    GTEST_SKIP() << "corpus not found: " << CANOPEN_CORPUS_DIR; \
+#define SKIP_WITHOUT_CORPUS()                                       \
+  if (!std::filesystem::exists(corpus("MANIFEST.tsv"))) {           \
+    PREREQUISITE_MISSING("corpus not found: ", CANOPEN_CORPUS_DIR); \
   }
 
 DeviceDescription load(const std::string& relative) {

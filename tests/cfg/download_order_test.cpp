@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "concise_test_support.hpp"
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
@@ -222,7 +223,7 @@ TEST(DownloadOrder, PdoIndicesCoverCiA301Ranges) {
 TEST(DownloadOrder, ReproducesTheOrderLelyDcfgenWroteForPilzPrbt) {
   const std::string path =
       std::string(CANOPEN_CORPUS_DIR) + "/ros_canopen-motion_controller_driver/prbt_joint_1.bin";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus not found: " << path;
+  if (!std::filesystem::exists(path)) PREREQUISITE_MISSING("corpus not found: ", path);
   auto entries = decode_concise_dcf(test_support::read_bytes(path));
   ASSERT_TRUE(entries.ok()) << entries.error().message;
   ASSERT_EQ(entries->size(), 26u);  // MANIFEST.tsv: concise-dcf entries=26
@@ -235,7 +236,7 @@ TEST(DownloadOrder, ReproducesTheOrderLelyDcfgenWroteForPilzPrbt) {
 TEST(DownloadOrder, MatchesDcfgenPdoSequenceForRos2CanopenJoint) {
   const std::string path =
       std::string(CANOPEN_CORPUS_DIR) + "/starnus-ros2_canopen-build/robot_control__joint_1.bin";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus not found: " << path;
+  if (!std::filesystem::exists(path)) PREREQUISITE_MISSING("corpus not found: ", path);
   auto entries = decode_concise_dcf(test_support::read_bytes(path));
   ASSERT_TRUE(entries.ok()) << entries.error().message;
   ASSERT_EQ(entries->size(), 30u);  // MANIFEST.tsv: concise-dcf entries=30

@@ -2,7 +2,8 @@
 # Install tier (ctest -L install): `cpack -G DEB` makes the Debian packages of
 # cmake/CanopenPackaging.cmake; each has the files and the dependencies it should, and the tools
 # unpacked from them run and find the schemas of the runtime package.
-# Usage: package_test.sh BUILD_DIR WORK_DIR. Exits 77 (skip) without dpkg-deb/dpkg-shlibdeps.
+# Usage: package_test.sh BUILD_DIR WORK_DIR. Exits 77 (skip) without dpkg-deb/dpkg-shlibdeps (1
+# under CI=true: tests/support/prerequisite.sh).
 set -euo pipefail
 build=$1
 work=$2
@@ -10,8 +11,8 @@ here=$(cd "$(dirname "$0")" && pwd)
 source_dir=$(cd "$here/../.." && pwd)
 for tool in dpkg-deb dpkg-shlibdeps file; do
   if ! command -v "$tool" >/dev/null; then
-    echo "package_test: $tool missing (apt-get install dpkg-dev file); skipping" >&2
-    exit 77
+    . "$(dirname "$0")/../support/prerequisite.sh"
+    prerequisite_missing package_test "$tool missing (apt-get install dpkg-dev file)"
   fi
 done
 

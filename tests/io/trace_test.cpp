@@ -20,6 +20,7 @@
 
 #include "nmt/sim_bus.hpp"
 #include "pcap_library.hpp"
+#include "prerequisite.hpp"
 #include "python_peer.hpp"
 
 namespace nmt {
@@ -134,7 +135,7 @@ TEST_F(Trace, CandumpLogOfSimulatedTimeCountsFromZero) {
 }
 
 TEST_F(Trace, Log2ascFromCanUtilsReadsCandumpLog) {
-  if (!have_program("log2asc")) GTEST_SKIP() << "log2asc missing: apt-get install can-utils";
+  if (!have_program("log2asc")) PREREQUISITE_MISSING("log2asc missing: apt-get install can-utils");
   auto path = write_all("bus.log");
   auto [code, lines] = run("log2asc -I '" + path.string() + "' can0");
   ASSERT_EQ(code, 0);
@@ -152,7 +153,7 @@ TEST_F(Trace, Log2ascFromCanUtilsReadsCandumpLog) {
 }
 
 TEST_F(Trace, PythonCanLogReaderReadsCandumpLog) {
-  if (auto why = test_support::python_can_missing()) GTEST_SKIP() << *why;
+  if (auto why = test_support::python_can_missing()) PREREQUISITE_MISSING(*why);
   auto path = write_all("bus.log");
   auto result = test_support::run_python_peer({"readlog", path.string()});
   ASSERT_EQ(result.exit_code, 0);
@@ -228,7 +229,7 @@ TEST_F(Trace, PcapFileIsTheClassicFormatByteForByte) {
 }
 
 TEST_F(Trace, TsharkDecodesCanopenFromPcap) {
-  if (!have_program("tshark")) GTEST_SKIP() << "tshark missing: apt-get install tshark";
+  if (!have_program("tshark")) PREREQUISITE_MISSING("tshark missing: apt-get install tshark");
   auto writer = open_pcap(dir_ / "canopen.pcap");
   ASSERT_TRUE(writer.ok()) << writer.error().message;
   // CiA 301: NMT "start remote node" (cs 0x01) for node 5; SDO upload of 1018h sub 1 from
@@ -300,7 +301,7 @@ TEST_F(Trace, FailuresAreSticky) {
 }
 
 TEST_F(Trace, WriteErrorOnFullDeviceIsReported) {
-  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  if (!fs::exists("/dev/full")) PREREQUISITE_MISSING("no /dev/full");
   auto writer = open_candump_log("/dev/full");
   ASSERT_TRUE(writer.ok()) << writer.error().message;
   (void)(*writer)->write(frame("123#"), at(0));

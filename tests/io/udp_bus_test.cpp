@@ -22,6 +22,7 @@
 
 #include "multicast_netns.hpp"
 #include "nmt/bus.hpp"
+#include "prerequisite.hpp"
 #include "python_peer.hpp"
 
 namespace nmt {
@@ -148,7 +149,7 @@ class MapBuilder {
 };
 
 TEST(UdpDatagram, PythonCanUnpacksOurDatagramsWithExactlyItsKeys) {
-  if (auto why = test_support::python_can_missing()) GTEST_SKIP() << *why;
+  if (auto why = test_support::python_can_missing()) PREREQUISITE_MISSING(*why);
   CanFrame error_frame = frame("20000080#0000000000000000");
   std::vector<std::string> args = {"unpack"};
   for (const CanFrame& f : {frame("123#DEADBEEF"), frame("1FFFFFFF#CAFE"), frame("705#R3"),
@@ -173,7 +174,7 @@ TEST(UdpDatagram, PythonCanUnpacksOurDatagramsWithExactlyItsKeys) {
 }
 
 TEST(UdpDatagram, DecodesPythonCanDatagrams) {
-  if (auto why = test_support::python_can_missing()) GTEST_SKIP() << *why;
+  if (auto why = test_support::python_can_missing()) PREREQUISITE_MISSING(*why);
   auto run = run_python_peer({"pack", "123#DEADBEEF", "1FFFFFFF#0102030405060708", "705#R",
                               "12345678#R8", "7FF#", "E80#0000000000000000"});
   ASSERT_EQ(run.exit_code, 0);

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "cfg/device_file.hpp"
+#include "prerequisite.hpp"
 #include "sdo_test_device.hpp"
 #include "test_paths.hpp"
 
@@ -369,7 +370,7 @@ TEST(LocalDictionary, LoadsTheSampleIoModule) {
 TEST(LocalDictionary, CorpusFilesLoadOrFailNamingAnEntry) {
   namespace fs = std::filesystem;
   const fs::path corpus = CANOPEN_CORPUS_DIR;
-  if (!fs::is_directory(corpus)) GTEST_SKIP() << "corpus not found at " << corpus;
+  if (!fs::is_directory(corpus)) PREREQUISITE_MISSING("corpus not found at ", corpus);
   int loaded = 0;
   for (const auto& file : fs::recursive_directory_iterator(corpus)) {
     const auto ext = file.path().extension().string();

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 #include "tool_test_support.hpp"
 
@@ -60,7 +61,7 @@ TEST(Cfgmgr, UsageErrorsExitWith2) {
 
 TEST(Cfgmgr, CheckAcceptsEverySample) {
   auto files = sample_files();
-  if (files.empty()) GTEST_SKIP() << "no samples";
+  if (files.empty()) PREREQUISITE_MISSING("no samples in ", CANOPEN_SAMPLES_DIR);
   ScratchDir dir;
   auto r = run(
       "cfgmgr",
@@ -219,7 +220,7 @@ TEST(Cfgmgr, FmtStampsFileInfoOnlyWhenItChangesTheFile) {
 // fmt writes its output in pieces as it makes it: a write error on the way is reported (exit
 // code 3), and an output file that is not complete never replaces the old one.
 TEST(Cfgmgr, FmtReportsAWriteErrorAndLeavesNoTemporaryFile) {
-  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  if (!fs::exists("/dev/full")) PREREQUISITE_MISSING("no /dev/full");
   ScratchDir dir;
   auto full = run("cfgmgr", {"fmt", data_path("concise/node5.dcf"), "-o", "/dev/full"}, dir.path());
   EXPECT_EQ(full.exit_code, 3);

@@ -13,6 +13,7 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "concise_test_support.hpp"
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 #include "tool_test_support.hpp"
 
@@ -410,7 +411,7 @@ TEST(Dcf2Concise, DecodeWarnsAboutEntriesTheDeviceDoesNotHave) {
 // the data type its DCF gives it.
 TEST(Dcf2Concise, ConvertsEverySampleNetworkDcf) {
   const fs::path network = fs::path(CANOPEN_SAMPLES_DIR) / "network";
-  if (!fs::exists(network)) GTEST_SKIP() << "no samples/network";
+  if (!fs::exists(network)) PREREQUISITE_MISSING("no samples/network at ", network);
   ScratchDir dir;
   int converted = 0;
   for (const auto& e : fs::directory_iterator(network)) {
@@ -430,7 +431,7 @@ TEST(Dcf2Concise, ConvertsEverySampleNetworkDcf) {
 // Every concise DCF of the corpus decodes with the entry count MANIFEST.tsv records.
 TEST(Dcf2Concise, DecodesCorpusStreams) {
   const fs::path corpus(CANOPEN_CORPUS_DIR);
-  if (!fs::exists(corpus / "MANIFEST.tsv")) GTEST_SKIP() << "corpus not found: " << corpus;
+  if (!fs::exists(corpus / "MANIFEST.tsv")) PREREQUISITE_MISSING("corpus not found: ", corpus);
   ScratchDir dir;
   std::istringstream manifest(tool_test::slurp(corpus / "MANIFEST.tsv"));
   for (std::string line; std::getline(manifest, line);) {
@@ -464,7 +465,7 @@ TEST(Dcf2Concise, VersionPrintsNameAndProjectVersion) {
 // §6.2). A valid configuration, so rc 0 and a note, also under --strict (issue 9).
 TEST(Dcf2Concise, SaysThatAFileWithoutParameterValuesGivesAnEmptyStream) {
   const fs::path eds = fs::path(CANOPEN_SAMPLES_DIR) / "drive.eds";
-  if (!fs::exists(eds)) GTEST_SKIP() << "no samples/drive.eds";
+  if (!fs::exists(eds)) PREREQUISITE_MISSING("no samples/drive.eds at ", eds);
   ScratchDir dir;
   auto r = run("dcf2concise", {eds.string(), "-o", dir / "drive.bin"}, dir.path());
   EXPECT_EQ(r.exit_code, 0) << r.err;

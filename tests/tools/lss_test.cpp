@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "multicast_netns.hpp"
+#include "prerequisite.hpp"
 #include "python_peer.hpp"
 #include "tool_test_support.hpp"
 
@@ -136,12 +137,7 @@ class LssInNetns : public ::testing::Test {
     devices_.emplace("cfgmgr", args, dir_ / "sim.out", dir_ / "sim.err");
     ASSERT_TRUE(devices_->started());
     // Up once it says so (it opens the bus before it prints this line).
-    const auto end = std::chrono::steady_clock::now() + 10s;
-    while (sim_out().find("simulating ") == std::string::npos &&
-           std::chrono::steady_clock::now() < end) {
-      std::this_thread::sleep_for(20ms);
-    }
-    ASSERT_THAT(sim_out(), HasSubstr("simulating "));
+    ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
   }
   std::string sim_out() const { return tool_test::slurp(dir_ / "sim.out"); }
 
@@ -218,7 +214,7 @@ TEST_F(LssInNetns, ARefusedNodeIdOrAnAbsentDeviceExits4InWords) {
 }
 
 TEST_F(LssInNetns, PythonCanLssMasterGivesTheSimulatedDeviceItsNodeId) {
-  if (auto missing = test_support::python_can_missing()) GTEST_SKIP() << *missing;
+  if (auto missing = test_support::python_can_missing()) PREREQUISITE_MISSING(*missing);
   simulate({kIo + "@255"});
   test_support::PythonPeer master(
       test_support::python_script("lss_master.py"),

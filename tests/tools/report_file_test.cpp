@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "prerequisite.hpp"
 #include "tool_test_support.hpp"
 
 namespace {
@@ -51,7 +52,7 @@ TEST_P(ReportFile, AnUnopenablePathExits3BeforeAnyBusWork) {
 
 TEST_P(ReportFile, AWriteErrorExits3) {
   // /dev/full opens, and every write to it fails with ENOSPC (Linux null(4)).
-  if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  if (!std::filesystem::exists("/dev/full")) PREREQUISITE_MISSING("no /dev/full");
   ScratchDir dir;
   const auto r = run_with_report(dir, "/dev/full");
   EXPECT_EQ(r.exit_code, 3) << r.err;

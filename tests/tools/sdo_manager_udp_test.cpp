@@ -56,7 +56,7 @@ TEST(SdoManagerInNetns, PythonSrdRegistersConnectsReadsAndReleases) {
                                   master_data("slave.eds") + "@2", master_data("slave.eds") + "@3"},
                                  dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices.started());
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(devices.wait_until_simulating()) << devices.output();
   tool_test::SpawnedTool master(
       "cfgmgr",
       {"master", manager_data("manager.dcf"), "--bus", bus, "--node-id", "1", "--run-for", "60"},

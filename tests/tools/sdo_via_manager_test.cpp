@@ -82,20 +82,15 @@ class SdoViaManagerInNetns : public ::testing::Test {
                                               node2 + "@2", master_data("slave.eds") + "@3"},
                      dir_ / "sim.out", dir_ / "sim.err");
     ASSERT_TRUE(devices_->started());
-    std::this_thread::sleep_for(300ms);
+    ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
     master_.emplace(
         "cfgmgr",
         std::vector<std::string>{"master", manager_data("manager.dcf"), "--bus", kUrl, "--node-id",
                                  "1", "--run-for", "60", "--json-events", dir_ / "events.jsonl"},
         dir_ / "master.out", dir_ / "master.err");
     ASSERT_TRUE(master_->started());
-    const auto end = std::chrono::steady_clock::now() + 10s;
-    while (tool_test::slurp(dir_ / "master.err").find("NMT start-up complete") ==
-               std::string::npos &&
-           std::chrono::steady_clock::now() < end) {
-      std::this_thread::sleep_for(20ms);
-    }
-    ASSERT_THAT(tool_test::slurp(dir_ / "master.err"), HasSubstr("NMT start-up complete"));
+    ASSERT_TRUE(master_->wait_for_output("NMT start-up complete"))
+        << tool_test::slurp(dir_ / "master.err");
   }
 
   // The python SRD (node 127) registers once the master started node 2, connects to node 2's
@@ -243,7 +238,7 @@ TEST_F(SdoViaManagerInNetns, NoManagerOnTheBusIsAnIoErrorWithExit3) {
                                             master_data("slave.eds") + "@2"},
                    dir_ / "sim.out", dir_ / "sim.err");
   ASSERT_TRUE(devices_->started());
-  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
   const auto read = sdo(
       {"read", "--via-manager", "--node-id", kToolNode, "--manager-timeout", "1", "2", "1018:1"});
   EXPECT_EQ(read.exit_code, 3) << read.err;

@@ -216,7 +216,7 @@ TEST(StoreInNetns, PutGetListConfigureOnARunningMaster) {
        test_network("nodes/drive_node3.dcf")},
       dir / "sim.out", dir / "sim.err");
   ASSERT_TRUE(devices.started());
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(devices.wait_until_simulating()) << devices.output();
   const std::string events = dir / "events.jsonl";
   tool_test::SpawnedTool master("cfgmgr",
                                 {"master", test_network("master.dcf"), "--bus", bus,

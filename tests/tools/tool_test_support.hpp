@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "prerequisite.hpp"
 #include "test_paths.hpp"
 
 namespace tool_test {
@@ -382,7 +383,9 @@ inline void run_in_private_netns(const std::string& filter) {
                               " --gtest_filter=" + shell_quote(filter) + " --gtest_brief=1";
   const int status = std::system(command.c_str());
   ASSERT_TRUE(WIFEXITED(status));
-  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no network namespace (unshare -n needs root)";
+  // run_in_netns.sh exits 77 only when CI is not "true" (tests/support/prerequisite.sh).
+  if (WEXITSTATUS(status) == 77)
+    PREREQUISITE_MISSING("no network namespace (unshare -n needs root)");
   EXPECT_EQ(WEXITSTATUS(status), 0) << filter << " failed; output above";
 }
 
@@ -391,7 +394,8 @@ inline void run_in_private_netns(const std::string& filter) {
 class SpawnedTool {
  public:
   SpawnedTool(const std::string& tool, const std::vector<std::string>& args, const std::string& out,
-              const std::string& err) {
+              const std::string& err)
+      : out_(out), err_(err) {
     std::vector<std::string> argv_storage{tool_path(tool)};
     argv_storage.insert(argv_storage.end(), args.begin(), args.end());
     std::vector<char*> argv;
@@ -415,6 +419,26 @@ class SpawnedTool {
   SpawnedTool& operator=(const SpawnedTool&) = delete;
 
   bool started() const { return pid_ > 0; }
+  /// Waits up to `limit` until the tool's standard output or error has `text`; false when it
+  /// did not come (the tool failed to start, or ended, or is stuck).
+  bool wait_for_output(std::string_view text,
+                       std::chrono::milliseconds limit = std::chrono::seconds(10)) const {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    for (;;) {
+      if (slurp(out_).find(text) != std::string::npos) return true;
+      if (slurp(err_).find(text) != std::string::npos) return true;
+      if (std::chrono::steady_clock::now() >= end) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  /// `cfgmgr simulate` is up: it prints "simulating N devices on BUS" once its bus is open and
+  /// its devices are added to the loop (cfgmgr simulate --help), so a frame sent from now on
+  /// reaches them. Up to `limit`.
+  bool wait_until_simulating(std::chrono::milliseconds limit = std::chrono::seconds(10)) const {
+    return wait_for_output("simulating ", limit);
+  }
+  /// Both output files, for a failure message.
+  std::string output() const { return slurp(out_) + slurp(err_); }
   /// Sends `signal` (e.g. SIGSTOP, SIGCONT) without waiting for anything.
   void signal(int signal) const {
     if (pid_ > 0) ::kill(pid_, signal);
@@ -435,6 +459,8 @@ class SpawnedTool {
   }
 
  private:
+  std::string out_;
+  std::string err_;
   pid_t pid_ = -1;
 };
 
