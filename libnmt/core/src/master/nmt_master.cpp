@@ -182,6 +182,8 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "srd_deregistered";
     case K::SlaveFailedReported:
       return "slave_failed_reported";
+    case K::PersistEntry:
+      return "persist_entry";
   }
   return "?";
 }
@@ -270,6 +272,13 @@ struct CallScope {
 void NmtMaster::start(TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
   impl_->power_on(now, out);
+  impl_->settle(now, out);
+}
+
+void NmtMaster::entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now,
+                                Output& out) {
+  CallScope scope(*impl_, out);
+  impl_->entry_persisted(ticket, result, now, out);
   impl_->settle(now, out);
 }
 
@@ -517,6 +526,10 @@ BootStep NmtMaster::boot_step(cfg::NodeId node) const {
 std::optional<BootError> NmtMaster::last_error(cfg::NodeId node) const {
   return impl_->slaves[node].last_error;
 }
+const cfg::ConfigManager* NmtMaster::config_manager() const {
+  return impl_->options.manager.get();
+}
+
 const LocalDictionary& NmtMaster::dictionary() const {
   return impl_->dict;
 }
