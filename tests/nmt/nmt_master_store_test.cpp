@@ -458,6 +458,27 @@ TEST(NmtMasterStore, FailedPersistAbortsTheDownloadWith08000020) {
   EXPECT_EQ(d.manager->expected_stamp(node), cfg::ConfigurationStamp{});
 }
 
+// nmt_master.hpp: a write through dictionary() (outside any call of the master) is persisted
+// the same way: its PersistEntry comes from the master's next call, and the manager has the
+// value once the driver completed it.
+TEST(NmtMasterStore, WriteThroughTheDictionaryIsPersistedByTheDriverToo) {
+  DurableStoreRig d;
+  const auto node = *cfg::NodeId::from(kNode);
+  const TimePoint at = d.s.rig.bus.now();
+  EXPECT_EQ(d.s.rig.engine().dictionary().write(0x1F22, kNode, kStream, at), SdoAbort::None);
+  EXPECT_FALSE(d.manager->concise(node).has_value());
+  d.s.rig.run_for(1s);  // the next call: a heartbeat of node 5, say
+  const auto asked = d.requested();
+  ASSERT_TRUE(asked.update);
+  ASSERT_TRUE(d.manager->persist(*asked.update).ok());
+  EXPECT_FALSE(d.manager->concise(node).has_value());
+  d.complete(asked.ticket, cfg::Status{});
+  EXPECT_EQ(d.manager->concise(node), kStream);
+  auto again = cfg::ConfigManager::open(d.dir.str());
+  ASSERT_TRUE(again.ok()) << again.error().message;
+  EXPECT_EQ(again.value().concise(node), kStream);
+}
+
 // One owner of 1F26h/1F27h (nmt_master.hpp): for a node the manager holds nothing for, the
 // master DCF's value is read; an SDO write goes to the manager (keeping the other half), and the
 // C++ API's value is what SDO reads give.
