@@ -127,33 +127,83 @@ struct ConfigManager::State {
   NodeSlot& slot(NodeId node) { return nodes[node.value()]; }
   const NodeSlot& slot(NodeId node) const { return nodes[node.value()]; }
 
-  /// Writes (or, with `stored` null, removes) the entry file first, so that memory never holds
-  /// a value the directory does not.
-  Status persist(std::uint16_t index, NodeId node, EntryEncoding encoding,
-                 const std::vector<std::uint8_t>* stored, std::uint32_t value_size) const {
+  /// A DCF or EDS text (1F20h/1F23h) as an update; empty text removes the entry.
+  static Result<StoreUpdate> stage_text(std::uint16_t index, NodeId node, std::string_view text) {
+    StoreUpdate update{index, node, text.empty(), true, {}, 0};
+    if (text.empty()) return update;
+    if (text.size() > UINT32_MAX) return Error{"the file is 4 GiB or larger"};
+    update.stored = detail::deflate_bytes(as_bytes(text));
+    update.value_size = static_cast<std::uint32_t>(text.size());
+    return update;
+  }
+
+  static Result<StoreUpdate> stage_concise(NodeId node, std::span<const std::uint8_t> stream) {
+    auto decoded = decode_concise_dcf(stream);
+    if (!decoded) return Error{"not a valid concise DCF: " + decoded.error().message};
+    // DSP 302 §6.2 application hint 1: the stream with count 0 is the empty data set.
+    StoreUpdate update{object::kConciseDcf, node, decoded->empty(), false, {}, 0};
+    if (!update.remove) {
+      update.stored.assign(stream.begin(), stream.end());
+      update.value_size = static_cast<std::uint32_t>(stream.size());
+    }
+    return update;
+  }
+
+  static Result<StoreUpdate> stage_stamp(NodeId node, ConfigurationStamp stamp) {
+    if (stamp.ms >= kMsPerDay) {
+      return Error{"1F27h " + std::to_string(stamp.ms) +
+                   " ms is not a time of day (milliseconds after midnight, below 86 400 000)"};
+    }
+    StoreUpdate update{object::kExpectedConfigurationDate, node, stamp.is_zero(), false, {}, 8};
+    append_le(update.stored, stamp.days, 4);
+    append_le(update.stored, stamp.ms, 4);
+    return update;
+  }
+
+  Status persist(const StoreUpdate& update) const {
     if (directory.empty()) return {};
-    const std::string name = store_entry_file_name(index, node);
-    if (stored == nullptr) return detail::remove_file_durably(directory, name);
+    const std::string name = store_entry_file_name(update.index, update.node);
+    if (update.remove) return detail::remove_file_durably(directory, name);
+    const auto encoding = update.zlib ? EntryEncoding::Zlib : EntryEncoding::Raw;
     return detail::write_file_atomically(
-        directory, name, detail::encode_entry_file(index, node, encoding, *stored, value_size),
+        directory, name,
+        detail::encode_entry_file(update.index, update.node, encoding, update.stored,
+                                  update.value_size),
         hooks);
   }
 
-  Status put_text(std::uint16_t index, NodeId node, std::string_view text,
-                  std::optional<PackedText> NodeSlot::*member) {
-    if (text.empty()) {
-      if (auto done = persist(index, node, EntryEncoding::Zlib, nullptr, 0); !done) return done;
-      (slot(node).*member).reset();
-      return {};
+  void commit(StoreUpdate update) {
+    NodeSlot& s = slot(update.node);
+    switch (update.index) {
+      case object::kConciseDcf:
+        s.concise = update.remove ? std::vector<std::uint8_t>{} : std::move(update.stored);
+        s.concise.shrink_to_fit();
+        break;
+      case object::kStoreDcf:
+      case object::kStoreEds: {
+        auto& text = update.index == object::kStoreDcf ? s.dcf : s.eds;
+        if (update.remove) {
+          text.reset();
+        } else {
+          text = PackedText{std::move(update.stored), update.value_size};
+        }
+        break;
+      }
+      default:  // 1F26h with 1F27h
+        s.stamp = update.remove
+                      ? ConfigurationStamp{}
+                      : ConfigurationStamp{load_le32(update.stored),
+                                           load_le32(std::span(update.stored).subspan(4))};
+        break;
     }
-    if (text.size() > UINT32_MAX) return Error{"the file is 4 GiB or larger"};
-    PackedText packed{detail::deflate_bytes(as_bytes(text)),
-                      static_cast<std::uint32_t>(text.size())};
-    if (auto done = persist(index, node, EntryEncoding::Zlib, &packed.deflated, packed.size);
-        !done) {
-      return done;
-    }
-    slot(node).*member = std::move(packed);
+  }
+
+  /// The C++ API's write: the entry file first, so that memory never holds a value the
+  /// directory does not.
+  Status apply(Result<StoreUpdate> update) {
+    if (!update) return update.error();
+    if (auto done = persist(*update); !done) return done;
+    commit(std::move(update).value());
     return {};
   }
 
@@ -273,51 +323,32 @@ Status ConfigManager::put_dcf(NodeId node, std::string_view text) {
     auto writes = writes_of_dcf(text, node);
     if (!writes) return writes.error();
   }
-  return state_->put_text(object::kStoreDcf, node, text, &NodeSlot::dcf);
+  return state_->apply(State::stage_text(object::kStoreDcf, node, text));
 }
 
 Status ConfigManager::put_eds(NodeId node, std::string_view text) {
-  return state_->put_text(object::kStoreEds, node, text, &NodeSlot::eds);
+  return state_->apply(State::stage_text(object::kStoreEds, node, text));
 }
 
 Status ConfigManager::put_concise(NodeId node, std::span<const std::uint8_t> stream) {
-  auto decoded = decode_concise_dcf(stream);
-  if (!decoded) return Error{"not a valid concise DCF: " + decoded.error().message};
-  if (decoded->empty()) {
-    // DSP 302 §6.2 application hint 1: the stream with count 0 is the empty data set.
-    if (auto done = state_->persist(object::kConciseDcf, node, EntryEncoding::Raw, nullptr, 0);
-        !done) {
-      return done;
-    }
-    state_->slot(node).concise.clear();
-    state_->slot(node).concise.shrink_to_fit();
-    return {};
-  }
-  std::vector<std::uint8_t> bytes(stream.begin(), stream.end());
-  if (auto done = state_->persist(object::kConciseDcf, node, EntryEncoding::Raw, &bytes,
-                                  static_cast<std::uint32_t>(bytes.size()));
-      !done) {
-    return done;
-  }
-  state_->slot(node).concise = std::move(bytes);
-  return {};
+  return state_->apply(State::stage_concise(node, stream));
 }
 
 Status ConfigManager::set_expected_stamp(NodeId node, ConfigurationStamp stamp) {
-  if (stamp.ms >= kMsPerDay) {
-    return Error{"1F27h " + std::to_string(stamp.ms) +
-                 " ms is not a time of day (milliseconds after midnight, below 86 400 000)"};
-  }
-  std::vector<std::uint8_t> bytes;
-  append_le(bytes, stamp.days, 4);
-  append_le(bytes, stamp.ms, 4);
-  if (auto done = state_->persist(object::kExpectedConfigurationDate, node, EntryEncoding::Raw,
-                                  stamp.is_zero() ? nullptr : &bytes, 8);
-      !done) {
-    return done;
-  }
-  state_->slot(node).stamp = stamp;
-  return {};
+  return state_->apply(State::stage_stamp(node, stamp));
+}
+
+Result<StoreUpdate> ConfigManager::stage_expected_stamp(NodeId node,
+                                                        ConfigurationStamp stamp) const {
+  return State::stage_stamp(node, stamp);
+}
+
+Status ConfigManager::persist(const StoreUpdate& update) const {
+  return state_->persist(update);
+}
+
+void ConfigManager::commit(StoreUpdate update) {
+  state_->commit(std::move(update));
 }
 
 std::optional<std::string> ConfigManager::dcf(NodeId node) const {
@@ -506,6 +537,26 @@ ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) cons
 
 ConfigWrite ConfigManager::write(std::uint16_t index, std::uint8_t sub_index,
                                  std::span<const std::uint8_t> data) {
+  std::optional<StoreUpdate> update;
+  ConfigWrite answer = stage(index, sub_index, data, update);
+  if (!answer.ok() || !update) return answer;
+  if (auto done = state_->persist(*update); !done) {
+    return {ConfigAbort::CannotStoreOrTransfer, done.error().message, {}};
+  }
+  state_->commit(std::move(*update));
+  return answer;
+}
+
+ConfigWrite ConfigManager::stage(std::uint16_t index, std::uint8_t sub_index,
+                                 std::span<const std::uint8_t> data,
+                                 std::optional<StoreUpdate>& update) const {
+  update.reset();
+  // A staged change, or the abort its failure answers (0609 0030h: the value is refused).
+  auto staged = [&update](Result<StoreUpdate> result) -> ConfigWrite {
+    if (!result) return write_answer(result.error());
+    update = std::move(result).value();
+    return {};
+  };
   if (!is_manager_index(index)) {
     return {ConfigAbort::ObjectDoesNotExist,
             object_name(index) + " is not an object of the configuration manager",
@@ -556,7 +607,10 @@ ConfigWrite ConfigManager::write(std::uint16_t index, std::uint8_t sub_index,
   switch (index) {
     case object::kStoreDcf: {
       const std::string_view text(reinterpret_cast<const char*>(data.data()), data.size());
-      return write_answer(put_dcf(node, text));
+      if (!text.empty()) {
+        if (auto writes = writes_of_dcf(text, node); !writes) return write_answer(writes.error());
+      }
+      return staged(State::stage_text(index, node, text));
     }
     case object::kStorageFormat:
     case object::kStorageFormatEds:
@@ -569,17 +623,17 @@ ConfigWrite ConfigManager::write(std::uint16_t index, std::uint8_t sub_index,
       }
       return {};
     case object::kConciseDcf:
-      return write_answer(put_concise(node, data));
+      return staged(State::stage_concise(node, data));
     case object::kStoreEds: {
       const std::string_view text(reinterpret_cast<const char*>(data.data()), data.size());
-      return write_answer(put_eds(node, text));
+      return staged(State::stage_text(index, node, text));
     }
     case object::kExpectedConfigurationDate:
     case object::kExpectedConfigurationTime: {
       if (data.size() != 4) return wrong_length(4);
       ConfigurationStamp stamp = expected_stamp(node);
       (index == object::kExpectedConfigurationDate ? stamp.days : stamp.ms) = load_le32(data);
-      return write_answer(set_expected_stamp(node, stamp));
+      return staged(State::stage_stamp(node, stamp));
     }
     default:
       return {ConfigAbort::ObjectDoesNotExist, object_name(index) + " is not served", {}};

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "cfg/concise_dcf.hpp"
+#include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
 #include "nmt/nmt_master.hpp"
@@ -256,7 +257,17 @@ class MasterRig {
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     if (!created.ok()) throw std::runtime_error("NmtMaster::create failed");
     master_ = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());
-    master_->set_event_handler([this](const MasterEvent& e, TimePoint) { events.push_back(e); });
+    master_->set_event_handler([this](const MasterEvent& e, TimePoint) {
+      events.push_back(e);
+      if (persist_entries && e.kind == MasterEvent::Kind::PersistEntry && e.persist) {
+        // The rig is the driver (as cfgmgr master is): the entry is written after the call.
+        auto done = master_->engine().config_manager()->persist(*e.persist->update);
+        master_->apply([ticket = e.persist->ticket, done](NmtMaster& m, TimePoint now,
+                                                          NmtMaster::Output& out) {
+          m.entry_persisted(ticket, done, now, out);
+        });
+      }
+    });
     bus.attach(*master_);
     started_at = bus.now();
     master_->apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) { m.start(now, out); });
@@ -403,6 +414,20 @@ class MasterRig {
     });
     return finish(id);
   }
+  /// Starts a write of the tool and returns at once (tool_result() tells when it ended).
+  SdoClient::TransferId tool_begin_write(std::uint16_t index, std::uint8_t sub,
+                                         std::vector<std::uint8_t> data,
+                                         SdoTransferOptions transfer = {}) {
+    return tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+      return c.download(index, sub, std::move(data), now, out, transfer);
+    });
+  }
+  /// The result of a transfer of the tool; nullopt while it runs.
+  std::optional<SdoResult> tool_result(SdoClient::TransferId id) const {
+    const auto it = results_.find(id);
+    if (it == results_.end()) return std::nullopt;
+    return it->second;
+  }
   SdoAbort tool_write_u(std::uint16_t index, std::uint8_t sub, std::uint64_t value,
                         std::size_t size) {
     return tool_write(index, sub, le(value, size)).abort;
@@ -432,6 +457,9 @@ class MasterRig {
   std::shared_ptr<TestConfigurations> configurations = std::make_shared<TestConfigurations>();
   std::vector<Seen> seen;
   std::vector<MasterEvent> events;
+  /// MasterEvent::PersistEntry (a manager with a store directory): the rig writes the entry at
+  /// once and calls entry_persisted(); false leaves that to the test.
+  bool persist_entries = true;
   TimePoint started_at{0};
 
  private:

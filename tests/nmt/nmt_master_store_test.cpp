@@ -354,6 +354,131 @@ TEST(NmtMasterStore, WritesOverSdoPersistInTheStoreDirectory) {
   EXPECT_EQ(again.value().expected_stamp(node).days, 0x3A99U);
 }
 
+/// The rig with a store directory whose entries the test persists itself (the driver's part:
+/// cfg::ConfigManager::persist, then NmtMaster::entry_persisted).
+struct DurableStoreRig {
+  DurableStoreRig() : manager(open_manager(dir.str())), s(manager) {
+    s.rig.persist_entries = false;
+    s.start();
+  }
+  static std::shared_ptr<cfg::ConfigManager> open_manager(const std::string& path) {
+    auto opened = cfg::ConfigManager::open(path);
+    EXPECT_TRUE(opened.ok()) << opened.error().message;
+    return std::make_shared<cfg::ConfigManager>(std::move(opened).value());
+  }
+  /// The master's SDO responses to the tool (580h + its node-ID) at or after `from`.
+  std::vector<CanFrame> responses(TimePoint from) const {
+    std::vector<CanFrame> out;
+    for (const auto& seen : s.rig.on_id(0x580 + kMaster, from)) out.push_back(seen.frame);
+    return out;
+  }
+  /// The PersistEntry of node 5 the master reported last.
+  MasterEvent::Persist requested() const {
+    const auto asked = s.rig.events_of(Kind::PersistEntry, kNode);
+    EXPECT_FALSE(asked.empty());
+    return asked.empty() ? MasterEvent::Persist{} : *asked.back().persist;
+  }
+  void complete(std::uint64_t ticket, const cfg::Status& result) {
+    s.rig.call([&](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+      m.entry_persisted(ticket, result, now, out);
+    });
+  }
+  TempDir dir;
+  std::shared_ptr<cfg::ConfigManager> manager;
+  StoreRig s;
+};
+
+// Issue 21 "No disk I/O inside on_frame": a 1F22h download to a master with a store directory
+// is reported as PersistEntry; the response to its last segment (CiA 301 §7.2.4.3.6: scs 1,
+// toggle of the request; the sixth segment of 36 bytes has t = 1: 30h) leaves only after the
+// driver made the entry durable and said so, and the manager has the value from then on.
+TEST(NmtMasterStore, ConciseDcfDownloadIsConfirmedOnlyOnceTheEntryIsDurable) {
+  DurableStoreRig d;
+  const auto node = *cfg::NodeId::from(kNode);
+  const TimePoint from = d.s.rig.bus.now();
+  const auto id = d.s.rig.tool_begin_write(0x1F22, kNode, kStream, by(SdoMode::Segmented));
+  ASSERT_TRUE(d.s.rig.run_until_kind(Kind::PersistEntry, 1s, kNode));
+  d.s.rig.run_for(200ms);  // time enough for the confirmation, were it not held
+  // 36 bytes: the initiate and segments 1-5 are answered, segment 6 (the last) is not.
+  ASSERT_EQ(kStream.size(), 36U);
+  ASSERT_EQ(d.responses(from).size(), 6U);
+  EXPECT_FALSE(d.s.rig.tool_result(id).has_value());
+  EXPECT_FALSE(d.manager->concise(node).has_value());
+  const fs::path file = fs::path(d.dir.str()) / "1F22-05";
+  EXPECT_FALSE(fs::exists(file));
+
+  const auto asked = d.requested();
+  ASSERT_TRUE(asked.update);
+  EXPECT_EQ(asked.update->index, 0x1F22);
+  EXPECT_EQ(asked.update->node, node);
+  const cfg::Status done = d.manager->persist(*asked.update);
+  ASSERT_TRUE(done.ok()) << done.error().message;
+  EXPECT_TRUE(fs::exists(file));
+  d.s.rig.run_for(10ms);
+  EXPECT_EQ(d.responses(from).size(), 6U);  // durable, but the master was not told yet
+  const TimePoint told = d.s.rig.bus.now();
+  d.complete(asked.ticket, done);
+  d.s.rig.run_for(10ms);
+  const auto confirmation = d.responses(told);
+  ASSERT_EQ(confirmation.size(), 1U);
+  EXPECT_EQ(confirmation[0].data[0], 0x30);
+  const auto result = d.s.rig.tool_result(id);
+  ASSERT_TRUE(result.has_value());
+  EXPECT_EQ(result->abort, SdoAbort::None);
+  EXPECT_EQ(d.manager->concise(node), kStream);
+}
+
+// A persist that failed aborts the download with 0800 0020h ("data cannot be transferred or
+// stored to the application", CiA 301 §7.2.4.3.17, as the manager answers a store it cannot
+// write), here an expedited 1F26h write; the manager keeps its value, and a second completion
+// of the same ticket sends nothing.
+TEST(NmtMasterStore, FailedPersistAbortsTheDownloadWith08000020) {
+  DurableStoreRig d;
+  const auto node = *cfg::NodeId::from(kNode);
+  const TimePoint from = d.s.rig.bus.now();
+  const auto id = d.s.rig.tool_begin_write(0x1F26, kNode, le(0x3A99, 4));
+  ASSERT_TRUE(d.s.rig.run_until_kind(Kind::PersistEntry, 1s, kNode));
+  d.s.rig.run_for(200ms);
+  EXPECT_TRUE(d.responses(from).empty());
+  const auto asked = d.requested();
+  d.complete(asked.ticket, cfg::Status{cfg::Error{"disk full", cfg::ErrorCategory::Io}});
+  d.s.rig.run_for(10ms);
+  // Abort frame: 80h, 1F26h sub 05h, code 0800 0020h (little-endian).
+  const auto answers = d.responses(from);
+  ASSERT_EQ(answers.size(), 1U);
+  const std::vector<std::uint8_t> abort(answers[0].data.begin(), answers[0].data.begin() + 8);
+  EXPECT_EQ(abort, (std::vector<std::uint8_t>{0x80, 0x26, 0x1F, 0x05, 0x20, 0x00, 0x00, 0x08}));
+  const auto result = d.s.rig.tool_result(id);
+  ASSERT_TRUE(result.has_value());
+  EXPECT_EQ(result->abort, SdoAbort::CannotStoreOrTransfer);
+  EXPECT_EQ(d.manager->expected_stamp(node), cfg::ConfigurationStamp{});
+  d.complete(asked.ticket, cfg::Status{});
+  d.s.rig.run_for(10ms);
+  EXPECT_EQ(d.responses(from).size(), 1U);
+  EXPECT_EQ(d.manager->expected_stamp(node), cfg::ConfigurationStamp{});
+}
+
+// nmt_master.hpp: a write through dictionary() (outside any call of the master) is persisted
+// the same way: its PersistEntry comes from the master's next call, and the manager has the
+// value once the driver completed it.
+TEST(NmtMasterStore, WriteThroughTheDictionaryIsPersistedByTheDriverToo) {
+  DurableStoreRig d;
+  const auto node = *cfg::NodeId::from(kNode);
+  const TimePoint at = d.s.rig.bus.now();
+  EXPECT_EQ(d.s.rig.engine().dictionary().write(0x1F22, kNode, kStream, at), SdoAbort::None);
+  EXPECT_FALSE(d.manager->concise(node).has_value());
+  d.s.rig.run_for(1s);  // the next call: a heartbeat of node 5, say
+  const auto asked = d.requested();
+  ASSERT_TRUE(asked.update);
+  ASSERT_TRUE(d.manager->persist(*asked.update).ok());
+  EXPECT_FALSE(d.manager->concise(node).has_value());
+  d.complete(asked.ticket, cfg::Status{});
+  EXPECT_EQ(d.manager->concise(node), kStream);
+  auto again = cfg::ConfigManager::open(d.dir.str());
+  ASSERT_TRUE(again.ok()) << again.error().message;
+  EXPECT_EQ(again.value().concise(node), kStream);
+}
+
 // One owner of 1F26h/1F27h (nmt_master.hpp): for a node the manager holds nothing for, the
 // master DCF's value is read; an SDO write goes to the manager (keeping the other half), and the
 // C++ API's value is what SDO reads give.

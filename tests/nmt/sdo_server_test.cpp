@@ -229,6 +229,57 @@ TEST_F(SdoServerTest, BlockDownloadWithCrc) {
   EXPECT_EQ(value(0x2000, 0), (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
 }
 
+// --- held confirmations (a write hook's WriteVerdict::hold) ---------------------------------
+
+// The block download end response (scs 5, ss 1: A1h) of a write a hook held leaves only from
+// complete_download() with the hook's ticket; the value is stored already, no timeout runs, and
+// another ticket completes nothing.
+TEST_F(SdoServerTest, HeldBlockDownloadIsConfirmedByCompleteDownload) {
+  dict.add_write_hook([](std::uint16_t index, std::uint8_t, std::span<const std::uint8_t>,
+                         TimePoint) -> WriteVerdict {
+    return index == 0x2000 ? WriteVerdict::hold(7) : WriteVerdict{};
+  });
+  EXPECT_EQ(request("605#C60020000A000000"), Frames{"585#A40020007F000000"});
+  EXPECT_EQ(request("605#0101020304050607"), Frames{});
+  EXPECT_EQ(request("605#8208090A00000000"), Frames{"585#A2027F0000000000"});
+  EXPECT_EQ(request("605#D14BCD0000000000"), Frames{});
+  EXPECT_EQ(value(0x2000, 0), (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
+  EXPECT_TRUE(server.busy());
+  EXPECT_EQ(server.next_deadline(), std::nullopt);
+  SdoServer::Output out;
+  EXPECT_FALSE(server.complete_download(8, SdoAbort::None, out));
+  EXPECT_TRUE(out.frames.empty());
+  EXPECT_TRUE(server.complete_download(7, SdoAbort::None, out));
+  EXPECT_EQ(text(out.frames), Frames{"585#A100000000000000"});
+  EXPECT_FALSE(server.busy());
+}
+
+// Completed with a code, the held expedited download (1017h) is aborted with it instead of
+// confirmed: 0800 0020h, little-endian in bytes 4-7.
+TEST_F(SdoServerTest, HeldExpeditedDownloadCompletedWithACodeIsAborted) {
+  dict.add_write_hook([](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>, TimePoint) {
+    return WriteVerdict::hold(1);
+  });
+  EXPECT_EQ(request("605#2B171000E8030000"), Frames{});
+  SdoServer::Output out;
+  EXPECT_TRUE(server.complete_download(1, SdoAbort::CannotStoreOrTransfer, out));
+  EXPECT_EQ(text(out.frames), Frames{"585#8017100020000008"});
+  EXPECT_FALSE(server.complete_download(1, SdoAbort::None, out));
+}
+
+// A client abort drops the held confirmation: completing it later sends nothing.
+TEST_F(SdoServerTest, ClientAbortDropsAHeldConfirmation) {
+  dict.add_write_hook([](std::uint16_t, std::uint8_t, std::span<const std::uint8_t>, TimePoint) {
+    return WriteVerdict::hold(3);
+  });
+  EXPECT_EQ(request("605#2B171000E8030000"), Frames{});
+  EXPECT_EQ(request("605#8017100000000405"), Frames{});  // abort 0504 0000 from the client
+  EXPECT_FALSE(server.busy());
+  SdoServer::Output out;
+  EXPECT_FALSE(server.complete_download(3, SdoAbort::None, out));
+  EXPECT_TRUE(out.frames.empty());
+}
+
 TEST_F(SdoServerTest, BlockDownloadWithWrongCrcAborts) {
   EXPECT_EQ(request("605#C60020000A000000"), Frames{"585#A40020007F000000"});
   EXPECT_EQ(request("605#0101020304050607"), Frames{});

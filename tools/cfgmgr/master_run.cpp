@@ -80,6 +80,23 @@ std::string prefix(std::string_view tool) {
   return "cfgmgr " + std::string(tool) + ": ";
 }
 
+// --store DIR: the master leaves the disk to its driver (nmt_master.hpp, PersistEntry). The
+// entry is written here, in the loop after the master's call, and the master told, so that the
+// SDO confirmation of the write leaves once the entry is durable (or an abort when it failed).
+template <class Apply>
+void persist_when_asked(const nmt::MasterEvent& e, const nmt::NmtMaster& master,
+                        EventReporter& reporter, std::string_view tool, Apply&& apply) {
+  if (e.kind != nmt::MasterEvent::Kind::PersistEntry || !e.persist) return;
+  const cfg::ConfigManager* manager = master.config_manager();
+  cfg::Status done = manager != nullptr ? manager->persist(*e.persist->update)
+                                        : cfg::Status{cfg::Error{"no configuration manager"}};
+  if (!done) reporter.note(prefix(tool) + "error: " + done.error().message);
+  apply([ticket = e.persist->ticket, done = std::move(done)](nmt::NmtMaster& m, nmt::TimePoint now,
+                                                             nmt::NmtMaster::Output& out) {
+    m.entry_persisted(ticket, done, now, out);
+  });
+}
+
 // The trace files of a run, open; exit 3 when one cannot be created.
 struct OpenTraces {
   std::vector<std::unique_ptr<nmt::TraceWriter>> writers;
@@ -527,6 +544,8 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   bool continued = false;
   node.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
     reporter.report(e);
+    persist_when_asked(e, node.engine(), reporter, limits.tool,
+                       [&node](auto fn) { node.apply(fn); });
     continue_when_awaited(node.engine(), continued, [&node](auto fn) { node.apply(fn); });
   });
 
@@ -583,6 +602,7 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
   bool continued = false;
   ref.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
     reporter.report(e);
+    persist_when_asked(e, master, reporter, limits.tool, [&ref](auto fn) { ref.apply(fn); });
     continue_when_awaited(master, continued, [&ref](auto fn) { ref.apply(fn); });
     if (limits.until_startup_ends && !limits.run_for_s && ended(limits, reporter)) {
       loop.request_stop();

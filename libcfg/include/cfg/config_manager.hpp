@@ -131,6 +131,22 @@ std::vector<std::uint8_t> encode_store_entry(const StoreEntry& entry);
 Result<StoreEntry> decode_store_entry(std::span<const std::uint8_t> bytes,
                                       std::string_view file_name = {});
 
+/// A change of one entry that waits to be made durable: what an SDO write (stage()) or the C++
+/// API decided, before anything is written. The owner writes it (ConfigManager::persist, disk
+/// I/O) and then hands it back (ConfigManager::commit, memory only), so that a program that must
+/// not wait for the disk in the middle of its work (the NMT master inside on_frame) can do the
+/// write elsewhere and answer the SDO write once the entry is durable.
+struct StoreUpdate {
+  std::uint16_t index = 0;  ///< 1F20h, 1F22h, 1F23h or 1F26h (1F26h and 1F27h as one entry)
+  NodeId node = *NodeId::from(1);
+  bool remove = false;  ///< the entry goes (empty text, the empty data set, stamp {0, 0})
+  /// The value as its file holds it (entry encoding `zlib`: DCF and EDS texts, compressed here,
+  /// so the CPU work is done before the I/O), and its size once decoded.
+  bool zlib = false;
+  std::vector<std::uint8_t> stored;
+  std::uint32_t value_size = 0;
+};
+
 // --- the manager --------------------------------------------------------------------------------
 
 /// How much memory a peer on the bus can make the manager hold through SDO writes (write()):
@@ -184,8 +200,31 @@ class ConfigManager {
   /// server asks it with the size a download indicates, else with the size received so far,
   /// so that an oversized download is refused before it is buffered; write() checks it too.
   ConfigAbort admits(std::uint16_t index, std::uint8_t sub_index, std::size_t size) const;
+  /// An SDO write: stage(), then persist() and commit() of its update at once. The disk I/O
+  /// (fsync included) happens inside this call.
   ConfigWrite write(std::uint16_t index, std::uint8_t sub_index,
                     std::span<const std::uint8_t> data);
+  /// An SDO write checked and decided as write() does (same answers, same abort codes), without
+  /// I/O and without changing anything: when it is accepted and changes a stored entry,
+  /// `update` holds the change, which takes effect with persist() and commit(); 1F21h/1F24h
+  /// (nothing to store) and 1F25h leave it empty. The manager's values stay the old ones until
+  /// commit(), so a read meanwhile gives the old value; two staged updates of one entry take
+  /// effect in the order they are committed (each is the whole entry), so the owner stages 1F26h
+  /// and 1F27h of a node one at a time (the master's SDO server answers one write at a time).
+  ConfigWrite stage(std::uint16_t index, std::uint8_t sub_index, std::span<const std::uint8_t> data,
+                    std::optional<StoreUpdate>& update) const;
+  /// set_expected_stamp() staged: fails for ms >= kMsPerDay.
+  Result<StoreUpdate> stage_expected_stamp(NodeId node, ConfigurationStamp stamp) const;
+  /// True when the manager has a store directory, so an update needs persist() before commit().
+  bool persistent() const { return !directory().empty(); }
+  /// Writes (or removes) the update's entry file, atomically and durably (see the top); nothing
+  /// without a store directory. Fails (category Io) naming the file and the reason; the old file
+  /// is then untouched. Changes no value of the manager: only files, so a driver may run it
+  /// where the disk may take its time (the master's event loop, after the engine's call).
+  Status persist(const StoreUpdate& update) const;
+  /// The manager takes the update's value (memory only). Call it after persist() succeeded, so
+  /// that memory never holds a value the directory does not.
+  void commit(StoreUpdate update);
 
   // The C++ API. Writes persist before they return (store directory), and fail with the
   // file and the reason when the directory cannot be written (the entry keeps its old value).

@@ -31,16 +31,38 @@ namespace nmt {
 /// value, as the write rules of libcfg (cfg/write_acceptance.hpp) see a device's entries.
 using DictionaryEntry = cfg::DeviceEntry;
 
+/// A write hook's answer: accept (SdoAbort::None, the default), refuse with a code, or accept
+/// and hold the confirmation of the SDO download until the dictionary's owner completes it
+/// under `held` (SdoServer::complete_download): the master's 1F20h-1F27h, whose confirmation
+/// leaves once the entry is durable (nmt_master.hpp). A plain SdoAbort converts to it, so a hook
+/// that never holds returns SdoAbort. A hook that holds must run after every hook that may
+/// refuse the same entry: a later refusal does not undo what the holding hook started.
+struct WriteVerdict {
+  SdoAbort abort = SdoAbort::None;
+  /// The ticket of a held confirmation; nullopt: confirm at once.
+  std::optional<std::uint64_t> held;
+
+  WriteVerdict() = default;
+  WriteVerdict(SdoAbort code)
+      : abort(code) {}  // NOLINT(google-explicit-constructor): a hook's code
+  static WriteVerdict hold(std::uint64_t ticket) {
+    WriteVerdict verdict;
+    verdict.held = ticket;
+    return verdict;
+  }
+};
+
 class LocalDictionary {
  public:
   /// Default max_size of variable-size entries (strings, DOMAIN): 1 MiB.
   static constexpr std::size_t kDefaultMaxVariableSize = cfg::kDefaultMaxVariableSize;
 
   /// Called by write() after all dictionary checks passed and before the value is stored, with
-  /// the time of the write. A result other than SdoAbort::None rejects the write with that code
-  /// (the value stays).
-  using WriteHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub,
-                                           std::span<const std::uint8_t> data, TimePoint now)>;
+  /// the time of the write. A code other than SdoAbort::None rejects the write with that code
+  /// (the value stays); WriteVerdict::hold accepts it and holds its SDO confirmation
+  /// (write_download()).
+  using WriteHook = std::function<WriteVerdict(std::uint16_t index, std::uint8_t sub,
+                                               std::span<const std::uint8_t> data, TimePoint now)>;
   /// Called by write() after a value was stored (not by the unchecked setters), with the time of
   /// the write.
   using WriteObserver = std::function<void(std::uint16_t index, std::uint8_t sub,
@@ -95,6 +117,11 @@ class LocalDictionary {
   /// stored and the observers are called. `now`: the time of the write, for the hooks.
   SdoAbort write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                  TimePoint now);
+  /// write() for an SDO download: also says whether a write hook holds the confirmation (the
+  /// value is stored all the same; the hook's owner completes the download later with success
+  /// or an abort). write() ignores a hold: its caller has no confirmation to send.
+  WriteVerdict write_download(std::uint16_t index, std::uint8_t sub,
+                              std::span<const std::uint8_t> data, TimePoint now);
 
   /// The checks write() does before seeing the data: existence, access, and (when the size is
   /// known) the size hooks, then the size (cfg::check_entry_access). The SDO server uses it to

@@ -153,6 +153,18 @@
 //   concise_dcf(), else the master DCF's own 1F22h, else the count-0 stream, and 1F20h/1F21h its
 //   dcf(), so that a tool reads what the master downloads. 1F25h 'conf' configures every slave
 //   with a configuration from any of them (sub 80h: all of them).
+//   With a store directory (cfg::ConfigManager::persistent()) the master does no disk I/O: an
+//   SDO write of 1F20h, 1F22h, 1F23h, 1F26h or 1F27h that changes a stored entry is decided at
+//   once (cfg::ConfigManager::stage, its aborts as above) and reported as a
+//   MasterEvent::PersistEntry; the driver writes the entry (cfg::ConfigManager::persist, in its
+//   loop, after the call) and calls entry_persisted(). Only then does the manager take the value
+//   and the SDO confirmation leave (the expedited or last segment's response, or the block end
+//   response): a tool that saw the confirmation knows the entry survives a crash. A failed
+//   persist aborts the download with 0800 0020 ("data cannot be transferred or stored to the
+//   application", CiA 301 §7.2.4.3.17, as the manager answers a store it cannot write) and the
+//   manager keeps its old value. A write through dictionary() is persisted the same way (its
+//   PersistEntry comes from the next call); the manager has the value after entry_persisted().
+//   Without a store directory the manager takes the value at once and nothing is reported.
 // - SDO manager (DSP 302 §7; MasterOptions::sdo_manager, or a master DCF that has 1F00h): it
 //   works only while this device is the active master (active_master() is its own node-ID); a
 //   standby flying master ignores the Dynamic SDO Request (6E0h) and refuses 1F00h/1F01h with
@@ -251,7 +263,8 @@
 
 namespace cfg {
 class ConfigManager;
-}
+struct StoreUpdate;
+}  // namespace cfg
 
 namespace nmt {
 
@@ -379,6 +392,8 @@ struct MasterEvent {
     SrdLost,                   ///< node_id's error control failed (or it booted up): released
     SrdDeregistered,           ///< 1F01h with slave 0: node_id is no longer registered
     SlaveFailedReported,       ///< 1F11h written on SRD node_id: connection->server failed
+    // Configuration manager with a store directory (see the top).
+    PersistEntry,  ///< make `persist` durable, then call entry_persisted(persist->ticket, ...)
   };
   Kind kind;
   TimePoint at{0};
@@ -400,6 +415,13 @@ struct MasterEvent {
   /// details, 01h no channel SRD <-> manager, 02h no free COB-IDs in the network, 03h no free
   /// server entry on S, 04h S not available).
   std::uint8_t connection_error = 0;
+  /// PersistEntry: the entry of node_id to write (cfg::ConfigManager::persist) and the ticket
+  /// to complete it with. The update stays valid until entry_persisted() for that ticket.
+  struct Persist {
+    std::uint64_t ticket = 0;
+    std::shared_ptr<const cfg::StoreUpdate> update;
+  };
+  std::optional<Persist> persist{};
   std::string text{};
 };
 /// "slave_booted", "boot_error", ...: names for logs and JSON.
@@ -448,10 +470,10 @@ struct MasterOptions {
   std::shared_ptr<const ConfigurationSource> configurations;
   /// The configuration manager the master serves over SDO (1F20h-1F27h, see the top) and asks
   /// first for a node's configuration and 1F26h/1F27h. Shared: the owner may use its C++ API
-  /// between the master's calls (not from another thread). SDO writes of 1F20h-1F24h, 1F26h and
-  /// 1F27h write the manager's store directory when it has one: that disk I/O (fsync included)
-  /// happens inside on_frame(). nullptr: 1F20h-1F25h are served only as the master DCF has
-  /// them, as plain values.
+  /// between the master's calls (not from another thread). SDO writes of 1F20h, 1F22h, 1F23h,
+  /// 1F26h and 1F27h go to the manager's store directory when it has one, written by the
+  /// driver, not the master: MasterEvent::PersistEntry and entry_persisted() (see the top).
+  /// nullptr: 1F20h-1F25h are served only as the master DCF has them, as plain values.
   std::shared_ptr<cfg::ConfigManager> manager;
   /// Timeout of each SDO response, and how often a timed-out transfer is repeated.
   Duration sdo_timeout = std::chrono::milliseconds(500);
@@ -551,6 +573,11 @@ class NmtMaster {
   /// Ends the application's configuration step of `node` (MasterOptions::application_step):
   /// `ok` false ends its boot with status J.
   void configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out);
+  /// The driver made the entry of MasterEvent::PersistEntry `ticket` durable (`result` ok) or
+  /// failed to (`result` says why): the manager takes the value (on success) and the SDO
+  /// download that wrote it is confirmed, or aborted with 0800 0020. An unknown ticket is
+  /// ignored.
+  void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
   /// SDO transfers of the application to a slave, on the master's client for that slave (queued
   /// behind the boot's own transfers). Results come as MasterEvent::SdoFinished.
   TransferId sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub, TimePoint now,
@@ -578,6 +605,9 @@ class NmtMaster {
   /// at once (next_deadline()), so they go out from the next on_timer().
   const LocalDictionary& dictionary() const;
   LocalDictionary& dictionary();
+  /// MasterOptions::manager (nullptr without one): the driver persists a PersistEntry's update
+  /// with it (cfg::ConfigManager::persist) before it calls entry_persisted().
+  const cfg::ConfigManager* config_manager() const;
   /// The SDO manager's connections, the rows of 1F03h-1F06h in row order (empty without it).
   std::vector<ManagedSdoConnection> sdo_connections() const;
   /// The SRDs the SDO manager registered, by node-ID.

@@ -15,6 +15,13 @@
 //   the "no more segments" flag, with the last sequence number received in order; the client
 //   then resends from the segment after it. Sequence number 0 or above the block size aborts
 //   with 0504 0003.
+// - Held confirmations: a write hook may accept a download and hold its confirmation
+//   (WriteVerdict::hold, local_dictionary.hpp), e.g. until the value is durable on disk. The
+//   confirmation (the expedited or last segment's response, or the block download end
+//   response) then leaves only from complete_download(), which may instead abort the transfer
+//   with a code. While held, the server runs no timeout (the client has its own) and treats a
+//   new request as any request that does not fit its state (0504 0001); a client abort drops
+//   the held confirmation, and so does set_config().
 #pragma once
 
 #include <chrono>
@@ -85,8 +92,12 @@ class SdoServer {
   const SdoServerConfig& config() const { return config_; }
   /// Takes effect for the next request; a transfer in progress is dropped without a frame.
   void set_config(SdoServerConfig config);
-  /// True while a segmented or block transfer is in progress.
+  /// True while a segmented or block transfer is in progress, or a confirmation is held.
   bool busy() const;
+  /// Completes the download whose confirmation a write hook held under `ticket`: sends the
+  /// confirmation (code SdoAbort::None) or an abort with `code`. False (nothing sent) when no
+  /// confirmation is held under that ticket (another, or the client gave up meanwhile).
+  bool complete_download(std::uint64_t ticket, SdoAbort code, Output& out);
   /// Ends a transfer in progress by sending an abort with `code` (e.g. on an NMT reset).
   void abort(SdoAbort code, TimePoint now, Output& out);
 
@@ -100,6 +111,7 @@ class SdoServer {
     BlockUploadStart,  // initiate answered: waiting for the start request
     BlockUpload,       // sub-block sent: waiting for the acknowledgement
     BlockUploadEnd,    // end sent: waiting for the end response
+    ConfirmationHeld,  // download stored: its confirmation waits for complete_download()
   };
 
   void handle(const sdo::Payload& d, TimePoint now, Output& out);
@@ -116,6 +128,8 @@ class SdoServer {
   void send_upload_sub_block(Output& out);
   template <class Frame>
   void finish_download(const Frame& confirmation, TimePoint now, Output& out);
+  template <class Frame>
+  void confirm_download(const WriteVerdict& verdict, const Frame& confirmation, Output& out);
   template <class Frame>
   void respond(const Frame& f, Output& out);
   void send_abort(SdoAbort code, Output& out);
@@ -139,6 +153,8 @@ class SdoServer {
   bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
   bool stalled_ = false;            // the frame in hand moved the block transfer nowhere
   std::optional<TimePoint> timeout_at_;
+  std::uint64_t held_ticket_ = 0;  // ConfirmationHeld: the write hook's ticket
+  CanFrame held_confirmation_{};
 };
 static_assert(Engine<SdoServer>);
 
@@ -174,6 +190,8 @@ class SdoServerChannels {
                                         const std::function<void(std::uint16_t)>& before = {});
   void on_timer(TimePoint now, SdoServer::Output& out);
   std::optional<TimePoint> next_deadline() const;
+  /// SdoServer::complete_download on the channel that holds `ticket`; false when none does.
+  bool complete_download(std::uint64_t ticket, SdoAbort code, SdoServer::Output& out);
 
  private:
   struct Channel {

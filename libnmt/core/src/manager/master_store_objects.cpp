@@ -7,8 +7,8 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt/configuration_manager_source.hpp"
 #include "master/nmt_master_impl.hpp"
+#include "nmt/configuration_manager_source.hpp"
 
 namespace nmt {
 
@@ -157,21 +157,64 @@ std::optional<NmtMaster::Impl::StoreValue> NmtMaster::Impl::unstored_read(std::u
   return StoreValue{SdoAbort::None, {(*text)->begin(), (*text)->end()}};
 }
 
-SdoAbort NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
-                                      std::span<const std::uint8_t> data, TimePoint now) {
+WriteVerdict NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
+                                          std::span<const std::uint8_t> data, TimePoint now) {
   if (!options.manager || !is_store_index(index)) return SdoAbort::None;
-  auto& manager = *options.manager;
-  if (is_stamp(index) && cfg::is_node_id(sub) && !stored_stamp(sub)) {
+  const auto& manager = *options.manager;
+  if (is_stamp(index) && cfg::is_node_id(sub) && !stored_stamp(sub) && data.size() == 4) {
     // The manager takes the node over with the half that is not written.
-    if (!manager.set_expected_stamp(*cfg::NodeId::from(sub), expected_configuration(sub))) {
-      return SdoAbort::CannotStoreOrTransfer;
-    }
+    auto stamp = expected_configuration(sub);
+    (index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms) = low_u32(data);
+    auto staged = manager.stage_expected_stamp(*cfg::NodeId::from(sub), stamp);
+    if (!staged) return SdoAbort::ValueRangeExceeded;  // 1F27h: no time of day
+    return persist_entry(std::move(staged).value(), now);
   }
-  auto written = manager.write(index, sub, data);
+  std::optional<cfg::StoreUpdate> update;
+  auto written = manager.stage(index, sub, data, update);
   if (index == obj::kConfigureSlave) add_unstored_configurations(sub, written);
   if (!written.ok()) return to_sdo_abort(written.abort);
   if (index == obj::kConfigureSlave) return configure_slaves(sub, written.configure, now);
+  if (update) return persist_entry(std::move(*update), now);
   return SdoAbort::None;
+}
+
+WriteVerdict NmtMaster::Impl::persist_entry(cfg::StoreUpdate update, TimePoint now) {
+  if (!options.manager->persistent()) {
+    options.manager->commit(std::move(update));
+    return SdoAbort::None;
+  }
+  // No disk I/O in the engine (nmt_master.hpp): the driver writes the entry and answers with
+  // entry_persisted(); until then the SDO confirmation waits and the manager keeps its value.
+  const std::uint64_t ticket = ++last_persist_ticket;
+  const std::uint8_t node = update.node.value();
+  const std::string what = cfg::to_string(cfg::ObjectAddress{update.index, node});
+  auto shared = std::make_shared<cfg::StoreUpdate>(std::move(update));
+  persists.emplace(ticket, shared);
+  auto event = master_event(MasterEvent::Kind::PersistEntry, now, node,
+                            what + ": store the entry of " + node_text(node));
+  event.persist = MasterEvent::Persist{ticket, std::move(shared)};
+  report(sink(), std::move(event));
+  return WriteVerdict::hold(ticket);
+}
+
+void NmtMaster::Impl::entry_persisted(std::uint64_t ticket, const cfg::Status& result,
+                                      TimePoint /*now*/, Output& out) {
+  const auto it = persists.find(ticket);
+  if (it == persists.end()) return;
+  const auto update = std::move(it->second);
+  persists.erase(it);
+  // CiA 301 §7.2.4.3.17: 0800 0020h "data cannot be transferred or stored to the application",
+  // as cfg::ConfigManager answers a store directory it cannot write.
+  SdoAbort code = SdoAbort::CannotStoreOrTransfer;
+  if (result) {
+    options.manager->commit(std::move(*update));
+    code = SdoAbort::None;
+  }
+  Outbox<NoEvent> server_out;
+  if (!server.complete_download(ticket, code, server_out)) {
+    sdo_manager.complete_download(ticket, code, server_out);
+  }
+  for (const auto& f : server_out.frames) out.send(f);
 }
 
 void NmtMaster::Impl::add_unstored_configurations(std::uint8_t sub,

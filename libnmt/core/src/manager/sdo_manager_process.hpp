@@ -128,6 +128,12 @@ class SdoManagerProcess {
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   /// Its channels' timeouts, and the next SDO access of the front job.
   void on_timer(TimePoint now, Output& out);
+  /// A download held on one of the own server channels (a store write waiting for its entry to
+  /// be durable, LocalDictionary::WriteVerdict) is confirmed or aborted; false when none has
+  /// `ticket`.
+  bool complete_download(std::uint64_t ticket, SdoAbort code, SdoServer::Output& out) {
+    return channels_.complete_download(ticket, code, out);
+  }
   std::optional<TimePoint> next_deadline() const;
 
   /// Starts the next SDO access (or step) of the jobs while none is in flight: the master calls

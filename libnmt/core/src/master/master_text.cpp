@@ -169,6 +169,8 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "srd_deregistered";
     case K::SlaveFailedReported:
       return "slave_failed_reported";
+    case K::PersistEntry:
+      return "persist_entry";
   }
   return "?";
 }

@@ -88,6 +88,13 @@ void NmtMaster::start(TimePoint now, Output& out) {
   impl_->settle(now, out);
 }
 
+void NmtMaster::entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now,
+                                Output& out) {
+  CallScope scope(*impl_, out);
+  impl_->entry_persisted(ticket, result, now, out);
+  impl_->settle(now, out);
+}
+
 bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
   auto& m = *impl_;
@@ -321,6 +328,10 @@ BootStep NmtMaster::boot_step(cfg::NodeId node) const {
 std::optional<BootError> NmtMaster::last_error(cfg::NodeId node) const {
   return impl_->slaves[node].last_error;
 }
+const cfg::ConfigManager* NmtMaster::config_manager() const {
+  return impl_->options.manager.get();
+}
+
 const LocalDictionary& NmtMaster::dictionary() const {
   return impl_->dict;
 }

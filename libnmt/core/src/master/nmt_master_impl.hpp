@@ -214,6 +214,9 @@ struct NmtMaster::Impl {
   /// The entry whose value a read of 1F20h/1F22h/1F23h filled last (emptied at the next read, so
   /// the dictionary keeps at most one copy of a stored file).
   std::optional<std::pair<std::uint16_t, std::uint8_t>> store_read_entry;
+  /// Entries an SDO write staged that wait for the driver's entry_persisted(), by ticket.
+  std::map<std::uint64_t, std::shared_ptr<cfg::StoreUpdate>> persists;
+  std::uint64_t last_persist_ticket = 0;
   /// Adds 1F20h-1F25h served from MasterOptions::manager and its hooks; nothing without one.
   void install_store_objects();
   /// The manager's 1F26h/1F27h of `node` when it holds anything for the node (a stamp or a
@@ -232,8 +235,15 @@ struct NmtMaster::Impl {
   std::optional<StoreValue> unstored_read(std::uint16_t index, cfg::NodeId node) const;
   /// 1F25h: the nodes with a configuration that is not stored join the manager's answer.
   void add_unstored_configurations(std::uint8_t sub, cfg::ConfigWrite& written) const;
-  SdoAbort store_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                       TimePoint now);
+  /// An SDO write of 1F20h-1F27h: decided by the manager; a change of a stored entry is held
+  /// for persist_entry() (see nmt_master.hpp).
+  WriteVerdict store_write(std::uint16_t index, std::uint8_t sub,
+                           std::span<const std::uint8_t> data, TimePoint now);
+  /// Takes `update` at once (no store directory), or reports it as PersistEntry and holds the
+  /// write's confirmation.
+  WriteVerdict persist_entry(cfg::StoreUpdate update, TimePoint now);
+  /// entry_persisted(): the update taken (on success) and the held download completed.
+  void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
   /// 1F25h: boot (and download to) every slave the manager named.
   SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now);
   /// The master's own 1F22h stream of `node` (the DCF's value); empty when none.

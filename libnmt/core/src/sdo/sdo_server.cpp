@@ -72,6 +72,7 @@ void SdoServer::reset() {
   sent_in_block_ = 0;
   last_received_ = false;
   block_has_last_ = false;
+  held_ticket_ = 0;
   timeout_at_.reset();
 }
 
@@ -94,7 +95,8 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   // each other for ever: after a lost client abort, this server's block download takes the
   // acknowledgement of the client's next block upload (A2h: c=1, seqno 34) for an out-of-order
   // last segment and acknowledges no segment (A2h), which the client reads the same way.
-  if (state_ == State::Idle) {
+  if (state_ == State::Idle || state_ == State::ConfirmationHeld) {
+    // A held confirmation waits for the owner, not for the client (complete_download).
     timeout_at_.reset();
   } else if (!stalled_ || !timeout_at_) {
     timeout_at_ = later(now, config_.timeout);
@@ -104,6 +106,17 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
 
 void SdoServer::on_timer(TimePoint now, Output& out) {
   if (timeout_at_ && now >= *timeout_at_) send_abort(SdoAbort::Timeout, out);
+}
+
+bool SdoServer::complete_download(std::uint64_t ticket, SdoAbort code, Output& out) {
+  if (state_ != State::ConfirmationHeld || held_ticket_ != ticket) return false;
+  if (code != SdoAbort::None) {
+    send_abort(code, out);
+    return true;
+  }
+  out.send(held_confirmation_);
+  reset();
+  return true;
 }
 
 void SdoServer::abort(SdoAbort code, TimePoint /*now*/, Output& out) {
@@ -198,6 +211,8 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output&
         return reset();  // the client confirmed the end: done
       }
       break;
+    case State::ConfirmationHeld:  // the client must wait for the confirmation
+      break;
   }
   send_abort(SdoAbort::InvalidCommandSpecifier, out);
 }
@@ -214,10 +229,8 @@ void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoi
                e && e->fixed_size() && *e->fixed_size() <= 4) {
       size = *e->fixed_size();  // size not indicated: the object's own size
     }
-    const auto code = dict_->write(index, sub, std::span(f.data).first(size), now);
-    if (code != SdoAbort::None) return send_abort(code, out);
-    respond(sdo::InitiateDownloadResponse{address_}, out);
-    return;
+    const auto verdict = dict_->write_download(index, sub, std::span(f.data).first(size), now);
+    return confirm_download(verdict, sdo::InitiateDownloadResponse{address_}, out);
   }
   if (f.size) size_ = *f.size;
   if (auto code = dict_->check_write(index, sub, size_); code != SdoAbort::None) {
@@ -261,10 +274,23 @@ SdoAbort SdoServer::check_running_size(std::size_t size) const {
 template <class Frame>
 void SdoServer::finish_download(const Frame& confirmation, TimePoint now, Output& out) {
   if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
-  const auto code = dict_->write(address_.index, address_.sub_index, buffer_, now);
-  if (code != SdoAbort::None) return send_abort(code, out);
-  respond(confirmation, out);
+  const auto verdict = dict_->write_download(address_.index, address_.sub_index, buffer_, now);
+  confirm_download(verdict, confirmation, out);
+}
+
+template <class Frame>
+void SdoServer::confirm_download(const WriteVerdict& verdict, const Frame& confirmation,
+                                 Output& out) {
+  if (verdict.abort != SdoAbort::None) return send_abort(verdict.abort, out);
+  if (!verdict.held) {
+    respond(confirmation, out);
+    return reset();
+  }
+  // The value is stored; the confirmation leaves when the owner completes the write.
   reset();
+  state_ = State::ConfirmationHeld;
+  held_ticket_ = *verdict.held;
+  held_confirmation_ = sdo::make_frame(config_.response_cob_id, sdo::encode(confirmation));
 }
 
 // CiA 301 §7.2.4.3, SDO upload initiate protocol: the response for the value in buffer_; values
@@ -485,6 +511,14 @@ std::optional<std::uint16_t> SdoServerChannels::on_frame(
 
 void SdoServerChannels::on_timer(TimePoint now, SdoServer::Output& out) {
   for (auto& c : channels_) c.server.on_timer(now, out);
+}
+
+bool SdoServerChannels::complete_download(std::uint64_t ticket, SdoAbort code,
+                                          SdoServer::Output& out) {
+  for (auto& c : channels_) {
+    if (c.server.complete_download(ticket, code, out)) return true;
+  }
+  return false;
 }
 
 std::optional<TimePoint> SdoServerChannels::next_deadline() const {

@@ -57,12 +57,20 @@ SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
 
 SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
                                 std::span<const std::uint8_t> data, TimePoint now) {
+  return write_download(index, sub, data, now).abort;
+}
+
+WriteVerdict LocalDictionary::write_download(std::uint16_t index, std::uint8_t sub,
+                                             std::span<const std::uint8_t> data, TimePoint now) {
   if (auto code = check_write(index, sub, data.size()); code != SdoAbort::None) return code;
   if (auto value = cfg::check_entry_value(*entry(index, sub), data); !value.accepted()) {
     return to_sdo_abort(value.code);
   }
+  WriteVerdict accepted;
   for (const auto& hook : write_hooks_) {
-    if (auto code = hook(index, sub, data, now); code != SdoAbort::None) return code;
+    auto verdict = hook(index, sub, data, now);
+    if (verdict.abort != SdoAbort::None) return verdict.abort;
+    if (verdict.held) accepted.held = verdict.held;
   }
   auto* e = find(index, sub);
   if (!e) return SdoAbort::ObjectDoesNotExist;  // a hook removed it
@@ -70,7 +78,7 @@ SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
   // Observers get a copy's view: an observer may change this entry.
   const std::vector<std::uint8_t> stored = e->bytes;
   for (const auto& observer : observers_) observer(index, sub, stored, now);
-  return SdoAbort::None;
+  return accepted;
 }
 
 std::optional<std::span<const std::uint8_t>> LocalDictionary::get_bytes(std::uint16_t index,
