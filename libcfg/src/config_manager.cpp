@@ -73,12 +73,6 @@ std::string unpack(const PackedText& packed) {
   return as_text(unpack_bytes(packed));
 }
 
-std::vector<std::uint8_t> le32(std::uint32_t value) {
-  std::vector<std::uint8_t> out;
-  append_le(out, value, 4);
-  return out;
-}
-
 /// The name a node's DCF goes by in messages: "1F20h sub 05h".
 std::string dcf_name(NodeId node) {
   return to_string(ObjectAddress{object::kStoreDcf, node.value()});
@@ -398,10 +392,11 @@ Result<DownloadPlan> ConfigManager::download_plan(NodeId node, const PlanOptions
   // 1020h; then 'save' makes the device keep both.
   const ConfigurationStamp stamp = expected_stamp(node);
   if (!stamp.is_zero()) {
-    plan.writes.push_back({object::kVerifyConfiguration, 1, le32(stamp.days)});
-    plan.writes.push_back({object::kVerifyConfiguration, 2, le32(stamp.ms)});
+    plan.writes.push_back({object::kVerifyConfiguration, 1, le32_bytes(stamp.days)});
+    plan.writes.push_back({object::kVerifyConfiguration, 2, le32_bytes(stamp.ms)});
   }
-  if (options.save) plan.writes.push_back({object::kStoreParameters, 1, le32(kSaveSignature)});
+  if (options.save)
+    plan.writes.push_back({object::kStoreParameters, 1, le32_bytes(kSaveSignature)});
   return plan;
 }
 
@@ -489,7 +484,7 @@ ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) cons
       return {ConfigAbort::None, {kStorageFormatAscii}, {}};
     case object::kConciseDcf:
       // DSP 302 §6.2 application hint 2: nothing stored reads as the stream with count 0.
-      if (s.concise.empty()) return {ConfigAbort::None, le32(0), {}};
+      if (s.concise.empty()) return {ConfigAbort::None, le32_bytes(0), {}};
       return {ConfigAbort::None, s.concise, {}};
     case object::kStoreEds:
       if (!s.eds) return empty();
@@ -498,9 +493,9 @@ ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) cons
       if (!s.eds) return empty();
       return {ConfigAbort::None, {kStorageFormatAscii}, {}};
     case object::kExpectedConfigurationDate:
-      return {ConfigAbort::None, le32(s.stamp.days), {}};
+      return {ConfigAbort::None, le32_bytes(s.stamp.days), {}};
     default:  // 1F27h
-      return {ConfigAbort::None, le32(s.stamp.ms), {}};
+      return {ConfigAbort::None, le32_bytes(s.stamp.ms), {}};
   }
 }
 

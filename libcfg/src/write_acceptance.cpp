@@ -23,11 +23,6 @@ bool is_numeric(DataType type) {
   return c == TypeClass::Signed || c == TypeClass::Unsigned || c == TypeClass::Real;
 }
 
-// The first up to four bytes as a little-endian number (shorter data: the missing bytes are 0).
-std::uint32_t le32(std::span<const std::uint8_t> data) {
-  return static_cast<std::uint32_t>(load_le(data, std::min<std::size_t>(4, data.size())));
-}
-
 WriteVerdict refuse(ConfigAbort code, std::string reason) {
   return {code, std::move(reason)};
 }
@@ -230,17 +225,17 @@ class ObjectRules {
       : entries_(entries), rules_(rules) {}
 
   WriteVerdict check(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data) {
-    if (index == obj::kStoreParameters && sub != 0 && le32(data) != kSaveSignature) {
+    if (index == obj::kStoreParameters && sub != 0 && low_le32(data) != kSaveSignature) {
       // CiA 301 §7.5.2.13: wrong signature
       return refuse(ConfigAbort::CannotStoreOrTransfer, "the signature is not 'save'");
     }
-    if (index == obj::kRestoreDefaultParameters && sub != 0 && le32(data) != kLoadSignature) {
+    if (index == obj::kRestoreDefaultParameters && sub != 0 && low_le32(data) != kLoadSignature) {
       return refuse(ConfigAbort::CannotStoreOrTransfer, "the signature is not 'load'");
     }
     if (index == obj::kCobIdEmcy) {
       // CiA 301 §7.5.2.5: 0609 0030 (invalid value), as for the PDO COB-IDs.
       const auto current = unsigned_at(entries_, obj::kCobIdEmcy, 0);
-      if (current && !cob_id_change_allowed(*current, le32(data))) {
+      if (current && !cob_id_change_allowed(*current, low_le32(data))) {
         return refuse_cob_id_change(*current);
       }
       return {};
@@ -256,7 +251,7 @@ class ObjectRules {
     // aborts with 0604 0043. An entry: node-ID in bits 16-23, time in ms in bits 0-15.
     const auto node_of = [](std::uint64_t v) { return static_cast<std::uint8_t>(v >> 16); };
     const auto active = [&](std::uint64_t v) { return is_node_id(node_of(v)) && (v & 0xFFFF); };
-    const std::uint32_t written = le32(data);
+    const std::uint32_t written = low_le32(data);
     if (!active(written)) return {};
     for (std::uint8_t other = 1;
          other != 0 && find_entry(entries_, obj::kConsumerHeartbeatTime, other) != nullptr;
@@ -282,12 +277,12 @@ class ObjectRules {
     // The value it has is accepted, so a tool downloading a whole DCF that declares them rw
     // succeeds.
     if (index == obj::kSdoServerFirst) {
-      if (current && *current == le32(data) && data.size() == 4) return {};
+      if (current && *current == low_le32(data) && data.size() == 4) return {};
       return refuse(ConfigAbort::WriteOfReadOnly,
                     "the default SDO channel's COB-IDs are the predefined connection set (" +
                         (current ? hex(*current, 8) : std::string("unknown")) + ")");
     }
-    if (current && !cob_id_change_allowed(*current, le32(data))) {
+    if (current && !cob_id_change_allowed(*current, low_le32(data))) {
       return refuse_cob_id_change(*current);
     }
     return {};
@@ -301,7 +296,7 @@ class ObjectRules {
         comm_cob_id && CobId::from_word(static_cast<std::uint32_t>(*comm_cob_id)).valid();
     if (index == pdo->comm_index) {
       if (!pdo_valid) return {};
-      if (sub == 1 && !cob_id_change_allowed(*comm_cob_id, le32(data))) {
+      if (sub == 1 && !cob_id_change_allowed(*comm_cob_id, low_le32(data))) {
         return refuse_cob_id_change(*comm_cob_id);
       }
       // CiA 301 §7.5.2.37: inhibit time (3) and SYNC start value (6) of a TPDO shall not
@@ -338,7 +333,7 @@ class ObjectRules {
       }
       // CiA 301 §7.5.2.36/38 step 3: the device checks each entry as it is written (0602 0000
       // or 0604 0041). 0 clears the entry (sub 0 never counts it), so it stays accepted.
-      const auto value = le32(data);
+      const auto value = low_le32(data);
       if (value == 0) return {};
       const auto mapped = static_cast<std::uint16_t>(value >> 16);
       if (!is_dummy_index(mapped) && !has_object(entries_, mapped)) {

@@ -39,10 +39,6 @@ namespace {
 
 constexpr std::string_view kTool = "sdo";
 
-/// Writes of more bytes than this go by block transfer without --block: one sub-block of 127
-/// segments of 7 bytes (CiA 301 §7.2.4.3.9) is 889 bytes.
-constexpr std::size_t kBlockThreshold = 889;
-
 struct SdoCliOptions {
   std::string bus;
   std::string node;
@@ -101,11 +97,9 @@ cfg::DataType parse_type(const std::string& text) {
 }
 
 std::uint8_t parse_node(const std::string& text, std::string_view what = "NODE") {
-  const auto parsed = cfg::parse_integer_literal(text);
-  if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-    fail(tools::kExitUsage, std::string(what) + " " + text + ": expected a node-ID 1..127");
-  }
-  return static_cast<std::uint8_t>(parsed.literal->value);
+  const auto node = tools::parse_node_id_argument(text);
+  if (!node) fail(tools::kExitUsage, tools::node_id_argument_error(what, text));
+  return *node;
 }
 
 // INDEX[:SUB], both hex as CiA 301 writes them: "1018:1", "0x1018:0x01", "1018h:01h".
@@ -152,7 +146,7 @@ nmt::SdoTransferOptions transfer_options(const SdoCliOptions& o, std::size_t wri
   options.timeout = seconds_to_duration(o.sdo_timeout_s);
   // CiA 301 §7.2.4.3.9: block transfer; the client falls back to segmented when the server
   // answers 0504 0001 (nmt/sdo_client.hpp).
-  if (o.block || write_size > kBlockThreshold) options.mode = nmt::SdoMode::Block;
+  if (o.block || write_size > nmt::kBlockDownloadThreshold) options.mode = nmt::SdoMode::Block;
   return options;
 }
 
@@ -237,8 +231,10 @@ void require_free_node_id(SdoSession& session, std::uint8_t own) {
   if (r.ok() || r.aborted_by_server) {
     fail(tools::kExitUsage,
          "--node-id " + std::to_string(own) + ": node " + std::to_string(own) +
-             " answers on the bus (its default SDO " + cfg::hex_digits(0x600 + own, 3) + "h/" +
-             cfg::hex_digits(0x580 + own, 3) + "h); give this tool a free node-ID with --node-id");
+             " answers on the bus (its default SDO " +
+             cfg::hex_digits(nmt::sdo::default_cob_ids(own).request.can_id().id, 3) + "h/" +
+             cfg::hex_digits(nmt::sdo::default_cob_ids(own).response.can_id().id, 3) +
+             "h); give this tool a free node-ID with --node-id");
   }
 }
 
@@ -409,8 +405,8 @@ void add_sdo_command(CLI::App& app) {
       ->type_name("SECONDS")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--block", o->block,
-                "Use block transfer (segmented when the node has none); writes of more than "
-                "889 bytes use it anyway");
+                "Use block transfer (segmented when the node has none); writes of more than " +
+                    std::to_string(nmt::kBlockDownloadThreshold) + " bytes use it anyway");
   cmd->add_flag("--via-manager", o->via_manager,
                 "Ask the network's SDO manager for a connection to NODE (DSP 302 section 7) "
                 "instead of taking its default SDO, which the master or another tool may be "
