@@ -100,7 +100,7 @@ class LocalStore final : public Store {
     auto r = manager_.write(index, sub, data);
     // cfg/config_manager.hpp: 0800 0020h is a directory that could not be written (1F25h,
     // whose wrong signature gives it too, is never written to a store directory).
-    const bool io = r.abort == cfg::ConfigAbort::CannotStoreOrTransfer;
+    const bool io = r.abort == cfg::SdoAbort::CannotStoreOrTransfer;
     return {static_cast<std::uint32_t>(r.abort), {}, std::move(r.message), io};
   }
   bool remote() const override { return false; }
@@ -282,7 +282,7 @@ struct Listed {
 std::optional<std::size_t> size_or_empty(Store& store, std::uint16_t index, std::uint8_t node) {
   auto a = store.read(index, node);
   // DSP 302 §6.1/§6.5: nothing stored reads as 0800 0024h.
-  if (a.abort == static_cast<std::uint32_t>(cfg::ConfigAbort::DataSetEmpty)) return std::nullopt;
+  if (a.abort == static_cast<std::uint32_t>(cfg::SdoAbort::NoDataAvailable)) return std::nullopt;
   return must(std::move(a), index, node).data.size();
 }
 

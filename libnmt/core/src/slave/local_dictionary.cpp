@@ -52,14 +52,14 @@ SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
       if (auto code = hook(index, sub, *size); code != SdoAbort::None) return code;
     }
   }
-  return to_sdo_abort(cfg::check_entry_access(entries_, index, sub, size).code);
+  return cfg::check_entry_access(entries_, index, sub, size).code;
 }
 
 SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
                                 std::span<const std::uint8_t> data, TimePoint now) {
   if (auto code = check_write(index, sub, data.size()); code != SdoAbort::None) return code;
   if (auto value = cfg::check_entry_value(*entry(index, sub), data); !value.accepted()) {
-    return to_sdo_abort(value.code);
+    return value.code;
   }
   for (const auto& hook : write_hooks_) {
     if (auto code = hook(index, sub, data, now); code != SdoAbort::None) return code;

@@ -559,7 +559,7 @@ SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
   const cfg::DeviceWriteRules rules{&description_.dummy_usage};
   if (auto verdict = cfg::check_object_rules(dict_.entries(), rules, index, sub, data);
       !verdict.accepted()) {
-    return to_sdo_abort(verdict.code);
+    return verdict.code;
   }
   return check_program_write(index, sub, data);
 }
