@@ -28,7 +28,7 @@
 #include "commands.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/sdo_client.hpp"
-#include "sdo_session.hpp"
+#include "nmt/sdo_session.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -112,7 +112,7 @@ class LocalStore final : public Store {
 /// A master's configuration manager over SDO (its server at 600h/580h + node-ID).
 class RemoteStore final : public Store {
  public:
-  RemoteStore(std::unique_ptr<SdoSession> session, nmt::Duration timeout)
+  RemoteStore(std::unique_ptr<nmt::SdoSession> session, nmt::Duration timeout)
       : session_(std::move(session)) {
     options_.timeout = timeout;
     // Files are long: block transfer (CiA 301 §7.2.4.3.9), segmented when the server has none.
@@ -137,7 +137,7 @@ class RemoteStore final : public Store {
     return a;
   }
 
-  std::unique_ptr<SdoSession> session_;
+  std::unique_ptr<nmt::SdoSession> session_;
   nmt::SdoTransferOptions options_;
 };
 
@@ -214,7 +214,7 @@ std::unique_ptr<Store> open_store(const StoreCliOptions& o) {
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
     fail(tools::kExitUsage, checked.error().message);
   }
-  auto session = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(*master));
+  auto session = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(*master));
   if (!session) fail(tools::kExitIo, session.error().message);
   const auto timeout = nmt::Duration(static_cast<std::int64_t>(o.sdo_timeout_s * 1e6));
   return std::make_unique<RemoteStore>(std::move(session).value(), timeout);
