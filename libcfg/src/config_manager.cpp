@@ -73,12 +73,6 @@ std::string unpack(const PackedText& packed) {
   return as_text(unpack_bytes(packed));
 }
 
-std::vector<std::uint8_t> le32(std::uint32_t value) {
-  std::vector<std::uint8_t> out;
-  append_le(out, value, 4);
-  return out;
-}
-
 /// The name a node's DCF goes by in messages: "1F20h sub 05h".
 std::string dcf_name(NodeId node) {
   return to_string(ObjectAddress{object::kStoreDcf, node.value()});
@@ -101,9 +95,9 @@ Result<std::vector<ObjectWrite>> writes_of_dcf(std::string_view text, NodeId nod
   return std::move(*writes);
 }
 
-ConfigAbort abort_for(const Error& error) {
-  return error.category == ErrorCategory::Io ? ConfigAbort::CannotStoreOrTransfer
-                                             : ConfigAbort::ValueRangeExceeded;
+SdoAbort abort_for(const Error& error) {
+  return error.category == ErrorCategory::Io ? SdoAbort::CannotStoreOrTransfer
+                                             : SdoAbort::ValueRangeExceeded;
 }
 
 ConfigWrite write_answer(const Status& status) {
@@ -111,7 +105,7 @@ ConfigWrite write_answer(const Status& status) {
   return {abort_for(status.error()), status.error().message, {}};
 }
 
-ConfigRead read_abort(ConfigAbort abort, std::string message) {
+ConfigRead read_abort(SdoAbort abort, std::string message) {
   return {abort, {}, std::move(message)};
 }
 
@@ -418,21 +412,13 @@ std::optional<std::vector<ObjectWrite>> ConfigManager::configuration(NodeId node
 Result<DownloadPlan> ConfigManager::download_plan(NodeId node, const PlanOptions& options) const {
   auto writes = configuration_or_error(node);
   if (!writes) return writes.error();
-  DownloadOrder order = order_for_download(*writes);
+  DownloadOrder order = plan_download(*writes, {expected_stamp(node), options.save});
   DownloadPlan plan;
   plan.writes = std::move(order.writes);
   plan.unknown_cob_id = std::move(order.unknown_cob_id);
   plan.unknown_mapping_count = std::move(order.unknown_mapping_count);
   plan.source = state_->slot(node).concise.empty() ? DownloadPlan::Source::Dcf
                                                    : DownloadPlan::Source::ConciseDcf;
-  // CiA 302-2 §3.5 / DSP 302 §6.3: the date and time go last, as writing any other value resets
-  // 1020h; then 'save' makes the device keep both.
-  const ConfigurationStamp stamp = expected_stamp(node);
-  if (!stamp.is_zero()) {
-    plan.writes.push_back({object::kVerifyConfiguration, 1, le32(stamp.days)});
-    plan.writes.push_back({object::kVerifyConfiguration, 2, le32(stamp.ms)});
-  }
-  if (options.save) plan.writes.push_back({object::kStoreParameters, 1, le32(kSaveSignature)});
   return plan;
 }
 
@@ -478,60 +464,60 @@ void ConfigManager::set_limits(ConfigManagerLimits limits) {
   state_->limits = limits;
 }
 
-ConfigAbort ConfigManager::admits(std::uint16_t index, std::uint8_t sub_index,
-                                  std::size_t size) const {
+SdoAbort ConfigManager::admits(std::uint16_t index, std::uint8_t sub_index,
+                               std::size_t size) const {
   const bool file =
       index == object::kStoreDcf || index == object::kConciseDcf || index == object::kStoreEds;
   const auto node = NodeId::from(sub_index);
-  if (!file || !node) return ConfigAbort::None;
+  if (!file || !node) return SdoAbort::None;
   const auto& limits = state_->limits;
-  if (size > limits.max_entry_bytes) return ConfigAbort::OutOfMemory;
+  if (size > limits.max_entry_bytes) return SdoAbort::OutOfMemory;
   // The written value takes the place of the node's value of that object.
   const std::size_t others = value_bytes() - file_size_of(state_->slot(*node), index);
-  return others + size > limits.max_total_bytes ? ConfigAbort::OutOfMemory : ConfigAbort::None;
+  return others + size > limits.max_total_bytes ? SdoAbort::OutOfMemory : SdoAbort::None;
 }
 
 ConfigRead ConfigManager::read(std::uint16_t index, std::uint8_t sub_index) const {
   if (!is_manager_index(index)) {
-    return read_abort(ConfigAbort::ObjectDoesNotExist,
+    return read_abort(SdoAbort::ObjectDoesNotExist,
                       object_name(index) + " is not an object of the configuration manager");
   }
-  if (sub_index == 0) return {ConfigAbort::None, {entries_of(index)}, {}};
+  if (sub_index == 0) return {SdoAbort::None, {entries_of(index)}, {}};
   if (sub_index > entries_of(index)) {
-    return read_abort(ConfigAbort::SubIndexDoesNotExist,
+    return read_abort(SdoAbort::SubIndexDoesNotExist,
                       address(index, sub_index) + " does not exist");
   }
   if (index == object::kConfigureSlave) {
-    return read_abort(ConfigAbort::ReadOfWriteOnly,
+    return read_abort(SdoAbort::ReadOfWriteOnly,
                       "1F25h is write only: 'conf' written to it starts a configuration");
   }
   const NodeId node = *NodeId::from(sub_index);
   const NodeSlot& s = state_->slot(node);
   auto empty = [&] {
-    return read_abort(ConfigAbort::DataSetEmpty,
+    return read_abort(SdoAbort::NoDataAvailable,
                       address(index, sub_index) + ": data set empty (nothing stored)");
   };
   switch (index) {
     case object::kStoreDcf:
       if (!s.dcf) return empty();
-      return {ConfigAbort::None, unpack_bytes(*s.dcf), {}};
+      return {SdoAbort::None, unpack_bytes(*s.dcf), {}};
     case object::kStorageFormat:
       if (!s.dcf) return empty();
-      return {ConfigAbort::None, {kStorageFormatAscii}, {}};
+      return {SdoAbort::None, {kStorageFormatAscii}, {}};
     case object::kConciseDcf:
       // DSP 302 §6.2 application hint 2: nothing stored reads as the stream with count 0.
-      if (s.concise.empty()) return {ConfigAbort::None, le32(0), {}};
-      return {ConfigAbort::None, s.concise, {}};
+      if (s.concise.empty()) return {SdoAbort::None, le32_bytes(0), {}};
+      return {SdoAbort::None, s.concise, {}};
     case object::kStoreEds:
       if (!s.eds) return empty();
-      return {ConfigAbort::None, unpack_bytes(*s.eds), {}};
+      return {SdoAbort::None, unpack_bytes(*s.eds), {}};
     case object::kStorageFormatEds:
       if (!s.eds) return empty();
-      return {ConfigAbort::None, {kStorageFormatAscii}, {}};
+      return {SdoAbort::None, {kStorageFormatAscii}, {}};
     case object::kExpectedConfigurationDate:
-      return {ConfigAbort::None, le32(s.stamp.days), {}};
+      return {SdoAbort::None, le32_bytes(s.stamp.days), {}};
     default:  // 1F27h
-      return {ConfigAbort::None, le32(s.stamp.ms), {}};
+      return {SdoAbort::None, le32_bytes(s.stamp.ms), {}};
   }
 }
 
@@ -541,7 +527,7 @@ ConfigWrite ConfigManager::write(std::uint16_t index, std::uint8_t sub_index,
   ConfigWrite answer = stage(index, sub_index, data, update);
   if (!answer.ok() || !update) return answer;
   if (auto done = state_->persist(*update); !done) {
-    return {ConfigAbort::CannotStoreOrTransfer, done.error().message, {}};
+    return {SdoAbort::CannotStoreOrTransfer, done.error().message, {}};
   }
   state_->commit(std::move(*update));
   return answer;
@@ -558,19 +544,18 @@ ConfigWrite ConfigManager::stage(std::uint16_t index, std::uint8_t sub_index,
     return {};
   };
   if (!is_manager_index(index)) {
-    return {ConfigAbort::ObjectDoesNotExist,
+    return {SdoAbort::ObjectDoesNotExist,
             object_name(index) + " is not an object of the configuration manager",
             {}};
   }
   if (sub_index == 0) {
-    return {
-        ConfigAbort::WriteOfReadOnly, address(index, 0) + " (number of entries) is read only", {}};
+    return {SdoAbort::WriteOfReadOnly, address(index, 0) + " (number of entries) is read only", {}};
   }
   if (sub_index > entries_of(index)) {
-    return {ConfigAbort::SubIndexDoesNotExist, address(index, sub_index) + " does not exist", {}};
+    return {SdoAbort::SubIndexDoesNotExist, address(index, sub_index) + " does not exist", {}};
   }
   auto wrong_length = [&](std::size_t expected) {
-    return ConfigWrite{ConfigAbort::LengthMismatch,
+    return ConfigWrite{SdoAbort::LengthMismatch,
                        address(index, sub_index) + " takes " + std::to_string(expected) +
                            " bytes, not " + std::to_string(data.size()),
                        {}};
@@ -580,21 +565,21 @@ ConfigWrite ConfigManager::stage(std::uint16_t index, std::uint8_t sub_index,
     if (load_le32(data) != kConfigureSignature) {
       // DSP 302 §6.4: only the signature starts it ("to avoid accidental access"); refused as
       // CiA 301 refuses a wrong 'save' (§7.5.2.13).
-      return {ConfigAbort::CannotStoreOrTransfer,
+      return {SdoAbort::CannotStoreOrTransfer,
               "1F25h takes the signature 'conf' (" + hex(kConfigureSignature, 8) + "), not " +
                   hex(load_le32(data), 8),
               {}};
     }
-    if (sub_index == kConfigureAllNodes) return {ConfigAbort::None, {}, configured_nodes()};
+    if (sub_index == kConfigureAllNodes) return {SdoAbort::None, {}, configured_nodes()};
     const NodeId node = *NodeId::from(sub_index);
     if (!has_configuration(node)) {
-      return {ConfigAbort::DataSetEmpty,
+      return {SdoAbort::NoDataAvailable,
               "node " + std::to_string(sub_index) + ": data set empty (neither 1F22h nor 1F20h)",
               {}};
     }
-    return {ConfigAbort::None, {}, {node}};
+    return {SdoAbort::None, {}, {node}};
   }
-  if (const auto abort = admits(index, sub_index, data.size()); abort != ConfigAbort::None) {
+  if (const auto abort = admits(index, sub_index, data.size()); abort != SdoAbort::None) {
     const auto& limits = state_->limits;
     return {abort,
             address(index, sub_index) + ": out of memory: " + std::to_string(data.size()) +
@@ -616,7 +601,7 @@ ConfigWrite ConfigManager::stage(std::uint16_t index, std::uint8_t sub_index,
     case object::kStorageFormatEds:
       if (data.size() != 1) return wrong_length(1);
       if (data[0] != kStorageFormatAscii) {
-        return {ConfigAbort::ValueRangeExceeded,
+        return {SdoAbort::ValueRangeExceeded,
                 address(index, sub_index) + ": storage format " + hex(data[0], 2) +
                     " is reserved (00h: ASCII, not compressed)",
                 {}};
@@ -636,7 +621,7 @@ ConfigWrite ConfigManager::stage(std::uint16_t index, std::uint8_t sub_index,
       return staged(State::stage_stamp(node, stamp));
     }
     default:
-      return {ConfigAbort::ObjectDoesNotExist, object_name(index) + " is not served", {}};
+      return {SdoAbort::ObjectDoesNotExist, object_name(index) + " is not served", {}};
   }
 }
 

@@ -34,17 +34,6 @@ bool is_entry_index(std::uint16_t index) {
          index == object::kExpectedConfigurationDate;
 }
 
-std::uint32_t crc32_of(std::span<const std::uint8_t> bytes) {
-  uLong crc = ::crc32(0L, Z_NULL, 0);
-  // zlib takes uInt lengths: feed large inputs in pieces.
-  while (!bytes.empty()) {
-    const std::size_t n = std::min<std::size_t>(bytes.size(), 1U << 30);
-    crc = ::crc32(crc, bytes.data(), static_cast<uInt>(n));
-    bytes = bytes.subspan(n);
-  }
-  return static_cast<std::uint32_t>(crc);
-}
-
 Error io_error(const std::string& what, const std::string& path) {
   return Error{what + " '" + path + "': " + std::strerror(errno), ErrorCategory::Io};
 }
@@ -120,7 +109,7 @@ std::vector<std::uint8_t> encode_entry_file(std::uint16_t index, NodeId node,
   store_le(value_size, bytes.subspan(13), 4);
   std::copy(stored.begin(), stored.end(), out.begin() + kHeaderSize);
   const std::size_t body = kHeaderSize + stored.size();
-  store_le(crc32_of(bytes.first(body)), bytes.subspan(body), 4);
+  store_le(cfg::crc32(bytes.first(body)), bytes.subspan(body), 4);
   return out;
 }
 
@@ -144,7 +133,7 @@ Result<DecodedEntry> decode_entry_file(std::span<const std::uint8_t> bytes,
                  std::to_string(bytes.size() - kHeaderSize - kCrcSize) + " (truncated file?)"};
   }
   const std::uint32_t crc_read = load_le32(bytes.subspan(bytes.size() - kCrcSize));
-  const std::uint32_t crc_computed = crc32_of(bytes.first(bytes.size() - kCrcSize));
+  const std::uint32_t crc_computed = cfg::crc32(bytes.first(bytes.size() - kCrcSize));
   if (crc_read != crc_computed) {
     return Error{"CRC-32 mismatch: the file says " + hex(crc_read, 8) + ", its content gives " +
                  hex(crc_computed, 8)};

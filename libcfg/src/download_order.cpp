@@ -188,6 +188,17 @@ DownloadOrder detail::order_for_download_moving(std::vector<ObjectWrite>&& write
   return order(std::span<ObjectWrite>(writes), current_cob_id);
 }
 
+DownloadOrder plan_download(std::span<const ObjectWrite> configuration, const DownloadTail& tail,
+                            const CobIdLookup& current_cob_id) {
+  DownloadOrder plan = order_for_download(configuration, current_cob_id);
+  if (!tail.stamp.is_zero()) {
+    plan.writes.push_back({object::kVerifyConfiguration, 1, le32_bytes(tail.stamp.days)});
+    plan.writes.push_back({object::kVerifyConfiguration, 2, le32_bytes(tail.stamp.ms)});
+  }
+  if (tail.save) plan.writes.push_back({object::kStoreParameters, 1, le32_bytes(kSaveSignature)});
+  return plan;
+}
+
 std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,
                                         const CobIdLookup& current_cob_id) {
   return order_for_download(writes, current_cob_id).writes;

@@ -1,5 +1,9 @@
 // The shared vocabulary of both libraries: object addresses, little-endian bytes, hex digits and
-// integer literals (headers object_address.hpp, bytes.hpp, integer_literal.hpp).
+// integer literals, CRC-32 (headers object_address.hpp, bytes.hpp, integer_literal.hpp).
+
+#include <zlib.h>
+
+#include <algorithm>
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
@@ -19,6 +23,23 @@ std::string object_name(std::uint16_t index) {
 void append_le(std::vector<std::uint8_t>& out, std::uint64_t value, std::size_t size) {
   assert(size >= 1 && size <= 8);
   for (std::size_t i = 0; i < size; ++i) out.push_back(static_cast<std::uint8_t>(value >> (8 * i)));
+}
+
+std::vector<std::uint8_t> le32_bytes(std::uint32_t value) {
+  std::vector<std::uint8_t> out;
+  append_le(out, value, 4);
+  return out;
+}
+
+std::uint32_t crc32(std::span<const std::uint8_t> bytes) {
+  uLong crc = ::crc32(0L, Z_NULL, 0);
+  // zlib takes uInt lengths: feed large inputs in pieces.
+  while (!bytes.empty()) {
+    const std::size_t n = std::min<std::size_t>(bytes.size(), 1U << 30);
+    crc = ::crc32(crc, bytes.data(), static_cast<uInt>(n));
+    bytes = bytes.subspan(n);
+  }
+  return static_cast<std::uint32_t>(crc);
 }
 
 std::optional<std::uint64_t> parse_hex_number(std::string_view text, std::size_t max_digits) {

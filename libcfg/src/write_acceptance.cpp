@@ -23,12 +23,7 @@ bool is_numeric(DataType type) {
   return c == TypeClass::Signed || c == TypeClass::Unsigned || c == TypeClass::Real;
 }
 
-// The first up to four bytes as a little-endian number (shorter data: the missing bytes are 0).
-std::uint32_t le32(std::span<const std::uint8_t> data) {
-  return static_cast<std::uint32_t>(load_le(data, std::min<std::size_t>(4, data.size())));
-}
-
-WriteVerdict refuse(ConfigAbort code, std::string reason) {
+WriteVerdict refuse(SdoAbort code, std::string reason) {
   return {code, std::move(reason)};
 }
 
@@ -130,24 +125,24 @@ WriteVerdict check_entry_access(const DeviceEntries& entries, std::uint16_t inde
   const DeviceEntry* e = find_entry(entries, index, sub);
   if (e == nullptr) {
     return has_object(entries, index)
-               ? refuse(ConfigAbort::SubIndexDoesNotExist,
+               ? refuse(SdoAbort::SubIndexDoesNotExist,
                         object_name(index) + " has no sub-index " + hex_digits(sub, 2) + "h")
-               : refuse(ConfigAbort::ObjectDoesNotExist,
+               : refuse(SdoAbort::ObjectDoesNotExist,
                         "the device has no object " + object_name(index));
   }
   // the CiA 301 abort code table: "attempt to write a read only object" covers ro and const.
   if (!is_writable(e->access)) {
-    return refuse(ConfigAbort::WriteOfReadOnly,
+    return refuse(SdoAbort::WriteOfReadOnly,
                   "its access type is " + std::string(to_string(e->access)));
   }
   if (!size) return {};
   const auto written = std::to_string(*size) + " byte(s) written";
   if (auto fixed = e->fixed_size()) {
     const auto has = ", its type " + type_name(*e) + " has " + std::to_string(*fixed);
-    if (*size > *fixed) return refuse(ConfigAbort::LengthTooHigh, written + has);
-    if (*size < *fixed) return refuse(ConfigAbort::LengthTooLow, written + has);
+    if (*size > *fixed) return refuse(SdoAbort::LengthTooHigh, written + has);
+    if (*size < *fixed) return refuse(SdoAbort::LengthTooLow, written + has);
   } else if (*size > e->max_size) {
-    return refuse(ConfigAbort::LengthTooHigh,
+    return refuse(SdoAbort::LengthTooHigh,
                   written + ", the device holds at most " + std::to_string(e->max_size));
   }
   return {};
@@ -158,32 +153,32 @@ WriteVerdict check_entry_value(const DeviceEntry& e, std::span<const std::uint8_
   const auto type = *e.basic_type;
   const auto type_class = data_type_info(type).type_class;
   if (type_class == TypeClass::UnicodeString && data.size() % 2 != 0) {
-    return refuse(ConfigAbort::LengthMismatch, "UTF-16 code units are two bytes");
+    return refuse(SdoAbort::LengthMismatch, "UTF-16 code units are two bytes");
   }
   if (type_class == TypeClass::Boolean && !data.empty() && data[0] > 1) {
-    return refuse(ConfigAbort::ValueRangeExceeded, "a BOOLEAN is 0 or 1");
+    return refuse(SdoAbort::ValueRangeExceeded, "a BOOLEAN is 0 or 1");
   }
   if (!e.low_limit && !e.high_limit) return {};
   auto value = decode(type, data);
-  if (!value) return refuse(ConfigAbort::ValueRangeExceeded, value.error().message);
+  if (!value) return refuse(SdoAbort::ValueRangeExceeded, value.error().message);
   if (e.low_limit && e.high_limit) {
     const auto order = compare_values(*e.high_limit, *e.low_limit);
     if (order && *order < 0) {
-      return refuse(ConfigAbort::MaxLessThanMin, "its HighLimit " + describe_value(*e.high_limit) +
-                                                     " is below its LowLimit " +
-                                                     describe_value(*e.low_limit));
+      return refuse(SdoAbort::MaxLessThanMin, "its HighLimit " + describe_value(*e.high_limit) +
+                                                  " is below its LowLimit " +
+                                                  describe_value(*e.low_limit));
     }
   }
   const auto above = e.high_limit ? compare_values(*value, *e.high_limit) : -1;
   const auto below = e.low_limit ? compare_values(*value, *e.low_limit) : 1;
-  if (!above || !below) return refuse(ConfigAbort::ValueRangeExceeded, "NaN is in no range");
+  if (!above || !below) return refuse(SdoAbort::ValueRangeExceeded, "NaN is in no range");
   if (*above > 0) {
-    return refuse(ConfigAbort::ValueTooHigh, describe_value(*value) + " is above its HighLimit " +
-                                                 describe_value(*e.high_limit));
+    return refuse(SdoAbort::ValueTooHigh, describe_value(*value) + " is above its HighLimit " +
+                                              describe_value(*e.high_limit));
   }
   if (*below < 0) {
-    return refuse(ConfigAbort::ValueTooLow, describe_value(*value) + " is below its LowLimit " +
-                                                describe_value(*e.low_limit));
+    return refuse(SdoAbort::ValueTooLow, describe_value(*value) + " is below its LowLimit " +
+                                             describe_value(*e.low_limit));
   }
   return {};
 }
@@ -201,7 +196,7 @@ bool cob_id_change_allowed(std::uint64_t current, std::uint32_t written) {
 }
 
 WriteVerdict refuse_cob_id_change(std::uint64_t current) {
-  return refuse(ConfigAbort::ValueRangeExceeded,
+  return refuse(SdoAbort::ValueRangeExceeded,
                 "the COB-ID is valid (" + hex(current, 8) +
                     "): it may change only while bit 31 is set (CiA 301)");
 }
@@ -230,17 +225,17 @@ class ObjectRules {
       : entries_(entries), rules_(rules) {}
 
   WriteVerdict check(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data) {
-    if (index == obj::kStoreParameters && sub != 0 && le32(data) != kSaveSignature) {
+    if (index == obj::kStoreParameters && sub != 0 && low_le32(data) != kSaveSignature) {
       // CiA 301 §7.5.2.13: wrong signature
-      return refuse(ConfigAbort::CannotStoreOrTransfer, "the signature is not 'save'");
+      return refuse(SdoAbort::CannotStoreOrTransfer, "the signature is not 'save'");
     }
-    if (index == obj::kRestoreDefaultParameters && sub != 0 && le32(data) != kLoadSignature) {
-      return refuse(ConfigAbort::CannotStoreOrTransfer, "the signature is not 'load'");
+    if (index == obj::kRestoreDefaultParameters && sub != 0 && low_le32(data) != kLoadSignature) {
+      return refuse(SdoAbort::CannotStoreOrTransfer, "the signature is not 'load'");
     }
     if (index == obj::kCobIdEmcy) {
       // CiA 301 §7.5.2.5: 0609 0030 (invalid value), as for the PDO COB-IDs.
       const auto current = unsigned_at(entries_, obj::kCobIdEmcy, 0);
-      if (current && !cob_id_change_allowed(*current, le32(data))) {
+      if (current && !cob_id_change_allowed(*current, low_le32(data))) {
         return refuse_cob_id_change(*current);
       }
       return {};
@@ -256,7 +251,7 @@ class ObjectRules {
     // aborts with 0604 0043. An entry: node-ID in bits 16-23, time in ms in bits 0-15.
     const auto node_of = [](std::uint64_t v) { return static_cast<std::uint8_t>(v >> 16); };
     const auto active = [&](std::uint64_t v) { return is_node_id(node_of(v)) && (v & 0xFFFF); };
-    const std::uint32_t written = le32(data);
+    const std::uint32_t written = low_le32(data);
     if (!active(written)) return {};
     for (std::uint8_t other = 1;
          other != 0 && find_entry(entries_, obj::kConsumerHeartbeatTime, other) != nullptr;
@@ -264,7 +259,7 @@ class ObjectRules {
       if (other == sub) continue;
       const auto entry = unsigned_at(entries_, obj::kConsumerHeartbeatTime, other).value_or(0);
       if (active(entry) && node_of(entry) == node_of(written)) {
-        return refuse(ConfigAbort::ParameterIncompatibility,
+        return refuse(SdoAbort::ParameterIncompatibility,
                       to_string(ObjectAddress{obj::kConsumerHeartbeatTime, other}) +
                           " already consumes the heartbeat of node " +
                           std::to_string(node_of(written)));
@@ -282,12 +277,12 @@ class ObjectRules {
     // The value it has is accepted, so a tool downloading a whole DCF that declares them rw
     // succeeds.
     if (index == obj::kSdoServerFirst) {
-      if (current && *current == le32(data) && data.size() == 4) return {};
-      return refuse(ConfigAbort::WriteOfReadOnly,
+      if (current && *current == low_le32(data) && data.size() == 4) return {};
+      return refuse(SdoAbort::WriteOfReadOnly,
                     "the default SDO channel's COB-IDs are the predefined connection set (" +
                         (current ? hex(*current, 8) : std::string("unknown")) + ")");
     }
-    if (current && !cob_id_change_allowed(*current, le32(data))) {
+    if (current && !cob_id_change_allowed(*current, low_le32(data))) {
       return refuse_cob_id_change(*current);
     }
     return {};
@@ -301,7 +296,7 @@ class ObjectRules {
         comm_cob_id && CobId::from_word(static_cast<std::uint32_t>(*comm_cob_id)).valid();
     if (index == pdo->comm_index) {
       if (!pdo_valid) return {};
-      if (sub == 1 && !cob_id_change_allowed(*comm_cob_id, le32(data))) {
+      if (sub == 1 && !cob_id_change_allowed(*comm_cob_id, low_le32(data))) {
         return refuse_cob_id_change(*comm_cob_id);
       }
       // CiA 301 §7.5.2.37: inhibit time (3) and SYNC start value (6) of a TPDO shall not
@@ -309,7 +304,7 @@ class ObjectRules {
       if (!pdo->receive && (sub == 3 || sub == 6)) {
         const DeviceEntry* e = find_entry(entries_, index, sub);
         if (e && !std::equal(e->bytes.begin(), e->bytes.end(), data.begin(), data.end())) {
-          return refuse(ConfigAbort::ValueRangeExceeded,
+          return refuse(SdoAbort::ValueRangeExceeded,
                         std::string(sub == 3 ? "the inhibit time" : "the SYNC start value") +
                             " of " + pdo_name(*pdo) +
                             " may change only while the PDO is "
@@ -322,7 +317,7 @@ class ObjectRules {
     // CiA 301 §7.5.2.36/38: mapping changes only while the PDO is invalid, entries only while
     // sub 0 is 0; writing sub 0 = n validates the n entries.
     if (pdo_valid) {
-      return refuse(ConfigAbort::DeviceState,
+      return refuse(SdoAbort::DeviceState,
                     "the mapping of " + pdo_name(*pdo) +
                         " may change only while the PDO is invalid (COB-ID bit 31 set), and its "
                         "COB-ID " +
@@ -332,18 +327,18 @@ class ObjectRules {
     if (sub != 0) {
       const auto count = unsigned_at(entries_, index, 0).value_or(0);
       if (count != 0) {
-        return refuse(ConfigAbort::DeviceState,
+        return refuse(SdoAbort::DeviceState,
                       "a mapping entry may be written only while sub-index 0 is 0, and it is " +
                           std::to_string(count));
       }
       // CiA 301 §7.5.2.36/38 step 3: the device checks each entry as it is written (0602 0000
       // or 0604 0041). 0 clears the entry (sub 0 never counts it), so it stays accepted.
-      const auto value = le32(data);
+      const auto value = low_le32(data);
       if (value == 0) return {};
       const auto mapped = static_cast<std::uint16_t>(value >> 16);
       if (!is_dummy_index(mapped) && !has_object(entries_, mapped)) {
         return refuse(
-            ConfigAbort::ObjectDoesNotExist,
+            SdoAbort::ObjectDoesNotExist,
             pdo_name(*pdo) + " maps " + object_name(mapped) + ", which the device does not have");
       }
       return mapping_entry(*pdo, value).verdict;
@@ -362,7 +357,7 @@ class ObjectRules {
     const auto bits = static_cast<unsigned>(value & 0xFF);
     const std::string what = pdo_name(pdo) + " maps " + to_string(ObjectAddress{index, sub});
     const auto cannot = [](std::string reason) {
-      return MappingCheck{refuse(ConfigAbort::CannotBeMapped, std::move(reason))};
+      return MappingCheck{refuse(SdoAbort::CannotBeMapped, std::move(reason))};
     };
     if (bits == 0) return cannot(what + " with 0 bits");
 
@@ -416,9 +411,9 @@ class ObjectRules {
     for (std::uint8_t i = 1; i <= count && i != 0; ++i) {
       auto value = unsigned_at(entries_, pdo.mapping_index, i);
       if (!value) {
-        return refuse(ConfigAbort::CannotBeMapped,
-                      pdo_name(pdo) + " has no mapping entry " +
-                          to_string(ObjectAddress{pdo.mapping_index, i}) + " to count");
+        return refuse(SdoAbort::CannotBeMapped, pdo_name(pdo) + " has no mapping entry " +
+                                                    to_string(ObjectAddress{pdo.mapping_index, i}) +
+                                                    " to count");
       }
       auto check = mapping_entry(pdo, static_cast<std::uint32_t>(*value));
       if (!check.verdict.accepted()) {
@@ -430,7 +425,7 @@ class ObjectRules {
     }
     // CiA 301 §7.5.2.36: a classic CAN PDO carries at most 64 bits.
     if (total_bits > 64) {
-      return refuse(ConfigAbort::PdoLengthExceeded,
+      return refuse(SdoAbort::PdoLengthExceeded,
                     "the " + std::to_string(count) + " entries of " + pdo_name(pdo) + " map " +
                         std::to_string(total_bits) + " bits, a CAN frame carries 64");
     }
@@ -462,7 +457,7 @@ WriteVerdict check_device_write(const DeviceEntries& entries, const DeviceWriteR
 namespace {
 
 // "0604 0041", as CiA 301 writes abort codes.
-std::string abort_text(ConfigAbort code) {
+std::string abort_text(SdoAbort code) {
   const auto digits = hex_digits(static_cast<std::uint32_t>(code), 8);
   return digits.substr(0, 4) + " " + digits.substr(4);
 }
@@ -519,7 +514,7 @@ void check_download(const DeviceDescription& dcf, NodeId node, std::span<const O
     const auto pdo = obj::pdo_indices_of(w.index);
     const bool mapping = pdo && w.index == pdo->mapping_index;
     if (mapping && reported_mappings.contains(w.index) &&
-        (w.sub_index == 0 || verdict.code == ConfigAbort::DeviceState)) {
+        (w.sub_index == 0 || verdict.code == SdoAbort::DeviceState)) {
       continue;
     }
     if (mapping) reported_mappings.insert(w.index);

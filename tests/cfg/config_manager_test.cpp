@@ -49,7 +49,7 @@ constexpr std::uint32_t kAbortValueRange = 0x06090030;
 constexpr std::uint32_t kAbortCannotStore = 0x08000020;
 constexpr std::uint32_t kAbortDataSetEmpty = 0x08000024;  // DSP 302 §6 "Data set empty"
 
-std::uint32_t code(ConfigAbort abort) {
+std::uint32_t code(SdoAbort abort) {
   return static_cast<std::uint32_t>(abort);
 }
 
@@ -315,17 +315,17 @@ TEST(ConfigManagerLimits, AdmitsAnswersForASizeBeforeTheDataIsThere) {
   // What an SDO server asks at the initiate request (indicated size) or as segments arrive.
   ConfigManager manager;
   manager.set_limits({.max_entry_bytes = 1000, .max_total_bytes = 1500});
-  EXPECT_EQ(manager.admits(0x1F22, 5, 1000), ConfigAbort::None);
-  EXPECT_EQ(manager.admits(0x1F20, 5, 1001), ConfigAbort::OutOfMemory);
+  EXPECT_EQ(manager.admits(0x1F22, 5, 1000), SdoAbort::None);
+  EXPECT_EQ(manager.admits(0x1F20, 5, 1001), SdoAbort::OutOfMemory);
   ASSERT_TRUE(manager.write(0x1F22, 5, concise_of_size(1000)).ok());
   // Node 6 has room for 500 more; node 5's own entry would be replaced, so it has 1000.
-  EXPECT_EQ(manager.admits(0x1F22, 6, 500), ConfigAbort::None);
-  EXPECT_EQ(manager.admits(0x1F22, 6, 501), ConfigAbort::OutOfMemory);
-  EXPECT_EQ(manager.admits(0x1F22, 5, 1000), ConfigAbort::None);
-  EXPECT_EQ(manager.admits(0x1F23, 5, 501), ConfigAbort::OutOfMemory);
+  EXPECT_EQ(manager.admits(0x1F22, 6, 500), SdoAbort::None);
+  EXPECT_EQ(manager.admits(0x1F22, 6, 501), SdoAbort::OutOfMemory);
+  EXPECT_EQ(manager.admits(0x1F22, 5, 1000), SdoAbort::None);
+  EXPECT_EQ(manager.admits(0x1F23, 5, 501), SdoAbort::OutOfMemory);
   // Objects whose values are no files are not limited here.
-  EXPECT_EQ(manager.admits(0x1F26, 5, 4), ConfigAbort::None);
-  EXPECT_EQ(manager.admits(0x1F25, 5, 1 << 30), ConfigAbort::None);
+  EXPECT_EQ(manager.admits(0x1F26, 5, 4), SdoAbort::None);
+  EXPECT_EQ(manager.admits(0x1F25, 5, 1 << 30), SdoAbort::None);
 }
 
 // --- the download plan (CiA 302-2 §3.5) -------------------------------------------------------

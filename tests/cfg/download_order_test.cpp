@@ -73,6 +73,27 @@ TEST(DownloadOrder, OtherObjectsInIndexThenSubIndexOrderWithPdosAtTheirCommIndex
                           u32(0x1800, 1, 0x181), u32(0x1F80, 0, 0x4), u32(0x6081, 0, 1000)));
 }
 
+// CiA 302-2 §3.5 d, DSP 302 v3.2.1 §6.3: after the configuration 1020h sub 1/2 = 1F26h/1F27h
+// (when not 0), then 1010h sub 1 = 'save'.
+TEST(DownloadPlan, IsThePdoSafeOrderThen1020hThen1010hSave) {
+  const auto plan = plan_download(rpdo1_configuration(), {{14000, 3'600'000}, true});
+  std::vector<ObjectWrite> expected = order_for_download(rpdo1_configuration()).writes;
+  expected.push_back(u32(0x1020, 1, 14000));
+  expected.push_back(u32(0x1020, 2, 3'600'000));
+  expected.push_back(u32(0x1010, 1, 0x65766173));
+  EXPECT_EQ(plan.writes, expected);
+}
+
+TEST(DownloadPlan, ZeroStampAndNoSaveAddNothing) {
+  // §3.5 a: 1F26h/1F27h of 0 mean the configuration is not verified, so 1020h is not written.
+  EXPECT_EQ(plan_download(rpdo1_configuration()).writes,
+            order_for_download(rpdo1_configuration()).writes);
+  const auto saved = plan_download(rpdo1_configuration(), {{}, true}).writes;
+  ASSERT_FALSE(saved.empty());
+  EXPECT_EQ(saved.back(), u32(0x1010, 1, 0x65766173));
+  EXPECT_EQ(saved.size(), order_for_download(rpdo1_configuration()).writes.size() + 1);
+}
+
 TEST(DownloadOrder, VerifyConfigurationIsWrittenLast) {
   // DSP 302 v3.2.1 §6.3: "If any other command changes boot-up configuration values, the device
   // has to reset the object Verify Configuration to 0." 1020h sub 1 = date, sub 2 = time.

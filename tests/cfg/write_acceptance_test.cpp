@@ -144,32 +144,32 @@ class DeviceWrite : public ::testing::Test {
 
 TEST_F(DeviceWrite, ReadOnlyObjectIsRefusedWith06010002) {
   const auto v = write(0x1000, 0, {0x91, 0x01, 0x03, 0x00});  // 1000h is ro
-  EXPECT_EQ(v.code, cfg::ConfigAbort::WriteOfReadOnly);
+  EXPECT_EQ(v.code, cfg::SdoAbort::WriteOfReadOnly);
   EXPECT_THAT(v.reason, HasSubstr("ro"));
 }
 
 TEST_F(DeviceWrite, LengthOtherThanTheTypesIsRefusedWith0607001213) {
   // 2000h is UNSIGNED16: 2 bytes.
-  EXPECT_EQ(write(0x2000, 0, {1, 2, 3, 4}).code, cfg::ConfigAbort::LengthTooHigh);
-  EXPECT_EQ(write(0x2000, 0, {1}).code, cfg::ConfigAbort::LengthTooLow);
-  EXPECT_EQ(write(0x2000, 0, {1, 2}).code, cfg::ConfigAbort::None);
+  EXPECT_EQ(write(0x2000, 0, {1, 2, 3, 4}).code, cfg::SdoAbort::LengthTooHigh);
+  EXPECT_EQ(write(0x2000, 0, {1}).code, cfg::SdoAbort::LengthTooLow);
+  EXPECT_EQ(write(0x2000, 0, {1, 2}).code, cfg::SdoAbort::None);
 }
 
 TEST_F(DeviceWrite, MissingObjectAndSubIndexAre06020000And06090011) {
-  EXPECT_EQ(write(0x2100, 0, {1, 2}).code, cfg::ConfigAbort::ObjectDoesNotExist);
-  EXPECT_EQ(write(0x1018, 9, {1, 2, 3, 4}).code, cfg::ConfigAbort::SubIndexDoesNotExist);
+  EXPECT_EQ(write(0x2100, 0, {1, 2}).code, cfg::SdoAbort::ObjectDoesNotExist);
+  EXPECT_EQ(write(0x1018, 9, {1, 2, 3, 4}).code, cfg::SdoAbort::SubIndexDoesNotExist);
 }
 
 TEST_F(DeviceWrite, BelowLowLimitIsRefusedWith06090032) {
-  EXPECT_EQ(write(0x2002, 0, {0, 0}).code, cfg::ConfigAbort::ValueTooLow);  // LowLimit=1
-  EXPECT_EQ(write(0x2002, 0, {100, 0}).code, cfg::ConfigAbort::None);       // HighLimit=100
+  EXPECT_EQ(write(0x2002, 0, {0, 0}).code, cfg::SdoAbort::ValueTooLow);  // LowLimit=1
+  EXPECT_EQ(write(0x2002, 0, {100, 0}).code, cfg::SdoAbort::None);       // HighLimit=100
 }
 
 TEST_F(DeviceWrite, ValidPdoCobIdChangesOnlyThroughInvalid) {
   // §7.5.2.35: 1400h sub 1 = 205h (valid): another identifier directly is 0609 0030; bit 31
   // first (destroying the PDO) is accepted.
-  EXPECT_EQ(write(0x1400, 1, {0x06, 0x02, 0, 0}).code, cfg::ConfigAbort::ValueRangeExceeded);
-  EXPECT_EQ(write(0x1400, 1, {0x05, 0x02, 0, 0x80}).code, cfg::ConfigAbort::None);
+  EXPECT_EQ(write(0x1400, 1, {0x06, 0x02, 0, 0}).code, cfg::SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(write(0x1400, 1, {0x05, 0x02, 0, 0x80}).code, cfg::SdoAbort::None);
 }
 
 TEST_F(DeviceWrite, DummyEntriesAreForRpdosTheDummyUsageAllows) {
@@ -178,9 +178,9 @@ TEST_F(DeviceWrite, DummyEntriesAreForRpdosTheDummyUsageAllows) {
   auto& cob = entries_.at(cfg::ObjectAddress{0x1400, 1}.key()).bytes;
   cob = {0x05, 0x02, 0, 0x80};
   entries_.at(cfg::ObjectAddress{0x1600, 0}.key()).bytes = {0};
-  EXPECT_EQ(write(0x1600, 1, {0x08, 0x00, 0x05, 0x00}).code, cfg::ConfigAbort::None);
+  EXPECT_EQ(write(0x1600, 1, {0x08, 0x00, 0x05, 0x00}).code, cfg::SdoAbort::None);
   // 0002h (INTEGER8) is not in [DummyUsage].
-  EXPECT_EQ(write(0x1600, 1, {0x08, 0x00, 0x02, 0x00}).code, cfg::ConfigAbort::CannotBeMapped);
+  EXPECT_EQ(write(0x1600, 1, {0x08, 0x00, 0x02, 0x00}).code, cfg::SdoAbort::CannotBeMapped);
 }
 
 }  // namespace

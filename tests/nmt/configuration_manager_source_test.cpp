@@ -25,8 +25,8 @@ TEST(ConfigurationManagerSource, DataSetEmptyIsAbort08000024) {
   // DSP 302 §6.1: "Data set empty", 0800 0024h.
   const cfg::ConfigManager manager;
   const auto read = manager.read(0x1F20, 1);
-  EXPECT_EQ(to_sdo_abort(read.abort), SdoAbort::NoDataAvailable);
-  EXPECT_EQ(static_cast<std::uint32_t>(to_sdo_abort(read.abort)), 0x08000024U);
+  EXPECT_EQ(read.abort, SdoAbort::NoDataAvailable);
+  EXPECT_EQ(static_cast<std::uint32_t>(read.abort), 0x08000024U);
 }
 
 }  // namespace

@@ -61,7 +61,7 @@ TEST(WriteAcceptanceParity, SlaveNodeAnswersTheCodeOfTheSharedRules) {
         cfg::check_device_write(*entries, {&dcf.dummy_usage}, w.index, w.sub, w.data);
     const SdoAbort device = (*node)->dictionary().write(w.index, w.sub, w.data, 1s);
     EXPECT_EQ(device, w.code);
-    EXPECT_EQ(to_sdo_abort(shared.code), device) << shared.reason;
+    EXPECT_EQ(shared.code, device) << shared.reason;
   }
 }
 

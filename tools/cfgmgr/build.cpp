@@ -45,26 +45,26 @@ void write_or_exit(const std::string& path, std::string_view bytes) {
 void write_programmed_node(const std::string& spec, const cfg::Network& network,
                            const std::filesystem::path& dir, const BuildCliOptions& options) {
   const std::size_t eq = spec.find('=');
-  const auto id = cfg::parse_integer_literal(std::string_view(spec).substr(0, eq)).literal;
-  if (eq == std::string::npos || !id || !cfg::is_node_id(id->value)) {
+  const auto id = tools::parse_node_id_argument(std::string_view(spec).substr(0, eq));
+  if (eq == std::string::npos || !id) {
     fail_command(kTool, tools::kExitUsage,
                  "--variables " + spec + ": expected NODE=FILE with NODE a node-ID (1..127)");
   }
   const std::string file = spec.substr(eq + 1);
   const cfg::NetworkNode* node = nullptr;
   for (const auto& n : network.nodes) {
-    if (n.node_id.value() == id->value) node = &n;
+    if (n.node_id == *id) node = &n;
   }
   if (node == nullptr || !node->dcf) {
     fail_command(kTool, tools::kExitInputErrors,
-                 "--variables: node " + std::to_string(id->value) +
+                 "--variables: node " + std::to_string(id->value()) +
                      (node == nullptr ? " is not in the network" : " has no DCF in the network"));
   }
   cfg::DeviceDescription device = *node->dcf;
   const std::optional<cfg::DynamicChannels> channels = cfg::dynamic_channels_of(device);
   if (!channels || channels->segments.empty()) {
     fail_command(kTool, tools::kExitInputErrors,
-                 "--variables: node " + std::to_string(id->value) + " (" + node->file +
+                 "--variables: node " + std::to_string(id->value()) + " (" + node->file +
                      ") has no [DynamicChannels] segments to allocate variables in");
   }
   auto text = tools::read_input(file);
@@ -80,11 +80,11 @@ void write_programmed_node(const std::string& spec, const cfg::Network& network,
   cfg::WriteOptions write_options;
   write_options.kind = cfg::FileKind::Dcf;
   write_options.line_ending = options.lf ? cfg::LineEnding::Lf : cfg::LineEnding::Crlf;
-  const std::string name = "node" + std::to_string(id->value) + ".dcf";
+  const std::string name = "node" + std::to_string(id->value()) + ".dcf";
   device.file_info.set("FileName", name);
   const std::string path = (dir / name).string();
   write_or_exit(path, cfg::write_device_description(device, write_options));
-  std::cout << path << ": node " << id->value << " programmed, "
+  std::cout << path << ": node " << int{id->value()} << " programmed, "
             << tools::plural(allocation->size(), "network variable") << " from " << file << '\n';
 }
 

@@ -134,12 +134,9 @@ std::string json_report(const std::vector<cfg::ParameterDifference>& diffs,
 void run_diff(const DiffCliOptions& options) {
   cfg::DiffOptions diff_options;
   if (!options.node_id.empty()) {
-    const auto parsed = cfg::parse_integer_literal(options.node_id);
-    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-      trouble("--node-id " + options.node_id + ": expected a node-ID 1..127");
-    }
-    diff_options.node_id_a = diff_options.node_id_b =
-        static_cast<std::uint8_t>(parsed.literal->value);
+    const auto parsed = tools::parse_node_id_argument(options.node_id);
+    if (!parsed) trouble(tools::node_id_argument_error("--node-id", options.node_id));
+    diff_options.node_id_a = diff_options.node_id_b = *parsed;
   }
   const cfg::DeviceDescription a = read_or_exit(options.a);
   const cfg::DeviceDescription b = read_or_exit(options.b);

@@ -459,12 +459,12 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
                             const std::string& node_id_text, nmt::MasterOptions options) {
   std::uint8_t node_id = kDefaultMasterNodeId;
   if (!node_id_text.empty()) {
-    const auto parsed = cfg::parse_integer_literal(node_id_text);
-    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+    const auto parsed = tools::parse_node_id_argument(node_id_text);
+    if (!parsed) {
       fail_command(tool, tools::kExitUsage,
-                   "--node-id " + node_id_text + ": expected a node-ID 1..127");
+                   tools::node_id_argument_error("--node-id", node_id_text));
     }
-    node_id = static_cast<std::uint8_t>(parsed.literal->value);
+    node_id = *parsed;
   } else if (network->master_node_id) {
     node_id = network->master_node_id->value();
   }

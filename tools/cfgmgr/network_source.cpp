@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "../common/tool_support.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
@@ -66,12 +67,12 @@ cfg::Result<std::set<std::uint8_t>> parse_node_list(std::string_view text) {
   std::set<std::uint8_t> out;
   std::optional<cfg::Error> error;
   const auto node = [&](std::string_view part) -> std::uint8_t {
-    const auto parsed = cfg::parse_integer_literal(part);
-    if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+    const auto parsed = tools::parse_node_id_argument(part);
+    if (!parsed) {
       if (!error) error = cfg::Error{"'" + std::string(part) + "' is no node-ID 1..127"};
       return 1;
     }
-    return static_cast<std::uint8_t>(parsed.literal->value);
+    return *parsed;
   };
   std::size_t begin = 0;
   while (begin <= text.size() && !error) {

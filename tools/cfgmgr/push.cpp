@@ -112,10 +112,10 @@ std::string node_label(const cfg::NetworkNode& node) {
 }
 
 // --dry-run: per node the configuration writes in the order the master downloads them
-// (cfg::order_for_download, CiA 302-2 §3.5 d), then what the master adds.
+// (cfg::plan_download, CiA 302-2 §3.5 d), then what the master adds.
 void print_plan(const std::vector<const cfg::NetworkNode*>& nodes, const PushCliOptions& options) {
   for (const cfg::NetworkNode* node : nodes) {
-    const cfg::DownloadOrder order = cfg::order_for_download(node->writes);
+    const cfg::DownloadOrder order = cfg::plan_download(node->writes);
     std::size_t bytes = 0;
     for (const auto& w : order.writes) bytes += w.data.size();
     std::cout << node_label(*node) << ": " << tools::plural(order.writes.size(), "write") << ", "

@@ -2,7 +2,7 @@
 // with any node of a running network, from the command line. The value's data type comes from
 // --type, else from the node's EDS/DCF (--eds); the value text is the project's value parser's
 // (cfg::parse_value, the syntax of EDS/DCF values). The client is libnmt's SdoClient
-// (sdo_session.hpp); this file parses arguments and prints. With --via-manager the tool is an
+// (nmt/sdo_session.hpp); this file parses arguments and prints. With --via-manager the tool is an
 // SDO requesting device (DSP 302 §7) and transfers on the channel the network's SDO manager
 // grants instead of the node's default SDO.
 #include <algorithm>
@@ -32,16 +32,12 @@
 #include "nmt/bus.hpp"
 #include "nmt/sdo_abort.hpp"
 #include "nmt/sdo_client.hpp"
-#include "sdo_session.hpp"
+#include "nmt/sdo_session.hpp"
 
 namespace cfgmgr {
 namespace {
 
 constexpr std::string_view kTool = "sdo";
-
-/// Writes of more bytes than this go by block transfer without --block: one sub-block of 127
-/// segments of 7 bytes (CiA 301 §7.2.4.3.9) is 889 bytes.
-constexpr std::size_t kBlockThreshold = 889;
 
 struct SdoCliOptions {
   std::string bus;
@@ -101,11 +97,9 @@ cfg::DataType parse_type(const std::string& text) {
 }
 
 std::uint8_t parse_node(const std::string& text, std::string_view what = "NODE") {
-  const auto parsed = cfg::parse_integer_literal(text);
-  if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-    fail(tools::kExitUsage, std::string(what) + " " + text + ": expected a node-ID 1..127");
-  }
-  return static_cast<std::uint8_t>(parsed.literal->value);
+  const auto node = tools::parse_node_id_argument(text);
+  if (!node) fail(tools::kExitUsage, tools::node_id_argument_error(what, text));
+  return *node;
 }
 
 // INDEX[:SUB], both hex as CiA 301 writes them: "1018:1", "0x1018:0x01", "1018h:01h".
@@ -152,7 +146,7 @@ nmt::SdoTransferOptions transfer_options(const SdoCliOptions& o, std::size_t wri
   options.timeout = seconds_to_duration(o.sdo_timeout_s);
   // CiA 301 §7.2.4.3.9: block transfer; the client falls back to segmented when the server
   // answers 0504 0001 (nmt/sdo_client.hpp).
-  if (o.block || write_size > kBlockThreshold) options.mode = nmt::SdoMode::Block;
+  if (o.block || write_size > nmt::kBlockDownloadThreshold) options.mode = nmt::SdoMode::Block;
   return options;
 }
 
@@ -177,7 +171,7 @@ struct Outcome {
   nmt::SdoResult result;
   std::optional<cfg::Value> value;  // read, typed, decoded
   std::vector<std::uint8_t> bytes;  // read: as received; write: as sent
-  SessionChannel channel;           // the channel the transfer used
+  nmt::SdoSessionChannel channel;   // the channel the transfer used
 };
 
 std::string json_of(const Outcome& o) {
@@ -228,7 +222,7 @@ std::string json_of(const Outcome& o) {
 
 // --via-manager: the node-ID the tool takes as an SRD must be free; a node that answers an
 // upload of 1000h on its default SDO (CiA 301 §7.2.4.1) holds it. 300 ms is ample on a live bus.
-void require_free_node_id(SdoSession& session, std::uint8_t own) {
+void require_free_node_id(nmt::SdoSession& session, std::uint8_t own) {
   nmt::SdoTransferOptions probe;
   probe.timeout = std::chrono::milliseconds(300);
   auto answer = session.upload(0x1000, 0, probe);
@@ -237,12 +231,14 @@ void require_free_node_id(SdoSession& session, std::uint8_t own) {
   if (r.ok() || r.aborted_by_server) {
     fail(tools::kExitUsage,
          "--node-id " + std::to_string(own) + ": node " + std::to_string(own) +
-             " answers on the bus (its default SDO " + cfg::hex_digits(0x600 + own, 3) + "h/" +
-             cfg::hex_digits(0x580 + own, 3) + "h); give this tool a free node-ID with --node-id");
+             " answers on the bus (its default SDO " +
+             cfg::hex_digits(nmt::sdo::default_cob_ids(own).request.can_id().id, 3) + "h/" +
+             cfg::hex_digits(nmt::sdo::default_cob_ids(own).response.can_id().id, 3) +
+             "h); give this tool a free node-ID with --node-id");
   }
 }
 
-std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t node) {
+std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, std::uint8_t node) {
   if (is_sim_url(o.bus)) {
     fail(tools::kExitUsage, "--bus " + o.bus +
                                 ": the simulated bus has no node to talk to; use the bus the "
@@ -255,7 +251,7 @@ std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t no
     if (!o.own_node_id.empty()) fail(tools::kExitUsage, "--node-id is for --via-manager");
     // CiA 301 §7.2.4.1: the default SDO of a node is 600h + node-ID (client to server) and
     // 580h + node-ID (server to client).
-    auto session = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(node));
+    auto session = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(node));
     if (!session) fail(tools::kExitIo, session.error().message);
     return std::move(session).value();
   }
@@ -267,11 +263,11 @@ std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t no
     fail(tools::kExitUsage, "--node-id " + o.own_node_id + ": that is NODE; give this tool a " +
                                 "free node-ID of its own");
   }
-  auto opened = SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(own));
+  auto opened = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(own));
   if (!opened) fail(tools::kExitIo, opened.error().message);
   auto session = std::move(opened).value();
   require_free_node_id(*session, own);
-  ManagerRoute route;
+  nmt::SdoManagerRoute route;
   route.own_node_id = *cfg::NodeId::from(own);
   route.slave = node;
   route.manager_timeout = seconds_to_duration(o.manager_timeout_s);
@@ -290,7 +286,7 @@ std::unique_ptr<SdoSession> open_session(const SdoCliOptions& o, std::uint8_t no
 
 // Via the manager: release the connection and de-register before the outcome is printed (the
 // manager frees both when the tool's heartbeat stops anyway, so a failure is only a warning).
-void close_session(SdoSession& session) {
+void close_session(nmt::SdoSession& session) {
   if (auto closed = session.close(); !closed) {
     std::cerr << "cfgmgr sdo: warning: " << closed.error().message << '\n' << std::flush;
   }
@@ -409,8 +405,8 @@ void add_sdo_command(CLI::App& app) {
       ->type_name("SECONDS")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--block", o->block,
-                "Use block transfer (segmented when the node has none); writes of more than "
-                "889 bytes use it anyway");
+                "Use block transfer (segmented when the node has none); writes of more than " +
+                    std::to_string(nmt::kBlockDownloadThreshold) + " bytes use it anyway");
   cmd->add_flag("--via-manager", o->via_manager,
                 "Ask the network's SDO manager for a connection to NODE (DSP 302 section 7) "
                 "instead of taking its default SDO, which the master or another tool may be "

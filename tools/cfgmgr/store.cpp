@@ -28,7 +28,7 @@
 #include "commands.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/sdo_client.hpp"
-#include "sdo_session.hpp"
+#include "nmt/sdo_session.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -79,13 +79,6 @@ struct Access {
   bool ok() const { return abort == 0; }
 };
 
-/// An UNSIGNED32 value as SDO data (little-endian, CiA 301 §7.1).
-std::vector<std::uint8_t> u32(std::uint32_t value) {
-  std::vector<std::uint8_t> bytes;
-  cfg::append_le(bytes, value, 4);
-  return bytes;
-}
-
 /// The store as objects (index, sub-index).
 class Store {
  public:
@@ -107,7 +100,7 @@ class LocalStore final : public Store {
     auto r = manager_.write(index, sub, data);
     // cfg/config_manager.hpp: 0800 0020h is a directory that could not be written (1F25h,
     // whose wrong signature gives it too, is never written to a store directory).
-    const bool io = r.abort == cfg::ConfigAbort::CannotStoreOrTransfer;
+    const bool io = r.abort == cfg::SdoAbort::CannotStoreOrTransfer;
     return {static_cast<std::uint32_t>(r.abort), {}, std::move(r.message), io};
   }
   bool remote() const override { return false; }
@@ -119,7 +112,7 @@ class LocalStore final : public Store {
 /// A master's configuration manager over SDO (its server at 600h/580h + node-ID).
 class RemoteStore final : public Store {
  public:
-  RemoteStore(std::unique_ptr<SdoSession> session, nmt::Duration timeout)
+  RemoteStore(std::unique_ptr<nmt::SdoSession> session, nmt::Duration timeout)
       : session_(std::move(session)) {
     options_.timeout = timeout;
     // Files are long: block transfer (CiA 301 §7.2.4.3.9), segmented when the server has none.
@@ -144,18 +137,18 @@ class RemoteStore final : public Store {
     return a;
   }
 
-  std::unique_ptr<SdoSession> session_;
+  std::unique_ptr<nmt::SdoSession> session_;
   nmt::SdoTransferOptions options_;
 };
 
 std::uint8_t parse_node(const std::string& text, bool allow_all = false) {
   if (allow_all && text == "all") return cfg::kConfigureAllNodes;
-  const auto parsed = cfg::parse_integer_literal(text);
-  if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
+  const auto node = tools::parse_node_id_argument(text);
+  if (!node) {
     fail(tools::kExitUsage,
-         "NODE " + text + ": expected a node-ID 1..127" + (allow_all ? " or all" : ""));
+         tools::node_id_argument_error("NODE", text) + (allow_all ? " or all" : ""));
   }
-  return static_cast<std::uint8_t>(parsed.literal->value);
+  return *node;
 }
 
 std::optional<What> parse_what(const std::string& text) {
@@ -216,15 +209,12 @@ std::unique_ptr<Store> open_store(const StoreCliOptions& o) {
                                 ": the simulated bus has no master to talk to; use the bus a "
                                 "`cfgmgr master` runs on (socketcan:IF, udp://GROUP:PORT)");
   }
-  const auto parsed = cfg::parse_integer_literal(o.master);
-  if (!parsed.literal || !cfg::is_node_id(parsed.literal->value)) {
-    fail(tools::kExitUsage, "--master " + o.master + ": expected a node-ID 1..127");
-  }
+  const auto master = tools::parse_node_id_argument(o.master);
+  if (!master) fail(tools::kExitUsage, tools::node_id_argument_error("--master", o.master));
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
     fail(tools::kExitUsage, checked.error().message);
   }
-  auto session = SdoSession::open(
-      o.bus, nmt::SdoClientConfig::for_node(static_cast<std::uint8_t>(parsed.literal->value)));
+  auto session = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(*master));
   if (!session) fail(tools::kExitIo, session.error().message);
   const auto timeout = nmt::Duration(static_cast<std::int64_t>(o.sdo_timeout_s * 1e6));
   return std::make_unique<RemoteStore>(std::move(session).value(), timeout);
@@ -256,9 +246,9 @@ void put(Store& store, const StoreCliOptions& o) {
   const std::size_t size = data.size();
   must(store.write(index_of(what), node, std::move(data)), index_of(what), node);
   if (stamp) {
-    must(store.write(obj::kExpectedConfigurationDate, node, u32(stamp->days)),
+    must(store.write(obj::kExpectedConfigurationDate, node, cfg::le32_bytes(stamp->days)),
          obj::kExpectedConfigurationDate, node);
-    must(store.write(obj::kExpectedConfigurationTime, node, u32(stamp->ms)),
+    must(store.write(obj::kExpectedConfigurationTime, node, cfg::le32_bytes(stamp->ms)),
          obj::kExpectedConfigurationTime, node);
   }
   std::cerr << "cfgmgr store: node " << int{node} << ": " << size << " bytes to "
@@ -292,13 +282,13 @@ struct Listed {
 std::optional<std::size_t> size_or_empty(Store& store, std::uint16_t index, std::uint8_t node) {
   auto a = store.read(index, node);
   // DSP 302 §6.1/§6.5: nothing stored reads as 0800 0024h.
-  if (a.abort == static_cast<std::uint32_t>(cfg::ConfigAbort::DataSetEmpty)) return std::nullopt;
+  if (a.abort == static_cast<std::uint32_t>(cfg::SdoAbort::NoDataAvailable)) return std::nullopt;
   return must(std::move(a), index, node).data.size();
 }
 
 std::uint32_t read_u32(Store& store, std::uint16_t index, std::uint8_t node) {
   const auto a = must(store.read(index, node), index, node);
-  return a.data.size() >= 4 ? cfg::load_le32(a.data) : 0;
+  return cfg::low_le32(a.data);
 }
 
 Listed list_node(Store& store, std::uint8_t node) {
@@ -366,13 +356,13 @@ void remove(Store& store, const StoreCliOptions& o) {
   const std::uint8_t node = parse_node(o.node);
   // §6.2 application hint 1: the empty data set is the stream with count 0; an empty DCF/EDS
   // removes those (cfg/config_manager.hpp); 1F26h/1F27h = 0 mean "do not verify".
-  must(store.write(obj::kConciseDcf, node, u32(0)), obj::kConciseDcf, node);
+  must(store.write(obj::kConciseDcf, node, cfg::le32_bytes(0)), obj::kConciseDcf, node);
   must(store.write(obj::kStoreDcf, node, {}), obj::kStoreDcf, node);
   must(store.write(obj::kStoreEds, node, {}), obj::kStoreEds, node);
-  must(store.write(obj::kExpectedConfigurationDate, node, u32(0)), obj::kExpectedConfigurationDate,
-       node);
-  must(store.write(obj::kExpectedConfigurationTime, node, u32(0)), obj::kExpectedConfigurationTime,
-       node);
+  must(store.write(obj::kExpectedConfigurationDate, node, cfg::le32_bytes(0)),
+       obj::kExpectedConfigurationDate, node);
+  must(store.write(obj::kExpectedConfigurationTime, node, cfg::le32_bytes(0)),
+       obj::kExpectedConfigurationTime, node);
 }
 
 void configure(Store& store, const StoreCliOptions& o) {
@@ -381,8 +371,8 @@ void configure(Store& store, const StoreCliOptions& o) {
     fail(tools::kExitUsage, "configure asks a running master: give --bus URL --master N");
   }
   // DSP 302 §6.4: the signature 'conf' = 666E6F63h.
-  must(store.write(obj::kConfigureSlave, sub, u32(cfg::kConfigureSignature)), obj::kConfigureSlave,
-       sub);
+  must(store.write(obj::kConfigureSlave, sub, cfg::le32_bytes(cfg::kConfigureSignature)),
+       obj::kConfigureSlave, sub);
 }
 
 void add_target_options(CLI::App& cmd, StoreCliOptions& o) {

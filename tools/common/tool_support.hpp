@@ -27,6 +27,8 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/diagnostics.hpp"
+#include "cfg/integer_literal.hpp"
+#include "cfg/node_id.hpp"
 #include "cfg/result.hpp"
 
 namespace tools {
@@ -68,6 +70,21 @@ void keep_until_exit(T&& value) {
   using Kept = std::remove_cvref_t<T>;
   static auto* kept = new std::vector<std::unique_ptr<Kept>>();  // never destroyed, on purpose
   kept->push_back(std::make_unique<Kept>(std::forward<T>(value)));
+}
+
+/// A node-ID argument of a tool (NODE, --node-id, --master, NODE=FILE): an integer literal as
+/// CiA 306 §4.6.3 writes them (decimal, 0x hex, leading-0 octal) in 1..127 (CiA 301 §7.2.8.3.1);
+/// nullopt for anything else, which the caller reports with node_id_argument_error().
+inline std::optional<cfg::NodeId> parse_node_id_argument(std::string_view text) {
+  const auto parsed = cfg::parse_integer_literal(text);
+  if (!parsed.literal) return std::nullopt;
+  return cfg::NodeId::from(parsed.literal->value);
+}
+
+/// What every tool says of a node-ID argument that is none: "WHAT TEXT: expected a node-ID
+/// 1..127" (WHAT names the argument: "NODE", "--node-id").
+inline std::string node_id_argument_error(std::string_view what, std::string_view text) {
+  return std::string(what) + " " + std::string(text) + ": expected a node-ID 1..127";
 }
 
 /// A count with its noun in the right number: plural(1, "error") is "1 error", plural(2,

@@ -28,6 +28,15 @@ constexpr std::uint32_t load_le32(std::span<const std::uint8_t> bytes) {
   return static_cast<std::uint32_t>(load_le(bytes, 4));
 }
 
+/// The one rule for reading an UNSIGNED32 whose length the bus or a file decides (an SDO upload,
+/// a written value, a stored entry): its first up to 4 bytes, least significant first; bytes
+/// that are missing count as 0, so an empty value is 0 and 1..3 bytes are the number they hold.
+/// (load_le32 is for 4 bytes known to be there.)
+constexpr std::uint32_t low_le32(std::span<const std::uint8_t> bytes) {
+  const std::size_t size = bytes.size() < 4 ? bytes.size() : 4;
+  return size == 0 ? 0 : static_cast<std::uint32_t>(load_le(bytes, size));
+}
+
 /// Writes the low `size` bytes of `value` (1..8) to `out`, least significant first.
 constexpr void store_le(std::uint64_t value, std::span<std::uint8_t> out, std::size_t size) {
   assert(size >= 1 && size <= 8 && out.size() >= size);
@@ -35,6 +44,14 @@ constexpr void store_le(std::uint64_t value, std::span<std::uint8_t> out, std::s
 }
 /// Appends the low `size` bytes of `value` (1..8), least significant first.
 void append_le(std::vector<std::uint8_t>& out, std::uint64_t value, std::size_t size);
+/// An UNSIGNED32 as its 4 bytes on the bus (CiA 301 §7.1.2): SDO download data of 1010h, 1020h,
+/// 1F51h, ... The writer that goes with low_le32().
+std::vector<std::uint8_t> le32_bytes(std::uint32_t value);
+
+/// CRC-32 of IEEE 802.3 (reflected polynomial EDB88320h, initial and final value FFFFFFFFh), as
+/// zlib's crc32() computes it: the checksum of config manager store files and of a program
+/// download (1F56h). Not the SDO block CRC, which is CRC-16 (nmt::sdo_block_crc).
+std::uint32_t crc32(std::span<const std::uint8_t> bytes);
 
 /// 0..15 for a hex digit (either case), -1 for any other character.
 namespace detail {

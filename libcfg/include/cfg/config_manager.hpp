@@ -9,9 +9,8 @@
 // power cut) leaves the old or the new entry and never touches another; each file carries a
 // CRC-32, and a damaged file is reported and never used.
 //
-// SDO abort codes (CiA 301 §7.2.4.3.17) as this manager answers them; libcfg cannot use libnmt's
-// nmt::SdoAbort, so ConfigAbort (config_abort.hpp) carries the same numbers (an SDO server
-// converts with nmt::to_sdo_abort):
+// SDO abort codes (CiA 301 §7.2.4.3.17, cfg::SdoAbort of sdo_abort.hpp, which libnmt's SDO
+// server sends as they are) as this manager answers them:
 //   0504 0005h  (out of memory) an SDO write of 1F20h/1F22h/1F23h longer than
 //               ConfigManagerLimits::max_entry_bytes, or one after which the values stored for
 //               all nodes would exceed max_total_bytes (see ConfigManagerLimits, admits())
@@ -40,12 +39,12 @@
 #include <vector>
 
 #include "cfg/concise_dcf.hpp"
-#include "cfg/config_abort.hpp"
 #include "cfg/diagnostics.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/result.hpp"
+#include "cfg/sdo_abort.hpp"
 
 namespace cfg {
 
@@ -58,19 +57,19 @@ inline constexpr std::uint32_t kMsPerDay = 86'400'000;
 
 /// The answer to an SDO upload: the value's bytes, or an abort code and why.
 struct ConfigRead {
-  ConfigAbort abort = ConfigAbort::None;
+  SdoAbort abort = SdoAbort::None;
   std::vector<std::uint8_t> data;  ///< little-endian for numbers, the file/stream for domains
   std::string message;             ///< why, when aborted
-  bool ok() const { return abort == ConfigAbort::None; }
+  bool ok() const { return abort == SdoAbort::None; }
 };
 
 /// The answer to an SDO download. A 1F25h write names the nodes the master is to configure now
 /// (ascending; for sub 80h every node with a configuration, possibly none).
 struct ConfigWrite {
-  ConfigAbort abort = ConfigAbort::None;
+  SdoAbort abort = SdoAbort::None;
   std::string message;  ///< why, when aborted (a 1F22h stream: the decoder's message)
   std::vector<NodeId> configure;
-  bool ok() const { return abort == ConfigAbort::None; }
+  bool ok() const { return abort == SdoAbort::None; }
 };
 
 /// A node's writes in download order, as the master sends them (CiA 302-2 §3.5).
@@ -199,7 +198,7 @@ class ConfigManager {
   /// otherwise (any other object, or a sub-index write() refuses for another reason). An SDO
   /// server asks it with the size a download indicates, else with the size received so far,
   /// so that an oversized download is refused before it is buffered; write() checks it too.
-  ConfigAbort admits(std::uint16_t index, std::uint8_t sub_index, std::size_t size) const;
+  SdoAbort admits(std::uint16_t index, std::uint8_t sub_index, std::size_t size) const;
   /// An SDO write: stage(), then persist() and commit() of its update at once. The disk I/O
   /// (fsync included) happens inside this call.
   ConfigWrite write(std::uint16_t index, std::uint8_t sub_index,

@@ -10,6 +10,7 @@
 
 #include "cfg/cob_id.hpp"
 #include "cfg/concise_dcf.hpp"
+#include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 
 namespace cfg {
@@ -63,6 +64,22 @@ DownloadOrder order_for_download(std::span<const ObjectWrite> writes,
 /// COB-IDs or mapping counts than to download what can be downloaded.
 std::vector<ObjectWrite> pdo_safe_order(std::span<const ObjectWrite> writes,
                                         const CobIdLookup& current_cob_id = {});
+
+/// What a configuration download ends with, after the configuration (CiA 302-2 §3.5 d).
+struct DownloadTail {
+  /// 1020h sub 1/2 = 1F26h/1F27h when not 0: last, as writing any other value resets 1020h (DSP
+  /// 302 v3.2.1 §6.3).
+  ConfigurationStamp stamp;
+  /// Then 1010h sub 1 = 'save' (kSaveSignature), so that the device keeps all of it.
+  bool save = false;
+};
+
+/// The one download plan of a configuration: order_for_download(configuration, current_cob_id),
+/// then the tail's writes. The configuration manager's plan (ConfigManager::download_plan), the
+/// master's check configuration (which writes the tail as steps of its own, so asks for none)
+/// and `cfgmgr push --dry-run` all build it here.
+DownloadOrder plan_download(std::span<const ObjectWrite> configuration,
+                            const DownloadTail& tail = {}, const CobIdLookup& current_cob_id = {});
 
 /// PDO parameter indices live with the other object names (object_index.hpp).
 using object::pdo_indices_of;

@@ -32,12 +32,12 @@
 #include <vector>
 
 #include "cfg/concise_dcf.hpp"
-#include "cfg/config_abort.hpp"
 #include "cfg/data_type.hpp"
 #include "cfg/diagnostics.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
 #include "cfg/result.hpp"
+#include "cfg/sdo_abort.hpp"
 #include "cfg/value.hpp"
 
 namespace cfg {
@@ -89,9 +89,9 @@ bool has_object(const DeviceEntries& entries, std::uint16_t index);
 /// The answer to a write: accepted (code None), or the abort code a CiA 301 device answers with
 /// and why, in words ("maps 2012h sub 00h with 32 bits, but its type UNSIGNED64 has 64").
 struct WriteVerdict {
-  ConfigAbort code = ConfigAbort::None;
+  SdoAbort code = SdoAbort::None;
   std::string reason;  ///< empty when accepted
-  bool accepted() const { return code == ConfigAbort::None; }
+  bool accepted() const { return code == SdoAbort::None; }
 };
 
 /// What a device knows besides its entries that decides writes: which dummy entries (data type

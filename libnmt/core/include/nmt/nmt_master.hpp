@@ -479,7 +479,7 @@ struct MasterOptions {
   Duration sdo_timeout = std::chrono::milliseconds(500);
   unsigned sdo_retries = 2;
   /// Values longer than this go by block transfer (falling back to segmented).
-  std::size_t block_threshold = 64;
+  std::size_t block_threshold = kBlockDownloadThreshold;
   /// The bus bit rate, when known (0: unknown). With it the boot paces its SDO requests so that
   /// they, their answers and the frames of other nodes the master receives (heartbeats, PDOs,
   /// EMCY, others' SDO) take at most `bus_load_limit` of the bus: CAN arbitration lets lower

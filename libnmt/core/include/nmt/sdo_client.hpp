@@ -61,6 +61,14 @@ enum class SdoMode : std::uint8_t {
   Block,
 };
 
+/// Downloads of more bytes than this go by block transfer (falling back to segmented) where the
+/// caller does not choose: MasterOptions::block_threshold's default and `cfgmgr sdo` writes.
+/// CiA 301 leaves the protocol to the client. A download of n segments of 7 bytes takes 2n + 2
+/// frames segmented (each segment confirmed) and about n + 5 by block (§7.2.4.3.9: initiate, one
+/// confirmation per sub-block, end); above 64 bytes (10 segments) block saves a third of the
+/// frames, while shorter values stay in the protocol every SDO server has.
+inline constexpr std::size_t kBlockDownloadThreshold = 64;
+
 struct SdoTransferOptions {
   /// Longest wait for each server response; then abort 0504 0000 is sent and the transfer
   /// ends with Timeout. It runs from when the client hands its frames out; a block download's

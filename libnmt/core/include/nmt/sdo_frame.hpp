@@ -41,6 +41,16 @@ using Payload = std::array<std::uint8_t, 8>;
 inline constexpr std::uint32_t kDefaultRequestId = 0x600;
 inline constexpr std::uint32_t kDefaultResponseId = 0x580;
 
+/// The COB-IDs of node n's default SDO channel: the one place of 600h + n / 580h + n.
+struct DefaultCobIds {
+  cfg::CobId request;   ///< client to server, 600h + n
+  cfg::CobId response;  ///< server to client, 580h + n
+};
+constexpr DefaultCobIds default_cob_ids(std::uint8_t node_id) {
+  return {cfg::CobId::standard(kDefaultRequestId + node_id),
+          cfg::CobId::standard(kDefaultResponseId + node_id)};
+}
+
 /// Data bytes in one segment (segmented and block transfer).
 inline constexpr std::size_t kSegmentBytes = 7;
 /// Block size limits of the block protocols: 1..127 segments per sub-block.

@@ -79,7 +79,7 @@ void NmtMaster::Impl::install_store_objects() {
   // server asks with the indicated size, else with the size received so far.
   dict.add_size_hook([this](std::uint16_t index, std::uint8_t sub, std::size_t size) {
     if (!holds_files(index)) return SdoAbort::None;
-    return to_sdo_abort(options.manager->admits(index, sub, size));
+    return options.manager->admits(index, sub, size);
   });
   // The manager has the value now; the dictionary need not keep a second copy of a file.
   dict.add_write_observer(
@@ -123,7 +123,7 @@ SdoAbort NmtMaster::Impl::store_read(std::uint16_t index, std::uint8_t sub) {
     value = std::move(unstored->data);
   } else {
     auto read = options.manager->read(index, sub);
-    if (!read.ok()) return to_sdo_abort(read.abort);
+    if (!read.ok()) return read.abort;
     value = std::move(read.data);
   }
   dict.set_bytes(index, sub, value);
@@ -172,7 +172,7 @@ WriteVerdict NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
   std::optional<cfg::StoreUpdate> update;
   auto written = manager.stage(index, sub, data, update);
   if (index == obj::kConfigureSlave) add_unstored_configurations(sub, written);
-  if (!written.ok()) return to_sdo_abort(written.abort);
+  if (!written.ok()) return written.abort;
   if (index == obj::kConfigureSlave) return configure_slaves(sub, written.configure, now);
   if (update) return persist_entry(std::move(*update), now);
   return SdoAbort::None;
@@ -232,9 +232,9 @@ void NmtMaster::Impl::add_unstored_configurations(std::uint8_t sub,
       if (is_slave(id) && has_configuration(id)) nodes.push_back(*cfg::NodeId::from(id));
     }
     written.configure = std::move(nodes);
-  } else if (written.abort == cfg::ConfigAbort::DataSetEmpty && cfg::is_node_id(sub) &&
+  } else if (written.abort == cfg::SdoAbort::NoDataAvailable && cfg::is_node_id(sub) &&
              has_configuration(sub)) {
-    written = cfg::ConfigWrite{cfg::ConfigAbort::None, {}, {*cfg::NodeId::from(sub)}};
+    written = cfg::ConfigWrite{cfg::SdoAbort::None, {}, {*cfg::NodeId::from(sub)}};
   }
 }
 

@@ -325,8 +325,9 @@ void SdoManagerProcess::connect_with(std::uint16_t server_index) {
   auto& c = job.connection;
   c.row.server_index = server_index;
   if (server_index == kDefaultServer) {
-    c.row.request = cfg::CobId::standard(sdo::kDefaultRequestId + job.slave);
-    c.row.response = cfg::CobId::standard(sdo::kDefaultResponseId + job.slave);
+    const auto cob_ids = sdo::default_cob_ids(job.slave);
+    c.row.request = cob_ids.request;
+    c.row.response = cob_ids.response;
   } else {
     const auto pool = free_pool();
     if (pool.size() < 2) {

@@ -33,9 +33,7 @@ std::string transfer_failure(const SdoResult& result) {
 }
 
 std::vector<std::uint8_t> u32_bytes(std::uint32_t value) {
-  std::vector<std::uint8_t> bytes;
-  cfg::append_le(bytes, value, 4);
-  return bytes;
+  return cfg::le32_bytes(value);
 }
 
 void NmtMaster::Impl::set_step(std::uint8_t node, BootStep step, TimePoint now, Output& out) {

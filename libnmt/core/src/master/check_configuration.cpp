@@ -1,6 +1,6 @@
 // Check configuration (CiA 302-2 §3.5; DSP 302 §4 step 5, §6): 1020h of the slave against
 // 1F26h/1F27h, the restore of 1F81h bit 7 / 1F8Ah, the download in PDO-safe order
-// (cfg::order_for_download), then 1020h and 1010h 'save', so that the next start-up skips it.
+// (cfg::plan_download), then 1020h and 1010h 'save', so that the next start-up skips it.
 #include <algorithm>
 #include <string>
 
@@ -88,12 +88,13 @@ void NmtMaster::Impl::begin_download(std::uint8_t node, TimePoint now, Output& o
 
 void NmtMaster::Impl::plan_download(std::uint8_t node, TimePoint now, Output& out) {
   auto& s = slaves[node];
-  auto order = cfg::order_for_download(
-      s.configuration, [&s](std::uint16_t comm_index) -> std::optional<std::uint32_t> {
-        const auto it = s.cob_ids_read.find(comm_index);
-        if (it == s.cob_ids_read.end()) return std::nullopt;
-        return it->second;
-      });
+  // The tail (1020h, 1010h) is written as steps of their own (write_next).
+  auto order = cfg::plan_download(s.configuration, {},
+                                  [&s](std::uint16_t comm_index) -> std::optional<std::uint32_t> {
+                                    const auto it = s.cob_ids_read.find(comm_index);
+                                    if (it == s.cob_ids_read.end()) return std::nullopt;
+                                    return it->second;
+                                  });
   // PDO COB-IDs the configuration does not carry: read them from the slave, so the PDO can be
   // made invalid around its mapping (download_order.hpp).
   if (!order.unknown_cob_id.empty() && !s.cob_ids_checked) {

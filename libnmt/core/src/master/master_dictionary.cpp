@@ -43,8 +43,7 @@ constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (
 }  // namespace
 
 std::uint32_t low_u32(std::span<const std::uint8_t> data) {
-  const std::size_t size = std::min<std::size_t>(data.size(), 4);
-  return size == 0 ? 0 : static_cast<std::uint32_t>(cfg::load_le(data, size));
+  return cfg::low_le32(data);
 }
 
 DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,

@@ -11,8 +11,9 @@ namespace nmt {
 
 SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
   SdoServerConfig c;
-  c.request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId + node_id);
-  c.response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId + node_id);
+  const auto cob_ids = sdo::default_cob_ids(node_id);
+  c.request_cob_id = cob_ids.request;
+  c.response_cob_id = cob_ids.response;
   return c;
 }
 

@@ -52,7 +52,7 @@ SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
       if (auto code = hook(index, sub, *size); code != SdoAbort::None) return code;
     }
   }
-  return to_sdo_abort(cfg::check_entry_access(entries_, index, sub, size).code);
+  return cfg::check_entry_access(entries_, index, sub, size).code;
 }
 
 SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
@@ -64,7 +64,7 @@ WriteVerdict LocalDictionary::write_download(std::uint16_t index, std::uint8_t s
                                              std::span<const std::uint8_t> data, TimePoint now) {
   if (auto code = check_write(index, sub, data.size()); code != SdoAbort::None) return code;
   if (auto value = cfg::check_entry_value(*entry(index, sub), data); !value.accepted()) {
-    return to_sdo_abort(value.code);
+    return value.code;
   }
   WriteVerdict accepted;
   for (const auto& hook : write_hooks_) {

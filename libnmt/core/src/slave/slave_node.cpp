@@ -43,23 +43,6 @@ bool in_area(std::uint8_t area, std::uint16_t index) {
   }
 }
 
-// The first up to four bytes as a little-endian number (shorter data: the missing bytes are 0).
-std::uint32_t le32(std::span<const std::uint8_t> data) {
-  std::array<std::uint8_t, 4> bytes{};
-  std::copy_n(data.begin(), std::min<std::size_t>(4, data.size()), bytes.begin());
-  return cfg::load_le32(bytes);
-}
-
-// CRC-32 (IEEE 802.3), the checksum the node reports in 1F56h after a download.
-std::uint32_t crc32(std::span<const std::uint8_t> data) {
-  std::uint32_t crc = 0xFFFFFFFFu;
-  for (auto byte : data) {
-    crc ^= byte;
-    for (int i = 0; i < 8; ++i) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
-  }
-  return ~crc;
-}
-
 // The frames a part sent, in order, into the node's output (its events the node handles).
 template <class Part>
 void forward_frames(const Outbox<Part>& part, SlaveNode::Output& out) {
@@ -576,7 +559,7 @@ SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
   const cfg::DeviceWriteRules rules{&description_.dummy_usage};
   if (auto verdict = cfg::check_object_rules(dict_.entries(), rules, index, sub, data);
       !verdict.accepted()) {
-    return to_sdo_abort(verdict.code);
+    return verdict.code;
   }
   return check_program_write(index, sub, data);
 }
@@ -644,7 +627,7 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
 
   switch (index) {
     case obj::kProducerHeartbeatTime:
-      heartbeat_.set_period(static_cast<std::uint16_t>(le32(data)), now);
+      heartbeat_.set_period(static_cast<std::uint16_t>(cfg::low_le32(data)), now);
       break;
     case obj::kGuardTime:
     case obj::kLifeTimeFactor:
@@ -653,10 +636,10 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
           static_cast<std::uint8_t>(dict_.get_unsigned(obj::kLifeTimeFactor, 0).value_or(0)));
       break;
     case obj::kCobIdEmcy:
-      emcy_.set_cob_id(cfg::CobId::from_word(le32(data)));
+      emcy_.set_cob_id(cfg::CobId::from_word(cfg::low_le32(data)));
       break;
     case obj::kInhibitTimeEmcy:
-      emcy_.set_inhibit_time(static_cast<std::uint16_t>(le32(data)));
+      emcy_.set_inhibit_time(static_cast<std::uint16_t>(cfg::low_le32(data)));
       break;
     case obj::kConsumerHeartbeatTime:
       if (sub != 0) restart_consumer(now);
@@ -675,7 +658,7 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
       if (sub != 0) {
         set_program_state(sub, ProgramState::Stopped);
         if (dict_.entry(obj::kProgramSoftwareIdentification, sub)) {
-          dict_.set_unsigned(obj::kProgramSoftwareIdentification, sub, crc32(data));
+          dict_.set_unsigned(obj::kProgramSoftwareIdentification, sub, cfg::crc32(data));
         }
         // DSP 302 §9: 1F52h verifies "the stored program number 1"; the new image's date and
         // time come from the options (unset: the node does not know them, 1F52h stays).

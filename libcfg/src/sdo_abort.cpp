@@ -1,4 +1,4 @@
-#include "nmt/sdo_abort.hpp"
+#include "cfg/sdo_abort.hpp"
 
 #include <algorithm>
 #include <array>
@@ -6,7 +6,7 @@
 
 #include "cfg/hex.hpp"
 
-namespace nmt {
+namespace cfg {
 
 namespace {
 
@@ -81,7 +81,7 @@ std::string_view describe(SdoAbort code) {
 }
 
 std::string to_string(SdoAbort code) {
-  std::string out = cfg::hex(to_u32(code), 8);
+  std::string out = hex(to_u32(code), 8);
   out += " (";
   out += describe(code);
   out += ')';
@@ -92,4 +92,4 @@ std::ostream& operator<<(std::ostream& os, SdoAbort code) {
   return os << to_string(code);
 }
 
-}  // namespace nmt
+}  // namespace cfg

@@ -1,8 +1,8 @@
 // One SDO client on a real bus, one transfer at a time, each run to its end before the call
-// returns: what the cfgmgr commands that read or write single objects of a running node share
-// (`cfgmgr sdo`, `cfgmgr store --bus`). The protocol is libnmt's: an SdoClient on a node's
-// default SDO, or, after connect_via_manager(), an nmt::SdoRequestingDevice that asked the
-// network's SDO manager (DSP 302 §7) for the channel. This only owns the bus and its event loop.
+// returns: for programs that read or write single objects of a running node (`cfgmgr sdo`,
+// `cfgmgr store --bus`). The protocol is the core engines': an SdoClient on a node's default
+// SDO, or, after connect_via_manager(), an SdoRequestingDevice that asked the network's SDO
+// manager (DSP 302 §7) for the channel. This only owns the bus and its event loop.
 #pragma once
 
 #include <cstdint>
@@ -19,23 +19,23 @@
 #include "nmt/sdo_client.hpp"
 #include "nmt/sdo_requesting_device.hpp"
 
-namespace cfgmgr {
+namespace nmt {
 
 /// How the session reaches a node through the SDO manager (connect_via_manager).
-struct ManagerRoute {
+struct SdoManagerRoute {
   cfg::NodeId own_node_id = *cfg::NodeId::from(127);  ///< the session's node-ID as an SRD
   std::uint8_t slave = 0;                             ///< the node to reach, 1..127
   /// Longest wait for each answer of the manager: the registration (which includes its scan of
   /// node-IDs, DSP 302 §7.2.4), the connection, the release.
-  nmt::Duration manager_timeout = std::chrono::seconds(10);
+  Duration manager_timeout = std::chrono::seconds(10);
   /// Called with one line for people at each step (registered, connected, released); may be
   /// empty.
   std::function<void(const std::string&)> progress{};
 };
 
 /// The channel transfers use, for reports.
-struct SessionChannel {
-  nmt::SdoClientConfig config;
+struct SdoSessionChannel {
+  SdoClientConfig config;
   /// Set when the SDO manager granted the channel: the session's node-ID as an SRD and its
   /// client entry (1281h).
   std::optional<std::uint8_t> srd_node_id{};
@@ -44,10 +44,10 @@ struct SessionChannel {
 
 class SdoSession {
  public:
-  /// Opens the bus at `url` (socketcan:IF, udp://GROUP:PORT; nmt::open_bus) with a client of
+  /// Opens the bus at `url` (socketcan:IF, udp://GROUP:PORT; open_bus) with a client of
   /// the channel `config` names. Fails (category Io) when the bus cannot be opened.
   static cfg::Result<std::unique_ptr<SdoSession>> open(const std::string& url,
-                                                       nmt::SdoClientConfig config);
+                                                       SdoClientConfig config);
 
   SdoSession(const SdoSession&) = delete;
   SdoSession& operator=(const SdoSession&) = delete;
@@ -56,12 +56,12 @@ class SdoSession {
   /// Reads (index, sub) and returns when the transfer has ended: the value, or the abort code
   /// (the server's, or the client's own, e.g. 0504 0000 when an answer did not come within
   /// options.timeout). An Error (category Io) only when the bus fails.
-  cfg::Result<nmt::SdoResult> upload(std::uint16_t index, std::uint8_t sub,
-                                     const nmt::SdoTransferOptions& options);
+  cfg::Result<SdoResult> upload(std::uint16_t index, std::uint8_t sub,
+                                const SdoTransferOptions& options);
   /// Writes `data` to (index, sub); as upload().
-  cfg::Result<nmt::SdoResult> download(std::uint16_t index, std::uint8_t sub,
-                                       std::vector<std::uint8_t> data,
-                                       const nmt::SdoTransferOptions& options);
+  cfg::Result<SdoResult> download(std::uint16_t index, std::uint8_t sub,
+                                  std::vector<std::uint8_t> data,
+                                  const SdoTransferOptions& options);
 
   /// Becomes an SDO requesting device with node-ID route.own_node_id (DSP 302 §7.2.1: boot-up,
   /// 1F10h, the Dynamic SDO Request), waits until the manager registered it, asks for a
@@ -69,7 +69,7 @@ class SdoSession {
   /// Fails with category Input when the manager refused (its words: 1F10h error code or SDO
   /// abort), with category Io when no manager answered within route.manager_timeout or the bus
   /// failed. After a failure the session is de-registered again (best effort).
-  cfg::Status connect_via_manager(ManagerRoute route);
+  cfg::Status connect_via_manager(SdoManagerRoute route);
   /// Via the manager: releases the connection and de-registers (1F01h with slave 0), waiting
   /// for the manager's answer up to route.manager_timeout. Does nothing on a default SDO. The
   /// manager releases everything anyway when the session's heartbeat stops (§7.2.1), so a
@@ -77,34 +77,34 @@ class SdoSession {
   cfg::Status close();
 
   /// The channel transfers use now.
-  const SessionChannel& channel() const { return channel_; }
+  const SdoSessionChannel& channel() const { return channel_; }
 
  private:
-  SdoSession(std::unique_ptr<nmt::Bus> bus, nmt::SdoClientConfig config);
+  SdoSession(std::unique_ptr<Bus> bus, SdoClientConfig config);
   template <class Start>
-  cfg::Result<nmt::SdoResult> run(Start&& start);
+  cfg::Result<SdoResult> run(Start&& start);
   /// Runs the loop until `done()` holds (checked after each event) or `timeout` passed; false
   /// on timeout. A bus failure is returned as an Error.
-  cfg::Result<bool> run_until(const std::function<bool()>& done, nmt::Duration timeout);
+  cfg::Result<bool> run_until(const std::function<bool()>& done, Duration timeout);
   /// The first event of `kinds` reported since the last call, removed from the list.
-  std::optional<nmt::SrdEvent> take_event(std::initializer_list<nmt::SrdEvent::Kind> kinds);
-  std::optional<nmt::SrdEvent> take_event(const std::function<bool(const nmt::SrdEvent&)>& wanted);
-  cfg::Result<nmt::SdoResult> run_srd(
-      const std::function<std::optional<nmt::SdoRequestingDevice::TransferId>(
-          nmt::SdoRequestingDevice&, nmt::TimePoint, nmt::SdoRequestingDevice::Output&)>& start);
+  std::optional<SrdEvent> take_event(std::initializer_list<SrdEvent::Kind> kinds);
+  std::optional<SrdEvent> take_event(const std::function<bool(const SrdEvent&)>& wanted);
+  cfg::Result<SdoResult> run_srd(
+      const std::function<std::optional<SdoRequestingDevice::TransferId>(
+          SdoRequestingDevice&, TimePoint, SdoRequestingDevice::Output&)>& start);
   void progress(const std::string& line) const;
 
-  std::unique_ptr<nmt::Bus> bus_;
-  nmt::BusEventLoop loop_;
-  nmt::SdoClient client_;
-  nmt::EngineRef<nmt::SdoClient> ref_;
-  std::optional<nmt::SdoResult> result_;
-  SessionChannel channel_;
+  std::unique_ptr<Bus> bus_;
+  BusEventLoop loop_;
+  SdoClient client_;
+  EngineRef<SdoClient> ref_;
+  std::optional<SdoResult> result_;
+  SdoSessionChannel channel_;
   // Via the SDO manager: the SRD, its loop adapter, the events it reported, the route.
-  std::unique_ptr<nmt::SdoRequestingDevice> srd_;
-  std::unique_ptr<nmt::EngineRef<nmt::SdoRequestingDevice>> srd_ref_;
-  std::vector<nmt::SrdEvent> srd_events_;
-  ManagerRoute route_;
+  std::unique_ptr<SdoRequestingDevice> srd_;
+  std::unique_ptr<EngineRef<SdoRequestingDevice>> srd_ref_;
+  std::vector<SrdEvent> srd_events_;
+  SdoManagerRoute route_;
 };
 
-}  // namespace cfgmgr
+}  // namespace nmt
