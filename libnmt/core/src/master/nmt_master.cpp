@@ -289,7 +289,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   bool mine = false;
   const auto services = services_in(m.own_state);
   if (services.sdo) {
-    Outbox<NoEvent> server_out;
+    auto& server_out = m.part_out;
+    server_out.clear();
     if (m.server.on_frame(frame, now, server_out)) {
       mine = true;
       for (const auto& f : server_out.frames) out.send(f);
@@ -306,7 +307,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     return true;
   }
   if (auto message = parse_error_control(frame)) {
-    Outbox<NodeGuardingEvent> guard_out;
+    auto& guard_out = m.guarding_out;
+    guard_out.clear();
     m.guarding.on_frame(frame, now, guard_out);
     for (const auto& e : guard_out.events) {
       if (e.kind == NodeGuardingEventKind::Resolved) {
@@ -314,7 +316,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
                                    node_text(e.node_id) + ": node guarding replies again"));
       }
     }
-    Outbox<HeartbeatEvent> heartbeat_out;
+    auto& heartbeat_out = m.heartbeat_out;
+    heartbeat_out.clear();
     m.heartbeats.on_frame(frame, now, heartbeat_out);
     for (const auto& e : heartbeat_out.events) {
       if (e.kind == HeartbeatEventKind::Resolved) {
@@ -338,7 +341,8 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.power_on(now, out);
   }
   if (services_in(m.own_state).sdo) {
-    Outbox<NoEvent> server_out;
+    auto& server_out = m.part_out;
+    server_out.clear();
     m.server.on_timer(now, server_out);
     for (const auto& f : server_out.frames) out.send(f);
     m.manager_servers_timer(now, out);
@@ -346,11 +350,13 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
   m.clients.on_timer(now, m.sdo_out);
   m.flying_timer(now, out);
   {
-    Outbox<NoEvent> producer_out;
+    auto& producer_out = m.part_out;
+    producer_out.clear();
     m.producer.on_timer(now, producer_out);
     for (const auto& f : producer_out.frames) out.send(f);
   }
-  Outbox<HeartbeatEvent> heartbeat_out;
+  auto& heartbeat_out = m.heartbeat_out;
+  heartbeat_out.clear();
   m.heartbeats.on_timer(now, heartbeat_out);
   for (const auto& e : heartbeat_out.events) {
     if (e.kind != HeartbeatEventKind::Timeout) continue;
@@ -361,7 +367,8 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     }
     m.manager_node_lost(e.node_id, false, now, out);
   }
-  Outbox<NodeGuardingEvent> guard_out;
+  auto& guard_out = m.guarding_out;
+  guard_out.clear();
   m.guarding.on_timer(now, guard_out);
   for (const auto& f : guard_out.frames) out.send(f);
   for (const auto& e : guard_out.events) {

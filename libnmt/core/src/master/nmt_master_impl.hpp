@@ -253,6 +253,11 @@ struct NmtMaster::Impl {
   SdoClient::TransferId next_application_id = 1;
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
+  /// Scratch outputs of the parts in on_frame/on_timer (server, producer; error control),
+  /// cleared before each use so that a call allocates nothing once they have grown.
+  Outbox<NoEvent> part_out;
+  Outbox<HeartbeatEvent> heartbeat_out;
+  Outbox<NodeGuardingEvent> guarding_out;
 
   FlyingMaster flying;
   MasterDetection detection;
