@@ -150,7 +150,8 @@ class BootSlaveProcess {
 
   // --- the engine shape ---
   /// The error control frames of its node: a boot-up (on_boot_up), a heartbeat or guarding reply
-  /// the try waits for; true when the try took the frame.
+  /// the try waits for; true when the try took the frame. The master calls the typed inputs
+  /// below instead, as it updates 1F82h (and reports it) before the boot sees the state.
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const { return deadline_; }
