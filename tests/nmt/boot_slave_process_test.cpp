@@ -149,7 +149,7 @@ struct Rig {
 };
 
 void expect_access(const Access& a, std::uint16_t index, std::uint8_t sub, bool upload,
-                   std::vector<std::uint8_t> data = {}) {
+                   const std::vector<std::uint8_t>& data = {}) {
   EXPECT_EQ(a.index, index);
   EXPECT_EQ(a.sub, sub);
   EXPECT_EQ(a.upload, upload);
