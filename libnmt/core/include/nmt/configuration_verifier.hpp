@@ -75,6 +75,7 @@ class ConfigurationVerifier {
 
   VerifyOptions options_;
   SdoClientMux mux_;
+  Outbox<SdoResult> sdo_;  ///< the mux's output in a call, cleared before each use (no allocation)
   // By node-ID << 32 | transfer id (ids count per client).
   std::map<std::uint64_t, Running> running_;
 };

@@ -33,29 +33,29 @@ void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::Object
     where.emplace(k, entries.size());
     entries.push_back(w);
   }
-  Outbox<SdoResult> sdo;
+  sdo_.clear();
   for (auto& e : entries) {
     VerifyResult r;
     r.node_id = node.value();
     r.index = e.index;
     r.sub_index = e.sub_index;
     r.expected = std::move(e.data);
-    upload(std::move(r), now, sdo);
+    upload(std::move(r), now, sdo_);
   }
-  take(sdo, now, out);
+  take(sdo_, now, out);
 }
 
 bool ConfigurationVerifier::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  Outbox<SdoResult> sdo;
-  const bool mine = mux_.on_frame(frame, now, sdo);
-  take(sdo, now, out);
+  sdo_.clear();
+  const bool mine = mux_.on_frame(frame, now, sdo_);
+  take(sdo_, now, out);
   return mine;
 }
 
 void ConfigurationVerifier::on_timer(TimePoint now, Output& out) {
-  Outbox<SdoResult> sdo;
-  mux_.on_timer(now, sdo);
-  take(sdo, now, out);
+  sdo_.clear();
+  mux_.on_timer(now, sdo_);
+  take(sdo_, now, out);
 }
 
 void ConfigurationVerifier::take(Outbox<SdoResult>& sdo, TimePoint now, Output& out) {

@@ -252,7 +252,7 @@ SdoAbort NmtMaster::Impl::configure_slaves(std::uint8_t sub, const std::vector<c
     slaves[n].held = false;
     stop_error_control(n);
     start_boot(n, false, now, out, /*asked_by_application=*/true);
-    slaves[n].reconfigure = true;
+    boot(n).request_reconfiguration();
   }
   return SdoAbort::None;
 }

@@ -1,19 +1,21 @@
 // The process boot NMT slave (CiA 302-2 §3.4) with its error status (§3.8, Table 1), check NMT
 // state (§3.6), the software version check and update (§3.4 part 2, DSP 302 §9), start error
-// control (§4.1) and start remote node (§3.4 part 3), and the retries of start process boot NMT
-// slave (§3.3). Check configuration (§3.5) is in check_configuration.cpp.
+// control (§4.1) and the retries of start process boot NMT slave (§3.3): BootSlaveProcess
+// (boot_slave_process.hpp). Check configuration (§3.5) is in check_configuration.cpp; start
+// remote node (§3.4 part 3) is the master's answer to the report (BootSlavePort::boot_con).
 #include <string>
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
+#include "master/boot_slave_process.hpp"
 #include "master/nmt_master_impl.hpp"
 
 namespace nmt {
 
 namespace obj = cfg::object;
-using Phase = SlaveBoot::Phase;
+using Phase = BootSlaveProcess::Phase;
 
 namespace {
 
@@ -36,152 +38,163 @@ std::vector<std::uint8_t> u32_bytes(std::uint32_t value) {
   return cfg::le32_bytes(value);
 }
 
-void NmtMaster::Impl::set_step(std::uint8_t node, BootStep step, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  if (s.step == step) return;
-  s.step = step;
-  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node, "");
+BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& options) {
+  return {.reboot_timeout = options.reboot_timeout,
+          .guarding_reply_timeout = options.guarding_reply_timeout,
+          .retry_interval = options.retry_interval,
+          .force_download = options.force_download,
+          .save_configuration = options.save_configuration,
+          .application_step = options.application_step};
+}
+
+BootSlaveProcess::BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, Options options)
+    : node_(node), port_(&port), options_(options) {}
+
+void BootSlaveProcess::set_deadline(std::optional<TimePoint> deadline) {
+  if (deadline_ == deadline) return;
+  deadline_ = deadline;
+  port_->deadline_changed(node_.value(), deadline_);
+}
+
+void BootSlaveProcess::set_step(BootStep step, TimePoint now, Output& out) {
+  if (step_ == step) return;
+  step_ = step;
+  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_.value(), "");
   e.step = step;
-  e.total = s.plan.size();
-  e.written = s.next;
-  e.text = node_text(node) + ": " + std::string(to_string(step));
-  report(out, std::move(e));
+  e.total = plan_.size();
+  e.written = next_;
+  e.text = node_text(node_.value()) + ": " + std::string(to_string(step));
+  out.report(std::move(e));
 }
 
-void NmtMaster::Impl::cancel_boot(std::uint8_t node, TimePoint now) {
-  auto& s = slaves[node];
-  ++s.try_id;
-  s.running = false;
-  s.phase = Phase::Idle;
-  s.deadline.reset();
-  // The transfers of the ended try: forget them, and stop them on the bus.
-  for (auto it = transfers.begin(); it != transfers.end();) {
-    if (it->first.first == node && !it->second.for_application) {
-      const auto id = it->first.second;
-      forget_transfer(it++);
-      clients.client(node).cancel(id, now, sdo_out);
-    } else {
-      ++it;
-    }
-  }
+void BootSlaveProcess::cancel(TimePoint now) {
+  ++try_id_;
+  running_ = false;
+  phase_ = Phase::Idle;
+  set_deadline(std::nullopt);
+  // The transfers of the ended try: forgotten, and stopped on the bus.
+  port_->cancel_transfers(node_.value(), now);
 }
 
-void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
-                                 bool asked_by_application) {
-  cancel_boot(node, now);
-  auto& s = slaves[node];
-  const auto keep = s;
-  s = SlaveBoot{};
-  // What outlives a try.
-  s.try_id = keep.try_id;
-  s.tried = keep.tried;
-  s.booted = false;
-  s.last_error = keep.last_error;
-  s.held = keep.held;
-  s.known_state = keep.known_state;
-  s.reported_error = keep.reported_error;
-  s.heartbeat_at = keep.heartbeat_at;
-  s.reconfigure = keep.reconfigure;  // a 1F25h request holds until a try succeeds
-  s.running = true;
-  s.expect_boot_up = after_reset;
-  const auto a = assignment(node);
+void BootSlaveProcess::reset(TimePoint now) {
+  cancel(now);
+  // try_id_ goes on counting: a transfer of an old try still queued in the master never matches.
+  BootSlaveProcess fresh(node_, *port_, options_);
+  fresh.try_id_ = try_id_;
+  *this = std::move(fresh);
+}
+
+void BootSlaveProcess::start(TimePoint now, Output& out, bool asked_by_application) {
+  begin(std::nullopt, asked_by_application, now, out);
+}
+
+void BootSlaveProcess::start_after_reset(TimePoint wait_until, TimePoint now, Output& out) {
+  begin(wait_until, false, now, out);
+}
+
+void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_by_application,
+                             TimePoint now, Output& out) {
+  cancel(now);
+  // A new try: its data goes, what outlives a try stays (a 1F25h request holds until a try
+  // succeeds).
+  step_ = BootStep::Idle;
+  expect_boot_up_ = boot_up_until.has_value();
+  boot_up_seen_ = false;
+  software_updated_ = false;
+  identity_sub_ = 0;
+  software_ = {};
+  verify_ = {};
+  cob_ids_to_read_.clear();
+  cob_ids_read_.clear();
+  configuration_.clear();
+  plan_.clear();
+  next_ = 0;
+  bytes_ = 0;
+  configured_ = false;
+  keep_alive_operational_ = false;
+  left_to_application_ = false;
+  cob_ids_checked_ = false;
+  booted_ = false;
+  final_error_ = false;
+  running_ = true;
+  const auto a = port_->expectations(node_.value()).assignment;
   // §3.4 a: a device that is not an NMT slave of this master ends with status A.
-  if (!a.is_slave() || node == node_id.value()) {
-    boot_failed(node, BootError::A, "1F81h sub " + cfg::hex(node, 2) + "h has bit 0 clear", now,
-                out);
+  if (!a.is_slave()) {
+    failed(BootError::A, "1F81h sub " + cfg::hex(node_.value(), 2) + "h has bit 0 clear", now, out);
     return;
   }
   // §3.4 b, Table 20: with bit 2 clear the application configures and starts the slave.
   if (!a.boot_slave() && !asked_by_application) {
-    s.left_to_application = true;
-    boot_succeeded(node, now, out);
+    left_to_application_ = true;
+    succeeded(now, out);
     return;
   }
-  if (after_reset) {
-    s.phase = Phase::AwaitBootUp;
-    s.deadline = boot_up_gate.value_or(now + options.boot_up_wait);
-    set_step(node, BootStep::AwaitBootUp, now, out);
+  if (boot_up_until) {
+    phase_ = Phase::AwaitBootUp;
+    set_deadline(*boot_up_until);
+    set_step(BootStep::AwaitBootUp, now, out);
     return;
   }
-  set_step(node, BootStep::Identify, now, out);
-  boot_upload(node, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
+  identify(now, out);
 }
 
-void NmtMaster::Impl::boot_upload(std::uint8_t node, Phase phase, std::uint16_t index,
-                                  std::uint8_t sub, TimePoint now) {
-  auto& s = slaves[node];
-  s.phase = phase;
-  MasterTransfer t;
-  t.try_id = s.try_id;
-  t.index = index;
-  t.sub = sub;
-  t.upload = true;
-  t.options.timeout = options.sdo_timeout;
-  t.retries_left = options.sdo_retries;
-  start_transfer(node, std::move(t), now);
+void BootSlaveProcess::identify(TimePoint now, Output& out) {
+  set_step(BootStep::Identify, now, out);
+  upload(Phase::ReadDeviceType, obj::kDeviceType, 0, now);
 }
 
-void NmtMaster::Impl::boot_download(std::uint8_t node, Phase phase, std::uint16_t index,
-                                    std::uint8_t sub, std::vector<std::uint8_t> data,
-                                    TimePoint now) {
-  auto& s = slaves[node];
-  s.phase = phase;
-  MasterTransfer t;
-  t.try_id = s.try_id;
-  t.index = index;
-  t.sub = sub;
-  t.data = std::move(data);
-  t.options.timeout = options.sdo_timeout;
-  // Large values by block transfer; SdoClient falls back to segmented when refused.
-  if (t.data.size() > options.block_threshold) t.options.mode = SdoMode::Block;
-  t.retries_left = options.sdo_retries;
-  start_transfer(node, std::move(t), now);
+void BootSlaveProcess::upload(Phase phase, std::uint16_t index, std::uint8_t sub, TimePoint now) {
+  phase_ = phase;
+  port_->upload(node_.value(), try_id_, index, sub, now);
 }
 
-void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, TimePoint now,
-                                      Output& out) {
-  auto& s = slaves[node];
-  const bool reads_u32 = s.phase == Phase::ReadDeviceType || s.phase == Phase::ReadIdentity ||
-                         s.phase == Phase::ReadSoftwareDate || s.phase == Phase::ReadSoftwareTime;
+void BootSlaveProcess::download(Phase phase, std::uint16_t index, std::uint8_t sub,
+                                std::vector<std::uint8_t> data, TimePoint now) {
+  phase_ = phase;
+  port_->download(node_.value(), try_id_, index, sub, std::move(data), now);
+}
+
+void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& out) {
+  const bool reads_u32 = phase_ == Phase::ReadDeviceType || phase_ == Phase::ReadIdentity ||
+                         phase_ == Phase::ReadSoftwareDate || phase_ == Phase::ReadSoftwareTime;
   if (reads_u32 && r.ok() && r.data.empty()) {
     // A 0-byte answer (a segmented or block upload of nothing) has no UNSIGNED32 to compare: the
     // step fails as a failed upload does, with CiA 301 0607 0010 (length does not match).
     auto failed = r;
     failed.abort = SdoAbort::LengthMismatch;
-    return boot_sdo_result(node, failed, now, out);
+    return on_sdo_result(failed, now, out);
   }
-  switch (s.phase) {
+  switch (phase_) {
     case Phase::ReadDeviceType: {
       // §3.4 c: no response -> B; d: 1F84h non-zero and different -> C.
       if (!r.ok()) {
-        boot_failed(node, BootError::B, transfer_failure(r), now, out);
+        failed(BootError::B, transfer_failure(r), now, out);
         return;
       }
       const auto actual = uploaded_u32(r);
-      const auto expected = value_of(obj::kDeviceTypeIdentification, node);
+      const auto expected = port_->expectations(node_.value()).device_type;
       if (expected != 0 && actual != expected) {
-        boot_failed(node, BootError::C,
-                    "1000h is " + cfg::hex(actual, 8) + ", 1F84h expects " + cfg::hex(expected, 8),
-                    now, out);
+        failed(BootError::C,
+               "1000h is " + cfg::hex(actual, 8) + ", 1F84h expects " + cfg::hex(expected, 8), now,
+               out);
         return;
       }
-      s.identity_sub = 0;
-      next_identity(node, now, out);
+      identity_sub_ = 0;
+      next_identity(now, out);
       return;
     }
     case Phase::ReadIdentity: {
       // §3.4 e: 1F85h-1F88h against 1018h sub 1-4 (D, M, N, O).
       static constexpr BootError kLetters[] = {BootError::D, BootError::M, BootError::N,
                                                BootError::O};
-      const auto sub = s.identity_sub;
+      const auto sub = identity_sub_;
       const auto error = kLetters[sub - 1];
       if (!r.ok()) {
-        boot_failed(node, error, transfer_failure(r), now, out);
+        failed(error, transfer_failure(r), now, out);
         return;
       }
       const auto actual = uploaded_u32(r);
-      const auto expected =
-          value_of(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1), node);
+      const auto expected = port_->expectations(node_.value()).identity[sub - 1];
       bool match = actual == expected;
       if (sub == 3) {
         // §6.9: the major revision (high 16 bits) must be equal, the minor (low 16 bits) not
@@ -189,31 +202,30 @@ void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, Tim
         match = (actual >> 16) == (expected >> 16) && (actual & 0xFFFF) >= (expected & 0xFFFF);
       }
       if (!match) {
-        boot_failed(
-            node, error,
+        failed(
+            error,
             cfg::to_string({obj::kIdentity, sub}) + " is " + cfg::hex(actual, 8) + ", " +
                 cfg::object_name(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1)) +
                 " expects " + cfg::hex(expected, 8),
             now, out);
         return;
       }
-      next_identity(node, now, out);
+      next_identity(now, out);
       return;
     }
     case Phase::ReadSoftwareDate:
     case Phase::ReadSoftwareTime: {
       if (!r.ok()) {
         // The slave's program objects do not answer as CiA 302-3 has them.
-        boot_failed(node, s.software_updated ? BootError::I : BootError::G, transfer_failure(r),
-                    now, out);
+        failed(software_updated_ ? BootError::I : BootError::G, transfer_failure(r), now, out);
         return;
       }
-      if (s.phase == Phase::ReadSoftwareDate) {
-        s.software.days = uploaded_u32(r);
-        boot_upload(node, Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
+      if (phase_ == Phase::ReadSoftwareDate) {
+        software_.days = uploaded_u32(r);
+        upload(Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
       } else {
-        s.software.ms = uploaded_u32(r);
-        software_checked(node, now, out);
+        software_.ms = uploaded_u32(r);
+        software_checked(now, out);
       }
       return;
     }
@@ -222,355 +234,318 @@ void NmtMaster::Impl::boot_sdo_result(std::uint8_t node, const SdoResult& r, Tim
     case Phase::ProgramData:
     case Phase::ProgramStart: {
       if (!r.ok()) {
-        boot_failed(node, BootError::I, "program download: " + transfer_failure(r), now, out);
+        failed(BootError::I, "program download: " + transfer_failure(r), now, out);
         return;
       }
       // CiA 302-3 program download: stop (0), clear (3), 1F50h data, start (1).
-      if (s.phase == Phase::ProgramStop) {
-        boot_download(node, Phase::ProgramClear, obj::kProgramControl, 1, {3}, now);
-      } else if (s.phase == Phase::ProgramClear) {
-        auto image = options.configurations
-                         ? options.configurations->program(*cfg::NodeId::from(node))
-                         : std::nullopt;
-        boot_download(node, Phase::ProgramData, obj::kProgramData, 1,
-                      image ? std::move(*image) : std::vector<std::uint8_t>{}, now);
-      } else if (s.phase == Phase::ProgramData) {
-        boot_download(node, Phase::ProgramStart, obj::kProgramControl, 1, {1}, now);
+      if (phase_ == Phase::ProgramStop) {
+        download(Phase::ProgramClear, obj::kProgramControl, 1, {3}, now);
+      } else if (phase_ == Phase::ProgramClear) {
+        auto image = port_->program(node_.value());
+        download(Phase::ProgramData, obj::kProgramData, 1,
+                 image ? std::move(*image) : std::vector<std::uint8_t>{}, now);
+      } else if (phase_ == Phase::ProgramData) {
+        download(Phase::ProgramStart, obj::kProgramControl, 1, {1}, now);
       } else {
-        s.software_updated = true;
-        set_step(node, BootStep::CheckSoftware, now, out);
-        boot_upload(node, Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
+        software_updated_ = true;
+        set_step(BootStep::CheckSoftware, now, out);
+        upload(Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
       }
       return;
     }
     default:
-      configuration_sdo_result(node, r, now, out);
+      configuration_sdo_result(r, now, out);
       return;
   }
 }
 
-void NmtMaster::Impl::next_identity(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  for (std::uint8_t sub = s.identity_sub + 1; sub <= 4; ++sub) {
-    if (value_of(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1), node) != 0) {
-      s.identity_sub = sub;
-      boot_upload(node, Phase::ReadIdentity, obj::kIdentity, sub, now);
+void BootSlaveProcess::next_identity(TimePoint now, Output& out) {
+  const auto identity = port_->expectations(node_.value()).identity;
+  for (std::uint8_t sub = identity_sub_ + 1; sub <= 4; ++sub) {
+    if (identity[sub - 1] != 0) {
+      identity_sub_ = sub;
+      upload(Phase::ReadIdentity, obj::kIdentity, sub, now);
       return;
     }
   }
-  after_identity(node, now, out);
+  after_identity(now, out);
 }
 
-void NmtMaster::Impl::after_identity(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  if (!assignment(node).keep_alive()) {
-    check_software(node, now, out);
+void BootSlaveProcess::after_identity(TimePoint now, Output& out) {
+  if (!port_->expectations(node_.value()).assignment.keep_alive()) {
+    check_software(now, out);
     return;
   }
   // §3.4 part 2 a, §3.6 check NMT state: a heartbeat within the consumer time, else one
   // guarding request answered within 100 ms.
-  set_step(node, BootStep::CheckNmtState, now, out);
-  if (const auto time = heartbeat_time(node)) {
-    if (s.heartbeat_at && now - *s.heartbeat_at <= *time && s.known_state > 1) {
-      keep_alive_state(node, static_cast<NmtState>(s.known_state), now, out);
+  set_step(BootStep::CheckNmtState, now, out);
+  if (const auto time = port_->heartbeat_time(node_.value())) {
+    const auto heard = port_->last_heartbeat(node_.value());
+    const auto known = port_->known_state(node_.value());
+    if (heard && now - *heard <= *time && known > 1) {
+      keep_alive_state(static_cast<NmtState>(known), now, out);
       return;
     }
-    s.phase = Phase::CheckStateHeartbeat;
-    s.deadline = now + *time;
+    phase_ = Phase::CheckStateHeartbeat;
+    set_deadline(now + *time);
     return;
   }
-  s.phase = Phase::CheckStateGuarding;
-  s.deadline = now + options.guarding_reply_timeout;
-  out.send(make_guarding_request(*cfg::NodeId::from(node)));
+  phase_ = Phase::CheckStateGuarding;
+  set_deadline(now + options_.guarding_reply_timeout);
+  out.send(make_guarding_request(node_));
 }
 
-void NmtMaster::Impl::keep_alive_state(std::uint8_t node, NmtState state, TimePoint now,
-                                       Output& out) {
-  auto& s = slaves[node];
-  s.deadline.reset();
-  s.phase = Phase::Idle;
+void BootSlaveProcess::keep_alive_state(NmtState state, TimePoint now, Output& out) {
+  set_deadline(std::nullopt);
+  phase_ = Phase::Idle;
   if (state == NmtState::Operational) {
     // §3.5 last paragraph: check configuration is skipped and the boot ends with status L
     // once error control runs (connection point D of DSP 302 §4).
-    s.keep_alive_operational = true;
-    start_error_control(node, now, out);
+    keep_alive_operational_ = true;
+    start_error_control(now, out);
     return;
   }
   // Not operational: reset communication for that slave, then on with its boot.
-  queue_nmt(NmtCommand::ResetCommunication, node);
-  s.expect_boot_up = true;
-  s.phase = Phase::AwaitResetBootUp;
-  s.deadline = now + options.reboot_timeout;
-  set_step(node, BootStep::AwaitBootUp, now, out);
+  port_->queue_nmt(NmtCommand::ResetCommunication, node_.value());
+  expect_boot_up_ = true;
+  phase_ = Phase::AwaitResetBootUp;
+  set_deadline(now + options_.reboot_timeout);
+  set_step(BootStep::AwaitBootUp, now, out);
 }
 
-void NmtMaster::Impl::check_software(std::uint8_t node, TimePoint now, Output& out) {
-  const auto a = assignment(node);
-  if (!a.verify_software()) {
-    check_configuration(node, now, out);
+void BootSlaveProcess::check_software(TimePoint now, Output& out) {
+  const auto expect = port_->expectations(node_.value());
+  if (!expect.assignment.verify_software()) {
+    check_configuration(now, out);
     return;
   }
-  const cfg::ConfigurationStamp expected{value_of(obj::kExpectedApplicationSwDate, node),
-                                         value_of(obj::kExpectedApplicationSwTime, node)};
-  if (expected.is_zero()) {
-    boot_failed(node, BootError::G,
-                "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
-                    cfg::hex(node, 2) + "h are 0",
-                now, out);
+  if (expect.software.is_zero()) {
+    failed(BootError::G,
+           "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
+               cfg::hex(node_.value(), 2) + "h are 0",
+           now, out);
     return;
   }
-  set_step(node, BootStep::CheckSoftware, now, out);
-  boot_upload(node, Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
+  set_step(BootStep::CheckSoftware, now, out);
+  upload(Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
 }
 
-void NmtMaster::Impl::software_checked(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  const cfg::ConfigurationStamp expected{value_of(obj::kExpectedApplicationSwDate, node),
-                                         value_of(obj::kExpectedApplicationSwTime, node)};
-  if (s.software == expected) {
-    check_configuration(node, now, out);
+void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
+  const auto expect = port_->expectations(node_.value());
+  if (software_ == expect.software) {
+    check_configuration(now, out);
     return;
   }
-  const std::string versions =
-      "1F52h reports " + stamp_text(s.software) + ", 1F53h/1F54h expect " + stamp_text(expected);
-  if (s.software_updated) {
-    boot_failed(node, BootError::I, "after the program download " + versions, now, out);
+  const std::string versions = "1F52h reports " + stamp_text(software_) + ", 1F53h/1F54h expect " +
+                               stamp_text(expect.software);
+  if (software_updated_) {
+    failed(BootError::I, "after the program download " + versions, now, out);
     return;
   }
-  if (!assignment(node).update_software()) {
-    boot_failed(node, BootError::H, versions + "; 1F81h bit 6 does not allow an update", now, out);
+  if (!expect.assignment.update_software()) {
+    failed(BootError::H, versions + "; 1F81h bit 6 does not allow an update", now, out);
     return;
   }
-  const bool have_image = options.configurations &&
-                          options.configurations->program(*cfg::NodeId::from(node)).has_value();
-  if (!have_image) {
-    boot_failed(node, BootError::H, versions + "; no program image is available", now, out);
+  if (!port_->program(node_.value()).has_value()) {
+    failed(BootError::H, versions + "; no program image is available", now, out);
     return;
   }
-  set_step(node, BootStep::UpdateSoftware, now, out);
-  boot_download(node, Phase::ProgramStop, obj::kProgramControl, 1, {0}, now);
+  set_step(BootStep::UpdateSoftware, now, out);
+  download(Phase::ProgramStop, obj::kProgramControl, 1, {0}, now);
 }
 
-void NmtMaster::Impl::start_error_control(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  set_step(node, BootStep::StartErrorControl, now, out);
-  // §4.1: heartbeat when 1016h has the node; the first timeout counts from now.
-  if (const auto time = heartbeat_time(node)) {
-    heartbeats.monitor(
-        {node, static_cast<std::uint16_t>(
-                   std::chrono::duration_cast<std::chrono::milliseconds>(*time).count())},
-        now);
-    s.phase = Phase::AwaitFirstHeartbeat;
+void BootSlaveProcess::start_error_control(TimePoint now, Output& out) {
+  set_step(BootStep::StartErrorControl, now, out);
+  // §4.1: heartbeat when 1016h has the node (its first heartbeat ends the step), else guarding.
+  if (port_->start_error_control(node_.value(), now)) {
+    phase_ = Phase::AwaitFirstHeartbeat;
     return;
   }
-  // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero.
-  const auto a = assignment(node);
-  if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
-    guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
-  }
-  error_control_started(node, now, out);
+  error_control_started(now, out);
 }
 
-void NmtMaster::Impl::boot_heartbeat(std::uint8_t node, NmtState state, TimePoint now,
-                                     Output& out) {
-  auto& s = slaves[node];
-  if (s.phase == Phase::CheckStateHeartbeat) {
-    keep_alive_state(node, state, now, out);
-  } else if (s.phase == Phase::AwaitFirstHeartbeat) {
-    s.phase = Phase::Idle;
-    error_control_started(node, now, out);
+void BootSlaveProcess::on_heartbeat(NmtState state, TimePoint now, Output& out) {
+  if (phase_ == Phase::CheckStateHeartbeat) {
+    keep_alive_state(state, now, out);
+  } else if (phase_ == Phase::AwaitFirstHeartbeat) {
+    phase_ = Phase::Idle;
+    error_control_started(now, out);
   }
 }
 
-void NmtMaster::Impl::boot_guard_reply(std::uint8_t node, NmtState state, TimePoint now,
-                                       Output& out) {
-  set_known_state(node, static_cast<std::uint8_t>(state), now, out);
-  keep_alive_state(node, state, now, out);
+void BootSlaveProcess::on_guard_reply(NmtState state, TimePoint now, Output& out) {
+  keep_alive_state(state, now, out);
 }
 
-void NmtMaster::Impl::boot_heartbeat_timeout(std::uint8_t node, TimePoint now, Output& out) {
-  const auto time = heartbeat_time(node).value_or(Duration{0});
-  boot_failed(
-      node, BootError::K,
-      "no heartbeat within the consumer time of " +
-          std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(time).count()) +
-          " ms (1016h)",
-      now, out);
+void BootSlaveProcess::on_heartbeat_timeout(TimePoint now, Output& out) {
+  const auto time = port_->heartbeat_time(node_.value()).value_or(Duration{0});
+  failed(BootError::K,
+         "no heartbeat within the consumer time of " +
+             std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(time).count()) +
+             " ms (1016h)",
+         now, out);
 }
 
-void NmtMaster::Impl::error_control_started(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  if (s.keep_alive_operational) {
-    boot_failed(node, BootError::L, "kept alive (1F81h bit 4): configuration not checked", now,
-                out);
+void BootSlaveProcess::error_control_started(TimePoint now, Output& out) {
+  if (keep_alive_operational_) {
+    failed(BootError::L, "kept alive (1F81h bit 4): configuration not checked", now, out);
     return;
   }
-  start_remote_node(node, now, out);
+  succeeded(now, out);
 }
 
-void NmtMaster::Impl::start_remote_node(std::uint8_t node, TimePoint now, Output& out) {
-  const auto config = startup_config();
-  // §3.4 part 3 g-l. While NMT start-up runs, no slave is started: §3.1 h starts them once every
-  // mandatory slave booted (finish_startup), and a halted start-up (§3.1 f) starts none.
-  const bool operational =
-      slaves[node].known_state == static_cast<std::uint8_t>(NmtState::Operational);
-  const bool broadcast_later = config.start_all_nodes() && own_state != NmtState::Operational;
-  if (!operational && !config.no_start_slaves() && !broadcast_later &&
-      startup == StartupState::Operational) {
-    queue_nmt(NmtCommand::Start, node);
+void BootSlaveProcess::configuration_done(bool ok, TimePoint now, Output& out) {
+  if (!running_ || phase_ != Phase::Application) return;
+  phase_ = Phase::Idle;
+  if (ok) {
+    start_error_control(now, out);
+  } else {
+    failed(BootError::J, "the application's configuration step failed", now, out);
   }
-  boot_succeeded(node, now, out);
 }
 
-void NmtMaster::Impl::boot_succeeded(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  s.running = false;
-  s.phase = Phase::Idle;
-  s.deadline.reset();
-  s.tried = true;
-  s.booted = true;
-  s.reconfigure = false;
-  s.final_error = false;
-  s.last_error.reset();
-  s.reported_error.reset();
-  s.step = s.left_to_application ? BootStep::Idle : BootStep::Booted;
-  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node, "");
-  e.step = s.step;
-  e.configured = s.configured;
-  e.written = s.configured ? s.plan.size() : 0;
-  e.total = s.plan.size();
-  e.bytes = s.bytes;
-  e.text = node_text(node) + ": booted" +
-           (s.left_to_application ? std::string(" and left to the application (1F81h bit 2 clear: "
-                                                "no configuration, no start)")
-            : s.configured ? " (configured: " + std::to_string(s.plan.size()) + " entries, " +
-                                 std::to_string(s.bytes) + " bytes)"
-                           : " (configuration up to date)");
-  report(out, std::move(e));
+void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
+  // §3.4 part 3 g-l (start remote node) is the master's: it knows the start-up's state.
+  port_->boot_con(node_.value(), std::nullopt, left_to_application_, now, out);
+  running_ = false;
+  phase_ = Phase::Idle;
+  set_deadline(std::nullopt);
+  tried_ = true;
+  booted_ = true;
+  reconfigure_ = false;
+  final_error_ = false;
+  last_error_.reset();
+  reported_error_.reset();
+  step_ = left_to_application_ ? BootStep::Idle : BootStep::Booted;
+  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node_.value(), "");
+  e.step = step_;
+  e.configured = configured_;
+  e.written = configured_ ? plan_.size() : 0;
+  e.total = plan_.size();
+  e.bytes = bytes_;
+  e.text = node_text(node_.value()) + ": booted" +
+           (left_to_application_ ? std::string(" and left to the application (1F81h bit 2 clear: "
+                                               "no configuration, no start)")
+            : configured_        ? " (configured: " + std::to_string(plan_.size()) + " entries, " +
+                                std::to_string(bytes_) + " bytes)"
+                          : " (configuration up to date)");
+  out.report(std::move(e));
 }
 
-void NmtMaster::Impl::boot_failed(std::uint8_t node, BootError error, const std::string& why,
-                                  TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  s.deadline.reset();
-  s.phase = Phase::Idle;
-  s.tried = true;
-  s.last_error = error;
-  const auto a = assignment(node);
+void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint now, Output& out) {
+  set_deadline(std::nullopt);
+  phase_ = Phase::Idle;
+  tried_ = true;
+  last_error_ = error;
+  const auto expect = port_->expectations(node_.value());
+  port_->boot_con(node_.value(), error, false, now, out);
   bool retry = false;
   if (error == BootError::L) {
     // The slave runs and is under error control: nothing to retry.
-    s.booted = true;
+    booted_ = true;
   } else {
-    stop_error_control(node);
-    s.booted = false;
-    if (error == BootError::B) set_known_state(node, 1, now, out);
+    booted_ = false;
     // §3.3: optional slaves are tried until they boot; mandatory ones after B until 1F89h
     // (boot time, 0: no limit) has elapsed since start-up began.
-    const Duration boot_time = std::chrono::milliseconds(value_of(obj::kBootTime, 0));
+    const Duration boot_time = std::chrono::milliseconds(expect.boot_time_ms);
     if (error == BootError::A) {
       retry = false;
-    } else if (!a.mandatory()) {
+    } else if (!expect.assignment.mandatory()) {
       retry = true;
     } else if (error == BootError::B) {
-      retry = boot_time.count() == 0 || now - startup_began < boot_time;
+      retry = boot_time.count() == 0 || now - port_->startup_began() < boot_time;
     }
   }
-  s.final_error = !retry;
+  final_error_ = !retry;
   // Retries that end the same way are not reported again.
-  if (s.reported_error != error || !retry) {
-    s.reported_error = error;
-    auto e = master_event(MasterEvent::Kind::BootError, now, node, "");
+  if (reported_error_ != error || !retry) {
+    reported_error_ = error;
+    auto e = master_event(MasterEvent::Kind::BootError, now, node_.value(), "");
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;
-    e.text = node_text(node) + ": boot error " + std::string(1, letter(error)) + ": " +
+    e.text = node_text(node_.value()) + ": boot error " + std::string(1, letter(error)) + ": " +
              std::string(describe(error)) + " (" + why + ")";
-    if (!retry && a.mandatory() && error == BootError::B && value_of(obj::kBootTime, 0) != 0) {
-      e.text +=
-          "; boot time 1F89h (" + std::to_string(value_of(obj::kBootTime, 0)) + " ms) elapsed";
+    if (!retry && expect.assignment.mandatory() && error == BootError::B &&
+        expect.boot_time_ms != 0) {
+      e.text += "; boot time 1F89h (" + std::to_string(expect.boot_time_ms) + " ms) elapsed";
     }
-    report(out, std::move(e));
+    out.report(std::move(e));
   }
   if (retry) {
-    s.running = true;
-    s.phase = Phase::RetryWait;
-    s.step = BootStep::RetryWait;
-    s.deadline = now + options.retry_interval;
+    running_ = true;
+    phase_ = Phase::RetryWait;
+    step_ = BootStep::RetryWait;
+    set_deadline(now + options_.retry_interval);
   } else {
-    s.running = false;
-    s.step = error == BootError::L ? BootStep::Booted : BootStep::Failed;
+    running_ = false;
+    step_ = error == BootError::L ? BootStep::Booted : BootStep::Failed;
   }
 }
 
-void NmtMaster::Impl::boot_timer(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  s.deadline.reset();
-  switch (s.phase) {
+void BootSlaveProcess::on_timer(TimePoint now, Output& out) {
+  if (!deadline_ || now < *deadline_) return;
+  set_deadline(std::nullopt);
+  switch (phase_) {
     case Phase::AwaitBootUp:
-      // No boot-up within boot_up_wait: identify anyway (a boot-up may have been missed).
-      boot_up_gate.reset();
-      boot_up_quiet.reset();
-      set_step(node, BootStep::Identify, now, out);
-      boot_upload(node, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
+      // No boot-up within the wait: identify anyway (a boot-up may have been missed).
+      port_->boot_up_wait_over();
+      identify(now, out);
       return;
     case Phase::CheckStateHeartbeat:
-      boot_failed(node, BootError::E, "no heartbeat within the consumer time (1016h)", now, out);
+      failed(BootError::E, "no heartbeat within the consumer time (1016h)", now, out);
       return;
     case Phase::CheckStateGuarding:
-      boot_failed(node, BootError::F, "no reply to the node guarding request", now, out);
+      failed(BootError::F, "no reply to the node guarding request", now, out);
       return;
     case Phase::AwaitResetBootUp:
-      check_software(node, now, out);
+      check_software(now, out);
       return;
     case Phase::AwaitRestoreBootUp:
-      boot_failed(node, BootError::J, "no boot-up after the restore and reset", now, out);
+      failed(BootError::J, "no boot-up after the restore and reset", now, out);
       return;
     case Phase::RetryWait:
-      start_boot(node, false, now, out);
+      start(now, out);
       return;
     default:
       return;
   }
 }
 
-bool NmtMaster::Impl::boot_took_boot_up(std::uint8_t node, TimePoint now, Output& out) {
-  auto& s = slaves[node];
-  if (!s.running) return false;
+bool BootSlaveProcess::on_boot_up(TimePoint now, Output& out) {
+  if (!running_) return false;
   // A boot-up while the first upload (1000h) is under way: the device just (re)started, which
   // the try has not relied on yet; it goes on (a lost request is repeated after its timeout).
-  if (s.phase == Phase::ReadDeviceType) {
-    s.expect_boot_up = false;
+  if (phase_ == Phase::ReadDeviceType) {
+    expect_boot_up_ = false;
     return true;
   }
   // §3.3: waiting for the next try, and the slave is there now: try at once.
-  if (s.phase == Phase::RetryWait) {
-    start_boot(node, false, now, out);
+  if (phase_ == Phase::RetryWait) {
+    start(now, out);
     return true;
   }
-  if (!s.expect_boot_up) return false;
-  s.expect_boot_up = false;
-  switch (s.phase) {
+  if (!expect_boot_up_) return false;
+  expect_boot_up_ = false;
+  switch (phase_) {
     case Phase::AwaitBootUp:
-      if (boot_up_gate) {
-        s.boot_up_seen = true;
-        if (options.bitrate != 0) boot_up_quiet = now + kBootUpQuiet;
-        open_boot_up_gate(now, out);  // when it was the last one
+      if (port_->boot_up_gate_closed()) {
+        boot_up_seen_ = true;
+        port_->booted_up_at_gate(node_.value(), now, out);  // it may open the gate
         break;
       }
-      s.deadline.reset();
-      set_step(node, BootStep::Identify, now, out);
-      boot_upload(node, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
+      set_deadline(std::nullopt);
+      identify(now, out);
       break;
     case Phase::AwaitResetBootUp:
-      s.deadline.reset();
-      s.phase = Phase::Idle;
-      check_software(node, now, out);
+      set_deadline(std::nullopt);
+      phase_ = Phase::Idle;
+      check_software(now, out);
       break;
     case Phase::AwaitRestoreBootUp:
-      s.deadline.reset();
-      s.phase = Phase::Idle;
-      plan_download(node, now, out);
+      set_deadline(std::nullopt);
+      phase_ = Phase::Idle;
+      plan_download(now, out);
       break;
     default:
       // A late boot-up after the wait ran out: the try goes on (its SDO transfers repeat).
@@ -579,26 +554,27 @@ bool NmtMaster::Impl::boot_took_boot_up(std::uint8_t node, TimePoint now, Output
   return true;
 }
 
-}  // namespace nmt
+void BootSlaveProcess::pass_boot_up_gate(TimePoint now, Output& out) {
+  // One not booted up yet keeps its deadline (boot_up_wait) and starts at its boot-up.
+  if (!at_boot_up_gate() || !boot_up_seen_) return;
+  set_deadline(std::nullopt);
+  identify(now, out);
+}
 
-namespace nmt {
-
-void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) {
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId && !quiet; ++node) {
-    const auto& s = slaves[node];
-    if (s.running && s.phase == Phase::AwaitBootUp && !s.boot_up_seen) return;  // not yet
+bool BootSlaveProcess::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  const auto message = parse_error_control(frame);
+  if (!message || message->node_id != node_.value()) return false;
+  if (message->byte == 0) return on_boot_up(now, out);
+  const auto state = message->state();
+  if (!state) return false;
+  if (awaits_guard_reply()) {
+    on_guard_reply(*state, now, out);
+    return true;
   }
-  boot_up_gate.reset();
-  boot_up_quiet.reset();
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
-    auto& s = slaves[n];
-    // One not booted up yet keeps its deadline (boot_up_wait) and starts at its boot-up.
-    if (!s.running || s.phase != Phase::AwaitBootUp || !s.boot_up_seen) continue;
-    s.deadline.reset();
-    set_step(n, BootStep::Identify, now, out);
-    boot_upload(n, Phase::ReadDeviceType, obj::kDeviceType, 0, now);
-  }
+  // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
+  if (message->toggle() || !awaits_heartbeat()) return false;
+  on_heartbeat(*state, now, out);
+  return true;
 }
 
 }  // namespace nmt

@@ -79,8 +79,8 @@ void NmtMaster::Impl::pump_transfers(TimePoint now) {
     }
     auto [node, transfer] = std::move(*pick);
     waiting.erase(pick);
-    const auto& s = slaves[node];
-    if (!s.running || transfer.try_id != s.try_id) continue;  // its try ended meanwhile
+    const auto& b = boot(node);
+    if (!b.running() || transfer.try_id != b.try_id()) continue;  // its try ended meanwhile
     launch_transfer(node, std::move(transfer), now);
     if (options.bitrate != 0) return;  // settle() paces the next one after counting its frames
   }
@@ -94,8 +94,8 @@ void NmtMaster::Impl::release_held(TimePoint now) {
     }
     auto [node, transfer] = std::move(held[i]);
     held.erase(held.begin() + static_cast<std::ptrdiff_t>(i));
-    const auto& s = slaves[node];
-    if (!transfer.for_application && (!s.running || transfer.try_id != s.try_id)) continue;
+    const auto& b = boot(node);
+    if (!transfer.for_application && (!b.running() || transfer.try_id != b.try_id())) continue;
     start_transfer(node, std::move(transfer), now);
   }
 }
@@ -106,7 +106,7 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   MasterTransfer transfer = std::move(it->second);
   forget_transfer(it);
   if (!transfer.for_application && !transfer.for_manager &&
-      transfer.try_id == slaves[result.node_id].try_id) {
+      transfer.try_id == boot(result.node_id).try_id()) {
     ++slaves[result.node_id].transfers_done;
   }
   const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
@@ -147,8 +147,8 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
     report(out, std::move(e));
     return;
   }
-  auto& s = slaves[result.node_id];
-  if (s.running && transfer.try_id == s.try_id) boot_sdo_result(result.node_id, result, now, out);
+  auto& b = boot(result.node_id);
+  if (b.running() && transfer.try_id == b.try_id()) b.on_sdo_result(result, now, out);
 }
 
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {

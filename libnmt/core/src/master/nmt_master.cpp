@@ -1,12 +1,13 @@
 // NmtMaster: the public calls, NMT start-up (CiA 302-2 §3.1), the error handler and boot-up
 // handler (§4.2, §4.3), the slave states the NMT command queue's commands set (the queue and
 // its inhibit time, §6.1: nmt_command_queue.hpp), and the routing of frames and time to the
-// parts. Boot NMT slave lives in boot_slave.cpp and check_configuration.cpp, the objects
-// and request NMT/guarding in master_dictionary.cpp, the SDO transfers in master_transfers.cpp,
-// the texts of the enums and events in master_text.cpp.
+// parts. Boot NMT slave is an engine per node (boot_slave_process.hpp, its port in
+// boot_port.cpp), the objects and request NMT/guarding in master_dictionary.cpp, the SDO
+// transfers in master_transfers.cpp, the texts of the enums and events in master_text.cpp.
 #include "nmt/nmt_master.hpp"
 
 #include <algorithm>
+#include <bitset>
 #include <cmath>
 #include <utility>
 
@@ -46,7 +47,13 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
       dict(std::move(dictionary)),
       server(dict, SdoServerConfig::from_dictionary(dict)),
       producer(id),
-      sdo_manager(dict, manager_port, id, manager_settings(options, server.config())) {}
+      sdo_manager(dict, manager_port, id, manager_settings(options, server.config())) {
+  boots.reserve(cfg::kMaxNodeId);
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    boots.emplace_back(*cfg::NodeId::from(static_cast<std::uint8_t>(node)), boot_port,
+                       BootSlaveProcess::Options::from(options));
+  }
+}
 
 cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& description,
                                          cfg::NodeId node_id, MasterOptions options) {
@@ -103,7 +110,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   bool mine = false;
   const auto services = services_in(m.own_state);
   if (services.sdo) {
-    Outbox<NoEvent> server_out;
+    auto& server_out = m.part_out;
+    server_out.clear();
     if (m.server.on_frame(frame, now, server_out)) {
       mine = true;
       for (const auto& f : server_out.frames) out.send(f);
@@ -116,7 +124,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     return true;
   }
   if (auto message = parse_error_control(frame)) {
-    Outbox<NodeGuardingEvent> guard_out;
+    auto& guard_out = m.guarding_out;
+    guard_out.clear();
     m.guarding.on_frame(frame, now, guard_out);
     for (const auto& e : guard_out.events) {
       if (e.kind == NodeGuardingEventKind::Resolved) {
@@ -124,7 +133,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
                                    node_text(e.node_id) + ": node guarding replies again"));
       }
     }
-    Outbox<HeartbeatEvent> heartbeat_out;
+    auto& heartbeat_out = m.heartbeat_out;
+    heartbeat_out.clear();
     m.heartbeats.on_frame(frame, now, heartbeat_out);
     for (const auto& e : heartbeat_out.events) {
       if (e.kind == HeartbeatEventKind::Resolved) {
@@ -148,7 +158,8 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.power_on(now, out);
   }
   if (services_in(m.own_state).sdo) {
-    Outbox<NoEvent> server_out;
+    auto& server_out = m.part_out;
+    server_out.clear();
     m.server.on_timer(now, server_out);
     for (const auto& f : server_out.frames) out.send(f);
   }
@@ -156,22 +167,25 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
   m.clients.on_timer(now, m.sdo_out);
   m.flying.on_timer(now, out);
   {
-    Outbox<NoEvent> producer_out;
+    auto& producer_out = m.part_out;
+    producer_out.clear();
     m.producer.on_timer(now, producer_out);
     for (const auto& f : producer_out.frames) out.send(f);
   }
-  Outbox<HeartbeatEvent> heartbeat_out;
+  auto& heartbeat_out = m.heartbeat_out;
+  heartbeat_out.clear();
   m.heartbeats.on_timer(now, heartbeat_out);
   for (const auto& e : heartbeat_out.events) {
     if (e.kind != HeartbeatEventKind::Timeout) continue;
-    if (m.slaves[e.node_id].phase == SlaveBoot::Phase::AwaitFirstHeartbeat) {
-      m.boot_heartbeat_timeout(e.node_id, now, out);
+    if (m.boot(e.node_id).awaits_first_heartbeat()) {
+      m.boot(e.node_id).on_heartbeat_timeout(now, out);
     } else {
       m.error_handler(e.node_id, true, now, out);
     }
     m.sdo_manager.node_lost(e.node_id, now, out);
   }
-  Outbox<NodeGuardingEvent> guard_out;
+  auto& guard_out = m.guarding_out;
+  guard_out.clear();
   m.guarding.on_timer(now, guard_out);
   for (const auto& f : guard_out.frames) out.send(f);
   for (const auto& e : guard_out.events) {
@@ -180,9 +194,16 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.sdo_manager.node_lost(e.node_id, now, out);
   }
   if (m.boot_up_quiet && now >= *m.boot_up_quiet) m.open_boot_up_gate(now, out, true);
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto& s = m.slaves[node];
-    if (s.deadline && now >= *s.deadline) m.boot_timer(static_cast<std::uint8_t>(node), now, out);
+  if (!m.boot_deadlines.empty() && m.boot_deadlines.begin()->first <= now) {
+    // The boot engines that are due, in node-ID order (as the events have always come).
+    std::bitset<128> due;
+    for (const auto& [at, node] : m.boot_deadlines) {
+      if (at > now) break;
+      due.set(node);
+    }
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      if (due[node]) m.boot(static_cast<std::uint8_t>(node)).on_timer(now, out);
+    }
   }
   m.settle(now, out);
 }
@@ -200,9 +221,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.flying.next_deadline());
   due = earliest(due, m.sdo_manager.next_deadline());
   due = earliest(due, m.boot_up_quiet);
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    due = earliest(due, m.slaves[node].deadline);
-  }
+  if (!m.boot_deadlines.empty()) due = earliest(due, m.boot_deadlines.begin()->first);
   // Waiting boot transfers are due when the pacing allows, if the window has room (else an
   // answer frees a place, and the call that brings it starts the next).
   if (!m.waiting.empty() && static_cast<double>(m.boot_transfers) < std::floor(m.window)) {
@@ -254,15 +273,7 @@ bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
 void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
   auto& m = *impl_;
-  auto& s = m.slaves[node];
-  if (s.running && s.phase == SlaveBoot::Phase::Application) {
-    s.phase = SlaveBoot::Phase::Idle;
-    if (ok) {
-      m.start_error_control(node, now, out);
-    } else {
-      m.boot_failed(node, BootError::J, "the application's configuration step failed", now, out);
-    }
-  }
+  m.boot(node).configuration_done(ok, now, out);
   m.settle(now, out);
 }
 
@@ -323,10 +334,10 @@ std::uint8_t NmtMaster::known_state(cfg::NodeId node) const {
   return impl_->slaves[node].known_state;
 }
 BootStep NmtMaster::boot_step(cfg::NodeId node) const {
-  return impl_->slaves[node].step;
+  return impl_->boot(node).step();
 }
 std::optional<BootError> NmtMaster::last_error(cfg::NodeId node) const {
-  return impl_->slaves[node].last_error;
+  return impl_->boot(node).last_error();
 }
 const cfg::ConfigManager* NmtMaster::config_manager() const {
   return impl_->options.manager.get();
@@ -359,11 +370,11 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   sdo_manager.clear();
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
-    cancel_boot(n, now);
+    boot(n).reset(now);
     stop_error_control(n);
     auto& s = slaves[n];
     const auto held_state = s.known_state;
-    s = SlaveBoot{};
+    s = SlaveRecord{};
     s.known_state = held_state;
   }
   if (!config.is_master() || !config.flying_master()) flying.stop();
@@ -415,19 +426,19 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
     if (!is_slave(n)) continue;
-    const auto& s = slaves[n];
+    const auto& s = boot(n);
     if (assignment(n).mandatory()) {
-      if (s.booted) continue;
-      if (s.final_error && s.last_error) {
+      if (s.booted()) continue;
+      if (s.final_error() && s.last_error()) {
         failed.push_back(n);
-      } else if (s.tried && s.last_error == BootError::B && endless_boot_time) {
+      } else if (s.tried() && s.last_error() == BootError::B && endless_boot_time) {
         // §3.3, 1F89h = 0: tried again without end. Its verdict (B) is in; start-up goes on
         // only when it boots, but a start-up another slave halts need not wait for it.
         mandatory_waiting = true;
       } else {
         all_ended = false;
       }
-    } else if (!s.tried) {
+    } else if (!s.tried()) {
       // §3.3: optional slaves: wait for the signal that boot NMT slave was tried.
       all_ended = false;
     }
@@ -437,13 +448,13 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
     startup = StartupState::Halted;
     std::string text = "NMT start-up halted: mandatory ";
     for (std::size_t i = 0; i < failed.size(); ++i) {
-      const auto error = *slaves[failed[i]].last_error;
+      const auto error = *boot(failed[i]).last_error();
       text += (i == 0 ? "" : ", ") + node_text(failed[i]) + (i == 0 ? " failed with" : " with") +
               " status " + std::string(1, letter(error)) + " (" + std::string(describe(error)) +
               ")";
     }
     auto e = master_event(MasterEvent::Kind::StartupHalted, now, failed.front(), text);
-    e.error = slaves[failed.front()].last_error;
+    e.error = boot(failed.front()).last_error();
     report(out, std::move(e));
     return;
   }
@@ -471,15 +482,15 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
       const auto n = static_cast<std::uint8_t>(node);
       if (!is_slave(n)) continue;
-      const auto& s = slaves[n];
-      if (!s.booted || s.last_error || assignment(n).keep_alive()) all_booted = false;
+      const auto& s = boot(n);
+      if (!s.booted() || s.last_error() || assignment(n).keep_alive()) all_booted = false;
     }
     if (all_booted) {
       queue_nmt(NmtCommand::Start, 0);
     } else {
       for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
         const auto n = static_cast<std::uint8_t>(node);
-        if (!is_slave(n) || !slaves[n].booted || !assignment(n).boot_slave()) continue;
+        if (!is_slave(n) || !boot(n).booted() || !assignment(n).boot_slave()) continue;
         if (slaves[n].known_state == static_cast<std::uint8_t>(NmtState::Operational)) continue;
         queue_nmt(NmtCommand::Start, n);
       }
@@ -574,24 +585,24 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
                                        Output& out) {
   const auto node = message.node_id;
   if (node == node_id.value() || !cfg::is_node_id(node)) return;
-  auto& s = slaves[node];
   if (message.byte == 0) {
     on_boot_up(node, now, out);
     return;
   }
   const auto state = message.state();
   if (!state) return;
-  if (s.phase == SlaveBoot::Phase::CheckStateGuarding) {
-    boot_guard_reply(node, *state, now, out);
+  auto& b = boot(node);
+  if (b.awaits_guard_reply()) {
+    set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+    b.on_guard_reply(*state, now, out);
     return;
   }
   // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
   if (!message.toggle()) {
-    s.heartbeat_at = now;
-    if (s.phase == SlaveBoot::Phase::CheckStateHeartbeat ||
-        s.phase == SlaveBoot::Phase::AwaitFirstHeartbeat) {
+    slaves[node].heartbeat_at = now;
+    if (b.awaits_heartbeat()) {
       set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
-      boot_heartbeat(node, *state, now, out);
+      b.on_heartbeat(*state, now, out);
       return;
     }
   }
@@ -610,7 +621,7 @@ void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) 
   s.heartbeat_at.reset();
   set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
-  if (boot_took_boot_up(node, now, out)) return;
+  if (boot(node).on_boot_up(now, out)) return;
   if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master()) {
     return;
   }

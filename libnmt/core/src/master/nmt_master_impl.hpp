@@ -1,7 +1,8 @@
 // The inside of nmt::NmtMaster, shared by its files: nmt_master.cpp (NMT start-up, the
 // handlers of §4, running the NMT command queue, request NMT/guarding, frame routing),
-// master_dictionary.cpp (its objects and their value checks, §6), boot_slave.cpp (boot NMT slave,
-// §3.4, §3.6) and check_configuration.cpp (§3.5). Private to the library.
+// master_dictionary.cpp (its objects and their value checks, §6) and boot_port.cpp (the
+// master's side of the boot NMT slave engines, BootSlaveProcess in boot_slave_process.hpp, one
+// per node-ID). Private to the library.
 #pragma once
 
 #include <array>
@@ -22,6 +23,7 @@
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_manager_objects.hpp"
 #include "manager/sdo_manager_process.hpp"
+#include "master/boot_slave_process.hpp"
 #include "master/flying_master.hpp"
 #include "master/master_support.hpp"
 #include "master/master_text.hpp"
@@ -32,74 +34,13 @@
 
 namespace nmt {
 
-/// One try of the process boot NMT slave, and what the master knows of the slave between tries.
-struct SlaveBoot {
-  /// Where the try waits; each phase names the answer it waits for.
-  enum class Phase : std::uint8_t {
-    Idle,
-    AwaitBootUp,          // boot-up after the start-up's reset communication (or its timer)
-    ReadDeviceType,       // 1000h
-    ReadIdentity,         // 1018h sub identity_sub
-    CheckStateHeartbeat,  // §3.6: a heartbeat within the consumer time
-    CheckStateGuarding,   // §3.6: the reply to one RTR within 100 ms
-    AwaitResetBootUp,     // keep-alive slave not operational: reset communication sent
-    ReadSoftwareDate,     // 1F52h sub 1
-    ReadSoftwareTime,     // 1F52h sub 2
-    ProgramStop,          // 1F51h sub 1 = 0
-    ProgramClear,         // 1F51h sub 1 = 3
-    ProgramData,          // 1F50h sub 1 = image
-    ProgramStart,         // 1F51h sub 1 = 1
-    ReadVerifyDate,       // 1020h sub 1
-    ReadVerifyTime,       // 1020h sub 2
-    RestoreLoad,          // 1011h sub n = 'load'
-    AwaitRestoreBootUp,   // reset after the restore
-    ReadPdoCobId,         // a PDO COB-ID the configuration does not carry
-    Write,                // plan[next]
-    WriteVerifyDate,      // 1020h sub 1
-    WriteVerifyTime,      // 1020h sub 2
-    WriteSave,            // 1010h sub 1 = 'save'
-    Application,          // configuration_done()
-    AwaitFirstHeartbeat,  // §4.1
-    RetryWait,            // §3.3: the next try
-  };
-
-  Phase phase = Phase::Idle;
-  BootStep step = BootStep::Idle;
-  bool running = false;      ///< a try is in progress (or waits for its retry)
-  std::uint64_t try_id = 0;  ///< results of older tries are ignored
-  std::optional<TimePoint> deadline;
-  bool expect_boot_up = false;  ///< the master reset the node and has not seen its boot-up
-  bool boot_up_seen = false;    ///< AwaitBootUp: seen, waiting for the others (boot_up_gate)
-  bool software_updated = false;
-  std::size_t transfers_done = 0;  ///< boot transfers of this try that ended (pump_transfers)
-
-  // Data of the current try.
-  std::uint8_t identity_sub = 0;
-  cfg::ConfigurationStamp software;  ///< 1F52h as read
-  cfg::ConfigurationStamp verify;    ///< 1020h as read
-  std::vector<std::uint16_t> cob_ids_to_read;
-  std::map<std::uint16_t, std::uint32_t> cob_ids_read;
-  std::vector<cfg::ObjectWrite> configuration;  ///< as the source gave it (before ordering)
-  std::vector<cfg::ObjectWrite> plan;           ///< in download order
-  std::size_t next = 0;
-  std::uint64_t bytes = 0;
-  bool configured = false;
-  bool keep_alive_operational = false;
-  bool left_to_application = false;  ///< 1F81h bit 2 clear: booted without configuration
-  bool cob_ids_checked = false;
-
-  // Between tries.
-  /// 1F25h 'conf' asked for a download even when 1020h matches (DSP 302 §6.4 "request
-  /// re-configuration"); kept by the tries that follow until one ends with status OK.
-  bool reconfigure = false;
-  bool tried = false;   ///< at least one try ended (the §3.3 signal)
-  bool booted = false;  ///< the last try ended with status OK (or L)
-  std::optional<BootError> last_error;
-  bool final_error = false;      ///< the last error ends the process (no retry)
-  bool held = false;             ///< state set by request NMT: no automatic re-boot
-  std::uint8_t known_state = 0;  ///< 1F82h read value: 0 unknown, 1 missing, else NmtState
-  std::optional<BootError> reported_error;  ///< the error last reported (retries repeat silently)
-  std::optional<TimePoint> heartbeat_at;    ///< the last heartbeat seen, for §3.6
+/// What the master itself knows of a slave, besides its boot (BootSlaveProcess).
+struct SlaveRecord {
+  std::uint8_t known_state = 0;           ///< 1F82h read value: 0 unknown, 1 missing, else NmtState
+  bool held = false;                      ///< state set by request NMT: no automatic re-boot
+  std::optional<TimePoint> heartbeat_at;  ///< the last heartbeat seen, for §3.6
+  /// Boot transfers of the current try that ended (pump_transfers: the slave furthest behind).
+  std::size_t transfers_done = 0;
 };
 
 /// An SDO transfer the master runs: for a boot try or for the application.
@@ -133,7 +74,45 @@ struct NmtMaster::Impl {
   StartupState startup = StartupState::Off;
   TimePoint startup_began{0};
   std::optional<TimePoint> startup_due;  ///< start-up (again) at this time
-  std::array<SlaveBoot, 128> slaves;     ///< by node-ID (index 0 unused)
+  std::array<SlaveRecord, 128> slaves;   ///< by node-ID (index 0 unused)
+
+  /// The master's side of the boot engines' port (boot_port.cpp): one serves them all.
+  class BootPort final : public BootSlavePort {
+   public:
+    explicit BootPort(Impl& master) : m_(master) {}
+    void upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+                TimePoint now) override;
+    void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+                  std::vector<std::uint8_t> data, TimePoint now) override;
+    void cancel_transfers(std::uint8_t node, TimePoint now) override;
+    void queue_nmt(NmtCommand command, std::uint8_t node) override;
+    bool start_error_control(std::uint8_t node, TimePoint now) override;
+    BootSlaveExpectations expectations(std::uint8_t node) const override;
+    std::optional<Duration> heartbeat_time(std::uint8_t node) const override;
+    std::uint8_t known_state(std::uint8_t node) const override;
+    std::optional<TimePoint> last_heartbeat(std::uint8_t node) const override;
+    std::optional<std::vector<cfg::ObjectWrite>> configuration(std::uint8_t node) const override;
+    std::optional<std::vector<std::uint8_t>> program(std::uint8_t node) const override;
+    TimePoint startup_began() const override;
+    void deadline_changed(std::uint8_t node, std::optional<TimePoint> deadline) override;
+    bool boot_up_gate_closed() const override;
+    void booted_up_at_gate(std::uint8_t node, TimePoint now, Outbox<MasterEvent>& out) override;
+    void boot_up_wait_over() override;
+    void boot_con(std::uint8_t node, std::optional<BootError> status, bool left_to_application,
+                  TimePoint now, Outbox<MasterEvent>& out) override;
+
+   private:
+    Impl& m_;
+  };
+  BootPort boot_port{*this};
+  /// Boot NMT slave, one engine per node-ID 1..127 (boot(node)).
+  std::vector<BootSlaveProcess> boots;
+  BootSlaveProcess& boot(std::uint8_t node) { return boots[node - 1U]; }
+  const BootSlaveProcess& boot(std::uint8_t node) const { return boots[node - 1U]; }
+  /// The boot engines' deadlines, earliest first, kept as they change (deadline_changed), so
+  /// next_deadline() and on_timer() need no scan of 127 engines.
+  std::set<std::pair<TimePoint, std::uint8_t>> boot_deadlines;
+  std::array<std::optional<TimePoint>, 128> boot_deadline_of;
 
   std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer> transfers;
   /// Boot transfers in `transfers`, the window they may fill, and those waiting for a place.
@@ -158,6 +137,11 @@ struct NmtMaster::Impl {
   SdoClient::TransferId next_application_id = 1;
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
+  /// Scratch outputs of the parts in on_frame/on_timer (server, producer; error control),
+  /// cleared before each use so that a call allocates nothing once they have grown.
+  Outbox<NoEvent> part_out;
+  Outbox<HeartbeatEvent> heartbeat_out;
+  Outbox<NodeGuardingEvent> guarding_out;
 
   /// The flying master's port to this master (master_flying_port.cpp).
   struct FlyingPort final : FlyingMasterPort {
@@ -324,41 +308,14 @@ struct NmtMaster::Impl {
   /// load limit too, so the boot's requests leave room for it.
   void pace_frame_of_others(const CanFrame& frame, TimePoint now);
 
-  // --- boot NMT slave (boot_slave.cpp, check_configuration.cpp) -------------------------------
+  // --- boot NMT slave: the engines and the master's side of their port (boot_port.cpp) -------
+  /// A new try of boot NMT slave for `node`; `after_reset`: it waits for the boot-up first (the
+  /// start-up's boot-up gate).
   void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
                   bool asked_by_application = false);
-  void cancel_boot(std::uint8_t node, TimePoint now);
-  void boot_continue(std::uint8_t node, TimePoint now, Output& out);
-  void boot_sdo_result(std::uint8_t node, const SdoResult& result, TimePoint now, Output& out);
-  void boot_timer(std::uint8_t node, TimePoint now, Output& out);
-  /// True when the boot of `node` took the boot-up (it was waiting for one).
-  bool boot_took_boot_up(std::uint8_t node, TimePoint now, Output& out);
-  void boot_heartbeat(std::uint8_t node, NmtState state, TimePoint now, Output& out);
-  void boot_guard_reply(std::uint8_t node, NmtState state, TimePoint now, Output& out);
-  void boot_heartbeat_timeout(std::uint8_t node, TimePoint now, Output& out);
-  void boot_upload(std::uint8_t node, SlaveBoot::Phase phase, std::uint16_t index, std::uint8_t sub,
-                   TimePoint now);
-  void boot_download(std::uint8_t node, SlaveBoot::Phase phase, std::uint16_t index,
-                     std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now);
-  void set_step(std::uint8_t node, BootStep step, TimePoint now, Output& out);
-  void boot_failed(std::uint8_t node, BootError error, const std::string& why, TimePoint now,
-                   Output& out);
-  void boot_succeeded(std::uint8_t node, TimePoint now, Output& out);
-  void after_identity(std::uint8_t node, TimePoint now, Output& out);
-  void check_software(std::uint8_t node, TimePoint now, Output& out);
-  void software_checked(std::uint8_t node, TimePoint now, Output& out);
-  void start_error_control(std::uint8_t node, TimePoint now, Output& out);
-  void error_control_started(std::uint8_t node, TimePoint now, Output& out);
-  void keep_alive_state(std::uint8_t node, NmtState state, TimePoint now, Output& out);
-  void next_identity(std::uint8_t node, TimePoint now, Output& out);
-  void start_remote_node(std::uint8_t node, TimePoint now, Output& out);
-  // check_configuration.cpp
-  void check_configuration(std::uint8_t node, TimePoint now, Output& out);
-  void begin_download(std::uint8_t node, TimePoint now, Output& out);
-  void plan_download(std::uint8_t node, TimePoint now, Output& out);
-  void write_next(std::uint8_t node, TimePoint now, Output& out);
-  void configuration_sdo_result(std::uint8_t node, const SdoResult& result, TimePoint now,
-                                Output& out);
+  /// §3.4 part 3 g-l: start remote node after a boot with status OK.
+  void start_remote_node(std::uint8_t node);
+  /// The configuration to download to `node` (§3.5 d): the manager's, the source's, or 1F22h.
   std::optional<std::vector<cfg::ObjectWrite>> configuration_of(std::uint8_t node) const;
 };
 

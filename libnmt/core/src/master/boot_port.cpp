@@ -1,0 +1,203 @@
+// The master's side of the boot NMT slave engines (BootSlaveProcess, boot_slave_process.hpp):
+// their port (transfers, NMT queue, error control, the values they compare against), the
+// start-up's boot-up gate, and what follows a boot's report: start remote node (CiA 302-2 §3.4
+// part 3 g-l), "missing" after status B, error control stopped after an error.
+#include <string>
+
+#include "cfg/object_index.hpp"
+#include "master/nmt_master_impl.hpp"
+
+namespace nmt {
+
+namespace obj = cfg::object;
+
+std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::configuration_of(
+    std::uint8_t node) const {
+  const auto id = *cfg::NodeId::from(node);
+  // The configuration manager first (MasterOptions::manager), then the source, then 1F22h.
+  if (options.manager && options.manager->has_configuration(id)) {
+    return options.manager->configuration(id);
+  }
+  if (options.configurations) return options.configurations->configuration(id);
+  // §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager."
+  const auto stream = own_concise_dcf(node);
+  if (stream.empty()) return std::nullopt;
+  auto decoded = cfg::decode_concise_dcf(stream);
+  if (!decoded) return std::nullopt;
+  return std::move(decoded.value());
+}
+
+void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
+                                 bool asked_by_application) {
+  if (after_reset) {
+    boot(node).start_after_reset(boot_up_gate.value_or(now + options.boot_up_wait), now, out);
+  } else {
+    boot(node).start(now, out, asked_by_application);
+  }
+}
+
+void NmtMaster::Impl::start_remote_node(std::uint8_t node) {
+  const auto config = startup_config();
+  // §3.4 part 3 g-l. While NMT start-up runs, no slave is started: §3.1 h starts them once every
+  // mandatory slave booted (finish_startup), and a halted start-up (§3.1 f) starts none.
+  const bool operational =
+      slaves[node].known_state == static_cast<std::uint8_t>(NmtState::Operational);
+  const bool broadcast_later = config.start_all_nodes() && own_state != NmtState::Operational;
+  if (!operational && !config.no_start_slaves() && !broadcast_later &&
+      startup == StartupState::Operational) {
+    queue_nmt(NmtCommand::Start, node);
+  }
+}
+
+void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) {
+  for (const auto& b : boots) {
+    if (!quiet && b.at_boot_up_gate() && !b.boot_up_seen()) return;  // not yet
+  }
+  boot_up_gate.reset();
+  boot_up_quiet.reset();
+  for (auto& b : boots) b.pass_boot_up_gate(now, out);
+}
+
+// --- the port ---
+
+void NmtMaster::Impl::BootPort::upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
+                                       std::uint8_t sub, TimePoint now) {
+  MasterTransfer t;
+  t.try_id = try_id;
+  t.index = index;
+  t.sub = sub;
+  t.upload = true;
+  t.options.timeout = m_.options.sdo_timeout;
+  t.retries_left = m_.options.sdo_retries;
+  m_.start_transfer(node, std::move(t), now);
+}
+
+void NmtMaster::Impl::BootPort::download(std::uint8_t node, std::uint64_t try_id,
+                                         std::uint16_t index, std::uint8_t sub,
+                                         std::vector<std::uint8_t> data, TimePoint now) {
+  MasterTransfer t;
+  t.try_id = try_id;
+  t.index = index;
+  t.sub = sub;
+  t.data = std::move(data);
+  t.options.timeout = m_.options.sdo_timeout;
+  // Large values by block transfer; SdoClient falls back to segmented when refused.
+  if (t.data.size() > m_.options.block_threshold) t.options.mode = SdoMode::Block;
+  t.retries_left = m_.options.sdo_retries;
+  m_.start_transfer(node, std::move(t), now);
+}
+
+void NmtMaster::Impl::BootPort::cancel_transfers(std::uint8_t node, TimePoint now) {
+  m_.slaves[node].transfers_done = 0;  // a new try (or none) follows
+  for (auto it = m_.transfers.begin(); it != m_.transfers.end();) {
+    if (it->first.first == node && !it->second.for_application) {
+      const auto id = it->first.second;
+      m_.forget_transfer(it++);
+      m_.clients.client(node).cancel(id, now, m_.sdo_out);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, std::uint8_t node) {
+  m_.queue_nmt(command, node);
+}
+
+bool NmtMaster::Impl::BootPort::start_error_control(std::uint8_t node, TimePoint now) {
+  // §4.1: heartbeat when 1016h has the node; the first timeout counts from now.
+  if (const auto time = m_.heartbeat_time(node)) {
+    m_.heartbeats.monitor(
+        {node, static_cast<std::uint16_t>(
+                   std::chrono::duration_cast<std::chrono::milliseconds>(*time).count())},
+        now);
+    return true;
+  }
+  // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero.
+  const auto a = m_.assignment(node);
+  if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
+    m_.guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
+  }
+  return false;
+}
+
+BootSlaveExpectations NmtMaster::Impl::BootPort::expectations(std::uint8_t node) const {
+  BootSlaveExpectations e;
+  e.assignment = m_.assignment(node);
+  e.device_type = m_.value_of(obj::kDeviceTypeIdentification, node);
+  for (std::uint16_t i = 0; i < 4; ++i) {
+    e.identity[i] = m_.value_of(static_cast<std::uint16_t>(obj::kVendorIdentification + i), node);
+  }
+  e.software = {m_.value_of(obj::kExpectedApplicationSwDate, node),
+                m_.value_of(obj::kExpectedApplicationSwTime, node)};
+  e.configuration = m_.expected_configuration(node);
+  e.restore_sub = static_cast<std::uint8_t>(m_.value_of(obj::kRestoreConfiguration, node));
+  e.boot_time_ms = m_.value_of(obj::kBootTime, 0);
+  return e;
+}
+
+std::optional<Duration> NmtMaster::Impl::BootPort::heartbeat_time(std::uint8_t node) const {
+  return m_.heartbeat_time(node);
+}
+
+std::uint8_t NmtMaster::Impl::BootPort::known_state(std::uint8_t node) const {
+  return m_.slaves[node].known_state;
+}
+
+std::optional<TimePoint> NmtMaster::Impl::BootPort::last_heartbeat(std::uint8_t node) const {
+  return m_.slaves[node].heartbeat_at;
+}
+
+std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::BootPort::configuration(
+    std::uint8_t node) const {
+  return m_.configuration_of(node);
+}
+
+std::optional<std::vector<std::uint8_t>> NmtMaster::Impl::BootPort::program(
+    std::uint8_t node) const {
+  if (!m_.options.configurations) return std::nullopt;
+  return m_.options.configurations->program(*cfg::NodeId::from(node));
+}
+
+TimePoint NmtMaster::Impl::BootPort::startup_began() const {
+  return m_.startup_began;
+}
+
+void NmtMaster::Impl::BootPort::deadline_changed(std::uint8_t node,
+                                                 std::optional<TimePoint> deadline) {
+  auto& known = m_.boot_deadline_of[node];
+  if (known) m_.boot_deadlines.erase({*known, node});
+  known = deadline;
+  if (known) m_.boot_deadlines.emplace(*known, node);
+}
+
+bool NmtMaster::Impl::BootPort::boot_up_gate_closed() const {
+  return m_.boot_up_gate.has_value();
+}
+
+void NmtMaster::Impl::BootPort::booted_up_at_gate(std::uint8_t, TimePoint now,
+                                                  Outbox<MasterEvent>& out) {
+  if (m_.options.bitrate != 0) m_.boot_up_quiet = now + kBootUpQuiet;
+  m_.open_boot_up_gate(now, out);  // when it was the last one
+}
+
+void NmtMaster::Impl::BootPort::boot_up_wait_over() {
+  m_.boot_up_gate.reset();
+  m_.boot_up_quiet.reset();
+}
+
+void NmtMaster::Impl::BootPort::boot_con(std::uint8_t node, std::optional<BootError> status,
+                                         bool left_to_application, TimePoint now,
+                                         Outbox<MasterEvent>& out) {
+  if (!status) {
+    if (!left_to_application) m_.start_remote_node(node);
+    return;
+  }
+  // L: the slave runs and is under error control. Any other error: its error control stops,
+  // and after B the slave is missing (1F82h).
+  if (*status == BootError::L) return;
+  m_.stop_error_control(node);
+  if (*status == BootError::B) m_.set_known_state(node, 1, now, out);
+}
+
+}  // namespace nmt

@@ -1,0 +1,507 @@
+// One boot NMT slave engine (BootSlaveProcess, libnmt/core/src/master/boot_slave_process.hpp)
+// driven through a fake port: the SDO accesses it asks for, the NMT commands it queues, its one
+// report (boot_con) and its events, against CiA 302-2 §3.4-§3.6 and the error status of §3.8
+// (Table 1). The whole master with simulated devices is tested in nmt_master_spec*_test.cpp.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "master/boot_slave_process.hpp"
+#include "nmt/error_control.hpp"
+#include "nmt/nmt_slave.hpp"
+
+namespace nmt {
+namespace {
+
+using namespace std::chrono_literals;
+using Kind = MasterEvent::Kind;
+using Phase = BootSlaveProcess::Phase;
+
+constexpr std::uint8_t kNode = 5;
+
+/// One SDO access the process asked the master for.
+struct Access {
+  std::uint64_t try_id = 0;
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  bool upload = false;
+  std::vector<std::uint8_t> data;  ///< download
+};
+
+/// boot_con as the master received it.
+struct Report {
+  std::optional<BootError> status;
+  bool left_to_application = false;
+};
+
+std::vector<std::uint8_t> le32(std::uint32_t v) {
+  return {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8),
+          static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 24)};
+}
+
+class FakePort final : public BootSlavePort {
+ public:
+  BootSlaveExpectations expect;
+  std::optional<Duration> heartbeat;  ///< 1016h for the node
+  std::uint8_t state = 0;             ///< 1F82h
+  std::optional<TimePoint> heard;
+  std::optional<std::vector<cfg::ObjectWrite>> writes;
+  std::optional<std::vector<std::uint8_t>> image;
+  bool gate_closed = false;
+
+  std::vector<Access> accesses;
+  std::vector<std::pair<NmtCommand, std::uint8_t>> nmt;
+  std::size_t cancels = 0;
+  std::size_t error_control_starts = 0;
+  std::vector<Report> reports;
+  std::optional<TimePoint> deadline;
+  bool wait_over = false;
+
+  void upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+              TimePoint) override {
+    EXPECT_EQ(node, kNode);
+    accesses.push_back({try_id, index, sub, true, {}});
+  }
+  void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+                std::vector<std::uint8_t> data, TimePoint) override {
+    EXPECT_EQ(node, kNode);
+    accesses.push_back({try_id, index, sub, false, std::move(data)});
+  }
+  void cancel_transfers(std::uint8_t, TimePoint) override { ++cancels; }
+  void queue_nmt(NmtCommand command, std::uint8_t node) override {
+    nmt.emplace_back(command, node);
+  }
+  bool start_error_control(std::uint8_t, TimePoint) override {
+    ++error_control_starts;
+    return heartbeat.has_value();
+  }
+  BootSlaveExpectations expectations(std::uint8_t) const override { return expect; }
+  std::optional<Duration> heartbeat_time(std::uint8_t) const override { return heartbeat; }
+  std::uint8_t known_state(std::uint8_t) const override { return state; }
+  std::optional<TimePoint> last_heartbeat(std::uint8_t) const override { return heard; }
+  std::optional<std::vector<cfg::ObjectWrite>> configuration(std::uint8_t) const override {
+    return writes;
+  }
+  std::optional<std::vector<std::uint8_t>> program(std::uint8_t) const override { return image; }
+  TimePoint startup_began() const override { return TimePoint{0}; }
+  void deadline_changed(std::uint8_t, std::optional<TimePoint> at) override { deadline = at; }
+  bool boot_up_gate_closed() const override { return gate_closed; }
+  void booted_up_at_gate(std::uint8_t, TimePoint, Outbox<MasterEvent>&) override {}
+  void boot_up_wait_over() override { wait_over = true; }
+  void boot_con(std::uint8_t, std::optional<BootError> status, bool left, TimePoint,
+                Outbox<MasterEvent>&) override {
+    reports.push_back({status, left});
+  }
+};
+
+struct Rig {
+  FakePort port;
+  BootSlaveProcess::Options options;
+  BootSlaveProcess process{*cfg::NodeId::from(kNode), port, options};
+  BootSlaveProcess::Output out;
+  TimePoint now{1'000'000};
+
+  Rig() {
+    // Slave, boot (configure and start), optional.
+    port.expect.assignment =
+        cfg::SlaveAssignment::make(cfg::SlaveAssignment::kSlave | cfg::SlaveAssignment::kBootSlave);
+  }
+  void mandatory() { port.expect.assignment.value |= cfg::SlaveAssignment::kMandatory; }
+  void keep_alive() { port.expect.assignment.value |= cfg::SlaveAssignment::kKeepAlive; }
+
+  const Access& last() const { return port.accesses.back(); }
+  /// Answers the last access: an upload with `value`, a download with success.
+  void answer(std::optional<std::uint32_t> value = std::nullopt) {
+    const auto& a = last();
+    SdoResult r;
+    r.node_id = kNode;
+    r.index = a.index;
+    r.sub_index = a.sub;
+    r.upload = a.upload;
+    if (a.upload) r.data = le32(value.value_or(0));
+    process.on_sdo_result(r, now, out);
+  }
+  void abort(SdoAbort code) {
+    const auto& a = last();
+    SdoResult r;
+    r.node_id = kNode;
+    r.index = a.index;
+    r.sub_index = a.sub;
+    r.upload = a.upload;
+    r.abort = code;
+    r.aborted_by_server = code != SdoAbort::Timeout;
+    process.on_sdo_result(r, now, out);
+  }
+  std::vector<MasterEvent> events_of(Kind kind) const {
+    std::vector<MasterEvent> found;
+    for (const auto& e : out.events) {
+      if (e.kind == kind) found.push_back(e);
+    }
+    return found;
+  }
+  void advance(Duration d) {
+    now += d;
+    process.on_timer(now, out);
+  }
+};
+
+void expect_access(const Access& a, std::uint16_t index, std::uint8_t sub, bool upload,
+                   const std::vector<std::uint8_t>& data = {}) {
+  EXPECT_EQ(a.index, index);
+  EXPECT_EQ(a.sub, sub);
+  EXPECT_EQ(a.upload, upload);
+  EXPECT_EQ(a.data, data);
+}
+
+// §3.4 c: "Request object 1000h"; d: "If the value of 1F84h is not 0 and it differs from the
+// value of 1000h of the CANopen device, then the process shall finish with error status C."
+TEST(BootSlave, ReportsStatusCWhenDeviceTypeDiffers) {
+  Rig rig;
+  rig.mandatory();
+  rig.port.expect.device_type = 0x00020192;
+  rig.process.start(rig.now, rig.out);
+  ASSERT_EQ(rig.port.accesses.size(), 1U);
+  expect_access(rig.last(), 0x1000, 0, true);
+  ASSERT_EQ(rig.process.step(), BootStep::Identify);
+
+  rig.answer(0x00020191);
+
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::C);
+  const auto errors = rig.events_of(Kind::BootError);
+  ASSERT_EQ(errors.size(), 1U);
+  EXPECT_EQ(errors[0].error, BootError::C);
+  EXPECT_TRUE(errors[0].final);  // §3.3: a mandatory slave is retried only after B
+  EXPECT_EQ(errors[0].node_id, kNode);
+  EXPECT_NE(errors[0].text.find("1000h is 0x00020191, 1F84h expects 0x00020192"), std::string::npos)
+      << errors[0].text;
+  EXPECT_EQ(rig.port.accesses.size(), 1U);  // no identity, no configuration
+  EXPECT_TRUE(rig.port.nmt.empty());
+  EXPECT_FALSE(rig.process.running());
+  EXPECT_EQ(rig.process.step(), BootStep::Failed);
+  EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
+}
+
+// §6.6: 1F84h = 0: "the device type ... may not be verified".
+TEST(BootSlave, DeviceTypeIsNotCheckedWhen1F84IsZero) {
+  Rig rig;
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0x12345678);
+  // Nothing else to check or download: error control, then status OK.
+  EXPECT_EQ(rig.port.accesses.size(), 1U);
+  EXPECT_EQ(rig.port.error_control_starts, 1U);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  EXPECT_TRUE(rig.events_of(Kind::BootError).empty());
+}
+
+// §3.4 c: "If no response is received ... status B". §3.3: an optional slave is tried again
+// (MasterOptions::retry_interval); the retry repeats silently while it ends the same way.
+TEST(BootSlave, ReportsStatusBAndRetriesAnOptionalSlaveSilently) {
+  Rig rig;
+  rig.process.start(rig.now, rig.out);
+  const auto first_try = rig.last().try_id;
+  rig.abort(SdoAbort::Timeout);
+
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::B);
+  ASSERT_EQ(rig.events_of(Kind::BootError).size(), 1U);
+  EXPECT_FALSE(rig.events_of(Kind::BootError)[0].final);
+  EXPECT_EQ(rig.process.step(), BootStep::RetryWait);
+  EXPECT_EQ(rig.process.next_deadline(), rig.now + rig.options.retry_interval);
+  EXPECT_EQ(rig.port.deadline, rig.process.next_deadline());  // the master's index follows
+
+  rig.advance(rig.options.retry_interval - 1us);
+  EXPECT_EQ(rig.port.accesses.size(), 1U);  // not yet
+  rig.advance(1us);
+  ASSERT_EQ(rig.port.accesses.size(), 2U);
+  expect_access(rig.last(), 0x1000, 0, true);
+  EXPECT_GT(rig.last().try_id, first_try);  // results of the old try are not this try's
+  EXPECT_EQ(rig.process.try_id(), rig.last().try_id);
+
+  rig.abort(SdoAbort::Timeout);
+  EXPECT_EQ(rig.port.reports.size(), 2U);
+  EXPECT_EQ(rig.events_of(Kind::BootError).size(), 1U);  // the same error: not reported again
+}
+
+// §3.4 e: 1F85h-1F88h against 1018h sub 1-4: D vendor-ID, M product code, N revision number,
+// O serial number; entries that are 0 are not read.
+TEST(BootSlave, ReportsStatusDWhenVendorIdDiffers) {
+  Rig rig;
+  rig.port.expect.identity = {0x0000032C, 0, 0, 0};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0x00020191);
+  expect_access(rig.last(), 0x1018, 1, true);
+  rig.answer(0x0000032D);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::D);
+  EXPECT_NE(rig.events_of(Kind::BootError)[0].text.find(
+                "1018h sub 01h is 0x0000032D, 1F85h expects 0x0000032C"),
+            std::string::npos)
+      << rig.events_of(Kind::BootError)[0].text;
+}
+
+TEST(BootSlave, ReportsStatusMWhenProductCodeDiffers) {
+  Rig rig;
+  rig.port.expect.identity = {0, 0x00001234, 0, 0};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  expect_access(rig.last(), 0x1018, 2, true);  // sub 1 is skipped: 1F85h is 0
+  rig.answer(0x00001235);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::M);
+}
+
+// §6.9: the major revision must be equal, the minor not lower.
+TEST(BootSlave, ReportsStatusNWhenMajorRevisionDiffersOrMinorIsLower) {
+  for (const std::uint32_t actual : {0x00020005U, 0x00010003U}) {
+    Rig rig;
+    rig.port.expect.identity = {0, 0, 0x00010004, 0};
+    rig.process.start(rig.now, rig.out);
+    rig.answer(0);
+    expect_access(rig.last(), 0x1018, 3, true);
+    rig.answer(actual);
+    ASSERT_EQ(rig.port.reports.size(), 1U) << std::hex << actual;
+    EXPECT_EQ(rig.port.reports[0].status, BootError::N) << std::hex << actual;
+  }
+  Rig rig;
+  rig.port.expect.identity = {0, 0, 0x00010004, 0x00000007};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  rig.answer(0x00010009);  // equal major, higher minor: passes on to the serial number
+  expect_access(rig.last(), 0x1018, 4, true);
+  rig.answer(0x00000008);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::O);
+}
+
+// §3.6, keep-alive without a consumed heartbeat: one guarding request (an RTR on 700h + node-ID),
+// "In case no confirmation is received and more than 100 milliseconds are elapsed" status F.
+TEST(BootSlave, ReportsStatusFWhenTheGuardingRequestIsNotAnsweredWithin100ms) {
+  Rig rig;
+  rig.keep_alive();
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  ASSERT_EQ(rig.out.frames.size(), 1U);
+  EXPECT_EQ(rig.out.frames[0], make_guarding_request(*cfg::NodeId::from(kNode)));
+  EXPECT_EQ(rig.out.frames[0].id, 0x705U);
+  EXPECT_TRUE(rig.out.frames[0].rtr);
+  EXPECT_EQ(rig.process.step(), BootStep::CheckNmtState);
+  rig.advance(100ms - 1us);
+  EXPECT_TRUE(rig.port.reports.empty());
+  rig.advance(1us);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::F);
+  EXPECT_TRUE(rig.port.nmt.empty());  // no reset of a slave whose state is unknown
+}
+
+// §3.6 with a consumed heartbeat (1016h): none within the consumer time is status E.
+TEST(BootSlave, ReportsStatusEWhenAKeepAliveSlaveSendsNoHeartbeat) {
+  Rig rig;
+  rig.keep_alive();
+  rig.port.heartbeat = 200ms;
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  EXPECT_TRUE(rig.out.frames.empty());  // no guarding request: the heartbeat answers
+  EXPECT_EQ(rig.process.next_deadline(), rig.now + 200ms);
+  rig.advance(200ms);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::E);
+}
+
+// §3.5 last paragraph: a keep-alive slave found operational skips check configuration; once
+// error control runs the process ends with status L (reported as not final, the slave runs).
+TEST(BootSlave, ReportsStatusLForAKeepAliveSlaveFoundOperational) {
+  Rig rig;
+  rig.keep_alive();
+  rig.port.writes = std::vector<cfg::ObjectWrite>{{0x2000, 0, {25, 0}}};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  ASSERT_TRUE(rig.process.awaits_guard_reply());
+  // The engine shape: the guarding reply of its node with state 05h (toggle bit set).
+  CanFrame reply = make_heartbeat(*cfg::NodeId::from(kNode), NmtState::Operational);
+  reply.data[0] |= 0x80;
+  EXPECT_TRUE(rig.process.on_frame(reply, rig.now, rig.out));
+
+  EXPECT_EQ(rig.port.error_control_starts, 1U);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::L);
+  EXPECT_TRUE(rig.port.nmt.empty());
+  EXPECT_EQ(rig.port.accesses.size(), 1U);  // no 1020h, no download
+  EXPECT_TRUE(rig.process.booted());
+  EXPECT_EQ(rig.process.step(), BootStep::Booted);
+}
+
+// §3.4 part 2: a keep-alive slave not operational gets reset communication, then its boot goes
+// on after its boot-up (software check, configuration).
+TEST(BootSlave, KeepAliveSlaveFoundPreOperationalIsResetAndGoesOnAfterItsBootUp) {
+  Rig rig;
+  rig.keep_alive();
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  rig.process.on_guard_reply(NmtState::PreOperational, rig.now, rig.out);
+  ASSERT_EQ(rig.port.nmt.size(), 1U);
+  EXPECT_EQ(rig.port.nmt[0], std::make_pair(NmtCommand::ResetCommunication, kNode));
+  EXPECT_EQ(rig.process.step(), BootStep::AwaitBootUp);
+  EXPECT_EQ(rig.process.next_deadline(), rig.now + rig.options.reboot_timeout);
+  EXPECT_TRUE(rig.process.on_frame(make_boot_up(*cfg::NodeId::from(kNode)), rig.now, rig.out));
+  EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
+  // Nothing to verify or download: error control, then status OK.
+  EXPECT_EQ(rig.port.error_control_starts, 1U);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  EXPECT_FALSE(rig.port.reports[0].left_to_application);
+}
+
+// §3.5: 1020h differs from 1F26h/1F27h: download in order, then 1020h, then 1010h 'save'; the
+// boot ends with status OK and the words of what was written.
+TEST(BootSlave, DownloadsTheConfigurationWhen1020hDiffersThenStoresItsDateAndSaves) {
+  Rig rig;
+  rig.port.expect.configuration = {9000, 1234};
+  rig.port.writes =
+      std::vector<cfg::ObjectWrite>{{0x2000, 0, {25, 0}}, {0x1010, 1, le32(cfg::kSaveSignature)}};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  expect_access(rig.last(), 0x1020, 1, true);
+  EXPECT_EQ(rig.process.step(), BootStep::VerifyConfiguration);
+  rig.answer(8999);  // another date: sub 2 cannot make it match
+  ASSERT_EQ(rig.port.accesses.size(), 3U);
+  expect_access(rig.last(), 0x2000, 0, false, {25, 0});  // 1010h is the master's to send
+  rig.answer();
+  expect_access(rig.last(), 0x1020, 1, false, le32(9000));
+  rig.answer();
+  expect_access(rig.last(), 0x1020, 2, false, le32(1234));
+  rig.answer();
+  expect_access(rig.last(), 0x1010, 1, false, le32(cfg::kSaveSignature));
+  rig.answer();
+
+  EXPECT_EQ(rig.port.error_control_starts, 1U);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  EXPECT_TRUE(booted[0].configured);
+  EXPECT_EQ(booted[0].written, 1U);
+  EXPECT_EQ(booted[0].total, 1U);
+  EXPECT_EQ(booted[0].bytes, 2U);
+  EXPECT_EQ(booted[0].text, "node 5: booted (configured: 1 entries, 2 bytes)");
+}
+
+// §3.5 c: 1020h equal to 1F26h/1F27h: no download.
+TEST(BootSlave, SkipsTheDownloadWhen1020hMatches) {
+  Rig rig;
+  rig.port.expect.configuration = {9000, 1234};
+  rig.port.writes = std::vector<cfg::ObjectWrite>{{0x2000, 0, {25, 0}}};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  rig.answer(9000);
+  expect_access(rig.last(), 0x1020, 2, true);
+  rig.answer(1234);
+  EXPECT_EQ(rig.port.accesses.size(), 3U);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  EXPECT_EQ(rig.events_of(Kind::SlaveBooted)[0].text, "node 5: booted (configuration up to date)");
+}
+
+// J: "Configuration download failed".
+TEST(BootSlave, ReportsStatusJWhenTheSlaveAbortsAConfigurationWrite) {
+  Rig rig;
+  rig.port.writes = std::vector<cfg::ObjectWrite>{{0x2000, 0, {25, 0}}, {0x2001, 0, {1}}};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  rig.answer();
+  expect_access(rig.last(), 0x2001, 0, false, {1});
+  rig.abort(SdoAbort::WriteOfReadOnly);  // 0601 0002
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::J);
+  EXPECT_NE(rig.events_of(Kind::BootError)[0].text.find("(entry 2 of 2)"), std::string::npos);
+}
+
+// §4.1: with a consumed heartbeat the boot waits for the first one; none within the consumer
+// time is status K.
+TEST(BootSlave, ReportsStatusKWhenTheFirstHeartbeatNeverComes) {
+  Rig rig;
+  rig.port.heartbeat = 300ms;
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  EXPECT_TRUE(rig.process.awaits_first_heartbeat());
+  EXPECT_TRUE(rig.port.reports.empty());
+  rig.process.on_heartbeat_timeout(rig.now + 300ms, rig.out);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::K);
+  EXPECT_NE(rig.events_of(Kind::BootError)[0].text.find("consumer time of 300 ms"),
+            std::string::npos);
+}
+
+// §3.4 a: a node without 1F81h bit 0 ends with status A, final.
+TEST(BootSlave, ReportsStatusAWhenTheNodeIsNoSlave) {
+  Rig rig;
+  rig.port.expect.assignment = {};
+  rig.process.start(rig.now, rig.out);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::A);
+  EXPECT_TRUE(rig.events_of(Kind::BootError)[0].final);
+  EXPECT_TRUE(rig.port.accesses.empty());
+}
+
+// §3.4 b, Table 20: 1F81h bit 2 clear: neither configured nor started, unless the application
+// asks.
+TEST(BootSlave, SlaveWithoutBit2IsLeftToTheApplication) {
+  Rig rig;
+  rig.port.expect.assignment = cfg::SlaveAssignment::make(cfg::SlaveAssignment::kSlave);
+  rig.process.start(rig.now, rig.out);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_TRUE(rig.port.reports[0].left_to_application);
+  EXPECT_TRUE(rig.port.accesses.empty());
+  EXPECT_EQ(rig.process.step(), BootStep::Idle);
+
+  rig.process.start(rig.now, rig.out, /*asked_by_application=*/true);
+  ASSERT_EQ(rig.port.accesses.size(), 1U);
+  expect_access(rig.last(), 0x1000, 0, true);
+}
+
+// After the start-up's reset communication the try waits for the boot-up (or until the wait
+// ends) before its first request.
+TEST(BootSlave, AfterResetTheTryBeginsWithTheBootUp) {
+  Rig rig;
+  rig.process.start_after_reset(rig.now + 500ms, rig.now, rig.out);
+  EXPECT_EQ(rig.process.step(), BootStep::AwaitBootUp);
+  EXPECT_TRUE(rig.port.accesses.empty());
+  EXPECT_EQ(rig.process.next_deadline(), rig.now + 500ms);
+  EXPECT_TRUE(rig.process.on_boot_up(rig.now + 10ms, rig.out));
+  ASSERT_EQ(rig.port.accesses.size(), 1U);
+  expect_access(rig.last(), 0x1000, 0, true);
+  EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
+
+  Rig lost;
+  lost.process.start_after_reset(lost.now + 500ms, lost.now, lost.out);
+  lost.advance(500ms);  // its boot-up was lost: identify anyway
+  EXPECT_TRUE(lost.port.wait_over);
+  ASSERT_EQ(lost.port.accesses.size(), 1U);
+  expect_access(lost.last(), 0x1000, 0, true);
+}
+
+// 1F25h: a reconfiguration request downloads although 1020h would match, until a try succeeds.
+TEST(BootSlave, ReconfigurationRequestDownloadsWithoutReading1020h) {
+  Rig rig;
+  rig.port.expect.configuration = {9000, 1234};
+  rig.port.writes = std::vector<cfg::ObjectWrite>{{0x2000, 0, {25, 0}}};
+  rig.process.start(rig.now, rig.out);
+  rig.process.request_reconfiguration();
+  rig.answer(0);
+  expect_access(rig.last(), 0x2000, 0, false, {25, 0});
+  rig.answer();
+  rig.answer();
+  rig.answer();
+  rig.answer();
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  expect_access(rig.last(), 0x1020, 1, true);  // the request held until that success
+}
+
+}  // namespace
+}  // namespace nmt
