@@ -81,7 +81,7 @@ struct BoundsRig {
 };
 
 TEST(MasterBounds, StreamOf1F22hWritesForEveryNodeStaysWithinTheTotalAndTheNextAbortsOutOfMemory) {
-  BoundsRig s({.max_entry_bytes = 1024, .max_total_bytes = 8 * 1024});
+  BoundsRig s({.max_entry_bytes = 1024, .max_total_bytes = std::size_t{8} * 1024});
   // A tool writes the largest stream the manager takes for every node-ID, by block download
   // (size indicated), and then the first node again.
   std::vector<std::uint8_t> accepted;
@@ -172,7 +172,8 @@ TEST(MasterBounds, BlockWriteWithoutSizeIsRefusedWhenItsDataPassesTheLimit) {
   unsigned seq = 0;
   while (!s.aborted_since(from) && segments < 400) {
     seq = seq % block_size + 1;
-    char head[3];
+    char head[9];  // seq is 1..127: two digits; room for any unsigned so -Wformat-truncation stays
+                   // quiet
     std::snprintf(head, sizeof head, "%02X", seq);
     s.request(std::string("601#") + head + "5A5A5A5A5A5A5A");
     ++segments;

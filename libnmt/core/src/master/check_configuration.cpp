@@ -73,12 +73,12 @@ void BootSlaveProcess::begin_download(TimePoint now, Output& out) {
 
 void BootSlaveProcess::plan_download(TimePoint now, Output& out) {
   // The tail (1020h, 1010h) is written as steps of their own (write_next).
-  auto order = cfg::plan_download(
-      configuration_, {}, [this](std::uint16_t comm_index) -> std::optional<std::uint32_t> {
-        const auto it = cob_ids_read_.find(comm_index);
-        if (it == cob_ids_read_.end()) return std::nullopt;
-        return it->second;
-      });
+  auto order = cfg::plan_download(configuration_, {},
+                                  [this](std::uint16_t comm_index) -> std::optional<std::uint32_t> {
+                                    const auto it = cob_ids_read_.find(comm_index);
+                                    if (it == cob_ids_read_.end()) return std::nullopt;
+                                    return it->second;
+                                  });
   // PDO COB-IDs the configuration does not carry: read them from the slave, so the PDO can be
   // made invalid around its mapping (download_order.hpp).
   if (!order.unknown_cob_id.empty() && !cob_ids_checked_) {

@@ -7,8 +7,8 @@
 #include <utility>
 
 #include "cfg/object_address.hpp"
-#include "nmt/frame_bits.hpp"
 #include "master/nmt_master_impl.hpp"
+#include "nmt/frame_bits.hpp"
 
 namespace nmt {
 
