@@ -60,6 +60,9 @@ class DictionaryWriter {
   explicit DictionaryWriter(LocalDictionary& dict) : dict_(dict) {}
   void put(std::uint16_t index, std::uint8_t sub, std::uint64_t value) {
     if (!problem_.empty() || dict_.set_unsigned(index, sub, value)) return;
+    // A DCF may list fewer sub-indices (1F81h with SubNumber=3): an absent entry reads as 0 to
+    // the master (value_of), so 0 needs no entry; any other value does.
+    if (value == 0 && !dict_.get_unsigned(index, sub)) return;
     problem_ = "the master DCF has no " + cfg::to_string({index, sub}) + " for the value " +
                std::to_string(value);
   }
