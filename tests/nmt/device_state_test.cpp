@@ -11,6 +11,7 @@
 #include "cfg/device_file.hpp"
 #include "nmt/device_state.hpp"
 #include "nmt/simulated_device.hpp"
+#include "test_paths.hpp"
 
 namespace {
 
@@ -36,17 +37,52 @@ TEST(DeviceState, FormatsAndParsesBackTheSameValues) {
   // 1017h = 1000 ms (UNSIGNED16 E8h 03h on the bus), 1020h sub 1 = 0x11223344, an empty entry.
   const nmt::SavedValues values = {
       {0x101700, {0xE8, 0x03}}, {0x102001, {0x44, 0x33, 0x22, 0x11}}, {0x200000, {}}};
-  const std::string text = nmt::format_device_state(node(5), values);
+  const std::string text = nmt::format_device_state(node(5), {values, std::nullopt});
   EXPECT_NE(text.find("\n1017sub00=E803\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\n1020sub01=44332211\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\nend=3\n"), std::string::npos) << text;
   const auto parsed = nmt::parse_device_state(text, "f", node(5));
   ASSERT_TRUE(parsed) << parsed.error().message;
-  EXPECT_EQ(*parsed, values);
+  EXPECT_EQ(parsed->values, values);
+  EXPECT_FALSE(parsed->lss) << "LSS never stored";
+}
+
+TEST(DeviceState, KeepsWhatLssStoredAndNamesAnUnconfiguredDevicesFileByItsLssAddress) {
+  // CiA 305 store configuration: node-ID 5 and bit timing index 3 (250 kbit/s) of the device
+  // with LSS address 7E57C0DEh/00000305h/00010002h/00001001h (tests/data/lss/lss_io.eds).
+  const nmt::LssAddress address{0x7E57C0DE, 0x00000305, 0x00010002, 0x00001001};
+  const nmt::DeviceState state{{{0x101700, {0xE8, 0x03}}}, nmt::LssStoredConfig{5, 3}};
+  const std::string text = nmt::format_device_state(address, state);
+  EXPECT_NE(text.find("\nlss=7E57C0DE:00000305:00010002:00001001\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("\nlss_node=5\nlss_bit_timing=3\nend=1\n"), std::string::npos) << text;
+  const auto parsed = nmt::parse_device_state(text, "f", address);
+  ASSERT_TRUE(parsed) << parsed.error().message;
+  EXPECT_EQ(*parsed, state);
+  EXPECT_EQ(nmt::device_state_file("d", address),
+            fs::path("d") / "lss-7E57C0DE-00000305-00010002-00001001.saved");
+  EXPECT_EQ(nmt::device_state_file("d", node(5)), fs::path("d") / "node-05.saved");
+
+  // Another device's file, a node's file, half the LSS lines, a node-ID out of range: refused.
+  nmt::LssAddress other = address;
+  other.serial = 0x1003;
+  EXPECT_FALSE(nmt::parse_device_state(text, "f", other));
+  EXPECT_FALSE(nmt::parse_device_state(text, "f", node(5)));
+  EXPECT_FALSE(nmt::parse_device_state(nmt::format_device_state(node(5), state), "f", address));
+  EXPECT_FALSE(nmt::parse_device_state("node=5\nlss_node=5\nend=0\n", "f", node(5)));
+  const auto bad =
+      nmt::parse_device_state("node=5\nlss_node=128\nlss_bit_timing=2\nend=0\n", "f", node(5));
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("f:2: error: lss_node=128"), std::string::npos)
+      << bad.error().message;
+  EXPECT_FALSE(
+      nmt::parse_device_state("node=5\nlss_node=255\nlss_bit_timing=10\nend=0\n", "f", node(5)));
+  EXPECT_TRUE(
+      nmt::parse_device_state("node=5\nlss_node=255\nlss_bit_timing=9\nend=0\n", "f", node(5)));
 }
 
 TEST(DeviceState, RefusesATextCutShortAnotherNodesOrABadLine) {
-  const std::string text = nmt::format_device_state(node(5), {{0x101700, {0xE8, 0x03}}});
+  const std::string text =
+      nmt::format_device_state(node(5), {{{0x101700, {0xE8, 0x03}}}, std::nullopt});
   const auto cut = nmt::parse_device_state(text.substr(0, text.find("end=")), "f", node(5));
   ASSERT_FALSE(cut);
   EXPECT_NE(cut.error().message.find("f:3: error: "), std::string::npos) << cut.error().message;
@@ -90,13 +126,13 @@ TEST(DeviceState, ADeviceGivenItsSavedValuesHasThemAfterPowerOn) {
   // What a 1010h sub 1 'save' stores, here set directly: the node's stored values.
   first.node().set_stored({{0x101700, {0xE8, 0x03}}, {0x100000, {0x00, 0x00, 0x00, 0x00}}});
   EXPECT_EQ(first.node().stored().size(), 1U) << "1000h is read-only: no stored parameter";
-  ASSERT_TRUE(nmt::save_device_state(dir.path(), first.node()));
+  ASSERT_TRUE(nmt::save_device_state(dir.path(), node(5), first.node()));
 
   nmt::SimulatedDevice second = device();
   auto loaded = nmt::load_device_state(dir.path(), node(5));
   ASSERT_TRUE(loaded) << loaded.error().message;
   ASSERT_TRUE(loaded->has_value());
-  second.node().set_stored(std::move(**loaded));
+  nmt::restore_device_state(second.node(), std::move(**loaded));
   EXPECT_EQ(second.node().dictionary().get_unsigned(0x1017, 0), 0U) << "not before power-on";
   second.power_on(nmt::TimePoint{});
   EXPECT_EQ(second.node().dictionary().get_unsigned(0x1017, 0), 1000U);
@@ -104,6 +140,54 @@ TEST(DeviceState, ADeviceGivenItsSavedValuesHasThemAfterPowerOn) {
   auto none = nmt::load_device_state(dir.path(), node(6));
   ASSERT_TRUE(none);
   EXPECT_FALSE(none->has_value()) << "no file: the device never saved";
+}
+
+TEST(DeviceState, AnUnconfiguredDeviceLssGaveNodeId5BootsAsNode5InTheNextProcess) {
+  // CiA 305: a node-ID stored with store configuration (17h) is the one the device powers on
+  // with. The device of lss_io.eds starts unconfigured, LSS gives it node-ID 5 and stores it;
+  // a new device from the same file with the saved state boots at once as node 5 (705h#00).
+  TempDir dir;
+  auto read = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/lss/lss_io.eds");
+  ASSERT_TRUE(read.device) << read.diagnostics.format();
+  auto frames = [](nmt::SlaveNode& n, std::string_view candump) {
+    nmt::SlaveNode::Output out;
+    n.on_frame(*nmt::from_candump(candump), nmt::TimePoint{}, out);
+    std::vector<std::string> sent;
+    for (const auto& f : out.frames) sent.push_back(nmt::to_candump(f));
+    return sent;
+  };
+  auto first = nmt::SlaveNode::create_unconfigured(*read.device);
+  ASSERT_TRUE(first) << first.error().message;
+  nmt::SlaveNode& one = *first.value();
+  const nmt::DeviceStateOwner owner(one.lss()->address());
+  one.power_on(nmt::TimePoint{});
+  frames(one, "7E5#0401000000000000");  // switch state global: configuration
+  EXPECT_EQ(frames(one, "7E5#1105000000000000"), std::vector<std::string>{"7E4#1100000000000000"});
+  EXPECT_EQ(frames(one, "7E5#1700000000000000"), std::vector<std::string>{"7E4#1700000000000000"});
+  ASSERT_TRUE(one.lss_stored());
+  EXPECT_EQ(*one.lss_stored(), (nmt::LssStoredConfig{5, 2})) << "500 kbit/s: index 2";
+  ASSERT_TRUE(nmt::save_device_state(dir.path(), owner, one));
+  EXPECT_TRUE(fs::exists(dir.path() / "lss-7E57C0DE-00000305-00010002-00001001.saved"));
+
+  auto second = nmt::SlaveNode::create_unconfigured(*read.device);
+  ASSERT_TRUE(second);
+  nmt::SlaveNode& two = *second.value();
+  auto loaded = nmt::load_device_state(dir.path(), owner);
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  ASSERT_TRUE(loaded->has_value());
+  nmt::restore_device_state(two, std::move(**loaded));
+  two.power_on(nmt::TimePoint{});
+  EXPECT_TRUE(two.has_node_id());
+  nmt::SlaveNode::Output out;
+  two.on_timer(nmt::TimePoint{}, out);
+  ASSERT_EQ(out.frames.size(), 1U);
+  EXPECT_EQ(nmt::to_candump(out.frames[0]), "705#00");
+
+  // Without the state the same file powers on unconfigured: no boot-up.
+  auto third = nmt::SlaveNode::create_unconfigured(*read.device);
+  ASSERT_TRUE(third);
+  third.value()->power_on(nmt::TimePoint{});
+  EXPECT_FALSE(third.value()->has_node_id());
 }
 
 }  // namespace

@@ -359,6 +359,30 @@ TEST(SlaveNodeLss, NodeIdByLssThenBootUpAndTheDictionaryOfThatNodeId) {
   EXPECT_EQ(d.timer(TimePoint{2000}), Frames{"705#00"});
 }
 
+TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
+  // CiA 305 store configuration (17h) saves the pending node-ID and bit timing (13h 00h 03h:
+  // table 0 index 3, 250 kbit/s) in non-volatile memory: lss_stored(), which another node of
+  // the same file given it (set_lss_stored, what a saved state file does) powers on with.
+  auto d = unconfigured();
+  d.node->power_on(TimePoint{0});
+  EXPECT_FALSE(d.node->lss_stored());
+  d.frame("7E5#0401000000000000");
+  d.frame("7E5#1105000000000000");
+  d.frame("7E5#1300030000000000");
+  EXPECT_EQ(d.sent, Frames{"7E4#1300000000000000"});
+  d.frame("7E5#1700000000000000");
+  EXPECT_EQ(d.sent, Frames{"7E4#1700000000000000"});
+  ASSERT_TRUE(d.node->lss_stored());
+  EXPECT_EQ(*d.node->lss_stored(), (LssStoredConfig{5, 3}));
+
+  auto e = unconfigured();
+  e.node->set_lss_stored(d.node->lss_stored());
+  e.node->power_on(TimePoint{0});
+  EXPECT_TRUE(e.node->has_node_id());
+  EXPECT_EQ(e.node->lss()->bit_timing_index(), 3);
+  EXPECT_EQ(e.timer(), Frames{"705#00"});
+}
+
 TEST(SlaveNodeLss, UnstoredNodeIdIsLostAtPowerOn) {
   auto d = unconfigured();
   d.node->power_on(TimePoint{0});

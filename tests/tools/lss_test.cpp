@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <csignal>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <thread>
@@ -72,6 +73,12 @@ TEST(Lss, UsageErrorsExit2BeforeTheBusIsOpened) {
   const auto bad_url = cfgmgr(dir, {"lss", "--bus", "udp://10.0.0.1:1", "scan"});
   EXPECT_EQ(bad_url.exit_code, 2);
   EXPECT_THAT(bad_url.err, HasSubstr("--bus"));
+  const auto product = lss({"scan", "--all", "--product", "7E57C0DE"});
+  EXPECT_EQ(product.exit_code, 2);
+  EXPECT_THAT(product.err, HasSubstr("expected VENDOR:PRODUCT"));
+  const auto without_all = lss({"scan", "--product", "7E57C0DE:305"});
+  EXPECT_EQ(without_all.exit_code, 2);
+  EXPECT_THAT(without_all.err, HasSubstr("--product and --device go with --all"));
 }
 
 TEST(Lss, SimulateUnconfiguredNeedsLssSupportedInTheFile) {
@@ -132,6 +139,11 @@ class LssInNetns : public ::testing::Test {
   }
 
   void simulate(const std::vector<std::string>& devices) {
+    if (devices_) {
+      const auto code = devices_->stop(SIGINT, 3000ms);
+      ASSERT_TRUE(code && *code == 0) << "the earlier simulate stops on SIGINT";
+    }
+    devices_.reset();
     std::vector<std::string> args{"simulate", "--bus", kUrl, "--for", "120", "-v"};
     args.insert(args.end(), devices.begin(), devices.end());
     devices_.emplace("cfgmgr", args, dir_ / "sim.out", dir_ / "sim.err");
@@ -140,6 +152,14 @@ class LssInNetns : public ::testing::Test {
     ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
   }
   std::string sim_out() const { return tool_test::slurp(dir_ / "sim.out"); }
+  // sim_out() once it holds `text` (what the devices print follows the frames that caused it).
+  std::string sim_out_with(const std::string& text) const {
+    const auto end = std::chrono::steady_clock::now() + 5s;
+    while (sim_out().find(text) == std::string::npos && std::chrono::steady_clock::now() < end) {
+      std::this_thread::sleep_for(20ms);
+    }
+    return sim_out();
+  }
 
   // The scan step is generous: the devices answer from another process on a shared machine.
   tool_test::RunResult lss(std::vector<std::string> args) {
@@ -192,6 +212,74 @@ TEST_F(LssInNetns, ScanListsTheUnconfiguredDevicesAndSetIdBootsOne) {
   const auto inquire = lss({"inquire", "7E57C0DE:305:10002:1003h"});
   ASSERT_EQ(inquire.exit_code, 0) << inquire.err;
   EXPECT_EQ(inquire.out, std::string(kAddress1003) + "  node-ID 5\n");
+}
+
+TEST_F(LssInNetns, SimulateStateKeepsTheNodeIdLssStoredOverARestart) {
+  // CiA 305 store configuration: the node-ID survives a power cycle. With --state DIR it
+  // survives a restart of `cfgmgr simulate`: the device started @255 boots as node 5 at once,
+  // without LSS, and Fastscan finds no unconfigured device.
+  const std::string state = dir_ / "state";
+  simulate({"--state", state, kIo + "@255"});
+  const auto set = lss({"set-id", kAddress1001, "5"});
+  ASSERT_EQ(set.exit_code, 0) << set.err;
+  EXPECT_THAT(sim_out_with("tx  705#00"), HasSubstr("tx  705#00"));
+  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(state) /
+                                      "lss-7E57C0DE-00000305-00010002-00001001.saved"));
+
+  simulate({"--state", state, kIo + "@255"});
+  EXPECT_THAT(sim_out(), HasSubstr("node 5 (node-ID stored by LSS): " + kIo));
+  EXPECT_THAT(sim_out_with("tx  705#00"), HasSubstr("tx  705#00")) << "the boot-up of node 5";
+  EXPECT_THAT(sim_out(), Not(HasSubstr("rx  7E5#"))) << "no LSS before it";
+  const auto read = cfgmgr(dir_, {"sdo", "--bus", kUrl, "read", "5", "1000", "--type", "u32"});
+  EXPECT_EQ(read.out, "197009 (0x00030191)\n") << read.err;
+  const auto scan = lss({"--json", "scan"});
+  ASSERT_EQ(scan.exit_code, 0) << scan.err;
+  EXPECT_TRUE(addresses_of(scan).empty());
+
+  // Without --state the same device is unconfigured again.
+  simulate({kIo + "@255"});
+  EXPECT_THAT(sim_out(), HasSubstr("unconfigured (LSS address " + std::string(kAddress1001)));
+}
+
+TEST_F(LssInNetns, ScanAllListsConfiguredAndUnconfiguredDevicesWithTheirNodeIds) {
+  // lss_io.eds runs as node 7, lss_io_1003.dcf unconfigured: Fastscan finds only the second;
+  // --all looks for every device of its product (identify remote slave 46h-4Bh) and inquires
+  // each one's node-ID (5Eh).
+  simulate({kIo + "@7", kIo1003 + "@255"});
+  const auto scan = lss({"--json", "scan", "--all"});
+  ASSERT_EQ(scan.exit_code, 0) << scan.err;
+  EXPECT_EQ(addresses_of(scan), (std::vector<std::string>{kAddress1003}));
+  const auto json = tool_test::json_object_of(scan.out);
+  const auto* devices = json.get("devices");
+  ASSERT_NE(devices, nullptr) << scan.out;
+  ASSERT_EQ(devices->array.size(), 2U) << scan.out;
+  EXPECT_EQ(devices->array[0].get("address")->string, kAddress1001);
+  EXPECT_EQ(devices->array[0].get("serial")->number, 0x1001);
+  EXPECT_EQ(devices->array[0].get("node_id")->number, 7);
+  EXPECT_EQ(devices->array[1].get("address")->string, kAddress1003);
+  EXPECT_EQ(devices->array[1].get("node_id")->kind, tool_test::Json::Kind::Null);
+
+  const auto text = lss({"scan", "--all"});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_EQ(text.out, std::string(kAddress1001) + "  node-ID 7\n" + kAddress1003 +
+                          "  node-ID FFh (unconfigured)\n");
+  EXPECT_THAT(text.err, HasSubstr("2 devices, 1 unconfigured"));
+  // Nothing was assigned: the unconfigured one sent no boot-up.
+  EXPECT_THAT(sim_out(), Not(HasSubstr("tx  7FF#")));
+}
+
+TEST_F(LssInNetns, ScanAllFindsConfiguredDevicesOfTheProductsItIsGiven) {
+  // No unconfigured device names a product: only --device (or --product) does.
+  simulate({kIo + "@7"});
+  const auto none = lss({"--json", "scan", "--all"});
+  ASSERT_EQ(none.exit_code, 0) << none.err;
+  EXPECT_TRUE(tool_test::json_object_of(none.out).get("devices")->array.empty()) << none.out;
+  const auto found = lss({"scan", "--all", "--device", kIo});
+  ASSERT_EQ(found.exit_code, 0) << found.err;
+  EXPECT_EQ(found.out, std::string(kAddress1001) + "  node-ID 7\n");
+  const auto other = lss({"scan", "--all", "--product", "7E57C0DE:306"});
+  ASSERT_EQ(other.exit_code, 0) << other.err;
+  EXPECT_EQ(other.out, "");
 }
 
 TEST_F(LssInNetns, ARefusedNodeIdOrAnAbsentDeviceExits4InWords) {

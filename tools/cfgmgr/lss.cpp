@@ -6,20 +6,24 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/device_file.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/integer_literal.hpp"
+#include "cfg/network.hpp"
 #include "commands.hpp"
 #include "lss_session.hpp"
 #include "master_run.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/lss.hpp"
 #include "nmt/lss_master.hpp"
+#include "nmt/lss_search.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -40,6 +44,9 @@ struct LssCliOptions {
   bool no_store = false;
   std::string kbit;  ///< set-bitrate
   unsigned delay_ms = 100;
+  bool all = false;                   ///< scan: configured devices too
+  std::vector<std::string> products;  ///< scan --all: VENDOR:PRODUCT to look for
+  std::vector<std::string> devices;   ///< scan --all: device files whose product to look for
 };
 
 [[noreturn]] void fail(int code, const std::string& message) {
@@ -138,32 +145,144 @@ std::string json_address(const nmt::LssAddress& a) {
 // Fastscan finds the lowest unconfigured address (above the last one found) and leaves that
 // device in LSS configuration; switch state global to waiting puts it back, still without
 // node-ID, and the next Fastscan looks above it (nmt/lss_master.hpp), so each is listed once.
-void run_scan(const LssCliOptions& o) {
-  auto session = open_or_exit(o);
-  switch_all(*session, nmt::LssState::Waiting);
+std::vector<nmt::LssAddress> fastscan_all(LssSession& session) {
+  switch_all(session, nmt::LssState::Waiting);
   std::vector<nmt::LssAddress> found;
   std::optional<nmt::LssAddress> after;
   for (;;) {
-    const auto e = run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+    const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
       return m.fastscan(now, out, after);
     });
     if (e.kind == Kind::NotFound) break;
-    if (!e.ok()) fail_service(*session, "Fastscan", e);
+    if (!e.ok()) fail_service(session, "Fastscan", e);
     found.push_back(e.address);
     after = e.address;
-    switch_all(*session, nmt::LssState::Waiting);
+    switch_all(session, nmt::LssState::Waiting);
+  }
+  return found;
+}
+
+// A product to look for with --all: vendor-ID and product code (1018h sub 1 and 2).
+using Product = std::pair<std::uint32_t, std::uint32_t>;
+
+// --product VENDOR:PRODUCT and the identity of each --device file; exits 2/1/3 on bad ones.
+std::set<Product> products_or_exit(const LssCliOptions& o) {
+  std::set<Product> products;
+  for (const auto& text : o.products) {
+    // The first two parts of an LSS address.
+    auto address = parse_lss_address(text + ":0:0");
+    if (!address) {
+      fail(tools::kExitUsage,
+           "--product " + text + ": expected VENDOR:PRODUCT, two hex numbers (1018h sub 1-2)");
+    }
+    products.emplace(address->vendor_id, address->product_code);
+  }
+  for (const auto& path : o.devices) {
+    auto text = tools::read_input(path);
+    if (!text) fail(tools::exit_code_for(text.error()), text.error().message);
+    cfg::ReadOptions read_options;
+    read_options.file_name = path;
+    auto read = cfg::parse_device_description(*text, read_options);
+    tools::print_diagnostics(read.diagnostics);
+    if (!read.ok()) exit_with(tools::kExitInputErrors);
+    // The identity the file says (1018h, else [DeviceInfo]), as the device answers it.
+    const cfg::DeviceIdentity identity = cfg::identity_of(*read.device, *cfg::NodeId::from(1));
+    if (!identity.vendor_id || !identity.product_code) {
+      fail(tools::kExitInputErrors,
+           path +
+               ": no vendor-ID and product code (1018h sub 1-2 or [DeviceInfo] VendorNumber, "
+               "ProductNumber): identify remote slave needs both");
+    }
+    products.emplace(*identity.vendor_id, *identity.product_code);
+  }
+  return products;
+}
+
+// Slowscan (nmt/lss_search.hpp): every device of the product, configured or not.
+std::vector<nmt::LssAddress> identify_all(LssSession& session, const Product& product) {
+  nmt::LssAddressSearch search(product.first, product.second);
+  while (const auto range = search.next()) {
+    const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+      return m.identify_remote_slaves(*range, now, out);
+    });
+    if (!e.ok() && e.kind != Kind::NotFound) fail_service(session, "identify remote slave", e);
+    search.answered(e.ok());
+  }
+  return search.found();
+}
+
+// The active node-ID of the device with `address` (FFh: unconfigured): switch state selective,
+// inquire node-ID (5Eh), back to waiting.
+std::uint32_t inquire_node_id_or_exit(LssSession& session, const nmt::LssAddress& address) {
+  select_or_exit(session, address);
+  const auto e = run_or_exit(session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
+    return m.inquire(nmt::LssService::InquireNodeId, now, out);
+  });
+  if (!e.ok()) fail_service(session, "LSS address " + lss_address_text(address), e);
+  switch_all(session, nmt::LssState::Waiting);
+  return e.value;
+}
+
+std::string node_id_text(std::uint32_t node_id) {
+  return node_id == nmt::lss::kUnconfigured ? std::string("FFh (unconfigured)")
+                                            : std::to_string(node_id);
+}
+
+std::string node_id_json(std::uint32_t node_id) {
+  return node_id == nmt::lss::kUnconfigured ? std::string("null") : std::to_string(node_id);
+}
+
+void run_scan(const LssCliOptions& o) {
+  if (!o.all && (!o.products.empty() || !o.devices.empty())) {
+    fail(tools::kExitUsage, "--product and --device go with --all");
+  }
+  std::set<Product> products = products_or_exit(o);
+  auto session = open_or_exit(o);
+  const std::vector<nmt::LssAddress> found = fastscan_all(*session);
+  // --all: the products of the unconfigured devices too, then every device of each product
+  // with its node-ID.
+  std::set<nmt::LssAddress> all(found.begin(), found.end());
+  std::vector<std::pair<nmt::LssAddress, std::uint32_t>> devices;
+  if (o.all) {
+    for (const auto& a : found) products.emplace(a.vendor_id, a.product_code);
+    for (const auto& product : products) {
+      for (const auto& a : identify_all(*session, product)) all.insert(a);
+    }
+    for (const auto& a : all) devices.emplace_back(a, inquire_node_id_or_exit(*session, a));
   }
   if (o.json) {
     std::string out = "{\"unconfigured\": [";
     for (std::size_t i = 0; i < found.size(); ++i) {
       out += (i ? ", " : "") + json_address(found[i]);
     }
-    std::cout << out << "]}\n" << std::flush;
+    out += "]";
+    if (o.all) {
+      out += ", \"devices\": [";
+      for (std::size_t i = 0; i < devices.size(); ++i) {
+        std::string device = json_address(devices[i].first);
+        device.pop_back();
+        out += (i ? ", " : "") + device + ", \"node_id\": " + node_id_json(devices[i].second) + "}";
+      }
+      out += "]";
+    }
+    std::cout << out << "}\n" << std::flush;
     return;
   }
-  for (const auto& a : found) std::cout << lss_address_text(a) << '\n';
+  if (!o.all) {
+    for (const auto& a : found) std::cout << lss_address_text(a) << '\n';
+    std::cout << std::flush;
+    std::cerr << "cfgmgr lss: " << tools::plural(found.size(), "unconfigured device") << '\n';
+    return;
+  }
+  for (const auto& [a, node_id] : devices) {
+    std::cout << lss_address_text(a) << "  node-ID " << node_id_text(node_id) << '\n';
+  }
   std::cout << std::flush;
-  std::cerr << "cfgmgr lss: " << tools::plural(found.size(), "unconfigured device") << '\n';
+  std::size_t unconfigured = 0;
+  for (const auto& d : devices) unconfigured += d.second == nmt::lss::kUnconfigured ? 1 : 0;
+  std::cerr << "cfgmgr lss: " << tools::plural(devices.size(), "device") << ", " << unconfigured
+            << " unconfigured (of " << tools::plural(products.size(), "product")
+            << " looked for)\n";
 }
 
 // --- set-id
@@ -240,17 +359,10 @@ void run_inquire(const LssCliOptions& o) {
   if (o.json) {
     std::string out = json_address(found);
     out.pop_back();
-    std::cout << out << ", \"node_id\": "
-              << (node_id == nmt::lss::kUnconfigured ? std::string("null")
-                                                     : std::to_string(node_id))
-              << "}\n"
-              << std::flush;
+    std::cout << out << ", \"node_id\": " << node_id_json(node_id) << "}\n" << std::flush;
     return;
   }
-  std::cout << lss_address_text(found) << "  node-ID "
-            << (node_id == nmt::lss::kUnconfigured ? std::string("FFh (unconfigured)")
-                                                   : std::to_string(node_id))
-            << '\n'
+  std::cout << lss_address_text(found) << "  node-ID " << node_id_text(node_id) << '\n'
             << std::flush;
 }
 
@@ -334,7 +446,20 @@ void add_lss_command(CLI::App& app) {
       ->check(CLI::PositiveNumber);
 
   auto* scan = cmd->add_subcommand(
-      "scan", "List the LSS addresses of all devices without node-ID (Fastscan); assigns nothing");
+      "scan",
+      "List the LSS addresses of all devices without node-ID (Fastscan); with --all every "
+      "device with its node-ID; assigns nothing");
+  scan->add_flag("--all", o->all,
+                 "Configured devices too: every device of each product looked for (those of "
+                 "the unconfigured devices, --product, --device) by identify remote slave over "
+                 "the whole revision and serial number range, each with its node-ID (inquire)");
+  scan->add_option("--product", o->products,
+                   "With --all: look for the devices of this product too (1018h sub 1-2, hex)")
+      ->type_name("VENDOR:PRODUCT");
+  scan->add_option("--device", o->devices,
+                   "With --all: look for the devices of this file's product too (its 1018h sub "
+                   "1-2 or [DeviceInfo] VendorNumber/ProductNumber)")
+      ->type_name("FILE.eds");
   scan->fallthrough();
   scan->callback([o] { run_scan(*o); });
 
@@ -385,6 +510,8 @@ void add_lss_command(CLI::App& app) {
   cmd->footer(std::string(
       "Actions:\n"
       "  scan                      the LSS addresses of all devices without node-ID, one a line\n"
+      "  scan --all                every device with its node-ID (configured ones: of the "
+      "products looked for)\n"
       "  set-id ADDRESS NODE-ID    give one device its node-ID (and store it)\n"
       "  inquire [ADDRESS]         a device's LSS address and node-ID\n"
       "  set-bitrate KBIT          the bit rate of the whole network\n\n"
@@ -392,17 +519,23 @@ void add_lss_command(CLI::App& app) {
       "(a DCF's [DeviceComissioning] LSS_SerialNumber gives the serial number). A device without "
       "node-ID (FFh) sends no boot-up and does not answer SDO until LSS gives it one; then it "
       "boots (boot-up 700h + node-ID). inquire without ADDRESS switches every device to LSS "
-      "configuration: use it with one LSS device on the bus only. set-bitrate changes the rate "
+      "configuration: use it with one LSS device on the bus only. Fastscan finds devices "
+      "without node-ID only; scan --all finds configured ones by identify remote slave, which "
+      "names vendor-ID and product code exactly, so only those of the products it is given or "
+      "finds unconfigured (a binary search: about 130 requests of --scan-step per device). "
+      "set-bitrate changes the rate "
       "of every device at once; switch the bus (ip link set can0 type can bitrate ...) and "
       "every other node along with them.\n\n"
       "Examples:\n"
       "  cfgmgr lss scan --bus socketcan:can0\n"
       "  cfgmgr lss scan --bus udp://239.74.163.2:43113 --json\n"
+      "  cfgmgr lss scan --bus socketcan:can0 --all --device drive.eds --product 7E57C0DE:305\n"
       "  cfgmgr lss set-id --bus socketcan:can0 7E57C0DE:00000305:00010002:00001001 5\n"
       "  cfgmgr lss inquire --bus socketcan:can0 7E57C0DE:305:10002:1001\n"
       "  cfgmgr lss set-bitrate --bus socketcan:can0 250 --delay-ms 200\n\n"
       "Exit codes:\n"
       "  0  done (scan: also when it found no device)\n"
+      "  1  a --device file has errors or names no vendor-ID and product code\n"
       "  2  usage error (bad command line, an ADDRESS or KBIT that does not parse, a --bus URL "
       "that does not parse or is sim:)\n"
       "  3  I/O error: the bus cannot be opened or fails\n"

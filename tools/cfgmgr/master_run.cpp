@@ -520,20 +520,25 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   }
   std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::SimulatedDevice>>> devices;
   bool state_failed = false;
+  // The network's node of each device (simulated_devices builds one per node with a DCF, in
+  // order): its state file's, whatever node-ID LSS gives the device.
+  std::vector<cfg::NodeId> owners;
+  for (const auto& n : network.nodes) {
+    if (n.dcf) owners.push_back(n.node_id);
+  }
   for (auto& device : built) {
     devices.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
     bus.attach(*devices.back());
     if (sim.state_dir.empty()) continue;
-    // The device's non-volatile memory follows every save (1010h) and restore (1011h) at once,
-    // as on a real device: a run that is cut short keeps what was saved before.
+    // The device's non-volatile memory follows every save (1010h), restore (1011h) and LSS
+    // store at once, as on a real device: a run that is cut short keeps what was saved before.
     auto* d = devices.back().get();
-    d->set_event_handler([d, &sim, &limits, &reporter, &state_failed](const nmt::SlaveEvent& e,
-                                                                      nmt::TimePoint) {
-      if (e.kind != nmt::SlaveEvent::Kind::Stored && e.kind != nmt::SlaveEvent::Kind::Restored) {
-        return;
-      }
-      if (auto saved = nmt::save_device_state(sim.state_dir, d->engine().node()); !saved) {
+    const cfg::NodeId owner = owners[devices.size() - 1];
+    d->set_event_handler([d, owner, &sim, &limits, &reporter, &state_failed](
+                             const nmt::SlaveEvent& e, nmt::TimePoint) {
+      if (!nmt::changes_device_state(e.kind)) return;
+      if (auto saved = nmt::save_device_state(sim.state_dir, owner, d->engine().node()); !saved) {
         if (!state_failed) reporter.note(prefix(limits.tool) + saved.error().message);
         state_failed = true;
       }

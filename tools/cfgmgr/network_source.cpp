@@ -187,13 +187,14 @@ cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
                         (unconfigured ? " unconfigured: " : ": ") + device.error().message};
     }
     if (!options.state_dir.empty()) {
-      // Like a real device, it powers on with what it saved last time (CiA 301 §7.5.2.13).
+      // Like a real device, it powers on with what it saved last time (CiA 301 §7.5.2.13),
+      // the node-ID LSS stored included (CiA 305).
       auto saved = nmt::load_device_state(options.state_dir, node.node_id);
       if (!saved) {
         return cfg::Error{saved.error().message + " (remove the file to start from the DCF)",
                           saved.error().category};
       }
-      if (*saved) device->node().set_stored(std::move(**saved));
+      if (*saved) nmt::restore_device_state(device->node(), std::move(**saved));
     }
     devices.push_back(std::move(device).value());
   }

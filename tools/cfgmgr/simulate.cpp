@@ -21,6 +21,7 @@
 #include "network_source.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
+#include "nmt/device_state.hpp"
 #include "nmt/simulated_device.hpp"
 #include "nmt/trace.hpp"
 
@@ -37,6 +38,7 @@ struct SimulateOptions {
   double boot_delay_ms = 0;
   double sdo_latency_ms = 0;
   double loss = 0;
+  std::string state_dir;
 };
 
 // The loop a signal handler stops; set only while run_simulation runs.
@@ -116,6 +118,9 @@ void run_simulate(const SimulateOptions& options) {
   std::vector<std::unique_ptr<nmt::SimulatedDevice>> devices;
   std::vector<std::string> names;
   std::vector<bool> unconfigured;  // per device: powers on without node-ID
+  // Per device, whose --state file it has: the node-ID it was given, or the LSS address of one
+  // started unconfigured (LSS may give either another node-ID).
+  std::vector<nmt::DeviceStateOwner> owners;
   std::map<std::uint8_t, std::string> by_node;
   for (const auto& arg : options.devices) {
     auto parsed = parse_device_arg(arg);
@@ -147,6 +152,7 @@ void run_simulate(const SimulateOptions& options) {
       devices.push_back(std::make_unique<nmt::SimulatedDevice>(std::move(device).value()));
       names.push_back(parsed->path);
       unconfigured.push_back(true);
+      owners.emplace_back(devices.back()->node().lss()->address());
       continue;
     }
     if (!parsed->node_id && !read.device->node_id()) {
@@ -176,6 +182,19 @@ void run_simulate(const SimulateOptions& options) {
     devices.push_back(std::make_unique<nmt::SimulatedDevice>(std::move(device).value()));
     names.push_back(parsed->path);
     unconfigured.push_back(false);
+    owners.emplace_back(*node);
+  }
+  if (!options.state_dir.empty()) {
+    // Like a real device, each powers on with what it stored last time: 1010h-saved values
+    // (CiA 301 §7.5.2.13) and the node-ID and bit rate of LSS store configuration (CiA 305).
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+      auto saved = nmt::load_device_state(options.state_dir, owners[i]);
+      if (!saved) {
+        std::cerr << saved.error().message << " (remove the file to start from the device file)\n";
+        exit_with(tools::exit_code_for(saved.error()));
+      }
+      if (*saved) nmt::restore_device_state(devices[i]->node(), std::move(**saved));
+    }
   }
 
   auto opened = nmt::open_bus(options.bus);
@@ -219,13 +238,30 @@ void run_simulate(const SimulateOptions& options) {
                   << std::flush;
       };
     }
+    if (!options.state_dir.empty()) {
+      // The state file follows every save, restore and LSS store at once, as a device's
+      // memory: a run killed later keeps it.
+      print = [print, &device, &options, owner = owners[i]](const nmt::SlaveEvent& e,
+                                                            nmt::TimePoint at) {
+        if (print) print(e, at);
+        if (!nmt::changes_device_state(e.kind)) return;
+        if (auto saved = nmt::save_device_state(options.state_dir, owner, device.node()); !saved) {
+          std::cerr << "cfgmgr simulate: " << saved.error().message << '\n';
+        }
+      };
+    }
     refs.push_back(std::make_unique<nmt::EngineRef<nmt::SimulatedDevice>>(device, print));
     loop.add(*refs.back());
-    if (unconfigured[i]) {
+    // What it powers on as: a node-ID LSS stored (--state) overrides the command line's.
+    const auto& stored = device.node().lss_stored();
+    const std::uint8_t id = stored            ? stored->node_id
+                            : unconfigured[i] ? nmt::lss::kUnconfigured
+                                              : device.node().node_id().value();
+    if (id == nmt::lss::kUnconfigured) {
       std::cout << "unconfigured (LSS address " << lss_address_text(device.node().lss()->address())
                 << ")";
     } else {
-      std::cout << "node " << int{device.node().node_id().value()};
+      std::cout << "node " << int{id} << (stored ? " (node-ID stored by LSS)" : "");
     }
     std::cout << ": " << names[i] << '\n';
   }
@@ -321,18 +357,28 @@ void add_simulate_command(CLI::App& app) {
   cmd->add_option("--loss", options->loss,
                   "Fault: each frame a device sends or receives is lost with this probability")
       ->type_name("RATE");
+  cmd->add_option("--state", options->state_dir,
+                  "Keep what each device stores in DIR, one file per device: the parameters "
+                  "saved with 1010h and the node-ID and bit rate of LSS store configuration; "
+                  "the next run with the same DIR powers them on with it, as a real device "
+                  "after a power cycle (files: node-NN.saved for DEVICE@NN, "
+                  "lss-VENDOR-PRODUCT-REVISION-SERIAL.saved for DEVICE@255)")
+      ->type_name("DIR");
   cmd->footer(std::string(
       "Examples:\n"
       "  cfgmgr simulate --bus udp://239.74.163.2:43113 io_module.eds@2 drive.eds@3\n"
       "  cfgmgr simulate --bus socketcan:vcan0 node4.dcf -v --candump run.log\n"
-      "  cfgmgr simulate io.eds@5 --for 10 --trace run.pcap --sdo-latency 50\n\n"
+      "  cfgmgr simulate io.eds@5 --for 10 --trace run.pcap --sdo-latency 50\n"
+      "  cfgmgr simulate --state /tmp/devices drive.eds@255\n"
+      "    (after `cfgmgr lss set-id ADDRESS 5` the next run with the same --state boots node "
+      "5)\n\n"
       "Ready: the line 'simulating N devices on BUS' on standard output says the bus is open "
       "and the devices are about to power on; a script or test that waits for it (rather than "
       "a fixed time) knows that frames it sends from then on reach them.\n\n"
       "Exit codes:\n"
       "  0  stopped by Ctrl-C/SIGTERM or --for elapsed\n"
       "  1  a device file has errors, or a device cannot be built from it (no node-ID, "
-      "bad value)\n"
+      "bad value), or a --state file is damaged\n"
       "  2  usage error (bad command line, node-ID twice, out of range, a --bus URL that does "
       "not parse)\n"
       "  3  I/O error: a file cannot be read, the bus cannot be opened or fails, a trace "

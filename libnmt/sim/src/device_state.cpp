@@ -35,24 +35,50 @@ std::optional<std::vector<std::uint8_t>> parse_bytes(std::string_view text) {
   return out;
 }
 
+// "7E57C0DE:00000305:00010002:00001001", as `cfgmgr lss` writes an LSS address.
+std::string address_text(const LssAddress& a, char separator) {
+  std::string text;
+  for (int sub = 0; sub < 4; ++sub) {
+    if (sub != 0) text += separator;
+    text += cfg::hex_digits(a.part(sub), 8);
+  }
+  return text;
+}
+
+// "node 5" / "the device with LSS address ...": whose a file is, in messages.
+std::string owner_words(const DeviceStateOwner& owner) {
+  if (owner.node) return "node " + std::to_string(owner.node->value());
+  return "the device with LSS address " + address_text(owner.lss, ':');
+}
+
 }  // namespace
 
-std::string format_device_state(cfg::NodeId node, const SavedValues& values) {
-  std::string text = "; values simulated node " + std::to_string(node.value()) +
-                     " saved with 1010h (CiA 301 §7.5.2.13): its non-volatile memory\nnode=" +
-                     std::to_string(node.value()) + "\n";
-  for (const auto& [key, bytes] : values) {
+std::string format_device_state(const DeviceStateOwner& owner, const DeviceState& state) {
+  std::string text = "; what simulated " + owner_words(owner) +
+                     " saved with 1010h (CiA 301 §7.5.2.13) and LSS store configuration "
+                     "(CiA 305): its non-volatile memory\n";
+  text += owner.node ? "node=" + std::to_string(owner.node->value())
+                     : "lss=" + address_text(owner.lss, ':');
+  text += '\n';
+  for (const auto& [key, bytes] : state.values) {
     text += cfg::hex_digits(key >> 8 & 0xFFFF, 4) + "sub" + cfg::hex_digits(key & 0xFF, 2) + "=";
     for (const std::uint8_t b : bytes) text += cfg::hex_digits(b, 2);
     text += '\n';
   }
-  return text + "end=" + std::to_string(values.size()) + "\n";
+  if (state.lss) {
+    text += "lss_node=" + std::to_string(state.lss->node_id) +
+            "\nlss_bit_timing=" + std::to_string(state.lss->bit_timing_index) + "\n";
+  }
+  return text + "end=" + std::to_string(state.values.size()) + "\n";
 }
 
-cfg::Result<SavedValues> parse_device_state(std::string_view text, const std::string& file,
-                                            cfg::NodeId node) {
+cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::string& file,
+                                            const DeviceStateOwner& owner) {
   SavedValues values;
   std::optional<std::uint64_t> node_id;
+  std::optional<std::string> lss_owner;
+  std::optional<std::uint64_t> lss_node;
+  std::optional<std::uint64_t> lss_bit_timing;
   bool ended = false;
   std::size_t number = 0;
   while (!text.empty()) {
@@ -66,13 +92,33 @@ cfg::Result<SavedValues> parse_device_state(std::string_view text, const std::st
     if (eq == std::string_view::npos) return parse_error(file, number, "expected NAME=VALUE");
     const std::string_view name = line.substr(0, eq);
     const std::string_view value = line.substr(eq + 1);
-    if (name == "node" || name == "end") {
+    if (name == "lss") {
+      lss_owner = std::string(value);
+      continue;
+    }
+    if (name == "node" || name == "end" || name == "lss_node" || name == "lss_bit_timing") {
       const auto parsed = cfg::parse_integer_literal(value);
       if (!parsed.literal) {
         return parse_error(file, number, "expected a number after " + std::string(name) + "=");
       }
+      const std::uint64_t n = parsed.literal->value;
       if (name == "node") {
-        node_id = parsed.literal->value;
+        node_id = n;
+      } else if (name == "lss_node") {
+        // CiA 305: 1..127, or FFh "not configured".
+        if (n != lss::kUnconfigured && !cfg::is_node_id(n)) {
+          return parse_error(
+              file, number,
+              "lss_node=" + std::string(value) + " is neither a node-ID 1..127 nor 255");
+        }
+        lss_node = n;
+      } else if (name == "lss_bit_timing") {
+        if (n > lss::kAutoBitRateIndex) {
+          return parse_error(file, number,
+                             "lss_bit_timing=" + std::string(value) +
+                                 " is no index of the CiA 305 bit timing table (0..9)");
+        }
+        lss_bit_timing = n;
       } else if (parsed.literal->value != values.size()) {
         return parse_error(file, number,
                            "end=" + std::string(value) + " but " + std::to_string(values.size()) +
@@ -97,43 +143,65 @@ cfg::Result<SavedValues> parse_device_state(std::string_view text, const std::st
     }
   }
   if (!ended) return parse_error(file, number, "no end= line: the file is cut short");
-  if (node_id != node.value()) {
-    return parse_error(file, 1, "the file is not node " + std::to_string(node.value()) + "'s");
+  const bool owned = owner.node ? node_id == owner.node->value() && !lss_owner
+                                : !node_id && lss_owner == address_text(owner.lss, ':');
+  if (!owned) return parse_error(file, 1, "the file is not " + owner_words(owner) + "'s");
+  if (lss_node.has_value() != lss_bit_timing.has_value()) {
+    return parse_error(file, number,
+                       "lss_node= and lss_bit_timing= come together: the file is damaged");
   }
-  return values;
+  DeviceState state{std::move(values), std::nullopt};
+  if (lss_node) {
+    state.lss = LssStoredConfig{static_cast<std::uint8_t>(*lss_node),
+                                static_cast<std::uint8_t>(*lss_bit_timing)};
+  }
+  return state;
 }
 
-std::filesystem::path device_state_file(const std::filesystem::path& directory, cfg::NodeId node) {
-  return directory / ("node-" + cfg::hex_digits(node.value(), 2) + ".saved");
+std::filesystem::path device_state_file(const std::filesystem::path& directory,
+                                        const DeviceStateOwner& owner) {
+  if (!owner.node) return directory / ("lss-" + address_text(owner.lss, '-') + ".saved");
+  return directory / ("node-" + cfg::hex_digits(owner.node->value(), 2) + ".saved");
 }
 
-cfg::Status save_device_state(const std::filesystem::path& directory, const SlaveNode& node) {
+cfg::Status save_device_state(const std::filesystem::path& directory, const DeviceStateOwner& owner,
+                              const SlaveNode& node) {
   std::error_code ec;
   std::filesystem::create_directories(directory, ec);
   if (ec) {
     return cfg::Error{"cannot create '" + directory.string() + "': " + ec.message(),
                       cfg::ErrorCategory::Io};
   }
-  const std::string text = format_device_state(node.node_id(), node.stored());
+  const std::string text = format_device_state(owner, {node.stored(), node.lss_stored()});
   const auto* data = reinterpret_cast<const std::uint8_t*>(text.data());
   return cfg::write_file_atomically(directory.string(),
-                                    device_state_file(directory, node.node_id()).filename(),
+                                    device_state_file(directory, owner).filename(),
                                     std::span(data, text.size()));
 }
 
-cfg::Result<std::optional<SavedValues>> load_device_state(const std::filesystem::path& directory,
-                                                          cfg::NodeId node) {
-  const std::filesystem::path file = device_state_file(directory, node);
+cfg::Result<std::optional<DeviceState>> load_device_state(const std::filesystem::path& directory,
+                                                          const DeviceStateOwner& owner) {
+  const std::filesystem::path file = device_state_file(directory, owner);
   std::ifstream in(file, std::ios::binary);
   if (!in) {
-    if (errno == ENOENT) return std::optional<SavedValues>();
+    if (errno == ENOENT) return std::optional<DeviceState>();
     return cfg::Error{"cannot read '" + file.string() + "': " + std::strerror(errno),
                       cfg::ErrorCategory::Io};
   }
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  auto values = parse_device_state(text, file.string(), node);
-  if (!values) return values.error();
-  return std::optional<SavedValues>(std::move(values).value());
+  auto state = parse_device_state(text, file.string(), owner);
+  if (!state) return state.error();
+  return std::optional<DeviceState>(std::move(state).value());
+}
+
+void restore_device_state(SlaveNode& node, DeviceState state) {
+  node.set_stored(std::move(state.values));
+  node.set_lss_stored(state.lss);
+}
+
+bool changes_device_state(SlaveEvent::Kind kind) {
+  return kind == SlaveEvent::Kind::Stored || kind == SlaveEvent::Kind::Restored ||
+         kind == SlaveEvent::Kind::Lss;
 }
 
 }  // namespace nmt

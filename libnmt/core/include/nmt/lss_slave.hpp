@@ -40,6 +40,14 @@ struct LssSlaveOptions {
   bool store_supported = true;
 };
 
+/// What store configuration (17h) keeps in a device's non-volatile memory: the node-ID (FFh: not
+/// configured) and the bit timing table index it powers on with.
+struct LssStoredConfig {
+  std::uint8_t node_id = lss::kUnconfigured;
+  std::uint8_t bit_timing_index = 2;
+  bool operator==(const LssStoredConfig&) const = default;
+};
+
 /// What the LSS slave reports to its owner.
 struct LssSlaveEvent {
   enum class Kind : std::uint8_t {
@@ -87,8 +95,9 @@ class LssSlave {
   void activate_pending_node_id() { active_node_id_ = pending_node_id_; }
   /// The owner switched to the pending bit rate.
   void activate_pending_bit_timing();
-  /// Power-on with `node_id` (the stored one, or FFh): LSS waiting, nothing pending but it.
-  void power_on(std::uint8_t node_id);
+  /// Power-on with `node_id` (the stored one, or FFh): LSS waiting, nothing pending but it;
+  /// running at `bit_timing_index` when given (the stored one).
+  void power_on(std::uint8_t node_id, std::optional<std::uint8_t> bit_timing_index = {});
 
  private:
   void answer(Output& out, lss::Cs cs, std::uint32_t value = 0);

@@ -204,6 +204,12 @@ class SlaveNode {
   /// node (see the top of this file) is dropped. Like a save, they act at the next power_on() or
   /// reset.
   void set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values);
+  /// What LSS store configuration (17h) saved, the node-ID and bit rate the node powers on
+  /// with; nullopt when it never stored (or has no LSS).
+  const std::optional<LssStoredConfig>& lss_stored() const { return lss_stored_; }
+  /// Replaces what LSS stored (the device's non-volatile memory, e.g. lss_stored() of an
+  /// earlier run kept in a file); acts at the next power_on(). Ignored without LSS.
+  void set_lss_stored(std::optional<LssStoredConfig> stored);
   /// Program state of 1F51h sub `program` (1..), nullopt when the node has no such program.
   std::optional<ProgramState> program_state(std::uint8_t program) const;
 
@@ -268,8 +274,9 @@ class SlaveNode {
   std::optional<LssSlave> lss_;
   /// No node-ID: only LSS is served, no boot-up.
   bool unconfigured_ = false;
-  /// The node-ID LSS store configuration saved (FFh: unconfigured); survives power cycles.
-  std::optional<std::uint8_t> lss_stored_node_id_;
+  /// The node-ID (FFh: unconfigured) and bit rate LSS store configuration saved; survive
+  /// power cycles.
+  std::optional<LssStoredConfig> lss_stored_;
   /// The node-ID the node powers on with when LSS stored none (FFh: created unconfigured).
   std::uint8_t power_on_node_id_ = lss::kUnconfigured;
   bool powered_ = false;

@@ -222,8 +222,8 @@ void SlaveNode::sync_parts() {
 void SlaveNode::power_on(TimePoint now) {
   powered_ = true;
   if (lss_) {
-    const std::uint8_t id = lss_stored_node_id_.value_or(power_on_node_id_);
-    lss_->power_on(id);
+    const std::uint8_t id = lss_stored_ ? lss_stored_->node_id : power_on_node_id_;
+    lss_->power_on(id, lss_stored_ ? std::optional(lss_stored_->bit_timing_index) : std::nullopt);
     if (id == lss::kUnconfigured) {
       nmt_.power_on();
       become_unconfigured(now);
@@ -267,7 +267,10 @@ bool SlaveNode::on_lss_frame(const CanFrame& frame, TimePoint now, Output& out) 
   forward_frames(lss_out, out);
   for (const auto& e : lss_out.events) {
     emit(SlaveEvent::Kind::Lss, now, e.text);
-    if (e.kind == LssSlaveEvent::Kind::StoreRequested) lss_stored_node_id_ = e.node_id;
+    if (e.kind == LssSlaveEvent::Kind::StoreRequested) {
+      lss_stored_ =
+          LssStoredConfig{e.node_id, e.bit_timing_index.value_or(lss_->bit_timing_index())};
+    }
     // CiA 305 (CANopenNode): a device without node-ID starts with the one it got.
     if (e.kind == LssSlaveEvent::Kind::NodeIdActivate && unconfigured_) {
       take_node_id(e.node_id, ResetScope::Application, now);
@@ -699,6 +702,10 @@ void SlaveNode::set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> va
                                 static_cast<std::uint8_t>(kv.first & 0xFF));
   });
   stored_ = std::move(values);
+}
+
+void SlaveNode::set_lss_stored(std::optional<LssStoredConfig> stored) {
+  if (lss_) lss_stored_ = stored;
 }
 
 void SlaveNode::restore_defaults(std::uint8_t area, TimePoint now) {

@@ -1,15 +1,22 @@
 // A simulated device's non-volatile memory on disk: the values 1010h 'save' stored
-// (SlaveNode::stored(), 1020h included), one file per node in a directory, so that a device
-// keeps its saved parameters from one run to the next as a real one keeps them across power
-// cycles (`cfgmgr push --bus sim:?state=DIR`: a second push finds 1020h as the first left it).
-//   auto saved = nmt::load_device_state(dir, node_id);   // before power_on()
-//   if (saved && *saved) device.node().set_stored(std::move(**saved));
-//   ... on SlaveEvent::Kind::Stored / Restored: nmt::save_device_state(dir, device.node());
+// (SlaveNode::stored(), 1020h included) and the node-ID and bit rate LSS store configuration
+// saved (SlaveNode::lss_stored(), CiA 305), one file per device in a directory, so that a device
+// keeps them from one run to the next as a real one keeps them across power cycles (`cfgmgr push
+// --bus sim:?state=DIR`: a second push finds 1020h as the first left it; `cfgmgr simulate
+// --state DIR FILE@255`: a device given node-ID 5 by LSS boots as node 5 next time).
+//   auto saved = nmt::load_device_state(dir, owner);   // before power_on()
+//   if (saved && *saved) nmt::restore_device_state(device.node(), std::move(**saved));
+//   ... on changes_device_state(event.kind): nmt::save_device_state(dir, owner, device.node());
 //
-// The file, "node-NN.saved" (NN the node-ID in two upper-case hex digits), is text:
+// A file belongs to the device's place, not to its current node-ID (LSS may change that): the
+// node-ID it was started with ("node-NN.saved", NN two upper-case hex digits), or for a device
+// started without one (LSS, FFh) its LSS address ("lss-VVVVVVVV-PPPPPPPP-RRRRRRRR-SSSSSSSS.saved").
+// The file is text:
 //   ; comment lines
-//   node=5
+//   node=5                    or lss=7E57C0DE:00000305:00010002:00001001 (whose file it is)
 //   1017sub00=E803            one line per saved value: index, sub-index, bytes in bus order
+//   lss_node=5                what LSS stored, when it did: node-ID (255: not configured) and
+//   lss_bit_timing=2          bit timing table index (CiA 305 table 0, 2 = 500 kbit/s)
 //   end=12                    the number of value lines: a file cut short is never taken
 #pragma once
 
@@ -23,6 +30,8 @@
 
 #include "cfg/node_id.hpp"
 #include "cfg/result.hpp"
+#include "nmt/lss.hpp"
+#include "nmt/lss_slave.hpp"
 #include "nmt/slave_node.hpp"
 
 namespace nmt {
@@ -31,27 +40,54 @@ namespace nmt {
 /// SlaveNode::stored() holds them.
 using SavedValues = std::map<std::uint32_t, std::vector<std::uint8_t>>;
 
-/// The file's text for node `node` and `values` (format above).
-std::string format_device_state(cfg::NodeId node, const SavedValues& values);
+/// Whose a state file is: the node-ID the device was started with, or the LSS address of a
+/// device started unconfigured (see the top of this file).
+struct DeviceStateOwner {
+  DeviceStateOwner(cfg::NodeId id) : node(id) {}  // NOLINT(google-explicit-constructor)
+  DeviceStateOwner(const LssAddress& address)     // NOLINT(google-explicit-constructor)
+      : lss(address) {}
+  std::optional<cfg::NodeId> node;
+  LssAddress lss;  ///< when !node
+};
+
+/// What a device keeps over power cycles: its 1010h-saved values and what LSS stored.
+struct DeviceState {
+  SavedValues values;
+  std::optional<LssStoredConfig> lss;
+  bool operator==(const DeviceState&) const = default;
+};
+
+/// The file's text for `owner` and `state` (format above).
+std::string format_device_state(const DeviceStateOwner& owner, const DeviceState& state);
 
 /// Parses the file's text (`file`: the name used in messages). Fails with
 /// "FILE:LINE: error: ..." when a line does not parse, the text is cut short (no end= or one
-/// that does not count the values) or names another node than `node`.
-cfg::Result<SavedValues> parse_device_state(std::string_view text, const std::string& file,
-                                            cfg::NodeId node);
+/// that does not count the values) or names another owner than `owner`.
+cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::string& file,
+                                            const DeviceStateOwner& owner);
 
-/// The file that holds node `node`'s saved values in `directory`.
-std::filesystem::path device_state_file(const std::filesystem::path& directory, cfg::NodeId node);
+/// The file that holds `owner`'s state in `directory`.
+std::filesystem::path device_state_file(const std::filesystem::path& directory,
+                                        const DeviceStateOwner& owner);
 
-/// Writes `node.stored()` to its file in `directory` (created if missing), crash-safe
-/// (cfg::write_file_atomically). Nothing saved writes a file without values, so that a 1011h
-/// restore is kept too. Fails (Io) naming the file.
-cfg::Status save_device_state(const std::filesystem::path& directory, const SlaveNode& node);
+/// Writes what `node` stores (stored(), lss_stored()) to `owner`'s file in `directory` (created
+/// if missing), crash-safe (cfg::write_file_atomically). Nothing saved writes a file without
+/// values, so that a 1011h restore is kept too. Fails (Io) naming the file.
+cfg::Status save_device_state(const std::filesystem::path& directory, const DeviceStateOwner& owner,
+                              const SlaveNode& node);
 
-/// The saved values of node `node` from its file in `directory`; nullopt when there is no file
-/// (the device has never saved). Fails as parse_device_state (Input), or when the file cannot be
-/// read (Io).
-cfg::Result<std::optional<SavedValues>> load_device_state(const std::filesystem::path& directory,
-                                                          cfg::NodeId node);
+/// `owner`'s state from its file in `directory`; nullopt when there is no file (the device has
+/// never saved). Fails as parse_device_state (Input), or when the file cannot be read (Io).
+cfg::Result<std::optional<DeviceState>> load_device_state(const std::filesystem::path& directory,
+                                                          const DeviceStateOwner& owner);
+
+/// Gives `node` the state as its non-volatile memory (set_stored, set_lss_stored): it acts at
+/// the next power_on().
+void restore_device_state(SlaveNode& node, DeviceState state);
+
+/// True for the events after which a device's state file is written again: 1010h save, 1011h
+/// restore, and LSS services (store configuration among them; the others write what was
+/// already there).
+bool changes_device_state(SlaveEvent::Kind kind);
 
 }  // namespace nmt

@@ -1,0 +1,114 @@
+// LSS Fastscan (CiA 305) of N unconfigured devices at 500 kbit/s on the simulated bus: the bus
+// time of `LssMaster::scan` (find each device by Fastscan, give it a node-ID, store it) against
+// the frame bound of the scan.
+//
+// The frame bound, counted from the protocol as nmt/lss_master.hpp describes it: per device the
+// Fastscan reset (BitCheck 80h), then per part of the LSS address (vendor-ID, product code,
+// revision, serial number) 32 bit queries and a confirmation, 1 + 4 x 33 = 133 requests; then
+// configure node-ID, store configuration and switch state global to waiting, 3 more: 136 per
+// device. Before them one switch state global of all devices, after them the reset nobody
+// answers: 136 N + 2 requests (tests/nmt/lss_master_test.cpp checks this count). Each is an
+// 8-byte standard frame, 111 bits on the wire before stuffing (SOF to CRC 98, delimiters, ACK
+// and EOF 10, intermission 3): 222 us at 500 kbit/s. The bound counts the master's requests
+// only, sent back to back; the devices' answers and the time a Fastscan step waits for them
+// (LssMasterOptions::scan_step, `cfgmgr lss --scan-step`) come on top.
+//
+// Counters: sim_s the simulated time of the scan, bound_s the frame bound, ratio sim / bound,
+// requests the master's frames (= 136 N + 2), frames all frames on the bus, load the bus load.
+// Args: N devices, scan step in microseconds (10000 = the engine's default of 10 ms).
+// Run from a Release build: build-x/bench/bench_lss_fastscan
+#include <benchmark/benchmark.h>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "nmt/lss.hpp"
+#include "nmt/lss_master.hpp"
+#include "nmt/lss_slave.hpp"
+#include "nmt/sim_bus.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr std::uint32_t kBitrate = 500'000;
+constexpr double kBitsPerRequest = 111.0;  // 8-byte standard frame before stuffing
+
+void BM_LssFastscan(benchmark::State& state) {
+  const auto n = static_cast<int>(state.range(0));
+  const auto step = nmt::Duration(state.range(1));
+  double sim_s = 0;
+  std::uint64_t requests = 0;
+  nmt::SimBusStats stats;
+  for (auto _ : state) {
+    state.PauseTiming();
+    nmt::SimBus bus(kBitrate);
+    nmt::LssMasterOptions options;
+    options.scan_step = step;
+    nmt::SimEngineNode<nmt::LssMaster> master(options);
+    bus.attach(master);
+    // One product, random serial numbers (a batch of new devices), the same every run.
+    std::mt19937 rng(static_cast<std::uint32_t>(n));
+    std::set<nmt::LssAddress> addresses;
+    while (static_cast<int>(addresses.size()) < n) {
+      addresses.insert(
+          nmt::LssAddress{0x0000019A, 0x00020001, 0x00010000, static_cast<std::uint32_t>(rng())});
+    }
+    std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::LssSlave>>> slaves;
+    for (const auto& a : addresses) {
+      slaves.push_back(
+          std::make_unique<nmt::SimEngineNode<nmt::LssSlave>>(a, nmt::lss::kUnconfigured));
+      auto* raw = slaves.back().get();
+      raw->set_event_handler([raw](const nmt::LssSlaveEvent& e, nmt::TimePoint) {
+        if (e.kind == nmt::LssSlaveEvent::Kind::NodeIdActivate) {
+          raw->engine().activate_pending_node_id();
+        }
+      });
+      bus.attach(*raw);
+    }
+    std::uint64_t sent = 0;
+    bus.add_observer([&sent](const nmt::CanFrame& f, nmt::TimePoint) {
+      sent += f.id == nmt::lss::kMasterCobId ? 1 : 0;
+    });
+    std::uint32_t assigned = 0;
+    master.set_event_handler([&assigned](const nmt::LssMasterEvent& e, nmt::TimePoint) {
+      assigned += e.kind == nmt::LssMasterEvent::Kind::Assigned ? 1 : 0;
+    });
+    state.ResumeTiming();
+    std::uint8_t next = 1;
+    const nmt::TimePoint start = bus.now();
+    master.apply([&next](auto& m, auto t, auto& o) {
+      return m.scan([&next](const nmt::LssAddress&) { return std::optional<std::uint8_t>(next++); },
+                    t, o);
+    });
+    if (!bus.run_until([&master] { return !master.engine().busy(); }, nmt::TimePoint{36000s}) ||
+        assigned != static_cast<std::uint32_t>(n)) {
+      state.SkipWithError("the scan did not configure every device");
+      return;
+    }
+    sim_s = static_cast<double>((bus.now() - start).count()) / 1e6;
+    requests = sent;
+    stats = bus.statistics();
+  }
+  const double bound_s =
+      static_cast<double>(136 * n + 2) * kBitsPerRequest / static_cast<double>(kBitrate);
+  state.counters["sim_s"] = sim_s;
+  state.counters["bound_s"] = bound_s;
+  state.counters["ratio"] = sim_s / bound_s;
+  state.counters["requests"] = static_cast<double>(requests);
+  state.counters["frames"] = static_cast<double>(stats.frames);
+  state.counters["load"] = stats.load();
+}
+BENCHMARK(BM_LssFastscan)
+    ->ArgsProduct({{1, 10, 50, 126}, {10000, 1000}})
+    ->ArgNames({"devices", "step_us"})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();
