@@ -330,5 +330,27 @@ TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
   EXPECT_EQ(m.error().message, "boot time (1F89h) 1500 us is not a whole number of milliseconds");
 }
 
+// CiA 306 lets a DCF list only some sub-indices of an ARRAY (1F81h with SubNumber=3: subs 0-2),
+// and the master reads an absent 1F81h/1F84h-1F88h entry as 0 (CiA 302-2 §6.3: not a slave, not
+// checked). The DCF path builds such a master, with the listed values and 0 elsewhere.
+TEST(MasterConfig, ADcfListingOnlySome1F81hSubIndicesBuildsWithTheOthersZero) {
+  std::ifstream in(std::string(CANOPEN_TEST_DATA_DIR) + "/network/master_wrong_vendor.dcf");
+  std::stringstream text;
+  text << in.rdbuf();
+  const cfg::DeviceDescription dcf = parse(text.str());
+  ASSERT_NE(dcf.sub(0x1F81, 2), nullptr);
+  ASSERT_EQ(dcf.sub(0x1F81, 3), nullptr);  // the file lists subs 0-2 only
+  auto read = MasterConfig::from_dcf(dcf, id(1));
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  const NmtMaster m = built(read.value());
+  auto direct = NmtMaster::create(dcf, id(1));
+  ASSERT_TRUE(direct.ok()) << direct.error().message;
+  EXPECT_EQ(value(m, 0x1F81, 2), 0x0000000DU);  // the file's ParameterValue (slave, bits 0, 2, 3)
+  EXPECT_EQ(value(direct.value(), 0x1F81, 2), 0x0000000DU);
+  // Sub 3 stays absent (no entry to fill), as on the direct path: the master reads it as 0.
+  EXPECT_FALSE(m.dictionary().get_unsigned(0x1F81, 3).has_value());
+  EXPECT_FALSE(direct.value().dictionary().get_unsigned(0x1F81, 3).has_value());
+}
+
 }  // namespace
 }  // namespace nmt
