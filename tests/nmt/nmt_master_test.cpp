@@ -199,7 +199,9 @@ TEST(NmtMaster, MissingMandatorySlaveHaltsStartUpAfterBootTime) {
   ASSERT_FALSE(errors.empty());
   EXPECT_TRUE(errors.back()->final);
   EXPECT_EQ(rig.of_kind(MasterEvent::Kind::StartupHalted).size(), 1U);
-  EXPECT_NE(rig.master().state(), NmtState::Operational);
+  // CiA 302-2 §3.1: "Before transition from NMT state Pre-operational to NMT state Operational
+  // of the CANopen manager all assigned NMT slaves shall be booted".
+  EXPECT_EQ(rig.master().state(), NmtState::PreOperational);
 }
 
 TEST(NmtMaster, OptionalSlaveAppearingLateIsBooted) {
