@@ -1,7 +1,6 @@
 #include "lss_session.hpp"
 
 #include <chrono>
-#include <cstdio>
 #include <utility>
 
 #include "master_run.hpp"
@@ -9,10 +8,7 @@
 namespace cfgmgr {
 
 std::string lss_address_text(const nmt::LssAddress& a) {
-  char text[40];
-  std::snprintf(text, sizeof text, "%08X:%08X:%08X:%08X", a.vendor_id, a.product_code, a.revision,
-                a.serial);
-  return text;
+  return nmt::address_digits(a);
 }
 
 std::optional<nmt::LssAddress> parse_lss_address(std::string_view text) {

@@ -36,19 +36,10 @@ std::optional<std::vector<std::uint8_t>> parse_bytes(std::string_view text) {
 }
 
 // "7E57C0DE:00000305:00010002:00001001", as `cfgmgr lss` writes an LSS address.
-std::string address_text(const LssAddress& a, char separator) {
-  std::string text;
-  for (int sub = 0; sub < 4; ++sub) {
-    if (sub != 0) text += separator;
-    text += cfg::hex_digits(a.part(sub), 8);
-  }
-  return text;
-}
-
 // "node 5" / "the device with LSS address ...": whose a file is, in messages.
 std::string owner_words(const DeviceStateOwner& owner) {
   if (owner.node) return "node " + std::to_string(owner.node->value());
-  return "the device with LSS address " + address_text(owner.lss, ':');
+  return "the device with LSS address " + address_digits(owner.lss, ':');
 }
 
 }  // namespace
@@ -58,7 +49,7 @@ std::string format_device_state(const DeviceStateOwner& owner, const DeviceState
                      " saved with 1010h (CiA 301 §7.5.2.13) and LSS store configuration "
                      "(CiA 305): its non-volatile memory\n";
   text += owner.node ? "node=" + std::to_string(owner.node->value())
-                     : "lss=" + address_text(owner.lss, ':');
+                     : "lss=" + address_digits(owner.lss, ':');
   text += '\n';
   for (const auto& [key, bytes] : state.values) {
     text += cfg::hex_digits(key >> 8 & 0xFFFF, 4) + "sub" + cfg::hex_digits(key & 0xFF, 2) + "=";
@@ -144,7 +135,7 @@ cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::st
   }
   if (!ended) return parse_error(file, number, "no end= line: the file is cut short");
   const bool owned = owner.node ? node_id == owner.node->value() && !lss_owner
-                                : !node_id && lss_owner == address_text(owner.lss, ':');
+                                : !node_id && lss_owner == address_digits(owner.lss, ':');
   if (!owned) return parse_error(file, 1, "the file is not " + owner_words(owner) + "'s");
   if (lss_node.has_value() != lss_bit_timing.has_value()) {
     return parse_error(file, number,
@@ -160,7 +151,7 @@ cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::st
 
 std::filesystem::path device_state_file(const std::filesystem::path& directory,
                                         const DeviceStateOwner& owner) {
-  if (!owner.node) return directory / ("lss-" + address_text(owner.lss, '-') + ".saved");
+  if (!owner.node) return directory / ("lss-" + address_digits(owner.lss, '-') + ".saved");
   return directory / ("node-" + cfg::hex_digits(owner.node->value(), 2) + ".saved");
 }
 

@@ -61,6 +61,9 @@ struct LssAddress {
 };
 /// "vendor 0000001Eh product 00000002h revision 00010000h serial 12345678h"
 std::string to_string(const LssAddress& address);
+/// "0000001E:00000002:00010000:12345678": the four parts in hex, as `cfgmgr lss` reads and
+/// prints them; `separator` '-' gives a file-name form.
+std::string address_digits(const LssAddress& address, char separator = ':');
 
 /// LSS states of a slave (the mode byte of switch state global).
 enum class LssState : std::uint8_t { Waiting = 0, Configuration = 1 };

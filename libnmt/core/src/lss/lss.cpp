@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
 
 namespace nmt {
 
@@ -37,6 +38,15 @@ std::string to_string(const LssAddress& a) {
   char text[96];
   std::snprintf(text, sizeof text, "vendor %08Xh product %08Xh revision %08Xh serial %08Xh",
                 a.vendor_id, a.product_code, a.revision, a.serial);
+  return text;
+}
+
+std::string address_digits(const LssAddress& a, char separator) {
+  std::string text;
+  for (int sub = 0; sub < 4; ++sub) {
+    if (sub != 0) text += separator;
+    text += cfg::hex_digits(a.part(sub), 8);
+  }
   return text;
 }
 

@@ -117,7 +117,7 @@ SdoAbort NmtMaster::Impl::store_read(std::uint16_t index, std::uint8_t sub) {
   if (is_stamp(index) && node) {
     // The one owner's value (expected_configuration), also for a node the manager lacks.
     const auto stamp = expected_configuration(sub);
-    value = u32_bytes(index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms);
+    value = cfg::le32_bytes(index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms);
   } else if (auto unstored = node ? unstored_read(index, *node) : std::nullopt) {
     if (unstored->abort != SdoAbort::None) return unstored->abort;
     value = std::move(unstored->data);
@@ -164,7 +164,7 @@ WriteVerdict NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
   if (is_stamp(index) && cfg::is_node_id(sub) && !stored_stamp(sub) && data.size() == 4) {
     // The manager takes the node over with the half that is not written.
     auto stamp = expected_configuration(sub);
-    (index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms) = low_u32(data);
+    (index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms) = cfg::low_le32(data);
     auto staged = manager.stage_expected_stamp(*cfg::NodeId::from(sub), stamp);
     if (!staged) return SdoAbort::ValueRangeExceeded;  // 1F27h: no time of day
     return persist_entry(std::move(staged).value(), now);

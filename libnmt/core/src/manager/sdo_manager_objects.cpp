@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <utility>
 
+#include "cfg/bytes.hpp"
 #include "cfg/object_index.hpp"
 #include "manager/sdo_manager_process.hpp"
 #include "master/master_support.hpp"
@@ -105,7 +106,7 @@ SdoAbort SdoManagerProcess::check_write(std::uint16_t index, std::uint8_t sub,
                                         std::span<const std::uint8_t> data) {
   // Every write comes here, DOMAINs of any length too (1F22h, 1F50h); the objects below have had
   // their size checked by the dictionary (0607 0010).
-  const auto value = low_u32(data);
+  const auto value = cfg::low_le32(data);
   if (index == obj::kSdoManagerCobIds) {
     if (sub == 0) return SdoAbort::None;
     for (std::uint8_t s = 1; s <= value_of(obj::kSdoManagerCobIds, 0) && s != 0; ++s) {

@@ -26,16 +26,12 @@ std::string stamp_text(cfg::ConfigurationStamp stamp) {
 }  // namespace
 
 std::uint32_t uploaded_u32(const SdoResult& result) {
-  return low_u32(result.data);
+  return cfg::low_le32(result.data);
 }
 
 std::string transfer_failure(const SdoResult& result) {
   return cfg::to_string({result.index, result.sub_index}) +
          (result.upload ? " upload" : " download") + " failed: " + to_string(result.abort);
-}
-
-std::vector<std::uint8_t> u32_bytes(std::uint32_t value) {
-  return cfg::le32_bytes(value);
 }
 
 BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& options) {

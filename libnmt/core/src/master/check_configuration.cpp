@@ -65,7 +65,7 @@ void BootSlaveProcess::begin_download(TimePoint now, Output& out) {
   if (restore) {
     set_step(BootStep::Restore, now, out);
     download(Phase::RestoreLoad, obj::kRestoreDefaultParameters, restore_sub,
-             u32_bytes(cfg::kLoadSignature), now);
+             cfg::le32_bytes(cfg::kLoadSignature), now);
     return;
   }
   plan_download(now, out);
@@ -105,11 +105,12 @@ void BootSlaveProcess::write_next(TimePoint now, Output& out) {
   const auto expected = port_->expectations(node_.value()).configuration;
   set_step(BootStep::Save, now, out);
   if (!expected.is_zero()) {
-    download(Phase::WriteVerifyDate, obj::kVerifyConfiguration, 1, u32_bytes(expected.days), now);
+    download(Phase::WriteVerifyDate, obj::kVerifyConfiguration, 1, cfg::le32_bytes(expected.days),
+             now);
     return;
   }
   if (options_.save_configuration) {
-    download(Phase::WriteSave, obj::kStoreParameters, 1, u32_bytes(cfg::kSaveSignature), now);
+    download(Phase::WriteSave, obj::kStoreParameters, 1, cfg::le32_bytes(cfg::kSaveSignature), now);
     return;
   }
   phase_ = Phase::WriteSave;
@@ -195,7 +196,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
         return;
       }
       download(Phase::WriteVerifyTime, obj::kVerifyConfiguration, 2,
-               u32_bytes(port_->expectations(node_.value()).configuration.ms), now);
+               cfg::le32_bytes(port_->expectations(node_.value()).configuration.ms), now);
       return;
     case Phase::WriteVerifyTime:
       if (!r.ok()) {
@@ -203,7 +204,8 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
         return;
       }
       if (options_.save_configuration) {
-        download(Phase::WriteSave, obj::kStoreParameters, 1, u32_bytes(cfg::kSaveSignature), now);
+        download(Phase::WriteSave, obj::kStoreParameters, 1, cfg::le32_bytes(cfg::kSaveSignature),
+                 now);
         return;
       }
       [[fallthrough]];

@@ -42,10 +42,6 @@ constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (
 
 }  // namespace
 
-std::uint32_t low_u32(std::span<const std::uint8_t> data) {
-  return cfg::low_le32(data);
-}
-
 DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
                            cfg::DataType type, cfg::AccessType access, std::uint64_t value) {
   DictionaryEntry e;
@@ -251,7 +247,7 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
                                       std::span<const std::uint8_t> data, TimePoint now) {
   // Every write comes here, DOMAINs of any length too; the numeric objects below have had their
   // size checked by the dictionary (0607 0010).
-  const auto value = low_u32(data);
+  const auto value = cfg::low_le32(data);
   switch (index) {
     case obj::kNmtStartup:
       return startup_problem(value) ? SdoAbort::ValueRangeExceeded : SdoAbort::None;

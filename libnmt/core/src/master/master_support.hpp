@@ -18,14 +18,9 @@ namespace nmt {
 /// An entry of the master's own objects with `value` in the type's size (0 bytes for DOMAIN).
 DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string name,
                            cfg::DataType type, cfg::AccessType access, std::uint64_t value);
-/// The first up to 4 bytes of `data`, little-endian, 0 when empty: the low 32 bits of a number
-/// from the bus, whose length the bus decides (cfg::load_le asserts 1..8 bytes).
-std::uint32_t low_u32(std::span<const std::uint8_t> data);
 /// The first up to 4 bytes of an upload, little-endian (UNSIGNED32 objects); 0 when empty.
 std::uint32_t uploaded_u32(const SdoResult& result);
 /// "1018h sub 01h upload failed: 0x05040000 (SDO protocol timed out)".
 std::string transfer_failure(const SdoResult& result);
-/// An UNSIGNED32 value as download bytes.
-std::vector<std::uint8_t> u32_bytes(std::uint32_t value);
 
 }  // namespace nmt
