@@ -280,17 +280,8 @@ void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Out
 NmtMaster::TransferId NmtMaster::sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
                                             TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
-  auto& m = *impl_;
-  MasterTransfer t;
-  t.for_application = true;
-  t.application_id = m.next_application_id++;
-  t.index = index;
-  t.sub = sub;
-  t.upload = true;
-  t.options.timeout = m.options.sdo_timeout;
-  const auto id = t.application_id;
-  m.start_transfer(node, std::move(t), now);
-  m.settle(now, out);
+  const auto id = impl_->start_application_transfer(node, index, sub, true, {}, now);
+  impl_->settle(now, out);
   return id;
 }
 
@@ -298,18 +289,27 @@ NmtMaster::TransferId NmtMaster::sdo_download(cfg::NodeId node, std::uint16_t in
                                               std::uint8_t sub, std::vector<std::uint8_t> data,
                                               TimePoint now, Output& out) {
   CallScope scope(*impl_, out);
-  auto& m = *impl_;
+  const auto id = impl_->start_application_transfer(node, index, sub, false, std::move(data), now);
+  impl_->settle(now, out);
+  return id;
+}
+
+SdoClient::TransferId NmtMaster::Impl::start_application_transfer(cfg::NodeId node,
+                                                                  std::uint16_t index,
+                                                                  std::uint8_t sub, bool upload,
+                                                                  std::vector<std::uint8_t> data,
+                                                                  TimePoint now) {
   MasterTransfer t;
   t.for_application = true;
-  t.application_id = m.next_application_id++;
+  t.application_id = next_application_id++;
   t.index = index;
   t.sub = sub;
+  t.upload = upload;
   t.data = std::move(data);
-  t.options.timeout = m.options.sdo_timeout;
-  if (t.data.size() > m.options.block_threshold) t.options.mode = SdoMode::Block;
+  t.options.timeout = options.sdo_timeout;
+  if (t.data.size() > options.block_threshold) t.options.mode = SdoMode::Block;
   const auto id = t.application_id;
-  m.start_transfer(node, std::move(t), now);
-  m.settle(now, out);
+  start_transfer(node, std::move(t), now);
   return id;
 }
 

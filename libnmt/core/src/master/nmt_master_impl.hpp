@@ -292,6 +292,10 @@ struct NmtMaster::Impl {
 
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
+  /// sdo_upload()/sdo_download() of the application: its id, timeout, block above the threshold.
+  SdoClient::TransferId start_application_transfer(cfg::NodeId node, std::uint16_t index,
+                                                   std::uint8_t sub, bool upload,
+                                                   std::vector<std::uint8_t> data, TimePoint now);
   void dispatch(const SdoResult& result, TimePoint now, Output& out);
   void forget_transfer(
       std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it);
