@@ -3,7 +3,8 @@
 // slave), either a store directory (--store DIR, cfg::ConfigManager) or a running master's
 // objects over SDO (--bus URL --master N, e.g. `cfgmgr master ... --store DIR`). Both go through
 // the same object view, index and sub-index as a CANopen tool sees them: locally the manager's
-// read/write, remotely SDO uploads and downloads.
+// read/write, remotely SDO uploads and downloads. The operations are libnmt's
+// nmt::ConfigStoreClient (nmt/config_store_client.hpp); this file is the command line.
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
@@ -18,38 +19,18 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
-#include "cfg/bytes.hpp"
 #include "cfg/config_manager.hpp"
-#include "cfg/integer_literal.hpp"
-#include "cfg/network.hpp"
 #include "cfg/node_id.hpp"
-#include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "commands.hpp"
 #include "nmt/bus.hpp"
-#include "nmt/sdo_client.hpp"
-#include "nmt/sdo_session.hpp"
+#include "nmt/config_store_client.hpp"
+#include "nmt/remote_config_store.hpp"
 
 namespace cfgmgr {
 namespace {
 
-namespace obj = cfg::object;
 constexpr std::string_view kTool = "store";
-
-/// What a node's entry is: the three files of DSP 302 §6.
-enum class What : std::uint8_t { Dcf, Concise, Eds };
-
-std::uint16_t index_of(What what) {
-  switch (what) {
-    case What::Dcf:
-      return obj::kStoreDcf;
-    case What::Eds:
-      return obj::kStoreEds;
-    case What::Concise:
-      break;
-  }
-  return obj::kConciseDcf;
-}
 
 struct StoreCliOptions {
   std::string store;  ///< --store DIR
@@ -69,126 +50,47 @@ struct StoreCliOptions {
   exit_with(code);
 }
 
-/// The answer of a read or write: an SDO abort code (0: done), the value, and why.
-struct Access {
-  std::uint32_t abort = 0;
-  std::vector<std::uint8_t> data;
-  std::string message;
-  /// The store directory could not be written, or the master did not answer (exit 3).
-  bool io = false;
-  bool ok() const { return abort == 0; }
-};
-
-/// The store as objects (index, sub-index).
-class Store {
- public:
-  virtual ~Store() = default;
-  virtual Access read(std::uint16_t index, std::uint8_t sub) = 0;
-  virtual Access write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) = 0;
-  virtual bool remote() const = 0;
-};
-
-/// A store directory through cfg::ConfigManager.
-class LocalStore final : public Store {
- public:
-  explicit LocalStore(cfg::ConfigManager manager) : manager_(std::move(manager)) {}
-  Access read(std::uint16_t index, std::uint8_t sub) override {
-    auto r = manager_.read(index, sub);
-    return {static_cast<std::uint32_t>(r.abort), std::move(r.data), std::move(r.message)};
-  }
-  Access write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) override {
-    auto r = manager_.write(index, sub, data);
-    // cfg/config_manager.hpp: 0800 0020h is a directory that could not be written (1F25h,
-    // whose wrong signature gives it too, is never written to a store directory).
-    const bool io = r.abort == cfg::SdoAbort::CannotStoreOrTransfer;
-    return {static_cast<std::uint32_t>(r.abort), {}, std::move(r.message), io};
-  }
-  bool remote() const override { return false; }
-
- private:
-  cfg::ConfigManager manager_;
-};
-
-/// A master's configuration manager over SDO (its server at 600h/580h + node-ID).
-class RemoteStore final : public Store {
- public:
-  RemoteStore(std::unique_ptr<nmt::SdoSession> session, nmt::Duration timeout)
-      : session_(std::move(session)) {
-    options_.timeout = timeout;
-    // Files are long: block transfer (CiA 301 §7.2.4.3.9), segmented when the server has none.
-    options_.mode = nmt::SdoMode::Block;
-  }
-  Access read(std::uint16_t index, std::uint8_t sub) override {
-    return access(session_->upload(index, sub, options_));
-  }
-  Access write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) override {
-    return access(session_->download(index, sub, std::move(data), options_));
-  }
-  bool remote() const override { return true; }
-
- private:
-  static Access access(cfg::Result<nmt::SdoResult> result) {
-    if (!result) fail(tools::kExitIo, result.error().message);
-    Access a;
-    a.abort = static_cast<std::uint32_t>(result->abort);
-    a.data = std::move(result->data);
-    if (!result->ok()) a.message = nmt::to_string(result->abort);
-    a.io = result->abort == nmt::SdoAbort::Timeout;
-    return a;
-  }
-
-  std::unique_ptr<nmt::SdoSession> session_;
-  nmt::SdoTransferOptions options_;
-};
-
-std::uint8_t parse_node(const std::string& text, bool allow_all = false) {
-  if (allow_all && text == "all") return cfg::kConfigureAllNodes;
-  const auto node = tools::parse_node_id_argument(text);
-  if (!node) {
-    fail(tools::kExitUsage,
-         tools::node_id_argument_error("NODE", text) + (allow_all ? " or all" : ""));
-  }
-  return *node;
+/// The client's failures: exit 3 when the store or the master could not be reached, else 1.
+template <class T>
+T must(cfg::Result<T> result, const std::string& prefix = {}) {
+  if (!result) fail(tools::exit_code_for(result.error()), prefix + result.error().message);
+  return std::move(result).value();
 }
 
-std::optional<What> parse_what(const std::string& text) {
-  if (text == "dcf") return What::Dcf;
-  if (text == "concise") return What::Concise;
-  if (text == "eds") return What::Eds;
+void must(const cfg::Status& status) {
+  if (!status) fail(tools::exit_code_for(status.error()), status.error().message);
+}
+
+cfg::NodeId parse_node(const std::string& text) {
+  const auto node = tools::parse_node_id_argument(text);
+  if (!node) fail(tools::kExitUsage, tools::node_id_argument_error("NODE", text));
+  return *cfg::NodeId::from(*node);
+}
+
+std::optional<nmt::StoreFile> parse_what(const std::string& text) {
+  if (text == "dcf") return nmt::StoreFile::Dcf;
+  if (text == "concise") return nmt::StoreFile::Concise;
+  if (text == "eds") return nmt::StoreFile::Eds;
   if (!text.empty()) fail(tools::kExitUsage, "--what " + text + ": expected dcf, concise or eds");
   return std::nullopt;
 }
 
 /// put: --what, else the file's extension.
-What what_of_file(const std::string& path, const std::string& what) {
+nmt::StoreFile what_of_file(const std::string& path, const std::string& what) {
   if (auto w = parse_what(what)) return *w;
   std::string ext = path.substr(std::min(path.size(), path.rfind('.') + 1));
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (path.rfind('.') == std::string::npos) ext.clear();
-  if (ext == "dcf") return What::Dcf;
-  if (ext == "eds") return What::Eds;
-  if (ext == "bin" || ext == "cdcf" || ext == "concise") return What::Concise;
+  if (ext == "dcf") return nmt::StoreFile::Dcf;
+  if (ext == "eds") return nmt::StoreFile::Eds;
+  if (ext == "bin" || ext == "cdcf" || ext == "concise") return nmt::StoreFile::Concise;
   fail(tools::kExitUsage, path +
                               ": cannot tell a DCF (.dcf), an EDS (.eds) or a concise DCF (.bin, "
                               ".cdcf) from the name; give --what dcf|concise|eds");
 }
 
-[[noreturn]] void fail_access(const Access& a, std::uint16_t index, std::uint8_t sub) {
-  std::string text = cfg::to_string(cfg::ObjectAddress{index, sub}) + ": ";
-  // The manager's words when it has them, and always the CiA 301 code with its text.
-  const std::string code = nmt::to_string(static_cast<nmt::SdoAbort>(a.abort));
-  text += a.message.empty() ? code : a.message;
-  if (a.message.find(code) == std::string::npos) text += " (SDO abort " + code + ")";
-  fail(a.io ? tools::kExitIo : tools::kExitInputErrors, text);
-}
-
-Access must(Access a, std::uint16_t index, std::uint8_t sub) {
-  if (!a.ok()) fail_access(a, index, sub);
-  return a;
-}
-
-std::unique_ptr<Store> open_store(const StoreCliOptions& o) {
+std::unique_ptr<nmt::StoreObjects> open_store(const StoreCliOptions& o) {
   const bool local = !o.store.empty();
   const bool remote = !o.bus.empty() || !o.master.empty();
   if (local == remote) {
@@ -199,7 +101,7 @@ std::unique_ptr<Store> open_store(const StoreCliOptions& o) {
     if (!opened) fail(tools::kExitIo, opened.error().message);
     // A damaged entry is reported and not used (cfg/config_manager.hpp).
     tools::print_diagnostics(opened.value().problems());
-    return std::make_unique<LocalStore>(std::move(opened).value());
+    return std::make_unique<nmt::StoreDirectoryObjects>(std::move(opened).value());
   }
   if (o.bus.empty() || o.master.empty()) {
     fail(tools::kExitUsage, "--bus URL and --master N go together");
@@ -214,107 +116,46 @@ std::unique_ptr<Store> open_store(const StoreCliOptions& o) {
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
     fail(tools::kExitUsage, checked.error().message);
   }
-  auto session = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(*master));
-  if (!session) fail(tools::kExitIo, session.error().message);
   const auto timeout = nmt::Duration(static_cast<std::int64_t>(o.sdo_timeout_s * 1e6));
-  return std::make_unique<RemoteStore>(std::move(session).value(), timeout);
+  auto opened = nmt::open_remote_store(o.bus, *cfg::NodeId::from(*master), timeout);
+  if (!opened) fail(tools::kExitIo, opened.error().message);
+  return std::move(opened).value();
 }
 
-/// The stamp a configuration stands for: configuration_stamp() of its writes as a concise DCF,
-/// the rule derived masters use (cfg/network.hpp). The file is checked as the manager checks
-/// it (in memory), so a file the master would refuse is refused here, before the bus.
-cfg::ConfigurationStamp stamp_of(What what, cfg::NodeId node, const std::vector<std::uint8_t>& data,
-                                 const std::string& path) {
-  cfg::ConfigManager check;
-  const auto put = check.write(index_of(what), node.value(), data);
-  if (!put.ok()) fail(tools::kExitInputErrors, path + ": " + put.message);
-  const auto writes = check.configuration_or_error(node);
-  if (!writes) fail(tools::kExitInputErrors, path + ": " + writes.error().message);
-  return cfg::configuration_stamp(cfg::encode_concise_dcf(writes.value()));
-}
-
-void put(Store& store, const StoreCliOptions& o) {
-  const std::uint8_t node = parse_node(o.node);
-  const What what = what_of_file(o.file, o.what);
+void put(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
+  const cfg::NodeId node = parse_node(o.node);
+  const nmt::StoreFile what = what_of_file(o.file, o.what);
   auto text = tools::read_input(o.file);
   if (!text) fail(tools::kExitIo, text.error().message);
   const std::string_view view = text.value().view();
   std::vector<std::uint8_t> data(view.begin(), view.end());
   if (data.empty()) fail(tools::kExitInputErrors, o.file + ": the file is empty (rm removes)");
-  std::optional<cfg::ConfigurationStamp> stamp;
-  if (what != What::Eds) stamp = stamp_of(what, *cfg::NodeId::from(node), data, o.file);
   const std::size_t size = data.size();
-  must(store.write(index_of(what), node, std::move(data)), index_of(what), node);
-  if (stamp) {
-    must(store.write(obj::kExpectedConfigurationDate, node, cfg::le32_bytes(stamp->days)),
-         obj::kExpectedConfigurationDate, node);
-    must(store.write(obj::kExpectedConfigurationTime, node, cfg::le32_bytes(stamp->ms)),
-         obj::kExpectedConfigurationTime, node);
-  }
-  std::cerr << "cfgmgr store: node " << int{node} << ": " << size << " bytes to "
-            << cfg::object_name(index_of(what));
+  // A file the manager would refuse is named by its path.
+  const auto stamp = must(store.put(node, what, std::move(data)), o.file + ": ");
+  std::cerr << "cfgmgr store: node " << int{node.value()} << ": " << size << " bytes to "
+            << cfg::object_name(nmt::store_index(what));
   if (stamp) {
     std::cerr << ", 1F26h/1F27h = " << stamp->days << " days, " << stamp->ms << " ms";
   }
   std::cerr << '\n';
 }
 
-void get(Store& store, const StoreCliOptions& o) {
-  const std::uint8_t node = parse_node(o.node);
-  const What what = parse_what(o.what).value_or(What::Concise);
-  const auto a = must(store.read(index_of(what), node), index_of(what), node);
-  const std::string_view bytes(reinterpret_cast<const char*>(a.data.data()), a.data.size());
+void get(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
+  const cfg::NodeId node = parse_node(o.node);
+  const auto data = must(store.get(node, parse_what(o.what).value_or(nmt::StoreFile::Concise)));
+  const std::string_view bytes(reinterpret_cast<const char*>(data.data()), data.size());
   if (auto written = tools::write_output(o.output, bytes); !written) {
     fail(tools::kExitIo, written.error().message);
   }
-}
-
-/// What list shows of one node.
-struct Listed {
-  std::uint8_t node = 0;
-  std::optional<std::size_t> dcf, eds;
-  std::size_t concise_entries = 0;
-  std::size_t concise_bytes = 0;  ///< 0: none (an empty 1F22h reads as the 4-byte count 0)
-  cfg::ConfigurationStamp stamp;
-  bool empty() const { return !dcf && !eds && concise_bytes == 0 && stamp.is_zero(); }
-};
-
-std::optional<std::size_t> size_or_empty(Store& store, std::uint16_t index, std::uint8_t node) {
-  auto a = store.read(index, node);
-  // DSP 302 §6.1/§6.5: nothing stored reads as 0800 0024h.
-  if (a.abort == static_cast<std::uint32_t>(cfg::SdoAbort::NoDataAvailable)) return std::nullopt;
-  return must(std::move(a), index, node).data.size();
-}
-
-std::uint32_t read_u32(Store& store, std::uint16_t index, std::uint8_t node) {
-  const auto a = must(store.read(index, node), index, node);
-  return cfg::low_le32(a.data);
-}
-
-Listed list_node(Store& store, std::uint8_t node) {
-  Listed l;
-  l.node = node;
-  l.dcf = size_or_empty(store, obj::kStoreDcf, node);
-  l.eds = size_or_empty(store, obj::kStoreEds, node);
-  const auto concise = must(store.read(obj::kConciseDcf, node), obj::kConciseDcf, node);
-  // §6.2: the stream starts with the number of entries (UNSIGNED32).
-  if (concise.data.size() >= 4) l.concise_entries = cfg::load_le32(concise.data);
-  if (l.concise_entries != 0) l.concise_bytes = concise.data.size();
-  l.stamp = {read_u32(store, obj::kExpectedConfigurationDate, node),
-             read_u32(store, obj::kExpectedConfigurationTime, node)};
-  return l;
 }
 
 std::string size_text(std::optional<std::size_t> size) {
   return size ? std::to_string(*size) : std::string("-");
 }
 
-void list(Store& store, const StoreCliOptions& o) {
-  std::vector<Listed> nodes;
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    auto l = list_node(store, static_cast<std::uint8_t>(node));
-    if (!l.empty()) nodes.push_back(l);
-  }
+void list(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
+  const auto nodes = must(store.list());
   std::ostringstream out;
   if (o.json) {
     out << "{\"nodes\": [";
@@ -323,12 +164,12 @@ void list(Store& store, const StoreCliOptions& o) {
       auto number = [](std::optional<std::size_t> v) {
         return v ? std::to_string(*v) : std::string("null");
       };
-      out << sep << "\n  {\"node_id\": " << int{l.node} << ", \"dcf_bytes\": " << number(l.dcf)
-          << ", \"concise_bytes\": "
+      out << sep << "\n  {\"node_id\": " << int{l.node.value()}
+          << ", \"dcf_bytes\": " << number(l.dcf_bytes) << ", \"concise_bytes\": "
           << number(l.concise_bytes != 0 ? std::optional(l.concise_bytes) : std::nullopt)
-          << ", \"concise_entries\": " << l.concise_entries << ", \"eds_bytes\": " << number(l.eds)
-          << ", \"expected_date\": " << l.stamp.days << ", \"expected_time\": " << l.stamp.ms
-          << "}";
+          << ", \"concise_entries\": " << l.concise_entries
+          << ", \"eds_bytes\": " << number(l.eds_bytes) << ", \"expected_date\": " << l.stamp.days
+          << ", \"expected_time\": " << l.stamp.ms << "}";
       sep = ",";
     }
     out << (nodes.empty() ? "" : "\n") << "]}\n";
@@ -341,9 +182,9 @@ void list(Store& store, const StoreCliOptions& o) {
     for (const auto& l : nodes) {
       const std::string concise =
           l.concise_bytes != 0 ? std::to_string(l.concise_bytes) : std::string("-");
-      std::snprintf(line, sizeof line, "%-5d %10s %10s %8zu %10s %8u %10u\n", int{l.node},
-                    size_text(l.dcf).c_str(), concise.c_str(), l.concise_entries,
-                    size_text(l.eds).c_str(), l.stamp.days, l.stamp.ms);
+      std::snprintf(line, sizeof line, "%-5d %10s %10s %8zu %10s %8u %10u\n", int{l.node.value()},
+                    size_text(l.dcf_bytes).c_str(), concise.c_str(), l.concise_entries,
+                    size_text(l.eds_bytes).c_str(), l.stamp.days, l.stamp.ms);
       out << line;
     }
   }
@@ -352,27 +193,21 @@ void list(Store& store, const StoreCliOptions& o) {
   if (!std::cout) fail(tools::kExitIo, "<stdout>: write error");
 }
 
-void remove(Store& store, const StoreCliOptions& o) {
-  const std::uint8_t node = parse_node(o.node);
-  // §6.2 application hint 1: the empty data set is the stream with count 0; an empty DCF/EDS
-  // removes those (cfg/config_manager.hpp); 1F26h/1F27h = 0 mean "do not verify".
-  must(store.write(obj::kConciseDcf, node, cfg::le32_bytes(0)), obj::kConciseDcf, node);
-  must(store.write(obj::kStoreDcf, node, {}), obj::kStoreDcf, node);
-  must(store.write(obj::kStoreEds, node, {}), obj::kStoreEds, node);
-  must(store.write(obj::kExpectedConfigurationDate, node, cfg::le32_bytes(0)),
-       obj::kExpectedConfigurationDate, node);
-  must(store.write(obj::kExpectedConfigurationTime, node, cfg::le32_bytes(0)),
-       obj::kExpectedConfigurationTime, node);
+void remove(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
+  must(store.remove(parse_node(o.node)));
 }
 
-void configure(Store& store, const StoreCliOptions& o) {
-  const std::uint8_t sub = parse_node(o.node, /*allow_all=*/true);
+void configure(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
+  std::optional<cfg::NodeId> node;
+  if (o.node != "all") {
+    const auto id = tools::parse_node_id_argument(o.node);
+    if (!id) fail(tools::kExitUsage, tools::node_id_argument_error("NODE", o.node) + " or all");
+    node = cfg::NodeId::from(*id);
+  }
   if (!store.remote()) {
     fail(tools::kExitUsage, "configure asks a running master: give --bus URL --master N");
   }
-  // DSP 302 §6.4: the signature 'conf' = 666E6F63h.
-  must(store.write(obj::kConfigureSlave, sub, cfg::le32_bytes(cfg::kConfigureSignature)),
-       obj::kConfigureSlave, sub);
+  must(store.configure(node));
 }
 
 void add_target_options(CLI::App& cmd, StoreCliOptions& o) {
@@ -405,10 +240,11 @@ void add_store_command(CLI::App& app) {
   // On `store` itself, so that they may come before or after the action (fallthrough) and
   // `cfgmgr store --help` (the man page) lists them.
   add_target_options(*cmd, *o);
-  auto run = [o](void (*action)(Store&, const StoreCliOptions&)) {
+  auto run = [o](void (*action)(nmt::ConfigStoreClient&, const StoreCliOptions&)) {
     return [o, action] {
-      auto store = open_store(*o);
-      action(*store, *o);
+      auto objects = open_store(*o);
+      nmt::ConfigStoreClient client(*objects);
+      action(client, *o);
     };
   };
 
