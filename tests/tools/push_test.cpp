@@ -349,4 +349,16 @@ TEST(Push, BadArgumentsExit2) {
   EXPECT_EQ(cfgmgr(dir, {"push", dir / "absent.cpj", "--bus", "sim:"}).exit_code, 3);
 }
 
+// --boot-time goes into 1F89h through the master's typed configuration: UNSIGNED32 ms (CiA
+// 302-2 §6.11), so 5000000 s (5e9 ms) does not fit, and nothing reaches the bus.
+TEST(Push, BootTimeBeyond1F89hIsAUsageErrorNamingTheObject) {
+  ScratchDir dir;
+  auto r = cfgmgr(
+      dir, {"push", sample_network("nodelist.cpj"), "--bus", "sim:", "--boot-time", "5000000"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--boot-time: boot time (1F89h) 5000000000 ms is above 4294967295 ms"),
+            std::string::npos)
+      << r.err;
+}
+
 }  // namespace

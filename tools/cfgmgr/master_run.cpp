@@ -454,9 +454,10 @@ std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path
   return std::make_shared<const cfg::Network>(std::move(*load.network));
 }
 
-nmt::NmtMaster build_master(std::string_view tool, const std::string& description,
-                            const std::shared_ptr<const cfg::Network>& network,
-                            const std::string& node_id_text, nmt::MasterOptions options) {
+nmt::MasterConfig master_config_or_exit(std::string_view tool, const std::string& description,
+                                        const std::shared_ptr<const cfg::Network>& network,
+                                        const std::string& node_id_text,
+                                        nmt::MasterOptions options) {
   std::uint8_t node_id = kDefaultMasterNodeId;
   if (!node_id_text.empty()) {
     const auto parsed = tools::parse_node_id_argument(node_id_text);
@@ -481,13 +482,34 @@ nmt::NmtMaster build_master(std::string_view tool, const std::string& descriptio
   // The master DCF goes through the typed configuration, as an embedder's master does.
   auto config =
       nmt::MasterConfig::from_dcf(network->master, *cfg::NodeId::from(node_id), std::move(options));
-  auto master = config ? config->build() : cfg::Result<nmt::NmtMaster>(config.error());
-  if (!master) {
+  // What the DCF says is checked here, so that a later failure of build_master_or_exit is the
+  // caller's change.
+  cfg::Status valid = config ? config->validate() : cfg::Status(config.error());
+  if (!valid) {
     const std::string& from = network->master_from_file ? network->master_file : description;
+    std::cerr << from << ": error: " << valid.error().message << '\n';
+    exit_with(tools::kExitInputErrors);
+  }
+  return std::move(config).value();
+}
+
+nmt::NmtMaster build_master_or_exit(const nmt::MasterConfig& config, const std::string& description,
+                                    const cfg::Network& network) {
+  auto master = config.build();
+  if (!master) {
+    const std::string& from = network.master_from_file ? network.master_file : description;
     std::cerr << from << ": error: " << master.error().message << '\n';
     exit_with(tools::kExitInputErrors);
   }
   return std::move(master).value();
+}
+
+nmt::NmtMaster build_master(std::string_view tool, const std::string& description,
+                            const std::shared_ptr<const cfg::Network>& network,
+                            const std::string& node_id_text, nmt::MasterOptions options) {
+  return build_master_or_exit(
+      master_config_or_exit(tool, description, network, node_id_text, std::move(options)),
+      description, *network);
 }
 
 std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(std::string_view tool,

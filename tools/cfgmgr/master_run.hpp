@@ -17,6 +17,7 @@
 #include "cfg/network.hpp"
 #include "network_source.hpp"
 #include "nmt/bus_event_loop.hpp"
+#include "nmt/master_config.hpp"
 #include "nmt/nmt_master.hpp"
 
 namespace cfgmgr {
@@ -73,6 +74,15 @@ std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path
 nmt::NmtMaster build_master(std::string_view tool, const std::string& description,
                             const std::shared_ptr<const cfg::Network>& network,
                             const std::string& node_id_text, nmt::MasterOptions options);
+/// build_master in two halves, for a command that changes the typed configuration in between
+/// (push: --boot-time, --no-start, --only): the master DCF read into a checked MasterConfig,
+/// then the master built from it. Both end the command as build_master does.
+nmt::MasterConfig master_config_or_exit(std::string_view tool, const std::string& description,
+                                        const std::shared_ptr<const cfg::Network>& network,
+                                        const std::string& node_id_text,
+                                        nmt::MasterOptions options);
+nmt::NmtMaster build_master_or_exit(const nmt::MasterConfig& config, const std::string& description,
+                                    const cfg::Network& network);
 
 /// Prints the master's events (one line each on stderr, JSON lines to `json` when given) and
 /// keeps what the exit code depends on.

@@ -476,46 +476,54 @@ void run_push(const PushCliOptions& options) {
   master_options.save_configuration = !options.no_save;
   master_options.force_download = options.force;
   if (sim) master_options.bitrate = sim->bitrate_bps;
-  nmt::NmtMaster master =
-      build_master(kTool, options.network, network, options.node_id, master_options);
+  nmt::MasterConfig config =
+      master_config_or_exit(kTool, options.network, network, options.node_id, master_options);
 
-  // The options as the master's own objects (CiA 302-2 §6), so that its boot follows them.
-  auto& dictionary = master.dictionary();
+  // The options as the master's own objects (CiA 302-2 §6), through the typed configuration so
+  // that they are checked, and its boot follows them.
   double boot_time_s = kDefaultBootTimeS;
   if (options.boot_time_s) {
     boot_time_s = *options.boot_time_s;
-  } else if (const auto ms = dictionary.get_unsigned(cfg::object::kBootTime, 0); ms && *ms != 0) {
-    boot_time_s = static_cast<double>(*ms) / 1e3;
+  } else if (config.boot_time != nmt::Duration::zero()) {
+    boot_time_s = std::chrono::duration<double>(config.boot_time).count();
   }
-  dictionary.set_unsigned(cfg::object::kBootTime, 0, static_cast<std::uint64_t>(boot_time_s * 1e3));
-  if (options.no_start) {
-    const auto startup = dictionary.get_unsigned(cfg::object::kNmtStartup, 0).value_or(0);
-    dictionary.set_unsigned(cfg::object::kNmtStartup, 0, startup | cfg::NmtStartup::kNoStartSlaves);
-  }
+  config.boot_time = std::chrono::milliseconds(static_cast<std::int64_t>(boot_time_s * 1e3));
+  if (options.no_start) config.startup.no_start_slaves = true;  // 1F80h bit 3
   std::set<std::uint8_t> chosen;
   std::set<std::uint8_t> left_out;
   for (const auto* node : selected) chosen.insert(node->node_id.value());
   std::vector<NodeReport> reports;
-  for (unsigned id = 1; id <= 127; ++id) {
-    const auto sub = static_cast<std::uint8_t>(id);
-    const cfg::SlaveAssignment assignment{static_cast<std::uint32_t>(
-        dictionary.get_unsigned(cfg::object::kSlaveAssignment, sub).value_or(0))};
-    if (!assignment.is_slave()) continue;
-    if (!options.only.empty() && !chosen.contains(sub)) {
+  for (nmt::SlaveConfig& slave : config.slaves) {
+    if (!slave.slave) continue;
+    const std::uint8_t id = slave.node.value();
+    if (!options.only.empty() && !chosen.contains(id)) {
       // --only leaves the other nodes as they are: a keep-alive slave (1F81h bit 4, Table 22)
       // gets no reset communication at start-up (CiA 302-2 §3.1 d), and with bit 2 clear
       // (Table 20) it is neither configured nor started; bit 3 clear: its absence is no error.
-      dictionary.set_unsigned(cfg::object::kSlaveAssignment, sub,
-                              cfg::SlaveAssignment::kSlave | cfg::SlaveAssignment::kKeepAlive);
-      left_out.insert(sub);
+      // Nothing else of 1F81h: no guarding, no software check, no restore.
+      nmt::SlaveConfig kept(slave.node);
+      kept.boot = false;
+      kept.keep_alive = true;
+      kept.identity = slave.identity;
+      kept.heartbeat = slave.heartbeat;
+      kept.restore_subindex = slave.restore_subindex;
+      slave = kept;
+      left_out.insert(id);
       continue;
     }
     NodeReport r;
-    r.node_id = sub;
-    if (const auto* node = network->find(*cfg::NodeId::from(sub))) r.name = node->name;
-    r.mandatory = assignment.mandatory();
+    r.node_id = id;
+    if (const auto* node = network->find(slave.node)) r.name = node->name;
+    r.mandatory = slave.mandatory;
     reports.push_back(std::move(r));
   }
+  std::sort(reports.begin(), reports.end(),
+            [](const NodeReport& a, const NodeReport& b) { return a.node_id < b.node_id; });
+  // The DCF was checked as read (master_config_or_exit): what fails now is --boot-time.
+  if (auto valid = config.validate(); !valid) {
+    fail_command(kTool, tools::kExitUsage, "--boot-time: " + valid.error().message);
+  }
+  nmt::NmtMaster master = build_master_or_exit(config, options.network, *network);
 
   tools::ReportFile json = open_report_or_exit(options.json);
 
