@@ -71,13 +71,12 @@ nmt::LssAddress address_or_exit(const std::string& text) {
 // CiA 305: configure node-ID takes 1..127, or FFh (not configured). The LSS master sends other
 // values as given (nmt/lss_master.hpp) and the device refuses them, so they are passed on.
 std::uint8_t node_id_or_exit(const std::string& text) {
-  if (text == "unconfigured") return nmt::lss::kUnconfigured;
-  const auto parsed = cfg::parse_integer_literal(text);
-  if (!parsed.literal || parsed.literal->value > 0xFF) {
+  const auto value = tools::node_id_argument_value(text, /*unconfigured_ok=*/true);
+  if (!value || *value > 0xFF) {
     fail(tools::kExitUsage,
-         "NODE-ID " + text + ": expected a node-ID 1..127 (or 255, 'unconfigured')");
+         tools::node_id_argument_error("NODE-ID", text) + " (or 255, 'unconfigured')");
   }
-  return static_cast<std::uint8_t>(parsed.literal->value);
+  return static_cast<std::uint8_t>(*value);
 }
 
 std::unique_ptr<LssSession> open_or_exit(const LssCliOptions& o) {

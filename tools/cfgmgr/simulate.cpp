@@ -63,23 +63,18 @@ cfg::Result<DeviceArg> parse_device_arg(const std::string& arg) {
   const auto at = arg.rfind('@');
   if (at == std::string::npos || at + 1 == arg.size()) return DeviceArg{arg, std::nullopt};
   const std::string suffix = arg.substr(at + 1);
-  if (suffix == "unconfigured") return DeviceArg{arg.substr(0, at), std::nullopt, true};
-  unsigned long value = 0;
-  std::size_t used = 0;
-  try {
-    value = std::stoul(suffix, &used, 0);
-  } catch (const std::exception&) {
-    return DeviceArg{arg, std::nullopt};
-  }
-  if (used != suffix.size()) return DeviceArg{arg, std::nullopt};
+  // The node-ID argument rules every tool uses (tools/common/tool_support.hpp).
+  const auto value = tools::node_id_argument_value(suffix, /*unconfigured_ok=*/true);
+  if (!value) return DeviceArg{arg, std::nullopt};
   // CiA 305: node-ID FFh is "not configured".
-  if (value == nmt::lss::kUnconfigured) return DeviceArg{arg.substr(0, at), std::nullopt, true};
-  if (!cfg::is_node_id(value)) {
+  if (*value == nmt::lss::kUnconfigured) return DeviceArg{arg.substr(0, at), std::nullopt, true};
+  const auto node = cfg::NodeId::from(*value);
+  if (!node) {
     return cfg::Error{arg + ": node-ID " + suffix +
                       " is out of range 1..127 (255 or 'unconfigured': a device without node-ID "
                       "that waits for LSS)"};
   }
-  return DeviceArg{arg.substr(0, at), static_cast<std::uint8_t>(value)};
+  return DeviceArg{arg.substr(0, at), node->value()};
 }
 
 std::string seconds_since(nmt::TimePoint start, nmt::TimePoint now) {

@@ -72,13 +72,26 @@ void keep_until_exit(T&& value) {
   kept->push_back(std::make_unique<Kept>(std::forward<T>(value)));
 }
 
-/// A node-ID argument of a tool (NODE, --node-id, --master, NODE=FILE): an integer literal as
-/// CiA 306 §4.6.3 writes them (decimal, 0x hex, leading-0 octal) in 1..127 (CiA 301 §7.2.8.3.1);
-/// nullopt for anything else, which the caller reports with node_id_argument_error().
-inline std::optional<cfg::NodeId> parse_node_id_argument(std::string_view text) {
+/// What a node-ID argument says, before its range is checked: an integer literal as CiA 306
+/// §4.6.3 writes them (decimal, 0x hex, leading-0 octal), or, where `unconfigured_ok` (the
+/// arguments of LSS and of simulated devices that wait for it), the word "unconfigured" for
+/// CiA 305's FFh "not configured". nullopt when it is neither. parse_node_id_argument() is this
+/// with the range of CiA 301; `cfgmgr lss` and `cfgmgr simulate` check their own ranges (255).
+inline std::optional<std::uint64_t> node_id_argument_value(std::string_view text,
+                                                           bool unconfigured_ok = false) {
+  if (unconfigured_ok && text == "unconfigured") return 0xFF;
   const auto parsed = cfg::parse_integer_literal(text);
   if (!parsed.literal) return std::nullopt;
-  return cfg::NodeId::from(parsed.literal->value);
+  return parsed.literal->value;
+}
+
+/// A node-ID argument of a tool (NODE, --node-id, --master, NODE=FILE): node_id_argument_value()
+/// in 1..127 (CiA 301 §7.2.8.3.1); nullopt for anything else, which the caller reports with
+/// node_id_argument_error().
+inline std::optional<cfg::NodeId> parse_node_id_argument(std::string_view text) {
+  const auto value = node_id_argument_value(text);
+  if (!value) return std::nullopt;
+  return cfg::NodeId::from(*value);
 }
 
 /// What every tool says of a node-ID argument that is none: "WHAT TEXT: expected a node-ID
