@@ -341,7 +341,7 @@ TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
 class HeartbeatingNetwork {
  public:
   HeartbeatingNetwork(const ScratchDir& dir, const std::string& bus, int nodes)
-      : dir_(dir), events_(dir / "events.jsonl") {
+      : dir_(dir), bus_(bus), events_(dir / "events.jsonl") {
     generated::NetworkSpec spec;
     spec.nodes = nodes;
     spec.values = 2;
@@ -378,6 +378,31 @@ class HeartbeatingNetwork {
     }
     return false;
   }
+  // Whether `count` heartbeats (CiA 301 §7.2.8.3.2.1: 700h + node-ID, one byte, the state) of
+  // every slave with state `state` (05h: operational) are seen on the bus within `limit`, counted
+  // from now: the frame that says a slave got the master's start command, and, counted, that a
+  // consumer time passed with heartbeats arriving.
+  bool wait_for_heartbeats(std::uint8_t state, int count, std::chrono::milliseconds limit) const {
+    auto options = nmt::parse_udp_url(bus_);
+    if (!options) return false;
+    auto observer = nmt::UdpBus::open(*options);
+    if (!observer) return false;
+    std::map<int, int> seen;
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      auto received = (*observer)->receive(std::chrono::milliseconds(20));
+      if (!received) return false;
+      if (!received.value()) continue;
+      const nmt::CanFrame& f = received.value()->frame;
+      const int node = static_cast<int>(f.id) - 0x700;
+      if (f.extended || f.dlc != 1 || f.data[0] != state || !slaves.contains(node)) continue;
+      ++seen[node];
+      const bool all = std::all_of(slaves.begin(), slaves.end(),
+                                   [&](const auto& slave) { return seen[slave.first] >= count; });
+      if (all) return true;
+    }
+    return false;
+  }
   const std::string& events() const { return events_; }
   std::string master_err() const { return tool_test::slurp(dir_ / "master.err"); }
 
@@ -386,6 +411,7 @@ class HeartbeatingNetwork {
 
  private:
   const ScratchDir& dir_;
+  std::string bus_;
   std::string events_;
   bool slaves_up_ = true;
 };
@@ -405,8 +431,10 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
   const auto wait_for = [&network](const std::string& event, std::chrono::milliseconds limit) {
     return network.wait_for(event, limit);
   };
-  // The start commands follow start-up's end (issue 20); the network is quiet after them.
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // The start commands follow start-up's end (issue 20); the network is quiet once every slave
+  // says operational in its heartbeat.
+  ASSERT_TRUE(network.wait_for_heartbeats(0x05, 1, std::chrono::seconds(2)))
+      << network.master_err();
   const auto lines_in = [&events] {
     const std::string text = tool_test::slurp(events);
     return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
@@ -465,7 +493,9 @@ TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
   const auto wait_for = [&network](const std::string& event, std::chrono::milliseconds limit) {
     return network.wait_for(event, limit);
   };
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // The start command has reached the slave (its heartbeat says operational).
+  ASSERT_TRUE(network.wait_for_heartbeats(0x05, 1, std::chrono::seconds(2)))
+      << network.master_err();
   auto options = nmt::parse_udp_url(bus);
   ASSERT_TRUE(options.ok());
   auto controller = nmt::UdpBus::open(*options);
@@ -475,7 +505,9 @@ TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
   std::this_thread::sleep_for(std::chrono::seconds(1));
   ASSERT_TRUE((*controller)->send(*nmt::from_candump("20000100#0000000000000000")).ok());
   EXPECT_TRUE(wait_for("restarted", std::chrono::seconds(2)));
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // Three heartbeats (300 ms) after the restart: more than the consumer time (250 ms), so a loss
+  // charged with the bus-off time would have been reported by now.
+  EXPECT_TRUE(network.wait_for_heartbeats(0x05, 3, std::chrono::seconds(2)));
   const auto code = master.stop(SIGTERM, std::chrono::milliseconds(3000));
   const std::string err = tool_test::slurp(dir / "master.err");
   ASSERT_TRUE(code.has_value()) << "no clean exit on SIGTERM\n" << err;
