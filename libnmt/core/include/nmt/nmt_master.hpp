@@ -82,6 +82,14 @@
 //   boot_slave() or a 1F82h start. A read gives the state the master knows: heartbeat or
 //   guarding reply, else the last command, 01h (missing) after boot error B or a lost
 //   heartbeat, 00h when unknown.
+//   A request for a node that is not a slave of this master (1F81h bit 0 clear) is aborted
+//   0800 0000 (general error). Neither CiA 302-2 nor DSP 302 gives a code (DSP 302 §5.2: the
+//   parameters of a slave in the network list "are only valid, if the slave is assigned").
+//   §6.4 answers the other refusals of a well-formed request with 0800 0000 (or 0609 0030 for
+//   a reserved value); of CiA 301's more specific codes none says this: the sub-index exists
+//   (not 0609 0011), the value is a valid request (not 0609 0030), and 0800 0022 (device
+//   state) is what this master answers while it is not the NMT master, which must stay
+//   distinguishable. 1F83h answers the same for such a node.
 // - 1F83h (request guarding): 1 starts guarding with 1F81h's guard time and retry factor (0800
 //   0000 when either is 0), 0 stops it; a read gives 1 while the master guards the node.
 // - Flying master (1F80h bit 5; CiA 302-2 §3.7, §5.2-§5.5, DSP 302 §5.5 for the COB-IDs and

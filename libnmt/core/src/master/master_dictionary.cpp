@@ -352,7 +352,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
     return SdoAbort::None;
   }
   if (excluding && sub == requester->value()) return SdoAbort::General;
-  // A request for a node that is not a slave of this master is refused.
+  // A request for a node that is not a slave of this master: 0800 0000 (nmt_master.hpp, choices).
   if (!is_slave(sub)) return SdoAbort::General;
   if (no_room_for(1)) return SdoAbort::OutOfMemory;
   queue_nmt(*command, sub);
