@@ -188,9 +188,10 @@ std::multiset<std::uint64_t> heartbeat_entries(const NmtMaster& m) {
 void expect_same_master_objects(const NmtMaster& a, const NmtMaster& b, bool same_1016_layout) {
   std::vector<std::pair<std::uint16_t, std::uint8_t>> entries{
       {0x1F80, 0}, {0x1F89, 0}, {0x102A, 0}, {0x1016, 0}};
+  entries.emplace_back(0x1017, 0);
   for (std::uint8_t sub = 1; sub <= 6; ++sub) entries.emplace_back(0x1F90, sub);
   for (std::uint8_t n = 1; n <= 127; ++n) {
-    for (int index : {0x1F81, 0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88, 0x1F8A}) {
+    for (int index : {0x1F81, 0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88, 0x1F8A, 0x1F26, 0x1F27}) {
       entries.emplace_back(static_cast<std::uint16_t>(index), n);
     }
     if (same_1016_layout) entries.emplace_back(0x1016, n);
@@ -267,7 +268,9 @@ TEST(MasterConfig, ADcfWithFewerHeartbeatEntriesThanConfiguredFailsSayingSo) {
   auto m = config.build();
   ASSERT_FALSE(m.ok());
   EXPECT_EQ(m.error().message,
-            "1016h has 1 entries: no room for the heartbeat of node 3 (2 wanted)");
+            "1016h has 1 entries: no room for the heartbeat of node 3 (2 wanted); give 1016h "
+            "more entries in the master DCF (SubNumber or CompactSubObj) or consume fewer "
+            "heartbeats");
 }
 
 TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
@@ -275,23 +278,28 @@ TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
   EXPECT_EQ(error_of(config), "(valid)");
 
   config.add_slave(id(1));
-  EXPECT_EQ(error_of(config), "slave 1: is the master's own node-ID");
+  EXPECT_EQ(error_of(config),
+            "slave 1: is the master's own node-ID; remove it or give the master another");
   config.slaves.clear();
 
   config.slaves.emplace_back(id(2));
   config.slaves.emplace_back(id(2));
-  EXPECT_EQ(error_of(config), "slave 2: listed twice");
+  EXPECT_EQ(error_of(config),
+            "slave 2: listed twice; keep one entry per node (add_slave gives the one there)");
   config.slaves.pop_back();
 
   config.add_slave(id(2)).heartbeat = 70s;
   EXPECT_EQ(error_of(config),
-            "slave 2: heartbeat time 70000 ms is above 65535 ms (1016h: 1..65535 ms)");
+            "slave 2: heartbeat time 70000 ms is above 65535 ms (1016h: 1..65535 ms); give "
+            "whole ms in that range, or leave it unset");
   config.add_slave(id(2)).heartbeat = 1500us;
   EXPECT_EQ(error_of(config),
             "slave 2: heartbeat time 1500 us is not a whole number of "
-            "milliseconds (1016h: 1..65535 ms)");
+            "milliseconds (1016h: 1..65535 ms); give whole ms in that range, or leave it unset");
   config.add_slave(id(2)).heartbeat = 0ms;
-  EXPECT_EQ(error_of(config), "slave 2: heartbeat time 0 ms is below 1 ms (1016h: 1..65535 ms)");
+  EXPECT_EQ(error_of(config),
+            "slave 2: heartbeat time 0 ms is below 1 ms (1016h: 1..65535 ms); give whole ms in "
+            "that range, or leave it unset");
   config.add_slave(id(2)).heartbeat.reset();
 
   config.add_slave(id(2)).guarding = GuardingConfig{100ms, 0};
@@ -300,7 +308,8 @@ TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
             "leave guarding unset instead");
   config.add_slave(id(2)).guarding = GuardingConfig{0ms, 3};
   EXPECT_EQ(error_of(config),
-            "slave 2: guard time 0 ms is below 1 ms (1F81h bytes 2-3: 1..65535 ms)");
+            "slave 2: guard time 0 ms is below 1 ms (1F81h bytes 2-3: 1..65535 ms); give whole "
+            "ms in that range, or leave guarding unset");
   config.add_slave(id(2)).guarding.reset();
 
   config.add_slave(id(2)).identity.vendor_id = 0;
@@ -310,7 +319,8 @@ TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
 
   config.nmt_inhibit_time = 150us;
   EXPECT_EQ(error_of(config),
-            "NMT inhibit time (102Ah) 150 us is not a multiple of 100 us up to 6553500 us");
+            "NMT inhibit time (102Ah) 150 us is not a multiple of 100 us up to 6553500 us; round "
+            "it to one");
   config.nmt_inhibit_time = 6553600us;
   EXPECT_NE(error_of(config), "(valid)");
   config.nmt_inhibit_time = 6553500us;
@@ -320,14 +330,16 @@ TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
   config.flying_master.device_time_slot = 12ms;
   EXPECT_EQ(error_of(config),
             "flying master priority time slot 1500 ms must exceed 127 x the "
-            "device time slot 12 ms (CiA 302-2 §6.13)");
+            "device time slot 12 ms (CiA 302-2 §6.13); lengthen the one or shorten the other");
   config.flying_master.device_time_slot = 11ms;
   EXPECT_EQ(error_of(config), "(valid)");
 
   config.boot_time = 1500us;
   auto m = config.build();
   ASSERT_FALSE(m.ok());
-  EXPECT_EQ(m.error().message, "boot time (1F89h) 1500 us is not a whole number of milliseconds");
+  EXPECT_EQ(m.error().message,
+            "boot time (1F89h) 1500 us is not a whole number of milliseconds; give whole ms up to "
+            "4294967295 (0: retried without end)");
 }
 
 // CiA 306 lets a DCF list only some sub-indices of an ARRAY (1F81h with SubNumber=3: subs 0-2),
@@ -350,6 +362,66 @@ TEST(MasterConfig, ADcfListingOnlySome1F81hSubIndicesBuildsWithTheOthersZero) {
   // Sub 3 stays absent (no entry to fill), as on the direct path: the master reads it as 0.
   EXPECT_FALSE(m.dictionary().get_unsigned(0x1F81, 3).has_value());
   EXPECT_FALSE(direct.value().dictionary().get_unsigned(0x1F81, 3).has_value());
+}
+
+// CiA 301 1017h (the master's own heartbeat) and DSP 302 §6.6 1F26h/1F27h (the configuration
+// date and time expected in a slave's 1020h) as typed fields: read from the DCF, built, changed.
+TEST(MasterConfig, ProducerHeartbeatAndExpectedConfigurationAreReadFromTheDcfAndBuilt) {
+  std::string text = master_dcf_text();
+  replace(text,
+          "ParameterName=Producer heartbeat time\nObjectType=0x7\nDataType=0x0006\nAccessType=rw\n"
+          "DefaultValue=0",
+          "ParameterName=Producer heartbeat time\nObjectType=0x7\nDataType=0x0006\nAccessType=rw\n"
+          "DefaultValue=500");
+  replace(text, "CompactSubObj=127\n\n[1F27]",
+          "CompactSubObj=127\n\n[1F26Value]\nNrOfEntries=1\n3=0x00002A4B\n\n[1F27]");
+  replace(text, "CompactSubObj=127\n\n[1F53]",
+          "CompactSubObj=127\n\n[1F27Value]\nNrOfEntries=1\n3=0x02160EC0\n\n[1F53]");
+  const cfg::DeviceDescription dcf = parse(text);
+  auto read = MasterConfig::from_dcf(dcf, id(1));
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  MasterConfig config = read.value();
+  EXPECT_EQ(config.heartbeat_producer, Duration{500ms});
+  ASSERT_NE(config.slave(id(3)), nullptr);
+  EXPECT_EQ(config.slave(id(3))->expected_configuration,
+            (cfg::ConfigurationStamp{0x2A4B, 0x02160EC0}));
+  ASSERT_NE(config.slave(id(2)), nullptr);
+  EXPECT_TRUE(config.slave(id(2))->expected_configuration.is_zero());
+  auto direct = NmtMaster::create(dcf, id(1));
+  ASSERT_TRUE(direct.ok()) << direct.error().message;
+  expect_same_master_objects(built(config), direct.value(), true);
+
+  config.heartbeat_producer = 250ms;
+  config.add_slave(id(2)).expected_configuration = {1, 2};
+  config.add_slave(id(3)).expected_configuration = {};
+  const NmtMaster m = built(config);
+  EXPECT_EQ(value(m, 0x1017, 0), 250U);
+  EXPECT_EQ(value(m, 0x1F26, 2), 1U);
+  EXPECT_EQ(value(m, 0x1F27, 2), 2U);
+  EXPECT_EQ(value(m, 0x1F26, 3), 0U);  // 0: not verified
+  EXPECT_EQ(value(m, 0x1F27, 3), 0U);
+  EXPECT_EQ(value(m, 0x1F26, 4), 0U);  // no slave
+
+  config.heartbeat_producer = 70s;
+  EXPECT_EQ(error_of(config),
+            "producer heartbeat time (1017h) 70000 ms is above 65535 ms; give whole ms up to "
+            "65535 (0: no heartbeat)");
+}
+
+// A value for a sub-index the DCF does not list: the error says what to change.
+TEST(MasterConfig, ASlaveBeyondTheDcfsSubIndicesFailsSayingWhatToDo) {
+  std::ifstream in(std::string(CANOPEN_TEST_DATA_DIR) + "/network/master_wrong_vendor.dcf");
+  std::stringstream text;
+  text << in.rdbuf();
+  auto read = MasterConfig::from_dcf(parse(text.str()), id(1));
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  MasterConfig config = read.value();
+  config.add_slave(id(5));  // 1F81h bits 0 and 2 (Tables 19, 20): 5
+  auto m = config.build();
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.error().message,
+            "the master DCF has no 1F81h sub 05h for the value 5; list that sub-index in the "
+            "master DCF (raise the object's SubNumber) or leave the value 0");
 }
 
 }  // namespace

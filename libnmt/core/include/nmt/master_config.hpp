@@ -16,9 +16,10 @@
 // build() of that config gives the dictionary NmtMaster::create(dcf) gives. A config read that
 // way can be changed in code before it is built (a slave added or removed, a time changed).
 //
-// What build() owns: 1F80h, 1F81h/1F84h-1F88h sub 1..127 (0 for nodes not in `slaves`), 1016h
-// (the entries of the nodes in `slaves` that have a heartbeat time, the others cleared), 1F89h,
-// 102Ah, 1F90h sub 1..6, and 1F8Ah sub node of each node in `slaves`. The rest of the master's
+// What build() owns: 1F80h, 1F81h/1F84h-1F88h/1F26h/1F27h sub 1..127 (0 for nodes not in
+// `slaves`), 1016h (the entries of the nodes in `slaves` that have a heartbeat time, the others
+// cleared), 1017h, 1F89h, 102Ah, 1F90h sub 1..6, and 1F8Ah sub node of each node in `slaves`.
+// Every error says what is wrong and what to do about it. The rest of the master's
 // dictionary comes from `dcf` (or the defaults, nmt_master.hpp).
 #pragma once
 
@@ -93,6 +94,11 @@ struct SlaveConfig {
   std::optional<Duration> heartbeat;
   /// 1F8Ah (§6.12): the 1011h sub-index of the restore (1: all parameters; 0: none).
   std::uint8_t restore_subindex = 1;
+  /// 1F26h/1F27h sub node (DSP 302 §6.6): the configuration date (days since 1984-01-01) and
+  /// time (ms after midnight) the master expects in the slave's 1020h; while both match, check
+  /// configuration skips the download. Zero: not verified. A configuration manager that holds
+  /// a stamp for the node owns it instead (nmt_master.hpp).
+  cfg::ConfigurationStamp expected_configuration;
 
   cfg::SlaveAssignment assignment() const;
   bool operator==(const SlaveConfig&) const = default;
@@ -126,6 +132,9 @@ struct MasterConfig {
   /// 100 us up to 6.5535 s.
   Duration nmt_inhibit_time{0};
   FlyingMasterConfig flying_master;  ///< 1F90h
+  /// 1017h (CiA 301): the master's own heartbeat period; 0: it produces none. Whole ms up to
+  /// 65535.
+  Duration heartbeat_producer{0};
   /// The engine's SDO, timing and configuration options (timeouts, retries, bit rate, ...).
   MasterOptions options;
   /// The master DCF the rest of the dictionary comes from (none: CiA 302-2 defaults).

@@ -64,7 +64,9 @@ class DictionaryWriter {
     // the master (value_of), so 0 needs no entry; any other value does.
     if (value == 0 && !dict_.get_unsigned(index, sub)) return;
     problem_ = "the master DCF has no " + cfg::to_string({index, sub}) + " for the value " +
-               std::to_string(value);
+               std::to_string(value) +
+               "; list that sub-index in the master DCF (raise the object's SubNumber) or leave "
+               "the value 0";
   }
   void fail(std::string problem) {
     if (problem_.empty()) problem_ = std::move(problem);
@@ -108,7 +110,9 @@ void write_heartbeats(const MasterConfig& config, LocalDictionary& dict, Diction
     if (next == free.size()) {
       out.fail("1016h has " + std::to_string(count) +
                " entries: no room for the heartbeat of node " + std::to_string(node) + " (" +
-               std::to_string(wanted.size()) + " wanted)");
+               std::to_string(wanted.size()) +
+               " wanted); give 1016h more entries in the master DCF (SubNumber or "
+               "CompactSubObj) or consume fewer heartbeats");
       return;
     }
     out.put(obj::kConsumerHeartbeatTime, free[next++], HeartbeatConsumerEntry{node, ms}.encode());
@@ -172,12 +176,18 @@ cfg::Status MasterConfig::validate() const {
   for (const auto& s : slaves) {
     const std::string who = "slave " + std::to_string(s.node.value()) + ": ";
     // §6.3: "The sub-index corresponding to its own node-ID shall be ignored."
-    if (s.node == node_id) return error(who + "is the master's own node-ID");
-    if (!seen.insert(s.node.value()).second) return error(who + "listed twice");
+    if (s.node == node_id) {
+      return error(who + "is the master's own node-ID; remove it or give the master another");
+    }
+    if (!seen.insert(s.node.value()).second) {
+      return error(who + "listed twice; keep one entry per node (add_slave gives the one there)");
+    }
     if (s.guarding) {
       // §6.3: a guard time or retry factor of 0 disables guarding.
       if (auto p = ms_problem(s.guarding->guard_time, 0xFFFF, false)) {
-        return error(who + "guard time " + *p + " (1F81h bytes 2-3: 1..65535 ms)");
+        return error(who + "guard time " + *p +
+                     " (1F81h bytes 2-3: 1..65535 ms); give whole ms in that range, or leave "
+                     "guarding unset");
       }
       if (s.guarding->retry_factor == 0) {
         return error(who +
@@ -187,7 +197,8 @@ cfg::Status MasterConfig::validate() const {
     }
     if (s.heartbeat) {
       if (auto p = ms_problem(*s.heartbeat, 0xFFFF, false)) {
-        return error(who + "heartbeat time " + *p + " (1016h: 1..65535 ms)");
+        return error(who + "heartbeat time " + *p +
+                     " (1016h: 1..65535 ms); give whole ms in that range, or leave it unset");
       }
     }
     static constexpr std::array<const char*, 5> kNames{"device type", "vendor-ID", "product code",
@@ -202,14 +213,19 @@ cfg::Status MasterConfig::validate() const {
     }
   }
   if (auto p = ms_problem(boot_time, 0xFFFFFFFF, true)) {
-    return error("boot time (1F89h) " + *p);
+    return error("boot time (1F89h) " + *p +
+                 "; give whole ms up to 4294967295 (0: retried without end)");
+  }
+  if (auto p = ms_problem(heartbeat_producer, 0xFFFF, true)) {
+    return error("producer heartbeat time (1017h) " + *p +
+                 "; give whole ms up to 65535 (0: no heartbeat)");
   }
   // §6.1: 102Ah in multiples of 100 us, UNSIGNED16.
   if (nmt_inhibit_time < Duration::zero() ||
       nmt_inhibit_time % std::chrono::microseconds(100) != Duration::zero() ||
       nmt_inhibit_time.count() / 100 > 0xFFFF) {
     return error("NMT inhibit time (102Ah) " + std::to_string(nmt_inhibit_time.count()) +
-                 " us is not a multiple of 100 us up to 6553500 us");
+                 " us is not a multiple of 100 us up to 6553500 us; round it to one");
   }
   const auto& f = flying_master;
   const std::array<std::pair<const char*, Duration>, 5> times{{
@@ -221,19 +237,20 @@ cfg::Status MasterConfig::validate() const {
   }};
   for (const auto& [name, time] : times) {
     if (auto p = ms_problem(time, 0xFFFF, true)) {
-      return error(std::string("flying master ") + name + " " + *p + " (1F90h: UNSIGNED16 ms)");
+      return error(std::string("flying master ") + name + " " + *p +
+                   " (1F90h: UNSIGNED16 ms); give whole ms up to 65535");
     }
   }
   // §6.13, Table 48: 0 high, 1 medium, 2 low.
   if (static_cast<unsigned>(f.priority) > 2) {
     return error("flying master priority " + std::to_string(static_cast<unsigned>(f.priority)) +
-                 " is reserved (1F90h sub 3: 0 high, 1 medium, 2 low)");
+                 " is reserved (1F90h sub 3: 0 high, 1 medium, 2 low); use High, Medium or Low");
   }
   // §6.13: "Priority time slot > 127 x CANopen device time slot".
   if (whole_ms(f.priority_time_slot) <= 127 * whole_ms(f.device_time_slot)) {
     return error("flying master priority time slot " + ms_text(f.priority_time_slot) +
                  " must exceed 127 x the device time slot " + ms_text(f.device_time_slot) +
-                 " (CiA 302-2 §6.13)");
+                 " (CiA 302-2 §6.13); lengthen the one or shorten the other");
   }
   return {};
 }
@@ -256,7 +273,11 @@ cfg::Result<NmtMaster> MasterConfig::build() const {
       out.put(kIdentityObjects[i], node, fields[i]->value_or(0));
     }
     if (s) out.put(obj::kRestoreConfiguration, node, s->restore_subindex);
+    const cfg::ConfigurationStamp stamp = s ? s->expected_configuration : cfg::ConfigurationStamp{};
+    out.put(obj::kExpectedConfigurationDate, node, stamp.days);
+    out.put(obj::kExpectedConfigurationTime, node, stamp.ms);
   }
+  out.put(obj::kProducerHeartbeatTime, 0, whole_ms(heartbeat_producer));
   write_heartbeats(*this, dict, out);
   out.put(obj::kBootTime, 0, whole_ms(boot_time));
   out.put(obj::kNmtInhibitTime, 0, static_cast<std::uint64_t>(nmt_inhibit_time.count() / 100));
@@ -295,6 +316,9 @@ MasterConfig MasterConfig::from_dictionary(const LocalDictionary& dict, cfg::Nod
         any = true;
       }
     }
+    const cfg::ConfigurationStamp stamp{u32(dict, obj::kExpectedConfigurationDate, node),
+                                        u32(dict, obj::kExpectedConfigurationTime, node)};
+    any = any || !stamp.is_zero();
     const auto heartbeat = heartbeats.find(node.value());
     if (!any && heartbeat == heartbeats.end()) continue;
     SlaveConfig& s = config.add_slave(node);
@@ -313,7 +337,9 @@ MasterConfig MasterConfig::from_dictionary(const LocalDictionary& dict, cfg::Nod
     if (heartbeat != heartbeats.end()) s.heartbeat = heartbeat->second;
     s.restore_subindex =
         static_cast<std::uint8_t>(dict.get_unsigned(obj::kRestoreConfiguration, node).value_or(1));
+    s.expected_configuration = stamp;
   }
+  config.heartbeat_producer = milliseconds(u32(dict, obj::kProducerHeartbeatTime, 0));
   config.boot_time = milliseconds(u32(dict, obj::kBootTime, 0));
   config.nmt_inhibit_time = std::chrono::microseconds(100) * u32(dict, obj::kNmtInhibitTime, 0);
   auto flying = [&](std::uint8_t sub) {
