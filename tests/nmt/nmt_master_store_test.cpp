@@ -9,16 +9,23 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cfg/config_manager.hpp"
+#include "nmt/bus_event_loop.hpp"
+#include "nmt/entry_persister.hpp"
 #include "nmt_master_spec_test_rig.hpp"
+#include "socket_pair_bus.hpp"
 #include "test_paths.hpp"
 
 namespace nmt::master_spec {
@@ -614,6 +621,71 @@ TEST(NmtMasterStore, ConfDownloadsTheNetworksConfigurationOfAnUnstoredNode) {
   }
   // Neither stored nor in the network: still 0800 0024h (§6.4).
   EXPECT_EQ(s.rig.tool_write_u(0x1F25, 9, kConf, 4), SdoAbort::NoDataAvailable);
+}
+
+// Issue 21, "No disk I/O inside on_frame", on a real loop: the driver writes the entry on a
+// worker thread (nmt::EntryPersister). While the write is held (a store hook that waits: the
+// slow disk, a wrapper in this test), the loop keeps serving frames: a boot-up that arrives
+// meanwhile is reported (CiA 302-2 §4, boot-up handler). The SDO confirmation of the 1F26h
+// write (DSP 302 §6.6) leaves only after the write ended (CiA 301 §7.2.4.3.3: 60h).
+TEST(NmtMasterStore, TheLoopKeepsServingFramesWhileAWorkerPersistsAnEntry) {
+  TempDir dir;
+  std::atomic<bool> writing{false};
+  std::atomic<bool> release{false};
+  cfg::StoreWriteHooks hooks;
+  hooks.on_step = [&](cfg::StoreWriteHooks::Step step, std::size_t) {
+    if (step != cfg::StoreWriteHooks::Step::Wrote) return;
+    writing = true;
+    const auto end = std::chrono::steady_clock::now() + 10s;  // bounded: no hang when broken
+    while (!release && std::chrono::steady_clock::now() < end) std::this_thread::sleep_for(1ms);
+  };
+  auto opened = cfg::ConfigManager::open(dir.str(), hooks);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  MasterOptions options;
+  options.manager = std::make_shared<cfg::ConfigManager>(std::move(opened).value());
+  auto created = NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  NmtMaster master = std::move(created).value();
+  SocketPairBus bus;
+  bus.keep_sent = true;
+  BusEventLoop loop(bus);
+  EngineRef<NmtMaster> ref(master);
+  loop.add(ref);
+  std::vector<MasterEvent> events;
+  const std::string confirmation = "581#60261F0200000000";
+  auto sent = [&bus](const std::string& candump) {
+    return std::any_of(bus.sent_frames.begin(), bus.sent_frames.end(),
+                       [&](const CanFrame& f) { return to_candump(f) == candump; });
+  };
+  auto booted_9 = [&events] {
+    return std::any_of(events.begin(), events.end(), [](const MasterEvent& e) {
+      return e.kind == Kind::BootUp && e.node_id == 9;
+    });
+  };
+  // Runs the loop in 10 ms steps until `done`, 5 s at most.
+  auto run_until = [&loop](const std::function<bool()>& done) {
+    for (int i = 0; i < 500 && !done(); ++i) {
+      if (!loop.run_for(10ms).ok()) return false;
+    }
+    return done();
+  };
+  {
+    EntryPersister persister(ref);
+    ref.set_event_handler([&](const MasterEvent& e, TimePoint) {
+      events.push_back(e);
+      persister.on_event(e);
+    });
+    ref.apply([](NmtMaster& m, TimePoint now, auto& out) { m.start(now, out); });
+    bus.inject("601#23261F0201000000");  // 1F26h sub 2 = 1, expedited
+    ASSERT_TRUE(run_until([&] { return writing.load(); }));
+    bus.inject("709#00");  // node 9 boots while the disk works
+    EXPECT_TRUE(run_until(booted_9));
+    EXPECT_FALSE(release.load());
+    EXPECT_FALSE(sent(confirmation));
+    release = true;
+    EXPECT_TRUE(run_until([&] { return sent(confirmation); }));
+  }
+  EXPECT_EQ(options.manager->expected_stamp(*cfg::NodeId::from(2)).days, 1U);
 }
 
 }  // namespace

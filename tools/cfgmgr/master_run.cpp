@@ -22,6 +22,7 @@
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/device_state.hpp"
+#include "nmt/entry_persister.hpp"
 #include "nmt/master_config.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
@@ -80,9 +81,10 @@ std::string prefix(std::string_view tool) {
   return "cfgmgr " + std::string(tool) + ": ";
 }
 
-// --store DIR: the master leaves the disk to its driver (nmt_master.hpp, PersistEntry). The
-// entry is written here, in the loop after the master's call, and the master told, so that the
-// SDO confirmation of the write leaves once the entry is durable (or an abort when it failed).
+// --store DIR: the master leaves the disk to its driver (nmt_master.hpp, PersistEntry). On sim:
+// the entry is written here, in the loop after the master's call (simulated time stands still
+// meanwhile; a real bus uses nmt::EntryPersister's worker thread), and the master told, so that
+// the SDO confirmation of the write leaves once the entry is durable (or an abort when it failed).
 template <class Apply>
 void persist_when_asked(const nmt::MasterEvent& e, const nmt::NmtMaster& master,
                         EventReporter& reporter, std::string_view tool, Apply&& apply) {
@@ -626,16 +628,21 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
   nmt::BusEventLoop loop(*bus);
   reporter.set_start(loop.now());
   nmt::EngineRef<nmt::NmtMaster> ref(master);
+  loop.add(ref);
+  // --store DIR: entries are written on a worker thread, so an fsync does not stall the loop;
+  // the SDO confirmation leaves once the entry is durable (nmt/entry_persister.hpp).
+  nmt::EntryPersister persister(ref, [&reporter, &limits](const cfg::Status& done) {
+    if (!done) reporter.note(prefix(limits.tool) + "error: " + done.error().message);
+  });
   bool continued = false;
   ref.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
     reporter.report(e);
-    persist_when_asked(e, master, reporter, limits.tool, [&ref](auto fn) { ref.apply(fn); });
+    persister.on_event(e);
     continue_when_awaited(master, continued, [&ref](auto fn) { ref.apply(fn); });
     if (limits.until_startup_ends && !limits.run_for_s && ended(limits, reporter)) {
       loop.request_stop();
     }
   });
-  loop.add(ref);
   loop.set_bus_event_handler(
       [&reporter](const nmt::BusEvent& e, nmt::TimePoint at) { reporter.report_bus(e, at); });
   const bool forever = !limits.run_for_s && !limits.until_startup_ends;
