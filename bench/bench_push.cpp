@@ -207,14 +207,20 @@ int main(int argc, char** argv) {
       network.nodes.size(), network.nodes.front().writes.size());
   if (lss) {
     // Every device out of the box; the first push after it (Execute LSS, then the boot).
-    std::vector<Run> out_of_the_box;
+    std::vector<Run> step10;
+    std::vector<Run> step1;
+    const std::vector<std::string> args = {cpj, "--bus", "sim:?latency_ms=1&unconfigured=1-126",
+                                           "--lss"};
     for (int i = 0; i < runs; ++i) {
-      out_of_the_box.push_back(
-          push({cpj, "--bus", "sim:?latency_ms=1&unconfigured=1-126", "--lss"}, dir));
+      step10.push_back(push(args, dir));
+      auto fast = args;
+      fast.insert(fast.end(), {"--lss-scan-step", "1"});
+      step1.push_back(push(fast, dir));
     }
     Required bound = required_frames(network, spec, true);
     add_lss_requests(bound, network.nodes.size());
-    print("--lss", out_of_the_box, bound);
+    print("--lss", step10, bound);
+    print("step 1 ms", step1, bound);
     fs::remove_all(dir);
     return 0;
   }
