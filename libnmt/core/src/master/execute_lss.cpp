@@ -82,7 +82,6 @@ std::optional<TimePoint> ExecuteLssProcess::next_deadline() const {
 
 void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
   chosen_.clear();
-  given_.clear();
   assigned_ = 0;
   lss_out_.clear();
   lss_.scan([this](const LssAddress& address) { return choose(address); }, now, lss_out_);
@@ -91,12 +90,7 @@ void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
 
 std::optional<std::uint8_t> ExecuteLssProcess::choose(const LssAddress& address) {
   const auto node = port_.slave_with(address);
-  if (!node) return std::nullopt;
-  // Two devices with one LSS address: the first found gets the node-ID, the other is left
-  // alone (given_ says who has it), so that no two devices take one node-ID.
-  if (given_.count(*node) != 0) return std::nullopt;
-  chosen_[address] = *node;
-  given_[*node] = address;
+  if (node) chosen_[address] = *node;
   return node;
 }
 
@@ -132,7 +126,6 @@ void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& o
       const auto chosen = chosen_.find(e.address);
       if (chosen != chosen_.end()) {
         // The device is a slave's, but it refused or did not answer configure node-ID.
-        given_.erase(chosen->second);
         auto m = master_event(MasterEvent::Kind::LssFailed, e.at, chosen->second,
                               node_text(chosen->second) + ": LSS: " + scan_text(e));
         m.lss_address = e.address;
@@ -140,13 +133,9 @@ void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& o
         return;
       }
       if (phase_ != Phase::Startup && !reported_.insert(e.address).second) return;
-      std::string why = "matches no slave";
-      if (const auto node = port_.slave_with(e.address)) {
-        why = "has the LSS address of " + node_text(*node) + ", which another device got";
-      }
       auto m = master_event(MasterEvent::Kind::LssUnmatched, e.at, 0,
-                            "LSS: unconfigured device " + address_digits(e.address) + " " + why +
-                                ": left unconfigured");
+                            "LSS: unconfigured device " + address_digits(e.address) +
+                                " matches no slave: left unconfigured");
       m.lss_address = e.address;
       out.report(std::move(m));
       return;

@@ -89,10 +89,8 @@ class ExecuteLssProcess {
   Phase phase_ = Phase::Off;
   std::optional<TimePoint> next_look_;
   LssMaster::Output lss_out_;  ///< scratch output of lss_
-  /// This scan: the node-ID chosen for each address found, and the node-IDs handed out (a
-  /// second device with an address already served is a duplicate, left alone).
+  /// This scan: the node-ID chosen for each address found (its LssFailed names the slave).
   std::map<LssAddress, std::uint8_t> chosen_;
-  std::map<std::uint8_t, LssAddress> given_;
   std::uint32_t assigned_ = 0;
   /// Unmatched addresses reported while watching: each once (the start-up pass reports all).
   std::set<LssAddress> reported_;
