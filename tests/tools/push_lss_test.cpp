@@ -144,6 +144,20 @@ TEST(PushLss, SimDevicesOutOfTheBoxAreAllConfiguredAndASecondPushNeedsNoLss) {
   EXPECT_THAT(second.err, HasSubstr("LSS: 0 unconfigured devices found"));
 }
 
+// --only 16: the other nodes are left as they are, LSS included: their devices stay without
+// node-ID and are reported as matching no node of this run.
+TEST(PushLss, OnlyGivesNodeIdsToTheSelectedNodes) {
+  ScratchDir dir;
+  write_network(dir);
+  const auto r = cfgmgr(dir, {"push", dir / "nodelist.cpj", "--bus", "sim:?unconfigured=16-18",
+                              "--lss", "--only", "16", "--json", dir / "r.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto report = tool_test::json_object_of(tool_test::slurp(dir / "r.json"));
+  EXPECT_EQ(lss_assigned(report), (std::vector<bool>{true}));
+  EXPECT_EQ(unmatched(report), (std::vector<std::string>{"7E57C0DE:00000305:00010002:00002002",
+                                                         "7E57C0DE:00000305:00010002:00002003"}));
+}
+
 // Without --lss, the same devices are missing (status B), as before.
 TEST(PushLss, WithoutLssTheUnconfiguredDevicesAreMissing) {
   ScratchDir dir;

@@ -65,7 +65,6 @@ struct NodeReport {
   std::string status;
   std::string message;
   std::string last_try;     ///< "B: words" of the last try that failed and was repeated
-  bool lss_assigned = false;  ///< --lss: the node-ID was given to its device by LSS in this run
   std::size_t entries = 0;  ///< configuration entries written (also when the boot then failed)
   std::size_t total = 0;    ///< entries to write, once the download was planned
   std::uint64_t bytes = 0;
@@ -74,6 +73,7 @@ struct NodeReport {
   std::optional<nmt::NmtState> state;  ///< as the master knows it
   std::optional<nmt::TimePoint> began;
   nmt::TimePoint ended{0};
+  bool lss_assigned = false;  ///< --lss: the node-ID was given to its device by LSS in this run
 };
 
 std::string_view result_name(Result result) {
@@ -498,6 +498,15 @@ void run_push(const PushCliOptions& options) {
   master_options.force_download = options.force;
   if (sim) master_options.bitrate = sim->bitrate_bps;
   apply_lss_options(kTool, options.lss, *network, master_options);
+  if (!options.only.empty()) {
+    // --only leaves the other nodes as they are: their devices get no node-ID by LSS either
+    // (found without one, they are reported as matching no node).
+    std::erase_if(master_options.lss.addresses, [&selected](const auto& entry) {
+      return std::none_of(selected.begin(), selected.end(), [&entry](const cfg::NetworkNode* n) {
+        return n->node_id.value() == entry.first;
+      });
+    });
+  }
   const double lss_s = lss_bound_s(master_options);
   nmt::NmtMaster master =
       build_master(kTool, options.network, network, options.node_id, master_options);
