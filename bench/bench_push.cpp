@@ -5,7 +5,13 @@
 // run 2 is the same push again: every 1020h matches, every node is skipped. "1 % loss": the
 // first push without state= with each frame lost with probability 0.01 (sim:?loss=0.01&seed=1,
 // the same frames lost in every run; issue 22's field conditions).
-//   cmake --build build-bench --target bench_push && build-bench/bench/bench_push [RUNS]
+// "--lss" (issue 23): instead, the push --lss of the same network whose 126 devices all come out
+// of the box without node-ID (sim:?unconfigured=1-126, every DCF with LSS_Supported=1 and a
+// serial number of its own): Execute LSS gives each its node-ID, then the usual first push. Its
+// bound adds the LSS requests the protocol needs (nmt/lss_master.hpp): per device the Fastscan
+// reset, 4 x (32 bit queries + a confirmation), configure node-ID, store, switch to waiting
+// (136), plus one switch to waiting before and the reset nobody answers after: 136 N + 2.
+//   cmake --build build-bench --target bench_push && build-bench/bench/bench_push [RUNS] [--lss]
 // Per run: bus time (the report's elapsed_s, simulated), the lower bound (air time,
 // nmt::frame_bits, of the frames CiA 301/302-2 require, built here from the network's own
 // download plans, not from what the master sends), their ratio, the frames the trace holds,
@@ -173,13 +179,21 @@ void print(const char* what, const std::vector<Run>& runs, const Required& bound
 
 }  // namespace
 
+// The LSS requests a scan of `devices` new devices needs (see the top), 8 data bytes each.
+void add_lss_requests(Required& r, std::size_t devices) {
+  const std::vector<std::uint8_t> request(8, 0);
+  for (std::size_t i = 0; i < 136 * devices + 2; ++i) r.add(0x7E5, request);
+}
+
 int main(int argc, char** argv) {
+  const bool lss = argc > 2 && std::string(argv[2]) == "--lss";
   const int runs = argc > 1 ? std::max(1, static_cast<int>(std::strtol(argv[1], nullptr, 10))) : 5;
   const fs::path dir = fs::temp_directory_path() / ("bench_push_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   generated::NetworkSpec spec;
   spec.values = 100;
   spec.pdos = 0;
+  spec.lss = lss;
   const std::string cpj = generated::write_network(dir / "net", spec);
   auto loaded = cfg::load_network(cpj, {});
   if (!loaded.ok()) {
@@ -191,6 +205,25 @@ int main(int argc, char** argv) {
       "network: %zu slaves, %zu configuration entries each (node 1), 500 kbit/s, "
       "latency 1 ms\n",
       network.nodes.size(), network.nodes.front().writes.size());
+  if (lss) {
+    // Every device out of the box; the first push after it (Execute LSS, then the boot).
+    std::vector<Run> step10;
+    std::vector<Run> step1;
+    const std::vector<std::string> args = {cpj, "--bus", "sim:?latency_ms=1&unconfigured=1-126",
+                                           "--lss"};
+    for (int i = 0; i < runs; ++i) {
+      step10.push_back(push(args, dir));
+      auto fast = args;
+      fast.insert(fast.end(), {"--lss-scan-step", "1"});
+      step1.push_back(push(fast, dir));
+    }
+    Required bound = required_frames(network, spec, true);
+    add_lss_requests(bound, network.nodes.size());
+    print("--lss", step10, bound);
+    print("step 1 ms", step1, bound);
+    fs::remove_all(dir);
+    return 0;
+  }
   const std::string state = (dir / "state").string();
   const std::vector<std::string> args = {cpj, "--bus", "sim:?latency_ms=1&state=" + state};
   const std::vector<std::string> stateless = {cpj, "--bus", "sim:?latency_ms=1"};

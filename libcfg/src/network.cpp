@@ -501,8 +501,12 @@ DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node) {
     auto value = configured_unsigned(dcf, object::kIdentity, sub, node);
     return value ? value : device_info_number(dcf, key);
   };
+  std::optional<std::uint32_t> serial = configured_unsigned(dcf, object::kIdentity, 4, node);
+  if (dcf.commissioning && dcf.commissioning->lss_serial_number) {
+    serial = dcf.commissioning->lss_serial_number;
+  }
   return {configured_unsigned(dcf, object::kDeviceType, 0, node), identity(1, "VendorNumber"),
-          identity(2, "ProductNumber"), identity(3, "RevisionNumber")};
+          identity(2, "ProductNumber"), identity(3, "RevisionNumber"), serial};
 }
 
 ConfigurationStamp configuration_stamp(std::span<const std::uint8_t> concise_dcf) {

@@ -93,6 +93,23 @@ TEST(Lss, SimulateUnconfiguredNeedsLssSupportedInTheFile) {
   EXPECT_THAT(range.err, HasSubstr("255 or 'unconfigured'"));
 }
 
+// Issue 23: the --state file of a DEVICE@255 is named by its LSS address; two devices with one
+// address would share it, so simulate refuses them (before the bus) instead of letting one
+// overwrite the other's stored node-ID. Without --state they may run (CiA 305's uniqueness is
+// then the user's business, e.g. to test a master against it); devices with different addresses
+// have a file each (LssInNetns.SimulateStateKeepsTheNodeIdLssStoredOverARestart).
+TEST(Lss, SimulateStateRefusesTwoUnconfiguredDevicesWithOneLssAddress) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"simulate", "--for", "0.1", "--state", dir / "state", kIo + "@255",
+                              kIo + "@unconfigured"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("have the same LSS address " + std::string(kAddress1001) +
+                               " and would share the state file "
+                               "lss-7E57C0DE-00000305-00010002-00001001.saved"));
+  EXPECT_FALSE(
+      std::filesystem::exists(dir / "state/lss-7E57C0DE-00000305-00010002-00001001.saved"));
+}
+
 // sim:?unconfigured=LIST: the devices of those nodes power on without node-ID, as out of the box;
 // without LSS the master cannot reach them. tests/data/lss/nodelist.cpj: node 16, lss_io_1003.dcf.
 TEST(Lss, SimUnconfiguredDeviceSendsNoBootUpSoTheMasterMissesIt) {

@@ -28,6 +28,7 @@ struct MasterCliOptions : NetworkRunArgs {
   std::string json_events;
   std::string store;
   bool sdo_manager = false;
+  LssRunArgs lss;
 };
 
 /// --store DIR: the configuration manager the master serves (1F20h-1F27h) and configures from
@@ -49,6 +50,7 @@ void run_master(const MasterCliOptions& options) {
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager = options.sdo_manager;
+  apply_lss_options("master", options.lss, *network, master_options);
   nmt::NmtMaster master =
       build_master("master", options.network, network, options.node_id, master_options);
 
@@ -61,7 +63,7 @@ void run_master(const MasterCliOptions& options) {
   if (sim) {
     // Without --run-for, sim: ends once NMT start-up has (master_run.hpp).
     limits.until_startup_ends = true;
-    limits.bound_s = kSimDefaultBoundS;
+    limits.bound_s = kSimDefaultBoundS + lss_bound_s(master_options);
     limits.bound_hint = " of simulated time (give --run-for to run longer)";
     timed_out = run_master_on_sim(std::move(master), *network, *sim, limits, reporter).timed_out;
   } else {
@@ -96,7 +98,8 @@ void add_master_command(CLI::App& app) {
                   "send_failed, ... with node_id 0 and the frame), node_id, text, and per event "
                   "error/"
                   "description/final, configured/entries/bytes, assigned, step, state, command, "
-                  "priority, connection_error and connection (row, client_node_id, client_index, "
+                  "priority, connection_error, lss_address (lss_assigned, lss_unmatched, "
+                  "lss_failed) and connection (row, client_node_id, client_index, "
                   "server_node_id, server_index, request_cob_id, response_cob_id)")
       ->type_name("FILE");
   cmd->add_option("--store", options->store,
@@ -111,7 +114,15 @@ void add_master_command(CLI::App& app) {
                 "set up the SDO connections they ask for with 1F00h from the COB-IDs of 1F02h "
                 "(680h-6DFh when the DCF has none) and release them (1F01h, or when the "
                 "requester's heartbeat or guarding stops)");
+  add_lss_options(*cmd, options->lss, /*with_period=*/true);
   cmd->footer(std::string(
+      "Devices out of the box (no node-ID, CiA 305): with --lss the master first finds every "
+      "device without node-ID (Fastscan) and gives each the node-ID of the node whose DCF has "
+      "its LSS address (1018h sub 1-3, [DeviceComissioning] LSS_SerialNumber else 1018h sub 4), "
+      "stored in the device, then boots the network; with --lss-period MS it also looks for "
+      "such devices while it runs (a replaced drive), and boots and configures each it gave a "
+      "node-ID. Events: node N: LSS: ... got node-ID N, stored / LSS: unconfigured device "
+      "V:P:R:S matches no slave: left unconfigured / LSS: K unconfigured devices found.\n\n"
       "The master is the network's configuration manager (DSP 302 section 6) and serves "
       "1F20h-1F27h by SDO: 1F22h sub N reads the concise DCF it downloads to node N (the bytes "
       "cfgmgr build writes as nodeN.bin), 1F20h sub N the node's DCF file (0800 0024 when the "
@@ -142,7 +153,8 @@ void add_master_command(CLI::App& app) {
       "  cfgmgr master master.dcf --bus udp://239.74.163.2:43113 --node-id 1\n"
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --store /var/lib/canopen/store\n"
       "  cfgmgr sdo read --bus socketcan:can0 0x7F 1F22:3 --type domain -o node3.bin\n"
-      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --sdo-manager\n\n"
+      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --sdo-manager\n"
+      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --lss --lss-period 1000\n\n"
       "Exit codes:\n"
       "  0  stopped by Ctrl-C/SIGTERM or --run-for, or (sim: without --run-for) NMT start-up "
       "complete\n"

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -182,6 +183,61 @@ void fail_command(std::string_view tool, int code, const std::string& message) {
   exit_with(code);
 }
 
+void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
+  cmd.add_flag("--lss", args.lss,
+               "Execute LSS first (CiA 305, DSP 302 section 4 step 3): before the reset of all "
+               "nodes, find every device without node-ID (Fastscan) and give each whose LSS "
+               "address (vendor-ID, product code, revision, serial number: 1018h sub 1-4 of a "
+               "node's DCF, the serial number from [DeviceComissioning] LSS_SerialNumber) is a "
+               "node's that node's node-ID, stored in the device; devices that match no node are "
+               "reported and left without node-ID");
+  cmd.add_option("--lss-scan-step", args.scan_step_ms,
+                 "With --lss: how long each Fastscan request waits for answers, in ms (above "
+                 "the devices' answer time; raise it for devices behind a slow link)")
+      ->capture_default_str()
+      ->type_name("MS")
+      ->check(CLI::Range(1U, 10000U));
+  if (!with_period) return;
+  cmd.add_option("--lss-period", args.period_ms,
+                 "With --lss: after start-up, look for devices without node-ID (a replaced "
+                 "device) every MS milliseconds, and give them their node-ID; the master then "
+                 "boots and configures them. Each look is one LSS frame (4Ch, about 0.25 ms of "
+                 "bus time at 500 kbit/s: 0.025 % of the bus at 1000 ms) and one scan step of "
+                 "waiting for answers; only when a device answers, a Fastscan follows (about "
+                 "135 requests and as many answers per device, one scan step each; a device "
+                 "that matches no node costs that at every look). Default: no looks")
+      ->type_name("MS")
+      ->check(CLI::Range(1U, 3600000U));
+}
+
+void apply_lss_options(std::string_view tool, const LssRunArgs& args, const cfg::Network& network,
+                       nmt::MasterOptions& options) {
+  if (!args.lss) {
+    if (args.period_ms) fail_command(tool, tools::kExitUsage, "--lss-period needs --lss");
+    return;
+  }
+  options.lss.enabled = true;
+  options.lss.timing.scan_step = std::chrono::milliseconds(args.scan_step_ms);
+  if (args.period_ms) options.lss.period = std::chrono::milliseconds(*args.period_ms);
+  std::vector<std::string> notes;
+  options.lss.addresses = lss_addresses(network, notes);
+  for (const auto& note : notes) std::cerr << prefix(tool) << "note: " << note << '\n';
+}
+
+double lss_bound_s(const nmt::MasterOptions& options) {
+  if (!options.lss.enabled) return 0;
+  // Per device: the Fastscan (1 + 4 x 33 steps), configure and store (two timeouts at most),
+  // and the probes past a device left alone; the last, silent Fastscan reset. And the answers:
+  // every device not yet found answers about 100 queries of each scan (devices of one product
+  // share the upper parts of their addresses), about 70 N^2 frames of 135 bits at most
+  // (BENCHMARKS.md, bench_lss_fastscan), at the bit rate (125 kbit/s when unknown).
+  const double step_s = std::chrono::duration<double>(options.lss.timing.scan_step).count();
+  const double answer_s = std::chrono::duration<double>(options.lss.timing.timeout).count();
+  const double devices = static_cast<double>(options.lss.addresses.size()) + 1;
+  const double frame_s = 135.0 / (options.bitrate != 0 ? options.bitrate : 125'000);
+  return devices * (140 * step_s + 2 * answer_s) + devices * devices * 70 * frame_s + 1;
+}
+
 tools::ReportFile open_report_or_exit(const std::string& path) {
   auto opened = tools::ReportFile::open(path);
   if (!opened) {
@@ -279,7 +335,13 @@ void EventReporter::report(const nmt::MasterEvent& e) {
     case K::SrdLost:
     case K::SrdDeregistered:
     case K::SlaveFailedReported:
-      line = e.text;  // flying master: who is active and why; SDO manager: what it did
+    case K::LssAssigned:
+    case K::LssUnmatched:
+    case K::LssFailed:
+    case K::LssScanEnded:
+      // flying master: who is active and why; SDO manager: what it did; LSS: which device got
+      // which node-ID, and which matched no node
+      line = e.text;
       break;
     default:
       if (verbose_) line = e.text;
@@ -358,6 +420,8 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
            ", \"request_cob_id\": " + std::to_string(c.request.word()) +
            ", \"response_cob_id\": " + std::to_string(c.response.word()) + "}";
   }
+  if (e.lss_address)
+    out += ", \"lss_address\": " + tools::json_string(nmt::address_digits(*e.lss_address));
   out += ", \"text\": " + tools::json_string(e.text) + "}\n";
   *json_ << out << std::flush;
 }

@@ -38,6 +38,23 @@ struct NetworkRunArgs {
 /// required).
 CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args);
 
+/// `--lss` of push and master: Execute LSS before NMT start-up's reset of all nodes (CiA 305
+/// Fastscan; nmt_master.hpp), and for master `--lss-period MS`, the look for replaced devices.
+struct LssRunArgs {
+  bool lss = false;
+  std::optional<unsigned> period_ms;  ///< --lss-period
+  unsigned scan_step_ms = 10;         ///< --lss-scan-step
+};
+/// Adds --lss to `cmd`, and --lss-period when `with_period`.
+void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period);
+/// MasterOptions::lss from the arguments, with the network's LSS addresses (lss_addresses; its
+/// notes on stderr). Ends the command with exit 2 for --lss-period without --lss.
+void apply_lss_options(std::string_view tool, const LssRunArgs& args, const cfg::Network& network,
+                       nmt::MasterOptions& options);
+/// A bound on the simulated time Execute LSS takes for `options` (Fastscan: 133 steps per
+/// device and a few more, each the scan step), to add to a run's bound.
+double lss_bound_s(const nmt::MasterOptions& options);
+
 /// Prints "cfgmgr TOOL: message" on stderr and ends the command with `code`.
 [[noreturn]] void fail_command(std::string_view tool, int code, const std::string& message);
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -159,7 +160,38 @@ nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::Node
   faults.vendor_id = identity.vendor_id;
   faults.product_code = identity.product_code;
   faults.revision_number = identity.revision_number;
+  faults.serial_number = identity.serial_number;
   return faults;
+}
+
+std::map<std::uint8_t, nmt::LssAddress> lss_addresses(const cfg::Network& network,
+                                                      std::vector<std::string>& notes) {
+  std::map<nmt::LssAddress, std::vector<std::uint8_t>> by_address;
+  for (const auto& node : network.nodes) {
+    if (!node.dcf) continue;
+    const cfg::DeviceIdentity identity = cfg::identity_of(*node.dcf, node.node_id);
+    const nmt::LssAddress address{identity.vendor_id.value_or(0), identity.product_code.value_or(0),
+                                  identity.revision_number.value_or(0),
+                                  identity.serial_number.value_or(0)};
+    // 0 is "not given" (an EDS default serial number is no device's), as in 1F85h-1F88h.
+    if (address.vendor_id == 0 || address.product_code == 0 || address.revision == 0 ||
+        address.serial == 0) {
+      continue;
+    }
+    by_address[address].push_back(node.node_id.value());
+  }
+  std::map<std::uint8_t, nmt::LssAddress> addresses;
+  for (const auto& [address, nodes] : by_address) {
+    if (nodes.size() == 1) {
+      addresses[nodes.front()] = address;
+      continue;
+    }
+    std::string list;
+    for (const auto n : nodes) list += (list.empty() ? "" : ", ") + std::to_string(n);
+    notes.push_back("nodes " + list + " share the LSS address " + nmt::address_digits(address) +
+                    ": none of them gets its node-ID by LSS");
+  }
+  return addresses;
 }
 
 cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(

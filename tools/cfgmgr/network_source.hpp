@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -14,6 +15,7 @@
 #include "cfg/network.hpp"
 #include "cfg/result.hpp"
 #include "nmt/fault_injection.hpp"
+#include "nmt/lss.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/simulated_device.hpp"
 
@@ -69,6 +71,14 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url);
 /// build their devices with it.
 nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId node,
                                    nmt::DeviceFaults faults);
+
+/// The LSS addresses (CiA 305) of the network's nodes, for Execute LSS (`--lss`,
+/// nmt::ExecuteLssOptions::addresses): vendor-ID, product code, revision and serial number as
+/// cfg::identity_of gives them (the serial number from [DeviceComissioning] LSS_SerialNumber,
+/// else 1018h sub 4), for each node whose DCF gives all four non-zero. Nodes that share one
+/// address are left out, and `notes` gets a line naming them.
+std::map<std::uint8_t, nmt::LssAddress> lss_addresses(const cfg::Network& network,
+                                                      std::vector<std::string>& notes);
 
 /// One simulated device for each node of the network that has a DCF (a node given only by a
 /// concise DCF has no dictionary to simulate: it is left out, and `skipped` gets its node-ID),

@@ -50,6 +50,7 @@ struct PushCliOptions : NetworkRunArgs {
   double sdo_timeout_s = 0.5;
   unsigned retries = 2;
   RunTraces traces;
+  LssRunArgs lss;
 };
 
 enum class Result : std::uint8_t { Pending, Configured, Skipped, Error };
@@ -72,6 +73,7 @@ struct NodeReport {
   std::optional<nmt::NmtState> state;  ///< as the master knows it
   std::optional<nmt::TimePoint> began;
   nmt::TimePoint ended{0};
+  bool lss_assigned = false;  ///< --lss: the node-ID was given to its device by LSS in this run
 };
 
 std::string_view result_name(Result result) {
@@ -155,8 +157,10 @@ class Collector {
     if (e.kind == K::StartupHalted || e.kind == K::NotMaster) {
       stop_ = e.text;
     }
+    if (e.kind == K::LssUnmatched && e.lss_address) unmatched_.push_back(*e.lss_address);
     NodeReport* r = find(e.node_id);
     if (r == nullptr) return;
+    if (e.kind == K::LssAssigned) r->lss_assigned = true;
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
     if (r->result != Result::Pending) return;
     switch (e.kind) {
@@ -245,6 +249,8 @@ class Collector {
   }
 
   const std::vector<NodeReport>& nodes() const { return nodes_; }
+  /// --lss: the devices without node-ID that matched no node (left so).
+  const std::vector<nmt::LssAddress>& unmatched() const { return unmatched_; }
 
  private:
   NodeReport* find(std::uint8_t node) {
@@ -254,6 +260,7 @@ class Collector {
     return nullptr;
   }
   std::vector<NodeReport> nodes_;
+  std::vector<nmt::LssAddress> unmatched_;
   std::string stop_;  ///< the words of the event that ended start-up (halted, not master)
 };
 
@@ -390,9 +397,11 @@ double node_seconds(const NodeReport& r, nmt::TimePoint start) {
   return static_cast<double>((r.ended - from).count()) / 1e6;
 }
 
-// The table (node, name, result, entries, time) within 100 columns whatever the messages, then
-// one line per node whose result has words to it: "node 2 (io): error D: ...".
-void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
+// The table (node, name, result, entries, time; with --lss also whether LSS gave the node-ID)
+// within 100 columns whatever the messages, then one line per node whose result has words to it:
+// "node 2 (io): error D: ...", and one per device LSS found that matched no node.
+void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, bool lss,
+                 const std::vector<nmt::LssAddress>& unmatched) {
   constexpr std::size_t kNameWidth = 32;  // longer names are cut ("...") in the table only
   std::size_t name_width = 4;
   std::size_t result_width = 6;
@@ -406,7 +415,7 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
     return text;
   };
   std::cout << "node  " << pad("name", name_width) << "  " << pad("result", result_width)
-            << "  entries  time\n";
+            << (lss ? "  lss     " : "") << "  entries  time\n";
   for (const auto& r : nodes) {
     char number[8];
     std::snprintf(number, sizeof number, "%4d", r.node_id);
@@ -415,7 +424,9 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
     char seconds[32];
     std::snprintf(seconds, sizeof seconds, "%.3f s", node_seconds(r, start));
     std::cout << number << "  " << pad(r.name, name_width) << "  "
-              << pad(result_text(r), result_width) << "  " << entries << "  " << seconds << '\n';
+              << pad(result_text(r), result_width)
+              << (lss ? (r.lss_assigned ? "  assigned" : "  -       ") : "") << "  " << entries
+              << "  " << seconds << '\n';
   }
   bool first = true;
   for (const auto& r : nodes) {
@@ -426,11 +437,16 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
               << (r.name.empty() ? "" : " (" + r.name + ")") << ": " << result_text(r) << ": "
               << r.message << '\n';
   }
+  if (!unmatched.empty()) std::cout << '\n';
+  for (const auto& address : unmatched) {
+    std::cout << "LSS: device " << nmt::address_digits(address)
+              << " without node-ID matches no node: left without node-ID\n";
+  }
 }
 
 // The --json report (fixed keys of the configuration manager issue; "mandatory" added).
 std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Duration elapsed,
-                        nmt::TimePoint start) {
+                        nmt::TimePoint start, const std::vector<nmt::LssAddress>& unmatched) {
   char number[32];
   std::snprintf(number, sizeof number, "%.6f", static_cast<double>(elapsed.count()) / 1e6);
   std::string out = std::string("{\"ok\": ") + (ok ? "true" : "false") +
@@ -446,8 +462,13 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
            ", \"entries\": " + std::to_string(r.entries) +
            ", \"bytes\": " + std::to_string(r.bytes) +
            ", \"retries\": " + std::to_string(r.retries) + ", \"seconds\": " + number +
-           ", \"mandatory\": " + (r.mandatory ? "true" : "false") + "}";
+           ", \"mandatory\": " + (r.mandatory ? "true" : "false") +
+           ", \"lss_assigned\": " + (r.lss_assigned ? "true" : "false") + "}";
     first = false;
+  }
+  out += "], \"lss_unmatched\": [";
+  for (std::size_t i = 0; i < unmatched.size(); ++i) {
+    out += (i == 0 ? "" : ", ") + tools::json_string(nmt::address_digits(unmatched[i]));
   }
   return out + "]}\n";
 }
@@ -476,6 +497,17 @@ void run_push(const PushCliOptions& options) {
   master_options.save_configuration = !options.no_save;
   master_options.force_download = options.force;
   if (sim) master_options.bitrate = sim->bitrate_bps;
+  apply_lss_options(kTool, options.lss, *network, master_options);
+  if (!options.only.empty()) {
+    // --only leaves the other nodes as they are: their devices get no node-ID by LSS either
+    // (found without one, they are reported as matching no node).
+    std::erase_if(master_options.lss.addresses, [&selected](const auto& entry) {
+      return std::none_of(selected.begin(), selected.end(), [&entry](const cfg::NetworkNode* n) {
+        return n->node_id.value() == entry.first;
+      });
+    });
+  }
+  const double lss_s = lss_bound_s(master_options);
   nmt::MasterConfig config =
       master_config_or_exit(kTool, options.network, network, options.node_id, master_options);
 
@@ -543,7 +575,7 @@ void run_push(const PushCliOptions& options) {
   RunLimits limits;
   limits.tool = kTool;
   limits.until_startup_ends = true;
-  limits.bound_s = boot_time_s + kRunMarginS;
+  limits.bound_s = boot_time_s + kRunMarginS + lss_s;
   limits.bound_hint = sim ? " of simulated time" : "";
   // StartupHalted comes once every slave's boot ended (nmt_master.hpp), so each node has its
   // own result by then.
@@ -562,9 +594,10 @@ void run_push(const PushCliOptions& options) {
   for (const auto& r : collector.nodes()) {
     if (r.mandatory && r.result == Result::Error) ok = false;
   }
-  print_table(collector.nodes(), reporter.start());
+  print_table(collector.nodes(), reporter.start(), options.lss.lss, collector.unmatched());
   if (json.stream() != nullptr) {
-    finish_report_or_exit(json, json_report(collector.nodes(), ok, elapsed, reporter.start()));
+    finish_report_or_exit(
+        json, json_report(collector.nodes(), ok, elapsed, reporter.start(), collector.unmatched()));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }
@@ -587,7 +620,9 @@ void add_push_command(CLI::App& app) {
          "nodes [{node_id, name, result (configured/skipped/error), status (with an error: "
          "its CiA 302-2 letter, or not_tried / unfinished when its boot did not end "
          "before the run did; null otherwise), message, entries, bytes, retries, "
-         "seconds, mandatory}]")
+         "seconds, mandatory, lss_assigned (true when --lss gave the node its node-ID in "
+         "this run)}], lss_unmatched [LSS addresses VVVVVVVV:PPPPPPPP:RRRRRRRR:SSSSSSSS of "
+         "devices --lss found that match no node]")
       ->type_name("FILE");
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "
@@ -612,6 +647,7 @@ void add_push_command(CLI::App& app) {
                   "Record every frame of the run as a candump log (candump -l format, for "
                   "can-utils and python-can); on sim: stamped with simulated time")
       ->type_name("FILE.log");
+  add_lss_options(*cmd, options->lss, /*with_period=*/false);
   cmd->add_flag("--force", options->force, "Download even when 1020h matches 1F26h/1F27h");
   cmd->add_flag("--no-start", options->no_start,
                 "Do not start the slaves (1F80h bit 3): they stay pre-operational");
@@ -644,13 +680,22 @@ void add_push_command(CLI::App& app) {
       "configuration and 1020h) in DIR between runs, one file per node, and loads it when it "
       "powers on: a second push finds every 1020h as the first left it and skips every "
       "node (\"skipped: signature matches\").\n\n"
+      "Devices out of the box (no node-ID, CiA 305): with --lss push first finds every device "
+      "without node-ID and gives each the node-ID of the node whose DCF has its LSS address "
+      "(1018h sub 1-3 and [DeviceComissioning] LSS_SerialNumber, else 1018h sub 4), stored in "
+      "the device; then it boots the network as usual. The table gets a column lss (assigned: "
+      "this run gave the node-ID), and devices that match no node are listed under it and left "
+      "alone. The search costs about 135 LSS requests of 10 ms per device; with every device "
+      "configured it is 2 frames and 10 ms.\n\n"
       "Examples:\n"
       "  cfgmgr push samples/network/nodelist.cpj --bus sim:\n"
+      "  cfgmgr push nodelist.cpj --bus 'sim:?unconfigured=2-4' --lss\n"
       "  cfgmgr push samples/network/nodelist.cpj --dry-run --only 3\n"
       "  cfgmgr push samples/network/nodelist.cpj --bus 'sim:?state=/tmp/devices' "
       "--candump boot.log\n"
       "  cfgmgr push nodelist.cpj --bus socketcan:can0 --json report.json\n"
-      "  cfgmgr push master.dcf --bus udp://239.74.163.2:43113 --force --no-save\n\n"
+      "  cfgmgr push master.dcf --bus udp://239.74.163.2:43113 --force --no-save\n"
+      "  cfgmgr push nodelist.cpj --bus socketcan:can0 --lss --json report.json\n\n"
       "Exit codes:\n"
       "  0  every mandatory node configured or skipped and started (optional failures are "
       "reported)\n"

@@ -117,6 +117,7 @@ void run_simulate(const SimulateOptions& options) {
   // started unconfigured (LSS may give either another node-ID).
   std::vector<nmt::DeviceStateOwner> owners;
   std::map<std::uint8_t, std::string> by_node;
+  std::map<nmt::LssAddress, std::string> by_address;  // --state: one file per LSS address
   for (const auto& arg : options.devices) {
     auto parsed = parse_device_arg(arg);
     if (!parsed) {
@@ -144,10 +145,22 @@ void run_simulate(const SimulateOptions& options) {
                   << '\n';
         exit_with(tools::kExitInputErrors);
       }
+      const nmt::LssAddress address = device->node().lss()->address();
+      if (auto [it, inserted] = by_address.emplace(address, parsed->path);
+          !inserted && !options.state_dir.empty()) {
+        // Their --state file is named by the LSS address (nmt/device_state.hpp): two such
+        // devices would overwrite each other's. CiA 305 wants LSS addresses unique anyway.
+        std::cerr << "cfgmgr simulate: --state: " << it->second << "@255 and " << parsed->path
+                  << "@255 have the same LSS address " << nmt::address_digits(address)
+                  << " and would share the state file lss-" << nmt::address_digits(address, '-')
+                  << ".saved; give one its own serial number ([DeviceComissioning] "
+                     "LSS_SerialNumber), or run them without --state\n";
+        exit_with(tools::kExitUsage);
+      }
       devices.push_back(std::make_unique<nmt::SimulatedDevice>(std::move(device).value()));
       names.push_back(parsed->path);
       unconfigured.push_back(true);
-      owners.emplace_back(devices.back()->node().lss()->address());
+      owners.emplace_back(address);
       continue;
     }
     if (!parsed->node_id && !read.device->node_id()) {
@@ -352,12 +365,14 @@ void add_simulate_command(CLI::App& app) {
   cmd->add_option("--loss", options->loss,
                   "Fault: each frame a device sends or receives is lost with this probability")
       ->type_name("RATE");
-  cmd->add_option("--state", options->state_dir,
-                  "Keep what each device stores in DIR, one file per device: the parameters "
-                  "saved with 1010h and the node-ID and bit rate of LSS store configuration; "
-                  "the next run with the same DIR powers them on with it, as a real device "
-                  "after a power cycle (files: node-NN.saved for DEVICE@NN, "
-                  "lss-VENDOR-PRODUCT-REVISION-SERIAL.saved for DEVICE@255)")
+  cmd->add_option(
+         "--state", options->state_dir,
+         "Keep what each device stores in DIR, one file per device: the parameters "
+         "saved with 1010h and the node-ID and bit rate of LSS store configuration; "
+         "the next run with the same DIR powers them on with it, as a real device "
+         "after a power cycle (files: node-NN.saved for DEVICE@NN, "
+         "lss-VENDOR-PRODUCT-REVISION-SERIAL.saved for DEVICE@255; two DEVICE@255 with one LSS "
+         "address would share a file and are refused, exit 2)")
       ->type_name("DIR");
   cmd->footer(std::string(
       "Examples:\n"
@@ -375,7 +390,7 @@ void add_simulate_command(CLI::App& app) {
       "  1  a device file has errors, or a device cannot be built from it (no node-ID, "
       "bad value), or a --state file is damaged\n"
       "  2  usage error (bad command line, node-ID twice, out of range, a --bus URL that does "
-      "not parse)\n"
+      "not parse, with --state two DEVICE@255 with one LSS address)\n"
       "  3  I/O error: a file cannot be read, the bus cannot be opened or fails, a trace "
       "cannot be written\n"));
   cmd->callback([options] { run_simulate(*options); });

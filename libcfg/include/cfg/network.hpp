@@ -123,6 +123,10 @@ struct DeviceIdentity {
   std::optional<std::uint32_t> vendor_id;
   std::optional<std::uint32_t> product_code;
   std::optional<std::uint32_t> revision_number;
+  /// 1018h sub 4 as the device's LSS address has it (CiA 305): [DeviceComissioning]
+  /// LSS_SerialNumber, else 1018h sub 4's ParameterValue/DefaultValue. derive_master leaves
+  /// 1F88h 0 all the same (see above).
+  std::optional<std::uint32_t> serial_number;
 };
 DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node);
 

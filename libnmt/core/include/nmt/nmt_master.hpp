@@ -75,6 +75,27 @@
 //   check configuration then reconfigures a replaced device, whose 1020h no longer matches. A
 //   boot-up of a node not in 1F81h is reported (CiA 302-2 §3.1: "the responsibility of the
 //   application").
+// - Execute LSS (MasterOptions::lss, off by default; DSP 302 §4 figure 1 step 3 leaves its
+//   content to CiA 305, CiA 302-2 §3.1 c asks for the LSS master services where node-IDs must be
+//   set): after the master decision, before the reset communication of all nodes
+//   (StartupState::ExecutingLss), the master switches every device to LSS waiting and finds
+//   every unconfigured device by Fastscan (nmt/lss_master.hpp's scan). A device whose LSS
+//   address equals a slave's in all four parts (1F85h-1F88h when all are non-zero, else
+//   ExecuteLssOptions::addresses; the revision is a part of the address here, compared exactly,
+//   not §6.9's "minor at least") gets that slave's node-ID (configure node-ID, 11h), stores it
+//   (17h), and is switched back to waiting, where it starts with it (its boot-up during the scan
+//   is not a boot-up handler event: the reset of all nodes follows). A found device that matches
+//   no slave is reported (LssUnmatched, with its address) and left unconfigured; a slave whose
+//   device is not found is simply missing (its boot ends with status B as without LSS). CiA 305
+//   takes LSS addresses to be unique: two devices with one address answer Fastscan as one, are
+//   in configuration together and both take the node-ID (one LssAssigned). A device that already
+//   has a node-ID is never touched (Fastscan finds only unconfigured ones), and no bit rate is set.
+// - ExecuteLssOptions::period: after start-up the active master looks for unconfigured devices
+//   (a replaced device) every period: one identify non-configured remote slave (4Ch) and a
+//   Fastscan step of silence, and a scan as above only when a device answers. The device that
+//   gets its node-ID resets its communication, and its boot-up starts its boot (boot-up handler,
+//   below): it is configured as any replaced device is. An unconfigured device that matches no
+//   slave answers every 4Ch, so it costs a scan each period (reported once).
 // - 1F82h (request NMT): a write sends the NMT command through the 102Ah queue, also to the
 //   master itself (sub = own node-ID, or 80h: all, the master included). 84h-8Fh need the
 //   requester's node-ID, which an SDO write does not carry: aborted 0800 0000 (§6.4). A slave
@@ -250,6 +271,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -265,6 +287,7 @@
 #include "nmt/error_control.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/local_dictionary.hpp"
+#include "nmt/lss_master.hpp"
 #include "nmt/nmt_slave.hpp"
 #include "nmt/sdo_abort.hpp"
 #include "nmt/sdo_client.hpp"
@@ -332,6 +355,8 @@ enum class StartupState : std::uint8_t {
                      ///< start of the network
   AwaitApplication,  ///< 1F80h bit 2: the application calls enter_operational()
   Operational,       ///< start-up ended (§3.1 i): normal operation
+  ExecutingLss,      ///< MasterOptions::lss: Execute LSS before the reset of all nodes (see the
+                     ///< top)
 };
 std::string_view to_string(StartupState state);
 
@@ -402,6 +427,12 @@ struct MasterEvent {
     SlaveFailedReported,       ///< 1F11h written on SRD node_id: connection->server failed
     // Configuration manager with a store directory (see the top).
     PersistEntry,  ///< make `persist` durable, then call entry_persisted(persist->ticket, ...)
+    // Execute LSS (MasterOptions::lss; CiA 305, see the top); `lss_address` is the device's.
+    LssAssigned,   ///< the device got node_id by LSS (text: stored or why not)
+    LssUnmatched,  ///< an unconfigured device matches no slave (or a slave another device got):
+                   ///< left unconfigured
+    LssFailed,     ///< the device of slave node_id refused or missed configure node-ID
+    LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
   };
   Kind kind;
   TimePoint at{0};
@@ -430,6 +461,7 @@ struct MasterEvent {
     std::shared_ptr<const cfg::StoreUpdate> update;
   };
   std::optional<Persist> persist{};
+  std::optional<LssAddress> lss_address{};  ///< Lss* kinds: the device's LSS address
   std::string text{};
 };
 /// "slave_booted", "boot_error", ...: names for logs and JSON.
@@ -471,6 +503,24 @@ class ConfigurationSource {
   virtual cfg::Result<std::optional<std::string>> dcf(cfg::NodeId /*node*/) const {
     return std::optional<std::string>{};
   }
+};
+
+/// "Execute LSS" in the master's boot (DSP 302 §4 figure 1 step 3; CiA 302-2 §3.1 c; see the top).
+struct ExecuteLssOptions {
+  /// Before NMT start-up's reset of all nodes, find every unconfigured device (CiA 305 Fastscan)
+  /// and give the slave's node-ID to each whose LSS address is a slave's.
+  bool enabled = false;
+  /// A slave's LSS address (vendor-ID, product code, revision, serial number) by node-ID, for
+  /// slaves whose 1F85h-1F88h do not give all four parts (a derived master leaves 1F88h 0; a
+  /// DCF's [DeviceComissioning] LSS_SerialNumber, else its 1018h sub 4, names the serial).
+  /// A slave in neither is never given its node-ID by LSS.
+  std::map<std::uint8_t, LssAddress> addresses;
+  /// After the start-up pass, look for devices that appear unconfigured (a replaced device)
+  /// this often: identify non-configured remote slave (4Ch, one frame), and a scan only when a
+  /// device answers. 0: never.
+  Duration period{0};
+  /// The LSS services' timing: the answer timeout and the Fastscan step (lss_master.hpp).
+  LssMasterOptions timing;
 };
 
 struct MasterOptions {
@@ -532,6 +582,8 @@ struct MasterOptions {
   /// Node guard time for an SRD (or a slave watched for one) without heartbeat or 1F81h
   /// guarding values; life time factor 3.
   Duration srd_guard_time = std::chrono::milliseconds(500);
+  /// Execute LSS (off by default).
+  ExecuteLssOptions lss;
 };
 
 /// The NMT master. Movable (its state lives behind one pointer), not copyable.

@@ -98,6 +98,8 @@ std::string_view to_string(StartupState state) {
       return "waiting for the application";
     case StartupState::Operational:
       return "operational";
+    case StartupState::ExecutingLss:
+      return "executing LSS";
   }
   return "?";
 }
@@ -171,6 +173,14 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "slave_failed_reported";
     case K::PersistEntry:
       return "persist_entry";
+    case K::LssAssigned:
+      return "lss_assigned";
+    case K::LssUnmatched:
+      return "lss_unmatched";
+    case K::LssFailed:
+      return "lss_failed";
+    case K::LssScanEnded:
+      return "lss_scan_ended";
   }
   return "?";
 }

@@ -123,6 +123,10 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     m.settle(now, out);
     return true;
   }
+  if (m.execute_lss.on_frame(frame, now, out)) {
+    m.settle(now, out);
+    return true;
+  }
   if (auto message = parse_error_control(frame)) {
     auto& guard_out = m.guarding_out;
     guard_out.clear();
@@ -166,6 +170,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
   m.sdo_manager.on_timer(now, out);
   m.clients.on_timer(now, m.sdo_out);
   m.flying.on_timer(now, out);
+  m.execute_lss.on_timer(now, out);
   {
     auto& producer_out = m.part_out;
     producer_out.clear();
@@ -219,6 +224,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.heartbeats.next_deadline());
   due = earliest(due, m.guarding.next_deadline());
   due = earliest(due, m.flying.next_deadline());
+  due = earliest(due, m.execute_lss.next_deadline());
   due = earliest(due, m.sdo_manager.next_deadline());
   due = earliest(due, m.boot_up_quiet);
   if (!m.boot_deadlines.empty()) due = earliest(due, m.boot_deadlines.begin()->first);
@@ -398,6 +404,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     flying.start(flying_timing(), now, out);
     return;
   }
+  if (execute_lss_first(now, out)) return;  // DSP 302 §4 figure 1 step 3 (lss_port.cpp)
   startup = StartupState::BootingSlaves;
   startup_began = now;
   // §3.1 d (keep-alive slaves are checked by their boot, §3.4 part 2).
@@ -622,8 +629,9 @@ void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) 
   set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
   if (boot(node).on_boot_up(now, out)) return;
-  if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master()) {
-    return;
+  if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master() ||
+      startup == StartupState::ExecutingLss) {
+    return;  // Execute LSS: the reset of all nodes follows
   }
   stop_error_control(node);
   // DSP 302 §5.4: a slave whose state was set by request NMT is not rebooted automatically.

@@ -24,6 +24,7 @@
 #include "cfg/sdo_manager_objects.hpp"
 #include "manager/sdo_manager_process.hpp"
 #include "master/boot_slave_process.hpp"
+#include "master/execute_lss.hpp"
 #include "master/flying_master.hpp"
 #include "master/master_support.hpp"
 #include "master/master_text.hpp"
@@ -160,6 +161,26 @@ struct NmtMaster::Impl {
   FlyingPort flying_port{*this};
   /// NMT flying master start-up and master detection (§3.7, §5.1-§5.5; flying_master.hpp).
   FlyingMasterProcess flying{node_id, flying_port};
+
+  /// Execute LSS's port to this master (lss_port.cpp).
+  struct LssPort final : ExecuteLssPort {
+    explicit LssPort(Impl& master) : m(master) {}
+    std::optional<std::uint8_t> slave_with(const LssAddress& address) const override;
+    void pass_ended(TimePoint now, Output& out) override;
+    bool may_look() const override;
+    Impl& m;
+  };
+  LssPort lss_port{*this};
+  /// Execute LSS (MasterOptions::lss; execute_lss.hpp) and whether its start-up pass ended, so
+  /// that begin_startup() goes on to the reset of all nodes.
+  ExecuteLssProcess execute_lss{lss_port, options.lss.timing, options.lss.period};
+  bool lss_pass_done = false;
+  /// DSP 302 §4 figure 1 step 3: true when the LSS pass started (begin_startup() returns; the
+  /// pass's end calls it again).
+  bool execute_lss_first(TimePoint now, Output& out);
+  /// The LSS address of slave `node` (ExecuteLssOptions::addresses, else 1F85h-1F88h when all
+  /// four are non-zero).
+  std::optional<LssAddress> lss_address_of(std::uint8_t node) const;
 
   /// The NMT commands and their inhibit time (§6.1); run by flush_nmt() from settle().
   NmtCommandQueue nmt_commands;

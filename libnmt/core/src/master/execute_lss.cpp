@@ -1,0 +1,163 @@
+// Execute LSS (execute_lss.hpp): the start-up pass and the looks for unconfigured devices, the
+// node-ID each found device gets, and the MasterEvents the LssMaster's events become.
+#include "master/execute_lss.hpp"
+
+#include <string>
+#include <utility>
+
+#include "master/master_text.hpp"
+
+namespace nmt {
+
+using Kind = LssMasterEvent::Kind;
+
+namespace {
+
+// The LssMaster's text without its "scan: " head: "vendor ... got node-ID 5, stored".
+std::string scan_text(const LssMasterEvent& e) {
+  const std::string head = std::string(to_string(LssService::Scan)) + ": ";
+  return e.text.rfind(head, 0) == 0 ? e.text.substr(head.size()) : e.text;
+}
+
+}  // namespace
+
+void ExecuteLssProcess::start(TimePoint now, Output& out) {
+  stop();
+  reported_.clear();
+  phase_ = Phase::Startup;
+  begin_scan(now, out);
+}
+
+void ExecuteLssProcess::watch(TimePoint now) {
+  if (phase_ != Phase::Off && phase_ != Phase::Idle) return;  // a pass or look runs
+  phase_ = Phase::Idle;
+  next_look_.reset();
+  if (period_ > Duration{0}) next_look_ = now + period_;
+}
+
+void ExecuteLssProcess::stop() {
+  // A fresh LssMaster: the running service's answers no longer match anything it waits for.
+  lss_ = LssMaster(lss_.options());
+  phase_ = Phase::Off;
+  next_look_.reset();
+}
+
+bool ExecuteLssProcess::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  if (phase_ == Phase::Off || phase_ == Phase::Idle) return false;
+  lss_out_.clear();
+  const bool taken = lss_.on_frame(frame, now, lss_out_);
+  forward(now, out);
+  return taken;
+}
+
+void ExecuteLssProcess::on_timer(TimePoint now, Output& out) {
+  if (phase_ == Phase::Idle) {
+    if (!next_look_ || now < *next_look_) return;
+    next_look_ = now + period_;
+    if (!port_.may_look()) return;
+    // Identify non-configured remote slave: one frame, answered (50h) by every device without
+    // a node-ID; the scan (at least 133 Fastscan requests per device) only when one answers.
+    phase_ = Phase::Probe;
+    lss_out_.clear();
+    lss_.identify_non_configured(now, lss_out_);
+    forward(now, out);
+    return;
+  }
+  if (phase_ == Phase::Off) return;
+  lss_out_.clear();
+  lss_.on_timer(now, lss_out_);
+  forward(now, out);
+}
+
+std::optional<TimePoint> ExecuteLssProcess::next_deadline() const {
+  switch (phase_) {
+    case Phase::Off:
+      return std::nullopt;
+    case Phase::Idle:
+      return next_look_;
+    default:
+      return lss_.next_deadline();
+  }
+}
+
+void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
+  chosen_.clear();
+  assigned_ = 0;
+  lss_out_.clear();
+  lss_.scan([this](const LssAddress& address) { return choose(address); }, now, lss_out_);
+  forward(now, out);
+}
+
+std::optional<std::uint8_t> ExecuteLssProcess::choose(const LssAddress& address) {
+  const auto node = port_.slave_with(address);
+  if (node) chosen_[address] = *node;
+  return node;
+}
+
+void ExecuteLssProcess::forward(TimePoint now, Output& out) {
+  for (const auto& f : lss_out_.frames) out.send(f);
+  // handle() may start the next service into lss_out_: take the events out first.
+  auto events = std::move(lss_out_.events);
+  lss_out_.events.clear();
+  for (const auto& e : events) handle(e, now, out);
+}
+
+void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
+  if (e.service == LssService::IdentifyNonConfigured) {
+    if (e.kind == Kind::Done) {
+      phase_ = Phase::Scan;
+      begin_scan(now, out);
+    } else {
+      phase_ = Phase::Idle;
+    }
+    return;
+  }
+  if (e.service != LssService::Scan) return;
+  switch (e.kind) {
+    case Kind::Assigned: {
+      ++assigned_;
+      auto m = master_event(MasterEvent::Kind::LssAssigned, e.at, e.node_id,
+                            node_text(e.node_id) + ": LSS: " + scan_text(e));
+      m.lss_address = e.address;
+      out.report(std::move(m));
+      return;
+    }
+    case Kind::Skipped: {
+      const auto chosen = chosen_.find(e.address);
+      if (chosen != chosen_.end()) {
+        // The device is a slave's, but it refused or did not answer configure node-ID.
+        auto m = master_event(MasterEvent::Kind::LssFailed, e.at, chosen->second,
+                              node_text(chosen->second) + ": LSS: " + scan_text(e));
+        m.lss_address = e.address;
+        out.report(std::move(m));
+        return;
+      }
+      if (phase_ != Phase::Startup && !reported_.insert(e.address).second) return;
+      auto m = master_event(MasterEvent::Kind::LssUnmatched, e.at, 0,
+                            "LSS: unconfigured device " + address_digits(e.address) +
+                                " matches no slave: left unconfigured");
+      m.lss_address = e.address;
+      out.report(std::move(m));
+      return;
+    }
+    default:
+      scan_ended(e, now, out);
+      return;
+  }
+}
+
+void ExecuteLssProcess::scan_ended(const LssMasterEvent& e, TimePoint now, Output& out) {
+  const bool startup = phase_ == Phase::Startup;
+  std::string text = "LSS: " + std::to_string(e.value) + " unconfigured device" +
+                     (e.value == 1 ? "" : "s") + " found, " + std::to_string(assigned_) +
+                     " given a node-ID";
+  if (e.kind != Kind::Done) text += " (scan ended early: " + e.text + ")";
+  auto m = master_event(MasterEvent::Kind::LssScanEnded, e.at, 0, std::move(text));
+  out.report(std::move(m));
+  phase_ = Phase::Idle;
+  next_look_.reset();
+  if (period_ > Duration{0}) next_look_ = now + period_;
+  if (startup) port_.pass_ended(now, out);
+}
+
+}  // namespace nmt
