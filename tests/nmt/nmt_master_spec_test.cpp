@@ -1092,7 +1092,7 @@ TEST(NmtMasterSpec, BootReportsStatusKWhenConsumedHeartbeatNeverComes) {
   // The boot's last answer from the slave precedes start error control.
   auto answers = rig.on_id(0x583);
   ASSERT_FALSE(answers.empty());
-  TimePoint last_answer{0};
+  TimePoint last_answer{};
   for (const auto& a : answers) {
     if (a.at <= error.at) last_answer = a.at;
   }

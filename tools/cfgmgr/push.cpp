@@ -71,7 +71,7 @@ struct NodeReport {
   nmt::BootStep step = nmt::BootStep::Idle;
   std::optional<nmt::NmtState> state;  ///< as the master knows it
   std::optional<nmt::TimePoint> began;
-  nmt::TimePoint ended{0};
+  nmt::TimePoint ended{};
 };
 
 std::string_view result_name(Result result) {

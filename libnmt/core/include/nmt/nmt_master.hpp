@@ -396,7 +396,7 @@ struct MasterEvent {
     PersistEntry,  ///< make `persist` durable, then call entry_persisted(persist->ticket, ...)
   };
   Kind kind;
-  TimePoint at{0};
+  TimePoint at{};
   std::uint8_t node_id = 0;
   std::optional<BootError> error{};
   BootStep step = BootStep::Idle;
