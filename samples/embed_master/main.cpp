@@ -104,7 +104,7 @@ int main() {
               << e.text << "\n";
     if (e.kind == nmt::MasterEvent::Kind::ApplicationStep) {  // the application's own step
       master.apply([&](nmt::NmtMaster& m, nmt::TimePoint t, auto& out) {
-        m.configuration_done(node(e.node_id), true, t, out);
+        m.configuration_done(*e.node_id, true, t, out);  // ApplicationStep: always a node
       });
     }
   });

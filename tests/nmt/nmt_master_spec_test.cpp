@@ -150,7 +150,7 @@ TEST(NmtMasterSpec, StartAllNodesWithNodeIdZeroWhenBit1SetAndEverySlaveBooted) {
   EXPECT_EQ(rig.slave(3).node().state(), NmtState::Operational);
   auto sent = rig.events_of(Kind::NmtCommandSent);
   EXPECT_TRUE(std::any_of(sent.begin(), sent.end(), [](const MasterEvent& e) {
-    return e.command == NmtCommand::Start && e.node_id == 0;
+    return e.command == NmtCommand::Start && !e.node_id;  // to all nodes
   }));
 }
 

@@ -496,6 +496,6 @@ inline std::ostream& operator<<(std::ostream& os, const Seen& s) {
 namespace nmt {
 inline std::ostream& operator<<(std::ostream& os, const MasterEvent& e) {
   return os << e.at.time_since_epoch().count() << "us " << to_string(e.kind) << " node "
-            << int{e.node_id} << ": " << e.text;
+            << (e.node_id ? int{e.node_id->value()} : 0) << ": " << e.text;
 }
 }  // namespace nmt

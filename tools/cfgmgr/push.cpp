@@ -155,7 +155,8 @@ class Collector {
     if (e.kind == K::StartupHalted || e.kind == K::NotMaster) {
       stop_ = e.text;
     }
-    NodeReport* r = find(e.node_id);
+    if (!e.node_id) return;  // an event of the master, about no node
+    NodeReport* r = find(*e.node_id);
     if (r == nullptr) return;
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
     if (r->result != Result::Pending) return;
