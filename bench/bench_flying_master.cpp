@@ -87,7 +87,7 @@ void set(nmt::NmtMaster& master, std::uint16_t index, std::uint8_t sub, std::uin
          std::size_t size) {
   std::vector<std::uint8_t> bytes(size);
   cfg::store_le(value, bytes, size);
-  if (master.dictionary().write(index, sub, bytes, TimePoint{0}) != nmt::SdoAbort::None) {
+  if (master.dictionary().write(index, sub, bytes, TimePoint{}) != nmt::SdoAbort::None) {
     throw std::runtime_error("write refused");
   }
 }
@@ -147,14 +147,15 @@ Figure failover(const Setting& s) {
     return masters.at(5)->engine().startup_state() == nmt::StartupState::Operational;
   };
   if (!bus.run_until(operational, bus.now() + 30s)) throw std::runtime_error("no active master");
-  bus.run_for(3s + Duration{1000 * (bus.now().count() % 97)});  // some heartbeat phase
+  bus.run_for(
+      3s + Duration{1000 * (bus.now().time_since_epoch().count() % 97)});  // some heartbeat phase
   bus.detach(*masters.at(5));
   const auto died = bus.now();
   const auto new_master = [&] {
     return masters.at(10)->engine().startup_state() == nmt::StartupState::Operational;
   };
   if (!bus.run_until(new_master, bus.now() + 60s)) throw std::runtime_error("no takeover");
-  TimePoint last{0};
+  TimePoint last{};
   for (const auto& [t, f] : seen) {
     if (t <= died && f.id == 0x705) last = t;
   }

@@ -199,7 +199,7 @@ void set(nmt::NmtMaster& master, std::uint16_t index, std::uint8_t sub, std::uin
     throw std::runtime_error("master has no " + cfg::to_string(cfg::ObjectAddress{index, sub}));
   }
   const auto abort =
-      master.dictionary().write(index, sub, le(value, *entry->fixed_size()), TimePoint{0});
+      master.dictionary().write(index, sub, le(value, *entry->fixed_size()), TimePoint{});
   if (abort != nmt::SdoAbort::None) {
     throw std::runtime_error("master refuses " + cfg::to_string(cfg::ObjectAddress{index, sub}));
   }
@@ -333,7 +333,8 @@ void write_trace(const std::vector<Seen>& seen, const std::vector<std::string>& 
   const char* path = std::getenv("BENCH_MASTER_TRACE");
   if (path == nullptr) return;
   std::ofstream out(path);
-  for (const auto& s : seen) out << s.at.count() << ' ' << nmt::to_candump(s.frame) << '\n';
+  for (const auto& s : seen)
+    out << s.at.time_since_epoch().count() << ' ' << nmt::to_candump(s.frame) << '\n';
   for (const auto& e : events) out << e << '\n';
 }
 
@@ -346,7 +347,7 @@ BootResult boot(Network& net, std::uint16_t heartbeat_ms) {
   master.set_event_handler([&](const nmt::MasterEvent& e, TimePoint now) {
     using Kind = nmt::MasterEvent::Kind;
     if (e.kind != Kind::BootStepChanged && e.kind != Kind::SlaveStateChanged) {
-      events.push_back("event " + std::to_string(now.count()) + ' ' + e.text);
+      events.push_back("event " + std::to_string(now.time_since_epoch().count()) + ' ' + e.text);
     }
     if (e.kind == Kind::StartupComplete) complete_at = now;
     if (e.kind == Kind::SlaveBooted) {

@@ -49,7 +49,7 @@ void BM_SimBusEvents(benchmark::State& state) {
     talkers.push_back(std::make_unique<Talker>(static_cast<std::uint32_t>(0x180 + i),
                                                std::chrono::microseconds(250 * nodes)));
     bus.attach(*talkers.back());
-    talkers.back()->start(TimePoint{static_cast<std::int64_t>(i * 13)});
+    talkers.back()->start(TimePoint{nmt::Duration{static_cast<std::int64_t>(i * 13)}});
   }
   const auto events_before = bus.events_processed();
   for (auto _ : state) bus.run_for(10ms);

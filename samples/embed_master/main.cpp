@@ -100,10 +100,11 @@ int main() {
   bus.attach(master);
 
   master.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint now) {
-    std::cout << now.count() / 1000 << " ms  " << nmt::to_string(e.kind) << ": " << e.text << "\n";
+    std::cout << now.time_since_epoch().count() / 1000 << " ms  " << nmt::to_string(e.kind) << ": "
+              << e.text << "\n";
     if (e.kind == nmt::MasterEvent::Kind::ApplicationStep) {  // the application's own step
       master.apply([&](nmt::NmtMaster& m, nmt::TimePoint t, auto& out) {
-        m.configuration_done(node(e.node_id), true, t, out);
+        m.configuration_done(*e.node_id, true, t, out);  // ApplicationStep: always a node
       });
     }
   });

@@ -35,7 +35,7 @@ struct Harness {
   nmt::LssMaster master;
   std::vector<std::unique_ptr<nmt::LssSlave>> slaves;
   std::deque<Queued> bus;
-  TimePoint now{0};
+  TimePoint now{};
 
   explicit Harness(nmt::LssMasterOptions o) : master(o) {}
 

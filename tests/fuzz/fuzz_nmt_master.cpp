@@ -64,9 +64,9 @@ using namespace std::chrono_literals;
                what);
   std::abort();
 }
-#define check_at_time(condition, at)                            \
-  do {                                                          \
-    if (!(condition)) fail(#condition, __LINE__, (at).count()); \
+#define check_at_time(condition, at)                                               \
+  do {                                                                             \
+    if (!(condition)) fail(#condition, __LINE__, (at).time_since_epoch().count()); \
   } while (false)
 
 constexpr std::uint8_t kMasterId = 1;
@@ -145,9 +145,9 @@ struct Harness {
     std::size_t sender;
   };
   std::deque<Queued> wire;
-  TimePoint now{0};
-  TimePoint bus_free{0};
-  TimePoint last_event{0};
+  TimePoint now{};
+  TimePoint bus_free{};
+  TimePoint last_event{};
   std::size_t deliveries = 0;
   // FUZZ_TRACE=1 in the environment prints the master's events (to see what a seed reaches).
   const bool trace = std::getenv("FUZZ_TRACE") != nullptr;
@@ -160,7 +160,8 @@ struct Harness {
     check_at_time(out.events.size() <= kMaxOutputPerCall, now);
     for (const auto& e : out.events) {
       if (trace)
-        std::fprintf(stderr, "%lld us %s\n", static_cast<long long>(e.at.count()), e.text.c_str());
+        std::fprintf(stderr, "%lld us %s\n",
+                     static_cast<long long>(e.at.time_since_epoch().count()), e.text.c_str());
       check_at_time(e.at == now, now);  // reported by the call at `now`
       check_at_time(e.at >= last_event, now);
       last_event = e.at;
@@ -370,7 +371,7 @@ void make_srd(nmt::LocalDictionary& dict) {
 
 void write_value(nmt::LocalDictionary& dict, std::uint16_t index, std::uint8_t sub,
                  std::uint64_t value, std::size_t size) {
-  (void)dict.write(index, sub, le(value, size), TimePoint{0});
+  (void)dict.write(index, sub, le(value, size), TimePoint{});
 }
 
 }  // namespace

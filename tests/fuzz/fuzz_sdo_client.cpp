@@ -36,7 +36,7 @@ struct Harness {
   nmt::Delayed<nmt::SdoServer> server;
   nmt::SdoClient client{nmt::SdoClientConfig::for_node(5)};
   std::deque<CanFrame> to_server, to_client;
-  TimePoint now{0};
+  TimePoint now{};
   nmt::SdoServer::Output server_out;
   nmt::SdoClient::Output client_out;
   std::function<void(const nmt::SdoResult&)> on_result;

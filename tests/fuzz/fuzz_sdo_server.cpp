@@ -46,7 +46,7 @@ struct Harness {
   nmt::LocalDictionary dict;
   nmt::Delayed<nmt::SdoServer> server;
   nmt::SdoServerConfig config;
-  TimePoint now{0};
+  TimePoint now{};
   nmt::SdoServer::Output out;
 
   Harness(nmt::LocalDictionary d, nmt::SdoServerConfig c, nmt::Duration latency)

@@ -37,7 +37,7 @@ CanFrame frame(std::string_view candump) {
 
 // 2023-11-14 22:13:20 UTC plus microseconds.
 constexpr TimePoint at(std::int64_t us_after) {
-  return TimePoint{1'700'000'000'000'000 + us_after};
+  return TimePoint{Duration{1'700'000'000'000'000 + us_after}};
 }
 
 // One frame of each kind, with the time each is written at.
@@ -126,8 +126,8 @@ TEST_F(Trace, CandumpLogHasCandumpLines) {
 TEST_F(Trace, CandumpLogOfSimulatedTimeCountsFromZero) {
   auto writer = open_candump_log(dir_ / "sim.log", "vcan0");
   ASSERT_TRUE(writer.ok()) << writer.error().message;
-  ASSERT_TRUE((*writer)->write(frame("080#"), TimePoint{1500}).ok());
-  ASSERT_TRUE((*writer)->write(frame("701#05"), TimePoint{2'000'000}).ok());
+  ASSERT_TRUE((*writer)->write(frame("080#"), TimePoint{Duration{1500}}).ok());
+  ASSERT_TRUE((*writer)->write(frame("701#05"), TimePoint{Duration{2'000'000}}).ok());
   writer->reset();
   EXPECT_EQ(read_lines(dir_ / "sim.log"),
             (std::vector<std::string>{"(0000000000.001500) vcan0 080#",
@@ -196,7 +196,7 @@ TEST_F(Trace, PcapRecordsAreSocketCanFrames) {
     EXPECT_EQ(header->caplen, 16u);
     EXPECT_EQ(header->len, 16u);
     EXPECT_EQ(header->ts.tv_sec, 1'700'000'000);
-    EXPECT_EQ(header->ts.tv_usec, kFrames[i].time.count() % 1'000'000);
+    EXPECT_EQ(header->ts.tv_usec, kFrames[i].time.time_since_epoch().count() % 1'000'000);
     Bytes got{};
     std::copy_n(data, std::min<std::size_t>(header->caplen, 16), got.begin());
     EXPECT_EQ(got, expected[i]) << kFrames[i].candump;
@@ -297,7 +297,7 @@ TEST_F(Trace, FailuresAreSticky) {
 
   auto negative = open_pcap(dir_ / "neg.pcap");
   ASSERT_TRUE(negative.ok());
-  EXPECT_FALSE((*negative)->write(frame("123#"), TimePoint{-1}).ok());
+  EXPECT_FALSE((*negative)->write(frame("123#"), TimePoint{Duration{-1}}).ok());
 }
 
 TEST_F(Trace, WriteErrorOnFullDeviceIsReported) {
@@ -375,10 +375,10 @@ class ScriptedBus : public Bus {
 TEST_F(Trace, TracingBusRecordsSentAndReceivedFrames) {
   auto inner = std::make_unique<ScriptedBus>();
   ScriptedBus& scripted = *inner;
-  scripted.incoming.push_back({frame("581#4B00100091010000"), TimePoint{42}});
+  scripted.incoming.push_back({frame("581#4B00100091010000"), TimePoint{Duration{42}}});
   auto writer = open_candump_log(dir_ / "traced.log");
   ASSERT_TRUE(writer.ok());
-  TimePoint clock{1'000'000};
+  TimePoint clock{Duration{1'000'000}};
   TracingBus bus(std::move(inner), std::move(*writer), [&clock] {
     clock += 1000us;
     return clock;
@@ -389,7 +389,7 @@ TEST_F(Trace, TracingBusRecordsSentAndReceivedFrames) {
   auto r = bus.receive(10ms);
   ASSERT_TRUE(r.ok() && r->has_value());
   EXPECT_EQ(to_candump((*r)->frame), "581#4B00100091010000");
-  EXPECT_EQ((*r)->timestamp, TimePoint{42});  // the driver's timestamp, unchanged
+  EXPECT_EQ((*r)->timestamp, TimePoint{Duration{42}});  // the driver's timestamp, unchanged
   auto none = bus.receive(10ms);              // nothing received: nothing traced
   ASSERT_TRUE(none.ok());
   EXPECT_FALSE(none->has_value());
@@ -410,7 +410,8 @@ TEST_F(Trace, TracingBusTracesWhatTrySendHandedOver) {
   ScriptedBus& scripted = *inner;
   auto writer = open_candump_log(dir_ / "try_send.log");
   ASSERT_TRUE(writer.ok());
-  TracingBus bus(std::move(inner), std::move(*writer), [] { return TimePoint{2'000'000}; });
+  TracingBus bus(std::move(inner), std::move(*writer),
+                 [] { return TimePoint{Duration{2'000'000}}; });
   scripted.fail_sends = true;
   EXPECT_EQ(bus.try_send(frame("000#8100")).status, SendResult::Status::Failed);
   scripted.fail_sends = false;
@@ -430,18 +431,18 @@ TEST_F(Trace, SimulatedBusTraceHasDeliveryTimes) {
   FunctionNode b([&seen](FunctionNode&, const CanFrame&, TimePoint now) { seen.push_back(now); });
   sim.attach(a);
   sim.attach(b);
-  sim.schedule_at(TimePoint{0}, [&a](TimePoint) {
+  sim.schedule_at(TimePoint{}, [&a](TimePoint) {
     a.send(frame("000#0105"));
     a.send(frame("705#05"));
   });
-  sim.run_until_idle(TimePoint{1'000'000});
+  sim.run_until_idle(TimePoint{Duration{1'000'000}});
   ASSERT_EQ(seen.size(), 2u);
   ASSERT_TRUE((*writer)->flush().ok());
   char line1[64], line2[64];
   std::snprintf(line1, sizeof line1, "(0000000000.%06lld) can0 000#0105",
-                static_cast<long long>(seen[0].count()));
+                static_cast<long long>(seen[0].time_since_epoch().count()));
   std::snprintf(line2, sizeof line2, "(0000000000.%06lld) can0 705#05",
-                static_cast<long long>(seen[1].count()));
+                static_cast<long long>(seen[1].time_since_epoch().count()));
   EXPECT_EQ(read_lines(dir_ / "sim.log"), (std::vector<std::string>{line1, line2}));
 }
 

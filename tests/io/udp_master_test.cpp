@@ -60,7 +60,7 @@ void set(NmtMaster& master, std::uint16_t index, std::uint8_t sub, std::uint64_t
   const DictionaryEntry* entry = master.dictionary().entry(index, sub);
   ASSERT_NE(entry, nullptr) << cfg::to_string(cfg::ObjectAddress{index, sub});
   ASSERT_TRUE(entry->fixed_size().has_value());
-  EXPECT_EQ(master.dictionary().write(index, sub, le(value, *entry->fixed_size()), TimePoint{0}),
+  EXPECT_EQ(master.dictionary().write(index, sub, le(value, *entry->fixed_size()), TimePoint{}),
             SdoAbort::None)
       << cfg::to_string(cfg::ObjectAddress{index, sub});
 }

@@ -86,7 +86,7 @@ class FakePort final : public BootSlavePort {
     return writes;
   }
   std::optional<std::vector<std::uint8_t>> program(std::uint8_t) const override { return image; }
-  TimePoint startup_began() const override { return TimePoint{0}; }
+  TimePoint startup_began() const override { return TimePoint{}; }
   void deadline_changed(std::uint8_t, std::optional<TimePoint> at) override { deadline = at; }
   bool boot_up_gate_closed() const override { return gate_closed; }
   void booted_up_at_gate(std::uint8_t, TimePoint, Outbox<MasterEvent>&) override {}
@@ -102,7 +102,7 @@ struct Rig {
   BootSlaveProcess::Options options;
   BootSlaveProcess process{*cfg::NodeId::from(kNode), port, options};
   BootSlaveProcess::Output out;
-  TimePoint now{1'000'000};
+  TimePoint now{Duration{1'000'000}};
 
   Rig() {
     // Slave, boot (configure and start), optional.

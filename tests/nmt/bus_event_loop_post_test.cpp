@@ -47,7 +47,7 @@ struct Recorder {
   std::vector<std::vector<int>> calls;
   std::size_t heard = 0;
   std::size_t timers = 0;
-  TimePoint due{0};
+  TimePoint due{};
 };
 
 TEST(BusEventLoopPost, EveryPostedCallRunsOnceInEachThreadsOrderWhileFramesAndTimersFlow) {

@@ -61,7 +61,7 @@ class QueueBus final : public Bus {
     for (TimePoint t = from; t < to; t += period) arrive(t, frame);
   }
 
-  TimePoint now{0};
+  TimePoint now{};
   bool flood = false;
   std::size_t receives = 0;
   std::deque<Arrival> arrivals;

@@ -54,7 +54,7 @@ class ScriptedBus final : public Bus {
 
   void arrive(TimePoint t, const std::string& frame) { arrivals.emplace_back(t, frame); }
 
-  TimePoint now{0};
+  TimePoint now{};
   std::deque<Status> answers;  // of the next try_send calls; Sent once empty
   std::deque<std::pair<TimePoint, std::string>> arrivals;
   std::vector<std::pair<TimePoint, std::string>> attempts;

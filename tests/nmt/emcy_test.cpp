@@ -10,7 +10,7 @@ namespace {
 
 using std::chrono::milliseconds;
 TimePoint at_ms(std::int64_t ms) {
-  return milliseconds(ms);
+  return TimePoint{milliseconds(ms)};
 }
 
 cfg::CobId cob(std::uint32_t word) {

@@ -26,7 +26,7 @@ class FakeBus final : public Bus {
   }
   std::string url() const override { return "fake:"; }
 
-  TimePoint now{0};
+  TimePoint now{};
   bool fail_sends = false;
   std::vector<std::string> sent;
 };

@@ -11,7 +11,7 @@ namespace {
 using std::chrono::milliseconds;
 
 TimePoint at_ms(std::int64_t ms) {
-  return milliseconds(ms);
+  return TimePoint{milliseconds(ms)};
 }
 
 CanFrame frame(std::string_view candump) {

@@ -31,6 +31,10 @@ Duration ms(std::int64_t value) {
   return std::chrono::milliseconds(value);
 }
 
+TimePoint at_ms(std::int64_t value) {
+  return TimePoint{ms(value)};
+}
+
 // 1F90h with the CiA 302-2 §6.13 Table 50 defaults (sub 6: 4000 + 10 x node-ID).
 FlyingTiming timing_of(std::uint8_t node, std::uint16_t priority) {
   return {ms(100), ms(500), priority, ms(1500), ms(10), ms(4000 + 10 * node)};
@@ -114,14 +118,14 @@ class Rig {
   void run_for(Duration d) { run_until(now + d); }
 
   /// The frames sent from `from` on with this candump text's COB-ID prefix ("073#").
-  std::vector<Sent> sent_on(std::string_view prefix, TimePoint from = TimePoint{0}) const {
+  std::vector<Sent> sent_on(std::string_view prefix, TimePoint from = TimePoint{}) const {
     std::vector<Sent> result;
     for (const auto& s : sent) {
       if (s.at >= from && s.text.rfind(prefix, 0) == 0) result.push_back(s);
     }
     return result;
   }
-  std::optional<Sent> first_on(std::string_view prefix, TimePoint from = TimePoint{0}) const {
+  std::optional<Sent> first_on(std::string_view prefix, TimePoint from = TimePoint{}) const {
     auto all = sent_on(prefix, from);
     if (all.empty()) return std::nullopt;
     return all.front();
@@ -146,7 +150,7 @@ class Rig {
     auto trigger = first_on("072#");
     EXPECT_TRUE(trigger.has_value());
     EXPECT_EQ(engine.phase(), Phase::Negotiate);
-    return trigger ? trigger->at : TimePoint{0};
+    return trigger ? trigger->at : TimePoint{};
   }
   /// The same, on to the win: the 71h at the returned time.
   TimePoint win_alone(TimePoint at) {
@@ -160,7 +164,7 @@ class Rig {
   FakePort port;
   FlyingTiming timing;
   FlyingMasterProcess engine;
-  TimePoint now{0};
+  TimePoint now{};
   std::vector<Sent> sent;
   std::vector<MasterEvent> events;
 
@@ -184,7 +188,7 @@ TEST(FlyingMasterProcess, PowerOnWaitsNegotiationDelayThenRequests73hWithoutData
     SCOPED_TRACE(delay);
     Rig rig(4, 1);
     rig.timing.delay = ms(delay);
-    const TimePoint t0 = ms(50);
+    const TimePoint t0 = at_ms(50);
     rig.start(t0);
     EXPECT_EQ(rig.port.startup, StartupState::Negotiating);
     EXPECT_EQ(rig.engine.next_deadline(), t0 + ms(delay));
@@ -208,7 +212,7 @@ TEST(FlyingMasterProcess, PowerOnWaitsNegotiationDelayThenRequests73hWithoutData
 TEST(FlyingMasterProcess, PowerOnWithoutActiveMasterResetsAllThenNegotiatesWarm_3_7_d_e_h) {
   Rig rig(4, 1);
   rig.timing.timeout = 150ms;
-  const TimePoint t0 = ms(50);
+  const TimePoint t0 = at_ms(50);
   rig.start(t0);
   rig.run_until(t0 + 500ms + 150ms);
   EXPECT_EQ(rig.port.resets, 1);
@@ -252,7 +256,7 @@ TEST(FlyingMasterProcess, NegotiationWaitsPriorityTimesSlotPlusNodeIdTimesSlot_5
     Rig rig(c.node, c.priority);
     rig.timing.priority_slot = ms(c.priority_slot);
     rig.timing.node_slot = ms(c.device_slot);
-    const TimePoint trigger = rig.negotiate_alone(ms(50));
+    const TimePoint trigger = rig.negotiate_alone(at_ms(50));
     rig.run_for(10s);
     auto won = rig.first_on("071#");
     ASSERT_TRUE(won.has_value());
@@ -269,7 +273,7 @@ TEST(FlyingMasterProcess, NegotiationWaitsPriorityTimesSlotPlusNodeIdTimesSlot_5
 TEST(FlyingMasterProcess, OnlyTheActiveMasterAnswers73hWith71hPriorityAndNodeId_5_2) {
   Rig active(9, 2);
   active.timing.priority_slot = 1300ms;
-  const TimePoint won = active.win_alone(ms(50));
+  const TimePoint won = active.win_alone(at_ms(50));
   const TimePoint asked = won + 200ms;
   EXPECT_TRUE(active.hear("073#", asked));
   auto answer = active.first_on("071#", asked);
@@ -278,11 +282,11 @@ TEST(FlyingMasterProcess, OnlyTheActiveMasterAnswers73hWith71hPriorityAndNodeId_
   EXPECT_EQ(answer->at, asked);
 
   Rig standby(4, 1);
-  standby.start(ms(50));
-  standby.run_until(ms(550));
-  EXPECT_TRUE(standby.hear(reply_71(0, 5), ms(560)));
+  standby.start(at_ms(50));
+  standby.run_until(at_ms(550));
+  EXPECT_TRUE(standby.hear(reply_71(0, 5), at_ms(560)));
   ASSERT_EQ(standby.engine.phase(), Phase::Standby);
-  EXPECT_FALSE(standby.hear("073#", ms(800)));
+  EXPECT_FALSE(standby.hear("073#", at_ms(800)));
   EXPECT_TRUE(standby.sent_on("071#").empty());
 }
 
@@ -294,26 +298,26 @@ TEST(FlyingMasterProcess, MasterCapableDevicesAnswer75hWith74h_5_1_Table15) {
   {
     SCOPED_TRACE("no flying master (1F80h bit 5 clear)");
     Rig rig(4, 1);
-    EXPECT_TRUE(rig.hear("075#", ms(10)));
+    EXPECT_TRUE(rig.hear("075#", at_ms(10)));
     ASSERT_EQ(rig.sent.size(), 1U);
     EXPECT_EQ(rig.sent[0].text, "074#");
-    EXPECT_EQ(rig.sent[0].at, ms(10));
+    EXPECT_EQ(rig.sent[0].at, at_ms(10));
   }
   {
     SCOPED_TRACE("standby");
     Rig rig(5, 1);
-    rig.start(ms(0));
-    rig.run_until(ms(500));
-    EXPECT_TRUE(rig.hear(reply_71(0, 4), ms(510)));
+    rig.start(at_ms(0));
+    rig.run_until(at_ms(500));
+    EXPECT_TRUE(rig.hear(reply_71(0, 4), at_ms(510)));
     ASSERT_EQ(rig.engine.phase(), Phase::Standby);
-    EXPECT_TRUE(rig.hear("075#", ms(600)));
-    EXPECT_EQ(rig.sent_on("074#", ms(600)).size(), 1U);
+    EXPECT_TRUE(rig.hear("075#", at_ms(600)));
+    EXPECT_EQ(rig.sent_on("074#", at_ms(600)).size(), 1U);
   }
   {
     SCOPED_TRACE("not master-capable (1F80h bit 0 clear)");
     Rig rig(4, 1);
     rig.port.capable = false;
-    EXPECT_FALSE(rig.hear("075#", ms(10)));
+    EXPECT_FALSE(rig.hear("075#", at_ms(10)));
     EXPECT_TRUE(rig.sent.empty());
   }
 }
@@ -322,7 +326,7 @@ TEST(FlyingMasterProcess, MasterCapableDevicesAnswer75hWith74h_5_1_Table15) {
 // have to be restarted." A foreign 72h during the wait postpones the 71h by as much.
 TEST(FlyingMasterProcess, AnotherTriggerRestartsTheWaitingTime_DSP302_5_5_1_3) {
   Rig rig(4, 1);
-  const TimePoint first = rig.negotiate_alone(ms(50));
+  const TimePoint first = rig.negotiate_alone(at_ms(50));
   const auto began = rig.events_of(Kind::NegotiationBegan).size();
   EXPECT_TRUE(rig.hear("072#", first + 700ms));
   rig.run_for(5s);
@@ -342,10 +346,10 @@ TEST(FlyingMasterProcess, DetectionAnsweredByAHigherOrEqualLevelStandsBy_3_7_f) 
   for (std::uint16_t level : {std::uint16_t{0}, std::uint16_t{2}}) {
     SCOPED_TRACE(level);
     Rig rig(4, 2);
-    rig.start(ms(0));
-    rig.run_until(ms(500));
+    rig.start(at_ms(0));
+    rig.run_until(at_ms(500));
     ASSERT_EQ(rig.sent_on("073#").size(), 1U);
-    EXPECT_TRUE(rig.hear(reply_71(level, 6), ms(501)));
+    EXPECT_TRUE(rig.hear(reply_71(level, 6), at_ms(501)));
     EXPECT_EQ(rig.engine.phase(), Phase::Standby);
     EXPECT_EQ(rig.port.startup, StartupState::Standby);
     EXPECT_EQ(rig.engine.active_master(), id(6));
@@ -365,21 +369,21 @@ TEST(FlyingMasterProcess, DetectionAnsweredByAHigherOrEqualLevelStandsBy_3_7_f) 
 // master negotiation (76h, no data, DSP 302 Figure 18) at once, and wait for its reset.
 TEST(FlyingMasterProcess, DetectionAnsweredByALowerLevelForcesNegotiation_3_7_g_5_4) {
   Rig rig(4, 0);
-  rig.start(ms(0));
-  rig.run_until(ms(500));
-  EXPECT_TRUE(rig.hear(reply_71(2, 6), ms(501)));
+  rig.start(at_ms(0));
+  rig.run_until(at_ms(500));
+  EXPECT_TRUE(rig.hear(reply_71(2, 6), at_ms(501)));
   auto force = rig.first_on("076#");
   ASSERT_TRUE(force.has_value());
   EXPECT_EQ(force->text, "076#");
-  EXPECT_EQ(force->at, ms(501));
+  EXPECT_EQ(force->at, at_ms(501));
   EXPECT_EQ(rig.engine.phase(), Phase::Forced);
   EXPECT_EQ(rig.port.startup, StartupState::Negotiating);
   auto forced = rig.events_of(Kind::ForceNegotiation);
   ASSERT_EQ(forced.size(), 1U);
   EXPECT_EQ(forced[0].node_id, 6);
   // The active master's reset communication restarts this device (DSP 302 §5.5.1.2).
-  EXPECT_TRUE(rig.hear("000#8200", ms(510)));
-  EXPECT_EQ(rig.port.restart_at, ms(510));
+  EXPECT_TRUE(rig.hear("000#8200", at_ms(510)));
+  EXPECT_EQ(rig.port.restart_at, at_ms(510));
   EXPECT_EQ(rig.port.resets, 0);
 }
 
@@ -390,7 +394,7 @@ TEST(FlyingMasterProcess, NegotiationWonByEqualLevelIsTakenByLowerLevelForced_3_
   for (std::uint16_t winner : {std::uint16_t{1}, std::uint16_t{2}}) {
     SCOPED_TRACE(winner);
     Rig rig(4, 1);
-    const TimePoint trigger = rig.negotiate_alone(ms(50));
+    const TimePoint trigger = rig.negotiate_alone(at_ms(50));
     const TimePoint sent = trigger + 100ms;
     EXPECT_TRUE(rig.hear(reply_71(winner, 9), sent));
     rig.run_for(50ms);
@@ -416,22 +420,22 @@ TEST(FlyingMasterProcess, LoserDoesNotForceAgainAfterLosingTwice_DSP302_5_5_2_Hi
   Rig rig(100, 0);
   rig.timing.priority_slot = 13000ms;
   rig.timing.node_slot = 100ms;
-  rig.start(ms(0));
-  rig.run_until(ms(500));
-  EXPECT_TRUE(rig.hear(reply_71(1, 5), ms(501)));
+  rig.start(at_ms(0));
+  rig.run_until(at_ms(500));
+  EXPECT_TRUE(rig.hear(reply_71(1, 5), at_ms(501)));
   ASSERT_EQ(rig.sent_on("076#").size(), 1U);
   // The active master resets all nodes; node 5 wins the negotiation again.
-  EXPECT_TRUE(rig.hear("000#8200", ms(510)));
-  rig.start(ms(510));
-  rig.run_until(ms(1110));  // 73h at 1010, no answer: 72h at 1110
+  EXPECT_TRUE(rig.hear("000#8200", at_ms(510)));
+  rig.start(at_ms(510));
+  rig.run_until(at_ms(1110));  // 73h at 1010, no answer: 72h at 1110
   ASSERT_EQ(rig.sent_on("072#").size(), 1U);
-  EXPECT_TRUE(rig.hear(reply_71(1, 5), ms(1110) + 1550ms));
+  EXPECT_TRUE(rig.hear(reply_71(1, 5), at_ms(1110) + 1550ms));
   EXPECT_EQ(rig.engine.phase(), Phase::Standby);
   // After the next reset (its start-up) and the detection, 5's answer makes it stand by again.
-  EXPECT_TRUE(rig.hear("000#8200", ms(2800)));
-  rig.start(ms(2800));
-  rig.run_until(ms(3300));
-  EXPECT_TRUE(rig.hear(reply_71(1, 5), ms(3301)));
+  EXPECT_TRUE(rig.hear("000#8200", at_ms(2800)));
+  rig.start(at_ms(2800));
+  rig.run_until(at_ms(3300));
+  EXPECT_TRUE(rig.hear(reply_71(1, 5), at_ms(3301)));
   EXPECT_EQ(rig.engine.phase(), Phase::Standby);
   EXPECT_EQ(rig.sent_on("076#").size(), 1U);
   EXPECT_EQ(rig.events_of(Kind::ForceNegotiation).size(), 1U);
@@ -447,7 +451,7 @@ TEST(FlyingMasterProcess, ActiveMasterSends76hEvery1F90Sub6WithoutResettingItsel
     SCOPED_TRACE(cycle);
     Rig rig(4, 1);
     rig.timing.cycle = ms(cycle);
-    const TimePoint active = rig.win_alone(ms(50));
+    const TimePoint active = rig.win_alone(at_ms(50));
     rig.run_for(15s);
     auto forces = rig.sent_on("076#", active);
     ASSERT_GE(forces.size(), 3U);
@@ -466,17 +470,17 @@ TEST(FlyingMasterProcess, ActiveMasterSends76hEvery1F90Sub6WithoutResettingItsel
 // included, and negotiates again; a standby master ignores it.
 TEST(FlyingMasterProcess, ActiveMasterAnswers76hWithResetOfAllNodes_5_4_5_5_3) {
   Rig rig(4, 1);
-  const TimePoint active = rig.win_alone(ms(50));
+  const TimePoint active = rig.win_alone(at_ms(50));
   EXPECT_TRUE(rig.hear("076#", active + 1s));
   EXPECT_EQ(rig.port.resets, 2);
   EXPECT_EQ(rig.port.restart_at, active + 1s);
   EXPECT_EQ(rig.events_of(Kind::MultipleMasters).size(), 1U);
 
   Rig standby(5, 1);
-  standby.start(ms(0));
-  standby.run_until(ms(500));
-  EXPECT_TRUE(standby.hear(reply_71(0, 4), ms(501)));
-  EXPECT_FALSE(standby.hear("076#", ms(700)));  // within its heartbeat watch (300 ms)
+  standby.start(at_ms(0));
+  standby.run_until(at_ms(500));
+  EXPECT_TRUE(standby.hear(reply_71(0, 4), at_ms(501)));
+  EXPECT_FALSE(standby.hear("076#", at_ms(700)));  // within its heartbeat watch (300 ms)
   EXPECT_EQ(standby.port.resets, 0);
 }
 
@@ -494,21 +498,21 @@ TEST(FlyingMasterProcess, StandbyWatchesTheActiveMastersHeartbeat_5_5_2) {
     SCOPED_TRACE(c.watch.count());
     Rig rig(5, 1);
     if (c.consumer) rig.port.consumer[11] = *c.consumer;
-    rig.start(ms(0));
-    rig.run_until(ms(500));
-    EXPECT_TRUE(rig.hear(reply_71(0, 11), ms(501)));
+    rig.start(at_ms(0));
+    rig.run_until(at_ms(500));
+    EXPECT_TRUE(rig.hear(reply_71(0, 11), at_ms(501)));
     ASSERT_EQ(rig.engine.phase(), Phase::Standby);
-    EXPECT_FALSE(rig.hear("70B#05", ms(600)));
-    EXPECT_FALSE(rig.hear("70B#00", ms(650)));  // a boot-up: not a heartbeat
-    rig.run_until(ms(600) + c.watch - 1ms);
+    EXPECT_FALSE(rig.hear("70B#05", at_ms(600)));
+    EXPECT_FALSE(rig.hear("70B#00", at_ms(650)));  // a boot-up: not a heartbeat
+    rig.run_until(at_ms(600) + c.watch - 1ms);
     EXPECT_EQ(rig.port.resets, 0);
-    rig.run_until(ms(600) + c.watch);
+    rig.run_until(at_ms(600) + c.watch);
     EXPECT_EQ(rig.port.resets, 1);
-    EXPECT_EQ(rig.port.restart_at, ms(600) + c.watch);
+    EXPECT_EQ(rig.port.restart_at, at_ms(600) + c.watch);
     auto lost = rig.events_of(Kind::ActiveMasterLost);
     ASSERT_EQ(lost.size(), 1U);
     EXPECT_EQ(lost[0].node_id, 11);
-    EXPECT_EQ(lost[0].at, ms(600) + c.watch);
+    EXPECT_EQ(lost[0].at, at_ms(600) + c.watch);
   }
 }
 
@@ -516,15 +520,15 @@ TEST(FlyingMasterProcess, StandbyWatchesTheActiveMastersHeartbeat_5_5_2) {
 // all; a reset communication starts its flying master start-up again (DSP 302 §5.5.1.2).
 TEST(FlyingMasterProcess, StandbyMasterObeysNmtCommandsAndNegotiatesAfterAReset_5_5_1_2) {
   Rig rig(5, 1);
-  rig.start(ms(0));
-  rig.run_until(ms(500));
-  EXPECT_TRUE(rig.hear(reply_71(0, 4), ms(501)));
-  EXPECT_TRUE(rig.hear("000#0100", ms(600)));
-  EXPECT_TRUE(rig.hear("000#0205", ms(700)));
-  EXPECT_FALSE(rig.hear("000#8006", ms(800)));  // another node's
+  rig.start(at_ms(0));
+  rig.run_until(at_ms(500));
+  EXPECT_TRUE(rig.hear(reply_71(0, 4), at_ms(501)));
+  EXPECT_TRUE(rig.hear("000#0100", at_ms(600)));
+  EXPECT_TRUE(rig.hear("000#0205", at_ms(700)));
+  EXPECT_FALSE(rig.hear("000#8006", at_ms(800)));  // another node's
   EXPECT_EQ(rig.port.obeyed, (std::vector<NmtCommand>{NmtCommand::Start, NmtCommand::Stop}));
-  EXPECT_TRUE(rig.hear("000#8105", ms(900)));
-  EXPECT_EQ(rig.port.restart_at, ms(900));
+  EXPECT_TRUE(rig.hear("000#8105", at_ms(900)));
+  EXPECT_EQ(rig.port.restart_at, at_ms(900));
   EXPECT_EQ(rig.engine.phase(), Phase::Delay);
 }
 
@@ -537,15 +541,15 @@ TEST(FlyingMasterProcess, StandbyMasterObeysNmtCommandsAndNegotiatesAfterAReset_
 // (1F91h sub 3; defaults 100, 500, 15 ms, Table 52); DSP 302 Figure 19: 75h without data.
 TEST(FlyingMasterProcess, StartingDeviceDetectsMastersBeforeStartingAll_5_1) {
   Rig rig(4, 1);
-  rig.engine.detect_master(kDetectionDefaults, ms(50));
-  rig.now = ms(50);
-  rig.run_until(ms(50) + 500ms + 100ms + 4 * 15ms - 1ms);
+  rig.engine.detect_master(kDetectionDefaults, at_ms(50));
+  rig.now = at_ms(50);
+  rig.run_until(at_ms(50) + 500ms + 100ms + 4 * 15ms - 1ms);
   auto request = rig.first_on("075#");
   ASSERT_TRUE(request.has_value());
   EXPECT_EQ(request->text, "075#");
-  EXPECT_EQ(request->at, ms(50) + 500ms);
+  EXPECT_EQ(request->at, at_ms(50) + 500ms);
   EXPECT_TRUE(rig.port.queued.empty());
-  rig.run_until(ms(50) + 500ms + 100ms + 4 * 15ms);
+  rig.run_until(at_ms(50) + 500ms + 100ms + 4 * 15ms);
   EXPECT_EQ(rig.port.queued,
             (std::vector<std::pair<NmtCommand, std::uint8_t>>{{NmtCommand::Start, 0}}));
   EXPECT_EQ(rig.events_of(Kind::MasterDetection).size(), 1U);
@@ -555,7 +559,7 @@ TEST(FlyingMasterProcess, StartingDeviceDetectsMastersBeforeStartingAll_5_1) {
 // Without 1F91h the device starts all nodes at once (Table 16, 00000010b).
 TEST(FlyingMasterProcess, StartingDeviceWithout1F91hStartsAllAtOnce_Table16) {
   Rig rig(4, 1);
-  rig.engine.detect_master(std::nullopt, ms(50));
+  rig.engine.detect_master(std::nullopt, at_ms(50));
   EXPECT_EQ(rig.port.queued,
             (std::vector<std::pair<NmtCommand, std::uint8_t>>{{NmtCommand::Start, 0}}));
   EXPECT_EQ(rig.engine.next_deadline(), std::nullopt);
@@ -565,9 +569,9 @@ TEST(FlyingMasterProcess, StartingDeviceWithout1F91hStartsAllAtOnce_Table16) {
 // exist at least one device with the capability to become NMT master": no start.
 TEST(FlyingMasterProcess, StartingDeviceLeavesTheNetworkToAnAnsweringMaster_5_1) {
   Rig rig(4, 1);
-  rig.engine.detect_master(kDetectionDefaults, ms(0));
-  rig.run_until(ms(500));
-  EXPECT_TRUE(rig.hear("074#", ms(520)));
+  rig.engine.detect_master(kDetectionDefaults, at_ms(0));
+  rig.run_until(at_ms(500));
+  EXPECT_TRUE(rig.hear("074#", at_ms(520)));
   rig.run_for(3s);
   EXPECT_TRUE(rig.port.queued.empty());
   EXPECT_EQ(rig.events_of(Kind::MasterDetection).size(), 1U);
@@ -577,9 +581,9 @@ TEST(FlyingMasterProcess, StartingDeviceLeavesTheNetworkToAnAnsweringMaster_5_1)
 // start of all nodes while it waits sends none.
 TEST(FlyingMasterProcess, StartingDeviceThatHearsAStartAllSendsNone_DSP302_5_5_3_1) {
   Rig rig(6, 1);
-  rig.engine.detect_master(kDetectionDefaults, ms(0));
-  rig.run_until(ms(600));  // 75h at 500, no answer by 600: waiting 6 x 15 ms
-  EXPECT_FALSE(rig.hear("000#0100", ms(660)));
+  rig.engine.detect_master(kDetectionDefaults, at_ms(0));
+  rig.run_until(at_ms(600));  // 75h at 500, no answer by 600: waiting 6 x 15 ms
+  EXPECT_FALSE(rig.hear("000#0100", at_ms(660)));
   rig.run_for(3s);
   EXPECT_TRUE(rig.port.queued.empty());
   EXPECT_EQ(rig.events_of(Kind::MasterDetection).size(), 2U);
@@ -589,7 +593,7 @@ TEST(FlyingMasterProcess, StartingDeviceThatHearsAStartAllSendsNone_DSP302_5_5_3
 // write check), here the priority of its answer to a detection.
 TEST(FlyingMasterProcess, WrittenTimingGovernsTheNextSteps_6_13) {
   Rig rig(4, 1);
-  const TimePoint active = rig.win_alone(ms(50));
+  const TimePoint active = rig.win_alone(at_ms(50));
   auto timing = rig.timing;
   timing.priority = 0;
   rig.engine.set_timing(timing);

@@ -78,7 +78,8 @@ class FlyRig {
   }
   ~FlyRig() {
     if (std::getenv("MASTER_SPEC_DUMP") == nullptr) return;
-    for (const auto& s : seen) std::cerr << s.at.count() << "us " << s.text() << "\n";
+    for (const auto& s : seen)
+      std::cerr << s.at.time_since_epoch().count() << "us " << s.text() << "\n";
     for (const auto& [node, list] : events_) {
       for (const auto& e : list) std::cerr << "EVENT@" << int{node} << " " << e << "\n";
     }
@@ -181,26 +182,26 @@ class FlyRig {
     return bus.run_until([&] { return settled_on(node); }, bus.now() + limit);
   }
 
-  std::vector<Seen> on_id(std::uint32_t id, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> on_id(std::uint32_t id, TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : seen) {
       if (s.at >= from && !s.frame.extended && s.frame.id == id) out.push_back(s);
     }
     return out;
   }
-  std::optional<Seen> first_on(std::uint32_t id, TimePoint from = TimePoint{0}) const {
+  std::optional<Seen> first_on(std::uint32_t id, TimePoint from = TimePoint{}) const {
     auto all = on_id(id, from);
     if (all.empty()) return std::nullopt;
     return all.front();
   }
   /// The first frame with exactly this candump text at or after `from`.
-  std::optional<Seen> first(std::string_view text, TimePoint from = TimePoint{0}) const {
+  std::optional<Seen> first(std::string_view text, TimePoint from = TimePoint{}) const {
     for (const auto& s : seen) {
       if (s.at >= from && s.text() == text) return s;
     }
     return std::nullopt;
   }
-  std::size_t count(std::string_view text, TimePoint from = TimePoint{0}) const {
+  std::size_t count(std::string_view text, TimePoint from = TimePoint{}) const {
     return static_cast<std::size_t>(std::count_if(
         seen.begin(), seen.end(), [&](const Seen& s) { return s.at >= from && s.text() == text; }));
   }
@@ -214,7 +215,7 @@ class FlyRig {
   }
   /// Initiated SDO downloads of (index, sub) to `node` from `from` on.
   std::vector<Seen> downloads_of(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
-                                 TimePoint from = TimePoint{0}) const {
+                                 TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : on_id(0x600U + node, from)) {
       if (is_download_initiate(s.frame) && addresses(s.frame, index, sub)) out.push_back(s);

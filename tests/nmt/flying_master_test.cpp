@@ -53,10 +53,11 @@ class FlyingRig {
   }
   ~FlyingRig() {
     if (std::getenv("MASTER_SPEC_DUMP") == nullptr) return;
-    for (const auto& s : seen) std::cerr << s.at.count() << "us " << s.text() << "\n";
+    for (const auto& s : seen)
+      std::cerr << s.at.time_since_epoch().count() << "us " << s.text() << "\n";
     for (const auto& e : events) {
-      std::cerr << "EVENT " << int{e.master} << " " << e.event.at.count() << "us "
-                << to_string(e.event.kind) << ": " << e.event.text << "\n";
+      std::cerr << "EVENT " << int{e.master} << " " << e.event.at.time_since_epoch().count()
+                << "us " << to_string(e.event.kind) << ": " << e.event.text << "\n";
     }
   }
   FlyingRig(const FlyingRig&) = delete;
@@ -81,7 +82,7 @@ class FlyingRig {
   }
   static SdoAbort write(LocalDictionary& dict, std::uint16_t index, std::uint8_t sub,
                         std::uint64_t value, std::size_t size) {
-    return dict.write(index, sub, le(value, size), TimePoint{0});
+    return dict.write(index, sub, le(value, size), TimePoint{});
   }
   NmtMaster& master(std::uint8_t node) { return masters_.at(node)->engine(); }
   /// Power-on of a master on the (main) bus.
@@ -138,7 +139,7 @@ class FlyingRig {
     return out;
   }
   std::vector<MasterEventAt> events_of(Kind kind, std::optional<std::uint8_t> master = {},
-                                       TimePoint from = TimePoint{0}) const {
+                                       TimePoint from = TimePoint{}) const {
     std::vector<MasterEventAt> out;
     for (const auto& e : events) {
       if (e.event.kind == kind && (!master || e.master == *master) && e.event.at >= from) {
@@ -147,7 +148,7 @@ class FlyingRig {
     }
     return out;
   }
-  std::vector<Seen> on_id(std::uint32_t cob, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> on_id(std::uint32_t cob, TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : seen) {
       if (s.at >= from && !s.frame.extended && s.frame.id == cob) out.push_back(s);
@@ -213,7 +214,7 @@ TEST(FlyingMaster, TwoMastersStartTogetherHigherPriorityWins) {
   const auto won = rig.on_id(0x71);
   ASSERT_FALSE(won.empty());
   EXPECT_EQ(won.front().text(), "071#000B");
-  const auto expected = 2 * (kDelay + kTimeout) + waiting_time(0, 11);
+  const TimePoint expected{2 * (kDelay + kTimeout) + waiting_time(0, 11)};
   EXPECT_GE(won.front().at, expected);
   EXPECT_LT(won.front().at, expected + 5ms);
   expect_settled(rig, 11, {10});
@@ -242,7 +243,7 @@ TEST(FlyingMaster, ThreeMastersOfEqualPriorityLowestNodeIdWins) {
   const auto won = rig.on_id(0x71);
   ASSERT_FALSE(won.empty());
   EXPECT_EQ(won.front().text(), "071#010A");
-  const auto expected = 2 * (kDelay + kTimeout) + waiting_time(1, 10);
+  const TimePoint expected{2 * (kDelay + kTimeout) + waiting_time(1, 10)};
   EXPECT_GE(won.front().at, expected);
   EXPECT_LT(won.front().at, expected + 5ms);
   expect_settled(rig, 10, {11, 12});

@@ -18,7 +18,7 @@ namespace nmt {
 namespace {
 
 using Bytes = std::vector<std::uint8_t>;
-constexpr TimePoint kNow{0};  // the time of an access only matters to the hooks
+constexpr TimePoint kNow{};  // the time of an access only matters to the hooks
 
 LocalDictionary make(std::uint8_t node_id = 5) {
   auto d = LocalDictionary::from_device(test_support::sdo_test_device(), node_id);

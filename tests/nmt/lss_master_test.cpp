@@ -26,7 +26,7 @@ using Kind = LssMasterEvent::Kind;
 class LssMasterTest : public ::testing::Test {
  protected:
   LssMaster master;
-  TimePoint now{0};
+  TimePoint now{};
   std::vector<LssMasterEvent> events;
 
   Frames take(LssMaster::Output& out) {
@@ -387,7 +387,7 @@ TEST_F(LssBus, ScanLooksPastADeviceItGivesNoNodeId) {
 TEST_F(LssBus, ScanFirstSwitchesADeviceLeftInConfigurationBackToWaiting) {
   auto& bystander = add({0x0000019A, 0x00020001, 0x00010000, 0x00000001}, 9);
   LssSlave::Output ignored;
-  bystander.engine().on_frame(*from_candump("7E5#0401000000000000"), TimePoint{0}, ignored);
+  bystander.engine().on_frame(*from_candump("7E5#0401000000000000"), TimePoint{}, ignored);
   ASSERT_EQ(bystander.engine().state(), LssState::Configuration);
   auto addresses = std::vector<LssAddress>{{0x0000019A, 0x00020001, 0x00010000, 0x00000002}};
   add(addresses[0]);

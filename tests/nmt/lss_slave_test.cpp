@@ -32,7 +32,7 @@ class LssSlaveTest : public ::testing::Test {
     auto f = from_candump(candump);
     EXPECT_TRUE(f.has_value()) << candump;
     LssSlave::Output out;
-    EXPECT_EQ(slave.on_frame(*f, TimePoint{0}, out), expect_handled) << candump;
+    EXPECT_EQ(slave.on_frame(*f, TimePoint{}, out), expect_handled) << candump;
     for (auto& e : out.events) events.push_back(e);
     Frames frames;
     for (auto& fr : out.frames) frames.push_back(to_candump(fr));
@@ -157,8 +157,8 @@ TEST(LssSlave, StoreConfigurationNotSupportedAnswersErrorCode1) {
   options.store_supported = false;
   LssSlave slave(kAddress, 3, options);
   LssSlave::Output out;
-  slave.on_frame(*from_candump("7E5#0401000000000000"), TimePoint{0}, out);
-  slave.on_frame(*from_candump("7E5#1700000000000000"), TimePoint{0}, out);
+  slave.on_frame(*from_candump("7E5#0401000000000000"), TimePoint{}, out);
+  slave.on_frame(*from_candump("7E5#1700000000000000"), TimePoint{}, out);
   ASSERT_EQ(out.frames.size(), 1u);
   EXPECT_EQ(to_candump(out.frames[0]), "7E4#1701000000000000");
 }
@@ -203,7 +203,7 @@ TEST_F(LssSlaveTest, IdentifyNonConfiguredRemoteSlave4CIsAnswered50WhileUnconfig
   EXPECT_EQ(feed("7E5#4C00000000000000"), Frames{"7E4#5000000000000000"});
   LssSlave configured(kAddress, 5);
   LssSlave::Output out;
-  configured.on_frame(*from_candump("7E5#4C00000000000000"), TimePoint{0}, out);
+  configured.on_frame(*from_candump("7E5#4C00000000000000"), TimePoint{}, out);
   EXPECT_TRUE(out.frames.empty());
 }
 
@@ -239,7 +239,7 @@ TEST_F(LssSlaveTest, FastscanForAnotherPartThanTheDevicesPositionIsNotAnswered) 
 TEST(LssSlave, FastscanIsNotAnsweredByAConfiguredDevice) {
   LssSlave slave(kAddress, 5);
   LssSlave::Output out;
-  slave.on_frame(*from_candump("7E5#5100000000800000"), TimePoint{0}, out);
+  slave.on_frame(*from_candump("7E5#5100000000800000"), TimePoint{}, out);
   EXPECT_TRUE(out.frames.empty());
 }
 
@@ -269,14 +269,14 @@ struct LssNode {
   std::unique_ptr<SlaveNode> node;
   Frames sent;
   explicit LssNode(std::unique_ptr<SlaveNode> n) : node(std::move(n)) {}
-  bool frame(std::string_view candump, TimePoint now = TimePoint{0}) {
+  bool frame(std::string_view candump, TimePoint now = TimePoint{}) {
     SlaveNode::Output out;
     const bool taken = node->on_frame(*from_candump(candump), now, out);
     sent.clear();
     for (const auto& f : out.frames) sent.push_back(to_candump(f));
     return taken;
   }
-  Frames timer(TimePoint now = TimePoint{0}) {
+  Frames timer(TimePoint now = TimePoint{}) {
     SlaveNode::Output out;
     node->on_timer(now, out);
     sent.clear();
@@ -293,7 +293,7 @@ LssNode unconfigured() {
 
 TEST(SlaveNodeLss, UnconfiguredDevicePowersOnWithoutBootUpAndServesNoNmtOrSdo) {
   auto d = unconfigured();
-  d.node->power_on(TimePoint{0});
+  d.node->power_on(TimePoint{});
   EXPECT_FALSE(d.node->has_node_id());
   EXPECT_FALSE(d.node->next_deadline().has_value());
   EXPECT_TRUE(d.timer().empty());
@@ -341,22 +341,22 @@ TEST(SlaveNodeLss, DeviceFileWithoutLssSupportedCannotStartUnconfigured) {
 
 TEST(SlaveNodeLss, NodeIdByLssThenBootUpAndTheDictionaryOfThatNodeId) {
   auto d = unconfigured();
-  d.node->power_on(TimePoint{0});
+  d.node->power_on(TimePoint{});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
   EXPECT_EQ(d.sent, Frames{"7E4#1100000000000000"});
   d.frame("7E5#1700000000000000");
   EXPECT_EQ(d.sent, Frames{"7E4#1700000000000000"});
-  d.frame("7E5#0400000000000000", TimePoint{1000});
+  d.frame("7E5#0400000000000000", TimePoint{Duration{1000}});
   EXPECT_TRUE(d.node->has_node_id());
-  EXPECT_EQ(d.node->next_deadline(), TimePoint{1000});
-  EXPECT_EQ(d.timer(TimePoint{1000}), Frames{"705#00"});  // boot-up of node 5
+  EXPECT_EQ(d.node->next_deadline(), TimePoint{Duration{1000}});
+  EXPECT_EQ(d.timer(TimePoint{Duration{1000}}), Frames{"705#00"});  // boot-up of node 5
   // 1014h = $NODEID+80h of node 5; SDO on 605h/585h.
   EXPECT_TRUE(d.frame("605#4014100000000000"));
   EXPECT_EQ(d.sent, Frames{"585#4314100085000000"});
   // Stored: the next power-on boots as node 5 at once.
-  d.node->power_on(TimePoint{2000});
-  EXPECT_EQ(d.timer(TimePoint{2000}), Frames{"705#00"});
+  d.node->power_on(TimePoint{Duration{2000}});
+  EXPECT_EQ(d.timer(TimePoint{Duration{2000}}), Frames{"705#00"});
 }
 
 TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
@@ -364,7 +364,7 @@ TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
   // table 0 index 3, 250 kbit/s) in non-volatile memory: lss_stored(), which another node of
   // the same file given it (set_lss_stored, what a saved state file does) powers on with.
   auto d = unconfigured();
-  d.node->power_on(TimePoint{0});
+  d.node->power_on(TimePoint{});
   EXPECT_FALSE(d.node->lss_stored());
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
@@ -377,7 +377,7 @@ TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
 
   auto e = unconfigured();
   e.node->set_lss_stored(d.node->lss_stored());
-  e.node->power_on(TimePoint{0});
+  e.node->power_on(TimePoint{});
   EXPECT_TRUE(e.node->has_node_id());
   EXPECT_EQ(e.node->lss()->bit_timing_index(), 3);
   EXPECT_EQ(e.timer(), Frames{"705#00"});
@@ -385,21 +385,21 @@ TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
 
 TEST(SlaveNodeLss, UnstoredNodeIdIsLostAtPowerOn) {
   auto d = unconfigured();
-  d.node->power_on(TimePoint{0});
+  d.node->power_on(TimePoint{});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
   d.frame("7E5#0400000000000000");
   EXPECT_EQ(d.timer(), Frames{"705#00"});
-  d.node->power_on(TimePoint{1000});
+  d.node->power_on(TimePoint{Duration{1000}});
   EXPECT_FALSE(d.node->has_node_id());
-  EXPECT_TRUE(d.timer(TimePoint{1000}).empty());
+  EXPECT_TRUE(d.timer(TimePoint{Duration{1000}}).empty());
 }
 
 TEST(SlaveNodeLss, ConfiguredNodeTakesANewNodeIdAtResetCommunication) {
   auto created = SlaveNode::create(lss_device(), *cfg::NodeId::from(3));
   ASSERT_TRUE(created.ok());
   LssNode d(std::move(created).value());
-  d.node->power_on(TimePoint{0});
+  d.node->power_on(TimePoint{});
   EXPECT_EQ(d.timer(), Frames{"703#00"});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1109000000000000");
@@ -422,7 +422,7 @@ TEST(SlaveNodeLss, DefaultSdoOfAFileWithout1200hFollowsTheNodeIdLssGave) {
   auto created = SlaveNode::create_unconfigured(lss_io_without_1200h());
   ASSERT_TRUE(created.ok()) << created.error().message;
   LssNode d(std::move(created).value());
-  d.node->power_on(TimePoint{0});
+  d.node->power_on(TimePoint{});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
   d.frame("7E5#0400000000000000");
@@ -439,9 +439,9 @@ TEST(SimulatedDeviceLss, UnconfiguredDeviceAnswersLssThroughItsFaults) {
   auto created = SimulatedDevice::create_unconfigured(lss_io_without_1200h());
   ASSERT_TRUE(created.ok()) << created.error().message;
   auto device = std::move(created).value();
-  device.power_on(TimePoint{0});
+  device.power_on(TimePoint{});
   SimulatedDevice::Output out;
-  EXPECT_TRUE(device.on_frame(*from_candump("7E5#4C00000000000000"), TimePoint{0}, out));
+  EXPECT_TRUE(device.on_frame(*from_candump("7E5#4C00000000000000"), TimePoint{}, out));
   ASSERT_EQ(out.frames.size(), 1u);
   EXPECT_EQ(to_candump(out.frames[0]), "7E4#5000000000000000");
   auto without_lss = lss_io_without_1200h();

@@ -20,7 +20,7 @@ using std::chrono::milliseconds;
 using Sent = NmtCommandQueue::Sent;
 
 TimePoint at_ms(std::int64_t ms) {
-  return milliseconds(ms);
+  return TimePoint{milliseconds(ms)};
 }
 
 template <class Output>
@@ -69,7 +69,7 @@ TEST(NmtCommandQueue, QueuedCommandIsDueAtOnceAndNothingIsDueWhenEmpty) {
   NmtCommandQueue queue;
   EXPECT_EQ(queue.next_deadline(), std::nullopt);
   queue.queue(NmtCommand::Start, 0);
-  EXPECT_EQ(queue.next_deadline(), TimePoint{0});  // engine.hpp rule 4: as soon as possible
+  EXPECT_EQ(queue.next_deadline(), TimePoint{});  // engine.hpp rule 4: as soon as possible
   NmtCommandQueue::Output out;
   queue.on_timer(at_ms(7), out);
   EXPECT_EQ(texts(out), (std::vector<std::string>{"000#0100"}));

@@ -375,7 +375,7 @@ TEST(NmtMasterSpec, SlavesAreConfiguredInParallel) {
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
 
   // Every slave's first write comes before any slave's last write.
-  TimePoint latest_first{0};
+  TimePoint latest_first{};
   TimePoint earliest_last = TimePoint::max();
   for (std::uint8_t node = 2; node <= 5; ++node) {
     auto writes = rig.all_downloads(node);

@@ -150,7 +150,7 @@ TEST(NmtMasterSpec, StartAllNodesWithNodeIdZeroWhenBit1SetAndEverySlaveBooted) {
   EXPECT_EQ(rig.slave(3).node().state(), NmtState::Operational);
   auto sent = rig.events_of(Kind::NmtCommandSent);
   EXPECT_TRUE(std::any_of(sent.begin(), sent.end(), [](const MasterEvent& e) {
-    return e.command == NmtCommand::Start && e.node_id == 0;
+    return e.command == NmtCommand::Start && !e.node_id;  // to all nodes
   }));
 }
 
@@ -1092,7 +1092,7 @@ TEST(NmtMasterSpec, BootReportsStatusKWhenConsumedHeartbeatNeverComes) {
   // The boot's last answer from the slave precedes start error control.
   auto answers = rig.on_id(0x583);
   ASSERT_FALSE(answers.empty());
-  TimePoint last_answer{0};
+  TimePoint last_answer{};
   for (const auto& a : answers) {
     if (a.at <= error.at) last_answer = a.at;
   }

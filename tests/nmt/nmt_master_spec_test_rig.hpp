@@ -207,8 +207,10 @@ class MasterRig {
   }
   ~MasterRig() {
     if (std::getenv("MASTER_SPEC_DUMP") == nullptr) return;
-    for (const auto& s : seen) std::cerr << s.at.count() << "us " << s.text() << "\n";
-    for (const auto& e : events) std::cerr << "EVENT " << e.at.count() << "us " << e.text << "\n";
+    for (const auto& s : seen)
+      std::cerr << s.at.time_since_epoch().count() << "us " << s.text() << "\n";
+    for (const auto& e : events)
+      std::cerr << "EVENT " << e.at.time_since_epoch().count() << "us " << e.text << "\n";
   }
   MasterRig(const MasterRig&) = delete;
   MasterRig& operator=(const MasterRig&) = delete;
@@ -354,7 +356,7 @@ class MasterRig {
     return events_of(MasterEvent::Kind::SlaveBooted, node);
   }
   /// Frames on `id` seen at or after `from`.
-  std::vector<Seen> on_id(std::uint32_t id, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> on_id(std::uint32_t id, TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : seen) {
       if (s.at >= from && !s.frame.extended && s.frame.id == id) out.push_back(s);
@@ -362,30 +364,30 @@ class MasterRig {
     return out;
   }
   /// NMT commands (COB-ID 000h) as candump text, in bus order, from `from` on.
-  std::vector<std::string> nmt(TimePoint from = TimePoint{0}) const {
+  std::vector<std::string> nmt(TimePoint from = TimePoint{}) const {
     std::vector<std::string> out;
     for (const auto& s : on_id(kNmtCobId, from)) out.push_back(s.text());
     return out;
   }
-  std::vector<Seen> nmt_seen(TimePoint from = TimePoint{0}) const { return on_id(kNmtCobId, from); }
-  std::size_t count_nmt(std::string_view text, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> nmt_seen(TimePoint from = TimePoint{}) const { return on_id(kNmtCobId, from); }
+  std::size_t count_nmt(std::string_view text, TimePoint from = TimePoint{}) const {
     auto all = nmt(from);
     return static_cast<std::size_t>(std::count(all.begin(), all.end(), text));
   }
   /// SDO requests the master sent to `node`.
-  std::vector<Seen> requests_to(std::uint8_t node, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> requests_to(std::uint8_t node, TimePoint from = TimePoint{}) const {
     return on_id(0x600U + node, from);
   }
   /// Initiated downloads (expedited, segmented or block) of (index, sub) to `node`.
   std::vector<Seen> downloads_of(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
-                                 TimePoint from = TimePoint{0}) const {
+                                 TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : requests_to(node, from)) {
       if (is_download_initiate(s.frame) && addresses(s.frame, index, sub)) out.push_back(s);
     }
     return out;
   }
-  std::vector<Seen> all_downloads(std::uint8_t node, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> all_downloads(std::uint8_t node, TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : requests_to(node, from)) {
       if (is_download_initiate(s.frame)) out.push_back(s);
@@ -393,7 +395,7 @@ class MasterRig {
     return out;
   }
   std::vector<Seen> uploads_of(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
-                               TimePoint from = TimePoint{0}) const {
+                               TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : requests_to(node, from)) {
       if (is_upload_initiate(s.frame) && addresses(s.frame, index, sub)) out.push_back(s);
@@ -460,7 +462,7 @@ class MasterRig {
   /// MasterEvent::PersistEntry (a manager with a store directory): the rig writes the entry at
   /// once and calls entry_persisted(); false leaves that to the test.
   bool persist_entries = true;
-  TimePoint started_at{0};
+  TimePoint started_at{};
 
  private:
   SdoResult finish(SdoClient::TransferId id) {
@@ -486,14 +488,14 @@ inline bool is_value_abort(SdoAbort code) {
 }
 
 inline std::ostream& operator<<(std::ostream& os, const Seen& s) {
-  return os << s.at.count() << "us " << s.text();
+  return os << s.at.time_since_epoch().count() << "us " << s.text();
 }
 
 }  // namespace nmt::master_spec
 
 namespace nmt {
 inline std::ostream& operator<<(std::ostream& os, const MasterEvent& e) {
-  return os << e.at.count() << "us " << to_string(e.kind) << " node " << int{e.node_id} << ": "
-            << e.text;
+  return os << e.at.time_since_epoch().count() << "us " << to_string(e.kind) << " node "
+            << (e.node_id ? int{e.node_id->value()} : 0) << ": " << e.text;
 }
 }  // namespace nmt

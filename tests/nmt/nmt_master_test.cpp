@@ -272,14 +272,14 @@ TEST(NmtMaster, RequestNmtOverTheDictionaryChecksValues) {
   rig.start();
   auto& dict = rig.master().dictionary();
   const std::vector<std::uint8_t> reserved{0x02};
-  EXPECT_EQ(dict.write(0x1F82, 2, reserved, TimePoint{0}), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(dict.write(0x1F82, 2, reserved, TimePoint{}), SdoAbort::ValueRangeExceeded);
   const std::vector<std::uint8_t> start{0x05};
-  EXPECT_EQ(dict.write(0x1F82, 9, start, TimePoint{0}), SdoAbort::General);  // not a slave
+  EXPECT_EQ(dict.write(0x1F82, 9, start, TimePoint{}), SdoAbort::General);  // not a slave
   const std::vector<std::uint8_t> excluding{0x85};
-  EXPECT_EQ(dict.write(0x1F82, 0x80, excluding, TimePoint{0}), SdoAbort::General);
+  EXPECT_EQ(dict.write(0x1F82, 0x80, excluding, TimePoint{}), SdoAbort::General);
   // Bit 5 (flying master, §6.2 Table 13) is supported: it takes effect at the next start-up.
   const std::vector<std::uint8_t> flying = le(0x21, 4);
-  EXPECT_EQ(dict.write(0x1F80, 0, flying, TimePoint{0}), SdoAbort::None);
+  EXPECT_EQ(dict.write(0x1F80, 0, flying, TimePoint{}), SdoAbort::None);
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ cfg::NodeId id(std::uint8_t node_id) {
 // Feeds one frame; the transition it reported (the slave reports at most one and sends nothing).
 std::optional<NmtTransition> feed(NmtSlave& slave, std::string_view candump) {
   NmtSlave::Output out;
-  const bool taken = slave.on_frame(frame(candump), TimePoint{0}, out);
+  const bool taken = slave.on_frame(frame(candump), TimePoint{}, out);
   EXPECT_TRUE(out.frames.empty());
   EXPECT_EQ(out.events.size(), taken ? 1u : 0u);
   if (!taken || out.events.empty()) return std::nullopt;
@@ -31,7 +31,7 @@ std::optional<NmtTransition> feed(NmtSlave& slave, std::string_view candump) {
 // Ends initialisation; the one frame it sent.
 std::string finish(NmtSlave& slave) {
   NmtSlave::Output out;
-  slave.finish_initialisation(TimePoint{0}, out);
+  slave.finish_initialisation(TimePoint{}, out);
   EXPECT_TRUE(out.events.empty());
   if (out.frames.size() != 1) return "frames: " + std::to_string(out.frames.size());
   return to_candump(out.frames.front());

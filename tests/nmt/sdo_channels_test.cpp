@@ -39,16 +39,16 @@ struct Node {
     auto created = SlaveNode::create(description, kNode);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     node = std::move(created).value();
-    node->power_on(TimePoint{0});
+    node->power_on(TimePoint{});
     SlaveNode::Output out;
-    node->on_timer(TimePoint{0}, out);  // boot-up
+    node->on_timer(TimePoint{}, out);  // boot-up
   }
   // The frames the node answers to `candump`.
   Frames frame(std::string_view candump) {
     auto f = from_candump(candump);
     EXPECT_TRUE(f.has_value()) << candump;
     SlaveNode::Output out;
-    node->on_frame(f.value_or(CanFrame{}), TimePoint{1000}, out);
+    node->on_frame(f.value_or(CanFrame{}), TimePoint{Duration{1000}}, out);
     Frames frames;
     for (const auto& sent_frame : out.frames) frames.push_back(to_candump(sent_frame));
     return frames;
@@ -121,7 +121,7 @@ TEST(SdoChannels, ResetCommunicationRestoresTheChannelsOfTheFile_Cia301_7_3_2_2_
   ASSERT_EQ(n.frame("6E1#4000100000000000"), Frames{"6E2#4300100000000000"});
   n.frame("000#8205");  // reset communication
   SlaveNode::Output out;
-  n.node->on_timer(TimePoint{2000}, out);  // boot-up
+  n.node->on_timer(TimePoint{Duration{2000}}, out);  // boot-up
   EXPECT_EQ(n.frame("6E1#4000100000000000"), Frames{});
   EXPECT_FALSE(n.node->sdo_config(0x1201)->request_cob_id.valid());
 }

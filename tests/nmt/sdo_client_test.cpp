@@ -19,7 +19,7 @@ using Bytes = std::vector<std::uint8_t>;
 class SdoClientTest : public ::testing::Test {
  protected:
   SdoClient client{SdoClientConfig::for_node(5)};
-  TimePoint now{0};
+  TimePoint now{};
   Frames first;  // what the last download()/upload() put on the bus at once
   std::map<SdoClient::TransferId, SdoResult> results;
 
@@ -79,7 +79,7 @@ TEST_F(SdoClientTest, ExpeditedDownload) {
   auto id = download(0x1017, 0, {0xE8, 0x03});
   // Engine rule 5: the initiate is on the bus when download() returns; the deadline is the
   // response timeout (default 1 s), not a "start me" timer.
-  EXPECT_EQ(client.next_deadline(), TimePoint{1'000'000});
+  EXPECT_EQ(client.next_deadline(), TimePoint{Duration{1'000'000}});
   EXPECT_EQ(first, Frames{"605#2B171000E8030000"});
   EXPECT_EQ(result(id), nullptr);
   EXPECT_EQ(respond("585#6017100000000000"), Frames{});
@@ -166,13 +166,13 @@ TEST_F(SdoClientTest, ServerAbortWithCodeZeroIsNotSuccess) {
 TEST_F(SdoClientTest, SendsTimeoutAbortWhenTheServerDoesNotAnswer) {
   SdoTransferOptions o;
   o.timeout = 250ms;
-  now = TimePoint{1000};
+  now = TimePoint{Duration{1000}};
   auto id = download(0x1017, 0, {0xE8, 0x03}, o);
   EXPECT_EQ(first, Frames{"605#2B171000E8030000"});
-  EXPECT_EQ(client.next_deadline(), TimePoint{251'000});
-  EXPECT_EQ(tick(TimePoint{250'999}), Frames{});
+  EXPECT_EQ(client.next_deadline(), TimePoint{Duration{251'000}});
+  EXPECT_EQ(tick(TimePoint{Duration{250'999}}), Frames{});
   // 0504 0000, bytes 00 00 04 05.
-  EXPECT_EQ(tick(TimePoint{251'000}), Frames{"605#8017100000000405"});
+  EXPECT_EQ(tick(TimePoint{Duration{251'000}}), Frames{"605#8017100000000405"});
   EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
   EXPECT_FALSE(result(id)->aborted_by_server);
 }
@@ -297,11 +297,11 @@ TEST_F(SdoClientTest, BlockUploadRoundsAcknowledgingNoSegmentDoNotExtendTheTimeo
   auto id = upload(0x1017, 0, o);
   EXPECT_EQ(first, Frames{"605#A41710007F000000"});
   EXPECT_EQ(respond("585#C617100002000000"), Frames{"605#A300000000000000"});
-  for (now = TimePoint{1'000}; now < TimePoint{100'000}; now += 1ms) {
+  for (now = TimePoint{Duration{1'000}}; now < TimePoint{Duration{100'000}}; now += 1ms) {
     ASSERT_EQ(respond("585#A200590000000000"), Frames{"605#A2007F0000000000"});
-    ASSERT_EQ(client.next_deadline(), TimePoint{100'000});
+    ASSERT_EQ(client.next_deadline(), TimePoint{Duration{100'000}});
   }
-  EXPECT_EQ(tick(TimePoint{100'000}), Frames{"605#8017100000000405"});
+  EXPECT_EQ(tick(TimePoint{Duration{100'000}}), Frames{"605#8017100000000405"});
   ASSERT_NE(result(id), nullptr);
   EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
   EXPECT_FALSE(client.busy());
@@ -314,15 +314,15 @@ TEST_F(SdoClientTest, BlockDownloadAcknowledgementsOfNoSegmentDoNotExtendTheTime
   o.timeout = 100ms;
   auto id = download(0x2000, 0, {1, 2, 3, 4, 5, 6, 7, 8, 9, 10}, o);
   EXPECT_EQ(first, Frames{"605#C60020000A000000"});
-  now = TimePoint{20'000};
+  now = TimePoint{Duration{20'000}};
   EXPECT_EQ(respond("585#A40020007F000000"),
             (Frames{"605#0101020304050607", "605#8208090A00000000"}));
-  EXPECT_EQ(client.next_deadline(), TimePoint{120'000});
-  for (now = TimePoint{21'000}; now < TimePoint{120'000}; now += 1ms) {
+  EXPECT_EQ(client.next_deadline(), TimePoint{Duration{120'000}});
+  for (now = TimePoint{Duration{21'000}}; now < TimePoint{Duration{120'000}}; now += 1ms) {
     ASSERT_EQ(respond("585#A2007F0000000000").size(), 2U);
-    ASSERT_EQ(client.next_deadline(), TimePoint{120'000});
+    ASSERT_EQ(client.next_deadline(), TimePoint{Duration{120'000}});
   }
-  EXPECT_EQ(tick(TimePoint{120'000}), Frames{"605#8000200000000405"});
+  EXPECT_EQ(tick(TimePoint{Duration{120'000}}), Frames{"605#8000200000000405"});
   EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
 }
 
@@ -421,16 +421,16 @@ TEST(SdoClientMux, RoutesResponsesByCobId) {
   static_assert(Engine<SdoClientMux>);
   SdoClientMux mux;
   SdoClientMux::Output out;
-  auto a = mux.client(5).upload(0x1000, 0, TimePoint{0}, out);
-  auto b = mux.client(6).upload(0x1000, 0, TimePoint{0}, out);
+  auto a = mux.client(5).upload(0x1000, 0, TimePoint{}, out);
+  auto b = mux.client(6).upload(0x1000, 0, TimePoint{}, out);
   EXPECT_EQ(&mux.client(5), &mux.client(5));
   ASSERT_EQ(out.frames.size(), 2u);
   EXPECT_EQ(to_candump(out.frames[0]), "605#4000100000000000");
   EXPECT_EQ(to_candump(out.frames[1]), "606#4000100000000000");
-  EXPECT_EQ(mux.next_deadline(), TimePoint{1'000'000});  // the default response timeout
+  EXPECT_EQ(mux.next_deadline(), TimePoint{Duration{1'000'000}});  // the default response timeout
   out.clear();
-  EXPECT_TRUE(mux.on_frame(*from_candump("586#4300100001000000"), TimePoint{10}, out));
-  EXPECT_FALSE(mux.on_frame(*from_candump("587#4300100001000000"), TimePoint{10}, out));
+  EXPECT_TRUE(mux.on_frame(*from_candump("586#4300100001000000"), TimePoint{Duration{10}}, out));
+  EXPECT_FALSE(mux.on_frame(*from_candump("587#4300100001000000"), TimePoint{Duration{10}}, out));
   ASSERT_EQ(out.events.size(), 1u);
   EXPECT_EQ(out.events[0].id, b);
   EXPECT_EQ(out.events[0].node_id, 6);

@@ -211,7 +211,7 @@ class ManagerEngineRig {
   SdoManagerSettings settings{};
   LocalDictionary dict;  ///< the master's (empty unless a test fills it before engine())
   FakeMaster port;
-  TimePoint now{0};
+  TimePoint now{};
   SdoManagerProcess::Output out;
 
  private:

@@ -228,7 +228,7 @@ class ManagerRig : public MasterRig {
   }
 
   /// Expedited writes the manager sent to `node`'s default SDO, from `from` on.
-  std::vector<Write> writes_to(std::uint8_t node, TimePoint from = TimePoint{0}) const {
+  std::vector<Write> writes_to(std::uint8_t node, TimePoint from = TimePoint{}) const {
     std::vector<Write> out;
     for (const auto& s : requests_to(node, from)) {
       if (auto w = expedited_write(s)) out.push_back(*w);
@@ -236,7 +236,7 @@ class ManagerRig : public MasterRig {
     return out;
   }
   std::vector<Write> writes_to(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
-                               TimePoint from = TimePoint{0}) const {
+                               TimePoint from = TimePoint{}) const {
     std::vector<Write> out;
     for (const auto& w : writes_to(node, from)) {
       if (w.index == index && w.sub == sub) out.push_back(w);

@@ -229,9 +229,9 @@ TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
     auto& dict = slot->engine().dictionary();
     using Startup = cfg::NmtStartup;
     ASSERT_EQ(dict.write(0x1F80, 0, master_spec::le(Startup::kMaster | Startup::kFlyingMaster, 4),
-                         TimePoint{0}),
+                         TimePoint{}),
               SdoAbort::None);
-    ASSERT_EQ(dict.write(0x1F90, 3, master_spec::le(node == 10 ? 0 : 2, 2), TimePoint{0}),
+    ASSERT_EQ(dict.write(0x1F90, 3, master_spec::le(node == 10 ? 0 : 2, 2), TimePoint{}),
               SdoAbort::None);
     slot->set_event_handler(
         [&events, node](const MasterEvent& e, TimePoint) { events.emplace_back(node, e); });

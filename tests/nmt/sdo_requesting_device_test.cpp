@@ -31,7 +31,7 @@ cfg::DeviceDescription channels_eds() {
 
 struct Rig {
   std::unique_ptr<SdoRequestingDevice> srd;
-  TimePoint now{0};
+  TimePoint now{};
   Frames sent;
   std::vector<SrdEvent> events;
 

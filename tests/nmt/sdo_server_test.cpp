@@ -20,7 +20,7 @@ class SdoServerTest : public ::testing::Test {
  protected:
   LocalDictionary dict = LocalDictionary::from_device(test_support::sdo_test_device(), 5).value();
   SdoServer server{dict, SdoServerConfig::for_node(5)};
-  TimePoint now{0};
+  TimePoint now{};
 
   // Feeds one request (candump text) and returns the responses sent at once.
   Frames request(std::string_view candump) {
@@ -196,10 +196,10 @@ TEST_F(SdoServerTest, NewInitiateDuringSegmentedTransferAborts) {
 
 TEST_F(SdoServerTest, AbortsWithTimeoutWhenTheClientGoesQuiet) {
   EXPECT_EQ(request("605#4008100000000000"), Frames{"585#4108100014000000"});
-  ASSERT_EQ(server.next_deadline(), TimePoint{2'000'000});  // default server timeout 2 s
-  EXPECT_EQ(timer(TimePoint{1'999'999}), Frames{});
+  ASSERT_EQ(server.next_deadline(), TimePoint{Duration{2'000'000}});  // default server timeout 2 s
+  EXPECT_EQ(timer(TimePoint{Duration{1'999'999}}), Frames{});
   // 0504 0000 with the transfer's index and sub-index.
-  EXPECT_EQ(timer(TimePoint{2'000'000}), Frames{"585#8008100000000405"});
+  EXPECT_EQ(timer(TimePoint{Duration{2'000'000}}), Frames{"585#8008100000000405"});
   EXPECT_FALSE(server.busy());
 }
 
@@ -305,23 +305,23 @@ TEST_F(SdoServerTest, BlockDownloadAcknowledgesLastSegmentReceivedInOrder) {
 // timeout (2 s) after the initiate, however many arrive.
 TEST_F(SdoServerTest, BlockDownloadRoundsAcknowledgingNoSegmentDoNotExtendTheTimeout) {
   EXPECT_EQ(request("605#C6052000D3030000"), Frames{"585#A40520007F000000"});  // 979 bytes
-  for (now = TimePoint{10'000}; now < TimePoint{2'000'000}; now += 10ms) {
+  for (now = TimePoint{Duration{10'000}}; now < TimePoint{Duration{2'000'000}}; now += 10ms) {
     ASSERT_EQ(request("605#A2007F0000000000"), Frames{"585#A2007F0000000000"});
-    ASSERT_EQ(server.next_deadline(), TimePoint{2'000'000});
+    ASSERT_EQ(server.next_deadline(), TimePoint{Duration{2'000'000}});
   }
-  EXPECT_EQ(timer(TimePoint{2'000'000}), Frames{"585#8005200000000405"});  // 0504 0000
+  EXPECT_EQ(timer(TimePoint{Duration{2'000'000}}), Frames{"585#8005200000000405"});  // 0504 0000
   EXPECT_FALSE(server.busy());
 }
 
 // A round that brought a segment in sequence does extend it.
 TEST_F(SdoServerTest, BlockDownloadSegmentsInSequenceExtendTheTimeout) {
   EXPECT_EQ(request("605#C60020000A000000"), Frames{"585#A40020007F000000"});
-  now = TimePoint{1'500'000};
+  now = TimePoint{Duration{1'500'000}};
   EXPECT_EQ(request("605#0101020304050607"), Frames{});
-  EXPECT_EQ(server.next_deadline(), TimePoint{3'500'000});
-  now = TimePoint{3'000'000};
+  EXPECT_EQ(server.next_deadline(), TimePoint{Duration{3'500'000}});
+  now = TimePoint{Duration{3'000'000}};
   EXPECT_EQ(request("605#8208090A00000000"), Frames{"585#A2027F0000000000"});
-  EXPECT_EQ(server.next_deadline(), TimePoint{5'000'000});
+  EXPECT_EQ(server.next_deadline(), TimePoint{Duration{5'000'000}});
 }
 
 TEST_F(SdoServerTest, BlockDownloadSequenceNumberZeroAborts) {
@@ -381,11 +381,11 @@ TEST_F(SdoServerTest, BlockUploadSwitchesToExpeditedBelowProtocolSwitchThreshold
 TEST_F(SdoServerTest, BlockUploadAcknowledgementsOfNoSegmentDoNotExtendTheTimeout) {
   EXPECT_EQ(request("605#A40810007F000000"), Frames{"585#C608100014000000"});
   EXPECT_EQ(request("605#A300000000000000").size(), 3U);
-  for (now = TimePoint{10'000}; now < TimePoint{2'000'000}; now += 10ms) {
+  for (now = TimePoint{Duration{10'000}}; now < TimePoint{Duration{2'000'000}}; now += 10ms) {
     ASSERT_EQ(request("605#A2007F0000000000").size(), 3U);  // the same three segments again
-    ASSERT_EQ(server.next_deadline(), TimePoint{2'000'000});
+    ASSERT_EQ(server.next_deadline(), TimePoint{Duration{2'000'000}});
   }
-  EXPECT_EQ(timer(TimePoint{2'000'000}), Frames{"585#8008100000000405"});
+  EXPECT_EQ(timer(TimePoint{Duration{2'000'000}}), Frames{"585#8008100000000405"});
 }
 
 TEST_F(SdoServerTest, BlockUploadWithBlockSizeZeroAborts) {
@@ -407,17 +407,17 @@ TEST_F(SdoServerTest, ADelayedServerAnswersAfterTheDelayInOrder) {
   Delayed<SdoServer>::Output out;
   EXPECT_TRUE(slow.on_frame(*from_candump("605#4000100000000000"), now, out));
   EXPECT_TRUE(out.frames.empty());
-  EXPECT_EQ(slow.next_deadline(), TimePoint{5000});
-  slow.on_timer(TimePoint{4999}, out);
+  EXPECT_EQ(slow.next_deadline(), TimePoint{Duration{5000}});
+  slow.on_timer(TimePoint{Duration{4999}}, out);
   EXPECT_TRUE(out.frames.empty());
   // A second request 1 ms later: its answer follows the first one, 5 ms after it came.
-  EXPECT_TRUE(slow.on_frame(*from_candump("605#4018100100000000"), TimePoint{1000}, out));
+  EXPECT_TRUE(slow.on_frame(*from_candump("605#4018100100000000"), TimePoint{Duration{1000}}, out));
   EXPECT_EQ(slow.held(), 2u);
-  slow.on_timer(TimePoint{5000}, out);
+  slow.on_timer(TimePoint{Duration{5000}}, out);
   EXPECT_EQ(text(out.frames), Frames{"585#4300100091010200"});
-  EXPECT_EQ(slow.next_deadline(), TimePoint{6000});
+  EXPECT_EQ(slow.next_deadline(), TimePoint{Duration{6000}});
   out.clear();
-  slow.on_timer(TimePoint{6000}, out);
+  slow.on_timer(TimePoint{Duration{6000}}, out);
   EXPECT_EQ(text(out.frames), Frames{"585#4318100178563412"});  // 1018h sub 1 = 12345678h
   EXPECT_EQ(slow.next_deadline(), std::nullopt);
 }

@@ -245,7 +245,7 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
   });
   ASSERT_TRUE(bus.run_until_idle(bus.now() + 60s));
   ASSERT_EQ(results.size(), 50u);
-  TimePoint last{0};
+  TimePoint last{};
   Duration sum{0};
   for (const auto& r : results) {
     EXPECT_TRUE(r.ok()) << "node " << int{r.node_id} << " " << r.abort;
@@ -259,7 +259,7 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
     EXPECT_EQ(servers[id - 10]->dict.get_unsigned(0x1017, 0), id);
   }
   // The transfers overlapped: all were done in less time than they took one after another.
-  EXPECT_LT(last.count() * 3, sum.count());
+  EXPECT_LT(last.time_since_epoch().count() * 3, sum.count());
 }
 
 TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
@@ -297,7 +297,7 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
             (std::vector<std::uint32_t>{1, 3, 9, 15, 16, 17, 19, 26, 28, 29, 31, 34, 36, 37, 39}));
   EXPECT_EQ(fell_back, (std::vector<std::uint32_t>{29, 39}));
   EXPECT_EQ(results.back().id, 40u);
-  EXPECT_EQ(results.back().finished, TimePoint{1'880'773});
+  EXPECT_EQ(results.back().finished, TimePoint{Duration{1'880'773}});
   EXPECT_FALSE(server.sdo().busy());
 }
 
@@ -311,7 +311,7 @@ TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsByTheClient
   SdoServer server{dict, SdoServerConfig::for_node(5)};
   SdoClient client{SdoClientConfig::for_node(5)};
   std::vector<SdoResult> results;
-  TimePoint now{0};
+  TimePoint now{};
   auto text = [](const std::vector<CanFrame>& frames) {
     std::vector<std::string> s;
     for (const auto& f : frames) s.push_back(to_candump(f));
@@ -363,14 +363,14 @@ TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsByTheClient
   EXPECT_EQ(to_server("605#A41710007F000000"), Frames{"585#A2007F0000000000"});
   // t = 1 ms: A's late C6h names 1017h: the client takes it for C's and starts the upload (A3h),
   // which the server reads as segment 35 with c=1.
-  now = TimePoint{1'000};
+  now = TimePoint{Duration{1'000}};
   EXPECT_EQ(to_client(late_a[0]), Frames{"605#A300000000000000"});
   EXPECT_EQ(to_server("605#A300000000000000"), Frames{"585#A2007F0000000000"});
   // From 2 ms on, every millisecond: B's late A4h, then each acknowledgement, reads as segment
   // 36 or 34 with c=1 on the other side, which acknowledges no segment at once.
   std::string next = late_b[0];
   int rounds = 0;
-  for (now = TimePoint{2'000}; now <= TimePoint{101'000}; now += 1ms) {
+  for (now = TimePoint{Duration{2'000}}; now <= TimePoint{Duration{101'000}}; now += 1ms) {
     if (auto d = client.next_deadline(); d && *d <= now) {
       client.on_timer(now, out);
       for (const auto& f : take(out)) to_server(f);
@@ -388,7 +388,7 @@ TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsByTheClient
   ASSERT_EQ(results.size(), 3U);
   EXPECT_EQ(results[2].id, c);
   EXPECT_EQ(results[2].abort, SdoAbort::Timeout);
-  EXPECT_EQ(results[2].finished, TimePoint{101'000});
+  EXPECT_EQ(results[2].finished, TimePoint{Duration{101'000}});
   EXPECT_EQ(rounds, 99);
   EXPECT_FALSE(client.busy());
   EXPECT_FALSE(server.busy());

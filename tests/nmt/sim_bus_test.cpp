@@ -36,7 +36,7 @@ std::vector<std::uint8_t> bits(std::string_view text) {
 struct Recorder : SimNode {
   std::vector<std::pair<std::string, std::int64_t>> received;
   void on_frame(const CanFrame& f, TimePoint now) override {
-    received.emplace_back(to_candump(f), now.count());
+    received.emplace_back(to_candump(f), now.time_since_epoch().count());
   }
   void on_timer(TimePoint) override {}
   using SimNode::send;
@@ -210,7 +210,7 @@ TEST(SimBus, FrameSentWhileBusIsBusyWaitsForIntermission) {
   Recorder a, b, listener;
   for (auto* n : {&a, &b, &listener}) bus.attach(*n);
   a.send(frame("000#"));  // 0..53 us on the bus
-  bus.schedule_at(TimePoint{10}, [&](TimePoint) { b.send(frame("080#")); });
+  bus.schedule_at(TimePoint{Duration{10}}, [&](TimePoint) { b.send(frame("080#")); });
   bus.run_until_idle();
   ASSERT_EQ(listener.received.size(), 2u);
   EXPECT_EQ(listener.received[1], (std::pair<std::string, std::int64_t>{"080#", 53 + 48}));
@@ -236,8 +236,9 @@ TEST(SimBus, ObserversSeeEveryFrameWithItsTime) {
   bus.attach(a);
   bus.attach(b);
   std::vector<std::pair<std::string, std::int64_t>> seen;
-  auto h = bus.add_observer(
-      [&](const CanFrame& f, TimePoint t) { seen.emplace_back(to_candump(f), t.count()); });
+  auto h = bus.add_observer([&](const CanFrame& f, TimePoint t) {
+    seen.emplace_back(to_candump(f), t.time_since_epoch().count());
+  });
   a.send(frame("000#"));
   b.send(frame("080#"));
   bus.run_until_idle();
@@ -251,18 +252,19 @@ TEST(SimBus, ObserversSeeEveryFrameWithItsTime) {
 TEST(SimBus, TimersFireAtTheirDeadlineAndMayBeReplacedOrCancelled) {
   SimBus bus;
   std::vector<std::int64_t> fired;
-  FunctionNode n({}, [&](FunctionNode&, TimePoint t) { fired.push_back(t.count()); });
+  FunctionNode n(
+      {}, [&](FunctionNode&, TimePoint t) { fired.push_back(t.time_since_epoch().count()); });
   bus.attach(n);
-  n.set_timer(TimePoint{500});
-  n.set_timer(TimePoint{300});  // replaces 500
-  bus.run_until(TimePoint{1000});
+  n.set_timer(TimePoint{Duration{500}});
+  n.set_timer(TimePoint{Duration{300}});  // replaces 500
+  bus.run_until(TimePoint{Duration{1000}});
   EXPECT_EQ(fired, (std::vector<std::int64_t>{300}));
-  n.set_timer(TimePoint{2000});
+  n.set_timer(TimePoint{Duration{2000}});
   n.set_timer(std::nullopt);
   EXPECT_TRUE(bus.idle());
   EXPECT_TRUE(bus.run_until_idle());
-  EXPECT_EQ(bus.now(), TimePoint{1000});  // a cancelled timer does not move time
-  n.set_timer(TimePoint{5});              // in the past: fires now
+  EXPECT_EQ(bus.now(), TimePoint{Duration{1000}});  // a cancelled timer does not move time
+  n.set_timer(TimePoint{Duration{5}});              // in the past: fires now
   bus.run_until_idle();
   EXPECT_EQ(fired, (std::vector<std::int64_t>{300, 1000}));
 }
@@ -275,14 +277,14 @@ TEST(SimBus, RunUntilStopsAtPredicateOrLimit) {
     self.set_timer(t + 100us);
   });
   bus.attach(n);
-  n.set_timer(TimePoint{100});
+  n.set_timer(TimePoint{Duration{100}});
   EXPECT_TRUE(bus.run_until([&] { return ticks == 5; }));
-  EXPECT_EQ(bus.now(), TimePoint{500});
-  EXPECT_FALSE(bus.run_until([] { return false; }, TimePoint{1000}));
+  EXPECT_EQ(bus.now(), TimePoint{Duration{500}});
+  EXPECT_FALSE(bus.run_until([] { return false; }, TimePoint{Duration{1000}}));
   EXPECT_EQ(ticks, 10);
-  EXPECT_FALSE(bus.run_until_idle(TimePoint{2000}));  // a periodic timer never goes idle
+  EXPECT_FALSE(bus.run_until_idle(TimePoint{Duration{2000}}));  // a periodic timer never goes idle
   bus.run_for(10ms);
-  EXPECT_EQ(bus.now(), TimePoint{2000 + 10000});
+  EXPECT_EQ(bus.now(), TimePoint{Duration{2000 + 10000}});
 }
 
 TEST(SimBus, BusLoadIsBusyTimeOverElapsedTime) {
@@ -294,8 +296,8 @@ TEST(SimBus, BusLoadIsBusyTimeOverElapsedTime) {
   });
   bus.attach(tx);
   bus.attach(rx);
-  tx.set_timer(TimePoint{0});
-  bus.run_until(TimePoint{100'000 - 1});
+  tx.set_timer(TimePoint{});
+  bus.run_until(TimePoint{Duration{100'000 - 1}});
   const auto s = bus.statistics();
   EXPECT_EQ(s.frames, 1000u);
   EXPECT_EQ(s.bits, 53'000u);
@@ -367,11 +369,11 @@ TEST(SimBus, NodesMayDetachFromInsideCallbacks) {
   bus.attach(c);
   bus.attach(*b);
   b->send(frame("000#"));  // c detaches b (the sender) while the frame is delivered
-  b->set_timer(TimePoint{10'000});
+  b->set_timer(TimePoint{Duration{10'000}});
   bus.run_until_idle();
   EXPECT_EQ(b->bus(), nullptr);
   EXPECT_EQ(a.received.size(), 1u);
-  EXPECT_EQ(bus.now().count(), 53);  // b's timer went with it
+  EXPECT_EQ(bus.now().time_since_epoch().count(), 53);  // b's timer went with it
   b.reset();
 }
 
@@ -432,7 +434,7 @@ TEST(SimEngineNode, AnswersFramesAndHandsEventsToTheHandler) {
   bus.add_observer([&](const CanFrame& f, TimePoint t) { seen.emplace_back(t, to_candump(f)); });
   node.set_event_handler([&](const int& e, TimePoint t) { events.emplace_back(e, t); });
   peer.send(*from_candump("100#2A"));
-  ASSERT_TRUE(bus.run_until_idle(TimePoint{1'000'000}));
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{Duration{1'000'000}}));
   ASSERT_EQ(seen.size(), 2u);
   EXPECT_EQ(seen[0].second, "100#2A");
   EXPECT_EQ(seen[1].second, "101#2A");
@@ -456,12 +458,13 @@ TEST(SimEngineNode, ApplySendsAtOnceAndTheTimerFollowsTheNewDeadline) {
     return e.arm(now + std::chrono::milliseconds(5), now, out);
   });
   EXPECT_EQ(r, 7);
-  ASSERT_TRUE(bus.run_until_idle(TimePoint{1'000'000}));
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{Duration{1'000'000}}));
   ASSERT_EQ(seen.size(), 2u);
   EXPECT_EQ(seen[0].second, "102#");
-  EXPECT_LT(seen[0].first, TimePoint{100});  // at once: one frame time, no timer before it
+  EXPECT_LT(seen[0].first,
+            TimePoint{Duration{100}});  // at once: one frame time, no timer before it
   EXPECT_EQ(seen[1].second, "7FF#01");
-  EXPECT_GE(seen[1].first, TimePoint{5000});
+  EXPECT_GE(seen[1].first, TimePoint{Duration{5000}});
   EXPECT_EQ(node.engine().timers, 1);  // exactly at the deadline
   EXPECT_EQ(events, std::vector<int>{-1});
 }
@@ -481,7 +484,7 @@ TEST(SimEngineNode, TheEventHandlerMayApply) {
     });
   });
   peer.send(*from_candump("100#01"));
-  ASSERT_TRUE(bus.run_until_idle(TimePoint{1'000'000}));
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{Duration{1'000'000}}));
   // The answer, then what the handler started, then its timer's frame.
   EXPECT_EQ(seen, (std::vector<std::string>{"100#01", "101#01", "102#", "7FF#01"}));
 }

@@ -38,7 +38,7 @@ class FakeBus final : public Bus {
   }
   std::string url() const override { return "fake:"; }
 
-  TimePoint now{0};
+  TimePoint now{};
   bool fail_sends = false;
   std::vector<Duration> waits;  // the non-zero timeouts of receive(), in order
   std::deque<std::pair<TimePoint, std::string>> script;  // frames arriving at given times
@@ -68,7 +68,7 @@ TEST(BusEventLoop, DeviceBootsAndProducesHeartbeatOnTime) {
   device.power_on(loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1000ms + 1us}).ok());
   ASSERT_EQ(bus.sent.size(), 11u);
-  EXPECT_EQ(bus.sent[0], std::make_pair(TimePoint{0}, std::string("702#00")));
+  EXPECT_EQ(bus.sent[0], std::make_pair(TimePoint{}, std::string("702#00")));
   for (std::size_t i = 1; i < bus.sent.size(); ++i) {
     EXPECT_EQ(bus.sent[i].first, TimePoint{std::chrono::milliseconds(100 * i)});
     EXPECT_EQ(bus.sent[i].second, "702#7F");
@@ -77,7 +77,7 @@ TEST(BusEventLoop, DeviceBootsAndProducesHeartbeatOnTime) {
 
 TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
   FakeBus bus;
-  bus.script.push_back({250ms, "000#0102"});
+  bus.script.push_back({TimePoint{250ms}, "000#0102"});
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
@@ -92,7 +92,7 @@ TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
 
 TEST(BusEventLoop, AnswersSdoRequestFromTheBus) {
   FakeBus bus;
-  bus.script.push_back({10ms, "602#4000100000000000"});  // upload 1000h sub 0
+  bus.script.push_back({TimePoint{10ms}, "602#4000100000000000"});  // upload 1000h sub 0
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "0");
   EngineRef ref(device);
@@ -134,7 +134,7 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
 TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
   // The slave node as an embedder puts it on a real bus: no fault wrapper, events to a handler.
   FakeBus bus;
-  bus.script.push_back({10ms, "603#2B17100064000000"});  // 1017h = 100 ms
+  bus.script.push_back({TimePoint{10ms}, "603#2B17100064000000"});  // 1017h = 100 ms
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto node = SlaveNode::create(sim_eds(), cfg::NodeId::from(3).value());
   ASSERT_TRUE(node.ok()) << node.error().message;
@@ -146,7 +146,7 @@ TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
   (*node)->power_on(loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{150ms}).ok());
   std::vector<std::pair<TimePoint, std::string>> expected{
-      {TimePoint{0}, "703#00"},                   // boot-up (CiA 301 §7.2.8.3.2.4)
+      {TimePoint{}, "703#00"},                    // boot-up (CiA 301 §7.2.8.3.2.4)
       {TimePoint{10ms}, "583#6017100000000000"},  // download confirmed
       {TimePoint{10ms}, "703#7F"},                // the producer starts at once
       {TimePoint{110ms}, "703#7F"}};              // then every 100 ms

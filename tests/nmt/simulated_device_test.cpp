@@ -120,7 +120,7 @@ class Rig {
     return v;
   }
   /// Frames seen on the bus from `from` on whose text starts with `prefix`.
-  std::vector<Seen> frames(std::string_view prefix, TimePoint from = TimePoint{0}) const {
+  std::vector<Seen> frames(std::string_view prefix, TimePoint from = TimePoint{}) const {
     std::vector<Seen> out;
     for (const auto& s : seen) {
       if (s.at >= from && s.frame.rfind(prefix, 0) == 0) out.push_back(s);
@@ -182,7 +182,7 @@ TEST(SimulatedDevice, NodeIdComesFromDeviceComissioningWhenNotGiven) {
 TEST(SimulatedDevice, ProducesHeartbeatWithStateAfter1017IsWritten) {
   Rig rig;
   rig.boot();
-  EXPECT_TRUE(rig.frames("702#", 5ms).empty());  // 1017h defaults to 0
+  EXPECT_TRUE(rig.frames("702#", TimePoint{5ms}).empty());  // 1017h defaults to 0
   EXPECT_EQ(rig.write_u(0x1017, 0, 100, 2), SdoAbort::None);
   const TimePoint t0 = rig.bus.now();
   rig.send("000#0102");  // start remote node 2
@@ -737,8 +737,8 @@ TEST(SimulatedDevice, FaultLateBootSendsBootUpAfterTheDelay) {
   auto boot = rig.frames("702#00");
   ASSERT_EQ(boot.size(), 1u);
   // At 2 s plus the frame's time on the wire (a 1-byte frame is well under 1 ms at 500 kbit/s).
-  EXPECT_GE(boot[0].at, 2s);
-  EXPECT_LT(boot[0].at, 2001ms);
+  EXPECT_GE(boot[0].at, TimePoint{2s});
+  EXPECT_LT(boot[0].at, TimePoint{2001ms});
   // Reset node takes the same time.
   const TimePoint t0 = rig.bus.now();
   rig.send("000#8102");
@@ -884,8 +884,8 @@ TEST(SimulatedDevice, FaultHeartbeatStops) {
   rig.bus.run_for(2s);
   auto hb = rig.frames("702#7F");
   ASSERT_FALSE(hb.empty());
-  EXPECT_LT(hb.back().at, 1s);
-  EXPECT_GE(hb.back().at, 900ms);
+  EXPECT_LT(hb.back().at, TimePoint{1s});
+  EXPECT_GE(hb.back().at, TimePoint{900ms});
   EXPECT_EQ(rig.read_u(0x1000, 0), 0x000F0191u);  // the device still works
 }
 

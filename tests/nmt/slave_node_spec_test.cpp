@@ -35,7 +35,7 @@ namespace {
 using namespace std::chrono_literals;
 
 constexpr cfg::NodeId kNode = cfg::NodeId::from(5).value();
-constexpr TimePoint kPowerOn = 1s;
+constexpr TimePoint kPowerOn{1s};
 
 const cfg::DeviceDescription& spec_eds() {
   static const cfg::DeviceDescription device = [] {
@@ -89,7 +89,7 @@ struct Sent {
   bool operator==(const Sent&) const = default;
 };
 std::ostream& operator<<(std::ostream& os, const Sent& sent) {
-  return os << sent.at.count() << "us " << sent.frame;
+  return os << sent.at.time_since_epoch().count() << "us " << sent.frame;
 }
 
 class SlaveNodeSpec : public ::testing::Test {
@@ -185,7 +185,8 @@ class SlaveNodeSpec : public ::testing::Test {
       take(frames);
       for (auto& f : frames) sent.push_back({now_, f});
       if (frames.empty() && node_->next_deadline() == deadline) {
-        ADD_FAILURE() << "next_deadline() stays at " << deadline->count() << "us";
+        ADD_FAILURE() << "next_deadline() stays at " << deadline->time_since_epoch().count()
+                      << "us";
         break;
       }
     }
@@ -210,7 +211,7 @@ class SlaveNodeSpec : public ::testing::Test {
   std::unique_ptr<SlaveNode> node_;
   SlaveNode::Output out_;
   std::vector<SlaveEvent> events_;
-  TimePoint now_{0};
+  TimePoint now_{};
   bool acted_ = false;
 };
 
@@ -444,10 +445,11 @@ TEST_F(SlaveNodeSpec, FirstHeartbeatComesOnePeriodAfterBootUp) {
   boot();
   configure(0x1017, 0, 100, 2);
   configure(0x1010, 1, kSave, 4);
-  now_ = 5s;
+  now_ = TimePoint{5s};
   // The boot-up counts as the first heartbeat: the next one is one period later.
   EXPECT_EQ(power_on(), Frames{"705#00"});
-  EXPECT_EQ(advance(250ms), (std::vector<Sent>{{5s + 100ms, "705#7F"}, {5s + 200ms, "705#7F"}}));
+  EXPECT_EQ(advance(250ms), (std::vector<Sent>{{TimePoint{5s + 100ms}, "705#7F"},
+                                               {TimePoint{5s + 200ms}, "705#7F"}}));
 }
 
 TEST_F(SlaveNodeSpec, FirstHeartbeatAfterResetNodeComesOnePeriodAfterItsBootUp) {

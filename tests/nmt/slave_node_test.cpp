@@ -57,7 +57,7 @@ struct Driver {
     node->on_timer(now, out);
     take(out);
   }
-  void boot(TimePoint now = TimePoint{0}) {
+  void boot(TimePoint now = TimePoint{}) {
     node->power_on(now);
     timer(now);
   }
@@ -67,7 +67,7 @@ TEST(SlaveNode, IsSilentUntilPoweredOnThenBootsWithBootUpMessage) {
   Driver d;
   EXPECT_FALSE(d.node->powered());
   EXPECT_FALSE(d.node->next_deadline().has_value());
-  EXPECT_FALSE(d.frame("602#4000100000000000", TimePoint{0}));
+  EXPECT_FALSE(d.frame("602#4000100000000000", TimePoint{}));
   EXPECT_TRUE(d.sent.empty());
 
   d.node->power_on(TimePoint{5ms});
@@ -145,7 +145,7 @@ TEST(SlaveNode, ResetNodeRestoresAndBootsAgainFromTheTimer) {
 TEST(SlaveNode, RaisedEmergencyGoesOutOnTheEmcyCobIdOfTheFile) {
   Driver d;
   SlaveNode::Output out;
-  d.node->raise_emergency(emcy_code::kGeneric, 0, TimePoint{0}, out);
+  d.node->raise_emergency(emcy_code::kGeneric, 0, TimePoint{}, out);
   EXPECT_TRUE(out.frames.empty());  // not powered: nothing
   d.boot();
   d.node->raise_emergency(emcy_code::kGeneric, error_register::kTemperature, TimePoint{1ms}, out);
@@ -164,7 +164,7 @@ TEST(SlaveNode, SdoServerTimeoutIsAnOption) {
   options.sdo_server_timeout = 500ms;
   Driver d(options);
   d.boot();
-  ASSERT_TRUE(d.frame("602#2101200028000000", TimePoint{0}));
+  ASSERT_TRUE(d.frame("602#2101200028000000", TimePoint{}));
   EXPECT_EQ(d.sent, std::vector<std::string>{"582#6001200000000000"});
   EXPECT_EQ(d.node->next_deadline(), TimePoint{500ms});
   d.timer(TimePoint{500ms});

@@ -59,7 +59,7 @@ TEST(WriteAcceptanceParity, SlaveNodeAnswersTheCodeOfTheSharedRules) {
     SCOPED_TRACE(w.what);
     const auto shared =
         cfg::check_device_write(*entries, {&dcf.dummy_usage}, w.index, w.sub, w.data);
-    const SdoAbort device = (*node)->dictionary().write(w.index, w.sub, w.data, 1s);
+    const SdoAbort device = (*node)->dictionary().write(w.index, w.sub, w.data, TimePoint{1s});
     EXPECT_EQ(device, w.code);
     EXPECT_EQ(shared.code, device) << shared.reason;
   }

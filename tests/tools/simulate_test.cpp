@@ -167,7 +167,7 @@ class Script {
     out_.clear();
   }
   std::optional<nmt::TimePoint> next_deadline() const {
-    return out_.empty() ? std::nullopt : std::optional<nmt::TimePoint>(nmt::TimePoint{0});
+    return out_.empty() ? std::nullopt : std::optional<nmt::TimePoint>(nmt::TimePoint{});
   }
   std::size_t count(const std::string& frame) const {
     std::size_t n = 0;

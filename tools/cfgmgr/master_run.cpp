@@ -266,12 +266,14 @@ nmt::Duration seconds_to_duration(double s) {
 
 void EventReporter::report(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
-  if (e.node_id != 0 && ignored_.contains(e.node_id)) {
+  // An event of the master itself (no node_id) is never ignored.
+  const int node_id = e.node_id ? int{e.node_id->value()} : 0;
+  if (e.node_id && ignored_.contains(*e.node_id)) {
     if (observer_) observer_(e);
     return;
   }
   std::string line;
-  const std::string node = "node " + std::to_string(e.node_id) + ": ";
+  const std::string node = "node " + std::to_string(node_id) + ": ";
   bool again = false;
   switch (e.kind) {
     case K::NotMaster:
@@ -282,7 +284,7 @@ void EventReporter::report(const nmt::MasterEvent& e) {
       line = "NMT start-up began";
       break;
     case K::SlaveBooted:
-      again = !booted_.insert(e.node_id).second;
+      again = !booted_.insert(*e.node_id).second;
       if (e.configured) {
         line = node + (again ? "reconfigured" : "booted, configured") + " (" +
                std::to_string(e.written) + (e.written == 1 ? " entry" : " entries") + ", " +
@@ -365,7 +367,7 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
   std::string out = "{\"time_s\": " + seconds_text(start_, e.at) +
                     ", \"event\": " + tools::json_string(nmt::to_string(e.kind)) +
-                    ", \"node_id\": " + std::to_string(e.node_id);
+                    ", \"node_id\": " + std::to_string(e.node_id ? int{e.node_id->value()} : 0);
   switch (e.kind) {
     case K::BootError:
       if (e.error) {

@@ -140,7 +140,7 @@ class EventReporter {
  private:
   void write_json(const nmt::MasterEvent& e);
 
-  nmt::TimePoint start_{0};
+  nmt::TimePoint start_{};
   bool verbose_;
   bool quiet_ = false;
   std::ostream* json_;

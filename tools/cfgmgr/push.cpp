@@ -72,7 +72,7 @@ struct NodeReport {
   nmt::BootStep step = nmt::BootStep::Idle;
   std::optional<nmt::NmtState> state;  ///< as the master knows it
   std::optional<nmt::TimePoint> began;
-  nmt::TimePoint ended{0};
+  nmt::TimePoint ended{};
   bool lss_assigned = false;  ///< --lss: the node-ID was given to its device by LSS in this run
 };
 
@@ -158,7 +158,8 @@ class Collector {
       stop_ = e.text;
     }
     if (e.kind == K::LssUnmatched && e.lss_address) unmatched_.push_back(*e.lss_address);
-    NodeReport* r = find(e.node_id);
+    if (!e.node_id) return;  // an event of the master, about no node
+    NodeReport* r = find(*e.node_id);
     if (r == nullptr) return;
     if (e.kind == K::LssAssigned) r->lss_assigned = true;
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;

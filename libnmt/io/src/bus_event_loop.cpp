@@ -16,7 +16,8 @@
 namespace nmt {
 
 TimePoint steady_now() {
-  return std::chrono::duration_cast<TimePoint>(std::chrono::steady_clock::now().time_since_epoch());
+  return TimePoint{
+      std::chrono::duration_cast<Duration>(std::chrono::steady_clock::now().time_since_epoch())};
 }
 
 TimePoint arrival_on_loop_clock(const ReceivedFrame& received, TimePoint loop_now,

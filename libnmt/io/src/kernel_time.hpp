@@ -21,7 +21,7 @@ inline timespec to_timespec(Duration d) {
 
 /// A kernel stamp (SO_TIMESTAMPNS, CLOCK_REALTIME) as microseconds since the Unix epoch.
 inline TimePoint from_timespec(const timespec& ts) {
-  return TimePoint{static_cast<std::int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000};
+  return TimePoint{Duration{static_cast<std::int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000}};
 }
 
 }  // namespace nmt::detail

@@ -20,7 +20,8 @@ constexpr std::string_view kSocketCan = "socketcan:";
 }  // namespace
 
 TimePoint wall_clock_now() {
-  return std::chrono::duration_cast<TimePoint>(std::chrono::system_clock::now().time_since_epoch());
+  return TimePoint{
+      std::chrono::duration_cast<Duration>(std::chrono::system_clock::now().time_since_epoch())};
 }
 
 SendResult::Status send_status_of_errno(int error_number) {

@@ -23,7 +23,8 @@ constexpr std::uint32_t kCanRtrFlag = 0x40000000u;
 
 cfg::Status check_frame(const CanFrame& frame, TimePoint timestamp) {
   if (frame.dlc > 8) return cfg::Error{"frame " + to_candump(frame) + " has dlc > 8"};
-  if (timestamp.count() < 0) return cfg::Error{"negative timestamp for " + to_candump(frame)};
+  if (timestamp.time_since_epoch().count() < 0)
+    return cfg::Error{"negative timestamp for " + to_candump(frame)};
   return {};
 }
 
@@ -55,7 +56,7 @@ class CandumpLogWriter final : public TraceWriter {
     if (auto st = check_frame(frame, timestamp); !st)
       return keeper_.fail(path_, st.error().message);
     // candump -l: "(%010lu.%06lu) %s %s\n" (seconds, microseconds, interface, frame).
-    const auto us = timestamp.count();
+    const auto us = timestamp.time_since_epoch().count();
     if (std::fprintf(file_.get(), "(%010" PRId64 ".%06" PRId64 ") %s %s\n",
                      static_cast<std::int64_t>(us / 1'000'000),
                      static_cast<std::int64_t>(us % 1'000'000), channel_.c_str(),
@@ -116,8 +117,8 @@ class PcapWriter final : public TraceWriter {
     if (!frame.rtr) std::copy_n(frame.data.begin(), frame.dlc, record.begin() + 8);
 
     pcap_pkthdr header{};
-    header.ts.tv_sec = static_cast<time_t>(timestamp.count() / 1'000'000);
-    header.ts.tv_usec = static_cast<suseconds_t>(timestamp.count() % 1'000'000);
+    header.ts.tv_sec = static_cast<time_t>(timestamp.time_since_epoch().count() / 1'000'000);
+    header.ts.tv_usec = static_cast<suseconds_t>(timestamp.time_since_epoch().count() % 1'000'000);
     header.caplen = record.size();
     header.len = record.size();
     pcap_.dump(reinterpret_cast<u_char*>(dumper_), &header, record.data());

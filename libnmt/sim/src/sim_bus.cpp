@@ -37,7 +37,7 @@ void SimNode::set_timer(std::optional<TimePoint> deadline) {
 }
 
 TimePoint SimNode::now() const {
-  return bus_ ? bus_->now() : TimePoint{0};
+  return bus_ ? bus_->now() : TimePoint{};
 }
 
 // -------------------------------------------------------------------------------- SimBus ---
@@ -107,7 +107,7 @@ void SimBus::arm_timer(std::size_t slot, std::optional<TimePoint> deadline) {
   if (!deadline || !s.node) return;
   s.timer_armed = true;
   // Deadlines beyond the representable range never fire within a run.
-  const auto us = deadline->count();
+  const auto us = deadline->time_since_epoch().count();
   const std::int64_t at = us > INT64_MAX / 1000 ? INT64_MAX : us * 1000;
   push(at, 0, EventKind::Timer, slot, s.timer_generation);
 }
@@ -136,7 +136,7 @@ void SimBus::schedule_at(TimePoint at, std::function<void(TimePoint)> fn) {
     index = calls_.size();
     calls_.push_back(std::move(fn));
   }
-  const auto us = at.count();
+  const auto us = at.time_since_epoch().count();
   push(us > INT64_MAX / 1000 ? INT64_MAX : us * 1000, 0, EventKind::Call, index);
 }
 
@@ -183,7 +183,7 @@ bool SimBus::step() {
 }
 
 void SimBus::run_until(TimePoint t) {
-  const auto us = t.count();
+  const auto us = t.time_since_epoch().count();
   const std::int64_t t_ns = us > INT64_MAX / 1000 ? INT64_MAX : us * 1000;
   for (;;) {
     drop_stale();
@@ -194,7 +194,7 @@ void SimBus::run_until(TimePoint t) {
 }
 
 bool SimBus::run_until_idle(TimePoint limit) {
-  const auto us = limit.count();
+  const auto us = limit.time_since_epoch().count();
   const std::int64_t limit_ns = us > INT64_MAX / 1000 ? INT64_MAX : us * 1000;
   for (;;) {
     drop_stale();
@@ -205,7 +205,7 @@ bool SimBus::run_until_idle(TimePoint limit) {
 }
 
 bool SimBus::run_until(const std::function<bool()>& done, TimePoint limit) {
-  const auto us = limit.count();
+  const auto us = limit.time_since_epoch().count();
   const std::int64_t limit_ns = us > INT64_MAX / 1000 ? INT64_MAX : us * 1000;
   for (;;) {
     if (done()) return true;

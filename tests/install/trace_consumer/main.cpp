@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   }
   // CiA 301 NMT module control: start remote node (command specifier 1), node-ID 5.
   const std::uint8_t start_node_5[] = {0x01, 0x05};
-  auto written = (*writer)->write(nmt::CanFrame::make(0x000, start_node_5), nmt::TimePoint{0});
+  auto written = (*writer)->write(nmt::CanFrame::make(0x000, start_node_5), nmt::TimePoint{});
   if (written) written = (*writer)->flush();
   if (!written) {
     std::cerr << written.error().message << '\n';

@@ -13,15 +13,17 @@
 // when it has nothing to report).
 //
 // Rules every engine keeps and every driver relies on:
-// 1. Time is microseconds since an epoch the driver chooses (simulated time on the simulated
-//    bus, a monotonic clock on real buses). It never goes back from one call to the next.
+// 1. Time is a TimePoint (frame.hpp): microseconds since an epoch the driver chooses (simulated
+//    time on the simulated bus, a monotonic clock on real buses), a std::chrono::time_point of
+//    its own clock so it cannot be mixed up with a Duration (a timeout, a period). It never goes
+//    back from one call to the next.
 // 2. on_frame sees every frame of the bus, including those other engines of the same program
 //    sent (drivers echo them; CAN nodes hear every frame). It returns true when the frame was
 //    addressed to this engine (an SDO request for this server, an NMT command for this node),
 //    false when the engine ignored it.
 // 3. on_timer may be called at any time at or after next_deadline(), also early or twice:
 //    the engine checks its own due times, so a spurious call changes nothing.
-// 4. next_deadline() is nullopt when nothing is due; a time in the past (TimePoint{0}) means
+// 4. next_deadline() is nullopt when nothing is due; a time in the past (TimePoint{}) means
 //    "as soon as possible". Any call may change it, so drivers read it after every call.
 // 5. Calls of the engine's own API that start work (an SDO transfer, an emergency, a state
 //    change) take `TimePoint now, Output& out` too and put their first frames into `out` at

@@ -13,10 +13,21 @@
 
 namespace nmt {
 
-/// Time as protocol engines see it: microseconds since an epoch the event loop chooses
-/// (simulated time on the virtual bus, a monotonic clock on real buses).
-using TimePoint = std::chrono::microseconds;
-using Duration = std::chrono::microseconds;
+/// The clock protocol engines see (engine.hpp rule 1): time since an epoch the driver chooses
+/// (simulated time on the virtual bus, a monotonic clock on real buses). Only a tag: engines never
+/// read a clock, so it has no now(); it makes a point in time and a length of time distinct types
+/// (TimePoint + Duration and TimePoint - TimePoint compile, TimePoint + TimePoint does not).
+struct EngineClock {
+  using duration = std::chrono::microseconds;
+  using rep = duration::rep;
+  using period = duration::period;
+  using time_point = std::chrono::time_point<EngineClock, duration>;
+  static constexpr bool is_steady = true;
+};
+/// A length of time, in microseconds.
+using Duration = EngineClock::duration;
+/// A point in time: microseconds since the driver's epoch (`TimePoint{}` is the epoch).
+using TimePoint = EngineClock::time_point;
 
 /// A classic CAN frame (11- or 29-bit identifier, RTR, 0-8 data bytes). The data array is sized
 /// for CAN FD so FD support can be added without changing the layout users see.

@@ -81,7 +81,7 @@ struct LssMasterEvent {
   };
   LssService service = LssService::SwitchStateGlobal;
   Kind kind = Kind::Done;
-  TimePoint at{0};
+  TimePoint at{};
   LssAddress address{};      ///< Fastscan / Scan: the device's LSS address
   std::uint32_t value = 0;   ///< inquire: the value (InquireNodeId: the node-ID); Scan end: found
   std::uint8_t node_id = 0;  ///< ConfigureNodeId / Assigned: the node-ID

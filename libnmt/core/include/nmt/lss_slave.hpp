@@ -59,7 +59,7 @@ struct LssSlaveEvent {
     NodeIdActivate,  ///< an unconfigured device left configuration with pending `node_id`: boot
   };
   Kind kind = Kind::StateChanged;
-  TimePoint at{0};
+  TimePoint at{};
   LssState state = LssState::Waiting;
   std::uint8_t node_id = lss::kUnconfigured;
   std::optional<std::uint8_t> bit_timing_index;

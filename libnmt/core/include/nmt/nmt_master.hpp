@@ -403,7 +403,7 @@ struct MasterEvent {
     GuardingLost,              ///< node guarding event of node_id (error handler follows)
     ErrorControlResolved,      ///< heartbeat or guarding replies again
     BootUp,                    ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
-    NmtCommandSent,            ///< `command` for node_id (0: all nodes) went out
+    NmtCommandSent,            ///< `command` for node_id (nullopt: all nodes) went out
     ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
     SdoFinished,               ///< an application transfer ended (`sdo`)
     // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
@@ -411,7 +411,7 @@ struct MasterEvent {
     ActiveMaster,      ///< this device (node_id) won and is the active NMT master
     Standby,           ///< node_id is the active master; this device is an NMT slave
     ForceNegotiation,  ///< this device sent 76h: the active master node_id has a lower priority
-    MultipleMasters,   ///< a second active master (node_id, 0: unknown) was seen
+    MultipleMasters,   ///< a second active master (node_id, nullopt: unknown) was seen
     ActiveMasterLost,  ///< the heartbeat of the active master node_id stopped (§5.5.2)
     MasterDetection,   ///< §5.1 (self-starting device, 1F80h bit 1): the outcome of 75h/74h
     // SDO manager (DSP 302 §7); node_id is the SRD, `connection` the row concerned.
@@ -435,8 +435,10 @@ struct MasterEvent {
     LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
   };
   Kind kind;
-  TimePoint at{0};
-  std::uint8_t node_id = 0;
+  TimePoint at{};
+  /// The node the event is about; nullopt for the master's own events (start-up began,
+  /// NmtCommandSent to all nodes, MultipleMasters with an unknown node, ...).
+  std::optional<cfg::NodeId> node_id{};
   std::optional<BootError> error{};
   BootStep step = BootStep::Idle;
   std::optional<NmtState> state{};

@@ -101,8 +101,8 @@ struct SdoResult {
   SdoProtocol protocol = SdoProtocol::Expedited;  ///< the protocol the transfer ended with
   bool fell_back = false;          ///< Block mode retried as Auto after abort 0504 0001
   std::vector<std::uint8_t> data;  ///< upload: the value
-  TimePoint started{0};            ///< time of the first request frame
-  TimePoint finished{0};
+  TimePoint started{};             ///< time of the first request frame
+  TimePoint finished{};
 
   bool ok() const { return abort == SdoAbort::None; }
 };
@@ -183,7 +183,7 @@ class SdoClient {
     bool last_received = false;      // block upload: c=1 received in order
     bool block_has_last = false;     // block download: the sub-block on the wire ends the data
     std::optional<TimePoint> started;
-    TimePoint deadline{0};
+    TimePoint deadline{};
   };
 
   void start(Transfer& t, TimePoint now, Output& out);

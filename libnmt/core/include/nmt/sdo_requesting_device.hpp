@@ -68,7 +68,7 @@ struct SrdEvent {
     Device,              ///< an event of the SRD's own node (boot-up, NMT, ...) in text
   };
   Kind kind = Kind::Device;
-  TimePoint at{0};
+  TimePoint at{};
   std::uint16_t client_index = 0;  ///< 1280h-12FFh the event is about; 0 when none
   std::uint8_t slave_node_id = 0;  ///< the slave (server) concerned; 0 when none
   /// The 1F10h word the manager wrote (Registered, RegistrationFailed, Connected,

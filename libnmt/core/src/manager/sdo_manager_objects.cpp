@@ -219,7 +219,7 @@ void SdoManagerProcess::on_timer(TimePoint now, Output& out) {
 std::optional<TimePoint> SdoManagerProcess::next_deadline() const {
   std::optional<TimePoint> due = channels_.next_deadline();
   // Queued work starts from the next call.
-  if (!in_flight_ && !jobs_.empty() && active()) due = TimePoint{0};
+  if (!in_flight_ && !jobs_.empty() && active()) due = TimePoint{};
   return due;
 }
 

@@ -24,7 +24,7 @@
 // Events are MasterEvents (SrdRegistered, SdoConnectionEstablished, ...), reported into the
 // Output of the call, which is the master's own Output type: reporting needs no port call.
 // Work that a frame, a 1F00h/1F01h write or a result queues is due at once (next_deadline() is
-// TimePoint{0}, engine.hpp rule 5's processing step): it starts from the next on_timer, or from
+// TimePoint{}, engine.hpp rule 5's processing step): it starts from the next on_timer, or from
 // pump(), which the master calls where it settles a call, after routing that call's results.
 //
 // The dictionary it serves is the master's: the engine adds 1F00h-1F06h and the own channels at

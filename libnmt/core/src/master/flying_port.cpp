@@ -67,7 +67,7 @@ void NmtMaster::Impl::FlyingPort::restart(TimePoint now) {
 }
 
 void NmtMaster::Impl::FlyingPort::reset_all_nodes() {
-  m.queue_reset_all(TimePoint{0});
+  m.queue_reset_all(TimePoint{});
 }
 
 void NmtMaster::Impl::FlyingPort::queue_nmt(NmtCommand command, std::uint8_t node) {

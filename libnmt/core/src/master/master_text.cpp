@@ -193,7 +193,7 @@ MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node
                          std::string text) {
   MasterEvent e{kind};
   e.at = at;
-  e.node_id = node;
+  e.node_id = cfg::NodeId::from(node);  // 0: an event of the master, about no node
   e.text = std::move(text);
   return e;
 }

@@ -18,7 +18,7 @@ void NmtCommandQueue::on_timer(TimePoint now, Output& out) {
 std::optional<TimePoint> NmtCommandQueue::next_deadline() const {
   if (queue_.empty()) return std::nullopt;
   if (inhibit_.count() > 0 && last_) return *last_ + inhibit_;
-  return TimePoint{0};
+  return TimePoint{};
 }
 
 }  // namespace nmt

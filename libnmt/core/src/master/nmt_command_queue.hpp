@@ -49,7 +49,7 @@ class NmtCommandQueue {
   bool on_frame(const CanFrame& /*frame*/, TimePoint /*now*/, Output& /*out*/) { return false; }
   /// Sends the due commands, in order, each at least the inhibit time after the one before.
   void on_timer(TimePoint now, Output& out);
-  /// Nothing queued: nullopt; else when the inhibit time allows the next (TimePoint{0}: now).
+  /// Nothing queued: nullopt; else when the inhibit time allows the next (TimePoint{}: now).
   std::optional<TimePoint> next_deadline() const;
 
  private:

@@ -216,7 +216,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
 std::optional<TimePoint> NmtMaster::next_deadline() const {
   const auto& m = *impl_;
   if (m.startup == StartupState::Off) return std::nullopt;
-  if (!m.deferred.empty()) return TimePoint{0};
+  if (!m.deferred.empty()) return TimePoint{};
   auto due = m.startup_due;
   due = earliest(due, m.server.next_deadline());
   due = earliest(due, m.clients.next_deadline());

@@ -56,7 +56,7 @@ struct MasterTransfer {
   std::vector<std::uint8_t> data;  ///< download: kept for a repetition after a timeout
   SdoTransferOptions options;
   unsigned retries_left = 0;
-  TimePoint launched{0};  ///< when its (latest) request went out: the window's loss events
+  TimePoint launched{};  ///< when its (latest) request went out: the window's loss events
 };
 
 struct NmtMaster::Impl {
@@ -73,7 +73,7 @@ struct NmtMaster::Impl {
 
   NmtState own_state = NmtState::Initialising;
   StartupState startup = StartupState::Off;
-  TimePoint startup_began{0};
+  TimePoint startup_began{};
   std::optional<TimePoint> startup_due;  ///< start-up (again) at this time
   std::array<SlaveRecord, 128> slaves;   ///< by node-ID (index 0 unused)
 
@@ -128,7 +128,7 @@ struct NmtMaster::Impl {
   /// (DSP 302 §7.1): they wait here, in order, until it is free again (release_held).
   std::deque<std::pair<std::uint8_t, MasterTransfer>> held;
   /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
-  TimePoint paced_until{0};
+  TimePoint paced_until{};
   /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
   std::optional<TimePoint> boot_up_gate;
   /// Paced: the gate also opens for the slaves that booted up when no boot-up came for

@@ -70,7 +70,7 @@ void EmcyProducer::on_timer(TimePoint now, Output& out) {
 
 std::optional<TimePoint> EmcyProducer::next_deadline() const {
   if (queue_.empty()) return std::nullopt;
-  if (!last_sent_) return TimePoint{0};
+  if (!last_sent_) return TimePoint{};
   return *last_sent_ + Duration(std::int64_t{inhibit_100us_} * 100);
 }
 

@@ -10,7 +10,8 @@
 namespace nmt {
 
 inline TimePoint later(TimePoint now, Duration d) {
-  if (d.count() > 0 && now.count() > std::numeric_limits<std::int64_t>::max() - d.count()) {
+  if (d.count() > 0 &&
+      now.time_since_epoch().count() > std::numeric_limits<std::int64_t>::max() - d.count()) {
     return TimePoint::max();
   }
   return now + d;

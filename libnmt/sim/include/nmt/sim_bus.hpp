@@ -147,7 +147,7 @@ class SimBus {
   void set_filter(Filter filter) { filter_ = std::move(filter); }
 
   // --- running -----------------------------------------------------------------------------
-  TimePoint now() const { return TimePoint{now_ns_ / 1000}; }
+  TimePoint now() const { return TimePoint{Duration{now_ns_ / 1000}}; }
   std::int64_t now_ns() const { return now_ns_; }
   std::uint32_t bitrate_bps() const { return bitrate_bps_; }
   /// Duration of `bits` bit times, in nanoseconds.
