@@ -93,7 +93,7 @@ class ExecuteLssEngine : public ::testing::Test {
 };
 
 TEST_F(ExecuteLssEngine, StartupPassSwitchesAllToWaitingAndEndsAfterOneSilentFastscanStep) {
-  EXPECT_EQ(start(TimePoint{0}), (Frames{"7E5#0400000000000000", "7E5#5100000000800000"}));
+  EXPECT_EQ(start(TimePoint{}), (Frames{"7E5#0400000000000000", "7E5#5100000000800000"}));
   EXPECT_EQ(process.phase(), Phase::Startup);
   EXPECT_EQ(process.next_deadline(), TimePoint{10ms});
   EXPECT_TRUE(tick(TimePoint{9ms}).empty());
@@ -108,7 +108,7 @@ TEST_F(ExecuteLssEngine, StartupPassSwitchesAllToWaitingAndEndsAfterOneSilentFas
 }
 
 TEST_F(ExecuteLssEngine, WatchSendsIdentifyNonConfiguredEachPeriodAndScansOnlyWhenAnswered) {
-  start(TimePoint{0});
+  start(TimePoint{});
   tick(TimePoint{10ms});
   EXPECT_TRUE(tick(TimePoint{1009ms}).empty());
   EXPECT_EQ(tick(TimePoint{1010ms}), Frames{"7E5#4C00000000000000"});
@@ -129,7 +129,7 @@ TEST_F(ExecuteLssEngine, WatchSendsIdentifyNonConfiguredEachPeriodAndScansOnlyWh
 }
 
 TEST_F(ExecuteLssEngine, NoLookWhileThisDeviceIsNotTheActiveMaster) {
-  start(TimePoint{0});
+  start(TimePoint{});
   tick(TimePoint{10ms});
   port.looking = false;
   EXPECT_TRUE(tick(TimePoint{1010ms}).empty());
@@ -137,7 +137,7 @@ TEST_F(ExecuteLssEngine, NoLookWhileThisDeviceIsNotTheActiveMaster) {
 }
 
 TEST_F(ExecuteLssEngine, StopAbandonsTheScanAndItsAnswersAreNotTaken) {
-  start(TimePoint{0});
+  start(TimePoint{});
   process.stop();
   EXPECT_EQ(process.phase(), Phase::Off);
   EXPECT_EQ(process.next_deadline(), std::nullopt);
@@ -350,7 +350,7 @@ TEST_F(MasterLss, ExecuteLssGivesEachDeviceItsSlavesNodeIdBeforeTheResetOfAllNod
   start();
   bus.run_for(8s);
   std::vector<std::uint8_t> assigned;
-  for (const auto* e : of_kind(Kind::LssAssigned)) assigned.push_back(e->node_id);
+  for (const auto* e : of_kind(Kind::LssAssigned)) assigned.push_back(e->node_id->value());
   std::sort(assigned.begin(), assigned.end());
   EXPECT_EQ(assigned, (std::vector<std::uint8_t>{2, 3, 4}));
   // DSP 302 §4 figure 1: step 3 (Execute LSS) before step 4 (reset of all nodes).
