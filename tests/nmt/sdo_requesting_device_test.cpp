@@ -17,6 +17,13 @@
 namespace nmt {
 namespace {
 
+// Powers `device` on at `now` (nothing it reports at power-on is looked at here).
+template <class Device>
+void power_on_at(Device& device, TimePoint now) {
+  typename Device::Output out;
+  device.power_on(now, out);
+}
+
 using namespace std::chrono_literals;
 using Frames = std::vector<std::string>;
 using Kind = SrdEvent::Kind;
@@ -39,7 +46,7 @@ struct Rig {
     auto created = SdoRequestingDevice::create(channels_eds(), kSrd, std::move(options));
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     srd = std::move(created).value();
-    srd->power_on(now);
+    power_on_at(*srd, now);
     timer(now);  // boot-up
   }
   void take(SdoRequestingDevice::Output& out) {

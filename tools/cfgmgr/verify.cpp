@@ -185,7 +185,7 @@ nmt::Duration run_on_sim(const cfg::Network& network, const SimBusOptions& sim,
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
     bus.attach(*devices.back());
     devices.back()->apply(
-        [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto&) { d.power_on(now); });
+        [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
   }
   nmt::SimEngineNode<nmt::ConfigurationVerifier> reader(options);
   bus.attach(reader);

@@ -4,7 +4,7 @@
 // heartbeat, its default SDO server on which the manager scans and writes) and one SdoClient per
 // connection the manager set up.
 //   auto srd = SdoRequestingDevice::create(description, node_id).value();
-//   srd->power_on(now);                        // boots like any slave (boot-up from on_timer)
+//   srd->power_on(now, out);                   // boots like any slave (boot-up from on_timer)
 //   srd->register_at_manager(now, out);        // 1F10h = index<<16 | 1, then 6E0h#  (§7.2.1)
 //   ... SrdEvent::Kind::Registered ...
 //   srd->request_connection(5, 0x1281, now, out);  // 1F00h at the manager (§7.2.2)
@@ -39,10 +39,12 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/object_dictionary.hpp"
 #include "cfg/result.hpp"
 #include "cfg/sdo_manager_objects.hpp"
@@ -129,7 +131,7 @@ class SdoRequestingDevice {
 
   // --- engine --------------------------------------------------------------------------------
   /// Powers the node on (SlaveNode::power_on): every connection and the registration are gone.
-  void power_on(TimePoint now);
+  void power_on(TimePoint now, Output& out);
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
@@ -206,7 +208,10 @@ class SdoRequestingDevice {
   };
 
   void observe(std::uint16_t index, std::uint8_t sub, TimePoint now);
-  void process(TimePoint now, Output& out);
+  /// The node's frames and events into `out`; the writes the SRD acts on (1F10h, 1F11h, client
+  /// entries sub 1/2), in the order the node took them.
+  std::vector<cfg::ObjectAddress> take_node_output(SlaveNode::Output& node_out, Output& out);
+  void process(std::span<const cfg::ObjectAddress> written, TimePoint now, Output& out);
   void on_state_written(cfg::sdo_manager::DynamicSdoState state, TimePoint now, Output& out);
   void on_client_entry_written(std::uint16_t client_index, TimePoint now, Output& out);
   void manager_results(const SdoClient::Output& results, TimePoint now, Output& out);
@@ -233,9 +238,6 @@ class SdoRequestingDevice {
   /// Established channels by key: 1280h-12FFh, or default_channel(slave).
   std::map<std::uint32_t, Channel> channels_;
   TransferId next_transfer_ = 1;
-  /// Dictionary writes seen by the observer (index, sub), handled after the node's call: the
-  /// observer runs inside the node's SDO server, which has no access to the SRD's output.
-  std::vector<std::pair<std::uint16_t, std::uint8_t>> written_;
 };
 static_assert(Engine<SdoRequestingDevice>);
 

@@ -53,15 +53,7 @@ cfg::Result<std::unique_ptr<SdoRequestingDevice>> SdoRequestingDevice::create(
 }
 
 SdoRequestingDevice::SdoRequestingDevice(Key, std::unique_ptr<SlaveNode> node, SrdOptions options)
-    : node_(std::move(node)), options_(std::move(options)) {
-  node_->dictionary().add_write_observer(
-      [this](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>, TimePoint) {
-        if (index == obj::kDynamicSdoConnectionState || index == obj::kSlaveFailed ||
-            (obj::is_sdo_client_parameter(index) && (sub == 1 || sub == 2))) {
-          written_.emplace_back(index, sub);
-        }
-      });
-}
+    : node_(std::move(node)), options_(std::move(options)) {}
 
 SdoRequestingDevice::~SdoRequestingDevice() = default;
 
@@ -71,8 +63,10 @@ void SdoRequestingDevice::report(SrdEvent event, Output& out) {
 
 // --- engine ----------------------------------------------------------------------------------
 
-void SdoRequestingDevice::power_on(TimePoint now) {
-  node_->power_on(now);
+void SdoRequestingDevice::power_on(TimePoint now, Output& out) {
+  SlaveNode::Output node_out;
+  node_->power_on(now, node_out);
+  take_node_output(node_out, out);
   // A power cycle ends every connection and the registration (the dictionary reloads).
   registration_ = SrdRegistration::Unregistered;
   registration_deadline_.reset();
@@ -80,16 +74,30 @@ void SdoRequestingDevice::power_on(TimePoint now) {
   manager_.reset();
   pending_.reset();
   channels_.clear();
-  written_.clear();
+}
+
+std::vector<cfg::ObjectAddress> SdoRequestingDevice::take_node_output(SlaveNode::Output& node_out,
+                                                                      Output& out) {
+  forward_frames(node_out, out);
+  // The node reports every write its dictionary took (SlaveEvent::object); the SRD acts on the
+  // manager's writes of 1F10h, 1F11h and the client entries after the node's call.
+  std::vector<cfg::ObjectAddress> written;
+  for (auto& e : node_out.events) {
+    if (e.object && (e.object->index == obj::kDynamicSdoConnectionState ||
+                     e.object->index == obj::kSlaveFailed ||
+                     (obj::is_sdo_client_parameter(e.object->index) &&
+                      (e.object->sub_index == 1 || e.object->sub_index == 2)))) {
+      written.push_back(*e.object);
+    }
+    report({.kind = SrdEvent::Kind::Device, .at = e.at, .text = std::move(e.text)}, out);
+  }
+  return written;
 }
 
 bool SdoRequestingDevice::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   SlaveNode::Output node_out;
   bool taken = node_->on_frame(frame, now, node_out);
-  forward_frames(node_out, out);
-  for (auto& e : node_out.events) {
-    report({.kind = SrdEvent::Kind::Device, .at = e.at, .text = std::move(e.text)}, out);
-  }
+  const auto written = take_node_output(node_out, out);
   if (manager_) {
     SdoClient::Output manager_out;
     taken = manager_->on_frame(frame, now, manager_out) || taken;
@@ -103,17 +111,14 @@ bool SdoRequestingDevice::on_frame(const CanFrame& frame, TimePoint now, Output&
     forward_frames(channel_out, out);
     channel_results(key, channel_out, out);
   }
-  process(now, out);
+  process(written, now, out);
   return taken;
 }
 
 void SdoRequestingDevice::on_timer(TimePoint now, Output& out) {
   SlaveNode::Output node_out;
   node_->on_timer(now, node_out);
-  forward_frames(node_out, out);
-  for (auto& e : node_out.events) {
-    report({.kind = SrdEvent::Kind::Device, .at = e.at, .text = std::move(e.text)}, out);
-  }
+  const auto written = take_node_output(node_out, out);
   if (manager_) {
     SdoClient::Output manager_out;
     manager_->on_timer(now, manager_out);
@@ -126,7 +131,7 @@ void SdoRequestingDevice::on_timer(TimePoint now, Output& out) {
     forward_frames(channel_out, out);
     channel_results(key, channel_out, out);
   }
-  process(now, out);
+  process(written, now, out);
   // DSP 302 §7.2.4 1: no answer to the Dynamic SDO Request: the user decides what to do.
   if (registration_deadline_ && now >= *registration_deadline_) {
     registration_deadline_.reset();
@@ -226,10 +231,10 @@ bool SdoRequestingDevice::deregister(TimePoint now, Output& out) {
 
 // --- what the manager wrote ------------------------------------------------------------------
 
-void SdoRequestingDevice::process(TimePoint now, Output& out) {
-  auto written = std::move(written_);
-  written_.clear();
-  for (const auto& [index, sub] : written) {
+void SdoRequestingDevice::process(std::span<const cfg::ObjectAddress> written, TimePoint now,
+                                  Output& out) {
+  for (const cfg::ObjectAddress& address : written) {
+    const std::uint16_t index = address.index;
     if (index == obj::kDynamicSdoConnectionState) {
       const auto word = node_->dictionary().get_unsigned(index, 0).value_or(0);
       on_state_written(DynamicSdoState::decode(static_cast<std::uint32_t>(word)), now, out);
