@@ -138,43 +138,43 @@ class SdoRequestingDevice {
 
   // --- the SRD's requests (DSP 302 §7.2.1, §7.2.2) -------------------------------------------
   /// Sets 1F10h to the request of the options and sends the Dynamic SDO Request (6E0h, no data).
-  /// False (nothing sent) when the node is not booted (powered and out of initialisation) or
+  /// An error (nothing sent) when the node is not booted (powered and out of initialisation) or
   /// a registration is already requested or done.
-  bool register_at_manager(TimePoint now, Output& out);
+  cfg::Status register_at_manager(TimePoint now, Output& out);
   /// Asks the manager for a connection to `slave` on the SRD's client entry `client_index`
-  /// (1F00h = client_index<<16 | node-ID<<8 | slave). False (nothing sent) when not Registered,
+  /// (1F00h = client_index<<16 | node-ID<<8 | slave). An error (nothing sent) when not Registered,
   /// when another request is pending, when `slave` is no node-ID, or when `client_index` is no
   /// client entry of the dictionary. The outcome is Connected or ConnectionFailed.
-  bool request_connection(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
-                          Output& out);
+  cfg::Status request_connection(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
+                                 Output& out);
   /// Asks the manager to release the connection on `client_index` to `slave` (1F01h; 0 = every
-  /// connection to `slave`). False when not Registered or `slave` is no node-ID. The release is
-  /// seen as ConnectionReleased when the manager invalidates the entry.
-  bool release(std::uint8_t slave, std::uint16_t client_index, TimePoint now, Output& out);
-  /// Releases everything and de-registers (1F01h with slave node-ID 0). False when not
-  /// Registered. On success the SRD reports Deregistered.
-  bool deregister(TimePoint now, Output& out);
+  /// connection to `slave`). An error when not Registered, when another request is pending or
+  /// `slave` is no node-ID. The release is seen as ConnectionReleased when the manager
+  /// invalidates the entry.
+  cfg::Status release(std::uint8_t slave, std::uint16_t client_index, TimePoint now, Output& out);
+  /// Releases everything and de-registers (1F01h with slave node-ID 0). An error when not
+  /// Registered or another request is pending. On success the SRD reports Deregistered.
+  cfg::Status deregister(TimePoint now, Output& out);
 
   // --- transfers -----------------------------------------------------------------------------
-  /// Starts an upload over the established connection on `client_index` (1280h-12FFh). nullopt
-  /// (nothing sent) when there is no such connection. The result comes as a Transfer event with
-  /// this TransferId.
-  std::optional<TransferId> upload(std::uint16_t client_index, std::uint16_t index,
-                                   std::uint8_t sub, TimePoint now, Output& out,
-                                   SdoTransferOptions options = {});
+  /// Starts an upload over the established connection on `client_index` (1280h-12FFh). An
+  /// error (nothing sent) when there is no such connection. The result comes as a Transfer event
+  /// with this TransferId.
+  cfg::Result<TransferId> upload(std::uint16_t client_index, std::uint16_t index, std::uint8_t sub,
+                                 TimePoint now, Output& out, SdoTransferOptions options = {});
   /// The same for a download of `data`.
-  std::optional<TransferId> download(std::uint16_t client_index, std::uint16_t index,
-                                     std::uint8_t sub, std::vector<std::uint8_t> data,
-                                     TimePoint now, Output& out, SdoTransferOptions options = {});
+  cfg::Result<TransferId> download(std::uint16_t client_index, std::uint16_t index,
+                                   std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now,
+                                   Output& out, SdoTransferOptions options = {});
   /// Upload / download over `slave`'s default SDO (600h/580h + node-ID), while registration()
-  /// is AllDefaultSdos (DSP 302 §7.2.2: the SRD owns them); nullopt otherwise.
-  std::optional<TransferId> upload_default(std::uint8_t slave, std::uint16_t index,
-                                           std::uint8_t sub, TimePoint now, Output& out,
+  /// is AllDefaultSdos (DSP 302 §7.2.2: the SRD owns them); an error otherwise.
+  cfg::Result<TransferId> upload_default(std::uint8_t slave, std::uint16_t index, std::uint8_t sub,
+                                         TimePoint now, Output& out,
+                                         SdoTransferOptions options = {});
+  cfg::Result<TransferId> download_default(std::uint8_t slave, std::uint16_t index,
+                                           std::uint8_t sub, std::vector<std::uint8_t> data,
+                                           TimePoint now, Output& out,
                                            SdoTransferOptions options = {});
-  std::optional<TransferId> download_default(std::uint8_t slave, std::uint16_t index,
-                                             std::uint8_t sub, std::vector<std::uint8_t> data,
-                                             TimePoint now, Output& out,
-                                             SdoTransferOptions options = {});
 
   // --- observation ---------------------------------------------------------------------------
   SrdRegistration registration() const { return registration_; }
@@ -216,11 +216,11 @@ class SdoRequestingDevice {
   void on_client_entry_written(std::uint16_t client_index, TimePoint now, Output& out);
   void manager_results(const SdoClient::Output& results, TimePoint now, Output& out);
   void channel_results(std::uint32_t key, const SdoClient::Output& results, Output& out);
-  bool send_to_manager(Pending pending, std::uint32_t word, std::uint16_t object, TimePoint now,
-                       Output& out);
-  std::optional<TransferId> start(std::uint32_t key, bool upload, std::uint16_t index,
-                                  std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now,
-                                  Output& out, const SdoTransferOptions& options);
+  cfg::Status send_to_manager(Pending pending, std::uint32_t word, std::uint16_t object,
+                              TimePoint now, Output& out);
+  cfg::Result<TransferId> start(std::uint32_t key, bool upload, std::uint16_t index,
+                                std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now,
+                                Output& out, const SdoTransferOptions& options);
   void drop_channel(std::uint32_t key, TimePoint now, Output& out);
   void forget_registration(TimePoint now, Output& out);
   void report(SrdEvent event, Output& out);

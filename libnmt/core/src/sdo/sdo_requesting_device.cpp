@@ -169,10 +169,12 @@ std::optional<TimePoint> SdoRequestingDevice::next_deadline() const {
 
 // --- requests --------------------------------------------------------------------------------
 
-bool SdoRequestingDevice::register_at_manager(TimePoint now, Output& out) {
-  if (!node_->powered() || node_->state() == NmtState::Initialising ||
-      registration_ != SrdRegistration::Unregistered) {
-    return false;
+cfg::Status SdoRequestingDevice::register_at_manager(TimePoint now, Output& out) {
+  if (!node_->powered() || node_->state() == NmtState::Initialising) {
+    return cfg::Error{"the SDO requesting device has not booted"};
+  }
+  if (registration_ != SrdRegistration::Unregistered) {
+    return cfg::Error{"a registration is already requested or done"};
   }
   // DSP 302 §7.2.3: xxxx0001h (xxxx0009h with error control of the slaves), or 00000003h.
   const auto state = options_.all_default_sdos
@@ -184,12 +186,15 @@ bool SdoRequestingDevice::register_at_manager(TimePoint now, Output& out) {
   out.send(CanFrame::make(cfg::sdo_manager::kDynamicSdoRequestCanId, {}));
   registration_ = SrdRegistration::Requested;
   registration_deadline_ = later(now, options_.registration_timeout);
-  return true;
+  return {};
 }
 
-bool SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t word, std::uint16_t object,
-                                          TimePoint now, Output& out) {
-  if (registration_ != SrdRegistration::Registered || !manager_ || pending_) return false;
+cfg::Status SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t word,
+                                                 std::uint16_t object, TimePoint now, Output& out) {
+  if (registration_ != SrdRegistration::Registered || !manager_) {
+    return cfg::Error{"not registered with an SDO manager"};
+  }
+  if (pending_) return cfg::Error{"a request to the SDO manager is still pending"};
   std::vector<std::uint8_t> data;
   cfg::append_le(data, word, 4);
   SdoClient::Output manager_out;
@@ -198,14 +203,16 @@ bool SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t word, s
   pending_ = pending;
   forward_frames(manager_out, out);
   manager_results(manager_out, now, out);
-  return true;
+  return {};
 }
 
-bool SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t client_index,
-                                             TimePoint now, Output& out) {
-  if (!cfg::is_node_id(slave) || !obj::is_sdo_client_parameter(client_index) ||
-      client_index == manager_index_ || !node_->dictionary().entry(client_index, 2)) {
-    return false;
+cfg::Status SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t client_index,
+                                                    TimePoint now, Output& out) {
+  if (!cfg::is_node_id(slave)) return cfg::Error{std::to_string(slave) + " is no node-ID"};
+  if (!obj::is_sdo_client_parameter(client_index) || client_index == manager_index_ ||
+      !node_->dictionary().entry(client_index, 2)) {
+    return cfg::Error{cfg::object_name(client_index) +
+                      " is no client entry of this device free for a connection"};
   }
   const cfg::sdo_manager::SdoRequest request{client_index, node_->node_id().value(), slave};
   return send_to_manager(
@@ -213,16 +220,16 @@ bool SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t c
       request.encode(), obj::kSdoRequest, now, out);
 }
 
-bool SdoRequestingDevice::release(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
-                                  Output& out) {
-  if (!cfg::is_node_id(slave)) return false;
+cfg::Status SdoRequestingDevice::release(std::uint8_t slave, std::uint16_t client_index,
+                                         TimePoint now, Output& out) {
+  if (!cfg::is_node_id(slave)) return cfg::Error{std::to_string(slave) + " is no node-ID"};
   const cfg::sdo_manager::SdoRequest request{client_index, node_->node_id().value(), slave};
   return send_to_manager(
       {.what = Pending::What::Release, .slave = slave, .client_index = client_index},
       request.encode(), obj::kSdoRelease, now, out);
 }
 
-bool SdoRequestingDevice::deregister(TimePoint now, Output& out) {
+cfg::Status SdoRequestingDevice::deregister(TimePoint now, Output& out) {
   // DSP 302 §7.2.1: 1F01h with slave node-ID 0 releases everything and de-registers.
   const cfg::sdo_manager::SdoRequest request{0, node_->node_id().value(), 0};
   return send_to_manager({.what = Pending::What::Deregister}, request.encode(), obj::kSdoRelease,
@@ -478,11 +485,11 @@ void SdoRequestingDevice::channel_results(std::uint32_t key, const SdoClient::Ou
   }
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
     std::uint32_t key, bool upload, std::uint16_t index, std::uint8_t sub,
     std::vector<std::uint8_t> data, TimePoint now, Output& out, const SdoTransferOptions& options) {
   auto it = channels_.find(key);
-  if (it == channels_.end()) return std::nullopt;
+  if (it == channels_.end()) return cfg::Error{"no connection on that channel"};
   const TransferId id = next_transfer_++;
   SdoClient::Output channel_out;
   // Registered before the call: a transfer that cannot start reports its result in it.
@@ -495,13 +502,13 @@ std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
   return id;
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload(
     std::uint16_t client_index, std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
     SdoTransferOptions options) {
   return start(client_index, true, index, sub, {}, now, out, options);
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::download(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::download(
     std::uint16_t client_index, std::uint16_t index, std::uint8_t sub,
     std::vector<std::uint8_t> data, TimePoint now, Output& out, SdoTransferOptions options) {
   return start(client_index, false, index, sub, std::move(data), now, out, options);
@@ -515,20 +522,20 @@ std::uint32_t SdoRequestingDevice::open_default(std::uint8_t slave) {
   return key;
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload_default(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload_default(
     std::uint8_t slave, std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
     SdoTransferOptions options) {
   if (registration_ != SrdRegistration::AllDefaultSdos || !cfg::is_node_id(slave)) {
-    return std::nullopt;
+    return cfg::Error{"the SDO manager gave this device no default SDOs, or no node-ID"};
   }
   return start(open_default(slave), true, index, sub, {}, now, out, options);
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::download_default(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::download_default(
     std::uint8_t slave, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
     TimePoint now, Output& out, SdoTransferOptions options) {
   if (registration_ != SrdRegistration::AllDefaultSdos || !cfg::is_node_id(slave)) {
-    return std::nullopt;
+    return cfg::Error{"the SDO manager gave this device no default SDOs, or no node-ID"};
   }
   return start(open_default(slave), false, index, sub, std::move(data), now, out, options);
 }
