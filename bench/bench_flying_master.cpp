@@ -109,9 +109,8 @@ Figure failover(const Setting& s) {
     slaves.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device).value()));
     bus.attach(*slaves.back());
-    slaves.back()->apply([](nmt::SimulatedDevice& d, TimePoint now, nmt::SimulatedDevice::Output&) {
-      d.power_on(now);
-    });
+    slaves.back()->apply([](nmt::SimulatedDevice& d, TimePoint now,
+                            nmt::SimulatedDevice::Output& out) { d.power_on(now, out); });
   }
   std::map<std::uint8_t, std::unique_ptr<nmt::SimEngineNode<nmt::NmtMaster>>> masters;
   const std::map<std::uint8_t, std::uint16_t> priorities{{5, 0}, {10, s.priority_10}, {12, 2}};

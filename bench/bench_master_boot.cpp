@@ -169,9 +169,9 @@ struct Network {
   // Power on (again): unsaved values are lost, the boot-up follows; then let the boot-ups pass.
   void power_cycle() {
     for (auto& slave : slaves) {
-      slave->apply([](Device& d, TimePoint now, Device::Output&) {
+      slave->apply([](Device& d, TimePoint now, Device::Output& out) {
         d.discard();
-        d.engine().power_on(now);
+        d.engine().power_on(now, out);
       });
     }
     bus.run_for(50ms);

@@ -54,6 +54,13 @@
 
 namespace {
 
+// Powers `device` on at `now` (nothing it reports at power-on is looked at here).
+template <class Device>
+void power_on_at(Device& device, nmt::TimePoint now) {
+  typename Device::Output out;
+  device.power_on(now, out);
+}
+
 using nmt::CanFrame;
 using nmt::Duration;
 using nmt::TimePoint;
@@ -475,7 +482,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     } else if (op < 0xC0) {
       const unsigned which = op & 0x0F;
       if (which < 5) {
-        if (which < 4) h.devices[which].power_on(h.now);
+        if (which < 4) power_on_at(h.devices[which], h.now);
       } else if (which < 10) {
         if (which - 5 < 4) h.peers[1 + which - 5]->plugged = false;
       } else if (which < 15) {

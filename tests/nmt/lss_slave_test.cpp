@@ -257,6 +257,13 @@ TEST_F(LssSlaveTest, FramesWithoutEightDataBytesAreIgnored) {
 namespace nmt {
 namespace {
 
+// Powers `device` on at `now` (nothing it reports at power-on is looked at here).
+template <class Device>
+void power_on_at(Device& device, TimePoint now) {
+  typename Device::Output out;
+  device.power_on(now, out);
+}
+
 cfg::DeviceDescription lss_device() {
   auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sim_device.eds");
   EXPECT_TRUE(result.device.has_value()) << result.diagnostics.format();
@@ -293,7 +300,7 @@ LssNode unconfigured() {
 
 TEST(SlaveNodeLss, UnconfiguredDevicePowersOnWithoutBootUpAndServesNoNmtOrSdo) {
   auto d = unconfigured();
-  d.node->power_on(TimePoint{});
+  power_on_at(*d.node, TimePoint{});
   EXPECT_FALSE(d.node->has_node_id());
   EXPECT_FALSE(d.node->next_deadline().has_value());
   EXPECT_TRUE(d.timer().empty());
@@ -341,7 +348,7 @@ TEST(SlaveNodeLss, DeviceFileWithoutLssSupportedCannotStartUnconfigured) {
 
 TEST(SlaveNodeLss, NodeIdByLssThenBootUpAndTheDictionaryOfThatNodeId) {
   auto d = unconfigured();
-  d.node->power_on(TimePoint{});
+  power_on_at(*d.node, TimePoint{});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
   EXPECT_EQ(d.sent, Frames{"7E4#1100000000000000"});
@@ -355,7 +362,7 @@ TEST(SlaveNodeLss, NodeIdByLssThenBootUpAndTheDictionaryOfThatNodeId) {
   EXPECT_TRUE(d.frame("605#4014100000000000"));
   EXPECT_EQ(d.sent, Frames{"585#4314100085000000"});
   // Stored: the next power-on boots as node 5 at once.
-  d.node->power_on(TimePoint{Duration{2000}});
+  power_on_at(*d.node, TimePoint{Duration{2000}});
   EXPECT_EQ(d.timer(TimePoint{Duration{2000}}), Frames{"705#00"});
 }
 
@@ -364,7 +371,7 @@ TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
   // table 0 index 3, 250 kbit/s) in non-volatile memory: lss_stored(), which another node of
   // the same file given it (set_lss_stored, what a saved state file does) powers on with.
   auto d = unconfigured();
-  d.node->power_on(TimePoint{});
+  power_on_at(*d.node, TimePoint{});
   EXPECT_FALSE(d.node->lss_stored());
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
@@ -377,7 +384,7 @@ TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
 
   auto e = unconfigured();
   e.node->set_lss_stored(d.node->lss_stored());
-  e.node->power_on(TimePoint{});
+  power_on_at(*e.node, TimePoint{});
   EXPECT_TRUE(e.node->has_node_id());
   EXPECT_EQ(e.node->lss()->bit_timing_index(), 3);
   EXPECT_EQ(e.timer(), Frames{"705#00"});
@@ -385,12 +392,12 @@ TEST(SlaveNodeLss, StoreConfigurationKeepsNodeIdAndBitRateForTheNextPowerOn) {
 
 TEST(SlaveNodeLss, UnstoredNodeIdIsLostAtPowerOn) {
   auto d = unconfigured();
-  d.node->power_on(TimePoint{});
+  power_on_at(*d.node, TimePoint{});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
   d.frame("7E5#0400000000000000");
   EXPECT_EQ(d.timer(), Frames{"705#00"});
-  d.node->power_on(TimePoint{Duration{1000}});
+  power_on_at(*d.node, TimePoint{Duration{1000}});
   EXPECT_FALSE(d.node->has_node_id());
   EXPECT_TRUE(d.timer(TimePoint{Duration{1000}}).empty());
 }
@@ -399,7 +406,7 @@ TEST(SlaveNodeLss, ConfiguredNodeTakesANewNodeIdAtResetCommunication) {
   auto created = SlaveNode::create(lss_device(), *cfg::NodeId::from(3));
   ASSERT_TRUE(created.ok());
   LssNode d(std::move(created).value());
-  d.node->power_on(TimePoint{});
+  power_on_at(*d.node, TimePoint{});
   EXPECT_EQ(d.timer(), Frames{"703#00"});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1109000000000000");
@@ -422,7 +429,7 @@ TEST(SlaveNodeLss, DefaultSdoOfAFileWithout1200hFollowsTheNodeIdLssGave) {
   auto created = SlaveNode::create_unconfigured(lss_io_without_1200h());
   ASSERT_TRUE(created.ok()) << created.error().message;
   LssNode d(std::move(created).value());
-  d.node->power_on(TimePoint{});
+  power_on_at(*d.node, TimePoint{});
   d.frame("7E5#0401000000000000");
   d.frame("7E5#1105000000000000");
   d.frame("7E5#0400000000000000");
@@ -439,7 +446,7 @@ TEST(SimulatedDeviceLss, UnconfiguredDeviceAnswersLssThroughItsFaults) {
   auto created = SimulatedDevice::create_unconfigured(lss_io_without_1200h());
   ASSERT_TRUE(created.ok()) << created.error().message;
   auto device = std::move(created).value();
-  device.power_on(TimePoint{});
+  power_on_at(device, TimePoint{});
   SimulatedDevice::Output out;
   EXPECT_TRUE(device.on_frame(*from_candump("7E5#4C00000000000000"), TimePoint{}, out));
   ASSERT_EQ(out.frames.size(), 1u);

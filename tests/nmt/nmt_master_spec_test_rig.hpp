@@ -241,8 +241,9 @@ class MasterRig {
   }
   SimulatedDevice& slave(std::uint8_t node) { return slaves_.at(node)->engine(); }
   void power_on(std::uint8_t node) {
-    slaves_.at(node)->apply(
-        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+    slaves_.at(node)->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
+      d.power_on(now, out);
+    });
   }
   void power_on_slaves() {
     for (auto& [node, slot] : slaves_) power_on(node);

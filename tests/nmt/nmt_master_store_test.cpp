@@ -465,16 +465,17 @@ TEST(NmtMasterStore, FailedPersistAbortsTheDownloadWith08000020) {
   EXPECT_EQ(d.manager->expected_stamp(node), cfg::ConfigurationStamp{});
 }
 
-// nmt_master.hpp: a write through dictionary() (outside any call of the master) is persisted
-// the same way: its PersistEntry comes from the master's next call, and the manager has the
-// value once the driver completed it.
+// nmt_master.hpp: a write through dictionary() with an output of the master is persisted the
+// same way: its PersistEntry goes into that output, and the manager has the value once the
+// driver completed it.
 TEST(NmtMasterStore, WriteThroughTheDictionaryIsPersistedByTheDriverToo) {
   DurableStoreRig d;
   const auto node = *cfg::NodeId::from(kNode);
-  const TimePoint at = d.s.rig.bus.now();
-  EXPECT_EQ(d.s.rig.engine().dictionary().write(0x1F22, kNode, kStream, at), SdoAbort::None);
+  d.s.rig.call([&](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    EXPECT_EQ(m.dictionary().write(0x1F22, kNode, kStream, now, out), SdoAbort::None);
+  });
   EXPECT_FALSE(d.manager->concise(node).has_value());
-  d.s.rig.run_for(1s);  // the next call: a heartbeat of node 5, say
+  d.s.rig.run_for(1s);
   const auto asked = d.requested();
   ASSERT_TRUE(asked.update);
   ASSERT_TRUE(d.manager->persist(*asked.update).ok());

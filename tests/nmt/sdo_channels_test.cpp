@@ -20,6 +20,13 @@
 namespace nmt {
 namespace {
 
+// Powers `device` on at `now` (nothing it reports at power-on is looked at here).
+template <class Device>
+void power_on_at(Device& device, TimePoint now) {
+  typename Device::Output out;
+  device.power_on(now, out);
+}
+
 using Frames = std::vector<std::string>;
 
 constexpr cfg::NodeId kNode = cfg::NodeId::from(5).value();
@@ -39,7 +46,7 @@ struct Node {
     auto created = SlaveNode::create(description, kNode);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     node = std::move(created).value();
-    node->power_on(TimePoint{});
+    power_on_at(*node, TimePoint{});
     SlaveNode::Output out;
     node->on_timer(TimePoint{}, out);  // boot-up
   }

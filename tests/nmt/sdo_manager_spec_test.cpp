@@ -102,8 +102,9 @@ class ManagerRig : public MasterRig {
     if (slot) bus.detach(*slot);
     slot = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
     bus.attach(*slot);
-    slot->apply(
-        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+    slot->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
+      d.power_on(now, out);
+    });
     return slot->engine();
   }
   SimulatedDevice& srd(std::uint8_t node) { return srds_.at(node)->engine(); }

@@ -16,6 +16,13 @@
 namespace nmt {
 namespace {
 
+// Powers `device` on at `now` (nothing it reports at power-on is looked at here).
+template <class Device>
+void power_on_at(Device& device, TimePoint now) {
+  typename Device::Output out;
+  device.power_on(now, out);
+}
+
 using namespace std::chrono_literals;
 
 class FakeBus final : public Bus {
@@ -65,7 +72,7 @@ TEST(BusEventLoop, DeviceBootsAndProducesHeartbeatOnTime) {
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
   loop.add(ref);
-  device.power_on(loop.now());
+  power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1000ms + 1us}).ok());
   ASSERT_EQ(bus.sent.size(), 11u);
   EXPECT_EQ(bus.sent[0], std::make_pair(TimePoint{}, std::string("702#00")));
@@ -82,7 +89,7 @@ TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
   loop.add(ref);
-  device.power_on(loop.now());
+  power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{450ms}).ok());
   std::vector<std::string> frames;
   for (const auto& [t, f] : bus.sent) frames.push_back(f);
@@ -97,7 +104,7 @@ TEST(BusEventLoop, AnswersSdoRequestFromTheBus) {
   auto device = device_with_heartbeat(2, "0");
   EngineRef ref(device);
   loop.add(ref);
-  device.power_on(loop.now());
+  power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{20ms}).ok());
   ASSERT_EQ(bus.sent.size(), 2u);
   // 1000h = 0x000F0191 (sim_device.eds), 4 bytes expedited: command byte 43h.
@@ -114,7 +121,7 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   EngineRef client_ref(client, [&](const SdoResult& r, TimePoint) { result = r; });
   loop.add(device_ref);
   loop.add(client_ref);
-  device.power_on(loop.now());
+  power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1ms}).ok());  // boot-up
   // The request goes out from apply() at once; the device hears it through the loop's echo.
   client_ref.apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
@@ -143,7 +150,7 @@ TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
     events.push_back(std::string(to_string(e.kind)) + ": " + e.text);
   });
   loop.add(ref);
-  (*node)->power_on(loop.now());
+  power_on_at(**node, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{150ms}).ok());
   std::vector<std::pair<TimePoint, std::string>> expected{
       {TimePoint{}, "703#00"},                    // boot-up (CiA 301 §7.2.8.3.2.4)
@@ -161,7 +168,7 @@ TEST(BusEventLoop, StopRequestEndsRun) {
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
   loop.add(ref);
-  device.power_on(loop.now());
+  power_on_at(device, loop.now());
   loop.set_observer([&](const CanFrame& f, TimePoint, BusEventLoop::Direction) {
     if (to_candump(f) == "702#7F") loop.request_stop();
   });
@@ -192,7 +199,7 @@ TEST(BusEventLoop, SendFailureIsReportedAndRetriedWhileTheRunGoesOn) {
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
   loop.add(ref);
-  device.power_on(loop.now());
+  power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_for(1s).ok());
   ASSERT_FALSE(reported.empty());
   EXPECT_EQ(reported[0].kind, BusEvent::Kind::SendFailed);

@@ -72,8 +72,9 @@ class Rig {
 
   SimulatedDevice& device() { return device_->engine(); }
   void power_on() {
-    device_->apply(
-        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+    device_->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
+      d.power_on(now, out);
+    });
   }
   /// Raises an emergency at the bus's time; the frames the device sent for it at once.
   std::vector<std::string> raise_emergency(std::uint16_t code, std::uint8_t bits) {
@@ -990,8 +991,9 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     bus.attach(node);
     bus.attach(client);
     bus.add_observer([&](const CanFrame& f, TimePoint) { seen.push_back(to_candump(f)); });
-    node.apply(
-        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+    node.apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
+      d.power_on(now, out);
+    });
     bus.run_for(10ms);
     ASSERT_FALSE(seen.empty());
     EXPECT_EQ(seen.front(), "703#00");

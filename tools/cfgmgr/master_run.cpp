@@ -650,7 +650,8 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   g_stop.store(false);
   const StopSignals signals;
   for (auto& device : devices) {
-    device->apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, auto&) { d.power_on(now); });
+    device->apply(
+        [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
   }
   node.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.start(now, out); });
 

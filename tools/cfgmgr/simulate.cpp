@@ -295,7 +295,12 @@ void run_simulate(const SimulateOptions& options) {
   sigaction(SIGINT, &action, &old_int);
   sigaction(SIGTERM, &action, &old_term);
 
-  for (auto& device : devices) device->power_on(loop.now());
+  // Through apply: what a device reports at power-on goes to its printer like any event.
+  for (auto& ref : refs) {
+    ref->apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, nmt::SimulatedDevice::Output& out) {
+      d.power_on(now, out);
+    });
+  }
   const cfg::Status status = options.for_seconds
                                  ? loop.run_for(ms_to_duration(*options.for_seconds * 1000.0))
                                  : loop.run();

@@ -184,8 +184,9 @@ nmt::Duration run_on_sim(const cfg::Network& network, const SimBusOptions& sim,
     devices.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
     bus.attach(*devices.back());
-    devices.back()->apply(
-        [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto&) { d.power_on(now); });
+    devices.back()->apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& device_out) {
+      d.power_on(now, device_out);
+    });
   }
   nmt::SimEngineNode<nmt::ConfigurationVerifier> reader(options);
   bus.attach(reader);

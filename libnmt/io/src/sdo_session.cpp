@@ -162,12 +162,13 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   const std::string own = "node " + std::to_string(route_.own_node_id.value());
 
   // CiA 301 §7.2.8.3.2.1: the device boots (its boot-up goes out from its first timer).
-  srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto&) { s.power_on(now); });
+  srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto& out) { s.power_on(now, out); });
   auto booted = run_until([&] { return srd_->node().state() != NmtState::Initialising; },
                           std::chrono::seconds(1));
   if (!booted) return booted.error();
   // DSP 302 §7.2.1: 1F10h, then the Dynamic SDO Request; the manager scans and confirms.
-  srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto& out) {
+  // A device that cannot register says so through the events awaited below.
+  (void)srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto& out) {
     return s.register_at_manager(now, out);
   });
   progress("registering as SDO requesting device " + own + " with the SDO manager");
@@ -203,7 +204,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
 
   // DSP 302 §7.2.2: 1F00h at the manager; it answers in 1F10h with the client entry set up.
   const std::string slave = "node " + std::to_string(route_.slave);
-  srd_ref_->apply([&](SdoRequestingDevice& s, TimePoint now, auto& out) {
+  (void)srd_ref_->apply([&](SdoRequestingDevice& s, TimePoint now, auto& out) {
     return s.request_connection(route_.slave, kConnectionClientIndex, now, out);
   });
   std::optional<SrdEvent> connected;
@@ -230,7 +231,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
 }
 
 cfg::Result<SdoResult> SdoSession::run_srd(
-    const std::function<std::optional<SdoRequestingDevice::TransferId>(
+    const std::function<cfg::Result<SdoRequestingDevice::TransferId>(
         SdoRequestingDevice&, TimePoint, SdoRequestingDevice::Output&)>& start) {
   const auto id = srd_ref_->apply(start);
   if (!id) {
@@ -258,7 +259,7 @@ cfg::Result<SdoResult> SdoSession::run_srd(
 cfg::Status SdoSession::close() {
   if (!srd_ || srd_->registration() != SrdRegistration::Registered) return {};
   // DSP 302 §7.2.3 1F01h with slave node-ID 0: release every connection and de-register.
-  const bool sent = srd_ref_->apply(
+  const cfg::Status sent = srd_ref_->apply(
       [](SdoRequestingDevice& s, TimePoint now, auto& out) { return s.deregister(now, out); });
   if (!sent)
     return cfg::Error{"a request to the SDO manager is still pending", cfg::ErrorCategory::Io};

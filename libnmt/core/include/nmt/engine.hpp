@@ -1,6 +1,8 @@
 // The one shape of every protocol engine in libnmt (SDO server and client, NMT slave, heartbeat
-// producer and consumer, node and life guarding, EMCY, the slave node, and later the NMT master,
-// the configuration manager and the flying master). This comment is the contract; the concept
+// producer and consumer, node and life guarding, EMCY, LSS master and slave, the slave node, the
+// SDO requesting device, and the NMT master with its processes: boot slave, the flying master,
+// the SDO manager, the configuration manager's objects, the NMT command queue). This comment is
+// the contract; the concept
 // below checks its signatures at compile time, and each driver has one adapter that runs any
 // engine (SimEngineNode in sim_bus.hpp, EngineRef in bus_event_loop.hpp).
 //
@@ -26,11 +28,24 @@
 // 4. next_deadline() is nullopt when nothing is due; a time in the past (TimePoint{}) means
 //    "as soon as possible". Any call may change it, so drivers read it after every call.
 // 5. Calls of the engine's own API that start work (an SDO transfer, an emergency, a state
-//    change) take `TimePoint now, Output& out` too and put their first frames into `out` at
-//    once: nothing started through the API waits for a timer to reach the bus. An engine that
-//    models a processing step may instead make the work due at `now` (a slave's boot-up ends
-//    its initialisation from the next on_timer); rule 4 makes drivers run it in the same instant.
-// 6. Engines keep no reference to `out` or to a frame after a call returns; they only append.
+//    change, a power-on) take `TimePoint now, Output& out` as their last two parameters and,
+//    before they return, put into `out` the frames and events the start causes at once: nothing
+//    started through the API waits for a timer to reach the bus. Work that follows later is due
+//    from next_deadline(); so is the one step CiA 301 puts between a device's power-on or reset
+//    and its boot-up (initialisation), which ends at the next on_timer (due at `now`).
+//    The verbs: an engine that models a device (SlaveNode, SdoRequestingDevice, the fault
+//    wrappers) comes up with power_on(now, out), and calling it again is a power cycle; every
+//    other start is start(..., now, out) for a process beginning (the NMT master, boot slave)
+//    or one piece of work (an LSS service), or the verb of that work (upload, raise_emergency).
+//    Could not start: the call returns cfg::Result<Id> (cfg::Status when the work has no id to
+//    follow it by) whose error says why, and puts nothing into `out` (SdoRequestingDevice).
+//    Not all APIs follow this yet (issue 21): SdoClient and NmtMaster transfers answer
+//    TransferId (+ an event), LssMaster bool; NodeGuardingMaster::start takes no Output (its
+//    first request is due at `now`).
+// 6. Engines keep no reference to `out` or to a frame after a call returns; they only append,
+//    and only to the `out` of the call they are in: what a dictionary hook reports goes into
+//    the output of the call the access runs in (LocalDictionary's HookOutput), never into a
+//    list kept for the next call.
 // 7. Engines that contain engines (the slave node, the master) forward frames and time to them
 //    and report their parts' events as their own event type. Test faults (latency, loss,
 //    reboots) live in wrappers of the same shape (nmt/fault_injection.hpp), never inside a

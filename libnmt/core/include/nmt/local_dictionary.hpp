@@ -12,6 +12,8 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <type_traits>
+#include <typeinfo>
 #include <vector>
 
 #include "cfg/cob_id.hpp"
@@ -22,6 +24,7 @@
 #include "cfg/result.hpp"
 #include "cfg/value.hpp"
 #include "cfg/write_acceptance.hpp"
+#include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
 
@@ -52,6 +55,30 @@ struct WriteVerdict {
   }
 };
 
+/// The output of the engine call a dictionary access runs in, handed to the hooks: what a hook
+/// reports or sends goes into that call's output (engine.hpp rule 6), never into a list kept for
+/// a later call. A typed reference to the owner's Outbox<Event> (the slave node's, the
+/// master's); empty for an access outside any engine call (a program setting up a dictionary
+/// before it runs), where a hook has no output and reports nothing.
+class HookOutput {
+ public:
+  HookOutput() = default;
+  template <class Event>
+  HookOutput(Outbox<Event>& out)  // NOLINT(google-explicit-constructor): the call's output
+      : out_(&out), type_(&typeid(Outbox<Event>)) {}
+
+  /// The output as the owner's Outbox<Event>; nullptr when empty or of another engine's type.
+  template <class Event>
+  Outbox<Event>* as() const {
+    if (type_ == nullptr || *type_ != typeid(Outbox<Event>)) return nullptr;
+    return static_cast<Outbox<Event>*>(out_);
+  }
+
+ private:
+  void* out_ = nullptr;
+  const std::type_info* type_ = nullptr;
+};
+
 class LocalDictionary {
  public:
   /// Default max_size of variable-size entries (strings, DOMAIN): 1 MiB.
@@ -60,17 +87,20 @@ class LocalDictionary {
   /// Called by write() after all dictionary checks passed and before the value is stored, with
   /// the time of the write. A code other than SdoAbort::None rejects the write with that code
   /// (the value stays); WriteVerdict::hold accepts it and holds its SDO confirmation
-  /// (write_download()).
+  /// (write_download()). `out`: the output of the call the write runs in (HookOutput).
   using WriteHook = std::function<WriteVerdict(std::uint16_t index, std::uint8_t sub,
-                                               std::span<const std::uint8_t> data, TimePoint now)>;
+                                               std::span<const std::uint8_t> data, TimePoint now,
+                                               HookOutput out)>;
   /// Called by write() after a value was stored (not by the unchecked setters), with the time of
-  /// the write.
-  using WriteObserver = std::function<void(std::uint16_t index, std::uint8_t sub,
-                                           std::span<const std::uint8_t> data, TimePoint now)>;
+  /// the write and the output of the call it runs in.
+  using WriteObserver =
+      std::function<void(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                         TimePoint now, HookOutput out)>;
   /// Called by read() after the access check, before the value is copied, with the time of the
   /// read: it may refresh the value with set_bytes() or refuse the read with a code (e.g.
   /// NoDataAvailable).
-  using ReadHook = std::function<SdoAbort(std::uint16_t index, std::uint8_t sub, TimePoint now)>;
+  using ReadHook =
+      std::function<SdoAbort(std::uint16_t index, std::uint8_t sub, TimePoint now, HookOutput out)>;
   /// Called by check_write() (so by write() and by the SDO server) when the size of a write is
   /// known: an SDO download's indicated size at its initiate request, the size received so far
   /// while segments of a download without one arrive, or write()'s data. Runs after the
@@ -104,9 +134,9 @@ class LocalDictionary {
 
   /// Reads the value for an SDO upload at `now` into `out` (replaced). Aborts:
   /// ObjectDoesNotExist (no entry at `index`), SubIndexDoesNotExist, ReadOfWriteOnly (wo), or a
-  /// read hook's code.
+  /// read hook's code. `hooks`: the output of the engine call the read runs in (HookOutput).
   SdoAbort read(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t>& out,
-                TimePoint now) const;
+                TimePoint now, HookOutput hooks = {}) const;
 
   /// Writes a value from an SDO download. Checks in this order, each with its abort:
   /// object exists (ObjectDoesNotExist), sub-index exists (SubIndexDoesNotExist), writable
@@ -114,14 +144,17 @@ class LocalDictionary {
   /// variable types: LengthTooHigh above max_size), value (BOOLEAN other than 0/1:
   /// ValueRangeExceeded; HighLimit < LowLimit: MaxLessThanMin; above HighLimit: ValueTooHigh;
   /// below LowLimit: ValueTooLow), then the write hooks in their order. On None the value is
-  /// stored and the observers are called. `now`: the time of the write, for the hooks.
+  /// stored and the observers are called. `now`: the time of the write, for the hooks; `out`:
+  /// the output of the engine call it runs in, where hooks report (HookOutput; an owner whose
+  /// hooks start work, e.g. the master, documents what it needs there).
   SdoAbort write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                 TimePoint now);
+                 TimePoint now, HookOutput out = {});
   /// write() for an SDO download: also says whether a write hook holds the confirmation (the
   /// value is stored all the same; the hook's owner completes the download later with success
   /// or an abort). write() ignores a hold: its caller has no confirmation to send.
   WriteVerdict write_download(std::uint16_t index, std::uint8_t sub,
-                              std::span<const std::uint8_t> data, TimePoint now);
+                              std::span<const std::uint8_t> data, TimePoint now,
+                              HookOutput out = {});
 
   /// The checks write() does before seeing the data: existence, access, and (when the size is
   /// known) the size hooks, then the size (cfg::check_entry_access). The SDO server uses it to
@@ -130,15 +163,22 @@ class LocalDictionary {
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub,
                        std::optional<std::size_t> size) const;
 
-  void add_write_hook(WriteHook hook, HookPosition where = HookPosition::Last) {
+  // A hook that reports nothing may leave out the HookOutput parameter.
+  template <class Hook>
+  void add_write_hook(Hook hook, HookPosition where = HookPosition::Last) {
     write_hooks_.insert(where == HookPosition::First ? write_hooks_.begin() : write_hooks_.end(),
-                        std::move(hook));
+                        with_output<WriteHook, std::span<const std::uint8_t>>(std::move(hook)));
   }
   void add_size_hook(SizeHook hook) { size_hooks_.push_back(std::move(hook)); }
-  void add_write_observer(WriteObserver observer) { observers_.push_back(std::move(observer)); }
-  void add_read_hook(ReadHook hook, HookPosition where = HookPosition::Last) {
+  template <class Observer>
+  void add_write_observer(Observer observer) {
+    observers_.push_back(
+        with_output<WriteObserver, std::span<const std::uint8_t>>(std::move(observer)));
+  }
+  template <class Hook>
+  void add_read_hook(Hook hook, HookPosition where = HookPosition::Last) {
     read_hooks_.insert(where == HookPosition::First ? read_hooks_.begin() : read_hooks_.end(),
-                       std::move(hook));
+                       with_output<ReadHook>(std::move(hook)));
   }
 
   // --- device model side: unchecked (no access, size or range checks, no hooks) ------------
@@ -180,6 +220,19 @@ class LocalDictionary {
 
  private:
   DictionaryEntry* find(std::uint16_t index, std::uint8_t sub);
+  // A hook as the stored std::function type; one without the HookOutput parameter is wrapped.
+  template <class Stored, class... Data, class Hook>
+  static Stored with_output(Hook hook) {
+    if constexpr (std::is_invocable_v<Hook&, std::uint16_t, std::uint8_t, Data..., TimePoint,
+                                      HookOutput>) {
+      return Stored(std::move(hook));
+    } else {
+      return Stored([hook = std::move(hook)](std::uint16_t index, std::uint8_t sub, Data... data,
+                                             TimePoint now, HookOutput) mutable {
+        return hook(index, sub, data..., now);
+      });
+    }
+  }
 
   std::optional<cfg::NodeId> node_id_;
   cfg::DeviceEntries entries_;

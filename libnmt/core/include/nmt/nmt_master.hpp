@@ -191,8 +191,9 @@
 //   response): a tool that saw the confirmation knows the entry survives a crash. A failed
 //   persist aborts the download with 0800 0020 ("data cannot be transferred or stored to the
 //   application", CiA 301 §7.2.4.3.17, as the manager answers a store it cannot write) and the
-//   manager keeps its old value. A write through dictionary() is persisted the same way (its
-//   PersistEntry comes from the next call); the manager has the value after entry_persisted().
+//   manager keeps its old value. A write through dictionary() is persisted the same way when it
+//   passes an output of the master (LocalDictionary::write's `out`: its PersistEntry goes there);
+//   the manager has the value after entry_persisted().
 //   Without a store directory the manager takes the value at once and nothing is reported.
 // - SDO manager (DSP 302 §7; MasterOptions::sdo_manager, or a master DCF that has 1F00h): it
 //   works only while this device is the active master (active_master() is its own node-ID); a
@@ -664,7 +665,11 @@ class NmtMaster {
   std::optional<BootError> last_error(cfg::NodeId node) const;
   /// The dictionary (its values configure the master). Writes through LocalDictionary::write
   /// are checked as SDO writes are; the NMT commands a 1F82h write asks for are queued and due
-  /// at once (next_deadline()), so they go out from the next on_timer().
+  /// at once (next_deadline()), so they go out from the next on_timer(). A write that starts
+  /// work in the call itself (1F82h for the master itself, 1F25h, 1F20h-1F27h with a store
+  /// directory) needs an output of the master to put it in (`out` of LocalDictionary::write, a
+  /// NmtMaster::Output the caller then sends and reads): without one it is refused with
+  /// 0800 0022 (engine.hpp rule 6: no output kept for a later call).
   const LocalDictionary& dictionary() const;
   LocalDictionary& dictionary();
   /// MasterOptions::manager (nullptr without one): the driver persists a PersistEntry's update

@@ -4,7 +4,7 @@
 // heartbeat, its default SDO server on which the manager scans and writes) and one SdoClient per
 // connection the manager set up.
 //   auto srd = SdoRequestingDevice::create(description, node_id).value();
-//   srd->power_on(now);                        // boots like any slave (boot-up from on_timer)
+//   srd->power_on(now, out);                   // boots like any slave (boot-up from on_timer)
 //   srd->register_at_manager(now, out);        // 1F10h = index<<16 | 1, then 6E0h#  (§7.2.1)
 //   ... SrdEvent::Kind::Registered ...
 //   srd->request_connection(5, 0x1281, now, out);  // 1F00h at the manager (§7.2.2)
@@ -39,10 +39,12 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/object_dictionary.hpp"
 #include "cfg/result.hpp"
 #include "cfg/sdo_manager_objects.hpp"
@@ -129,50 +131,50 @@ class SdoRequestingDevice {
 
   // --- engine --------------------------------------------------------------------------------
   /// Powers the node on (SlaveNode::power_on): every connection and the registration are gone.
-  void power_on(TimePoint now);
+  void power_on(TimePoint now, Output& out);
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
 
   // --- the SRD's requests (DSP 302 §7.2.1, §7.2.2) -------------------------------------------
   /// Sets 1F10h to the request of the options and sends the Dynamic SDO Request (6E0h, no data).
-  /// False (nothing sent) when the node is not booted (powered and out of initialisation) or
+  /// An error (nothing sent) when the node is not booted (powered and out of initialisation) or
   /// a registration is already requested or done.
-  bool register_at_manager(TimePoint now, Output& out);
+  cfg::Status register_at_manager(TimePoint now, Output& out);
   /// Asks the manager for a connection to `slave` on the SRD's client entry `client_index`
-  /// (1F00h = client_index<<16 | node-ID<<8 | slave). False (nothing sent) when not Registered,
+  /// (1F00h = client_index<<16 | node-ID<<8 | slave). An error (nothing sent) when not Registered,
   /// when another request is pending, when `slave` is no node-ID, or when `client_index` is no
   /// client entry of the dictionary. The outcome is Connected or ConnectionFailed.
-  bool request_connection(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
-                          Output& out);
+  cfg::Status request_connection(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
+                                 Output& out);
   /// Asks the manager to release the connection on `client_index` to `slave` (1F01h; 0 = every
-  /// connection to `slave`). False when not Registered or `slave` is no node-ID. The release is
-  /// seen as ConnectionReleased when the manager invalidates the entry.
-  bool release(std::uint8_t slave, std::uint16_t client_index, TimePoint now, Output& out);
-  /// Releases everything and de-registers (1F01h with slave node-ID 0). False when not
-  /// Registered. On success the SRD reports Deregistered.
-  bool deregister(TimePoint now, Output& out);
+  /// connection to `slave`). An error when not Registered, when another request is pending or
+  /// `slave` is no node-ID. The release is seen as ConnectionReleased when the manager
+  /// invalidates the entry.
+  cfg::Status release(std::uint8_t slave, std::uint16_t client_index, TimePoint now, Output& out);
+  /// Releases everything and de-registers (1F01h with slave node-ID 0). An error when not
+  /// Registered or another request is pending. On success the SRD reports Deregistered.
+  cfg::Status deregister(TimePoint now, Output& out);
 
   // --- transfers -----------------------------------------------------------------------------
-  /// Starts an upload over the established connection on `client_index` (1280h-12FFh). nullopt
-  /// (nothing sent) when there is no such connection. The result comes as a Transfer event with
-  /// this TransferId.
-  std::optional<TransferId> upload(std::uint16_t client_index, std::uint16_t index,
-                                   std::uint8_t sub, TimePoint now, Output& out,
-                                   SdoTransferOptions options = {});
+  /// Starts an upload over the established connection on `client_index` (1280h-12FFh). An
+  /// error (nothing sent) when there is no such connection. The result comes as a Transfer event
+  /// with this TransferId.
+  cfg::Result<TransferId> upload(std::uint16_t client_index, std::uint16_t index, std::uint8_t sub,
+                                 TimePoint now, Output& out, SdoTransferOptions options = {});
   /// The same for a download of `data`.
-  std::optional<TransferId> download(std::uint16_t client_index, std::uint16_t index,
-                                     std::uint8_t sub, std::vector<std::uint8_t> data,
-                                     TimePoint now, Output& out, SdoTransferOptions options = {});
+  cfg::Result<TransferId> download(std::uint16_t client_index, std::uint16_t index,
+                                   std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now,
+                                   Output& out, SdoTransferOptions options = {});
   /// Upload / download over `slave`'s default SDO (600h/580h + node-ID), while registration()
-  /// is AllDefaultSdos (DSP 302 §7.2.2: the SRD owns them); nullopt otherwise.
-  std::optional<TransferId> upload_default(std::uint8_t slave, std::uint16_t index,
-                                           std::uint8_t sub, TimePoint now, Output& out,
+  /// is AllDefaultSdos (DSP 302 §7.2.2: the SRD owns them); an error otherwise.
+  cfg::Result<TransferId> upload_default(std::uint8_t slave, std::uint16_t index, std::uint8_t sub,
+                                         TimePoint now, Output& out,
+                                         SdoTransferOptions options = {});
+  cfg::Result<TransferId> download_default(std::uint8_t slave, std::uint16_t index,
+                                           std::uint8_t sub, std::vector<std::uint8_t> data,
+                                           TimePoint now, Output& out,
                                            SdoTransferOptions options = {});
-  std::optional<TransferId> download_default(std::uint8_t slave, std::uint16_t index,
-                                             std::uint8_t sub, std::vector<std::uint8_t> data,
-                                             TimePoint now, Output& out,
-                                             SdoTransferOptions options = {});
 
   // --- observation ---------------------------------------------------------------------------
   SrdRegistration registration() const { return registration_; }
@@ -206,16 +208,19 @@ class SdoRequestingDevice {
   };
 
   void observe(std::uint16_t index, std::uint8_t sub, TimePoint now);
-  void process(TimePoint now, Output& out);
+  /// The node's frames and events into `out`; the writes the SRD acts on (1F10h, 1F11h, client
+  /// entries sub 1/2), in the order the node took them.
+  std::vector<cfg::ObjectAddress> take_node_output(SlaveNode::Output& node_out, Output& out);
+  void process(std::span<const cfg::ObjectAddress> written, TimePoint now, Output& out);
   void on_state_written(cfg::sdo_manager::DynamicSdoState state, TimePoint now, Output& out);
   void on_client_entry_written(std::uint16_t client_index, TimePoint now, Output& out);
   void manager_results(const SdoClient::Output& results, TimePoint now, Output& out);
   void channel_results(std::uint32_t key, const SdoClient::Output& results, Output& out);
-  bool send_to_manager(Pending pending, std::uint32_t word, std::uint16_t object, TimePoint now,
-                       Output& out);
-  std::optional<TransferId> start(std::uint32_t key, bool upload, std::uint16_t index,
-                                  std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now,
-                                  Output& out, const SdoTransferOptions& options);
+  cfg::Status send_to_manager(Pending pending, std::uint32_t word, std::uint16_t object,
+                              TimePoint now, Output& out);
+  cfg::Result<TransferId> start(std::uint32_t key, bool upload, std::uint16_t index,
+                                std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now,
+                                Output& out, const SdoTransferOptions& options);
   void drop_channel(std::uint32_t key, TimePoint now, Output& out);
   void forget_registration(TimePoint now, Output& out);
   void report(SrdEvent event, Output& out);
@@ -233,9 +238,6 @@ class SdoRequestingDevice {
   /// Established channels by key: 1280h-12FFh, or default_channel(slave).
   std::map<std::uint32_t, Channel> channels_;
   TransferId next_transfer_ = 1;
-  /// Dictionary writes seen by the observer (index, sub), handled after the node's call: the
-  /// observer runs inside the node's SDO server, which has no access to the SRD's output.
-  std::vector<std::pair<std::uint16_t, std::uint8_t>> written_;
 };
 static_assert(Engine<SdoRequestingDevice>);
 

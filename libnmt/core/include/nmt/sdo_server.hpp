@@ -81,8 +81,12 @@ class SdoServer {
 
   SdoServer(LocalDictionary& dict, SdoServerConfig config);
 
-  /// Handles a frame; false (and nothing done) when it is not a request for this server.
+  /// Handles a frame; false (and nothing done) when it is not a request for this server. The
+  /// dictionary's hooks get `out` as their HookOutput.
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  /// on_frame() for an owner of the dictionary (a slave node, the master): its hooks report into
+  /// `hooks`, the output of the owner's call that passes the frame on.
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out, HookOutput hooks);
   /// Aborts a segmented or block transfer with 0504 0000 when no request came for
   /// config().timeout.
   void on_timer(TimePoint now, Output& out);
@@ -114,20 +118,24 @@ class SdoServer {
     ConfirmationHeld,  // download stored: its confirmation waits for complete_download()
   };
 
-  void handle(const sdo::Payload& d, TimePoint now, Output& out);
-  void handle_command(const sdo::ClientFrame& f, TimePoint now, Output& out);
-  void initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now, Output& out);
-  void download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, Output& out);
+  void handle(const sdo::Payload& d, TimePoint now, HookOutput hooks, Output& out);
+  void handle_command(const sdo::ClientFrame& f, TimePoint now, HookOutput hooks, Output& out);
+  void initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now, HookOutput hooks,
+                         Output& out);
+  void download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, HookOutput hooks,
+                        Output& out);
   void start_upload(Output& out);
   void upload_segment(const sdo::UploadSegmentRequest& f, Output& out);
   void block_download_initiate(const sdo::BlockDownloadInitiateRequest& f, Output& out);
   void block_download_segment(const sdo::BlockSegment& f, Output& out);
-  void block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now, Output& out);
-  void block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now, Output& out);
+  void block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now, HookOutput hooks,
+                          Output& out);
+  void block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now,
+                             HookOutput hooks, Output& out);
   void block_upload_ack(const sdo::BlockUploadAck& f, Output& out);
   void send_upload_sub_block(Output& out);
   template <class Frame>
-  void finish_download(const Frame& confirmation, TimePoint now, Output& out);
+  void finish_download(const Frame& confirmation, TimePoint now, HookOutput hooks, Output& out);
   template <class Frame>
   void confirm_download(const WriteVerdict& verdict, const Frame& confirmation, Output& out);
   template <class Frame>
@@ -183,10 +191,11 @@ class SdoServerChannels {
   /// nullptr when `index` is not open. Valid until the next open().
   const SdoServer* find(std::uint16_t index) const;
 
-  /// The channel that took `frame` (nullopt: none). `before`, when given, runs with each
+  /// The channel that took `frame` (nullopt: none). `hooks`: the output of the owner's call,
+  /// for the dictionary's hooks (SdoServer::on_frame). `before`, when given, runs with each
   /// channel's index before that channel sees the frame (a hook may need to know the channel).
   std::optional<std::uint16_t> on_frame(const CanFrame& frame, TimePoint now,
-                                        SdoServer::Output& out,
+                                        SdoServer::Output& out, HookOutput hooks,
                                         const std::function<void(std::uint16_t)>& before = {});
   void on_timer(TimePoint now, SdoServer::Output& out);
   std::optional<TimePoint> next_deadline() const;

@@ -5,7 +5,7 @@
 // an embedder can put it on a real bus (EngineRef of nmt/bus_event_loop.hpp) as it is; the
 // simulated devices of nmt/simulated_device.hpp wrap it with the faults of
 // nmt/fault_injection.hpp.
-//   node->power_on(now);                // initialising; the boot-up is sent from on_timer
+//   node->power_on(now, out);           // initialising; the boot-up is sent from on_timer
 //   node->on_frame(frame, now, out);    // frames to send and events go into `out`
 //   node->on_timer(now, out);           // call when now >= node->next_deadline()
 //
@@ -67,6 +67,7 @@
 #include <vector>
 
 #include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/object_dictionary.hpp"
 #include "cfg/result.hpp"
 #include "nmt/emcy.hpp"
@@ -99,6 +100,8 @@ struct SlaveEvent {
   Kind kind;
   TimePoint at;
   std::string text;  ///< one line for people
+  /// SdoWrite: the entry written (an owner such as the SDO requesting device acts on it).
+  std::optional<cfg::ObjectAddress> object = std::nullopt;
 };
 std::string_view to_string(SlaveEvent::Kind kind);
 
@@ -152,8 +155,9 @@ class SlaveNode {
 
   // --- engine (nmt/engine.hpp) ---------------------------------------------------------------
   /// Power-on (or power cycle) at `now`: unsaved values are lost, stored ones reload; the
-  /// boot-up message is due at `now` (next_deadline()).
-  void power_on(TimePoint now);
+  /// boot-up message is due at `now` (next_deadline()). Events (an LSS node-ID taken) go into
+  /// `out`.
+  void power_on(TimePoint now, Output& out);
   /// True for frames the node acted on: NMT commands for it, its SDO requests, guarding
   /// requests, heartbeats it consumes.
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
@@ -223,9 +227,9 @@ class SlaveNode {
   void restore(ResetScope scope);
   void configure_services(TimePoint now);
   void sync_parts();
-  void emit(SlaveEvent::Kind kind, TimePoint at, std::string text);
-  void take_events(Output& out);
-  void apply_nmt(const NmtTransition& t, TimePoint now);
+  void emit(Output& out, SlaveEvent::Kind kind, TimePoint at, std::string text,
+            std::optional<cfg::ObjectAddress> object = std::nullopt);
+  void apply_nmt(const NmtTransition& t, TimePoint now, Output& out);
   void communication_error(const std::string& what, TimePoint now, Output& out);
   void communication_recovered(const std::string& what, TimePoint now, Output& out);
   void send_emcy(const Emergency& emcy, TimePoint now, Output& out);
@@ -239,14 +243,14 @@ class SlaveNode {
   void add_sdo_channels();
   void reconfigure_sdo_channels();
   void after_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                   TimePoint now);
+                   TimePoint now, HookOutput hooks);
   bool is_stored_parameter(std::uint16_t index, std::uint8_t sub) const;
-  void save(std::uint8_t area, TimePoint now);
-  void restore_defaults(std::uint8_t area, TimePoint now);
+  void save(std::uint8_t area, TimePoint now, Output& out);
+  void restore_defaults(std::uint8_t area, TimePoint now, Output& out);
   void restart_consumer(TimePoint now);
   void set_program_state(std::uint8_t program, ProgramState state);
   bool on_lss_frame(const CanFrame& frame, TimePoint now, Output& out);
-  void take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now);
+  void take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now, Output& out);
   void become_unconfigured(TimePoint now);
 
   cfg::DeviceDescription description_;
@@ -266,10 +270,6 @@ class SlaveNode {
   EmcyProducer emcy_;
   std::map<std::uint32_t, std::vector<std::uint8_t>> stored_;
   std::map<std::uint8_t, ProgramState> programs_;
-  /// Events in the order they happened, handed to the caller's output at the end of each
-  /// engine call: the dictionary hooks that report them run inside the SDO server, which has no
-  /// access to that output.
-  std::vector<SlaveEvent> events_;
 
   std::optional<LssSlave> lss_;
   /// No node-ID: only LSS is served, no boot-up.

@@ -73,8 +73,9 @@ void NmtMaster::Impl::install_store_objects() {
     return store_read(index, sub);
   });
   dict.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
-                             std::span<const std::uint8_t> data,
-                             TimePoint now) { return store_write(index, sub, data, now); });
+                             std::span<const std::uint8_t> data, TimePoint now, HookOutput out) {
+    return store_write(index, sub, data, now, out.as<MasterEvent>());
+  });
   // A peer's files are bounded before they are buffered (cfg::ConfigManagerLimits): the SDO
   // server asks with the indicated size, else with the size received so far.
   dict.add_size_hook([this](std::uint16_t index, std::uint8_t sub, std::size_t size) {
@@ -158,7 +159,8 @@ std::optional<NmtMaster::Impl::StoreValue> NmtMaster::Impl::unstored_read(std::u
 }
 
 WriteVerdict NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
-                                          std::span<const std::uint8_t> data, TimePoint now) {
+                                          std::span<const std::uint8_t> data, TimePoint now,
+                                          Output* out) {
   if (!options.manager || !is_store_index(index)) return SdoAbort::None;
   const auto& manager = *options.manager;
   if (is_stamp(index) && cfg::is_node_id(sub) && !stored_stamp(sub) && data.size() == 4) {
@@ -167,22 +169,23 @@ WriteVerdict NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
     (index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms) = cfg::low_le32(data);
     auto staged = manager.stage_expected_stamp(*cfg::NodeId::from(sub), stamp);
     if (!staged) return SdoAbort::ValueRangeExceeded;  // 1F27h: no time of day
-    return persist_entry(std::move(staged).value(), now);
+    return persist_entry(std::move(staged).value(), now, out);
   }
   std::optional<cfg::StoreUpdate> update;
   auto written = manager.stage(index, sub, data, update);
   if (index == obj::kConfigureSlave) add_unstored_configurations(sub, written);
   if (!written.ok()) return written.abort;
-  if (index == obj::kConfigureSlave) return configure_slaves(sub, written.configure, now);
-  if (update) return persist_entry(std::move(*update), now);
+  if (index == obj::kConfigureSlave) return configure_slaves(sub, written.configure, now, out);
+  if (update) return persist_entry(std::move(*update), now, out);
   return SdoAbort::None;
 }
 
-WriteVerdict NmtMaster::Impl::persist_entry(cfg::StoreUpdate update, TimePoint now) {
+WriteVerdict NmtMaster::Impl::persist_entry(cfg::StoreUpdate update, TimePoint now, Output* out) {
   if (!options.manager->persistent()) {
     options.manager->commit(std::move(update));
     return SdoAbort::None;
   }
+  if (out == nullptr) return SdoAbort::DeviceState;  // no output to ask the driver in
   // No disk I/O in the engine (nmt_master.hpp): the driver writes the entry and answers with
   // entry_persisted(); until then the SDO confirmation waits and the manager keeps its value.
   const std::uint64_t ticket = ++last_persist_ticket;
@@ -193,7 +196,7 @@ WriteVerdict NmtMaster::Impl::persist_entry(cfg::StoreUpdate update, TimePoint n
   auto event = master_event(MasterEvent::Kind::PersistEntry, now, node,
                             what + ": store the entry of " + node_text(node));
   event.persist = MasterEvent::Persist{ticket, std::move(shared)};
-  report(sink(), std::move(event));
+  report(*out, std::move(event));
   return WriteVerdict::hold(ticket);
 }
 
@@ -239,19 +242,19 @@ void NmtMaster::Impl::add_unstored_configurations(std::uint8_t sub,
 }
 
 SdoAbort NmtMaster::Impl::configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes,
-                                           TimePoint now) {
+                                           TimePoint now, Output* out) {
   // As request NMT: only the active master boots slaves (0800 0022 on a standby master).
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   // A node the master does not boot cannot be configured by it (§3.4 a would end with A).
   if (sub != cfg::kConfigureAllNodes && !is_slave(sub)) return SdoAbort::General;
-  Output& out = sink();
+  if (out == nullptr) return SdoAbort::DeviceState;  // booting needs the call's output
   for (const auto node : nodes) {
     const std::uint8_t n = node.value();
     if (!is_slave(n)) continue;
     // As boot_slave(): the application (here a tool) asks for it.
     slaves[n].held = false;
     stop_error_control(n);
-    start_boot(n, false, now, out, /*asked_by_application=*/true);
+    start_boot(n, false, now, *out, /*asked_by_application=*/true);
     boot(n).request_reconfiguration();
   }
   return SdoAbort::None;

@@ -193,7 +193,7 @@ bool SdoManagerProcess::on_frame(const CanFrame& frame, TimePoint now, Output& o
     Outbox<NoEvent> server_out;
     // 1F00h/1F01h learn the writer from the channel: the SRD it was opened for.
     taken = channels_
-                .on_frame(frame, now, server_out,
+                .on_frame(frame, now, server_out, HookOutput(out),
                           [this](std::uint16_t index) { writer_ = channel_clients_[index]; })
                 .has_value();
     writer_ = 0;

@@ -228,8 +228,9 @@ cfg::Status NmtMaster::Impl::check_configuration_values(const LocalDictionary& d
 
 void NmtMaster::Impl::install_hooks() {
   dict.add_write_hook([this](std::uint16_t index, std::uint8_t sub,
-                             std::span<const std::uint8_t> data,
-                             TimePoint now) { return check_write(index, sub, data, now); });
+                             std::span<const std::uint8_t> data, TimePoint now, HookOutput out) {
+    return check_write(index, sub, data, now, out.as<MasterEvent>());
+  });
   dict.add_read_hook([this](std::uint16_t index, std::uint8_t sub, TimePoint /*now*/) {
     if (index == obj::kRequestNmt && cfg::is_node_id(sub)) {
       const std::uint8_t state =
@@ -244,7 +245,8 @@ void NmtMaster::Impl::install_hooks() {
 }
 
 SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
-                                      std::span<const std::uint8_t> data, TimePoint now) {
+                                      std::span<const std::uint8_t> data, TimePoint now,
+                                      Output* out) {
   // Every write comes here, DOMAINs of any length too; the numeric objects below have had their
   // size checked by the dictionary (0607 0010).
   const auto value = cfg::low_le32(data);
@@ -261,7 +263,7 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
       if (auto timing = detection_timing(sub, value)) flying.set_detection_timing(*timing);
       return SdoAbort::None;
     case obj::kRequestNmt:
-      return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now);
+      return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now, out);
     case obj::kRequestGuarding:
       return request_guarding(sub, static_cast<std::uint8_t>(value), now);
     default:
@@ -306,7 +308,8 @@ Duration NmtMaster::Impl::nmt_inhibit_time() const {
 // --- request NMT (1F82h) and request guarding (1F83h) ---
 
 SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
-                                      std::optional<cfg::NodeId> requester, TimePoint now) {
+                                      std::optional<cfg::NodeId> requester, TimePoint now,
+                                      Output* out) {
   constexpr std::uint8_t kAll = 0x80;
   const auto command = requested_command(value);
   // §6.4: a reserved value is refused with 0609 0030.
@@ -324,7 +327,10 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
   auto no_room_for = [&](std::size_t commands) {
     return nmt_commands.size() + commands > options.max_queued_nmt_requests;
   };
-  Output& out = sink();
+  // A command for the master itself changes its state in this call: that needs the call's output.
+  const bool applies_to_master =
+      sub == kAll ? !excluding : cfg::is_node_id(sub) && sub == node_id.value();
+  if (applies_to_master && out == nullptr) return SdoAbort::DeviceState;
   if (sub == kAll) {
     if (excluding) {
       const bool self = requester->value() == node_id.value();
@@ -343,12 +349,12 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
       hold(static_cast<std::uint8_t>(node));
     }
     // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
-    apply_own_command(*command, now, out);
+    apply_own_command(*command, now, *out);
     return SdoAbort::None;
   }
   if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
   if (sub == node_id.value()) {
-    apply_own_command(*command, now, out);
+    apply_own_command(*command, now, *out);
     return SdoAbort::None;
   }
   if (excluding && sub == requester->value()) return SdoAbort::General;

@@ -184,9 +184,6 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   }
   for (const auto& f : sdo_out.frames) out.send(f);
   sdo_out.frames.clear();
-  for (const auto& f : deferred.frames) out.send(f);
-  for (auto& e : deferred.events) out.report(std::move(e));
-  deferred.clear();
 }
 
 }  // namespace nmt

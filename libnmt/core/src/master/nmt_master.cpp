@@ -1,7 +1,7 @@
-// NmtMaster: the public calls, NMT start-up (CiA 302-2 §3.1), the error handler and boot-up
-// handler (§4.2, §4.3), the slave states the NMT command queue's commands set (the queue and
-// its inhibit time, §6.1: nmt_command_queue.hpp), and the routing of frames and time to the
-// parts. Boot NMT slave is an engine per node (boot_slave_process.hpp, its port in
+// NmtMaster: the public calls, NMT start-up (CiA 302-2 §3.1), the slave states the NMT command
+// queue's commands set (the queue and its inhibit time, §6.1: nmt_command_queue.hpp), and the
+// routing of frames and time to the parts. The boot-up handler and the error handler are in
+// error_handler.cpp. Boot NMT slave is an engine per node (boot_slave_process.hpp, its port in
 // boot_port.cpp), the objects and request NMT/guarding in master_dictionary.cpp, the SDO
 // transfers in master_transfers.cpp, the texts of the enums and events in master_text.cpp.
 #include "nmt/nmt_master.hpp"
@@ -75,35 +75,20 @@ NmtMaster::NmtMaster(NmtMaster&&) noexcept = default;
 NmtMaster& NmtMaster::operator=(NmtMaster&&) noexcept = default;
 NmtMaster::~NmtMaster() = default;
 
-// --- the public calls: each sets the current Output, runs, settles ---
-
-namespace {
-// A template so that it needs no access to the private NmtMaster::Impl by name.
-template <class Impl>
-struct CallScope {
-  Impl& impl;
-  CallScope(Impl& i, NmtMaster::Output& out) : impl(i) { impl.current = &out; }
-  ~CallScope() { impl.current = nullptr; }
-  CallScope(const CallScope&) = delete;
-  CallScope& operator=(const CallScope&) = delete;
-};
-}  // namespace
+// --- the public calls: each runs, then settles into the Output of the call ---
 
 void NmtMaster::start(TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   impl_->power_on(now, out);
   impl_->settle(now, out);
 }
 
 void NmtMaster::entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now,
                                 Output& out) {
-  CallScope scope(*impl_, out);
   impl_->entry_persisted(ticket, result, now, out);
   impl_->settle(now, out);
 }
 
 bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   auto& m = *impl_;
   if (m.startup == StartupState::Off) return false;
   m.pace_frame_of_others(frame, now);
@@ -112,7 +97,7 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (services.sdo) {
     auto& server_out = m.part_out;
     server_out.clear();
-    if (m.server.on_frame(frame, now, server_out)) {
+    if (m.server.on_frame(frame, now, server_out, HookOutput(out))) {
       mine = true;
       for (const auto& f : server_out.frames) out.send(f);
     }
@@ -154,7 +139,6 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
 }
 
 void NmtMaster::on_timer(TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   auto& m = *impl_;
   if (m.startup == StartupState::Off) return;
   if (m.startup_due && now >= *m.startup_due) {
@@ -216,7 +200,6 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
 std::optional<TimePoint> NmtMaster::next_deadline() const {
   const auto& m = *impl_;
   if (m.startup == StartupState::Off) return std::nullopt;
-  if (!m.deferred.empty()) return TimePoint{};
   auto due = m.startup_due;
   due = earliest(due, m.server.next_deadline());
   due = earliest(due, m.clients.next_deadline());
@@ -238,28 +221,24 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
 }
 
 void NmtMaster::enter_operational(TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   if (impl_->startup == StartupState::AwaitApplication) impl_->finish_startup(now, out);
   impl_->settle(now, out);
 }
 
 SdoAbort NmtMaster::request_nmt(std::uint8_t sub, std::uint8_t value, TimePoint now, Output& out,
                                 std::optional<cfg::NodeId> requester) {
-  CallScope scope(*impl_, out);
-  const auto code = impl_->request_nmt(sub, value, requester, now);
+  const auto code = impl_->request_nmt(sub, value, requester, now, &out);
   impl_->settle(now, out);
   return code;
 }
 
 SdoAbort NmtMaster::request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   const auto code = impl_->request_guarding(sub, start ? 1 : 0, now);
   impl_->settle(now, out);
   return code;
 }
 
 bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   auto& m = *impl_;
   // A flying master that is not the active one boots nobody (CiA 302-2 §3.1 b).
   if (!m.acts_as_master()) return false;
@@ -277,7 +256,6 @@ bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
 }
 
 void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   auto& m = *impl_;
   m.boot(node).configuration_done(ok, now, out);
   m.settle(now, out);
@@ -285,7 +263,6 @@ void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Out
 
 NmtMaster::TransferId NmtMaster::sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
                                             TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   const auto id = impl_->start_application_transfer(node, index, sub, true, {}, now);
   impl_->settle(now, out);
   return id;
@@ -294,7 +271,6 @@ NmtMaster::TransferId NmtMaster::sdo_upload(cfg::NodeId node, std::uint16_t inde
 NmtMaster::TransferId NmtMaster::sdo_download(cfg::NodeId node, std::uint16_t index,
                                               std::uint8_t sub, std::vector<std::uint8_t> data,
                                               TimePoint now, Output& out) {
-  CallScope scope(*impl_, out);
   const auto id = impl_->start_application_transfer(node, index, sub, false, std::move(data), now);
   impl_->settle(now, out);
   return id;
@@ -584,97 +560,6 @@ void NmtMaster::Impl::set_known_state(std::uint8_t node, std::uint8_t state, Tim
     e.text += to_string(*e.state);
   }
   report(out, std::move(e));
-}
-
-// --- error control messages, the boot-up handler (§4.3) and the error handler (§4.2) ---
-
-void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimePoint now,
-                                       Output& out) {
-  const auto node = message.node_id;
-  if (node == node_id.value() || !cfg::is_node_id(node)) return;
-  if (message.byte == 0) {
-    on_boot_up(node, now, out);
-    return;
-  }
-  const auto state = message.state();
-  if (!state) return;
-  auto& b = boot(node);
-  if (b.awaits_guard_reply()) {
-    set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
-    b.on_guard_reply(*state, now, out);
-    return;
-  }
-  // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
-  if (!message.toggle()) {
-    slaves[node].heartbeat_at = now;
-    if (b.awaits_heartbeat()) {
-      set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
-      b.on_heartbeat(*state, now, out);
-      return;
-    }
-  }
-  set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
-}
-
-void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
-  sdo_manager.node_booted(node, now, out);  // an SRD that booted forgot its entries
-  const bool assigned = is_slave(node);
-  auto e =
-      master_event(MasterEvent::Kind::BootUp, now, node,
-                   node_text(node) + ": boot-up" + (assigned ? "" : " (not a slave in 1F81h)"));
-  e.assigned = assigned;
-  report(out, std::move(e));
-  auto& s = slaves[node];
-  s.heartbeat_at.reset();
-  set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
-  if (!assigned) return;  // §3.1: unlisted devices are the application's concern
-  if (boot(node).on_boot_up(now, out)) return;
-  if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master() ||
-      startup == StartupState::ExecutingLss) {
-    return;  // Execute LSS: the reset of all nodes follows
-  }
-  stop_error_control(node);
-  // DSP 302 §5.4: a slave whose state was set by request NMT is not rebooted automatically.
-  if (s.held) return;
-  // §4.3 / Table 20: 1F81h bit 2 allows configuring and starting it again.
-  if (assignment(node).boot_slave()) start_boot(node, false, now, out);
-}
-
-void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out) {
-  report(out,
-         master_event(
-             heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
-             node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
-  set_known_state(node, 1, now, out);
-  if (!is_slave(node) || slaves[node].held) return;
-  const auto a = assignment(node);
-  const auto config = startup_config();
-  // Figure 12 and the note of DSP 302 §5.3: for a mandatory slave, "stop all nodes" with 1F80h
-  // bit 6, else "reset all nodes" with bit 4 (the master included: start-up runs again).
-  if (a.mandatory() && config.stop_all_nodes()) {
-    queue_nmt(NmtCommand::Stop, 0);
-    return;
-  }
-  if (a.mandatory() && config.reset_all_nodes()) {
-    queue_nmt(NmtCommand::ResetNode, 0);
-    startup_due = now;
-    return;
-  }
-  stop_error_control(node);
-  // Table 12, bit 4 = 0: reset node of that mandatory slave; its boot-up starts its boot again
-  // (boot-up handler).
-  if (a.mandatory()) {
-    queue_nmt(NmtCommand::ResetNode, node);
-    return;
-  }
-  // An optional slave: start process boot NMT slave again (DSP 302 §5.3), if 1F81h bit 2
-  // allows; its heartbeat or guarding is started again by the boot.
-  if (a.boot_slave()) start_boot(node, false, now, out);
-}
-
-void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
-  heartbeats.stop(node);
-  guarding.stop(node);
 }
 
 void NmtMaster::Impl::report(Output& out, MasterEvent e) {

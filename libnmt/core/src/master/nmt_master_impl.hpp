@@ -186,12 +186,6 @@ struct NmtMaster::Impl {
   NmtCommandQueue nmt_commands;
   NmtCommandQueue::Output nmt_out;  ///< scratch output of nmt_commands
 
-  /// The Output of the public call in progress; events of dictionary hooks that run outside one
-  /// (a write through dictionary()) wait in `deferred` until the next call.
-  Output* current = nullptr;
-  Output deferred;
-  Output& sink() { return current != nullptr ? *current : deferred; }
-
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
   static void add_missing_objects(LocalDictionary& dict);
   static cfg::Status check_configuration_values(const LocalDictionary& dict);
@@ -202,8 +196,10 @@ struct NmtMaster::Impl {
   static std::optional<std::string> flying_value_problem(const LocalDictionary& dict,
                                                          std::uint8_t sub, std::uint32_t value);
   void install_hooks();
+  /// The dictionary's write hook. `out`: the output of the call the write runs in (HookOutput);
+  /// nullptr for a write through dictionary() outside any call of the master.
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                       TimePoint now);
+                       TimePoint now, Output* out);
   std::uint32_t value_of(std::uint16_t index, std::uint8_t sub) const;
   cfg::NmtStartup startup_config() const { return {value_of(cfg::object::kNmtStartup, 0)}; }
   cfg::SlaveAssignment assignment(std::uint8_t node) const;
@@ -243,14 +239,15 @@ struct NmtMaster::Impl {
   /// An SDO write of 1F20h-1F27h: decided by the manager; a change of a stored entry is held
   /// for persist_entry() (see nmt_master.hpp).
   WriteVerdict store_write(std::uint16_t index, std::uint8_t sub,
-                           std::span<const std::uint8_t> data, TimePoint now);
-  /// Takes `update` at once (no store directory), or reports it as PersistEntry and holds the
-  /// write's confirmation.
-  WriteVerdict persist_entry(cfg::StoreUpdate update, TimePoint now);
+                           std::span<const std::uint8_t> data, TimePoint now, Output* out);
+  /// Takes `update` at once (no store directory), or reports it as PersistEntry into `out` and
+  /// holds the write's confirmation (0800 0022 without an output: nobody to ask).
+  WriteVerdict persist_entry(cfg::StoreUpdate update, TimePoint now, Output* out);
   /// entry_persisted(): the update taken (on success) and the held download completed.
   void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
-  /// 1F25h: boot (and download to) every slave the manager named.
-  SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now);
+  /// 1F25h: boot (and download to) every slave the manager named (0800 0022 without an output).
+  SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now,
+                            Output* out);
   /// The master's own 1F22h stream of `node` (the DCF's value); empty when none.
   std::span<const std::uint8_t> own_concise_dcf(std::uint8_t node) const;
 
@@ -269,8 +266,9 @@ struct NmtMaster::Impl {
   void on_boot_up(std::uint8_t node, TimePoint now, Output& out);
   void error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out);
   void stop_error_control(std::uint8_t node);
+  /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).
   SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, std::optional<cfg::NodeId> requester,
-                       TimePoint now);
+                       TimePoint now, Output* out);
   SdoAbort request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now);
   /// Dispatches SDO results, moves frames, sends due NMT commands, moves start-up on: after
   /// every call.

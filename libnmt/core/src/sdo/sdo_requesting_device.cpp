@@ -53,15 +53,7 @@ cfg::Result<std::unique_ptr<SdoRequestingDevice>> SdoRequestingDevice::create(
 }
 
 SdoRequestingDevice::SdoRequestingDevice(Key, std::unique_ptr<SlaveNode> node, SrdOptions options)
-    : node_(std::move(node)), options_(std::move(options)) {
-  node_->dictionary().add_write_observer(
-      [this](std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t>, TimePoint) {
-        if (index == obj::kDynamicSdoConnectionState || index == obj::kSlaveFailed ||
-            (obj::is_sdo_client_parameter(index) && (sub == 1 || sub == 2))) {
-          written_.emplace_back(index, sub);
-        }
-      });
-}
+    : node_(std::move(node)), options_(std::move(options)) {}
 
 SdoRequestingDevice::~SdoRequestingDevice() = default;
 
@@ -71,8 +63,10 @@ void SdoRequestingDevice::report(SrdEvent event, Output& out) {
 
 // --- engine ----------------------------------------------------------------------------------
 
-void SdoRequestingDevice::power_on(TimePoint now) {
-  node_->power_on(now);
+void SdoRequestingDevice::power_on(TimePoint now, Output& out) {
+  SlaveNode::Output node_out;
+  node_->power_on(now, node_out);
+  take_node_output(node_out, out);
   // A power cycle ends every connection and the registration (the dictionary reloads).
   registration_ = SrdRegistration::Unregistered;
   registration_deadline_.reset();
@@ -80,16 +74,30 @@ void SdoRequestingDevice::power_on(TimePoint now) {
   manager_.reset();
   pending_.reset();
   channels_.clear();
-  written_.clear();
+}
+
+std::vector<cfg::ObjectAddress> SdoRequestingDevice::take_node_output(SlaveNode::Output& node_out,
+                                                                      Output& out) {
+  forward_frames(node_out, out);
+  // The node reports every write its dictionary took (SlaveEvent::object); the SRD acts on the
+  // manager's writes of 1F10h, 1F11h and the client entries after the node's call.
+  std::vector<cfg::ObjectAddress> written;
+  for (auto& e : node_out.events) {
+    if (e.object && (e.object->index == obj::kDynamicSdoConnectionState ||
+                     e.object->index == obj::kSlaveFailed ||
+                     (obj::is_sdo_client_parameter(e.object->index) &&
+                      (e.object->sub_index == 1 || e.object->sub_index == 2)))) {
+      written.push_back(*e.object);
+    }
+    report({.kind = SrdEvent::Kind::Device, .at = e.at, .text = std::move(e.text)}, out);
+  }
+  return written;
 }
 
 bool SdoRequestingDevice::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   SlaveNode::Output node_out;
   bool taken = node_->on_frame(frame, now, node_out);
-  forward_frames(node_out, out);
-  for (auto& e : node_out.events) {
-    report({.kind = SrdEvent::Kind::Device, .at = e.at, .text = std::move(e.text)}, out);
-  }
+  const auto written = take_node_output(node_out, out);
   if (manager_) {
     SdoClient::Output manager_out;
     taken = manager_->on_frame(frame, now, manager_out) || taken;
@@ -103,17 +111,14 @@ bool SdoRequestingDevice::on_frame(const CanFrame& frame, TimePoint now, Output&
     forward_frames(channel_out, out);
     channel_results(key, channel_out, out);
   }
-  process(now, out);
+  process(written, now, out);
   return taken;
 }
 
 void SdoRequestingDevice::on_timer(TimePoint now, Output& out) {
   SlaveNode::Output node_out;
   node_->on_timer(now, node_out);
-  forward_frames(node_out, out);
-  for (auto& e : node_out.events) {
-    report({.kind = SrdEvent::Kind::Device, .at = e.at, .text = std::move(e.text)}, out);
-  }
+  const auto written = take_node_output(node_out, out);
   if (manager_) {
     SdoClient::Output manager_out;
     manager_->on_timer(now, manager_out);
@@ -126,7 +131,7 @@ void SdoRequestingDevice::on_timer(TimePoint now, Output& out) {
     forward_frames(channel_out, out);
     channel_results(key, channel_out, out);
   }
-  process(now, out);
+  process(written, now, out);
   // DSP 302 §7.2.4 1: no answer to the Dynamic SDO Request: the user decides what to do.
   if (registration_deadline_ && now >= *registration_deadline_) {
     registration_deadline_.reset();
@@ -164,10 +169,12 @@ std::optional<TimePoint> SdoRequestingDevice::next_deadline() const {
 
 // --- requests --------------------------------------------------------------------------------
 
-bool SdoRequestingDevice::register_at_manager(TimePoint now, Output& out) {
-  if (!node_->powered() || node_->state() == NmtState::Initialising ||
-      registration_ != SrdRegistration::Unregistered) {
-    return false;
+cfg::Status SdoRequestingDevice::register_at_manager(TimePoint now, Output& out) {
+  if (!node_->powered() || node_->state() == NmtState::Initialising) {
+    return cfg::Error{"the SDO requesting device has not booted"};
+  }
+  if (registration_ != SrdRegistration::Unregistered) {
+    return cfg::Error{"a registration is already requested or done"};
   }
   // DSP 302 §7.2.3: xxxx0001h (xxxx0009h with error control of the slaves), or 00000003h.
   const auto state = options_.all_default_sdos
@@ -179,12 +186,15 @@ bool SdoRequestingDevice::register_at_manager(TimePoint now, Output& out) {
   out.send(CanFrame::make(cfg::sdo_manager::kDynamicSdoRequestCanId, {}));
   registration_ = SrdRegistration::Requested;
   registration_deadline_ = later(now, options_.registration_timeout);
-  return true;
+  return {};
 }
 
-bool SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t word, std::uint16_t object,
-                                          TimePoint now, Output& out) {
-  if (registration_ != SrdRegistration::Registered || !manager_ || pending_) return false;
+cfg::Status SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t word,
+                                                 std::uint16_t object, TimePoint now, Output& out) {
+  if (registration_ != SrdRegistration::Registered || !manager_) {
+    return cfg::Error{"not registered with an SDO manager"};
+  }
+  if (pending_) return cfg::Error{"a request to the SDO manager is still pending"};
   std::vector<std::uint8_t> data;
   cfg::append_le(data, word, 4);
   SdoClient::Output manager_out;
@@ -193,14 +203,16 @@ bool SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t word, s
   pending_ = pending;
   forward_frames(manager_out, out);
   manager_results(manager_out, now, out);
-  return true;
+  return {};
 }
 
-bool SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t client_index,
-                                             TimePoint now, Output& out) {
-  if (!cfg::is_node_id(slave) || !obj::is_sdo_client_parameter(client_index) ||
-      client_index == manager_index_ || !node_->dictionary().entry(client_index, 2)) {
-    return false;
+cfg::Status SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t client_index,
+                                                    TimePoint now, Output& out) {
+  if (!cfg::is_node_id(slave)) return cfg::Error{std::to_string(slave) + " is no node-ID"};
+  if (!obj::is_sdo_client_parameter(client_index) || client_index == manager_index_ ||
+      !node_->dictionary().entry(client_index, 2)) {
+    return cfg::Error{cfg::object_name(client_index) +
+                      " is no client entry of this device free for a connection"};
   }
   const cfg::sdo_manager::SdoRequest request{client_index, node_->node_id().value(), slave};
   return send_to_manager(
@@ -208,16 +220,16 @@ bool SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t c
       request.encode(), obj::kSdoRequest, now, out);
 }
 
-bool SdoRequestingDevice::release(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
-                                  Output& out) {
-  if (!cfg::is_node_id(slave)) return false;
+cfg::Status SdoRequestingDevice::release(std::uint8_t slave, std::uint16_t client_index,
+                                         TimePoint now, Output& out) {
+  if (!cfg::is_node_id(slave)) return cfg::Error{std::to_string(slave) + " is no node-ID"};
   const cfg::sdo_manager::SdoRequest request{client_index, node_->node_id().value(), slave};
   return send_to_manager(
       {.what = Pending::What::Release, .slave = slave, .client_index = client_index},
       request.encode(), obj::kSdoRelease, now, out);
 }
 
-bool SdoRequestingDevice::deregister(TimePoint now, Output& out) {
+cfg::Status SdoRequestingDevice::deregister(TimePoint now, Output& out) {
   // DSP 302 §7.2.1: 1F01h with slave node-ID 0 releases everything and de-registers.
   const cfg::sdo_manager::SdoRequest request{0, node_->node_id().value(), 0};
   return send_to_manager({.what = Pending::What::Deregister}, request.encode(), obj::kSdoRelease,
@@ -226,10 +238,10 @@ bool SdoRequestingDevice::deregister(TimePoint now, Output& out) {
 
 // --- what the manager wrote ------------------------------------------------------------------
 
-void SdoRequestingDevice::process(TimePoint now, Output& out) {
-  auto written = std::move(written_);
-  written_.clear();
-  for (const auto& [index, sub] : written) {
+void SdoRequestingDevice::process(std::span<const cfg::ObjectAddress> written, TimePoint now,
+                                  Output& out) {
+  for (const cfg::ObjectAddress& address : written) {
+    const std::uint16_t index = address.index;
     if (index == obj::kDynamicSdoConnectionState) {
       const auto word = node_->dictionary().get_unsigned(index, 0).value_or(0);
       on_state_written(DynamicSdoState::decode(static_cast<std::uint32_t>(word)), now, out);
@@ -473,11 +485,11 @@ void SdoRequestingDevice::channel_results(std::uint32_t key, const SdoClient::Ou
   }
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
     std::uint32_t key, bool upload, std::uint16_t index, std::uint8_t sub,
     std::vector<std::uint8_t> data, TimePoint now, Output& out, const SdoTransferOptions& options) {
   auto it = channels_.find(key);
-  if (it == channels_.end()) return std::nullopt;
+  if (it == channels_.end()) return cfg::Error{"no connection on that channel"};
   const TransferId id = next_transfer_++;
   SdoClient::Output channel_out;
   // Registered before the call: a transfer that cannot start reports its result in it.
@@ -490,13 +502,13 @@ std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
   return id;
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload(
     std::uint16_t client_index, std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
     SdoTransferOptions options) {
   return start(client_index, true, index, sub, {}, now, out, options);
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::download(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::download(
     std::uint16_t client_index, std::uint16_t index, std::uint8_t sub,
     std::vector<std::uint8_t> data, TimePoint now, Output& out, SdoTransferOptions options) {
   return start(client_index, false, index, sub, std::move(data), now, out, options);
@@ -510,20 +522,20 @@ std::uint32_t SdoRequestingDevice::open_default(std::uint8_t slave) {
   return key;
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload_default(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload_default(
     std::uint8_t slave, std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
     SdoTransferOptions options) {
   if (registration_ != SrdRegistration::AllDefaultSdos || !cfg::is_node_id(slave)) {
-    return std::nullopt;
+    return cfg::Error{"the SDO manager gave this device no default SDOs, or no node-ID"};
   }
   return start(open_default(slave), true, index, sub, {}, now, out, options);
 }
 
-std::optional<SdoRequestingDevice::TransferId> SdoRequestingDevice::download_default(
+cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::download_default(
     std::uint8_t slave, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
     TimePoint now, Output& out, SdoTransferOptions options) {
   if (registration_ != SrdRegistration::AllDefaultSdos || !cfg::is_node_id(slave)) {
-    return std::nullopt;
+    return cfg::Error{"the SDO manager gave this device no default SDOs, or no node-ID"};
   }
   return start(open_default(slave), false, index, sub, std::move(data), now, out, options);
 }

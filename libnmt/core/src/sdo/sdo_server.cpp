@@ -82,6 +82,10 @@ std::optional<TimePoint> SdoServer::next_deadline() const {
 }
 
 bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  return on_frame(frame, now, out, HookOutput(out));
+}
+
+bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out, HookOutput hooks) {
   // A channel without a usable response COB-ID cannot answer: it serves nothing.
   if (!sdo::on_channel(frame, config_.request_cob_id) ||
       !cfg::usable_can_id(config_.response_cob_id)) {
@@ -90,7 +94,7 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   auto d = sdo::sdo_payload(frame);
   if (!d) return false;
   stalled_ = false;
-  handle(*d, now, out);
+  handle(*d, now, hooks, out);
   // A block round that brought nothing forward (an acknowledgement of no segment, sent or
   // received) does not extend the timeout. Otherwise two ends that disagree on the state answer
   // each other for ever: after a lost client abort, this server's block download takes the
@@ -135,7 +139,7 @@ void SdoServer::send_abort(SdoAbort code, Output& out) {
   reset();
 }
 
-void SdoServer::handle(const sdo::Payload& d, TimePoint now, Output& out) {
+void SdoServer::handle(const sdo::Payload& d, TimePoint now, HookOutput hooks, Output& out) {
   if (state_ == State::BlockDownload) {
     // Inside a sub-block every frame is a segment, except an abort.
     const auto f = sdo::parse_sub_block_frame(d);
@@ -150,19 +154,20 @@ void SdoServer::handle(const sdo::Payload& d, TimePoint now, Output& out) {
   // any other frame in idle names 0000h sub 00h.
   if (state_ == State::Idle) address_ = {};
   if (!f) return send_abort(SdoAbort::InvalidCommandSpecifier, out);
-  handle_command(*f, now, out);
+  handle_command(*f, now, hooks, out);
 }
 
-void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output& out) {
+void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, HookOutput hooks,
+                               Output& out) {
   switch (state_) {
     case State::Idle:
       if (const auto* r = std::get_if<sdo::InitiateDownloadRequest>(&f)) {
         address_ = r->address;
-        return initiate_download(*r, now, out);
+        return initiate_download(*r, now, hooks, out);
       }
       if (const auto* r = std::get_if<sdo::InitiateUploadRequest>(&f)) {
         address_ = r->address;
-        if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now);
+        if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now, hooks);
             code != SdoAbort::None) {
           return send_abort(code, out);
         }
@@ -178,12 +183,12 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output&
       if (const auto* r = std::get_if<sdo::BlockUploadInitiateRequest>(&f)) {
         address_ = r->address;
         if (!config_.block_transfer) break;
-        return block_upload_initiate(*r, now, out);
+        return block_upload_initiate(*r, now, hooks, out);
       }
       break;
     case State::DownloadSegment:
       if (const auto* r = std::get_if<sdo::DownloadSegmentRequest>(&f)) {
-        return download_segment(*r, now, out);
+        return download_segment(*r, now, hooks, out);
       }
       break;
     case State::UploadSegment:
@@ -195,7 +200,7 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output&
       break;
     case State::BlockDownloadEnd:
       if (const auto* r = std::get_if<sdo::BlockDownloadEndRequest>(&f)) {
-        return block_download_end(*r, now, out);
+        return block_download_end(*r, now, hooks, out);
       }
       break;
     case State::BlockUploadStart:
@@ -220,7 +225,7 @@ void SdoServer::handle_command(const sdo::ClientFrame& f, TimePoint now, Output&
 
 // CiA 301 §7.2.4.3, SDO download initiate protocol: expedited or segmented.
 void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoint now,
-                                  Output& out) {
+                                  HookOutput hooks, Output& out) {
   const auto [index, sub] = address_;
   if (f.expedited) {
     std::size_t size = 4;
@@ -230,7 +235,8 @@ void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoi
                e && e->fixed_size() && *e->fixed_size() <= 4) {
       size = *e->fixed_size();  // size not indicated: the object's own size
     }
-    const auto verdict = dict_->write_download(index, sub, std::span(f.data).first(size), now);
+    const auto verdict =
+        dict_->write_download(index, sub, std::span(f.data).first(size), now, hooks);
     return confirm_download(verdict, sdo::InitiateDownloadResponse{address_}, out);
   }
   if (f.size) size_ = *f.size;
@@ -246,7 +252,8 @@ void SdoServer::initiate_download(const sdo::InitiateDownloadRequest& f, TimePoi
 }
 
 // CiA 301 §7.2.4.3, SDO download segment protocol: the toggle bit starts at 0 and alternates.
-void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now, Output& out) {
+void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint now,
+                                 HookOutput hooks, Output& out) {
   if (f.toggle != toggle_) return send_abort(SdoAbort::ToggleBitNotAlternated, out);
   if (size_ && buffer_.size() + f.size > *size_) return send_abort(SdoAbort::LengthMismatch, out);
   if (buffer_.size() + f.size > config_.max_download_size) {
@@ -260,7 +267,7 @@ void SdoServer::download_segment(const sdo::DownloadSegmentRequest& f, TimePoint
   buffer_.insert(buffer_.end(), f.data.begin(), f.data.begin() + f.size);
   const sdo::DownloadSegmentResponse response{f.toggle};
   // The response to the last segment confirms the write, so it is sent only after it.
-  if (f.last) return finish_download(response, now, out);
+  if (f.last) return finish_download(response, now, hooks, out);
   toggle_ = !toggle_;
   respond(response, out);
 }
@@ -273,9 +280,11 @@ SdoAbort SdoServer::check_running_size(std::size_t size) const {
 }
 
 template <class Frame>
-void SdoServer::finish_download(const Frame& confirmation, TimePoint now, Output& out) {
+void SdoServer::finish_download(const Frame& confirmation, TimePoint now, HookOutput hooks,
+                                Output& out) {
   if (size_ && buffer_.size() != *size_) return send_abort(SdoAbort::LengthMismatch, out);
-  const auto verdict = dict_->write_download(address_.index, address_.sub_index, buffer_, now);
+  const auto verdict =
+      dict_->write_download(address_.index, address_.sub_index, buffer_, now, hooks);
   confirm_download(verdict, confirmation, out);
 }
 
@@ -383,18 +392,18 @@ void SdoServer::block_download_segment(const sdo::BlockSegment& f, Output& out) 
 // CiA 301 §7.2.4.3, SDO block download protocol: the end request carries n (bytes of the last
 // segment without data) and the CRC of the whole value.
 void SdoServer::block_download_end(const sdo::BlockDownloadEndRequest& f, TimePoint now,
-                                   Output& out) {
+                                   HookOutput hooks, Output& out) {
   if (f.empty_bytes > buffer_.size()) return send_abort(SdoAbort::LengthMismatch, out);
   buffer_.resize(buffer_.size() - f.empty_bytes);
   if (crc_ && sdo_block_crc(buffer_) != f.crc) return send_abort(SdoAbort::CrcError, out);
-  finish_download(sdo::BlockDownloadEndResponse{}, now, out);
+  finish_download(sdo::BlockDownloadEndResponse{}, now, hooks, out);
 }
 
 // CiA 301 §7.2.4.3, SDO block upload protocol: initiate.
 void SdoServer::block_upload_initiate(const sdo::BlockUploadInitiateRequest& f, TimePoint now,
-                                      Output& out) {
+                                      HookOutput hooks, Output& out) {
   if (!sdo::valid_block_size(f.block_size)) return send_abort(SdoAbort::InvalidBlockSize, out);
-  if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now);
+  if (auto code = dict_->read(address_.index, address_.sub_index, buffer_, now, hooks);
       code != SdoAbort::None) {
     return send_abort(code, out);
   }
@@ -501,11 +510,11 @@ const SdoServer* SdoServerChannels::find(std::uint16_t index) const {
 }
 
 std::optional<std::uint16_t> SdoServerChannels::on_frame(
-    const CanFrame& frame, TimePoint now, SdoServer::Output& out,
+    const CanFrame& frame, TimePoint now, SdoServer::Output& out, HookOutput hooks,
     const std::function<void(std::uint16_t)>& before) {
   for (auto& c : channels_) {
     if (before) before(c.index);
-    if (c.server.on_frame(frame, now, out)) return c.index;
+    if (c.server.on_frame(frame, now, out, hooks)) return c.index;
   }
   return std::nullopt;
 }

@@ -30,12 +30,13 @@ bool LocalDictionary::has_object(std::uint16_t index) const {
 }
 
 SdoAbort LocalDictionary::read(std::uint16_t index, std::uint8_t sub,
-                               std::vector<std::uint8_t>& out, TimePoint now) const {
+                               std::vector<std::uint8_t>& out, TimePoint now,
+                               HookOutput hooks) const {
   const auto* e = entry(index, sub);
   if (!e) return has_object(index) ? SdoAbort::SubIndexDoesNotExist : SdoAbort::ObjectDoesNotExist;
   if (!cfg::is_readable(e->access)) return SdoAbort::ReadOfWriteOnly;
   for (const auto& hook : read_hooks_) {
-    if (auto code = hook(index, sub, now); code != SdoAbort::None) return code;
+    if (auto code = hook(index, sub, now, hooks); code != SdoAbort::None) return code;
   }
   // The hook may have replaced the value; look it up again.
   e = entry(index, sub);
@@ -56,19 +57,20 @@ SdoAbort LocalDictionary::check_write(std::uint16_t index, std::uint8_t sub,
 }
 
 SdoAbort LocalDictionary::write(std::uint16_t index, std::uint8_t sub,
-                                std::span<const std::uint8_t> data, TimePoint now) {
-  return write_download(index, sub, data, now).abort;
+                                std::span<const std::uint8_t> data, TimePoint now, HookOutput out) {
+  return write_download(index, sub, data, now, out).abort;
 }
 
 WriteVerdict LocalDictionary::write_download(std::uint16_t index, std::uint8_t sub,
-                                             std::span<const std::uint8_t> data, TimePoint now) {
+                                             std::span<const std::uint8_t> data, TimePoint now,
+                                             HookOutput out) {
   if (auto code = check_write(index, sub, data.size()); code != SdoAbort::None) return code;
   if (auto value = cfg::check_entry_value(*entry(index, sub), data); !value.accepted()) {
     return value.code;
   }
   WriteVerdict accepted;
   for (const auto& hook : write_hooks_) {
-    auto verdict = hook(index, sub, data, now);
+    auto verdict = hook(index, sub, data, now, out);
     if (verdict.abort != SdoAbort::None) return verdict.abort;
     if (verdict.held) accepted.held = verdict.held;
   }
@@ -77,7 +79,7 @@ WriteVerdict LocalDictionary::write_download(std::uint16_t index, std::uint8_t s
   e->bytes.assign(data.begin(), data.end());
   // Observers get a copy's view: an observer may change this entry.
   const std::vector<std::uint8_t> stored = e->bytes;
-  for (const auto& observer : observers_) observer(index, sub, stored, now);
+  for (const auto& observer : observers_) observer(index, sub, stored, now, out);
   return accepted;
 }
 

@@ -1,18 +1,14 @@
 #include "nmt/slave_node.hpp"
 
-#include <algorithm>
-#include <array>
 #include <cstdlib>
 #include <utility>
 
-#include "cfg/bytes.hpp"
 #include "cfg/cob_id.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/network.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
-#include "cfg/write_acceptance.hpp"
 #include "slave/process_picture.hpp"
 
 namespace nmt {
@@ -20,28 +16,6 @@ namespace nmt {
 namespace obj = cfg::object;
 
 namespace {
-
-bool is_program_object(std::uint16_t index) {
-  return index >= obj::kProgramData && index <= obj::kFlashStatusIdentification;
-}
-
-bool in_range(std::uint16_t index, std::uint16_t first, std::uint16_t last) {
-  return index >= first && index <= last;
-}
-
-// 1010h/1011h sub-index -> which indices it covers (CiA 301 §7.5.2.13).
-bool in_area(std::uint8_t area, std::uint16_t index) {
-  switch (area) {
-    case 2:
-      return in_range(index, obj::kCommunicationAreaFirst, obj::kCommunicationAreaLast);
-    case 3:
-      return in_range(index, obj::kProfileAreaFirst, obj::kProfileAreaLast);
-    case 4:
-      return in_range(index, obj::kManufacturerAreaFirst, obj::kManufacturerAreaLast);
-    default:
-      return true;  // 1: all parameters; 05h-7Fh manufacturer-specific: taken as all
-  }
-}
 
 // The frames a part sent, in order, into the node's output (its events the node handles).
 template <class Part>
@@ -182,8 +156,8 @@ void SlaveNode::install_hooks() {
                               std::span<const std::uint8_t> data,
                               TimePoint) { return check_write(index, sub, data); });
   dict_.add_write_observer([this](std::uint16_t index, std::uint8_t sub,
-                                  std::span<const std::uint8_t> data,
-                                  TimePoint now) { after_write(index, sub, data, now); });
+                                  std::span<const std::uint8_t> data, TimePoint now,
+                                  HookOutput hooks) { after_write(index, sub, data, now, hooks); });
   // CiA DSP 302 §8.3: 1F70h of a programmable device (process_picture.hpp).
   detail::install_process_picture(dict_, description_);
 }
@@ -200,13 +174,9 @@ std::optional<ProgramState> SlaveNode::program_state(std::uint8_t program) const
   return it->second;
 }
 
-void SlaveNode::emit(SlaveEvent::Kind kind, TimePoint at, std::string text) {
-  events_.push_back(SlaveEvent{kind, at, std::move(text)});
-}
-
-void SlaveNode::take_events(Output& out) {
-  for (auto& e : events_) out.report(std::move(e));
-  events_.clear();
+void SlaveNode::emit(Output& out, SlaveEvent::Kind kind, TimePoint at, std::string text,
+                     std::optional<cfg::ObjectAddress> object) {
+  out.report(SlaveEvent{kind, at, std::move(text), object});
 }
 
 void SlaveNode::sync_parts() {
@@ -219,7 +189,7 @@ void SlaveNode::sync_parts() {
 // --- resets
 // ---------------------------------------------------------------------------------------
 
-void SlaveNode::power_on(TimePoint now) {
+void SlaveNode::power_on(TimePoint now, Output& out) {
   powered_ = true;
   if (lss_) {
     const std::uint8_t id = lss_stored_ ? lss_stored_->node_id : power_on_node_id_;
@@ -231,7 +201,7 @@ void SlaveNode::power_on(TimePoint now) {
     }
     unconfigured_ = false;
     if (id != nmt_.node_id()) {
-      take_node_id(id, ResetScope::Application, now);
+      take_node_id(id, ResetScope::Application, now, out);
       return;
     }
   }
@@ -246,7 +216,7 @@ void SlaveNode::become_unconfigured(TimePoint now) {
   boot_at_.reset();
 }
 
-void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now) {
+void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now, Output& out) {
   const auto id = cfg::NodeId::from(node_id);
   auto factory = id ? LocalDictionary::from_device(description_, *id)
                     : cfg::Result<LocalDictionary>(cfg::Error{"no node-ID"});
@@ -257,7 +227,7 @@ void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint n
   nmt_ = NmtSlave(*id);
   unconfigured_ = false;
   lss_->activate_pending_node_id();
-  emit(SlaveEvent::Kind::Lss, now, "LSS: node-ID " + std::to_string(node_id));
+  emit(out, SlaveEvent::Kind::Lss, now, "LSS: node-ID " + std::to_string(node_id));
   enter_initialisation(scope, now);
 }
 
@@ -266,17 +236,16 @@ bool SlaveNode::on_lss_frame(const CanFrame& frame, TimePoint now, Output& out) 
   const bool taken = lss_->on_frame(frame, now, lss_out);
   forward_frames(lss_out, out);
   for (const auto& e : lss_out.events) {
-    emit(SlaveEvent::Kind::Lss, now, e.text);
+    emit(out, SlaveEvent::Kind::Lss, now, e.text);
     if (e.kind == LssSlaveEvent::Kind::StoreRequested) {
       lss_stored_ =
           LssStoredConfig{e.node_id, e.bit_timing_index.value_or(lss_->bit_timing_index())};
     }
     // CiA 305 (CANopenNode): a device without node-ID starts with the one it got.
     if (e.kind == LssSlaveEvent::Kind::NodeIdActivate && unconfigured_) {
-      take_node_id(e.node_id, ResetScope::Application, now);
+      take_node_id(e.node_id, ResetScope::Application, now, out);
     }
   }
-  take_events(out);
   return taken;
 }
 
@@ -295,26 +264,6 @@ void SlaveNode::enter_initialisation(ResetScope scope, TimePoint now) {
   heartbeat_.stop();
   boot_at_ = now;
   communication_errors_ = 0;
-}
-
-void SlaveNode::restore(ResetScope scope) {
-  std::vector<cfg::ObjectAddress> addresses;
-  addresses.reserve(dict_.entries().size());
-  for (const auto& [key, entry] : dict_.entries())
-    addresses.push_back({entry.index, entry.sub_index});
-  for (auto [index, sub] : addresses) {
-    if (is_program_object(index)) continue;  // the program has its own memory
-    if (scope == ResetScope::Communication &&
-        !in_range(index, obj::kCommunicationAreaFirst, obj::kCommunicationAreaLast)) {
-      continue;
-    }
-    auto stored = stored_.find(LocalDictionary::key(index, sub));
-    if (stored != stored_.end()) {
-      dict_.set_bytes(index, sub, stored->second);
-    } else if (auto factory = factory_.get_bytes(index, sub)) {
-      dict_.set_bytes(index, sub, *factory);
-    }
-  }
 }
 
 void SlaveNode::configure_services(TimePoint now) {
@@ -359,8 +308,7 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
 
   NmtSlave::Output nmt_out;
   if (nmt_.on_frame(frame, now, nmt_out)) {
-    for (const auto& t : nmt_out.events) apply_nmt(t, now);
-    take_events(out);
+    for (const auto& t : nmt_out.events) apply_nmt(t, now, out);
     return true;
   }
   const NmtServices services = nmt_.services();
@@ -370,7 +318,7 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (services.sdo && !frame.rtr && !frame.error) {
     SdoServer::Output sdo_out;
     in_sdo_ = true;
-    taken = sdo_.on_frame(frame, now, sdo_out).has_value();
+    taken = sdo_.on_frame(frame, now, sdo_out, HookOutput(out)).has_value();
     in_sdo_ = false;
     forward_frames(sdo_out, out);
     if (sdo_changed_) reconfigure_sdo_channels();
@@ -384,7 +332,7 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
       forward_frames(guarding_out, out);
       for (auto event : guarding_out.events) {
         if (event != LifeGuardingEvent::Resolved) continue;
-        emit(SlaveEvent::Kind::LifeGuarding, now, "life guarding resolved");
+        emit(out, SlaveEvent::Kind::LifeGuarding, now, "life guarding resolved");
         communication_recovered("life guarding", now, out);
       }
     }
@@ -392,17 +340,16 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     taken = consumer_.on_frame(frame, now, consumer_out) || taken;
     for (const auto& ev : consumer_out.events) {
       if (ev.kind != HeartbeatEventKind::Resolved) continue;
-      emit(SlaveEvent::Kind::Heartbeat, now,
+      emit(out, SlaveEvent::Kind::Heartbeat, now,
            "heartbeat of node " + std::to_string(ev.node_id) + " resolved");
       communication_recovered("heartbeat", now, out);
     }
   }
-  take_events(out);
   return taken;
 }
 
-void SlaveNode::apply_nmt(const NmtTransition& t, TimePoint now) {
-  emit(SlaveEvent::Kind::StateChange, now,
+void SlaveNode::apply_nmt(const NmtTransition& t, TimePoint now, Output& out) {
+  emit(out, SlaveEvent::Kind::StateChange, now,
        std::string(to_string(t.command)) + ": " + std::string(to_string(t.from)) + " -> " +
            std::string(t.reset ? to_string(*t.reset) : to_string(t.to)));
   if (!t.reset) return;
@@ -410,11 +357,11 @@ void SlaveNode::apply_nmt(const NmtTransition& t, TimePoint now) {
   if (lss_ && lss_->pending_node_id() != lss_->active_node_id()) {
     if (lss_->pending_node_id() == lss::kUnconfigured) {
       lss_->activate_pending_node_id();
-      emit(SlaveEvent::Kind::Lss, now, "LSS: no node-ID");
+      emit(out, SlaveEvent::Kind::Lss, now, "LSS: no node-ID");
       become_unconfigured(now);
       return;
     }
-    take_node_id(lss_->pending_node_id(), *t.reset, now);
+    take_node_id(lss_->pending_node_id(), *t.reset, now, out);
     return;
   }
   enter_initialisation(*t.reset, now);
@@ -428,7 +375,7 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     nmt_.finish_initialisation(now, nmt_out);
     forward_frames(nmt_out, out);
     heartbeat_.on_boot_up(now);
-    emit(SlaveEvent::Kind::Boot, now, "boot-up");
+    emit(out, SlaveEvent::Kind::Boot, now, "boot-up");
   }
   if (nmt_.state() != NmtState::Initialising) {
     sync_parts();
@@ -440,13 +387,13 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     guarding_.on_timer(now, guarding_out);
     for (auto event : guarding_out.events) {
       if (event != LifeGuardingEvent::Occurred) continue;
-      emit(SlaveEvent::Kind::LifeGuarding, now, "life guarding event");
+      emit(out, SlaveEvent::Kind::LifeGuarding, now, "life guarding event");
       communication_error("life guarding", now, out);
     }
     HeartbeatConsumer::Output consumer_out;
     consumer_.on_timer(now, consumer_out);
     for (const auto& ev : consumer_out.events) {
-      emit(SlaveEvent::Kind::Heartbeat, now,
+      emit(out, SlaveEvent::Kind::Heartbeat, now,
            "heartbeat of node " + std::to_string(ev.node_id) + " timed out");
       communication_error("heartbeat", now, out);
     }
@@ -460,7 +407,6 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     // Stopped: a transfer that times out now is not answered.
     if (nmt_.services().sdo) forward_frames(sdo_out, out);
   }
-  take_events(out);
 }
 
 std::optional<TimePoint> SlaveNode::next_deadline() const {
@@ -502,10 +448,9 @@ void SlaveNode::raise_emergency(std::uint16_t error_code, std::uint8_t error_reg
       error_register() | error_register_bits |
       (error_code != emcy_code::kErrorReset ? error_register::kGeneric : 0));
   set_error_register(reg);
-  emit(SlaveEvent::Kind::Emergency, now,
+  emit(out, SlaveEvent::Kind::Emergency, now,
        "EMCY " + cfg::hex_digits(error_code, 4) + " register " + cfg::hex_digits(reg, 2));
   send_emcy({error_code, reg, {}}, now, out);
-  take_events(out);
 }
 
 void SlaveNode::communication_error(const std::string& what, TimePoint now, Output& out) {
@@ -514,7 +459,7 @@ void SlaveNode::communication_error(const std::string& what, TimePoint now, Outp
                                              error_register::kCommunication);
   set_error_register(reg);
   // spec/002: "Node 1 send an EMCY indicating the lifeguard error" (8130h).
-  emit(SlaveEvent::Kind::Emergency, now,
+  emit(out, SlaveEvent::Kind::Emergency, now,
        "EMCY " + cfg::hex_digits(emcy_code::kLifeGuardOrHeartbeat, 4) + " (" + what + ")");
   send_emcy({emcy_code::kLifeGuardOrHeartbeat, reg, {}}, now, out);
   // CiA 301 §7.5.2.32 (1029h sub 1): 0 pre-operational (only from operational), 1 no change,
@@ -522,9 +467,10 @@ void SlaveNode::communication_error(const std::string& what, TimePoint now, Outp
   if (auto behaviour = dict_.get_unsigned(obj::kErrorBehaviour, 1)) {
     if (*behaviour == 0 && nmt_.state() == NmtState::Operational) {
       nmt_.set_state(NmtState::PreOperational);
-      emit(SlaveEvent::Kind::StateChange, now, "error behaviour: operational -> pre-operational");
+      emit(out, SlaveEvent::Kind::StateChange, now,
+           "error behaviour: operational -> pre-operational");
     } else if (*behaviour == 2 && nmt_.state() != NmtState::Stopped) {
-      emit(SlaveEvent::Kind::StateChange, now,
+      emit(out, SlaveEvent::Kind::StateChange, now,
            "error behaviour: " + std::string(to_string(nmt_.state())) + " -> stopped");
       nmt_.set_state(NmtState::Stopped);
     }
@@ -538,182 +484,9 @@ void SlaveNode::communication_recovered(const std::string& what, TimePoint now, 
       error_register() & ~(error_register::kCommunication | error_register::kGeneric));
   set_error_register(reg);
   // CiA 301 §7.2.7.1: error code 0000h tells that an error condition has gone.
-  emit(SlaveEvent::Kind::Emergency, now,
+  emit(out, SlaveEvent::Kind::Emergency, now,
        "EMCY " + cfg::hex_digits(emcy_code::kErrorReset, 4) + " (" + what + " recovered)");
   send_emcy({emcy_code::kErrorReset, reg, {}}, now, out);
-}
-
-// --- dictionary hooks
-// -----------------------------------------------------------------------------
-
-bool SlaveNode::is_stored_parameter(std::uint16_t index, std::uint8_t sub) const {
-  if (index == obj::kStoreParameters || index == obj::kRestoreDefaultParameters ||
-      is_program_object(index)) {
-    return false;
-  }
-  const DictionaryEntry* e = dict_.entry(index, sub);
-  return e != nullptr && cfg::is_writable(e->access);
-}
-
-SdoAbort SlaveNode::check_write(std::uint16_t index, std::uint8_t sub,
-                                std::span<const std::uint8_t> data) const {
-  // CiA 301's rules of the communication objects (signatures, COB-IDs, consumer heartbeat, PDO
-  // parameters and mapping): libcfg's, which `cfgmgr check` applies to a file's download.
-  const cfg::DeviceWriteRules rules{&description_.dummy_usage};
-  if (auto verdict = cfg::check_object_rules(dict_.entries(), rules, index, sub, data);
-      !verdict.accepted()) {
-    return verdict.code;
-  }
-  return check_program_write(index, sub, data);
-}
-
-SdoAbort SlaveNode::check_program_write(std::uint16_t index, std::uint8_t sub,
-                                        std::span<const std::uint8_t> data) const {
-  if (index == obj::kProgramData && sub != 0) {
-    // Program data may only replace a program that is not running.
-    auto it = programs_.find(sub);
-    if (it != programs_.end() && it->second == ProgramState::Running) return SdoAbort::DeviceState;
-    return SdoAbort::None;
-  }
-  if (index == obj::kProgramControl && sub != 0 && !data.empty()) {
-    auto it = programs_.find(sub);
-    const ProgramState state = it == programs_.end() ? ProgramState::NoProgram : it->second;
-    // DSP 302 §9: "If the action is not possible, the Device responds with ... 0800 0024h".
-    switch (data[0]) {
-      case 0:  // stop
-        return SdoAbort::None;
-      case 1:  // start
-      case 2:  // reset
-        return state == ProgramState::NoProgram ? SdoAbort::NoDataAvailable : SdoAbort::None;
-      case 3:  // clear (CiA 302-3): not while running
-        return state == ProgramState::Running ? SdoAbort::NoDataAvailable : SdoAbort::None;
-      default:
-        return SdoAbort::ValueRangeExceeded;
-    }
-  }
-  return SdoAbort::None;
-}
-
-void SlaveNode::set_program_state(std::uint8_t program, ProgramState state) {
-  programs_[program] = state;
-  dict_.set_unsigned(obj::kProgramControl, program, static_cast<std::uint8_t>(state));
-}
-
-void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
-                            std::span<const std::uint8_t> data, TimePoint now) {
-  emit(SlaveEvent::Kind::SdoWrite, now,
-       cfg::to_string({index, sub}) + " = " + std::to_string(data.size()) + " byte(s)");
-
-  if (index == obj::kStoreParameters || index == obj::kRestoreDefaultParameters) {
-    if (sub != 0) {
-      if (index == obj::kStoreParameters) {
-        save(sub, now);
-      } else {
-        restore_defaults(sub, now);
-      }
-      // Reads keep telling what the device supports, not the signature.
-      if (auto factory = factory_.get_bytes(index, sub)) dict_.set_bytes(index, sub, *factory);
-    }
-    return;
-  }
-  // DSP 302 §6.3: changing a boot-up configuration value invalidates 1020h.
-  if (index != obj::kVerifyConfiguration && is_stored_parameter(index, sub)) {
-    dict_.set_unsigned(obj::kVerifyConfiguration, 1, 0);
-    dict_.set_unsigned(obj::kVerifyConfiguration, 2, 0);
-  }
-
-  if (obj::is_sdo_server_parameter(index) && (sub == 1 || sub == 2)) {
-    // Takes effect without a reset (CiA 301 §7.5.2.33); inside an SDO call after its answer.
-    sdo_changed_ = true;
-    if (!in_sdo_) reconfigure_sdo_channels();
-  }
-
-  switch (index) {
-    case obj::kProducerHeartbeatTime:
-      heartbeat_.set_period(static_cast<std::uint16_t>(cfg::low_le32(data)), now);
-      break;
-    case obj::kGuardTime:
-    case obj::kLifeTimeFactor:
-      guarding_.configure(
-          static_cast<std::uint16_t>(dict_.get_unsigned(obj::kGuardTime, 0).value_or(0)),
-          static_cast<std::uint8_t>(dict_.get_unsigned(obj::kLifeTimeFactor, 0).value_or(0)));
-      break;
-    case obj::kCobIdEmcy:
-      emcy_.set_cob_id(cfg::CobId::from_word(cfg::low_le32(data)));
-      break;
-    case obj::kInhibitTimeEmcy:
-      emcy_.set_inhibit_time(static_cast<std::uint16_t>(cfg::low_le32(data)));
-      break;
-    case obj::kConsumerHeartbeatTime:
-      if (sub != 0) restart_consumer(now);
-      break;
-    case obj::kProgramControl:
-      if (sub != 0 && !data.empty()) {
-        static constexpr std::array<ProgramState, 4> kAfter{
-            ProgramState::Stopped, ProgramState::Running, ProgramState::Stopped,
-            ProgramState::NoProgram};
-        set_program_state(sub, kAfter[data[0] & 3]);
-        emit(SlaveEvent::Kind::Program, now,
-             "program " + std::to_string(sub) + " control " + std::to_string(data[0]));
-      }
-      break;
-    case obj::kProgramData:
-      if (sub != 0) {
-        set_program_state(sub, ProgramState::Stopped);
-        if (dict_.entry(obj::kProgramSoftwareIdentification, sub)) {
-          dict_.set_unsigned(obj::kProgramSoftwareIdentification, sub, cfg::crc32(data));
-        }
-        // DSP 302 §9: 1F52h verifies "the stored program number 1"; the new image's date and
-        // time come from the options (unset: the node does not know them, 1F52h stays).
-        if (sub == 1 && options_.downloaded_program_version) {
-          const auto& v = *options_.downloaded_program_version;
-          if (dict_.entry(obj::kVerifyApplicationSoftware, 1)) {
-            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 1, v.date_days);
-          }
-          if (dict_.entry(obj::kVerifyApplicationSoftware, 2)) {
-            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 2, v.time_ms);
-          }
-        }
-        emit(SlaveEvent::Kind::Program, now,
-             "program " + std::to_string(sub) + " downloaded, " + std::to_string(data.size()) +
-                 " bytes");
-      }
-      break;
-    default:
-      break;
-  }
-}
-
-void SlaveNode::save(std::uint8_t area, TimePoint now) {
-  std::size_t count = 0;
-  for (const auto& [key, entry] : dict_.entries()) {
-    if (!in_area(area, entry.index) || !is_stored_parameter(entry.index, entry.sub_index)) continue;
-    stored_[key] = entry.bytes;
-    ++count;
-  }
-  emit(SlaveEvent::Kind::Stored, now,
-       "saved " + std::to_string(count) + " parameters (" +
-           cfg::to_string({obj::kStoreParameters, area}) + ")");
-}
-
-void SlaveNode::set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values) {
-  std::erase_if(values, [this](const auto& kv) {
-    return !is_stored_parameter(static_cast<std::uint16_t>(kv.first >> 8),
-                                static_cast<std::uint8_t>(kv.first & 0xFF));
-  });
-  stored_ = std::move(values);
-}
-
-void SlaveNode::set_lss_stored(std::optional<LssStoredConfig> stored) {
-  if (lss_) lss_stored_ = stored;
-}
-
-void SlaveNode::restore_defaults(std::uint8_t area, TimePoint now) {
-  // CiA 301 §7.5.2.14: defaults become effective at the next reset; until then nothing changes.
-  std::erase_if(stored_, [area](const auto& kv) { return in_area(area, kv.first >> 8 & 0xFFFF); });
-  emit(SlaveEvent::Kind::Restored, now,
-       "defaults requested (" + cfg::to_string({obj::kRestoreDefaultParameters, area}) +
-           "), effective at next reset");
 }
 
 }  // namespace nmt

@@ -90,7 +90,7 @@ class SdoSession {
   std::optional<SrdEvent> take_event(std::initializer_list<SrdEvent::Kind> kinds);
   std::optional<SrdEvent> take_event(const std::function<bool(const SrdEvent&)>& wanted);
   cfg::Result<SdoResult> run_srd(
-      const std::function<std::optional<SdoRequestingDevice::TransferId>(
+      const std::function<cfg::Result<SdoRequestingDevice::TransferId>(
           SdoRequestingDevice&, TimePoint, SdoRequestingDevice::Output&)>& start);
   void progress(const std::string& line) const;
 

@@ -184,7 +184,7 @@ class FaultInjectedSlave {
 
   // --- engine (nmt/engine.hpp) ---------------------------------------------------------------
   /// Power-on (or power cycle) at `now`; the boot-up follows after faults().boot_delay.
-  void power_on(TimePoint now);
+  void power_on(TimePoint now, Output& out);
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;

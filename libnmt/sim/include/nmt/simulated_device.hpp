@@ -5,7 +5,7 @@
 //   auto device = nmt::SimulatedDevice::create(description, 5, faults);
 //   nmt::SimEngineNode<nmt::SimulatedDevice> node(std::move(device).value());
 //   bus.attach(node);
-//   node.apply([](auto& d, nmt::TimePoint now, auto&) { d.power_on(now); });
+//   node.apply([](auto& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
 #pragma once
 
 #include <cstdint>

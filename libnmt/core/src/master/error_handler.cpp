@@ -1,0 +1,99 @@
+// NmtMaster: what the master does with the error control messages it hears, the boot-up
+// handler (CiA 302-2 §4.3) and the error handler (§4.2, DSP 302 §5.3) that act on a boot-up or
+// a lost heartbeat or guarding of a slave.
+#include "master/nmt_master_impl.hpp"
+
+namespace nmt {
+
+// --- error control messages, the boot-up handler (§4.3) and the error handler (§4.2) ---
+
+void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimePoint now,
+                                       Output& out) {
+  const auto node = message.node_id;
+  if (node == node_id.value() || !cfg::is_node_id(node)) return;
+  if (message.byte == 0) {
+    on_boot_up(node, now, out);
+    return;
+  }
+  const auto state = message.state();
+  if (!state) return;
+  auto& b = boot(node);
+  if (b.awaits_guard_reply()) {
+    set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+    b.on_guard_reply(*state, now, out);
+    return;
+  }
+  // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
+  if (!message.toggle()) {
+    slaves[node].heartbeat_at = now;
+    if (b.awaits_heartbeat()) {
+      set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+      b.on_heartbeat(*state, now, out);
+      return;
+    }
+  }
+  set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+}
+
+void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
+  sdo_manager.node_booted(node, now, out);  // an SRD that booted forgot its entries
+  const bool assigned = is_slave(node);
+  auto e =
+      master_event(MasterEvent::Kind::BootUp, now, node,
+                   node_text(node) + ": boot-up" + (assigned ? "" : " (not a slave in 1F81h)"));
+  e.assigned = assigned;
+  report(out, std::move(e));
+  auto& s = slaves[node];
+  s.heartbeat_at.reset();
+  set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
+  if (!assigned) return;  // §3.1: unlisted devices are the application's concern
+  if (boot(node).on_boot_up(now, out)) return;
+  if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master() ||
+      startup == StartupState::ExecutingLss) {
+    return;  // Execute LSS: the reset of all nodes follows
+  }
+  stop_error_control(node);
+  // DSP 302 §5.4: a slave whose state was set by request NMT is not rebooted automatically.
+  if (s.held) return;
+  // §4.3 / Table 20: 1F81h bit 2 allows configuring and starting it again.
+  if (assignment(node).boot_slave()) start_boot(node, false, now, out);
+}
+
+void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out) {
+  report(out,
+         master_event(
+             heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
+             node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
+  set_known_state(node, 1, now, out);
+  if (!is_slave(node) || slaves[node].held) return;
+  const auto a = assignment(node);
+  const auto config = startup_config();
+  // Figure 12 and the note of DSP 302 §5.3: for a mandatory slave, "stop all nodes" with 1F80h
+  // bit 6, else "reset all nodes" with bit 4 (the master included: start-up runs again).
+  if (a.mandatory() && config.stop_all_nodes()) {
+    queue_nmt(NmtCommand::Stop, 0);
+    return;
+  }
+  if (a.mandatory() && config.reset_all_nodes()) {
+    queue_nmt(NmtCommand::ResetNode, 0);
+    startup_due = now;
+    return;
+  }
+  stop_error_control(node);
+  // Table 12, bit 4 = 0: reset node of that mandatory slave; its boot-up starts its boot again
+  // (boot-up handler).
+  if (a.mandatory()) {
+    queue_nmt(NmtCommand::ResetNode, node);
+    return;
+  }
+  // An optional slave: start process boot NMT slave again (DSP 302 §5.3), if 1F81h bit 2
+  // allows; its heartbeat or guarding is started again by the boot.
+  if (a.boot_slave()) start_boot(node, false, now, out);
+}
+
+void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
+  heartbeats.stop(node);
+  guarding.stop(node);
+}
+
+}  // namespace nmt
