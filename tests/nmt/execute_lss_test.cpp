@@ -307,8 +307,9 @@ class MasterLss : public ::testing::Test {
     auto& slot = devices[serial];
     slot = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
     bus.attach(*slot);
-    slot->apply(
-        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output&) { d.power_on(now); });
+    slot->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
+      d.power_on(now, out);
+    });
     return slot->engine();
   }
   void start() {
