@@ -45,7 +45,7 @@ void run_master(const MasterCliOptions& options) {
   const std::optional<SimBusOptions> sim = parse_bus_url("master", options.bus);
   if (options.net == 0)
     fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network = load_network_or_exit(options.network, options.net);
+  const auto network = load_network_or_exit(options.network, options.net, options.programs);
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager = options.sdo_manager;

@@ -24,6 +24,13 @@ namespace cfgmgr {
 /// Exit code when NMT start-up did not end in operation (a mandatory node failed).
 inline constexpr int kExitMandatoryFailed = 4;
 
+/// --program NODE=FILE and --program-version NODE=VERSION as given (each repeatable): they
+/// override the description's NodeXProgramFile=/NodeXProgramVersion= (cfg::set_node_program).
+struct ProgramOverrides {
+  std::vector<std::string> files;
+  std::vector<std::string> versions;
+};
+
 /// The arguments every command that runs a network takes.
 struct NetworkRunArgs {
   std::string network;  ///< the description (project file or master DCF)
@@ -31,6 +38,7 @@ struct NetworkRunArgs {
   std::string node_id;  ///< --node-id as given; empty: the default
   unsigned net = 1;     ///< --net
   bool verbose = false;
+  ProgramOverrides programs;
 };
 
 /// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
@@ -62,8 +70,10 @@ std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size
 /// and ends the command with exit 2 on anything else.
 std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text);
 
-/// The network loaded (diagnostics printed; exit 1 on errors, 3 when unreadable).
-std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net);
+/// The network loaded, `programs` applied and cfg::check_programs run (diagnostics printed;
+/// exit 1 on errors, 3 when unreadable, 2 for a malformed --program/--program-version).
+std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net,
+                                                         const ProgramOverrides& programs = {});
 
 /// The master of `network` with node-ID `node_id_text` (empty: the network's, else 7Fh) and
 /// `options` (its configurations come from the network). It is the configuration manager

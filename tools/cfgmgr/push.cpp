@@ -463,7 +463,7 @@ void run_push(const PushCliOptions& options) {
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
   }
   if (!options.only.empty()) parse_only(kTool, options.only);  // a usage error before any file
-  const auto network = load_network_or_exit(options.network, options.net);
+  const auto network = load_network_or_exit(options.network, options.net, options.programs);
   const auto selected = selected_nodes(*network, options);
   if (options.dry_run) {
     print_plan(selected, options);
