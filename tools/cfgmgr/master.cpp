@@ -54,6 +54,7 @@ void run_master(const MasterCliOptions& options) {
 
   tools::ReportFile json = open_report_or_exit(options.json_events);
   EventReporter reporter(options.verbose, json.stream());
+  reporter.track_programs(network);
   RunLimits limits;
   limits.tool = "master";
   limits.run_for_s = options.run_for_s;

@@ -225,6 +225,9 @@ void EventReporter::report(const nmt::MasterEvent& e) {
     if (observer_) observer_(e);
     return;
   }
+  if (const auto updated = programs_.observe(e)) {
+    note(seconds_text(start_, e.at) + "  " + *updated);
+  }
   std::string line;
   const std::string node = "node " + std::to_string(e.node_id) + ": ";
   bool again = false;

@@ -18,6 +18,7 @@
 #include "network_source.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/nmt_master.hpp"
+#include "program_updates.hpp"
 
 namespace cfgmgr {
 
@@ -116,6 +117,13 @@ class EventReporter {
     note_handler_ = std::move(handler);
   }
 
+  /// Follows each node's software update (DSP 302 §9) and prints "node N: program updated: ..."
+  /// when one succeeds (also when quiet: a live view shows it above itself).
+  void track_programs(std::shared_ptr<const cfg::Network> network) {
+    programs_ = ProgramUpdates(std::move(network));
+  }
+  const ProgramUpdates& programs() const { return programs_; }
+
   bool finished() const { return finished_; }
   bool complete() const { return complete_; }
   bool halted() const { return halted_; }
@@ -129,6 +137,7 @@ class EventReporter {
   std::ostream* json_;
   std::function<void(const nmt::MasterEvent&)> observer_;
   std::function<void(const std::string&)> note_handler_;
+  ProgramUpdates programs_;
   std::set<std::uint8_t> booted_;
   std::set<std::uint8_t> ignored_;
   bool finished_ = false;

@@ -392,7 +392,8 @@ double node_seconds(const NodeReport& r, nmt::TimePoint start) {
 
 // The table (node, name, result, entries, time) within 100 columns whatever the messages, then
 // one line per node whose result has words to it: "node 2 (io): error D: ...".
-void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
+void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start,
+                 const ProgramUpdates& programs) {
   constexpr std::size_t kNameWidth = 32;  // longer names are cut ("...") in the table only
   std::size_t name_width = 4;
   std::size_t result_width = 6;
@@ -418,6 +419,21 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
               << pad(result_text(r), result_width) << "  " << entries << "  " << seconds << '\n';
   }
   bool first = true;
+  // DSP 302 §9: each node whose program was downloaded in this run, with what it took.
+  for (const auto& r : nodes) {
+    const ProgramUpdate* u = programs.find(r.node_id);
+    if (u == nullptr || !u->updated) continue;
+    if (first) std::cout << '\n';
+    first = false;
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%.3f s", u->seconds());
+    std::cout << "node " << static_cast<int>(r.node_id)
+              << (r.name.empty() ? "" : " (" + r.name + ")")
+              << ": program updated: " << tools::plural(u->total, "byte") << " in " << seconds
+              << ", before "
+              << (u->before ? cfg::to_string(*u->before) : std::string("(not reported)"))
+              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?")) << '\n';
+  }
   for (const auto& r : nodes) {
     if (r.result != Result::Error) continue;
     if (first) std::cout << '\n';
@@ -430,7 +446,7 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start) {
 
 // The --json report (fixed keys of the configuration manager issue; "mandatory" added).
 std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Duration elapsed,
-                        nmt::TimePoint start) {
+                        nmt::TimePoint start, const ProgramUpdates& programs) {
   char number[32];
   std::snprintf(number, sizeof number, "%.6f", static_cast<double>(elapsed.count()) / 1e6);
   std::string out = std::string("{\"ok\": ") + (ok ? "true" : "false") +
@@ -446,7 +462,8 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
            ", \"entries\": " + std::to_string(r.entries) +
            ", \"bytes\": " + std::to_string(r.bytes) +
            ", \"retries\": " + std::to_string(r.retries) + ", \"seconds\": " + number +
-           ", \"mandatory\": " + (r.mandatory ? "true" : "false") + "}";
+           ", \"mandatory\": " + (r.mandatory ? "true" : "false") +
+           ", \"program\": " + programs.json(r.node_id) + "}";
     first = false;
   }
   return out + "]}\n";
@@ -521,6 +538,7 @@ void run_push(const PushCliOptions& options) {
 
   Collector collector(std::move(reports));
   EventReporter reporter(options.verbose, nullptr);
+  reporter.track_programs(network);
   reporter.ignore_nodes(left_out);
   std::optional<LiveView> view;
   if (LiveView::wanted()) {
@@ -554,9 +572,10 @@ void run_push(const PushCliOptions& options) {
   for (const auto& r : collector.nodes()) {
     if (r.mandatory && r.result == Result::Error) ok = false;
   }
-  print_table(collector.nodes(), reporter.start());
+  print_table(collector.nodes(), reporter.start(), reporter.programs());
   if (json.stream() != nullptr) {
-    finish_report_or_exit(json, json_report(collector.nodes(), ok, elapsed, reporter.start()));
+    finish_report_or_exit(
+        json, json_report(collector.nodes(), ok, elapsed, reporter.start(), reporter.programs()));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }
@@ -579,7 +598,9 @@ void add_push_command(CLI::App& app) {
          "nodes [{node_id, name, result (configured/skipped/error), status (with an error: "
          "its CiA 302-2 letter, or not_tried / unfinished when its boot did not end "
          "before the run did; null otherwise), message, entries, bytes, retries, "
-         "seconds, mandatory}]")
+         "seconds, mandatory, program: null, or for a node whose program was downloaded (DSP "
+         "302 §9) {updated, before, after (each null or {date_days, time_ms, text}), bytes, "
+         "seconds}}]")
       ->type_name("FILE");
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "
