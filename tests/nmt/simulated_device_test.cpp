@@ -580,7 +580,7 @@ TEST(SimulatedDevice, ProgramSurvivesResetAndStartsAgain) {
 // (date(2024,3,1) - date(1984,1,1)).days == 14670, 14:30:15.250 == 52 215 250 ms.
 constexpr std::uint32_t kFileDate = 13315;
 constexpr std::uint32_t kFileTime = 28'800'000;
-constexpr ApplicationSoftwareVersion kDownloadedVersion{14670, 52'215'250};
+constexpr cfg::ProgramVersion kDownloadedVersion{14670, 52'215'250};
 
 // sim_device.eds plus 1F52h as the device file of a device that has it would declare it; sub 1
 // and 2 with `access` (the spec tables say rw; CiA 302-3 devices commonly declare ro).

@@ -68,6 +68,7 @@
 
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/program_image.hpp"
 #include "cfg/result.hpp"
 #include "nmt/emcy.hpp"
 #include "nmt/engine.hpp"
@@ -105,13 +106,6 @@ std::string_view to_string(SlaveEvent::Kind kind);
 /// Program control states as 1F51h reads them (CiA 302-3; DSP 302 §9 has 0-2).
 enum class ProgramState : std::uint8_t { Stopped = 0, Running = 1, NoProgram = 3 };
 
-/// Version of an application program as 1F52h sub 1/2 hold it (DSP 302 §9, CiA 302-3).
-struct ApplicationSoftwareVersion {
-  std::uint32_t date_days = 0;  ///< days since 1 January 1984 (sub 1)
-  std::uint32_t time_ms = 0;    ///< milliseconds after midnight (sub 2)
-  bool operator==(const ApplicationSoftwareVersion&) const = default;
-};
-
 /// What a slave node cannot take from its device file.
 struct SlaveNodeOptions {
   /// The version 1F52h reports once a new program number 1 has been downloaded (1F50h sub 1
@@ -119,7 +113,7 @@ struct SlaveNodeOptions {
   /// downloads says it here. nullopt (default): 1F52h keeps the value it had. Only program 1:
   /// DSP 302 §9 gives 1F52h to "the stored program number 1". Has no effect when the device
   /// file has no 1F52h (nothing is added).
-  std::optional<ApplicationSoftwareVersion> downloaded_program_version;
+  std::optional<cfg::ProgramVersion> downloaded_program_version;
   /// A segmented or block SDO transfer with no request for this long is aborted with 0504 0000
   /// (SdoServerConfig::timeout).
   Duration sdo_server_timeout = std::chrono::milliseconds(2000);

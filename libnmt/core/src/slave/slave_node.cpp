@@ -602,7 +602,8 @@ void SlaveNode::set_program_state(std::uint8_t program, ProgramState state) {
 void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
                             std::span<const std::uint8_t> data, TimePoint now) {
   emit(SlaveEvent::Kind::SdoWrite, now,
-       cfg::to_string({index, sub}) + " = " + std::to_string(data.size()) + " byte(s)");
+       cfg::to_string(cfg::ObjectAddress{index, sub}) + " = " + std::to_string(data.size()) +
+           " byte(s)");
 
   if (index == obj::kStoreParameters || index == obj::kRestoreDefaultParameters) {
     if (sub != 0) {
@@ -693,7 +694,7 @@ void SlaveNode::save(std::uint8_t area, TimePoint now) {
   }
   emit(SlaveEvent::Kind::Stored, now,
        "saved " + std::to_string(count) + " parameters (" +
-           cfg::to_string({obj::kStoreParameters, area}) + ")");
+           cfg::to_string(cfg::ObjectAddress{obj::kStoreParameters, area}) + ")");
 }
 
 void SlaveNode::set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values) {
@@ -712,7 +713,8 @@ void SlaveNode::restore_defaults(std::uint8_t area, TimePoint now) {
   // CiA 301 §7.5.2.14: defaults become effective at the next reset; until then nothing changes.
   std::erase_if(stored_, [area](const auto& kv) { return in_area(area, kv.first >> 8 & 0xFFFF); });
   emit(SlaveEvent::Kind::Restored, now,
-       "defaults requested (" + cfg::to_string({obj::kRestoreDefaultParameters, area}) +
+       "defaults requested (" +
+           cfg::to_string(cfg::ObjectAddress{obj::kRestoreDefaultParameters, area}) +
            "), effective at next reset");
 }
 
