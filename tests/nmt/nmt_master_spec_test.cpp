@@ -1045,7 +1045,7 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
   const std::vector<std::uint8_t> image(300, 0x5A);
   rig.configurations->programs[3] = image;
   SlaveNodeOptions updated;
-  updated.downloaded_program_version = ApplicationSoftwareVersion{kSoftwareDate + 1, kSoftwareTime};
+  updated.downloaded_program_version = cfg::ProgramVersion{kSoftwareDate + 1, kSoftwareTime};
   rig.two_slaves({}, slave_eds(), updated);
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());

@@ -17,20 +17,12 @@ namespace nmt {
 namespace obj = cfg::object;
 using Phase = BootSlaveProcess::Phase;
 
-namespace {
-
-std::string stamp_text(cfg::ConfigurationStamp stamp) {
-  return "day " + std::to_string(stamp.days) + ", " + std::to_string(stamp.ms) + " ms";
-}
-
-}  // namespace
-
 std::uint32_t uploaded_u32(const SdoResult& result) {
   return cfg::low_le32(result.data);
 }
 
 std::string transfer_failure(const SdoResult& result) {
-  return cfg::to_string({result.index, result.sub_index}) +
+  return cfg::to_string(cfg::ObjectAddress{result.index, result.sub_index}) +
          (result.upload ? " upload" : " download") + " failed: " + to_string(result.abort);
 }
 
@@ -200,7 +192,8 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
       if (!match) {
         failed(
             error,
-            cfg::to_string({obj::kIdentity, sub}) + " is " + cfg::hex(actual, 8) + ", " +
+            cfg::to_string(cfg::ObjectAddress{obj::kIdentity, sub}) + " is " + cfg::hex(actual, 8) +
+                ", " +
                 cfg::object_name(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1)) +
                 " expects " + cfg::hex(expected, 8),
             now, out);
@@ -217,10 +210,10 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
         return;
       }
       if (phase_ == Phase::ReadSoftwareDate) {
-        software_.days = uploaded_u32(r);
+        software_.date_days = uploaded_u32(r);
         upload(Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
       } else {
-        software_.ms = uploaded_u32(r);
+        software_.time_ms = uploaded_u32(r);
         software_checked(now, out);
       }
       return;
@@ -315,7 +308,7 @@ void BootSlaveProcess::check_software(TimePoint now, Output& out) {
     check_configuration(now, out);
     return;
   }
-  if (expect.software.is_zero()) {
+  if (expect.software == cfg::ProgramVersion{}) {
     failed(BootError::G,
            "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
                cfg::hex(node_.value(), 2) + "h are 0",
@@ -332,8 +325,8 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     check_configuration(now, out);
     return;
   }
-  const std::string versions = "1F52h reports " + stamp_text(software_) + ", 1F53h/1F54h expect " +
-                               stamp_text(expect.software);
+  const std::string versions = "1F52h reports " + cfg::to_string(software_) +
+                               ", 1F53h/1F54h expect " + cfg::to_string(expect.software);
   if (software_updated_) {
     failed(BootError::I, "after the program download " + versions, now, out);
     return;

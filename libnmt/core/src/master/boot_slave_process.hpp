@@ -21,6 +21,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
+#include "cfg/program_image.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
@@ -35,7 +36,7 @@ struct BootSlaveExpectations {
   std::uint32_t device_type = 0;    ///< 1F84h (0: not checked)
   /// 1F85h-1F88h: vendor-ID, product code, revision number, serial number (0: not checked).
   std::array<std::uint32_t, 4> identity{};
-  cfg::ConfigurationStamp software;       ///< 1F53h/1F54h
+  cfg::ProgramVersion software;           ///< 1F53h/1F54h (DSP 302 §9)
   cfg::ConfigurationStamp configuration;  ///< 1F26h/1F27h, or the configuration manager's stamp
   std::uint8_t restore_sub = 0;           ///< 1F8Ah (§6.12; 0: no restore)
   std::uint32_t boot_time_ms = 0;         ///< 1F89h (§6.11; 0: no limit)
@@ -244,7 +245,7 @@ class BootSlaveProcess {
 
   // Data of the current try.
   std::uint8_t identity_sub_ = 0;
-  cfg::ConfigurationStamp software_;  ///< 1F52h as read
+  cfg::ProgramVersion software_;      ///< 1F52h as read
   cfg::ConfigurationStamp verify_;    ///< 1020h as read
   std::vector<std::uint16_t> cob_ids_to_read_;
   std::map<std::uint16_t, std::uint32_t> cob_ids_read_;

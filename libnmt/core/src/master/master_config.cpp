@@ -63,8 +63,8 @@ class DictionaryWriter {
     // A DCF may list fewer sub-indices (1F81h with SubNumber=3): an absent entry reads as 0 to
     // the master (value_of), so 0 needs no entry; any other value does.
     if (value == 0 && !dict_.get_unsigned(index, sub)) return;
-    problem_ = "the master DCF has no " + cfg::to_string({index, sub}) + " for the value " +
-               std::to_string(value);
+    problem_ = "the master DCF has no " + cfg::to_string(cfg::ObjectAddress{index, sub}) +
+               " for the value " + std::to_string(value);
   }
   void fail(std::string problem) {
     if (problem_.empty()) problem_ = std::move(problem);
@@ -197,7 +197,8 @@ cfg::Status MasterConfig::validate() const {
       // §6.6-§6.10: 0 means "not checked"; an expected 0 cannot be said.
       if (*fields[i] == std::optional<std::uint32_t>{0}) {
         return error(who + "expected " + kNames[i] + " 0 means 'not checked' in " +
-                     cfg::to_string({kIdentityObjects[i], s.node.value()}) + "; leave it unset");
+                     cfg::to_string(cfg::ObjectAddress{kIdentityObjects[i], s.node.value()}) +
+                     "; leave it unset");
       }
     }
   }

@@ -139,7 +139,8 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   if (transfer.for_application) {
     auto e = master_event(
         MasterEvent::Kind::SdoFinished, now, result.node_id,
-        node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
+        node_text(result.node_id) + ": " +
+            cfg::to_string(cfg::ObjectAddress{result.index, result.sub_index}) +
             (result.upload ? " upload " : " download ") +
             (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
     e.sdo = result;

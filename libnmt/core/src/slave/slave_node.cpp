@@ -597,6 +597,7 @@ SdoAbort SlaveNode::check_program_write(std::uint16_t index, std::uint8_t sub,
 void SlaveNode::set_program_state(std::uint8_t program, ProgramState state) {
   programs_[program] = state;
   dict_.set_unsigned(obj::kProgramControl, program, static_cast<std::uint8_t>(state));
+  program_state_changed(program, state);  // program_memory.cpp
 }
 
 void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
@@ -659,26 +660,7 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
       }
       break;
     case obj::kProgramData:
-      if (sub != 0) {
-        set_program_state(sub, ProgramState::Stopped);
-        if (dict_.entry(obj::kProgramSoftwareIdentification, sub)) {
-          dict_.set_unsigned(obj::kProgramSoftwareIdentification, sub, cfg::crc32(data));
-        }
-        // DSP 302 §9: 1F52h verifies "the stored program number 1"; the new image's date and
-        // time come from the options (unset: the node does not know them, 1F52h stays).
-        if (sub == 1 && options_.downloaded_program_version) {
-          const auto& v = *options_.downloaded_program_version;
-          if (dict_.entry(obj::kVerifyApplicationSoftware, 1)) {
-            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 1, v.date_days);
-          }
-          if (dict_.entry(obj::kVerifyApplicationSoftware, 2)) {
-            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 2, v.time_ms);
-          }
-        }
-        emit(SlaveEvent::Kind::Program, now,
-             "program " + std::to_string(sub) + " downloaded, " + std::to_string(data.size()) +
-                 " bytes");
-      }
+      if (sub != 0) program_downloaded(sub, data, now);  // program_memory.cpp
       break;
     default:
       break;
