@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "push_test_support.hpp"
 #include "tool_test_support.hpp"
 
 namespace {
@@ -199,6 +200,87 @@ TEST(PushProgram, AnOverrideForANodeNotInTheNetworkOrAMissingFileIsAnError) {
       cfgmgr(dir, {"push", data("program.cpj"), "--bus", "sim:", "--program", "3=absent.img"});
   EXPECT_EQ(m.exit_code, 1);
   EXPECT_THAT(m.err, HasSubstr("--program: error: node 3: 'absent.img': cannot open the file"));
+}
+
+// --- end to end on sim: (the simulated devices report the trailer's version once started) --------
+
+TEST(PushProgramSim, AWrongVersionGetsTheImageAndTheBootGoesOn) {
+  ScratchDir dir;
+  // drive_node3.dcf reports 2025-08-01 07:30 in 1F52h; program.cpj expects 2026-11-27 08:15:
+  // DSP 302 §4 figure 7, the image is downloaded, started, 1F52h read again, then configured.
+  const auto r =
+      cfgmgr(dir, {"push", data("program.cpj"), "--bus", "sim:", "--json", dir / "r.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("3  drive  configured"));
+  EXPECT_THAT(r.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
+  EXPECT_THAT(r.out, HasSubstr("after 2026-11-27 08:15:00.000 (1F52h 15671, 29700000)"));
+  const auto report = push_test::parse_json(dir / "r.json");
+  const auto nodes = push_test::nodes_of(report);
+  ASSERT_TRUE(nodes.contains(3));
+  const tool_test::Json* program = nodes.at(3)->get("program");
+  ASSERT_NE(program, nullptr);
+  ASSERT_TRUE(program->is(tool_test::Json::Kind::Object)) << tool_test::slurp(dir / "r.json");
+  EXPECT_TRUE(program->get("updated")->boolean);
+  EXPECT_EQ(program->get("bytes")->number, 1012);
+  EXPECT_GT(program->get("seconds")->number, 0);
+  EXPECT_EQ(program->get("after")->get("date_days")->number, 15671);
+  EXPECT_EQ(program->get("after")->get("time_ms")->number, 29700000);
+}
+
+TEST(PushProgramSim, ASecondPushUpdatesNothing) {
+  ScratchDir dir;
+  // sim:?state=DIR keeps each device's program memory: the second run finds 1F52h = 1F53h/1F54h.
+  const std::string bus = "sim:?state=" + (dir / "state");
+  std::filesystem::create_directories(dir / "state");
+  const auto first = cfgmgr(dir, {"push", data("program.cpj"), "--bus", bus});
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_THAT(first.out, HasSubstr("program updated"));
+  const auto second =
+      cfgmgr(dir, {"push", data("program.cpj"), "--bus", bus, "--json", dir / "r.json"});
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_THAT(second.out, Not(HasSubstr("program updated")));
+  const auto report = push_test::parse_json(dir / "r.json");
+  const auto nodes = push_test::nodes_of(report);
+  ASSERT_TRUE(nodes.contains(3));
+  EXPECT_TRUE(nodes.at(3)->get("program")->is(tool_test::Json::Kind::Null));
+  EXPECT_EQ(nodes.at(3)->get("result")->string, "skipped");
+}
+
+TEST(PushProgramSim, AVersionThatDiffersWithoutBit6IsStatusH) {
+  ScratchDir dir;
+  // version_only.cpj: 1F81h bit 5 without bit 6 (no image). CiA 302-2 Table 1, H.
+  const auto r = cfgmgr(dir, {"push", data("version_only.cpj"), "--bus",
+                              "sim:", "--program-version", "3=2026-11-27T08:15"});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("error H"));
+  EXPECT_THAT(r.out, HasSubstr("1F52h reports 2025-08-01 07:30:00.000"));
+}
+
+TEST(PushProgramSim, AnImageCarryingAnotherVersionEndsWithStatusI) {
+  ScratchDir dir;
+  // trailer_differs.cpj expects 2026-11-28; the image makes the device report 2026-11-27.
+  const auto r = cfgmgr(dir, {"push", data("trailer_differs.cpj"), "--bus", "sim:"});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("error I"));
+  EXPECT_THAT(r.out, HasSubstr("after the program download 1F52h reports 2026-11-27 08:15"));
+}
+
+TEST(PushProgramSim, CommandLineOverridesTheDescriptionsImageAndVersion) {
+  ScratchDir dir;
+  // version_only.cpj has no image: --program gives one, --program-version the version it has.
+  const auto r =
+      cfgmgr(dir, {"push", data("version_only.cpj"), "--bus", "sim:", "--program",
+                   "3=" + data("drive_v2.img"), "--program-version", "3=15671,29700000"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("program updated: 1012 bytes"));
+}
+
+TEST(MasterProgramSim, ReportsTheUpdateAsItHappens) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"master", data("program.cpj"), "--bus", "sim:"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("node 3: program updated: 1012 bytes in "));
+  EXPECT_THAT(r.err, HasSubstr("now 2026-11-27 08:15:00.000"));
 }
 
 }  // namespace
