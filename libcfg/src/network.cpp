@@ -607,6 +607,18 @@ void set_expected_program(DeviceDescription& master, NodeId node, const NodeProg
                           (program.file.empty() ? 0U : SlaveAssignment::kUpdateSoftware));
 }
 
+std::optional<ProgramVersion> expected_program_version(const Network& network, NodeId node) {
+  const DeviceDescription& master = network.master;
+  const std::uint8_t x = node.value();
+  const auto bits = configured_unsigned(master, object::kSlaveAssignment, x, node).value_or(0);
+  if ((bits & SlaveAssignment::kVerifySoftware) == 0) return std::nullopt;
+  const ProgramVersion version{
+      configured_unsigned(master, object::kExpectedApplicationSwDate, x, node).value_or(0),
+      configured_unsigned(master, object::kExpectedApplicationSwTime, x, node).value_or(0)};
+  if (version == ProgramVersion{}) return std::nullopt;
+  return version;
+}
+
 Result<std::vector<std::uint8_t>> read_program_image(const std::string& file) {
   auto text = read_file(file);
   if (!text) return text.error();

@@ -275,6 +275,18 @@ TEST(PushProgramSim, CommandLineOverridesTheDescriptionsImageAndVersion) {
   EXPECT_THAT(r.out, HasSubstr("program updated: 1012 bytes"));
 }
 
+TEST(VerifyProgramSim, ListsANodeWhose1F52hDiffersFromItsExpectedVersion) {
+  ScratchDir dir;
+  // Before any update the device reports 2025-08-01 07:30 (15188, 27 000 000 ms).
+  const auto r = cfgmgr(dir, {"verify", data("program.cpj"), "--bus", "sim:"});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("1F52h sub 01h Verify application software / Application "
+                               "software date: expected 15671 (0x00003D37), device has 15188"));
+  EXPECT_THAT(r.out, HasSubstr("1F52h sub 02h"));
+  const auto same = cfgmgr(dir, {"verify", data("version_only.cpj"), "--bus", "sim:"});
+  EXPECT_EQ(same.exit_code, 0) << same.out;
+}
+
 TEST(MasterProgramSim, ReportsTheUpdateAsItHappens) {
   ScratchDir dir;
   const auto r = cfgmgr(dir, {"master", data("program.cpj"), "--bus", "sim:"});

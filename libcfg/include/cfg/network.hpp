@@ -198,6 +198,11 @@ void set_expected_program(DeviceDescription& master, NodeId node, const NodeProg
 Result<void> set_node_program(Network& network, NodeId node, const std::string& file,
                               std::optional<ProgramVersion> version);
 
+/// The version the master expects node `node` to report in 1F52h: its 1F53h/1F54h sub `node`
+/// when 1F81h sub `node` has bit 5; nullopt when the master does not check the node's version
+/// (or both are 0, status G's case).
+std::optional<ProgramVersion> expected_program_version(const Network& network, NodeId node);
+
 /// The image at `file`: fails ("cannot open the file: ...", "the file is empty: ...") without
 /// the path in the message, like read_file.
 Result<std::vector<std::uint8_t>> read_program_image(const std::string& file);
