@@ -469,6 +469,21 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
   return out + "]}\n";
 }
 
+// What the run bound allows for the software updates (DSP 302 §9) the nodes may need: each
+// image byte as 1/7 of an 8-byte frame (135 bits at most with stuffing), twice (the master's
+// pacing counts each segment with an answer's length), at the sim: bit rate, on a real bus at
+// 125 kbit/s (its rate is not known here). A 256 KiB image: 81 s at 125 kbit/s.
+double program_download_bound_s(const std::vector<const cfg::NetworkNode*>& nodes,
+                                const std::optional<SimBusOptions>& sim) {
+  constexpr double kBitsPerByte = 2.0 * 135.0 / 7.0;
+  const double bitrate = sim ? static_cast<double>(sim->bitrate_bps) : 125'000.0;
+  double bytes = 0;
+  for (const cfg::NetworkNode* node : nodes) {
+    if (node->program) bytes += static_cast<double>(node->program->image.size());
+  }
+  return bytes * kBitsPerByte / bitrate;
+}
+
 void run_push(const PushCliOptions& options) {
   // Arguments first, files next, the bus last: a typo should not touch the bus.
   if (!options.dry_run && options.bus.empty()) {
@@ -553,7 +568,7 @@ void run_push(const PushCliOptions& options) {
   RunLimits limits;
   limits.tool = kTool;
   limits.until_startup_ends = true;
-  limits.bound_s = boot_time_s + kRunMarginS;
+  limits.bound_s = boot_time_s + kRunMarginS + program_download_bound_s(selected, sim);
   limits.bound_hint = sim ? " of simulated time" : "";
   // StartupHalted comes once every slave's boot ended (nmt_master.hpp), so each node has its
   // own result by then.
@@ -605,7 +620,8 @@ void add_push_command(CLI::App& app) {
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "
                   "1F89h); default: the master DCF's 1F89h when not 0, else 10 s. The run gives "
-                  "up 60 s after it")
+                  "up 60 s after it, plus the time the program images (--program) may take on "
+                  "the bus")
       ->type_name("SECONDS")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--dry-run", options->dry_run,
