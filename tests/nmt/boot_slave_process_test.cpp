@@ -582,6 +582,19 @@ TEST(BootSlave, Dsp302Sec9UpdateStopsClearsDownloadsStartsAndReadsTheVersionAgai
   ASSERT_EQ(rig.port.reports.size(), 1U);
   EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
   EXPECT_TRUE(rig.process.booted());
+  // What the report shows: the versions before and after, the image's bytes.
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  ASSERT_TRUE(booted[0].program.has_value());
+  EXPECT_EQ(booted[0].program->before, kRunningProgram);
+  EXPECT_EQ(booted[0].program->after, kExpectedProgram);
+  EXPECT_EQ(booted[0].program->bytes, 300U);
+  EXPECT_TRUE(booted[0].program->ended.has_value());
+  EXPECT_NE(booted[0].text.find("; program updated from 2025-01-25 00:00:01.000 (1F52h 15000, "
+                                "1000) to 2026-11-27 08:15:00.000 (1F52h 15671, 29700000), 300 "
+                                "bytes"),
+            std::string::npos)
+      << booted[0].text;
   // The defaults differ, so the steps above took their own.
   EXPECT_NE(rig.options.program_control_timeout, rig.options.program_clear_timeout);
   EXPECT_NE(rig.options.program_data_timeout, rig.options.program_control_timeout);
@@ -667,6 +680,10 @@ TEST(BootSlave, ReportsStatusIWhenTheVersionIsStillWrongAfterTheUpdate) {
   EXPECT_NE(boot_error_text(rig).find("after the program download 1F52h reports"),
             std::string::npos)
       << boot_error_text(rig);
+  const auto error = rig.events_of(Kind::BootError).back();
+  ASSERT_TRUE(error.program.has_value());
+  EXPECT_EQ(error.program->before, kRunningProgram);
+  EXPECT_EQ(error.program->after, kRunningProgram);
   std::size_t images = 0;
   for (const auto& a : rig.port.accesses) images += a.index == 0x1F50 ? 1 : 0;
   EXPECT_EQ(images, 1U) << "one update per try";

@@ -264,6 +264,7 @@
 #include "cfg/concise_dcf.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/program_image.hpp"
 #include "cfg/result.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
@@ -423,6 +424,19 @@ struct MasterEvent {
   std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
   std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
   std::optional<SdoResult> sdo{};
+  /// SlaveBooted, or BootError I, after the boot began a software update (DSP 302 §9): 1F52h
+  /// before it and after it (nullopt when the update failed before 1F52h was read again), the
+  /// image's size and when the update began (1F51h stop sent) and ended (start confirmed). The
+  /// SlaveBooted text then ends "; program updated from BEFORE to AFTER, N bytes".
+  struct ProgramUpdate {
+    cfg::ProgramVersion before;
+    std::optional<cfg::ProgramVersion> after;
+    std::uint64_t bytes = 0;
+    TimePoint began{0};
+    std::optional<TimePoint> ended;
+    bool operator==(const ProgramUpdate&) const = default;
+  };
+  std::optional<ProgramUpdate> program{};
   std::optional<std::uint16_t> priority{};  ///< flying master kinds: 1F90h sub 3 of node_id
   std::optional<ManagedSdoConnection> connection{};  ///< SDO manager kinds (see Kind)
   /// SrdRegistrationFailed, SdoConnectionRefused: the 1F10h error code (DSP 302 §7.2.3: 00h no

@@ -95,6 +95,7 @@ void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_
   software_updated_ = false;
   identity_sub_ = 0;
   software_ = {};
+  update_.reset();
   verify_ = {};
   cob_ids_to_read_.clear();
   cob_ids_read_.clear();
@@ -218,6 +219,7 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
         upload(Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
       } else {
         software_.time_ms = uploaded_u32(r);
+        if (software_updated_) update_->after = software_;
         software_checked(now, out);
       }
       return;
@@ -245,6 +247,7 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
       } else if (phase_ == Phase::ProgramData) {
         program_step(Phase::ProgramStart, now);
       } else {
+        update_->ended = now;
         software_updated_ = true;
         set_step(BootStep::CheckSoftware, now, out);
         upload(Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
@@ -349,6 +352,8 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     return;
   }
   set_step(BootStep::UpdateSoftware, now, out);
+  update_ = MasterEvent::ProgramUpdate{
+      .before = software_, .after = std::nullopt, .bytes = 0, .began = now, .ended = std::nullopt};
   program_step(Phase::ProgramStop, now);
 }
 
@@ -372,6 +377,7 @@ void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
       return;
     default: {
       auto image = port_->program(node_.value());
+      update_->bytes = image ? image->size() : 0;
       port_->program_download(node_.value(), try_id_, obj::kProgramData, 1,
                               image ? std::move(*image) : std::vector<std::uint8_t>{},
                               options_.program_data_timeout, 1, now);
@@ -449,12 +455,17 @@ void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   e.written = configured_ ? plan_.size() : 0;
   e.total = plan_.size();
   e.bytes = bytes_;
+  e.program = update_;
   e.text = node_text(node_.value()) + ": booted" +
            (left_to_application_ ? std::string(" and left to the application (1F81h bit 2 clear: "
                                                "no configuration, no start)")
             : configured_        ? " (configured: " + std::to_string(plan_.size()) + " entries, " +
                                 std::to_string(bytes_) + " bytes)"
                           : " (configuration up to date)");
+  if (update_ && update_->after) {
+    e.text += "; program updated from " + cfg::to_string(update_->before) + " to " +
+              cfg::to_string(*update_->after) + ", " + std::to_string(update_->bytes) + " bytes";
+  }
   out.report(std::move(e));
 }
 
@@ -490,6 +501,7 @@ void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;
+    if (error == BootError::I) e.program = update_;
     e.text = node_text(node_.value()) + ": boot error " + std::string(1, letter(error)) + ": " +
              std::string(describe(error)) + " (" + why + ")";
     if (!retry && expect.assignment.mandatory() && error == BootError::B &&
