@@ -56,6 +56,12 @@ class BootSlavePort {
                       std::uint8_t sub, TimePoint now) = 0;
   virtual void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
                         std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now) = 0;
+  /// A download of the software update (DSP 302 §9, 1F51h/1F50h) with its own wait for each
+  /// response and its own number of repetitions after a timeout (each from the start of the
+  /// value), as MasterOptions::program_*_timeout give them.
+  virtual void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
+                                std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
+                                unsigned retries, TimePoint now) = 0;
   /// A try ended: stop its transfers (on the bus too) and forget their results.
   virtual void cancel_transfers(std::uint8_t node, TimePoint now) = 0;
 
@@ -115,6 +121,10 @@ class BootSlaveProcess {
     bool force_download = false;
     bool save_configuration = true;
     bool application_step = false;
+    Duration program_control_timeout = std::chrono::seconds(10);
+    Duration program_clear_timeout = std::chrono::seconds(30);
+    Duration program_data_timeout = std::chrono::seconds(5);
+    unsigned sdo_retries = 2;
     static Options from(const MasterOptions& options);
   };
 
@@ -221,6 +231,7 @@ class BootSlaveProcess {
   void keep_alive_state(NmtState state, TimePoint now, Output& out);
   void check_software(TimePoint now, Output& out);
   void software_checked(TimePoint now, Output& out);
+  void program_step(Phase phase, TimePoint now);
   void start_error_control(TimePoint now, Output& out);
   void error_control_started(TimePoint now, Output& out);
   // check_configuration.cpp (§3.5)
@@ -246,6 +257,7 @@ class BootSlaveProcess {
   // Data of the current try.
   std::uint8_t identity_sub_ = 0;
   cfg::ProgramVersion software_;      ///< 1F52h as read
+  std::optional<MasterEvent::ProgramUpdate> update_;  ///< the software update of this try
   cfg::ConfigurationStamp verify_;    ///< 1020h as read
   std::vector<std::uint16_t> cob_ids_to_read_;
   std::map<std::uint16_t, std::uint32_t> cob_ids_read_;

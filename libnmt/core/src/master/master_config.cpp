@@ -202,6 +202,14 @@ cfg::Status MasterConfig::validate() const {
       }
     }
   }
+  for (const auto& s : slaves) {
+    // DSP 302 §9 / CiA 302-2 Table 1 G: 1F53h and 1F54h both 0 mean "not configured".
+    if (s.program_version == cfg::ProgramVersion{}) {
+      return error("slave " + std::to_string(s.node.value()) +
+                   ": program version 0, 0 means 'not configured' in 1F53h/1F54h; leave it "
+                   "unset");
+    }
+  }
   if (auto p = ms_problem(boot_time, 0xFFFFFFFF, true)) {
     return error("boot time (1F89h) " + *p);
   }
@@ -257,6 +265,10 @@ cfg::Result<NmtMaster> MasterConfig::build() const {
       out.put(kIdentityObjects[i], node, fields[i]->value_or(0));
     }
     if (s) out.put(obj::kRestoreConfiguration, node, s->restore_subindex);
+    const auto version =
+        s ? s->program_version.value_or(cfg::ProgramVersion{}) : cfg::ProgramVersion{};
+    out.put(obj::kExpectedApplicationSwDate, node, version.date_days);
+    out.put(obj::kExpectedApplicationSwTime, node, version.time_ms);
   }
   write_heartbeats(*this, dict, out);
   out.put(obj::kBootTime, 0, whole_ms(boot_time));
@@ -296,6 +308,9 @@ MasterConfig MasterConfig::from_dictionary(const LocalDictionary& dict, cfg::Nod
         any = true;
       }
     }
+    const cfg::ProgramVersion version{u32(dict, obj::kExpectedApplicationSwDate, node),
+                                      u32(dict, obj::kExpectedApplicationSwTime, node)};
+    any = any || version != cfg::ProgramVersion{};
     const auto heartbeat = heartbeats.find(node.value());
     if (!any && heartbeat == heartbeats.end()) continue;
     SlaveConfig& s = config.add_slave(node);
@@ -311,6 +326,7 @@ MasterConfig MasterConfig::from_dictionary(const LocalDictionary& dict, cfg::Nod
       s.guarding = GuardingConfig{milliseconds(a.guard_time_ms()), a.retry_factor()};
     }
     s.identity = identity;
+    if (version != cfg::ProgramVersion{}) s.program_version = version;
     if (heartbeat != heartbeats.end()) s.heartbeat = heartbeat->second;
     s.restore_subindex =
         static_cast<std::uint8_t>(dict.get_unsigned(obj::kRestoreConfiguration, node).value_or(1));

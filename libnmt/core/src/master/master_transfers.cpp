@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
 #include "master/nmt_master_impl.hpp"
 #include "nmt/frame_bits.hpp"
 
@@ -152,6 +153,29 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   if (b.running() && transfer.try_id == b.try_id()) b.on_sdo_result(result, now, out);
 }
 
+void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
+  // The software update's 1F50h download (DSP 302 §9) as the client has it confirmed, for the
+  // live view: about every 1/32 of the image, so a 256 KiB image gives some 32 events.
+  for (auto& [key, t] : transfers) {
+    if (t.for_application || t.for_manager || t.upload || t.index != cfg::object::kProgramData) {
+      continue;
+    }
+    const auto p = clients.client(key.first).download_progress();
+    if (!p || p->id != key.second || p->done <= t.reported) continue;
+    if (p->done < p->total && p->done - t.reported < std::max<std::size_t>(p->total / 32, 1)) {
+      continue;
+    }
+    t.reported = p->done;
+    auto e = master_event(MasterEvent::Kind::ProgramProgress, now, key.first,
+                          node_text(key.first) + ": program download " + std::to_string(p->done) +
+                              " of " + std::to_string(p->total) + " bytes");
+    e.step = BootStep::UpdateSoftware;
+    e.bytes = p->done;
+    e.total = p->total;
+    report(out, std::move(e));
+  }
+}
+
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   // The call's SDO requests stay in sdo_out until the end: the NMT commands of the call (each
   // round's flush_nmt) go out ahead of them, by output order (§6.1 queue, nmt_command_queue.hpp).
@@ -183,6 +207,7 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
     flush_nmt(now, out);
     if (sdo_out.events.empty() && sdo_out.frames.size() == counted) break;
   }
+  report_program_progress(now, out);
   for (const auto& f : sdo_out.frames) out.send(f);
   sdo_out.frames.clear();
   for (const auto& f : deferred.frames) out.send(f);
