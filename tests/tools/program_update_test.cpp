@@ -223,6 +223,8 @@ TEST(PushProgramSim, AWrongVersionGetsTheImageAndTheBootGoesOn) {
   EXPECT_TRUE(program->get("updated")->boolean);
   EXPECT_EQ(program->get("bytes")->number, 1012);
   EXPECT_GT(program->get("seconds")->number, 0);
+  EXPECT_EQ(program->get("before")->get("date_days")->number, 15188);
+  EXPECT_EQ(program->get("before")->get("time_ms")->number, 27000000);
   EXPECT_EQ(program->get("after")->get("date_days")->number, 15671);
   EXPECT_EQ(program->get("after")->get("time_ms")->number, 29700000);
 }

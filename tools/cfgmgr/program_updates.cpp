@@ -13,9 +13,8 @@ double ProgramUpdate::seconds() const {
 
 std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
-  using S = nmt::BootStep;
   if (!network_ || e.node_id == 0) return std::nullopt;
-  if (e.kind == K::BootStepChanged && e.step == S::UpdateSoftware) {
+  if (e.kind == K::BootStepChanged && e.step == nmt::BootStep::UpdateSoftware) {
     ProgramUpdate update;
     update.began = e.at;
     const cfg::NetworkNode* node = network_->find(*cfg::NodeId::from(e.node_id));
@@ -26,28 +25,26 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   const auto it = updates_.find(e.node_id);
   if (it == updates_.end()) return std::nullopt;
   ProgramUpdate& u = it->second;
-  if (u.updated || u.failed) return std::nullopt;
+  if (e.kind == K::ProgramProgress) {
+    u.bytes = e.bytes;
+    if (e.total != 0) u.total = e.total;
+    return std::nullopt;
+  }
+  // The master's own account (MasterEvent::program) on SlaveBooted, or BootError I.
+  if ((e.kind != K::SlaveBooted && e.kind != K::BootError) || !e.program || u.updated || u.failed) {
+    return std::nullopt;
+  }
+  u.before = e.program->before;
+  u.after = e.program->after;
+  u.total = e.program->bytes;
+  u.began = e.program->began;
+  u.ended = e.program->ended ? e.program->ended : std::optional<nmt::TimePoint>(e.at);
   if (e.kind == K::BootError) {
     u.failed = true;
-    if (!u.ended) u.ended = e.at;
-    return std::nullopt;
-  }
-  const bool step = e.kind == K::BootStepChanged;
-  if (!u.ended) {
-    // Start confirmed: the master reads 1F52h again (DSP 302 §4 figure 7).
-    if (step && e.step == S::CheckSoftware) {
-      u.ended = e.at;
-      u.bytes = u.total;
-    }
-    return std::nullopt;
-  }
-  // 1F52h matched (the boot went on), or the boot ended well.
-  if (!(step && e.step != S::CheckSoftware && e.step != S::Failed) && e.kind != K::SlaveBooted) {
     return std::nullopt;
   }
   u.updated = true;
-  const cfg::NetworkNode* node = network_->find(*cfg::NodeId::from(e.node_id));
-  if (node != nullptr && node->program) u.after = node->program->version;
+  u.bytes = u.total;
   char seconds[32];
   std::snprintf(seconds, sizeof seconds, "%.3f s", u.seconds());
   std::string line = "node " + std::to_string(e.node_id) +

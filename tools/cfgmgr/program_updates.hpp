@@ -1,8 +1,8 @@
 // What the software update in the boot (DSP 302 §4 figure 7, §9 program download) did per node,
-// from the NMT master's events, for the reports of `cfgmgr push` and `cfgmgr master`: the steps
-// CheckSoftware -> UpdateSoftware -> CheckSoftware -> (the rest of the boot) mean "program
-// updated"; a boot error during or right after UpdateSoftware is the failure, which the
-// master's G/H/I words describe (the step and the SDO abort).
+// from the NMT master's events, for the reports of `cfgmgr push` and `cfgmgr master`: the step
+// UpdateSoftware begins one, ProgramProgress says how far the image is, and SlaveBooted (or
+// BootError I) carries the master's account (MasterEvent::program: 1F52h before and after,
+// bytes, when it began and ended). The failure's words are the master's G/H/I text.
 #pragma once
 
 #include <cstdint>
@@ -24,9 +24,8 @@ struct ProgramUpdate {
   std::uint64_t total = 0;  ///< the image's size
   nmt::TimePoint began{0};  ///< UpdateSoftware began (stop, clear, 1F50h, start)
   std::optional<nmt::TimePoint> ended;  ///< start confirmed (CheckSoftware again) or error
-  /// 1F52h before the update: the master's events do not carry it (nullopt).
-  std::optional<cfg::ProgramVersion> before;
-  std::optional<cfg::ProgramVersion> after;  ///< 1F52h after it: the expected version
+  std::optional<cfg::ProgramVersion> before;  ///< 1F52h before the update
+  std::optional<cfg::ProgramVersion> after;   ///< 1F52h after it (nullopt: not read again)
   double seconds() const;
 };
 

@@ -67,6 +67,11 @@ struct NodeReport {
   std::size_t entries = 0;  ///< configuration entries written (also when the boot then failed)
   std::size_t total = 0;    ///< entries to write, once the download was planned
   std::uint64_t bytes = 0;
+  /// Software update (DSP 302 §9): image bytes confirmed of total, while UpdateSoftware runs.
+  std::uint64_t program_bytes = 0;
+  std::uint64_t program_total = 0;
+  std::optional<nmt::TimePoint> program_began;
+  nmt::TimePoint program_at{0};
   unsigned retries = 0;  ///< boot tries repeated (CiA 302-2 §3.3)
   nmt::BootStep step = nmt::BootStep::Idle;
   std::optional<nmt::NmtState> state;  ///< as the master knows it
@@ -160,7 +165,16 @@ class Collector {
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
     if (r->result != Result::Pending) return;
     switch (e.kind) {
+      case K::ProgramProgress:
+        r->program_bytes = e.bytes;
+        r->program_total = e.total;
+        r->program_at = e.at;
+        break;
       case K::BootStepChanged:
+        if (e.step == nmt::BootStep::UpdateSoftware) {
+          r->program_began = e.at;
+          r->program_bytes = 0;
+        }
         if (e.step == nmt::BootStep::Identify || e.step == nmt::BootStep::AwaitBootUp) {
           // A try begins with AwaitBootUp (after a reset) or Identify; the engine does not
           // report a repeated error again, so a try is counted by its first step.
@@ -324,9 +338,21 @@ class LiveView {
     const std::string entries = r.total == 0
                                     ? std::to_string(r.entries)
                                     : std::to_string(r.entries) + "/" + std::to_string(r.total);
-    const std::string step =
+    std::string step =
         r.result == Result::Pending ? std::string(nmt::to_string(r.step)) : result_text(r);
-    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-20.20s  %9s  %7llu  %7u",
+    if (r.result == Result::Pending && r.step == nmt::BootStep::UpdateSoftware &&
+        r.program_total != 0 && r.program_began) {
+      // The image's progress, its rate on the bus and what remains at that rate.
+      const double s = static_cast<double>((r.program_at - *r.program_began).count()) / 1e6;
+      const double rate = s > 0 ? static_cast<double>(r.program_bytes) / s : 0;
+      char text[64];
+      std::snprintf(text, sizeof text, "update %llu%% %.0f kB/s ETA %.0f s",
+                    static_cast<unsigned long long>(r.program_bytes * 100 / r.program_total),
+                    rate / 1e3,
+                    rate > 0 ? static_cast<double>(r.program_total - r.program_bytes) / rate : 0.0);
+      step = text;
+    }
+    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-30.30s  %9s  %7llu  %7u",
                   r.node_id, r.name.c_str(),
                   r.state ? std::string(nmt::to_string(*r.state)).c_str() : "-", step.c_str(),
                   entries.c_str(), static_cast<unsigned long long>(r.bytes), r.retries);
@@ -360,7 +386,7 @@ class LiveView {
                     " done, " + std::to_string(written) + " of " + std::to_string(total) +
                     (total == 1 ? " entry" : " entries") + " written");
     char head[160];
-    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-20s  %9s  %7s  %7s", "node", "name",
+    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-30s  %9s  %7s  %7s", "node", "name",
                   "state", "step", "entries", "bytes", "retries");
     lines.emplace_back(head);
     // Nodes still booting first, then those waiting, then those done; as many as fit.
