@@ -143,6 +143,9 @@ class Loader {
   // A slave from its DCF: its configuration writes; nullopt when they cannot be made.
   std::optional<NetworkNode> node_from_dcf(DeviceDescription dcf, NodeId node, std::string file,
                                            std::string name);
+  // NodeXProgramFile= / NodeXProgramVersion= of [Topology] (our keys, see network.hpp).
+  std::optional<NodeProgram> read_program(const Section& topology, const std::string& prefix,
+                                          const fs::path& base);
   void error(const std::string& file, int line, std::string message) {
     diagnostics_.add(file, line, Severity::Error, std::move(message));
   }
@@ -290,6 +293,7 @@ std::optional<Network> Loader::load_project(const std::vector<Section>& sections
     const Entry* name_entry = topology->find(prefix + "Name");
     if (auto slave = node_from_dcf(std::move(*dcf), node, file,
                                    name_entry != nullptr ? name_entry->value : std::string())) {
+      slave->program = read_program(*topology, prefix, base);
       network.nodes.push_back(std::move(*slave));
     }
   }
@@ -303,8 +307,50 @@ std::optional<Network> Loader::load_project(const std::vector<Section>& sections
                            " node" + (present == 1 ? " is" : "s are") + " present");
     }
   }
+  if (master) {
+    // The description's programs win over the master DCF's own 1F53h/1F54h (network.hpp).
+    for (const auto& node : network.nodes) {
+      if (node.program) set_expected_program(*master, node.node_id, *node.program);
+    }
+  }
   network.master = master ? std::move(*master) : derive_master(network.nodes);
   return network;
+}
+
+std::optional<NodeProgram> Loader::read_program(const Section& topology, const std::string& prefix,
+                                                const fs::path& base) {
+  const std::string section_name = "[" + topology.name + "] ";
+  const Entry* file_entry = topology.find(prefix + "ProgramFile");
+  const Entry* version_entry = topology.find(prefix + "ProgramVersion");
+  if (file_entry != nullptr && file_entry->value.empty()) file_entry = nullptr;
+  if (file_entry == nullptr && version_entry == nullptr) return std::nullopt;
+  NodeProgram program;
+  program.source = path_;
+  program.line = file_entry != nullptr ? file_entry->line : version_entry->line;
+  if (version_entry != nullptr) {
+    auto version = parse_program_version(version_entry->value);
+    if (!version) {
+      // No program for the node: the error stops every tool that runs the network, and a
+      // second "image without a version" about the same key would say nothing new.
+      error(path_, version_entry->line,
+            concat({section_name, version_entry->key, "=", version_entry->value, ": ",
+                    version.error().message}));
+      return std::nullopt;
+    }
+    program.version = *version;
+  }
+  if (file_entry != nullptr) {
+    program.file = resolve(base, file_entry->value);
+    auto image = read_program_image(program.file);
+    if (!image) {
+      error(path_, file_entry->line,
+            concat(
+                {section_name, file_entry->key, " '", program.file, "': ", image.error().message}));
+    } else {
+      program.image = std::move(image).value();
+    }
+  }
+  return program;
 }
 
 // A node file named by 1F22h: a concise DCF, or (written by hand) a DCF.
@@ -475,6 +521,29 @@ Object make_node_array(std::uint16_t index, const std::string& name, const std::
   return object;
 }
 
+// 1F81h sub `node` with `bits` set: its ParameterValue (else DefaultValue, else 0) | bits.
+void add_assignment_bits(DeviceDescription& master, NodeId node, std::uint32_t bits) {
+  SubObject* sub = master.sub(object::kSlaveAssignment, node.value());
+  if (sub == nullptr) return;  // not a slave of this master: nothing to check or update
+  const std::uint32_t value =
+      configured_unsigned(master, object::kSlaveAssignment, node.value(), node).value_or(0);
+  sub->parameter_value = hex(value | bits, 8);
+}
+
+// Sub `node` of the node array `index`, the array made (all entries 0) when `master` has none.
+SubObject& node_entry(DeviceDescription& master, std::uint16_t index, const std::string& name,
+                      NodeId node) {
+  if (master.sub(index, node.value()) == nullptr) {
+    Object made = make_node_array(index, name, name + " node", {});
+    if (Object* existing = master.object(index)) {
+      existing->subs.emplace(node.value(), made.subs.at(node.value()));
+    } else {
+      master.objects.emplace(index, std::move(made));
+    }
+  }
+  return *master.sub(index, node.value());
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> node_concise_dcf(const NetworkNode& node) {
@@ -527,6 +596,135 @@ std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms) {
   if (producer_ms == 0) return 0;
   const std::uint32_t consumer = std::uint32_t{producer_ms} * 2 + 100;
   return static_cast<std::uint16_t>(std::min<std::uint32_t>(consumer, 0xFFFF));
+}
+
+void set_expected_program(DeviceDescription& master, NodeId node, const NodeProgram& program) {
+  if (!program.version) return;
+  node_entry(master, object::kExpectedApplicationSwDate, "Expected application SW date", node)
+      .parameter_value = hex(program.version->date_days, 8);
+  node_entry(master, object::kExpectedApplicationSwTime, "Expected application SW time", node)
+      .parameter_value = hex(program.version->time_ms, 8);
+  // DSP 302 §5.2 Table 23/24: bit 5 verify the version; bit 6 update it automatically, which
+  // needs an image to download.
+  add_assignment_bits(master, node,
+                      SlaveAssignment::kVerifySoftware |
+                          (program.file.empty() ? 0U : SlaveAssignment::kUpdateSoftware));
+}
+
+std::optional<ProgramVersion> expected_program_version(const Network& network, NodeId node) {
+  const DeviceDescription& master = network.master;
+  const std::uint8_t x = node.value();
+  const auto bits = configured_unsigned(master, object::kSlaveAssignment, x, node).value_or(0);
+  if ((bits & SlaveAssignment::kVerifySoftware) == 0) return std::nullopt;
+  const ProgramVersion version{
+      configured_unsigned(master, object::kExpectedApplicationSwDate, x, node).value_or(0),
+      configured_unsigned(master, object::kExpectedApplicationSwTime, x, node).value_or(0)};
+  if (version == ProgramVersion{}) return std::nullopt;
+  return version;
+}
+
+Result<std::vector<std::uint8_t>> read_program_image(const std::string& file) {
+  auto text = read_file(file);
+  if (!text) return text.error();
+  const std::string_view view = text->view();
+  if (view.empty()) return Error{"the file is empty: no program to download"};
+  return std::vector<std::uint8_t>(view.begin(), view.end());
+}
+
+Result<void> set_node_program(Network& network, NodeId node, const std::string& file,
+                              std::optional<ProgramVersion> version) {
+  NetworkNode* target = nullptr;
+  for (auto& n : network.nodes) {
+    if (n.node_id == node) target = &n;
+  }
+  if (target == nullptr) {
+    return Error{"node " + std::to_string(node.value()) + " is not in " + network.file};
+  }
+  NodeProgram program = target->program.value_or(NodeProgram{});
+  if (!file.empty()) {
+    auto image = read_program_image(file);
+    if (!image) return Error{"'" + file + "': " + image.error().message};
+    program.file = file;
+    program.image = std::move(image).value();
+  }
+  if (version) program.version = version;
+  program.source.clear();
+  program.line = 0;
+  target->program = std::move(program);
+  set_expected_program(network.master, node, *target->program);
+  return {};
+}
+
+void check_programs(const Network& network, Diagnostics& diagnostics) {
+  const DeviceDescription& master = network.master;
+  const std::string master_file = network.master_from_file ? network.master_file : network.file;
+  for (const auto& node : network.nodes) {
+    const std::uint8_t x = node.node_id.value();
+    const std::string who = "node " + std::to_string(x);
+    if (node.program) {
+      const NodeProgram& p = *node.program;
+      // A program from the command line (set_node_program) has no file to point at.
+      const std::string file = p.source.empty() ? std::string("--program") : p.source;
+      if (!p.file.empty() && !p.version && !network.master_from_file) {
+        diagnostics.add(
+            file, p.line, Severity::Error,
+            who + ": program image '" + p.file + "' without a version: give Node" +
+                std::to_string(x) +
+                "ProgramVersion= (the master compares it with the node's 1F52h, "
+                "DSP 302 §9)" +
+                [&] {
+                  const auto trailer = program_image_version(p.image);
+                  return trailer ? "; the image's trailer says " + to_string(*trailer)
+                                 : std::string();
+                }());
+      }
+      const auto trailer = program_image_version(p.image);
+      if (trailer && p.version && *trailer != *p.version) {
+        diagnostics.add(file, p.line, Severity::Warning,
+                        who + ": program image '" + p.file + "' carries version " +
+                            to_string(*trailer) + " in its trailer, but the expected version is " +
+                            to_string(*p.version) +
+                            ": a device reporting the trailer's version fails the boot with "
+                            "status I after the update");
+      }
+    }
+    // The master's own objects (from its DCF, or as the description set them).
+    const SubObject* assignment = master.sub(object::kSlaveAssignment, x);
+    if (assignment == nullptr) continue;
+    const std::uint32_t bits =
+        configured_unsigned(master, object::kSlaveAssignment, x, node.node_id).value_or(0);
+    const int line =
+        assignment->parameter_value_line != 0 ? assignment->parameter_value_line : assignment->line;
+    const std::string where = "1F81h sub " + std::to_string(x) + " (" + who + ")";
+    if ((bits & SlaveAssignment::kVerifySoftware) != 0) {
+      const auto date =
+          configured_unsigned(master, object::kExpectedApplicationSwDate, x, node.node_id)
+              .value_or(0);
+      const auto time =
+          configured_unsigned(master, object::kExpectedApplicationSwTime, x, node.node_id)
+              .value_or(0);
+      if (date == 0 && time == 0) {
+        diagnostics.add(master_file, line, Severity::Error,
+                        where +
+                            " has bit 5 (verify the application software version) but 1F53h "
+                            "and 1F54h sub " +
+                            std::to_string(x) +
+                            " give no expected version: the boot ends with status G (CiA 302-2 "
+                            "Table 1)");
+      }
+    }
+    // A program whose image was named but could not be read has its error already.
+    if ((bits & SlaveAssignment::kUpdateSoftware) != 0 &&
+        (!node.program || node.program->file.empty())) {
+      diagnostics.add(master_file, line, Severity::Warning,
+                      where +
+                          " has bit 6 (automatic software update allowed) but no program "
+                          "image is given for the node (Node" +
+                          std::to_string(x) +
+                          "ProgramFile= or --program): a wrong version ends its boot with "
+                          "status H");
+    }
+  }
 }
 
 DeviceDescription derive_master(std::span<const NetworkNode> nodes) {
@@ -621,6 +819,9 @@ DeviceDescription derive_master(std::span<const NetworkNode> nodes) {
   add(make_node_array(object::kProductCode, "Product code", "Product code node", product));
   add(make_node_array(object::kRevisionNumber, "Revision number", "Revision number node",
                       revision));
+  for (const auto& node : nodes) {
+    if (node.program) set_expected_program(master, node.node_id, *node.program);
+  }
   return master;
 }
 

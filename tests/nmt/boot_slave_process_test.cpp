@@ -29,6 +29,8 @@ struct Access {
   std::uint8_t sub = 0;
   bool upload = false;
   std::vector<std::uint8_t> data;  ///< download
+  std::optional<Duration> timeout;  ///< program_download: its response timeout
+  unsigned retries = 0;             ///< program_download: repetitions after a timeout
 };
 
 /// boot_con as the master received it.
@@ -63,12 +65,18 @@ class FakePort final : public BootSlavePort {
   void upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
               TimePoint) override {
     EXPECT_EQ(node, kNode);
-    accesses.push_back({try_id, index, sub, true, {}});
+    accesses.push_back({try_id, index, sub, true, {}, std::nullopt, 0});
   }
   void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
                 std::vector<std::uint8_t> data, TimePoint) override {
     EXPECT_EQ(node, kNode);
-    accesses.push_back({try_id, index, sub, false, std::move(data)});
+    accesses.push_back({try_id, index, sub, false, std::move(data), std::nullopt, 0});
+  }
+  void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
+                        std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
+                        unsigned retries, TimePoint) override {
+    EXPECT_EQ(node, kNode);
+    accesses.push_back({try_id, index, sub, false, std::move(data), timeout, retries});
   }
   void cancel_transfers(std::uint8_t, TimePoint) override { ++cancels; }
   void queue_nmt(NmtCommand command, std::uint8_t node) override {
@@ -501,6 +509,208 @@ TEST(BootSlave, ReconfigurationRequestDownloadsWithoutReading1020h) {
   rig.process.start(rig.now, rig.out);
   rig.answer(0);
   expect_access(rig.last(), 0x1020, 1, true);  // the request held until that success
+}
+
+// ------------------------------------ check and update software version (§3.4 part 2 b, DSP 302
+// §9, CiA 302-2 Table 1 G/H/I)
+
+constexpr cfg::ProgramVersion kExpectedProgram{15671, 29'700'000};  // 1F53h/1F54h sub 5
+constexpr cfg::ProgramVersion kRunningProgram{15000, 1000};         // what 1F52h reports first
+
+/// 1F81h bit 5 (and bit 6 when `update`), 1F53h/1F54h set, a 300-byte image available.
+void verify_software(Rig& rig, bool update) {
+  rig.port.expect.assignment.value |=
+      cfg::SlaveAssignment::kVerifySoftware | (update ? cfg::SlaveAssignment::kUpdateSoftware : 0);
+  rig.port.expect.software = kExpectedProgram;
+  rig.port.image = std::vector<std::uint8_t>(300, 0x5A);
+}
+
+/// Starts the try and answers 1000h, then 1F52h sub 1 and 2 with `version`.
+void report_version(Rig& rig, cfg::ProgramVersion version) {
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);  // 1000h
+  expect_access(rig.last(), 0x1F52, 1, true);
+  EXPECT_EQ(rig.process.step(), BootStep::CheckSoftware);
+  rig.answer(version.date_days);
+  expect_access(rig.last(), 0x1F52, 2, true);
+  rig.answer(version.time_ms);
+}
+
+/// The update up to the 1F50h download: stop answered, clear answered by `clear`.
+void stop_and_clear(Rig& rig, std::optional<SdoAbort> clear_abort = std::nullopt) {
+  expect_access(rig.last(), 0x1F51, 1, false, {0});  // stop
+  EXPECT_EQ(rig.process.step(), BootStep::UpdateSoftware);
+  rig.answer();
+  expect_access(rig.last(), 0x1F51, 1, false, {3});  // clear (CiA 302-3)
+  if (clear_abort) {
+    rig.abort(*clear_abort);
+  } else {
+    rig.answer();
+  }
+}
+
+std::string boot_error_text(const Rig& rig) {
+  const auto errors = rig.events_of(Kind::BootError);
+  return errors.empty() ? std::string() : errors.back().text;
+}
+
+// DSP 302 §9 / CiA 302-3: 1F51h sub 1 = 0 (stop), = 3 (clear), 1F50h sub 1 = image, 1F51h sub 1
+// = 1 (start), then 1F52h again; each step with its own wait (MasterOptions), the image once
+// repeated after a timeout.
+TEST(BootSlave, Dsp302Sec9UpdateStopsClearsDownloadsStartsAndReadsTheVersionAgain) {
+  Rig rig;
+  verify_software(rig, true);
+  report_version(rig, kRunningProgram);
+  const Access stop = rig.last();
+  EXPECT_EQ(stop.timeout, rig.options.program_control_timeout);
+  EXPECT_EQ(stop.retries, rig.options.sdo_retries);
+  stop_and_clear(rig);
+  EXPECT_EQ(rig.port.accesses[rig.port.accesses.size() - 2].timeout,
+            rig.options.program_clear_timeout);
+  expect_access(rig.last(), 0x1F50, 1, false, *rig.port.image);
+  EXPECT_EQ(rig.last().timeout, rig.options.program_data_timeout);
+  EXPECT_EQ(rig.last().retries, 1U) << "one repetition from the start of the image";
+  rig.answer();
+  expect_access(rig.last(), 0x1F51, 1, false, {1});  // start
+  EXPECT_EQ(rig.last().timeout, rig.options.program_control_timeout);
+  rig.answer();
+  // §3.4 part 2 b: the version is checked again after the download.
+  expect_access(rig.last(), 0x1F52, 1, true);
+  EXPECT_EQ(rig.process.step(), BootStep::CheckSoftware);
+  rig.answer(kExpectedProgram.date_days);
+  rig.answer(kExpectedProgram.time_ms);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  EXPECT_TRUE(rig.process.booted());
+  // What the report shows: the versions before and after, the image's bytes.
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  ASSERT_TRUE(booted[0].program.has_value());
+  EXPECT_EQ(booted[0].program->before, kRunningProgram);
+  EXPECT_EQ(booted[0].program->after, kExpectedProgram);
+  EXPECT_EQ(booted[0].program->bytes, 300U);
+  EXPECT_TRUE(booted[0].program->ended.has_value());
+  EXPECT_NE(booted[0].text.find("; program updated from 2025-01-25 00:00:01.000 (1F52h 15000, "
+                                "1000) to 2026-11-27 08:15:00.000 (1F52h 15671, 29700000), 300 "
+                                "bytes"),
+            std::string::npos)
+      << booted[0].text;
+  // The defaults differ, so the steps above took their own.
+  EXPECT_NE(rig.options.program_control_timeout, rig.options.program_clear_timeout);
+  EXPECT_NE(rig.options.program_data_timeout, rig.options.program_control_timeout);
+}
+
+// DSP 302 v3.2.1 §9: "The range for the sub-objects of the Program Control Object is 0 to 2";
+// "If the action is not possible, the Device responds with ... 0800 0024h". A device built to
+// that text refuses CiA 302-3's clear (3): the download goes on and the boot ends with OK.
+class BootSlaveClearRefused : public ::testing::TestWithParam<SdoAbort> {};
+
+TEST_P(BootSlaveClearRefused, Dsp302Sec9DeviceRefusingClearStillGetsTheImage) {
+  Rig rig;
+  verify_software(rig, true);
+  report_version(rig, kRunningProgram);
+  stop_and_clear(rig, GetParam());
+  expect_access(rig.last(), 0x1F50, 1, false, *rig.port.image);
+  rig.answer();
+  expect_access(rig.last(), 0x1F51, 1, false, {1});
+  rig.answer();
+  rig.answer(kExpectedProgram.date_days);
+  rig.answer(kExpectedProgram.time_ms);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  EXPECT_TRUE(rig.events_of(Kind::BootError).empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(RefusalsOfClear, BootSlaveClearRefused,
+                         ::testing::Values(SdoAbort::ValueRangeExceeded,     // 0609 0030
+                                           SdoAbort::ValueTooHigh,           // 0609 0031
+                                           SdoAbort::ValueTooLow,            // 0609 0032
+                                           SdoAbort::NoDataAvailable,        // 0800 0024
+                                           SdoAbort::General,                // 0800 0000
+                                           SdoAbort::CannotStoreOrTransfer)  // 0800 0020
+);
+
+// Not a refusal of the value: no answer (0504 0000 after the retries), or another abort, ends
+// the update with I naming the step.
+TEST(BootSlave, ReportsStatusIWhenClearTimesOutOrIsAbortedForAnotherReason) {
+  for (const SdoAbort code : {SdoAbort::Timeout, SdoAbort::DeviceState}) {
+    Rig rig;
+    verify_software(rig, true);
+    report_version(rig, kRunningProgram);
+    stop_and_clear(rig, code);
+    ASSERT_EQ(rig.port.reports.size(), 1U) << to_string(code);
+    EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+    EXPECT_NE(boot_error_text(rig).find("1F51h sub 01h download failed: " + to_string(code)),
+              std::string::npos)
+        << boot_error_text(rig);
+  }
+}
+
+// DSP 302 §9: "If the download fails, the Device responds with an Abort SDO Transfer (error code
+// 0606 0000h)"; CiA 302-2 Table 1 I: the update failed. The abort in words.
+TEST(BootSlave, ReportsStatusIWhenTheDeviceAborts1F50hWith06060000) {
+  Rig rig;
+  verify_software(rig, true);
+  report_version(rig, kRunningProgram);
+  stop_and_clear(rig);
+  expect_access(rig.last(), 0x1F50, 1, false, *rig.port.image);
+  rig.abort(SdoAbort::HardwareError);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+  EXPECT_NE(boot_error_text(rig).find("1F50h sub 01h download failed: 0x06060000 (access failed "
+                                      "due to a hardware error)"),
+            std::string::npos)
+      << boot_error_text(rig);
+  EXPECT_EQ(rig.port.accesses.size(), 6U) << "no start after the failed download";
+}
+
+// §3.4 part 2 b: "In case the software version will stay incorrect the process Boot NMT slave
+// shall end with error status" (I, Table 1).
+TEST(BootSlave, ReportsStatusIWhenTheVersionIsStillWrongAfterTheUpdate) {
+  Rig rig;
+  verify_software(rig, true);
+  report_version(rig, kRunningProgram);
+  stop_and_clear(rig);
+  rig.answer();  // 1F50h
+  rig.answer();  // start
+  rig.answer(kRunningProgram.date_days);
+  rig.answer(kRunningProgram.time_ms);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+  EXPECT_NE(boot_error_text(rig).find("after the program download 1F52h reports"),
+            std::string::npos)
+      << boot_error_text(rig);
+  const auto error = rig.events_of(Kind::BootError).back();
+  ASSERT_TRUE(error.program.has_value());
+  EXPECT_EQ(error.program->before, kRunningProgram);
+  EXPECT_EQ(error.program->after, kRunningProgram);
+  std::size_t images = 0;
+  for (const auto& a : rig.port.accesses) images += a.index == 0x1F50 ? 1 : 0;
+  EXPECT_EQ(images, 1U) << "one update per try";
+}
+
+// Table 1 H: the version differs and 1F81h bit 6 does not allow the update: no program access.
+TEST(BootSlave, ReportsStatusHWhenTheVersionDiffersAndBit6IsClear) {
+  Rig rig;
+  verify_software(rig, false);
+  report_version(rig, kRunningProgram);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::H);
+  EXPECT_EQ(rig.port.accesses.size(), 3U);  // 1000h, 1F52h sub 1 and 2
+  EXPECT_NE(boot_error_text(rig).find("1F81h bit 6 does not allow an update"), std::string::npos)
+      << boot_error_text(rig);
+}
+
+// Table 1 G: bit 5 set, 1F53h/1F54h not configured (0): 1F52h is not even read.
+TEST(BootSlave, ReportsStatusGWhenBit5IsSetWithoutAnExpectedVersion) {
+  Rig rig;
+  verify_software(rig, true);
+  rig.port.expect.software = {};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);  // 1000h
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::G);
+  EXPECT_EQ(rig.port.accesses.size(), 1U);
 }
 
 }  // namespace

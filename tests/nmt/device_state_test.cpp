@@ -44,7 +44,7 @@ TEST(DeviceState, FormatsAndParsesBackTheSameValues) {
   // 1017h = 1000 ms (UNSIGNED16 E8h 03h on the bus), 1020h sub 1 = 0x11223344, an empty entry.
   const nmt::SavedValues values = {
       {0x101700, {0xE8, 0x03}}, {0x102001, {0x44, 0x33, 0x22, 0x11}}, {0x200000, {}}};
-  const std::string text = nmt::format_device_state(node(5), {values, std::nullopt});
+  const std::string text = nmt::format_device_state(node(5), {values, std::nullopt, {}});
   EXPECT_NE(text.find("\n1017sub00=E803\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\n1020sub01=44332211\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\nend=3\n"), std::string::npos) << text;
@@ -58,7 +58,7 @@ TEST(DeviceState, KeepsWhatLssStoredAndNamesAnUnconfiguredDevicesFileByItsLssAdd
   // CiA 305 store configuration: node-ID 5 and bit timing index 3 (250 kbit/s) of the device
   // with LSS address 7E57C0DEh/00000305h/00010002h/00001001h (tests/data/lss/lss_io.eds).
   const nmt::LssAddress address{0x7E57C0DE, 0x00000305, 0x00010002, 0x00001001};
-  const nmt::DeviceState state{{{0x101700, {0xE8, 0x03}}}, nmt::LssStoredConfig{5, 3}};
+  const nmt::DeviceState state{{{0x101700, {0xE8, 0x03}}}, nmt::LssStoredConfig{5, 3}, {}};
   const std::string text = nmt::format_device_state(address, state);
   EXPECT_NE(text.find("\nlss=7E57C0DE:00000305:00010002:00001001\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\nlss_node=5\nlss_bit_timing=3\nend=1\n"), std::string::npos) << text;
@@ -89,7 +89,7 @@ TEST(DeviceState, KeepsWhatLssStoredAndNamesAnUnconfiguredDevicesFileByItsLssAdd
 
 TEST(DeviceState, RefusesATextCutShortAnotherNodesOrABadLine) {
   const std::string text =
-      nmt::format_device_state(node(5), {{{0x101700, {0xE8, 0x03}}}, std::nullopt});
+      nmt::format_device_state(node(5), {{{0x101700, {0xE8, 0x03}}}, std::nullopt, {}});
   const auto cut = nmt::parse_device_state(text.substr(0, text.find("end=")), "f", node(5));
   ASSERT_FALSE(cut);
   EXPECT_NE(cut.error().message.find("f:3: error: "), std::string::npos) << cut.error().message;

@@ -246,6 +246,33 @@ TEST(MasterConfig, TheDcfPathAndATypedConfigOfTheSameValuesGiveTheSameDictionary
   EXPECT_EQ(value(from_code, 0x1016, 1), 0x0003012CU);  // the first free entry
 }
 
+// DSP 302 §9: "Sub-Index i ... Stores the expected application software date/time of the slave
+// that has Node-ID i" (1F53h days since 1984-01-01, 1F54h ms after midnight).
+TEST(MasterConfig, TheExpectedProgramVersionIs1F53hAnd1F54hSubNodeBothWays) {
+  MasterConfig config(id(1));
+  SlaveConfig& drive = config.add_slave(id(3));
+  drive.verify_software = true;
+  drive.program_version = cfg::ProgramVersion{15671, 29'700'000};
+  config.add_slave(id(4));
+  const NmtMaster m = built(config);
+  EXPECT_EQ(value(m, 0x1F53, 3), 15671U);
+  EXPECT_EQ(value(m, 0x1F54, 3), 29'700'000U);
+  EXPECT_EQ(value(m, 0x1F53, 4), 0U) << "unset: not configured";
+  EXPECT_EQ(value(m, 0x1F54, 4), 0U);
+
+  const MasterConfig back = MasterConfig::from_dictionary(m.dictionary(), id(1));
+  ASSERT_NE(back.slave(id(3)), nullptr);
+  EXPECT_EQ(back.slave(id(3))->program_version, (cfg::ProgramVersion{15671, 29'700'000}));
+  ASSERT_NE(back.slave(id(4)), nullptr);
+  EXPECT_EQ(back.slave(id(4))->program_version, std::nullopt);
+
+  // Table 1 G's "not configured" cannot be an expected version.
+  config.add_slave(id(3)).program_version = cfg::ProgramVersion{};
+  EXPECT_EQ(error_of(config),
+            "slave 3: program version 0, 0 means 'not configured' in 1F53h/1F54h; leave it "
+            "unset");
+}
+
 TEST(MasterConfig, ASlaveRemovedInCodeFromADcfConfigIsNoLongerAssigned) {
   auto read = MasterConfig::from_dcf(changed_master_dcf(), id(1));
   ASSERT_TRUE(read.ok()) << read.error().message;

@@ -1045,7 +1045,7 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
   const std::vector<std::uint8_t> image(300, 0x5A);
   rig.configurations->programs[3] = image;
   SlaveNodeOptions updated;
-  updated.downloaded_program_version = ApplicationSoftwareVersion{kSoftwareDate + 1, kSoftwareTime};
+  updated.downloaded_program_version = cfg::ProgramVersion{kSoftwareDate + 1, kSoftwareTime};
   rig.two_slaves({}, slave_eds(), updated);
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
@@ -1062,6 +1062,121 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
   auto verify = rig.uploads_of(3, 0x1F52, 1, control[2].at);
   EXPECT_FALSE(verify.empty());
   EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+}
+
+// Node 3 with 1F81h bits 5 and 6, and 1F53h/1F54h sub 3 = the version its image of `size` bytes
+// carries in our trailer (cfg/program_image.hpp); the image is returned.
+std::vector<std::uint8_t> needs_update(MasterRig& rig, std::size_t size) {
+  rig.assign(3, kSlave | kBoot | kVerifySoftware | kUpdateSoftware);
+  const cfg::ProgramVersion expected{kSoftwareDate + 1, kSoftwareTime};
+  set_value(rig.master, 0x1F53, 3, expected.date_days);
+  set_value(rig.master, 0x1F54, 3, expected.time_ms);
+  auto image = cfg::with_program_trailer(std::vector<std::uint8_t>(size, 0x5A), expected);
+  rig.configurations->programs[3] = image;
+  return image;
+}
+
+// CiA 301 §7.2.4.3.9: a value above MasterOptions::block_threshold goes by block transfer (block
+// download initiate, ccs 6: byte 0 = 110x x.x.), one below it segmented (ccs 1, s = 1: 21h). The
+// image carries its version in our trailer (cfg/program_image.hpp), which the simulated device
+// reports in 1F52h once started (DSP 302 §9): no SlaveNodeOptions needed.
+TEST(NmtMasterSpec, SoftwareUpdateBySegmentedTransferBootsWithTheVersionTheImageCarries) {
+  MasterRig rig;
+  const auto image = needs_update(rig, 300);
+  rig.options.block_threshold = 4096;
+  rig.two_slaves();
+  ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
+  EXPECT_TRUE(rig.boot_errors(3).empty());
+  auto program = rig.downloads_of(3, 0x1F50, 1);
+  ASSERT_EQ(program.size(), 1U);
+  EXPECT_EQ(program[0].frame.data[0], 0x21) << "segmented, size indicated";
+  EXPECT_EQ(rig.slave(3).node().program_images().at(1), image);
+  EXPECT_EQ(rig.slave(3).node().dictionary().get_unsigned(0x1F52, 1), kSoftwareDate + 1);
+}
+
+TEST(NmtMasterSpec, SoftwareUpdateByBlockTransferAboveTheBlockThreshold) {
+  MasterRig rig;
+  const auto image = needs_update(rig, 2000);
+  rig.two_slaves();
+  ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
+  auto program = rig.downloads_of(3, 0x1F50, 1);
+  ASSERT_EQ(program.size(), 1U);
+  EXPECT_EQ(program[0].frame.data[0] & 0xE0, 0xC0) << "block download initiate";
+  EXPECT_EQ(rig.slave(3).node().program_images().at(1), image);
+  // The live view's progress (MasterEvent::ProgramProgress): sub-block acknowledgements, growing
+  // up to the image's size.
+  std::vector<MasterEvent> progress;
+  for (const auto& e : rig.events) {
+    if (e.kind == Kind::ProgramProgress) progress.push_back(e);
+  }
+  ASSERT_GE(progress.size(), 2U);
+  for (std::size_t i = 0; i < progress.size(); ++i) {
+    EXPECT_EQ(progress[i].node_id, 3);
+    EXPECT_EQ(progress[i].total, image.size());
+    EXPECT_LE(progress[i].bytes, image.size());
+    if (i > 0) {
+      EXPECT_GT(progress[i].bytes, progress[i - 1].bytes);
+    }
+  }
+  EXPECT_EQ(progress.back().bytes, image.size()) << "the last sub-block acknowledged";
+}
+
+// DSP 302 v3.2.1 §9: "The range for the sub-objects of the Program Control Object is 0 to 2". A
+// device whose file says so (HighLimit 2) answers clear (3) with 0609 0031 (CiA 301: value too
+// high); the master goes on with the download and the slave boots (nmt_master.hpp).
+TEST(NmtMasterSpec, SoftwareUpdateGoesOnWhenTheDeviceRefusesClearAsDsp302AllowsOnly0To2) {
+  MasterRig rig;
+  needs_update(rig, 300);
+  cfg::DeviceDescription dsp302 = slave_eds();
+  dsp302.objects.at(0x1F51).subs.at(1).high_limit = "2";
+  rig.two_slaves({}, dsp302);
+  ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
+  EXPECT_TRUE(rig.boot_errors(3).empty());
+  auto control = rig.downloads_of(3, 0x1F51, 1);
+  ASSERT_EQ(control.size(), 3U);
+  EXPECT_EQ(control[1].frame.data[4], 3);  // clear, refused:
+  const auto refusal = rig.on_id(0x583, control[1].at);
+  ASSERT_FALSE(refusal.empty());
+  EXPECT_EQ(refusal[0].text(), "583#80511F0131000906");  // abort 0609 0031
+  EXPECT_EQ(rig.downloads_of(3, 0x1F50, 1).size(), 1U);
+  EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+}
+
+// An SDO timeout on 1F50h (MasterOptions::program_data_timeout) repeats the download once from
+// the start of the image: the first answer of the device to the image is lost.
+TEST(NmtMasterSpec, SoftwareUpdateRepeatsTheImageOnceAfterAnSdoTimeout) {
+  for (const int lost : {1, 2}) {
+    MasterRig rig;
+    needs_update(rig, 2000);
+    rig.options.program_data_timeout = 300ms;
+    int dropped = 0;
+    // The device's answers to the 1F50h initiate (scs 5, block download: A4h; index 501Fh LE).
+    rig.bus.set_filter([&](const CanFrame& f, TimePoint) {
+      if (f.id == 0x583 && (f.data[0] & 0xE0) == 0xA0 && f.data[1] == 0x50 && f.data[2] == 0x1F &&
+          dropped < lost) {
+        ++dropped;
+        return FrameFate::drop();
+      }
+      return FrameFate::deliver();
+    });
+    rig.two_slaves();
+    const auto ended = [](const MasterEvent& e) {
+      return e.node_id == 3 && (e.kind == Kind::BootError || e.kind == Kind::SlaveBooted);
+    };
+    ASSERT_TRUE(rig.run_until_event(ended, 30s));
+    auto program = rig.downloads_of(3, 0x1F50, 1);
+    ASSERT_EQ(program.size(), 2U) << "lost " << lost << ": one repetition, never two";
+    EXPECT_GE(program[1].at - program[0].at, Duration{300ms});
+    if (lost == 1) {
+      EXPECT_TRUE(rig.boot_errors(3).empty());
+      EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+    } else {
+      ASSERT_FALSE(rig.boot_errors(3).empty());
+      EXPECT_EQ(rig.boot_errors(3).front().error, BootError::I);
+      EXPECT_NE(rig.boot_errors(3).front().text.find("0x05040000"), std::string::npos)
+          << rig.boot_errors(3).front().text;
+    }
+  }
 }
 
 // J: "Configuration download failed": the slave aborts one configuration write.

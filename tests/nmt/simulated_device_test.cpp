@@ -7,6 +7,7 @@
 #include "nmt/simulated_device.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -14,8 +15,11 @@
 #include <map>
 #include <sstream>
 
+#include "cfg/bytes.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/dynamic_channels.hpp"
+#include "cfg/program_image.hpp"
+#include "nmt/device_state.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
 #include "prerequisite.hpp"
@@ -581,7 +585,7 @@ TEST(SimulatedDevice, ProgramSurvivesResetAndStartsAgain) {
 // (date(2024,3,1) - date(1984,1,1)).days == 14670, 14:30:15.250 == 52 215 250 ms.
 constexpr std::uint32_t kFileDate = 13315;
 constexpr std::uint32_t kFileTime = 28'800'000;
-constexpr ApplicationSoftwareVersion kDownloadedVersion{14670, 52'215'250};
+constexpr cfg::ProgramVersion kDownloadedVersion{14670, 52'215'250};
 
 // sim_device.eds plus 1F52h as the device file of a device that has it would declare it; sub 1
 // and 2 with `access` (the spec tables say rw; CiA 302-3 devices commonly declare ro).
@@ -681,6 +685,84 @@ TEST(SimulatedDevice, Cia302_3VerifyApplicationSoftwareSurvivesResetsAndPowerCyc
   rig.boot();  // power cycle
   EXPECT_EQ(rig.read_u(0x1F52, 1), kDownloadedVersion.date_days);
   EXPECT_EQ(rig.read_u(0x1F52, 2), kDownloadedVersion.time_ms);
+}
+
+// Our image version trailer (cfg/program_image.hpp: date u32 LE, time u32 LE, "CPV1"; DSP 302
+// §9 leaves the image format to the manufacturer): the simulated device reports the version
+// its image carries in 1F52h once that program runs, not before.
+constexpr cfg::ProgramVersion kTrailerVersion{15671, 29'700'000};  // 2026-11-27 08:15:00.000
+
+TEST(SimulatedDevice, Dsp302VerifyApplicationSoftwareReportsTheImagesTrailerOnceStarted) {
+  Rig rig({}, sim_eds_with_1f52());
+  rig.boot();
+  // A version in the options loses against the one the image carries.
+  rig.device().set_options({.downloaded_program_version = kDownloadedVersion});
+  const auto image = cfg::with_program_trailer(program_image(300), kTrailerVersion);
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 0, 1), SdoAbort::None);  // stop
+  SdoTransferOptions block;
+  block.mode = SdoMode::Block;
+  ASSERT_EQ(rig.write(0x1F50, 1, image, block).abort, SdoAbort::None);
+  // Downloaded, not started: 1F52h still verifies the program that ran.
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kFileDate);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kFileTime);
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 1, 1), SdoAbort::None);  // start
+  EXPECT_EQ(rig.read_u(0x1F52, 1), kTrailerVersion.date_days);
+  EXPECT_EQ(rig.read_u(0x1F52, 2), kTrailerVersion.time_ms);
+  EXPECT_EQ(rig.device().node().program_images().at(1), image);
+}
+
+TEST(SimulatedDevice, Cia302_3ClearEmptiesTheProgramMemory) {
+  Rig rig({}, sim_eds_with_1f52());
+  rig.boot();
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 0, 1), SdoAbort::None);  // stop
+  ASSERT_EQ(rig.write(0x1F50, 1, program_image(100)).abort, SdoAbort::None);
+  EXPECT_EQ(rig.device().node().program_images().count(1), 1U);
+  ASSERT_EQ(rig.write_u(0x1F51, 1, 3, 1), SdoAbort::None);  // clear (CiA 302-3)
+  EXPECT_TRUE(rig.device().node().program_images().empty());
+}
+
+TEST(SimulatedDevice, Dsp302DownloadedProgramSurvivesANewProcessWithItsStateDirectory) {
+  // `cfgmgr simulate --state DIR` / `sim:?state=DIR`: the image is the device's program memory
+  // (nmt/device_state.hpp); the next process's device boots it, and 1F52h reports its trailer.
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("program_state_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const auto image = cfg::with_program_trailer(program_image(1000), kTrailerVersion);
+  {
+    Rig rig({}, sim_eds_with_1f52());
+    rig.boot();
+    ASSERT_EQ(rig.write_u(0x1F51, 1, 0, 1), SdoAbort::None);  // stop
+    ASSERT_EQ(rig.write(0x1F50, 1, image).abort, SdoAbort::None);
+    bool saves = false;
+    for (const auto& e : rig.events) saves = saves || changes_device_state(e.kind);
+    EXPECT_TRUE(saves) << "the download is an event the tools save the state after";
+    ASSERT_TRUE(save_device_state(dir, *cfg::NodeId::from(kNode), rig.device().node()));
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir / "node-02.program01.bin"));
+  Rig next({}, sim_eds_with_1f52());
+  auto loaded = load_device_state(dir, *cfg::NodeId::from(kNode));
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  ASSERT_TRUE(loaded->has_value());
+  EXPECT_EQ((*loaded)->programs.at(1), image);
+  restore_device_state(next.device().node(), std::move(**loaded));
+  next.boot();  // power-on: the device boots the program in its memory
+  EXPECT_EQ(next.read_u(0x1F51, 1), 1u);
+  EXPECT_EQ(next.read_u(0x1F52, 1), kTrailerVersion.date_days);
+  EXPECT_EQ(next.read_u(0x1F52, 2), kTrailerVersion.time_ms);
+  EXPECT_EQ(next.read_u(0x1F56, 1), cfg::crc32(image));
+  EXPECT_EQ(next.device().node().program_images().at(1), image);
+
+  // A damaged image (one byte changed) is refused, naming the file.
+  {
+    std::fstream f(dir / "node-02.program01.bin", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(10);
+    f.put('\x55');
+  }
+  auto damaged = load_device_state(dir, *cfg::NodeId::from(kNode));
+  ASSERT_FALSE(damaged);
+  EXPECT_NE(damaged.error().message.find("node-02.program01.bin"), std::string::npos)
+      << damaged.error().message;
+  std::filesystem::remove_all(dir);
 }
 
 // A file that declares 1F50h/1F51h but not the optional 1F52h: the simulated device keeps to

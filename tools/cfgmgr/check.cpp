@@ -134,6 +134,7 @@ FileReport check_network_file(const std::string& file, const CheckOptions& optio
     }
   }
   cfg::check_network(network, report.diagnostics);
+  cfg::check_programs(network, report.diagnostics);  // DSP 302 §9: images and versions
   return report;
 }
 

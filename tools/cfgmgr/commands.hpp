@@ -30,6 +30,9 @@ void add_store_command(CLI::App& app);
 void add_sdo_command(CLI::App& app);
 /// `cfgmgr lss scan|set-id|inquire|set-bitrate --bus URL`: LSS, CiA 305 (lss.cpp).
 void add_lss_command(CLI::App& app);
+/// `cfgmgr program-image PAYLOAD --version V -o IMAGE`: an image with a version trailer
+/// (program_image.cpp).
+void add_program_image_command(CLI::App& app);
 
 /// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
 /// App::parse as a RuntimeError, which main turns into the process exit code.

@@ -34,6 +34,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_store_command(app);
   cfgmgr::add_sdo_command(app);
   cfgmgr::add_lss_command(app);
+  cfgmgr::add_program_image_command(app);
 
   try {
     app.parse(argc, argv);

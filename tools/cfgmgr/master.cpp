@@ -46,7 +46,7 @@ void run_master(const MasterCliOptions& options) {
   const std::optional<SimBusOptions> sim = parse_bus_url("master", options.bus);
   if (options.net == 0)
     fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network = load_network_or_exit(options.network, options.net);
+  const auto network = load_network_or_exit(options.network, options.net, options.programs);
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager = options.sdo_manager;
@@ -56,6 +56,7 @@ void run_master(const MasterCliOptions& options) {
 
   tools::ReportFile json = open_report_or_exit(options.json_events);
   EventReporter reporter(options.verbose, json.stream());
+  reporter.track_programs(network);
   RunLimits limits;
   limits.tool = "master";
   limits.run_for_s = options.run_for_s;

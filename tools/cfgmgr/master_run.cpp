@@ -8,7 +8,9 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -175,6 +177,17 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
       ->type_name("N");
   cmd.add_flag("-v,--verbose", args.verbose,
                "Also print boot steps, NMT commands and state changes");
+  cmd.add_option("--program", args.programs.files,
+                 "Node NODE should run the application program image FILE (DSP 302 §9), "
+                 "overriding the project file's NodeXProgramFile=: a node whose 1F52h differs "
+                 "from its expected version gets FILE downloaded to 1F50h sub 1 during its boot "
+                 "(1F81h bit 6); repeatable")
+      ->type_name("NODE=FILE");
+  cmd.add_option("--program-version", args.programs.versions,
+                 "The version node NODE should report in 1F52h (1F53h/1F54h, 1F81h bit 5), "
+                 "overriding NodeXProgramVersion=: YYYY-MM-DD[THH:MM[:SS[.mmm]]] or DAYS,MS "
+                 "(days since 1984-01-01, ms after midnight); repeatable")
+      ->type_name("NODE=VERSION");
   return bus;
 }
 
@@ -271,6 +284,9 @@ void EventReporter::report(const nmt::MasterEvent& e) {
   if (e.node_id && ignored_.contains(*e.node_id)) {
     if (observer_) observer_(e);
     return;
+  }
+  if (const auto updated = programs_.observe(e)) {
+    note(seconds_text(start_, e.at) + "  " + *updated);
   }
   std::string line;
   const std::string node = "node " + std::to_string(node_id) + ": ";
@@ -512,10 +528,59 @@ std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text
   return std::move(nodes).value();
 }
 
-std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net) {
+namespace {
+
+// NODE=TEXT of --program/--program-version: the node and the text; exit 2 when malformed.
+std::pair<cfg::NodeId, std::string> node_assignment_or_exit(std::string_view option,
+                                                            const std::string& spec) {
+  const std::size_t eq = spec.find('=');
+  const auto id = tools::parse_node_id_argument(std::string_view(spec).substr(0, eq));
+  if (eq == std::string::npos || !id || eq + 1 == spec.size()) {
+    std::cerr << "cfgmgr: " << option << " " << spec
+              << ": expected NODE=" << (option == "--program" ? "FILE" : "VERSION")
+              << " with NODE a node-ID (1..127)\n";
+    exit_with(tools::kExitUsage);
+  }
+  return {*id, spec.substr(eq + 1)};
+}
+
+// --program/--program-version applied to the network; errors go to `diagnostics`.
+void apply_program_overrides(cfg::Network& network, const ProgramOverrides& programs,
+                             cfg::Diagnostics& diagnostics) {
+  std::map<std::uint8_t, std::pair<std::string, std::optional<cfg::ProgramVersion>>> wanted;
+  for (const auto& spec : programs.files) {
+    auto [node, file] = node_assignment_or_exit("--program", spec);
+    wanted[node.value()].first = file;
+  }
+  for (const auto& spec : programs.versions) {
+    auto [node, text] = node_assignment_or_exit("--program-version", spec);
+    auto version = cfg::parse_program_version(text);
+    if (!version) {
+      std::cerr << "cfgmgr: --program-version " << spec << ": " << version.error().message << '\n';
+      exit_with(tools::kExitUsage);
+    }
+    wanted[node.value()].second = *version;
+  }
+  for (const auto& [id, program] : wanted) {
+    const auto node = *cfg::NodeId::from(id);
+    if (auto set = cfg::set_node_program(network, node, program.first, program.second); !set) {
+      diagnostics.add("--program", 0, cfg::Severity::Error,
+                      "node " + std::to_string(id) + ": " + set.error().message);
+    }
+  }
+}
+
+}  // namespace
+
+std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net,
+                                                         const ProgramOverrides& programs) {
   cfg::NetworkOptions load_options;
   load_options.net = net;
   auto load = cfg::load_network(path, load_options);
+  if (load.network) {
+    apply_program_overrides(*load.network, programs, load.diagnostics);
+    cfg::check_programs(*load.network, load.diagnostics);
+  }
   tools::print_diagnostics(load.diagnostics);
   if (load.unreadable) exit_with(tools::kExitIo);
   if (!load.ok()) exit_with(tools::kExitInputErrors);

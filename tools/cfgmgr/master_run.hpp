@@ -19,11 +19,19 @@
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/master_config.hpp"
 #include "nmt/nmt_master.hpp"
+#include "program_updates.hpp"
 
 namespace cfgmgr {
 
 /// Exit code when NMT start-up did not end in operation (a mandatory node failed).
 inline constexpr int kExitMandatoryFailed = 4;
+
+/// --program NODE=FILE and --program-version NODE=VERSION as given (each repeatable): they
+/// override the description's NodeXProgramFile=/NodeXProgramVersion= (cfg::set_node_program).
+struct ProgramOverrides {
+  std::vector<std::string> files;
+  std::vector<std::string> versions;
+};
 
 /// The arguments every command that runs a network takes.
 struct NetworkRunArgs {
@@ -32,6 +40,7 @@ struct NetworkRunArgs {
   std::string node_id;  ///< --node-id as given; empty: the default
   unsigned net = 1;     ///< --net
   bool verbose = false;
+  ProgramOverrides programs;
 };
 
 /// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
@@ -80,8 +89,10 @@ std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size
 /// and ends the command with exit 2 on anything else.
 std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text);
 
-/// The network loaded (diagnostics printed; exit 1 on errors, 3 when unreadable).
-std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net);
+/// The network loaded, `programs` applied and cfg::check_programs run (diagnostics printed;
+/// exit 1 on errors, 3 when unreadable, 2 for a malformed --program/--program-version).
+std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net,
+                                                         const ProgramOverrides& programs = {});
 
 /// The master of `network` with node-ID `node_id_text` (empty: the network's, else 7Fh) and
 /// `options` (its configurations come from the network). It is the configuration manager
@@ -133,6 +144,13 @@ class EventReporter {
     note_handler_ = std::move(handler);
   }
 
+  /// Follows each node's software update (DSP 302 §9) and prints "node N: program updated: ..."
+  /// when one succeeds (also when quiet: a live view shows it above itself).
+  void track_programs(std::shared_ptr<const cfg::Network> network) {
+    programs_ = ProgramUpdates(std::move(network));
+  }
+  const ProgramUpdates& programs() const { return programs_; }
+
   bool finished() const { return finished_; }
   bool complete() const { return complete_; }
   bool halted() const { return halted_; }
@@ -146,6 +164,7 @@ class EventReporter {
   std::ostream* json_;
   std::function<void(const nmt::MasterEvent&)> observer_;
   std::function<void(const std::string&)> note_handler_;
+  ProgramUpdates programs_;
   std::set<std::uint8_t> booted_;
   std::set<std::uint8_t> ignored_;
   bool finished_ = false;

@@ -40,6 +40,12 @@ cfg::Result<std::optional<std::string>> NetworkSource::dcf(cfg::NodeId node) con
   return std::optional<std::string>{std::string(text->view())};
 }
 
+std::optional<std::vector<std::uint8_t>> NetworkSource::program(cfg::NodeId node) const {
+  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
+  if (found == nullptr || !found->program || found->program->image.empty()) return std::nullopt;
+  return found->program->image;
+}
+
 namespace {
 
 constexpr std::string_view kSimScheme = "sim:";

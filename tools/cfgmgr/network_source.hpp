@@ -35,6 +35,10 @@ class NetworkSource final : public nmt::ConfigurationSource {
   /// the master's 1F20h for a node with nothing stored; nullopt for a node given by a concise
   /// DCF alone or not in the network; an error (naming the file) when it cannot be read.
   cfg::Result<std::optional<std::string>> dcf(cfg::NodeId node) const override;
+  /// The node's program image (DSP 302 §9, 1F50h sub 1) as cfg::load_network or --program read
+  /// it at start-up (never read from disk while the master runs); nullopt when the network
+  /// gives the node no image.
+  std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const override;
 
  private:
   std::shared_ptr<const cfg::Network> network_;

@@ -68,6 +68,11 @@ struct NodeReport {
   std::size_t entries = 0;  ///< configuration entries written (also when the boot then failed)
   std::size_t total = 0;    ///< entries to write, once the download was planned
   std::uint64_t bytes = 0;
+  /// Software update (DSP 302 §9): image bytes confirmed of total, while UpdateSoftware runs.
+  std::uint64_t program_bytes = 0;
+  std::uint64_t program_total = 0;
+  std::optional<nmt::TimePoint> program_began;
+  nmt::TimePoint program_at{0};
   unsigned retries = 0;  ///< boot tries repeated (CiA 302-2 §3.3)
   nmt::BootStep step = nmt::BootStep::Idle;
   std::optional<nmt::NmtState> state;  ///< as the master knows it
@@ -165,7 +170,16 @@ class Collector {
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
     if (r->result != Result::Pending) return;
     switch (e.kind) {
+      case K::ProgramProgress:
+        r->program_bytes = e.bytes;
+        r->program_total = e.total;
+        r->program_at = e.at;
+        break;
       case K::BootStepChanged:
+        if (e.step == nmt::BootStep::UpdateSoftware) {
+          r->program_began = e.at;
+          r->program_bytes = 0;
+        }
         if (e.step == nmt::BootStep::Identify || e.step == nmt::BootStep::AwaitBootUp) {
           // A try begins with AwaitBootUp (after a reset) or Identify; the engine does not
           // report a repeated error again, so a try is counted by its first step.
@@ -332,9 +346,21 @@ class LiveView {
     const std::string entries = r.total == 0
                                     ? std::to_string(r.entries)
                                     : std::to_string(r.entries) + "/" + std::to_string(r.total);
-    const std::string step =
+    std::string step =
         r.result == Result::Pending ? std::string(nmt::to_string(r.step)) : result_text(r);
-    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-20.20s  %9s  %7llu  %7u",
+    if (r.result == Result::Pending && r.step == nmt::BootStep::UpdateSoftware &&
+        r.program_total != 0 && r.program_began) {
+      // The image's progress, its rate on the bus and what remains at that rate.
+      const double s = static_cast<double>((r.program_at - *r.program_began).count()) / 1e6;
+      const double rate = s > 0 ? static_cast<double>(r.program_bytes) / s : 0;
+      char text[64];
+      std::snprintf(text, sizeof text, "update %llu%% %.0f kB/s ETA %.0f s",
+                    static_cast<unsigned long long>(r.program_bytes * 100 / r.program_total),
+                    rate / 1e3,
+                    rate > 0 ? static_cast<double>(r.program_total - r.program_bytes) / rate : 0.0);
+      step = text;
+    }
+    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-30.30s  %9s  %7llu  %7u",
                   r.node_id, r.name.c_str(),
                   r.state ? std::string(nmt::to_string(*r.state)).c_str() : "-", step.c_str(),
                   entries.c_str(), static_cast<unsigned long long>(r.bytes), r.retries);
@@ -368,7 +394,7 @@ class LiveView {
                     " done, " + std::to_string(written) + " of " + std::to_string(total) +
                     (total == 1 ? " entry" : " entries") + " written");
     char head[160];
-    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-20s  %9s  %7s  %7s", "node", "name",
+    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-30s  %9s  %7s  %7s", "node", "name",
                   "state", "step", "entries", "bytes", "retries");
     lines.emplace_back(head);
     // Nodes still booting first, then those waiting, then those done; as many as fit.
@@ -400,9 +426,10 @@ double node_seconds(const NodeReport& r, nmt::TimePoint start) {
 
 // The table (node, name, result, entries, time; with --lss also whether LSS gave the node-ID)
 // within 100 columns whatever the messages, then one line per node whose result has words to it:
-// "node 2 (io): error D: ...", and one per device LSS found that matched no node.
+// "node 2 (io): error D: ...", one per node whose program was downloaded, and one per device LSS
+// found that matched no node.
 void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, bool lss,
-                 const std::vector<nmt::LssAddress>& unmatched) {
+                 const std::vector<nmt::LssAddress>& unmatched, const ProgramUpdates& programs) {
   constexpr std::size_t kNameWidth = 32;  // longer names are cut ("...") in the table only
   std::size_t name_width = 4;
   std::size_t result_width = 6;
@@ -430,6 +457,21 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
               << "  " << seconds << '\n';
   }
   bool first = true;
+  // DSP 302 §9: each node whose program was downloaded in this run, with what it took.
+  for (const auto& r : nodes) {
+    const ProgramUpdate* u = programs.find(r.node_id);
+    if (u == nullptr || !u->updated) continue;
+    if (first) std::cout << '\n';
+    first = false;
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%.3f s", u->seconds());
+    std::cout << "node " << static_cast<int>(r.node_id)
+              << (r.name.empty() ? "" : " (" + r.name + ")")
+              << ": program updated: " << tools::plural(u->total, "byte") << " in " << seconds
+              << ", before "
+              << (u->before ? cfg::to_string(*u->before) : std::string("(not reported)"))
+              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?")) << '\n';
+  }
   for (const auto& r : nodes) {
     if (r.result != Result::Error) continue;
     if (first) std::cout << '\n';
@@ -447,7 +489,8 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
 
 // The --json report (fixed keys of the configuration manager issue; "mandatory" added).
 std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Duration elapsed,
-                        nmt::TimePoint start, const std::vector<nmt::LssAddress>& unmatched) {
+                        nmt::TimePoint start, const std::vector<nmt::LssAddress>& unmatched,
+                        const ProgramUpdates& programs) {
   char number[32];
   std::snprintf(number, sizeof number, "%.6f", static_cast<double>(elapsed.count()) / 1e6);
   std::string out = std::string("{\"ok\": ") + (ok ? "true" : "false") +
@@ -464,7 +507,8 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
            ", \"bytes\": " + std::to_string(r.bytes) +
            ", \"retries\": " + std::to_string(r.retries) + ", \"seconds\": " + number +
            ", \"mandatory\": " + (r.mandatory ? "true" : "false") +
-           ", \"lss_assigned\": " + (r.lss_assigned ? "true" : "false") + "}";
+           ", \"lss_assigned\": " + (r.lss_assigned ? "true" : "false") +
+           ", \"program\": " + programs.json(r.node_id) + "}";
     first = false;
   }
   out += "], \"lss_unmatched\": [";
@@ -472,6 +516,21 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
     out += (i == 0 ? "" : ", ") + tools::json_string(nmt::address_digits(unmatched[i]));
   }
   return out + "]}\n";
+}
+
+// What the run bound allows for the software updates (DSP 302 §9) the nodes may need: each
+// image byte as 1/7 of an 8-byte frame (135 bits at most with stuffing), twice (the master's
+// pacing counts each segment with an answer's length), at the sim: bit rate, on a real bus at
+// 125 kbit/s (its rate is not known here). A 256 KiB image: 81 s at 125 kbit/s.
+double program_download_bound_s(const std::vector<const cfg::NetworkNode*>& nodes,
+                                const std::optional<SimBusOptions>& sim) {
+  constexpr double kBitsPerByte = 2.0 * 135.0 / 7.0;
+  const double bitrate = sim ? static_cast<double>(sim->bitrate_bps) : 125'000.0;
+  double bytes = 0;
+  for (const cfg::NetworkNode* node : nodes) {
+    if (node->program) bytes += static_cast<double>(node->program->image.size());
+  }
+  return bytes * kBitsPerByte / bitrate;
 }
 
 void run_push(const PushCliOptions& options) {
@@ -485,7 +544,7 @@ void run_push(const PushCliOptions& options) {
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
   }
   if (!options.only.empty()) parse_only(kTool, options.only);  // a usage error before any file
-  const auto network = load_network_or_exit(options.network, options.net);
+  const auto network = load_network_or_exit(options.network, options.net, options.programs);
   const auto selected = selected_nodes(*network, options);
   if (options.dry_run) {
     print_plan(selected, options);
@@ -562,6 +621,7 @@ void run_push(const PushCliOptions& options) {
 
   Collector collector(std::move(reports));
   EventReporter reporter(options.verbose, nullptr);
+  reporter.track_programs(network);
   reporter.ignore_nodes(left_out);
   std::optional<LiveView> view;
   if (LiveView::wanted()) {
@@ -576,7 +636,7 @@ void run_push(const PushCliOptions& options) {
   RunLimits limits;
   limits.tool = kTool;
   limits.until_startup_ends = true;
-  limits.bound_s = boot_time_s + kRunMarginS + lss_s;
+  limits.bound_s = boot_time_s + kRunMarginS + lss_s + program_download_bound_s(selected, sim);
   limits.bound_hint = sim ? " of simulated time" : "";
   // StartupHalted comes once every slave's boot ended (nmt_master.hpp), so each node has its
   // own result by then.
@@ -595,10 +655,11 @@ void run_push(const PushCliOptions& options) {
   for (const auto& r : collector.nodes()) {
     if (r.mandatory && r.result == Result::Error) ok = false;
   }
-  print_table(collector.nodes(), reporter.start(), options.lss.lss, collector.unmatched());
+  print_table(collector.nodes(), reporter.start(), options.lss.lss, collector.unmatched(),
+              reporter.programs());
   if (json.stream() != nullptr) {
-    finish_report_or_exit(
-        json, json_report(collector.nodes(), ok, elapsed, reporter.start(), collector.unmatched()));
+    finish_report_or_exit(json, json_report(collector.nodes(), ok, elapsed, reporter.start(),
+                                            collector.unmatched(), reporter.programs()));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }
@@ -622,13 +683,16 @@ void add_push_command(CLI::App& app) {
          "its CiA 302-2 letter, or not_tried / unfinished when its boot did not end "
          "before the run did; null otherwise), message, entries, bytes, retries, "
          "seconds, mandatory, lss_assigned (true when --lss gave the node its node-ID in "
-         "this run)}], lss_unmatched [LSS addresses VVVVVVVV:PPPPPPPP:RRRRRRRR:SSSSSSSS of "
-         "devices --lss found that match no node]")
+         "this run), program: null, or for a node whose program was downloaded (DSP 302 §9) "
+         "{updated, before, after (each null or {date_days, time_ms, text}), bytes, seconds}}], "
+         "lss_unmatched [LSS addresses VVVVVVVV:PPPPPPPP:RRRRRRRR:SSSSSSSS of devices --lss "
+         "found that match no node]")
       ->type_name("FILE");
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "
                   "1F89h); default: the master DCF's 1F89h when not 0, else 10 s. The run gives "
-                  "up 60 s after it")
+                  "up 60 s after it, plus the time the program images (--program) may take on "
+                  "the bus")
       ->type_name("SECONDS")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--dry-run", options->dry_run,

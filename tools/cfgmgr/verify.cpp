@@ -14,8 +14,10 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bytes.hpp"
 #include "cfg/dcf_diff.hpp"
 #include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
@@ -170,7 +172,20 @@ std::string json_report(const std::vector<NodeSummary>& nodes, const std::vector
 // Starts the reading of every node with writes.
 void start(nmt::ConfigurationVerifier& verifier, const cfg::Network& network, nmt::TimePoint now,
            nmt::ConfigurationVerifier::Output& out) {
-  for (const auto& node : network.nodes) verifier.verify(node.node_id, node.writes, now, out);
+  for (const auto& node : network.nodes) {
+    const auto program = cfg::expected_program_version(network, node.node_id);
+    if (!program) {
+      verifier.verify(node.node_id, node.writes, now, out);
+      continue;
+    }
+    // DSP 302 §9: 1F52h sub 1/2 read back against the master's 1F53h/1F54h like any value.
+    std::vector<cfg::ObjectWrite> writes = node.writes;
+    writes.push_back(
+        {cfg::object::kVerifyApplicationSoftware, 1, cfg::le32_bytes(program->date_days)});
+    writes.push_back(
+        {cfg::object::kVerifyApplicationSoftware, 2, cfg::le32_bytes(program->time_ms)});
+    verifier.verify(node.node_id, writes, now, out);
+  }
 }
 
 // Runs on sim: in simulated time, with a simulated device per node (network_source.hpp).

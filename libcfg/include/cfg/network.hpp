@@ -5,9 +5,13 @@
 //    `[Topology3]`...) with NetName, Nodes, NodeXPresent, NodeXName, NodeXDCFName, EDSBaseName,
 //    X being the node-ID in decimal; each present node's DCF path is relative to the project
 //    file's directory (an absolute path is taken as it is; '\' separators of Windows tools are
-//    tried as '/' when the path as written does not exist). A DCF whose [DeviceComissioning]
-//    has CANopenManager=1 is the master's own: its 1F80h/1F81h/1F84h-1F8Ah/1016h/1F26h/1F27h
-//    rule the boot; without one the master's dictionary is derived (derive_master, below);
+//    tried as '/' when the path as written does not exist). Our own keys (CiA 306-3 has none for
+//    a node's application program, DSP 302 §9): NodeXProgramFile= names the image the node
+//    should run (relative as NodeXDCFName) and NodeXProgramVersion= its version (1F53h/1F54h
+//    sub X, cfg::parse_program_version's text); see "the application program" below. A DCF whose
+//    [DeviceComissioning] has CANopenManager=1 is the master's own: its
+//    1F80h/1F81h/1F84h-1F8Ah/1016h/1F26h/1F27h rule the boot; without one the master's dictionary
+//    is derived (derive_master, below);
 //  - a master DCF alone (CANopenManager=1): its 1F20h sub X (a DCF) or 1F22h sub X (a concise
 //    DCF, or a DCF) name node X's file with DownloadFile=, relative to the master DCF.
 // No bus I/O, no clocks: files are read once by load_network.
@@ -25,8 +29,26 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/program_image.hpp"
 
 namespace cfg {
+
+/// A node's application program (DSP 302 §9) as the network description (or a command line)
+/// gives it: the image the master downloads to 1F50h sub 1 when 1F52h differs from the
+/// expected version, and that version (the master's 1F53h/1F54h sub node-ID).
+struct NodeProgram {
+  /// The image's path as opened; empty when only the version is given (the master checks the
+  /// version, 1F81h bit 5, but may not update: status H when it differs).
+  std::string file;
+  /// The image's bytes, read by load_network (or set_node_program) once, so that the master
+  /// never reads a file while it runs.
+  std::vector<std::uint8_t> image;
+  /// The expected version; nullopt only for a node whose version the master DCF's 1F53h/1F54h
+  /// give (master DCF form), not the description.
+  std::optional<ProgramVersion> version;
+  std::string source;  ///< the file that names the program ("" for a command line)
+  int line = 0;        ///< the line of NodeXProgramFile= (else NodeXProgramVersion=)
+};
 
 /// One slave of the network.
 struct NetworkNode {
@@ -39,6 +61,8 @@ struct NetworkNode {
   /// order, $NODEID resolved with node_id) or the concise DCF's entries as stored. Never 1020h
   /// or 1010h: the master adds them after the download (CiA 302-2 §3.5).
   std::vector<ObjectWrite> writes;
+  /// The application program the node should run; nullopt: the description says none.
+  std::optional<NodeProgram> program;
 };
 
 /// A loaded network description.
@@ -150,7 +174,50 @@ std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms);
 
 /// The master's dictionary for `nodes` by the rules above, as a DCF with CANopenManager=1 (so
 /// that it can be written out and read back as a master DCF). Nodes without a DCF get 1F81h and
-/// 1F26h/1F27h only.
+/// 1F26h/1F27h only. Nodes with a program get what set_expected_program gives.
 DeviceDescription derive_master(std::span<const NetworkNode> nodes);
+
+// --- the application program (DSP 302 §9) --------------------------------------------------------
+// The standard objects say what the master checks: 1F81h bit 5 (verify the application software
+// version, DSP 302 §5.2 Table 23), bit 6 (automatic software update allowed, Table 24) and
+// 1F53h/1F54h sub X (the expected date and time, as 1F52h sub 1/2 of the slave report them).
+// CiA 306-3 has no key for the image itself; ours are NodeXProgramFile= and NodeXProgramVersion=
+// in [Topology] (see the top), and --program/--program-version of cfgmgr push and master. A node
+// with a version gets bit 5 and 1F53h/1F54h; with an image too, bit 6. This holds for a derived
+// master and for a master DCF the project file names: there the description's programs replace
+// the DCF's own 1F53h/1F54h sub X. A master DCF given alone says 1F53h/1F54h and bits 5/6 itself;
+// the images then come from --program.
+// load_network reports the keys' own errors (an image that cannot be read or is empty, a version
+// that does not parse) at their lines; check_programs the rest.
+
+/// Writes `program` into `master`: 1F53h/1F54h sub `node` = its version, 1F81h sub `node` |=
+/// bit 5, and bit 6 when it has an image. Adds 1F53h/1F54h (sub 0..127) when `master` has
+/// none. A program without a version changes nothing.
+void set_expected_program(DeviceDescription& master, NodeId node, const NodeProgram& program);
+
+/// Sets node `node`'s program and the master's objects for it, as a command line overriding the
+/// description does: `file` (read now; empty: keep the description's image), `version`
+/// (nullopt: keep the description's). Fails with a message naming the file when it cannot be
+/// read or is empty, or when the node is not in the network.
+Result<void> set_node_program(Network& network, NodeId node, const std::string& file,
+                              std::optional<ProgramVersion> version);
+
+/// The version the master expects node `node` to report in 1F52h: its 1F53h/1F54h sub `node`
+/// when 1F81h sub `node` has bit 5; nullopt when the master does not check the node's version
+/// (or both are 0, status G's case).
+std::optional<ProgramVersion> expected_program_version(const Network& network, NodeId node);
+
+/// The image at `file`: fails ("cannot open the file: ...", "the file is empty: ...") without
+/// the path in the message, like read_file.
+Result<std::vector<std::uint8_t>> read_program_image(const std::string& file);
+
+/// What `cfgmgr check` (and push, master, build, verify on loading) say about the programs of a
+/// loaded network, at the line that names them (the master DCF's for its own entries): an
+/// image without a version (the master would have nothing to compare 1F52h with, error); 1F81h
+/// bit 5 for a node whose 1F53h and 1F54h are both 0 or absent (status G at boot, CiA 302-2
+/// Table 1, error); an image whose version trailer differs from the expected version (a
+/// simulated device reports the trailer's version, so the update would end with status I,
+/// warning); bit 6 without an image (status H when the version differs, warning).
+void check_programs(const Network& network, Diagnostics& diagnostics);
 
 }  // namespace cfg

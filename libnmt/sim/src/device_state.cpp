@@ -4,6 +4,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -16,6 +17,9 @@
 
 namespace nmt {
 namespace {
+
+/// The program lines of a state file: number -> (size, CRC-32) of its image file.
+using ProgramListing = std::map<std::uint8_t, std::pair<std::uint64_t, std::uint32_t>>;
 
 cfg::Error parse_error(const std::string& file, std::size_t line, std::string what) {
   return cfg::Error{file + ":" + std::to_string(line) + ": error: " + std::move(what)};
@@ -60,11 +64,17 @@ std::string format_device_state(const DeviceStateOwner& owner, const DeviceState
     text += "lss_node=" + std::to_string(state.lss->node_id) +
             "\nlss_bit_timing=" + std::to_string(state.lss->bit_timing_index) + "\n";
   }
+  for (const auto& [program, image] : state.programs) {
+    text += "program" + cfg::hex_digits(program, 2) + "=" + std::to_string(image.size()) + "," +
+            cfg::hex_digits(cfg::crc32(image), 8) + "\n";
+  }
   return text + "end=" + std::to_string(state.values.size()) + "\n";
 }
 
-cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::string& file,
-                                            const DeviceStateOwner& owner) {
+namespace {
+
+cfg::Result<DeviceState> parse_state(std::string_view text, const std::string& file,
+                                     const DeviceStateOwner& owner, ProgramListing& programs) {
   SavedValues values;
   std::optional<std::uint64_t> node_id;
   std::optional<std::string> lss_owner;
@@ -85,6 +95,29 @@ cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::st
     const std::string_view value = line.substr(eq + 1);
     if (name == "lss") {
       lss_owner = std::string(value);
+      continue;
+    }
+    if (name.size() == 9 && name.substr(0, 7) == "program") {
+      // programNN=SIZE,CRC32 (DSP 302 §9 program memory; the image is a file of its own)
+      const auto program = cfg::parse_hex_number(name.substr(7, 2), 2);
+      const auto comma = value.find(',');
+      const auto size = comma == std::string_view::npos
+                            ? cfg::IntegerLiteralResult{}
+                            : cfg::parse_integer_literal(value.substr(0, comma));
+      const auto crc = comma == std::string_view::npos
+                           ? std::nullopt
+                           : cfg::parse_hex_number(value.substr(comma + 1), 8);
+      if (!program || *program == 0 || *program > 0xFE || !size.literal || !crc) {
+        return parse_error(file, number,
+                           "expected programNN=SIZE,CRC32 (NN 01..FE), e.g. program01=1024,"
+                           "89ABCDEF");
+      }
+      if (!programs
+               .emplace(static_cast<std::uint8_t>(*program),
+                        std::pair{size.literal->value, static_cast<std::uint32_t>(*crc)})
+               .second) {
+        return parse_error(file, number, std::string(name) + " is given twice");
+      }
       continue;
     }
     if (name == "node" || name == "end" || name == "lss_node" || name == "lss_bit_timing") {
@@ -141,12 +174,27 @@ cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::st
     return parse_error(file, number,
                        "lss_node= and lss_bit_timing= come together: the file is damaged");
   }
-  DeviceState state{std::move(values), std::nullopt};
+  DeviceState state{std::move(values), std::nullopt, {}};
   if (lss_node) {
     state.lss = LssStoredConfig{static_cast<std::uint8_t>(*lss_node),
                                 static_cast<std::uint8_t>(*lss_bit_timing)};
   }
   return state;
+}
+
+}  // namespace
+
+cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::string& file,
+                                            const DeviceStateOwner& owner) {
+  ProgramListing programs;
+  return parse_state(text, file, owner, programs);
+}
+
+std::filesystem::path program_image_file(const std::filesystem::path& directory,
+                                         const DeviceStateOwner& owner, std::uint8_t program) {
+  auto file = device_state_file(directory, owner);
+  file.replace_extension(".program" + cfg::hex_digits(program, 2) + ".bin");
+  return file;
 }
 
 std::filesystem::path device_state_file(const std::filesystem::path& directory,
@@ -163,11 +211,28 @@ cfg::Status save_device_state(const std::filesystem::path& directory, const Devi
     return cfg::Error{"cannot create '" + directory.string() + "': " + ec.message(),
                       cfg::ErrorCategory::Io};
   }
-  const std::string text = format_device_state(owner, {node.stored(), node.lss_stored()});
+  // The images first: the text file lists only images that are complete on disk.
+  for (const auto& [program, image] : node.program_images()) {
+    if (auto written = cfg::write_file_atomically(
+            directory.string(), program_image_file(directory, owner, program).filename(), image);
+        !written) {
+      return written;
+    }
+  }
+  const std::string text =
+      format_device_state(owner, {node.stored(), node.lss_stored(), node.program_images()});
   const auto* data = reinterpret_cast<const std::uint8_t*>(text.data());
-  return cfg::write_file_atomically(directory.string(),
-                                    device_state_file(directory, owner).filename(),
-                                    std::span(data, text.size()));
+  auto status =
+      cfg::write_file_atomically(directory.string(), device_state_file(directory, owner).filename(),
+                                 std::span(data, text.size()));
+  if (!status) return status;
+  // A cleared program's image is no longer listed; its file goes (a leftover would be ignored).
+  for (unsigned program = 1; program <= 0xFE; ++program) {
+    const auto n = static_cast<std::uint8_t>(program);
+    if (node.program_images().count(n) != 0) continue;
+    std::filesystem::remove(program_image_file(directory, owner, n), ec);
+  }
+  return status;
 }
 
 cfg::Result<std::optional<DeviceState>> load_device_state(const std::filesystem::path& directory,
@@ -180,19 +245,42 @@ cfg::Result<std::optional<DeviceState>> load_device_state(const std::filesystem:
                       cfg::ErrorCategory::Io};
   }
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  auto state = parse_device_state(text, file.string(), owner);
+  ProgramListing programs;
+  auto state = parse_state(text, file.string(), owner, programs);
   if (!state) return state.error();
+  for (const auto& [program, expected] : programs) {
+    const auto image_file = program_image_file(directory, owner, program);
+    std::ifstream image_in(image_file, std::ios::binary);
+    if (!image_in) {
+      return cfg::Error{file.string() + ": error: program " + std::to_string(program) +
+                            " is listed, but '" + image_file.string() +
+                            "' cannot be read: " + std::strerror(errno),
+                        cfg::ErrorCategory::Input};
+    }
+    std::vector<std::uint8_t> image{std::istreambuf_iterator<char>(image_in),
+                                    std::istreambuf_iterator<char>()};
+    if (image.size() != expected.first || cfg::crc32(image) != expected.second) {
+      return cfg::Error{file.string() + ": error: '" + image_file.string() + "' has " +
+                            std::to_string(image.size()) + " bytes, CRC-32 " +
+                            cfg::hex_digits(cfg::crc32(image), 8) + ", the file lists " +
+                            std::to_string(expected.first) + " bytes, " +
+                            cfg::hex_digits(expected.second, 8) + ": the image is damaged",
+                        cfg::ErrorCategory::Input};
+    }
+    state.value().programs.emplace(program, std::move(image));
+  }
   return std::optional<DeviceState>(std::move(state).value());
 }
 
 void restore_device_state(SlaveNode& node, DeviceState state) {
   node.set_stored(std::move(state.values));
   node.set_lss_stored(state.lss);
+  node.set_program_images(std::move(state.programs));
 }
 
 bool changes_device_state(SlaveEvent::Kind kind) {
   return kind == SlaveEvent::Kind::Stored || kind == SlaveEvent::Kind::Restored ||
-         kind == SlaveEvent::Kind::Lss;
+         kind == SlaveEvent::Kind::Lss || kind == SlaveEvent::Kind::Program;
 }
 
 }  // namespace nmt

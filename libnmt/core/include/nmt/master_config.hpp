@@ -16,10 +16,11 @@
 // build() of that config gives the dictionary NmtMaster::create(dcf) gives. A config read that
 // way can be changed in code before it is built (a slave added or removed, a time changed).
 //
-// What build() owns: 1F80h, 1F81h/1F84h-1F88h/1F26h/1F27h sub 1..127 (0 for nodes not in
-// `slaves`), 1016h (the entries of the nodes in `slaves` that have a heartbeat time, the others
-// cleared), 1017h, 1F89h, 102Ah, 1F90h sub 1..6, and 1F8Ah sub node of each node in `slaves`.
-// Every error says what is wrong and what to do about it. The rest of the master's
+// What build() owns: 1F80h, 1F81h/1F84h-1F88h/1F26h/1F27h and 1F53h/1F54h sub 1..127 (0 for
+// nodes not in `slaves`, or without a stamp or program version), 1016h (the entries of the nodes
+// in `slaves` that have a heartbeat time, the others cleared), 1017h, 1F89h, 102Ah, 1F90h sub
+// 1..6, and 1F8Ah sub node of each node in `slaves`. Every error says what is wrong and what to
+// do about it. The rest of the master's
 // dictionary comes from `dcf` (or the defaults, nmt_master.hpp).
 #pragma once
 
@@ -30,6 +31,7 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/program_image.hpp"
 #include "cfg/result.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/local_dictionary.hpp"
@@ -90,6 +92,9 @@ struct SlaveConfig {
   bool restore = false;          ///< bit 7, Table 25: restore factory defaults (1011h) first
   std::optional<GuardingConfig> guarding;  ///< 1F81h bytes 1-3; unset: not guarded
   ExpectedIdentity identity;               ///< 1F84h-1F88h
+  /// 1F53h/1F54h sub node (DSP 302 §9): the application program version the slave should run,
+  /// checked against its 1F52h with verify_software (bit 5; unset with bit 5: status G).
+  std::optional<cfg::ProgramVersion> program_version;
   /// 1016h: the master consumes the node's heartbeat with this time (1..65535 ms, whole ms).
   std::optional<Duration> heartbeat;
   /// 1F8Ah (§6.12): the 1011h sub-index of the restore (1: all parameters; 0: none).

@@ -63,8 +63,20 @@
 //   restore), then reset node, then the boot-up is awaited (MasterOptions::reboot_timeout);
 //   also when no configuration is stored (the factory defaults are then saved).
 // - Software update (1F81h bits 5, 6): 1F51h sub 1 = 0 (stop), 1F51h sub 1 = 3 (clear), 1F50h
-//   sub 1 = the image (block transfer), 1F51h sub 1 = 1 (start), then 1F52h is read again; a
-//   slave still reporting another version is status I.
+//   sub 1 = the image (block transfer, segmented when the slave refuses block), 1F51h sub 1 = 1
+//   (start), then 1F52h is read again; a slave still reporting another version is status I.
+//   Clear is CiA 302-3's; DSP 302 v3.2.1 §9 gives 1F51h the range 0..2 and real devices built
+//   to it refuse 3. A refusal of clear is therefore no failure and the download goes on (the
+//   image replaces the stopped program anyway, and a device that cannot take it says so on
+//   1F50h): the value-range aborts 0609 0030/0031/0032 (the value 3 is outside the device's
+//   range), 0800 0024 (§9: "the action is not possible"), 0800 0000 (general error) and
+//   0800 0020 (cannot be transferred or stored), the answers such devices give. Any other
+//   abort of clear, and any failure of stop, 1F50h or start, is status I naming the step and
+//   the abort code in words. The steps have their own response timeouts
+//   (MasterOptions::program_control_timeout, program_clear_timeout, program_data_timeout: a
+//   device may stop, erase its flash or write a block before it answers); stop, clear and
+//   start are repeated sdo_retries times after a timeout as every boot transfer is, the 1F50h
+//   download once, from the start of the image.
 // - Error handler (§4.2): for a mandatory slave 1F80h bit 6 sends stop all (`000#0200`), else bit
 //   4 reset node all (`000#8100`, and NMT start-up runs again), else reset node of that slave
 //   (`000#81nn`, Table 12), whose boot-up then restarts its boot (boot-up handler); for an
@@ -283,6 +295,7 @@
 #include "cfg/concise_dcf.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/program_image.hpp"
 #include "cfg/result.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
@@ -406,6 +419,8 @@ struct MasterEvent {
     BootUp,                    ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
     NmtCommandSent,            ///< `command` for node_id (nullopt: all nodes) went out
     ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
+    ProgramProgress,           ///< software update of node_id: `bytes` of `total` bytes of the
+                               ///< 1F50h image confirmed (while it runs, about every 1/32)
     SdoFinished,               ///< an application transfer ended (`sdo`)
     // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
     NegotiationBegan,  ///< detection or negotiation started (after power-on, reset, 72h, ...)
@@ -451,6 +466,19 @@ struct MasterEvent {
   std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
   std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
   std::optional<SdoResult> sdo{};
+  /// SlaveBooted, or BootError I, after the boot began a software update (DSP 302 §9): 1F52h
+  /// before it and after it (nullopt when the update failed before 1F52h was read again), the
+  /// image's size and when the update began (1F51h stop sent) and ended (start confirmed). The
+  /// SlaveBooted text then ends "; program updated from BEFORE to AFTER, N bytes".
+  struct ProgramUpdate {
+    cfg::ProgramVersion before;
+    std::optional<cfg::ProgramVersion> after;
+    std::uint64_t bytes = 0;
+    TimePoint began{0};
+    std::optional<TimePoint> ended;
+    bool operator==(const ProgramUpdate&) const = default;
+  };
+  std::optional<ProgramUpdate> program{};
   std::optional<std::uint16_t> priority{};  ///< flying master kinds: 1F90h sub 3 of node_id
   std::optional<ManagedSdoConnection> connection{};  ///< SDO manager kinds (see Kind)
   /// SrdRegistrationFailed, SdoConnectionRefused: the 1F10h error code (DSP 302 §7.2.3: 00h no
@@ -558,6 +586,15 @@ struct MasterOptions {
   Duration boot_up_wait = std::chrono::milliseconds(500);
   /// How long a restore or a software update waits for the boot-up after its reset node.
   Duration reboot_timeout = std::chrono::seconds(5);
+  /// Software update (DSP 302 §9, see the top): the wait for the answer to 1F51h sub 1 = 0
+  /// (stop) and = 1 (start), which a device may give only once its program stopped or booted.
+  Duration program_control_timeout = std::chrono::seconds(10);
+  /// The wait for the answer to 1F51h sub 1 = 3 (clear, CiA 302-3), during which a device may
+  /// erase its flash (a few seconds for a few MiB of common microcontroller flash).
+  Duration program_clear_timeout = std::chrono::seconds(30);
+  /// The wait for each response of the 1F50h sub 1 download (a device may write a block to
+  /// flash before it confirms it). A timeout repeats the download once from the start.
+  Duration program_data_timeout = std::chrono::seconds(5);
   /// §3.6: the guarding reply to one RTR must come within this time.
   Duration guarding_reply_timeout = std::chrono::milliseconds(100);
   /// Write 1010h sub 1 'save' after a download.

@@ -144,6 +144,16 @@ class SdoClient {
   /// when the one before ends, in the same call, so they never wait for a timer.
   std::optional<TimePoint> next_deadline() const;
 
+  /// How far the running download has come: the bytes the server confirmed so far (each
+  /// segment's response, each sub-block's acknowledgement, CiA 301 §7.2.4.3) of all of them.
+  /// nullopt when no transfer runs or the running one is an upload. For progress displays.
+  struct Progress {
+    TransferId id = 0;
+    std::size_t done = 0;
+    std::size_t total = 0;
+  };
+  std::optional<Progress> download_progress() const;
+
   /// True while a transfer runs or is queued.
   bool busy() const { return active_ != nullptr || !queue_.empty(); }
   std::size_t queued() const { return queue_.size() + (active_ ? 1 : 0); }

@@ -32,9 +32,13 @@
 // - 1F52h (verify application software) is served as the device file declares it: SDO writes
 //   follow its AccessType (0601 0002 when ro/const). A file that declares 1F50h/1F51h but no 1F52h
 //   gets none (the object is optional; real devices, e.g. Nanotec CL4-E, omit it), so a master
-//   reading it sees 0602 0000. A download of program 1 sets it from
-//   SlaveNodeOptions::downloaded_program_version, or leaves it unchanged when that is unset.
-//   Like 1F50h-1F57h as a whole, it lives in program memory: resets and power cycles keep it.
+//   reading it sees 0602 0000. Program 1's image tells its version when it ends in our version
+//   trailer (cfg/program_image.hpp, "CPV1"): once that program is started (1F51h sub 1 = 1, a
+//   reset application or a power-on), 1F52h sub 1/2 report the trailer's date and time; until
+//   then 1F52h keeps the running program's. An image without a trailer sets 1F52h at its
+//   download from SlaveNodeOptions::downloaded_program_version, or leaves it unchanged when that
+//   is unset. Like 1F50h-1F57h as a whole, it lives in program memory: resets and power cycles
+//   keep it, and so do the images (program_images(); nmt/device_state.hpp keeps them on disk).
 // - SDO server channels (CiA 301 §7.5.2.33): the default channel 1200h and every 1201h-127Fh
 //   entry of the device file (or inserted into the dictionary later: found at the next reset or
 //   write of a server entry), each served by its own SdoServer (one transfer per channel, so
@@ -69,6 +73,7 @@
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_dictionary.hpp"
+#include "cfg/program_image.hpp"
 #include "cfg/result.hpp"
 #include "nmt/emcy.hpp"
 #include "nmt/engine.hpp"
@@ -108,13 +113,6 @@ std::string_view to_string(SlaveEvent::Kind kind);
 /// Program control states as 1F51h reads them (CiA 302-3; DSP 302 §9 has 0-2).
 enum class ProgramState : std::uint8_t { Stopped = 0, Running = 1, NoProgram = 3 };
 
-/// Version of an application program as 1F52h sub 1/2 hold it (DSP 302 §9, CiA 302-3).
-struct ApplicationSoftwareVersion {
-  std::uint32_t date_days = 0;  ///< days since 1 January 1984 (sub 1)
-  std::uint32_t time_ms = 0;    ///< milliseconds after midnight (sub 2)
-  bool operator==(const ApplicationSoftwareVersion&) const = default;
-};
-
 /// What a slave node cannot take from its device file.
 struct SlaveNodeOptions {
   /// The version 1F52h reports once a new program number 1 has been downloaded (1F50h sub 1
@@ -122,7 +120,7 @@ struct SlaveNodeOptions {
   /// downloads says it here. nullopt (default): 1F52h keeps the value it had. Only program 1:
   /// DSP 302 §9 gives 1F52h to "the stored program number 1". Has no effect when the device
   /// file has no 1F52h (nothing is added).
-  std::optional<ApplicationSoftwareVersion> downloaded_program_version;
+  std::optional<cfg::ProgramVersion> downloaded_program_version;
   /// A segmented or block SDO transfer with no request for this long is aborted with 0504 0000
   /// (SdoServerConfig::timeout).
   Duration sdo_server_timeout = std::chrono::milliseconds(2000);
@@ -216,6 +214,16 @@ class SlaveNode {
   void set_lss_stored(std::optional<LssStoredConfig> stored);
   /// Program state of 1F51h sub `program` (1..), nullopt when the node has no such program.
   std::optional<ProgramState> program_state(std::uint8_t program) const;
+  /// The program memory: the images downloaded into 1F50h sub N (DSP 302 §9), by program
+  /// number; a program cleared (1F51h = 3) has none. Like stored(), it survives power cycles.
+  const std::map<std::uint8_t, std::vector<std::uint8_t>>& program_images() const {
+    return program_images_;
+  }
+  /// Replaces the program memory (e.g. program_images() of an earlier run kept in a file).
+  /// Each image is program N's as if downloaded (1F50h, 1F56h) and is started at the next
+  /// power_on(); 1F52h then reports the version of program 1's image (see the top of this
+  /// file). Program numbers the file has no 1F50h sub for are dropped.
+  void set_program_images(std::map<std::uint8_t, std::vector<std::uint8_t>> images);
 
   /// Only create() can call this (Key is private).
   SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary factory, cfg::NodeId node_id,
@@ -249,6 +257,11 @@ class SlaveNode {
   void restore_defaults(std::uint8_t area, TimePoint now, Output& out);
   void restart_consumer(TimePoint now);
   void set_program_state(std::uint8_t program, ProgramState state);
+  // program_memory.cpp (DSP 302 §9)
+  void program_downloaded(std::uint8_t program, std::span<const std::uint8_t> image, TimePoint now,
+                          Output& out);
+  void program_state_changed(std::uint8_t program, ProgramState state);
+  void report_program_version(const cfg::ProgramVersion& version);
   bool on_lss_frame(const CanFrame& frame, TimePoint now, Output& out);
   void take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now, Output& out);
   void become_unconfigured(TimePoint now);
@@ -270,6 +283,8 @@ class SlaveNode {
   EmcyProducer emcy_;
   std::map<std::uint32_t, std::vector<std::uint8_t>> stored_;
   std::map<std::uint8_t, ProgramState> programs_;
+  /// Program memory: 1F50h sub N images (non-volatile, like stored_).
+  std::map<std::uint8_t, std::vector<std::uint8_t>> program_images_;
 
   std::optional<LssSlave> lss_;
   /// No node-ID: only LSS is served, no boot-up.

@@ -75,15 +75,23 @@ void NmtMaster::Impl::BootPort::upload(std::uint8_t node, std::uint64_t try_id, 
 void NmtMaster::Impl::BootPort::download(std::uint8_t node, std::uint64_t try_id,
                                          std::uint16_t index, std::uint8_t sub,
                                          std::vector<std::uint8_t> data, TimePoint now) {
+  program_download(node, try_id, index, sub, std::move(data), m_.options.sdo_timeout,
+                   m_.options.sdo_retries, now);
+}
+
+void NmtMaster::Impl::BootPort::program_download(std::uint8_t node, std::uint64_t try_id,
+                                                 std::uint16_t index, std::uint8_t sub,
+                                                 std::vector<std::uint8_t> data, Duration timeout,
+                                                 unsigned retries, TimePoint now) {
   MasterTransfer t;
   t.try_id = try_id;
   t.index = index;
   t.sub = sub;
   t.data = std::move(data);
-  t.options.timeout = m_.options.sdo_timeout;
+  t.options.timeout = timeout;
   // Large values by block transfer; SdoClient falls back to segmented when refused.
   if (t.data.size() > m_.options.block_threshold) t.options.mode = SdoMode::Block;
-  t.retries_left = m_.options.sdo_retries;
+  t.retries_left = retries;
   m_.start_transfer(node, std::move(t), now);
 }
 

@@ -17,20 +17,12 @@ namespace nmt {
 namespace obj = cfg::object;
 using Phase = BootSlaveProcess::Phase;
 
-namespace {
-
-std::string stamp_text(cfg::ConfigurationStamp stamp) {
-  return "day " + std::to_string(stamp.days) + ", " + std::to_string(stamp.ms) + " ms";
-}
-
-}  // namespace
-
 std::uint32_t uploaded_u32(const SdoResult& result) {
   return cfg::low_le32(result.data);
 }
 
 std::string transfer_failure(const SdoResult& result) {
-  return cfg::to_string({result.index, result.sub_index}) +
+  return cfg::to_string(cfg::ObjectAddress{result.index, result.sub_index}) +
          (result.upload ? " upload" : " download") + " failed: " + to_string(result.abort);
 }
 
@@ -40,7 +32,11 @@ BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& o
           .retry_interval = options.retry_interval,
           .force_download = options.force_download,
           .save_configuration = options.save_configuration,
-          .application_step = options.application_step};
+          .application_step = options.application_step,
+          .program_control_timeout = options.program_control_timeout,
+          .program_clear_timeout = options.program_clear_timeout,
+          .program_data_timeout = options.program_data_timeout,
+          .sdo_retries = options.sdo_retries};
 }
 
 BootSlaveProcess::BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, Options options)
@@ -99,6 +95,7 @@ void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_
   software_updated_ = false;
   identity_sub_ = 0;
   software_ = {};
+  update_.reset();
   verify_ = {};
   cob_ids_to_read_.clear();
   cob_ids_read_.clear();
@@ -200,7 +197,8 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
       if (!match) {
         failed(
             error,
-            cfg::to_string({obj::kIdentity, sub}) + " is " + cfg::hex(actual, 8) + ", " +
+            cfg::to_string(cfg::ObjectAddress{obj::kIdentity, sub}) + " is " + cfg::hex(actual, 8) +
+                ", " +
                 cfg::object_name(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1)) +
                 " expects " + cfg::hex(expected, 8),
             now, out);
@@ -217,10 +215,11 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
         return;
       }
       if (phase_ == Phase::ReadSoftwareDate) {
-        software_.days = uploaded_u32(r);
+        software_.date_days = uploaded_u32(r);
         upload(Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
       } else {
-        software_.ms = uploaded_u32(r);
+        software_.time_ms = uploaded_u32(r);
+        if (software_updated_) update_->after = software_;
         software_checked(now, out);
       }
       return;
@@ -229,20 +228,26 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
     case Phase::ProgramClear:
     case Phase::ProgramData:
     case Phase::ProgramStart: {
-      if (!r.ok()) {
+      // A device built to DSP 302 v3.2.1 §9 (1F51h range 0..2) refuses CiA 302-3's clear:
+      // no failure, the download goes on (nmt_master.hpp, "Software update").
+      const bool clear_refused =
+          phase_ == Phase::ProgramClear && r.aborted_by_server &&
+          (r.abort == SdoAbort::ValueRangeExceeded || r.abort == SdoAbort::ValueTooHigh ||
+           r.abort == SdoAbort::ValueTooLow || r.abort == SdoAbort::NoDataAvailable ||
+           r.abort == SdoAbort::General || r.abort == SdoAbort::CannotStoreOrTransfer);
+      if (!r.ok() && !clear_refused) {
         failed(BootError::I, "program download: " + transfer_failure(r), now, out);
         return;
       }
       // CiA 302-3 program download: stop (0), clear (3), 1F50h data, start (1).
       if (phase_ == Phase::ProgramStop) {
-        download(Phase::ProgramClear, obj::kProgramControl, 1, {3}, now);
+        program_step(Phase::ProgramClear, now);
       } else if (phase_ == Phase::ProgramClear) {
-        auto image = port_->program(node_.value());
-        download(Phase::ProgramData, obj::kProgramData, 1,
-                 image ? std::move(*image) : std::vector<std::uint8_t>{}, now);
+        program_step(Phase::ProgramData, now);
       } else if (phase_ == Phase::ProgramData) {
-        download(Phase::ProgramStart, obj::kProgramControl, 1, {1}, now);
+        program_step(Phase::ProgramStart, now);
       } else {
+        update_->ended = now;
         software_updated_ = true;
         set_step(BootStep::CheckSoftware, now, out);
         upload(Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
@@ -315,7 +320,7 @@ void BootSlaveProcess::check_software(TimePoint now, Output& out) {
     check_configuration(now, out);
     return;
   }
-  if (expect.software.is_zero()) {
+  if (expect.software == cfg::ProgramVersion{}) {
     failed(BootError::G,
            "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
                cfg::hex(node_.value(), 2) + "h are 0",
@@ -332,8 +337,8 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     check_configuration(now, out);
     return;
   }
-  const std::string versions = "1F52h reports " + stamp_text(software_) + ", 1F53h/1F54h expect " +
-                               stamp_text(expect.software);
+  const std::string versions = "1F52h reports " + cfg::to_string(software_) +
+                               ", 1F53h/1F54h expect " + cfg::to_string(expect.software);
   if (software_updated_) {
     failed(BootError::I, "after the program download " + versions, now, out);
     return;
@@ -347,7 +352,38 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     return;
   }
   set_step(BootStep::UpdateSoftware, now, out);
-  download(Phase::ProgramStop, obj::kProgramControl, 1, {0}, now);
+  update_ = MasterEvent::ProgramUpdate{
+      .before = software_, .after = std::nullopt, .bytes = 0, .began = now, .ended = std::nullopt};
+  program_step(Phase::ProgramStop, now);
+}
+
+void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
+  // DSP 302 §9 1F51h sub 1: 0 stop, 1 start; CiA 302-3: 3 clear. Each with its own wait
+  // (MasterOptions::program_*_timeout); the image is repeated once after a timeout.
+  phase_ = phase;
+  const auto control = [&](std::uint8_t value, Duration timeout) {
+    port_->program_download(node_.value(), try_id_, obj::kProgramControl, 1, {value}, timeout,
+                            options_.sdo_retries, now);
+  };
+  switch (phase) {
+    case Phase::ProgramStop:
+      control(0, options_.program_control_timeout);
+      return;
+    case Phase::ProgramClear:
+      control(3, options_.program_clear_timeout);
+      return;
+    case Phase::ProgramStart:
+      control(1, options_.program_control_timeout);
+      return;
+    default: {
+      auto image = port_->program(node_.value());
+      update_->bytes = image ? image->size() : 0;
+      port_->program_download(node_.value(), try_id_, obj::kProgramData, 1,
+                              image ? std::move(*image) : std::vector<std::uint8_t>{},
+                              options_.program_data_timeout, 1, now);
+      return;
+    }
+  }
 }
 
 void BootSlaveProcess::start_error_control(TimePoint now, Output& out) {
@@ -419,12 +455,17 @@ void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   e.written = configured_ ? plan_.size() : 0;
   e.total = plan_.size();
   e.bytes = bytes_;
+  e.program = update_;
   e.text = node_text(node_.value()) + ": booted" +
            (left_to_application_ ? std::string(" and left to the application (1F81h bit 2 clear: "
                                                "no configuration, no start)")
             : configured_        ? " (configured: " + std::to_string(plan_.size()) + " entries, " +
                                 std::to_string(bytes_) + " bytes)"
                           : " (configuration up to date)");
+  if (update_ && update_->after) {
+    e.text += "; program updated from " + cfg::to_string(update_->before) + " to " +
+              cfg::to_string(*update_->after) + ", " + std::to_string(update_->bytes) + " bytes";
+  }
   out.report(std::move(e));
 }
 
@@ -460,6 +501,7 @@ void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;
+    if (error == BootError::I) e.program = update_;
     e.text = node_text(node_.value()) + ": boot error " + std::string(1, letter(error)) + ": " +
              std::string(describe(error)) + " (" + why + ")";
     if (!retry && expect.assignment.mandatory() && error == BootError::B &&

@@ -21,6 +21,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
+#include "cfg/program_image.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
@@ -35,7 +36,7 @@ struct BootSlaveExpectations {
   std::uint32_t device_type = 0;    ///< 1F84h (0: not checked)
   /// 1F85h-1F88h: vendor-ID, product code, revision number, serial number (0: not checked).
   std::array<std::uint32_t, 4> identity{};
-  cfg::ConfigurationStamp software;       ///< 1F53h/1F54h
+  cfg::ProgramVersion software;           ///< 1F53h/1F54h (DSP 302 §9)
   cfg::ConfigurationStamp configuration;  ///< 1F26h/1F27h, or the configuration manager's stamp
   std::uint8_t restore_sub = 0;           ///< 1F8Ah (§6.12; 0: no restore)
   std::uint32_t boot_time_ms = 0;         ///< 1F89h (§6.11; 0: no limit)
@@ -55,6 +56,12 @@ class BootSlavePort {
                       std::uint8_t sub, TimePoint now) = 0;
   virtual void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
                         std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now) = 0;
+  /// A download of the software update (DSP 302 §9, 1F51h/1F50h) with its own wait for each
+  /// response and its own number of repetitions after a timeout (each from the start of the
+  /// value), as MasterOptions::program_*_timeout give them.
+  virtual void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
+                                std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
+                                unsigned retries, TimePoint now) = 0;
   /// A try ended: stop its transfers (on the bus too) and forget their results.
   virtual void cancel_transfers(std::uint8_t node, TimePoint now) = 0;
 
@@ -114,6 +121,10 @@ class BootSlaveProcess {
     bool force_download = false;
     bool save_configuration = true;
     bool application_step = false;
+    Duration program_control_timeout = std::chrono::seconds(10);
+    Duration program_clear_timeout = std::chrono::seconds(30);
+    Duration program_data_timeout = std::chrono::seconds(5);
+    unsigned sdo_retries = 2;
     static Options from(const MasterOptions& options);
   };
 
@@ -220,6 +231,7 @@ class BootSlaveProcess {
   void keep_alive_state(NmtState state, TimePoint now, Output& out);
   void check_software(TimePoint now, Output& out);
   void software_checked(TimePoint now, Output& out);
+  void program_step(Phase phase, TimePoint now);
   void start_error_control(TimePoint now, Output& out);
   void error_control_started(TimePoint now, Output& out);
   // check_configuration.cpp (§3.5)
@@ -244,7 +256,8 @@ class BootSlaveProcess {
 
   // Data of the current try.
   std::uint8_t identity_sub_ = 0;
-  cfg::ConfigurationStamp software_;  ///< 1F52h as read
+  cfg::ProgramVersion software_;      ///< 1F52h as read
+  std::optional<MasterEvent::ProgramUpdate> update_;  ///< the software update of this try
   cfg::ConfigurationStamp verify_;    ///< 1020h as read
   std::vector<std::uint16_t> cob_ids_to_read_;
   std::map<std::uint16_t, std::uint32_t> cob_ids_read_;

@@ -63,8 +63,8 @@ class DictionaryWriter {
     // A DCF may list fewer sub-indices (1F81h with SubNumber=3): an absent entry reads as 0 to
     // the master (value_of), so 0 needs no entry; any other value does.
     if (value == 0 && !dict_.get_unsigned(index, sub)) return;
-    problem_ = "the master DCF has no " + cfg::to_string({index, sub}) + " for the value " +
-               std::to_string(value) +
+    problem_ = "the master DCF has no " + cfg::to_string(cfg::ObjectAddress{index, sub}) +
+               " for the value " + std::to_string(value) +
                "; list that sub-index in the master DCF (raise the object's SubNumber) or leave "
                "the value 0";
   }
@@ -208,8 +208,17 @@ cfg::Status MasterConfig::validate() const {
       // §6.6-§6.10: 0 means "not checked"; an expected 0 cannot be said.
       if (*fields[i] == std::optional<std::uint32_t>{0}) {
         return error(who + "expected " + kNames[i] + " 0 means 'not checked' in " +
-                     cfg::to_string({kIdentityObjects[i], s.node.value()}) + "; leave it unset");
+                     cfg::to_string(cfg::ObjectAddress{kIdentityObjects[i], s.node.value()}) +
+                     "; leave it unset");
       }
+    }
+  }
+  for (const auto& s : slaves) {
+    // DSP 302 §9 / CiA 302-2 Table 1 G: 1F53h and 1F54h both 0 mean "not configured".
+    if (s.program_version == cfg::ProgramVersion{}) {
+      return error("slave " + std::to_string(s.node.value()) +
+                   ": program version 0, 0 means 'not configured' in 1F53h/1F54h; leave it "
+                   "unset");
     }
   }
   if (auto p = ms_problem(boot_time, 0xFFFFFFFF, true)) {
@@ -276,6 +285,10 @@ cfg::Result<NmtMaster> MasterConfig::build() const {
     const cfg::ConfigurationStamp stamp = s ? s->expected_configuration : cfg::ConfigurationStamp{};
     out.put(obj::kExpectedConfigurationDate, node, stamp.days);
     out.put(obj::kExpectedConfigurationTime, node, stamp.ms);
+    const auto version =
+        s ? s->program_version.value_or(cfg::ProgramVersion{}) : cfg::ProgramVersion{};
+    out.put(obj::kExpectedApplicationSwDate, node, version.date_days);
+    out.put(obj::kExpectedApplicationSwTime, node, version.time_ms);
   }
   out.put(obj::kProducerHeartbeatTime, 0, whole_ms(heartbeat_producer));
   write_heartbeats(*this, dict, out);
@@ -319,6 +332,9 @@ MasterConfig MasterConfig::from_dictionary(const LocalDictionary& dict, cfg::Nod
     const cfg::ConfigurationStamp stamp{u32(dict, obj::kExpectedConfigurationDate, node),
                                         u32(dict, obj::kExpectedConfigurationTime, node)};
     any = any || !stamp.is_zero();
+    const cfg::ProgramVersion version{u32(dict, obj::kExpectedApplicationSwDate, node),
+                                      u32(dict, obj::kExpectedApplicationSwTime, node)};
+    any = any || version != cfg::ProgramVersion{};
     const auto heartbeat = heartbeats.find(node.value());
     if (!any && heartbeat == heartbeats.end()) continue;
     SlaveConfig& s = config.add_slave(node);
@@ -334,6 +350,7 @@ MasterConfig MasterConfig::from_dictionary(const LocalDictionary& dict, cfg::Nod
       s.guarding = GuardingConfig{milliseconds(a.guard_time_ms()), a.retry_factor()};
     }
     s.identity = identity;
+    if (version != cfg::ProgramVersion{}) s.program_version = version;
     if (heartbeat != heartbeats.end()) s.heartbeat = heartbeat->second;
     s.restore_subindex =
         static_cast<std::uint8_t>(dict.get_unsigned(obj::kRestoreConfiguration, node).value_or(1));

@@ -204,21 +204,24 @@ cfg::Status NmtMaster::Impl::check_configuration_values(const LocalDictionary& d
   // Reserved bits are an error of the file.
   const auto startup = dict.get_unsigned(obj::kNmtStartup, 0).value_or(0);
   if ((startup & ~std::uint64_t{cfg::NmtStartup::kDefinedBits}) != 0) {
-    return cfg::Error{cfg::to_string({obj::kNmtStartup, 0}) + ": reserved bits 7-31 are set (" +
+    return cfg::Error{cfg::to_string(cfg::ObjectAddress{obj::kNmtStartup, 0}) +
+                      ": reserved bits 7-31 are set (" +
                       cfg::hex(static_cast<std::uint32_t>(startup), 8) + ")"};
   }
   for (std::uint8_t sub = 3; sub <= 5; ++sub) {
     const auto value = static_cast<std::uint32_t>(
         dict.get_unsigned(obj::kFlyingMasterParameters, sub).value_or(0));
     if (auto problem = flying_value_problem(dict, sub, value)) {
-      return cfg::Error{cfg::to_string({obj::kFlyingMasterParameters, sub}) + ": " + *problem};
+      return cfg::Error{cfg::to_string(cfg::ObjectAddress{obj::kFlyingMasterParameters, sub}) +
+                        ": " + *problem};
     }
   }
   for (unsigned sub = 1; sub <= cfg::kMaxNodeId; ++sub) {
     const auto value =
         dict.get_unsigned(obj::kSlaveAssignment, static_cast<std::uint8_t>(sub)).value_or(0);
     if (assignment_reserved(static_cast<std::uint32_t>(value))) {
-      return cfg::Error{cfg::to_string({obj::kSlaveAssignment, static_cast<std::uint8_t>(sub)}) +
+      return cfg::Error{cfg::to_string(cfg::ObjectAddress{obj::kSlaveAssignment,
+                                                          static_cast<std::uint8_t>(sub)}) +
                         ": reserved bit 1 is set (" + cfg::hex(static_cast<std::uint32_t>(value)) +
                         ")"};
     }

@@ -139,6 +139,8 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "nmt_command";
     case K::ApplicationStep:
       return "application_step";
+    case K::ProgramProgress:
+      return "program_progress";
     case K::SdoFinished:
       return "sdo_finished";
     case K::NegotiationBegan:

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
 #include "master/nmt_master_impl.hpp"
 #include "nmt/frame_bits.hpp"
 
@@ -139,7 +140,8 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   if (transfer.for_application) {
     auto e = master_event(
         MasterEvent::Kind::SdoFinished, now, result.node_id,
-        node_text(result.node_id) + ": " + cfg::to_string({result.index, result.sub_index}) +
+        node_text(result.node_id) + ": " +
+            cfg::to_string(cfg::ObjectAddress{result.index, result.sub_index}) +
             (result.upload ? " upload " : " download ") +
             (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
     e.sdo = result;
@@ -149,6 +151,29 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   }
   auto& b = boot(result.node_id);
   if (b.running() && transfer.try_id == b.try_id()) b.on_sdo_result(result, now, out);
+}
+
+void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
+  // The software update's 1F50h download (DSP 302 §9) as the client has it confirmed, for the
+  // live view: about every 1/32 of the image, so a 256 KiB image gives some 32 events.
+  for (auto& [key, t] : transfers) {
+    if (t.for_application || t.for_manager || t.upload || t.index != cfg::object::kProgramData) {
+      continue;
+    }
+    const auto p = clients.client(key.first).download_progress();
+    if (!p || p->id != key.second || p->done <= t.reported) continue;
+    if (p->done < p->total && p->done - t.reported < std::max<std::size_t>(p->total / 32, 1)) {
+      continue;
+    }
+    t.reported = p->done;
+    auto e = master_event(MasterEvent::Kind::ProgramProgress, now, key.first,
+                          node_text(key.first) + ": program download " + std::to_string(p->done) +
+                              " of " + std::to_string(p->total) + " bytes");
+    e.step = BootStep::UpdateSoftware;
+    e.bytes = p->done;
+    e.total = p->total;
+    report(out, std::move(e));
+  }
 }
 
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {
@@ -182,6 +207,7 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
     flush_nmt(now, out);
     if (sdo_out.events.empty() && sdo_out.frames.size() == counted) break;
   }
+  report_program_progress(now, out);
   for (const auto& f : sdo_out.frames) out.send(f);
   sdo_out.frames.clear();
 }

@@ -56,7 +56,8 @@ struct MasterTransfer {
   std::vector<std::uint8_t> data;  ///< download: kept for a repetition after a timeout
   SdoTransferOptions options;
   unsigned retries_left = 0;
-  TimePoint launched{};  ///< when its (latest) request went out: the window's loss events
+  TimePoint launched{};      ///< when its (latest) request went out: the window's loss events
+  std::size_t reported = 0;  ///< software update: the bytes the last ProgramProgress reported
 };
 
 struct NmtMaster::Impl {
@@ -85,6 +86,9 @@ struct NmtMaster::Impl {
                 TimePoint now) override;
     void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
                   std::vector<std::uint8_t> data, TimePoint now) override;
+    void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
+                          std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
+                          unsigned retries, TimePoint now) override;
     void cancel_transfers(std::uint8_t node, TimePoint now) override;
     void queue_nmt(NmtCommand command, std::uint8_t node) override;
     bool start_error_control(std::uint8_t node, TimePoint now) override;
@@ -273,6 +277,7 @@ struct NmtMaster::Impl {
   /// Dispatches SDO results, moves frames, sends due NMT commands, moves start-up on: after
   /// every call.
   void settle(TimePoint now, Output& out);
+  void report_program_progress(TimePoint now, Output& out);
   void report(Output& out, MasterEvent event);
   bool is_slave(std::uint8_t node) const {
     return node != node_id.value() && cfg::is_node_id(node) && assignment(node).is_slave();

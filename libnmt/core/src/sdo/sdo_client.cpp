@@ -87,6 +87,11 @@ bool SdoClient::cancel(TransferId id, TimePoint now, Output& out, SdoAbort code)
   return false;
 }
 
+std::optional<SdoClient::Progress> SdoClient::download_progress() const {
+  if (!active_ || active_->upload) return std::nullopt;
+  return Progress{active_->id, active_->offset, active_->data.size()};
+}
+
 std::optional<TimePoint> SdoClient::next_deadline() const {
   if (active_) return active_->deadline;
   return std::nullopt;

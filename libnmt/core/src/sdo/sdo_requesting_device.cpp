@@ -473,8 +473,8 @@ void SdoRequestingDevice::channel_results(std::uint32_t key, const SdoClient::Ou
     it->second.transfers.erase(t);
     const auto at = r.finished;
     std::string text = std::string(r.upload ? "upload " : "download ") +
-                       cfg::to_string({r.index, r.sub_index}) + " over " + entry_name(key) + ": " +
-                       (r.ok() ? "done" : to_string(r.abort));
+                       cfg::to_string(cfg::ObjectAddress{r.index, r.sub_index}) + " over " +
+                       entry_name(key) + ": " + (r.ok() ? "done" : to_string(r.abort));
     report({.kind = SrdEvent::Kind::Transfer,
             .at = at,
             .client_index = client_index_of(key),

@@ -116,6 +116,7 @@ SdoAbort SlaveNode::check_program_write(std::uint16_t index, std::uint8_t sub,
 void SlaveNode::set_program_state(std::uint8_t program, ProgramState state) {
   programs_[program] = state;
   dict_.set_unsigned(obj::kProgramControl, program, static_cast<std::uint8_t>(state));
+  program_state_changed(program, state);  // program_memory.cpp
 }
 
 void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
@@ -125,7 +126,8 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
   Output outside;
   Output& out = hooks.as<SlaveEvent>() != nullptr ? *hooks.as<SlaveEvent>() : outside;
   emit(out, SlaveEvent::Kind::SdoWrite, now,
-       cfg::to_string({index, sub}) + " = " + std::to_string(data.size()) + " byte(s)",
+       cfg::to_string(cfg::ObjectAddress{index, sub}) + " = " + std::to_string(data.size()) +
+           " byte(s)",
        cfg::ObjectAddress{index, sub});
 
   if (index == obj::kStoreParameters || index == obj::kRestoreDefaultParameters) {
@@ -182,26 +184,7 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
       }
       break;
     case obj::kProgramData:
-      if (sub != 0) {
-        set_program_state(sub, ProgramState::Stopped);
-        if (dict_.entry(obj::kProgramSoftwareIdentification, sub)) {
-          dict_.set_unsigned(obj::kProgramSoftwareIdentification, sub, cfg::crc32(data));
-        }
-        // DSP 302 §9: 1F52h verifies "the stored program number 1"; the new image's date and
-        // time come from the options (unset: the node does not know them, 1F52h stays).
-        if (sub == 1 && options_.downloaded_program_version) {
-          const auto& v = *options_.downloaded_program_version;
-          if (dict_.entry(obj::kVerifyApplicationSoftware, 1)) {
-            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 1, v.date_days);
-          }
-          if (dict_.entry(obj::kVerifyApplicationSoftware, 2)) {
-            dict_.set_unsigned(obj::kVerifyApplicationSoftware, 2, v.time_ms);
-          }
-        }
-        emit(out, SlaveEvent::Kind::Program, now,
-             "program " + std::to_string(sub) + " downloaded, " + std::to_string(data.size()) +
-                 " bytes");
-      }
+      if (sub != 0) program_downloaded(sub, data, now, out);  // program_memory.cpp
       break;
     default:
       break;
@@ -217,7 +200,7 @@ void SlaveNode::save(std::uint8_t area, TimePoint now, Output& out) {
   }
   emit(out, SlaveEvent::Kind::Stored, now,
        "saved " + std::to_string(count) + " parameters (" +
-           cfg::to_string({obj::kStoreParameters, area}) + ")");
+           cfg::to_string(cfg::ObjectAddress{obj::kStoreParameters, area}) + ")");
 }
 
 void SlaveNode::set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values) {
@@ -236,7 +219,8 @@ void SlaveNode::restore_defaults(std::uint8_t area, TimePoint now, Output& out) 
   // CiA 301 §7.5.2.14: defaults become effective at the next reset; until then nothing changes.
   std::erase_if(stored_, [area](const auto& kv) { return in_area(area, kv.first >> 8 & 0xFFFF); });
   emit(out, SlaveEvent::Kind::Restored, now,
-       "defaults requested (" + cfg::to_string({obj::kRestoreDefaultParameters, area}) +
+       "defaults requested (" +
+           cfg::to_string(cfg::ObjectAddress{obj::kRestoreDefaultParameters, area}) +
            "), effective at next reset");
 }
 

@@ -1,6 +1,8 @@
 // A simulated device's non-volatile memory on disk: the values 1010h 'save' stored
-// (SlaveNode::stored(), 1020h included) and the node-ID and bit rate LSS store configuration
-// saved (SlaveNode::lss_stored(), CiA 305), one file per device in a directory, so that a device
+// (SlaveNode::stored(), 1020h included), the node-ID and bit rate LSS store configuration
+// saved (SlaveNode::lss_stored(), CiA 305) and the program images downloaded into 1F50h
+// (SlaveNode::program_images(), DSP 302 §9), one file per device in a directory (plus one per
+// image), so that a device
 // keeps them from one run to the next as a real one keeps them across power cycles (`cfgmgr push
 // --bus sim:?state=DIR`: a second push finds 1020h as the first left it; `cfgmgr simulate
 // --state DIR FILE@255`: a device given node-ID 5 by LSS boots as node 5 next time).
@@ -17,7 +19,12 @@
 //   1017sub00=E803            one line per saved value: index, sub-index, bytes in bus order
 //   lss_node=5                what LSS stored, when it did: node-ID (255: not configured) and
 //   lss_bit_timing=2          bit timing table index (CiA 305 table 0, 2 = 500 kbit/s)
+//   program01=262156,89ABCDEF program memory (DSP 302 §9, SlaveNode::program_images()): program
+//                             number (two hex digits), the image's size and CRC-32; the image
+//                             itself is the file "node-05.program01.bin" next to this one
 //   end=12                    the number of value lines: a file cut short is never taken
+// The images are written before the text file (each crash-safe), so a listed image is complete;
+// one whose size or CRC differs from its line is an error, never a program the device runs.
 #pragma once
 
 #include <cstdint>
@@ -50,10 +57,15 @@ struct DeviceStateOwner {
   LssAddress lss;  ///< when !node
 };
 
-/// What a device keeps over power cycles: its 1010h-saved values and what LSS stored.
+/// Program images by program number (1F50h sub N), as SlaveNode::program_images() holds them.
+using ProgramImages = std::map<std::uint8_t, std::vector<std::uint8_t>>;
+
+/// What a device keeps over power cycles: its 1010h-saved values, what LSS stored and its
+/// program memory.
 struct DeviceState {
   SavedValues values;
   std::optional<LssStoredConfig> lss;
+  ProgramImages programs;
   bool operator==(const DeviceState&) const = default;
 };
 
@@ -62,32 +74,39 @@ std::string format_device_state(const DeviceStateOwner& owner, const DeviceState
 
 /// Parses the file's text (`file`: the name used in messages). Fails with
 /// "FILE:LINE: error: ..." when a line does not parse, the text is cut short (no end= or one
-/// that does not count the values) or names another owner than `owner`.
+/// that does not count the values) or names another owner than `owner`. The program images
+/// are in files of their own (load_device_state reads them): `programs` is left empty.
 cfg::Result<DeviceState> parse_device_state(std::string_view text, const std::string& file,
                                             const DeviceStateOwner& owner);
+
+/// The file that holds `owner`'s image of program `program` in `directory`.
+std::filesystem::path program_image_file(const std::filesystem::path& directory,
+                                         const DeviceStateOwner& owner, std::uint8_t program);
 
 /// The file that holds `owner`'s state in `directory`.
 std::filesystem::path device_state_file(const std::filesystem::path& directory,
                                         const DeviceStateOwner& owner);
 
-/// Writes what `node` stores (stored(), lss_stored()) to `owner`'s file in `directory` (created
-/// if missing), crash-safe (cfg::write_file_atomically). Nothing saved writes a file without
-/// values, so that a 1011h restore is kept too. Fails (Io) naming the file.
+/// Writes what `node` stores (stored(), lss_stored(), program_images()) to `owner`'s files in
+/// `directory` (created if missing), crash-safe (cfg::write_file_atomically). Nothing saved
+/// writes a file without values, so that a 1011h restore is kept too; the image of a cleared
+/// program is removed. Fails (Io) naming the file.
 cfg::Status save_device_state(const std::filesystem::path& directory, const DeviceStateOwner& owner,
                               const SlaveNode& node);
 
-/// `owner`'s state from its file in `directory`; nullopt when there is no file (the device has
-/// never saved). Fails as parse_device_state (Input), or when the file cannot be read (Io).
+/// `owner`'s state from its files in `directory`; nullopt when there is no file (the device has
+/// never saved). Fails as parse_device_state (Input), when a listed image is missing or its
+/// size or CRC-32 differs from its line (Input), or when a file cannot be read (Io).
 cfg::Result<std::optional<DeviceState>> load_device_state(const std::filesystem::path& directory,
                                                           const DeviceStateOwner& owner);
 
-/// Gives `node` the state as its non-volatile memory (set_stored, set_lss_stored): it acts at
-/// the next power_on().
+/// Gives `node` the state as its non-volatile memory (set_stored, set_lss_stored,
+/// set_program_images): it acts at the next power_on().
 void restore_device_state(SlaveNode& node, DeviceState state);
 
 /// True for the events after which a device's state file is written again: 1010h save, 1011h
-/// restore, and LSS services (store configuration among them; the others write what was
-/// already there).
+/// restore, LSS services (store configuration among them; the others write what was already
+/// there) and program download and control (1F50h, 1F51h).
 bool changes_device_state(SlaveEvent::Kind kind);
 
 }  // namespace nmt

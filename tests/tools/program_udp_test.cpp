@@ -1,0 +1,100 @@
+// The software update in the boot (issue 24, DSP 302 §9) of `cfgmgr push` over the UDP
+// multicast bus, against slaves written with python-can alone from the spec
+// (tests/io/python/program_slaves.py: 1F50h by block download, 1F51h with DSP 302 v3.2.1's range
+// 0..2, so that the master's clear (3) is refused, 1F52h from the image's trailer). Runs inside
+// a private network namespace (tests/support/run_in_netns.sh) as the other UDP tool tests do;
+// elsewhere it skips.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "multicast_netns.hpp"
+#include "python_peer.hpp"
+#include "tool_test_support.hpp"
+
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+using tool_test::ScratchDir;
+
+constexpr const char* kGroup = "239.74.163.2";
+constexpr const char* kPort = "43224";  // one port per test (43225 the next)
+
+std::ptrdiff_t position(const std::vector<std::string>& lines, const std::string& line) {
+  const auto it = std::find(lines.begin(), lines.end(), line);
+  return it == lines.end() ? -1 : it - lines.begin();
+}
+
+TEST(ProgramUpdate, EndToEndOverUdp) {
+  tool_test::run_in_private_netns("ProgramUpdateInNetns.*");
+}
+
+// The run against slaves started with `extra` options: the slaves' lines, both pushes' results.
+struct Runs {
+  tool_test::RunResult first, second;
+  std::vector<std::string> lines;
+  std::string all;
+};
+
+Runs push_twice(const ScratchDir& dir, const char* port, std::vector<std::string> slave_args) {
+  const std::string bus = std::string("udp://") + kGroup + ":" + port;
+  slave_args.insert(slave_args.end(), {kGroup, port, "40", "3"});
+  test_support::PythonPeer slave(test_support::python_script("program_slaves.py"), slave_args);
+  Runs r;
+  if (slave.read_line() != "READY") return r;
+  const std::string network = tool_test::data_path("program/python.cpj");
+  r.first = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
+  r.second = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
+  {
+    // The slaves' end: 7FFh without data, sent by python-can (can_peer.py).
+    test_support::PythonPeer end({"send", kGroup, port, "7FF#"});
+    (void)end.finish();
+  }
+  r.lines = slave.read_all();
+  (void)slave.finish();
+  for (const auto& line : r.lines) r.all += line + "\n";
+  return r;
+}
+
+void expect_updated_once(const Runs& r) {
+  ASSERT_EQ(r.first.exit_code, 0) << r.first.out << r.first.err << "--- slave:\n" << r.all;
+  EXPECT_THAT(r.first.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
+  EXPECT_THAT(r.first.out, HasSubstr("before 2025-08-01 07:30:00.000"));
+  EXPECT_THAT(r.first.out, HasSubstr("after 2026-11-27 08:15:00.000"));
+  // DSP 302 §9 order: stop, clear (CiA 302-3; refused or not, the download goes on), the image,
+  // start.
+  const auto stop = position(r.lines, "CONTROL 3 0");
+  const auto clear = position(r.lines, "CONTROL 3 3");
+  const auto image = position(r.lines, "PROGRAM 3 1012");
+  const auto start = position(r.lines, "CONTROL 3 1");
+  ASSERT_GE(stop, 0) << r.all;
+  EXPECT_LT(stop, clear) << r.all;
+  EXPECT_LT(clear, image) << r.all;
+  EXPECT_LT(image, start) << r.all;
+  // The second push finds 1F52h = 1F53h/1F54h: no download.
+  ASSERT_EQ(r.second.exit_code, 0) << r.second.out << r.second.err;
+  EXPECT_THAT(r.second.out, Not(HasSubstr("program updated")));
+  EXPECT_EQ(std::count(r.lines.begin(), r.lines.end(), "PROGRAM 3 1012"), 1) << r.all;
+}
+
+TEST(ProgramUpdateInNetns, PushUpdatesAPythonSlaveOnceAndTheSecondPushDoesNot) {
+  REQUIRE_ISOLATED_MULTICAST();
+  REQUIRE_PYTHON_CAN();
+  ScratchDir dir;
+  expect_updated_once(push_twice(dir, kPort, {}));
+}
+
+// DSP 302 v3.2.1 §9: 1F51h range 0..2; a device built to it refuses clear (3) with 0609 0030,
+// which is no failure (issue 24): the download goes on.
+TEST(ProgramUpdateInNetns, ASlaveRefusingClearIsUpdatedAnyway) {
+  REQUIRE_ISOLATED_MULTICAST();
+  REQUIRE_PYTHON_CAN();
+  ScratchDir dir;
+  expect_updated_once(push_twice(dir, "43225", {"--refuse-clear"}));
+}
+
+}  // namespace

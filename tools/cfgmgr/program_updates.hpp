@@ -1,0 +1,53 @@
+// What the software update in the boot (DSP 302 §4 figure 7, §9 program download) did per node,
+// from the NMT master's events, for the reports of `cfgmgr push` and `cfgmgr master`: the step
+// UpdateSoftware begins one, ProgramProgress says how far the image is, and SlaveBooted (or
+// BootError I) carries the master's account (MasterEvent::program: 1F52h before and after,
+// bytes, when it began and ended). The failure's words are the master's G/H/I text.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "cfg/network.hpp"
+#include "cfg/program_image.hpp"
+#include "nmt/nmt_master.hpp"
+
+namespace cfgmgr {
+
+struct ProgramUpdate {
+  bool updated = false;     ///< downloaded, started, and 1F52h then matched 1F53h/1F54h
+  bool failed = false;      ///< the boot ended with an error during or after the download
+  std::uint64_t bytes = 0;  ///< of the image, confirmed so far (all of it once downloaded)
+  std::uint64_t total = 0;  ///< the image's size
+  nmt::TimePoint began{0};  ///< UpdateSoftware began (stop, clear, 1F50h, start)
+  std::optional<nmt::TimePoint> ended;  ///< start confirmed (CheckSoftware again) or error
+  std::optional<cfg::ProgramVersion> before;  ///< 1F52h before the update
+  std::optional<cfg::ProgramVersion> after;   ///< 1F52h after it (nullopt: not read again)
+  double seconds() const;
+};
+
+class ProgramUpdates {
+ public:
+  /// Nothing tracked without a network (no images, no expected versions).
+  ProgramUpdates() = default;
+  explicit ProgramUpdates(std::shared_ptr<const cfg::Network> network)
+      : network_(std::move(network)) {}
+
+  /// Follows `e`; returns the line for people once a node's update succeeded ("node 3: program
+  /// updated: 1012 bytes in 0.072 s, now 2026-11-27 08:15:00.000 (1F52h 15671, 29700000)").
+  std::optional<std::string> observe(const nmt::MasterEvent& e);
+  /// The node's last update this run; nullptr when it had none.
+  const ProgramUpdate* find(std::uint8_t node) const;
+  /// `--json`'s "program" of a node: {"updated", "before", "after", "bytes", "seconds"} (a
+  /// version as {"date_days", "time_ms", "text"}), or null when the node had no update.
+  std::string json(std::uint8_t node) const;
+
+ private:
+  std::shared_ptr<const cfg::Network> network_;
+  std::map<std::uint8_t, ProgramUpdate> updates_;
+};
+
+}  // namespace cfgmgr
