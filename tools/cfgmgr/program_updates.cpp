@@ -13,16 +13,17 @@ double ProgramUpdate::seconds() const {
 
 std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
-  if (!network_ || e.node_id == 0) return std::nullopt;
+  if (!network_ || !e.node_id) return std::nullopt;
+  const std::uint8_t node_id = e.node_id->value();
   if (e.kind == K::BootStepChanged && e.step == nmt::BootStep::UpdateSoftware) {
     ProgramUpdate update;
     update.began = e.at;
-    const cfg::NetworkNode* node = network_->find(*cfg::NodeId::from(e.node_id));
+    const cfg::NetworkNode* node = network_->find(*e.node_id);
     if (node != nullptr && node->program) update.total = node->program->image.size();
-    updates_[e.node_id] = update;
+    updates_[node_id] = update;
     return std::nullopt;
   }
-  const auto it = updates_.find(e.node_id);
+  const auto it = updates_.find(node_id);
   if (it == updates_.end()) return std::nullopt;
   ProgramUpdate& u = it->second;
   if (e.kind == K::ProgramProgress) {
@@ -47,7 +48,7 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   u.bytes = u.total;
   char seconds[32];
   std::snprintf(seconds, sizeof seconds, "%.3f s", u.seconds());
-  std::string line = "node " + std::to_string(e.node_id) +
+  std::string line = "node " + std::to_string(node_id) +
                      ": program updated: " + tools::plural(u.total, "byte") + " in " + seconds;
   if (u.before) line += ", was " + cfg::to_string(*u.before);
   if (u.after) line += ", now " + cfg::to_string(*u.after);

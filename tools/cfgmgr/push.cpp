@@ -72,7 +72,7 @@ struct NodeReport {
   std::uint64_t program_bytes = 0;
   std::uint64_t program_total = 0;
   std::optional<nmt::TimePoint> program_began;
-  nmt::TimePoint program_at{0};
+  nmt::TimePoint program_at{};
   unsigned retries = 0;  ///< boot tries repeated (CiA 302-2 §3.3)
   nmt::BootStep step = nmt::BootStep::Idle;
   std::optional<nmt::NmtState> state;  ///< as the master knows it

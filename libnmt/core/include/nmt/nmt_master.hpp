@@ -474,7 +474,7 @@ struct MasterEvent {
     cfg::ProgramVersion before;
     std::optional<cfg::ProgramVersion> after;
     std::uint64_t bytes = 0;
-    TimePoint began{0};
+    TimePoint began{};
     std::optional<TimePoint> ended;
     bool operator==(const ProgramUpdate&) const = default;
   };
