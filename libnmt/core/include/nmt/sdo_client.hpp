@@ -154,6 +154,12 @@ class SdoClient {
   };
   std::optional<Progress> download_progress() const;
 
+  /// Bus bits (nmt::frame_bits) of the frames this client sent that no frame answers: the
+  /// segments of a download sub-block but its last, which the acknowledgement follows
+  /// (CiA 301 §7.2.4.3.11). A sender that paces the bus by counting each request together with
+  /// its answer (the NMT master) subtracts these. Only grows.
+  std::uint64_t unanswered_bits() const { return unanswered_bits_; }
+
   /// True while a transfer runs or is queued.
   bool busy() const { return active_ != nullptr || !queue_.empty(); }
   std::size_t queued() const { return queue_.size() + (active_ ? 1 : 0); }
@@ -171,7 +177,7 @@ class SdoClient {
     BlockUploadInit,    // block initiate sent
     BlockUpload,        // receiving a sub-block
     BlockUploadEnd,     // waiting for the server's end request
-  };
+};
   struct Transfer {
     TransferId id = 0;
     bool upload = false;
@@ -214,6 +220,7 @@ class SdoClient {
   TransferId next_id_ = 1;
   std::unique_ptr<Transfer> active_;
   std::deque<std::unique_ptr<Transfer>> queue_;
+  std::uint64_t unanswered_bits_ = 0;
 };
 static_assert(Engine<SdoClient>);
 
@@ -237,6 +244,8 @@ class SdoClientMux {
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
   bool busy() const;
+  /// The sum of the clients' SdoClient::unanswered_bits().
+  std::uint64_t unanswered_bits() const;
 
  private:
   // By the response identifier as a COB-ID word (cfg::CobId::of), so 11- and 29-bit ids differ.

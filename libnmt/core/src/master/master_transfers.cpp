@@ -182,12 +182,17 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   std::size_t counted = 0;  // sdo_out frames the pacing has counted
   for (;;) {
     if (options.bitrate != 0 && sdo_out.frames.size() > counted) {
-      // Each request and the answer it causes (taken to be as long), within the load limit.
+      // Each request and the answer it causes (taken to be as long), within the load limit;
+      // the segments of a block download sub-block but its last cause none (issue 24: a
+      // program image booked twice its air time).
       double bits = 0;
       for (std::size_t i = counted; i < sdo_out.frames.size(); ++i) {
         bits += 2.0 * frame_bits(sdo_out.frames[i]).total();
       }
-      paced_until = std::max(paced_until, now) + paced_time(bits);
+      const std::uint64_t unanswered = clients.unanswered_bits();
+      bits -= static_cast<double>(unanswered - unanswered_bits_paced);
+      unanswered_bits_paced = unanswered;
+      paced_until = std::max(paced_until, now) + paced_time(std::max(bits, 0.0));
     }
     counted = sdo_out.frames.size();
     for (auto& r : sdo_out.events) results.push_back(std::move(r));

@@ -133,6 +133,8 @@ struct NmtMaster::Impl {
   std::deque<std::pair<std::uint8_t, MasterTransfer>> held;
   /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
   TimePoint paced_until{};
+  /// clients.unanswered_bits() when the pacing last counted: the bits of block segments since.
+  std::uint64_t unanswered_bits_paced = 0;
   /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
   std::optional<TimePoint> boot_up_gate;
   /// Paced: the gate also opens for the slaves that booted up when no boot-up came for

@@ -5,6 +5,7 @@
 #include <variant>
 
 #include "cfg/object_index.hpp"
+#include "nmt/frame_bits.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "sdo/saturating_time.hpp"
 
@@ -217,6 +218,7 @@ void SdoClient::send_download_segment(Transfer& t, TimePoint now, Output& out) {
 }
 
 void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, Output& out) {
+  const std::size_t first = out.frames.size();
   std::size_t pos = t.offset;
   t.sent_in_block = 0;
   t.block_has_last = false;
@@ -233,6 +235,10 @@ void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, Output& out)
       t.block_has_last = true;
       break;
     }
+  }
+  // Only the sub-block's last segment is answered (the acknowledgement).
+  for (std::size_t i = first; i + 1 < out.frames.size(); ++i) {
+    unanswered_bits_ += frame_bits(out.frames[i]).total();
   }
   t.state = State::BlockDownload;
 }
@@ -490,6 +496,12 @@ std::optional<TimePoint> SdoClientMux::next_deadline() const {
 bool SdoClientMux::busy() const {
   return std::any_of(clients_.begin(), clients_.end(),
                      [](const auto& kv) { return kv.second->busy(); });
+}
+
+std::uint64_t SdoClientMux::unanswered_bits() const {
+  std::uint64_t bits = 0;
+  for (const auto& [key, client] : clients_) bits += client->unanswered_bits();
+  return bits;
 }
 
 }  // namespace nmt
