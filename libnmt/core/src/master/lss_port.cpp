@@ -46,6 +46,16 @@ std::optional<std::uint8_t> NmtMaster::Impl::LssPort::slave_with(const LssAddres
   return std::nullopt;
 }
 
+std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
+  std::vector<LssAddress> known;
+  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+    const auto n = static_cast<std::uint8_t>(node);
+    if (!m.is_slave(n)) continue;
+    if (const auto address = m.lss_address_of(n)) known.push_back(*address);
+  }
+  return known;
+}
+
 void NmtMaster::Impl::LssPort::pass_ended(TimePoint now, Output& out) {
   m.lss_pass_done = true;
   m.begin_startup(now, out);
