@@ -628,5 +628,26 @@ TEST_F(MasterLss, ReplacedDeviceIsFoundByTheLookAndBootedByTheBootUpHandler) {
   EXPECT_EQ(devices[0x103]->engine().node().node_id().value(), 3);
 }
 
+TEST_F(MasterLss, LookConfirmsTheMissingSlavesAddressFirstAndNotTheRunningOnes) {
+  auto options = lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}});
+  options.lss.period = 500ms;
+  make_master(std::move(options), {2, 3});
+  power_on_unconfigured(0x102);
+  start();
+  bus.run_for(8s);
+  ASSERT_EQ(master->engine().last_error(*cfg::NodeId::from(3)), BootError::B);
+  frames.clear();
+  events.clear();
+  power_on_unconfigured(0x103);
+  bus.run_for(8s);
+  // Node 3 is missing (1F82h 1), node 2 runs: node 3's serial number (103h, part 3, LSSNext 0)
+  // is confirmed, its device configured, and the reset's silence ends the scan: node 2's
+  // address is never sent.
+  EXPECT_TRUE(first("7E5#5103010000000300").has_value());
+  EXPECT_FALSE(first("7E5#5102010000000300").has_value());
+  ASSERT_EQ(of_kind(Kind::LssAssigned).size(), 1u);
+  EXPECT_EQ(of_kind(Kind::LssAssigned)[0]->node_id, 3);
+}
+
 }  // namespace
 }  // namespace nmt

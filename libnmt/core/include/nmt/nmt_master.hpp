@@ -82,7 +82,8 @@
 //   every unconfigured device by Fastscan (nmt/lss_master.hpp's scan). It knows the address of
 //   each slave it may assign, so it does not search for those: Fastscan reset (80h, no answer
 //   within a scan step: no unconfigured device, the pass ends), then for each slave with an
-//   address, in node-ID order, its four parts confirmed with BitCheck 0 (a device answers only
+//   address, in node-ID order (those known to run, 1F82h, last: a look mostly finds the device
+//   of a slave that went missing), its four parts confirmed with BitCheck 0 (a device answers only
 //   when all 32 bits match; the serial number's match puts it in LSS configuration); a part not
 //   answered within a scan step ends that slave (device absent or configured) and the next one
 //   starts with a reset, whose silence ends the pass. Only devices still answering the reset
