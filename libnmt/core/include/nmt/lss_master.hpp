@@ -39,20 +39,20 @@
 // - Scan with known addresses (`targets`): Fastscan with BitCheck 0 compares all 32 bits of part
 //   LSSSub, and a device whose part matches answers and moves on to part LSSNext; a match of the
 //   serial number with LSSNext < LSSSub puts it in LSS configuration (CiA 305 Fastscan; read in
-//   CANopenNode 305/CO_LSSslave.c, which answers BitCheck 80h always and otherwise only when
-//   LSSSub is its position and the bits BitCheck..31 match, and whose master, CO_LSSmaster.h
+//   CANopenNode 305/CO_LSSslave.c, which answers BitCheck 80h always and otherwise only when LSSSub
+//   is its position and the bits BitCheck..31 match, and whose master, CO_LSSmaster.h
 //   CO_LSSmaster_FS_MATCH, confirms a part it is given instead of scanning it; lely-core
-//   src/co/lss.c slave likewise; our LssSlave::fastscan). So a known address is confirmed in 4
-//   requests instead of 128 bit queries: before each target the reset (BitCheck 80h), which
-//   tells whether any unconfigured device is left (no answer: the scan ends, no more targets),
-//   then part 0..3 with BitCheck 0 and LSSNext the next part (0 after the serial number). A
-//   missing answer ends that target after one scan step (its device is absent or configured);
-//   all 4 answered: the device is in configuration and gets its node-ID as above. When every
-//   target is done and the reset is still answered, the devices left are found bit by bit as
-//   above (that reset is the bit-by-bit Fastscan's first). A target whose configure node-ID
-//   failed is left in waiting unconfigured; the bit-by-bit Fastscan finds it again and passes
-//   it without a second event. A target absent at its turn that appears later is found bit by
-//   bit and gets its node-ID from the chooser.
+//   src/co/lss.c's slave keeps such a position, lsspos; our LssSlave::fastscan compares the same
+//   way). So a known address is confirmed in 4 requests instead of 128 bit queries: before each
+//   target the reset (BitCheck 80h), which tells whether any unconfigured device is left (no
+//   answer: the scan ends, no more targets), then part 0..3 with BitCheck 0 and LSSNext the next
+//   part (0 after the serial number). A missing answer ends that target after one scan step (its
+//   device is absent or configured); all 4 answered: the device is in configuration and gets its
+//   node-ID as above. When every target is done and the reset is still answered, the devices left
+//   are found bit by bit as above (that reset is the bit-by-bit Fastscan's first). A target whose
+//   configure node-ID failed is left in waiting unconfigured; the bit-by-bit Fastscan finds it
+//   again and passes it without a second event. A target absent at its turn that appears later is
+//   found bit by bit and gets its node-ID from the chooser.
 #pragma once
 
 #include <chrono>
