@@ -8,9 +8,11 @@
 // "--lss" (issue 23): instead, the push --lss of the same network whose 126 devices all come out
 // of the box without node-ID (sim:?unconfigured=1-126, every DCF with LSS_Supported=1 and a
 // serial number of its own): Execute LSS gives each its node-ID, then the usual first push. Its
-// bound adds the LSS requests the protocol needs (nmt/lss_master.hpp): per device the Fastscan
-// reset, 4 x (32 bit queries + a confirmation), configure node-ID, store, switch to waiting
-// (136), plus one switch to waiting before and the reset nobody answers after: 136 N + 2.
+// bound adds the LSS requests the protocol needs when the master knows every device's address
+// (nmt/lss_master.hpp, scan with targets): per device the Fastscan reset, its 4 parts confirmed
+// (BitCheck 0), configure node-ID, store, switch to waiting (8), plus one switch to waiting
+// before and the reset nobody answers after: 8 N + 2. (Before the targeted scan the bound was
+// a blind Fastscan's, 136 N + 2: 1 + 4 x 33 requests to find each device.)
 //   cmake --build build-bench --target bench_push && build-bench/bench/bench_push [RUNS] [--lss]
 // Per run: bus time (the report's elapsed_s, simulated), the lower bound (air time,
 // nmt::frame_bits, of the frames CiA 301/302-2 require, built here from the network's own
@@ -179,10 +181,11 @@ void print(const char* what, const std::vector<Run>& runs, const Required& bound
 
 }  // namespace
 
-// The LSS requests a scan of `devices` new devices needs (see the top), 8 data bytes each.
+// The LSS requests a scan of `devices` new devices of known addresses needs (see the top), 8
+// data bytes each.
 void add_lss_requests(Required& r, std::size_t devices) {
   const std::vector<std::uint8_t> request(8, 0);
-  for (std::size_t i = 0; i < 136 * devices + 2; ++i) r.add(0x7E5, request);
+  for (std::size_t i = 0; i < 8 * devices + 2; ++i) r.add(0x7E5, request);
 }
 
 int main(int argc, char** argv) {

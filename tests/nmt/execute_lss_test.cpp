@@ -44,6 +44,11 @@ struct FakePort final : ExecuteLssPort {
     }
     return std::nullopt;
   }
+  std::vector<LssAddress> known_addresses() const override {
+    std::vector<LssAddress> known;
+    for (const auto& [node, a] : slaves) known.push_back(a);
+    return known;
+  }
   void pass_ended(TimePoint now, Output& /*out*/) override { ended_at.push_back(now); }
   bool may_look() const override { return looking; }
 
@@ -256,6 +261,181 @@ TEST_F(ExecuteLssBus, TenDevicesOfTenSlavesAllGetTheirNodeIds) {
   EXPECT_EQ(texts(events, Kind::LssAssigned).size(), 10u);
 }
 
+// The known addresses confirmed (CiA 305 Fastscan, BitCheck 0: all 32 bits of part LSSSub
+// compared; a match answers 4Fh and moves to part LSSNext; the serial number with LSSNext 0
+// enters LSS configuration), 4 requests per slave instead of 128 bit queries
+// (lss_master.hpp). sim_address's parts little-endian: vendor DE C0 57 7E, product 08 05 00 00,
+// revision 01 00 02 00.
+const std::string kWaiting = "7E5#0400000000000000";
+const std::string kReset = "7E5#5100000000800000";
+const std::string kAnswer = "7E4#4F00000000000000";
+const std::string kVendor = "7E5#51DEC0577E000001";    // part 0, BitCheck 0, LSSNext 1
+const std::string kProduct = "7E5#5108050000000102";   // part 1, LSSNext 2
+const std::string kRevision = "7E5#5101000200000203";  // part 2, LSSNext 3
+const std::string kStore = "7E5#1700000000000000";
+const std::string kStored = "7E4#1700000000000000";
+const std::string kConfigured = "7E4#1100000000000000";  // configure node-ID, error code 0
+
+TEST_F(ExecuteLssBus, KnownAddressIsConfirmedPartByPartWithBitCheckZero) {
+  port.slaves[5] = sim_address(0xCAFEBABE);
+  auto& device = add(sim_address(0xCAFEBABE));
+  run_pass();
+  EXPECT_EQ(device.active_node_id(), 5);
+  EXPECT_EQ(frames,
+            (Frames{kWaiting, kReset, kAnswer, kVendor, kAnswer, kProduct, kAnswer, kRevision,
+                    kAnswer, "7E5#51BEBAFECA000300", kAnswer, "7E5#1105000000000000", kConfigured,
+                    kStore, kStored, kWaiting, kReset}));
+  EXPECT_EQ(texts(events, Kind::LssScanEnded),
+            Frames{"LSS: 1 unconfigured device found, 1 given a node-ID"});
+}
+
+TEST_F(ExecuteLssBus, TwoDevicesWhoseSerialNumbersDifferInOneBitAreConfirmedOneAfterTheOther) {
+  port.slaves[5] = sim_address(0x10);
+  port.slaves[6] = sim_address(0x11);
+  auto& first = add(sim_address(0x10));
+  auto& second = add(sim_address(0x11));
+  run_pass();
+  EXPECT_EQ(first.active_node_id(), 5);
+  EXPECT_EQ(second.active_node_id(), 6);
+  // Both answer the reset and the first three parts; only the first the serial number 10h. The
+  // configured first no longer answers: the second reset and parts are answered once.
+  EXPECT_EQ(frames, (Frames{kWaiting,
+                            kReset,
+                            kAnswer,
+                            kAnswer,
+                            kVendor,
+                            kAnswer,
+                            kAnswer,
+                            kProduct,
+                            kAnswer,
+                            kAnswer,
+                            kRevision,
+                            kAnswer,
+                            kAnswer,
+                            "7E5#5110000000000300",
+                            kAnswer,
+                            "7E5#1105000000000000",
+                            kConfigured,
+                            kStore,
+                            kStored,
+                            kWaiting,
+                            kReset,
+                            kAnswer,
+                            kVendor,
+                            kAnswer,
+                            kProduct,
+                            kAnswer,
+                            kRevision,
+                            kAnswer,
+                            "7E5#5111000000000300",
+                            kAnswer,
+                            "7E5#1106000000000000",
+                            kConfigured,
+                            kStore,
+                            kStored,
+                            kWaiting,
+                            kReset}));
+  EXPECT_EQ(texts(events, Kind::LssAssigned).size(), 2u);
+}
+
+TEST_F(ExecuteLssBus, AbsentTargetEndsAfterOneSilentStepAndTheResetStartsTheNext) {
+  port.slaves[5] = sim_address(1);  // no device
+  port.slaves[6] = sim_address(2);
+  std::map<std::string, std::vector<TimePoint>> sent;
+  bus.add_observer([&sent](const CanFrame& f, TimePoint at) { sent[to_candump(f)].push_back(at); });
+  auto& present = add(sim_address(2));
+  run_pass();
+  EXPECT_EQ(present.active_node_id(), 6);
+  EXPECT_EQ(frames, (Frames{kWaiting,
+                            kReset,
+                            kAnswer,
+                            kVendor,
+                            kAnswer,
+                            kProduct,
+                            kAnswer,
+                            kRevision,
+                            kAnswer,
+                            "7E5#5101000000000300",
+                            kReset,
+                            kAnswer,
+                            kVendor,
+                            kAnswer,
+                            kProduct,
+                            kAnswer,
+                            kRevision,
+                            kAnswer,
+                            "7E5#5102000000000300",
+                            kAnswer,
+                            "7E5#1106000000000000",
+                            kConfigured,
+                            kStore,
+                            kStored,
+                            kWaiting,
+                            kReset}));
+  EXPECT_TRUE(texts(events, Kind::LssFailed).empty());
+  EXPECT_TRUE(texts(events, Kind::LssUnmatched).empty());
+  // The absent target cost one scan step (10 ms) of silence, plus the reset's air time.
+  ASSERT_EQ(sent["7E5#5101000000000300"].size(), 1u);
+  ASSERT_GE(sent[kReset].size(), 2u);
+  const auto silence = sent[kReset][1] - sent["7E5#5101000000000300"][0];
+  EXPECT_GE(silence, 10ms);
+  EXPECT_LT(silence, 11ms);
+}
+
+TEST_F(ExecuteLssBus, NoUnconfiguredDeviceLeftNoFurtherTargetIsTried) {
+  port.slaves[5] = sim_address(1);
+  port.slaves[6] = sim_address(2);  // its device is already configured: never answers
+  add(sim_address(1));
+  run_pass();
+  // After slave 5's device the reset is not answered: slave 6's address is not sent at all.
+  EXPECT_EQ(frames,
+            (Frames{kWaiting, kReset, kAnswer, kVendor, kAnswer, kProduct, kAnswer, kRevision,
+                    kAnswer, "7E5#5101000000000300", kAnswer, "7E5#1105000000000000", kConfigured,
+                    kStore, kStored, kWaiting, kReset}));
+}
+
+TEST_F(ExecuteLssBus, DevicesLeftAfterTheTargetsAreSearchedBitByBitAndReported) {
+  port.slaves[5] = sim_address(1);
+  add(sim_address(1));
+  auto& stranger = add(sim_address(0x63));
+  run_pass();
+  // The target, then the reset still answered (the stranger): the bit-by-bit search starts at
+  // once with bit 31 of the vendor-ID queried as 0 (BitCheck 1Fh, LSSSub = LSSNext = 0).
+  ASSERT_GE(frames.size(), 20u);
+  EXPECT_EQ(Frames(frames.begin(), frames.begin() + 20),
+            (Frames{kWaiting,    kReset,
+                    kAnswer,     kAnswer,
+                    kVendor,     kAnswer,
+                    kAnswer,     kProduct,
+                    kAnswer,     kAnswer,
+                    kRevision,   kAnswer,
+                    kAnswer,     "7E5#5101000000000300",
+                    kAnswer,     "7E5#1105000000000000",
+                    kConfigured, kStore,
+                    kStored,     kWaiting}));
+  EXPECT_EQ(Frames(frames.begin() + 20, frames.begin() + 23),
+            (Frames{kReset, kAnswer, "7E5#51000000001F0000"}));
+  EXPECT_EQ(stranger.active_node_id(), lss::kUnconfigured);
+  EXPECT_EQ(texts(events, Kind::LssUnmatched),
+            Frames{"LSS: unconfigured device 7E57C0DE:00000508:00020001:00000063 matches no "
+                   "slave: left unconfigured"});
+  EXPECT_EQ(texts(events, Kind::LssScanEnded),
+            Frames{"LSS: 2 unconfigured devices found, 1 given a node-ID"});
+}
+
+TEST_F(ExecuteLssBus, TargetWhoseConfigureFailedIsReportedOnceAndDevicesBelowItAreStillFound) {
+  port.slaves[200] = sim_address(0x50);  // 200: refused (CiA 305 range 1..127)
+  auto& refused = add(sim_address(0x50));
+  auto& stranger = add(sim_address(0x20));  // a lower address, matching no slave
+  run_pass();
+  EXPECT_EQ(refused.active_node_id(), lss::kUnconfigured);
+  EXPECT_EQ(stranger.active_node_id(), lss::kUnconfigured);
+  EXPECT_EQ(texts(events, Kind::LssFailed).size(), 1u);
+  EXPECT_EQ(texts(events, Kind::LssUnmatched),
+            Frames{"LSS: unconfigured device 7E57C0DE:00000508:00020001:00000020 matches no "
+                   "slave: left unconfigured"});
+}
+
 // --- composed into the NMT master ----------------------------------------------------------
 
 constexpr std::uint8_t kMasterId = 0x7F;
@@ -447,6 +627,27 @@ TEST_F(MasterLss, ReplacedDeviceIsFoundByTheLookAndBootedByTheBootUpHandler) {
   ASSERT_EQ(of_kind(Kind::SlaveBooted).size(), 1u);
   EXPECT_EQ(of_kind(Kind::SlaveBooted)[0]->node_id, 3);
   EXPECT_EQ(devices[0x103]->engine().node().node_id().value(), 3);
+}
+
+TEST_F(MasterLss, LookConfirmsTheMissingSlavesAddressFirstAndNotTheRunningOnes) {
+  auto options = lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}});
+  options.lss.period = 500ms;
+  make_master(std::move(options), {2, 3});
+  power_on_unconfigured(0x102);
+  start();
+  bus.run_for(8s);
+  ASSERT_EQ(master->engine().last_error(*cfg::NodeId::from(3)), BootError::B);
+  frames.clear();
+  events.clear();
+  power_on_unconfigured(0x103);
+  bus.run_for(8s);
+  // Node 3 is missing (1F82h 1), node 2 runs: node 3's serial number (103h, part 3, LSSNext 0)
+  // is confirmed, its device configured, and the reset's silence ends the scan: node 2's
+  // address is never sent.
+  EXPECT_TRUE(first("7E5#5103010000000300").has_value());
+  EXPECT_FALSE(first("7E5#5102010000000300").has_value());
+  ASSERT_EQ(of_kind(Kind::LssAssigned).size(), 1u);
+  EXPECT_EQ(of_kind(Kind::LssAssigned)[0]->node_id, 3);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 //   master.store_configuration(now, out);               // 17h
 //   master.switch_state_global(LssState::Waiting, now, out);
 //   master.scan(chooser, now, out);   // every unconfigured device: Fastscan, node-ID, store
+//   master.scan(chooser, now, out, known);  // the known addresses confirmed first (see below)
 //
 // Behaviour where CiA 305 leaves room (each says why):
 // - Services one device answers (switch state selective, configure, store, inquire) end at the
@@ -35,14 +36,33 @@
 //   device the chooser gives none, or whose configure node-ID fails, is switched back unconfigured
 //   and the next Fastscan looks above its address, so every device is found once. A device that
 //   appears during the scan with an address below one already skipped is not found: scan again.
+// - Scan with known addresses (`targets`): Fastscan with BitCheck 0 compares all 32 bits of part
+//   LSSSub, and a device whose part matches answers and moves on to part LSSNext; a match of the
+//   serial number with LSSNext < LSSSub puts it in LSS configuration (CiA 305 Fastscan; read in
+//   CANopenNode 305/CO_LSSslave.c, which answers BitCheck 80h always and otherwise only when LSSSub
+//   is its position and the bits BitCheck..31 match, and whose master, CO_LSSmaster.h
+//   CO_LSSmaster_FS_MATCH, confirms a part it is given instead of scanning it; lely-core
+//   src/co/lss.c's slave keeps such a position, lsspos; our LssSlave::fastscan compares the same
+//   way). So a known address is confirmed in 4 requests instead of 128 bit queries: before each
+//   target the reset (BitCheck 80h), which tells whether any unconfigured device is left (no
+//   answer: the scan ends, no more targets), then part 0..3 with BitCheck 0 and LSSNext the next
+//   part (0 after the serial number). A missing answer ends that target after one scan step (its
+//   device is absent or configured); all 4 answered: the device is in configuration and gets its
+//   node-ID as above. When every target is done and the reset is still answered, the devices left
+//   are found bit by bit as above (that reset is the bit-by-bit Fastscan's first). A target whose
+//   configure node-ID failed is left in waiting unconfigured; the bit-by-bit Fastscan finds it
+//   again and passes it without a second event. A target absent at its turn that appears later is
+//   found bit by bit and gets its node-ID from the chooser.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
@@ -144,7 +164,9 @@ class LssMaster {
   /// Finds every unconfigured device one by one and gives each the node-ID `chooser` says (see
   /// the top of this file); one Assigned or Skipped event per device, then Done (value: the
   /// number of devices found) or, when a device stopped answering mid-scan, Timeout.
-  bool scan(NodeIdChooser chooser, TimePoint now, Output& out);
+  /// With `targets`, those addresses are confirmed first, in order (see the top).
+  bool scan(NodeIdChooser chooser, TimePoint now, Output& out,
+            std::vector<LssAddress> targets = {});
 
   // --- engine --------------------------------------------------------------------------------
   /// True for answers (8-byte frames on 7E4h) the running service waited for.
@@ -158,12 +180,12 @@ class LssMaster {
 
  private:
   enum class Wait : std::uint8_t { Answer, Collect, Delay };
-  enum class Step : std::uint8_t { Reset, Position, Probe, Descend, Confirm };
+  enum class Step : std::uint8_t { Reset, Position, Probe, Descend, Confirm, Target };
   struct FastscanState {
     std::optional<LssAddress> after;
     LssAddress id;
     Step step = Step::Reset;
-    int sub = 0;       // Descend/Confirm: the part being found
+    int sub = 0;       // Descend/Confirm: the part being found; Target: the part confirmed
     int bit = 31;      // Descend: the bit queried
     int level = 3;     // Position/Probe: the part whose branches are probed
     int position = 0;  // Position: the part being confirmed
@@ -176,6 +198,9 @@ class LssMaster {
     std::uint8_t node_id = 0;
     ScanPhase phase = ScanPhase::Searching;
     std::uint32_t found = 0;
+    std::vector<LssAddress> targets;  // known addresses, confirmed before the bit-by-bit search
+    std::size_t next_target = 0;
+    std::set<LssAddress> failed;  // targets whose configure node-ID failed (reported once)
   };
 
   bool start(LssService service, TimePoint now, Output& out);
@@ -192,9 +217,11 @@ class LssMaster {
   void fastscan_step(bool answer, TimePoint now, Output& out);
   void fastscan_probe(TimePoint now, Output& out, int from_bit);
   void fastscan_descend(TimePoint now, Output& out);
+  void fastscan_target(TimePoint now, Output& out);
   void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text);
   void scan_next(TimePoint now, Output& out);
   void scan_found(TimePoint now, Output& out);
+  void scan_back_to_waiting(TimePoint now, Output& out);
   void scan_device_done(LssMasterEvent::Kind kind, std::string text, std::uint8_t error_code,
                         TimePoint now, Output& out);
 

@@ -91,7 +91,15 @@
 //   content to CiA 305, CiA 302-2 §3.1 c asks for the LSS master services where node-IDs must be
 //   set): after the master decision, before the reset communication of all nodes
 //   (StartupState::ExecutingLss), the master switches every device to LSS waiting and finds
-//   every unconfigured device by Fastscan (nmt/lss_master.hpp's scan). A device whose LSS
+//   every unconfigured device by Fastscan (nmt/lss_master.hpp's scan). It knows the address of
+//   each slave it may assign, so it does not search for those: Fastscan reset (80h, no answer
+//   within a scan step: no unconfigured device, the pass ends), then for each slave with an
+//   address, in node-ID order (those known to run, 1F82h, last: a look mostly finds the device
+//   of a slave that went missing), its four parts confirmed with BitCheck 0 (a device answers only
+//   when all 32 bits match; the serial number's match puts it in LSS configuration); a part not
+//   answered within a scan step ends that slave (device absent or configured) and the next one
+//   starts with a reset, whose silence ends the pass. Only devices still answering the reset
+//   after all slaves are searched bit by bit (133 requests each) and reported. A device whose
 //   address equals a slave's in all four parts (1F85h-1F88h when all are non-zero, else
 //   ExecuteLssOptions::addresses; the revision is a part of the address here, compared exactly,
 //   not §6.9's "minor at least") gets that slave's node-ID (configure node-ID, 11h), stores it
@@ -104,7 +112,9 @@
 //   has a node-ID is never touched (Fastscan finds only unconfigured ones), and no bit rate is set.
 // - ExecuteLssOptions::period: after start-up the active master looks for unconfigured devices
 //   (a replaced device) every period: one identify non-configured remote slave (4Ch) and a
-//   Fastscan step of silence, and a scan as above only when a device answers. The device that
+//   Fastscan step of silence, and a scan as above (the slaves' addresses confirmed first, so
+//   each slave whose device is configured costs a few requests and a step) only when a device
+//   answers. The device that
 //   gets its node-ID resets its communication, and its boot-up starts its boot (boot-up handler,
 //   below): it is configured as any replaced device is. An unconfigured device that matches no
 //   slave answers every 4Ch, so it costs a scan each period (reported once).

@@ -196,10 +196,12 @@ bool LssMaster::fastscan(TimePoint now, Output& out, std::optional<LssAddress> a
   return true;
 }
 
-bool LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out) {
+bool LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out,
+                     std::vector<LssAddress> targets) {
   if (!start(LssService::Scan, now, out)) return false;
   scan_ = ScanState{};
   scan_->chooser = std::move(chooser);
+  scan_->targets = std::move(targets);
   // No device someone left in configuration may take the node-IDs the scan hands out.
   out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
                            {static_cast<std::uint8_t>(LssState::Waiting)}));
@@ -384,6 +386,10 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
         fastscan_end(Kind::NotFound, now, out, "no unconfigured device answered");
         return;
       }
+      if (scan_ && scan_->next_target < scan_->targets.size()) {
+        fastscan_target(now, out);
+        return;
+      }
       if (!fs_.after) {
         fs_.sub = 0;
         fs_.bit = 31;
@@ -442,7 +448,29 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
       fs_.id.part(fs_.sub) = 0;
       fastscan_descend(now, out);
       return;
+    case Step::Target:
+      if (!answer) {
+        // Its device is absent or configured; the devices that matched the parts before stay
+        // there: the reset brings every unconfigured device back to part 0.
+        fastscan_start(scan_->cursor, now, out);
+        return;
+      }
+      if (fs_.sub == 3) {
+        fastscan_end(Kind::Done, now, out, "found " + to_string(fs_.id));
+        return;
+      }
+      ++fs_.sub;
+      send_fastscan(fs_.id.part(fs_.sub), 0, fs_.sub, fs_.sub == 3 ? 0 : fs_.sub + 1, out, now);
+      return;
   }
+}
+
+void LssMaster::fastscan_target(TimePoint now, Output& out) {
+  // Confirm the next known address part by part (BitCheck 0: all 32 bits compared).
+  fs_.id = scan_->targets[scan_->next_target++];
+  fs_.step = Step::Target;
+  fs_.sub = 0;
+  send_fastscan(fs_.id.part(0), 0, 0, 1, out, now);
 }
 
 void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text) {
@@ -467,8 +495,14 @@ void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string 
 // --- scan --------------------------------------------------------------------------------------
 
 void LssMaster::scan_found(TimePoint now, Output& out) {
-  ++scan_->found;
   scan_->current = fs_.id;
+  if (fs_.step != Step::Target && scan_->failed.contains(fs_.id)) {
+    // A target whose configure node-ID failed, reported then: passed by without a second event.
+    scan_->cursor = fs_.id;
+    scan_back_to_waiting(now, out);
+    return;
+  }
+  ++scan_->found;
   std::optional<std::uint8_t> node_id;
   if (scan_->chooser) node_id = scan_->chooser(scan_->current);
   if (!node_id) {
@@ -492,7 +526,19 @@ void LssMaster::scan_device_done(Kind kind, std::string text, std::uint8_t error
   e.node_id = kind == Kind::Assigned ? scan_->node_id : 0;
   e.error_code = error_code;
   out.report(std::move(e));
-  if (kind == Kind::Skipped) scan_->cursor = scan_->current;
+  if (kind == Kind::Skipped) {
+    // A skipped target is found again bit by bit (only then is it looked past): devices with
+    // lower addresses are still to be found after the targets.
+    if (fs_.step == Step::Target) {
+      scan_->failed.insert(scan_->current);
+    } else {
+      scan_->cursor = scan_->current;
+    }
+  }
+  scan_back_to_waiting(now, out);
+}
+
+void LssMaster::scan_back_to_waiting(TimePoint now, Output& out) {
   // Back to waiting: a device with its new node-ID starts with it and no longer answers
   // Fastscan; a skipped one is looked past.
   out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,

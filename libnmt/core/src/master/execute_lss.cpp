@@ -56,7 +56,8 @@ void ExecuteLssProcess::on_timer(TimePoint now, Output& out) {
     next_look_ = now + period_;
     if (!port_.may_look()) return;
     // Identify non-configured remote slave: one frame, answered (50h) by every device without
-    // a node-ID; the scan (at least 133 Fastscan requests per device) only when one answers.
+    // a node-ID; the scan (the slaves' addresses confirmed, then the rest searched bit by bit)
+    // only when one answers.
     phase_ = Phase::Probe;
     lss_out_.clear();
     lss_.identify_non_configured(now, lss_out_);
@@ -84,7 +85,8 @@ void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
   chosen_.clear();
   assigned_ = 0;
   lss_out_.clear();
-  lss_.scan([this](const LssAddress& address) { return choose(address); }, now, lss_out_);
+  lss_.scan([this](const LssAddress& address) { return choose(address); }, now, lss_out_,
+            port_.known_addresses());
   forward(now, out);
 }
 

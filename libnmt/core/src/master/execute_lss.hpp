@@ -12,7 +12,9 @@
 // (MasterEvent: LssAssigned, LssUnmatched, LssFailed, LssScanEnded).
 //
 //   start(now, out)   the start-up pass: one LssMaster::scan (every unconfigured device: Fastscan,
-//                     configure node-ID, store, switch back to waiting), then port.pass_ended()
+//                     configure node-ID, store, switch back to waiting), then port.pass_ended();
+//                     the scan first confirms the slaves' known addresses (port.known_addresses,
+//                     4 requests each) and searches bit by bit only for the devices left over
 //   watch(now)        afterwards, every `period`: identify non-configured remote slave (4Ch, one
 //                     frame and one Fastscan step of silence when there is nobody), and a scan
 //                     only when a device answered
@@ -23,6 +25,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <vector>
 
 #include "nmt/engine.hpp"
 #include "nmt/lss_master.hpp"
@@ -38,6 +41,9 @@ class ExecuteLssPort {
 
   /// The slave (node-ID in 1F81h) whose LSS address is `address`; nullopt: none.
   virtual std::optional<std::uint8_t> slave_with(const LssAddress& address) const = 0;
+  /// The LSS addresses of the slaves that have one, in node-ID order: each scan confirms these
+  /// first (4 Fastscan requests each) and searches bit by bit only for devices left over.
+  virtual std::vector<LssAddress> known_addresses() const = 0;
   /// The start-up pass ended: NMT start-up goes on (reset of all nodes, boots).
   virtual void pass_ended(TimePoint now, Output& out) = 0;
   /// False while this device is not the active master (a standby flying master): no look.

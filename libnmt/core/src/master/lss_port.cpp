@@ -46,6 +46,21 @@ std::optional<std::uint8_t> NmtMaster::Impl::LssPort::slave_with(const LssAddres
   return std::nullopt;
 }
 
+std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
+  // The slaves not known to run (1F82h: 0 unknown, 1 missing) first: a look after start-up
+  // mostly finds the device of a slave that went missing, and once it has its node-ID the
+  // reset's silence ends the scan before the running slaves' addresses are tried.
+  std::vector<LssAddress> known;
+  for (const bool running : {false, true}) {
+    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
+      const auto n = static_cast<std::uint8_t>(node);
+      if (!m.is_slave(n) || (m.slaves[n].known_state > 1) != running) continue;
+      if (const auto address = m.lss_address_of(n)) known.push_back(*address);
+    }
+  }
+  return known;
+}
+
 void NmtMaster::Impl::LssPort::pass_ended(TimePoint now, Output& out) {
   m.lss_pass_done = true;
   m.begin_startup(now, out);
