@@ -390,7 +390,7 @@ TEST_F(Trace, TracingBusRecordsSentAndReceivedFrames) {
   ASSERT_TRUE(r.ok() && r->has_value());
   EXPECT_EQ(to_candump((*r)->frame), "581#4B00100091010000");
   EXPECT_EQ((*r)->timestamp, TimePoint{Duration{42}});  // the driver's timestamp, unchanged
-  auto none = bus.receive(10ms);              // nothing received: nothing traced
+  auto none = bus.receive(10ms);                        // nothing received: nothing traced
   ASSERT_TRUE(none.ok());
   EXPECT_FALSE(none->has_value());
   scripted.fail_sends = true;

@@ -28,7 +28,7 @@ struct Access {
   std::uint16_t index = 0;
   std::uint8_t sub = 0;
   bool upload = false;
-  std::vector<std::uint8_t> data;  ///< download
+  std::vector<std::uint8_t> data;   ///< download
   std::optional<Duration> timeout;  ///< program_download: its response timeout
   unsigned retries = 0;             ///< program_download: repetitions after a timeout
 };

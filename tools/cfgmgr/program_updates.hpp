@@ -22,8 +22,8 @@ struct ProgramUpdate {
   bool failed = false;      ///< the boot ended with an error during or after the download
   std::uint64_t bytes = 0;  ///< of the image, confirmed so far (all of it once downloaded)
   std::uint64_t total = 0;  ///< the image's size
-  nmt::TimePoint began{};  ///< UpdateSoftware began (stop, clear, 1F50h, start)
-  std::optional<nmt::TimePoint> ended;  ///< start confirmed (CheckSoftware again) or error
+  nmt::TimePoint began{};   ///< UpdateSoftware began (stop, clear, 1F50h, start)
+  std::optional<nmt::TimePoint> ended;        ///< start confirmed (CheckSoftware again) or error
   std::optional<cfg::ProgramVersion> before;  ///< 1F52h before the update
   std::optional<cfg::ProgramVersion> after;   ///< 1F52h after it (nullopt: not read again)
   double seconds() const;

@@ -177,7 +177,7 @@ class SdoClient {
     BlockUploadInit,    // block initiate sent
     BlockUpload,        // receiving a sub-block
     BlockUploadEnd,     // waiting for the server's end request
-};
+  };
   struct Transfer {
     TransferId id = 0;
     bool upload = false;

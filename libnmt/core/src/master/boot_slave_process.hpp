@@ -256,9 +256,9 @@ class BootSlaveProcess {
 
   // Data of the current try.
   std::uint8_t identity_sub_ = 0;
-  cfg::ProgramVersion software_;      ///< 1F52h as read
+  cfg::ProgramVersion software_;                      ///< 1F52h as read
   std::optional<MasterEvent::ProgramUpdate> update_;  ///< the software update of this try
-  cfg::ConfigurationStamp verify_;    ///< 1020h as read
+  cfg::ConfigurationStamp verify_;                    ///< 1020h as read
   std::vector<std::uint16_t> cob_ids_to_read_;
   std::map<std::uint16_t, std::uint32_t> cob_ids_read_;
   std::vector<cfg::ObjectWrite> configuration_;  ///< as the source gave it (before ordering)

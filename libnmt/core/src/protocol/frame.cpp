@@ -11,7 +11,9 @@ namespace nmt {
 // The mix-ups distinct TimePoint and Duration types exist to catch (issue 21; engine.hpp rule 1):
 // a Duration is no TimePoint, and two points in time do not add up.
 template <class A, class B>
-concept Addable = requires(A a, B b) { a + b; };
+concept Addable = requires(A a, B b) {
+  a + b;
+};
 static_assert(!std::is_convertible_v<Duration, TimePoint>);
 static_assert(!Addable<TimePoint, TimePoint>);
 static_assert(std::is_same_v<decltype(TimePoint{} - TimePoint{}), Duration>);
