@@ -6,7 +6,8 @@
 // does not come within SdoTransferOptions::timeout; in a block upload it acknowledges when it
 // sees the block's last sequence number or the "no more segments" flag. A block round that
 // acknowledges no segment (sent or received) brings nothing forward and does not restart the
-// timeout, so a transfer the server reads as another one (after a lost abort) still ends.
+// timeout, so a transfer the server reads as another one (after a lost abort) still ends; the
+// sdo::kMaxEmptyBlockRounds-th such round in a row of a block upload aborts with 0504 0003.
 // Limitation of the protocol: SDO frames carry no transaction number. A response that arrives
 // after its transfer ended (a slow server answering after the client's timeout, or the answer to
 // a cancelled request) is recognised when it is an initiate response naming another object:
@@ -197,6 +198,7 @@ class SdoClient {
     std::uint8_t sent_in_block = 0;  // block download: segments on the wire
     std::uint8_t ack_seq = 0;        // block upload: last in-order sequence number
     bool last_received = false;      // block upload: c=1 received in order
+    int empty_rounds = 0;            // block upload: sub-blocks in a row acknowledging nothing
     bool block_has_last = false;     // block download: the sub-block on the wire ends the data
     std::optional<TimePoint> started;
     TimePoint deadline{};

@@ -55,6 +55,12 @@ constexpr DefaultCobIds default_cob_ids(std::uint8_t node_id) {
 inline constexpr std::size_t kSegmentBytes = 7;
 /// Block size limits of the block protocols: 1..127 segments per sub-block.
 inline constexpr std::uint8_t kMaxBlockSize = 127;
+/// Our choice (CiA 301 sets no limit): the receiver of a block transfer aborts with 0504 0003
+/// after this many sub-blocks in a row acknowledged no segment. A lost first segment costs one
+/// such round; two ends that disagree on the state (after a lost abort, each reads the other's
+/// acknowledgement A2h as a last segment out of order) would otherwise answer each other at full
+/// bus load until a timeout.
+inline constexpr int kMaxEmptyBlockRounds = 4;
 
 /// The payload of an SDO frame: its data padded with zeros to 8 bytes; nullopt for RTR, error
 /// and DLC 0 frames.

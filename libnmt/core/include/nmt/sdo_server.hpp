@@ -14,7 +14,8 @@
 // - Block transfer: the server acknowledges when it sees the block's last sequence number or
 //   the "no more segments" flag, with the last sequence number received in order; the client
 //   then resends from the segment after it. Sequence number 0 or above the block size aborts
-//   with 0504 0003.
+//   with 0504 0003, and so does the sdo::kMaxEmptyBlockRounds-th sub-block in a row that
+//   acknowledges no segment.
 // - Held confirmations: a write hook may accept a download and hold its confirmation
 //   (WriteVerdict::hold, local_dictionary.hpp), e.g. until the value is durable on disk. The
 //   confirmation (the expedited or last segment's response, or the block download end
@@ -160,6 +161,7 @@ class SdoServer {
   bool last_received_ = false;      // download: segment with c=1 received in order
   bool block_has_last_ = false;     // upload: the sub-block on the wire ends the data
   bool stalled_ = false;            // the frame in hand moved the block transfer nowhere
+  int empty_rounds_ = 0;            // download: sub-blocks in a row acknowledging no segment
   std::optional<TimePoint> timeout_at_;
   std::uint64_t held_ticket_ = 0;  // ConfirmationHeld: the write hook's ticket
   CanFrame held_confirmation_{};

@@ -316,6 +316,7 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
         }
         t.block_size = t.options.block_size;
         t.ack_seq = 0;
+        t.empty_rounds = 0;
         t.last_received = false;
         t.state = State::BlockUpload;
         return send(t, sdo::encode(sdo::BlockUploadStart{}), now, out);
@@ -452,7 +453,13 @@ void SdoClient::block_upload_segment(Transfer& t, const sdo::BlockSegment& f, Ti
     t.block_size = t.options.block_size;
     t.ack_seq = 0;
     if (t.last_received) t.state = State::BlockUploadEnd;
-    if (ack.ack_seq != 0) return send(t, sdo::encode(ack), now, out);
+    if (ack.ack_seq != 0) {
+      t.empty_rounds = 0;
+      return send(t, sdo::encode(ack), now, out);
+    }
+    if (++t.empty_rounds >= sdo::kMaxEmptyBlockRounds) {
+      return fail(t, SdoAbort::InvalidSequenceNumber, true, now, out);
+    }
     // A sub-block with no segment in sequence brought nothing: the timeout keeps running.
     // Otherwise a server still in an earlier block download (the client's abort lost) and this
     // client acknowledge each other's acknowledgements for ever (A2h reads as c=1, seqno 34).

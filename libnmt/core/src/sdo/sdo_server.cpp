@@ -70,6 +70,7 @@ void SdoServer::reset() {
   toggle_ = false;
   crc_ = false;
   ack_seq_ = 0;
+  empty_rounds_ = 0;
   sent_in_block_ = 0;
   last_received_ = false;
   block_has_last_ = false;
@@ -353,6 +354,7 @@ void SdoServer::block_download_initiate(const sdo::BlockDownloadInitiateRequest&
   buffer_.reserve(std::min<std::size_t>(size_.value_or(0), 1 << 20));
   block_size_ = config_.block_size;
   ack_seq_ = 0;
+  empty_rounds_ = 0;
   last_received_ = false;
   state_ = State::BlockDownload;
   respond(sdo::BlockDownloadInitiateResponse{address_, true, block_size_}, out);  // sc: CRC
@@ -382,8 +384,12 @@ void SdoServer::block_download_segment(const sdo::BlockSegment& f, Output& out) 
     last_received_ = f.last;
   }
   if (f.last || f.seq == block_size_) {
-    respond(sdo::BlockDownloadAck{ack_seq_, block_size_}, out);
     stalled_ = ack_seq_ == 0;
+    empty_rounds_ = stalled_ ? empty_rounds_ + 1 : 0;
+    if (empty_rounds_ >= sdo::kMaxEmptyBlockRounds) {
+      return send_abort(SdoAbort::InvalidSequenceNumber, out);
+    }
+    respond(sdo::BlockDownloadAck{ack_seq_, block_size_}, out);
     ack_seq_ = 0;
     if (last_received_) state_ = State::BlockDownloadEnd;
   }
