@@ -1,0 +1,212 @@
+// What the NMT master reports (MasterEvent) and the vocabulary its events use: boot status
+// (CiA 302-2 Table 1), boot steps, start-up states, the SDO manager's connections and SRDs.
+// Included by nmt/nmt_master.hpp, whose top comment ("see the top") describes the behaviour.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "cfg/cob_id.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/program_image.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/lss.hpp"
+#include "nmt/nmt_slave.hpp"
+#include "nmt/sdo_client.hpp"
+
+namespace cfg {
+struct StoreUpdate;
+}  // namespace cfg
+
+namespace nmt {
+
+/// Error status of the process boot NMT slave (CiA 302-2 §3.8, Table 1).
+enum class BootError : char {
+  A = 'A',  ///< not listed in 1F81h
+  B = 'B',  ///< no response to the 1000h upload
+  C = 'C',  ///< 1000h differs from 1F84h
+  D = 'D',  ///< 1018h sub 1 differs from 1F85h
+  E = 'E',  ///< check NMT state: no heartbeat
+  F = 'F',  ///< check NMT state: no guarding reply
+  G = 'G',  ///< program download objects not configured or inconsistent
+  H = 'H',  ///< software update required but not allowed
+  I = 'I',  ///< software update required but the program download failed
+  J = 'J',  ///< configuration download failed
+  K = 'K',  ///< no heartbeat during start error control
+  L = 'L',  ///< the slave was initially operational (keep-alive)
+  M = 'M',  ///< 1018h sub 2 differs from 1F86h
+  N = 'N',  ///< 1018h sub 3 differs from 1F87h
+  O = 'O',  ///< 1018h sub 4 differs from 1F88h
+};
+/// The letter, 'A'..'O'.
+constexpr char letter(BootError error) {
+  return static_cast<char>(error);
+}
+/// Table 1's words: "value of object 1000h from the device differs from 1F84h (device type)".
+std::string_view describe(BootError error);
+
+/// Where a slave's boot stands (for progress displays).
+enum class BootStep : std::uint8_t {
+  Idle,                 ///< not booting (not a slave, or left to the application)
+  AwaitBootUp,          ///< after a reset, waiting for the boot-up message
+  Identify,             ///< 1000h and 1018h uploads (§3.4 c-e)
+  CheckNmtState,        ///< keep-alive: heartbeat or one guarding RTR (§3.6)
+  CheckSoftware,        ///< 1F52h against 1F53h/1F54h
+  UpdateSoftware,       ///< program download (1F50h/1F51h)
+  VerifyConfiguration,  ///< 1020h upload (§3.5 b)
+  Restore,              ///< 1011h 'load', reset, boot-up
+  Download,             ///< configuration writes (§3.5 d)
+  Save,                 ///< 1020h, 1010h 'save'
+  ApplicationStep,      ///< the application's own configuration step (configuration_done())
+  StartErrorControl,    ///< waiting for the first heartbeat (§4.1)
+  Booted,               ///< boot NMT slave ended with status OK
+  Failed,               ///< ended with an error status; RetryWait follows for retried slaves
+  RetryWait,            ///< waiting for the next try (§3.3)
+};
+std::string_view to_string(BootStep step);
+
+/// NMT start-up as a whole (CiA 302-2 §3.1).
+enum class StartupState : std::uint8_t {
+  Off,               ///< before start()
+  NotMaster,         ///< 1F80h bit 0 is 0 (a self-starting device went operational)
+  Negotiating,       ///< NMT flying master start-up (§3.7): detection or negotiation running
+  Standby,           ///< lost the flying master negotiation: an NMT slave watching the master
+  BootingSlaves,     ///< start process boot NMT slave for every slave
+  Halted,            ///< a mandatory slave failed (§3.1 f) and every slave's boot ended: no
+                     ///< start of the network
+  AwaitApplication,  ///< 1F80h bit 2: the application calls enter_operational()
+  Operational,       ///< start-up ended (§3.1 i): normal operation
+  ExecutingLss,      ///< MasterOptions::lss: Execute LSS before the reset of all nodes (see the
+                     ///< top)
+};
+std::string_view to_string(StartupState state);
+
+/// One SDO connection the SDO manager set up (DSP 302 §7.2.3, a row of 1F03h-1F06h, with the
+/// COB-IDs it gave it). The client is always an SRD.
+struct ManagedSdoConnection {
+  std::uint16_t row = 0;           ///< 1..1016: 1F03h sub 1..254, then 1F04h sub 1..254, ...
+  std::uint8_t srd = 0;            ///< client node-ID
+  std::uint16_t client_index = 0;  ///< the SRD's client entry, 1280h..12FFh
+  std::uint8_t server = 0;         ///< server node-ID: the slave S, or the manager itself
+  std::uint16_t server_index = 0;  ///< the server's entry; 1200h: S's default SDO
+  cfg::CobId request{};            ///< client -> server (sub 1 of both entries)
+  cfg::CobId response{};           ///< server -> client (sub 2)
+  bool to_manager = false;         ///< the SRD's registration channel to the manager
+  bool operator==(const ManagedSdoConnection&) const = default;
+};
+
+/// An SRD the SDO manager registered (DSP 302 §7.2.1).
+struct RegisteredSrd {
+  std::uint8_t node = 0;
+  std::uint16_t client_index = 0;    ///< its channel to the manager; 0 with all default SDOs
+  bool all_default_sdos = false;     ///< 1F10h Cnxn 2 granted
+  bool slave_error_control = false;  ///< Req EC granted (bit 3 of 1F10h)
+  bool operator==(const RegisteredSrd&) const = default;
+};
+
+/// What the master reports. One line for people is in `text` ("node 3: boot error C: ...");
+/// the other fields are for programs and depend on the kind.
+struct MasterEvent {
+  enum class Kind : std::uint8_t {
+    NotMaster,                 ///< 1F80h bit 0 is 0: the device is no NMT master (§3.1 a)
+    StartupBegan,              ///< the master decided and sent its reset communication
+    BootStepChanged,           ///< node_id moved to `step`; Download also reports written/total
+    SlaveBooted,               ///< boot NMT slave: status OK (`configured`: a download happened)
+    BootError,                 ///< boot NMT slave: `error`; `final` when no try follows
+    StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f);
+                               ///< reported once every slave's boot ended (see the top)
+    StartupAwaitsApplication,  ///< 1F80h bit 2: every mandatory slave booted; call
+                               ///< enter_operational() (§3.1 g)
+    StartupComplete,           ///< NMT start-up ended (§3.1 i)
+    MasterStateChanged,        ///< the master's own NMT state is `state`
+    SlaveStateChanged,         ///< the state the master knows of node_id is `state`
+    HeartbeatLost,             ///< heartbeat event of node_id (error handler follows)
+    GuardingLost,              ///< node guarding event of node_id (error handler follows)
+    ErrorControlResolved,      ///< heartbeat or guarding replies again
+    BootUp,                    ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
+    NmtCommandSent,            ///< `command` for node_id (nullopt: all nodes) went out
+    ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
+    ProgramProgress,           ///< software update of node_id: `bytes` of `total` bytes of the
+                               ///< 1F50h image confirmed (while it runs, about every 1/32)
+    SdoFinished,               ///< an application transfer ended (`sdo`)
+    // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
+    NegotiationBegan,  ///< detection or negotiation started (after power-on, reset, 72h, ...)
+    ActiveMaster,      ///< this device (node_id) won and is the active NMT master
+    Standby,           ///< node_id is the active master; this device is an NMT slave
+    ForceNegotiation,  ///< this device sent 76h: the active master node_id has a lower priority
+    MultipleMasters,   ///< a second active master (node_id, nullopt: unknown) was seen
+    ActiveMasterLost,  ///< the heartbeat of the active master node_id stopped (§5.5.2)
+    MasterDetection,   ///< §5.1 (self-starting device, 1F80h bit 1): the outcome of 75h/74h
+    // SDO manager (DSP 302 §7); node_id is the SRD, `connection` the row concerned.
+    SrdRegistered,             ///< node_id registered; `connection`: its channel to the manager
+                               ///< (nullopt when it was granted all default SDOs)
+    SrdRegistrationFailed,     ///< 1F10h Cnxn 0 written with `connection_error`, or the SRD did
+                               ///< not take the manager's writes (text says which)
+    SdoConnectionEstablished,  ///< `connection` from node_id to connection->server is up
+    SdoConnectionRefused,      ///< 1F10h Cnxn 0: `connection_error`; `connection` as requested
+    SdoConnectionReleased,     ///< `connection` was released (1F01h, SRD or slave lost)
+    SrdLost,                   ///< node_id's error control failed (or it booted up): released
+    SrdDeregistered,           ///< 1F01h with slave 0: node_id is no longer registered
+    SlaveFailedReported,       ///< 1F11h written on SRD node_id: connection->server failed
+    // Configuration manager with a store directory (see the top).
+    PersistEntry,  ///< make `persist` durable, then call entry_persisted(persist->ticket, ...)
+    // Execute LSS (MasterOptions::lss; CiA 305, see the top); `lss_address` is the device's.
+    LssAssigned,   ///< the device got node_id by LSS (text: stored or why not)
+    LssUnmatched,  ///< an unconfigured device matches no slave (or a slave another device got):
+                   ///< left unconfigured
+    LssFailed,     ///< the device of slave node_id refused or missed configure node-ID
+    LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
+  };
+  Kind kind;
+  TimePoint at{};
+  /// The node the event is about; nullopt for the master's own events (start-up began,
+  /// NmtCommandSent to all nodes, MultipleMasters with an unknown node, ...).
+  std::optional<cfg::NodeId> node_id{};
+  std::optional<BootError> error{};
+  BootStep step = BootStep::Idle;
+  std::optional<NmtState> state{};
+  std::optional<NmtCommand> command{};
+  bool configured = false;  ///< SlaveBooted: the configuration was downloaded
+  bool final = false;       ///< BootError: the last try (mandatory, or boot time over)
+  bool assigned = false;    ///< BootUp: the node is a slave in 1F81h
+  std::size_t written = 0;  ///< Download/SlaveBooted: configuration entries written
+  std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
+  std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
+  std::optional<SdoResult> sdo{};
+  /// SlaveBooted, or BootError I, after the boot began a software update (DSP 302 §9): 1F52h
+  /// before it and after it (nullopt when the update failed before 1F52h was read again), the
+  /// image's size and when the update began (1F51h stop sent) and ended (start confirmed). The
+  /// SlaveBooted text then ends "; program updated from BEFORE to AFTER, N bytes".
+  struct ProgramUpdate {
+    cfg::ProgramVersion before;
+    std::optional<cfg::ProgramVersion> after;
+    std::uint64_t bytes = 0;
+    TimePoint began{};
+    std::optional<TimePoint> ended;
+    bool operator==(const ProgramUpdate&) const = default;
+  };
+  std::optional<ProgramUpdate> program{};
+  std::optional<std::uint16_t> priority{};  ///< flying master kinds: 1F90h sub 3 of node_id
+  std::optional<ManagedSdoConnection> connection{};  ///< SDO manager kinds (see Kind)
+  /// SrdRegistrationFailed, SdoConnectionRefused: the 1F10h error code (DSP 302 §7.2.3: 00h no
+  /// details, 01h no channel SRD <-> manager, 02h no free COB-IDs in the network, 03h no free
+  /// server entry on S, 04h S not available).
+  std::uint8_t connection_error = 0;
+  /// PersistEntry: the entry of node_id to write (cfg::ConfigManager::persist) and the ticket
+  /// to complete it with. The update stays valid until entry_persisted() for that ticket.
+  struct Persist {
+    std::uint64_t ticket = 0;
+    std::shared_ptr<const cfg::StoreUpdate> update;
+  };
+  std::optional<Persist> persist{};
+  std::optional<LssAddress> lss_address{};  ///< Lss* kinds: the device's LSS address
+  std::string text{};
+};
+/// "slave_booted", "boot_error", ...: names for logs and JSON.
+std::string_view to_string(MasterEvent::Kind kind);
+
+}  // namespace nmt
