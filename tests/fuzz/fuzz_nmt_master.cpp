@@ -498,7 +498,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const auto node = *cfg::NodeId::from(static_cast<std::uint8_t>(1 + k % 127));
       switch (op & 7) {
         case 0:
-          h.m().boot_slave(node, h.now, master_out);
+          static_cast<void>(h.m().boot_slave(node, h.now, master_out));
           break;
         case 1:
           h.m().enter_operational(h.now, master_out);

@@ -501,10 +501,10 @@ TEST(FlyingMaster, StandbyMasterRefusesRequestNmt) {
             SdoAbort::DeviceState);
   EXPECT_EQ(FlyingRig::write(rig.master(11).dictionary(), 0x1F82, 2, 0x04, 1), SdoAbort::None);
   // Nor does it boot a slave when its application asks.
-  const bool booting = rig.call(10, [](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+  const cfg::Status booting = rig.call(10, [](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
     return m.boot_slave(id(2), now, out);
   });
-  EXPECT_FALSE(booting);
+  EXPECT_FALSE(booting.ok());
   EXPECT_EQ(rig.master(10).boot_step(id(2)), BootStep::Idle);
 }
 

@@ -716,11 +716,12 @@ TEST(NmtMasterSpec, BootSlaveOfNodeNotIn1F81IsRefused) {
   rig.power_on_network();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
 
-  const bool started = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+  const cfg::Status started = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
     return m.boot_slave(id(5), now, out);
   });
   rig.run_for(3s);
-  EXPECT_FALSE(started);
+  ASSERT_FALSE(started.ok());
+  EXPECT_NE(started.error().message.find("node 5"), std::string::npos) << started.error().message;
   EXPECT_TRUE(rig.requests_to(5).empty());
   for (const auto& e : rig.boot_errors(5)) EXPECT_EQ(e.error, BootError::A);
 }

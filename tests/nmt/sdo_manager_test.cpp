@@ -181,9 +181,10 @@ TEST_F(SdoManagerTest, MasterTransfersToASlaveWaitWhileAnSrdHoldsItsDefaultSdo) 
   rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
     return m.sdo_upload(master_spec::id(2), 0x1000, 0, now, out);
   });
-  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.boot_slave(master_spec::id(2), now, out);
-  });
+  ASSERT_TRUE(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+                   return m.boot_slave(master_spec::id(2), now, out);
+                 })
+                  .ok());
   rig.run_for(2s);
   EXPECT_TRUE(rig.requests_to(2, from).empty());
   EXPECT_TRUE(rig.events_of(Kind::SdoFinished, 2).empty());

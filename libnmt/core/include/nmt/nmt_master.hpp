@@ -377,9 +377,11 @@ class NmtMaster {
   SdoAbort request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out);
   /// Starts the process start process boot NMT slave for `node` (also for a slave left to the
   /// application by 1F81h bit 2: the application asks for it, so it is configured and started;
-  /// or held by a request NMT). False (and a BootError A) when `node` is no slave; false and
-  /// nothing started while a flying master is not the active master.
-  bool boot_slave(cfg::NodeId node, TimePoint now, Output& out);
+  /// or held by a request NMT). Could not start (engine.hpp rule 5: an error that says why,
+  /// nothing into `out`): `node` is no slave in 1F81h (the status A of §3.4 a, which the
+  /// process reports when a slave is taken out of 1F81h while it runs), or a flying master is
+  /// not the active master (§3.1 b).
+  cfg::Status boot_slave(cfg::NodeId node, TimePoint now, Output& out);
   /// Ends the application's configuration step of `node` (MasterOptions::application_step):
   /// `ok` false ends its boot with status J.
   void configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out);

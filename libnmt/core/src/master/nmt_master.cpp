@@ -238,21 +238,22 @@ SdoAbort NmtMaster::request_guarding(std::uint8_t sub, bool start, TimePoint now
   return code;
 }
 
-bool NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
+cfg::Status NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) {
   auto& m = *impl_;
   // A flying master that is not the active one boots nobody (CiA 302-2 §3.1 b).
-  if (!m.acts_as_master()) return false;
+  if (!m.acts_as_master()) {
+    return cfg::Error{node_text(node) + ": not booted: this master is not the active NMT master"};
+  }
+  // §3.4 a: a device not listed as a slave in 1F81h is not booted (status A).
   if (!m.is_slave(node)) {
-    // §3.4 a: the process ends with status A.
-    m.start_boot(node, false, now, out);
-    m.settle(now, out);
-    return false;
+    return cfg::Error{node_text(node) + ": not booted: no slave of this master (1F81h sub " +
+                      cfg::hex(node.value(), 2) + "h, §3.4 a: status A)"};
   }
   m.slaves[node].held = false;
   m.stop_error_control(node);
   m.start_boot(node, false, now, out, /*asked_by_application=*/true);
   m.settle(now, out);
-  return true;
+  return {};
 }
 
 void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out) {
