@@ -6,8 +6,9 @@
 // outlives a try) and reaches the rest of the master only through BootSlavePort, in the manner
 // of lely-core's co_nmt_boot_t service and its one report call co_nmt_boot_con().
 //
-// Private to the library (boot_slave.cpp, check_configuration.cpp implement it); tests reach it
-// through libnmt/core/src (tests/nmt/boot_slave_process_test.cpp drives one through a fake port).
+// Private to the library (boot_slave.cpp, boot_software.cpp, check_configuration.cpp implement it);
+// tests reach it through libnmt/core/src (tests/nmt/boot_slave_process_test.cpp drives one through
+// a fake port).
 #pragma once
 
 #include <array>
@@ -229,9 +230,12 @@ class BootSlaveProcess {
   void next_identity(TimePoint now, Output& out);
   void after_identity(TimePoint now, Output& out);
   void keep_alive_state(NmtState state, TimePoint now, Output& out);
+  // boot_software.cpp (§3.4 part 2, DSP 302 §9)
   void check_software(TimePoint now, Output& out);
   void software_checked(TimePoint now, Output& out);
   void program_step(Phase phase, TimePoint now);
+  /// The answers of the software phases (ReadSoftware*, Program*).
+  void software_sdo_result(const SdoResult& result, TimePoint now, Output& out);
   void start_error_control(TimePoint now, Output& out);
   void error_control_started(TimePoint now, Output& out);
   // check_configuration.cpp (§3.5)

@@ -1,0 +1,145 @@
+// The software version check and update of boot NMT slave (CiA 302-2 §3.4 part 2 with
+// Table 1's status G, H and I; DSP 302 §9; CiA 302-3 program download): 1F52h against
+// 1F53h/1F54h, and when they differ and 1F81h bit 6 allows it, stop, clear, 1F50h image, start,
+// and 1F52h read again. Part of BootSlaveProcess (boot_slave_process.hpp, boot_slave.cpp).
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cfg/hex.hpp"
+#include "cfg/object_index.hpp"
+#include "master/boot_slave_process.hpp"
+#include "master/nmt_master_impl.hpp"
+
+namespace nmt {
+
+namespace obj = cfg::object;
+using Phase = BootSlaveProcess::Phase;
+
+void BootSlaveProcess::check_software(TimePoint now, Output& out) {
+  const auto expect = port_->expectations(node_.value());
+  if (!expect.assignment.verify_software()) {
+    check_configuration(now, out);
+    return;
+  }
+  if (expect.software == cfg::ProgramVersion{}) {
+    failed(BootError::G,
+           "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
+               cfg::hex(node_.value(), 2) + "h are 0",
+           now, out);
+    return;
+  }
+  set_step(BootStep::CheckSoftware, now, out);
+  upload(Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
+}
+
+void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
+  const auto expect = port_->expectations(node_.value());
+  if (software_ == expect.software) {
+    check_configuration(now, out);
+    return;
+  }
+  const std::string versions = "1F52h reports " + cfg::to_string(software_) +
+                               ", 1F53h/1F54h expect " + cfg::to_string(expect.software);
+  if (software_updated_) {
+    failed(BootError::I, "after the program download " + versions, now, out);
+    return;
+  }
+  if (!expect.assignment.update_software()) {
+    failed(BootError::H, versions + "; 1F81h bit 6 does not allow an update", now, out);
+    return;
+  }
+  if (!port_->program(node_.value()).has_value()) {
+    failed(BootError::H, versions + "; no program image is available", now, out);
+    return;
+  }
+  set_step(BootStep::UpdateSoftware, now, out);
+  update_ = MasterEvent::ProgramUpdate{
+      .before = software_, .after = std::nullopt, .bytes = 0, .began = now, .ended = std::nullopt};
+  program_step(Phase::ProgramStop, now);
+}
+
+void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
+  // DSP 302 §9 1F51h sub 1: 0 stop, 1 start; CiA 302-3: 3 clear. Each with its own wait
+  // (MasterOptions::program_*_timeout); the image is repeated once after a timeout.
+  phase_ = phase;
+  const auto control = [&](std::uint8_t value, Duration timeout) {
+    port_->program_download(node_.value(), try_id_, obj::kProgramControl, 1, {value}, timeout,
+                            options_.sdo_retries, now);
+  };
+  switch (phase) {
+    case Phase::ProgramStop:
+      control(0, options_.program_control_timeout);
+      return;
+    case Phase::ProgramClear:
+      control(3, options_.program_clear_timeout);
+      return;
+    case Phase::ProgramStart:
+      control(1, options_.program_control_timeout);
+      return;
+    default: {
+      auto image = port_->program(node_.value());
+      update_->bytes = image ? image->size() : 0;
+      port_->program_download(node_.value(), try_id_, obj::kProgramData, 1,
+                              image ? std::move(*image) : std::vector<std::uint8_t>{},
+                              options_.program_data_timeout, 1, now);
+      return;
+    }
+  }
+}
+
+void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Output& out) {
+  switch (phase_) {
+    case Phase::ReadSoftwareDate:
+    case Phase::ReadSoftwareTime: {
+      if (!r.ok()) {
+        // The slave's program objects do not answer as CiA 302-3 has them.
+        failed(software_updated_ ? BootError::I : BootError::G, transfer_failure(r), now, out);
+        return;
+      }
+      if (phase_ == Phase::ReadSoftwareDate) {
+        software_.date_days = uploaded_u32(r);
+        upload(Phase::ReadSoftwareTime, obj::kVerifyApplicationSoftware, 2, now);
+      } else {
+        software_.time_ms = uploaded_u32(r);
+        if (software_updated_) update_->after = software_;
+        software_checked(now, out);
+      }
+      return;
+    }
+    case Phase::ProgramStop:
+    case Phase::ProgramClear:
+    case Phase::ProgramData:
+    case Phase::ProgramStart: {
+      // A device built to DSP 302 v3.2.1 §9 (1F51h range 0..2) refuses CiA 302-3's clear:
+      // no failure, the download goes on (nmt_master.hpp, "Software update").
+      const bool clear_refused =
+          phase_ == Phase::ProgramClear && r.aborted_by_server &&
+          (r.abort == SdoAbort::ValueRangeExceeded || r.abort == SdoAbort::ValueTooHigh ||
+           r.abort == SdoAbort::ValueTooLow || r.abort == SdoAbort::NoDataAvailable ||
+           r.abort == SdoAbort::General || r.abort == SdoAbort::CannotStoreOrTransfer);
+      if (!r.ok() && !clear_refused) {
+        failed(BootError::I, "program download: " + transfer_failure(r), now, out);
+        return;
+      }
+      // CiA 302-3 program download: stop (0), clear (3), 1F50h data, start (1).
+      if (phase_ == Phase::ProgramStop) {
+        program_step(Phase::ProgramClear, now);
+      } else if (phase_ == Phase::ProgramClear) {
+        program_step(Phase::ProgramData, now);
+      } else if (phase_ == Phase::ProgramData) {
+        program_step(Phase::ProgramStart, now);
+      } else {
+        update_->ended = now;
+        software_updated_ = true;
+        set_step(BootStep::CheckSoftware, now, out);
+        upload(Phase::ReadSoftwareDate, obj::kVerifyApplicationSoftware, 1, now);
+      }
+      return;
+    }
+    default:
+      return;
+  }
+}
+
+}  // namespace nmt
