@@ -62,44 +62,44 @@ class FakePort final : public BootSlavePort {
   std::optional<TimePoint> deadline;
   bool wait_over = false;
 
-  void upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+  void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
               TimePoint) override {
     EXPECT_EQ(node, kNode);
-    accesses.push_back({try_id, index, sub, true, {}, std::nullopt, 0});
+    accesses.push_back({try_id, object.index, object.sub_index, true, {}, std::nullopt, 0});
   }
-  void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+  void download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
                 std::vector<std::uint8_t> data, TimePoint) override {
     EXPECT_EQ(node, kNode);
-    accesses.push_back({try_id, index, sub, false, std::move(data), std::nullopt, 0});
+    accesses.push_back(
+        {try_id, object.index, object.sub_index, false, std::move(data), std::nullopt, 0});
   }
-  void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
-                        std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
-                        unsigned retries, TimePoint) override {
+  void program_download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
+                        std::vector<std::uint8_t> data, Duration timeout, unsigned retries,
+                        TimePoint) override {
     EXPECT_EQ(node, kNode);
-    accesses.push_back({try_id, index, sub, false, std::move(data), timeout, retries});
+    accesses.push_back(
+        {try_id, object.index, object.sub_index, false, std::move(data), timeout, retries});
   }
-  void cancel_transfers(std::uint8_t, TimePoint) override { ++cancels; }
-  void queue_nmt(NmtCommand command, std::uint8_t node) override {
-    nmt.emplace_back(command, node);
-  }
-  bool start_error_control(std::uint8_t, TimePoint) override {
+  void cancel_transfers(cfg::NodeId, TimePoint) override { ++cancels; }
+  void queue_nmt(NmtCommand command, cfg::NodeId node) override { nmt.emplace_back(command, node); }
+  bool start_error_control(cfg::NodeId, TimePoint) override {
     ++error_control_starts;
     return heartbeat.has_value();
   }
-  BootSlaveExpectations expectations(std::uint8_t) const override { return expect; }
-  std::optional<Duration> heartbeat_time(std::uint8_t) const override { return heartbeat; }
-  std::uint8_t known_state(std::uint8_t) const override { return state; }
-  std::optional<TimePoint> last_heartbeat(std::uint8_t) const override { return heard; }
-  std::optional<std::vector<cfg::ObjectWrite>> configuration(std::uint8_t) const override {
+  BootSlaveExpectations expectations(cfg::NodeId) const override { return expect; }
+  std::optional<Duration> heartbeat_time(cfg::NodeId) const override { return heartbeat; }
+  std::uint8_t known_state(cfg::NodeId) const override { return state; }
+  std::optional<TimePoint> last_heartbeat(cfg::NodeId) const override { return heard; }
+  std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId) const override {
     return writes;
   }
-  std::optional<std::vector<std::uint8_t>> program(std::uint8_t) const override { return image; }
+  std::optional<std::vector<std::uint8_t>> program(cfg::NodeId) const override { return image; }
   TimePoint startup_began() const override { return TimePoint{}; }
-  void deadline_changed(std::uint8_t, std::optional<TimePoint> at) override { deadline = at; }
+  void deadline_changed(cfg::NodeId, std::optional<TimePoint> at) override { deadline = at; }
   bool boot_up_gate_closed() const override { return gate_closed; }
-  void booted_up_at_gate(std::uint8_t, TimePoint, Outbox<MasterEvent>&) override {}
+  void booted_up_at_gate(cfg::NodeId, TimePoint, Outbox<MasterEvent>&) override {}
   void boot_up_wait_over() override { wait_over = true; }
-  void boot_con(std::uint8_t, std::optional<BootError> status, bool left, TimePoint,
+  void boot_con(cfg::NodeId, std::optional<BootError> status, bool left, TimePoint,
                 Outbox<MasterEvent>&) override {
     reports.push_back({status, left});
   }

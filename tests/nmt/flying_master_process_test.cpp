@@ -61,7 +61,7 @@ struct FakePort final : FlyingMasterPort {
     obeyed.push_back(command);
   }
   bool master_capable() const override { return capable; }
-  std::optional<Duration> heartbeat_time(std::uint8_t node) const override {
+  std::optional<Duration> heartbeat_time(cfg::NodeId node) const override {
     auto it = consumer.find(node);
     if (it == consumer.end()) return std::nullopt;
     return it->second;

@@ -60,33 +60,33 @@ void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) 
 
 // --- the port ---
 
-void NmtMaster::Impl::BootPort::upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
-                                       std::uint8_t sub, TimePoint now) {
+void NmtMaster::Impl::BootPort::upload(cfg::NodeId node, std::uint64_t try_id,
+                                       cfg::ObjectAddress object, TimePoint now) {
   MasterTransfer t;
   t.try_id = try_id;
-  t.index = index;
-  t.sub = sub;
+  t.index = object.index;
+  t.sub = object.sub_index;
   t.upload = true;
   t.options.timeout = m_.options.sdo_timeout;
   t.retries_left = m_.options.sdo_retries;
   m_.start_transfer(node, std::move(t), now);
 }
 
-void NmtMaster::Impl::BootPort::download(std::uint8_t node, std::uint64_t try_id,
-                                         std::uint16_t index, std::uint8_t sub,
-                                         std::vector<std::uint8_t> data, TimePoint now) {
-  program_download(node, try_id, index, sub, std::move(data), m_.options.sdo_timeout,
+void NmtMaster::Impl::BootPort::download(cfg::NodeId node, std::uint64_t try_id,
+                                         cfg::ObjectAddress object, std::vector<std::uint8_t> data,
+                                         TimePoint now) {
+  program_download(node, try_id, object, std::move(data), m_.options.sdo_timeout,
                    m_.options.sdo_retries, now);
 }
 
-void NmtMaster::Impl::BootPort::program_download(std::uint8_t node, std::uint64_t try_id,
-                                                 std::uint16_t index, std::uint8_t sub,
+void NmtMaster::Impl::BootPort::program_download(cfg::NodeId node, std::uint64_t try_id,
+                                                 cfg::ObjectAddress object,
                                                  std::vector<std::uint8_t> data, Duration timeout,
                                                  unsigned retries, TimePoint now) {
   MasterTransfer t;
   t.try_id = try_id;
-  t.index = index;
-  t.sub = sub;
+  t.index = object.index;
+  t.sub = object.sub_index;
   t.data = std::move(data);
   t.options.timeout = timeout;
   // Large values by block transfer; SdoClient falls back to segmented when refused.
@@ -95,7 +95,7 @@ void NmtMaster::Impl::BootPort::program_download(std::uint8_t node, std::uint64_
   m_.start_transfer(node, std::move(t), now);
 }
 
-void NmtMaster::Impl::BootPort::cancel_transfers(std::uint8_t node, TimePoint now) {
+void NmtMaster::Impl::BootPort::cancel_transfers(cfg::NodeId node, TimePoint now) {
   m_.slaves[node].transfers_done = 0;  // a new try (or none) follows
   for (auto it = m_.transfers.begin(); it != m_.transfers.end();) {
     if (it->first.first == node && !it->second.for_application) {
@@ -108,11 +108,11 @@ void NmtMaster::Impl::BootPort::cancel_transfers(std::uint8_t node, TimePoint no
   }
 }
 
-void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, std::uint8_t node) {
+void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, cfg::NodeId node) {
   m_.queue_nmt(command, node);
 }
 
-bool NmtMaster::Impl::BootPort::start_error_control(std::uint8_t node, TimePoint now) {
+bool NmtMaster::Impl::BootPort::start_error_control(cfg::NodeId node, TimePoint now) {
   // §4.1: heartbeat when 1016h has the node; the first timeout counts from now.
   if (const auto time = m_.heartbeat_time(node)) {
     m_.heartbeats.monitor(
@@ -124,12 +124,12 @@ bool NmtMaster::Impl::BootPort::start_error_control(std::uint8_t node, TimePoint
   // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero.
   const auto a = m_.assignment(node);
   if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
-    m_.guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
+    m_.guarding.start(node, a.guard_time_ms(), a.retry_factor(), now);
   }
   return false;
 }
 
-BootSlaveExpectations NmtMaster::Impl::BootPort::expectations(std::uint8_t node) const {
+BootSlaveExpectations NmtMaster::Impl::BootPort::expectations(cfg::NodeId node) const {
   BootSlaveExpectations e;
   e.assignment = m_.assignment(node);
   e.device_type = m_.value_of(obj::kDeviceTypeIdentification, node);
@@ -144,34 +144,34 @@ BootSlaveExpectations NmtMaster::Impl::BootPort::expectations(std::uint8_t node)
   return e;
 }
 
-std::optional<Duration> NmtMaster::Impl::BootPort::heartbeat_time(std::uint8_t node) const {
+std::optional<Duration> NmtMaster::Impl::BootPort::heartbeat_time(cfg::NodeId node) const {
   return m_.heartbeat_time(node);
 }
 
-std::uint8_t NmtMaster::Impl::BootPort::known_state(std::uint8_t node) const {
+std::uint8_t NmtMaster::Impl::BootPort::known_state(cfg::NodeId node) const {
   return m_.slaves[node].known_state;
 }
 
-std::optional<TimePoint> NmtMaster::Impl::BootPort::last_heartbeat(std::uint8_t node) const {
+std::optional<TimePoint> NmtMaster::Impl::BootPort::last_heartbeat(cfg::NodeId node) const {
   return m_.slaves[node].heartbeat_at;
 }
 
 std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::BootPort::configuration(
-    std::uint8_t node) const {
+    cfg::NodeId node) const {
   return m_.configuration_of(node);
 }
 
 std::optional<std::vector<std::uint8_t>> NmtMaster::Impl::BootPort::program(
-    std::uint8_t node) const {
+    cfg::NodeId node) const {
   if (!m_.options.configurations) return std::nullopt;
-  return m_.options.configurations->program(*cfg::NodeId::from(node));
+  return m_.options.configurations->program(node);
 }
 
 TimePoint NmtMaster::Impl::BootPort::startup_began() const {
   return m_.startup_began;
 }
 
-void NmtMaster::Impl::BootPort::deadline_changed(std::uint8_t node,
+void NmtMaster::Impl::BootPort::deadline_changed(cfg::NodeId node,
                                                  std::optional<TimePoint> deadline) {
   auto& known = m_.boot_deadline_of[node];
   if (known) m_.boot_deadlines.erase({*known, node});
@@ -183,7 +183,7 @@ bool NmtMaster::Impl::BootPort::boot_up_gate_closed() const {
   return m_.boot_up_gate.has_value();
 }
 
-void NmtMaster::Impl::BootPort::booted_up_at_gate(std::uint8_t, TimePoint now,
+void NmtMaster::Impl::BootPort::booted_up_at_gate(cfg::NodeId, TimePoint now,
                                                   Outbox<MasterEvent>& out) {
   if (m_.options.bitrate != 0) m_.boot_up_quiet = now + kBootUpQuiet;
   m_.open_boot_up_gate(now, out);  // when it was the last one
@@ -194,7 +194,7 @@ void NmtMaster::Impl::BootPort::boot_up_wait_over() {
   m_.boot_up_quiet.reset();
 }
 
-void NmtMaster::Impl::BootPort::boot_con(std::uint8_t node, std::optional<BootError> status,
+void NmtMaster::Impl::BootPort::boot_con(cfg::NodeId node, std::optional<BootError> status,
                                          bool left_to_application, TimePoint now,
                                          Outbox<MasterEvent>& out) {
   if (!status) {

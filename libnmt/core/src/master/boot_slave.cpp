@@ -46,7 +46,7 @@ BootSlaveProcess::BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, Option
 void BootSlaveProcess::set_deadline(std::optional<TimePoint> deadline) {
   if (deadline_ == deadline) return;
   deadline_ = deadline;
-  port_->deadline_changed(node_.value(), deadline_);
+  port_->deadline_changed(node_, deadline_);
 }
 
 void BootSlaveProcess::set_step(BootStep step, TimePoint now, Output& out) {
@@ -66,7 +66,7 @@ void BootSlaveProcess::cancel(TimePoint now) {
   phase_ = Phase::Idle;
   set_deadline(std::nullopt);
   // The transfers of the ended try: forgotten, and stopped on the bus.
-  port_->cancel_transfers(node_.value(), now);
+  port_->cancel_transfers(node_, now);
 }
 
 void BootSlaveProcess::reset(TimePoint now) {
@@ -111,7 +111,7 @@ void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_
   booted_ = false;
   final_error_ = false;
   running_ = true;
-  const auto a = port_->expectations(node_.value()).assignment;
+  const auto a = port_->expectations(node_).assignment;
   // §3.4 a: a device that is not an NMT slave of this master ends with status A.
   if (!a.is_slave()) {
     failed(BootError::A, "1F81h sub " + cfg::hex(node_.value(), 2) + "h has bit 0 clear", now, out);
@@ -139,13 +139,13 @@ void BootSlaveProcess::identify(TimePoint now, Output& out) {
 
 void BootSlaveProcess::upload(Phase phase, std::uint16_t index, std::uint8_t sub, TimePoint now) {
   phase_ = phase;
-  port_->upload(node_.value(), try_id_, index, sub, now);
+  port_->upload(node_, try_id_, {index, sub}, now);
 }
 
 void BootSlaveProcess::download(Phase phase, std::uint16_t index, std::uint8_t sub,
                                 std::vector<std::uint8_t> data, TimePoint now) {
   phase_ = phase;
-  port_->download(node_.value(), try_id_, index, sub, std::move(data), now);
+  port_->download(node_, try_id_, {index, sub}, std::move(data), now);
 }
 
 void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& out) {
@@ -166,7 +166,7 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
         return;
       }
       const auto actual = uploaded_u32(r);
-      const auto expected = port_->expectations(node_.value()).device_type;
+      const auto expected = port_->expectations(node_).device_type;
       if (expected != 0 && actual != expected) {
         failed(BootError::C,
                "1000h is " + cfg::hex(actual, 8) + ", 1F84h expects " + cfg::hex(expected, 8), now,
@@ -188,7 +188,7 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
         return;
       }
       const auto actual = uploaded_u32(r);
-      const auto expected = port_->expectations(node_.value()).identity[sub - 1];
+      const auto expected = port_->expectations(node_).identity[sub - 1];
       bool match = actual == expected;
       if (sub == 3) {
         // §6.9: the major revision (high 16 bits) must be equal, the minor (low 16 bits) not
@@ -223,7 +223,7 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
 }
 
 void BootSlaveProcess::next_identity(TimePoint now, Output& out) {
-  const auto identity = port_->expectations(node_.value()).identity;
+  const auto identity = port_->expectations(node_).identity;
   for (std::uint8_t sub = identity_sub_ + 1; sub <= 4; ++sub) {
     if (identity[sub - 1] != 0) {
       identity_sub_ = sub;
@@ -235,16 +235,16 @@ void BootSlaveProcess::next_identity(TimePoint now, Output& out) {
 }
 
 void BootSlaveProcess::after_identity(TimePoint now, Output& out) {
-  if (!port_->expectations(node_.value()).assignment.keep_alive()) {
+  if (!port_->expectations(node_).assignment.keep_alive()) {
     check_software(now, out);
     return;
   }
   // §3.4 part 2 a, §3.6 check NMT state: a heartbeat within the consumer time, else one
   // guarding request answered within 100 ms.
   set_step(BootStep::CheckNmtState, now, out);
-  if (const auto time = port_->heartbeat_time(node_.value())) {
-    const auto heard = port_->last_heartbeat(node_.value());
-    const auto known = port_->known_state(node_.value());
+  if (const auto time = port_->heartbeat_time(node_)) {
+    const auto heard = port_->last_heartbeat(node_);
+    const auto known = port_->known_state(node_);
     if (heard && now - *heard <= *time && known > 1) {
       keep_alive_state(static_cast<NmtState>(known), now, out);
       return;
@@ -269,7 +269,7 @@ void BootSlaveProcess::keep_alive_state(NmtState state, TimePoint now, Output& o
     return;
   }
   // Not operational: reset communication for that slave, then on with its boot.
-  port_->queue_nmt(NmtCommand::ResetCommunication, node_.value());
+  port_->queue_nmt(NmtCommand::ResetCommunication, node_);
   expect_boot_up_ = true;
   phase_ = Phase::AwaitResetBootUp;
   set_deadline(now + options_.reboot_timeout);
@@ -279,7 +279,7 @@ void BootSlaveProcess::keep_alive_state(NmtState state, TimePoint now, Output& o
 void BootSlaveProcess::start_error_control(TimePoint now, Output& out) {
   set_step(BootStep::StartErrorControl, now, out);
   // §4.1: heartbeat when 1016h has the node (its first heartbeat ends the step), else guarding.
-  if (port_->start_error_control(node_.value(), now)) {
+  if (port_->start_error_control(node_, now)) {
     phase_ = Phase::AwaitFirstHeartbeat;
     return;
   }
@@ -300,7 +300,7 @@ void BootSlaveProcess::on_guard_reply(NmtState state, TimePoint now, Output& out
 }
 
 void BootSlaveProcess::on_heartbeat_timeout(TimePoint now, Output& out) {
-  const auto time = port_->heartbeat_time(node_.value()).value_or(Duration{0});
+  const auto time = port_->heartbeat_time(node_).value_or(Duration{0});
   failed(BootError::K,
          "no heartbeat within the consumer time of " +
              std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(time).count()) +
@@ -328,7 +328,7 @@ void BootSlaveProcess::configuration_done(bool ok, TimePoint now, Output& out) {
 
 void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   // §3.4 part 3 g-l (start remote node) is the master's: it knows the start-up's state.
-  port_->boot_con(node_.value(), std::nullopt, left_to_application_, now, out);
+  port_->boot_con(node_, std::nullopt, left_to_application_, now, out);
   running_ = false;
   phase_ = Phase::Idle;
   set_deadline(std::nullopt);
@@ -364,8 +364,8 @@ void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint
   phase_ = Phase::Idle;
   tried_ = true;
   last_error_ = error;
-  const auto expect = port_->expectations(node_.value());
-  port_->boot_con(node_.value(), error, false, now, out);
+  const auto expect = port_->expectations(node_);
+  port_->boot_con(node_, error, false, now, out);
   bool retry = false;
   if (error == BootError::L) {
     // The slave runs and is under error control: nothing to retry.
@@ -459,7 +459,7 @@ bool BootSlaveProcess::on_boot_up(TimePoint now, Output& out) {
     case Phase::AwaitBootUp:
       if (port_->boot_up_gate_closed()) {
         boot_up_seen_ = true;
-        port_->booted_up_at_gate(node_.value(), now, out);  // it may open the gate
+        port_->booted_up_at_gate(node_, now, out);  // it may open the gate
         break;
       }
       set_deadline(std::nullopt);

@@ -22,6 +22,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/program_image.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
@@ -53,49 +54,49 @@ class BootSlavePort {
   // --- SDO: the master runs the transfers (window, pacing, repetition after a timeout, held
   // while the SDO manager gave the default SDO away) and routes each result back to
   // BootSlaveProcess::on_sdo_result when `try_id` is still the process's current try.
-  virtual void upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
-                      std::uint8_t sub, TimePoint now) = 0;
-  virtual void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
-                        std::uint8_t sub, std::vector<std::uint8_t> data, TimePoint now) = 0;
+  virtual void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
+                      TimePoint now) = 0;
+  virtual void download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
+                        std::vector<std::uint8_t> data, TimePoint now) = 0;
   /// A download of the software update (DSP 302 §9, 1F51h/1F50h) with its own wait for each
   /// response and its own number of repetitions after a timeout (each from the start of the
   /// value), as MasterOptions::program_*_timeout give them.
-  virtual void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
-                                std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
-                                unsigned retries, TimePoint now) = 0;
+  virtual void program_download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
+                                std::vector<std::uint8_t> data, Duration timeout, unsigned retries,
+                                TimePoint now) = 0;
   /// A try ended: stop its transfers (on the bus too) and forget their results.
-  virtual void cancel_transfers(std::uint8_t node, TimePoint now) = 0;
+  virtual void cancel_transfers(cfg::NodeId node, TimePoint now) = 0;
 
   // --- NMT and error control.
   /// Queues an NMT command for the node (the master's NMT queue keeps order and inhibit time).
-  virtual void queue_nmt(NmtCommand command, std::uint8_t node) = 0;
+  virtual void queue_nmt(NmtCommand command, cfg::NodeId node) = 0;
   /// §4.1: starts the heartbeat consumer (1016h) or node guarding (1F81h bytes 1-3) of the node;
   /// true when the heartbeat consumer runs and its first heartbeat ends the step
   /// (BootSlaveProcess::on_heartbeat, or on_heartbeat_timeout: status K).
-  virtual bool start_error_control(std::uint8_t node, TimePoint now) = 0;
+  virtual bool start_error_control(cfg::NodeId node, TimePoint now) = 0;
 
   // --- What the master knows.
-  virtual BootSlaveExpectations expectations(std::uint8_t node) const = 0;
+  virtual BootSlaveExpectations expectations(cfg::NodeId node) const = 0;
   /// 1016h: the consumer time for the node, nullopt when the master consumes no heartbeat of it.
-  virtual std::optional<Duration> heartbeat_time(std::uint8_t node) const = 0;
+  virtual std::optional<Duration> heartbeat_time(cfg::NodeId node) const = 0;
   /// 1F82h as the master knows it (0 unknown, 1 missing, else NmtState) and when it last saw a
   /// heartbeat of the node (§3.6: a heartbeat within the consumer time is the answer).
-  virtual std::uint8_t known_state(std::uint8_t node) const = 0;
-  virtual std::optional<TimePoint> last_heartbeat(std::uint8_t node) const = 0;
+  virtual std::uint8_t known_state(cfg::NodeId node) const = 0;
+  virtual std::optional<TimePoint> last_heartbeat(cfg::NodeId node) const = 0;
   /// §3.5 d: the configuration to download (manager, source, or 1F22h), nullopt: none.
-  virtual std::optional<std::vector<cfg::ObjectWrite>> configuration(std::uint8_t node) const = 0;
+  virtual std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const = 0;
   /// CiA 302-3: the program image for 1F50h, nullopt: none.
-  virtual std::optional<std::vector<std::uint8_t>> program(std::uint8_t node) const = 0;
+  virtual std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const = 0;
   /// When NMT start-up began (§3.3: 1F89h counts from there).
   virtual TimePoint startup_began() const = 0;
   /// The process's deadline changed (the master keeps the earliest of all without a scan).
-  virtual void deadline_changed(std::uint8_t node, std::optional<TimePoint> deadline) = 0;
+  virtual void deadline_changed(cfg::NodeId node, std::optional<TimePoint> deadline) = 0;
 
   // --- The start-up's boot-up gate (NmtMaster::Impl::boot_up_gate): after the start-up's reset
   // no SDO request goes out before every reset slave booted up (or the wait ends).
   virtual bool boot_up_gate_closed() const = 0;
   /// The node booted up while the gate is closed (the master may open it: pass_boot_up_gate).
-  virtual void booted_up_at_gate(std::uint8_t node, TimePoint now, Outbox<MasterEvent>& out) = 0;
+  virtual void booted_up_at_gate(cfg::NodeId node, TimePoint now, Outbox<MasterEvent>& out) = 0;
   /// A process's wait for its boot-up ran out: the gate opens for all.
   virtual void boot_up_wait_over() = 0;
 
@@ -103,8 +104,8 @@ class BootSlavePort {
   /// is to be started per §3.4 part 3 g-l; `left_to_application`: 1F81h bit 2 clear, neither
   /// configured nor started). Called before the process reports the event; the master does what
   /// follows from the status (stop error control, "missing" after B, start remote node).
-  virtual void boot_con(std::uint8_t node, std::optional<BootError> status,
-                        bool left_to_application, TimePoint now, Outbox<MasterEvent>& out) = 0;
+  virtual void boot_con(cfg::NodeId node, std::optional<BootError> status, bool left_to_application,
+                        TimePoint now, Outbox<MasterEvent>& out) = 0;
 };
 
 /// Boot NMT slave of one slave. Events (BootStepChanged, SlaveBooted, BootError,

@@ -17,7 +17,7 @@ namespace obj = cfg::object;
 using Phase = BootSlaveProcess::Phase;
 
 void BootSlaveProcess::check_software(TimePoint now, Output& out) {
-  const auto expect = port_->expectations(node_.value());
+  const auto expect = port_->expectations(node_);
   if (!expect.assignment.verify_software()) {
     check_configuration(now, out);
     return;
@@ -34,7 +34,7 @@ void BootSlaveProcess::check_software(TimePoint now, Output& out) {
 }
 
 void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
-  const auto expect = port_->expectations(node_.value());
+  const auto expect = port_->expectations(node_);
   if (software_ == expect.software) {
     check_configuration(now, out);
     return;
@@ -49,7 +49,7 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     failed(BootError::H, versions + "; 1F81h bit 6 does not allow an update", now, out);
     return;
   }
-  if (!port_->program(node_.value()).has_value()) {
+  if (!port_->program(node_).has_value()) {
     failed(BootError::H, versions + "; no program image is available", now, out);
     return;
   }
@@ -64,7 +64,7 @@ void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
   // (MasterOptions::program_*_timeout); the image is repeated once after a timeout.
   phase_ = phase;
   const auto control = [&](std::uint8_t value, Duration timeout) {
-    port_->program_download(node_.value(), try_id_, obj::kProgramControl, 1, {value}, timeout,
+    port_->program_download(node_, try_id_, {obj::kProgramControl, 1}, {value}, timeout,
                             options_.sdo_retries, now);
   };
   switch (phase) {
@@ -78,9 +78,9 @@ void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
       control(1, options_.program_control_timeout);
       return;
     default: {
-      auto image = port_->program(node_.value());
+      auto image = port_->program(node_);
       update_->bytes = image ? image->size() : 0;
-      port_->program_download(node_.value(), try_id_, obj::kProgramData, 1,
+      port_->program_download(node_, try_id_, {obj::kProgramData, 1},
                               image ? std::move(*image) : std::vector<std::uint8_t>{},
                               options_.program_data_timeout, 1, now);
       return;

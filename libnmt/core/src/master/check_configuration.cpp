@@ -30,7 +30,7 @@ bool no_storage(SdoAbort code) {
 void BootSlaveProcess::check_configuration(TimePoint now, Output& out) {
   set_step(BootStep::VerifyConfiguration, now, out);
   // §3.5 a-c: verify only when 1F26h/1F27h are not 0.
-  if (!port_->expectations(node_.value()).configuration.is_zero() && !options_.force_download &&
+  if (!port_->expectations(node_).configuration.is_zero() && !options_.force_download &&
       !reconfigure_) {
     upload(Phase::ReadVerifyDate, obj::kVerifyConfiguration, 1, now);
     return;
@@ -39,9 +39,9 @@ void BootSlaveProcess::check_configuration(TimePoint now, Output& out) {
 }
 
 void BootSlaveProcess::begin_download(TimePoint now, Output& out) {
-  const auto expect = port_->expectations(node_.value());
+  const auto expect = port_->expectations(node_);
   const auto expected = expect.configuration;
-  auto configuration = port_->configuration(node_.value());
+  auto configuration = port_->configuration(node_);
   const auto restore_sub = expect.restore_sub;
   const bool restore = expect.assignment.restore() && restore_sub != 0;
   if (!configuration && !restore) {
@@ -102,7 +102,7 @@ void BootSlaveProcess::write_next(TimePoint now, Output& out) {
     return;
   }
   configured_ = true;
-  const auto expected = port_->expectations(node_.value()).configuration;
+  const auto expected = port_->expectations(node_).configuration;
   set_step(BootStep::Save, now, out);
   if (!expected.is_zero()) {
     download(Phase::WriteVerifyDate, obj::kVerifyConfiguration, 1, cfg::le32_bytes(expected.days),
@@ -126,7 +126,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
         return;
       }
       verify_.days = uploaded_u32(r);
-      if (verify_.days != port_->expectations(node_.value()).configuration.days) {
+      if (verify_.days != port_->expectations(node_).configuration.days) {
         begin_download(now, out);  // sub 2 cannot make it match
         return;
       }
@@ -138,7 +138,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
         return;
       }
       verify_.ms = uploaded_u32(r);
-      if (verify_ == port_->expectations(node_.value()).configuration) {
+      if (verify_ == port_->expectations(node_).configuration) {
         configured_ = false;
         start_error_control(now, out);
       } else {
@@ -153,7 +153,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       // CiA 301 §7.5.2.14: restored values take effect at the next reset: reset communication
       // for the communication area (sub 2), else reset node.
       port_->queue_nmt(r.sub_index == 2 ? NmtCommand::ResetCommunication : NmtCommand::ResetNode,
-                       node_.value());
+                       node_);
       expect_boot_up_ = true;
       phase_ = Phase::AwaitRestoreBootUp;
       set_deadline(now + options_.reboot_timeout);
@@ -196,7 +196,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
         return;
       }
       download(Phase::WriteVerifyTime, obj::kVerifyConfiguration, 2,
-               cfg::le32_bytes(port_->expectations(node_.value()).configuration.ms), now);
+               cfg::le32_bytes(port_->expectations(node_).configuration.ms), now);
       return;
     case Phase::WriteVerifyTime:
       if (!r.ok()) {

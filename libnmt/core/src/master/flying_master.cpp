@@ -138,7 +138,7 @@ void FlyingMasterProcess::win(TimePoint now, Output& out) {
   port_.became_active(now, out);
 }
 
-void FlyingMasterProcess::standby(std::uint8_t node, std::uint16_t priority, TimePoint now,
+void FlyingMasterProcess::standby(cfg::NodeId node, std::uint16_t priority, TimePoint now,
                                   Output& out, const std::string& why) {
   flying_.phase = Phase::Standby;
   flying_.deadline.reset();
@@ -165,7 +165,7 @@ void FlyingMasterProcess::standby(std::uint8_t node, std::uint16_t priority, Tim
                                        "is 0)")));
 }
 
-void FlyingMasterProcess::force(TimePoint now, Output& out, std::uint8_t node,
+void FlyingMasterProcess::force(TimePoint now, Output& out, cfg::NodeId node,
                                 std::uint16_t priority) {
   const auto& t = timing_;
   // §3.7 g/i, §5.4: the active master has a lower priority: force a negotiation; it answers
@@ -182,7 +182,7 @@ void FlyingMasterProcess::force(TimePoint now, Output& out, std::uint8_t node,
                               "): force NMT flying master negotiation"));
 }
 
-void FlyingMasterProcess::master_response(std::uint16_t priority, std::uint8_t node, TimePoint now,
+void FlyingMasterProcess::master_response(std::uint16_t priority, cfg::NodeId node, TimePoint now,
                                           Output& out) {
   const auto& t = timing_;
   if (flying_.phase == Phase::Active) {
@@ -310,12 +310,13 @@ bool FlyingMasterProcess::on_frame(const CanFrame& frame, TimePoint now, Output&
       if (flying_.phase != Phase::Active) return false;
       out.send(response_71(t.priority, node_));
       return true;
-    case Cob::kMasterResponse:
-      if (frame.dlc < 2 || !cfg::is_node_id(frame.data[1]) || frame.data[1] == node_.value()) {
-        return false;
-      }
-      master_response(frame.data[0], frame.data[1], now, out);
+    case Cob::kMasterResponse: {
+      // The node-ID of the 71h sender is checked here, once (1..127, not this device).
+      const auto sender = frame.dlc < 2 ? std::nullopt : cfg::NodeId::from(frame.data[1]);
+      if (!sender || *sender == node_) return false;
+      master_response(frame.data[0], *sender, now, out);
       return true;
+    }
     case Cob::kNegotiationTrigger:
       if (flying_.phase == Phase::Active) {
         // A negotiation while this device is master (a 73h or 71h was lost): it answers as

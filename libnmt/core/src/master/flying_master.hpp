@@ -68,7 +68,7 @@ class FlyingMasterPort {
   /// 1F80h bit 0: this device is capable of the NMT master mode (answers 75h, §5.1).
   virtual bool master_capable() const = 0;
   /// 1016h: the heartbeat consumer time for `node`; nullopt when not consumed.
-  virtual std::optional<Duration> heartbeat_time(std::uint8_t node) const = 0;
+  virtual std::optional<Duration> heartbeat_time(cfg::NodeId node) const = 0;
   /// 1017h in ms: this device's own heartbeat period (0: none).
   virtual std::uint32_t own_heartbeat_ms() const = 0;
 };
@@ -154,10 +154,10 @@ class FlyingMasterProcess {
   void restart(TimePoint now);
   void wait(TimePoint now, Output& out, const std::string& why);
   void win(TimePoint now, Output& out);
-  void standby(std::uint8_t node, std::uint16_t priority, TimePoint now, Output& out,
+  void standby(cfg::NodeId node, std::uint16_t priority, TimePoint now, Output& out,
                const std::string& why);
-  void force(TimePoint now, Output& out, std::uint8_t node, std::uint16_t priority);
-  void master_response(std::uint16_t priority, std::uint8_t node, TimePoint now, Output& out);
+  void force(TimePoint now, Output& out, cfg::NodeId node, std::uint16_t priority);
+  void master_response(std::uint16_t priority, cfg::NodeId node, TimePoint now, Output& out);
 
   cfg::NodeId node_;
   FlyingMasterPort& port_;

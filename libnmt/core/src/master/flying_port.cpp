@@ -82,7 +82,7 @@ bool NmtMaster::Impl::FlyingPort::master_capable() const {
   return m.startup_config().is_master();
 }
 
-std::optional<Duration> NmtMaster::Impl::FlyingPort::heartbeat_time(std::uint8_t node) const {
+std::optional<Duration> NmtMaster::Impl::FlyingPort::heartbeat_time(cfg::NodeId node) const {
   return m.heartbeat_time(node);
 }
 

@@ -82,28 +82,28 @@ struct NmtMaster::Impl {
   class BootPort final : public BootSlavePort {
    public:
     explicit BootPort(Impl& master) : m_(master) {}
-    void upload(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+    void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
                 TimePoint now) override;
-    void download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index, std::uint8_t sub,
+    void download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
                   std::vector<std::uint8_t> data, TimePoint now) override;
-    void program_download(std::uint8_t node, std::uint64_t try_id, std::uint16_t index,
-                          std::uint8_t sub, std::vector<std::uint8_t> data, Duration timeout,
-                          unsigned retries, TimePoint now) override;
-    void cancel_transfers(std::uint8_t node, TimePoint now) override;
-    void queue_nmt(NmtCommand command, std::uint8_t node) override;
-    bool start_error_control(std::uint8_t node, TimePoint now) override;
-    BootSlaveExpectations expectations(std::uint8_t node) const override;
-    std::optional<Duration> heartbeat_time(std::uint8_t node) const override;
-    std::uint8_t known_state(std::uint8_t node) const override;
-    std::optional<TimePoint> last_heartbeat(std::uint8_t node) const override;
-    std::optional<std::vector<cfg::ObjectWrite>> configuration(std::uint8_t node) const override;
-    std::optional<std::vector<std::uint8_t>> program(std::uint8_t node) const override;
+    void program_download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
+                          std::vector<std::uint8_t> data, Duration timeout, unsigned retries,
+                          TimePoint now) override;
+    void cancel_transfers(cfg::NodeId node, TimePoint now) override;
+    void queue_nmt(NmtCommand command, cfg::NodeId node) override;
+    bool start_error_control(cfg::NodeId node, TimePoint now) override;
+    BootSlaveExpectations expectations(cfg::NodeId node) const override;
+    std::optional<Duration> heartbeat_time(cfg::NodeId node) const override;
+    std::uint8_t known_state(cfg::NodeId node) const override;
+    std::optional<TimePoint> last_heartbeat(cfg::NodeId node) const override;
+    std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override;
+    std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const override;
     TimePoint startup_began() const override;
-    void deadline_changed(std::uint8_t node, std::optional<TimePoint> deadline) override;
+    void deadline_changed(cfg::NodeId node, std::optional<TimePoint> deadline) override;
     bool boot_up_gate_closed() const override;
-    void booted_up_at_gate(std::uint8_t node, TimePoint now, Outbox<MasterEvent>& out) override;
+    void booted_up_at_gate(cfg::NodeId node, TimePoint now, Outbox<MasterEvent>& out) override;
     void boot_up_wait_over() override;
-    void boot_con(std::uint8_t node, std::optional<BootError> status, bool left_to_application,
+    void boot_con(cfg::NodeId node, std::optional<BootError> status, bool left_to_application,
                   TimePoint now, Outbox<MasterEvent>& out) override;
 
    private:
@@ -160,7 +160,7 @@ struct NmtMaster::Impl {
     void queue_nmt(NmtCommand command, std::uint8_t node) override;
     void obey(NmtCommand command, TimePoint now, Output& out) override;
     bool master_capable() const override;
-    std::optional<Duration> heartbeat_time(std::uint8_t node) const override;
+    std::optional<Duration> heartbeat_time(cfg::NodeId node) const override;
     std::uint32_t own_heartbeat_ms() const override;
     Impl& m;
   };
