@@ -93,14 +93,14 @@ TEST(SdoRequestingDeviceWithManager, RegistersConnectsTwiceToOneSlaveReadsAndRel
 
   // First connection: slave 2's default SDO is free (§7.1).
   ASSERT_TRUE(slot.apply([](SrdSlot& s, TimePoint now, SrdSlot::Output& out) {
-    return s.srd->request_connection(2, 0x1281, now, out);
+    return s.srd->request_connection(*cfg::NodeId::from(2), 0x1281, now, out);
   }));
   ASSERT_TRUE(wait(SrdEvent::Kind::Connected)) << (events.empty() ? "" : events.back().text);
   EXPECT_EQ(srd.connection(0x1281)->request_cob_id, cfg::CobId::standard(0x602));
 
   // Second: the default SDO is taken, the manager configures slave 2's 1201h.
   ASSERT_TRUE(slot.apply([](SrdSlot& s, TimePoint now, SrdSlot::Output& out) {
-    return s.srd->request_connection(2, 0x1282, now, out);
+    return s.srd->request_connection(*cfg::NodeId::from(2), 0x1282, now, out);
   }));
   ASSERT_TRUE(wait(SrdEvent::Kind::Connected, 2)) << (events.empty() ? "" : events.back().text);
   const auto second = srd.connection(0x1282);
@@ -126,7 +126,7 @@ TEST(SdoRequestingDeviceWithManager, RegistersConnectsTwiceToOneSlaveReadsAndRel
 
   // 1F01h index 0: every connection to slave 2 (§7.2.3).
   ASSERT_TRUE(slot.apply([](SrdSlot& s, TimePoint now, SrdSlot::Output& out) {
-    return s.srd->release(2, 0, now, out);
+    return s.srd->release(*cfg::NodeId::from(2), 0, now, out);
   }));
   ASSERT_TRUE(wait(SrdEvent::Kind::ConnectionReleased, 2));
   EXPECT_TRUE(srd.connections().empty());

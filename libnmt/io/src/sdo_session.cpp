@@ -143,6 +143,8 @@ std::optional<SrdEvent> SdoSession::take_event(const std::function<bool(const Sr
 cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   using Kind = SrdEvent::Kind;
   route_ = std::move(route);
+  const auto slave_id = cfg::NodeId::from(route_.slave);
+  if (!slave_id) return cfg::Error{std::to_string(route_.slave) + " is no node-ID (1..127)"};
   auto description = cfg::parse_device_description(session_srd_description());
   if (!description.device) return cfg::Error{"the built-in SDO requesting device does not read"};
   SrdOptions options;
@@ -205,7 +207,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   // DSP 302 §7.2.2: 1F00h at the manager; it answers in 1F10h with the client entry set up.
   const std::string slave = "node " + std::to_string(route_.slave);
   (void)srd_ref_->apply([&](SdoRequestingDevice& s, TimePoint now, auto& out) {
-    return s.request_connection(route_.slave, kConnectionClientIndex, now, out);
+    return s.request_connection(*slave_id, kConnectionClientIndex, now, out);
   });
   std::optional<SrdEvent> connected;
   auto granted = run_until(

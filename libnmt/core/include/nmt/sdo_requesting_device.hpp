@@ -71,8 +71,8 @@ struct SrdEvent {
   };
   Kind kind = Kind::Device;
   TimePoint at{};
-  std::uint16_t client_index = 0;  ///< 1280h-12FFh the event is about; 0 when none
-  std::uint8_t slave_node_id = 0;  ///< the slave (server) concerned; 0 when none
+  std::uint16_t client_index = 0;              ///< 1280h-12FFh the event is about; 0 when none
+  std::optional<cfg::NodeId> slave_node_id{};  ///< the slave (server) concerned; nullopt: none
   /// The 1F10h word the manager wrote (Registered, RegistrationFailed, Connected,
   /// ConnectionFailed by error code).
   cfg::sdo_manager::DynamicSdoState state{};
@@ -143,15 +143,14 @@ class SdoRequestingDevice {
   cfg::Status register_at_manager(TimePoint now, Output& out);
   /// Asks the manager for a connection to `slave` on the SRD's client entry `client_index`
   /// (1F00h = client_index<<16 | node-ID<<8 | slave). An error (nothing sent) when not Registered,
-  /// when another request is pending, when `slave` is no node-ID, or when `client_index` is no
-  /// client entry of the dictionary. The outcome is Connected or ConnectionFailed.
-  cfg::Status request_connection(std::uint8_t slave, std::uint16_t client_index, TimePoint now,
+  /// when another request is pending, or when `client_index` is no client entry of the
+  /// dictionary. The outcome is Connected or ConnectionFailed.
+  cfg::Status request_connection(cfg::NodeId slave, std::uint16_t client_index, TimePoint now,
                                  Output& out);
   /// Asks the manager to release the connection on `client_index` to `slave` (1F01h; 0 = every
-  /// connection to `slave`). An error when not Registered, when another request is pending or
-  /// `slave` is no node-ID. The release is seen as ConnectionReleased when the manager
-  /// invalidates the entry.
-  cfg::Status release(std::uint8_t slave, std::uint16_t client_index, TimePoint now, Output& out);
+  /// connection to `slave`). An error when not Registered or when another request is pending.
+  /// The release is seen as ConnectionReleased when the manager invalidates the entry.
+  cfg::Status release(cfg::NodeId slave, std::uint16_t client_index, TimePoint now, Output& out);
   /// Releases everything and de-registers (1F01h with slave node-ID 0). An error when not
   /// Registered or another request is pending. On success the SRD reports Deregistered.
   cfg::Status deregister(TimePoint now, Output& out);
@@ -168,13 +167,12 @@ class SdoRequestingDevice {
                                    Output& out, SdoTransferOptions options = {});
   /// Upload / download over `slave`'s default SDO (600h/580h + node-ID), while registration()
   /// is AllDefaultSdos (DSP 302 §7.2.2: the SRD owns them); an error otherwise.
-  cfg::Result<TransferId> upload_default(std::uint8_t slave, std::uint16_t index, std::uint8_t sub,
+  cfg::Result<TransferId> upload_default(cfg::NodeId slave, std::uint16_t index, std::uint8_t sub,
                                          TimePoint now, Output& out,
                                          SdoTransferOptions options = {});
-  cfg::Result<TransferId> download_default(std::uint8_t slave, std::uint16_t index,
-                                           std::uint8_t sub, std::vector<std::uint8_t> data,
-                                           TimePoint now, Output& out,
-                                           SdoTransferOptions options = {});
+  cfg::Result<TransferId> download_default(cfg::NodeId slave, std::uint16_t index, std::uint8_t sub,
+                                           std::vector<std::uint8_t> data, TimePoint now,
+                                           Output& out, SdoTransferOptions options = {});
 
   // --- observation ---------------------------------------------------------------------------
   SrdRegistration registration() const { return registration_; }
@@ -195,7 +193,7 @@ class SdoRequestingDevice {
   struct Pending {
     enum class What : std::uint8_t { Request, Release, Deregister };
     What what = What::Request;
-    std::uint8_t slave = 0;
+    std::optional<cfg::NodeId> slave{};  // nullopt: Deregister (1F01h slave 0, all)
     std::uint16_t client_index = 0;
     SdoClient::TransferId transfer = 0;   // the 1F00h/1F01h download on the manager channel
     bool accepted = false;                // the download succeeded
@@ -224,9 +222,9 @@ class SdoRequestingDevice {
   void drop_channel(std::uint32_t key, TimePoint now, Output& out);
   void forget_registration(TimePoint now, Output& out);
   void report(SrdEvent event, Output& out);
-  std::uint32_t open_default(std::uint8_t slave);
+  std::uint32_t open_default(cfg::NodeId slave);
   /// The channel key of `slave`'s default SDO: above the 1280h-12FFh keys.
-  static constexpr std::uint32_t default_channel(std::uint8_t slave) { return 0x10000u + slave; }
+  static constexpr std::uint32_t default_channel(cfg::NodeId slave) { return 0x10000u + slave; }
 
   std::unique_ptr<SlaveNode> node_;
   SrdOptions options_;

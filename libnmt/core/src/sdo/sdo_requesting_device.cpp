@@ -31,6 +31,11 @@ void forward_frames(const Outbox<Part>& part, SdoRequestingDevice::Output& out) 
   out.frames.insert(out.frames.end(), part.frames.begin(), part.frames.end());
 }
 
+/// The node-ID in messages; 0 for a request about no single node (1F01h slave 0).
+std::string node_number(std::optional<cfg::NodeId> node) {
+  return std::to_string(node ? node->value() : 0);
+}
+
 }  // namespace
 
 cfg::Result<std::unique_ptr<SdoRequestingDevice>> SdoRequestingDevice::create(
@@ -145,14 +150,14 @@ void SdoRequestingDevice::on_timer(TimePoint now, Output& out) {
   if (pending_ && pending_->deadline && now >= *pending_->deadline) {
     const Pending p = *pending_;
     pending_.reset();
-    report({.kind = SrdEvent::Kind::ConnectionFailed,
-            .at = now,
-            .client_index = p.client_index,
-            .slave_node_id = p.slave,
-            .text = "the SDO manager did not confirm the connection to node " +
-                    std::to_string(p.slave) + " in " +
-                    cfg::object_name(obj::kDynamicSdoConnectionState)},
-           out);
+    report(
+        {.kind = SrdEvent::Kind::ConnectionFailed,
+         .at = now,
+         .client_index = p.client_index,
+         .slave_node_id = p.slave,
+         .text = "the SDO manager did not confirm the connection to node " + node_number(p.slave) +
+                 " in " + cfg::object_name(obj::kDynamicSdoConnectionState)},
+        out);
   }
 }
 
@@ -206,9 +211,8 @@ cfg::Status SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t 
   return {};
 }
 
-cfg::Status SdoRequestingDevice::request_connection(std::uint8_t slave, std::uint16_t client_index,
+cfg::Status SdoRequestingDevice::request_connection(cfg::NodeId slave, std::uint16_t client_index,
                                                     TimePoint now, Output& out) {
-  if (!cfg::is_node_id(slave)) return cfg::Error{std::to_string(slave) + " is no node-ID"};
   if (!obj::is_sdo_client_parameter(client_index) || client_index == manager_index_ ||
       !node_->dictionary().entry(client_index, 2)) {
     return cfg::Error{cfg::object_name(client_index) +
@@ -220,9 +224,8 @@ cfg::Status SdoRequestingDevice::request_connection(std::uint8_t slave, std::uin
       request.encode(), obj::kSdoRequest, now, out);
 }
 
-cfg::Status SdoRequestingDevice::release(std::uint8_t slave, std::uint16_t client_index,
+cfg::Status SdoRequestingDevice::release(cfg::NodeId slave, std::uint16_t client_index,
                                          TimePoint now, Output& out) {
-  if (!cfg::is_node_id(slave)) return cfg::Error{std::to_string(slave) + " is no node-ID"};
   const cfg::sdo_manager::SdoRequest request{client_index, node_->node_id().value(), slave};
   return send_to_manager(
       {.what = Pending::What::Release, .slave = slave, .client_index = client_index},
@@ -250,7 +253,7 @@ void SdoRequestingDevice::process(std::span<const cfg::ObjectAddress> written, T
           static_cast<std::uint16_t>(node_->dictionary().get_unsigned(index, 0).value_or(0)));
       report({.kind = SrdEvent::Kind::SlaveFailed,
               .at = now,
-              .slave_node_id = failed.slave_node_id,
+              .slave_node_id = cfg::NodeId::from(failed.slave_node_id),
               .text = "node " + std::to_string(failed.slave_node_id) + ": " +
                       std::string(cfg::sdo_manager::describe(
                           static_cast<cfg::sdo_manager::SlaveFailedReason>(failed.reason)))},
@@ -288,7 +291,7 @@ void SdoRequestingDevice::on_state_written(DynamicSdoState state, TimePoint now,
         report({.kind = SrdEvent::Kind::Registered,
                 .at = now,
                 .client_index = index,
-                .slave_node_id = config->node_id,
+                .slave_node_id = cfg::NodeId::from(config->node_id),
                 .state = state,
                 .text = "registered at the SDO manager (node " + std::to_string(config->node_id) +
                         ") on " + cfg::object_name(index) +
@@ -343,12 +346,13 @@ void SdoRequestingDevice::on_state_written(DynamicSdoState state, TimePoint now,
       return;
     }
     channels_[p.client_index] = Channel{std::make_unique<SdoClient>(*config), {}};
+    const auto server = cfg::NodeId::from(config->node_id);  // sub 3 of the entry (0: not given)
     report({.kind = SrdEvent::Kind::Connected,
             .at = now,
             .client_index = p.client_index,
-            .slave_node_id = config->node_id != 0 ? config->node_id : p.slave,
+            .slave_node_id = server ? server : p.slave,
             .state = state,
-            .text = "connected to node " + std::to_string(p.slave) + " on " +
+            .text = "connected to node " + node_number(p.slave) + " on " +
                     cfg::object_name(p.client_index) + " (request " +
                     cfg::hex_digits(config->request_cob_id.word(), 3) + "h, response " +
                     cfg::hex_digits(config->response_cob_id.word(), 3) + "h)"},
@@ -360,7 +364,7 @@ void SdoRequestingDevice::on_state_written(DynamicSdoState state, TimePoint now,
             .client_index = p.client_index,
             .slave_node_id = p.slave,
             .state = state,
-            .text = "the SDO manager could not connect to node " + std::to_string(p.slave) + ": " +
+            .text = "the SDO manager could not connect to node " + node_number(p.slave) + ": " +
                     std::string(describe(state.error()))},
            out);
   }
@@ -380,7 +384,7 @@ void SdoRequestingDevice::on_client_entry_written(std::uint16_t client_index, Ti
     report({.kind = SrdEvent::Kind::ConnectionReleased,
             .at = now,
             .client_index = client_index,
-            .slave_node_id = slave,
+            .slave_node_id = cfg::NodeId::from(slave),
             .text = "the SDO manager released " + cfg::object_name(client_index) +
                     " (connection to node " + std::to_string(slave) + ")"},
            out);
@@ -403,7 +407,7 @@ void SdoRequestingDevice::manager_results(const SdoClient::Output& results, Time
               .abort = r.abort,
               .text = std::string(request ? "the SDO manager refused the connection to node "
                                           : "the SDO manager refused the release of node ") +
-                      std::to_string(failed.slave) + ": " + to_string(r.abort)},
+                      node_number(failed.slave) + ": " + to_string(r.abort)},
              out);
       continue;
     }
@@ -432,7 +436,7 @@ void SdoRequestingDevice::forget_registration(TimePoint now, Output& out) {
     report({.kind = SrdEvent::Kind::ConnectionReleased,
             .at = now,
             .client_index = client_index_of(key),
-            .slave_node_id = slave,
+            .slave_node_id = cfg::NodeId::from(slave),
             .text = entry_name(key) + " released with the registration"},
            out);
   }
@@ -478,7 +482,7 @@ void SdoRequestingDevice::channel_results(std::uint32_t key, const SdoClient::Ou
     report({.kind = SrdEvent::Kind::Transfer,
             .at = at,
             .client_index = client_index_of(key),
-            .slave_node_id = r.node_id,
+            .slave_node_id = cfg::NodeId::from(r.node_id),
             .transfer = std::move(r),
             .text = std::move(text)},
            out);
@@ -514,7 +518,7 @@ cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::download(
   return start(client_index, false, index, sub, std::move(data), now, out, options);
 }
 
-std::uint32_t SdoRequestingDevice::open_default(std::uint8_t slave) {
+std::uint32_t SdoRequestingDevice::open_default(cfg::NodeId slave) {
   const auto key = default_channel(slave);
   if (!channels_.contains(key)) {
     channels_[key] = Channel{std::make_unique<SdoClient>(SdoClientConfig::for_node(slave)), {}};
@@ -523,19 +527,19 @@ std::uint32_t SdoRequestingDevice::open_default(std::uint8_t slave) {
 }
 
 cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::upload_default(
-    std::uint8_t slave, std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
+    cfg::NodeId slave, std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
     SdoTransferOptions options) {
-  if (registration_ != SrdRegistration::AllDefaultSdos || !cfg::is_node_id(slave)) {
-    return cfg::Error{"the SDO manager gave this device no default SDOs, or no node-ID"};
+  if (registration_ != SrdRegistration::AllDefaultSdos) {
+    return cfg::Error{"the SDO manager gave this device no default SDOs"};
   }
   return start(open_default(slave), true, index, sub, {}, now, out, options);
 }
 
 cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::download_default(
-    std::uint8_t slave, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
+    cfg::NodeId slave, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
     TimePoint now, Output& out, SdoTransferOptions options) {
-  if (registration_ != SrdRegistration::AllDefaultSdos || !cfg::is_node_id(slave)) {
-    return cfg::Error{"the SDO manager gave this device no default SDOs, or no node-ID"};
+  if (registration_ != SrdRegistration::AllDefaultSdos) {
+    return cfg::Error{"the SDO manager gave this device no default SDOs"};
   }
   return start(open_default(slave), false, index, sub, std::move(data), now, out, options);
 }
