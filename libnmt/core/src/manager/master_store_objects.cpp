@@ -89,16 +89,14 @@ void NmtMaster::Impl::install_store_objects() {
       });
 }
 
-std::optional<cfg::ConfigurationStamp> NmtMaster::Impl::stored_stamp(std::uint8_t node) const {
+std::optional<cfg::ConfigurationStamp> NmtMaster::Impl::stored_stamp(cfg::NodeId node) const {
   if (!options.manager) return std::nullopt;
-  const auto id = cfg::NodeId::from(node);
-  if (!id) return std::nullopt;
-  const auto stamp = options.manager->expected_stamp(*id);
-  if (stamp.is_zero() && !options.manager->has_configuration(*id)) return std::nullopt;
+  const auto stamp = options.manager->expected_stamp(node);
+  if (stamp.is_zero() && !options.manager->has_configuration(node)) return std::nullopt;
   return stamp;
 }
 
-std::span<const std::uint8_t> NmtMaster::Impl::own_concise_dcf(std::uint8_t node) const {
+std::span<const std::uint8_t> NmtMaster::Impl::own_concise_dcf(cfg::NodeId node) const {
   if (options.manager) {
     const auto it = file_concise.find(node);
     if (it == file_concise.end()) return {};
@@ -117,7 +115,7 @@ SdoAbort NmtMaster::Impl::store_read(std::uint16_t index, std::uint8_t sub) {
   const auto node = cfg::NodeId::from(sub);
   if (is_stamp(index) && node) {
     // The one owner's value (expected_configuration), also for a node the manager lacks.
-    const auto stamp = expected_configuration(sub);
+    const auto stamp = expected_configuration(*node);
     value = cfg::le32_bytes(index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms);
   } else if (auto unstored = node ? unstored_read(index, *node) : std::nullopt) {
     if (unstored->abort != SdoAbort::None) return unstored->abort;
@@ -144,7 +142,7 @@ std::optional<NmtMaster::Impl::StoreValue> NmtMaster::Impl::unstored_read(std::u
         return StoreValue{SdoAbort::None, std::move(*stream)};
       }
     }
-    const auto own = own_concise_dcf(node.value());
+    const auto own = own_concise_dcf(node);
     if (own.empty()) return std::nullopt;  // DSP 302 §6.2 hint 2: the count-0 stream
     return StoreValue{SdoAbort::None, {own.begin(), own.end()}};
   }
@@ -163,11 +161,12 @@ WriteVerdict NmtMaster::Impl::store_write(std::uint16_t index, std::uint8_t sub,
                                           Output* out) {
   if (!options.manager || !is_store_index(index)) return SdoAbort::None;
   const auto& manager = *options.manager;
-  if (is_stamp(index) && cfg::is_node_id(sub) && !stored_stamp(sub) && data.size() == 4) {
+  const auto node = cfg::NodeId::from(sub);
+  if (is_stamp(index) && node && !stored_stamp(*node) && data.size() == 4) {
     // The manager takes the node over with the half that is not written.
-    auto stamp = expected_configuration(sub);
+    auto stamp = expected_configuration(*node);
     (index == obj::kExpectedConfigurationDate ? stamp.days : stamp.ms) = cfg::low_le32(data);
-    auto staged = manager.stage_expected_stamp(*cfg::NodeId::from(sub), stamp);
+    auto staged = manager.stage_expected_stamp(*node, stamp);
     if (!staged) return SdoAbort::ValueRangeExceeded;  // 1F27h: no time of day
     return persist_entry(std::move(staged).value(), now, out);
   }
@@ -225,19 +224,19 @@ void NmtMaster::Impl::add_unstored_configurations(std::uint8_t sub,
   // DSP 302 §6.4: 'conf' configures a node "with the stored configuration"; a node the manager
   // stores nothing for has the source's (or the master DCF's) configuration, which the master
   // downloads just the same (nmt_master.hpp), so 1F25h takes those nodes too.
-  const auto has_configuration = [this](std::uint8_t node) {
+  const auto has_configuration = [this](cfg::NodeId node) {
     return configuration_of(node).has_value();
   };
+  const auto node = cfg::NodeId::from(sub);
   if (sub == cfg::kConfigureAllNodes && written.ok()) {
     std::vector<cfg::NodeId> nodes;
     for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {
-      const auto id = static_cast<std::uint8_t>(n);
-      if (is_slave(id) && has_configuration(id)) nodes.push_back(*cfg::NodeId::from(id));
+      const auto id = *cfg::NodeId::from(n);
+      if (is_slave(id) && has_configuration(id)) nodes.push_back(id);
     }
     written.configure = std::move(nodes);
-  } else if (written.abort == cfg::SdoAbort::NoDataAvailable && cfg::is_node_id(sub) &&
-             has_configuration(sub)) {
-    written = cfg::ConfigWrite{cfg::SdoAbort::None, {}, {*cfg::NodeId::from(sub)}};
+  } else if (written.abort == cfg::SdoAbort::NoDataAvailable && node && has_configuration(*node)) {
+    written = cfg::ConfigWrite{cfg::SdoAbort::None, {}, {*node}};
   }
 }
 

@@ -12,13 +12,12 @@ namespace nmt {
 namespace obj = cfg::object;
 
 std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::configuration_of(
-    std::uint8_t node) const {
-  const auto id = *cfg::NodeId::from(node);
+    cfg::NodeId node) const {
   // The configuration manager first (MasterOptions::manager), then the source, then 1F22h.
-  if (options.manager && options.manager->has_configuration(id)) {
-    return options.manager->configuration(id);
+  if (options.manager && options.manager->has_configuration(node)) {
+    return options.manager->configuration(node);
   }
-  if (options.configurations) return options.configurations->configuration(id);
+  if (options.configurations) return options.configurations->configuration(node);
   // §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager."
   const auto stream = own_concise_dcf(node);
   if (stream.empty()) return std::nullopt;
@@ -36,7 +35,7 @@ void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint 
   }
 }
 
-void NmtMaster::Impl::start_remote_node(std::uint8_t node) {
+void NmtMaster::Impl::start_remote_node(cfg::NodeId node) {
   const auto config = startup_config();
   // §3.4 part 3 g-l. While NMT start-up runs, no slave is started: §3.1 h starts them once every
   // mandatory slave booted (finish_startup), and a halted start-up (§3.1 f) starts none.

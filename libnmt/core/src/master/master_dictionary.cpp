@@ -296,7 +296,7 @@ std::optional<Duration> NmtMaster::Impl::heartbeat_time(std::uint8_t node) const
   return std::nullopt;
 }
 
-cfg::ConfigurationStamp NmtMaster::Impl::expected_configuration(std::uint8_t node) const {
+cfg::ConfigurationStamp NmtMaster::Impl::expected_configuration(cfg::NodeId node) const {
   // One owner (nmt_master.hpp): the configuration manager for a node it holds anything for.
   if (auto stamp = stored_stamp(node)) return *stamp;
   return {value_of(obj::kExpectedConfigurationDate, node),

@@ -212,7 +212,7 @@ struct NmtMaster::Impl {
   cfg::SlaveAssignment assignment(std::uint8_t node) const;
   /// 1016h consumer time for `node` (the first active entry), nullopt when not a consumer.
   std::optional<Duration> heartbeat_time(std::uint8_t node) const;
-  cfg::ConfigurationStamp expected_configuration(std::uint8_t node) const;
+  cfg::ConfigurationStamp expected_configuration(cfg::NodeId node) const;
   Duration nmt_inhibit_time() const;
 
   // --- configuration manager objects 1F20h-1F27h (master_store_objects.cpp) ---------------
@@ -230,7 +230,7 @@ struct NmtMaster::Impl {
   /// The manager's 1F26h/1F27h of `node` when it holds anything for the node (a stamp or a
   /// configuration); nullopt without a manager or when it holds nothing (the dictionary's
   /// values apply).
-  std::optional<cfg::ConfigurationStamp> stored_stamp(std::uint8_t node) const;
+  std::optional<cfg::ConfigurationStamp> stored_stamp(cfg::NodeId node) const;
   SdoAbort store_read(std::uint16_t index, std::uint8_t sub);
   /// A read's value, or the abort that answers it.
   struct StoreValue {
@@ -256,7 +256,7 @@ struct NmtMaster::Impl {
   SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now,
                             Output* out);
   /// The master's own 1F22h stream of `node` (the DCF's value); empty when none.
-  std::span<const std::uint8_t> own_concise_dcf(std::uint8_t node) const;
+  std::span<const std::uint8_t> own_concise_dcf(cfg::NodeId node) const;
 
   // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
   void power_on(TimePoint now, Output& out);
@@ -345,9 +345,9 @@ struct NmtMaster::Impl {
   void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
                   bool asked_by_application = false);
   /// §3.4 part 3 g-l: start remote node after a boot with status OK.
-  void start_remote_node(std::uint8_t node);
+  void start_remote_node(cfg::NodeId node);
   /// The configuration to download to `node` (§3.5 d): the manager's, the source's, or 1F22h.
-  std::optional<std::vector<cfg::ObjectWrite>> configuration_of(std::uint8_t node) const;
+  std::optional<std::vector<cfg::ObjectWrite>> configuration_of(cfg::NodeId node) const;
 };
 
 }  // namespace nmt
