@@ -321,7 +321,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
   const bool excluding = (value & 0x80) != 0;
   // §6.4: 84h-8Fh need the requester's node-ID; unknown: 0800 0000.
   if (excluding && !requester) return SdoAbort::General;
-  auto hold = [&](std::uint8_t node) {
+  auto hold = [&](cfg::NodeId node) {
     // DSP 302 §5.4: no automatic re-boot after a state change by request NMT (start ends it).
     if (is_slave(node)) slaves[node].held = *command != NmtCommand::Start;
   };
@@ -338,9 +338,8 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
     if (excluding) {
       const bool self = requester->value() == node_id.value();
       if (no_room_for(cfg::kMaxNodeId - (self ? 1 : 2))) return SdoAbort::OutOfMemory;
-      for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-        const auto n = static_cast<std::uint8_t>(node);
-        if (n == node_id.value() || n == requester->value()) continue;
+      for (const auto n : all_node_ids()) {
+        if (n == node_id || n == *requester) continue;
         queue_nmt(*command, n);
         hold(n);
       }
@@ -348,24 +347,23 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
     }
     if (no_room_for(1)) return SdoAbort::OutOfMemory;
     queue_nmt(*command, 0);
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      hold(static_cast<std::uint8_t>(node));
-    }
+    for (const auto n : all_node_ids()) hold(n);
     // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
     apply_own_command(*command, now, *out);
     return SdoAbort::None;
   }
-  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
-  if (sub == node_id.value()) {
+  const auto node = cfg::NodeId::from(sub);
+  if (!node) return SdoAbort::SubIndexDoesNotExist;
+  if (*node == node_id) {
     apply_own_command(*command, now, *out);
     return SdoAbort::None;
   }
-  if (excluding && sub == requester->value()) return SdoAbort::General;
+  if (excluding && *node == *requester) return SdoAbort::General;
   // A request for a node that is not a slave of this master: 0800 0000 (nmt_master.hpp, choices).
-  if (!is_slave(sub)) return SdoAbort::General;
+  if (!is_slave(*node)) return SdoAbort::General;
   if (no_room_for(1)) return SdoAbort::OutOfMemory;
-  queue_nmt(*command, sub);
-  hold(sub);
+  queue_nmt(*command, *node);
+  hold(*node);
   return SdoAbort::None;
 }
 
@@ -374,7 +372,7 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
   // §6.5, Table 31: 0 stop, 1 start; the rest is reserved.
   if (value > 1) return SdoAbort::ValueRangeExceeded;
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
-  auto apply = [&](std::uint8_t node) {
+  auto apply = [&](cfg::NodeId node) {
     if (!is_slave(node)) return SdoAbort::General;
     if (value == 0) {
       guarding.stop(node);
@@ -383,20 +381,20 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
     const auto a = assignment(node);
     // §6.3: guard time or retry factor 0 disable guarding for the device.
     if (a.guard_time_ms() == 0 || a.retry_factor() == 0) return SdoAbort::General;
-    guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
+    guarding.start(node, a.guard_time_ms(), a.retry_factor(), now);
     return SdoAbort::None;
   };
   if (sub == kAll) {
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      const auto n = static_cast<std::uint8_t>(node);
+    for (const auto n : all_node_ids()) {
       if (is_slave(n)) (void)apply(n);
     }
     return SdoAbort::None;
   }
-  if (!cfg::is_node_id(sub)) return SdoAbort::SubIndexDoesNotExist;
+  const auto node = cfg::NodeId::from(sub);
+  if (!node) return SdoAbort::SubIndexDoesNotExist;
   // §6.5: "The sub-index corresponding to its own node-ID shall be ignored."
-  if (sub == node_id.value()) return SdoAbort::None;
-  return apply(sub);
+  if (*node == node_id) return SdoAbort::None;
+  return apply(*node);
 }
 
 }  // namespace nmt

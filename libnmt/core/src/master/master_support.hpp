@@ -2,12 +2,16 @@
 // master (master_dictionary.cpp, boot_slave.cpp, nmt_master.cpp). Private to the library.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cfg/data_type.hpp"
+#include "cfg/node_id.hpp"
 #include "master/master_text.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/nmt_master.hpp"
@@ -22,5 +26,12 @@ DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string na
 std::uint32_t uploaded_u32(const SdoResult& result);
 /// "1018h sub 01h upload failed: 0x05040000 (SDO protocol timed out)".
 std::string transfer_failure(const SdoResult& result);
+/// 1..127 in order: the master's loops over every node-ID, without a cast and a check per node.
+constexpr std::array<cfg::NodeId, cfg::kMaxNodeId> all_node_ids() {
+  return []<std::size_t... I>(std::index_sequence<I...>) {
+    return std::array<cfg::NodeId, cfg::kMaxNodeId>{*cfg::NodeId::from(I + cfg::kMinNodeId)...};
+  }
+  (std::make_index_sequence<cfg::kMaxNodeId>{});
+}
 
 }  // namespace nmt

@@ -351,8 +351,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // Every path here resets communication of all nodes (or this device stops being the master):
   // the SDO entries the manager gave out are gone.
   sdo_manager.clear();
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
+  for (const auto n : all_node_ids()) {
     boot(n).reset(now);
     stop_error_control(n);
     auto& s = slaves[n];
@@ -392,8 +391,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   boot_up_gate = now + options.boot_up_wait;
   boot_up_quiet.reset();
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
+  for (const auto n : all_node_ids()) {
     if (!is_slave(n)) continue;
     start_boot(n, !assignment(n).keep_alive(), now, out);
   }
@@ -406,9 +404,8 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   const bool endless_boot_time = value_of(obj::kBootTime, 0) == 0;
   bool all_ended = true;
   bool mandatory_waiting = false;
-  std::vector<std::uint8_t> failed;  // mandatory slaves whose process ended with an error
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
+  std::vector<cfg::NodeId> failed;  // mandatory slaves whose process ended with an error
+  for (const auto n : all_node_ids()) {
     if (!is_slave(n)) continue;
     const auto& s = boot(n);
     if (assignment(n).mandatory()) {
@@ -463,8 +460,7 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
   // are the starts §3.4 l held back while start-up ran (start_remote_node).
   if (!config.no_start_slaves()) {
     bool all_booted = config.start_all_nodes();
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      const auto n = static_cast<std::uint8_t>(node);
+    for (const auto n : all_node_ids()) {
       if (!is_slave(n)) continue;
       const auto& s = boot(n);
       if (!s.booted() || s.last_error() || assignment(n).keep_alive()) all_booted = false;
@@ -472,8 +468,7 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     if (all_booted) {
       queue_nmt(NmtCommand::Start, 0);
     } else {
-      for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-        const auto n = static_cast<std::uint8_t>(node);
+      for (const auto n : all_node_ids()) {
         if (!is_slave(n) || !boot(n).booted() || !assignment(n).boot_slave()) continue;
         if (slaves[n].known_state == static_cast<std::uint8_t>(NmtState::Operational)) continue;
         queue_nmt(NmtCommand::Start, n);
@@ -529,10 +524,8 @@ void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
   for (const auto& [command, node] : nmt_out.events) {
     const auto state = state_after(command);
     if (node == 0) {
-      for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {
-        if (is_slave(static_cast<std::uint8_t>(n))) {
-          set_known_state(static_cast<std::uint8_t>(n), state, now, out);
-        }
+      for (const auto n : all_node_ids()) {
+        if (is_slave(n)) set_known_state(n, state, now, out);
       }
     } else {
       set_known_state(node, state, now, out);

@@ -282,8 +282,11 @@ struct NmtMaster::Impl {
   void settle(TimePoint now, Output& out);
   void report_program_progress(TimePoint now, Output& out);
   void report(Output& out, MasterEvent event);
+  bool is_slave(cfg::NodeId node) const { return node != node_id && assignment(node).is_slave(); }
+  /// A number from a frame or a dictionary value: a node-ID (1..127) and a slave.
   bool is_slave(std::uint8_t node) const {
-    return node != node_id.value() && cfg::is_node_id(node) && assignment(node).is_slave();
+    const auto id = cfg::NodeId::from(node);
+    return id && is_slave(*id);
   }
 
   // --- the flying master's side in the master (master_flying_port.cpp) -----------------------
