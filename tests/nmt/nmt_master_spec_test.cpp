@@ -1062,6 +1062,9 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
   auto verify = rig.uploads_of(3, 0x1F52, 1, control[2].at);
   EXPECT_FALSE(verify.empty());
   EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+  // Clear was accepted: nothing to report about it.
+  EXPECT_TRUE(rig.events_of(Kind::ProgramClearRefused).empty());
+  EXPECT_EQ(rig.booted(3).at(0).program->clear_refused, std::nullopt);
 }
 
 // Node 3 with 1F81h bits 5 and 6, and 1F53h/1F54h sub 3 = the version its image of `size` bytes
@@ -1140,6 +1143,21 @@ TEST(NmtMasterSpec, SoftwareUpdateGoesOnWhenTheDeviceRefusesClearAsDsp302AllowsO
   EXPECT_EQ(refusal[0].text(), "583#80511F0131000906");  // abort 0609 0031
   EXPECT_EQ(rig.downloads_of(3, 0x1F50, 1).size(), 1U);
   EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+  // The refusal is reported when the abort arrives, before the image goes out, and once more in
+  // the boot's account (a user would otherwise see it only on the bus).
+  const auto refused = rig.events_of(Kind::ProgramClearRefused, 3);
+  ASSERT_EQ(refused.size(), 1U);
+  EXPECT_EQ(refused[0].at, refusal[0].at);
+  EXPECT_LE(refused[0].at, rig.downloads_of(3, 0x1F50, 1)[0].at);
+  EXPECT_EQ(refused[0].step, BootStep::UpdateSoftware);
+  ASSERT_TRUE(refused[0].sdo.has_value());
+  EXPECT_EQ(refused[0].sdo->abort, SdoAbort::ValueTooHigh);
+  EXPECT_EQ(refused[0].text,
+            "node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031 (value of parameter "
+            "written too high (download only)); the download goes on");
+  ASSERT_EQ(rig.booted(3).size(), 1U);
+  ASSERT_TRUE(rig.booted(3)[0].program.has_value());
+  EXPECT_EQ(rig.booted(3)[0].program->clear_refused, SdoAbort::ValueTooHigh);
 }
 
 // An SDO timeout on 1F50h (MasterOptions::program_data_timeout) repeats the download once from

@@ -227,6 +227,34 @@ TEST(PushProgramSim, AWrongVersionGetsTheImageAndTheBootGoesOn) {
   EXPECT_EQ(program->get("before")->get("time_ms")->number, 27000000);
   EXPECT_EQ(program->get("after")->get("date_days")->number, 15671);
   EXPECT_EQ(program->get("after")->get("time_ms")->number, 29700000);
+  EXPECT_TRUE(program->get("clear_refused")->is(tool_test::Json::Kind::Null));
+  EXPECT_THAT(r.out + r.err, Not(HasSubstr("refused")));
+}
+
+// dsp302_node3.dcf's 1F51h sub 1 takes 0..2 (DSP 302 v3.2.1 §9): the device refuses clear (3)
+// with 0609 0031 (CiA 301: value of parameter written too high). The download goes on, and the
+// refusal is reported: as it happens, in the report, and in --json.
+TEST(PushProgramSim, ADeviceRefusingClearGetsTheImageAndTheReportSaysSo) {
+  ScratchDir dir;
+  const auto r =
+      cfgmgr(dir, {"push", data("dsp302.cpj"), "--bus", "sim:", "--json", dir / "r.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031 "
+                               "(value of parameter written too high (download only)); the "
+                               "download goes on"));
+  EXPECT_THAT(r.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
+  EXPECT_THAT(r.out, HasSubstr("; clear (1F51h = 3) refused: 0x06090031 (value of parameter "
+                               "written too high (download only))\n"));
+  const auto report = push_test::parse_json(dir / "r.json");
+  const auto nodes = push_test::nodes_of(report);
+  ASSERT_TRUE(nodes.contains(3));
+  const tool_test::Json* program = nodes.at(3)->get("program");
+  ASSERT_NE(program, nullptr);
+  ASSERT_TRUE(program->is(tool_test::Json::Kind::Object)) << tool_test::slurp(dir / "r.json");
+  EXPECT_TRUE(program->get("updated")->boolean);
+  ASSERT_TRUE(program->get("clear_refused")->is(tool_test::Json::Kind::String));
+  EXPECT_EQ(program->get("clear_refused")->string,
+            "0x06090031 (value of parameter written too high (download only))");
 }
 
 TEST(PushProgramSim, ASecondPushUpdatesNothing) {
@@ -295,6 +323,20 @@ TEST(MasterProgramSim, ReportsTheUpdateAsItHappens) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr("node 3: program updated: 1012 bytes in "));
   EXPECT_THAT(r.err, HasSubstr("now 2026-11-27 08:15:00.000"));
+}
+
+TEST(MasterProgramSim, ReportsARefusedClearAsItHappensAndInItsJsonEvents) {
+  ScratchDir dir;
+  const auto r = cfgmgr(
+      dir, {"master", data("dsp302.cpj"), "--bus", "sim:", "--json-events", dir / "events.jsonl"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031"));
+  EXPECT_THAT(r.err, HasSubstr("node 3: program updated: 1012 bytes in "));
+  const std::string events = tool_test::slurp(dir / "events.jsonl");
+  EXPECT_THAT(
+      events,
+      HasSubstr("\"event\": \"program_clear_refused\", \"node_id\": 3, "
+                "\"abort\": \"0x06090031 (value of parameter written too high (download only))\""));
 }
 
 }  // namespace

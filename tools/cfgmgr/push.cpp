@@ -470,7 +470,11 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
               << ": program updated: " << tools::plural(u->total, "byte") << " in " << seconds
               << ", before "
               << (u->before ? cfg::to_string(*u->before) : std::string("(not reported)"))
-              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?")) << '\n';
+              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?"))
+              << (u->clear_refused
+                      ? "; clear (1F51h = 3) refused: " + nmt::to_string(*u->clear_refused)
+                      : std::string())
+              << '\n';
   }
   for (const auto& r : nodes) {
     if (r.result != Result::Error) continue;

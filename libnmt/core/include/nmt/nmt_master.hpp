@@ -70,7 +70,8 @@
 //   image replaces the stopped program anyway, and a device that cannot take it says so on
 //   1F50h): the value-range aborts 0609 0030/0031/0032 (the value 3 is outside the device's
 //   range), 0800 0024 (§9: "the action is not possible"), 0800 0000 (general error) and
-//   0800 0020 (cannot be transferred or stored), the answers such devices give. Any other
+//   0800 0020 (cannot be transferred or stored), the answers such devices give; the refusal is
+//   reported (MasterEvent::ProgramClearRefused, and ProgramUpdate::clear_refused). Any other
 //   abort of clear, and any failure of stop, 1F50h or start, is status I naming the step and
 //   the abort code in words. The steps have their own response timeouts
 //   (MasterOptions::program_control_timeout, program_clear_timeout, program_data_timeout: a
@@ -459,6 +460,10 @@ struct MasterEvent {
                    ///< left unconfigured
     LssFailed,     ///< the device of slave node_id refused or missed configure node-ID
     LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
+    /// Software update of node_id: the device refused 1F51h sub 1 = 3 (clear, CiA 302-3) with
+    /// `sdo->abort`, one of the refusals of a DSP 302 v3.2.1 device (see the top); the download
+    /// goes on. `program->clear_refused` of the boot's SlaveBooted/BootError I says it again.
+    ProgramClearRefused,
   };
   Kind kind;
   TimePoint at{};
@@ -486,6 +491,8 @@ struct MasterEvent {
     std::uint64_t bytes = 0;
     TimePoint began{};
     std::optional<TimePoint> ended;
+    /// The abort with which the device refused clear (ProgramClearRefused); nullopt: accepted.
+    std::optional<SdoAbort> clear_refused;
     bool operator==(const ProgramUpdate&) const = default;
   };
   std::optional<ProgramUpdate> program{};
