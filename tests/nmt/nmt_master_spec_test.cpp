@@ -12,6 +12,7 @@
 // the header made a choice, the test says "(header)".
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cctype>
 
 #include "nmt_master_spec_test_rig.hpp"
@@ -1079,6 +1080,24 @@ std::vector<std::uint8_t> needs_update(MasterRig& rig, std::size_t size) {
   return image;
 }
 
+// MasterEvent::ProgramProgress of node 3 for an image of `size` bytes: growing, and ending at the
+// image's size exactly once, whether the download was block or segmented.
+void expect_progress_to_the_end(const std::vector<MasterEvent>& progress, std::size_t size) {
+  ASSERT_FALSE(progress.empty());
+  std::size_t complete = 0;
+  for (std::size_t i = 0; i < progress.size(); ++i) {
+    EXPECT_EQ(progress[i].node_id, 3);
+    EXPECT_EQ(progress[i].total, size);
+    EXPECT_LE(progress[i].bytes, size);
+    if (i > 0) {
+      EXPECT_GT(progress[i].bytes, progress[i - 1].bytes);
+    }
+    complete += progress[i].bytes == size ? 1 : 0;
+  }
+  EXPECT_EQ(progress.back().bytes, size);
+  EXPECT_EQ(complete, 1U) << "100% once";
+}
+
 // CiA 301 §7.2.4.3.9: a value above MasterOptions::block_threshold goes by block transfer (block
 // download initiate, ccs 6: byte 0 = 110x x.x.), one below it segmented (ccs 1, s = 1: 21h). The
 // image carries its version in our trailer (cfg/program_image.hpp), which the simulated device
@@ -1095,6 +1114,19 @@ TEST(NmtMasterSpec, SoftwareUpdateBySegmentedTransferBootsWithTheVersionTheImage
   EXPECT_EQ(program[0].frame.data[0], 0x21) << "segmented, size indicated";
   EXPECT_EQ(rig.slave(3).node().program_images().at(1), image);
   EXPECT_EQ(rig.slave(3).node().dictionary().get_unsigned(0x1F52, 1), kSoftwareDate + 1);
+  // The progress ends at the image's size, once, when the last segment is confirmed (the
+  // device's answer to it), before start (1F51h sub 1 = 1) goes out.
+  const auto progress = rig.events_of(Kind::ProgramProgress, 3);
+  expect_progress_to_the_end(progress, image.size());
+  const auto control = rig.downloads_of(3, 0x1F51, 1);
+  ASSERT_EQ(control.size(), 3U);
+  const auto answers = rig.on_id(0x583, program[0].at);
+  ASSERT_FALSE(answers.empty());
+  const auto last_segment = std::find_if(answers.rbegin(), answers.rend(),
+                                         [&](const auto& s) { return s.at < control[2].at; });
+  ASSERT_NE(last_segment, answers.rend());
+  EXPECT_EQ(last_segment->frame.data[0] & 0xE0, 0x20) << "scs 1: download segment response";
+  EXPECT_EQ(progress.back().at, last_segment->at);
 }
 
 TEST(NmtMasterSpec, SoftwareUpdateByBlockTransferAboveTheBlockThreshold) {
@@ -1108,20 +1140,9 @@ TEST(NmtMasterSpec, SoftwareUpdateByBlockTransferAboveTheBlockThreshold) {
   EXPECT_EQ(rig.slave(3).node().program_images().at(1), image);
   // The live view's progress (MasterEvent::ProgramProgress): sub-block acknowledgements, growing
   // up to the image's size.
-  std::vector<MasterEvent> progress;
-  for (const auto& e : rig.events) {
-    if (e.kind == Kind::ProgramProgress) progress.push_back(e);
-  }
+  const auto progress = rig.events_of(Kind::ProgramProgress);
   ASSERT_GE(progress.size(), 2U);
-  for (std::size_t i = 0; i < progress.size(); ++i) {
-    EXPECT_EQ(progress[i].node_id, 3);
-    EXPECT_EQ(progress[i].total, image.size());
-    EXPECT_LE(progress[i].bytes, image.size());
-    if (i > 0) {
-      EXPECT_GT(progress[i].bytes, progress[i - 1].bytes);
-    }
-  }
-  EXPECT_EQ(progress.back().bytes, image.size()) << "the last sub-block acknowledged";
+  expect_progress_to_the_end(progress, image.size());
 }
 
 // DSP 302 v3.2.1 §9: "The range for the sub-objects of the Program Control Object is 0 to 2". A

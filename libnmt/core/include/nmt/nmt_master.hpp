@@ -431,7 +431,8 @@ struct MasterEvent {
     NmtCommandSent,            ///< `command` for node_id (nullopt: all nodes) went out
     ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
     ProgramProgress,           ///< software update of node_id: `bytes` of `total` bytes of the
-                               ///< 1F50h image confirmed (while it runs, about every 1/32)
+                               ///< 1F50h image confirmed (while it runs, about every 1/32;
+                               ///< `bytes` == `total` once, block or segmented)
     SdoFinished,               ///< an application transfer ended (`sdo`)
     // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
     NegotiationBegan,  ///< detection or negotiation started (after power-on, reset, 72h, ...)
