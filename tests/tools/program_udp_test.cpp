@@ -24,7 +24,6 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using tool_test::ScratchDir;
 
-constexpr const char* kGroup = "239.74.163.2";
 constexpr const char* kPort = "43224";  // one port per test (43225, 43226 the next)
 
 std::ptrdiff_t position(const std::vector<std::string>& lines, const std::string& line) {
@@ -44,8 +43,8 @@ struct Runs {
 };
 
 Runs push_twice(const ScratchDir& dir, const char* port, std::vector<std::string> slave_args) {
-  const std::string bus = std::string("udp://") + kGroup + ":" + port;
-  slave_args.insert(slave_args.end(), {kGroup, port, "40", "3"});
+  const std::string bus = test_support::udp_test_url(port);
+  slave_args.insert(slave_args.end(), {test_support::kUdpTestGroup, port, "40", "3"});
   test_support::PythonPeer slave(test_support::python_script("program_slaves.py"), slave_args);
   Runs r;
   if (slave.read_line() != "READY") return r;
@@ -54,7 +53,7 @@ Runs push_twice(const ScratchDir& dir, const char* port, std::vector<std::string
   r.second = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
   {
     // The slaves' end: 7FFh without data, sent by python-can (can_peer.py).
-    test_support::PythonPeer end({"send", kGroup, port, "7FF#"});
+    test_support::PythonPeer end({"send", test_support::kUdpTestGroup, port, "7FF#"});
     (void)end.finish();
   }
   r.lines = slave.read_all();
@@ -107,7 +106,7 @@ TEST(ProgramUpdateInNetns, ASlaveRefusingClearIsUpdatedAnyway) {
 TEST(ProgramUpdateInNetns, SimulateStateKeepsTheDownloadedImageAcrossARestart) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = std::string("udp://") + kGroup + ":43226";
+  const std::string bus = test_support::udp_test_url("43226");
   const std::string state = dir / "state";
   const std::string network = tool_test::data_path("program/program.cpj");
   const std::vector<std::string> simulate{
