@@ -590,6 +590,8 @@ TEST(BootSlave, Dsp302Sec9UpdateStopsClearsDownloadsStartsAndReadsTheVersionAgai
   EXPECT_EQ(booted[0].program->after, kExpectedProgram);
   EXPECT_EQ(booted[0].program->bytes, 300U);
   EXPECT_TRUE(booted[0].program->ended.has_value());
+  EXPECT_EQ(booted[0].program->clear_refused, std::nullopt);  // clear was accepted
+  EXPECT_TRUE(rig.events_of(Kind::ProgramClearRefused).empty());
   EXPECT_NE(booted[0].text.find("; program updated from 2025-01-25 00:00:01.000 (1F52h 15000, "
                                 "1000) to 2026-11-27 08:15:00.000 (1F52h 15671, 29700000), 300 "
                                 "bytes"),
@@ -619,6 +621,17 @@ TEST_P(BootSlaveClearRefused, Dsp302Sec9DeviceRefusingClearStillGetsTheImage) {
   ASSERT_EQ(rig.port.reports.size(), 1U);
   EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
   EXPECT_TRUE(rig.events_of(Kind::BootError).empty());
+  // Reported, with the abort, and in the boot's account of the update.
+  const auto refused = rig.events_of(Kind::ProgramClearRefused);
+  ASSERT_EQ(refused.size(), 1U);
+  ASSERT_TRUE(refused[0].sdo.has_value());
+  EXPECT_EQ(refused[0].sdo->abort, GetParam());
+  EXPECT_NE(refused[0].text.find("refused: " + to_string(GetParam())), std::string::npos)
+      << refused[0].text;
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  ASSERT_TRUE(booted[0].program.has_value());
+  EXPECT_EQ(booted[0].program->clear_refused, GetParam());
 }
 
 INSTANTIATE_TEST_SUITE_P(RefusalsOfClear, BootSlaveClearRefused,
@@ -643,6 +656,7 @@ TEST(BootSlave, ReportsStatusIWhenClearTimesOutOrIsAbortedForAnotherReason) {
     EXPECT_NE(boot_error_text(rig).find("1F51h sub 01h download failed: " + to_string(code)),
               std::string::npos)
         << boot_error_text(rig);
+    EXPECT_TRUE(rig.events_of(Kind::ProgramClearRefused).empty()) << "a failure, not a refusal";
   }
 }
 

@@ -521,6 +521,22 @@ class MasterLss : public ::testing::Test {
     options.lss.addresses = std::move(addresses);
     return options;
   }
+  // Slaves 2 and 3 with their addresses and the look every 500 ms: node 2's device is out of the
+  // box at start-up, node 3's absent (its boot ends with B); then node 3's device arrives out of
+  // the box and the master runs 8 s more. `frames` and `events` are those of the last 8 s.
+  void node3s_device_arrives_later() {
+    auto options = lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}});
+    options.lss.period = 500ms;
+    make_master(std::move(options), {2, 3});
+    power_on_unconfigured(0x102);
+    start();
+    bus.run_for(8s);
+    ASSERT_EQ(master->engine().last_error(*cfg::NodeId::from(3)), BootError::B);
+    frames.clear();
+    events.clear();
+    power_on_unconfigured(0x103);
+    bus.run_for(8s);
+  }
 };
 
 TEST_F(MasterLss, ExecuteLssGivesEachDeviceItsSlavesNodeIdBeforeTheResetOfAllNodes) {
@@ -611,17 +627,8 @@ TEST_F(MasterLss, ConfiguredNetworkCostsTwoLssFramesAndOneStep) {
 }
 
 TEST_F(MasterLss, ReplacedDeviceIsFoundByTheLookAndBootedByTheBootUpHandler) {
-  auto options = lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}});
-  options.lss.period = 500ms;
-  make_master(std::move(options), {2, 3});
-  power_on_unconfigured(0x102);
-  start();
-  bus.run_for(8s);
-  EXPECT_EQ(master->engine().last_error(*cfg::NodeId::from(3)), BootError::B);
-  events.clear();
   // The device of node 3 arrives new out of the box while the master runs.
-  power_on_unconfigured(0x103);
-  bus.run_for(8s);
+  ASSERT_NO_FATAL_FAILURE(node3s_device_arrives_later());
   ASSERT_EQ(of_kind(Kind::LssAssigned).size(), 1u);
   EXPECT_EQ(of_kind(Kind::LssAssigned)[0]->node_id, 3);
   ASSERT_EQ(of_kind(Kind::SlaveBooted).size(), 1u);
@@ -630,17 +637,7 @@ TEST_F(MasterLss, ReplacedDeviceIsFoundByTheLookAndBootedByTheBootUpHandler) {
 }
 
 TEST_F(MasterLss, LookConfirmsTheMissingSlavesAddressFirstAndNotTheRunningOnes) {
-  auto options = lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}});
-  options.lss.period = 500ms;
-  make_master(std::move(options), {2, 3});
-  power_on_unconfigured(0x102);
-  start();
-  bus.run_for(8s);
-  ASSERT_EQ(master->engine().last_error(*cfg::NodeId::from(3)), BootError::B);
-  frames.clear();
-  events.clear();
-  power_on_unconfigured(0x103);
-  bus.run_for(8s);
+  ASSERT_NO_FATAL_FAILURE(node3s_device_arrives_later());
   // Node 3 is missing (1F82h 1), node 2 runs: node 3's serial number (103h, part 3, LSSNext 0)
   // is confirmed, its device configured, and the reset's silence ends the scan: node 2's
   // address is never sent.

@@ -12,6 +12,7 @@
 // the header made a choice, the test says "(header)".
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cctype>
 
 #include "nmt_master_spec_test_rig.hpp"
@@ -1063,6 +1064,9 @@ TEST(NmtMasterSpec, SoftwareUpdateDownloadsTheProgramAndBoots) {
   auto verify = rig.uploads_of(3, 0x1F52, 1, control[2].at);
   EXPECT_FALSE(verify.empty());
   EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+  // Clear was accepted: nothing to report about it.
+  EXPECT_TRUE(rig.events_of(Kind::ProgramClearRefused).empty());
+  EXPECT_EQ(rig.booted(3).at(0).program->clear_refused, std::nullopt);
 }
 
 // Node 3 with 1F81h bits 5 and 6, and 1F53h/1F54h sub 3 = the version its image of `size` bytes
@@ -1075,6 +1079,24 @@ std::vector<std::uint8_t> needs_update(MasterRig& rig, std::size_t size) {
   auto image = cfg::with_program_trailer(std::vector<std::uint8_t>(size, 0x5A), expected);
   rig.configurations->programs[3] = image;
   return image;
+}
+
+// MasterEvent::ProgramProgress of node 3 for an image of `size` bytes: growing, and ending at the
+// image's size exactly once, whether the download was block or segmented.
+void expect_progress_to_the_end(const std::vector<MasterEvent>& progress, std::size_t size) {
+  ASSERT_FALSE(progress.empty());
+  std::size_t complete = 0;
+  for (std::size_t i = 0; i < progress.size(); ++i) {
+    EXPECT_EQ(progress[i].node_id, 3);
+    EXPECT_EQ(progress[i].total, size);
+    EXPECT_LE(progress[i].bytes, size);
+    if (i > 0) {
+      EXPECT_GT(progress[i].bytes, progress[i - 1].bytes);
+    }
+    complete += progress[i].bytes == size ? 1 : 0;
+  }
+  EXPECT_EQ(progress.back().bytes, size);
+  EXPECT_EQ(complete, 1U) << "100% once";
 }
 
 // CiA 301 §7.2.4.3.9: a value above MasterOptions::block_threshold goes by block transfer (block
@@ -1093,6 +1115,19 @@ TEST(NmtMasterSpec, SoftwareUpdateBySegmentedTransferBootsWithTheVersionTheImage
   EXPECT_EQ(program[0].frame.data[0], 0x21) << "segmented, size indicated";
   EXPECT_EQ(rig.slave(3).node().program_images().at(1), image);
   EXPECT_EQ(rig.slave(3).node().dictionary().get_unsigned(0x1F52, 1), kSoftwareDate + 1);
+  // The progress ends at the image's size, once, when the last segment is confirmed (the
+  // device's answer to it), before start (1F51h sub 1 = 1) goes out.
+  const auto progress = rig.events_of(Kind::ProgramProgress, 3);
+  expect_progress_to_the_end(progress, image.size());
+  const auto control = rig.downloads_of(3, 0x1F51, 1);
+  ASSERT_EQ(control.size(), 3U);
+  const auto answers = rig.on_id(0x583, program[0].at);
+  ASSERT_FALSE(answers.empty());
+  const auto last_segment = std::find_if(answers.rbegin(), answers.rend(),
+                                         [&](const auto& s) { return s.at < control[2].at; });
+  ASSERT_NE(last_segment, answers.rend());
+  EXPECT_EQ(last_segment->frame.data[0] & 0xE0, 0x20) << "scs 1: download segment response";
+  EXPECT_EQ(progress.back().at, last_segment->at);
 }
 
 TEST(NmtMasterSpec, SoftwareUpdateByBlockTransferAboveTheBlockThreshold) {
@@ -1106,20 +1141,9 @@ TEST(NmtMasterSpec, SoftwareUpdateByBlockTransferAboveTheBlockThreshold) {
   EXPECT_EQ(rig.slave(3).node().program_images().at(1), image);
   // The live view's progress (MasterEvent::ProgramProgress): sub-block acknowledgements, growing
   // up to the image's size.
-  std::vector<MasterEvent> progress;
-  for (const auto& e : rig.events) {
-    if (e.kind == Kind::ProgramProgress) progress.push_back(e);
-  }
+  const auto progress = rig.events_of(Kind::ProgramProgress);
   ASSERT_GE(progress.size(), 2U);
-  for (std::size_t i = 0; i < progress.size(); ++i) {
-    EXPECT_EQ(progress[i].node_id, 3);
-    EXPECT_EQ(progress[i].total, image.size());
-    EXPECT_LE(progress[i].bytes, image.size());
-    if (i > 0) {
-      EXPECT_GT(progress[i].bytes, progress[i - 1].bytes);
-    }
-  }
-  EXPECT_EQ(progress.back().bytes, image.size()) << "the last sub-block acknowledged";
+  expect_progress_to_the_end(progress, image.size());
 }
 
 // DSP 302 v3.2.1 §9: "The range for the sub-objects of the Program Control Object is 0 to 2". A
@@ -1141,6 +1165,21 @@ TEST(NmtMasterSpec, SoftwareUpdateGoesOnWhenTheDeviceRefusesClearAsDsp302AllowsO
   EXPECT_EQ(refusal[0].text(), "583#80511F0131000906");  // abort 0609 0031
   EXPECT_EQ(rig.downloads_of(3, 0x1F50, 1).size(), 1U);
   EXPECT_EQ(rig.slave(3).node().program_state(1), ProgramState::Running);
+  // The refusal is reported when the abort arrives, before the image goes out, and once more in
+  // the boot's account (a user would otherwise see it only on the bus).
+  const auto refused = rig.events_of(Kind::ProgramClearRefused, 3);
+  ASSERT_EQ(refused.size(), 1U);
+  EXPECT_EQ(refused[0].at, refusal[0].at);
+  EXPECT_LE(refused[0].at, rig.downloads_of(3, 0x1F50, 1)[0].at);
+  EXPECT_EQ(refused[0].step, BootStep::UpdateSoftware);
+  ASSERT_TRUE(refused[0].sdo.has_value());
+  EXPECT_EQ(refused[0].sdo->abort, SdoAbort::ValueTooHigh);
+  EXPECT_EQ(refused[0].text,
+            "node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031 (value of parameter "
+            "written too high (download only)); the download goes on");
+  ASSERT_EQ(rig.booted(3).size(), 1U);
+  ASSERT_TRUE(rig.booted(3)[0].program.has_value());
+  EXPECT_EQ(rig.booted(3)[0].program->clear_refused, SdoAbort::ValueTooHigh);
 }
 
 // An SDO timeout on 1F50h (MasterOptions::program_data_timeout) repeats the download once from

@@ -10,11 +10,21 @@
 #include <cstdlib>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "prerequisite.hpp"
 #include "python_peer.hpp"
 
 namespace test_support {
+
+/// The multicast group of the UDP bus tests: python-can udp_multicast's default IPv4 group
+/// (udp_multicast/bus.py, DEFAULT_GROUP_IPv4). Each test file takes ports of its own.
+inline constexpr const char* kUdpTestGroup = "239.74.163.2";
+
+/// The --bus URL of a test on `port` of that group: "udp://239.74.163.2:PORT".
+inline std::string udp_test_url(std::string_view port) {
+  return std::string("udp://") + kUdpTestGroup + ":" + std::string(port);
+}
 
 /// True inside the namespace run_in_netns.sh made (it sets CANOPEN_UDP_NETNS=1).
 inline bool in_multicast_netns() {

@@ -29,9 +29,8 @@ using ::testing::Not;
 using tool_test::cfgmgr;
 using tool_test::ScratchDir;
 
-constexpr const char* kGroup = "239.74.163.2";
 constexpr const char* kPort = "43193";
-const std::string kUrl = std::string("udp://") + kGroup + ":" + kPort;
+const std::string kUrl = test_support::udp_test_url(kPort);
 
 const std::string kIo = tool_test::data_path("lss/lss_io.eds");
 const std::string kIo1003 = tool_test::data_path("lss/lss_io_1003.dcf");
@@ -321,9 +320,9 @@ TEST_F(LssInNetns, ARefusedNodeIdOrAnAbsentDeviceExits4InWords) {
 TEST_F(LssInNetns, PythonCanLssMasterGivesTheSimulatedDeviceItsNodeId) {
   if (auto missing = test_support::python_can_missing()) PREREQUISITE_MISSING(*missing);
   simulate({kIo + "@255"});
-  test_support::PythonPeer master(
-      test_support::python_script("lss_master.py"),
-      {kGroup, kPort, "10", "7E57C0DE", "00000305", "00010002", "00001001", "10"});
+  test_support::PythonPeer master(test_support::python_script("lss_master.py"),
+                                  {test_support::kUdpTestGroup, kPort, "10", "7E57C0DE", "00000305",
+                                   "00010002", "00001001", "10"});
   ASSERT_EQ(master.read_line(), "READY");
   // CiA 305: switch state selective answered 44h; configure node-ID 11h and store 17h, each
   // with error code 0; then, back in waiting, the boot-up of node 10h.

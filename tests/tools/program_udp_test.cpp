@@ -8,6 +8,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -21,8 +24,7 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using tool_test::ScratchDir;
 
-constexpr const char* kGroup = "239.74.163.2";
-constexpr const char* kPort = "43224";  // one port per test (43225 the next)
+constexpr const char* kPort = "43224";  // one port per test (43225, 43226 the next)
 
 std::ptrdiff_t position(const std::vector<std::string>& lines, const std::string& line) {
   const auto it = std::find(lines.begin(), lines.end(), line);
@@ -41,8 +43,8 @@ struct Runs {
 };
 
 Runs push_twice(const ScratchDir& dir, const char* port, std::vector<std::string> slave_args) {
-  const std::string bus = std::string("udp://") + kGroup + ":" + port;
-  slave_args.insert(slave_args.end(), {kGroup, port, "40", "3"});
+  const std::string bus = test_support::udp_test_url(port);
+  slave_args.insert(slave_args.end(), {test_support::kUdpTestGroup, port, "40", "3"});
   test_support::PythonPeer slave(test_support::python_script("program_slaves.py"), slave_args);
   Runs r;
   if (slave.read_line() != "READY") return r;
@@ -51,7 +53,7 @@ Runs push_twice(const ScratchDir& dir, const char* port, std::vector<std::string
   r.second = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
   {
     // The slaves' end: 7FFh without data, sent by python-can (can_peer.py).
-    test_support::PythonPeer end({"send", kGroup, port, "7FF#"});
+    test_support::PythonPeer end({"send", test_support::kUdpTestGroup, port, "7FF#"});
     (void)end.finish();
   }
   r.lines = slave.read_all();
@@ -95,6 +97,45 @@ TEST(ProgramUpdateInNetns, ASlaveRefusingClearIsUpdatedAnyway) {
   REQUIRE_PYTHON_CAN();
   ScratchDir dir;
   expect_updated_once(push_twice(dir, "43225", {"--refuse-clear"}));
+}
+
+// `cfgmgr simulate --state DIR` keeps a downloaded program image (DSP 302 §9 program memory)
+// across a restart of the process, as a device keeps its flash across a power cycle: the second
+// simulate reports the image's version in 1F52h at once, so verify finds nothing to list and a
+// push nothing to update.
+TEST(ProgramUpdateInNetns, SimulateStateKeepsTheDownloadedImageAcrossARestart) {
+  REQUIRE_ISOLATED_MULTICAST();
+  ScratchDir dir;
+  const std::string bus = test_support::udp_test_url("43226");
+  const std::string state = dir / "state";
+  const std::string network = tool_test::data_path("program/program.cpj");
+  const std::vector<std::string> simulate{
+      "simulate", "--bus",   bus,   "--for",
+      "120",      "--state", state, tool_test::data_path("program/nodes/drive_node3.dcf") + "@3"};
+  {
+    tool_test::SpawnedTool devices("cfgmgr", simulate, dir / "sim1.out", dir / "sim1.err");
+    ASSERT_TRUE(devices.wait_until_simulating()) << devices.output();
+    const auto before = tool_test::cfgmgr(dir, {"verify", network, "--bus", bus});
+    EXPECT_EQ(before.exit_code, 4) << before.out << before.err;
+    EXPECT_THAT(before.out, HasSubstr("1F52h sub 01h"));
+    const auto push = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
+    ASSERT_EQ(push.exit_code, 0) << push.out << push.err << devices.output();
+    EXPECT_THAT(push.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
+    EXPECT_EQ(devices.stop(SIGINT, std::chrono::milliseconds(3000)), 0) << devices.output();
+  }
+  // The image is a file of its own next to the device's state file (nmt/device_state.hpp).
+  EXPECT_EQ(std::filesystem::file_size(dir / "state/node-03.program01.bin"),
+            std::filesystem::file_size(tool_test::data_path("program/drive_v2.img")));
+
+  tool_test::SpawnedTool devices("cfgmgr", simulate, dir / "sim2.out", dir / "sim2.err");
+  ASSERT_TRUE(devices.wait_until_simulating()) << devices.output();
+  const auto verify = tool_test::cfgmgr(dir, {"verify", network, "--bus", bus});
+  EXPECT_EQ(verify.exit_code, 0) << verify.out << verify.err;
+  EXPECT_THAT(verify.out, Not(HasSubstr("1F52h")));
+  const auto again = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
+  ASSERT_EQ(again.exit_code, 0) << again.out << again.err;
+  EXPECT_THAT(again.out, Not(HasSubstr("program updated")));
+  EXPECT_EQ(devices.stop(SIGINT, std::chrono::milliseconds(3000)), 0) << devices.output();
 }
 
 }  // namespace

@@ -22,17 +22,31 @@ using tool_test::ScratchDir;
 
 const tool_test::DataDir data("program");
 
-TEST(CheckProgram, ACleanDescriptionWithImageAndVersionExits0) {
+// `cfgmgr check --no-schema ARGS` in a scratch directory.
+tool_test::RunResult check(std::vector<std::string> args) {
   ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("program.cpj")});
+  args.insert(args.begin(), {"check", "--no-schema"});
+  return cfgmgr(dir, args);
+}
+
+// --json's nodes[].program of `node` in the push report `file` (Null when it has none).
+tool_test::Json program_of(const std::string& file, int node) {
+  const auto report = push_test::parse_json(file);
+  const auto nodes = push_test::nodes_of(report);
+  const tool_test::Json* program = nodes.contains(node) ? nodes.at(node)->get("program") : nullptr;
+  EXPECT_NE(program, nullptr) << "node " << node << " in " << tool_test::slurp(file);
+  return program != nullptr ? *program : tool_test::Json{};
+}
+
+TEST(CheckProgram, ACleanDescriptionWithImageAndVersionExits0) {
+  const auto r = check({data("program.cpj")});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err, "");
   EXPECT_THAT(r.out, HasSubstr("0 errors, 0 warnings, 1 node"));
 }
 
 TEST(CheckProgram, AMissingImageIsAnErrorAtTheLineThatNamesIt) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("missing_image.cpj")});
+  const auto r = check({data("missing_image.cpj")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_THAT(r.err,
               HasSubstr(data("missing_image.cpj") + ":7: error: [Topology] Node3ProgramFile '" +
@@ -42,8 +56,7 @@ TEST(CheckProgram, AMissingImageIsAnErrorAtTheLineThatNamesIt) {
 }
 
 TEST(CheckProgram, AnUnreadableImageIsAnError) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("unreadable_image.cpj")});
+  const auto r = check({data("unreadable_image.cpj")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_THAT(r.err,
               HasSubstr(data("unreadable_image.cpj") + ":7: error: [Topology] Node3ProgramFile '" +
@@ -51,16 +64,14 @@ TEST(CheckProgram, AnUnreadableImageIsAnError) {
 }
 
 TEST(CheckProgram, AnEmptyImageIsAnError) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("empty_image.cpj")});
+  const auto r = check({data("empty_image.cpj")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_THAT(r.err, HasSubstr(data("empty_image.cpj") + ":6: error:"));
   EXPECT_THAT(r.err, HasSubstr("the file is empty"));
 }
 
 TEST(CheckProgram, AnImageWithoutAVersionIsAnErrorThatNamesTheTrailersVersion) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("no_version.cpj")});
+  const auto r = check({data("no_version.cpj")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   // DSP 302 §9: the master compares 1F52h with 1F53h/1F54h; with no expected version there is
   // nothing to compare. drive_v2.img's trailer: day 15671 (2026-11-27), 29 700 000 ms (08:15).
@@ -72,8 +83,7 @@ TEST(CheckProgram, AnImageWithoutAVersionIsAnErrorThatNamesTheTrailersVersion) {
 }
 
 TEST(CheckProgram, AVersionBeforeDay0Of1984IsAnErrorAtItsLine) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("bad_version.cpj")});
+  const auto r = check({data("bad_version.cpj")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_THAT(r.err, HasSubstr(data("bad_version.cpj") +
                                ":7: error: [Topology] Node3ProgramVersion=1983-12-31:"));
@@ -81,8 +91,7 @@ TEST(CheckProgram, AVersionBeforeDay0Of1984IsAnErrorAtItsLine) {
 }
 
 TEST(CheckProgram, Bit5WithoutExpectedDateAndTimeIsStatusGsCaseAtThe1F81hLine) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", "--network", data("master_bit5.dcf")});
+  const auto r = check({"--network", data("master_bit5.dcf")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   // master_bit5.dcf line 191: 1F81h sub 3 ParameterValue=0x0000002D, no 1F53h/1F54h (CiA 302-2
   // Table 1, G: "the expected version date and time values were not configured").
@@ -93,8 +102,7 @@ TEST(CheckProgram, Bit5WithoutExpectedDateAndTimeIsStatusGsCaseAtThe1F81hLine) {
 }
 
 TEST(CheckProgram, ATrailerVersionDifferentFromTheExpectedOneIsAWarning) {
-  ScratchDir dir;
-  const auto r = cfgmgr(dir, {"check", "--no-schema", data("trailer_differs.cpj")});
+  const auto r = check({data("trailer_differs.cpj")});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr(data("trailer_differs.cpj") +
                                ":6: warning: node 3: program image '" + data("drive_v2.img") +
@@ -214,19 +222,39 @@ TEST(PushProgramSim, AWrongVersionGetsTheImageAndTheBootGoesOn) {
   EXPECT_THAT(r.out, HasSubstr("3  drive  configured"));
   EXPECT_THAT(r.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
   EXPECT_THAT(r.out, HasSubstr("after 2026-11-27 08:15:00.000 (1F52h 15671, 29700000)"));
-  const auto report = push_test::parse_json(dir / "r.json");
-  const auto nodes = push_test::nodes_of(report);
-  ASSERT_TRUE(nodes.contains(3));
-  const tool_test::Json* program = nodes.at(3)->get("program");
-  ASSERT_NE(program, nullptr);
-  ASSERT_TRUE(program->is(tool_test::Json::Kind::Object)) << tool_test::slurp(dir / "r.json");
-  EXPECT_TRUE(program->get("updated")->boolean);
-  EXPECT_EQ(program->get("bytes")->number, 1012);
-  EXPECT_GT(program->get("seconds")->number, 0);
-  EXPECT_EQ(program->get("before")->get("date_days")->number, 15188);
-  EXPECT_EQ(program->get("before")->get("time_ms")->number, 27000000);
-  EXPECT_EQ(program->get("after")->get("date_days")->number, 15671);
-  EXPECT_EQ(program->get("after")->get("time_ms")->number, 29700000);
+  const tool_test::Json program = program_of(dir / "r.json", 3);
+  ASSERT_TRUE(program.is(tool_test::Json::Kind::Object)) << tool_test::slurp(dir / "r.json");
+  EXPECT_TRUE(program.get("updated")->boolean);
+  EXPECT_EQ(program.get("bytes")->number, 1012);
+  EXPECT_GT(program.get("seconds")->number, 0);
+  EXPECT_EQ(program.get("before")->get("date_days")->number, 15188);
+  EXPECT_EQ(program.get("before")->get("time_ms")->number, 27000000);
+  EXPECT_EQ(program.get("after")->get("date_days")->number, 15671);
+  EXPECT_EQ(program.get("after")->get("time_ms")->number, 29700000);
+  EXPECT_TRUE(program.get("clear_refused")->is(tool_test::Json::Kind::Null));
+  EXPECT_THAT(r.out + r.err, Not(HasSubstr("refused")));
+}
+
+// dsp302_node3.dcf's 1F51h sub 1 takes 0..2 (DSP 302 v3.2.1 §9): the device refuses clear (3)
+// with 0609 0031 (CiA 301: value of parameter written too high). The download goes on, and the
+// refusal is reported: as it happens, in the report, and in --json.
+TEST(PushProgramSim, ADeviceRefusingClearGetsTheImageAndTheReportSaysSo) {
+  ScratchDir dir;
+  const auto r =
+      cfgmgr(dir, {"push", data("dsp302.cpj"), "--bus", "sim:", "--json", dir / "r.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031 "
+                               "(value of parameter written too high (download only)); the "
+                               "download goes on"));
+  EXPECT_THAT(r.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
+  EXPECT_THAT(r.out, HasSubstr("; clear (1F51h = 3) refused: 0x06090031 (value of parameter "
+                               "written too high (download only))\n"));
+  const tool_test::Json program = program_of(dir / "r.json", 3);
+  ASSERT_TRUE(program.is(tool_test::Json::Kind::Object)) << tool_test::slurp(dir / "r.json");
+  EXPECT_TRUE(program.get("updated")->boolean);
+  ASSERT_TRUE(program.get("clear_refused")->is(tool_test::Json::Kind::String));
+  EXPECT_EQ(program.get("clear_refused")->string,
+            "0x06090031 (value of parameter written too high (download only))");
 }
 
 TEST(PushProgramSim, ASecondPushUpdatesNothing) {
@@ -295,6 +323,20 @@ TEST(MasterProgramSim, ReportsTheUpdateAsItHappens) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr("node 3: program updated: 1012 bytes in "));
   EXPECT_THAT(r.err, HasSubstr("now 2026-11-27 08:15:00.000"));
+}
+
+TEST(MasterProgramSim, ReportsARefusedClearAsItHappensAndInItsJsonEvents) {
+  ScratchDir dir;
+  const auto r = cfgmgr(
+      dir, {"master", data("dsp302.cpj"), "--bus", "sim:", "--json-events", dir / "events.jsonl"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031"));
+  EXPECT_THAT(r.err, HasSubstr("node 3: program updated: 1012 bytes in "));
+  const std::string events = tool_test::slurp(dir / "events.jsonl");
+  EXPECT_THAT(
+      events,
+      HasSubstr("\"event\": \"program_clear_refused\", \"node_id\": 3, "
+                "\"abort\": \"0x06090031 (value of parameter written too high (download only))\""));
 }
 
 }  // namespace

@@ -29,9 +29,7 @@ using ::testing::Not;
 using tool_test::cfgmgr;
 using tool_test::ScratchDir;
 
-constexpr const char* kGroup = "239.74.163.2";
-constexpr const char* kPort = "43197";
-const std::string kUrl = std::string("udp://") + kGroup + ":" + kPort;
+const std::string kUrl = test_support::udp_test_url("43197");
 
 // lss_io.eds: the same product with serial number 1001h, a device of no node of the network.
 const std::string kStranger = tool_test::data_path("lss/lss_io.eds");

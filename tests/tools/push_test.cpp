@@ -18,6 +18,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "generated_network.hpp"
@@ -359,6 +360,34 @@ TEST(Push, BootTimeBeyond1F89hIsAUsageErrorNamingTheObject) {
   EXPECT_NE(r.err.find("--boot-time: boot time (1F89h) 5000000000 ms is above 4294967295 ms"),
             std::string::npos)
       << r.err;
+}
+
+// 1F89h is UNSIGNED32 ms where 0 means "tried again without end" (CiA 302-2 §6.11): a --boot-time
+// beyond it, below its 1 ms (which would become that 0), or no number at all is a usage error
+// before the bus (the start-up never begins), not a run with a boot time nobody asked for.
+TEST(Push, BootTimeThatIs1F89hNoValueIsAUsageErrorBeforeTheBus) {
+  ScratchDir dir;
+  const std::string cpj = sample_network("nodelist.cpj");
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"1e300",
+       "--boot-time: boot time (1F89h) 1e+303 ms is above 4294967295 ms; give at most "
+       "4294967.295 s"},
+      {"4294967.296", "--boot-time: boot time (1F89h) 4294967296 ms is above 4294967295 ms"},
+      {"0.0001",
+       "--boot-time: 0.0001 s is below 1 ms, the unit of boot time (1F89h), where 0 "
+       "means 'tried again without end'"},
+      {"nan", "--boot-time: nan is no time"}};
+  for (const auto& [value, message] : cases) {
+    const auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:", "--boot-time", value});
+    EXPECT_EQ(r.exit_code, 2) << value << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << value << ": " << r.err;
+    EXPECT_EQ(r.err.find("NMT start-up began"), std::string::npos) << value << ": " << r.err;
+  }
+  // The largest 1F89h and the smallest run.
+  for (const char* value : {"4294967.295", "0.001"}) {
+    const auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:", "--boot-time", value, "--only", "2"});
+    EXPECT_EQ(r.exit_code, 0) << value << ": " << r.err;
+  }
 }
 
 }  // namespace

@@ -345,6 +345,8 @@ void EventReporter::report(const nmt::MasterEvent& e) {
     case K::BootUp:
       line = node + "boot-up seen" + (e.assigned ? "" : " (not a slave of this master)");
       break;
+    case K::ProgramClearRefused:
+      break;  // noted above (programs_), also under a live view
     case K::ActiveMaster:
     case K::Standby:
     case K::ForceNegotiation:
@@ -428,6 +430,9 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
     case K::SrdRegistrationFailed:
     case K::SdoConnectionRefused:
       out += ", \"connection_error\": " + std::to_string(e.connection_error);
+      break;
+    case K::ProgramClearRefused:
+      if (e.sdo) out += ", \"abort\": " + tools::json_string(nmt::to_string(e.sdo->abort));
       break;
     default:
       break;

@@ -31,6 +31,10 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
     if (e.total != 0) u.total = e.total;
     return std::nullopt;
   }
+  if (e.kind == K::ProgramClearRefused) {
+    if (e.sdo) u.clear_refused = e.sdo->abort;
+    return e.text;
+  }
   // The master's own account (MasterEvent::program) on SlaveBooted, or BootError I.
   if ((e.kind != K::SlaveBooted && e.kind != K::BootError) || !e.program || u.updated || u.failed) {
     return std::nullopt;
@@ -39,6 +43,7 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   u.after = e.program->after;
   u.total = e.program->bytes;
   u.began = e.program->began;
+  if (e.program->clear_refused) u.clear_refused = e.program->clear_refused;
   u.ended = e.program->ended ? e.program->ended : std::optional<nmt::TimePoint>(e.at);
   if (e.kind == K::BootError) {
     u.failed = true;
@@ -78,7 +83,9 @@ std::string ProgramUpdates::json(std::uint8_t node) const {
   std::snprintf(seconds, sizeof seconds, "%.6f", u->seconds());
   return std::string("{\"updated\": ") + (u->updated ? "true" : "false") +
          ", \"before\": " + version_json(u->before) + ", \"after\": " + version_json(u->after) +
-         ", \"bytes\": " + std::to_string(u->bytes) + ", \"seconds\": " + seconds + "}";
+         ", \"bytes\": " + std::to_string(u->bytes) + ", \"seconds\": " + seconds +
+         ", \"clear_refused\": " +
+         (u->clear_refused ? tools::json_string(nmt::to_string(*u->clear_refused)) : "null") + "}";
 }
 
 }  // namespace cfgmgr

@@ -26,6 +26,9 @@ struct ProgramUpdate {
   std::optional<nmt::TimePoint> ended;        ///< start confirmed (CheckSoftware again) or error
   std::optional<cfg::ProgramVersion> before;  ///< 1F52h before the update
   std::optional<cfg::ProgramVersion> after;   ///< 1F52h after it (nullopt: not read again)
+  /// The device refused clear (1F51h = 3) with this abort and the download went on
+  /// (MasterEvent::ProgramClearRefused, a DSP 302 v3.2.1 device); nullopt: clear was accepted.
+  std::optional<cfg::SdoAbort> clear_refused;
   double seconds() const;
 };
 
@@ -37,12 +40,15 @@ class ProgramUpdates {
       : network_(std::move(network)) {}
 
   /// Follows `e`; returns the line for people once a node's update succeeded ("node 3: program
-  /// updated: 1012 bytes in 0.072 s, now 2026-11-27 08:15:00.000 (1F52h 15671, 29700000)").
+  /// updated: 1012 bytes in 0.072 s, now 2026-11-27 08:15:00.000 (1F52h 15671, 29700000)"), and
+  /// when the device refused clear (the master's text: "node 3: program clear (1F51h sub 01h =
+  /// 3) refused: 0x06090031 (...); the download goes on").
   std::optional<std::string> observe(const nmt::MasterEvent& e);
   /// The node's last update this run; nullptr when it had none.
   const ProgramUpdate* find(std::uint8_t node) const;
-  /// `--json`'s "program" of a node: {"updated", "before", "after", "bytes", "seconds"} (a
-  /// version as {"date_days", "time_ms", "text"}), or null when the node had no update.
+  /// `--json`'s "program" of a node: {"updated", "before", "after", "bytes", "seconds",
+  /// "clear_refused"} (a version as {"date_days", "time_ms", "text"}; clear_refused the abort
+  /// in words, null when clear was accepted), or null when the node had no update.
   std::string json(std::uint8_t node) const;
 
  private:

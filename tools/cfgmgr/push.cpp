@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -470,7 +471,11 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
               << ": program updated: " << tools::plural(u->total, "byte") << " in " << seconds
               << ", before "
               << (u->before ? cfg::to_string(*u->before) : std::string("(not reported)"))
-              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?")) << '\n';
+              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?"))
+              << (u->clear_refused
+                      ? "; clear (1F51h = 3) refused: " + nmt::to_string(*u->clear_refused)
+                      : std::string())
+              << '\n';
   }
   for (const auto& r : nodes) {
     if (r.result != Result::Error) continue;
@@ -533,6 +538,32 @@ double program_download_bound_s(const std::vector<const cfg::NetworkNode*>& node
   return bytes * kBitsPerByte / bitrate;
 }
 
+// --boot-time as the master's 1F89h (CiA 302-2 §6.11: UNSIGNED32, whole ms; there 0 means a
+// mandatory slave is tried again without end, which no positive --boot-time means), checked
+// where it is applied: the rest of the configuration was checked as the DCF was read.
+nmt::Duration boot_time_or_exit(double seconds) {
+  constexpr double kMostMs = 4294967295.0;
+  const double ms = std::round(seconds * 1e3);
+  char text[64];
+  if (std::isnan(ms)) {
+    fail_command(kTool, tools::kExitUsage, "--boot-time: nan is no time; give seconds, e.g. 10");
+  }
+  if (ms > kMostMs) {
+    std::snprintf(text, sizeof text, "%.15g", ms);
+    fail_command(kTool, tools::kExitUsage,
+                 std::string("--boot-time: boot time (1F89h) ") + text +
+                     " ms is above 4294967295 ms; give at most 4294967.295 s");
+  }
+  if (ms < 1.0) {
+    std::snprintf(text, sizeof text, "%g", seconds);
+    fail_command(kTool, tools::kExitUsage,
+                 std::string("--boot-time: ") + text +
+                     " s is below 1 ms, the unit of boot time (1F89h), where 0 means 'tried "
+                     "again without end'; give at least 0.001 s");
+  }
+  return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
+}
+
 void run_push(const PushCliOptions& options) {
   // Arguments first, files next, the bus last: a typo should not touch the bus.
   if (!options.dry_run && options.bus.empty()) {
@@ -573,13 +604,13 @@ void run_push(const PushCliOptions& options) {
 
   // The options as the master's own objects (CiA 302-2 §6), through the typed configuration so
   // that they are checked, and its boot follows them.
-  double boot_time_s = kDefaultBootTimeS;
   if (options.boot_time_s) {
-    boot_time_s = *options.boot_time_s;
-  } else if (config.boot_time != nmt::Duration::zero()) {
-    boot_time_s = std::chrono::duration<double>(config.boot_time).count();
+    config.boot_time = boot_time_or_exit(*options.boot_time_s);
+  } else if (config.boot_time == nmt::Duration::zero()) {
+    config.boot_time =
+        std::chrono::duration_cast<nmt::Duration>(std::chrono::duration<double>(kDefaultBootTimeS));
   }
-  config.boot_time = std::chrono::milliseconds(static_cast<std::int64_t>(boot_time_s * 1e3));
+  const double boot_time_s = std::chrono::duration<double>(config.boot_time).count();
   if (options.no_start) config.startup.no_start_slaves = true;  // 1F80h bit 3
   std::set<std::uint8_t> chosen;
   std::set<std::uint8_t> left_out;
@@ -611,10 +642,6 @@ void run_push(const PushCliOptions& options) {
   }
   std::sort(reports.begin(), reports.end(),
             [](const NodeReport& a, const NodeReport& b) { return a.node_id < b.node_id; });
-  // The DCF was checked as read (master_config_or_exit): what fails now is --boot-time.
-  if (auto valid = config.validate(); !valid) {
-    fail_command(kTool, tools::kExitUsage, "--boot-time: " + valid.error().message);
-  }
   nmt::NmtMaster master = build_master_or_exit(config, options.network, *network);
 
   tools::ReportFile json = open_report_or_exit(options.json);
@@ -684,7 +711,8 @@ void add_push_command(CLI::App& app) {
          "before the run did; null otherwise), message, entries, bytes, retries, "
          "seconds, mandatory, lss_assigned (true when --lss gave the node its node-ID in "
          "this run), program: null, or for a node whose program was downloaded (DSP 302 §9) "
-         "{updated, before, after (each null or {date_days, time_ms, text}), bytes, seconds}}], "
+         "{updated, before, after (each null or {date_days, time_ms, text}), bytes, seconds, "
+         "clear_refused (null, or the abort with which the device refused 1F51h = 3)}}], "
          "lss_unmatched [LSS addresses VVVVVVVV:PPPPPPPP:RRRRRRRR:SSSSSSSS of devices --lss "
          "found that match no node]")
       ->type_name("FILE");

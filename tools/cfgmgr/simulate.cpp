@@ -373,9 +373,10 @@ void add_simulate_command(CLI::App& app) {
   cmd->add_option(
          "--state", options->state_dir,
          "Keep what each device stores in DIR, one file per device: the parameters "
-         "saved with 1010h and the node-ID and bit rate of LSS store configuration; "
-         "the next run with the same DIR powers them on with it, as a real device "
-         "after a power cycle (files: node-NN.saved for DEVICE@NN, "
+         "saved with 1010h, the node-ID and bit rate of LSS store configuration, and the "
+         "program images downloaded to 1F50h (DSP 302 §9, each in a file of its own: "
+         "node-NN.programPP.bin); the next run with the same DIR powers them on with it, as a "
+         "real device after a power cycle (files: node-NN.saved for DEVICE@NN, "
          "lss-VENDOR-PRODUCT-REVISION-SERIAL.saved for DEVICE@255; two DEVICE@255 with one LSS "
          "address would share a file and are refused, exit 2)")
       ->type_name("DIR");

@@ -131,7 +131,8 @@ struct MasterEvent {
     NmtCommandSent,            ///< `command` for node_id (nullopt: all nodes) went out
     ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
     ProgramProgress,           ///< software update of node_id: `bytes` of `total` bytes of the
-                               ///< 1F50h image confirmed (while it runs, about every 1/32)
+                               ///< 1F50h image confirmed (while it runs, about every 1/32;
+                               ///< `bytes` == `total` once, block or segmented)
     SdoFinished,               ///< an application transfer ended (`sdo`)
     // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
     NegotiationBegan,  ///< detection or negotiation started (after power-on, reset, 72h, ...)
@@ -160,6 +161,10 @@ struct MasterEvent {
                    ///< left unconfigured
     LssFailed,     ///< the device of slave node_id refused or missed configure node-ID
     LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
+    /// Software update of node_id: the device refused 1F51h sub 1 = 3 (clear, CiA 302-3) with
+    /// `sdo->abort`, one of the refusals of a DSP 302 v3.2.1 device (see the top); the download
+    /// goes on. `program->clear_refused` of the boot's SlaveBooted/BootError I says it again.
+    ProgramClearRefused,
   };
   Kind kind;
   TimePoint at{};
@@ -187,6 +192,8 @@ struct MasterEvent {
     std::uint64_t bytes = 0;
     TimePoint began{};
     std::optional<TimePoint> ended;
+    /// The abort with which the device refused clear (ProgramClearRefused); nullopt: accepted.
+    std::optional<SdoAbort> clear_refused;
     bool operator==(const ProgramUpdate&) const = default;
   };
   std::optional<ProgramUpdate> program{};

@@ -70,7 +70,8 @@
 //   image replaces the stopped program anyway, and a device that cannot take it says so on
 //   1F50h): the value-range aborts 0609 0030/0031/0032 (the value 3 is outside the device's
 //   range), 0800 0024 (§9: "the action is not possible"), 0800 0000 (general error) and
-//   0800 0020 (cannot be transferred or stored), the answers such devices give. Any other
+//   0800 0020 (cannot be transferred or stored), the answers such devices give; the refusal is
+//   reported (MasterEvent::ProgramClearRefused, and ProgramUpdate::clear_refused). Any other
 //   abort of clear, and any failure of stop, 1F50h or start, is status I naming the step and
 //   the abort code in words. The steps have their own response timeouts
 //   (MasterOptions::program_control_timeout, program_clear_timeout, program_data_timeout: a

@@ -54,8 +54,12 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     return;
   }
   set_step(BootStep::UpdateSoftware, now, out);
-  update_ = MasterEvent::ProgramUpdate{
-      .before = software_, .after = std::nullopt, .bytes = 0, .began = now, .ended = std::nullopt};
+  update_ = MasterEvent::ProgramUpdate{.before = software_,
+                                       .after = std::nullopt,
+                                       .bytes = 0,
+                                       .began = now,
+                                       .ended = std::nullopt,
+                                       .clear_refused = std::nullopt};
   program_step(Phase::ProgramStop, now);
 }
 
@@ -121,6 +125,19 @@ void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Ou
       if (!r.ok() && !clear_refused) {
         failed(BootError::I, "program download: " + transfer_failure(r), now, out);
         return;
+      }
+      if (clear_refused) {
+        // Reported, else only the bus would show it: the memory was not cleared before the
+        // image (the device's own affair by DSP 302 §9; 1F50h says when it cannot take it).
+        update_->clear_refused = r.abort;
+        auto e =
+            master_event(MasterEvent::Kind::ProgramClearRefused, now, node_.value(),
+                         node_text(node_.value()) + ": program clear (" +
+                             cfg::to_string(cfg::ObjectAddress{r.index, r.sub_index}) +
+                             " = 3) refused: " + to_string(r.abort) + "; the download goes on");
+        e.step = BootStep::UpdateSoftware;
+        e.sdo = r;
+        out.report(std::move(e));
       }
       // CiA 302-3 program download: stop (0), clear (3), 1F50h data, start (1).
       if (phase_ == Phase::ProgramStop) {

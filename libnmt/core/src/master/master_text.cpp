@@ -183,6 +183,8 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "lss_failed";
     case K::LssScanEnded:
       return "lss_scan_ended";
+    case K::ProgramClearRefused:
+      return "program_clear_refused";
   }
   return "?";
 }

@@ -13,6 +13,22 @@
 
 namespace nmt {
 
+namespace {
+
+// MasterEvent::ProgramProgress: `done` of the 1F50h image's `total` bytes confirmed.
+MasterEvent program_progress(std::uint8_t node, std::size_t done, std::size_t total,
+                             TimePoint now) {
+  auto e = master_event(MasterEvent::Kind::ProgramProgress, now, node,
+                        node_text(node) + ": program download " + std::to_string(done) + " of " +
+                            std::to_string(total) + " bytes");
+  e.step = BootStep::UpdateSoftware;
+  e.bytes = done;
+  e.total = total;
+  return e;
+}
+
+}  // namespace
+
 Duration NmtMaster::Impl::paced_time(double bits) const {
   const double seconds =
       bits / (static_cast<double>(options.bitrate) * std::clamp(options.bus_load_limit, 0.05, 1.0));
@@ -150,7 +166,14 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
     return;
   }
   auto& b = boot(result.node_id);
-  if (b.running() && transfer.try_id == b.try_id()) b.on_sdo_result(result, now, out);
+  if (!b.running() || transfer.try_id != b.try_id()) return;
+  if (result.ok() && !transfer.upload && transfer.index == cfg::object::kProgramData &&
+      transfer.reported < transfer.data.size()) {
+    // The last segment's confirmation ends a segmented download at once (a block download's
+    // last sub-block is acknowledged before its end): 100% is reported here, once.
+    report(out, program_progress(result.node_id, transfer.data.size(), transfer.data.size(), now));
+  }
+  b.on_sdo_result(result, now, out);
 }
 
 void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
@@ -166,13 +189,7 @@ void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
       continue;
     }
     t.reported = p->done;
-    auto e = master_event(MasterEvent::Kind::ProgramProgress, now, key.first,
-                          node_text(key.first) + ": program download " + std::to_string(p->done) +
-                              " of " + std::to_string(p->total) + " bytes");
-    e.step = BootStep::UpdateSoftware;
-    e.bytes = p->done;
-    e.total = p->total;
-    report(out, std::move(e));
+    report(out, program_progress(key.first, p->done, p->total, now));
   }
 }
 
