@@ -289,7 +289,6 @@ cfg::Result<SdoClient::TransferId> NmtMaster::Impl::start_application_transfer(
   }
   MasterTransfer t;
   t.for_application = true;
-  t.application_id = next_application_id++;
   t.index = index;
   t.sub = sub;
   t.upload = upload;
@@ -302,6 +301,7 @@ cfg::Result<SdoClient::TransferId> NmtMaster::Impl::start_application_transfer(
       !ok) {
     return cfg::Error{node_text(node) + ": " + ok.error().message};
   }
+  t.application_id = next_application_id++;  // only a transfer that starts uses up an id
   const auto id = t.application_id;
   start_transfer(node, std::move(t), now);
   return id;
