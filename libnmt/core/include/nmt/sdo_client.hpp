@@ -263,9 +263,8 @@ class SdoClientMux {
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
   bool busy() const;
-  /// The sum of the clients' SdoClient::unanswered_bits(), kept as a running figure (each
-  /// call that can send adds what its client's figure grew by), so the master's settle pass
-  /// asks it in O(1).
+  /// The sum of the clients' SdoClient::unanswered_bits(): a running figure each client adds
+  /// to as its own grows, so the master's settle pass asks it in O(1), not per client.
   std::uint64_t unanswered_bits() const;
 
  private:
