@@ -10,6 +10,7 @@
 #include <benchmark/benchmark.h>
 
 #include <memory>
+#include <stdexcept>
 #include <vector>
 
 #include "cfg/object_dictionary.hpp"
@@ -105,13 +106,12 @@ struct Rig {
     client.set_event_handler([this](const nmt::SdoResult& r, nmt::TimePoint) { result = r; });
   }
   nmt::SdoResult run(bool upload, std::vector<std::uint8_t> data, nmt::SdoTransferOptions o) {
-    client.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
-      if (upload) {
-        c.upload(0x2000, 0, now, out, o);
-      } else {
-        c.download(0x2000, 0, std::move(data), now, out, o);
-      }
-    });
+    const auto started =
+        client.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+          return upload ? c.upload(0x2000, 0, now, out, o)
+                        : c.download(0x2000, 0, std::move(data), now, out, o);
+        });
+    if (!started) throw std::runtime_error(started.error().message);
     bus.run_until_idle();
     return result;
   }
@@ -125,13 +125,14 @@ void BM_SdoExpeditedTransfers(benchmark::State& state) {
   for (auto _ : state) {
     ++value;
     rig.result = {};
-    rig.client.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
-      c.download(0x1017, 0,
-                 {static_cast<std::uint8_t>(value), static_cast<std::uint8_t>(value >> 8)}, now,
-                 out);
-    });
+    const auto started =
+        rig.client.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+          return c.download(
+              0x1017, 0, {static_cast<std::uint8_t>(value), static_cast<std::uint8_t>(value >> 8)},
+              now, out);
+        });
     rig.bus.run_until_idle();
-    all_ok = all_ok && rig.result.ok() && rig.result.id != 0;
+    all_ok = all_ok && started.ok() && rig.result.ok() && rig.result.id != 0;
   }
   if (!all_ok) state.SkipWithError("a transfer failed");
   state.counters["transfers/s"] =

@@ -102,7 +102,10 @@ void command(const std::string& line, Master& master, nmt::BusEventLoop& loop) {
     }
     master.post([node = cfg::NodeId::from(*node).value(), index = std::uint16_t(*index),
                  sub = std::uint8_t(*sub)](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) {
-      (void)m.sdo_upload(node, index, sub, now, out);  // ends in MasterEvent::SdoFinished
+      // Started: it ends in MasterEvent::SdoFinished; else the error says why (nothing sent).
+      if (auto id = m.sdo_upload(node, index, sub, now, out); !id) {
+        print("read refused: " + id.error().message);
+      }
     });
   } else if (verb == "nmt") {
     std::string node_word, what;

@@ -131,7 +131,7 @@ struct EnginePeer : Peer {
       if (std::getenv("FUZZ_TRACE") != nullptr) {
         for (const auto& r : out.events) {
           std::fprintf(stderr, "tool: %s %04Xh sub %02Xh: %08X\n", r.upload ? "read" : "write",
-                       r.index, r.sub_index, static_cast<unsigned>(r.abort));
+                       r.address.index, r.address.sub_index, static_cast<unsigned>(r.abort));
         }
       }
     }
@@ -474,10 +474,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
       auto options_now = tool_options;
       options_now.mode = (n & 1) ? nmt::SdoMode::Block : nmt::SdoMode::Auto;
-      h.tool.download(index, sub, std::move(bytes), h.now, tool_out, options_now);
+      check(h.tool.download(index, sub, std::move(bytes), h.now, tool_out, options_now).ok());
       h.collect(tool_peer);
     } else if (op < 0xB0) {
-      h.tool.upload(kObjects[op & 0x0F], in.next(), h.now, tool_out, tool_options);
+      check(h.tool.upload(kObjects[op & 0x0F], in.next(), h.now, tool_out, tool_options).ok());
       h.collect(tool_peer);
     } else if (op < 0xC0) {
       const unsigned which = op & 0x0F;
@@ -496,6 +496,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     } else if (op < 0xE0) {
       const std::uint8_t k = in.next();
       const auto node = *cfg::NodeId::from(static_cast<std::uint8_t>(1 + k % 127));
+      // Engine rule 5: an application transfer that cannot start (to the master's own node-ID)
+      // puts nothing into the output.
+      const std::size_t frames_before = master_out.frames.size();
+      const std::size_t events_before = master_out.events.size();
+      const auto transfer = [&](const cfg::Result<nmt::NmtMaster::TransferId>& id) {
+        check(id.ok() == (node != h.m().node_id()));
+        if (!id.ok()) {
+          check(master_out.frames.size() == frames_before);
+          check(master_out.events.size() == events_before);
+        }
+      };
       switch (op & 7) {
         case 0:
           static_cast<void>(h.m().boot_slave(node, h.now, master_out));
@@ -510,17 +521,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           h.m().request_guarding(k, (op & 8) != 0, h.now, master_out);
           break;
         case 4:
-          h.m().sdo_upload(node, 0x1000, 0, h.now, master_out);
+          transfer(h.m().sdo_upload(node, 0x1000, 0, h.now, master_out));
           break;
         case 5:
-          h.m().sdo_download(node, 0x2000, 0, le(in.next(), 2), h.now, master_out);
+          transfer(h.m().sdo_download(node, 0x2000, 0, le(in.next(), 2), h.now, master_out));
           break;
         case 6:
           h.m().configuration_done(node, (op & 8) != 0, h.now, master_out);
           break;
         default:
-          h.m().sdo_download(node, 0x2002, 0, std::vector<std::uint8_t>(k, 0x5A), h.now,
-                             master_out);
+          transfer(h.m().sdo_download(node, 0x2002, 0, std::vector<std::uint8_t>(k, 0x5A), h.now,
+                                      master_out));
       }
       h.after_master_call(master_out);
     } else {

@@ -149,13 +149,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       value.resize(in.next() * 11 % 1500);
       for (std::size_t k = 0; k < value.size(); ++k) value[k] = static_cast<std::uint8_t>(k);
     }
-    nmt::SdoClient::TransferId id = 0;
-    if (kind & 0x80) {
-      id = h.client.upload(index, 0, h.now, h.client_out, o);
-    } else {
-      id = h.client.download(index, 0, value, h.now, h.client_out, o);
-    }
-    expected[id] = {index, value};
+    const auto id = (kind & 0x80) ? h.client.upload(index, 0, h.now, h.client_out, o)
+                                  : h.client.download(index, 0, value, h.now, h.client_out, o);
+    check(id.ok());  // a positive timeout and a short value: nothing to refuse
+    expected[*id] = {index, value};
     h.from_client();
     ++started;
   }

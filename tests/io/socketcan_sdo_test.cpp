@@ -29,6 +29,7 @@
 #include "nmt/sdo.hpp"
 #include "nmt/socketcan_bus.hpp"
 #include "prerequisite.hpp"
+#include "started.hpp"
 
 namespace nmt {
 namespace {
@@ -183,9 +184,10 @@ class SocketCanSdo : public ::testing::Test {
 
   SdoClient::TransferId start_upload(std::uint8_t node_id, std::uint16_t index, std::uint8_t sub,
                                      SdoTransferOptions o = options()) {
-    return mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-      return m.client(node_id).upload(index, sub, now, out, o);
-    });
+    return test_support::started(
+        mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+          return m.client(node_id).upload(index, sub, now, out, o);
+        }));
   }
 
   SdoResult upload(std::uint8_t node_id, std::uint16_t index, std::uint8_t sub,
@@ -197,9 +199,10 @@ class SocketCanSdo : public ::testing::Test {
 
   SdoResult download(std::uint8_t node_id, std::uint16_t index, std::uint8_t sub, Bytes data,
                      SdoTransferOptions o = options()) {
-    const auto id = mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-      return m.client(node_id).download(index, sub, std::move(data), now, out, o);
-    });
+    const auto id = test_support::started(
+        mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+          return m.client(node_id).download(index, sub, std::move(data), now, out, o);
+        }));
     run_until_idle();
     return take(node_id, id);
   }
@@ -209,7 +212,7 @@ class SocketCanSdo : public ::testing::Test {
   SdoClientMux mux_;
   std::map<std::pair<std::uint8_t, SdoClient::TransferId>, SdoResult> results_;
   EngineRef<SdoClientMux> mux_ref_{mux_, [this](const SdoResult& r, TimePoint) {
-                                     results_[{r.node_id, r.id}] = r;
+                                     results_[{r.node_id ? r.node_id->value() : 0, r.id}] = r;
                                    }};
   std::unique_ptr<BusEventLoop> loop_;
 };

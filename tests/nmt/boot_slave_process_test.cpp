@@ -125,9 +125,8 @@ struct Rig {
   void answer(std::optional<std::uint32_t> value = std::nullopt) {
     const auto& a = last();
     SdoResult r;
-    r.node_id = kNode;
-    r.index = a.index;
-    r.sub_index = a.sub;
+    r.node_id = cfg::NodeId::from(kNode);
+    r.address = {a.index, a.sub};
     r.upload = a.upload;
     if (a.upload) r.data = le32(value.value_or(0));
     process.on_sdo_result(r, now, out);
@@ -135,9 +134,8 @@ struct Rig {
   void abort(SdoAbort code) {
     const auto& a = last();
     SdoResult r;
-    r.node_id = kNode;
-    r.index = a.index;
-    r.sub_index = a.sub;
+    r.node_id = cfg::NodeId::from(kNode);
+    r.address = {a.index, a.sub};
     r.upload = a.upload;
     r.abort = code;
     r.aborted_by_server = code != SdoAbort::Timeout;

@@ -248,13 +248,13 @@ class Tool {
     auto id = client_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.download(index, sub, le(value, size), now, out);
     });
-    return finish(id);
+    return finish(test_support::started(id));
   }
   SdoResult read(std::uint16_t index, std::uint8_t sub) {
     auto id = client_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.upload(index, sub, now, out);
     });
-    return finish(id);
+    return finish(test_support::started(id));
   }
 
  private:

@@ -582,14 +582,44 @@ TEST(NmtMasterSpec, CreateRefusesReservedBitsInTheDcf) {
 TEST(NmtMasterSpec, ApplicationUploadThroughTheMasterReportsSdoFinished) {
   Operational net;
   auto& rig = net.rig;
-  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.sdo_upload(id(2), 0x1018, 1, now, out);
-  });
+  ASSERT_TRUE(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+                   return m.sdo_upload(id(2), 0x1018, 1, now, out);
+                 })
+                  .ok());
   ASSERT_TRUE(rig.run_until_kind(Kind::SdoFinished, 2s, 2));
   auto done = rig.events_of(Kind::SdoFinished, 2).front();
   ASSERT_TRUE(done.sdo.has_value());
   EXPECT_TRUE(done.sdo->ok());
   EXPECT_EQ(done.sdo->data, le(kVendor, 4));
+}
+
+// engine.hpp rule 5: a transfer that cannot start returns why and puts nothing into `out`. The
+// master's client for its own node-ID would send to its own server (600h + node-ID), which does
+// not hear the master's frames.
+TEST(NmtMasterSpec, ApplicationTransferToTheMasterItselfDoesNotStart) {
+  Operational net;
+  auto& rig = net.rig;
+  const TimePoint from = rig.bus.now();
+  std::size_t added = 0;
+  const auto refused = rig.call([&](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    const std::size_t before = out.frames.size() + out.events.size();
+    auto id = m.sdo_download(m.node_id(), 0x1017, 0, le(100, 2), now, out);
+    added = out.frames.size() + out.events.size() - before;
+    return id;
+  });
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().message,
+            "node 1 is this master; read and write its own objects through dictionary()");
+  EXPECT_EQ(added, 0u);
+  rig.run_for(2s);
+  EXPECT_TRUE(rig.events_of(Kind::SdoFinished, 1).empty());
+  EXPECT_TRUE(rig.requests_to(1, from).empty());
+  // The next application transfer is numbered as if the refused one had not been asked for.
+  const auto next = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.sdo_upload(id(2), 0x1018, 1, now, out);
+  });
+  ASSERT_TRUE(next.ok()) << next.error().message;
+  EXPECT_EQ(*next, 1u);
 }
 
 // ------------------------------------------------------------------------ frame loss ------------

@@ -37,6 +37,7 @@
 #include "nmt/sdo_client.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
+#include "started.hpp"
 #include "test_paths.hpp"
 
 namespace nmt::master_spec {
@@ -415,15 +416,16 @@ class MasterRig {
     auto id = tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.download(index, sub, std::move(data), now, out, transfer);
     });
-    return finish(id);
+    return finish(test_support::started(id));
   }
   /// Starts a write of the tool and returns at once (tool_result() tells when it ended).
   SdoClient::TransferId tool_begin_write(std::uint16_t index, std::uint8_t sub,
                                          std::vector<std::uint8_t> data,
                                          SdoTransferOptions transfer = {}) {
-    return tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
-      return c.download(index, sub, std::move(data), now, out, transfer);
-    });
+    return test_support::started(
+        tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+          return c.download(index, sub, std::move(data), now, out, transfer);
+        }));
   }
   /// The result of a transfer of the tool; nullopt while it runs.
   std::optional<SdoResult> tool_result(SdoClient::TransferId id) const {
@@ -439,7 +441,7 @@ class MasterRig {
     auto id = tool_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.upload(index, sub, now, out, transfer);
     });
-    return finish(id);
+    return finish(test_support::started(id));
   }
   std::optional<std::uint64_t> tool_read_u(std::uint16_t index, std::uint8_t sub) {
     auto r = tool_read(index, sub);

@@ -306,6 +306,27 @@ TEST(NmtMaster, PacedBootCompletes) {
 namespace nmt {
 namespace {
 
+// engine.hpp rule 5: an application transfer the master's client could not start (here a
+// response timeout of 0) returns why and puts nothing into `out`; no id is used up.
+TEST(NmtMaster, ApplicationTransferWithAResponseTimeoutOfZeroDoesNotStart) {
+  MasterOptions options;
+  options.sdo_timeout = Duration::zero();
+  auto created = NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+  ASSERT_TRUE(created.ok());
+  NmtMaster master = std::move(created).value();
+  NmtMaster::Output out;
+  const auto refused = master.sdo_upload(*cfg::NodeId::from(2), 0x1018, 1, TimePoint{}, out);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().message,
+            "node 2: the SDO response timeout must be positive (it is 0 us)");
+  const auto too =
+      master.sdo_download(*cfg::NodeId::from(2), 0x1017, 0, le(100, 2), TimePoint{}, out);
+  ASSERT_FALSE(too.ok());
+  EXPECT_TRUE(out.frames.empty());
+  EXPECT_TRUE(out.events.empty());
+  EXPECT_EQ(master.next_deadline(), std::nullopt);
+}
+
 // CiA 302-2 §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager":
 // without a ConfigurationSource the master downloads its own 1F22h sub node-ID.
 TEST(NmtMaster, DownloadsTheConciseDcfOfItsOwn1F22) {

@@ -7,12 +7,15 @@
 #include <string>
 #include <vector>
 
+#include "nmt/frame_bits.hpp"
 #include "nmt/sdo.hpp"
+#include "started.hpp"
 
 namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
+using test_support::started;
 using Frames = std::vector<std::string>;
 using Bytes = std::vector<std::uint8_t>;
 
@@ -28,14 +31,15 @@ class SdoClientTest : public ::testing::Test {
     SdoClient::Output out;
     auto id = client.download(index, sub, std::move(data), now, out, o);
     first = take(out);
-    return id;
+    return started(id);
   }
   SdoClient::TransferId upload(std::uint16_t index, std::uint8_t sub, SdoTransferOptions o = {}) {
     SdoClient::Output out;
     auto id = client.upload(index, sub, now, out, o);
     first = take(out);
-    return id;
+    return started(id);
   }
+
   Frames tick(TimePoint t) {
     if (t > now) now = t;
     SdoClient::Output out;
@@ -366,6 +370,28 @@ TEST_F(SdoClientTest, BlockUploadWithWrongCrcAborts) {
   EXPECT_EQ(result(id)->abort, SdoAbort::CrcError);
 }
 
+// engine.hpp rule 5: a transfer that cannot start returns why and puts nothing into `out`.
+TEST_F(SdoClientTest, DoesNotStartATransferWhoseResponseTimeoutIsNotPositive) {
+  SdoTransferOptions o;
+  o.timeout = Duration::zero();
+  SdoClient::Output out;
+  const auto up = client.upload(0x1000, 0, now, out, o);
+  ASSERT_FALSE(up.ok());
+  EXPECT_EQ(up.error().message, "the SDO response timeout must be positive (it is 0 us)");
+  o.timeout = -1ms;
+  const auto down = client.download(0x1017, 0, {0xE8, 0x03}, now, out, o);
+  ASSERT_FALSE(down.ok());
+  EXPECT_EQ(down.error().message, "the SDO response timeout must be positive (it is -1000 us)");
+  EXPECT_TRUE(out.frames.empty());
+  EXPECT_TRUE(out.events.empty());
+  EXPECT_FALSE(client.busy());
+  EXPECT_EQ(client.next_deadline(), std::nullopt);
+  // The channel is untouched: the next transfer starts as on a fresh client.
+  const auto id = upload(0x1000, 0);
+  EXPECT_EQ(id, 1u);
+  EXPECT_EQ(first, Frames{"605#4000100000000000"});
+}
+
 TEST_F(SdoClientTest, TransfersToOneServerRunOneAfterAnother) {
   auto a = upload(0x1000, 0);
   EXPECT_EQ(first, Frames{"605#4000100000000000"});
@@ -427,7 +453,7 @@ TEST_F(SdoClientTest, TwentyNineBitCobIdsUseExtendedFrames) {
   config.response_cob_id = cfg::CobId::from_word(0x20000585);
   SdoClient extended(config);
   SdoClient::Output out;
-  extended.upload(0x1000, 0, now, out);
+  ASSERT_TRUE(extended.upload(0x1000, 0, now, out).ok());
   EXPECT_EQ(text(out.frames), Frames{"00000605#4000100000000000"});
   EXPECT_FALSE(extended.on_frame(*from_candump("585#4300100091010200"), now, out));
   EXPECT_TRUE(extended.on_frame(*from_candump("00000585#4300100091010200"), now, out));
@@ -441,6 +467,7 @@ TEST(SdoClientMux, RoutesResponsesByCobId) {
   SdoClientMux::Output out;
   auto a = mux.client(5).upload(0x1000, 0, TimePoint{}, out);
   auto b = mux.client(6).upload(0x1000, 0, TimePoint{}, out);
+  ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(&mux.client(5), &mux.client(5));
   ASSERT_EQ(out.frames.size(), 2u);
   EXPECT_EQ(to_candump(out.frames[0]), "605#4000100000000000");
@@ -450,11 +477,36 @@ TEST(SdoClientMux, RoutesResponsesByCobId) {
   EXPECT_TRUE(mux.on_frame(*from_candump("586#4300100001000000"), TimePoint{Duration{10}}, out));
   EXPECT_FALSE(mux.on_frame(*from_candump("587#4300100001000000"), TimePoint{Duration{10}}, out));
   ASSERT_EQ(out.events.size(), 1u);
-  EXPECT_EQ(out.events[0].id, b);
+  EXPECT_EQ(out.events[0].id, *b);
   EXPECT_EQ(out.events[0].node_id, 6);
   EXPECT_EQ(out.events[0].data, (Bytes{1, 0, 0, 0}));
-  EXPECT_NE(a, 0u);
+  EXPECT_NE(*a, 0u);
   EXPECT_TRUE(mux.busy());  // a still runs
+}
+
+TEST(SdoClientMux, UnansweredBitsAreTheSumOfItsClients) {
+  // CiA 301 §7.2.4.3.11: in a block download only a sub-block's last segment is answered (the
+  // acknowledgement); the others are the bits a paced sender subtracts.
+  SdoClientMux mux;
+  SdoClientMux::Output out;
+  SdoTransferOptions block;
+  block.mode = SdoMode::Block;
+  ASSERT_TRUE(mux.client(5).download(0x2000, 0, Bytes(30, 0x11), TimePoint{}, out, block).ok());
+  ASSERT_TRUE(mux.client(6).download(0x2000, 0, Bytes(30, 0x22), TimePoint{}, out, block).ok());
+  EXPECT_EQ(mux.unanswered_bits(), 0u);  // the initiates are answered
+  out.clear();
+  // Node 5 asks for blocks of 3, node 6 for blocks of 2.
+  ASSERT_TRUE(mux.on_frame(*from_candump("585#A400200003000000"), TimePoint{}, out));
+  ASSERT_EQ(out.frames.size(), 3u);
+  const std::uint64_t five = frame_bits(out.frames[0]).total() + frame_bits(out.frames[1]).total();
+  EXPECT_EQ(mux.unanswered_bits(), five);
+  out.clear();
+  ASSERT_TRUE(mux.on_frame(*from_candump("586#A400200002000000"), TimePoint{}, out));
+  ASSERT_EQ(out.frames.size(), 2u);
+  const std::uint64_t six = frame_bits(out.frames[0]).total();
+  EXPECT_EQ(mux.client(5).unanswered_bits(), five);
+  EXPECT_EQ(mux.client(6).unanswered_bits(), six);
+  EXPECT_EQ(mux.unanswered_bits(), five + six);
 }
 
 }  // namespace

@@ -104,9 +104,8 @@ class FakeMaster final : public SdoManagerPort {
   /// The result of `t` as the device (or its absence) gives it.
   SdoResult answer(const SdoManagerTransfer& t, TimePoint now) {
     SdoResult r;
-    r.node_id = t.node;
-    r.index = t.index;
-    r.sub_index = t.sub;
+    r.node_id = cfg::NodeId::from(t.node);
+    r.address = {t.index, t.sub};
     r.upload = t.upload;
     auto it = devices.find(t.node);
     if (it == devices.end()) {

@@ -177,9 +177,9 @@ class ManagerRig : public MasterRig {
     std::optional<SdoResult> result;
     client.set_event_handler([&](const SdoResult& r, TimePoint) { result = r; });
     bus.attach(client);
-    client.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+    test_support::started(client.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return upload ? c.upload(object, sub, now, out) : c.download(object, sub, data, now, out);
-    });
+    }));
     bus.run_until([&] { return result.has_value(); }, bus.now() + 5s);
     bus.detach(client);
     EXPECT_TRUE(result.has_value()) << "the SRD's transfer did not end";

@@ -101,9 +101,9 @@ class SdoManagerTest : public ::testing::Test {
     std::optional<SdoResult> result;
     srd.set_event_handler([&](const SdoResult& r, TimePoint) { result = r; });
     rig.bus.attach(srd);
-    srd.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+    test_support::started(srd.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.download(index, 0, master_spec::le(value, 4), now, out);
-    });
+    }));
     rig.bus.run_until([&] { return result.has_value(); }, rig.bus.now() + 5s);
     rig.bus.detach(srd);
     return result ? result->abort : SdoAbort::General;
@@ -178,9 +178,9 @@ TEST_F(SdoManagerTest, MasterTransfersToASlaveWaitWhileAnSrdHoldsItsDefaultSdo) 
   start_network();
   ASSERT_NO_FATAL_FAILURE(connect(120, 2));
   const auto from = rig.bus.now();
-  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+  test_support::started(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
     return m.sdo_upload(master_spec::id(2), 0x1000, 0, now, out);
-  });
+  }));
   ASSERT_TRUE(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
                    return m.boot_slave(master_spec::id(2), now, out);
                  })
@@ -203,9 +203,9 @@ TEST_F(SdoManagerTest, MasterTransfersWaitWhileAnSrdOwnsAllDefaultSdos) {
   start_network();
   ASSERT_TRUE(register_srd(120, 0x00000003));  // §7.2.3: all default SDOs, Cnxn 2
   const auto from = rig.bus.now();
-  rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+  test_support::started(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
     return m.sdo_upload(master_spec::id(3), 0x1000, 0, now, out);
-  });
+  }));
   rig.run_for(2s);
   EXPECT_TRUE(rig.requests_to(3, from).empty());
   // §7.2.2: the SRD gives them back only by ending its error control (de-registered).

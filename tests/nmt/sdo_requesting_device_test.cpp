@@ -231,6 +231,26 @@ TEST(SdoRequestingDevice, TransfersRunOnTheChannelTheManagerWrote) {
   EXPECT_FALSE(r.call([](auto& s, auto t, auto& o) { return s.upload(0x1282, 0x1000, 0, t, o); }));
 }
 
+// engine.hpp rule 5: a transfer its client cannot start returns why and puts nothing into `out`.
+TEST(SdoRequestingDevice, ATransferTheClientCannotStartReturnsWhyAndSendsNothing) {
+  Rig r;
+  r.connected();
+  SdoTransferOptions zero;
+  zero.timeout = Duration::zero();
+  const auto refused =
+      r.call([&](auto& s, auto t, auto& o) { return s.upload(0x1281, 0x1000, 0, t, o, zero); });
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().message, "the SDO response timeout must be positive (it is 0 us)");
+  EXPECT_EQ(r.sent, Frames{});
+  EXPECT_TRUE(r.events.empty());
+  // The channel is untouched and no id was used up.
+  const auto id =
+      r.call([](auto& s, auto t, auto& o) { return s.upload(0x1281, 0x1000, 0, t, o); });
+  ASSERT_TRUE(id.ok());
+  EXPECT_EQ(*id, 1u);
+  EXPECT_EQ(r.sent, Frames{"682#4000100000000000"});
+}
+
 TEST(SdoRequestingDevice, RefusalByAbort060A0023EndsTheRequest_7_2_3) {
   Rig r;
   r.registered();

@@ -11,6 +11,7 @@
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
 #include "sdo_test_device.hpp"
+#include "started.hpp"
 
 namespace nmt {
 namespace {
@@ -61,7 +62,7 @@ class SdoTransferTest : public ::testing::Test {
                          SdoTransferOptions o = {}) {
     results.clear();
     client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-      m.client(5).download(index, sub, std::move(data), now, out, o);
+      test_support::started(m.client(5).download(index, sub, std::move(data), now, out, o));
     });
     EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
     EXPECT_EQ(results.size(), 1u);
@@ -70,7 +71,7 @@ class SdoTransferTest : public ::testing::Test {
   SdoResult run_upload(std::uint16_t index, std::uint8_t sub, SdoTransferOptions o = {}) {
     results.clear();
     client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-      m.client(5).upload(index, sub, now, out, o);
+      test_support::started(m.client(5).upload(index, sub, now, out, o));
     });
     EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
     EXPECT_EQ(results.size(), 1u);
@@ -98,7 +99,7 @@ TEST_F(SdoTransferTest, ADownloadStartedThroughTheApiIsOnTheBusAtTheNextStep) {
   // two events are the arbitration of the initiate request and its end of frame.
   const auto before = bus.events_processed();
   client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-    m.client(5).download(0x1017, 0, {0xE8, 0x03}, now, out);
+    test_support::started(m.client(5).download(0x1017, 0, {0xE8, 0x03}, now, out));
   });
   EXPECT_EQ(client.engine().next_deadline(), bus.now() + 1s);  // the response timeout
   ASSERT_TRUE(bus.step());
@@ -236,11 +237,11 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
   client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
     for (std::uint8_t id = 10; id < 20; ++id) {
       auto& c = m.client(id);
-      c.download(0x2000, 0, pattern(700, id), now, out, block_mode());
-      c.download(0x2005, 0, pattern(30, id), now, out);
-      c.download(0x1017, 0, {id, 0}, now, out);
-      c.upload(0x2000, 0, now, out, block_mode());
-      c.upload(0x1018, 1, now, out);
+      test_support::started(c.download(0x2000, 0, pattern(700, id), now, out, block_mode()));
+      test_support::started(c.download(0x2005, 0, pattern(30, id), now, out));
+      test_support::started(c.download(0x1017, 0, {id, 0}, now, out));
+      test_support::started(c.upload(0x2000, 0, now, out, block_mode()));
+      test_support::started(c.upload(0x1018, 1, now, out));
     }
   });
   ASSERT_TRUE(bus.run_until_idle(bus.now() + 60s));
@@ -248,9 +249,10 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
   TimePoint last{};
   Duration sum{0};
   for (const auto& r : results) {
-    EXPECT_TRUE(r.ok()) << "node " << int{r.node_id} << " " << r.abort;
-    if (r.upload && r.index == 0x2000) {
-      EXPECT_EQ(r.data, pattern(700, r.node_id));
+    ASSERT_TRUE(r.node_id.has_value());
+    EXPECT_TRUE(r.ok()) << "node " << int{r.node_id->value()} << " " << r.abort;
+    if (r.upload && r.address.index == 0x2000) {
+      EXPECT_EQ(r.data, pattern(700, r.node_id->value()));
     }
     last = std::max(last, r.finished);
     sum += r.finished - r.started;
@@ -269,9 +271,10 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
   client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
     for (int i = 0; i < 40; ++i) {
       if (i % 2 == 0) {
-        m.client(5).download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), now, out, o);
+        test_support::started(
+            m.client(5).download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), now, out, o));
       } else {
-        m.client(5).upload(0x2000, 0, now, out, o);
+        test_support::started(m.client(5).upload(0x2000, 0, now, out, o));
       }
     }
   });
@@ -341,7 +344,7 @@ TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsAfterFourEm
   // t = 0: block upload A of 1017h. The server answers C6h (2 bytes), but the answer is slow;
   // the application cancels A first, and the server takes the abort.
   SdoClient::Output out;
-  const auto a = client.upload(0x1017, 0, now, out, o);
+  const auto a = test_support::started(client.upload(0x1017, 0, now, out, o));
   EXPECT_EQ(take(out), Frames{"605#A41710007F000000"});
   const Frames late_a = to_server("605#A41710007F000000");
   EXPECT_EQ(late_a, Frames{"585#C617100002000000"});
@@ -350,7 +353,7 @@ TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsAfterFourEm
   EXPECT_EQ(to_server("605#8017100000000008"), Frames{});
   // Block download B of 979 bytes to 2005h: the server enters the block download and answers
   // A4h (block size 127), slow too. B is cancelled; its abort is lost on the bus.
-  const auto b = client.download(0x2005, 0, Bytes(979, 0x55), now, out, o);
+  const auto b = test_support::started(client.download(0x2005, 0, Bytes(979, 0x55), now, out, o));
   EXPECT_EQ(take(out), Frames{"605#C6052000D3030000"});
   const Frames late_b = to_server("605#C6052000D3030000");
   EXPECT_EQ(late_b, Frames{"585#A40520007F000000"});
@@ -359,7 +362,7 @@ TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsAfterFourEm
   ASSERT_TRUE(server.busy());
   // Block upload C of 1017h: the server, still in B's sub-block, reads its initiate as segment
   // 36 with c=1, out of order, and acknowledges no segment.
-  const auto c = client.upload(0x1017, 0, now, out, o);
+  const auto c = test_support::started(client.upload(0x1017, 0, now, out, o));
   EXPECT_EQ(take(out), Frames{"605#A41710007F000000"});
   EXPECT_EQ(to_server("605#A41710007F000000"), Frames{"585#A2007F0000000000"});
   // t = 1 ms: A's late C6h names 1017h: the client takes it for C's and starts the upload (A3h),

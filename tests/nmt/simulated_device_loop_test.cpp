@@ -124,9 +124,11 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1ms}).ok());  // boot-up
   // The request goes out from apply() at once; the device hears it through the loop's echo.
-  client_ref.apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
-    return c.upload(0x1018, 1, now, out);
-  });
+  ASSERT_TRUE(client_ref
+                  .apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+                    return c.upload(0x1018, 1, now, out);
+                  })
+                  .ok());
   ASSERT_TRUE(loop.run_until(TimePoint{5ms}).ok());
   const SdoResult* r = result ? &*result : nullptr;
   ASSERT_NE(r, nullptr);

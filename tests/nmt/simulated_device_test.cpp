@@ -23,6 +23,7 @@
 #include "nmt/sdo.hpp"
 #include "nmt/sim_bus.hpp"
 #include "prerequisite.hpp"
+#include "started.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {
@@ -105,7 +106,7 @@ class Rig {
     auto id = sdo_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.download(index, sub, std::move(data), now, out, options);
     });
-    return finish(id);
+    return finish(test_support::started(id));
   }
   SdoAbort write_u(std::uint16_t index, std::uint8_t sub, std::uint64_t value, std::size_t size) {
     return write(index, sub, le(value, size)).abort;
@@ -114,7 +115,7 @@ class Rig {
     auto id = sdo_.apply([&](SdoClient& c, TimePoint now, SdoClient::Output& out) {
       return c.upload(index, sub, now, out);
     });
-    return finish(id);
+    return finish(test_support::started(id));
   }
   std::optional<std::uint64_t> read_u(std::uint16_t index, std::uint8_t sub) {
     auto r = read(index, sub);
@@ -1081,9 +1082,11 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     EXPECT_EQ(seen.front(), "703#00");
     std::optional<SdoResult> r;
     client.set_event_handler([&](const SdoResult& result, TimePoint) { r = result; });
-    client.apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
-      return c.upload(0x1000, 0, now, out);
-    });
+    ASSERT_TRUE(client
+                    .apply([](SdoClient& c, TimePoint now, SdoClient::Output& out) {
+                      return c.upload(0x1000, 0, now, out);
+                    })
+                    .ok());
     bus.run_until([&] { return r.has_value(); }, bus.now() + 5s);
     ASSERT_TRUE(r.has_value());
     if (!expected) {

@@ -26,6 +26,7 @@
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo.hpp"
+#include "started.hpp"
 #include "tool_test_support.hpp"
 
 extern char** environ;
@@ -205,16 +206,16 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
   nmt::EngineRef client_ref(client,
                             [&](const nmt::SdoResult& r, nmt::TimePoint) { results[r.id] = r; });
   const auto upload = [&](std::uint16_t index, std::uint8_t sub) {
-    return client_ref.apply(
-        [&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+    return test_support::started(
+        client_ref.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
           return c.upload(index, sub, now, out);
-        });
+        }));
   };
   const auto download = [&](std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
-    return client_ref.apply(
-        [&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
+    return test_support::started(
+        client_ref.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
           return c.download(index, sub, std::move(data), now, out);
-        });
+        }));
   };
   loop.add(script_ref);
   loop.add(client_ref);
@@ -309,10 +310,10 @@ TEST(SimulateInNetns, AnswersTheIdentityOfItsFileWhere1018hHasNoValue) {
   run_until([&] { return script.count("703#00") == 1; }, 5s);
   ASSERT_EQ(script.count("703#00"), 1u) << tool_test::slurp(dir / "err.txt");
   const auto read_u32 = [&](std::uint8_t sub) -> std::optional<std::vector<std::uint8_t>> {
-    const auto id =
+    const auto id = test_support::started(
         client_ref.apply([&](nmt::SdoClient& c, nmt::TimePoint now, nmt::SdoClient::Output& out) {
           return c.upload(0x1018, sub, now, out);
-        });
+        }));
     run_until([&] { return results.contains(id); }, 3s);
     if (!results.contains(id) || !results[id].ok()) return std::nullopt;
     return results[id].data;

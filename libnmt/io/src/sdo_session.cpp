@@ -51,6 +51,8 @@ SdoSession::~SdoSession() = default;
 
 cfg::Result<SdoResult> SdoSession::upload(std::uint16_t index, std::uint8_t sub,
                                           const SdoTransferOptions& options) {
+  // Refused options are the caller's, not the channel's: the same error on either route.
+  if (auto ok = SdoClient::check_start(options, std::nullopt); !ok) return ok.error();
   if (srd_) {
     return run_srd([&](SdoRequestingDevice& srd, TimePoint now, SdoRequestingDevice::Output& out) {
       return srd.upload(channel_.client_index, index, sub, now, out, options);
@@ -64,6 +66,7 @@ cfg::Result<SdoResult> SdoSession::upload(std::uint16_t index, std::uint8_t sub,
 cfg::Result<SdoResult> SdoSession::download(std::uint16_t index, std::uint8_t sub,
                                             std::vector<std::uint8_t> data,
                                             const SdoTransferOptions& options) {
+  if (auto ok = SdoClient::check_start(options, data.size()); !ok) return ok.error();
   if (srd_) {
     return run_srd([&](SdoRequestingDevice& srd, TimePoint now, SdoRequestingDevice::Output& out) {
       return srd.download(channel_.client_index, index, sub, std::move(data), now, out, options);
@@ -78,7 +81,7 @@ template <class Start>
 cfg::Result<SdoResult> SdoSession::run(Start&& start) {
   result_.reset();
   loop_.clear_stop();
-  ref_.apply(std::forward<Start>(start));
+  if (auto started = ref_.apply(std::forward<Start>(start)); !started) return started.error();
   // The client ends every transfer itself (an answer, an abort, or its timeout); the bound only
   // guards against a server that keeps answering for ever.
   constexpr auto kBound = std::chrono::seconds(60);

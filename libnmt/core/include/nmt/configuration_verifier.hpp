@@ -71,7 +71,7 @@ class ConfigurationVerifier {
   };
   // Turns the mux's results into VerifyResults, uploading again after a timeout.
   void take(Outbox<SdoResult>& sdo, TimePoint now, Output& out);
-  void upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo);
+  void upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo, Output& out);
 
   VerifyOptions options_;
   SdoClientMux mux_;

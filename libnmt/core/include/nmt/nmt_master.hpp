@@ -392,11 +392,13 @@ class NmtMaster {
   /// ignored.
   void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
   /// SDO transfers of the application to a slave, on the master's client for that slave (queued
-  /// behind the boot's own transfers). Results come as MasterEvent::SdoFinished.
-  TransferId sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub, TimePoint now,
-                        Output& out);
-  TransferId sdo_download(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
-                          std::vector<std::uint8_t> data, TimePoint now, Output& out);
+  /// behind the boot's own transfers). Results come as MasterEvent::SdoFinished. Could not start
+  /// (engine.hpp rule 5: the error says why, nothing in `out`): `node` is the master itself, or
+  /// SdoClient::check_start refuses (MasterOptions::sdo_timeout not positive, a value over 4 GiB).
+  cfg::Result<TransferId> sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
+                                     TimePoint now, Output& out);
+  cfg::Result<TransferId> sdo_download(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
+                                       std::vector<std::uint8_t> data, TimePoint now, Output& out);
 
   // --- observation -----------------------------------------------------------------------------
   cfg::NodeId node_id() const;

@@ -25,6 +25,9 @@
 #include <vector>
 
 #include "cfg/cob_id.hpp"
+#include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
+#include "cfg/result.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
@@ -91,9 +94,9 @@ struct SdoTransferOptions {
 /// The outcome of one transfer.
 struct SdoResult {
   std::uint32_t id = 0;  ///< the TransferId
-  std::uint8_t node_id = 0;
-  std::uint16_t index = 0;
-  std::uint8_t sub_index = 0;
+  /// The server's node-ID (SdoClientConfig::node_id); nullopt for a channel that names none.
+  std::optional<cfg::NodeId> node_id;
+  cfg::ObjectAddress address;
   bool upload = false;
   SdoAbort abort = SdoAbort::None;  ///< None on success
   /// True when the server sent the abort; false when the client detected the problem (and sent
@@ -111,12 +114,13 @@ struct SdoResult {
 /// Client side of one SDO channel (one server). Transfers are queued and run one at a time, in
 /// order; use one client per server (or SdoClientMux) to talk to many nodes at once.
 ///
-/// An nmt::Engine whose events are the results: every transfer started with download() or
-/// upload() ends with exactly one SdoResult reported into the Output of the call in which it
-/// ended (on_frame, on_timer, cancel, or the starting call itself when it cannot start). That
-/// is the only way results come back: there is no per-transfer callback and no result store, so
-/// a driver's event handler (SimEngineNode, EngineRef) sees every result. A handler may start
-/// the next transfer through the driver's apply().
+/// An nmt::Engine whose events are the results: every transfer download() or upload() started
+/// (returned an id for) ends with exactly one SdoResult reported into the Output of the call in
+/// which it ended (on_frame, on_timer, cancel). That is the only way results come back: there is
+/// no per-transfer callback and no result store, so a driver's event handler (SimEngineNode,
+/// EngineRef) sees every result. A handler may start the next transfer through the driver's
+/// apply(). A transfer that cannot start (check_start) returns the error and puts nothing into
+/// `out` (engine.hpp rule 5).
 class SdoClient {
  public:
   using TransferId = std::uint32_t;
@@ -126,12 +130,21 @@ class SdoClient {
   explicit SdoClient(SdoClientConfig config);
 
   /// Starts a download of `data` to (index, sub): when no transfer runs, its first frame is in
-  /// `out` when the call returns; otherwise it is queued behind the running ones.
-  TransferId download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
-                      TimePoint now, Output& out, SdoTransferOptions options = {});
-  /// Starts (or queues) an upload of (index, sub); the value arrives in SdoResult::data.
-  TransferId upload(std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
-                    SdoTransferOptions options = {});
+  /// `out` when the call returns; otherwise it is queued behind the running ones. The error of
+  /// check_start (nothing in `out`) when it cannot start.
+  cfg::Result<TransferId> download(std::uint16_t index, std::uint8_t sub,
+                                   std::vector<std::uint8_t> data, TimePoint now, Output& out,
+                                   SdoTransferOptions options = {});
+  /// Starts (or queues) an upload of (index, sub); the value arrives in SdoResult::data. The
+  /// error of check_start (nothing in `out`) when it cannot start.
+  cfg::Result<TransferId> upload(std::uint16_t index, std::uint8_t sub, TimePoint now, Output& out,
+                                 SdoTransferOptions options = {});
+  /// Why a transfer with `options` (a download: of `download_size` bytes) cannot start: a
+  /// response timeout that is not positive (every response would be overdue when it is asked
+  /// for), or a value longer than the 32-bit size of a download initiate can state (CiA 301
+  /// §7.2.4.3.3). Block sizes outside 1..127 are taken as the nearest (sdo::clamp_block_size).
+  static cfg::Status check_start(const SdoTransferOptions& options,
+                                 std::optional<std::size_t> download_size);
   /// Ends a transfer with `code` (None is taken as General): a running one sends its abort frame
   /// into `out` and the next queued one starts; a queued one is removed. Either reports its
   /// result into `out`. False (nothing done) when `id` is not queued or running.
@@ -216,13 +229,17 @@ class SdoClient {
   void finish(SdoAbort code, bool by_server, TimePoint now, Output& out);
   void pump(TimePoint now, Output& out);
   SdoResult result_of(const Transfer& t, SdoAbort code) const;
-  TransferId enqueue(std::unique_ptr<Transfer> transfer, TimePoint now, Output& out);
+  cfg::Result<TransferId> enqueue(std::unique_ptr<Transfer> transfer, TimePoint now, Output& out);
 
   SdoClientConfig config_;
   TransferId next_id_ = 1;
   std::unique_ptr<Transfer> active_;
   std::deque<std::unique_ptr<Transfer>> queue_;
   std::uint64_t unanswered_bits_ = 0;
+  // The running sum of the mux that owns this client (SdoClientMux::unanswered_bits); null for
+  // a client of its own. Points into the mux's heap cell, so it survives moves of the mux.
+  std::uint64_t* mux_unanswered_bits_ = nullptr;
+  friend class SdoClientMux;
 };
 static_assert(Engine<SdoClient>);
 
@@ -246,12 +263,15 @@ class SdoClientMux {
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
   bool busy() const;
-  /// The sum of the clients' SdoClient::unanswered_bits().
+  /// The sum of the clients' SdoClient::unanswered_bits(): a running figure each client adds
+  /// to as its own grows, so the master's settle pass asks it in O(1), not per client.
   std::uint64_t unanswered_bits() const;
 
  private:
   // By the response identifier as a COB-ID word (cfg::CobId::of), so 11- and 29-bit ids differ.
   std::map<std::uint32_t, std::unique_ptr<SdoClient>> clients_;
+  // Added to by the clients as their figures grow (SdoClient::mux_unanswered_bits_).
+  std::unique_ptr<std::uint64_t> unanswered_bits_ = std::make_unique<std::uint64_t>(0);
 };
 static_assert(Engine<SdoClientMux>);
 

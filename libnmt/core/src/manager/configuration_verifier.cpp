@@ -13,10 +13,18 @@ std::uint64_t key(std::uint8_t node, SdoClient::TransferId id) {
 
 }  // namespace
 
-void ConfigurationVerifier::upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo) {
+void ConfigurationVerifier::upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo,
+                                   Output& out) {
   const std::uint8_t node = result.node_id;
   const auto id = mux_.client(node).upload(result.index, result.sub_index, now, sdo, options_.sdo);
-  running_[key(node, id)] = Running{std::move(result)};
+  if (!id) {
+    // SdoClient::check_start refuses an upload only for a timeout that is not positive: the
+    // entry is reported as one whose answer did not come.
+    result.abort = SdoAbort::Timeout;
+    out.report(std::move(result));
+    return;
+  }
+  running_[key(node, *id)] = Running{std::move(result)};
 }
 
 void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::ObjectWrite> writes,
@@ -40,7 +48,7 @@ void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::Object
     r.index = e.index;
     r.sub_index = e.sub_index;
     r.expected = std::move(e.data);
-    upload(std::move(r), now, sdo_);
+    upload(std::move(r), now, sdo_, out);
   }
   take(sdo_, now, out);
 }
@@ -59,19 +67,20 @@ void ConfigurationVerifier::on_timer(TimePoint now, Output& out) {
 }
 
 void ConfigurationVerifier::take(Outbox<SdoResult>& sdo, TimePoint now, Output& out) {
-  // A retry started here may end at once (a client that cannot start it): loop until no result
-  // is left.
+  // Loop until no result is left (a retry is started here; one the client refuses is reported
+  // by upload() itself).
   while (!sdo.events.empty()) {
     std::vector<SdoResult> results = std::move(sdo.events);
     sdo.events.clear();
     for (auto& result : results) {
-      const auto it = running_.find(key(result.node_id, result.id));
+      if (!result.node_id) continue;  // the mux's clients are all for_node
+      const auto it = running_.find(key(*result.node_id, result.id));
       if (it == running_.end()) continue;
       VerifyResult r = std::move(it->second.result);
       running_.erase(it);
       if (result.abort == SdoAbort::Timeout && r.attempts <= options_.retries) {
         ++r.attempts;
-        upload(std::move(r), now, sdo);
+        upload(std::move(r), now, sdo, out);
         continue;
       }
       r.abort = result.abort;

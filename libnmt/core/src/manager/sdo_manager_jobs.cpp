@@ -168,7 +168,8 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
 
 void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Output& out) {
   auto& job = jobs_.front();
-  const std::string why = node_text(result.node_id) + ": " + transfer_failure(result);
+  const std::string why =
+      node_text(result.node_id ? result.node_id->value() : 0) + ": " + transfer_failure(result);
   job.steps.clear();
   auto& c = job.connection;
   if (job.kind == Job::Kind::Register) {

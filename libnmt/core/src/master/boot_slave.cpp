@@ -23,8 +23,8 @@ std::uint32_t uploaded_u32(const SdoResult& result) {
 }
 
 std::string transfer_failure(const SdoResult& result) {
-  return cfg::to_string(cfg::ObjectAddress{result.index, result.sub_index}) +
-         (result.upload ? " upload" : " download") + " failed: " + to_string(result.abort);
+  return cfg::to_string(result.address) + (result.upload ? " upload" : " download") +
+         " failed: " + to_string(result.abort);
 }
 
 BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& options) {

@@ -71,8 +71,26 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, Master
                       ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
                       : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
                                         transfer.options);
-  transfers[{node, id}] = std::move(transfer);
-  return id;
+  if (!id) {
+    // A boot or manager transfer the client refuses (SdoClient::check_start: a timeout that is
+    // not positive, a program longer than 4 GiB; application transfers were checked before it
+    // was queued). It ends at once as the client ended it before rule 5 (abort 0504 0000, or
+    // 0504 0005 for the length), so its process sees the failure when settle dispatches it.
+    SdoResult r;
+    r.id = next_refused_id--;
+    r.node_id = cfg::NodeId::from(node);
+    r.address = {transfer.index, transfer.sub};
+    r.upload = transfer.upload;
+    r.abort =
+        transfer.options.timeout <= Duration::zero() ? SdoAbort::Timeout : SdoAbort::OutOfMemory;
+    r.started = now;
+    r.finished = now;
+    transfers[{node, r.id}] = std::move(transfer);
+    results.push_back(std::move(r));
+    return 0;
+  }
+  transfers[{node, *id}] = std::move(transfer);
+  return *id;
 }
 
 void NmtMaster::Impl::forget_transfer(
@@ -118,13 +136,15 @@ void NmtMaster::Impl::release_held(TimePoint now) {
 }
 
 void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& out) {
-  const auto it = transfers.find({result.node_id, result.id});
+  if (!result.node_id) return;  // the master's clients are all for_node
+  const std::uint8_t node = *result.node_id;
+  const auto it = transfers.find({node, result.id});
   if (it == transfers.end()) return;  // cancelled, or of an older boot try
   MasterTransfer transfer = std::move(it->second);
   forget_transfer(it);
   if (!transfer.for_application && !transfer.for_manager &&
-      transfer.try_id == boot(result.node_id).try_id()) {
-    ++slaves[result.node_id].transfers_done;
+      transfer.try_id == boot(node).try_id()) {
+    ++slaves[node].transfers_done;
   }
   const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
   if (!transfer.for_application && !transfer.for_manager) {
@@ -146,7 +166,7 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   // A timeout the client detected is most likely a lost frame: repeat the transfer.
   if (timed_out && transfer.retries_left > 0) {
     --transfer.retries_left;
-    start_transfer(result.node_id, std::move(transfer), now);
+    start_transfer(node, std::move(transfer), now);
     return;
   }
   if (transfer.for_manager) {
@@ -155,9 +175,8 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   }
   if (transfer.for_application) {
     auto e = master_event(
-        MasterEvent::Kind::SdoFinished, now, result.node_id,
-        node_text(result.node_id) + ": " +
-            cfg::to_string(cfg::ObjectAddress{result.index, result.sub_index}) +
+        MasterEvent::Kind::SdoFinished, now, node,
+        node_text(node) + ": " + cfg::to_string(result.address) +
             (result.upload ? " upload " : " download ") +
             (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
     e.sdo = result;
@@ -165,13 +184,13 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
     report(out, std::move(e));
     return;
   }
-  auto& b = boot(result.node_id);
+  auto& b = boot(node);
   if (!b.running() || transfer.try_id != b.try_id()) return;
   if (result.ok() && !transfer.upload && transfer.index == cfg::object::kProgramData &&
       transfer.reported < transfer.data.size()) {
     // The last segment's confirmation ends a segmented download at once (a block download's
     // last sub-block is acknowledged before its end): 100% is reported here, once.
-    report(out, program_progress(result.node_id, transfer.data.size(), transfer.data.size(), now));
+    report(out, program_progress(node, transfer.data.size(), transfer.data.size(), now));
   }
   b.on_sdo_result(result, now, out);
 }

@@ -262,35 +262,47 @@ void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Out
   m.settle(now, out);
 }
 
-NmtMaster::TransferId NmtMaster::sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
-                                            TimePoint now, Output& out) {
-  const auto id = impl_->start_application_transfer(node, index, sub, true, {}, now);
-  impl_->settle(now, out);
+cfg::Result<NmtMaster::TransferId> NmtMaster::sdo_upload(cfg::NodeId node, std::uint16_t index,
+                                                         std::uint8_t sub, TimePoint now,
+                                                         Output& out) {
+  auto id = impl_->start_application_transfer(node, index, sub, true, {}, now);
+  if (id) impl_->settle(now, out);  // engine rule 5: a refused start puts nothing into `out`
   return id;
 }
 
-NmtMaster::TransferId NmtMaster::sdo_download(cfg::NodeId node, std::uint16_t index,
-                                              std::uint8_t sub, std::vector<std::uint8_t> data,
-                                              TimePoint now, Output& out) {
-  const auto id = impl_->start_application_transfer(node, index, sub, false, std::move(data), now);
-  impl_->settle(now, out);
+cfg::Result<NmtMaster::TransferId> NmtMaster::sdo_download(cfg::NodeId node, std::uint16_t index,
+                                                           std::uint8_t sub,
+                                                           std::vector<std::uint8_t> data,
+                                                           TimePoint now, Output& out) {
+  auto id = impl_->start_application_transfer(node, index, sub, false, std::move(data), now);
+  if (id) impl_->settle(now, out);
   return id;
 }
 
-SdoClient::TransferId NmtMaster::Impl::start_application_transfer(cfg::NodeId node,
-                                                                  std::uint16_t index,
-                                                                  std::uint8_t sub, bool upload,
-                                                                  std::vector<std::uint8_t> data,
-                                                                  TimePoint now) {
+cfg::Result<SdoClient::TransferId> NmtMaster::Impl::start_application_transfer(
+    cfg::NodeId node, std::uint16_t index, std::uint8_t sub, bool upload,
+    std::vector<std::uint8_t> data, TimePoint now) {
+  if (node == node_id) {
+    // The master's client for its own node-ID would talk to its own server on 600h + node-ID,
+    // which does not hear what the master sends: nothing would answer.
+    return cfg::Error{"node " + std::to_string(node.value()) +
+                      " is this master; read and write its own objects through dictionary()"};
+  }
   MasterTransfer t;
   t.for_application = true;
-  t.application_id = next_application_id++;
   t.index = index;
   t.sub = sub;
   t.upload = upload;
   t.data = std::move(data);
   t.options.timeout = options.sdo_timeout;
   if (t.data.size() > options.block_threshold) t.options.mode = SdoMode::Block;
+  // Checked now, not when the client gets it: it may wait behind the boot's transfers.
+  if (auto ok = SdoClient::check_start(
+          t.options, upload ? std::nullopt : std::optional<std::size_t>(t.data.size()));
+      !ok) {
+    return cfg::Error{node_text(node) + ": " + ok.error().message};
+  }
+  t.application_id = next_application_id++;  // only a transfer that starts uses up an id
   const auto id = t.application_id;
   start_transfer(node, std::move(t), now);
   return id;

@@ -142,6 +142,9 @@ struct NmtMaster::Impl {
   static constexpr Duration kBootUpQuiet = std::chrono::milliseconds(20);
   std::optional<TimePoint> boot_up_quiet;
   SdoClient::TransferId next_application_id = 1;
+  /// Keys (in `transfers`) of boot/manager transfers the client refused, counting down from
+  /// the top, where the client's own ids (from 1 up) do not reach.
+  SdoClient::TransferId next_refused_id = 0xFFFFFFFF;
   Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
   std::deque<SdoResult> results;  ///< SDO results not yet dispatched
   /// Scratch outputs of the parts in on_frame/on_timer (server, producer; error control),
@@ -322,10 +325,13 @@ struct NmtMaster::Impl {
 
   // --- SDO for boot and application ------------------------------------------------------------
   SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
-  /// sdo_upload()/sdo_download() of the application: its id, timeout, block above the threshold.
-  SdoClient::TransferId start_application_transfer(cfg::NodeId node, std::uint16_t index,
-                                                   std::uint8_t sub, bool upload,
-                                                   std::vector<std::uint8_t> data, TimePoint now);
+  /// sdo_upload()/sdo_download() of the application: its id, timeout, block above the threshold;
+  /// the error (nothing started) when it cannot start.
+  cfg::Result<SdoClient::TransferId> start_application_transfer(cfg::NodeId node,
+                                                                std::uint16_t index,
+                                                                std::uint8_t sub, bool upload,
+                                                                std::vector<std::uint8_t> data,
+                                                                TimePoint now);
   void dispatch(const SdoResult& result, TimePoint now, Output& out);
   void forget_transfer(
       std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it);

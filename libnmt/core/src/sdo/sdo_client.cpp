@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <string>
 #include <variant>
 
 #include "cfg/object_index.hpp"
@@ -37,8 +38,29 @@ std::optional<SdoClientConfig> SdoClientConfig::from_dictionary(const LocalDicti
 
 SdoClient::SdoClient(SdoClientConfig config) : config_(config) {}
 
-SdoClient::TransferId SdoClient::enqueue(std::unique_ptr<Transfer> transfer, TimePoint now,
-                                         Output& out) {
+cfg::Status SdoClient::check_start(const SdoTransferOptions& options,
+                                   std::optional<std::size_t> download_size) {
+  if (options.timeout <= Duration::zero()) {
+    return cfg::Error{"the SDO response timeout must be positive (it is " +
+                      std::to_string(options.timeout.count()) + " us)"};
+  }
+  if (download_size && *download_size > std::numeric_limits<std::uint32_t>::max()) {
+    // CiA 301 §7.2.4.3.3: the initiate's size is 32 bits.
+    return cfg::Error{"a value of " + std::to_string(*download_size) +
+                      " bytes is longer than an SDO download can state (at most 4294967295)"};
+  }
+  return {};
+}
+
+cfg::Result<SdoClient::TransferId> SdoClient::enqueue(std::unique_ptr<Transfer> transfer,
+                                                      TimePoint now, Output& out) {
+  // Engine rule 5: a transfer that cannot start returns why and puts nothing into `out`.
+  if (auto ok = check_start(
+          transfer->options,
+          transfer->upload ? std::nullopt : std::optional<std::size_t>(transfer->data.size()));
+      !ok) {
+    return ok.error();
+  }
   transfer->id = next_id_++;
   transfer->mode = transfer->options.mode;
   const auto id = transfer->id;
@@ -47,9 +69,10 @@ SdoClient::TransferId SdoClient::enqueue(std::unique_ptr<Transfer> transfer, Tim
   return id;
 }
 
-SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
-                                          std::vector<std::uint8_t> data, TimePoint now,
-                                          Output& out, SdoTransferOptions options) {
+cfg::Result<SdoClient::TransferId> SdoClient::download(std::uint16_t index, std::uint8_t sub,
+                                                       std::vector<std::uint8_t> data,
+                                                       TimePoint now, Output& out,
+                                                       SdoTransferOptions options) {
   auto t = std::make_unique<Transfer>();
   t->index = index;
   t->sub = sub;
@@ -58,8 +81,9 @@ SdoClient::TransferId SdoClient::download(std::uint16_t index, std::uint8_t sub,
   return enqueue(std::move(t), now, out);
 }
 
-SdoClient::TransferId SdoClient::upload(std::uint16_t index, std::uint8_t sub, TimePoint now,
-                                        Output& out, SdoTransferOptions options) {
+cfg::Result<SdoClient::TransferId> SdoClient::upload(std::uint16_t index, std::uint8_t sub,
+                                                     TimePoint now, Output& out,
+                                                     SdoTransferOptions options) {
   auto t = std::make_unique<Transfer>();
   t->upload = true;
   t->index = index;
@@ -101,9 +125,8 @@ std::optional<TimePoint> SdoClient::next_deadline() const {
 SdoResult SdoClient::result_of(const Transfer& t, SdoAbort code) const {
   SdoResult r;
   r.id = t.id;
-  r.node_id = config_.node_id;
-  r.index = t.index;
-  r.sub_index = t.sub;
+  r.node_id = cfg::NodeId::from(config_.node_id);
+  r.address = {t.index, t.sub};
   r.upload = t.upload;
   r.abort = code;
   r.protocol = t.protocol;
@@ -165,10 +188,7 @@ void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
   t.options.block_size = sdo::clamp_block_size(t.options.block_size);
   const cfg::ObjectAddress address{t.index, t.sub};
   if (!t.upload) {
-    const auto size = t.data.size();
-    if (size > std::numeric_limits<std::uint32_t>::max()) {
-      return finish(SdoAbort::OutOfMemory, false, now, out);  // cannot be described on the bus
-    }
+    const auto size = t.data.size();  // fits 32 bits: check_start
     if (t.mode == SdoMode::Block) {
       t.protocol = SdoProtocol::Block;
       t.state = State::BlockDownloadInit;
@@ -237,9 +257,12 @@ void SdoClient::send_download_sub_block(Transfer& t, TimePoint now, Output& out)
     }
   }
   // Only the sub-block's last segment is answered (the acknowledgement).
+  std::uint64_t bits = 0;
   for (std::size_t i = first; i + 1 < out.frames.size(); ++i) {
-    unanswered_bits_ += frame_bits(out.frames[i]).total();
+    bits += frame_bits(out.frames[i]).total();
   }
+  unanswered_bits_ += bits;
+  if (mux_unanswered_bits_) *mux_unanswered_bits_ += bits;
   t.state = State::BlockDownload;
 }
 
@@ -477,7 +500,10 @@ SdoClient& SdoClientMux::client(std::uint8_t node_id) {
 
 SdoClient& SdoClientMux::add(SdoClientConfig config) {
   auto& slot = clients_[cfg::CobId::of(config.response_cob_id.can_id()).word()];
-  if (!slot) slot = std::make_unique<SdoClient>(config);
+  if (!slot) {
+    slot = std::make_unique<SdoClient>(config);
+    slot->mux_unanswered_bits_ = unanswered_bits_.get();
+  }
   return *slot;
 }
 
@@ -506,9 +532,7 @@ bool SdoClientMux::busy() const {
 }
 
 std::uint64_t SdoClientMux::unanswered_bits() const {
-  std::uint64_t bits = 0;
-  for (const auto& [key, client] : clients_) bits += client->unanswered_bits();
-  return bits;
+  return unanswered_bits_ ? *unanswered_bits_ : 0;  // null only in a moved-from mux
 }
 
 }  // namespace nmt

@@ -203,8 +203,10 @@ cfg::Status SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t 
   std::vector<std::uint8_t> data;
   cfg::append_le(data, word, 4);
   SdoClient::Output manager_out;
-  pending.transfer =
+  const auto transfer =
       manager_->download(object, 0, std::move(data), now, manager_out, options_.manager_transfer);
+  if (!transfer) return transfer.error();  // engine rule 5: nothing into `out`
+  pending.transfer = *transfer;
   pending_ = pending;
   forward_frames(manager_out, out);
   manager_results(manager_out, now, out);
@@ -476,13 +478,12 @@ void SdoRequestingDevice::channel_results(std::uint32_t key, const SdoClient::Ou
     r.id = t->second;
     it->second.transfers.erase(t);
     const auto at = r.finished;
-    std::string text = std::string(r.upload ? "upload " : "download ") +
-                       cfg::to_string(cfg::ObjectAddress{r.index, r.sub_index}) + " over " +
-                       entry_name(key) + ": " + (r.ok() ? "done" : to_string(r.abort));
+    std::string text = std::string(r.upload ? "upload " : "download ") + cfg::to_string(r.address) +
+                       " over " + entry_name(key) + ": " + (r.ok() ? "done" : to_string(r.abort));
     report({.kind = SrdEvent::Kind::Transfer,
             .at = at,
             .client_index = client_index_of(key),
-            .slave_node_id = cfg::NodeId::from(r.node_id),
+            .slave_node_id = r.node_id,
             .transfer = std::move(r),
             .text = std::move(text)},
            out);
@@ -494,13 +495,13 @@ cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
     std::vector<std::uint8_t> data, TimePoint now, Output& out, const SdoTransferOptions& options) {
   auto it = channels_.find(key);
   if (it == channels_.end()) return cfg::Error{"no connection on that channel"};
-  const TransferId id = next_transfer_++;
   SdoClient::Output channel_out;
-  // Registered before the call: a transfer that cannot start reports its result in it.
   const auto inner =
       upload ? it->second.client->upload(index, sub, now, channel_out, options)
              : it->second.client->download(index, sub, std::move(data), now, channel_out, options);
-  it->second.transfers[inner] = id;
+  if (!inner) return inner.error();  // engine rule 5: nothing into `out`
+  const TransferId id = next_transfer_++;
+  it->second.transfers[*inner] = id;
   forward_frames(channel_out, out);
   channel_results(key, channel_out, out);
   return id;
