@@ -133,7 +133,7 @@ void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Ou
         auto e =
             master_event(MasterEvent::Kind::ProgramClearRefused, now, node_.value(),
                          node_text(node_.value()) + ": program clear (" +
-                             cfg::to_string(cfg::ObjectAddress{r.index, r.sub_index}) +
+                             cfg::to_string(r.address) +
                              " = 3) refused: " + to_string(r.abort) + "; the download goes on");
         e.step = BootStep::UpdateSoftware;
         e.sdo = r;
