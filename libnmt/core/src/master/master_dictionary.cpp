@@ -239,8 +239,8 @@ void NmtMaster::Impl::install_hooks() {
       const std::uint8_t state =
           sub == node_id.value() ? static_cast<std::uint8_t>(own_state) : slaves[sub].known_state;
       dict.set_unsigned(index, sub, state);
-    } else if (index == obj::kRequestGuarding && cfg::is_node_id(sub)) {
-      dict.set_unsigned(index, sub, guarding.guards(sub) ? 1 : 0);
+    } else if (const auto node = cfg::NodeId::from(sub); index == obj::kRequestGuarding && node) {
+      dict.set_unsigned(index, sub, guarding.guards(*node) ? 1 : 0);
     }
     return SdoAbort::None;
   });
@@ -376,15 +376,16 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   auto apply = [&](std::uint8_t node) {
     if (!is_slave(node)) return SdoAbort::General;
+    const auto id = *cfg::NodeId::from(node);
     if (value == 0) {
-      guarding.stop(node);
+      guarding.stop(id);
       return SdoAbort::None;
     }
     const auto a = assignment(node);
-    // §6.3: guard time or retry factor 0 disable guarding for the device.
-    if (a.guard_time_ms() == 0 || a.retry_factor() == 0) return SdoAbort::General;
-    guarding.start(*cfg::NodeId::from(node), a.guard_time_ms(), a.retry_factor(), now);
-    return SdoAbort::None;
+    // §6.3: guard time or retry factor 0 disable guarding for the device (start refuses them).
+    const auto started =
+        guarding.start(id, a.guard_time_ms(), a.retry_factor(), now, guarding_started);
+    return started ? SdoAbort::None : SdoAbort::General;
   };
   if (sub == kAll) {
     for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
