@@ -50,6 +50,15 @@ std::vector<NodeGuardingEvent> tick(NodeGuardingMaster& m, TimePoint now,
   frames.insert(frames.end(), out.frames.begin(), out.frames.end());
   return out.events;
 }
+// The guarding master's start: its first request goes out with it (engine.hpp rule 5) and is
+// appended to `frames`.
+void start(NodeGuardingMaster& m, std::uint8_t node, std::uint16_t guard_time_ms,
+           std::uint8_t life_time_factor, TimePoint now, std::vector<CanFrame>& frames) {
+  NodeGuardingMaster::Output out;
+  EXPECT_TRUE(m.start(id(node), guard_time_ms, life_time_factor, now, out));
+  EXPECT_TRUE(out.events.empty());
+  frames.insert(frames.end(), out.frames.begin(), out.frames.end());
+}
 // The heartbeat the producer sends at `now` for `node` in `state`, if one is due.
 std::optional<CanFrame> beat(HeartbeatProducer& p, TimePoint now, std::uint8_t node,
                              NmtState state) {
@@ -218,7 +227,7 @@ TEST(HeartbeatConsumer, InactiveEntryStopsMonitoring) {
   HeartbeatConsumer c({.timeout_from_start = true});
   c.monitor({7, 50}, at_ms(0));
   c.monitor({7, 0}, at_ms(10));
-  EXPECT_FALSE(c.monitors(7));
+  EXPECT_FALSE(c.monitors(id(7)));
   EXPECT_TRUE(tick(c, at_ms(100)).empty());
 }
 
@@ -321,20 +330,41 @@ std::vector<std::string> texts(const std::vector<CanFrame>& frames) {
 
 TEST(NodeGuardingMaster, SendsARequestEveryGuardTime) {
   NodeGuardingMaster m;
-  m.start(id(5), 100, 3, at_ms(0));
   std::vector<CanFrame> out;
-  EXPECT_TRUE(tick(m, at_ms(0), out).empty());
+  start(m, 5, 100, 3, at_ms(0), out);  // the first request goes out with the start
   EXPECT_EQ(texts(out), std::vector<std::string>{"705#R1"});
   EXPECT_EQ(m.next_deadline(), at_ms(100));
-  out.clear();
+  EXPECT_TRUE(tick(m, at_ms(0), out).empty());  // a second call at `now` sends nothing more
   (void)tick(m, at_ms(50), out);
+  EXPECT_EQ(texts(out), std::vector<std::string>{"705#R1"});
+  (void)tick(m, at_ms(100), out);
+  EXPECT_EQ(texts(out), (std::vector<std::string>{"705#R1", "705#R1"}));
+  EXPECT_EQ(m.next_deadline(), at_ms(200));
+}
+
+// CiA 302-2 §6.3: a guard time or retry factor of 0 disables guarding; a start with one is
+// refused and leaves everything as it was (engine.hpp rule 5, "could not start").
+TEST(NodeGuardingMaster, StartWithZeroGuardTimeOrLifeTimeFactorIsRefused) {
+  NodeGuardingMaster m;
+  NodeGuardingMaster::Output out;
+  EXPECT_FALSE(m.start(id(5), 0, 3, at_ms(0), out));
+  EXPECT_FALSE(m.start(id(5), 100, 0, at_ms(0), out));
   EXPECT_TRUE(out.empty());
+  EXPECT_FALSE(m.guards(id(5)));
+  EXPECT_EQ(m.next_deadline(), std::nullopt);
+
+  std::vector<CanFrame> frames;
+  start(m, 6, 100, 3, at_ms(0), frames);
+  EXPECT_FALSE(m.start(id(6), 0, 3, at_ms(10), out));
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(m.guards(id(6)));
+  EXPECT_EQ(m.next_deadline(), at_ms(100));
 }
 
 TEST(NodeGuardingMaster, AlternatingRepliesKeepTheNodeGuarded) {
   NodeGuardingMaster m;
-  m.start(id(5), 100, 1, at_ms(0));
   std::vector<CanFrame> out;
+  start(m, 5, 100, 1, at_ms(0), out);
   const char* replies[] = {"705#7F", "705#FF", "705#7F", "705#FF"};  // spec/002 sequence
   for (int i = 0; i < 4; ++i) {
     EXPECT_TRUE(tick(m, at_ms(100 * i), out).empty());
@@ -345,8 +375,8 @@ TEST(NodeGuardingMaster, AlternatingRepliesKeepTheNodeGuarded) {
 
 TEST(NodeGuardingMaster, TimesOutAfterLifeTimeFactorMissedReplies) {
   NodeGuardingMaster m;
-  m.start(id(5), 100, 3, at_ms(0));
   std::vector<CanFrame> out;
+  start(m, 5, 100, 3, at_ms(0), out);
   EXPECT_TRUE(tick(m, at_ms(0), out).empty());
   EXPECT_TRUE(tick(m, at_ms(100), out).empty());  // 1 missed
   EXPECT_TRUE(tick(m, at_ms(200), out).empty());  // 2 missed
@@ -364,9 +394,8 @@ TEST(NodeGuardingMaster, TimesOutAfterLifeTimeFactorMissedReplies) {
 
 TEST(NodeGuardingMaster, ReplyWithRepeatedToggleBitCountsAsMissed) {
   NodeGuardingMaster m;
-  m.start(id(5), 100, 1, at_ms(0));
   std::vector<CanFrame> out;
-  (void)tick(m, at_ms(0), out);
+  start(m, 5, 100, 1, at_ms(0), out);
   EXPECT_TRUE(feed(m, frame("705#85"), at_ms(5)).empty());  // first reply must have toggle 0
   auto ev = tick(m, at_ms(100), out);
   ASSERT_EQ(ev.size(), 1u);
@@ -377,9 +406,8 @@ TEST(NodeGuardingMaster, ReplyWithRepeatedToggleBitCountsAsMissed) {
 
 TEST(NodeGuardingMaster, ReportsStateChanges) {
   NodeGuardingMaster m;
-  m.start(id(5), 100, 2, at_ms(0));
   std::vector<CanFrame> out;
-  (void)tick(m, at_ms(0), out);
+  start(m, 5, 100, 2, at_ms(0), out);
   EXPECT_TRUE(feed(m, frame("705#7F"), at_ms(5)).empty());
   (void)tick(m, at_ms(100), out);
   auto ev = feed(m, frame("705#85"), at_ms(105));
@@ -394,10 +422,11 @@ TEST(NodeGuardingMaster, GuardsTheSlaveEngineWithoutEvents) {
   NodeGuardingMaster m;
   NodeGuardingSlave s(id(9));
   s.configure(100, 3);
-  m.start(id(9), 100, 3, at_ms(0));
+  std::vector<CanFrame> first;
+  start(m, 9, 100, 3, at_ms(0), first);
   int requests = 0;
   for (int t = 0; t <= 10'000; t += 10) {
-    std::vector<CanFrame> out;
+    std::vector<CanFrame> out = t == 0 ? first : std::vector<CanFrame>{};
     EXPECT_TRUE(tick(m, at_ms(t), out).empty());
     for (const auto& request : out) {
       ++requests;

@@ -516,6 +516,33 @@ TEST(NmtMasterSpec, RequestGuardingStartsAndStopsGuarding) {
   EXPECT_TRUE(rig.events_of(Kind::GuardingLost, 3).empty());
 }
 
+// Table 31, 01h "Start node guarding": the first guarding request follows the confirmation of the
+// write (581h#60 831F 03) at once (engine.hpp rule 5: NodeGuardingMaster::start puts it out), not
+// one guard time (100 ms) later and not ahead of the confirmation.
+TEST(NmtMasterSpec, RequestGuardingSendsTheFirstRequestWithTheConfirmation) {
+  Operational net;
+  auto& rig = net.rig;
+  ASSERT_EQ(rig.tool_write_u(0x1F81, 3, Assign::make(kSlave | kBoot, 3, 100).value, 4),
+            SdoAbort::None);
+  const TimePoint started = rig.bus.now();
+  ASSERT_EQ(rig.tool_write_u(0x1F83, 3, 1, 1), SdoAbort::None);
+  rig.run_for(50ms);
+  std::vector<Seen> answers;  // the master's SDO answers to the write of 1F83h sub 3
+  for (const auto& s : rig.on_id(0x580U + kMaster, started)) {
+    if (addresses(s.frame, 0x1F83, 3)) answers.push_back(s);
+  }
+  ASSERT_EQ(answers.size(), 1U);
+  EXPECT_EQ(answers[0].text(), "581#60831F0300000000");
+  std::vector<Seen> rtr;
+  for (const auto& s : rig.on_id(0x703, started)) {
+    if (s.frame.rtr) rtr.push_back(s);
+  }
+  ASSERT_EQ(rtr.size(), 1U);  // the next one is due 100 ms later
+  EXPECT_EQ(rtr[0].text(), "703#R1");
+  EXPECT_GE(rtr[0].at, answers[0].at);
+  EXPECT_LT(rtr[0].at - answers[0].at, 1ms);
+}
+
 // ---------------------------------------------------------------- 1F80h, 102Ah, defaults --------
 
 // §6.2: "An attempt to change a bit of a functionality that is not supported by the CANopen device

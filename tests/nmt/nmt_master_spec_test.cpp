@@ -23,7 +23,7 @@ namespace {
 using Kind = MasterEvent::Kind;
 
 std::string nmt_text(NmtCommand command, std::uint8_t node) {
-  return to_candump(make_nmt_command(command, node));
+  return to_candump(make_nmt_command(command, cfg::NodeId::from(node).value()));
 }
 
 // ------------------------------------------------------------------ NMT start-up (§3.1) -------

@@ -168,11 +168,34 @@ TEST(NmtSlave, ServicesPerStateFollowCia301Table) {
 
 TEST(NmtSlave, CommandFramesAreEncodedAsTheSpecExamples) {
   // spec/002: "000 2 80 01: NMT host commands node 1 into pre-operational state" etc.
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::EnterPreOperational, 1)), "000#8001");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Start, 5)), "000#0105");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Stop, 1)), "000#0201");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetCommunication, 1)), "000#8201");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetNode, 0)), "000#8100");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::EnterPreOperational, id(1))), "000#8001");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Start, id(5))), "000#0105");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Stop, id(1))), "000#0201");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetCommunication, id(1))), "000#8201");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetNode, NmtTarget::all_nodes())),
+            "000#8100");
+}
+
+// CiA 301 §7.2.8.3.1: node-ID 0 addresses all nodes, 1..127 one node; nothing else is a command.
+TEST(NmtSlave, CommandFramesNameOneNodeOrAllNodes) {
+  auto all = parse_nmt_command(*from_candump("000#8100"));
+  ASSERT_TRUE(all.has_value());
+  EXPECT_EQ(all->command, NmtCommand::ResetNode);
+  EXPECT_TRUE(all->target.all());
+  EXPECT_EQ(all->target.node(), std::nullopt);
+  EXPECT_TRUE(all->target.addresses(id(1)));
+  EXPECT_TRUE(all->target.addresses(id(127)));
+
+  auto one = parse_nmt_command(*from_candump("000#017F"));
+  ASSERT_TRUE(one.has_value());
+  EXPECT_EQ(one->target, NmtTarget(id(127)));
+  EXPECT_TRUE(one->target.addresses(id(127)));
+  EXPECT_FALSE(one->target.addresses(id(1)));
+  EXPECT_EQ(to_candump(make_nmt_command(one->command, one->target)), "000#017F");
+
+  EXPECT_EQ(NmtTarget::from_byte(0x80), std::nullopt);
+  EXPECT_EQ(NmtTarget::from_byte(0xFF), std::nullopt);
+  EXPECT_EQ(parse_nmt_command(*from_candump("000#01FF")).has_value(), false);
 }
 
 TEST(NmtSlave, StateBytesDecodeIgnoringToggleBit) {

@@ -992,8 +992,8 @@ std::vector<NodeGuardingEvent> guard_for(DeviceFaults faults, Duration how_long)
   SimEngineNode<NodeGuardingMaster> guard;
   guard.set_event_handler([&](const NodeGuardingEvent& e, TimePoint) { events.push_back(e); });
   rig.bus.attach(guard);
-  guard.apply([](NodeGuardingMaster& master, TimePoint now, NodeGuardingMaster::Output&) {
-    master.start(cfg::NodeId::from(kNode).value(), 100, 3, now);
+  guard.apply([](NodeGuardingMaster& master, TimePoint now, NodeGuardingMaster::Output& out) {
+    ASSERT_TRUE(master.start(cfg::NodeId::from(kNode).value(), 100, 3, now, out));
   });
   rig.bus.run_for(how_long);
   return events;

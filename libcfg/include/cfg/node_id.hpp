@@ -27,6 +27,7 @@ class NodeId {
   constexpr std::uint8_t value() const { return value_; }
   constexpr operator std::uint8_t() const { return value_; }  // NOLINT(google-explicit-constructor)
   constexpr bool operator==(const NodeId&) const = default;
+  // NOLINTNEXTLINE(modernize-use-nullptr): clang-tidy 14 flags the 0 of the defaulted compare
   constexpr auto operator<=>(const NodeId&) const = default;
 
  private:

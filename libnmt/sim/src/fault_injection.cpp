@@ -216,7 +216,7 @@ void FaultInjectedSlave::pass(Output& inner, bool drop_heartbeat, TimePoint now,
     if (drop_heartbeat) {
       // The heartbeat, not the boot-up (00) that may come in the same call.
       auto msg = parse_error_control(frame);
-      if (msg && msg->node_id == node_->node_id().value() && msg->byte != 0) continue;
+      if (msg && msg->node_id == node_->node_id() && msg->byte != 0) continue;
     }
     if (f.sdo_latency > Duration::zero() && on_cob_id(frame, node_->sdo_config().response_cob_id)) {
       state_->sdo_responses.hold(frame, now + f.sdo_latency);

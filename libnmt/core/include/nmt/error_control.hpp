@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cfg/node_id.hpp"
+#include "cfg/result.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/nmt_slave.hpp"
@@ -23,14 +24,15 @@ CanFrame make_heartbeat(cfg::NodeId node_id, NmtState state);
 CanFrame make_guarding_request(cfg::NodeId node_id);
 
 /// A received error-control message (heartbeat, boot-up or guarding reply): 700h + node-ID, one
-/// data byte, no RTR.
+/// data byte, no RTR. The node-ID is checked once, here: 700h (node-ID 0) and 780h-7FFh are no
+/// error-control messages.
 struct ErrorControlMessage {
-  std::uint8_t node_id;
+  cfg::NodeId node_id;
   std::uint8_t byte;  ///< state in bits 0-6, toggle bit (guarding) or reserved (heartbeat) in 7
   std::optional<NmtState> state() const { return nmt_state_from_byte(byte); }
   bool toggle() const { return (byte & 0x80) != 0; }
 };
-/// nullopt for any other frame (other COB-IDs, RTR, DLC != 1).
+/// nullopt for any other frame (other COB-IDs, node-ID outside 1..127, RTR, DLC != 1).
 std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame);
 
 /// One sub-index of 1016h: node-ID in bits 16-23, heartbeat time in ms in bits 0-15; a node-ID
@@ -39,6 +41,8 @@ struct HeartbeatConsumerEntry {
   std::uint8_t node_id = 0;
   std::uint16_t time_ms = 0;
   bool active() const { return cfg::is_node_id(node_id) && time_ms != 0; }
+  /// The node the entry names; nullopt for 0 and values above 127 (unused entries).
+  std::optional<cfg::NodeId> node() const { return cfg::NodeId::from(node_id); }
   std::uint32_t encode() const { return (std::uint32_t{node_id} << 16) | time_ms; }
   static HeartbeatConsumerEntry decode(std::uint32_t value) {
     return {static_cast<std::uint8_t>((value >> 16) & 0xFF),
@@ -58,7 +62,10 @@ class HeartbeatProducer {
   explicit HeartbeatProducer(cfg::NodeId node_id) : node_id_(node_id) {}
 
   /// Sets 1017h. 0 stops the producer; a change restarts the cycle with a heartbeat due `now`
-  /// (next_deadline() == now: the driver calls on_timer() at once).
+  /// (next_deadline() == now: the driver calls on_timer() at once). No Output, unlike the starts
+  /// of engine.hpp rule 5: this is a parameter write, made by an SDO download or a reset of the
+  /// communication area, and the first heartbeat follows what that call sends (the SDO answer
+  /// confirming the write, the boot-up message), not the other way round.
   void set_period(std::uint16_t period_ms, TimePoint now);
   std::uint16_t period_ms() const { return period_ms_; }
   /// The node-ID the heartbeats are sent for (700h + node-ID).
@@ -95,7 +102,7 @@ enum class HeartbeatEventKind : std::uint8_t {
 std::string_view to_string(HeartbeatEventKind kind);
 
 struct HeartbeatEvent {
-  std::uint8_t node_id;
+  cfg::NodeId node_id;
   HeartbeatEventKind kind;
   std::optional<NmtState> state;  ///< the announced state (nullopt for Timeout)
   TimePoint at;
@@ -120,12 +127,14 @@ class HeartbeatConsumer {
   explicit HeartbeatConsumer(HeartbeatConsumerOptions options = {}) : options_(options) {}
 
   /// Starts (or restarts) monitoring of entry.node_id at `now`; an inactive entry stops it.
+  /// Sends and reports nothing at once (a timeout is the earliest it reports), so it takes no
+  /// Output (engine.hpp rule 5).
   void monitor(HeartbeatConsumerEntry entry, TimePoint now);
-  void stop(std::uint8_t node_id) { nodes_.erase(node_id); }
+  void stop(cfg::NodeId node_id) { nodes_.erase(node_id); }
   void stop_all() { nodes_.clear(); }
-  bool monitors(std::uint8_t node_id) const { return nodes_.count(node_id) != 0; }
+  bool monitors(cfg::NodeId node_id) const { return nodes_.count(node_id) != 0; }
   /// The last state a node announced, if any.
-  std::optional<NmtState> last_state(std::uint8_t node_id) const;
+  std::optional<NmtState> last_state(cfg::NodeId node_id) const;
 
   /// Feeds a received frame; error-control messages of monitored nodes may produce events and
   /// return true (false for every other frame). Sends nothing.
@@ -143,7 +152,7 @@ class HeartbeatConsumer {
     std::optional<NmtState> state;
   };
   HeartbeatConsumerOptions options_;
-  std::map<std::uint8_t, Node> nodes_;
+  std::map<cfg::NodeId, Node> nodes_;
 };
 
 /// What life guarding reports (CiA 301 §7.2.8.3.2.1).
@@ -203,7 +212,7 @@ enum class NodeGuardingEventKind : std::uint8_t {
 std::string_view to_string(NodeGuardingEventKind kind);
 
 struct NodeGuardingEvent {
-  std::uint8_t node_id;
+  cfg::NodeId node_id;
   NodeGuardingEventKind kind;
   std::optional<NmtState> state;  ///< the state in the reply (nullopt for Timeout)
   TimePoint at;
@@ -221,12 +230,13 @@ class NodeGuardingMaster {
   using Event = NodeGuardingEvent;
   using Output = Outbox<Event>;
 
-  /// Starts guarding `node_id` with the first request at `now`. guard_time_ms and
-  /// life_time_factor must both be non-zero (else the node is not guarded).
-  void start(cfg::NodeId node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
-             TimePoint now);
-  void stop(std::uint8_t node_id) { nodes_.erase(node_id); }
-  bool guards(std::uint8_t node_id) const { return nodes_.count(node_id) != 0; }
+  /// Starts (or restarts) guarding `node_id` (engine.hpp rule 5): the first request goes into
+  /// `out` at once, the next one guard_time_ms later. A guard time or life time factor of 0
+  /// guards nothing (CiA 302-2 §6.3): the call returns why, changes nothing and sends nothing.
+  cfg::Status start(cfg::NodeId node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
+                    TimePoint now, Output& out);
+  void stop(cfg::NodeId node_id) { nodes_.erase(node_id); }
+  bool guards(cfg::NodeId node_id) const { return nodes_.count(node_id) != 0; }
 
   /// Feeds a received frame; a reply of a guarded node that awaits one returns true and may
   /// produce events. Other frames return false.
@@ -247,7 +257,9 @@ class NodeGuardingMaster {
     bool timed_out = false;
     std::optional<NmtState> state;
   };
-  std::map<std::uint8_t, Node> nodes_;
+  /// Sends the node's request when it is due, counting the unanswered one before it.
+  static void send_due(cfg::NodeId id, Node& node, TimePoint now, Output& out);
+  std::map<cfg::NodeId, Node> nodes_;
 };
 
 static_assert(Engine<HeartbeatConsumer>);

@@ -42,12 +42,38 @@ std::optional<NmtCommand> nmt_command_from_byte(std::uint8_t byte);
 inline constexpr std::uint32_t kNmtCobId = 0x000;
 inline constexpr std::uint32_t kErrorControlCobIdBase = 0x700;
 
-/// The NMT module control frame `000#CCNN`; node_id 0 addresses all nodes, else 1..127.
-CanFrame make_nmt_command(NmtCommand command, std::uint8_t node_id);
-/// A received NMT command: the command and the node-ID it addresses (0: all nodes).
+/// Whom an NMT module control command addresses: one node, or all nodes, which the frame writes
+/// as node-ID 0 (CiA 301 §7.2.8.3.1). Converts implicitly from a cfg::NodeId.
+class NmtTarget {
+ public:
+  constexpr NmtTarget(cfg::NodeId node) : node_(node) {}  // NOLINT(google-explicit-constructor)
+  static constexpr NmtTarget all_nodes() { return NmtTarget(); }
+  /// The target a frame's byte 1 names: 0 all nodes, 1..127 that node; nullopt above 127.
+  static constexpr std::optional<NmtTarget> from_byte(std::uint8_t byte) {
+    if (byte == 0) return all_nodes();
+    if (const auto node = cfg::NodeId::from(byte)) return NmtTarget(*node);
+    return std::nullopt;
+  }
+  constexpr bool all() const { return !node_.has_value(); }
+  /// The one node addressed; nullopt for all nodes.
+  constexpr std::optional<cfg::NodeId> node() const { return node_; }
+  /// True when a node with this node-ID obeys the command (it is the target, or all nodes are).
+  constexpr bool addresses(cfg::NodeId node) const { return !node_ || *node_ == node; }
+  /// Byte 1 of the frame: the node-ID, 0 for all nodes.
+  constexpr std::uint8_t byte() const { return node_ ? node_->value() : std::uint8_t{0}; }
+  constexpr bool operator==(const NmtTarget&) const = default;
+
+ private:
+  constexpr NmtTarget() = default;
+  std::optional<cfg::NodeId> node_;
+};
+
+/// The NMT module control frame `000#CCNN` (NN: the node-ID, 00 for all nodes).
+CanFrame make_nmt_command(NmtCommand command, NmtTarget target);
+/// A received NMT command: the command and whom it addresses.
 struct NmtCommandFrame {
   NmtCommand command;
-  std::uint8_t node_id;
+  NmtTarget target;
 };
 /// Parses a frame on COB-ID 000h with exactly two data bytes and a known specifier; nullopt for
 /// anything else (other COB-IDs, RTR, wrong length, unknown specifier, node-ID > 127).
@@ -120,7 +146,10 @@ class NmtSlave {
   void set_state(NmtState state);
 
   /// Power failure / hardware reset: back to initialising with a reset-application pending.
-  void power_on();
+  /// The start of engine.hpp rule 5 in its shape, though it sends and reports nothing at once:
+  /// initialisation comes first, and the owner ends it with finish_initialisation(), which
+  /// sends the boot-up message.
+  void power_on(TimePoint now, Output& out);
 
   /// Changes the node-ID used from the next initialisation on (e.g. LSS configured a new one;
   /// CiA 301 applies a new node-ID at reset communication).

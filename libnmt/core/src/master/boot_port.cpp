@@ -120,11 +120,10 @@ bool NmtMaster::Impl::BootPort::start_error_control(cfg::NodeId node, TimePoint 
         now);
     return true;
   }
-  // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero.
+  // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero
+  // (start refuses 0s).
   const auto a = m_.assignment(node);
-  if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
-    m_.guarding.start(node, a.guard_time_ms(), a.retry_factor(), now);
-  }
+  (void)m_.guarding.start(node, a.guard_time_ms(), a.retry_factor(), now, m_.guarding_started);
   return false;
 }
 

@@ -9,8 +9,8 @@ namespace nmt {
 
 void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimePoint now,
                                        Output& out) {
-  const auto node = message.node_id;
-  if (node == node_id.value() || !cfg::is_node_id(node)) return;
+  const auto node = message.node_id;  // 1..127: parse_error_control checked it
+  if (node == node_id) return;
   if (message.byte == 0) {
     on_boot_up(node, now, out);
     return;
@@ -92,8 +92,10 @@ void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint
 }
 
 void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
-  heartbeats.stop(node);
-  guarding.stop(node);
+  const auto id = cfg::NodeId::from(node);
+  if (!id) return;
+  heartbeats.stop(*id);
+  guarding.stop(*id);
 }
 
 }  // namespace nmt

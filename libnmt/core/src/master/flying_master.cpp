@@ -249,7 +249,7 @@ bool FlyingMasterProcess::detection_frame(const CanFrame& frame, TimePoint now, 
   }
   if (detection_.phase == P::Wait) {
     const auto command = parse_nmt_command(frame);
-    if (command && command->node_id == 0 && command->command == NmtCommand::Start) {
+    if (command && command->target.all() && command->command == NmtCommand::Start) {
       // DSP 302 §5.5.3.1: the node-ID slots keep a group of self-starting devices from each
       // sending the start: one with a lower node-ID did.
       detection_ = Detection{};
@@ -342,7 +342,7 @@ bool FlyingMasterProcess::on_frame(const CanFrame& frame, TimePoint now, Output&
       break;
   }
   if (const auto command = parse_nmt_command(frame)) {
-    if (command->node_id != 0 && command->node_id != node_.value()) return false;
+    if (!command->target.addresses(node_)) return false;
     if (command->command == NmtCommand::ResetCommunication ||
         command->command == NmtCommand::ResetNode) {
       // DSP 302 §5.5.1.2: a reset makes every master-capable device negotiate again (warm).

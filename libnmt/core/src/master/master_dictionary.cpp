@@ -239,8 +239,8 @@ void NmtMaster::Impl::install_hooks() {
       const std::uint8_t state =
           sub == node_id.value() ? static_cast<std::uint8_t>(own_state) : slaves[sub].known_state;
       dict.set_unsigned(index, sub, state);
-    } else if (index == obj::kRequestGuarding && cfg::is_node_id(sub)) {
-      dict.set_unsigned(index, sub, guarding.guards(sub) ? 1 : 0);
+    } else if (const auto node = cfg::NodeId::from(sub); index == obj::kRequestGuarding && node) {
+      dict.set_unsigned(index, sub, guarding.guards(*node) ? 1 : 0);
     }
     return SdoAbort::None;
   });
@@ -379,10 +379,10 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
       return SdoAbort::None;
     }
     const auto a = assignment(node);
-    // §6.3: guard time or retry factor 0 disable guarding for the device.
-    if (a.guard_time_ms() == 0 || a.retry_factor() == 0) return SdoAbort::General;
-    guarding.start(node, a.guard_time_ms(), a.retry_factor(), now);
-    return SdoAbort::None;
+    // §6.3: guard time or retry factor 0 disable guarding for the device (start refuses them).
+    const auto started =
+        guarding.start(node, a.guard_time_ms(), a.retry_factor(), now, guarding_started);
+    return started ? SdoAbort::None : SdoAbort::General;
   };
   if (sub == kAll) {
     for (const auto n : all_node_ids()) {

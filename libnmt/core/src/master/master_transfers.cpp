@@ -251,6 +251,8 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   report_program_progress(now, out);
   for (const auto& f : sdo_out.frames) out.send(f);
   sdo_out.frames.clear();
+  for (const auto& f : guarding_started.frames) out.send(f);
+  guarding_started.clear();
 }
 
 }  // namespace nmt

@@ -9,7 +9,9 @@ void NmtCommandQueue::on_timer(TimePoint now, Output& out) {
   while (!queue_.empty() && !inhibited(now)) {
     const auto [command, node] = queue_.front();
     queue_.pop_front();
-    out.send(make_nmt_command(command, node));
+    const auto target = NmtTarget::from_byte(node);
+    if (!target) continue;  // not 0 (all nodes) nor a node-ID: no command to send
+    out.send(make_nmt_command(command, *target));
     out.report(Sent{command, node});
     last_ = now;
   }

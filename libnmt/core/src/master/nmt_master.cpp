@@ -217,6 +217,9 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
     due = earliest(due, m.paced_until);
   }
   due = earliest(due, m.nmt_commands.next_deadline());
+  // Guarding started outside a call of the master (a hook of a local write): its first request
+  // waits for the next call's settle().
+  if (!m.guarding_started.frames.empty()) due = TimePoint{};
   return due;
 }
 

@@ -152,6 +152,11 @@ struct NmtMaster::Impl {
   Outbox<NoEvent> part_out;
   Outbox<HeartbeatEvent> heartbeat_out;
   Outbox<NodeGuardingEvent> guarding_out;
+  /// The first requests of the node guarding started in this call (NodeGuardingMaster::start
+  /// puts them out at once, engine.hpp rule 5); settle() sends them last, after the call's NMT
+  /// commands and SDO requests, where the first request has always gone: a slave that boot
+  /// starts is started before its first guarding request, so its first reply says operational.
+  Outbox<NodeGuardingEvent> guarding_started;
 
   /// The flying master's port to this master (master_flying_port.cpp).
   struct FlyingPort final : FlyingMasterPort {

@@ -56,7 +56,8 @@ std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(std::uint8_t
 }
 
 bool NmtMaster::Impl::ManagerPort::watches(std::uint8_t node) const {
-  return m.heartbeats.monitors(node) || m.guarding.guards(node);
+  const auto id = cfg::NodeId::from(node);
+  return id && (m.heartbeats.monitors(*id) || m.guarding.guards(*id));
 }
 
 void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Duration> heartbeat,
@@ -70,14 +71,12 @@ void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Durati
   }
   const auto a = m.assignment(node);
   auto id = *cfg::NodeId::from(node);
-  if (a.guard_time_ms() != 0 && a.retry_factor() != 0) {
-    m.guarding.start(id, a.guard_time_ms(), a.retry_factor(), now);
-    return;
-  }
+  if (m.guarding.start(id, a.guard_time_ms(), a.retry_factor(), now, m.guarding_started)) return;
   const auto guard_ms =
       std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
-  m.guarding.start(id, static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
-                   kGuardLifeTimeFactor, now);
+  (void)m.guarding.start(id,
+                         static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
+                         kGuardLifeTimeFactor, now, m.guarding_started);
 }
 
 void NmtMaster::Impl::ManagerPort::unwatch(std::uint8_t node) {

@@ -26,11 +26,11 @@ CanFrame make_guarding_request(cfg::NodeId node_id) {
 
 std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame) {
   if (frame.extended || frame.rtr || frame.error || frame.dlc != 1) return std::nullopt;
-  if (frame.id < kErrorControlCobIdBase || !cfg::is_node_id(frame.id - kErrorControlCobIdBase)) {
-    return std::nullopt;
-  }
-  return ErrorControlMessage{static_cast<std::uint8_t>(frame.id - kErrorControlCobIdBase),
-                             frame.data[0]};
+  if (frame.id < kErrorControlCobIdBase) return std::nullopt;
+  // 700h (node-ID 0) and 780h-7FFh carry no node's error control.
+  const auto node = cfg::NodeId::from(frame.id - kErrorControlCobIdBase);
+  if (!node) return std::nullopt;
+  return ErrorControlMessage{*node, frame.data[0]};
 }
 
 // --- heartbeat producer -------------------------------------------------------------------------
@@ -80,17 +80,19 @@ std::string_view to_string(HeartbeatEventKind kind) {
 }
 
 void HeartbeatConsumer::monitor(HeartbeatConsumerEntry entry, TimePoint now) {
+  const auto id = entry.node();
+  if (!id) return;  // names no node: nothing to start or stop
   if (!entry.active()) {
-    if (entry.node_id != 0) nodes_.erase(entry.node_id);
+    nodes_.erase(*id);
     return;
   }
   Node node;
   node.time = ms(entry.time_ms);
   if (options_.timeout_from_start) node.expires = now + node.time;
-  nodes_[entry.node_id] = node;
+  nodes_[*id] = node;
 }
 
-std::optional<NmtState> HeartbeatConsumer::last_state(std::uint8_t node_id) const {
+std::optional<NmtState> HeartbeatConsumer::last_state(cfg::NodeId node_id) const {
   auto it = nodes_.find(node_id);
   return it == nodes_.end() ? std::nullopt : it->second.state;
 }
@@ -202,17 +204,19 @@ std::string_view to_string(NodeGuardingEventKind kind) {
   return "unknown";
 }
 
-void NodeGuardingMaster::start(cfg::NodeId node_id, std::uint16_t guard_time_ms,
-                               std::uint8_t life_time_factor, TimePoint now) {
-  if (guard_time_ms == 0 || life_time_factor == 0) {
-    nodes_.erase(node_id);
-    return;
-  }
-  Node node;
+cfg::Status NodeGuardingMaster::start(cfg::NodeId node_id, std::uint16_t guard_time_ms,
+                                      std::uint8_t life_time_factor, TimePoint now, Output& out) {
+  // CiA 302-2 §6.3: a guard time or retry factor of 0 disables guarding of the device.
+  if (guard_time_ms == 0) return cfg::Error{"node guarding needs a guard time above 0 ms"};
+  if (life_time_factor == 0) return cfg::Error{"node guarding needs a life time factor above 0"};
+  Node& node = nodes_[node_id];
+  node = Node{};
   node.guard_time = ms(guard_time_ms);
   node.life_time_factor = life_time_factor;
   node.next_request = now;
-  nodes_[node_id] = node;
+  // The first request goes out now (engine.hpp rule 5), as on_timer sends every later one.
+  send_due(node_id, node, now, out);
+  return {};
 }
 
 bool NodeGuardingMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
@@ -244,23 +248,24 @@ bool NodeGuardingMaster::on_frame(const CanFrame& frame, TimePoint now, Output& 
   return true;
 }
 
-void NodeGuardingMaster::on_timer(TimePoint now, Output& out) {
-  for (auto& [id, node] : nodes_) {
-    if (now < node.next_request) continue;
-    // The previous request's answer window ends with this request.
-    if (node.awaiting_reply) {
-      if (node.missed < 255) ++node.missed;
-      if (node.missed >= node.life_time_factor && !node.timed_out) {
-        node.timed_out = true;
-        out.report({id, NodeGuardingEventKind::Timeout, std::nullopt, node.next_request});
-      }
+void NodeGuardingMaster::send_due(cfg::NodeId id, Node& node, TimePoint now, Output& out) {
+  if (now < node.next_request) return;
+  // The previous request's answer window ends with this request.
+  if (node.awaiting_reply) {
+    if (node.missed < 255) ++node.missed;
+    if (node.missed >= node.life_time_factor && !node.timed_out) {
+      node.timed_out = true;
+      out.report({id, NodeGuardingEventKind::Timeout, std::nullopt, node.next_request});
     }
-    // The map holds only node-IDs start() accepted.
-    out.send(make_guarding_request(*cfg::NodeId::from(id)));
-    node.awaiting_reply = true;
-    node.next_request += node.guard_time;
-    if (node.next_request <= now) node.next_request = now + node.guard_time;
   }
+  out.send(make_guarding_request(id));
+  node.awaiting_reply = true;
+  node.next_request += node.guard_time;
+  if (node.next_request <= now) node.next_request = now + node.guard_time;
+}
+
+void NodeGuardingMaster::on_timer(TimePoint now, Output& out) {
+  for (auto& [id, node] : nodes_) send_due(id, node, now, out);
 }
 
 std::optional<TimePoint> NodeGuardingMaster::next_deadline() const {

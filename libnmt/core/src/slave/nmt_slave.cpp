@@ -72,8 +72,8 @@ std::string_view to_string(ResetScope scope) {
   return scope == ResetScope::Application ? "reset application" : "reset communication";
 }
 
-CanFrame make_nmt_command(NmtCommand command, std::uint8_t node_id) {
-  const std::array<std::uint8_t, 2> bytes{static_cast<std::uint8_t>(command), node_id};
+CanFrame make_nmt_command(NmtCommand command, NmtTarget target) {
+  const std::array<std::uint8_t, 2> bytes{static_cast<std::uint8_t>(command), target.byte()};
   return CanFrame::make(kNmtCobId, bytes);
 }
 
@@ -83,8 +83,9 @@ std::optional<NmtCommandFrame> parse_nmt_command(const CanFrame& frame) {
     return std::nullopt;
   }
   auto command = nmt_command_from_byte(frame.data[0]);
-  if (!command || (frame.data[1] != 0 && !cfg::is_node_id(frame.data[1]))) return std::nullopt;
-  return NmtCommandFrame{*command, frame.data[1]};
+  auto target = NmtTarget::from_byte(frame.data[1]);
+  if (!command || !target) return std::nullopt;
+  return NmtCommandFrame{*command, *target};
 }
 
 CanFrame make_boot_up(cfg::NodeId node_id) {
@@ -117,7 +118,7 @@ NmtSlave::NmtSlave(cfg::NodeId node_id) : node_id_(node_id), pending_node_id_(no
 bool NmtSlave::on_frame(const CanFrame& frame, TimePoint /*now*/, Output& out) {
   if (state_ == NmtState::Initialising) return false;
   auto command = parse_nmt_command(frame);
-  if (!command || (command->node_id != 0 && command->node_id != node_id_)) return false;
+  if (!command || !command->target.addresses(node_id_)) return false;
 
   Transition t{state_, state_, command->command, std::nullopt};
   switch (command->command) {
@@ -159,7 +160,7 @@ void NmtSlave::set_state(NmtState state) {
   state_ = state;
 }
 
-void NmtSlave::power_on() {
+void NmtSlave::power_on(TimePoint /*now*/, Output& /*out*/) {
   state_ = NmtState::Initialising;
   pending_reset_ = ResetScope::Application;
 }

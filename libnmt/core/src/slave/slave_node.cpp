@@ -191,11 +191,14 @@ void SlaveNode::sync_parts() {
 
 void SlaveNode::power_on(TimePoint now, Output& out) {
   powered_ = true;
+  // The NMT slave's power-on sends nothing (finish_initialisation() does); forwarded all the same.
+  NmtSlave::Output nmt_out;
   if (lss_) {
     const std::uint8_t id = lss_stored_ ? lss_stored_->node_id : power_on_node_id_;
     lss_->power_on(id, lss_stored_ ? std::optional(lss_stored_->bit_timing_index) : std::nullopt);
     if (id == lss::kUnconfigured) {
-      nmt_.power_on();
+      nmt_.power_on(now, nmt_out);
+      forward_frames(nmt_out, out);
       become_unconfigured(now);
       return;
     }
@@ -205,7 +208,8 @@ void SlaveNode::power_on(TimePoint now, Output& out) {
       return;
     }
   }
-  nmt_.power_on();
+  nmt_.power_on(now, nmt_out);
+  forward_frames(nmt_out, out);
   enter_initialisation(ResetScope::Application, now);
 }
 
