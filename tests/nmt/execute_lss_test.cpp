@@ -38,9 +38,9 @@ LssAddress sim_address(std::uint32_t serial) {
 }
 
 struct FakePort final : ExecuteLssPort {
-  std::optional<std::uint8_t> slave_with(const LssAddress& address) const override {
+  std::optional<cfg::NodeId> slave_with(const LssAddress& address) const override {
     for (const auto& [node, a] : slaves) {
-      if (a == address) return node;
+      if (a == address) return cfg::NodeId::from(node);
     }
     return std::nullopt;
   }
@@ -153,12 +153,35 @@ TEST_F(ExecuteLssEngine, StopAbandonsTheScanAndItsAnswersAreNotTaken) {
 
 // --- the engine against LSS slaves on the simulated bus -------------------------------------
 
+// An unconfigured LSS device that refuses every configure node-ID with error code 1 (CiA 305:
+// node-ID out of range; a device may accept less than 1..127), a test fault wrapper of the
+// engine shape (engine.hpp rule 7) around an LssSlave.
+struct RefusesNodeId {
+  using Event = LssSlaveEvent;
+  using Output = LssSlave::Output;
+  explicit RefusesNodeId(LssAddress address) : slave(address, lss::kUnconfigured) {}
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+    if (lss::is_lss_frame(frame, lss::kMasterCobId) &&
+        frame.data[0] == static_cast<std::uint8_t>(lss::Cs::ConfigureNodeId) &&
+        slave.state() == LssState::Configuration) {
+      out.send(*from_candump("7E4#1101000000000000"));
+      return true;
+    }
+    return slave.on_frame(frame, now, out);
+  }
+  void on_timer(TimePoint now, Output& out) { slave.on_timer(now, out); }
+  std::optional<TimePoint> next_deadline() const { return slave.next_deadline(); }
+  LssSlave slave;
+};
+static_assert(Engine<RefusesNodeId>);
+
 class ExecuteLssBus : public ::testing::Test {
  protected:
   SimBus bus{500'000};
   FakePort port;
   SimEngineNode<ExecuteLssProcess> process{port, LssMasterOptions{}, Duration{0}};
   std::vector<std::unique_ptr<SimEngineNode<LssSlave>>> devices;
+  std::vector<std::unique_ptr<SimEngineNode<RefusesNodeId>>> refusing;
   std::vector<MasterEvent> events;
   Frames frames;
 
@@ -176,6 +199,11 @@ class ExecuteLssBus : public ::testing::Test {
     bus.attach(*raw);
     devices.push_back(std::move(node));
     return raw->engine();
+  }
+  LssSlave& add_refusing(LssAddress address) {
+    refusing.push_back(std::make_unique<SimEngineNode<RefusesNodeId>>(address));
+    bus.attach(*refusing.back());
+    return refusing.back()->engine().slave;
   }
   void run_pass() {
     process.apply([](auto& p, TimePoint now, auto& out) {
@@ -239,8 +267,8 @@ TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreOneDeviceToCiA305AndShareThe
 }
 
 TEST_F(ExecuteLssBus, RefusedConfigureNodeIdIsTheSlavesLssFailure) {
-  port.slaves[200] = sim_address(3);  // 200: out of CiA 305's range 1..127, refused
-  auto& device = add(sim_address(3));
+  port.slaves[9] = sim_address(3);
+  auto& device = add_refusing(sim_address(3));
   run_pass();
   EXPECT_EQ(device.active_node_id(), lss::kUnconfigured);
   ASSERT_EQ(texts(events, Kind::LssFailed).size(), 1u);
@@ -424,8 +452,8 @@ TEST_F(ExecuteLssBus, DevicesLeftAfterTheTargetsAreSearchedBitByBitAndReported) 
 }
 
 TEST_F(ExecuteLssBus, TargetWhoseConfigureFailedIsReportedOnceAndDevicesBelowItAreStillFound) {
-  port.slaves[200] = sim_address(0x50);  // 200: refused (CiA 305 range 1..127)
-  auto& refused = add(sim_address(0x50));
+  port.slaves[9] = sim_address(0x50);
+  auto& refused = add_refusing(sim_address(0x50));
   auto& stranger = add(sim_address(0x20));  // a lower address, matching no slave
   run_pass();
   EXPECT_EQ(refused.active_node_id(), lss::kUnconfigured);

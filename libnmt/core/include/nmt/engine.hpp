@@ -40,8 +40,9 @@
 //    Could not start: the call returns cfg::Result<Id> (cfg::Status when the work has no id to
 //    follow it by) whose error says why, and puts nothing into `out` (SdoRequestingDevice).
 //    Not all APIs follow this yet (issue 21): SdoClient and NmtMaster transfers answer
-//    TransferId (+ an event), LssMaster bool; NodeGuardingMaster::start takes no Output (its
-//    first request is due at `now`).
+//    TransferId (+ an event); NodeGuardingMaster::start takes no Output (its first request is
+//    due at `now`). LssSlave::power_on takes no `now, out` on purpose: an LSS slave never sends
+//    on its own (nmt/lss_slave.hpp).
 // 6. Engines keep no reference to `out` or to a frame after a call returns; they only append,
 //    and only to the `out` of the call they are in: what a dictionary hook reports goes into
 //    the output of the call the access runs in (LocalDictionary's HookOutput), never into a
