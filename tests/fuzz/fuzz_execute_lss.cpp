@@ -4,9 +4,10 @@
 // chooses (some devices' addresses, some of nobody's, one node-ID for two addresses).
 // Operations beyond the harness's: start(), watch(), stop(), the port's "may look" toggled.
 // Checks: no crash; the harness's deadline checks; a pass or look that runs has a deadline, Off
-// has none; pass_ended only ends a start-up pass, once; LssAssigned and LssFailed name the slave
-// whose LSS address the device has, LssUnmatched one that no slave has; once the input ends and
-// frames flow with time advancing, a pass or look ends within a bounded number of steps.
+// has none; pass_ended only ends a start()ed pass, once, not a stopped one; LssAssigned and
+// LssFailed name the slave whose LSS address the device has, LssUnmatched one that no slave has;
+// once the input ends and frames flow with time advancing, a pass or look ends within a bounded
+// number of steps.
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -35,13 +36,15 @@ struct FuzzPort final : nmt::ExecuteLssPort {
     return known;
   }
   void pass_ended(nmt::TimePoint /*now*/, Output& /*out*/) override {
-    check(process != nullptr && process->phase() == Phase::Startup);
+    // Only a start-up pass ends, once, and not after stop().
+    check(pass_open);
+    pass_open = false;
     ++passes_ended;
   }
   bool may_look() const override { return looking; }
 
   std::map<cfg::NodeId, nmt::LssAddress> slaves;
-  const nmt::ExecuteLssProcess* process = nullptr;
+  bool pass_open = false;  ///< start() called, its pass not ended or stopped
   int passes_ended = 0;
   bool looking = true;
 };
@@ -79,7 +82,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // A look every 0, 20, 200 or 1000 ms (0: none after the pass).
   const nmt::Duration periods[] = {0ms, 20ms, 200ms, 1000ms};
   nmt::ExecuteLssProcess process(port, lss_fuzz::timing_from(setup), periods[port_setup & 3]);
-  port.process = &process;
   ExecuteHarness h(process);
   lss_fuzz::add_slaves(h, setup, in);
   // Which devices are a slave's, and which node-ID: a byte each (bit 0: a slave's; the rest its
@@ -103,12 +105,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         switch (op % 4) {
           case 0:
             ++starts;
+            port.pass_open = true;
             process.start(h.now, out);
             break;
           case 1:
             process.watch(h.now);
             break;
           case 2:
+            port.pass_open = false;
             process.stop();
             break;
           default:

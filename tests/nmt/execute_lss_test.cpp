@@ -254,16 +254,33 @@ TEST_F(ExecuteLssBus, DeviceMatchingNoSlaveIsReportedWithItsAddressAndLeftUnconf
             0);
 }
 
-TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreOneDeviceToCiA305AndShareTheNodeId) {
+TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreReportedWithTheAddressAndLeftUnconfigured) {
   port.slaves[7] = sim_address(42);
   auto& first = add(sim_address(42));
   auto& second = add(sim_address(42));
   run_pass();
   // CiA 305 takes LSS addresses to be unique. Both devices answer each Fastscan step alike and
-  // are in configuration together, so configure node-ID and store reach both: the master
-  // reports one assignment and cannot tell them apart (a known limit, nmt_master.hpp).
-  EXPECT_EQ(texts(events, Kind::LssAssigned).size(), 1u);
-  EXPECT_EQ(first.active_node_id(), second.active_node_id());
+  // are in configuration together; the second answer to configure node-ID tells: FFh (not
+  // configured) is configured and stored in both, and the slave's LssFailed names the address.
+  EXPECT_TRUE(texts(events, Kind::LssAssigned).empty());
+  EXPECT_EQ(texts(events, Kind::LssFailed),
+            Frames{"node 7: LSS: vendor 7E57C0DEh product 00000508h revision 00020001h serial "
+                   "0000002Ah left unconfigured: more than one device answered configure node-ID "
+                   "with this LSS address (CiA 305 takes LSS addresses to be unique)"});
+  const auto failed =
+      std::find_if(events.begin(), events.end(), [](auto& e) { return e.kind == Kind::LssFailed; });
+  EXPECT_EQ(failed->lss_address, sim_address(42));
+  for (const LssSlave* d : {&first, &second}) {
+    EXPECT_EQ(d->active_node_id(), lss::kUnconfigured);
+    EXPECT_EQ(d->pending_node_id(), lss::kUnconfigured);
+    EXPECT_EQ(d->state(), LssState::Waiting);
+  }
+  // After configure node-ID 7 and store: configure FFh, store, back to waiting.
+  const auto undo = std::find(frames.begin(), frames.end(), "7E5#11FF000000000000");
+  ASSERT_NE(undo, frames.end());
+  EXPECT_EQ(std::count(undo, frames.end(), "7E5#1700000000000000"), 1);
+  EXPECT_EQ(texts(events, Kind::LssScanEnded),
+            Frames{"LSS: 1 unconfigured device found, 0 given a node-ID"});
 }
 
 TEST_F(ExecuteLssBus, RefusedConfigureNodeIdIsTheSlavesLssFailure) {

@@ -427,6 +427,29 @@ TEST_F(LssBus, ScanLooksPastADeviceItGivesNoNodeId) {
   }
 }
 
+TEST_F(LssBus, ScanLeavesTwoDevicesWithOneLssAddressUnconfiguredAndFindsTheOthers) {
+  // CiA 305 takes LSS addresses to be unique; two devices with one answer configure node-ID
+  // twice: FFh is configured and stored in both, the address Skipped, the others configured.
+  const LssAddress twin{0x0000019A, 0x00020001, 0x00010000, 0x00000005};
+  const LssAddress other{0x0000019A, 0x00020001, 0x00010000, 0x00000009};
+  for (const LssAddress& address : {twin, twin, other}) add(address);
+  scan_all();
+  ASSERT_EQ(events.size(), 3u);
+  EXPECT_EQ(events[0].kind, Kind::Skipped);
+  EXPECT_EQ(events[0].address, twin);
+  EXPECT_NE(events[0].text.find("more than one device answered configure node-ID with this LSS "
+                                "address"),
+            std::string::npos)
+      << events[0].text;
+  EXPECT_EQ(events[1].kind, Kind::Assigned);
+  EXPECT_EQ(events[1].address, other);
+  EXPECT_EQ(events[2].kind, Kind::Done);
+  EXPECT_EQ(events[2].value, 2u);
+  EXPECT_EQ(slaves[0]->engine().active_node_id(), lss::kUnconfigured);
+  EXPECT_EQ(slaves[1]->engine().active_node_id(), lss::kUnconfigured);
+  EXPECT_EQ(slaves[2]->engine().active_node_id(), 2);  // node-ID 1 went to the twins, undone
+}
+
 TEST_F(LssBus, ScanFirstSwitchesADeviceLeftInConfigurationBackToWaiting) {
   auto& bystander = add({0x0000019A, 0x00020001, 0x00010000, 0x00000001}, 9);
   LssSlave::Output ignored;

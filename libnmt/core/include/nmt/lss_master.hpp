@@ -54,6 +54,14 @@
 //   configure node-ID failed is left in waiting unconfigured; the bit-by-bit Fastscan finds it
 //   again and passes it without a second event. A target absent at its turn that appears later is
 //   found bit by bit and gets its node-ID from the chooser.
+// - Two devices with one LSS address (CiA 305 takes it to be unique; a factory mistake, a
+//   cloned serial number) answer every Fastscan step alike and are in configuration together.
+//   A second answer to the scan's configure node-ID, heard while the store waits for its
+//   answer, tells: the master then configures FFh (not configured) and stores it in all of
+//   them, switches them back to waiting, and reports the address Skipped (text: "more than one
+//   device answered ..."); the scan looks past it. It needs LssMasterOptions::store (the
+//   default): without the store's wait nothing is listened for. On a real bus two identical
+//   answers sent in the same bit time are one frame; then it is not seen (a known limit).
 #pragma once
 
 #include <chrono>
@@ -194,7 +202,8 @@ class LssMaster {
     int level = 3;     // Position/Probe: the part whose branches are probed
     int position = 0;  // Position: the part being confirmed
   };
-  enum class ScanPhase : std::uint8_t { Searching, Configuring, Storing };
+  // Unconfiguring, Unstoring: FFh configured and stored again after a duplicate LSS address.
+  enum class ScanPhase : std::uint8_t { Searching, Configuring, Storing, Unconfiguring, Unstoring };
   struct ScanState {
     NodeIdChooser chooser;
     std::optional<LssAddress> cursor;  // the highest address skipped
@@ -205,6 +214,7 @@ class LssMaster {
     std::vector<LssAddress> targets;  // known addresses, confirmed before the bit-by-bit search
     std::size_t next_target = 0;
     std::set<LssAddress> failed;  // targets whose configure node-ID failed (reported once)
+    bool duplicate = false;       // a second device answered this device's configure node-ID
   };
 
   cfg::Status start(LssService service);
@@ -226,6 +236,8 @@ class LssMaster {
   void scan_next(TimePoint now, Output& out);
   void scan_found(TimePoint now, Output& out);
   void scan_back_to_waiting(TimePoint now, Output& out);
+  void scan_undo(TimePoint now, Output& out);
+  static std::string duplicate_text();
   void scan_device_done(LssMasterEvent::Kind kind, std::string text, std::uint8_t error_code,
                         TimePoint now, Output& out);
 

@@ -225,6 +225,13 @@ bool LssMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     on_timer(now, out);
     return false;
   }
+  if (scan_ && scan_->phase == ScanPhase::Storing &&
+      frame.data[0] == static_cast<std::uint8_t>(Cs::ConfigureNodeId)) {
+    // A second answer to the scan's configure node-ID: more than one device has this LSS
+    // address (see the top of lss_master.hpp); undone when the store is answered.
+    scan_->duplicate = true;
+    return true;
+  }
   if (frame.data[0] != static_cast<std::uint8_t>(expect_)) return false;
   if (wait_ == Wait::Collect) {
     heard_ = true;
@@ -268,7 +275,15 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
     case Cs::StoreConfiguration: {
       if (scan_) {
         const std::string words = lss::error_text(expect_, code, spec);
-        if (scan_->phase == ScanPhase::Configuring && code != 0) {
+        if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
+          scan_undo(now, out);
+        } else if (scan_->phase == ScanPhase::Unconfiguring) {
+          scan_->phase = ScanPhase::Unstoring;
+          out.send(request(Cs::StoreConfiguration));
+          await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
+        } else if (scan_->phase == ScanPhase::Unstoring) {
+          scan_device_done(Kind::Skipped, duplicate_text(), 0, now, out);
+        } else if (scan_->phase == ScanPhase::Configuring && code != 0) {
           scan_device_done(Kind::Skipped, "configure node-ID refused: " + words, code, now, out);
         } else if (scan_->phase == ScanPhase::Configuring && options_.store) {
           scan_->phase = ScanPhase::Storing;
@@ -315,6 +330,11 @@ void LssMaster::timed_out(TimePoint now, Output& out) {
   if (scan_) {
     if (scan_->phase == ScanPhase::Configuring) {
       scan_device_done(Kind::Skipped, "configure node-ID: " + text, 0, now, out);
+    } else if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
+      scan_undo(now, out);
+    } else if (scan_->phase == ScanPhase::Unconfiguring || scan_->phase == ScanPhase::Unstoring) {
+      scan_device_done(Kind::Skipped, duplicate_text() + "; undoing its node-ID: " + text, 0, now,
+                       out);
     } else {
       scan_device_done(Kind::Assigned, "not stored: store configuration: " + text, 0, now, out);
     }
@@ -515,8 +535,22 @@ void LssMaster::scan_found(TimePoint now, Output& out) {
     return;
   }
   scan_->node_id = node_id;
+  scan_->duplicate = false;
   scan_->phase = ScanPhase::Configuring;
   out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {node_id->value()}));
+  await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
+}
+
+std::string LssMaster::duplicate_text() {
+  return "more than one device answered configure node-ID with this LSS address (CiA 305 takes "
+         "LSS addresses to be unique)";
+}
+
+void LssMaster::scan_undo(TimePoint now, Output& out) {
+  // Every device with the address is in LSS configuration and took the node-ID: FFh (not
+  // configured) to all of them, stored, then back to waiting without a node-ID.
+  scan_->phase = ScanPhase::Unconfiguring;
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {lss::kUnconfigured}));
   await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
 }
 
