@@ -81,9 +81,8 @@ void BM_LssFastscan(benchmark::State& state) {
     state.ResumeTiming();
     std::uint8_t next = 1;
     const nmt::TimePoint start = bus.now();
-    master.apply([&next](auto& m, auto t, auto& o) {
-      return m.scan([&next](const nmt::LssAddress&) { return std::optional<std::uint8_t>(next++); },
-                    t, o);
+    (void)master.apply([&next](auto& m, auto t, auto& o) {
+      return m.scan([&next](const nmt::LssAddress&) { return cfg::NodeId::from(next++); }, t, o);
     });
     if (!bus.run_until([&master] { return !master.engine().busy(); }, nmt::TimePoint{36000s}) ||
         assigned != static_cast<std::uint32_t>(n)) {

@@ -38,9 +38,9 @@ LssAddress sim_address(std::uint32_t serial) {
 }
 
 struct FakePort final : ExecuteLssPort {
-  std::optional<std::uint8_t> slave_with(const LssAddress& address) const override {
+  std::optional<cfg::NodeId> slave_with(const LssAddress& address) const override {
     for (const auto& [node, a] : slaves) {
-      if (a == address) return node;
+      if (a == address) return cfg::NodeId::from(node);
     }
     return std::nullopt;
   }
@@ -153,12 +153,35 @@ TEST_F(ExecuteLssEngine, StopAbandonsTheScanAndItsAnswersAreNotTaken) {
 
 // --- the engine against LSS slaves on the simulated bus -------------------------------------
 
+// An unconfigured LSS device that refuses every configure node-ID with error code 1 (CiA 305:
+// node-ID out of range; a device may accept less than 1..127), a test fault wrapper of the
+// engine shape (engine.hpp rule 7) around an LssSlave.
+struct RefusesNodeId {
+  using Event = LssSlaveEvent;
+  using Output = LssSlave::Output;
+  explicit RefusesNodeId(LssAddress address) : slave(address, lss::kUnconfigured) {}
+  bool on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+    if (lss::is_lss_frame(frame, lss::kMasterCobId) &&
+        frame.data[0] == static_cast<std::uint8_t>(lss::Cs::ConfigureNodeId) &&
+        slave.state() == LssState::Configuration) {
+      out.send(*from_candump("7E4#1101000000000000"));
+      return true;
+    }
+    return slave.on_frame(frame, now, out);
+  }
+  void on_timer(TimePoint now, Output& out) { slave.on_timer(now, out); }
+  std::optional<TimePoint> next_deadline() const { return slave.next_deadline(); }
+  LssSlave slave;
+};
+static_assert(Engine<RefusesNodeId>);
+
 class ExecuteLssBus : public ::testing::Test {
  protected:
   SimBus bus{500'000};
   FakePort port;
   SimEngineNode<ExecuteLssProcess> process{port, LssMasterOptions{}, Duration{0}};
   std::vector<std::unique_ptr<SimEngineNode<LssSlave>>> devices;
+  std::vector<std::unique_ptr<SimEngineNode<RefusesNodeId>>> refusing;
   std::vector<MasterEvent> events;
   Frames frames;
 
@@ -176,6 +199,11 @@ class ExecuteLssBus : public ::testing::Test {
     bus.attach(*raw);
     devices.push_back(std::move(node));
     return raw->engine();
+  }
+  LssSlave& add_refusing(LssAddress address) {
+    refusing.push_back(std::make_unique<SimEngineNode<RefusesNodeId>>(address));
+    bus.attach(*refusing.back());
+    return refusing.back()->engine().slave;
   }
   void run_pass() {
     process.apply([](auto& p, TimePoint now, auto& out) {
@@ -226,21 +254,38 @@ TEST_F(ExecuteLssBus, DeviceMatchingNoSlaveIsReportedWithItsAddressAndLeftUnconf
             0);
 }
 
-TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreOneDeviceToCiA305AndShareTheNodeId) {
+TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreReportedWithTheAddressAndLeftUnconfigured) {
   port.slaves[7] = sim_address(42);
   auto& first = add(sim_address(42));
   auto& second = add(sim_address(42));
   run_pass();
   // CiA 305 takes LSS addresses to be unique. Both devices answer each Fastscan step alike and
-  // are in configuration together, so configure node-ID and store reach both: the master
-  // reports one assignment and cannot tell them apart (a known limit, nmt_master.hpp).
-  EXPECT_EQ(texts(events, Kind::LssAssigned).size(), 1u);
-  EXPECT_EQ(first.active_node_id(), second.active_node_id());
+  // are in configuration together; the second answer to configure node-ID tells: FFh (not
+  // configured) is configured and stored in both, and the slave's LssFailed names the address.
+  EXPECT_TRUE(texts(events, Kind::LssAssigned).empty());
+  EXPECT_EQ(texts(events, Kind::LssFailed),
+            Frames{"node 7: LSS: vendor 7E57C0DEh product 00000508h revision 00020001h serial "
+                   "0000002Ah left unconfigured: more than one device answered configure node-ID "
+                   "with this LSS address (CiA 305 takes LSS addresses to be unique)"});
+  const auto failed =
+      std::find_if(events.begin(), events.end(), [](auto& e) { return e.kind == Kind::LssFailed; });
+  EXPECT_EQ(failed->lss_address, sim_address(42));
+  for (const LssSlave* d : {&first, &second}) {
+    EXPECT_EQ(d->active_node_id(), lss::kUnconfigured);
+    EXPECT_EQ(d->pending_node_id(), lss::kUnconfigured);
+    EXPECT_EQ(d->state(), LssState::Waiting);
+  }
+  // After configure node-ID 7 and store: configure FFh, store, back to waiting.
+  const auto undo = std::find(frames.begin(), frames.end(), "7E5#11FF000000000000");
+  ASSERT_NE(undo, frames.end());
+  EXPECT_EQ(std::count(undo, frames.end(), "7E5#1700000000000000"), 1);
+  EXPECT_EQ(texts(events, Kind::LssScanEnded),
+            Frames{"LSS: 1 unconfigured device found, 0 given a node-ID"});
 }
 
 TEST_F(ExecuteLssBus, RefusedConfigureNodeIdIsTheSlavesLssFailure) {
-  port.slaves[200] = sim_address(3);  // 200: out of CiA 305's range 1..127, refused
-  auto& device = add(sim_address(3));
+  port.slaves[9] = sim_address(3);
+  auto& device = add_refusing(sim_address(3));
   run_pass();
   EXPECT_EQ(device.active_node_id(), lss::kUnconfigured);
   ASSERT_EQ(texts(events, Kind::LssFailed).size(), 1u);
@@ -424,8 +469,8 @@ TEST_F(ExecuteLssBus, DevicesLeftAfterTheTargetsAreSearchedBitByBitAndReported) 
 }
 
 TEST_F(ExecuteLssBus, TargetWhoseConfigureFailedIsReportedOnceAndDevicesBelowItAreStillFound) {
-  port.slaves[200] = sim_address(0x50);  // 200: refused (CiA 305 range 1..127)
-  auto& refused = add(sim_address(0x50));
+  port.slaves[9] = sim_address(0x50);
+  auto& refused = add_refusing(sim_address(0x50));
   auto& stranger = add(sim_address(0x20));  // a lower address, matching no slave
   run_pass();
   EXPECT_EQ(refused.active_node_id(), lss::kUnconfigured);

@@ -325,6 +325,50 @@ TEST(SlaveNodeLss, LssAddressIs1018hSub1To4) {
   EXPECT_EQ(node.value()->lss()->address().serial, 0x00C0FFEEu);
 }
 
+TEST(SlaveNodeLss, Sdo1018hSub4AnswersTheLssSerialNumberTheDeviceAnswersLssWith) {
+  // lss_io_1003.dcf: 1018h sub 4 DefaultValue 00001001h (the EDS's), [DeviceComissioning]
+  // LSS_SerialNumber 00001003h: CiA 305's LSS address is 1018h sub 1-4, so the device has one
+  // serial number, 00001003h, in LSS inquire serial number (5Dh) and in SDO 1018h sub 4.
+  auto read = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/lss/lss_io_1003.dcf");
+  ASSERT_TRUE(read.device.has_value()) << read.diagnostics.format();
+  auto created = SlaveNode::create(*read.device, *cfg::NodeId::from(3));
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  LssNode d(std::move(created).value());
+  power_on_at(*d.node, TimePoint{});
+  d.timer();
+  EXPECT_TRUE(d.frame("603#4018100400000000"));
+  EXPECT_EQ(d.sent, Frames{"583#4318100403100000"});
+  d.frame("7E5#0401000000000000");
+  EXPECT_TRUE(d.frame("7E5#5D00000000000000"));
+  EXPECT_EQ(d.sent, Frames{"7E4#5D03100000000000"});
+  // A node-ID by LSS rebuilds the dictionary for node 5 (its $NODEID values): still 00001003h.
+  d.frame("7E5#1105000000000000");
+  d.frame("7E5#0400000000000000");
+  d.frame("000#8203", TimePoint{Duration{1000}});
+  d.timer(TimePoint{Duration{1000}});
+  EXPECT_TRUE(d.frame("605#4018100400000000", TimePoint{Duration{2000}}));
+  EXPECT_EQ(d.sent, Frames{"585#4318100403100000"});
+}
+
+TEST(SlaveNodeLss, LssSerialNumberIs1018hSub4AlsoWhereTheFileHasNoSub4) {
+  // drive_node3.dcf has 1018h sub 1 only: the device gets a sub 4 (UNSIGNED32 ro) with the
+  // LSS serial number, and 1018h sub 0 counts it.
+  auto read =
+      cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/network/nodes/drive_node3.dcf");
+  ASSERT_TRUE(read.device.has_value());
+  read.device->commissioning.emplace();
+  read.device->commissioning->lss_serial_number = 0x00C0FFEE;
+  auto created = SlaveNode::create(*read.device, *cfg::NodeId::from(3));
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  LssNode d(std::move(created).value());
+  power_on_at(*d.node, TimePoint{});
+  d.timer();
+  EXPECT_TRUE(d.frame("603#4018100400000000"));
+  EXPECT_EQ(d.sent, Frames{"583#43181004EEFFC000"});
+  EXPECT_TRUE(d.frame("603#4018100000000000"));
+  EXPECT_EQ(d.sent, Frames{"583#4F18100004000000"});
+}
+
 TEST(SlaveNodeLss, LssAddressTakesDeviceInfoWhere1018hHasNoValue) {
   // drive_node3.dcf has 1018h sub 1 (00000ABCh) only; [DeviceInfo] says ProductNumber 402h and
   // RevisionNumber 00020004h, which the device answers in 1018h sub 2/3 as well.

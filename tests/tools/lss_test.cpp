@@ -298,15 +298,14 @@ TEST_F(LssInNetns, ScanAllFindsConfiguredDevicesOfTheProductsItIsGiven) {
   EXPECT_EQ(other.out, "");
 }
 
-TEST_F(LssInNetns, ARefusedNodeIdOrAnAbsentDeviceExits4InWords) {
+TEST_F(LssInNetns, ANodeIdOutOfRangeIsAUsageErrorAndAnAbsentDeviceExits4InWords) {
   simulate({kIo + "@255"});
-  // CiA 305 configure node-ID: 0 and 128 are out of range, error code 1.
+  // CiA 305 configure node-ID: 1..127 or FFh; 0 and 128 are no node-ID and never reach the bus.
   for (const char* id : {"0", "128"}) {
     const auto r = lss({"set-id", kAddress1001, id});
-    EXPECT_EQ(r.exit_code, 4) << id;
-    EXPECT_THAT(r.err, HasSubstr(std::string("LSS address ") + kAddress1001 +
-                                 ": configure node-ID: refused: node-ID out of range (error code "
-                                 "1)"));
+    EXPECT_EQ(r.exit_code, 2) << id;
+    EXPECT_THAT(r.err, HasSubstr(std::string("NODE-ID ") + id +
+                                 ": expected a node-ID 1..127 (or 255, 'unconfigured')"));
   }
   // Left unconfigured and in waiting: Fastscan still finds it.
   const auto scan = lss({"--json", "scan"});

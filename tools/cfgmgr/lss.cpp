@@ -68,15 +68,22 @@ nmt::LssAddress address_or_exit(const std::string& text) {
   return *address;
 }
 
-// CiA 305: configure node-ID takes 1..127, or FFh (not configured). The LSS master sends other
-// values as given (nmt/lss_master.hpp) and the device refuses them, so they are passed on.
-std::uint8_t node_id_or_exit(const std::string& text) {
+// CiA 305: configure node-ID takes 1..127, or FFh (not configured: nullopt); anything else is
+// no node-ID and never reaches the bus (the LSS master takes a cfg::NodeId).
+std::optional<cfg::NodeId> node_id_or_exit(const std::string& text) {
   const auto value = tools::node_id_argument_value(text, /*unconfigured_ok=*/true);
-  if (!value || *value > 0xFF) {
+  if (value && *value == nmt::lss::kUnconfigured) return std::nullopt;
+  const auto node_id = value ? cfg::NodeId::from(*value) : std::nullopt;
+  if (!node_id) {
     fail(tools::kExitUsage,
          tools::node_id_argument_error("NODE-ID", text) + " (or 255, 'unconfigured')");
   }
-  return static_cast<std::uint8_t>(*value);
+  return node_id;
+}
+
+// The node-ID as the commands print it: the number, or 255 for "not configured".
+int node_id_number(std::optional<cfg::NodeId> node_id) {
+  return node_id ? int{node_id->value()} : int{nmt::lss::kUnconfigured};
 }
 
 std::unique_ptr<LssSession> open_or_exit(const LssCliOptions& o) {
@@ -210,26 +217,48 @@ std::vector<nmt::LssAddress> identify_all(LssSession& session, const Product& pr
   return search.found();
 }
 
-// The active node-ID of the device with `address` (FFh: unconfigured): switch state selective,
-// inquire node-ID (5Eh), back to waiting.
-std::uint32_t inquire_node_id_or_exit(LssSession& session, const nmt::LssAddress& address) {
+// An inquire node-ID (5Eh) answer: the active node-ID, nullopt for FFh (not configured, CiA
+// 305); any other value is no node-ID: the device's fault, exit 4.
+std::optional<cfg::NodeId> answered_node_id_or_exit(LssSession& session, const std::string& who,
+                                                    std::uint32_t value) {
+  if (value == nmt::lss::kUnconfigured) return std::nullopt;
+  const auto node_id = cfg::NodeId::from(value);
+  if (!node_id) {
+    switch_all(session, nmt::LssState::Waiting);
+    fail(kExitDevice, who + "inquire node-ID answered " + std::to_string(value) +
+                          ": no node-ID (CiA 305: 1..127, or 255 for not configured)");
+  }
+  return node_id;
+}
+
+// The active node-ID of the device with `address` (nullopt: unconfigured): switch state
+// selective, inquire node-ID (5Eh), back to waiting.
+std::optional<cfg::NodeId> inquire_node_id_or_exit(LssSession& session,
+                                                   const nmt::LssAddress& address) {
+  const std::string who = "LSS address " + lss_address_text(address);
   select_or_exit(session, address);
   const auto e = run_or_exit(session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
     return m.inquire(nmt::LssService::InquireNodeId, now, out);
   });
-  if (!e.ok()) fail_service(session, "LSS address " + lss_address_text(address), e);
+  if (!e.ok()) fail_service(session, who, e);
+  const auto node_id = answered_node_id_or_exit(session, who + ": ", e.value);
   switch_all(session, nmt::LssState::Waiting);
-  return e.value;
+  return node_id;
 }
 
-std::string node_id_text(std::uint32_t node_id) {
-  return node_id == nmt::lss::kUnconfigured ? std::string("FFh (unconfigured)")
-                                            : std::to_string(node_id);
+std::string node_id_text(std::optional<cfg::NodeId> node_id) {
+  return node_id ? std::to_string(node_id->value()) : std::string("FFh (unconfigured)");
 }
 
-std::string node_id_json(std::uint32_t node_id) {
-  return node_id == nmt::lss::kUnconfigured ? std::string("null") : std::to_string(node_id);
+std::string node_id_json(std::optional<cfg::NodeId> node_id) {
+  return node_id ? std::to_string(node_id->value()) : std::string("null");
 }
+
+/// A device `scan --all` lists: its LSS address and active node-ID (nullopt: unconfigured).
+struct ScannedDevice {
+  nmt::LssAddress address;
+  std::optional<cfg::NodeId> node_id;
+};
 
 void run_scan(const LssCliOptions& o) {
   if (!o.all && (!o.products.empty() || !o.devices.empty())) {
@@ -241,13 +270,13 @@ void run_scan(const LssCliOptions& o) {
   // --all: the products of the unconfigured devices too, then every device of each product
   // with its node-ID.
   std::set<nmt::LssAddress> all(found.begin(), found.end());
-  std::vector<std::pair<nmt::LssAddress, std::uint32_t>> devices;
+  std::vector<ScannedDevice> devices;
   if (o.all) {
     for (const auto& a : found) products.emplace(a.vendor_id, a.product_code);
     for (const auto& product : products) {
       for (const auto& a : identify_all(*session, product)) all.insert(a);
     }
-    for (const auto& a : all) devices.emplace_back(a, inquire_node_id_or_exit(*session, a));
+    for (const auto& a : all) devices.push_back({a, inquire_node_id_or_exit(*session, a)});
   }
   if (o.json) {
     std::string out = "{\"unconfigured\": [";
@@ -258,9 +287,10 @@ void run_scan(const LssCliOptions& o) {
     if (o.all) {
       out += ", \"devices\": [";
       for (std::size_t i = 0; i < devices.size(); ++i) {
-        std::string device = json_address(devices[i].first);
+        std::string device = json_address(devices[i].address);
         device.pop_back();
-        out += (i ? ", " : "") + device + ", \"node_id\": " + node_id_json(devices[i].second) + "}";
+        out +=
+            (i ? ", " : "") + device + ", \"node_id\": " + node_id_json(devices[i].node_id) + "}";
       }
       out += "]";
     }
@@ -278,7 +308,7 @@ void run_scan(const LssCliOptions& o) {
   }
   std::cout << std::flush;
   std::size_t unconfigured = 0;
-  for (const auto& d : devices) unconfigured += d.second == nmt::lss::kUnconfigured ? 1 : 0;
+  for (const auto& d : devices) unconfigured += d.node_id ? 0 : 1;
   std::cerr << "cfgmgr lss: " << tools::plural(devices.size(), "device") << ", " << unconfigured
             << " unconfigured (of " << tools::plural(products.size(), "product")
             << " looked for)\n";
@@ -314,13 +344,13 @@ void run_set_id(const LssCliOptions& o) {
   const bool was_unconfigured = before.ok() && before.value == nmt::lss::kUnconfigured;
   if (o.json) {
     std::cout << "{\"address\": " << tools::json_string(lss_address_text(address))
-              << ", \"node_id\": " << int{node_id}
+              << ", \"node_id\": " << node_id_number(node_id)
               << ", \"stored\": " << (o.no_store ? "false" : "true") << ", \"previous_node_id\": "
               << (before.ok() ? std::to_string(before.value) : std::string("null")) << "}\n"
               << std::flush;
     return;
   }
-  std::cout << who << ": node-ID " << int{node_id} << " configured"
+  std::cout << who << ": node-ID " << node_id_number(node_id) << " configured"
             << (o.no_store ? " (not stored: lost at power-off)" : " and stored") << "; "
             << (was_unconfigured ? "the device boots with it now"
                                  : "the device takes it at its next NMT reset communication")
@@ -354,7 +384,7 @@ void run_inquire(const LssCliOptions& o) {
   }
   switch_all(*session, nmt::LssState::Waiting);
   const nmt::LssAddress found{values[0], values[1], values[2], values[3]};
-  const auto node_id = values[4];
+  const auto node_id = answered_node_id_or_exit(*session, "", values[4]);
   if (o.json) {
     std::string out = json_address(found);
     out.pop_back();

@@ -45,7 +45,7 @@ LssSession::~LssSession() = default;
 cfg::Result<std::vector<LssSession::Event>> LssSession::run(const Start& start) {
   events_.clear();
   loop_.clear_stop();
-  ref_.apply(start);
+  if (auto started = ref_.apply(start); !started) return started.error();
   // The master ends every service itself (an answer, or its timeout or scan step); the bound
   // only guards against devices that keep a Fastscan going for ever.
   const auto end = loop_.now() + std::chrono::minutes(10);

@@ -29,7 +29,9 @@ std::optional<nmt::LssAddress> parse_lss_address(std::string_view text);
 class LssSession {
  public:
   using Event = nmt::LssMasterEvent;
-  using Start = std::function<bool(nmt::LssMaster&, nmt::TimePoint, nmt::LssMaster::Output&)>;
+  /// Starts one service (an LssMaster call); its error when it could not start.
+  using Start =
+      std::function<cfg::Status(nmt::LssMaster&, nmt::TimePoint, nmt::LssMaster::Output&)>;
 
   /// Opens the bus at `url` (socketcan:IF, udp://GROUP:PORT; nmt::open_bus) with an LSS master
   /// of `options`. Fails (category Io) when the bus cannot be opened.
@@ -40,7 +42,8 @@ class LssSession {
   ~LssSession();
 
   /// Starts a service with `start` and runs the loop until it ended: the events it reported,
-  /// the one that ended it last. An Error (category Io) only when the bus fails.
+  /// the one that ended it last. An Error when the service could not start (its words), or
+  /// (category Io) when the bus fails.
   cfg::Result<std::vector<Event>> run(const Start& start);
   /// As run(), for services that end with one event: that event.
   cfg::Result<Event> run_one(const Start& start);

@@ -39,14 +39,15 @@
 //    or one piece of work (an LSS service), or the verb of that work (upload, raise_emergency).
 //    Could not start: the call returns cfg::Result<Id> (cfg::Status when the work has no id to
 //    follow it by) whose error says why, and puts nothing into `out` (SdoRequestingDevice,
-//    NmtMaster::boot_slave, SdoClient, NmtMaster::sdo_upload/sdo_download,
-//    NodeGuardingMaster::start). Work that started and ended at once with an outcome of its own
-//    protocol has started: the outcome is an event (a boot NMT slave process of a node taken out
-//    of 1F81h while the master retries it ends with status A, CiA 302-2 §3.4 a).
-//    Not all APIs follow this yet (issue 21): LssMaster answers bool.
+//    NmtMaster::boot_slave, SdoClient, NmtMaster::sdo_upload/sdo_download, the LssMaster
+//    services, NodeGuardingMaster::start). Work that started and ended at once with an outcome
+//    of its own protocol has started: the outcome is an event (a boot NMT slave process of a node
+//    taken out of 1F81h while the master retries it ends with status A, CiA 302-2 §3.4 a).
 //    Parameter writes are no starts and take no Output: HeartbeatProducer::set_period (1017h;
 //    its first heartbeat is due at `now`, so it follows the SDO answer confirming the write)
 //    and HeartbeatConsumer::monitor (1016h; nothing is sent or reported at once).
+//    LssSlave::power_on takes no `now, out` on purpose: an LSS slave never sends on its own
+//    (nmt/lss_slave.hpp).
 // 6. Engines keep no reference to `out` or to a frame after a call returns; they only append,
 //    and only to the `out` of the call they are in: what a dictionary hook reports goes into
 //    the output of the call the access runs in (LocalDictionary's HookOutput), never into a

@@ -1,11 +1,12 @@
 // The LSS master of CiA 305 (nmt/lss.hpp has the protocol and its sources), an engine of the
 // shape of nmt/engine.hpp: services are started with `TimePoint now, Output& out` and put their
 // first frames into `out` at once; each ends with one LssMasterEvent (Scan: one per device found
-// and a last one). One service at a time: a start while one runs is answered with a Busy event.
+// and a last one). One service at a time: a start while one runs returns an error that says so
+// and puts nothing into `out` (engine.hpp rule 5).
 //
 //   LssMaster master;
 //   master.switch_state_selective(address, now, out);   // 40h..43h, answer 44h
-//   master.configure_node_id(5, now, out);              // 11h, answer 11h + error code
+//   master.configure_node_id(cfg::NodeId::from(5), now, out);  // 11h, answer 11h + error code
 //   master.store_configuration(now, out);               // 17h
 //   master.switch_state_global(LssState::Waiting, now, out);
 //   master.scan(chooser, now, out);   // every unconfigured device: Fastscan, node-ID, store
@@ -53,6 +54,14 @@
 //   configure node-ID failed is left in waiting unconfigured; the bit-by-bit Fastscan finds it
 //   again and passes it without a second event. A target absent at its turn that appears later is
 //   found bit by bit and gets its node-ID from the chooser.
+// - Two devices with one LSS address (CiA 305 takes it to be unique; a factory mistake, a
+//   cloned serial number) answer every Fastscan step alike and are in configuration together.
+//   A second answer to the scan's configure node-ID, heard while the store waits for its
+//   answer, tells: the master then configures FFh (not configured) and stores it in all of
+//   them, switches them back to waiting, and reports the address Skipped (text: "more than one
+//   device answered ..."); the scan looks past it. It needs LssMasterOptions::store (the
+//   default): without the store's wait nothing is listened for. On a real bus two identical
+//   answers sent in the same bit time are one frame; then it is not seen (a known limit).
 #pragma once
 
 #include <chrono>
@@ -64,6 +73,8 @@
 #include <string_view>
 #include <vector>
 
+#include "cfg/node_id.hpp"
+#include "cfg/result.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/lss.hpp"
@@ -95,16 +106,16 @@ struct LssMasterEvent {
     NotFound,  ///< Identify* / Fastscan: no device answered in its time (an answer, not a fault)
     Refused,   ///< the device answered with an error code (`error_code`, `spec_error`)
     Timeout,   ///< no answer within the timeout
-    Busy,      ///< not started: another service runs
     Assigned,  ///< Scan: a found device got `node_id` (stored unless `error_code` says why not)
     Skipped,   ///< Scan: a found device was left without node-ID (`text` says why)
   };
   LssService service = LssService::SwitchStateGlobal;
   Kind kind = Kind::Done;
   TimePoint at{};
-  LssAddress address{};      ///< Fastscan / Scan: the device's LSS address
-  std::uint32_t value = 0;   ///< inquire: the value (InquireNodeId: the node-ID); Scan end: found
-  std::uint8_t node_id = 0;  ///< ConfigureNodeId / Assigned: the node-ID
+  LssAddress address{};     ///< Fastscan / Scan: the device's LSS address
+  std::uint32_t value = 0;  ///< inquire: the value (InquireNodeId: the node-ID); Scan end: found
+  /// ConfigureNodeId / Assigned: the node-ID (ConfigureNodeId: nullopt for FFh, not configured)
+  std::optional<cfg::NodeId> node_id;
   std::uint8_t error_code = 0;
   std::uint8_t spec_error = 0;
   std::string text;  ///< one line for people, e.g. "configure node-ID refused: node-ID out of
@@ -140,33 +151,34 @@ class LssMaster {
   using Event = LssMasterEvent;
   using Output = Outbox<Event>;
   /// Scan: the node-ID a found device gets (1..127), or nullopt to leave it unconfigured.
-  using NodeIdChooser = std::function<std::optional<std::uint8_t>(const LssAddress&)>;
+  using NodeIdChooser = std::function<std::optional<cfg::NodeId>(const LssAddress&)>;
 
   explicit LssMaster(LssMasterOptions options = {}) : options_(options) {}
 
-  // --- services (each returns false, with a Busy event, when another one runs) -------------
-  bool switch_state_global(LssState state, TimePoint now, Output& out);
-  bool switch_state_selective(const LssAddress& address, TimePoint now, Output& out);
-  /// 1..127, or FFh (back to unconfigured); other values are sent as given (the device refuses).
-  bool configure_node_id(std::uint8_t node_id, TimePoint now, Output& out);
+  // --- services: could not start (another service runs; inquire of a service that is not an
+  // inquiry): an error that says why, nothing sent, no event (engine.hpp rule 5) -----------
+  cfg::Status switch_state_global(LssState state, TimePoint now, Output& out);
+  cfg::Status switch_state_selective(const LssAddress& address, TimePoint now, Output& out);
+  /// The node-ID (1..127), or nullopt: FFh, back to unconfigured (CiA 305).
+  cfg::Status configure_node_id(std::optional<cfg::NodeId> node_id, TimePoint now, Output& out);
   /// `table_index` of table selector 0 (lss::bit_timing_index gives it for a rate).
-  bool configure_bit_timing(std::uint8_t table_index, TimePoint now, Output& out,
-                            std::uint8_t table_selector = 0);
-  bool activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now, Output& out);
-  bool store_configuration(TimePoint now, Output& out);
-  /// One of InquireVendorId .. InquireNodeId (others: false, nothing sent, no event).
-  bool inquire(LssService what, TimePoint now, Output& out);
-  bool identify_remote_slaves(const LssAddressRange& range, TimePoint now, Output& out);
-  bool identify_non_configured(TimePoint now, Output& out);
+  cfg::Status configure_bit_timing(std::uint8_t table_index, TimePoint now, Output& out,
+                                   std::uint8_t table_selector = 0);
+  cfg::Status activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now, Output& out);
+  cfg::Status store_configuration(TimePoint now, Output& out);
+  /// One of InquireVendorId .. InquireNodeId (others: an error, nothing sent, no event).
+  cfg::Status inquire(LssService what, TimePoint now, Output& out);
+  cfg::Status identify_remote_slaves(const LssAddressRange& range, TimePoint now, Output& out);
+  cfg::Status identify_non_configured(TimePoint now, Output& out);
   /// Finds one unconfigured device (the lowest address, above `after` when given) and leaves it
   /// in LSS configuration: Done with its address, or NotFound.
-  bool fastscan(TimePoint now, Output& out, std::optional<LssAddress> after = std::nullopt);
+  cfg::Status fastscan(TimePoint now, Output& out, std::optional<LssAddress> after = std::nullopt);
   /// Finds every unconfigured device one by one and gives each the node-ID `chooser` says (see
   /// the top of this file); one Assigned or Skipped event per device, then Done (value: the
   /// number of devices found) or, when a device stopped answering mid-scan, Timeout.
   /// With `targets`, those addresses are confirmed first, in order (see the top).
-  bool scan(NodeIdChooser chooser, TimePoint now, Output& out,
-            std::vector<LssAddress> targets = {});
+  cfg::Status scan(NodeIdChooser chooser, TimePoint now, Output& out,
+                   std::vector<LssAddress> targets = {});
 
   // --- engine --------------------------------------------------------------------------------
   /// True for answers (8-byte frames on 7E4h) the running service waited for.
@@ -190,20 +202,22 @@ class LssMaster {
     int level = 3;     // Position/Probe: the part whose branches are probed
     int position = 0;  // Position: the part being confirmed
   };
-  enum class ScanPhase : std::uint8_t { Searching, Configuring, Storing };
+  // Unconfiguring, Unstoring: FFh configured and stored again after a duplicate LSS address.
+  enum class ScanPhase : std::uint8_t { Searching, Configuring, Storing, Unconfiguring, Unstoring };
   struct ScanState {
     NodeIdChooser chooser;
     std::optional<LssAddress> cursor;  // the highest address skipped
     LssAddress current;
-    std::uint8_t node_id = 0;
+    std::optional<cfg::NodeId> node_id;  // Configuring/Storing: the node-ID chosen
     ScanPhase phase = ScanPhase::Searching;
     std::uint32_t found = 0;
     std::vector<LssAddress> targets;  // known addresses, confirmed before the bit-by-bit search
     std::size_t next_target = 0;
     std::set<LssAddress> failed;  // targets whose configure node-ID failed (reported once)
+    bool duplicate = false;       // a second device answered this device's configure node-ID
   };
 
-  bool start(LssService service, TimePoint now, Output& out);
+  cfg::Status start(LssService service);
   void await(lss::Cs cs, Wait wait, Duration d, TimePoint now);
   void finish(Event event, Output& out);
   void answered(const CanFrame& frame, TimePoint now, Output& out);
@@ -222,6 +236,8 @@ class LssMaster {
   void scan_next(TimePoint now, Output& out);
   void scan_found(TimePoint now, Output& out);
   void scan_back_to_waiting(TimePoint now, Output& out);
+  void scan_undo(TimePoint now, Output& out);
+  static std::string duplicate_text();
   void scan_device_done(LssMasterEvent::Kind kind, std::string text, std::uint8_t error_code,
                         TimePoint now, Output& out);
 
@@ -230,8 +246,8 @@ class LssMaster {
   std::optional<TimePoint> deadline_;
   Wait wait_ = Wait::Answer;
   lss::Cs expect_{};
-  bool heard_ = false;        // Collect: an answer came in this step
-  std::uint8_t node_id_ = 0;  // configure node-ID: the node-ID asked for
+  bool heard_ = false;                  // Collect: an answer came in this step
+  std::optional<cfg::NodeId> node_id_;  // configure node-ID: the node-ID asked for (nullopt: FFh)
   FastscanState fs_;
   std::optional<ScanState> scan_;
 };

@@ -20,6 +20,11 @@
 // - Inquire node-ID answers the active node-ID (FFh when not configured), as CANopenNode.
 // - An unconfigured device that is switched back to waiting with a pending node-ID reports
 //   NodeIdActivate: its owner resets communication with it (CANopenNode does so on its own).
+// - Node-IDs here are raw bytes with lss::kUnconfigured (FFh), not cfg::NodeId: FFh is a legal
+//   value of the active and pending node-ID and of what is stored (CiA 305: not configured), and
+//   these are the very bytes configure node-ID (11h) carries and inquire node-ID (5Eh) answers;
+//   configured() says whether the active one is a node-ID. The owner turns them into a
+//   cfg::NodeId where it starts with one (SlaveNode).
 #pragma once
 
 #include <cstdint>
@@ -97,6 +102,11 @@ class LssSlave {
   void activate_pending_bit_timing();
   /// Power-on with `node_id` (the stored one, or FFh): LSS waiting, nothing pending but it;
   /// running at `bit_timing_index` when given (the stored one).
+  /// It takes no `now, out` (an exception to engine.hpp rule 5, on purpose): an LSS slave sends
+  /// nothing of its own at power-on or ever, it only answers the master's requests (CiA 305:
+  /// every LSS service is initiated by the master; CANopenNode's CO_LSSslave_init and lely-core's
+  /// co_lss_start send nothing either), and it has nothing to time. Whatever a device says at
+  /// power-on (its boot-up message) is its owner's, the SlaveNode's power_on(now, out).
   void power_on(std::uint8_t node_id, std::optional<std::uint8_t> bit_timing_index = {});
 
  private:

@@ -108,8 +108,10 @@
 //   is not a boot-up handler event: the reset of all nodes follows). A found device that matches
 //   no slave is reported (LssUnmatched, with its address) and left unconfigured; a slave whose
 //   device is not found is simply missing (its boot ends with status B as without LSS). CiA 305
-//   takes LSS addresses to be unique: two devices with one address answer Fastscan as one, are
-//   in configuration together and both take the node-ID (one LssAssigned). A device that already
+//   takes LSS addresses to be unique: two devices with one address answer Fastscan as one and
+//   are in configuration together; the second answer to configure node-ID tells (LssMaster,
+//   nmt/lss_master.hpp), and both are set back to unconfigured (FFh stored) and reported
+//   (LssFailed of the slave, naming the address). A device that already
 //   has a node-ID is never touched (Fastscan finds only unconfigured ones), and no bit rate is set.
 // - ExecuteLssOptions::period: after start-up the active master looks for unconfigured devices
 //   (a replaced device) every period: one identify non-configured remote slave (4Ch) and a

@@ -66,14 +66,14 @@ LssMasterEvent LssMaster::event(LssService service, Kind kind, TimePoint now,
   return e;
 }
 
-bool LssMaster::start(LssService service, TimePoint now, Output& out) {
+cfg::Status LssMaster::start(LssService service) {
+  // engine.hpp rule 5: could not start is the answer, not an event; nothing goes out.
   if (service_) {
-    out.report(event(service, Kind::Busy, now,
-                     "not started, " + std::string(to_string(*service_)) + " runs"));
-    return false;
+    return cfg::Error{"LSS " + std::string(to_string(service)) + " not started: " +
+                      std::string(to_string(*service_)) + " runs (one LSS service at a time)"};
   }
   service_ = service;
-  return true;
+  return {};
 }
 
 void LssMaster::await(Cs cs, Wait wait, Duration d, TimePoint now) {
@@ -92,59 +92,63 @@ void LssMaster::finish(Event e, Output& out) {
 
 // --- services ----------------------------------------------------------------------------------
 
-bool LssMaster::switch_state_global(LssState state, TimePoint now, Output& out) {
-  if (!start(LssService::SwitchStateGlobal, now, out)) return false;
+cfg::Status LssMaster::switch_state_global(LssState state, TimePoint now, Output& out) {
+  if (auto started = start(LssService::SwitchStateGlobal); !started) return started;
   out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
                            {static_cast<std::uint8_t>(state)}));
   finish(event(LssService::SwitchStateGlobal, Kind::Done, now,
                "all devices to LSS " + std::string(to_string(state))),
          out);
-  return true;
+  return {};
 }
 
-bool LssMaster::switch_state_selective(const LssAddress& address, TimePoint now, Output& out) {
-  if (!start(LssService::SwitchStateSelective, now, out)) return false;
+cfg::Status LssMaster::switch_state_selective(const LssAddress& address, TimePoint now,
+                                              Output& out) {
+  if (auto started = start(LssService::SwitchStateSelective); !started) return started;
   fs_.id = address;  // reported with the result
   out.send(request(Cs::SwitchSelectiveVendor, address.vendor_id));
   out.send(request(Cs::SwitchSelectiveProduct, address.product_code));
   out.send(request(Cs::SwitchSelectiveRevision, address.revision));
   out.send(request(Cs::SwitchSelectiveSerial, address.serial));
   await(Cs::SwitchSelectiveAnswer, Wait::Answer, options_.timeout, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::configure_node_id(std::uint8_t node_id, TimePoint now, Output& out) {
-  if (!start(LssService::ConfigureNodeId, now, out)) return false;
+cfg::Status LssMaster::configure_node_id(std::optional<cfg::NodeId> node_id, TimePoint now,
+                                         Output& out) {
+  if (auto started = start(LssService::ConfigureNodeId); !started) return started;
   node_id_ = node_id;
-  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {node_id}));
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId,
+                           {node_id ? node_id->value() : lss::kUnconfigured}));
   await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::configure_bit_timing(std::uint8_t table_index, TimePoint now, Output& out,
-                                     std::uint8_t table_selector) {
-  if (!start(LssService::ConfigureBitTiming, now, out)) return false;
+cfg::Status LssMaster::configure_bit_timing(std::uint8_t table_index, TimePoint now, Output& out,
+                                            std::uint8_t table_selector) {
+  if (auto started = start(LssService::ConfigureBitTiming); !started) return started;
   out.send(
       lss::make_frame(lss::kMasterCobId, Cs::ConfigureBitTiming, {table_selector, table_index}));
   await(Cs::ConfigureBitTiming, Wait::Answer, options_.timeout, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now, Output& out) {
-  if (!start(LssService::ActivateBitTiming, now, out)) return false;
+cfg::Status LssMaster::activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now,
+                                           Output& out) {
+  if (auto started = start(LssService::ActivateBitTiming); !started) return started;
   out.send(request(Cs::ActivateBitTiming, switch_delay_ms));
   await(Cs::ActivateBitTiming, Wait::Delay, std::chrono::milliseconds(2 * switch_delay_ms), now);
-  return true;
+  return {};
 }
 
-bool LssMaster::store_configuration(TimePoint now, Output& out) {
-  if (!start(LssService::StoreConfiguration, now, out)) return false;
+cfg::Status LssMaster::store_configuration(TimePoint now, Output& out) {
+  if (auto started = start(LssService::StoreConfiguration); !started) return started;
   out.send(request(Cs::StoreConfiguration));
   await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::inquire(LssService what, TimePoint now, Output& out) {
+cfg::Status LssMaster::inquire(LssService what, TimePoint now, Output& out) {
   Cs cs{};
   switch (what) {
     case LssService::InquireVendorId:
@@ -163,16 +167,17 @@ bool LssMaster::inquire(LssService what, TimePoint now, Output& out) {
       cs = Cs::InquireNodeId;
       break;
     default:
-      return false;
+      return cfg::Error{"LSS " + std::string(to_string(what)) + " is not an inquire service"};
   }
-  if (!start(what, now, out)) return false;
+  if (auto started = start(what); !started) return started;
   out.send(request(cs));
   await(cs, Wait::Answer, options_.timeout, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::identify_remote_slaves(const LssAddressRange& range, TimePoint now, Output& out) {
-  if (!start(LssService::IdentifyRemoteSlaves, now, out)) return false;
+cfg::Status LssMaster::identify_remote_slaves(const LssAddressRange& range, TimePoint now,
+                                              Output& out) {
+  if (auto started = start(LssService::IdentifyRemoteSlaves); !started) return started;
   out.send(request(Cs::IdentifyVendor, range.vendor_id));
   out.send(request(Cs::IdentifyProduct, range.product_code));
   out.send(request(Cs::IdentifyRevisionLow, range.revision_low));
@@ -180,25 +185,25 @@ bool LssMaster::identify_remote_slaves(const LssAddressRange& range, TimePoint n
   out.send(request(Cs::IdentifySerialLow, range.serial_low));
   out.send(request(Cs::IdentifySerialHigh, range.serial_high));
   await(Cs::IdentifyAnswer, Wait::Collect, options_.scan_step, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::identify_non_configured(TimePoint now, Output& out) {
-  if (!start(LssService::IdentifyNonConfigured, now, out)) return false;
+cfg::Status LssMaster::identify_non_configured(TimePoint now, Output& out) {
+  if (auto started = start(LssService::IdentifyNonConfigured); !started) return started;
   out.send(request(Cs::IdentifyNonConfigured));
   await(Cs::IdentifyNonConfiguredAnswer, Wait::Collect, options_.scan_step, now);
-  return true;
+  return {};
 }
 
-bool LssMaster::fastscan(TimePoint now, Output& out, std::optional<LssAddress> after) {
-  if (!start(LssService::Fastscan, now, out)) return false;
+cfg::Status LssMaster::fastscan(TimePoint now, Output& out, std::optional<LssAddress> after) {
+  if (auto started = start(LssService::Fastscan); !started) return started;
   fastscan_start(after, now, out);
-  return true;
+  return {};
 }
 
-bool LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out,
-                     std::vector<LssAddress> targets) {
-  if (!start(LssService::Scan, now, out)) return false;
+cfg::Status LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out,
+                            std::vector<LssAddress> targets) {
+  if (auto started = start(LssService::Scan); !started) return started;
   scan_ = ScanState{};
   scan_->chooser = std::move(chooser);
   scan_->targets = std::move(targets);
@@ -206,7 +211,7 @@ bool LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out,
   out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
                            {static_cast<std::uint8_t>(LssState::Waiting)}));
   fastscan_start(std::nullopt, now, out);
-  return true;
+  return {};
 }
 
 // --- engine ------------------------------------------------------------------------------------
@@ -219,6 +224,13 @@ bool LssMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     // It arrived after the service's time: the service ended before it (receive time counts).
     on_timer(now, out);
     return false;
+  }
+  if (scan_ && scan_->phase == ScanPhase::Storing &&
+      frame.data[0] == static_cast<std::uint8_t>(Cs::ConfigureNodeId)) {
+    // A second answer to the scan's configure node-ID: more than one device has this LSS
+    // address (see the top of lss_master.hpp); undone when the store is answered.
+    scan_->duplicate = true;
+    return true;
   }
   if (frame.data[0] != static_cast<std::uint8_t>(expect_)) return false;
   if (wait_ == Wait::Collect) {
@@ -263,7 +275,15 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
     case Cs::StoreConfiguration: {
       if (scan_) {
         const std::string words = lss::error_text(expect_, code, spec);
-        if (scan_->phase == ScanPhase::Configuring && code != 0) {
+        if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
+          scan_undo(now, out);
+        } else if (scan_->phase == ScanPhase::Unconfiguring) {
+          scan_->phase = ScanPhase::Unstoring;
+          out.send(request(Cs::StoreConfiguration));
+          await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
+        } else if (scan_->phase == ScanPhase::Unstoring) {
+          scan_device_done(Kind::Skipped, duplicate_text(), 0, now, out);
+        } else if (scan_->phase == ScanPhase::Configuring && code != 0) {
           scan_device_done(Kind::Skipped, "configure node-ID refused: " + words, code, now, out);
         } else if (scan_->phase == ScanPhase::Configuring && options_.store) {
           scan_->phase = ScanPhase::Storing;
@@ -310,6 +330,11 @@ void LssMaster::timed_out(TimePoint now, Output& out) {
   if (scan_) {
     if (scan_->phase == ScanPhase::Configuring) {
       scan_device_done(Kind::Skipped, "configure node-ID: " + text, 0, now, out);
+    } else if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
+      scan_undo(now, out);
+    } else if (scan_->phase == ScanPhase::Unconfiguring || scan_->phase == ScanPhase::Unstoring) {
+      scan_device_done(Kind::Skipped, duplicate_text() + "; undoing its node-ID: " + text, 0, now,
+                       out);
     } else {
       scan_device_done(Kind::Assigned, "not stored: store configuration: " + text, 0, now, out);
     }
@@ -503,27 +528,41 @@ void LssMaster::scan_found(TimePoint now, Output& out) {
     return;
   }
   ++scan_->found;
-  std::optional<std::uint8_t> node_id;
+  std::optional<cfg::NodeId> node_id;
   if (scan_->chooser) node_id = scan_->chooser(scan_->current);
   if (!node_id) {
     scan_device_done(Kind::Skipped, "no node-ID for it", 0, now, out);
     return;
   }
-  scan_->node_id = *node_id;
+  scan_->node_id = node_id;
+  scan_->duplicate = false;
   scan_->phase = ScanPhase::Configuring;
-  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {*node_id}));
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {node_id->value()}));
+  await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
+}
+
+std::string LssMaster::duplicate_text() {
+  return "more than one device answered configure node-ID with this LSS address (CiA 305 takes "
+         "LSS addresses to be unique)";
+}
+
+void LssMaster::scan_undo(TimePoint now, Output& out) {
+  // Every device with the address is in LSS configuration and took the node-ID: FFh (not
+  // configured) to all of them, stored, then back to waiting without a node-ID.
+  scan_->phase = ScanPhase::Unconfiguring;
+  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {lss::kUnconfigured}));
   await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
 }
 
 void LssMaster::scan_device_done(Kind kind, std::string text, std::uint8_t error_code,
                                  TimePoint now, Output& out) {
   const std::string head =
-      to_string(scan_->current) + (kind == Kind::Assigned
-                                       ? " got node-ID " + std::to_string(scan_->node_id) + ", "
-                                       : " left unconfigured: ");
+      to_string(scan_->current) +
+      (kind == Kind::Assigned ? " got node-ID " + std::to_string(scan_->node_id.value()) + ", "
+                              : " left unconfigured: ");
   auto e = event(LssService::Scan, kind, now, head + text);
   e.address = scan_->current;
-  e.node_id = kind == Kind::Assigned ? scan_->node_id : 0;
+  if (kind == Kind::Assigned) e.node_id = scan_->node_id;
   e.error_code = error_code;
   out.report(std::move(e));
   if (kind == Kind::Skipped) {

@@ -58,9 +58,9 @@ void ExecuteLssProcess::on_timer(TimePoint now, Output& out) {
     // Identify non-configured remote slave: one frame, answered (50h) by every device without
     // a node-ID; the scan (the slaves' addresses confirmed, then the rest searched bit by bit)
     // only when one answers.
-    phase_ = Phase::Probe;
     lss_out_.clear();
-    lss_.identify_non_configured(now, lss_out_);
+    // The LssMaster is idle between looks, so the start cannot fail; were it so, no look.
+    if (lss_.identify_non_configured(now, lss_out_)) phase_ = Phase::Probe;
     forward(now, out);
     return;
   }
@@ -85,14 +85,25 @@ void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
   chosen_.clear();
   assigned_ = 0;
   lss_out_.clear();
-  lss_.scan([this](const LssAddress& address) { return choose(address); }, now, lss_out_,
-            port_.known_addresses());
+  auto started = lss_.scan([this](const LssAddress& address) { return choose(address); }, now,
+                           lss_out_, port_.known_addresses());
+  if (!started) {
+    // The LssMaster is idle here (stopped, or its identify ended), so this cannot happen; were
+    // it so, the pass or look ends at once with the reason.
+    LssMasterEvent e;
+    e.service = LssService::Scan;
+    e.kind = Kind::NotFound;
+    e.at = now;
+    e.text = started.error().message;
+    scan_ended(e, now, out);
+    return;
+  }
   forward(now, out);
 }
 
-std::optional<std::uint8_t> ExecuteLssProcess::choose(const LssAddress& address) {
+std::optional<cfg::NodeId> ExecuteLssProcess::choose(const LssAddress& address) {
   const auto node = port_.slave_with(address);
-  if (node) chosen_[address] = *node;
+  if (node) chosen_.insert_or_assign(address, *node);
   return node;
 }
 
@@ -118,8 +129,9 @@ void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& o
   switch (e.kind) {
     case Kind::Assigned: {
       ++assigned_;
-      auto m = master_event(MasterEvent::Kind::LssAssigned, e.at, e.node_id,
-                            node_text(e.node_id) + ": LSS: " + scan_text(e));
+      const cfg::NodeId node = e.node_id.value();  // Assigned always names it
+      auto m = master_event(MasterEvent::Kind::LssAssigned, e.at, node,
+                            node_text(node) + ": LSS: " + scan_text(e));
       m.lss_address = e.address;
       out.report(std::move(m));
       return;

@@ -27,6 +27,7 @@
 #include <set>
 #include <vector>
 
+#include "cfg/node_id.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/lss_master.hpp"
 #include "nmt/nmt_master.hpp"
@@ -40,7 +41,7 @@ class ExecuteLssPort {
   virtual ~ExecuteLssPort() = default;
 
   /// The slave (node-ID in 1F81h) whose LSS address is `address`; nullopt: none.
-  virtual std::optional<std::uint8_t> slave_with(const LssAddress& address) const = 0;
+  virtual std::optional<cfg::NodeId> slave_with(const LssAddress& address) const = 0;
   /// The LSS addresses of the slaves that have one, in node-ID order: each scan confirms these
   /// first (4 Fastscan requests each) and searches bit by bit only for devices left over.
   virtual std::vector<LssAddress> known_addresses() const = 0;
@@ -87,7 +88,7 @@ class ExecuteLssProcess {
   void forward(TimePoint now, Output& out);
   void handle(const LssMasterEvent& e, TimePoint now, Output& out);
   void scan_ended(const LssMasterEvent& e, TimePoint now, Output& out);
-  std::optional<std::uint8_t> choose(const LssAddress& address);
+  std::optional<cfg::NodeId> choose(const LssAddress& address);
 
   ExecuteLssPort& port_;
   LssMaster lss_;
@@ -96,7 +97,7 @@ class ExecuteLssProcess {
   std::optional<TimePoint> next_look_;
   LssMaster::Output lss_out_;  ///< scratch output of lss_
   /// This scan: the node-ID chosen for each address found (its LssFailed names the slave).
-  std::map<LssAddress, std::uint8_t> chosen_;
+  std::map<LssAddress, cfg::NodeId> chosen_;
   std::uint32_t assigned_ = 0;
   /// Unmatched addresses reported while watching: each once (the start-up pass reports all).
   std::set<LssAddress> reported_;

@@ -38,10 +38,10 @@ std::optional<LssAddress> NmtMaster::Impl::lss_address_of(std::uint8_t node) con
 
 // --- the port ---
 
-std::optional<std::uint8_t> NmtMaster::Impl::LssPort::slave_with(const LssAddress& address) const {
+std::optional<cfg::NodeId> NmtMaster::Impl::LssPort::slave_with(const LssAddress& address) const {
   for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
     const auto n = static_cast<std::uint8_t>(node);
-    if (m.is_slave(n) && m.lss_address_of(n) == address) return n;
+    if (m.is_slave(n) && m.lss_address_of(n) == address) return cfg::NodeId::from(node);
   }
   return std::nullopt;
 }

@@ -179,7 +179,7 @@ struct NmtMaster::Impl {
   /// Execute LSS's port to this master (lss_port.cpp).
   struct LssPort final : ExecuteLssPort {
     explicit LssPort(Impl& master) : m(master) {}
-    std::optional<std::uint8_t> slave_with(const LssAddress& address) const override;
+    std::optional<cfg::NodeId> slave_with(const LssAddress& address) const override;
     std::vector<LssAddress> known_addresses() const override;
     void pass_ended(TimePoint now, Output& out) override;
     bool may_look() const override;

@@ -23,6 +23,35 @@ void forward_frames(const Outbox<Part>& part, SlaveNode::Output& out) {
   out.frames.insert(out.frames.end(), part.frames.begin(), part.frames.end());
 }
 
+// The device's dictionary for `node_id`. CiA 305: the LSS address is 1018h sub 1-4, and a DCF's
+// [DeviceComissioning] LSS_SerialNumber is the serial number of that address (cfg::identity_of,
+// which the master's expected 1F88h comes from): the device answers an SDO read of 1018h sub 4
+// with the number it answers LSS with, one value, not the file's 1018h sub 4 beside it. A file
+// whose 1018h has no sub 4 gets one (UNSIGNED32, ro, CiA 301 §7.5.2.18).
+cfg::Result<LocalDictionary> device_dictionary(const cfg::DeviceDescription& description,
+                                               cfg::NodeId node_id) {
+  auto dict = LocalDictionary::from_device(description, node_id);
+  if (!dict || !description.commissioning || !description.commissioning->lss_serial_number) {
+    return dict;
+  }
+  const std::uint32_t serial = *description.commissioning->lss_serial_number;
+  LocalDictionary& d = dict.value();
+  if (d.entry(obj::kIdentity, 4) == nullptr && d.has_object(obj::kIdentity)) {
+    DictionaryEntry entry;
+    entry.index = obj::kIdentity;
+    entry.sub_index = 4;
+    entry.name = "Serial number";
+    entry.data_type = static_cast<std::uint16_t>(cfg::DataType::Unsigned32);
+    entry.basic_type = cfg::DataType::Unsigned32;
+    entry.access = cfg::AccessType::Ro;
+    entry.max_size = 4;
+    d.insert(std::move(entry));
+    if (d.get_unsigned(obj::kIdentity, 0).value_or(4) < 4) d.set_unsigned(obj::kIdentity, 0, 4);
+  }
+  d.set_unsigned(obj::kIdentity, 4, serial);
+  return dict;
+}
+
 }  // namespace
 
 std::string_view to_string(SlaveEvent::Kind kind) {
@@ -58,7 +87,7 @@ std::string_view to_string(SlaveEvent::Kind kind) {
 cfg::Result<std::unique_ptr<SlaveNode>> SlaveNode::create(const cfg::DeviceDescription& description,
                                                           cfg::NodeId node_id,
                                                           SlaveNodeOptions options) {
-  auto factory = LocalDictionary::from_device(description, node_id);
+  auto factory = device_dictionary(description, node_id);
   if (!factory) return factory.error();
   return std::make_unique<SlaveNode>(Key{}, description, std::move(factory).value(), node_id,
                                      options);
@@ -104,19 +133,14 @@ SlaveNode::SlaveNode(Key, cfg::DeviceDescription description, LocalDictionary fa
   power_on_node_id_ = node_id;
   const std::string* lss_supported = description_.device_info.find("LSS_Supported");
   if (lss_supported != nullptr && std::strtoul(lss_supported->c_str(), nullptr, 0) != 0) {
-    // CiA 305: the LSS address is the identity object; a DCF's LSS_SerialNumber names sub 4.
-    // Where 1018h has no value, [DeviceInfo] gives it (cfg::identity_of), as the identity a
-    // simulated device answers and a master derived from the same file expects.
+    // CiA 305: the LSS address is the identity object (cfg::identity_of: where 1018h has no
+    // value [DeviceInfo] gives it, and a DCF's LSS_SerialNumber is sub 4, which the dictionary
+    // answers too, device_dictionary), as the identity a simulated device answers and a master
+    // derived from the same file expects.
     const cfg::DeviceIdentity identity = cfg::identity_of(description_, node_id);
-    LssAddress address;
-    address.vendor_id = identity.vendor_id.value_or(0);
-    address.product_code = identity.product_code.value_or(0);
-    address.revision = identity.revision_number.value_or(0);
-    address.serial =
-        static_cast<std::uint32_t>(factory_.get_unsigned(obj::kIdentity, 4).value_or(0));
-    if (description_.commissioning && description_.commissioning->lss_serial_number) {
-      address.serial = *description_.commissioning->lss_serial_number;
-    }
+    const LssAddress address{identity.vendor_id.value_or(0), identity.product_code.value_or(0),
+                             identity.revision_number.value_or(0),
+                             identity.serial_number.value_or(0)};
     lss_.emplace(address, node_id);
   }
 }
@@ -222,7 +246,7 @@ void SlaveNode::become_unconfigured(TimePoint now) {
 
 void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now, Output& out) {
   const auto id = cfg::NodeId::from(node_id);
-  auto factory = id ? LocalDictionary::from_device(description_, *id)
+  auto factory = id ? device_dictionary(description_, *id)
                     : cfg::Result<LocalDictionary>(cfg::Error{"no node-ID"});
   if (!factory) return;  // the file built a dictionary before: not for another node-ID only
   // $NODEID values (COB-IDs) of the new node-ID; stored values keep what was stored.
