@@ -153,8 +153,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       // CiA 301 §7.5.2.14: restored values take effect at the next reset: reset communication
       // for the communication area (sub 2), else reset node.
       port_->queue_nmt(
-          r.address.sub_index == 2 ? NmtCommand::ResetCommunication : NmtCommand::ResetNode,
-          node_);
+          r.address.sub_index == 2 ? NmtCommand::ResetCommunication : NmtCommand::ResetNode, node_);
       expect_boot_up_ = true;
       phase_ = Phase::AwaitRestoreBootUp;
       set_deadline(now + options_.reboot_timeout);
