@@ -11,6 +11,7 @@
 
 #include "master/boot_slave_process.hpp"
 #include "nmt/error_control.hpp"
+#include "nmt/master_options.hpp"
 #include "nmt/nmt_slave.hpp"
 
 namespace nmt {
@@ -107,7 +108,7 @@ class FakePort final : public BootSlavePort {
 
 struct Rig {
   FakePort port;
-  BootSlaveProcess::Options options;
+  BootSlaveProcess::Options options = BootSlaveProcess::Options::from(MasterOptions{});
   BootSlaveProcess process{*cfg::NodeId::from(kNode), port, options};
   BootSlaveProcess::Output out;
   TimePoint now{Duration{1'000'000}};

@@ -115,18 +115,19 @@ class BootSlaveProcess {
   using Event = MasterEvent;
   using Output = Outbox<MasterEvent>;
 
-  /// What of MasterOptions the process reads.
+  /// What of MasterOptions the process reads; built with from() (MasterOptions holds the
+  /// defaults and their reasons, master_options.hpp).
   struct Options {
-    Duration reboot_timeout = std::chrono::seconds(5);
-    Duration guarding_reply_timeout = std::chrono::milliseconds(100);
-    Duration retry_interval = std::chrono::seconds(1);
+    Duration reboot_timeout{};
+    Duration guarding_reply_timeout{};
+    Duration retry_interval{};
     bool force_download = false;
-    bool save_configuration = true;
+    bool save_configuration = false;
     bool application_step = false;
-    Duration program_control_timeout = std::chrono::seconds(10);
-    Duration program_clear_timeout = std::chrono::seconds(30);
-    Duration program_data_timeout = std::chrono::seconds(5);
-    unsigned sdo_retries = 2;
+    Duration program_control_timeout{};
+    Duration program_clear_timeout{};
+    Duration program_data_timeout{};
+    unsigned sdo_retries = 0;
     static Options from(const MasterOptions& options);
   };
 
