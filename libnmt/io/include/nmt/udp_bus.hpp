@@ -2,12 +2,7 @@
 // interface (python-can 4.1: can/interfaces/udp_multicast). Every member of the group hears every
 // frame; there is no arbitration, no acknowledgement and no guaranteed delivery or order.
 //
-// Wire format (python-can's pack_message): one MessagePack map per datagram with exactly the keys
-// timestamp (float64, seconds since the Unix epoch), arbitration_id, is_extended_id,
-// is_remote_frame, is_error_frame, channel (nil), dlc, data (bin), is_fd, bitrate_switch and
-// error_state_indicator. python-can builds a can.Message(check=True) from the map, so one
-// datagram with an unknown key or an inconsistent field stops its receive thread for good: we
-// never send anything else.
+// Wire format: one python-can MessagePack map per datagram (nmt/udp_datagram.hpp).
 //
 // URL: `udp://[GROUP][:PORT][?iface=ADDR&ttl=N]`, default `udp://239.74.163.2:43113`.
 //   GROUP  an IPv4 multicast address (224.0.0.0/4). IPv6 is not supported.
@@ -31,6 +26,7 @@
 #include "cfg/result.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/frame.hpp"
+#include "nmt/udp_datagram.hpp"
 
 namespace nmt {
 
@@ -51,18 +47,6 @@ struct UdpBusOptions {
 cfg::Result<UdpBusOptions> parse_udp_url(std::string_view url);
 /// The URL that parse_udp_url() turns back into `options` (query only for non-defaults).
 std::string to_udp_url(const UdpBusOptions& options);
-
-/// Encodes `frame` as one python-can datagram; `timestamp_s` is seconds since the Unix epoch.
-/// Fails (without encoding) on a frame python-can would reject: id out of range for its format,
-/// dlc > 8, or both `rtr` and `error` set.
-cfg::Result<std::vector<std::uint8_t>> encode_udp_datagram(const CanFrame& frame,
-                                                           double timestamp_s);
-/// Decodes one datagram. Accepts what python-can itself accepts (missing keys take can.Message's
-/// defaults, e.g. is_extended_id true) and ignores unknown keys. Fails with the reason on
-/// anything else: not MessagePack, trailing bytes, a field of the wrong type or out of range,
-/// CAN FD frames (not supported). Error frames come back with `extended` set, as SocketCanBus
-/// reports them. The datagram's timestamp is ignored: the receiver stamps frames itself.
-cfg::Result<CanFrame> decode_udp_datagram(std::span<const std::uint8_t> datagram);
 
 /// What a UdpBus has dropped, for diagnostics.
 struct UdpBusCounters {
