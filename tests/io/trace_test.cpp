@@ -351,7 +351,8 @@ TEST(PcapLibrary, LibraryWithoutThePcapFunctionsIsRefusedNamingTheFirstMissing) 
 
 // ---- any bus can be traced --------------------------------------------------------------------
 
-// A scripted bus: records what is sent, hands out queued frames.
+// A scripted bus: records what is sent, hands out queued frames. No clock, unlike the event
+// loop tests' FakeClockBus (tests/support): TracingBus passes the driver's stamps through.
 class ScriptedBus : public Bus {
  public:
   cfg::Status send(const CanFrame& f) override {

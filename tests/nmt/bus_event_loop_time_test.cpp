@@ -7,10 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <deque>
 #include <string>
 #include <vector>
 
+#include "fake_clock_bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/error_control.hpp"
 
@@ -18,55 +18,6 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
-
-// A socket on a fake clock. Frames arrive at scripted times; receive() hands out those that
-// arrived by `now`, or waits (advancing the clock) for the next one up to the timeout. A stall
-// of the process is `now` moving on while arrivals pile up in the queue.
-class QueueBus final : public Bus {
- public:
-  struct Arrival {
-    TimePoint at;
-    std::string frame;
-    StampClock clock = StampClock::Loop;
-    std::optional<TimePoint> stamp;  // what the driver reports, when not `at`
-  };
-  cfg::Status send(const CanFrame& frame) override {
-    sent.push_back(to_candump(frame));
-    return {};
-  }
-  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override {
-    ++receives;
-    if (!arrivals.empty() && arrivals.front().at <= now + std::max(timeout, Duration::zero())) {
-      now = std::max(now, arrivals.front().at);
-      const Arrival a = arrivals.front();
-      arrivals.pop_front();
-      return std::optional<ReceivedFrame>(
-          ReceivedFrame{*from_candump(a.frame), a.stamp.value_or(a.at), a.clock});
-    }
-    if (flood) {
-      // Another frame every 100 us, for ever.
-      now += 100us;
-      return std::optional<ReceivedFrame>(ReceivedFrame{*from_candump("123#"), now});
-    }
-    now += std::max(timeout, Duration::zero());
-    return std::optional<ReceivedFrame>{};
-  }
-  std::string url() const override { return "queue:"; }
-
-  void arrive(TimePoint at, std::string frame) {
-    arrivals.push_back({at, std::move(frame), StampClock::Loop, std::nullopt});
-  }
-  // The same frame every `period` in [from, to).
-  void arrive_every(Duration period, TimePoint from, TimePoint to, const std::string& frame) {
-    for (TimePoint t = from; t < to; t += period) arrive(t, frame);
-  }
-
-  TimePoint now{};
-  bool flood = false;
-  std::size_t receives = 0;
-  std::deque<Arrival> arrivals;
-  std::vector<std::string> sent;
-};
 
 // An engine that records what it is given, with a deadline the test sets.
 struct Recorder {
@@ -98,7 +49,7 @@ TimePoint at(Duration d) {
 }
 
 TEST(BusEventLoop, FramesQueuedBeforeADeadlineAreDeliveredBeforeItsTimer) {
-  QueueBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   Recorder recorder;
   recorder.deadline = at(500ms);
@@ -123,7 +74,7 @@ TEST(BusEventLoop, FramesQueuedBeforeADeadlineAreDeliveredBeforeItsTimer) {
 // within the consumer heartbeat time. A node that heartbeats every 100 ms against 500 ms did
 // send in time, even if the consumer's process was stopped for 2 s.
 TEST(BusEventLoop, HeartbeatsThatArrivedDuringAStallOfTheLoopCountAsInTime) {
-  QueueBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   HeartbeatConsumer consumer;
   std::vector<HeartbeatEvent> events;
@@ -163,7 +114,7 @@ TEST(BusEventLoop, HeartbeatsThatArrivedDuringAStallOfTheLoopCountAsInTime) {
 }
 
 TEST(BusEventLoop, AFrameThatArrivedAfterTheDeadlineDoesNotPreventTheTimer) {
-  QueueBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   HeartbeatConsumer consumer;
   std::vector<std::pair<HeartbeatEvent, TimePoint>> events;
@@ -190,7 +141,7 @@ TEST(BusEventLoop, AFrameThatArrivedAfterTheDeadlineDoesNotPreventTheTimer) {
 }
 
 TEST(BusEventLoop, TimeGivenToEnginesNeverGoesBackAndNeverPassesTheClock) {
-  QueueBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   Recorder recorder;
   EngineRef ref(recorder);
@@ -212,7 +163,7 @@ TEST(BusEventLoop, TimeGivenToEnginesNeverGoesBackAndNeverPassesTheClock) {
 }
 
 TEST(BusEventLoop, ApplyFromAHandlerRunsAtTheTimeOfTheFrameBeingHandled) {
-  QueueBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   HeartbeatConsumer consumer;
   std::vector<TimePoint> apply_times;
@@ -232,7 +183,7 @@ TEST(BusEventLoop, ApplyFromAHandlerRunsAtTheTimeOfTheFrameBeingHandled) {
 }
 
 TEST(BusEventLoop, TimersFireUnderAFloodOfFramesAndTheRunEnds) {
-  QueueBus bus;
+  FakeClockBus bus;
   bus.flood = true;
   BusEventLoopOptions options;
   options.max_frames_per_pass = 16;

@@ -8,10 +8,10 @@
 // shows them.
 #include <gtest/gtest.h>
 
-#include <deque>
 #include <string>
 #include <vector>
 
+#include "fake_clock_bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/error_control.hpp"
 
@@ -24,42 +24,6 @@ using Status = SendResult::Status;
 TimePoint at(Duration d) {
   return TimePoint{} + d;
 }
-
-class ScriptedBus final : public Bus {
- public:
-  cfg::Status send(const CanFrame& /*frame*/) override {
-    return cfg::Error{"the loop sends with try_send"};
-  }
-  SendResult try_send(const CanFrame& frame) override {
-    attempts.push_back({now, to_candump(frame)});
-    if (!answers.empty()) {
-      const Status status = answers.front();
-      answers.pop_front();
-      if (status != Status::Sent) return {status, "scripted " + to_candump(frame)};
-    }
-    sent.push_back(to_candump(frame));
-    return {};
-  }
-  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override {
-    if (!arrivals.empty() && arrivals.front().first <= now + std::max(timeout, Duration::zero())) {
-      now = std::max(now, arrivals.front().first);
-      const auto a = arrivals.front();
-      arrivals.pop_front();
-      return std::optional<ReceivedFrame>(ReceivedFrame{*from_candump(a.second), a.first});
-    }
-    now += std::max(timeout, Duration::zero());
-    return std::optional<ReceivedFrame>{};
-  }
-  std::string url() const override { return "scripted:"; }
-
-  void arrive(TimePoint t, const std::string& frame) { arrivals.emplace_back(t, frame); }
-
-  TimePoint now{};
-  std::deque<Status> answers;  // of the next try_send calls; Sent once empty
-  std::deque<std::pair<TimePoint, std::string>> arrivals;
-  std::vector<std::pair<TimePoint, std::string>> attempts;
-  std::vector<std::string> sent;
-};
 
 // Sends what the test asks through apply(); records the frames it is given.
 struct Talker {
@@ -90,7 +54,7 @@ struct Rig {
     for (const auto& e : events) out.push_back(e.kind);
     return out;
   }
-  ScriptedBus bus;
+  FakeClockBus bus;
   BusEventLoop loop;
   Talker talker;
   EngineRef<Talker> ref;

@@ -8,28 +8,11 @@
 #include <vector>
 
 #include "cfg/hex.hpp"
+#include "fake_clock_bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 
 namespace nmt {
 namespace {
-
-class FakeBus final : public Bus {
- public:
-  cfg::Status send(const CanFrame& frame) override {
-    if (fail_sends) return cfg::Error{"transmit queue full"};
-    sent.push_back(to_candump(frame));
-    return {};
-  }
-  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override {
-    now += timeout;
-    return std::optional<ReceivedFrame>{};
-  }
-  std::string url() const override { return "fake:"; }
-
-  TimePoint now{};
-  bool fail_sends = false;
-  std::vector<std::string> sent;
-};
 
 // Sends 200#xx through its API; answers 200#xx with 201#xx and reports xx.
 struct Echo {
@@ -50,7 +33,7 @@ struct Echo {
 };
 
 TEST(EngineRef, ApplySendsAtOnceAndTheLoopsOtherEnginesHearIt) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   Echo a;
   Echo b;
@@ -68,7 +51,7 @@ TEST(EngineRef, ApplySendsAtOnceAndTheLoopsOtherEnginesHearIt) {
 }
 
 TEST(EngineRef, TheEventHandlerMayApply) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   Echo a;
   Echo b;
@@ -94,7 +77,7 @@ TEST(EngineRef, ApplyBeforeAddIsAProgrammingError) {
 }
 
 TEST(EngineRef, AFrameTheBusFailsToSendInApplyIsSentLaterNotLost) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   Echo a;
   EngineRef ref(a);

@@ -4,9 +4,8 @@
 // response `43 idx sub data` per CiA 301 §7.2.4.3.6 (public description).
 #include <gtest/gtest.h>
 
-#include <deque>
-
 #include "cfg/device_file.hpp"
+#include "fake_clock_bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/sdo.hpp"
 #include "nmt/simulated_device.hpp"
@@ -25,33 +24,6 @@ void power_on_at(Device& device, TimePoint now) {
 
 using namespace std::chrono_literals;
 
-class FakeBus final : public Bus {
- public:
-  cfg::Status send(const CanFrame& frame) override {
-    if (fail_sends) return cfg::Error{"transmit queue full"};
-    sent.push_back({now, to_candump(frame)});
-    return {};
-  }
-  cfg::Result<std::optional<ReceivedFrame>> receive(Duration timeout) override {
-    if (timeout > Duration::zero()) waits.push_back(timeout);
-    if (!script.empty() && script.front().first <= now + timeout) {
-      now = std::max(now, script.front().first);
-      auto f = *from_candump(script.front().second);
-      script.pop_front();
-      return std::optional<ReceivedFrame>(ReceivedFrame{f, now});
-    }
-    now += timeout;
-    return std::optional<ReceivedFrame>{};
-  }
-  std::string url() const override { return "fake:"; }
-
-  TimePoint now{};
-  bool fail_sends = false;
-  std::vector<Duration> waits;  // the non-zero timeouts of receive(), in order
-  std::deque<std::pair<TimePoint, std::string>> script;  // frames arriving at given times
-  std::vector<std::pair<TimePoint, std::string>> sent;
-};
-
 cfg::DeviceDescription sim_eds() {
   auto r = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sim_device.eds");
   EXPECT_TRUE(r.device.has_value()) << r.diagnostics.format();
@@ -67,24 +39,24 @@ SimulatedDevice device_with_heartbeat(std::uint8_t node, const char* ms) {
 }
 
 TEST(BusEventLoop, DeviceBootsAndProducesHeartbeatOnTime) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
   loop.add(ref);
   power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{1000ms + 1us}).ok());
-  ASSERT_EQ(bus.sent.size(), 11u);
-  EXPECT_EQ(bus.sent[0], std::make_pair(TimePoint{}, std::string("702#00")));
-  for (std::size_t i = 1; i < bus.sent.size(); ++i) {
-    EXPECT_EQ(bus.sent[i].first, TimePoint{std::chrono::milliseconds(100 * i)});
-    EXPECT_EQ(bus.sent[i].second, "702#7F");
+  ASSERT_EQ(bus.sent_at.size(), 11u);
+  EXPECT_EQ(bus.sent_at[0], std::make_pair(TimePoint{}, std::string("702#00")));
+  for (std::size_t i = 1; i < bus.sent_at.size(); ++i) {
+    EXPECT_EQ(bus.sent_at[i].first, TimePoint{std::chrono::milliseconds(100 * i)});
+    EXPECT_EQ(bus.sent_at[i].second, "702#7F");
   }
 }
 
 TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
-  FakeBus bus;
-  bus.script.push_back({TimePoint{250ms}, "000#0102"});
+  FakeClockBus bus;
+  bus.arrive(TimePoint{250ms}, "000#0102");
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
@@ -92,27 +64,27 @@ TEST(BusEventLoop, ReceivedNmtCommandChangesHeartbeatState) {
   power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{450ms}).ok());
   std::vector<std::string> frames;
-  for (const auto& [t, f] : bus.sent) frames.push_back(f);
+  for (const auto& [t, f] : bus.sent_at) frames.push_back(f);
   EXPECT_EQ(frames, (std::vector<std::string>{"702#00", "702#7F", "702#7F", "702#05", "702#05"}));
   EXPECT_EQ(loop.frames_received(), 1u);
 }
 
 TEST(BusEventLoop, AnswersSdoRequestFromTheBus) {
-  FakeBus bus;
-  bus.script.push_back({TimePoint{10ms}, "602#4000100000000000"});  // upload 1000h sub 0
+  FakeClockBus bus;
+  bus.arrive(TimePoint{10ms}, "602#4000100000000000");  // upload 1000h sub 0
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "0");
   EngineRef ref(device);
   loop.add(ref);
   power_on_at(device, loop.now());
   ASSERT_TRUE(loop.run_until(TimePoint{20ms}).ok());
-  ASSERT_EQ(bus.sent.size(), 2u);
+  ASSERT_EQ(bus.sent_at.size(), 2u);
   // 1000h = 0x000F0191 (sim_device.eds), 4 bytes expedited: command byte 43h.
-  EXPECT_EQ(bus.sent[1], std::make_pair(TimePoint{10ms}, std::string("582#4300100091010F00")));
+  EXPECT_EQ(bus.sent_at[1], std::make_pair(TimePoint{10ms}, std::string("582#4300100091010F00")));
 }
 
 TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(4, "0");
   SdoClient client(SdoClientConfig::for_node(4));
@@ -135,15 +107,15 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   ASSERT_TRUE(r->ok()) << r->abort;
   EXPECT_EQ(r->data, (std::vector<std::uint8_t>{0xDE, 0xC0, 0x57, 0x7E}));  // 0x7E57C0DE
   // Both sides' frames went to the bus too.
-  ASSERT_EQ(bus.sent.size(), 3u);
-  EXPECT_EQ(bus.sent[1].second, "604#4018100100000000");
-  EXPECT_EQ(bus.sent[2].second, "584#43181001DEC0577E");
+  ASSERT_EQ(bus.sent_at.size(), 3u);
+  EXPECT_EQ(bus.sent_at[1].second, "604#4018100100000000");
+  EXPECT_EQ(bus.sent_at[2].second, "584#43181001DEC0577E");
 }
 
 TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
   // The slave node as an embedder puts it on a real bus: no fault wrapper, events to a handler.
-  FakeBus bus;
-  bus.script.push_back({TimePoint{10ms}, "603#2B17100064000000"});  // 1017h = 100 ms
+  FakeClockBus bus;
+  bus.arrive(TimePoint{10ms}, "603#2B17100064000000");  // 1017h = 100 ms
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto node = SlaveNode::create(sim_eds(), cfg::NodeId::from(3).value());
   ASSERT_TRUE(node.ok()) << node.error().message;
@@ -159,13 +131,13 @@ TEST(BusEventLoop, SlaveNodeWithoutFaultsRunsOnTheLoopAndReportsItsEvents) {
       {TimePoint{10ms}, "583#6017100000000000"},  // download confirmed
       {TimePoint{10ms}, "703#7F"},                // the producer starts at once
       {TimePoint{110ms}, "703#7F"}};              // then every 100 ms
-  EXPECT_EQ(bus.sent, expected);
+  EXPECT_EQ(bus.sent_at, expected);
   EXPECT_EQ(events,
             (std::vector<std::string>{"boot: boot-up", "sdo-write: 1017h sub 00h = 2 byte(s)"}));
 }
 
 TEST(BusEventLoop, StopRequestEndsRun) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(2, "100");
   EngineRef ref(device);
@@ -180,7 +152,7 @@ TEST(BusEventLoop, StopRequestEndsRun) {
 }
 
 TEST(BusEventLoop, WaitsAreBoundedByMaxWait) {
-  FakeBus bus;
+  FakeClockBus bus;
   BusEventLoopOptions options;
   options.max_wait = 20ms;
   BusEventLoop loop(bus, options, [&] { return bus.now; });
@@ -193,7 +165,7 @@ TEST(BusEventLoop, WaitsAreBoundedByMaxWait) {
 // Issue 22, "The transmit path survives a real controller": a send error that is not fatal is
 // reported and retried; the loop goes on and nothing is lost or reordered.
 TEST(BusEventLoop, SendFailureIsReportedAndRetriedWhileTheRunGoesOn) {
-  FakeBus bus;
+  FakeClockBus bus;
   bus.fail_sends = true;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   std::vector<BusEvent> reported;
@@ -211,9 +183,9 @@ TEST(BusEventLoop, SendFailureIsReportedAndRetriedWhileTheRunGoesOn) {
   EXPECT_GE(loop.counters().queued, 10U);  // the boot-up and the heartbeats of that second
   bus.fail_sends = false;
   ASSERT_TRUE(loop.run_for(2s).ok());
-  ASSERT_GE(bus.sent.size(), 11U);
-  EXPECT_EQ(bus.sent[0].second, "702#00");  // in order: the boot-up first
-  for (std::size_t i = 1; i < bus.sent.size(); ++i) EXPECT_EQ(bus.sent[i].second, "702#7F");
+  ASSERT_GE(bus.sent_at.size(), 11U);
+  EXPECT_EQ(bus.sent_at[0].second, "702#00");  // in order: the boot-up first
+  for (std::size_t i = 1; i < bus.sent_at.size(); ++i) EXPECT_EQ(bus.sent_at[i].second, "702#7F");
   EXPECT_EQ(loop.counters().queued, 0U);
 }
 

@@ -1,6 +1,7 @@
 // A virtual bus on a socketpair for tests of BusEventLoop across threads: a descriptor the loop
 // polls (Bus::readable_fd) like the SocketCAN and UDP drivers', fed by inject() from any thread;
-// no network traffic at all.
+// no network traffic at all. (FakeClockBus, tests/support, is the single-threaded bus on a fake
+// clock; these tests need a real descriptor and real threads.)
 #pragma once
 
 #include <gtest/gtest.h>
