@@ -150,24 +150,7 @@ TEST(Lss, EndToEndOverUdp) {
 class LssInNetns : public ::testing::Test {
  protected:
   void SetUp() override { REQUIRE_ISOLATED_MULTICAST(); }
-  void TearDown() override {
-    if (devices_) (void)devices_->stop(SIGINT, 3000ms);
-  }
-
-  void simulate(const std::vector<std::string>& devices) {
-    if (devices_) {
-      const auto code = devices_->stop(SIGINT, 3000ms);
-      ASSERT_TRUE(code && *code == 0) << "the earlier simulate stops on SIGINT";
-    }
-    devices_.reset();
-    std::vector<std::string> args{"simulate", "--bus", kUrl, "--for", "120", "-v"};
-    args.insert(args.end(), devices.begin(), devices.end());
-    devices_.emplace("cfgmgr", args, dir_ / "sim.out", dir_ / "sim.err");
-    ASSERT_TRUE(devices_->started());
-    // Up once it says so (it opens the bus before it prints this line).
-    ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
-  }
-  std::string sim_out() const { return tool_test::slurp(dir_ / "sim.out"); }
+  std::string sim_out() const { return devices_.out(); }
   // sim_out() once it holds `text` (what the devices print follows the frames that caused it).
   std::string sim_out_with(const std::string& text) const {
     const auto end = std::chrono::steady_clock::now() + 5s;
@@ -192,11 +175,11 @@ class LssInNetns : public ::testing::Test {
   }
 
   ScratchDir dir_;
-  std::optional<tool_test::SpawnedTool> devices_;
+  tool_test::SimulatedDevices devices_{dir_.path(), kUrl, {"-v"}};
 };
 
 TEST_F(LssInNetns, ScanListsTheUnconfiguredDevicesAndSetIdBootsOne) {
-  simulate({kIo + "@255", kIo1003 + "@unconfigured"});
+  devices_.simulate({kIo + "@255", kIo1003 + "@unconfigured"});
   EXPECT_THAT(sim_out(), HasSubstr("unconfigured (LSS address " + std::string(kAddress1001)));
   EXPECT_THAT(sim_out(), HasSubstr("unconfigured (LSS address " + std::string(kAddress1003)));
 
@@ -235,14 +218,14 @@ TEST_F(LssInNetns, SimulateStateKeepsTheNodeIdLssStoredOverARestart) {
   // survives a restart of `cfgmgr simulate`: the device started @255 boots as node 5 at once,
   // without LSS, and Fastscan finds no unconfigured device.
   const std::string state = dir_ / "state";
-  simulate({"--state", state, kIo + "@255"});
+  devices_.simulate({"--state", state, kIo + "@255"});
   const auto set = lss({"set-id", kAddress1001, "5"});
   ASSERT_EQ(set.exit_code, 0) << set.err;
   EXPECT_THAT(sim_out_with("tx  705#00"), HasSubstr("tx  705#00"));
   EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(state) /
                                       "lss-7E57C0DE-00000305-00010002-00001001.saved"));
 
-  simulate({"--state", state, kIo + "@255"});
+  devices_.simulate({"--state", state, kIo + "@255"});
   EXPECT_THAT(sim_out(), HasSubstr("node 5 (node-ID stored by LSS): " + kIo));
   EXPECT_THAT(sim_out_with("tx  705#00"), HasSubstr("tx  705#00")) << "the boot-up of node 5";
   EXPECT_THAT(sim_out(), Not(HasSubstr("rx  7E5#"))) << "no LSS before it";
@@ -253,7 +236,7 @@ TEST_F(LssInNetns, SimulateStateKeepsTheNodeIdLssStoredOverARestart) {
   EXPECT_TRUE(addresses_of(scan).empty());
 
   // Without --state the same device is unconfigured again.
-  simulate({kIo + "@255"});
+  devices_.simulate({kIo + "@255"});
   EXPECT_THAT(sim_out(), HasSubstr("unconfigured (LSS address " + std::string(kAddress1001)));
 }
 
@@ -261,7 +244,7 @@ TEST_F(LssInNetns, ScanAllListsConfiguredAndUnconfiguredDevicesWithTheirNodeIds)
   // lss_io.eds runs as node 7, lss_io_1003.dcf unconfigured: Fastscan finds only the second;
   // --all looks for every device of its product (identify remote slave 46h-4Bh) and inquires
   // each one's node-ID (5Eh).
-  simulate({kIo + "@7", kIo1003 + "@255"});
+  devices_.simulate({kIo + "@7", kIo1003 + "@255"});
   const auto scan = lss({"--json", "scan", "--all"});
   ASSERT_EQ(scan.exit_code, 0) << scan.err;
   EXPECT_EQ(addresses_of(scan), (std::vector<std::string>{kAddress1003}));
@@ -286,7 +269,7 @@ TEST_F(LssInNetns, ScanAllListsConfiguredAndUnconfiguredDevicesWithTheirNodeIds)
 
 TEST_F(LssInNetns, ScanAllFindsConfiguredDevicesOfTheProductsItIsGiven) {
   // No unconfigured device names a product: only --device (or --product) does.
-  simulate({kIo + "@7"});
+  devices_.simulate({kIo + "@7"});
   const auto none = lss({"--json", "scan", "--all"});
   ASSERT_EQ(none.exit_code, 0) << none.err;
   EXPECT_TRUE(tool_test::json_object_of(none.out).get("devices")->array.empty()) << none.out;
@@ -299,7 +282,7 @@ TEST_F(LssInNetns, ScanAllFindsConfiguredDevicesOfTheProductsItIsGiven) {
 }
 
 TEST_F(LssInNetns, ANodeIdOutOfRangeIsAUsageErrorAndAnAbsentDeviceExits4InWords) {
-  simulate({kIo + "@255"});
+  devices_.simulate({kIo + "@255"});
   // CiA 305 configure node-ID: 1..127 or FFh; 0 and 128 are no node-ID and never reach the bus.
   for (const char* id : {"0", "128"}) {
     const auto r = lss({"set-id", kAddress1001, id});
@@ -318,7 +301,7 @@ TEST_F(LssInNetns, ANodeIdOutOfRangeIsAUsageErrorAndAnAbsentDeviceExits4InWords)
 
 TEST_F(LssInNetns, PythonCanLssMasterGivesTheSimulatedDeviceItsNodeId) {
   if (auto missing = test_support::python_can_missing()) PREREQUISITE_MISSING(*missing);
-  simulate({kIo + "@255"});
+  devices_.simulate({kIo + "@255"});
   test_support::PythonPeer master(test_support::python_script("lss_master.py"),
                                   {test_support::kUdpTestGroup, kPort, "10", "7E57C0DE", "00000305",
                                    "00010002", "00001001", "10"});

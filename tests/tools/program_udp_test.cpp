@@ -109,33 +109,28 @@ TEST(ProgramUpdateInNetns, SimulateStateKeepsTheDownloadedImageAcrossARestart) {
   const std::string bus = test_support::udp_test_url("43226");
   const std::string state = dir / "state";
   const std::string network = tool_test::data_path("program/program.cpj");
-  const std::vector<std::string> simulate{
-      "simulate", "--bus",   bus,   "--for",
-      "120",      "--state", state, tool_test::data_path("program/nodes/drive_node3.dcf") + "@3"};
-  {
-    tool_test::SpawnedTool devices("cfgmgr", simulate, dir / "sim1.out", dir / "sim1.err");
-    ASSERT_TRUE(devices.wait_until_simulating()) << devices.output();
-    const auto before = tool_test::cfgmgr(dir, {"verify", network, "--bus", bus});
-    EXPECT_EQ(before.exit_code, 4) << before.out << before.err;
-    EXPECT_THAT(before.out, HasSubstr("1F52h sub 01h"));
-    const auto push = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
-    ASSERT_EQ(push.exit_code, 0) << push.out << push.err << devices.output();
-    EXPECT_THAT(push.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
-    EXPECT_EQ(devices.stop(SIGINT, std::chrono::milliseconds(3000)), 0) << devices.output();
-  }
+  const std::string device = tool_test::data_path("program/nodes/drive_node3.dcf") + "@3";
+  tool_test::SimulatedDevices devices(dir.path(), bus, {"--state", state});
+  ASSERT_NO_FATAL_FAILURE(devices.simulate({device}));
+  const auto before = tool_test::cfgmgr(dir, {"verify", network, "--bus", bus});
+  EXPECT_EQ(before.exit_code, 4) << before.out << before.err;
+  EXPECT_THAT(before.out, HasSubstr("1F52h sub 01h"));
+  const auto push = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
+  ASSERT_EQ(push.exit_code, 0) << push.out << push.err << devices.output();
+  EXPECT_THAT(push.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
+  EXPECT_EQ(devices.stop(), 0) << devices.output();
   // The image is a file of its own next to the device's state file (nmt/device_state.hpp).
   EXPECT_EQ(std::filesystem::file_size(dir / "state/node-03.program01.bin"),
             std::filesystem::file_size(tool_test::data_path("program/drive_v2.img")));
 
-  tool_test::SpawnedTool devices("cfgmgr", simulate, dir / "sim2.out", dir / "sim2.err");
-  ASSERT_TRUE(devices.wait_until_simulating()) << devices.output();
+  ASSERT_NO_FATAL_FAILURE(devices.simulate({device}));
   const auto verify = tool_test::cfgmgr(dir, {"verify", network, "--bus", bus});
   EXPECT_EQ(verify.exit_code, 0) << verify.out << verify.err;
   EXPECT_THAT(verify.out, Not(HasSubstr("1F52h")));
   const auto again = tool_test::cfgmgr(dir, {"push", network, "--bus", bus});
   ASSERT_EQ(again.exit_code, 0) << again.out << again.err;
   EXPECT_THAT(again.out, Not(HasSubstr("program updated")));
-  EXPECT_EQ(devices.stop(SIGINT, std::chrono::milliseconds(3000)), 0) << devices.output();
+  EXPECT_EQ(devices.stop(), 0) << devices.output();
 }
 
 }  // namespace

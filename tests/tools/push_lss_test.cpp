@@ -180,30 +180,14 @@ class PushLssInNetns : public ::testing::Test {
     REQUIRE_ISOLATED_MULTICAST();
     write_network(dir_);
   }
-  void TearDown() override {
-    if (devices_) (void)devices_->stop(SIGINT, 3000ms);
-  }
-
-  void simulate(const std::vector<std::string>& devices) {
-    if (devices_) {
-      const auto code = devices_->stop(SIGINT, 3000ms);
-      ASSERT_TRUE(code && *code == 0) << "the earlier simulate stops on SIGINT";
-    }
-    devices_.reset();
-    std::vector<std::string> args{"simulate", "--bus", kUrl, "--for", "120"};
-    args.insert(args.end(), devices.begin(), devices.end());
-    devices_.emplace("cfgmgr", args, dir_ / "sim.out", dir_ / "sim.err");
-    ASSERT_TRUE(devices_->started());
-    ASSERT_TRUE(devices_->wait_until_simulating()) << devices_->output();
-  }
   std::string file(int node) const { return dir_ / ("io" + std::to_string(node) + ".dcf"); }
 
   ScratchDir dir_;
-  std::optional<tool_test::SpawnedTool> devices_;
+  tool_test::SimulatedDevices devices_{dir_.path(), kUrl};
 };
 
 TEST_F(PushLssInNetns, PushLssConfiguresDevicesOutOfTheBoxAndReportsAStranger) {
-  simulate({file(16) + "@255", file(17) + "@255", file(18) + "@255", kStranger + "@255"});
+  devices_.simulate({file(16) + "@255", file(17) + "@255", file(18) + "@255", kStranger + "@255"});
   // The scan step is generous: the devices answer from another process on a shared machine.
   const auto r = cfgmgr(dir_, {"push", dir_ / "nodelist.cpj", "--bus", kUrl, "--lss",
                                "--lss-scan-step", "40", "--json", dir_ / "r.json"});
@@ -225,7 +209,7 @@ TEST_F(PushLssInNetns, PushLssConfiguresDevicesOutOfTheBoxAndReportsAStranger) {
 // A drive is replaced while the master runs: the new one comes out of the box without node-ID.
 // --lss-period finds it, gives it its node-ID, and the boot-up handler boots and configures it.
 TEST_F(PushLssInNetns, MasterLssPeriodConfiguresAReplacedDevice) {
-  simulate({file(16) + "@16", file(17) + "@17", file(18) + "@18"});
+  devices_.simulate({file(16) + "@16", file(17) + "@17", file(18) + "@18"});
   tool_test::SpawnedTool master("cfgmgr",
                                 {"master", dir_ / "nodelist.cpj", "--bus", kUrl, "--lss",
                                  "--lss-scan-step", "40", "--lss-period", "300", "--run-for", "60"},
@@ -234,7 +218,7 @@ TEST_F(PushLssInNetns, MasterLssPeriodConfiguresAReplacedDevice) {
   ASSERT_TRUE(master.wait_for_output("NMT start-up complete", 30s)) << master.output();
   EXPECT_THAT(master.output(), Not(HasSubstr("got node-ID")));
   // Node 17's device is replaced by a new one with the same LSS address, without node-ID.
-  simulate({file(16) + "@16", file(17) + "@255", file(18) + "@18"});
+  devices_.simulate({file(16) + "@16", file(17) + "@255", file(18) + "@18"});
   ASSERT_TRUE(master.wait_for_output("got node-ID 17, stored", 30s)) << master.output();
   // Then its boot, with the configuration (the boot-up handler: "reconfigured", as the master
   // says of a second configuration of a node).

@@ -464,4 +464,53 @@ class SpawnedTool {
   pid_t pid_ = -1;
 };
 
+/// The devices of a test on a bus: `cfgmgr simulate --bus BUS --for 120 OPTIONS... DEVICES...`,
+/// restartable with other devices (a replaced drive, a power cycle). Each simulate() stops the
+/// earlier one with SIGINT (it must exit 0), starts the new one and waits until it is simulating
+/// (SpawnedTool::wait_until_simulating); stdout and stderr go to DIR/sim.out and DIR/sim.err.
+/// Stopped with SIGINT at the end of its scope.
+class SimulatedDevices {
+ public:
+  SimulatedDevices(std::filesystem::path dir, std::string bus,
+                   std::vector<std::string> options = {})
+      : dir_(std::move(dir)), bus_(std::move(bus)), options_(std::move(options)) {}
+  ~SimulatedDevices() { (void)stop(); }
+  SimulatedDevices(const SimulatedDevices&) = delete;
+  SimulatedDevices& operator=(const SimulatedDevices&) = delete;
+
+  /// Fails the test (fatally, in this function) when the earlier simulate did not exit 0 on
+  /// SIGINT or the new one does not come up.
+  void simulate(const std::vector<std::string>& devices) {
+    if (tool_) {
+      const auto code = stop();
+      ASSERT_TRUE(code && *code == 0) << "the earlier simulate stops on SIGINT";
+    }
+    std::vector<std::string> args{"simulate", "--bus", bus_, "--for", "120"};
+    args.insert(args.end(), options_.begin(), options_.end());
+    args.insert(args.end(), devices.begin(), devices.end());
+    tool_.emplace("cfgmgr", args, dir_ / "sim.out", dir_ / "sim.err");
+    ASSERT_TRUE(tool_->started());
+    // Up once it says so (it opens the bus before it prints this line).
+    ASSERT_TRUE(tool_->wait_until_simulating()) << tool_->output();
+  }
+  /// Stops the running simulate with SIGINT; its exit code, or nullopt (none running, or it did
+  /// not end within 3 s).
+  std::optional<int> stop() {
+    if (!tool_) return std::nullopt;
+    const auto code = tool_->stop(SIGINT, std::chrono::milliseconds(3000));
+    tool_.reset();
+    return code;
+  }
+  /// What the devices printed on standard output so far.
+  std::string out() const { return slurp(dir_ / "sim.out"); }
+  /// Both output files, for a failure message.
+  std::string output() const { return tool_ ? tool_->output() : out() + slurp(dir_ / "sim.err"); }
+
+ private:
+  std::filesystem::path dir_;
+  std::string bus_;
+  std::vector<std::string> options_;
+  std::optional<SpawnedTool> tool_;
+};
+
 }  // namespace tool_test
