@@ -205,6 +205,12 @@ class ExecuteLssBus : public ::testing::Test {
     bus.attach(*refusing.back());
     return refusing.back()->engine().slave;
   }
+  // The first event of `kind`, or nullptr.
+  const MasterEvent* event_of(Kind kind) const {
+    const auto e = std::find_if(events.begin(), events.end(),
+                                [kind](const MasterEvent& m) { return m.kind == kind; });
+    return e == events.end() ? nullptr : &*e;
+  }
   void run_pass() {
     process.apply([](auto& p, TimePoint now, auto& out) {
       p.start(now, out);
@@ -230,8 +236,8 @@ TEST_F(ExecuteLssBus, FoundDeviceGetsItsSlavesNodeIdStoredThenBackToWaiting) {
                     "7E4#1100000000000000", "7E5#1700000000000000", "7E4#1700000000000000",
                     "7E5#0400000000000000", "7E5#5100000000800000"}));
   ASSERT_EQ(texts(events, Kind::LssAssigned).size(), 1u);
-  const auto assigned = std::find_if(events.begin(), events.end(),
-                                     [](auto& e) { return e.kind == Kind::LssAssigned; });
+  const MasterEvent* assigned = event_of(Kind::LssAssigned);
+  ASSERT_NE(assigned, nullptr);
   EXPECT_EQ(assigned->node_id, 5);
   EXPECT_EQ(assigned->lss_address, sim_address(0xCAFEBABE));
   EXPECT_EQ(texts(events, Kind::LssScanEnded),
@@ -267,8 +273,8 @@ TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreReportedWithTheAddressAndLef
             Frames{"node 7: LSS: vendor 7E57C0DEh product 00000508h revision 00020001h serial "
                    "0000002Ah left unconfigured: more than one device answered configure node-ID "
                    "with this LSS address (CiA 305 takes LSS addresses to be unique)"});
-  const auto failed =
-      std::find_if(events.begin(), events.end(), [](auto& e) { return e.kind == Kind::LssFailed; });
+  const MasterEvent* failed = event_of(Kind::LssFailed);
+  ASSERT_NE(failed, nullptr);
   EXPECT_EQ(failed->lss_address, sim_address(42));
   for (const LssSlave* d : {&first, &second}) {
     EXPECT_EQ(d->active_node_id(), lss::kUnconfigured);
