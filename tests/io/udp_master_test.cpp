@@ -123,7 +123,7 @@ std::ptrdiff_t position(const std::vector<std::string>& lines, const std::string
 TEST(UdpBus, MasterBootsPythonCanSlaves) {
   REQUIRE_ISOLATED_MULTICAST();
   REQUIRE_PYTHON_CAN();
-  std::vector<std::string> args = {"239.74.163.2", std::to_string(kPort), "20"};
+  std::vector<std::string> args = {test_support::kUdpTestGroup, std::to_string(kPort), "20"};
   for (const auto node : kNodes) args.push_back(std::to_string(node));
   test_support::PythonPeer peer(test_support::python_script("master_slaves.py"), args);
   ASSERT_EQ(peer.read_line(), "READY");

@@ -28,7 +28,7 @@ using tool_test::ScratchDir;
 using tool_test::test_network;
 using tool_test::write_file;
 
-constexpr const char* kBus = "udp://239.74.163.2:43157";
+const std::string kBus = test_support::udp_test_url("43157");
 // tests/data/network/master.dcf (README.md there): the master is node 1; node 2 is configured
 // from the DCF 1F20h sub 2 names (nodes/io_node2.dcf), node 3 from the concise DCF of 1F22h
 // sub 3 alone.

@@ -20,7 +20,6 @@ namespace {
 
 using tool_test::ScratchDir;
 
-constexpr const char* kGroup = "239.74.163.2";
 constexpr const char* kPort = "43197";  // one port per test
 
 std::string master_data(const std::string& name) {
@@ -47,9 +46,9 @@ TEST(SdoManagerInNetns, PythonSrdRegistersConnectsReadsAndReleases) {
   REQUIRE_ISOLATED_MULTICAST();
   REQUIRE_PYTHON_CAN();
   ScratchDir dir;
-  const std::string bus = std::string("udp://") + kGroup + ":" + kPort;
+  const std::string bus = test_support::udp_test_url(kPort);
   test_support::PythonPeer srd(test_support::python_script("sdo_requesting_device.py"),
-                               {kGroup, kPort, "40", "127", "2"});
+                               {test_support::kUdpTestGroup, kPort, "40", "127", "2"});
   ASSERT_EQ(srd.read_line(), "READY");
   tool_test::SpawnedTool devices("cfgmgr",
                                  {"simulate", "--bus", bus, "--for", "60",

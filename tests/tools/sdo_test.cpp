@@ -26,7 +26,7 @@ using tool_test::JsonParser;
 using tool_test::ScratchDir;
 
 const std::string kDevice = data_path("sim_device.eds");
-const std::string kUrl = "udp://239.74.163.2:43181";
+const std::string kUrl = test_support::udp_test_url("43181");
 
 TEST(Sdo, HelpDocumentsActionsExamplesAndExitCodes) {
   ScratchDir dir;

@@ -26,9 +26,8 @@ using tool_test::Json;
 using tool_test::JsonParser;
 using tool_test::ScratchDir;
 
-constexpr const char* kGroup = "239.74.163.2";
 constexpr const char* kPort = "43183";
-const std::string kUrl = std::string("udp://") + kGroup + ":" + kPort;
+const std::string kUrl = test_support::udp_test_url(kPort);
 
 // The tool's own node-ID as an SRD: free in every network below.
 constexpr const char* kToolNode = "120";
@@ -96,8 +95,9 @@ class SdoViaManagerInNetns : public ::testing::Test {
   // The python SRD (node 127) registers once the master started node 2, connects to node 2's
   // default SDO, reads its 1018h sub 1 and holds the connection 3 s before it releases it.
   void start_network_with_holder(const std::string& node2) {
-    holder_.emplace(test_support::python_script("sdo_requesting_device.py"),
-                    std::vector<std::string>{kGroup, kPort, "40", "127", "2", "3"});
+    holder_.emplace(
+        test_support::python_script("sdo_requesting_device.py"),
+        std::vector<std::string>{test_support::kUdpTestGroup, kPort, "40", "127", "2", "3"});
     ASSERT_EQ(holder_->read_line(), "READY");
     start_network(node2);
     while (auto line = holder_->read_line()) {

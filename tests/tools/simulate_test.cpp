@@ -184,7 +184,7 @@ class Script {
 TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string url = "udp://239.74.163.2:43171";
+  const std::string url = test_support::udp_test_url("43171");
   auto opened = nmt::open_bus(url);
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   auto bus = std::move(opened).value();
@@ -286,7 +286,7 @@ TEST(SimulateInNetns, AnswersTheIdentityOfItsFileWhere1018hHasNoValue) {
   // from the file accepts it (without them it ends the boot with status M/N).
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string url = "udp://239.74.163.2:43173";
+  const std::string url = test_support::udp_test_url("43173");
   auto opened = nmt::open_bus(url);
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   auto bus = std::move(opened).value();
@@ -327,9 +327,10 @@ TEST(SimulateInNetns, AnswersTheIdentityOfItsFileWhere1018hHasNoValue) {
 TEST(SimulateInNetns, ForEndsTheRunByItself) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  auto r = run("cfgmgr",
-               {"simulate", "--bus", "udp://239.74.163.2:43172", "--for", "0.3", kDevice + "@7"},
-               dir.path().string());
+  auto r = run(
+      "cfgmgr",
+      {"simulate", "--bus", test_support::udp_test_url("43172"), "--for", "0.3", kDevice + "@7"},
+      dir.path().string());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("node 7: "), std::string::npos);
   EXPECT_NE(r.out.find("frames: 0 received, 1 sent"), std::string::npos) << r.out;

@@ -169,12 +169,13 @@ TEST(Store, UsageErrors) {
   EXPECT_EQ(cfgmgr(dir, {"store", "rm", "128", "--store", store}).exit_code, 2);
   // Neither or both of --store and --bus.
   EXPECT_EQ(cfgmgr(dir, {"store", "list"}).exit_code, 2);
-  EXPECT_EQ(cfgmgr(dir, {"store", "list", "--store", store, "--bus", "udp://239.74.163.2:43141",
-                         "--master", "1"})
+  EXPECT_EQ(cfgmgr(dir, {"store", "list", "--store", store, "--bus",
+                         test_support::udp_test_url("43141"), "--master", "1"})
                 .exit_code,
             2);
   // --bus without --master, and the simulated bus, which has no master.
-  EXPECT_EQ(cfgmgr(dir, {"store", "list", "--bus", "udp://239.74.163.2:43141"}).exit_code, 2);
+  EXPECT_EQ(cfgmgr(dir, {"store", "list", "--bus", test_support::udp_test_url("43141")}).exit_code,
+            2);
   EXPECT_EQ(cfgmgr(dir, {"store", "list", "--bus", "sim:", "--master", "1"}).exit_code, 2);
   // configure asks a running master.
   EXPECT_EQ(cfgmgr(dir, {"store", "configure", "5", "--store", store}).exit_code, 2);
@@ -207,7 +208,7 @@ TEST(Store, RemoteMasterOverUdp) {
 TEST(StoreInNetns, PutGetListConfigureOnARunningMaster) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = "udp://239.74.163.2:43141";
+  const std::string bus = test_support::udp_test_url("43141");
   const std::string store = dir / "store";
   write_file(dir / "node2.cdcf", kNode2Concise);
   tool_test::SpawnedTool devices(
