@@ -521,6 +521,8 @@ TEST_F(SocketCan, TheEventLoopSendsABurstThroughAFullQueueInOrderWhileItKeepsRec
     for (std::uint32_t i = 0; i < kCount; ++i) out.send(numbered(i));
   });
   std::thread peer_thread([&] {
+    // Sent into the burst, not after a readiness signal: the loop's counters are its thread's
+    // alone, and queued_when_heard below says whether it came while the burst was still queued.
     std::this_thread::sleep_for(50ms);
     EXPECT_TRUE(peer->send(frame("181#01")).ok());
   });

@@ -6,13 +6,16 @@
 // ThreadSanitizer too (CANOPEN_SANITIZE=thread, README.md).
 #include <gtest/gtest.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <array>
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <fstream>
 #include <future>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <thread>
@@ -25,6 +28,29 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
+
+// Whether thread `tid` of this process is asleep in poll(2)/ppoll(2) within `limit`, from
+// /proc/self/task/TID (proc(5): stat's state S, and wchan, when the kernel tells it, naming a
+// poll function). Nothing else puts the loop's thread to sleep while no frame and no posted call
+// is there.
+bool sleeping_in_poll_within(pid_t tid, std::chrono::milliseconds limit) {
+  const std::string task = "/proc/self/task/" + std::to_string(tid);
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < end) {
+    std::ifstream stat_file(task + "/stat");
+    std::string stat((std::istreambuf_iterator<char>(stat_file)), {});
+    std::ifstream wchan_file(task + "/wchan");
+    std::string wchan;
+    wchan_file >> wchan;
+    // stat: "tid (comm) S ...": the state follows the last ')'.
+    const auto paren = stat.rfind(')');
+    const bool sleeping = paren != std::string::npos && stat.compare(paren, 3, ") S") == 0;
+    const bool in_poll = wchan.empty() || wchan == "0" || wchan.find("poll") != std::string::npos;
+    if (sleeping && in_poll) return true;
+    std::this_thread::sleep_for(1ms);
+  }
+  return false;
+}
 
 // Records what posted calls ask, hears frames, and keeps a 1 ms timer so the loop is busy in
 // engine calls while the posters post.
@@ -112,8 +138,10 @@ TEST(BusEventLoopPost, WakesALoopThatWaitsForFrames) {
   options.max_wait = std::chrono::hours(1);
   BusEventLoop loop(bus, options);
   const TimePoint start = loop.clock();
+  const pid_t loop_thread = static_cast<pid_t>(::syscall(SYS_gettid));
   std::thread poster([&] {
-    std::this_thread::sleep_for(50ms);  // the loop is waiting in poll by then (or soon will be)
+    // Posts once the loop waits in poll: the case the wake-up is for.
+    EXPECT_TRUE(sleeping_in_poll_within(loop_thread, 10s)) << "the idle loop never slept in poll";
     loop.post([&] { loop.request_stop(); });
   });
   ASSERT_TRUE(loop.run_until(start + std::chrono::hours(2)));

@@ -271,7 +271,7 @@ TEST(Master, EndToEndOverUdp) {
 TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = "udp://239.74.163.2:43119";
+  const std::string bus = test_support::udp_test_url("43119");
   // Nodes 2 and 3 as independent processes; the master from master.dcf (node 2 mandatory from
   // its DCF, node 3 optional from a concise DCF).
   tool_test::SpawnedTool devices(
@@ -303,7 +303,7 @@ TEST(MasterInNetns, BootsDevicesOverUdpAndEndsCleanlyOnSigterm) {
 TEST(MasterInNetns, ReportsTheHeartbeatLossOfADeviceThatStops) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = "udp://239.74.163.2:43120";
+  const std::string bus = test_support::udp_test_url("43120");
   auto devices = std::make_unique<tool_test::SpawnedTool>(
       "cfgmgr",
       std::vector<std::string>{"simulate", "--bus", bus, "--for", "30",
@@ -424,7 +424,7 @@ class HeartbeatingNetwork {
 TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  HeartbeatingNetwork network(dir, "udp://239.74.163.2:43122", 2);
+  HeartbeatingNetwork network(dir, test_support::udp_test_url("43122"), 2);
   ASSERT_TRUE(network.started()) << network.master_err();
   const std::string& events = network.events();
   auto& master = *network.master;
@@ -440,6 +440,8 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
     return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
   };
   const std::size_t lines_before_stall = lines_in();
+  // The stall and the second after it are the subject (fixed lengths, not waits for readiness):
+  // 2 s frozen, then 1 s in which the queued heartbeats must not make the master report anything.
   master.signal(SIGSTOP);
   std::this_thread::sleep_for(std::chrono::seconds(2));
   master.signal(SIGCONT);
@@ -485,7 +487,7 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
 TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = "udp://239.74.163.2:43123";
+  const std::string bus = test_support::udp_test_url("43123");
   HeartbeatingNetwork network(dir, bus, 1);
   ASSERT_TRUE(network.started()) << network.master_err();
   const std::string& events = network.events();
@@ -502,6 +504,7 @@ TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
   ASSERT_TRUE(controller.ok()) << controller.error().message;
   ASSERT_TRUE((*controller)->send(*nmt::from_candump("20000040#0000000000000000")).ok());
   EXPECT_TRUE(wait_for("bus_off", std::chrono::seconds(2)));
+  // Bus-off for 1 s (the subject: longer than the consumer time, 250 ms), then the restart.
   std::this_thread::sleep_for(std::chrono::seconds(1));
   ASSERT_TRUE((*controller)->send(*nmt::from_candump("20000100#0000000000000000")).ok());
   EXPECT_TRUE(wait_for("restarted", std::chrono::seconds(2)));
@@ -534,7 +537,7 @@ namespace {
 TEST(MasterInNetns, FlyingMastersTakeOverWhenTheActiveOneIsKilled) {
   REQUIRE_ISOLATED_MULTICAST();
   ScratchDir dir;
-  const std::string bus = "udp://239.74.163.2:43121";
+  const std::string bus = test_support::udp_test_url("43121");
   tool_test::SpawnedTool devices(
       "cfgmgr", {"simulate", "--bus", bus, "--for", "40", test_network("nodes/io_node2.dcf")},
       dir / "sim.out", dir / "sim.err");
