@@ -188,7 +188,7 @@ WriteVerdict NmtMaster::Impl::persist_entry(cfg::StoreUpdate update, TimePoint n
   // No disk I/O in the engine (nmt_master.hpp): the driver writes the entry and answers with
   // entry_persisted(); until then the SDO confirmation waits and the manager keeps its value.
   const std::uint64_t ticket = ++last_persist_ticket;
-  const std::uint8_t node = update.node.value();
+  const auto node = update.node;
   const std::string what = cfg::to_string(cfg::ObjectAddress{update.index, node});
   auto shared = std::make_shared<cfg::StoreUpdate>(std::move(update));
   persists.emplace(ticket, shared);
