@@ -203,7 +203,7 @@ std::string json_of(const Outcome& o) {
          std::to_string(o.channel.config.response_cob_id.can_id().id);
   out += ", \"via_manager\": ";
   if (o.channel.srd_node_id) {
-    out += "{\"node_id\": " + std::to_string(*o.channel.srd_node_id) +
+    out += "{\"node_id\": " + std::to_string(o.channel.srd_node_id->value()) +
            ", \"client_index\": " + std::to_string(o.channel.client_index) + "}";
   } else {
     out += "null";

@@ -226,7 +226,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
     return cfg::Error{std::move(why), cfg::ErrorCategory::Input};
   }
   channel_.config = *srd_->connection(kConnectionClientIndex);
-  channel_.srd_node_id = route_->own_node_id.value();
+  channel_.srd_node_id = route_->own_node_id;
   channel_.client_index = kConnectionClientIndex;
   progress("connected to " + slave + " (" + cfg::object_name(kConnectionClientIndex) + ", " +
            cob_ids_text(channel_.config) + ")");

@@ -39,7 +39,7 @@ struct SdoSessionChannel {
   SdoClientConfig config;
   /// Set when the SDO manager granted the channel: the session's node-ID as an SRD and its
   /// client entry (1281h).
-  std::optional<std::uint8_t> srd_node_id{};
+  std::optional<cfg::NodeId> srd_node_id{};
   std::uint16_t client_index = 0;
 };
 
