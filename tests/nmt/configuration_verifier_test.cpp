@@ -66,7 +66,7 @@ TEST(ConfigurationVerifier, ADeviceConfiguredAsItsDcfHasNoDifference) {
   const auto results = verify(dcf, writes);
   ASSERT_EQ(results.size(), writes.size());
   for (const auto& r : results) {
-    EXPECT_TRUE(r.same()) << std::hex << r.index << " sub " << int{r.sub_index};
+    EXPECT_TRUE(r.same()) << cfg::to_string(r.address);
   }
 }
 
@@ -83,8 +83,7 @@ TEST(ConfigurationVerifier, AValueTheDeviceHasOtherwiseIsADifferenceWithBothValu
   }
   ASSERT_EQ(differ.size(), 1U);
   EXPECT_EQ(differ[0].node_id, 2);
-  EXPECT_EQ(differ[0].index, 0x1017);
-  EXPECT_EQ(differ[0].sub_index, 0);
+  EXPECT_EQ(differ[0].address, (cfg::ObjectAddress{0x1017, 0}));
   EXPECT_TRUE(differ[0].read());
   EXPECT_EQ(differ[0].expected, (std::vector<std::uint8_t>{0xE8, 0x03}));  // 1000
   EXPECT_EQ(differ[0].actual, (std::vector<std::uint8_t>{0xF4, 0x01}));    // 500

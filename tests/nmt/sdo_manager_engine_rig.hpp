@@ -26,6 +26,7 @@
 namespace nmt::engine_test {
 
 using namespace std::chrono_literals;
+using master_spec::id;
 using master_spec::le;
 using master_spec::request_word;
 using Kind = MasterEvent::Kind;
@@ -82,7 +83,7 @@ class FakeMaster final : public SdoManagerPort {
   bool serves_sdo() const override { return true; }
   void start_transfer(SdoManagerTransfer t, TimePoint) override {
     accesses.push_back(
-        {t.node, t.index, t.sub, t.upload,
+        {t.node, t.address.index, t.address.sub_index, t.upload,
          t.upload ? 0 : static_cast<std::uint32_t>(cfg::load_le(t.data, t.data.size()))});
     pending.push_back(std::move(t));
   }
@@ -104,16 +105,16 @@ class FakeMaster final : public SdoManagerPort {
   /// The result of `t` as the device (or its absence) gives it.
   SdoResult answer(const SdoManagerTransfer& t, TimePoint now) {
     SdoResult r;
-    r.node_id = cfg::NodeId::from(t.node);
-    r.address = {t.index, t.sub};
+    r.node_id = t.node;
+    r.address = t.address;
     r.upload = t.upload;
     auto it = devices.find(t.node);
     if (it == devices.end()) {
       r.abort = SdoAbort::Timeout;  // the client detected it
       return r;
     }
-    r.abort = t.upload ? it->second.read(t.index, t.sub, r.data, now)
-                       : it->second.write(t.index, t.sub, t.data, now);
+    r.abort = t.upload ? it->second.read(t.address.index, t.address.sub_index, r.data, now)
+                       : it->second.write(t.address.index, t.address.sub_index, t.data, now);
     r.aborted_by_server = r.abort != SdoAbort::None;
     return r;
   }

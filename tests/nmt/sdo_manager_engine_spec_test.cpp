@@ -518,6 +518,52 @@ TEST_F(SdoManagerEngineSpec, RequestInAnotherSrdsNameIsAborted060A0023) {
   EXPECT_FALSE(client_entry(kSrd2, 0x1281).valid());
 }
 
+// §7.2.3 1F00h bits 7-0 "Slave Node-ID": 80h-FFh name no node (CiA 301: 1..127); the
+// request is refused with 060A 0023h and no SDO access starts.
+TEST_F(SdoManagerEngineSpec, RequestForSlaveNodeId80hOrAboveIsAborted060A0023) {
+  start_network();
+  register_ok(kSrd);
+  const auto accesses = port.accesses.size();
+  for (const std::uint8_t slave : {std::uint8_t{0x80}, std::uint8_t{0xFF}}) {
+    EXPECT_EQ(srd_write_manager(kSrd, kRequestSdo, request_word(0x1282, kSrd, slave)),
+              SdoAbort::ResourceNotAvailable)
+        << "slave " << int{slave};
+  }
+  run();
+  EXPECT_EQ(port.accesses.size(), accesses);
+  EXPECT_TRUE(events_of(Kind::SdoConnectionRefused, kSrd).empty());
+}
+
+// §7.2.3 1F00h/1F01h bits 15-8 "SRD Node-ID": 0 and 80h-FFh are no SRD's node-ID: refused with
+// 060A 0023h (written by a tool on the default channel, which has no SRD of its own).
+TEST_F(SdoManagerEngineSpec, RequestOrReleaseWithSrdNodeId0Or80hIsAborted060A0023) {
+  start_network();
+  register_ok(kSrd);
+  for (const std::uint16_t object : {kRequestSdo, kReleaseSdo}) {
+    for (const std::uint8_t srd : {std::uint8_t{0x00}, std::uint8_t{0x80}}) {
+      EXPECT_EQ(dict.write(object, 0, le(request_word(0x1282, srd, kWithChannels), 4), now),
+                SdoAbort::ResourceNotAvailable)
+          << hex_text(object) << " SRD node-ID " << int{srd};
+    }
+  }
+  EXPECT_EQ(engine().srds().size(), 1U);
+}
+
+// §7.2.3 1F01h bits 7-0: 0 releases everything and de-registers; 80h-FFh name no node and are
+// refused with 060A 0023h: the SRD stays registered with its connections.
+TEST_F(SdoManagerEngineSpec, ReleaseOfSlaveNodeId80hIsAborted060A0023) {
+  start_network();
+  register_ok(kSrd);
+  connect_ok(kSrd, kWithChannels, 0x1282);
+  EXPECT_EQ(srd_write_manager(kSrd, kReleaseSdo, request_word(0, kSrd, 0x80)),
+            SdoAbort::ResourceNotAvailable);
+  run();
+  EXPECT_TRUE(events_of(Kind::SdoConnectionReleased, kSrd).empty());
+  EXPECT_EQ(engine().srds().size(), 1U);
+  EXPECT_EQ(engine().connections().size(), 2U);  // its channel to the manager, and to S
+  EXPECT_TRUE(client_entry(kSrd, 0x1282).valid());
+}
+
 // §7.2.3: 1F00h and 1F01h are wo; 1F03h-1F06h are ro, 254 rows in part 1.
 TEST_F(SdoManagerEngineSpec, ObjectAccessIsAsTheSpecTablesSay) {
   start_network();

@@ -203,7 +203,7 @@ std::string json_of(const Outcome& o) {
          std::to_string(o.channel.config.response_cob_id.can_id().id);
   out += ", \"via_manager\": ";
   if (o.channel.srd_node_id) {
-    out += "{\"node_id\": " + std::to_string(*o.channel.srd_node_id) +
+    out += "{\"node_id\": " + std::to_string(o.channel.srd_node_id->value()) +
            ", \"client_index\": " + std::to_string(o.channel.client_index) + "}";
   } else {
     out += "null";
@@ -267,10 +267,10 @@ std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, std::uint8
   if (!opened) fail(tools::kExitIo, opened.error().message);
   auto session = std::move(opened).value();
   require_free_node_id(*session, own);
-  nmt::SdoManagerRoute route;
-  route.own_node_id = *cfg::NodeId::from(own);
-  route.slave = node;
-  route.manager_timeout = seconds_to_duration(o.manager_timeout_s);
+  // parse_node checked both node-IDs (1..127).
+  nmt::SdoManagerRoute route{.own_node_id = *cfg::NodeId::from(own),
+                             .slave = *cfg::NodeId::from(node),
+                             .manager_timeout = seconds_to_duration(o.manager_timeout_s)};
   // Steps on stderr with -v, or when a person watches (registration may take seconds while
   // the manager scans node-IDs, DSP 302 §7.2.4).
   if (o.verbose || ::isatty(STDERR_FILENO) == 1) {

@@ -74,17 +74,16 @@ std::string in_words(const cfg::SubObject* sub, const std::vector<std::uint8_t>&
 }
 
 Entry describe(const cfg::Network& network, nmt::VerifyResult result) {
-  Entry e;
-  const cfg::NetworkNode* node = network.find(*cfg::NodeId::from(result.node_id));
+  const cfg::NetworkNode* node = network.find(result.node_id);
   const cfg::Object* object =
-      node != nullptr && node->dcf ? node->dcf->object(result.index) : nullptr;
-  const cfg::SubObject* sub = object != nullptr ? object->sub(result.sub_index) : nullptr;
-  if (object != nullptr && sub != nullptr) e.name = cfg::parameter_name(*object, *sub);
-  e.expected = in_words(sub, result.expected);
-  e.actual = result.read() ? in_words(sub, result.actual)
-                           : "upload failed: " + nmt::to_string(result.abort);
-  e.result = std::move(result);
-  return e;
+      node != nullptr && node->dcf ? node->dcf->object(result.address.index) : nullptr;
+  const cfg::SubObject* sub = object != nullptr ? object->sub(result.address.sub_index) : nullptr;
+  std::string name =
+      object != nullptr && sub != nullptr ? cfg::parameter_name(*object, *sub) : std::string();
+  std::string expected = in_words(sub, result.expected);
+  std::string actual = result.read() ? in_words(sub, result.actual)
+                                     : "upload failed: " + nmt::to_string(result.abort);
+  return Entry{std::move(result), std::move(name), std::move(expected), std::move(actual)};
 }
 
 std::string node_label(const cfg::NetworkNode& node) {
@@ -115,10 +114,9 @@ void print_report(const std::vector<NodeSummary>& nodes, const std::vector<Entry
   for (const auto& e : entries) {
     if (e.result.same()) continue;
     const cfg::NetworkNode& node = *std::find_if(nodes.begin(), nodes.end(), [&](const auto& n) {
-                                      return n.node->node_id.value() == e.result.node_id;
+                                      return n.node->node_id == e.result.node_id;
                                     })->node;
-    std::cout << node_label(node) << ": "
-              << cfg::to_string(cfg::ObjectAddress{e.result.index, e.result.sub_index})
+    std::cout << node_label(node) << ": " << cfg::to_string(e.result.address)
               << (e.name.empty() ? "" : " " + e.name) << ": ";
     if (e.write_only()) {
       std::cout << "write-only, not compared\n";
@@ -152,10 +150,10 @@ std::string json_report(const std::vector<NodeSummary>& nodes, const std::vector
   for (const auto& e : entries) {
     if (!e.differs()) continue;
     const auto& r = e.result;
-    out += std::string(first ? "" : ", ") + "{\"node_id\": " + std::to_string(r.node_id) +
-           ", \"index\": " + std::to_string(r.index) +
-           ", \"sub_index\": " + std::to_string(r.sub_index) + ", \"address\": " +
-           tools::json_string(cfg::to_string(cfg::ObjectAddress{r.index, r.sub_index})) +
+    out += std::string(first ? "" : ", ") + "{\"node_id\": " + std::to_string(r.node_id.value()) +
+           ", \"index\": " + std::to_string(r.address.index) +
+           ", \"sub_index\": " + std::to_string(r.address.sub_index) +
+           ", \"address\": " + tools::json_string(cfg::to_string(r.address)) +
            ", \"name\": " + tools::json_string(e.name) +
            ", \"expected\": " + tools::json_string(e.expected) +
            ", \"expected_hex\": " + tools::json_string(tools::hex_string(r.expected)) +
@@ -285,7 +283,7 @@ void run_verify(const VerifyCliOptions& options) {
   bool ok = true;
   for (const auto& e : entries) {
     auto& n = *std::find_if(nodes.begin(), nodes.end(), [&](const NodeSummary& s) {
-      return s.node->node_id.value() == e.result.node_id;
+      return s.node->node_id == e.result.node_id;
     });
     ++n.entries;
     if (e.result.same()) {

@@ -104,7 +104,7 @@ cfg::Result<SdoResult> SdoSession::run(Start&& start) {
 // --- via the SDO manager ---------------------------------------------------------------------
 
 void SdoSession::progress(const std::string& line) const {
-  if (route_.progress) route_.progress(line);
+  if (route_ && route_->progress) route_->progress(line);
 }
 
 cfg::Result<bool> SdoSession::run_until(const std::function<bool()>& done, Duration timeout) {
@@ -146,15 +146,13 @@ std::optional<SrdEvent> SdoSession::take_event(const std::function<bool(const Sr
 cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   using Kind = SrdEvent::Kind;
   route_ = std::move(route);
-  const auto slave_id = cfg::NodeId::from(route_.slave);
-  if (!slave_id) return cfg::Error{std::to_string(route_.slave) + " is no node-ID (1..127)"};
   auto description = cfg::parse_device_description(session_srd_description());
   if (!description.device) return cfg::Error{"the built-in SDO requesting device does not read"};
   SrdOptions options;
   options.registration_client_index = kManagerClientIndex;
-  options.registration_timeout = route_.manager_timeout;
-  options.connection_timeout = route_.manager_timeout;
-  auto srd = SdoRequestingDevice::create(*description.device, route_.own_node_id, options);
+  options.registration_timeout = route_->manager_timeout;
+  options.connection_timeout = route_->manager_timeout;
+  auto srd = SdoRequestingDevice::create(*description.device, route_->own_node_id, options);
   if (!srd) return srd.error();
   srd_ = std::move(srd).value();
   srd_ref_ =
@@ -164,7 +162,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
         loop_.request_stop();
       });
   loop_.add(*srd_ref_);
-  const std::string own = "node " + std::to_string(route_.own_node_id.value());
+  const std::string own = "node " + std::to_string(route_->own_node_id.value());
 
   // CiA 301 §7.2.8.3.2.1: the device boots (its boot-up goes out from its first timer).
   srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto& out) { s.power_on(now, out); });
@@ -183,7 +181,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
         return (registered = take_event({Kind::Registered, Kind::RegistrationFailed})) ||
                srd_->registration() == SrdRegistration::Unregistered;
       },
-      route_.manager_timeout + std::chrono::seconds(1));
+      route_->manager_timeout + std::chrono::seconds(1));
   if (!answered) return answered.error();
   // A refusal carries an abort or a 1F10h word; a missing answer (the SRD's own timeout, or
   // none reported yet) neither.
@@ -196,7 +194,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   if (!registered || registered->kind == Kind::RegistrationFailed) {
     return cfg::Error{
         "no SDO manager answered the Dynamic SDO Request (DSP 302 §7.2.1) of " + own + " within " +
-            seconds_text(route_.manager_timeout) +
+            seconds_text(route_->manager_timeout) +
             " s: is an SDO manager running on the bus (e.g. `cfgmgr master NETWORK --bus URL "
             "--sdo-manager`)? A larger --manager-timeout helps when it scans many node-IDs",
         cfg::ErrorCategory::Io};
@@ -208,9 +206,9 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   }
 
   // DSP 302 §7.2.2: 1F00h at the manager; it answers in 1F10h with the client entry set up.
-  const std::string slave = "node " + std::to_string(route_.slave);
+  const std::string slave = "node " + std::to_string(route_->slave.value());
   (void)srd_ref_->apply([&](SdoRequestingDevice& s, TimePoint now, auto& out) {
-    return s.request_connection(*slave_id, kConnectionClientIndex, now, out);
+    return s.request_connection(route_->slave, kConnectionClientIndex, now, out);
   });
   std::optional<SrdEvent> connected;
   auto granted = run_until(
@@ -218,7 +216,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
         return (connected = take_event({Kind::Connected, Kind::ConnectionFailed})) ||
                srd_->registration() != SrdRegistration::Registered;
       },
-      route_.manager_timeout + std::chrono::seconds(1));
+      route_->manager_timeout + std::chrono::seconds(1));
   if (!granted) return granted.error();
   if (!connected || connected->kind == Kind::ConnectionFailed) {
     std::string why = connected
@@ -228,7 +226,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
     return cfg::Error{std::move(why), cfg::ErrorCategory::Input};
   }
   channel_.config = *srd_->connection(kConnectionClientIndex);
-  channel_.srd_node_id = route_.own_node_id.value();
+  channel_.srd_node_id = route_->own_node_id;
   channel_.client_index = kConnectionClientIndex;
   progress("connected to " + slave + " (" + cfg::object_name(kConnectionClientIndex) + ", " +
            cob_ids_text(channel_.config) + ")");
@@ -274,7 +272,7 @@ cfg::Status SdoSession::close() {
         return (ended = take_event({SrdEvent::Kind::Deregistered, SrdEvent::Kind::ReleaseFailed}))
             .has_value();
       },
-      route_.manager_timeout);
+      route_->manager_timeout);
   if (!answered) return answered.error();
   if (!ended) {
     return cfg::Error{"the SDO manager did not confirm the release", cfg::ErrorCategory::Io};
@@ -295,7 +293,7 @@ cfg::Status SdoSession::close() {
     }
     return true;
   };
-  auto cleared = run_until(invalidated, route_.manager_timeout);
+  auto cleared = run_until(invalidated, route_->manager_timeout);
   if (!cleared) return cleared.error();
   if (!cleared.value()) {
     return cfg::Error{"the SDO manager did not clear " + cfg::object_name(kManagerClientIndex) +

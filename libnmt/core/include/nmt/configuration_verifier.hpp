@@ -15,6 +15,7 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
@@ -24,13 +25,12 @@ namespace nmt {
 
 /// The outcome of reading back one entry.
 struct VerifyResult {
-  std::uint8_t node_id = 0;
-  std::uint16_t index = 0;
-  std::uint8_t sub_index = 0;
-  std::vector<std::uint8_t> expected;  ///< what the configuration writes
-  std::vector<std::uint8_t> actual;    ///< what the device answered (empty when it failed)
-  SdoAbort abort = SdoAbort::None;     ///< None: read; else why the upload failed (last try)
-  unsigned attempts = 1;               ///< uploads made (more than 1 after timeouts)
+  cfg::NodeId node_id;
+  cfg::ObjectAddress address;
+  std::vector<std::uint8_t> expected{};  ///< what the configuration writes
+  std::vector<std::uint8_t> actual{};    ///< what the device answered (empty when it failed)
+  SdoAbort abort = SdoAbort::None;       ///< None: read; else why the upload failed (last try)
+  unsigned attempts = 1;                 ///< uploads made (more than 1 after timeouts)
 
   bool read() const { return abort == SdoAbort::None; }
   /// Read, and byte for byte what the configuration writes.

@@ -7,16 +7,17 @@
 namespace nmt {
 namespace {
 
-std::uint64_t key(std::uint8_t node, SdoClient::TransferId id) {
-  return std::uint64_t{node} << 32 | id;
+std::uint64_t key(cfg::NodeId node, SdoClient::TransferId id) {
+  return std::uint64_t{node.value()} << 32 | id;
 }
 
 }  // namespace
 
 void ConfigurationVerifier::upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo,
                                    Output& out) {
-  const std::uint8_t node = result.node_id;
-  const auto id = mux_.client(node).upload(result.index, result.sub_index, now, sdo, options_.sdo);
+  const auto node = result.node_id;
+  const auto id = mux_.client(node).upload(result.address.index, result.address.sub_index, now, sdo,
+                                           options_.sdo);
   if (!id) {
     // SdoClient::check_start refuses an upload only for a timeout that is not positive: the
     // entry is reported as one whose answer did not come.
@@ -24,7 +25,7 @@ void ConfigurationVerifier::upload(VerifyResult result, TimePoint now, Outbox<Sd
     out.report(std::move(result));
     return;
   }
-  running_[key(node, *id)] = Running{std::move(result)};
+  running_.insert_or_assign(key(node, *id), Running{std::move(result)});
 }
 
 void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::ObjectWrite> writes,
@@ -43,12 +44,10 @@ void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::Object
   }
   sdo_.clear();
   for (auto& e : entries) {
-    VerifyResult r;
-    r.node_id = node.value();
-    r.index = e.index;
-    r.sub_index = e.sub_index;
-    r.expected = std::move(e.data);
-    upload(std::move(r), now, sdo_, out);
+    upload(
+        VerifyResult{
+            .node_id = node, .address = {e.index, e.sub_index}, .expected = std::move(e.data)},
+        now, sdo_, out);
   }
   take(sdo_, now, out);
 }

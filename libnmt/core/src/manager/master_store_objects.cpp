@@ -188,7 +188,7 @@ WriteVerdict NmtMaster::Impl::persist_entry(cfg::StoreUpdate update, TimePoint n
   // No disk I/O in the engine (nmt_master.hpp): the driver writes the entry and answers with
   // entry_persisted(); until then the SDO confirmation waits and the manager keeps its value.
   const std::uint64_t ticket = ++last_persist_ticket;
-  const std::uint8_t node = update.node.value();
+  const auto node = update.node;
   const std::string what = cfg::to_string(cfg::ObjectAddress{update.index, node});
   auto shared = std::make_shared<cfg::StoreUpdate>(std::move(update));
   persists.emplace(ticket, shared);
@@ -230,8 +230,7 @@ void NmtMaster::Impl::add_unstored_configurations(std::uint8_t sub,
   const auto node = cfg::NodeId::from(sub);
   if (sub == cfg::kConfigureAllNodes && written.ok()) {
     std::vector<cfg::NodeId> nodes;
-    for (unsigned n = cfg::kMinNodeId; n <= cfg::kMaxNodeId; ++n) {
-      const auto id = *cfg::NodeId::from(n);
+    for (const auto id : all_node_ids()) {
       if (is_slave(id) && has_configuration(id)) nodes.push_back(id);
     }
     written.configure = std::move(nodes);
@@ -248,13 +247,12 @@ SdoAbort NmtMaster::Impl::configure_slaves(std::uint8_t sub, const std::vector<c
   if (sub != cfg::kConfigureAllNodes && !is_slave(sub)) return SdoAbort::General;
   if (out == nullptr) return SdoAbort::DeviceState;  // booting needs the call's output
   for (const auto node : nodes) {
-    const std::uint8_t n = node.value();
-    if (!is_slave(n)) continue;
+    if (!is_slave(node)) continue;
     // As boot_slave(): the application (here a tool) asks for it.
-    slaves[n].held = false;
-    stop_error_control(n);
-    start_boot(n, false, now, *out, /*asked_by_application=*/true);
-    boot(n).request_reconfiguration();
+    slaves[node].held = false;
+    stop_error_control(node);
+    start_boot(node, false, now, *out, /*asked_by_application=*/true);
+    boot(node).request_reconfiguration();
   }
   return SdoAbort::None;
 }

@@ -38,27 +38,35 @@ std::string connection_text(const ManagedSdoConnection& c) {
 
 }  // namespace
 
-SdoManagerProcess::Step SdoManagerProcess::write_step(std::uint8_t node, std::uint16_t index,
-                                                      std::uint8_t sub, std::uint32_t value,
-                                                      std::size_t size, bool must_succeed,
-                                                      bool retry) {
-  Step s;
-  s.node = node;
-  s.index = index;
-  s.sub = sub;
-  s.value = value;
-  s.size = size;
-  s.must_succeed = must_succeed;
-  s.retry = retry;
+SdoManagerProcess::Step SdoManagerProcess::write_step(cfg::NodeId node, cfg::ObjectAddress address,
+                                                      std::uint32_t value, std::size_t size,
+                                                      bool must_succeed, bool retry) {
+  return Step{.node = node,
+              .address = address,
+              .value = value,
+              .size = size,
+              .must_succeed = must_succeed,
+              .retry = retry};
+}
+
+SdoManagerProcess::Step SdoManagerProcess::read_step(cfg::NodeId node, cfg::ObjectAddress address,
+                                                     bool retry) {
+  // must_succeed false: the phase looks at the result.
+  auto s = write_step(node, address, 0, 0, false, retry);
+  s.upload = true;
   return s;
 }
 
-SdoManagerProcess::Step SdoManagerProcess::read_step(std::uint8_t node, std::uint16_t index,
-                                                     std::uint8_t sub, bool retry) {
-  // must_succeed false: the phase looks at the result.
-  auto s = write_step(node, index, sub, 0, 0, false, retry);
-  s.upload = true;
-  return s;
+SdoManagerProcess::Job SdoManagerProcess::scan_job() {
+  return Job{.kind = Job::Kind::Scan, .node = *cfg::NodeId::from(cfg::kMaxNodeId)};
+}
+
+void SdoManagerProcess::scan_next(Job& job) {
+  if (const auto below = cfg::NodeId::from(job.node.value() - 1U)) {
+    job.node = *below;
+  } else {
+    job.scanned_all = true;
+  }
 }
 
 // --- jobs ---
@@ -83,12 +91,8 @@ void SdoManagerProcess::pump(TimePoint now, Output& out) {
       continue;
     }
     const auto& step = job.steps.front();
-    SdoManagerTransfer t;
-    t.tag = ++serial_;
-    t.node = step.node;
-    t.index = step.index;
-    t.sub = step.sub;
-    t.upload = step.upload;
+    SdoManagerTransfer t{
+        .tag = ++serial_, .node = step.node, .address = step.address, .upload = step.upload};
     if (!step.upload) cfg::append_le(t.data, step.value, step.size);
     t.timeout = job.kind == Job::Kind::Scan ? settings_.scan_timeout : settings_.sdo_timeout;
     t.retries = step.retry ? settings_.sdo_retries : 0;
@@ -116,10 +120,8 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
       // §7.2.1: an open request has Rq indication set.
       if (result.ok() && DynamicSdoState::decode(uploaded_u32(result)).request_indication) {
         start_register(uploaded_u32(result));
-      } else if (job.node > cfg::kMinNodeId) {
-        --job.node;
       } else {
-        job.node = 0;
+        scan_next(job);
       }
       return;
     case Phase::ReadHeartbeat: {
@@ -130,34 +132,34 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
       // Confirmed last (§7.2.3: reset 1F10h): the SRD may use its channel as soon as it sees it.
       job.phase = Phase::Writing;
       job.steps.push_back(
-          write_step(job.node, obj::kDynamicSdoConnectionState, 0, job.confirmation, 4));
+          write_step(job.node, {obj::kDynamicSdoConnectionState, 0}, job.confirmation, 4));
       return;
     }
     case Phase::ProbeSlave:
       if (!answered) {
-        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(job.slave) + " does not answer");
+        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(*job.slave) + " does not answer");
       } else {
         connect_with(kDefaultServer);
       }
       return;
     case Phase::SearchChannel: {
       if (!answered) {
-        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(job.slave) + " does not answer");
+        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(*job.slave) + " does not answer");
         return;
       }
       const bool free =
           result.ok() && (uploaded_u32(result) & cfg::kCobIdInvalidBit) != 0 &&
           std::none_of(connections_.begin(), connections_.end(), [&](const Connection& c) {
-            return c.row.server == job.slave && c.row.server_index == job.probe;
+            return c.row.server == *job.slave && c.row.server_index == job.probe;
           });
       if (free) {
         connect_with(job.probe);
       } else if (!result.ok() || job.probe >= obj::kSdoServerLast) {
         refuse(DynamicSdoError::kNoFreeServerOnSlave,
-               node_text(job.slave) + " has no free server SDO entry");
+               node_text(*job.slave) + " has no free server SDO entry");
       } else {
         ++job.probe;
-        job.steps.push_back(read_step(job.slave, job.probe, 1));
+        job.steps.push_back(read_step(*job.slave, {job.probe, 1}));
       }
       return;
     }
@@ -194,9 +196,9 @@ void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Outpu
     }
     // The SRD did not take its entry: undo S's side (best effort), no confirmation possible.
     if (c.row.server_index != kDefaultServer) {
-      job.steps.push_back(write_step(job.slave, c.row.server_index, 1,
+      job.steps.push_back(write_step(*job.slave, {c.row.server_index, 1},
                                      c.row.request.with_valid(false).word(), 4, false));
-      job.steps.push_back(write_step(job.slave, c.row.server_index, 2,
+      job.steps.push_back(write_step(*job.slave, {c.row.server_index, 2},
                                      c.row.response.with_valid(false).word(), 4, false));
     }
     mark_pool(c.pool_request, false);
@@ -225,7 +227,7 @@ void SdoManagerProcess::refuse(DynamicSdoError error, const std::string& why) {
   auto state = DynamicSdoState::failure(index, error);
   state.request_error_control = ec;
   job.steps.push_back(
-      write_step(job.node, obj::kDynamicSdoConnectionState, 0, state.encode(), 4, false));
+      write_step(job.node, {obj::kDynamicSdoConnectionState, 0}, state.encode(), 4, false));
 }
 
 void SdoManagerProcess::start_register(std::uint32_t request) {
@@ -238,9 +240,7 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   if (rescan_) {
     // Another 6E0h came during the scan: scan again after this registration.
     rescan_ = false;
-    Job scan;
-    scan.kind = Job::Kind::Scan;
-    jobs_.push_back(std::move(scan));
+    jobs_.push_back(scan_job());
   }
   const auto state = DynamicSdoState::decode(request);
   if (state.is_all_default_sdos_request()) {
@@ -288,9 +288,9 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   open_channel(channel, c);
   job.phase = Job::Phase::Confirming;
   // §7.2.1: enable the SRD's client entry named in 1F10h, then reset 1F10h (Cnxn 1).
-  job.steps.push_back(write_step(srd, index, 3, node_id_.value(), 1));
-  job.steps.push_back(write_step(srd, index, 1, c.row.request.word(), 4));
-  job.steps.push_back(write_step(srd, index, 2, c.row.response.word(), 4));
+  job.steps.push_back(write_step(srd, {index, 3}, node_id_.value(), 1));
+  job.steps.push_back(write_step(srd, {index, 1}, c.row.request.word(), 4));
+  job.steps.push_back(write_step(srd, {index, 2}, c.row.response.word(), 4));
   job.confirmation = DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
                                                    state.request_error_control)
                          .encode();
@@ -305,11 +305,12 @@ void SdoManagerProcess::start_connect() {
   job.connection = {};
   job.connection.row.srd = job.node;
   job.connection.row.client_index = job.client_index;
-  job.connection.row.server = job.slave;
-  if (!default_sdo_taken(job.slave) && !all_default_sdos_owned()) {
+  const auto slave = *job.slave;
+  job.connection.row.server = slave;
+  if (!default_sdo_taken(slave) && !all_default_sdos_owned()) {
     // Is S there? Its default SDO needs no write (§7.1).
     job.phase = Job::Phase::ProbeSlave;
-    job.steps.push_back(read_step(job.slave, obj::kDeviceType, 0));
+    job.steps.push_back(read_step(slave, {obj::kDeviceType, 0}));
     return;
   }
   if (free_pool().size() < 2) {
@@ -318,15 +319,16 @@ void SdoManagerProcess::start_connect() {
   }
   job.phase = Job::Phase::SearchChannel;
   job.probe = obj::kSdoServerFirst + 1;
-  job.steps.push_back(read_step(job.slave, job.probe, 1));
+  job.steps.push_back(read_step(slave, {job.probe, 1}));
 }
 
 void SdoManagerProcess::connect_with(std::uint16_t server_index) {
   auto& job = jobs_.front();
   auto& c = job.connection;
+  const auto slave = *job.slave;
   c.row.server_index = server_index;
   if (server_index == kDefaultServer) {
-    const auto cob_ids = sdo::default_cob_ids(job.slave);
+    const auto cob_ids = sdo::default_cob_ids(slave);
     c.row.request = cob_ids.request;
     c.row.response = cob_ids.response;
   } else {
@@ -342,16 +344,16 @@ void SdoManagerProcess::connect_with(std::uint16_t server_index) {
     c.row.request = pool_cob_id(pool[0]);
     c.row.response = pool_cob_id(pool[1]);
     // §7.1: the free server entry of S, for the SRD.
-    job.steps.push_back(write_step(job.slave, server_index, 3, job.node, 1));
-    job.steps.push_back(write_step(job.slave, server_index, 1, c.row.request.word(), 4));
-    job.steps.push_back(write_step(job.slave, server_index, 2, c.row.response.word(), 4));
+    job.steps.push_back(write_step(slave, {server_index, 3}, job.node.value(), 1));
+    job.steps.push_back(write_step(slave, {server_index, 1}, c.row.request.word(), 4));
+    job.steps.push_back(write_step(slave, {server_index, 2}, c.row.response.word(), 4));
   }
   const bool ec = srds_.at(job.node).info.slave_error_control;
-  job.steps.push_back(write_step(job.node, job.client_index, 3, job.slave, 1));
-  job.steps.push_back(write_step(job.node, job.client_index, 1, c.row.request.word(), 4));
-  job.steps.push_back(write_step(job.node, job.client_index, 2, c.row.response.word(), 4));
+  job.steps.push_back(write_step(job.node, {job.client_index, 3}, slave.value(), 1));
+  job.steps.push_back(write_step(job.node, {job.client_index, 1}, c.row.request.word(), 4));
+  job.steps.push_back(write_step(job.node, {job.client_index, 2}, c.row.response.word(), 4));
   job.steps.push_back(write_step(
-      job.node, obj::kDynamicSdoConnectionState, 0,
+      job.node, {obj::kDynamicSdoConnectionState, 0},
       DynamicSdoState::confirmation(job.client_index, ConnectionState::kSlaveConnected, ec)
           .encode(),
       4));
@@ -389,7 +391,7 @@ void SdoManagerProcess::report_refusal(TimePoint now, Output& out) {
                    now, job.node,
                    node_text(job.node) +
                        (registering ? ": registration refused"
-                                    : ": SDO connection to " + node_text(job.slave) + " refused") +
+                                    : ": SDO connection to " + node_text(*job.slave) + " refused") +
                        ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
                        std::string(sm::describe(job.error)) + "): " + job.why);
   e.connection = job.connection.row;
@@ -400,28 +402,22 @@ void SdoManagerProcess::report_refusal(TimePoint now, Output& out) {
 
 void SdoManagerProcess::advance_scan() {
   auto& job = jobs_.front();
-  if (job.phase == Job::Phase::Start) {
-    job.phase = Job::Phase::Scanning;
-    job.node = cfg::kMaxNodeId;
-  }
+  job.phase = Job::Phase::Scanning;  // from 127 (scan_job)
   // §7.2.1 / §7.2.4 guideline 2: from 127 down, node-IDs not registered, whose default SDO
   // no connection holds.
-  while (
-      job.node >= cfg::kMinNodeId &&
-      (job.node == node_id_.value() || srds_.count(job.node) != 0 || default_sdo_taken(job.node))) {
-    --job.node;
+  while (!job.scanned_all &&
+         (job.node == node_id_ || srds_.count(job.node) != 0 || default_sdo_taken(job.node))) {
+    scan_next(job);
   }
-  if (job.node < cfg::kMinNodeId) {
+  if (job.scanned_all) {
     finish_job();
     if (rescan_) {
       rescan_ = false;
-      Job scan;
-      scan.kind = Job::Kind::Scan;
-      jobs_.push_back(std::move(scan));
+      jobs_.push_back(scan_job());
     }
     return;
   }
-  job.steps.push_back(read_step(job.node, obj::kDynamicSdoConnectionState, 0, false));
+  job.steps.push_back(read_step(job.node, {obj::kDynamicSdoConnectionState, 0}, false));
 }
 
 void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
@@ -433,10 +429,10 @@ void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
     if (job.heartbeat) {
       job.phase = Job::Phase::Writing;
       job.steps.push_back(
-          write_step(job.node, obj::kDynamicSdoConnectionState, 0, job.confirmation, 4));
+          write_step(job.node, {obj::kDynamicSdoConnectionState, 0}, job.confirmation, 4));
     } else {
       job.phase = Job::Phase::ReadHeartbeat;
-      job.steps.push_back(read_step(job.node, obj::kProducerHeartbeatTime, 0));
+      job.steps.push_back(read_step(job.node, {obj::kProducerHeartbeatTime, 0}));
     }
     return;
   }
@@ -477,11 +473,12 @@ void SdoManagerProcess::advance_connect(TimePoint now, Output& out) {
   add_row(c);
   const auto srd = srds_.find(job.node);
   if (srd != srds_.end() && srd->second.info.slave_error_control) {
-    if (watched_.count(job.slave) == 0 && !port_.watches(job.slave)) {
+    const auto slave = *job.slave;
+    if (watched_.count(slave) == 0 && !port_.watches(slave)) {
       // §7.2.5 step 4.4: error control of S for the SRD.
-      port_.watch(job.slave, std::nullopt, now);
+      port_.watch(slave, std::nullopt, now);
     }
-    watched_.insert(job.slave);
+    watched_.insert(slave);
   }
   auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node,
                         "SDO connection established: " + connection_text(c.row));
@@ -494,39 +491,39 @@ void SdoManagerProcess::advance_release(TimePoint now, Output& out) {
   auto& job = jobs_.front();
   if (job.phase == Job::Phase::Start) {
     job.phase = Job::Phase::Releasing;
-    if (job.failed != 0) {
+    if (job.failed) {
       // §7.2.3 1F11h: reason 00h, the failed slave's node-ID.
       job.steps.push_back(write_step(
-          job.node, obj::kSlaveFailed, 0,
+          job.node, {obj::kSlaveFailed, 0},
           sm::SlaveFailed{static_cast<std::uint8_t>(sm::SlaveFailedReason::kErrorControl),
-                          job.failed}
+                          job.failed->value()}
               .encode(),
           2, false, !job.srd_lost));
     }
     for (const auto& c : job.releases) {
       // §7.2.1: invalidate the SRD's client entry, then S's server entry (not its default).
-      job.steps.push_back(write_step(job.node, c.row.client_index, 1,
+      job.steps.push_back(write_step(job.node, {c.row.client_index, 1},
                                      c.row.request.with_valid(false).word(), 4, false,
                                      !job.srd_lost));
-      job.steps.push_back(write_step(job.node, c.row.client_index, 2,
+      job.steps.push_back(write_step(job.node, {c.row.client_index, 2},
                                      c.row.response.with_valid(false).word(), 4, false,
                                      !job.srd_lost));
       if (!c.row.to_manager && c.row.server_index != kDefaultServer && !job.server_gone) {
-        job.steps.push_back(write_step(c.row.server, c.row.server_index, 1,
+        job.steps.push_back(write_step(c.server(), {c.row.server_index, 1},
                                        c.row.request.with_valid(false).word(), 4, false));
-        job.steps.push_back(write_step(c.row.server, c.row.server_index, 2,
+        job.steps.push_back(write_step(c.server(), {c.row.server_index, 2},
                                        c.row.response.with_valid(false).word(), 4, false));
       }
     }
     if (!job.steps.empty()) return;
   }
-  if (job.failed != 0) {
+  if (job.failed) {
     ManagedSdoConnection failed;
     failed.srd = job.node;
-    failed.server = job.failed;
+    failed.server = *job.failed;
     auto e =
         master_event(MasterEvent::Kind::SlaveFailedReported, now, job.node,
-                     node_text(job.node) + ": 1F11h reports " + node_text(job.failed) + " failed");
+                     node_text(job.node) + ": 1F11h reports " + node_text(*job.failed) + " failed");
     e.connection = failed;
     out.report(std::move(e));
   }

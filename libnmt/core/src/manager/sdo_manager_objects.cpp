@@ -126,21 +126,25 @@ SdoAbort SdoManagerProcess::check_write(std::uint16_t index, std::uint8_t sub,
   }
   if (index != obj::kSdoRequest && index != obj::kSdoRelease) return SdoAbort::None;
   if (!active()) return SdoAbort::DeviceState;
+  // The node-IDs of 1F00h/1F01h are checked here, once. §7.2.3: a refused request is aborted
+  // with 060A 0023h ("Resource not available: SDO connection"): an SRD node-ID that is no
+  // registered SRD (0 and 80h-FFh never are), or one not of the channel written on.
   const auto request = sm::SdoRequest::decode(value);
-  const auto srd = request.srd_node_id;
-  // §7.2.3: refused with 060A 0023 ("Resource not available: SDO connection").
-  if (srds_.count(srd) == 0) return SdoAbort::ResourceNotAvailable;
-  if (writer_ != 0 && writer_ != srd) return SdoAbort::ResourceNotAvailable;
-  return index == obj::kSdoRequest
-             ? request_connection(srd, request.slave_node_id, request.client_index)
-             : release_connections(srd, request.slave_node_id, request.client_index);
+  const auto srd = cfg::NodeId::from(request.srd_node_id);
+  if (!srd || srds_.count(*srd) == 0) return SdoAbort::ResourceNotAvailable;
+  if (writer_ && *writer_ != *srd) return SdoAbort::ResourceNotAvailable;
+  // 1F01h slave node-ID 0: release everything and de-register.
+  if (index == obj::kSdoRelease && request.deregister()) return deregister(*srd);
+  // 1F00h: "The requested Node-ID must not be 0"; 80h-FFh name no node either.
+  const auto slave = cfg::NodeId::from(request.slave_node_id);
+  if (!slave) return SdoAbort::ResourceNotAvailable;
+  return index == obj::kSdoRequest ? request_connection(*srd, *slave, request.client_index)
+                                   : release_connections(*srd, *slave, request.client_index);
 }
 
-SdoAbort SdoManagerProcess::request_connection(std::uint8_t srd, std::uint8_t slave,
+SdoAbort SdoManagerProcess::request_connection(cfg::NodeId srd, cfg::NodeId slave,
                                                std::uint16_t client_index) {
-  if (!cfg::is_node_id(slave) || slave == srd || slave == node_id_.value()) {
-    return SdoAbort::ResourceNotAvailable;
-  }
+  if (slave == srd || slave == node_id_) return SdoAbort::ResourceNotAvailable;
   if (!obj::is_sdo_client_parameter(client_index)) return SdoAbort::ValueRangeExceeded;
   const bool taken =
       srds_.at(srd).info.client_index == client_index ||
@@ -159,29 +163,27 @@ SdoAbort SdoManagerProcess::request_connection(std::uint8_t srd, std::uint8_t sl
   if (static_cast<std::size_t>(queued) >= settings_.max_queued_requests) {
     return SdoAbort::OutOfMemory;
   }
-  Job job;
-  job.kind = Job::Kind::Connect;
-  job.node = srd;
-  job.slave = slave;
-  job.client_index = client_index;
-  jobs_.push_back(std::move(job));
+  jobs_.push_back(
+      Job{.kind = Job::Kind::Connect, .node = srd, .slave = slave, .client_index = client_index});
   return SdoAbort::None;
 }
 
-SdoAbort SdoManagerProcess::release_connections(std::uint8_t srd, std::uint8_t slave,
+SdoAbort SdoManagerProcess::release_connections(cfg::NodeId srd, cfg::NodeId slave,
                                                 std::uint16_t client_index) {
-  // 1F01h: slave 0 releases everything and de-registers; index 0 every connection to the slave.
-  if (slave != 0 && !cfg::is_node_id(slave)) return SdoAbort::ResourceNotAvailable;
   auto rows = take_connections([&](const ManagedSdoConnection& c) {
-    return c.srd == srd && (slave == 0 || (!c.to_manager && c.server == slave &&
-                                           (client_index == 0 || c.client_index == client_index)));
+    return c.srd == srd && !c.to_manager && c.server == slave &&
+           (client_index == 0 || c.client_index == client_index);
   });
-  if (slave == 0) {
-    release_job(srd, std::move(rows), true, false, "1F01h: " + node_text(srd) + " de-registers");
-    srds_.erase(srd);
-  } else if (!rows.empty()) {
+  if (!rows.empty()) {
     release_job(srd, std::move(rows), false, false, "1F01h: " + node_text(srd) + " releases");
   }
+  return SdoAbort::None;
+}
+
+SdoAbort SdoManagerProcess::deregister(cfg::NodeId srd) {
+  auto rows = take_connections([&](const ManagedSdoConnection& c) { return c.srd == srd; });
+  release_job(srd, std::move(rows), true, false, "1F01h: " + node_text(srd) + " de-registers");
+  srds_.erase(srd);
   return SdoAbort::None;
 }
 
@@ -194,9 +196,12 @@ bool SdoManagerProcess::on_frame(const CanFrame& frame, TimePoint now, Output& o
     // 1F00h/1F01h learn the writer from the channel: the SRD it was opened for.
     taken = channels_
                 .on_frame(frame, now, server_out, HookOutput(out),
-                          [this](std::uint16_t index) { writer_ = channel_clients_[index]; })
+                          [this](std::uint16_t index) {
+                            const auto client = channel_clients_.find(index);
+                            if (client != channel_clients_.end()) writer_ = client->second;
+                          })
                 .has_value();
-    writer_ = 0;
+    writer_.reset();
     for (const auto& f : server_out.frames) out.send(f);
   }
   if (frame.id != sm::kDynamicSdoRequestCanId || frame.extended || frame.rtr || frame.dlc != 0) {
@@ -245,9 +250,7 @@ void SdoManagerProcess::queue_scan() {
   const auto scan = std::find_if(jobs_.begin(), jobs_.end(),
                                  [](const Job& j) { return j.kind == Job::Kind::Scan; });
   if (scan == jobs_.end()) {
-    Job job;
-    job.kind = Job::Kind::Scan;
-    jobs_.push_back(std::move(job));
+    jobs_.push_back(scan_job());
   } else if (scan->phase != Job::Phase::Start) {
     rescan_ = true;  // the running scan may have passed the new SRD
   }
@@ -256,7 +259,7 @@ void SdoManagerProcess::queue_scan() {
 // --- losses: rows taken from the tables, release jobs queued (they run in sdo_manager_jobs.cpp)
 // ---
 
-void SdoManagerProcess::node_lost(std::uint8_t node, TimePoint now, Output& out) {
+void SdoManagerProcess::node_lost(cfg::NodeId node, TimePoint now, Output& out) {
   if (!enabled_) return;
   if (srds_.count(node) != 0) {
     srd_gone(node, false, now, out);
@@ -275,7 +278,7 @@ void SdoManagerProcess::node_lost(std::uint8_t node, TimePoint now, Output& out)
   release_per_srd(rows, node, node_text(node) + " failed (error control)");
 }
 
-void SdoManagerProcess::node_booted(std::uint8_t node, TimePoint now, Output& out) {
+void SdoManagerProcess::node_booted(cfg::NodeId node, TimePoint now, Output& out) {
   if (!enabled_) return;
   if (srds_.count(node) != 0) {
     srd_gone(node, true, now, out);  // an SRD that booted forgot its entries
@@ -284,7 +287,7 @@ void SdoManagerProcess::node_booted(std::uint8_t node, TimePoint now, Output& ou
   slave_booted(node);
 }
 
-void SdoManagerProcess::srd_gone(std::uint8_t node, bool boot_up, TimePoint now, Output& out) {
+void SdoManagerProcess::srd_gone(cfg::NodeId node, bool boot_up, TimePoint now, Output& out) {
   // §7.2.1: "the Manager forces all SDOs requested by that SRD to be released".
   auto rows = take_connections([node](const ManagedSdoConnection& c) { return c.srd == node; });
   srds_.erase(node);
@@ -296,7 +299,7 @@ void SdoManagerProcess::srd_gone(std::uint8_t node, bool boot_up, TimePoint now,
   release_job(node, std::move(rows), true, true, why);
 }
 
-void SdoManagerProcess::slave_booted(std::uint8_t node) {
+void SdoManagerProcess::slave_booted(cfg::NodeId node) {
   // CiA 301: the server entries 1201h.. a slave had written into it are not kept over a reset
   // (a boot-up follows every reset, the master's own too): those connections are gone on S, so
   // their rows go and each SRD's client entry is invalidated. S's default SDO survives (its
@@ -304,39 +307,35 @@ void SdoManagerProcess::slave_booted(std::uint8_t node) {
   auto rows = take_connections([node](const ManagedSdoConnection& c) {
     return c.server == node && !c.to_manager && c.server_index != kDefaultServer;
   });
-  release_per_srd(rows, 0, node_text(node) + " booted up: its server entry is gone");
+  release_per_srd(rows, std::nullopt, node_text(node) + " booted up: its server entry is gone");
 }
 
-void SdoManagerProcess::release_per_srd(const std::vector<Connection>& rows, std::uint8_t failed,
-                                        const std::string& why) {
+void SdoManagerProcess::release_per_srd(const std::vector<Connection>& rows,
+                                        std::optional<cfg::NodeId> failed, const std::string& why) {
   // S's side is gone (it failed, or its reset dropped the entry): only the SRDs are written.
-  std::map<std::uint8_t, std::vector<Connection>> by_srd;
-  for (const auto& c : rows) by_srd[c.row.srd].push_back(c);
+  std::map<cfg::NodeId, std::vector<Connection>> by_srd;
+  for (const auto& c : rows) by_srd[c.srd()].push_back(c);
   for (auto& [srd, its_rows] : by_srd) {
-    Job job;
-    job.kind = Job::Kind::Release;
-    job.node = srd;
-    job.failed = failed;  // 1F11h first when not 0
-    job.server_gone = true;
-    job.why = why;
-    job.releases = std::move(its_rows);
-    jobs_.push_back(std::move(job));
+    jobs_.push_back(Job{.kind = Job::Kind::Release,
+                        .node = srd,
+                        .releases = std::move(its_rows),
+                        .why = why,
+                        .failed = failed,  // 1F11h first
+                        .server_gone = true});
   }
 }
 
-void SdoManagerProcess::release_job(std::uint8_t srd, std::vector<Connection> rows, bool deregister,
+void SdoManagerProcess::release_job(cfg::NodeId srd, std::vector<Connection> rows, bool deregister,
                                     bool lost, std::string why) {
   // The SRD's channel to the manager goes last: the SRD keeps its line until the end.
   std::stable_partition(rows.begin(), rows.end(),
                         [](const Connection& c) { return !c.row.to_manager; });
-  Job job;
-  job.kind = Job::Kind::Release;
-  job.node = srd;
-  job.releases = std::move(rows);
-  job.deregister = deregister;
-  job.srd_lost = lost;
-  job.why = std::move(why);
-  jobs_.push_back(std::move(job));
+  jobs_.push_back(Job{.kind = Job::Kind::Release,
+                      .node = srd,
+                      .releases = std::move(rows),
+                      .why = std::move(why),
+                      .deregister = deregister,
+                      .srd_lost = lost});
 }
 
 // --- tables ---
@@ -381,7 +380,7 @@ void SdoManagerProcess::open_channel(std::uint16_t index, const Connection& c) {
   config.timeout = settings_.server_timeout;
   config.block_transfer = settings_.server_block_transfer;
   channels_.open(index, config);
-  channel_clients_[index] = c.row.srd;
+  channel_clients_.insert_or_assign(index, c.srd());
 }
 
 void SdoManagerProcess::close_channel(std::uint16_t index) {
@@ -431,7 +430,7 @@ std::vector<SdoManagerProcess::Connection> SdoManagerProcess::take_connections(
   return taken;
 }
 
-bool SdoManagerProcess::default_sdo_taken(std::uint8_t node) const {
+bool SdoManagerProcess::default_sdo_taken(cfg::NodeId node) const {
   return std::any_of(connections_.begin(), connections_.end(), [&](const Connection& c) {
     return c.row.server == node && c.row.server_index == kDefaultServer;
   });
@@ -442,7 +441,7 @@ bool SdoManagerProcess::all_default_sdos_owned() const {
                      [](const auto& s) { return s.second.info.all_default_sdos; });
 }
 
-bool SdoManagerProcess::default_sdo_given_out(std::uint8_t node) const {
+bool SdoManagerProcess::default_sdo_given_out(cfg::NodeId node) const {
   if (!enabled_) return false;
   return default_sdo_taken(node) || all_default_sdos_owned();
 }

@@ -43,6 +43,7 @@
 #include <string>
 #include <vector>
 
+#include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/sdo_manager_objects.hpp"
 #include "nmt/engine.hpp"
@@ -56,13 +57,12 @@ namespace nmt {
 /// One SDO access of an SDO manager job, for the master's default SDO client of `node`.
 struct SdoManagerTransfer {
   std::uint64_t tag = 0;  ///< handed back with the result (SdoManagerProcess::on_transfer_result)
-  std::uint8_t node = 0;
-  std::uint16_t index = 0;
-  std::uint8_t sub = 0;
+  cfg::NodeId node;
+  cfg::ObjectAddress address;
   bool upload = false;
-  std::vector<std::uint8_t> data;  ///< download
-  Duration timeout{0};             ///< per response (SdoTransferOptions::timeout)
-  unsigned retries = 0;            ///< repetitions after a timeout the client detected
+  std::vector<std::uint8_t> data{};  ///< download
+  Duration timeout{0};               ///< per response (SdoTransferOptions::timeout)
+  unsigned retries = 0;              ///< repetitions after a timeout the client detected
 };
 
 /// What the SDO manager needs of the NMT master, and nothing else. An abstract interface rather
@@ -146,14 +146,14 @@ class SdoManagerProcess {
   void clear();
   /// Error control of `node` failed: an SRD is released and de-registered (§7.2.1), a slave
   /// watched for an SRD with Req EC reported in 1F11h (§7.2.2).
-  void node_lost(std::uint8_t node, TimePoint now, Output& out);
+  void node_lost(cfg::NodeId node, TimePoint now, Output& out);
   /// `node` booted up: an SRD forgot its entries (released as lost); a slave lost its additional
   /// server entries (the connections on them are released).
-  void node_booted(std::uint8_t node, TimePoint now, Output& out);
+  void node_booted(cfg::NodeId node, TimePoint now, Output& out);
 
   /// The master's own transfers must not use `node`'s default SDO: a connection holds it, or an
   /// SRD owns all default SDOs (DSP 302 §7.1, §7.2.4 guideline 4).
-  bool default_sdo_given_out(std::uint8_t node) const;
+  bool default_sdo_given_out(cfg::NodeId node) const;
   /// 1F03h-1F06h rows, by row.
   std::vector<ManagedSdoConnection> connections() const;
   /// The registered SRDs, by node-ID.
@@ -169,18 +169,22 @@ class SdoManagerProcess {
     ManagedSdoConnection row;
     std::uint8_t pool_request = 0;
     std::uint8_t pool_response = 0;
+    /// The row's SRD and server S. A row is only ever filled from NodeIds (the registration
+    /// and the connection jobs): its node bytes are 1..127.
+    cfg::NodeId srd() const { return *cfg::NodeId::from(row.srd); }
+    cfg::NodeId server() const { return *cfg::NodeId::from(row.server); }
   };
   /// One SDO access of a job.
   struct Step {
-    std::uint8_t node = 0;
-    std::uint16_t index = 0;
-    std::uint8_t sub = 0;
+    cfg::NodeId node;
+    cfg::ObjectAddress address;
     bool upload = false;
     std::uint32_t value = 0;   ///< download
     std::size_t size = 4;      ///< download bytes
     bool must_succeed = true;  ///< a failure ends the job (job-specific handling)
     bool retry = true;         ///< repeated after a timeout (SdoManagerSettings::sdo_retries)
   };
+  /// Built with designated initializers: every job names its node.
   struct Job {
     enum class Kind : std::uint8_t { Scan, Register, Connect, Release };
     enum class Phase : std::uint8_t {
@@ -196,30 +200,35 @@ class SdoManagerProcess {
     };
     Kind kind = Kind::Scan;
     Phase phase = Phase::Start;
-    std::uint8_t node = 0;      ///< Scan: the node-ID read now; else the SRD
+    cfg::NodeId node;           ///< Scan: the node-ID read now (from 127 down); else the SRD
+    bool scanned_all = false;   ///< Scan: node-ID 1 is passed
     std::uint32_t request = 0;  ///< Register: 1F10h as read
-    std::uint8_t slave = 0;
+    std::optional<cfg::NodeId> slave{};  ///< Connect: S
     std::uint16_t client_index = 0;
     std::uint16_t probe = 0;                    ///< SearchChannel: S's server entry read now
-    Connection connection;                      ///< Register/Connect: the connection being set up
-    std::vector<Connection> releases;           ///< Release: in order
-    std::string why;                            ///< Release: for the events
+    Connection connection{};                    ///< Register/Connect: the connection being set up
+    std::vector<Connection> releases{};         ///< Release: in order
+    std::string why{};                          ///< Release: for the events
     bool deregister = false;                    ///< Release: the SRD goes too
     bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
-    std::uint8_t failed = 0;                    ///< Release: the slave whose failure 1F11h reports
+    std::optional<cfg::NodeId> failed{};        ///< Release: the slave whose failure 1F11h reports
     bool server_gone = false;                   ///< Release: no write to S (failed, or reset)
     cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
     std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
-    std::optional<Duration> heartbeat;          ///< Register: the SRD's heartbeat consumer time
-    std::deque<Step> steps;                     ///< accesses still to do, in order
+    std::optional<Duration> heartbeat{};        ///< Register: the SRD's heartbeat consumer time
+    std::deque<Step> steps{};                   ///< accesses still to do, in order
   };
 
   // --- objects and tables (sdo_manager_objects.cpp) ---
   bool active() const;
   std::uint32_t value_of(std::uint16_t index, std::uint8_t sub) const;
   SdoAbort check_write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data);
-  SdoAbort request_connection(std::uint8_t srd, std::uint8_t slave, std::uint16_t client_index);
-  SdoAbort release_connections(std::uint8_t srd, std::uint8_t slave, std::uint16_t client_index);
+  // 1F00h and 1F01h with the node-IDs check_write parsed (§7.2.3).
+  SdoAbort request_connection(cfg::NodeId srd, cfg::NodeId slave, std::uint16_t client_index);
+  /// `client_index` 0: every connection of `srd` to `slave`.
+  SdoAbort release_connections(cfg::NodeId srd, cfg::NodeId slave, std::uint16_t client_index);
+  /// 1F01h with slave node-ID 0: everything of `srd` released, and it de-registers.
+  SdoAbort deregister(cfg::NodeId srd);
   std::vector<std::uint8_t> free_pool() const;
   void mark_pool(std::uint8_t sub, bool in_use);
   /// The COB-ID of 1F02h sub `sub` without the manager's bits.
@@ -233,17 +242,17 @@ class SdoManagerProcess {
   /// Removes the connections `match` selects from the tables (rows cleared), in row order.
   std::vector<Connection> take_connections(
       const std::function<bool(const ManagedSdoConnection&)>& match);
-  bool default_sdo_taken(std::uint8_t node) const;
+  bool default_sdo_taken(cfg::NodeId node) const;
   bool all_default_sdos_owned() const;
   // Losses and the jobs they (and 6E0h, 1F01h) queue.
   void queue_scan();
   /// A boot-up of slave `node`: the connections on its additional server entries are released.
-  void slave_booted(std::uint8_t node);
-  void srd_gone(std::uint8_t node, bool boot_up, TimePoint now, Output& out);
-  /// One release job per SRD for `rows` whose server side is gone; `failed` (not 0): 1F11h first.
-  void release_per_srd(const std::vector<Connection>& rows, std::uint8_t failed,
+  void slave_booted(cfg::NodeId node);
+  void srd_gone(cfg::NodeId node, bool boot_up, TimePoint now, Output& out);
+  /// One release job per SRD for `rows` whose server side is gone; with `failed`: 1F11h first.
+  void release_per_srd(const std::vector<Connection>& rows, std::optional<cfg::NodeId> failed,
                        const std::string& why);
-  void release_job(std::uint8_t srd, std::vector<Connection> rows, bool deregister, bool lost,
+  void release_job(cfg::NodeId srd, std::vector<Connection> rows, bool deregister, bool lost,
                    std::string why);
 
   // --- jobs (sdo_manager_jobs.cpp) ---
@@ -251,6 +260,10 @@ class SdoManagerProcess {
   // One step of the front job, by its kind (advance dispatches).
   void report_refusal(TimePoint now, Output& out);
   void advance_scan();
+  /// A scan of 1F10h from node-ID 127 down (§7.2.1).
+  static Job scan_job();
+  /// The scan moves to the node-ID below (scanned_all after 1).
+  static void scan_next(Job& job);
   void advance_register(TimePoint now, Output& out);
   void advance_connect(TimePoint now, Output& out);
   void advance_release(TimePoint now, Output& out);
@@ -261,32 +274,31 @@ class SdoManagerProcess {
   void connect_with(std::uint16_t server_index);
   /// Ends the front job with 1F10h Cnxn 0 and `error`, then its event.
   void refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why);
-  void watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now);
 
-  static Step write_step(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
-                         std::uint32_t value, std::size_t size, bool must_succeed = true,
-                         bool retry = true);
-  static Step read_step(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
-                        bool retry = true);
+  static Step write_step(cfg::NodeId node, cfg::ObjectAddress address, std::uint32_t value,
+                         std::size_t size, bool must_succeed = true, bool retry = true);
+  static Step read_step(cfg::NodeId node, cfg::ObjectAddress address, bool retry = true);
 
   LocalDictionary& dict_;
   SdoManagerPort& port_;
   cfg::NodeId node_id_;
   SdoManagerSettings settings_;
   bool enabled_ = false;
-  std::map<std::uint8_t, Srd> srds_;
+  /// By node-ID; std::less<> finds the node bytes of a ManagedSdoConnection row too.
+  std::map<cfg::NodeId, Srd, std::less<>> srds_;
   std::vector<Connection> connections_;  ///< in row order
   std::deque<Job> jobs_;
   bool in_flight_ = false;    ///< a transfer of jobs_.front() runs
   std::uint64_t serial_ = 0;  ///< of the transfer in flight (its tag)
   bool rescan_ = false;       ///< a 6E0h came during a scan
-  std::uint8_t writer_ = 0;   ///< the SRD whose channel carries the SDO request being served
+  /// The SRD whose channel carries the SDO request being served.
+  std::optional<cfg::NodeId> writer_;
   /// This device's server channels for SRDs (1201h..), served from its dictionary, and the SRD
   /// each was opened for (its sub 3): the writer of a 1F00h/1F01h that arrives on it.
   SdoServerChannels channels_;
-  std::map<std::uint16_t, std::uint8_t> channel_clients_;
+  std::map<std::uint16_t, cfg::NodeId> channel_clients_;
   /// Slaves the manager watches for SRDs with Req EC.
-  std::set<std::uint8_t> watched_;
+  std::set<cfg::NodeId> watched_;
 };
 static_assert(Engine<SdoManagerProcess>);
 

@@ -35,7 +35,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
   set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
 }
 
-void NmtMaster::Impl::on_boot_up(std::uint8_t node, TimePoint now, Output& out) {
+void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   sdo_manager.node_booted(node, now, out);  // an SRD that booted forgot its entries
   const bool assigned = is_slave(node);
   auto e =

@@ -47,7 +47,7 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
                                                       TimePoint now) {
   // DSP 302 §7.1: the manager "manages all SDO connections"; a default SDO it gave to an SRD is
   // the SRD's until released, and a second client on it would collide with the SRD's.
-  if (!transfer.for_manager && sdo_manager.default_sdo_given_out(node)) {
+  if (!transfer.for_manager && sdo_manager.default_sdo_given_out(*cfg::NodeId::from(node))) {
     held.emplace_back(node, std::move(transfer));
     return 0;
   }
@@ -123,7 +123,7 @@ void NmtMaster::Impl::pump_transfers(TimePoint now) {
 
 void NmtMaster::Impl::release_held(TimePoint now) {
   for (std::size_t i = 0; i < held.size();) {
-    if (sdo_manager.default_sdo_given_out(held[i].first)) {
+    if (sdo_manager.default_sdo_given_out(*cfg::NodeId::from(held[i].first))) {
       ++i;
       continue;
     }

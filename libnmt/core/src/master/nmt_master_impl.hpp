@@ -278,7 +278,7 @@ struct NmtMaster::Impl {
   void apply_own_command(NmtCommand command, TimePoint now, Output& out);
   void set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now, Output& out);
   void on_error_control(const ErrorControlMessage& message, TimePoint now, Output& out);
-  void on_boot_up(std::uint8_t node, TimePoint now, Output& out);
+  void on_boot_up(cfg::NodeId node, TimePoint now, Output& out);
   void error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out);
   void stop_error_control(std::uint8_t node);
   /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).

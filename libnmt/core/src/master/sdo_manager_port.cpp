@@ -42,8 +42,8 @@ void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, T
   MasterTransfer t;
   t.for_manager = true;
   t.try_id = transfer.tag;
-  t.index = transfer.index;
-  t.sub = transfer.sub;
+  t.index = transfer.address.index;
+  t.sub = transfer.address.sub_index;
   t.upload = transfer.upload;
   t.data = std::move(transfer.data);
   t.options.timeout = transfer.timeout;

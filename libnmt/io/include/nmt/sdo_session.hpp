@@ -21,10 +21,11 @@
 
 namespace nmt {
 
-/// How the session reaches a node through the SDO manager (connect_via_manager).
+/// How the session reaches a node through the SDO manager (connect_via_manager). Built with
+/// designated initializers: `slave` has no default.
 struct SdoManagerRoute {
   cfg::NodeId own_node_id = *cfg::NodeId::from(127);  ///< the session's node-ID as an SRD
-  std::uint8_t slave = 0;                             ///< the node to reach, 1..127
+  cfg::NodeId slave;                                  ///< the node to reach
   /// Longest wait for each answer of the manager: the registration (which includes its scan of
   /// node-IDs, DSP 302 §7.2.4), the connection, the release.
   Duration manager_timeout = std::chrono::seconds(10);
@@ -38,7 +39,7 @@ struct SdoSessionChannel {
   SdoClientConfig config;
   /// Set when the SDO manager granted the channel: the session's node-ID as an SRD and its
   /// client entry (1281h).
-  std::optional<std::uint8_t> srd_node_id{};
+  std::optional<cfg::NodeId> srd_node_id{};
   std::uint16_t client_index = 0;
 };
 
@@ -104,7 +105,7 @@ class SdoSession {
   std::unique_ptr<SdoRequestingDevice> srd_;
   std::unique_ptr<EngineRef<SdoRequestingDevice>> srd_ref_;
   std::vector<SrdEvent> srd_events_;
-  SdoManagerRoute route_;
+  std::optional<SdoManagerRoute> route_;  ///< set by connect_via_manager
 };
 
 }  // namespace nmt
