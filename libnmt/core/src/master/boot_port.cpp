@@ -121,9 +121,9 @@ bool NmtMaster::Impl::BootPort::start_error_control(cfg::NodeId node, TimePoint 
     return true;
   }
   // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero
-  // (start refuses 0s).
+  // (guard refuses 0s); its first request leaves at the end of this call (settle()).
   const auto a = m_.assignment(node);
-  (void)m_.guarding.start(node, a.guard_time_ms(), a.retry_factor(), now, m_.guarding_started);
+  (void)m_.guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
   return false;
 }
 

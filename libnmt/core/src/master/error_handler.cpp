@@ -91,6 +91,18 @@ void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint
   if (a.boot_slave()) start_boot(node, false, now, out);
 }
 
+void NmtMaster::Impl::guarding_timer(TimePoint now, Output& out) {
+  auto& guard_out = guarding_out;
+  guard_out.clear();
+  guarding.on_timer(now, guard_out);
+  for (const auto& f : guard_out.frames) out.send(f);
+  for (const auto& e : guard_out.events) {
+    if (e.kind != NodeGuardingEventKind::Timeout) continue;
+    error_handler(e.node_id, false, now, out);
+    sdo_manager.node_lost(e.node_id, now, out);
+  }
+}
+
 void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
   const auto id = cfg::NodeId::from(node);
   if (!id) return;

@@ -379,9 +379,10 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
       return SdoAbort::None;
     }
     const auto a = assignment(node);
-    // §6.3: guard time or retry factor 0 disable guarding for the device (start refuses them).
-    const auto started =
-        guarding.start(node, a.guard_time_ms(), a.retry_factor(), now, guarding_started);
+    // §6.3: guard time or retry factor 0 disable guarding for the device (guard refuses them).
+    // The first request leaves at the end of the call (settle()), or at the next call of the
+    // master for a write through dictionary() (next_deadline: due at `now`).
+    const auto started = guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
     return started ? SdoAbort::None : SdoAbort::General;
   };
   if (sub == kAll) {

@@ -251,8 +251,13 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   report_program_progress(now, out);
   for (const auto& f : sdo_out.frames) out.send(f);
   sdo_out.frames.clear();
-  for (const auto& f : guarding_started.frames) out.send(f);
-  guarding_started.clear();
+  // Node guarding started in this call (boot's start error control, the SDO manager's watch,
+  // request node guarding) has its first request due at `now` (NodeGuardingMaster::guard): the
+  // guarding engine sends it here, last, after the call's NMT commands and SDO requests, where
+  // it has always gone: a slave that boot starts is started before its first guarding request,
+  // so its first reply says operational (CiA 302-2 §3.4 part 3 e before g-l). (A request that
+  // fell due before on_timer came goes with it: engine.hpp rule 3.)
+  if (const auto due = guarding.next_deadline(); due && *due <= now) guarding_timer(now, out);
 }
 
 }  // namespace nmt

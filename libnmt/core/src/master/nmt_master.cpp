@@ -173,15 +173,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     }
     m.sdo_manager.node_lost(e.node_id, now, out);
   }
-  auto& guard_out = m.guarding_out;
-  guard_out.clear();
-  m.guarding.on_timer(now, guard_out);
-  for (const auto& f : guard_out.frames) out.send(f);
-  for (const auto& e : guard_out.events) {
-    if (e.kind != NodeGuardingEventKind::Timeout) continue;
-    m.error_handler(e.node_id, false, now, out);
-    m.sdo_manager.node_lost(e.node_id, now, out);
-  }
+  m.guarding_timer(now, out);
   if (m.boot_up_quiet && now >= *m.boot_up_quiet) m.open_boot_up_gate(now, out, true);
   if (!m.boot_deadlines.empty() && m.boot_deadlines.begin()->first <= now) {
     // The boot engines that are due, in node-ID order (as the events have always come).
@@ -217,9 +209,6 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
     due = earliest(due, m.paced_until);
   }
   due = earliest(due, m.nmt_commands.next_deadline());
-  // Guarding started outside a call of the master (a hook of a local write): its first request
-  // waits for the next call's settle().
-  if (!m.guarding_started.frames.empty()) due = TimePoint{};
   return due;
 }
 

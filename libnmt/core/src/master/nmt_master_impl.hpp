@@ -152,11 +152,6 @@ struct NmtMaster::Impl {
   Outbox<NoEvent> part_out;
   Outbox<HeartbeatEvent> heartbeat_out;
   Outbox<NodeGuardingEvent> guarding_out;
-  /// The first requests of the node guarding started in this call (NodeGuardingMaster::start
-  /// puts them out at once, engine.hpp rule 5); settle() sends them last, after the call's NMT
-  /// commands and SDO requests, where the first request has always gone: a slave that boot
-  /// starts is started before its first guarding request, so its first reply says operational.
-  Outbox<NodeGuardingEvent> guarding_started;
 
   /// The flying master's port to this master (master_flying_port.cpp).
   struct FlyingPort final : FlyingMasterPort {
@@ -281,6 +276,9 @@ struct NmtMaster::Impl {
   void on_boot_up(std::uint8_t node, TimePoint now, Output& out);
   void error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out);
   void stop_error_control(std::uint8_t node);
+  /// Runs node guarding (NodeGuardingMaster::on_timer): its due requests out, a guarding lost
+  /// to the error handler and the SDO manager.
+  void guarding_timer(TimePoint now, Output& out);
   /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).
   SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, std::optional<cfg::NodeId> requester,
                        TimePoint now, Output* out);

@@ -71,12 +71,13 @@ void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Durati
   }
   const auto a = m.assignment(node);
   auto id = *cfg::NodeId::from(node);
-  if (m.guarding.start(id, a.guard_time_ms(), a.retry_factor(), now, m.guarding_started)) return;
+  // Its first request leaves at the end of the call (NmtMaster::Impl::settle()).
+  if (m.guarding.guard(id, a.guard_time_ms(), a.retry_factor(), now)) return;
   const auto guard_ms =
       std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
-  (void)m.guarding.start(id,
+  (void)m.guarding.guard(id,
                          static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
-                         kGuardLifeTimeFactor, now, m.guarding_started);
+                         kGuardLifeTimeFactor, now);
 }
 
 void NmtMaster::Impl::ManagerPort::unwatch(std::uint8_t node) {
