@@ -429,7 +429,7 @@ void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
   if (job.phase == Job::Phase::Confirming) {
     // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h; known
     // before the confirmation, so the SRD is registered once it has taken it.
-    job.heartbeat = port_.consumer_time(job.node);
+    job.heartbeat = port_.consumer_time(*cfg::NodeId::from(job.node));
     if (job.heartbeat) {
       job.phase = Job::Phase::Writing;
       job.steps.push_back(
@@ -440,7 +440,7 @@ void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
     }
     return;
   }
-  port_.watch(job.node, job.heartbeat, now);
+  port_.watch(*cfg::NodeId::from(job.node), job.heartbeat, now);
   Srd srd;
   srd.info.node = job.node;
   const auto request = DynamicSdoState::decode(job.request);
@@ -477,9 +477,9 @@ void SdoManagerProcess::advance_connect(TimePoint now, Output& out) {
   add_row(c);
   const auto srd = srds_.find(job.node);
   if (srd != srds_.end() && srd->second.info.slave_error_control) {
-    if (watched_.count(job.slave) == 0 && !port_.watches(job.slave)) {
+    if (watched_.count(job.slave) == 0 && !port_.watches(*cfg::NodeId::from(job.slave))) {
       // §7.2.5 step 4.4: error control of S for the SRD.
-      port_.watch(job.slave, std::nullopt, now);
+      port_.watch(*cfg::NodeId::from(job.slave), std::nullopt, now);
     }
     watched_.insert(job.slave);
   }
@@ -540,7 +540,7 @@ void SdoManagerProcess::advance_release(TimePoint now, Output& out) {
     out.report(std::move(e));
   }
   if (job.deregister && !job.srd_lost) {
-    port_.unwatch(job.node);
+    port_.unwatch(*cfg::NodeId::from(job.node));
     out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, job.node,
                             node_text(job.node) + ": SRD de-registered"));
   }

@@ -42,25 +42,23 @@ void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, T
   MasterTransfer t;
   t.for_manager = true;
   t.try_id = transfer.tag;
-  t.index = transfer.index;
-  t.sub = transfer.sub;
+  t.object = {transfer.index, transfer.sub};
   t.upload = transfer.upload;
   t.data = std::move(transfer.data);
   t.options.timeout = transfer.timeout;
   t.retries_left = transfer.retries;
-  m.launch_transfer(transfer.node, std::move(t), now);
+  m.launch_transfer(*cfg::NodeId::from(transfer.node), std::move(t), now);  // 1..127: its tables'
 }
 
-std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(std::uint8_t node) const {
+std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(cfg::NodeId node) const {
   return m.heartbeat_time(node);
 }
 
-bool NmtMaster::Impl::ManagerPort::watches(std::uint8_t node) const {
-  const auto id = cfg::NodeId::from(node);
-  return id && (m.heartbeats.monitors(*id) || m.guarding.guards(*id));
+bool NmtMaster::Impl::ManagerPort::watches(cfg::NodeId node) const {
+  return m.heartbeats.monitors(node) || m.guarding.guards(node);
 }
 
-void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Duration> heartbeat,
+void NmtMaster::Impl::ManagerPort::watch(cfg::NodeId node, std::optional<Duration> heartbeat,
                                          TimePoint now) {
   if (!heartbeat) heartbeat = m.heartbeat_time(node);
   if (heartbeat && heartbeat->count() > 0) {
@@ -70,17 +68,16 @@ void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Durati
     return;
   }
   const auto a = m.assignment(node);
-  auto id = *cfg::NodeId::from(node);
   // Its first request leaves at the end of the call (NmtMaster::Impl::settle()).
-  if (m.guarding.guard(id, a.guard_time_ms(), a.retry_factor(), now)) return;
+  if (m.guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now)) return;
   const auto guard_ms =
       std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
-  (void)m.guarding.guard(id,
+  (void)m.guarding.guard(node,
                          static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
                          kGuardLifeTimeFactor, now);
 }
 
-void NmtMaster::Impl::ManagerPort::unwatch(std::uint8_t node) {
+void NmtMaster::Impl::ManagerPort::unwatch(cfg::NodeId node) {
   // A slave's error control is the master's own (boot NMT slave starts and stops it).
   if (!m.is_slave(node)) m.stop_error_control(node);
 }
