@@ -361,6 +361,21 @@ TEST(NodeGuardingMaster, StartWithZeroGuardTimeOrLifeTimeFactorIsRefused) {
   EXPECT_EQ(m.next_deadline(), at_ms(100));
 }
 
+// guard() is start() as a parameter write (engine.hpp rule 5): nothing goes out at once, the
+// first request is due at `now` and leaves at the next on_timer, the next one guard time later.
+TEST(NodeGuardingMaster, GuardMakesTheFirstRequestDueAtNow) {
+  NodeGuardingMaster m;
+  EXPECT_TRUE(m.guard(id(5), 100, 3, at_ms(20)));
+  EXPECT_TRUE(m.guards(id(5)));
+  EXPECT_EQ(m.next_deadline(), at_ms(20));
+  std::vector<CanFrame> out;
+  EXPECT_TRUE(tick(m, at_ms(20), out).empty());
+  EXPECT_EQ(texts(out), std::vector<std::string>{"705#R1"});
+  EXPECT_EQ(m.next_deadline(), at_ms(120));
+  EXPECT_FALSE(m.guard(id(6), 0, 3, at_ms(20)));  // §6.3: refused as start() refuses it
+  EXPECT_FALSE(m.guards(id(6)));
+}
+
 TEST(NodeGuardingMaster, AlternatingRepliesKeepTheNodeGuarded) {
   NodeGuardingMaster m;
   std::vector<CanFrame> out;

@@ -54,8 +54,8 @@ struct FakePort final : FlyingMasterPort {
   void set_startup(StartupState state) override { startup = state; }
   void restart(TimePoint now) override { restart_at = now; }
   void reset_all_nodes() override { ++resets; }
-  void queue_nmt(NmtCommand command, std::uint8_t node) override {
-    queued.emplace_back(command, node);
+  void queue_nmt(NmtCommand command, NmtTarget target) override {
+    queued.emplace_back(command, target.byte());  // as the frame writes it: 0 all nodes
   }
   void obey(NmtCommand command, TimePoint /*now*/, Output& /*out*/) override {
     obeyed.push_back(command);

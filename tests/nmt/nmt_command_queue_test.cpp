@@ -22,6 +22,10 @@ using Sent = NmtCommandQueue::Sent;
 TimePoint at_ms(std::int64_t ms) {
   return TimePoint{milliseconds(ms)};
 }
+// The target byte 1 of the frame names: 0 all nodes, else that node-ID.
+NmtTarget to(std::uint8_t byte) {
+  return *NmtTarget::from_byte(byte);
+}
 
 template <class Output>
 std::vector<std::string> texts_of(const Output& out) {
@@ -50,7 +54,7 @@ TEST(NmtCommandQueue, FrameIsCobId000WithCommandSpecifierThenNodeId_301_7_2_8_3_
     SCOPED_TRACE(c.candump);
     NmtCommandQueue queue;
     NmtCommandQueue::Output out;
-    queue.queue(c.command, c.node);
+    queue.queue(c.command, to(c.node));
     queue.on_timer(at_ms(1), out);
     ASSERT_EQ(out.frames.size(), 1U);
     const CanFrame& f = out.frames[0];
@@ -61,14 +65,14 @@ TEST(NmtCommandQueue, FrameIsCobId000WithCommandSpecifierThenNodeId_301_7_2_8_3_
     EXPECT_EQ(f.data[0], static_cast<std::uint8_t>(c.command));
     EXPECT_EQ(f.data[1], c.node);
     EXPECT_EQ(to_candump(f), c.candump);
-    EXPECT_EQ(out.events, (std::vector<Sent>{{c.command, c.node}}));
+    EXPECT_EQ(out.events, (std::vector<Sent>{{c.command, to(c.node)}}));
   }
 }
 
 TEST(NmtCommandQueue, QueuedCommandIsDueAtOnceAndNothingIsDueWhenEmpty) {
   NmtCommandQueue queue;
   EXPECT_EQ(queue.next_deadline(), std::nullopt);
-  queue.queue(NmtCommand::Start, 0);
+  queue.queue(NmtCommand::Start, to(0));
   EXPECT_EQ(queue.next_deadline(), TimePoint{});  // engine.hpp rule 4: as soon as possible
   NmtCommandQueue::Output out;
   queue.on_timer(at_ms(7), out);
@@ -79,24 +83,24 @@ TEST(NmtCommandQueue, QueuedCommandIsDueAtOnceAndNothingIsDueWhenEmpty) {
 
 TEST(NmtCommandQueue, WithoutInhibitTimeCommandsLeaveTogetherInTheOrderQueued_302_2_6_1) {
   NmtCommandQueue queue;
-  queue.queue(NmtCommand::ResetCommunication, 2);
-  queue.queue(NmtCommand::ResetCommunication, 3);
-  queue.queue(NmtCommand::Start, 2);
+  queue.queue(NmtCommand::ResetCommunication, to(2));
+  queue.queue(NmtCommand::ResetCommunication, to(3));
+  queue.queue(NmtCommand::Start, to(2));
   EXPECT_EQ(queue.size(), 3U);
   NmtCommandQueue::Output out;
   queue.on_timer(at_ms(1), out);
   EXPECT_EQ(texts(out), (std::vector<std::string>{"000#8202", "000#8203", "000#0102"}));
-  EXPECT_EQ(out.events, (std::vector<Sent>{{NmtCommand::ResetCommunication, 2},
-                                           {NmtCommand::ResetCommunication, 3},
-                                           {NmtCommand::Start, 2}}));
+  EXPECT_EQ(out.events, (std::vector<Sent>{{NmtCommand::ResetCommunication, to(2)},
+                                           {NmtCommand::ResetCommunication, to(3)},
+                                           {NmtCommand::Start, to(2)}}));
 }
 
 TEST(NmtCommandQueue, CommandsAreAtLeastTheInhibitTimeApartInOrder_302_2_6_1) {
   NmtCommandQueue queue;
   queue.set_inhibit_time(kTenMs);
-  queue.queue(NmtCommand::Stop, 4);
-  queue.queue(NmtCommand::Start, 5);
-  queue.queue(NmtCommand::ResetNode, 6);
+  queue.queue(NmtCommand::Stop, to(4));
+  queue.queue(NmtCommand::Start, to(5));
+  queue.queue(NmtCommand::ResetNode, to(6));
   NmtCommandQueue::Output out;
   queue.on_timer(at_ms(1000), out);
   EXPECT_EQ(texts(out), (std::vector<std::string>{"000#0204"}));
@@ -111,7 +115,7 @@ TEST(NmtCommandQueue, CommandsAreAtLeastTheInhibitTimeApartInOrder_302_2_6_1) {
   out.clear();
   queue.on_timer(at_ms(1020), out);
   EXPECT_EQ(texts(out), (std::vector<std::string>{"000#8106"}));
-  EXPECT_EQ(out.events, (std::vector<Sent>{{NmtCommand::ResetNode, 6}}));
+  EXPECT_EQ(out.events, (std::vector<Sent>{{NmtCommand::ResetNode, to(6)}}));
   EXPECT_EQ(queue.next_deadline(), std::nullopt);
 }
 
@@ -119,11 +123,11 @@ TEST(NmtCommandQueue, CommandQueuedWhileInhibitedLeavesAtTheDeadline_302_2_6_1) 
   NmtCommandQueue queue;
   queue.set_inhibit_time(kTenMs);
   NmtCommandQueue::Output out;
-  queue.queue(NmtCommand::ResetCommunication, 0);
+  queue.queue(NmtCommand::ResetCommunication, to(0));
   queue.on_timer(at_ms(500), out);
   EXPECT_EQ(texts(out), (std::vector<std::string>{"000#8200"}));
   out.clear();
-  queue.queue(NmtCommand::Start, 0);  // 3 ms later: inhibited
+  queue.queue(NmtCommand::Start, to(0));  // 3 ms later: inhibited
   EXPECT_EQ(queue.next_deadline(), at_ms(510));
   queue.on_timer(at_ms(503), out);
   EXPECT_TRUE(out.empty());
@@ -135,9 +139,9 @@ TEST(NmtCommandQueue, CommandQueuedAfterTheInhibitTimeLeavesAtOnce_302_2_6_1) {
   NmtCommandQueue queue;
   queue.set_inhibit_time(kTenMs);
   NmtCommandQueue::Output out;
-  queue.queue(NmtCommand::Stop, 9);
+  queue.queue(NmtCommand::Stop, to(9));
   queue.on_timer(at_ms(100), out);
-  queue.queue(NmtCommand::Start, 9);
+  queue.queue(NmtCommand::Start, to(9));
   EXPECT_EQ(queue.next_deadline(), at_ms(110));
   out.clear();
   queue.on_timer(at_ms(250), out);

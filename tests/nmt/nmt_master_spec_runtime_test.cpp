@@ -173,6 +173,52 @@ TEST(NmtMasterSpec, GuardingEveryGuardTimeAndGuardingLossRestartsTheBoot) {
   EXPECT_FALSE(rig.uploads_of(3, 0x1000, 0, lost.at).empty()) << "boot not restarted";
 }
 
+// §3.4 part 3: the boot starts error control (e) before start remote node (g-l), yet the first
+// guarding request of a slave that boot starts during operation leaves after that slave's NMT
+// start (000#0103), at the same moment, so its first guarding reply already says operational
+// (CiA 301 §7.2.8.3.2: state 05h in bits 6-0, bit 7 the toggle).
+TEST(NmtMasterSpec, GuardedSlaveBootedInOperationIsStartedBeforeItsFirstGuardingRequest) {
+  MasterRig rig;
+  rig.assign(3, kSlave | kBoot, 3, 100);
+  rig.two_slaves();
+  ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
+  rig.run_for(500ms);
+
+  const TimePoint reboot = rig.bus.now();
+  rig.power_on(3);
+  ASSERT_TRUE(rig.run_until_event(
+      [&](const MasterEvent& e) {
+        return e.kind == Kind::SlaveBooted && e.node_id == 3 && e.at > reboot;
+      },
+      5s));
+  rig.run_for(300ms);
+
+  // The master's frames to node 3 after its boot-up, in bus order (NMT commands and guarding
+  // RTRs): its NMT start, then its first guarding request; and the reply to that request.
+  std::vector<Seen> sent;
+  std::optional<Seen> reply;
+  bool booted_up = false;
+  for (const auto& s : rig.seen) {
+    if (s.at < reboot || s.frame.extended) continue;
+    if (!booted_up) {
+      booted_up = s.text() == "703#00";
+      continue;
+    }
+    if (s.frame.id == kNmtCobId || (s.frame.id == 0x703 && s.frame.rtr)) {
+      sent.push_back(s);
+    } else if (s.frame.id == 0x703 && !sent.empty() && sent.back().frame.rtr && !reply) {
+      reply = s;
+    }
+  }
+  ASSERT_GE(sent.size(), 2U);
+  EXPECT_EQ(sent[0].text(), "000#0103");
+  EXPECT_EQ(sent[1].text(), "703#R1");
+  EXPECT_LT(sent[1].at - sent[0].at, 1ms);
+  ASSERT_TRUE(reply.has_value());
+  ASSERT_EQ(reply->frame.dlc, 1U);
+  EXPECT_EQ(reply->frame.data[0] & 0x7F, static_cast<int>(NmtState::Operational));
+}
+
 // §4.3 boot-up handler: a boot-up of an assigned slave during operation starts its boot again; the
 // master is operational, so §3.4 l starts it individually.
 TEST(NmtMasterSpec, SlaveRebootingDuringOperationIsBootedAndStartedAgain) {
@@ -517,8 +563,9 @@ TEST(NmtMasterSpec, RequestGuardingStartsAndStopsGuarding) {
 }
 
 // Table 31, 01h "Start node guarding": the first guarding request follows the confirmation of the
-// write (581h#60 831F 03) at once (engine.hpp rule 5: NodeGuardingMaster::start puts it out), not
-// one guard time (100 ms) later and not ahead of the confirmation.
+// write (581h#60 831F 03) at once (due at the write, NodeGuardingMaster::guard, it leaves at the
+// end of the same call of the master), not one guard time (100 ms) later and not ahead of the
+// confirmation.
 TEST(NmtMasterSpec, RequestGuardingSendsTheFirstRequestWithTheConfirmation) {
   Operational net;
   auto& rig = net.rig;

@@ -87,17 +87,17 @@ class FakeMaster final : public SdoManagerPort {
          t.upload ? 0 : static_cast<std::uint32_t>(cfg::load_le(t.data, t.data.size()))});
     pending.push_back(std::move(t));
   }
-  std::optional<Duration> consumer_time(std::uint8_t node) const override {
+  std::optional<Duration> consumer_time(cfg::NodeId node) const override {
     auto it = consumer.find(node);
     return it == consumer.end() ? std::nullopt : std::optional<Duration>(it->second);
   }
-  bool watches(std::uint8_t node) const override {
+  bool watches(cfg::NodeId node) const override {
     return master_watches.count(node) != 0 || watched.count(node) != 0;
   }
-  void watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint) override {
+  void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint) override {
     watched[node] = heartbeat;
   }
-  void unwatch(std::uint8_t node) override {
+  void unwatch(cfg::NodeId node) override {
     watched.erase(node);
     unwatched.push_back(node);
   }

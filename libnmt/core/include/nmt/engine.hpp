@@ -44,8 +44,10 @@
 //    of its own protocol has started: the outcome is an event (a boot NMT slave process of a node
 //    taken out of 1F81h while the master retries it ends with status A, CiA 302-2 §3.4 a).
 //    Parameter writes are no starts and take no Output: HeartbeatProducer::set_period (1017h;
-//    its first heartbeat is due at `now`, so it follows the SDO answer confirming the write)
-//    and HeartbeatConsumer::monitor (1016h; nothing is sent or reported at once).
+//    its first heartbeat is due at `now`, so it follows the SDO answer confirming the write),
+//    HeartbeatConsumer::monitor (1016h; nothing is sent or reported at once) and
+//    NodeGuardingMaster::guard (its first request is due at `now`: the NMT master's error
+//    control, whose first request follows the NMT start and SDO requests of the same call).
 //    LssSlave::power_on takes no `now, out` on purpose: an LSS slave never sends on its own
 //    (nmt/lss_slave.hpp).
 // 6. Engines keep no reference to `out` or to a frame after a call returns; they only append,

@@ -235,6 +235,12 @@ class NodeGuardingMaster {
   /// guards nothing (CiA 302-2 §6.3): the call returns why, changes nothing and sends nothing.
   cfg::Status start(cfg::NodeId node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
                     TimePoint now, Output& out);
+  /// The same as a parameter write (engine.hpp rule 5, like HeartbeatProducer::set_period):
+  /// `node_id` is guarded from now on and its first request is due at `now`, so it leaves at
+  /// the next on_timer, after what the caller sends in the same call (the NMT master starts a
+  /// slave before its first guarding request, CiA 302-2 §3.4 part 3). Refuses what start refuses.
+  cfg::Status guard(cfg::NodeId node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
+                    TimePoint now);
   void stop(cfg::NodeId node_id) { nodes_.erase(node_id); }
   bool guards(cfg::NodeId node_id) const { return nodes_.count(node_id) != 0; }
 

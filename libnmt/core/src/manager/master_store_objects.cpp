@@ -244,7 +244,8 @@ SdoAbort NmtMaster::Impl::configure_slaves(std::uint8_t sub, const std::vector<c
   // As request NMT: only the active master boots slaves (0800 0022 on a standby master).
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   // A node the master does not boot cannot be configured by it (§3.4 a would end with A).
-  if (sub != cfg::kConfigureAllNodes && !is_slave(sub)) return SdoAbort::General;
+  const auto one = cfg::NodeId::from(sub);
+  if (sub != cfg::kConfigureAllNodes && !(one && is_slave(*one))) return SdoAbort::General;
   if (out == nullptr) return SdoAbort::DeviceState;  // booting needs the call's output
   for (const auto node : nodes) {
     if (!is_slave(node)) continue;

@@ -81,15 +81,15 @@ class SdoManagerPort {
   /// comes back through SdoManagerProcess::on_transfer_result with `transfer.tag`.
   virtual void start_transfer(SdoManagerTransfer transfer, TimePoint now) = 0;
   /// The master's heartbeat consumer time for `node` (its 1016h entry); nullopt without one.
-  virtual std::optional<Duration> consumer_time(std::uint8_t node) const = 0;
+  virtual std::optional<Duration> consumer_time(cfg::NodeId node) const = 0;
   /// The master watches `node` already (heartbeat consumer or node guarding).
-  virtual bool watches(std::uint8_t node) const = 0;
+  virtual bool watches(cfg::NodeId node) const = 0;
   /// Error control of `node` for the manager (§7.2.1 SRDs, §7.2.2 slaves with Req EC): heartbeat
   /// consumption with `heartbeat` (else the master's 1016h entry), else node guarding (1F81h,
   /// else MasterOptions::srd_guard_time). Its loss comes back as node_lost().
-  virtual void watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now) = 0;
+  virtual void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) = 0;
   /// The manager no longer needs `node`'s error control (the master keeps that of its slaves).
-  virtual void unwatch(std::uint8_t node) = 0;
+  virtual void unwatch(cfg::NodeId node) = 0;
 };
 
 /// The settings of the SDO manager, from MasterOptions and the master's default SDO server.

@@ -26,7 +26,7 @@ std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::configuration_of(
   return std::move(decoded.value());
 }
 
-void NmtMaster::Impl::start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
+void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out,
                                  bool asked_by_application) {
   if (after_reset) {
     boot(node).start_after_reset(boot_up_gate.value_or(now + options.boot_up_wait), now, out);
@@ -63,8 +63,7 @@ void NmtMaster::Impl::BootPort::upload(cfg::NodeId node, std::uint64_t try_id,
                                        cfg::ObjectAddress object, TimePoint now) {
   MasterTransfer t;
   t.try_id = try_id;
-  t.index = object.index;
-  t.sub = object.sub_index;
+  t.object = object;
   t.upload = true;
   t.options.timeout = m_.options.sdo_timeout;
   t.retries_left = m_.options.sdo_retries;
@@ -84,8 +83,7 @@ void NmtMaster::Impl::BootPort::program_download(cfg::NodeId node, std::uint64_t
                                                  unsigned retries, TimePoint now) {
   MasterTransfer t;
   t.try_id = try_id;
-  t.index = object.index;
-  t.sub = object.sub_index;
+  t.object = object;
   t.data = std::move(data);
   t.options.timeout = timeout;
   // Large values by block transfer; SdoClient falls back to segmented when refused.
@@ -121,9 +119,9 @@ bool NmtMaster::Impl::BootPort::start_error_control(cfg::NodeId node, TimePoint 
     return true;
   }
   // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero
-  // (start refuses 0s).
+  // (guard refuses 0s); its first request leaves at the end of this call (settle()).
   const auto a = m_.assignment(node);
-  (void)m_.guarding.start(node, a.guard_time_ms(), a.retry_factor(), now, m_.guarding_started);
+  (void)m_.guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
   return false;
 }
 

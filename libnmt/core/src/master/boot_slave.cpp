@@ -52,11 +52,11 @@ void BootSlaveProcess::set_deadline(std::optional<TimePoint> deadline) {
 void BootSlaveProcess::set_step(BootStep step, TimePoint now, Output& out) {
   if (step_ == step) return;
   step_ = step;
-  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_.value(), "");
+  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_, "");
   e.step = step;
   e.total = plan_.size();
   e.written = next_;
-  e.text = node_text(node_.value()) + ": " + std::string(to_string(step));
+  e.text = node_text(node_) + ": " + std::string(to_string(step));
   out.report(std::move(e));
 }
 
@@ -339,14 +339,14 @@ void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   last_error_.reset();
   reported_error_.reset();
   step_ = left_to_application_ ? BootStep::Idle : BootStep::Booted;
-  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node_.value(), "");
+  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node_, "");
   e.step = step_;
   e.configured = configured_;
   e.written = configured_ ? plan_.size() : 0;
   e.total = plan_.size();
   e.bytes = bytes_;
   e.program = update_;
-  e.text = node_text(node_.value()) + ": booted" +
+  e.text = node_text(node_) + ": booted" +
            (left_to_application_ ? std::string(" and left to the application (1F81h bit 2 clear: "
                                                "no configuration, no start)")
             : configured_        ? " (configured: " + std::to_string(plan_.size()) + " entries, " +
@@ -387,12 +387,12 @@ void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint
   // Retries that end the same way are not reported again.
   if (reported_error_ != error || !retry) {
     reported_error_ = error;
-    auto e = master_event(MasterEvent::Kind::BootError, now, node_.value(), "");
+    auto e = master_event(MasterEvent::Kind::BootError, now, node_, "");
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;
     if (error == BootError::I) e.program = update_;
-    e.text = node_text(node_.value()) + ": boot error " + std::string(1, letter(error)) + ": " +
+    e.text = node_text(node_) + ": boot error " + std::string(1, letter(error)) + ": " +
              std::string(describe(error)) + " (" + why + ")";
     if (!retry && expect.assignment.mandatory() && error == BootError::B &&
         expect.boot_time_ms != 0) {

@@ -72,7 +72,9 @@ class BootSlavePort {
   virtual void queue_nmt(NmtCommand command, cfg::NodeId node) = 0;
   /// §4.1: starts the heartbeat consumer (1016h) or node guarding (1F81h bytes 1-3) of the node;
   /// true when the heartbeat consumer runs and its first heartbeat ends the step
-  /// (BootSlaveProcess::on_heartbeat, or on_heartbeat_timeout: status K).
+  /// (BootSlaveProcess::on_heartbeat, or on_heartbeat_timeout: status K). Puts nothing out: the
+  /// first guarding request is due at `now` and leaves at the end of the master's call, after
+  /// the NMT start that follows a boot (NodeGuardingMaster::guard).
   virtual bool start_error_control(cfg::NodeId node, TimePoint now) = 0;
 
   // --- What the master knows.

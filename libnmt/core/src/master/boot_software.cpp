@@ -130,10 +130,10 @@ void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Ou
         // Reported, else only the bus would show it: the memory was not cleared before the
         // image (the device's own affair by DSP 302 §9; 1F50h says when it cannot take it).
         update_->clear_refused = r.abort;
-        auto e = master_event(
-            MasterEvent::Kind::ProgramClearRefused, now, node_.value(),
-            node_text(node_.value()) + ": program clear (" + cfg::to_string(r.address) +
-                " = 3) refused: " + to_string(r.abort) + "; the download goes on");
+        auto e =
+            master_event(MasterEvent::Kind::ProgramClearRefused, now, node_,
+                         node_text(node_) + ": program clear (" + cfg::to_string(r.address) +
+                             " = 3) refused: " + to_string(r.abort) + "; the download goes on");
         e.step = BootStep::UpdateSoftware;
         e.sdo = r;
         out.report(std::move(e));

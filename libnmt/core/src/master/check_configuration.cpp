@@ -179,12 +179,12 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       }
       bytes_ += plan_[next_].data.size();
       ++next_;
-      auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_.value(), "");
+      auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_, "");
       e.step = BootStep::Download;
       e.written = next_;
       e.total = plan_.size();
       e.bytes = bytes_;
-      e.text = node_text(node_.value()) + ": " + std::to_string(next_) + " of " +
+      e.text = node_text(node_) + ": " + std::to_string(next_) + " of " +
                std::to_string(plan_.size()) + " entries written";
       out.report(std::move(e));
       write_next(now, out);
@@ -217,9 +217,9 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       if (options_.application_step) {
         phase_ = Phase::Application;
         set_step(BootStep::ApplicationStep, now, out);
-        auto e = master_event(MasterEvent::Kind::ApplicationStep, now, node_.value(), "");
+        auto e = master_event(MasterEvent::Kind::ApplicationStep, now, node_, "");
         e.step = BootStep::ApplicationStep;
-        e.text = node_text(node_.value()) + ": the application's configuration step";
+        e.text = node_text(node_) + ": the application's configuration step";
         out.report(std::move(e));
         return;
       }

@@ -59,7 +59,7 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   if (assignment(node).boot_slave()) start_boot(node, false, now, out);
 }
 
-void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out) {
+void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
   report(out,
          master_event(
              heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
@@ -71,11 +71,11 @@ void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint
   // Figure 12 and the note of DSP 302 §5.3: for a mandatory slave, "stop all nodes" with 1F80h
   // bit 6, else "reset all nodes" with bit 4 (the master included: start-up runs again).
   if (a.mandatory() && config.stop_all_nodes()) {
-    queue_nmt(NmtCommand::Stop, 0);
+    queue_nmt(NmtCommand::Stop, NmtTarget::all_nodes());
     return;
   }
   if (a.mandatory() && config.reset_all_nodes()) {
-    queue_nmt(NmtCommand::ResetNode, 0);
+    queue_nmt(NmtCommand::ResetNode, NmtTarget::all_nodes());
     startup_due = now;
     return;
   }
@@ -91,11 +91,21 @@ void NmtMaster::Impl::error_handler(std::uint8_t node, bool heartbeat, TimePoint
   if (a.boot_slave()) start_boot(node, false, now, out);
 }
 
-void NmtMaster::Impl::stop_error_control(std::uint8_t node) {
-  const auto id = cfg::NodeId::from(node);
-  if (!id) return;
-  heartbeats.stop(*id);
-  guarding.stop(*id);
+void NmtMaster::Impl::guarding_timer(TimePoint now, Output& out) {
+  auto& guard_out = guarding_out;
+  guard_out.clear();
+  guarding.on_timer(now, guard_out);
+  for (const auto& f : guard_out.frames) out.send(f);
+  for (const auto& e : guard_out.events) {
+    if (e.kind != NodeGuardingEventKind::Timeout) continue;
+    error_handler(e.node_id, false, now, out);
+    sdo_manager.node_lost(e.node_id, now, out);
+  }
+}
+
+void NmtMaster::Impl::stop_error_control(cfg::NodeId node) {
+  heartbeats.stop(node);
+  guarding.stop(node);
 }
 
 }  // namespace nmt

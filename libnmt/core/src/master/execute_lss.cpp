@@ -147,7 +147,7 @@ void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& o
         return;
       }
       if (phase_ != Phase::Startup && !reported_.insert(e.address).second) return;
-      auto m = master_event(MasterEvent::Kind::LssUnmatched, e.at, 0,
+      auto m = master_event(MasterEvent::Kind::LssUnmatched, e.at, std::nullopt,
                             "LSS: unconfigured device " + address_digits(e.address) +
                                 " matches no slave: left unconfigured");
       m.lss_address = e.address;
@@ -166,7 +166,7 @@ void ExecuteLssProcess::scan_ended(const LssMasterEvent& e, TimePoint now, Outpu
                      (e.value == 1 ? "" : "s") + " found, " + std::to_string(assigned_) +
                      " given a node-ID";
   if (e.kind != Kind::Done) text += " (scan ended early: " + e.text + ")";
-  auto m = master_event(MasterEvent::Kind::LssScanEnded, e.at, 0, std::move(text));
+  auto m = master_event(MasterEvent::Kind::LssScanEnded, e.at, std::nullopt, std::move(text));
   out.report(std::move(m));
   phase_ = Phase::Idle;
   next_look_.reset();

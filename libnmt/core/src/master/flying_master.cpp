@@ -47,7 +47,7 @@ std::string priority_text(std::uint16_t priority) {
 /// How often a 76h that brought no reset is sent again before this device gives up forcing.
 constexpr unsigned kForceTries = 3;
 
-MasterEvent flying_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node,
+MasterEvent flying_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node,
                          std::optional<std::uint16_t> priority, std::string text) {
   auto e = master_event(kind, at, node, std::move(text));
   e.priority = priority;
@@ -65,7 +65,7 @@ std::optional<TimePoint> FlyingMasterProcess::next_deadline() const {
 
 std::optional<cfg::NodeId> FlyingMasterProcess::active_master() const {
   if (flying_.phase != Phase::Active && flying_.phase != Phase::Standby) return std::nullopt;
-  return cfg::NodeId::from(flying_.active);
+  return flying_.active;
 }
 
 void FlyingMasterProcess::stop() {
@@ -87,7 +87,7 @@ void FlyingMasterProcess::start(const FlyingTiming& timing, TimePoint now, Outpu
   // all listen when the detection starts (DSP 302 §5.5.1.2).
   flying_.deadline = now + t.delay;
   port_.set_startup(StartupState::Negotiating);
-  out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_.value(), t.priority,
+  out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
                           std::string("flying master start-up after ") +
                               (warm ? "a reset communication" : "power-on") +
                               ": active master detection in " + ms_text(t.delay)));
@@ -111,7 +111,7 @@ void FlyingMasterProcess::wait(TimePoint now, Output& out, const std::string& wh
   flying_.deadline = now + wait;
   port_.set_startup(StartupState::Negotiating);
   if (began) {
-    out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_.value(), t.priority,
+    out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
                             why + ": negotiation, waiting " + ms_text(wait)));
   }
 }
@@ -120,7 +120,7 @@ void FlyingMasterProcess::win(TimePoint now, Output& out) {
   const auto& t = timing_;
   flying_.phase = Phase::Active;
   flying_.deadline.reset();
-  flying_.active = node_.value();
+  flying_.active = node_;
   flying_.active_priority = t.priority;
   flying_.forced = false;
   flying_.force_tries = 0;
@@ -130,7 +130,7 @@ void FlyingMasterProcess::win(TimePoint now, Output& out) {
   // ... and checks for other active masters every 1F90h sub 6 (§5.5.3).
   flying_.cycle_due.reset();
   if (t.cycle.count() > 0) flying_.cycle_due = now + t.cycle;
-  out.report(flying_event(MasterEvent::Kind::ActiveMaster, now, node_.value(), t.priority,
+  out.report(flying_event(MasterEvent::Kind::ActiveMaster, now, node_, t.priority,
                           "active NMT master: no better master answered within the waiting "
                           "time (" +
                               priority_text(t.priority) + ")"));
@@ -227,7 +227,7 @@ void FlyingMasterProcess::master_response(std::uint16_t priority, cfg::NodeId no
 void FlyingMasterProcess::detect_master(std::optional<DetectionTiming> timing, TimePoint now) {
   detection_ = Detection{};
   if (!timing) {
-    port_.queue_nmt(NmtCommand::Start, 0);
+    port_.queue_nmt(NmtCommand::Start, NmtTarget::all_nodes());
     return;
   }
   // §5.1: "after the CANopen device switched into the NMT state Pre-operational and an
@@ -242,7 +242,7 @@ bool FlyingMasterProcess::detection_frame(const CanFrame& frame, TimePoint now, 
   if (detection_.phase == P::Detect && frame.id == Cob::kCapableResponse) {
     // DSP 302 §5.5.3.1: a device able to become NMT master exists; it starts the network.
     detection_ = Detection{};
-    out.report(master_event(MasterEvent::Kind::MasterDetection, now, 0,
+    out.report(master_event(MasterEvent::Kind::MasterDetection, now, std::nullopt,
                             "an NMT master-capable device answered (74h): the network is left "
                             "to the NMT master"));
     return true;
@@ -253,7 +253,7 @@ bool FlyingMasterProcess::detection_frame(const CanFrame& frame, TimePoint now, 
       // DSP 302 §5.5.3.1: the node-ID slots keep a group of self-starting devices from each
       // sending the start: one with a lower node-ID did.
       detection_ = Detection{};
-      out.report(master_event(MasterEvent::Kind::MasterDetection, now, 0,
+      out.report(master_event(MasterEvent::Kind::MasterDetection, now, std::nullopt,
                               "another device started all nodes first"));
       return false;
     }
@@ -277,14 +277,14 @@ void FlyingMasterProcess::detection_timer(TimePoint now, Output& out) {
       const auto wait = node_.value() * t.node_slot;
       detection_.phase = P::Wait;
       detection_.deadline = now + wait;
-      out.report(master_event(MasterEvent::Kind::MasterDetection, now, 0,
+      out.report(master_event(MasterEvent::Kind::MasterDetection, now, std::nullopt,
                               "no NMT master-capable device answered within " + ms_text(t.timeout) +
                                   ": start all nodes in " + ms_text(wait)));
       break;
     }
     case P::Wait:
       detection_ = Detection{};
-      port_.queue_nmt(NmtCommand::Start, 0);
+      port_.queue_nmt(NmtCommand::Start, NmtTarget::all_nodes());
       break;
     case P::Off:
       break;
@@ -331,7 +331,7 @@ bool FlyingMasterProcess::on_frame(const CanFrame& frame, TimePoint now, Output&
       // §5.4, §5.5.3: only the active master acts: reset communication of all nodes, itself
       // included, and the negotiation runs again.
       if (flying_.phase != Phase::Active) return false;
-      out.report(flying_event(MasterEvent::Kind::MultipleMasters, now, 0, std::nullopt,
+      out.report(flying_event(MasterEvent::Kind::MultipleMasters, now, std::nullopt, std::nullopt,
                               "force NMT flying master negotiation (76h) received: another "
                               "master is active or has a higher priority; reset communication "
                               "of all nodes"));
@@ -356,8 +356,9 @@ bool FlyingMasterProcess::on_frame(const CanFrame& frame, TimePoint now, Output&
   }
   // §5.5.2: the active master's heartbeat (not its boot-up: a master that booted again has
   // to win a negotiation first).
-  if (flying_.phase == Phase::Standby && frame.id == kErrorControlCobIdBase + flying_.active &&
-      frame.dlc == 1 && frame.data[0] != 0 && flying_.watch) {
+  if (flying_.phase == Phase::Standby && flying_.active &&
+      frame.id == kErrorControlCobIdBase + flying_.active->value() && frame.dlc == 1 &&
+      frame.data[0] != 0 && flying_.watch) {
     flying_.heartbeat_due = now + *flying_.watch;
   }
   return false;
@@ -377,7 +378,7 @@ void FlyingMasterProcess::on_timer(TimePoint now, Output& out) {
     // §5.5.2: negotiation by a reset communication of all nodes (this device included).
     out.report(flying_event(MasterEvent::Kind::ActiveMasterLost, now, flying_.active,
                             flying_.active_priority,
-                            "heartbeat of the active NMT master " + node_text(flying_.active) +
+                            "heartbeat of the active NMT master " + node_text(*flying_.active) +
                                 " lost: reset communication of all nodes, negotiation"));
     port_.reset_all_nodes();
     restart(now);
@@ -396,7 +397,7 @@ void FlyingMasterProcess::on_timer(TimePoint now, Output& out) {
       if (!flying_.warm) {
         // §3.7 d: after power-on, reset communication of all nodes first (DSP 302 §5.5.1.2:
         // PDO traffic must not disturb the timing; this device resets too, warm).
-        out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_.value(), t.priority,
+        out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
                                 "no active master answered within " + ms_text(t.timeout) +
                                     " after power-on: reset communication of all nodes"));
         port_.reset_all_nodes();

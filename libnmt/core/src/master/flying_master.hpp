@@ -61,7 +61,7 @@ class FlyingMasterPort {
   /// Reset communication of all nodes as §3.1 d words it (the master knows the keep-alives).
   virtual void reset_all_nodes() = 0;
   /// An NMT command for the master's NMT command queue.
-  virtual void queue_nmt(NmtCommand command, std::uint8_t node) = 0;
+  virtual void queue_nmt(NmtCommand command, NmtTarget target) = 0;
   /// An NMT command for this device while another master is (or may become) the active one:
   /// it obeys as an NMT slave.
   virtual void obey(NmtCommand command, TimePoint now, Output& out) = 0;
@@ -129,7 +129,7 @@ class FlyingMasterProcess {
     bool warm = false;  ///< this start came from a reset communication (§3.7 d/e)
     std::optional<TimePoint> deadline;
     std::optional<TimePoint> cycle_due;  ///< Active: the next 76h (1F90h sub 6)
-    std::uint8_t active = 0;             ///< node-ID of the active master, 0: none known
+    std::optional<cfg::NodeId> active;   ///< the active master, nullopt: none known
     std::uint16_t active_priority = 0;
     std::optional<TimePoint> heartbeat_due;  ///< Standby: the active master's heartbeat by then
     std::optional<Duration> watch;           ///< Standby: its heartbeat consumer time

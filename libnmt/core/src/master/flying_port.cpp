@@ -37,17 +37,15 @@ void NmtMaster::Impl::queue_reset_all(TimePoint /*now*/) {
   // §3.1 d: node-ID 0 unless a slave is to be kept alive; then every other node-ID (also
   // those not in 1F81h) individually, never the master itself.
   bool keep_alive = false;
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
+  for (const auto n : all_node_ids()) {
     if (is_slave(n) && assignment(n).keep_alive()) keep_alive = true;
   }
   if (!keep_alive) {
-    queue_nmt(NmtCommand::ResetCommunication, 0);
+    queue_nmt(NmtCommand::ResetCommunication, NmtTarget::all_nodes());
     return;
   }
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
-    if (n == node_id.value() || (is_slave(n) && assignment(n).keep_alive())) continue;
+  for (const auto n : all_node_ids()) {
+    if (n == node_id || (is_slave(n) && assignment(n).keep_alive())) continue;
     queue_nmt(NmtCommand::ResetCommunication, n);
   }
 }
@@ -70,8 +68,8 @@ void NmtMaster::Impl::FlyingPort::reset_all_nodes() {
   m.queue_reset_all(TimePoint{});
 }
 
-void NmtMaster::Impl::FlyingPort::queue_nmt(NmtCommand command, std::uint8_t node) {
-  m.queue_nmt(command, node);
+void NmtMaster::Impl::FlyingPort::queue_nmt(NmtCommand command, NmtTarget target) {
+  m.queue_nmt(command, target);
 }
 
 void NmtMaster::Impl::FlyingPort::obey(NmtCommand command, TimePoint now, Output& out) {

@@ -22,7 +22,7 @@ bool NmtMaster::Impl::execute_lss_first(TimePoint now, Output& out) {
   return true;
 }
 
-std::optional<LssAddress> NmtMaster::Impl::lss_address_of(std::uint8_t node) const {
+std::optional<LssAddress> NmtMaster::Impl::lss_address_of(cfg::NodeId node) const {
   if (const auto it = options.lss.addresses.find(node); it != options.lss.addresses.end()) {
     return it->second;
   }
@@ -39,9 +39,8 @@ std::optional<LssAddress> NmtMaster::Impl::lss_address_of(std::uint8_t node) con
 // --- the port ---
 
 std::optional<cfg::NodeId> NmtMaster::Impl::LssPort::slave_with(const LssAddress& address) const {
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    const auto n = static_cast<std::uint8_t>(node);
-    if (m.is_slave(n) && m.lss_address_of(n) == address) return cfg::NodeId::from(node);
+  for (const auto n : all_node_ids()) {
+    if (m.is_slave(n) && m.lss_address_of(n) == address) return n;
   }
   return std::nullopt;
 }
@@ -52,8 +51,7 @@ std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
   // reset's silence ends the scan before the running slaves' addresses are tried.
   std::vector<LssAddress> known;
   for (const bool running : {false, true}) {
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      const auto n = static_cast<std::uint8_t>(node);
+    for (const auto n : all_node_ids()) {
       if (!m.is_slave(n) || (m.slaves[n].known_state > 1) != running) continue;
       if (const auto address = m.lss_address_of(n)) known.push_back(*address);
     }

@@ -278,13 +278,13 @@ std::uint32_t NmtMaster::Impl::value_of(std::uint16_t index, std::uint8_t sub) c
   return static_cast<std::uint32_t>(dict.get_unsigned(index, sub).value_or(0));
 }
 
-cfg::SlaveAssignment NmtMaster::Impl::assignment(std::uint8_t node) const {
+cfg::SlaveAssignment NmtMaster::Impl::assignment(cfg::NodeId node) const {
   // §6.3: "The sub-index corresponding to its own node-ID shall be ignored."
-  if (node == node_id.value()) return {};
+  if (node == node_id) return {};
   return {value_of(obj::kSlaveAssignment, node)};
 }
 
-std::optional<Duration> NmtMaster::Impl::heartbeat_time(std::uint8_t node) const {
+std::optional<Duration> NmtMaster::Impl::heartbeat_time(cfg::NodeId node) const {
   const auto count = dict.get_unsigned(obj::kConsumerHeartbeatTime, 0).value_or(0);
   for (std::uint64_t sub = 1; sub <= count && sub <= 0xFF; ++sub) {
     const auto entry = HeartbeatConsumerEntry::decode(
@@ -346,7 +346,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
       return SdoAbort::None;
     }
     if (no_room_for(1)) return SdoAbort::OutOfMemory;
-    queue_nmt(*command, 0);
+    queue_nmt(*command, NmtTarget::all_nodes());
     for (const auto n : all_node_ids()) hold(n);
     // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
     apply_own_command(*command, now, *out);
@@ -379,9 +379,10 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
       return SdoAbort::None;
     }
     const auto a = assignment(node);
-    // §6.3: guard time or retry factor 0 disable guarding for the device (start refuses them).
-    const auto started =
-        guarding.start(node, a.guard_time_ms(), a.retry_factor(), now, guarding_started);
+    // §6.3: guard time or retry factor 0 disable guarding for the device (guard refuses them).
+    // The first request leaves at the end of the call (settle()), or at the next call of the
+    // master for a write through dictionary() (next_deadline: due at `now`).
+    const auto started = guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
     return started ? SdoAbort::None : SdoAbort::General;
   };
   if (sub == kAll) {

@@ -189,15 +189,15 @@ std::string_view to_string(MasterEvent::Kind kind) {
   return "?";
 }
 
-std::string node_text(std::uint8_t node) {
-  return "node " + std::to_string(node);
+std::string node_text(cfg::NodeId node) {
+  return "node " + std::to_string(node.value());
 }
 
-MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node,
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node,
                          std::string text) {
   MasterEvent e{kind};
   e.at = at;
-  e.node_id = cfg::NodeId::from(node);  // 0: an event of the master, about no node
+  e.node_id = node;
   e.text = std::move(text);
   return e;
 }

@@ -3,15 +3,23 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <utility>
 
+#include "cfg/node_id.hpp"
 #include "nmt/nmt_master.hpp"
 
 namespace nmt {
 
 /// "node 3" (messages).
-std::string node_text(std::uint8_t node);
-/// An event with the fields every kind has.
-MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::uint8_t node, std::string text);
+std::string node_text(cfg::NodeId node);
+/// An event with the fields every kind has; `node` nullopt: an event of the master, about no node.
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node,
+                         std::string text);
+inline MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, cfg::NodeId node,
+                                std::string text) {
+  return master_event(kind, at, std::optional<cfg::NodeId>(node), std::move(text));
+}
 
 }  // namespace nmt

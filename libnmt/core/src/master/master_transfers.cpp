@@ -16,8 +16,7 @@ namespace nmt {
 namespace {
 
 // MasterEvent::ProgramProgress: `done` of the 1F50h image's `total` bytes confirmed.
-MasterEvent program_progress(std::uint8_t node, std::size_t done, std::size_t total,
-                             TimePoint now) {
+MasterEvent program_progress(cfg::NodeId node, std::size_t done, std::size_t total, TimePoint now) {
   auto e = master_event(MasterEvent::Kind::ProgramProgress, now, node,
                         node_text(node) + ": program download " + std::to_string(done) + " of " +
                             std::to_string(total) + " bytes");
@@ -43,7 +42,7 @@ void NmtMaster::Impl::pace_frame_of_others(const CanFrame& frame, TimePoint now)
   paced_until += paced_time(frame_bits(frame).total());
 }
 
-SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterTransfer transfer,
+SdoClient::TransferId NmtMaster::Impl::start_transfer(cfg::NodeId node, MasterTransfer transfer,
                                                       TimePoint now) {
   // DSP 302 §7.1: the manager "manages all SDO connections"; a default SDO it gave to an SRD is
   // the SRD's until released, and a second client on it would collide with the SRD's.
@@ -62,15 +61,15 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(std::uint8_t node, MasterT
   return launch_transfer(node, std::move(transfer), now);
 }
 
-SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, MasterTransfer transfer,
+SdoClient::TransferId NmtMaster::Impl::launch_transfer(cfg::NodeId node, MasterTransfer transfer,
                                                        TimePoint now) {
   if (!transfer.for_application && !transfer.for_manager) ++boot_transfers;
   transfer.launched = now;
   auto& client = clients.client(node);
+  const auto [index, sub] = transfer.object;
   const auto id = transfer.upload
-                      ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
-                      : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
-                                        transfer.options);
+                      ? client.upload(index, sub, now, sdo_out, transfer.options)
+                      : client.download(index, sub, transfer.data, now, sdo_out, transfer.options);
   if (!id) {
     // A boot or manager transfer the client refuses (SdoClient::check_start: a timeout that is
     // not positive, a program longer than 4 GiB; application transfers were checked before it
@@ -79,7 +78,7 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, Master
     SdoResult r;
     r.id = next_refused_id--;
     r.node_id = cfg::NodeId::from(node);
-    r.address = {transfer.index, transfer.sub};
+    r.address = transfer.object;
     r.upload = transfer.upload;
     r.abort =
         transfer.options.timeout <= Duration::zero() ? SdoAbort::Timeout : SdoAbort::OutOfMemory;
@@ -94,7 +93,7 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, Master
 }
 
 void NmtMaster::Impl::forget_transfer(
-    std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it) {
+    std::map<std::pair<cfg::NodeId, SdoClient::TransferId>, MasterTransfer>::iterator it) {
   if (!it->second.for_application && !it->second.for_manager) --boot_transfers;
   transfers.erase(it);
 }
@@ -137,7 +136,7 @@ void NmtMaster::Impl::release_held(TimePoint now) {
 
 void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& out) {
   if (!result.node_id) return;  // the master's clients are all for_node
-  const std::uint8_t node = *result.node_id;
+  const cfg::NodeId node = *result.node_id;
   const auto it = transfers.find({node, result.id});
   if (it == transfers.end()) return;  // cancelled, or of an older boot try
   MasterTransfer transfer = std::move(it->second);
@@ -186,7 +185,7 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
   }
   auto& b = boot(node);
   if (!b.running() || transfer.try_id != b.try_id()) return;
-  if (result.ok() && !transfer.upload && transfer.index == cfg::object::kProgramData &&
+  if (result.ok() && !transfer.upload && transfer.object.index == cfg::object::kProgramData &&
       transfer.reported < transfer.data.size()) {
     // The last segment's confirmation ends a segmented download at once (a block download's
     // last sub-block is acknowledged before its end): 100% is reported here, once.
@@ -199,7 +198,8 @@ void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
   // The software update's 1F50h download (DSP 302 §9) as the client has it confirmed, for the
   // live view: about every 1/32 of the image, so a 256 KiB image gives some 32 events.
   for (auto& [key, t] : transfers) {
-    if (t.for_application || t.for_manager || t.upload || t.index != cfg::object::kProgramData) {
+    if (t.for_application || t.for_manager || t.upload ||
+        t.object.index != cfg::object::kProgramData) {
       continue;
     }
     const auto p = clients.client(key.first).download_progress();
@@ -251,8 +251,13 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   report_program_progress(now, out);
   for (const auto& f : sdo_out.frames) out.send(f);
   sdo_out.frames.clear();
-  for (const auto& f : guarding_started.frames) out.send(f);
-  guarding_started.clear();
+  // Node guarding started in this call (boot's start error control, the SDO manager's watch,
+  // request node guarding) has its first request due at `now` (NodeGuardingMaster::guard): the
+  // guarding engine sends it here, last, after the call's NMT commands and SDO requests, where
+  // it has always gone: a slave that boot starts is started before its first guarding request,
+  // so its first reply says operational (CiA 302-2 §3.4 part 3 e before g-l). (A request that
+  // fell due before on_timer came goes with it: engine.hpp rule 3.)
+  if (const auto due = guarding.next_deadline(); due && *due <= now) guarding_timer(now, out);
 }
 
 }  // namespace nmt

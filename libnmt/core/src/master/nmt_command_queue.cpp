@@ -7,12 +7,10 @@ void NmtCommandQueue::on_timer(TimePoint now, Output& out) {
   // §6.1: queued NMT services go out in order, at least the inhibit time apart (with 0, all at
   // once).
   while (!queue_.empty() && !inhibited(now)) {
-    const auto [command, node] = queue_.front();
+    const auto [command, target] = queue_.front();
     queue_.pop_front();
-    const auto target = NmtTarget::from_byte(node);
-    if (!target) continue;  // not 0 (all nodes) nor a node-ID: no command to send
-    out.send(make_nmt_command(command, *target));
-    out.report(Sent{command, node});
+    out.send(make_nmt_command(command, target));
+    out.report(Sent{command, target});
     last_ = now;
   }
 }

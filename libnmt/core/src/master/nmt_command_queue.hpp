@@ -30,7 +30,7 @@ class NmtCommandQueue {
   /// A command that left (its frame is in the same Output, in the same order).
   struct Sent {
     NmtCommand command;
-    std::uint8_t node;  ///< 0: all nodes
+    NmtTarget target;
     bool operator==(const Sent&) const = default;
   };
   using Event = Sent;
@@ -40,8 +40,8 @@ class NmtCommandQueue {
   void set_inhibit_time(Duration inhibit) { inhibit_ = inhibit; }
   Duration inhibit_time() const { return inhibit_; }
 
-  /// Queues `command` for `node` (0: all nodes); due at once unless the inhibit time runs.
-  void queue(NmtCommand command, std::uint8_t node) { queue_.emplace_back(command, node); }
+  /// Queues `command` for `target`; due at once unless the inhibit time runs.
+  void queue(NmtCommand command, NmtTarget target) { queue_.emplace_back(command, target); }
   std::size_t size() const { return queue_.size(); }
   bool empty() const { return queue_.empty(); }
 
@@ -57,7 +57,7 @@ class NmtCommandQueue {
     return inhibit_.count() > 0 && last_ && now < *last_ + inhibit_;
   }
 
-  std::deque<std::pair<NmtCommand, std::uint8_t>> queue_;
+  std::deque<std::pair<NmtCommand, NmtTarget>> queue_;
   std::optional<TimePoint> last_;  ///< when the last command left
   Duration inhibit_{0};
 };

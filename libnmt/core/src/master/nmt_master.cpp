@@ -49,9 +49,8 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
       producer(id),
       sdo_manager(dict, manager_port, id, manager_settings(options, server.config())) {
   boots.reserve(cfg::kMaxNodeId);
-  for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-    boots.emplace_back(*cfg::NodeId::from(static_cast<std::uint8_t>(node)), boot_port,
-                       BootSlaveProcess::Options::from(options));
+  for (const auto node : all_node_ids()) {
+    boots.emplace_back(node, boot_port, BootSlaveProcess::Options::from(options));
   }
 }
 
@@ -173,15 +172,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     }
     m.sdo_manager.node_lost(e.node_id, now, out);
   }
-  auto& guard_out = m.guarding_out;
-  guard_out.clear();
-  m.guarding.on_timer(now, guard_out);
-  for (const auto& f : guard_out.frames) out.send(f);
-  for (const auto& e : guard_out.events) {
-    if (e.kind != NodeGuardingEventKind::Timeout) continue;
-    m.error_handler(e.node_id, false, now, out);
-    m.sdo_manager.node_lost(e.node_id, now, out);
-  }
+  m.guarding_timer(now, out);
   if (m.boot_up_quiet && now >= *m.boot_up_quiet) m.open_boot_up_gate(now, out, true);
   if (!m.boot_deadlines.empty() && m.boot_deadlines.begin()->first <= now) {
     // The boot engines that are due, in node-ID order (as the events have always come).
@@ -190,8 +181,8 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
       if (at > now) break;
       due.set(node);
     }
-    for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
-      if (due[node]) m.boot(static_cast<std::uint8_t>(node)).on_timer(now, out);
+    for (const auto node : all_node_ids()) {
+      if (due[node]) m.boot(node).on_timer(now, out);
     }
   }
   m.settle(now, out);
@@ -217,9 +208,6 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
     due = earliest(due, m.paced_until);
   }
   due = earliest(due, m.nmt_commands.next_deadline());
-  // Guarding started outside a call of the master (a hook of a local write): its first request
-  // waits for the next call's settle().
-  if (!m.guarding_started.frames.empty()) due = TimePoint{};
   return due;
 }
 
@@ -293,8 +281,7 @@ cfg::Result<SdoClient::TransferId> NmtMaster::Impl::start_application_transfer(
   }
   MasterTransfer t;
   t.for_application = true;
-  t.index = index;
-  t.sub = sub;
+  t.object = {index, sub};
   t.upload = upload;
   t.data = std::move(data);
   t.options.timeout = options.sdo_timeout;
@@ -379,7 +366,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
     startup = StartupState::NotMaster;
-    report(out, master_event(MasterEvent::Kind::NotMaster, now, 0,
+    report(out, master_event(MasterEvent::Kind::NotMaster, now, std::nullopt,
                              "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
     flying.stop_detection();
     if (config.self_starting()) {
@@ -400,7 +387,8 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   startup_began = now;
   // §3.1 d (keep-alive slaves are checked by their boot, §3.4 part 2).
   queue_reset_all(now);
-  report(out, master_event(MasterEvent::Kind::StartupBegan, now, 0, "NMT start-up began"));
+  report(out,
+         master_event(MasterEvent::Kind::StartupBegan, now, std::nullopt, "NMT start-up began"));
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
   boot_up_gate = now + options.boot_up_wait;
@@ -458,7 +446,7 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
   if (startup_config().no_auto_operational()) {
     startup = StartupState::AwaitApplication;
-    report(out, master_event(MasterEvent::Kind::StartupAwaitsApplication, now, 0,
+    report(out, master_event(MasterEvent::Kind::StartupAwaitsApplication, now, std::nullopt,
                              "all mandatory slaves booted; waiting for the application to enter "
                              "operational (1F80h bit 2)"));
     return;
@@ -481,7 +469,7 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
       if (!s.booted() || s.last_error() || assignment(n).keep_alive()) all_booted = false;
     }
     if (all_booted) {
-      queue_nmt(NmtCommand::Start, 0);
+      queue_nmt(NmtCommand::Start, NmtTarget::all_nodes());
     } else {
       for (const auto n : all_node_ids()) {
         if (!is_slave(n) || !boot(n).booted() || !assignment(n).boot_slave()) continue;
@@ -491,7 +479,8 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     }
   }
   startup = StartupState::Operational;
-  report(out, master_event(MasterEvent::Kind::StartupComplete, now, 0, "NMT start-up complete"));
+  report(out, master_event(MasterEvent::Kind::StartupComplete, now, std::nullopt,
+                           "NMT start-up complete"));
 }
 
 void NmtMaster::Impl::set_own_state(NmtState state, TimePoint now, Output& out) {
@@ -536,24 +525,25 @@ void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
   nmt_out.clear();
   nmt_commands.on_timer(now, nmt_out);
   for (const auto& f : nmt_out.frames) out.send(f);
-  for (const auto& [command, node] : nmt_out.events) {
+  for (const auto& [command, target] : nmt_out.events) {
     const auto state = state_after(command);
-    if (node == 0) {
+    if (const auto node = target.node()) {
+      set_known_state(*node, state, now, out);
+    } else {
       for (const auto n : all_node_ids()) {
         if (is_slave(n)) set_known_state(n, state, now, out);
       }
-    } else {
-      set_known_state(node, state, now, out);
     }
-    auto e = master_event(MasterEvent::Kind::NmtCommandSent, now, node,
-                          std::string(to_string(command)) + " " +
-                              (node == 0 ? std::string("all nodes") : node_text(node)));
+    auto e =
+        master_event(MasterEvent::Kind::NmtCommandSent, now, target.node(),
+                     std::string(to_string(command)) + " " +
+                         (target.all() ? std::string("all nodes") : node_text(*target.node())));
     e.command = command;
     report(out, std::move(e));
   }
 }
 
-void NmtMaster::Impl::set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now,
+void NmtMaster::Impl::set_known_state(cfg::NodeId node, std::uint8_t state, TimePoint now,
                                       Output& out) {
   auto& s = slaves[node];
   if (s.known_state == state) return;

@@ -50,8 +50,7 @@ struct MasterTransfer {
   bool for_manager = false;                  ///< of the SDO manager (try_id: its tag)
   std::uint64_t try_id = 0;                  ///< boot: the try that started it
   SdoClient::TransferId application_id = 0;  ///< application: the id the caller got
-  std::uint16_t index = 0;
-  std::uint8_t sub = 0;
+  cfg::ObjectAddress object;
   bool upload = false;
   std::vector<std::uint8_t> data;  ///< download: kept for a repetition after a timeout
   SdoTransferOptions options;
@@ -112,14 +111,14 @@ struct NmtMaster::Impl {
   BootPort boot_port{*this};
   /// Boot NMT slave, one engine per node-ID 1..127 (boot(node)).
   std::vector<BootSlaveProcess> boots;
-  BootSlaveProcess& boot(std::uint8_t node) { return boots[node - 1U]; }
-  const BootSlaveProcess& boot(std::uint8_t node) const { return boots[node - 1U]; }
+  BootSlaveProcess& boot(cfg::NodeId node) { return boots[node.value() - 1U]; }
+  const BootSlaveProcess& boot(cfg::NodeId node) const { return boots[node.value() - 1U]; }
   /// The boot engines' deadlines, earliest first, kept as they change (deadline_changed), so
   /// next_deadline() and on_timer() need no scan of 127 engines.
-  std::set<std::pair<TimePoint, std::uint8_t>> boot_deadlines;
+  std::set<std::pair<TimePoint, cfg::NodeId>> boot_deadlines;
   std::array<std::optional<TimePoint>, 128> boot_deadline_of;
 
-  std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer> transfers;
+  std::map<std::pair<cfg::NodeId, SdoClient::TransferId>, MasterTransfer> transfers;
   /// Boot transfers in `transfers`, the window they may fill, and those waiting for a place.
   static constexpr double kMaxWindow = 128;
   std::size_t boot_transfers = 0;
@@ -127,10 +126,10 @@ struct NmtMaster::Impl {
   /// When the window was last halved (unpaced): timeouts of transfers launched before are the
   /// same loss event and do not halve it again.
   std::optional<TimePoint> window_cut;
-  std::deque<std::pair<std::uint8_t, MasterTransfer>> waiting;
+  std::deque<std::pair<cfg::NodeId, MasterTransfer>> waiting;
   /// Boot and application transfers to a slave whose default SDO the SDO manager gave to an SRD
   /// (DSP 302 §7.1): they wait here, in order, until it is free again (release_held).
-  std::deque<std::pair<std::uint8_t, MasterTransfer>> held;
+  std::deque<std::pair<cfg::NodeId, MasterTransfer>> held;
   /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
   TimePoint paced_until{};
   /// clients.unanswered_bits() when the pacing last counted: the bits of block segments since.
@@ -152,11 +151,6 @@ struct NmtMaster::Impl {
   Outbox<NoEvent> part_out;
   Outbox<HeartbeatEvent> heartbeat_out;
   Outbox<NodeGuardingEvent> guarding_out;
-  /// The first requests of the node guarding started in this call (NodeGuardingMaster::start
-  /// puts them out at once, engine.hpp rule 5); settle() sends them last, after the call's NMT
-  /// commands and SDO requests, where the first request has always gone: a slave that boot
-  /// starts is started before its first guarding request, so its first reply says operational.
-  Outbox<NodeGuardingEvent> guarding_started;
 
   /// The flying master's port to this master (master_flying_port.cpp).
   struct FlyingPort final : FlyingMasterPort {
@@ -165,7 +159,7 @@ struct NmtMaster::Impl {
     void set_startup(StartupState state) override;
     void restart(TimePoint now) override;
     void reset_all_nodes() override;
-    void queue_nmt(NmtCommand command, std::uint8_t node) override;
+    void queue_nmt(NmtCommand command, NmtTarget target) override;
     void obey(NmtCommand command, TimePoint now, Output& out) override;
     bool master_capable() const override;
     std::optional<Duration> heartbeat_time(cfg::NodeId node) const override;
@@ -195,7 +189,7 @@ struct NmtMaster::Impl {
   bool execute_lss_first(TimePoint now, Output& out);
   /// The LSS address of slave `node` (ExecuteLssOptions::addresses, else 1F85h-1F88h when all
   /// four are non-zero).
-  std::optional<LssAddress> lss_address_of(std::uint8_t node) const;
+  std::optional<LssAddress> lss_address_of(cfg::NodeId node) const;
 
   /// The NMT commands and their inhibit time (§6.1); run by flush_nmt() from settle().
   NmtCommandQueue nmt_commands;
@@ -217,9 +211,9 @@ struct NmtMaster::Impl {
                        TimePoint now, Output* out);
   std::uint32_t value_of(std::uint16_t index, std::uint8_t sub) const;
   cfg::NmtStartup startup_config() const { return {value_of(cfg::object::kNmtStartup, 0)}; }
-  cfg::SlaveAssignment assignment(std::uint8_t node) const;
+  cfg::SlaveAssignment assignment(cfg::NodeId node) const;
   /// 1016h consumer time for `node` (the first active entry), nullopt when not a consumer.
-  std::optional<Duration> heartbeat_time(std::uint8_t node) const;
+  std::optional<Duration> heartbeat_time(cfg::NodeId node) const;
   cfg::ConfigurationStamp expected_configuration(cfg::NodeId node) const;
   Duration nmt_inhibit_time() const;
 
@@ -272,15 +266,18 @@ struct NmtMaster::Impl {
   void check_startup(TimePoint now, Output& out);
   void finish_startup(TimePoint now, Output& out);
   void set_own_state(NmtState state, TimePoint now, Output& out);
-  void queue_nmt(NmtCommand command, std::uint8_t node) { nmt_commands.queue(command, node); }
+  void queue_nmt(NmtCommand command, NmtTarget target) { nmt_commands.queue(command, target); }
   /// Runs the NMT command queue: its due commands go out, and the slaves' states they set.
   void flush_nmt(TimePoint now, Output& out);
   void apply_own_command(NmtCommand command, TimePoint now, Output& out);
-  void set_known_state(std::uint8_t node, std::uint8_t state, TimePoint now, Output& out);
+  void set_known_state(cfg::NodeId node, std::uint8_t state, TimePoint now, Output& out);
   void on_error_control(const ErrorControlMessage& message, TimePoint now, Output& out);
   void on_boot_up(cfg::NodeId node, TimePoint now, Output& out);
-  void error_handler(std::uint8_t node, bool heartbeat, TimePoint now, Output& out);
-  void stop_error_control(std::uint8_t node);
+  void error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out);
+  void stop_error_control(cfg::NodeId node);
+  /// Runs node guarding (NodeGuardingMaster::on_timer): its due requests out, a guarding lost
+  /// to the error handler and the SDO manager.
+  void guarding_timer(TimePoint now, Output& out);
   /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).
   SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, std::optional<cfg::NodeId> requester,
                        TimePoint now, Output* out);
@@ -291,11 +288,6 @@ struct NmtMaster::Impl {
   void report_program_progress(TimePoint now, Output& out);
   void report(Output& out, MasterEvent event);
   bool is_slave(cfg::NodeId node) const { return node != node_id && assignment(node).is_slave(); }
-  /// A number from a frame or a dictionary value: a node-ID (1..127) and a slave.
-  bool is_slave(std::uint8_t node) const {
-    const auto id = cfg::NodeId::from(node);
-    return id && is_slave(*id);
-  }
 
   // --- the flying master's side in the master (master_flying_port.cpp) -----------------------
   /// 1F90h; with `written_sub` (not 0) `written` in place of the dictionary's value (a write
@@ -317,10 +309,10 @@ struct NmtMaster::Impl {
     bool master_active() const override;
     bool serves_sdo() const override;
     void start_transfer(SdoManagerTransfer transfer, TimePoint now) override;
-    std::optional<Duration> consumer_time(std::uint8_t node) const override;
-    bool watches(std::uint8_t node) const override;
-    void watch(std::uint8_t node, std::optional<Duration> heartbeat, TimePoint now) override;
-    void unwatch(std::uint8_t node) override;
+    std::optional<Duration> consumer_time(cfg::NodeId node) const override;
+    bool watches(cfg::NodeId node) const override;
+    void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) override;
+    void unwatch(cfg::NodeId node) override;
     Impl& m;
   };
   ManagerPort manager_port{*this};
@@ -329,7 +321,7 @@ struct NmtMaster::Impl {
                                              const SdoServerConfig& server);
 
   // --- SDO for boot and application ------------------------------------------------------------
-  SdoClient::TransferId start_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
+  SdoClient::TransferId start_transfer(cfg::NodeId node, MasterTransfer transfer, TimePoint now);
   /// sdo_upload()/sdo_download() of the application: its id, timeout, block above the threshold;
   /// the error (nothing started) when it cannot start.
   cfg::Result<SdoClient::TransferId> start_application_transfer(cfg::NodeId node,
@@ -339,11 +331,11 @@ struct NmtMaster::Impl {
                                                                 TimePoint now);
   void dispatch(const SdoResult& result, TimePoint now, Output& out);
   void forget_transfer(
-      std::map<std::pair<std::uint8_t, SdoClient::TransferId>, MasterTransfer>::iterator it);
+      std::map<std::pair<cfg::NodeId, SdoClient::TransferId>, MasterTransfer>::iterator it);
   void pump_transfers(TimePoint now);
   /// Starts the `held` transfers whose slave's default SDO is free again.
   void release_held(TimePoint now);
-  SdoClient::TransferId launch_transfer(std::uint8_t node, MasterTransfer transfer, TimePoint now);
+  SdoClient::TransferId launch_transfer(cfg::NodeId node, MasterTransfer transfer, TimePoint now);
   /// Starts the slaves waiting at the gate that booted up: when every one did, or (`quiet`) when
   /// no boot-up came for kBootUpQuiet.
   void open_boot_up_gate(TimePoint now, Output& out, bool quiet = false);
@@ -356,7 +348,7 @@ struct NmtMaster::Impl {
   // --- boot NMT slave: the engines and the master's side of their port (boot_port.cpp) -------
   /// A new try of boot NMT slave for `node`; `after_reset`: it waits for the boot-up first (the
   /// start-up's boot-up gate).
-  void start_boot(std::uint8_t node, bool after_reset, TimePoint now, Output& out,
+  void start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out,
                   bool asked_by_application = false);
   /// §3.4 part 3 g-l: start remote node after a boot with status OK.
   void start_remote_node(cfg::NodeId node);

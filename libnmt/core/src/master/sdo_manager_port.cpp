@@ -42,8 +42,7 @@ void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, T
   MasterTransfer t;
   t.for_manager = true;
   t.try_id = transfer.tag;
-  t.index = transfer.address.index;
-  t.sub = transfer.address.sub_index;
+  t.object = transfer.address;
   t.upload = transfer.upload;
   t.data = std::move(transfer.data);
   t.options.timeout = transfer.timeout;
@@ -51,16 +50,15 @@ void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, T
   m.launch_transfer(transfer.node, std::move(t), now);
 }
 
-std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(std::uint8_t node) const {
+std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(cfg::NodeId node) const {
   return m.heartbeat_time(node);
 }
 
-bool NmtMaster::Impl::ManagerPort::watches(std::uint8_t node) const {
-  const auto id = cfg::NodeId::from(node);
-  return id && (m.heartbeats.monitors(*id) || m.guarding.guards(*id));
+bool NmtMaster::Impl::ManagerPort::watches(cfg::NodeId node) const {
+  return m.heartbeats.monitors(node) || m.guarding.guards(node);
 }
 
-void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Duration> heartbeat,
+void NmtMaster::Impl::ManagerPort::watch(cfg::NodeId node, std::optional<Duration> heartbeat,
                                          TimePoint now) {
   if (!heartbeat) heartbeat = m.heartbeat_time(node);
   if (heartbeat && heartbeat->count() > 0) {
@@ -70,16 +68,16 @@ void NmtMaster::Impl::ManagerPort::watch(std::uint8_t node, std::optional<Durati
     return;
   }
   const auto a = m.assignment(node);
-  auto id = *cfg::NodeId::from(node);
-  if (m.guarding.start(id, a.guard_time_ms(), a.retry_factor(), now, m.guarding_started)) return;
+  // Its first request leaves at the end of the call (NmtMaster::Impl::settle()).
+  if (m.guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now)) return;
   const auto guard_ms =
       std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
-  (void)m.guarding.start(id,
+  (void)m.guarding.guard(node,
                          static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
-                         kGuardLifeTimeFactor, now, m.guarding_started);
+                         kGuardLifeTimeFactor, now);
 }
 
-void NmtMaster::Impl::ManagerPort::unwatch(std::uint8_t node) {
+void NmtMaster::Impl::ManagerPort::unwatch(cfg::NodeId node) {
   // A slave's error control is the master's own (boot NMT slave starts and stops it).
   if (!m.is_slave(node)) m.stop_error_control(node);
 }

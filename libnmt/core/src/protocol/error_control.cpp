@@ -206,6 +206,15 @@ std::string_view to_string(NodeGuardingEventKind kind) {
 
 cfg::Status NodeGuardingMaster::start(cfg::NodeId node_id, std::uint16_t guard_time_ms,
                                       std::uint8_t life_time_factor, TimePoint now, Output& out) {
+  auto guarded = guard(node_id, guard_time_ms, life_time_factor, now);
+  if (!guarded) return guarded;
+  // The first request goes out now (engine.hpp rule 5), as on_timer sends every later one.
+  send_due(node_id, nodes_[node_id], now, out);
+  return {};
+}
+
+cfg::Status NodeGuardingMaster::guard(cfg::NodeId node_id, std::uint16_t guard_time_ms,
+                                      std::uint8_t life_time_factor, TimePoint now) {
   // CiA 302-2 §6.3: a guard time or retry factor of 0 disables guarding of the device.
   if (guard_time_ms == 0) return cfg::Error{"node guarding needs a guard time above 0 ms"};
   if (life_time_factor == 0) return cfg::Error{"node guarding needs a life time factor above 0"};
@@ -214,8 +223,6 @@ cfg::Status NodeGuardingMaster::start(cfg::NodeId node_id, std::uint16_t guard_t
   node.guard_time = ms(guard_time_ms);
   node.life_time_factor = life_time_factor;
   node.next_request = now;
-  // The first request goes out now (engine.hpp rule 5), as on_timer sends every later one.
-  send_due(node_id, node, now, out);
   return {};
 }
 
