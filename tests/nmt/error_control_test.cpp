@@ -5,6 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <string>
+#include <utility>
+#include <vector>
+
 namespace nmt {
 namespace {
 
@@ -243,6 +248,61 @@ TEST(HeartbeatConsumer, MonitorsSeveralNodesIndependently) {
   EXPECT_EQ(c.next_deadline(), at_ms(250));
 }
 
+// Engine rule 4 with all 127 nodes monitored: each times out at its own consumer time, earliest
+// first, and one late timer call reports the overdue ones in the order their times expired.
+TEST(HeartbeatConsumer, ManyNodesTimeOutInTheOrderOfTheirConsumerTimes) {
+  HeartbeatConsumer c({.timeout_from_start = true});
+  // Node n: (228 - n) ms, so node 127 expires first and node 1 last.
+  for (int n = 1; n <= 127; ++n) {
+    c.monitor({static_cast<std::uint8_t>(n), static_cast<std::uint16_t>(228 - n)}, at_ms(0));
+  }
+  for (int n = 127; n >= 21; --n) {
+    ASSERT_EQ(c.next_deadline(), at_ms(228 - n));
+    EXPECT_TRUE(tick(c, at_ms(227 - n)).empty());
+    auto ev = tick(c, at_ms(228 - n));
+    ASSERT_EQ(ev.size(), 1u) << "node " << n;
+    EXPECT_EQ(ev[0].node_id, n);
+    EXPECT_EQ(ev[0].at, at_ms(228 - n));
+  }
+  auto late = tick(c, at_ms(1000));  // nodes 20..1 all overdue
+  ASSERT_EQ(late.size(), 20u);
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_EQ(late[i].node_id, 20 - i);
+    EXPECT_EQ(late[i].at, at_ms(208 + i));
+    EXPECT_EQ(late[i].kind, HeartbeatEventKind::Timeout);
+  }
+  EXPECT_EQ(c.next_deadline(), std::nullopt);
+}
+
+TEST(HeartbeatConsumer, NextDeadlineIsTheEarliestAfterHeartbeatsRestartsAndStops) {
+  HeartbeatConsumer c({.timeout_from_start = true});
+  c.monitor({1, 100}, at_ms(0));
+  c.monitor({2, 200}, at_ms(0));
+  c.monitor({3, 300}, at_ms(0));
+  c.monitor({4, 400}, at_ms(0));
+  EXPECT_EQ(c.next_deadline(), at_ms(100));
+  (void)feed(c, frame("701#05"), at_ms(150));  // node 1 re-armed: 250
+  EXPECT_EQ(c.next_deadline(), at_ms(200));
+  c.stop(id(2));
+  EXPECT_EQ(c.next_deadline(), at_ms(250));
+  (void)feed(c, frame("701#00"), at_ms(160));  // boot-up: node 1 waits for a heartbeat
+  EXPECT_EQ(c.next_deadline(), at_ms(300));
+  c.monitor({3, 0}, at_ms(170));  // an inactive entry stops node 3
+  EXPECT_EQ(c.next_deadline(), at_ms(400));
+  c.monitor({4, 50}, at_ms(170));  // a restart replaces node 4's time
+  EXPECT_EQ(c.next_deadline(), at_ms(220));
+  EXPECT_TRUE(tick(c, at_ms(219)).empty());
+  auto ev = tick(c, at_ms(400));
+  ASSERT_EQ(ev.size(), 1u);  // node 4 at 220, once; nothing left of its 400
+  EXPECT_EQ(ev[0].node_id, 4);
+  EXPECT_EQ(ev[0].at, at_ms(220));
+  EXPECT_EQ(c.next_deadline(), std::nullopt);
+  c.monitor({5, 10}, at_ms(500));
+  c.stop_all();
+  EXPECT_EQ(c.next_deadline(), std::nullopt);
+  EXPECT_TRUE(tick(c, at_ms(1000)).empty());
+}
+
 // --- node guarding / life guarding ---
 
 TEST(NodeGuardingSlave, RepliesWithToggleBitStartingAtZero) {
@@ -452,6 +512,63 @@ TEST(NodeGuardingMaster, GuardsTheSlaveEngineWithoutEvents) {
     EXPECT_FALSE(life(s, at_ms(t)).has_value());
   }
   EXPECT_EQ(requests, 101);
+}
+
+// Engine rule 4 with all 127 nodes guarded at different guard times: every request goes out at
+// its own time (k x guard time after the start), none early, none twice, calling on_timer only
+// at next_deadline().
+TEST(NodeGuardingMaster, ManyNodesAreRequestedEachAtItsOwnGuardTime) {
+  NodeGuardingMaster m;
+  std::vector<CanFrame> first;
+  // Node n: (1000 + 7n) ms.
+  const auto guard_ms = [](int n) { return 1000 + 7 * n; };
+  for (int n = 1; n <= 127; ++n) {
+    start(m, static_cast<std::uint8_t>(n), static_cast<std::uint16_t>(guard_ms(n)), 3, at_ms(0),
+          first);
+  }
+  EXPECT_EQ(first.size(), 127u);
+  const std::int64_t end_ms = 5000;
+  // What the spec asks for: (time, node) of every later request, earliest first.
+  std::vector<std::pair<std::int64_t, std::uint32_t>> expected;
+  for (int n = 1; n <= 127; ++n) {
+    for (std::int64_t t = guard_ms(n); t <= end_ms; t += guard_ms(n)) {
+      expected.emplace_back(t, 0x700u + static_cast<std::uint32_t>(n));
+    }
+  }
+  std::sort(expected.begin(), expected.end());
+  std::vector<std::pair<std::int64_t, std::uint32_t>> sent;
+  while (m.next_deadline() && *m.next_deadline() <= at_ms(end_ms)) {
+    const auto now = *m.next_deadline();
+    std::vector<CanFrame> out;
+    (void)tick(m, now, out);
+    ASSERT_FALSE(out.empty()) << "next_deadline() named a time with nothing due";
+    for (const auto& f : out) {
+      sent.emplace_back(std::chrono::duration_cast<milliseconds>(now.time_since_epoch()).count(),
+                        f.id);
+    }
+  }
+  EXPECT_EQ(sent, expected);
+}
+
+TEST(NodeGuardingMaster, NextDeadlineIsTheEarliestAfterRestartsAndStops) {
+  NodeGuardingMaster m;
+  std::vector<CanFrame> out;
+  start(m, 1, 100, 3, at_ms(0), out);
+  start(m, 2, 200, 3, at_ms(0), out);
+  start(m, 3, 300, 3, at_ms(0), out);
+  EXPECT_EQ(m.next_deadline(), at_ms(100));
+  m.stop(id(1));
+  EXPECT_EQ(m.next_deadline(), at_ms(200));
+  start(m, 3, 50, 3, at_ms(20), out);  // a restart replaces node 3's request time
+  EXPECT_EQ(m.next_deadline(), at_ms(70));
+  out.clear();
+  (void)tick(m, at_ms(300), out);  // late: node 3 (due 70) and node 2 (due 200), once each
+  EXPECT_EQ(texts(out), (std::vector<std::string>{"703#R1", "702#R1"}));
+  EXPECT_EQ(m.next_deadline(), at_ms(350));
+  m.stop(id(3));
+  EXPECT_EQ(m.next_deadline(), at_ms(400));
+  m.stop(id(2));
+  EXPECT_EQ(m.next_deadline(), std::nullopt);
 }
 
 }  // namespace

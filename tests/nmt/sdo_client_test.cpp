@@ -509,5 +509,73 @@ TEST(SdoClientMux, UnansweredBitsAreTheSumOfItsClients) {
   EXPECT_EQ(mux.unanswered_bits(), five + six);
 }
 
+// Engine rule 4: the mux's deadline is its clients' earliest after every call, also after calls
+// made on a client directly (cancel), and on_timer times out each client at its own deadline.
+TEST(SdoClientMux, TimesOutEachClientAtItsOwnResponseTimeoutEarliestFirst) {
+  SdoClientMux mux;
+  SdoClientMux::Output out;
+  std::map<std::uint8_t, SdoClient::TransferId> ids;
+  // Node n waits (228 - n) ms for its answer: node 127 first, node 1 last.
+  const auto deadline = [](int n) { return TimePoint{std::chrono::milliseconds(228 - n)}; };
+  for (int n = 1; n <= 127; ++n) {
+    SdoTransferOptions o;
+    o.timeout = std::chrono::milliseconds(228 - n);
+    const auto node = static_cast<std::uint8_t>(n);
+    ids[node] = started(mux.client(node).upload(0x1000, 0, TimePoint{}, out, o));
+  }
+  EXPECT_EQ(mux.next_deadline(), deadline(127));
+  out.clear();
+  // Node 127 answers (expedited, CiA 301 §7.2.4.3.6): its deadline goes.
+  EXPECT_TRUE(mux.on_frame(*from_candump("5FF#4300100001000000"), deadline(127) - 1ms, out));
+  EXPECT_EQ(mux.next_deadline(), deadline(126));
+  // Node 126's transfer is cancelled on the client itself: its deadline goes too.
+  EXPECT_TRUE(mux.client(126).cancel(ids[126], deadline(127), out));
+  EXPECT_EQ(mux.next_deadline(), deadline(125));
+  ASSERT_EQ(out.events.size(), 2u);
+  out.clear();
+  // The rest time out one by one, each at its own deadline, with the abort 0504 0000.
+  for (int n = 125; n >= 1; --n) {
+    ASSERT_EQ(mux.next_deadline(), deadline(n));
+    mux.on_timer(deadline(n) - 1us, out);
+    EXPECT_TRUE(out.empty()) << "node " << n << " timed out early";
+    mux.on_timer(deadline(n), out);
+    ASSERT_EQ(out.frames.size(), 1u) << "node " << n;
+    EXPECT_EQ(out.frames[0].id, 0x600u + static_cast<unsigned>(n));
+    ASSERT_EQ(out.events.size(), 1u);
+    EXPECT_EQ(out.events[0].id, ids[static_cast<std::uint8_t>(n)]);
+    EXPECT_EQ(out.events[0].abort, SdoAbort::Timeout);
+    out.clear();
+  }
+  EXPECT_EQ(mux.next_deadline(), std::nullopt);
+  EXPECT_FALSE(mux.busy());
+}
+
+// A transfer queued behind the one that timed out starts in the same call (engine rule 5's "no
+// start waits for a timer"), and the mux's deadline becomes its response timeout.
+TEST(SdoClientMux, NextDeadlineFollowsTheQueuedTransferThatStartsOnATimeout) {
+  SdoClientMux mux;
+  SdoClientMux::Output out;
+  const auto text = [](const std::vector<CanFrame>& frames) {
+    Frames s;
+    for (const auto& f : frames) s.push_back(to_candump(f));
+    return s;
+  };
+  SdoTransferOptions o;
+  o.timeout = 100ms;
+  ASSERT_TRUE(mux.client(5).upload(0x1000, 0, TimePoint{}, out, o).ok());
+  ASSERT_TRUE(mux.client(5).upload(0x1018, 1, TimePoint{}, out, o).ok());  // queued
+  o.timeout = 150ms;
+  ASSERT_TRUE(mux.client(6).upload(0x1000, 0, TimePoint{}, out, o).ok());
+  EXPECT_EQ(mux.next_deadline(), TimePoint{100ms});
+  out.clear();
+  mux.on_timer(TimePoint{120ms}, out);  // late: only node 5 is due
+  EXPECT_EQ(text(out.frames), (Frames{"605#8000100000000405", "605#4018100100000000"}));
+  EXPECT_EQ(mux.next_deadline(), TimePoint{150ms});  // node 6's; node 5's next one: 220 ms
+  out.clear();
+  mux.on_timer(TimePoint{150ms}, out);
+  EXPECT_EQ(text(out.frames), Frames{"606#8000100000000405"});
+  EXPECT_EQ(mux.next_deadline(), TimePoint{220ms});
+}
+
 }  // namespace
 }  // namespace nmt

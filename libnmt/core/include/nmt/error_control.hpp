@@ -12,6 +12,7 @@
 
 #include "cfg/node_id.hpp"
 #include "cfg/result.hpp"
+#include "nmt/deadline_queue.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/nmt_slave.hpp"
@@ -130,8 +131,11 @@ class HeartbeatConsumer {
   /// Sends and reports nothing at once (a timeout is the earliest it reports), so it takes no
   /// Output (engine.hpp rule 5).
   void monitor(HeartbeatConsumerEntry entry, TimePoint now);
-  void stop(cfg::NodeId node_id) { nodes_.erase(node_id); }
-  void stop_all() { nodes_.clear(); }
+  void stop(cfg::NodeId node_id);
+  void stop_all() {
+    nodes_.clear();
+    due_.clear();
+  }
   bool monitors(cfg::NodeId node_id) const { return nodes_.count(node_id) != 0; }
   /// The last state a node announced, if any.
   std::optional<NmtState> last_state(cfg::NodeId node_id) const;
@@ -151,8 +155,11 @@ class HeartbeatConsumer {
     bool timed_out = false;
     std::optional<NmtState> state;
   };
+  /// Sets node.expires, keeping due_ in step.
+  void set_expires(cfg::NodeId id, Node& node, std::optional<TimePoint> expires);
   HeartbeatConsumerOptions options_;
   std::map<cfg::NodeId, Node> nodes_;
+  DeadlineQueue<cfg::NodeId> due_;  ///< the nodes' `expires`, earliest first
 };
 
 /// What life guarding reports (CiA 301 §7.2.8.3.2.1).
@@ -241,7 +248,7 @@ class NodeGuardingMaster {
   /// slave before its first guarding request, CiA 302-2 §3.4 part 3). Refuses what start refuses.
   cfg::Status guard(cfg::NodeId node_id, std::uint16_t guard_time_ms, std::uint8_t life_time_factor,
                     TimePoint now);
-  void stop(cfg::NodeId node_id) { nodes_.erase(node_id); }
+  void stop(cfg::NodeId node_id);
   bool guards(cfg::NodeId node_id) const { return nodes_.count(node_id) != 0; }
 
   /// Feeds a received frame; a reply of a guarded node that awaits one returns true and may
@@ -264,8 +271,9 @@ class NodeGuardingMaster {
     std::optional<NmtState> state;
   };
   /// Sends the node's request when it is due, counting the unanswered one before it.
-  static void send_due(cfg::NodeId id, Node& node, TimePoint now, Output& out);
+  void send_due(cfg::NodeId id, Node& node, TimePoint now, Output& out);
   std::map<cfg::NodeId, Node> nodes_;
+  DeadlineQueue<cfg::NodeId> due_;  ///< the nodes' `next_request`, earliest first
 };
 
 static_assert(Engine<HeartbeatConsumer>);

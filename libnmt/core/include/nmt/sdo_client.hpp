@@ -28,6 +28,7 @@
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/result.hpp"
+#include "nmt/deadline_queue.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
@@ -239,6 +240,12 @@ class SdoClient {
   // The running sum of the mux that owns this client (SdoClientMux::unanswered_bits); null for
   // a client of its own. Points into the mux's heap cell, so it survives moves of the mux.
   std::uint64_t* mux_unanswered_bits_ = nullptr;
+  // Tells the owning mux's deadline queue (SdoClientMux::deadlines_) when next_deadline()
+  // changed; every public call that can change it ends with it. Null for a client of its own.
+  void sync_mux_deadline();
+  DeadlineQueue<std::uint32_t>* mux_deadlines_ = nullptr;
+  std::uint32_t mux_key_ = 0;                 // this client's key in clients_ and the queue
+  std::optional<TimePoint> listed_deadline_;  // this client's deadline in the queue
   friend class SdoClientMux;
 };
 static_assert(Engine<SdoClient>);
@@ -272,6 +279,11 @@ class SdoClientMux {
   std::map<std::uint32_t, std::unique_ptr<SdoClient>> clients_;
   // Added to by the clients as their figures grow (SdoClient::mux_unanswered_bits_).
   std::unique_ptr<std::uint64_t> unanswered_bits_ = std::make_unique<std::uint64_t>(0);
+  // The clients' deadlines, kept by the clients (SdoClient::mux_deadlines_), so next_deadline()
+  // and on_timer do not visit every client; a heap cell like unanswered_bits_.
+  std::unique_ptr<DeadlineQueue<std::uint32_t>> deadlines_ =
+      std::make_unique<DeadlineQueue<std::uint32_t>>();
+  std::vector<std::uint32_t> due_;  // on_timer's scratch: the keys of the due clients
 };
 static_assert(Engine<SdoClientMux>);
 

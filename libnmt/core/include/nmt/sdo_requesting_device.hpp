@@ -236,6 +236,15 @@ class SdoRequestingDevice {
   /// Established channels by key: 1280h-12FFh, or default_channel(slave).
   std::map<std::uint32_t, Channel> channels_;
   TransferId next_transfer_ = 1;
+  /// The parts' outputs, emptied before each use and kept so that no call allocates them anew.
+  /// `dropped` is apart from `manager`: a de-registration the manager confirms drops channels
+  /// while the manager's results are being read.
+  struct Scratch {
+    SlaveNode::Output node;
+    SdoClient::Output manager;
+    SdoClient::Output channel;
+    SdoClient::Output dropped;
+  } scratch_;
 };
 static_assert(Engine<SdoRequestingDevice>);
 

@@ -297,6 +297,18 @@ class SlaveNode {
   bool powered_ = false;
   std::optional<TimePoint> boot_at_;
   int communication_errors_ = 0;  ///< active life guarding / heartbeat consumer errors
+  /// The parts' outputs, emptied before each use and kept so that no call allocates them anew.
+  struct Scratch {
+    NmtSlave::Output nmt;
+    LssSlave::Output lss;
+    SdoServer::Output sdo;
+    HeartbeatProducer::Output heartbeat;
+    HeartbeatConsumer::Output consumer;
+    NodeGuardingSlave::Output guarding;
+    EmcyProducer::Output emcy;
+    /// What a dictionary write made outside any call of the node reports: nobody reads it.
+    Output outside;
+  } scratch_;
 };
 static_assert(Engine<SlaveNode>);
 

@@ -82,14 +82,23 @@ std::string_view to_string(HeartbeatEventKind kind) {
 void HeartbeatConsumer::monitor(HeartbeatConsumerEntry entry, TimePoint now) {
   const auto id = entry.node();
   if (!id) return;  // names no node: nothing to start or stop
-  if (!entry.active()) {
-    nodes_.erase(*id);
-    return;
-  }
-  Node node;
+  stop(*id);        // a restart begins afresh
+  if (!entry.active()) return;
+  Node& node = nodes_[*id];
   node.time = ms(entry.time_ms);
-  if (options_.timeout_from_start) node.expires = now + node.time;
-  nodes_[*id] = node;
+  if (options_.timeout_from_start) set_expires(*id, node, now + node.time);
+}
+
+void HeartbeatConsumer::stop(cfg::NodeId node_id) {
+  auto it = nodes_.find(node_id);
+  if (it == nodes_.end()) return;
+  due_.move(node_id, it->second.expires, std::nullopt);
+  nodes_.erase(it);
+}
+
+void HeartbeatConsumer::set_expires(cfg::NodeId id, Node& node, std::optional<TimePoint> expires) {
+  due_.move(id, node.expires, expires);
+  node.expires = expires;
 }
 
 std::optional<NmtState> HeartbeatConsumer::last_state(cfg::NodeId node_id) const {
@@ -110,7 +119,7 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now, Output& o
     // The node rebooted. CiA 301: the consumer waits for its first heartbeat again; the NMT
     // master runs boot slave and restarts error control (CiA 302-2 §4.3 boot-up handler).
     out.report({msg->node_id, HeartbeatEventKind::BootUp, state, now});
-    node.expires.reset();
+    set_expires(msg->node_id, node, std::nullopt);
     node.timed_out = false;
     node.state = state;
     return true;
@@ -123,24 +132,22 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now, Output& o
     out.report({msg->node_id, HeartbeatEventKind::StateChanged, state, now});
   }
   node.state = state;
-  node.expires = now + node.time;
+  set_expires(msg->node_id, node, now + node.time);
   return true;
 }
 
 void HeartbeatConsumer::on_timer(TimePoint now, Output& out) {
-  for (auto& [id, node] : nodes_) {
-    if (node.expires && *node.expires <= now) {
-      out.report({id, HeartbeatEventKind::Timeout, std::nullopt, *node.expires});
-      node.expires.reset();
-      node.timed_out = true;
-    }
+  // Only the due nodes, earliest first; a timed-out node waits for a heartbeat (no deadline).
+  while (auto id = due_.first_due(now)) {
+    Node& node = nodes_.at(*id);
+    out.report({*id, HeartbeatEventKind::Timeout, std::nullopt, *node.expires});
+    set_expires(*id, node, std::nullopt);
+    node.timed_out = true;
   }
 }
 
 std::optional<TimePoint> HeartbeatConsumer::next_deadline() const {
-  std::optional<TimePoint> due;
-  for (const auto& [id, node] : nodes_) due = earliest(due, node.expires);
-  return due;
+  return due_.earliest();
 }
 
 // --- node guarding / life guarding (slave side) -------------------------------------------------
@@ -218,11 +225,12 @@ cfg::Status NodeGuardingMaster::guard(cfg::NodeId node_id, std::uint16_t guard_t
   // CiA 302-2 §6.3: a guard time or retry factor of 0 disables guarding of the device.
   if (guard_time_ms == 0) return cfg::Error{"node guarding needs a guard time above 0 ms"};
   if (life_time_factor == 0) return cfg::Error{"node guarding needs a life time factor above 0"};
+  stop(node_id);  // a restart begins afresh
   Node& node = nodes_[node_id];
-  node = Node{};
   node.guard_time = ms(guard_time_ms);
   node.life_time_factor = life_time_factor;
   node.next_request = now;
+  due_.move(node_id, std::nullopt, node.next_request);
   return {};
 }
 
@@ -267,18 +275,26 @@ void NodeGuardingMaster::send_due(cfg::NodeId id, Node& node, TimePoint now, Out
   }
   out.send(make_guarding_request(id));
   node.awaiting_reply = true;
+  const auto due = node.next_request;
   node.next_request += node.guard_time;
   if (node.next_request <= now) node.next_request = now + node.guard_time;
+  due_.move(id, due, node.next_request);
+}
+
+void NodeGuardingMaster::stop(cfg::NodeId node_id) {
+  auto it = nodes_.find(node_id);
+  if (it == nodes_.end()) return;
+  due_.move(node_id, it->second.next_request, std::nullopt);
+  nodes_.erase(it);
 }
 
 void NodeGuardingMaster::on_timer(TimePoint now, Output& out) {
-  for (auto& [id, node] : nodes_) send_due(id, node, now, out);
+  // Only the due nodes, earliest first; each moves to a request after `now` (guard time > 0).
+  while (auto id = due_.first_due(now)) send_due(*id, nodes_.at(*id), now, out);
 }
 
 std::optional<TimePoint> NodeGuardingMaster::next_deadline() const {
-  std::optional<TimePoint> due;
-  for (const auto& [id, node] : nodes_) due = earliest(due, node.next_request);
-  return due;
+  return due_.earliest();
 }
 
 }  // namespace nmt

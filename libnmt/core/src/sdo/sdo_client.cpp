@@ -66,6 +66,7 @@ cfg::Result<SdoClient::TransferId> SdoClient::enqueue(std::unique_ptr<Transfer> 
   const auto id = transfer->id;
   queue_.push_back(std::move(transfer));
   pump(now, out);  // engine rule 5: an idle channel starts at once
+  sync_mux_deadline();
   return id;
 }
 
@@ -97,6 +98,7 @@ bool SdoClient::cancel(TransferId id, TimePoint now, Output& out, SdoAbort code)
   if (active_ && active_->id == id) {
     fail(*active_, code, true, now, out);
     pump(now, out);
+    sync_mux_deadline();
     return true;
   }
   for (auto it = queue_.begin(); it != queue_.end(); ++it) {
@@ -120,6 +122,13 @@ std::optional<SdoClient::Progress> SdoClient::download_progress() const {
 std::optional<TimePoint> SdoClient::next_deadline() const {
   if (active_) return active_->deadline;
   return std::nullopt;
+}
+
+void SdoClient::sync_mux_deadline() {
+  if (mux_deadlines_ == nullptr) return;
+  const auto deadline = next_deadline();
+  mux_deadlines_->move(mux_key_, listed_deadline_, deadline);
+  listed_deadline_ = deadline;
 }
 
 SdoResult SdoClient::result_of(const Transfer& t, SdoAbort code) const {
@@ -170,6 +179,7 @@ void SdoClient::on_timer(TimePoint now, Output& out) {
   // CiA 301 abort codes: the client aborts with 0504 0000 when the server does not answer.
   if (active_ && now >= active_->deadline) fail(*active_, SdoAbort::Timeout, true, now, out);
   pump(now, out);
+  sync_mux_deadline();
 }
 
 bool SdoClient::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
@@ -178,6 +188,7 @@ bool SdoClient::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (!d) return false;
   if (active_) handle(*active_, *d, now, out);
   pump(now, out);
+  sync_mux_deadline();
   return true;
 }
 
@@ -499,10 +510,13 @@ SdoClient& SdoClientMux::client(std::uint8_t node_id) {
 }
 
 SdoClient& SdoClientMux::add(SdoClientConfig config) {
-  auto& slot = clients_[cfg::CobId::of(config.response_cob_id.can_id()).word()];
+  const auto key = cfg::CobId::of(config.response_cob_id.can_id()).word();
+  auto& slot = clients_[key];
   if (!slot) {
     slot = std::make_unique<SdoClient>(config);
     slot->mux_unanswered_bits_ = unanswered_bits_.get();
+    slot->mux_deadlines_ = deadlines_.get();
+    slot->mux_key_ = key;
   }
   return *slot;
 }
@@ -513,17 +527,18 @@ bool SdoClientMux::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
 }
 
 void SdoClientMux::on_timer(TimePoint now, Output& out) {
-  for (auto& [cob, c] : clients_) {
-    if (auto t = c->next_deadline(); t && *t <= now) c->on_timer(now, out);
+  if (!deadlines_) return;  // a moved-from mux
+  // Only the due clients, each once as the scan of all of them did, earliest first.
+  due_.clear();
+  deadlines_->due(now, due_);
+  for (const auto key : due_) {
+    auto& c = *clients_.at(key);
+    if (auto t = c.next_deadline(); t && *t <= now) c.on_timer(now, out);
   }
 }
 
 std::optional<TimePoint> SdoClientMux::next_deadline() const {
-  std::optional<TimePoint> best;
-  for (const auto& [cob, c] : clients_) {
-    if (auto t = c->next_deadline(); t && (!best || *t < *best)) best = t;
-  }
-  return best;
+  return deadlines_ ? deadlines_->earliest() : std::nullopt;  // null only in a moved-from mux
 }
 
 bool SdoClientMux::busy() const {

@@ -69,7 +69,8 @@ void SdoRequestingDevice::report(SrdEvent event, Output& out) {
 // --- engine ----------------------------------------------------------------------------------
 
 void SdoRequestingDevice::power_on(TimePoint now, Output& out) {
-  SlaveNode::Output node_out;
+  auto& node_out = scratch_.node;
+  node_out.clear();
   node_->power_on(now, node_out);
   take_node_output(node_out, out);
   // A power cycle ends every connection and the registration (the dictionary reloads).
@@ -100,17 +101,20 @@ std::vector<cfg::ObjectAddress> SdoRequestingDevice::take_node_output(SlaveNode:
 }
 
 bool SdoRequestingDevice::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  SlaveNode::Output node_out;
+  auto& node_out = scratch_.node;
+  node_out.clear();
   bool taken = node_->on_frame(frame, now, node_out);
   const auto written = take_node_output(node_out, out);
   if (manager_) {
-    SdoClient::Output manager_out;
+    auto& manager_out = scratch_.manager;
+    manager_out.clear();
     taken = manager_->on_frame(frame, now, manager_out) || taken;
     forward_frames(manager_out, out);
     manager_results(manager_out, now, out);
   }
   for (auto& [key, channel] : channels_) {
-    SdoClient::Output channel_out;
+    auto& channel_out = scratch_.channel;
+    channel_out.clear();
     if (!channel.client->on_frame(frame, now, channel_out)) continue;
     taken = true;
     forward_frames(channel_out, out);
@@ -121,17 +125,20 @@ bool SdoRequestingDevice::on_frame(const CanFrame& frame, TimePoint now, Output&
 }
 
 void SdoRequestingDevice::on_timer(TimePoint now, Output& out) {
-  SlaveNode::Output node_out;
+  auto& node_out = scratch_.node;
+  node_out.clear();
   node_->on_timer(now, node_out);
   const auto written = take_node_output(node_out, out);
   if (manager_) {
-    SdoClient::Output manager_out;
+    auto& manager_out = scratch_.manager;
+    manager_out.clear();
     manager_->on_timer(now, manager_out);
     forward_frames(manager_out, out);
     manager_results(manager_out, now, out);
   }
   for (auto& [key, channel] : channels_) {
-    SdoClient::Output channel_out;
+    auto& channel_out = scratch_.channel;
+    channel_out.clear();
     channel.client->on_timer(now, channel_out);
     forward_frames(channel_out, out);
     channel_results(key, channel_out, out);
@@ -202,7 +209,8 @@ cfg::Status SdoRequestingDevice::send_to_manager(Pending pending, std::uint32_t 
   if (pending_) return cfg::Error{"a request to the SDO manager is still pending"};
   std::vector<std::uint8_t> data;
   cfg::append_le(data, word, 4);
-  SdoClient::Output manager_out;
+  auto& manager_out = scratch_.manager;
+  manager_out.clear();
   const auto transfer =
       manager_->download(object, 0, std::move(data), now, manager_out, options_.manager_transfer);
   if (!transfer) return transfer.error();  // engine rule 5: nothing into `out`
@@ -459,7 +467,8 @@ void SdoRequestingDevice::drop_channel(std::uint32_t key, TimePoint now, Output&
   auto it = channels_.find(key);
   if (it == channels_.end()) return;
   // The COB-IDs are no longer the SRD's: transfers end without an abort frame on them.
-  SdoClient::Output dropped;
+  auto& dropped = scratch_.dropped;
+  dropped.clear();
   for (const auto& [inner, outer] : std::map(it->second.transfers)) {
     it->second.client->cancel(inner, now, dropped, SdoAbort::General);
   }
@@ -495,7 +504,8 @@ cfg::Result<SdoRequestingDevice::TransferId> SdoRequestingDevice::start(
     std::vector<std::uint8_t> data, TimePoint now, Output& out, const SdoTransferOptions& options) {
   auto it = channels_.find(key);
   if (it == channels_.end()) return cfg::Error{"no connection on that channel"};
-  SdoClient::Output channel_out;
+  auto& channel_out = scratch_.channel;
+  channel_out.clear();
   const auto inner =
       upload ? it->second.client->upload(index, sub, now, channel_out, options)
              : it->second.client->download(index, sub, std::move(data), now, channel_out, options);

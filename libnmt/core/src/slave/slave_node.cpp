@@ -216,7 +216,8 @@ void SlaveNode::sync_parts() {
 void SlaveNode::power_on(TimePoint now, Output& out) {
   powered_ = true;
   // The NMT slave's power-on sends nothing (finish_initialisation() does); forwarded all the same.
-  NmtSlave::Output nmt_out;
+  auto& nmt_out = scratch_.nmt;
+  nmt_out.clear();
   if (lss_) {
     const std::uint8_t id = lss_stored_ ? lss_stored_->node_id : power_on_node_id_;
     lss_->power_on(id, lss_stored_ ? std::optional(lss_stored_->bit_timing_index) : std::nullopt);
@@ -260,7 +261,8 @@ void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint n
 }
 
 bool SlaveNode::on_lss_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  LssSlave::Output lss_out;
+  auto& lss_out = scratch_.lss;
+  lss_out.clear();
   const bool taken = lss_->on_frame(frame, now, lss_out);
   forward_frames(lss_out, out);
   for (const auto& e : lss_out.events) {
@@ -334,7 +336,8 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (lss_ && lss::is_lss_frame(frame, lss::kMasterCobId)) return on_lss_frame(frame, now, out);
   if (unconfigured_ || nmt_.state() == NmtState::Initialising) return false;  // not on the bus
 
-  NmtSlave::Output nmt_out;
+  auto& nmt_out = scratch_.nmt;
+  nmt_out.clear();
   if (nmt_.on_frame(frame, now, nmt_out)) {
     for (const auto& t : nmt_out.events) apply_nmt(t, now, out);
     return true;
@@ -344,7 +347,8 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   bool taken = false;
 
   if (services.sdo && !frame.rtr && !frame.error) {
-    SdoServer::Output sdo_out;
+    auto& sdo_out = scratch_.sdo;
+    sdo_out.clear();
     in_sdo_ = true;
     taken = sdo_.on_frame(frame, now, sdo_out, HookOutput(out)).has_value();
     in_sdo_ = false;
@@ -355,7 +359,8 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   if (services.error_control) {
     // CiA 301 §7.2.8.1: a device uses heartbeat when 1017h is not 0, node guarding otherwise.
     if (heartbeat_.period_ms() == 0) {
-      NodeGuardingSlave::Output guarding_out;
+      auto& guarding_out = scratch_.guarding;
+      guarding_out.clear();
       taken = guarding_.on_frame(frame, now, guarding_out) || taken;
       forward_frames(guarding_out, out);
       for (auto event : guarding_out.events) {
@@ -364,7 +369,8 @@ bool SlaveNode::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
         communication_recovered("life guarding", now, out);
       }
     }
-    HeartbeatConsumer::Output consumer_out;
+    auto& consumer_out = scratch_.consumer;
+    consumer_out.clear();
     taken = consumer_.on_frame(frame, now, consumer_out) || taken;
     for (const auto& ev : consumer_out.events) {
       if (ev.kind != HeartbeatEventKind::Resolved) continue;
@@ -399,7 +405,8 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
   if (!powered_ || unconfigured_) return;
   if (boot_at_ && now >= *boot_at_) {
     boot_at_.reset();
-    NmtSlave::Output nmt_out;
+    auto& nmt_out = scratch_.nmt;
+    nmt_out.clear();
     nmt_.finish_initialisation(now, nmt_out);
     forward_frames(nmt_out, out);
     heartbeat_.on_boot_up(now);
@@ -407,18 +414,21 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
   }
   if (nmt_.state() != NmtState::Initialising) {
     sync_parts();
-    HeartbeatProducer::Output heartbeat_out;
+    auto& heartbeat_out = scratch_.heartbeat;
+    heartbeat_out.clear();
     heartbeat_.on_timer(now, heartbeat_out);
     forward_frames(heartbeat_out, out);
 
-    NodeGuardingSlave::Output guarding_out;
+    auto& guarding_out = scratch_.guarding;
+    guarding_out.clear();
     guarding_.on_timer(now, guarding_out);
     for (auto event : guarding_out.events) {
       if (event != LifeGuardingEvent::Occurred) continue;
       emit(out, SlaveEvent::Kind::LifeGuarding, now, "life guarding event");
       communication_error("life guarding", now, out);
     }
-    HeartbeatConsumer::Output consumer_out;
+    auto& consumer_out = scratch_.consumer;
+    consumer_out.clear();
     consumer_.on_timer(now, consumer_out);
     for (const auto& ev : consumer_out.events) {
       emit(out, SlaveEvent::Kind::Heartbeat, now,
@@ -427,10 +437,12 @@ void SlaveNode::on_timer(TimePoint now, Output& out) {
     }
     // The error behaviour above may have changed the state.
     sync_parts();
-    EmcyProducer::Output emcy_out;
+    auto& emcy_out = scratch_.emcy;
+    emcy_out.clear();
     emcy_.on_timer(now, emcy_out);
     forward_frames(emcy_out, out);
-    SdoServer::Output sdo_out;
+    auto& sdo_out = scratch_.sdo;
+    sdo_out.clear();
     sdo_.on_timer(now, sdo_out);
     // Stopped: a transfer that times out now is not answered.
     if (nmt_.services().sdo) forward_frames(sdo_out, out);
@@ -463,7 +475,8 @@ void SlaveNode::set_error_register(std::uint8_t value) {
 
 void SlaveNode::send_emcy(const Emergency& emcy, TimePoint now, Output& out) {
   sync_parts();
-  EmcyProducer::Output emcy_out;
+  auto& emcy_out = scratch_.emcy;
+  emcy_out.clear();
   emcy_.raise(emcy, now, emcy_out);
   forward_frames(emcy_out, out);
 }

@@ -123,8 +123,8 @@ void SlaveNode::after_write(std::uint16_t index, std::uint8_t sub,
                             std::span<const std::uint8_t> data, TimePoint now, HookOutput hooks) {
   // The events go into the output of the call the write runs in; a write outside any call of
   // the node (its owner setting a value up) has no one to tell.
-  Output outside;
-  Output& out = hooks.as<SlaveEvent>() != nullptr ? *hooks.as<SlaveEvent>() : outside;
+  if (hooks.as<SlaveEvent>() == nullptr) scratch_.outside.clear();
+  Output& out = hooks.as<SlaveEvent>() != nullptr ? *hooks.as<SlaveEvent>() : scratch_.outside;
   emit(out, SlaveEvent::Kind::SdoWrite, now,
        cfg::to_string(cfg::ObjectAddress{index, sub}) + " = " + std::to_string(data.size()) +
            " byte(s)",
