@@ -50,8 +50,9 @@ struct FakePort final : ConfigurationStorePort {
 /// The master's dictionary as far as the process needs it: 1F26h/1F27h (CiA 302-2 §6.6/§6.7,
 /// UNSIGNED32 arrays of 127 rw entries, which the master adds), then the process installed.
 struct StoreObjects {
-  explicit StoreObjects(std::shared_ptr<cfg::ConfigManager> m = std::make_shared<cfg::ConfigManager>(),
-                        std::shared_ptr<const ConfigurationSource> source = nullptr)
+  explicit StoreObjects(
+      std::shared_ptr<cfg::ConfigManager> m = std::make_shared<cfg::ConfigManager>(),
+      std::shared_ptr<const ConfigurationSource> source = nullptr)
       : manager(std::move(m)), objects(dict, port, manager, std::move(source)) {
     for (const std::uint16_t index : {std::uint16_t{0x1F26}, std::uint16_t{0x1F27}}) {
       dict.insert(make_entry(index, 0, "Highest sub-index supported", cfg::DataType::Unsigned8,
@@ -128,7 +129,8 @@ TEST(ConfigurationStoreObjects, EmptyConciseDcfReadsAsTheStreamWithCountZero) {
 // §6.4: "If no data had been stored, an SDO Write Request to 01h to 7Fh is aborted with the error
 // code 0800 0024h ... An SDO Write Request to sub-index 80h returns without error even if there
 // is no data stored." 1F25h is write-only: its read is refused (CiA 301 0601 0001h).
-TEST(ConfigurationStoreObjects, ConfigureSlaveWithNothingStoredAbortsDataSetEmptyExceptForAllNodes) {
+TEST(ConfigurationStoreObjects,
+     ConfigureSlaveWithNothingStoredAbortsDataSetEmptyExceptForAllNodes) {
   StoreObjects s;
   EXPECT_EQ(s.write_u(0x1F25, kNode, kConf), SdoAbort::NoDataAvailable);
   EXPECT_EQ(s.write_u(0x1F25, 0x80, kConf), SdoAbort::None);

@@ -67,9 +67,8 @@ class TempDir {
   TempDir() {
     namespace fs = std::filesystem;
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("masterstore-" + std::string(info->test_suite_name()) + "-" + info->name() + "-" +
-             std::to_string(::getpid()));
+    path_ = fs::temp_directory_path() / ("masterstore-" + std::string(info->test_suite_name()) +
+                                         "-" + info->name() + "-" + std::to_string(::getpid()));
     fs::remove_all(path_);
     fs::create_directories(path_);
   }

@@ -164,7 +164,7 @@ SdoAbort ConfigurationStoreObjects::read(std::uint16_t index, std::uint8_t sub) 
 std::optional<ConfigurationStoreObjects::StoreValue> ConfigurationStoreObjects::unstored_read(
     std::uint16_t index, cfg::NodeId node) const {
   // "Stored, else the network" (nmt_master.hpp): a stored configuration takes the place of the
-  // source's, as in configuration_of.
+  // source's, as in configuration().
   if (manager_->has_configuration(node)) return std::nullopt;
   const ConfigurationSource* source = configurations_.get();
   if (index == obj::kConciseDcf) {
