@@ -2,52 +2,42 @@
 // (MasterOptions::manager): a tool on the bus writes a node's concise DCF into 1F22h and a DCF
 // into 1F20h, reads them back, and starts the configuration with 1F25h 'conf'; 1F26h/1F27h have
 // one owner. The rig (nmt_master_spec_test_rig.hpp) has the master at node 1 and the tool as
-// its SDO client (601h/581h).
-//
-// Streams are written out byte by byte from the §6.2 table (UNSIGNED32 count, then per entry
-// UNSIGNED16 index, UNSIGNED8 sub-index, UNSIGNED32 size, data; little-endian as CiA 301 §7.1).
+// its SDO client (601h/581h). The objects' values and the persist-hold flow alone, through a
+// fake port, are in configuration_store_objects_test.cpp; this file keeps the composition (SDO
+// transfers, boots, the driver's part).
 #include <gtest/gtest.h>
 
-#include <unistd.h>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <functional>
-#include <iterator>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "cfg/config_manager.hpp"
+#include "configuration_store_test_data.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/entry_persister.hpp"
 #include "nmt_master_spec_test_rig.hpp"
 #include "socket_pair_bus.hpp"
-#include "test_paths.hpp"
 
 namespace nmt::master_spec {
 namespace {
 
 namespace fs = std::filesystem;
 using Kind = MasterEvent::Kind;
+using store_test::kConf;
+using store_test::kNetworkDcf;
+using store_test::kNetworkStream;
+using store_test::kNode;
+using store_test::kStream;
+using store_test::NetworkLikeSource;
+using store_test::TempDir;
 
-constexpr std::uint8_t kNode = 5;
-// DSP 302 §6.4: "the signature 'conf' (this equals the UNSIGNED32 number 666E 6F63h)".
-constexpr std::uint32_t kConf = 0x666E6F63;
 // The tool's SDO request COB-ID: 600h + the master's node-ID (CiA 301 pre-defined set).
 constexpr std::uint32_t kToolRequestId = 0x600 + kMaster;
-
-// Node 5's configuration as a §6.2 stream: 3 entries, 2000h sub 0 = 1234h (UNSIGNED16),
-// 1017h sub 0 = 200 ms (UNSIGNED16), 2001h sub 0 = "spindle" (VISIBLE_STRING, 7 bytes).
-const std::vector<std::uint8_t> kStream = {
-    0x03, 0x00, 0x00, 0x00,                                // number of entries
-    0x00, 0x20, 0x00, 0x02, 0x00, 0x00, 0x00, 0x34, 0x12,  // 2000h sub 0, 2 bytes
-    0x17, 0x10, 0x00, 0x02, 0x00, 0x00, 0x00, 0xC8, 0x00,  // 1017h sub 0, 2 bytes
-    0x01, 0x20, 0x00, 0x07, 0x00, 0x00, 0x00,              // 2001h sub 0, 7 bytes
-    's',  'p',  'i',  'n',  'd',  'l',  'e'};
 
 SdoTransferOptions by(SdoMode mode) {
   SdoTransferOptions o;
@@ -93,25 +83,6 @@ struct StoreRig {
   }
   MasterRig rig;
   std::shared_ptr<cfg::ConfigManager> manager;
-};
-
-/// A fresh directory per test.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("masterstore-" + std::string(info->name()) + "-" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
 };
 
 // §6.2: "Uploading the configuration of a device from a Configuration Tool to the Configuration
@@ -170,18 +141,6 @@ TEST(NmtMasterStore, ToolWritesConciseDcfBySegmentedTransferAndReadsItBack) {
   auto read = s.rig.tool_read(0x1F22, kNode);
   ASSERT_TRUE(read.ok()) << read.abort;
   EXPECT_EQ(read.data, kStream);
-}
-
-// §6.2 application hint 2: "If no data has been stored, an SDO Read Request will return a valid
-// concise stream" with the number of entries 0 (UNSIGNED32): 00 00 00 00.
-TEST(NmtMasterStore, EmptyConciseDcfReadsAsTheStreamWithCountZero) {
-  StoreRig s;
-  s.start();
-  auto read = s.rig.tool_read(0x1F22, 9);
-  ASSERT_TRUE(read.ok()) << read.abort;
-  EXPECT_EQ(read.data, (std::vector<std::uint8_t>{0x00, 0x00, 0x00, 0x00}));
-  // §6.2: sub-index 0 "is equal to the maximum possible Node-ID (127)".
-  EXPECT_EQ(s.rig.tool_read_u(0x1F22, 0), 127U);
 }
 
 // §6.4: 'conf' written to 1F25h sub node-ID makes the manager configure that slave: the master
@@ -289,19 +248,6 @@ TEST(NmtMasterStore, ConfigureSlaveWithAnotherValueThanConfIsRefused) {
   EXPECT_TRUE(s.rig.requests_to(kNode, from).empty());
 }
 
-// §6.4: "If no data had been stored, an SDO Write Request to 01h to 7Fh is aborted with the error
-// code 0800 0024h ... An SDO Write Request to sub-index 80h returns without error even if there
-// is no data stored." 1F25h is write-only: its read is refused (CiA 301 0601 0001h).
-TEST(NmtMasterStore, ConfigureSlaveWithNothingStoredAbortsDataSetEmptyExceptForAllNodes) {
-  StoreRig s;
-  s.start();
-  EXPECT_EQ(s.rig.tool_write_u(0x1F25, kNode, kConf, 4), SdoAbort::NoDataAvailable);
-  EXPECT_EQ(s.rig.tool_write_u(0x1F25, 0x80, kConf, 4), SdoAbort::None);
-  EXPECT_EQ(s.rig.tool_read(0x1F25, kNode).abort, SdoAbort::ReadOfWriteOnly);
-  // §6.4: "Sub-Index 00h NrOfSupportedObjects has the ro value 128".
-  EXPECT_EQ(s.rig.tool_read_u(0x1F25, 0), 128U);
-}
-
 // §6.4 sub 80h: "Request re-configuration for all Nodes" - every slave with a stored
 // configuration is booted and configured.
 TEST(NmtMasterStore, ConfToSub80hConfiguresEverySlaveWithAConfiguration) {
@@ -316,31 +262,6 @@ TEST(NmtMasterStore, ConfToSub80hConfiguresEverySlaveWithAConfiguration) {
   EXPECT_EQ(s.rig.device_value(kNode, 0x2000, 0), 0x1234U);
   EXPECT_EQ(s.rig.device_value(2, 0x2000, 0), 0x1234U);
   EXPECT_EQ(s.rig.downloads_of(2, 0x2000, 0, from).size(), 1U);
-}
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// §6.1: a DCF written to 1F20h sub node-ID reads back unchanged (the manager keeps it
-// compressed inside), and 1F21h storage format then reads 0 ("ASCII, not compressed").
-TEST(NmtMasterStore, DcfWrittenTo1F20hReadsBackUnchanged) {
-  StoreRig s;
-  s.start();
-  const std::string text = read_text(std::string(CANOPEN_TEST_DATA_DIR) + "/master/slave.eds");
-  ASSERT_GT(text.size(), 1000U);
-  const std::vector<std::uint8_t> bytes(text.begin(), text.end());
-  // §6.1: nothing stored: 0800 0024h.
-  EXPECT_EQ(s.rig.tool_read(0x1F20, kNode).abort, SdoAbort::NoDataAvailable);
-  auto written = s.rig.tool_write(0x1F20, kNode, bytes, by(SdoMode::Block));
-  ASSERT_TRUE(written.ok()) << written.abort;
-  auto read = s.rig.tool_read(0x1F20, kNode, by(SdoMode::Block));
-  ASSERT_TRUE(read.ok()) << read.abort;
-  EXPECT_EQ(read.data, bytes);
-  EXPECT_EQ(s.rig.tool_read_u(0x1F21, kNode), 0U);
 }
 
 // Issue 11: "The writes persist in the store directory": a manager opened again on the
@@ -487,69 +408,7 @@ TEST(NmtMasterStore, WriteThroughTheDictionaryIsPersistedByTheDriverToo) {
   EXPECT_EQ(again.value().concise(node), kStream);
 }
 
-// One owner of 1F26h/1F27h (nmt_master.hpp): for a node the manager holds nothing for, the
-// master DCF's value is read; an SDO write goes to the manager (keeping the other half), and the
-// C++ API's value is what SDO reads give.
-TEST(NmtMasterStore, ExpectedConfigurationHasOneOwner) {
-  auto manager = std::make_shared<cfg::ConfigManager>();
-  StoreRig s(manager);
-  set_value(s.rig.master, 0x1F26, 3, 0x1111);
-  set_value(s.rig.master, 0x1F27, 3, 0x2222);
-  s.start();
-  const auto three = *cfg::NodeId::from(3);
-  EXPECT_EQ(s.rig.tool_read_u(0x1F26, 3), 0x1111U);
-  EXPECT_EQ(s.rig.tool_read_u(0x1F27, 3), 0x2222U);
-
-  ASSERT_EQ(s.rig.tool_write_u(0x1F26, 3, 0x3333, 4), SdoAbort::None);
-  EXPECT_EQ(manager->expected_stamp(three), (cfg::ConfigurationStamp{0x3333, 0x2222}));
-  EXPECT_EQ(s.rig.tool_read_u(0x1F27, 3), 0x2222U);
-
-  ASSERT_TRUE(manager->set_expected_stamp(three, {0x4444, 0x5555}));
-  EXPECT_EQ(s.rig.tool_read_u(0x1F26, 3), 0x4444U);
-  EXPECT_EQ(s.rig.tool_read_u(0x1F27, 3), 0x5555U);
-  // §6.3: 1F27h counts ms after midnight; 86 400 000 or more is no time of day.
-  EXPECT_EQ(s.rig.tool_write_u(0x1F27, 3, 86'400'000, 4), SdoAbort::ValueRangeExceeded);
-}
-
-// A 1F22h stream that is not a concise DCF (count 2, one entry) is refused and not stored.
-TEST(NmtMasterStore, MalformedConciseDcfIsRefused) {
-  StoreRig s;
-  s.start();
-  std::vector<std::uint8_t> short_stream(kStream.begin(), kStream.begin() + 13);
-  short_stream[0] = 2;
-  EXPECT_EQ(s.rig.tool_write(0x1F22, kNode, short_stream).abort, SdoAbort::ValueRangeExceeded);
-  EXPECT_FALSE(s.manager->concise(*cfg::NodeId::from(kNode)).has_value());
-}
-
 // --- "stored, else the network" (nmt_master.hpp) -------------------------------------------
-
-// Node 5's configuration as the network gives it (cfgmgr's NetworkSource): 2 entries, 2000h
-// sub 0 = 5678h (UNSIGNED16), 1017h sub 0 = 300 ms (UNSIGNED16); 4 + 9 + 9 = 22 bytes.
-const std::vector<std::uint8_t> kNetworkStream = {
-    0x02, 0x00, 0x00, 0x00,                                 // number of entries
-    0x00, 0x20, 0x00, 0x02, 0x00, 0x00, 0x00, 0x78, 0x56,   // 2000h sub 0, 2 bytes
-    0x17, 0x10, 0x00, 0x02, 0x00, 0x00, 0x00, 0x2C, 0x01};  // 1017h sub 0, 2 bytes
-const std::string kNetworkDcf = "[DeviceInfo]\r\nProductName=node 5 as the network has it\r\n";
-
-/// A source that has node 5's configuration, its concise DCF and its DCF (as cfgmgr's
-/// NetworkSource has a network node's), and for node 6 a DCF it cannot read.
-class NetworkLikeSource final : public ConfigurationSource {
- public:
-  std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override {
-    if (node.value() != kNode) return std::nullopt;
-    return cfg::decode_concise_dcf(kNetworkStream).value();
-  }
-  std::optional<std::vector<std::uint8_t>> concise_dcf(cfg::NodeId node) const override {
-    if (node.value() != kNode) return std::nullopt;
-    return kNetworkStream;
-  }
-  cfg::Result<std::optional<std::string>> dcf(cfg::NodeId node) const override {
-    if (node.value() == 6)
-      return cfg::Error{"node6.dcf: cannot open the file", cfg::ErrorCategory::Io};
-    if (node.value() != kNode) return std::optional<std::string>{};
-    return std::optional<std::string>{kNetworkDcf};
-  }
-};
 
 struct NetworkStoreRig : StoreRig {
   NetworkStoreRig() { rig.options.configurations = std::make_shared<NetworkLikeSource>(); }
@@ -572,21 +431,6 @@ TEST(NmtMasterStore, UnstoredNodeReadsTheNetworksConciseDcfBySegmentedAndBlockUp
   EXPECT_EQ(block.data, kNetworkStream);
   // §6.2 application hint 2: a node neither stored nor in the network: the count-0 stream.
   EXPECT_EQ(s.rig.tool_read(0x1F22, 9).data, (std::vector<std::uint8_t>{0, 0, 0, 0}));
-}
-
-// DSP 302 §6.1: 1F20h sub node-ID is the node's DCF, 1F21h its storage format 0 (ASCII); a node
-// the network names no DCF for reads 0800 0024h (no data available), one whose DCF cannot be
-// read 0800 0020h.
-TEST(NmtMasterStore, UnstoredNodeReadsTheNetworksDcfIn1F20h) {
-  NetworkStoreRig s;
-  s.start();
-  auto dcf = s.rig.tool_read(0x1F20, kNode);
-  ASSERT_TRUE(dcf.ok()) << dcf.abort;
-  EXPECT_EQ(dcf.data, bytes_of(kNetworkDcf));
-  EXPECT_EQ(s.rig.tool_read_u(0x1F21, kNode), 0U);
-  EXPECT_EQ(s.rig.tool_read(0x1F20, 9).abort, SdoAbort::NoDataAvailable);
-  EXPECT_EQ(s.rig.tool_read(0x1F21, 9).abort, SdoAbort::NoDataAvailable);
-  EXPECT_EQ(s.rig.tool_read(0x1F20, 6).abort, SdoAbort::CannotStoreOrTransfer);
 }
 
 // A stored configuration takes the place of the network's (DSP 302 §6: the manager downloads

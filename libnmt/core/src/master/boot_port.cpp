@@ -11,21 +11,6 @@ namespace nmt {
 
 namespace obj = cfg::object;
 
-std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::configuration_of(
-    cfg::NodeId node) const {
-  // The configuration manager first (MasterOptions::manager), then the source, then 1F22h.
-  if (options.manager && options.manager->has_configuration(node)) {
-    return options.manager->configuration(node);
-  }
-  if (options.configurations) return options.configurations->configuration(node);
-  // §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager."
-  const auto stream = own_concise_dcf(node);
-  if (stream.empty()) return std::nullopt;
-  auto decoded = cfg::decode_concise_dcf(stream);
-  if (!decoded) return std::nullopt;
-  return std::move(decoded.value());
-}
-
 void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out,
                                  bool asked_by_application) {
   if (after_reset) {
@@ -134,7 +119,7 @@ BootSlaveExpectations NmtMaster::Impl::BootPort::expectations(cfg::NodeId node) 
   }
   e.software = {m_.value_of(obj::kExpectedApplicationSwDate, node),
                 m_.value_of(obj::kExpectedApplicationSwTime, node)};
-  e.configuration = m_.expected_configuration(node);
+  e.configuration = m_.store_objects.expected_configuration(node);
   e.restore_sub = static_cast<std::uint8_t>(m_.value_of(obj::kRestoreConfiguration, node));
   e.boot_time_ms = m_.value_of(obj::kBootTime, 0);
   return e;
@@ -154,7 +139,7 @@ std::optional<TimePoint> NmtMaster::Impl::BootPort::last_heartbeat(cfg::NodeId n
 
 std::optional<std::vector<cfg::ObjectWrite>> NmtMaster::Impl::BootPort::configuration(
     cfg::NodeId node) const {
-  return m_.configuration_of(node);
+  return m_.store_objects.configuration(node);
 }
 
 std::optional<std::vector<std::uint8_t>> NmtMaster::Impl::BootPort::program(

@@ -9,7 +9,7 @@
 #include "cfg/hex.hpp"
 #include "cfg/object_index.hpp"
 #include "master/boot_slave_process.hpp"
-#include "master/nmt_master_impl.hpp"
+#include "master/master_support.hpp"
 
 namespace nmt {
 

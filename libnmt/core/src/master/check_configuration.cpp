@@ -10,7 +10,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "master/boot_slave_process.hpp"
-#include "master/nmt_master_impl.hpp"
+#include "master/master_support.hpp"
 
 namespace nmt {
 

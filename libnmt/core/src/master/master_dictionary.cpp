@@ -244,7 +244,7 @@ void NmtMaster::Impl::install_hooks() {
     }
     return SdoAbort::None;
   });
-  install_store_objects();
+  store_objects.install();
 }
 
 SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
@@ -294,13 +294,6 @@ std::optional<Duration> NmtMaster::Impl::heartbeat_time(cfg::NodeId node) const 
     }
   }
   return std::nullopt;
-}
-
-cfg::ConfigurationStamp NmtMaster::Impl::expected_configuration(cfg::NodeId node) const {
-  // One owner (nmt_master.hpp): the configuration manager for a node it holds anything for.
-  if (auto stamp = stored_stamp(node)) return *stamp;
-  return {value_of(obj::kExpectedConfigurationDate, node),
-          value_of(obj::kExpectedConfigurationTime, node)};
 }
 
 Duration NmtMaster::Impl::nmt_inhibit_time() const {

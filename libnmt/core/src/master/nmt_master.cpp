@@ -83,7 +83,7 @@ void NmtMaster::start(TimePoint now, Output& out) {
 
 void NmtMaster::entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now,
                                 Output& out) {
-  impl_->entry_persisted(ticket, result, now, out);
+  impl_->store_objects.entry_persisted(ticket, result, now, out);
   impl_->settle(now, out);
 }
 

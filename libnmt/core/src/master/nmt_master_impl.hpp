@@ -22,6 +22,7 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_manager_objects.hpp"
+#include "manager/configuration_store_objects.hpp"
 #include "manager/sdo_manager_process.hpp"
 #include "master/boot_slave_process.hpp"
 #include "master/execute_lss.hpp"
@@ -214,51 +215,23 @@ struct NmtMaster::Impl {
   cfg::SlaveAssignment assignment(cfg::NodeId node) const;
   /// 1016h consumer time for `node` (the first active entry), nullopt when not a consumer.
   std::optional<Duration> heartbeat_time(cfg::NodeId node) const;
-  cfg::ConfigurationStamp expected_configuration(cfg::NodeId node) const;
   Duration nmt_inhibit_time() const;
 
-  // --- configuration manager objects 1F20h-1F27h (master_store_objects.cpp) ---------------
-  /// With MasterOptions::manager: the master DCF's own 1F22h streams by node-ID, used for a
-  /// node the manager holds no configuration for.
-  std::map<std::uint8_t, std::vector<std::uint8_t>> file_concise;
-  /// The entry whose value a read of 1F20h/1F22h/1F23h filled last (emptied at the next read, so
-  /// the dictionary keeps at most one copy of a stored file).
-  std::optional<std::pair<std::uint16_t, std::uint8_t>> store_read_entry;
-  /// Entries an SDO write staged that wait for the driver's entry_persisted(), by ticket.
-  std::map<std::uint64_t, std::shared_ptr<cfg::StoreUpdate>> persists;
-  std::uint64_t last_persist_ticket = 0;
-  /// Adds 1F20h-1F25h served from MasterOptions::manager and its hooks; nothing without one.
-  void install_store_objects();
-  /// The manager's 1F26h/1F27h of `node` when it holds anything for the node (a stamp or a
-  /// configuration); nullopt without a manager or when it holds nothing (the dictionary's
-  /// values apply).
-  std::optional<cfg::ConfigurationStamp> stored_stamp(cfg::NodeId node) const;
-  SdoAbort store_read(std::uint16_t index, std::uint8_t sub);
-  /// A read's value, or the abort that answers it.
-  struct StoreValue {
-    SdoAbort abort = SdoAbort::None;
-    std::vector<std::uint8_t> data;
+  // --- configuration manager objects 1F20h-1F27h (manager/configuration_store_objects.hpp) --
+  /// The master's side of their port (store_port.cpp).
+  struct StorePort final : ConfigurationStorePort {
+    explicit StorePort(Impl& impl) : m(impl) {}
+    bool is_slave(cfg::NodeId node) const override;
+    bool boots_slaves() const override;
+    void configure(cfg::NodeId node, TimePoint now, Output& out) override;
+    void complete_download(std::uint64_t ticket, SdoAbort code, Output& out) override;
+    Impl& m;
   };
-  /// 1F20h-1F22h of a node the manager stores no configuration for: the configuration source's
-  /// concise DCF and DCF, else the master DCF's own 1F22h (nmt_master.hpp). nullopt: the
-  /// manager's answer applies.
-  std::optional<StoreValue> unstored_read(std::uint16_t index, cfg::NodeId node) const;
-  /// 1F25h: the nodes with a configuration that is not stored join the manager's answer.
-  void add_unstored_configurations(std::uint8_t sub, cfg::ConfigWrite& written) const;
-  /// An SDO write of 1F20h-1F27h: decided by the manager; a change of a stored entry is held
-  /// for persist_entry() (see nmt_master.hpp).
-  WriteVerdict store_write(std::uint16_t index, std::uint8_t sub,
-                           std::span<const std::uint8_t> data, TimePoint now, Output* out);
-  /// Takes `update` at once (no store directory), or reports it as PersistEntry into `out` and
-  /// holds the write's confirmation (0800 0022 without an output: nobody to ask).
-  WriteVerdict persist_entry(cfg::StoreUpdate update, TimePoint now, Output* out);
-  /// entry_persisted(): the update taken (on success) and the held download completed.
-  void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
-  /// 1F25h: boot (and download to) every slave the manager named (0800 0022 without an output).
-  SdoAbort configure_slaves(std::uint8_t sub, const std::vector<cfg::NodeId>& nodes, TimePoint now,
-                            Output* out);
-  /// The master's own 1F22h stream of `node` (the DCF's value); empty when none.
-  std::span<const std::uint8_t> own_concise_dcf(cfg::NodeId node) const;
+  StorePort store_port{*this};
+  /// 1F20h-1F25h served from MasterOptions::manager, the one owner of 1F26h/1F27h, the
+  /// configuration to download to a slave; installed by install_hooks().
+  ConfigurationStoreObjects store_objects{dict, store_port, options.manager,
+                                          options.configurations};
 
   // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
   void power_on(TimePoint now, Output& out);
@@ -352,8 +325,6 @@ struct NmtMaster::Impl {
                   bool asked_by_application = false);
   /// §3.4 part 3 g-l: start remote node after a boot with status OK.
   void start_remote_node(cfg::NodeId node);
-  /// The configuration to download to `node` (§3.5 d): the manager's, the source's, or 1F22h.
-  std::optional<std::vector<cfg::ObjectWrite>> configuration_of(cfg::NodeId node) const;
 };
 
 }  // namespace nmt
