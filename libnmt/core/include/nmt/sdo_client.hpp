@@ -22,6 +22,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "cfg/cob_id.hpp"
@@ -107,8 +108,12 @@ struct SdoResult {
   std::vector<std::uint8_t> data;  ///< upload: the value
   TimePoint started{};             ///< time of the first request frame
   TimePoint finished{};
+  /// Not empty: the transfer never reached the bus, and this says why (SdoClient::check_start's
+  /// words); `abort` is None then, as no abort was sent or received. Only a driver that queues
+  /// transfers before it gives them to the client reports such a result (NmtMaster's boot).
+  std::string refusal;
 
-  bool ok() const { return abort == SdoAbort::None; }
+  bool ok() const { return abort == SdoAbort::None && refusal.empty(); }
 };
 
 /// Client side of one SDO channel (one server). Transfers are queued and run one at a time, in

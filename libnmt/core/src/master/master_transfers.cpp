@@ -72,19 +72,18 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, Master
                       : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
                                         transfer.options);
   if (!id) {
-    // A boot or manager transfer the client refuses (SdoClient::check_start: a timeout that is
-    // not positive, a program longer than 4 GiB; application transfers were checked before it
-    // was queued). It ends at once as the client ended it before rule 5 (abort 0504 0000, or
-    // 0504 0005 for the length), so its process sees the failure when settle dispatches it.
+    // A boot or manager transfer the client refuses (SdoClient::check_start: after
+    // MasterOptions::validate only a download longer than 4 GiB; application transfers were
+    // checked before they were queued). It ends at once with the client's words, and its
+    // process sees the failure when settle dispatches it; no abort code, as none was on the bus.
     SdoResult r;
     r.id = next_refused_id--;
     r.node_id = cfg::NodeId::from(node);
     r.address = {transfer.index, transfer.sub};
     r.upload = transfer.upload;
-    r.abort =
-        transfer.options.timeout <= Duration::zero() ? SdoAbort::Timeout : SdoAbort::OutOfMemory;
     r.started = now;
     r.finished = now;
+    r.refusal = id.error().message;
     transfers[{node, r.id}] = std::move(transfer);
     results.push_back(std::move(r));
     return 0;
