@@ -146,8 +146,8 @@ std::optional<SrdEvent> SdoSession::take_event(const std::function<bool(const Sr
 cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   using Kind = SrdEvent::Kind;
   route_ = std::move(route);
-  const auto slave_id = cfg::NodeId::from(route_.slave);
-  if (!slave_id) return cfg::Error{std::to_string(route_.slave) + " is no node-ID (1..127)"};
+  if (!route_.slave) return cfg::Error{"no node to reach (SdoManagerRoute::slave)"};
+  const cfg::NodeId slave_id = *route_.slave;
   auto description = cfg::parse_device_description(session_srd_description());
   if (!description.device) return cfg::Error{"the built-in SDO requesting device does not read"};
   SrdOptions options;
@@ -203,14 +203,15 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   }
   if (const auto to_manager =
           SdoClientConfig::from_dictionary(srd_->node().dictionary(), kManagerClientIndex)) {
-    progress("registered with the SDO manager, node " + std::to_string(to_manager->node_id) + " (" +
+    progress("registered with the SDO manager, node " +
+             (to_manager->node_id ? std::to_string(to_manager->node_id->value()) : "?") + " (" +
              cfg::object_name(kManagerClientIndex) + ", " + cob_ids_text(*to_manager) + ")");
   }
 
   // DSP 302 §7.2.2: 1F00h at the manager; it answers in 1F10h with the client entry set up.
-  const std::string slave = "node " + std::to_string(route_.slave);
+  const std::string slave = "node " + std::to_string(slave_id.value());
   (void)srd_ref_->apply([&](SdoRequestingDevice& s, TimePoint now, auto& out) {
-    return s.request_connection(*slave_id, kConnectionClientIndex, now, out);
+    return s.request_connection(slave_id, kConnectionClientIndex, now, out);
   });
   std::optional<SrdEvent> connected;
   auto granted = run_until(

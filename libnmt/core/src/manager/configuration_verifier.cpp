@@ -16,7 +16,8 @@ std::uint64_t key(std::uint8_t node, SdoClient::TransferId id) {
 void ConfigurationVerifier::upload(VerifyResult result, TimePoint now, Outbox<SdoResult>& sdo,
                                    Output& out) {
   const std::uint8_t node = result.node_id;
-  const auto id = mux_.client(node).upload(result.index, result.sub_index, now, sdo, options_.sdo);
+  const auto id = mux_.client(*cfg::NodeId::from(node))
+                      .upload(result.index, result.sub_index, now, sdo, options_.sdo);
   if (!id) {
     // SdoClient::check_start refuses an upload only for a timeout that is not positive: the
     // entry is reported as one whose answer did not come.

@@ -326,7 +326,7 @@ void SdoManagerProcess::connect_with(std::uint16_t server_index) {
   auto& c = job.connection;
   c.row.server_index = server_index;
   if (server_index == kDefaultServer) {
-    const auto cob_ids = sdo::default_cob_ids(job.slave);
+    const auto cob_ids = sdo::default_cob_ids(*cfg::NodeId::from(job.slave));
     c.row.request = cob_ids.request;
     c.row.response = cob_ids.response;
   } else {

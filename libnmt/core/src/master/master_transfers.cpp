@@ -66,7 +66,7 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(std::uint8_t node, Master
                                                        TimePoint now) {
   if (!transfer.for_application && !transfer.for_manager) ++boot_transfers;
   transfer.launched = now;
-  auto& client = clients.client(node);
+  auto& client = clients.client(*cfg::NodeId::from(node));
   const auto id = transfer.upload
                       ? client.upload(transfer.index, transfer.sub, now, sdo_out, transfer.options)
                       : client.download(transfer.index, transfer.sub, transfer.data, now, sdo_out,
@@ -201,7 +201,7 @@ void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
     if (t.for_application || t.for_manager || t.upload || t.index != cfg::object::kProgramData) {
       continue;
     }
-    const auto p = clients.client(key.first).download_progress();
+    const auto p = clients.client(*cfg::NodeId::from(key.first)).download_progress();
     if (!p || p->id != key.second || p->done <= t.reported) continue;
     if (p->done < p->total && p->done - t.reported < std::max<std::size_t>(p->total / 32, 1)) {
       continue;

@@ -24,7 +24,7 @@ namespace nmt {
 /// How the session reaches a node through the SDO manager (connect_via_manager).
 struct SdoManagerRoute {
   cfg::NodeId own_node_id = *cfg::NodeId::from(127);  ///< the session's node-ID as an SRD
-  std::uint8_t slave = 0;                             ///< the node to reach, 1..127
+  std::optional<cfg::NodeId> slave;                   ///< the node to reach (required)
   /// Longest wait for each answer of the manager: the registration (which includes its scan of
   /// node-IDs, DSP 302 §7.2.4), the connection, the release.
   Duration manager_timeout = std::chrono::seconds(10);
