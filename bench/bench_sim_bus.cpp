@@ -96,9 +96,11 @@ cfg::DeviceDescription bench_device() {
 
 struct Rig {
   nmt::SimBus bus{1'000'000};
-  nmt::LocalDictionary dict = nmt::LocalDictionary::from_device(bench_device(), 5).value();
-  nmt::SimEngineNode<nmt::SdoServer> server{dict, nmt::SdoServerConfig::for_node(5)};
-  nmt::SimEngineNode<nmt::SdoClient> client{nmt::SdoClientConfig::for_node(5)};
+  nmt::LocalDictionary dict =
+      nmt::LocalDictionary::from_device(bench_device(), *cfg::NodeId::from(5)).value();
+  nmt::SimEngineNode<nmt::SdoServer> server{dict,
+                                            nmt::SdoServerConfig::for_node(*cfg::NodeId::from(5))};
+  nmt::SimEngineNode<nmt::SdoClient> client{nmt::SdoClientConfig::for_node(*cfg::NodeId::from(5))};
   nmt::SdoResult result;  // the last transfer's
   Rig() {
     bus.attach(server);

@@ -145,7 +145,7 @@ struct Harness {
   std::shared_ptr<cfg::ConfigManager> manager = std::make_shared<cfg::ConfigManager>();
   std::optional<nmt::NmtMaster> master;
   std::vector<nmt::SimulatedDevice> devices;  // 2, 3, 4, the SRD
-  nmt::SdoClient tool{nmt::SdoClientConfig::for_node(kMasterId)};
+  nmt::SdoClient tool{nmt::SdoClientConfig::for_node(*cfg::NodeId::from(kMasterId))};
   std::vector<std::unique_ptr<Peer>> peers;  // [0] the master, devices, the tool
   struct Queued {
     CanFrame frame;

@@ -34,7 +34,7 @@ constexpr std::uint16_t kIndices[] = {0x1000, 0x1008, 0x1017, 0x2000, 0x2005, 0x
 struct Harness {
   nmt::LocalDictionary dict;
   nmt::Delayed<nmt::SdoServer> server;
-  nmt::SdoClient client{nmt::SdoClientConfig::for_node(5)};
+  nmt::SdoClient client{nmt::SdoClientConfig::for_node(*cfg::NodeId::from(5))};
   std::deque<CanFrame> to_server, to_client;
   TimePoint now{};
   nmt::SdoServer::Output server_out;
@@ -92,11 +92,11 @@ struct Harness {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const auto device = test_support::sdo_test_device();
-  auto dict = nmt::LocalDictionary::from_device(device, 5);
+  auto dict = nmt::LocalDictionary::from_device(device, *cfg::NodeId::from(5));
   check(dict.ok());
   Input in{data, size};
   const std::uint8_t setup = in.next();
-  auto config = nmt::SdoServerConfig::for_node(5);
+  auto config = nmt::SdoServerConfig::for_node(*cfg::NodeId::from(5));
   config.block_transfer = (setup & 0x01) == 0;
   const auto latency = std::chrono::milliseconds(setup >> 1 & 0x07);
   config.block_size = static_cast<std::uint8_t>(1 + (setup >> 4) * 8);

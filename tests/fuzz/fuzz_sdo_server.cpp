@@ -80,10 +80,10 @@ struct Harness {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const auto device = test_support::sdo_test_device();
-  auto dict = nmt::LocalDictionary::from_device(device, 5);
+  auto dict = nmt::LocalDictionary::from_device(device, *cfg::NodeId::from(5));
   check(dict.ok());
   Input in{data, size};
-  auto config = nmt::SdoServerConfig::for_node(5);
+  auto config = nmt::SdoServerConfig::for_node(*cfg::NodeId::from(5));
   const std::uint8_t setup = in.next();
   config.block_transfer = (setup & 0x01) == 0;
   const auto latency = std::chrono::milliseconds((setup >> 1) & 0x0F);

@@ -186,7 +186,7 @@ class SocketCanSdo : public ::testing::Test {
                                      SdoTransferOptions o = options()) {
     return test_support::started(
         mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-          return m.client(node_id).upload(index, sub, now, out, o);
+          return m.client(*cfg::NodeId::from(node_id)).upload(index, sub, now, out, o);
         }));
   }
 
@@ -201,7 +201,8 @@ class SocketCanSdo : public ::testing::Test {
                      SdoTransferOptions o = options()) {
     const auto id = test_support::started(
         mux_ref_.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-          return m.client(node_id).download(index, sub, std::move(data), now, out, o);
+          return m.client(*cfg::NodeId::from(node_id))
+              .download(index, sub, std::move(data), now, out, o);
         }));
     run_until_idle();
     return take(node_id, id);

@@ -677,6 +677,30 @@ TEST(BootSlave, ReportsStatusIWhenTheDeviceAborts1F50hWith06060000) {
   EXPECT_EQ(rig.port.accesses.size(), 6U) << "no start after the failed download";
 }
 
+// A transfer the master's SDO client refused to start (SdoClient::check_start: an image longer
+// than the 32-bit size of CiA 301 §7.2.4.3.3) ends the update with I (Table 1) in the client's
+// words, not with an abort code no device sent.
+TEST(BootSlave, ReportsStatusIInTheClientsWordsWhenTheImageDownloadCouldNotStart) {
+  Rig rig;
+  verify_software(rig, true);
+  report_version(rig, kRunningProgram);
+  stop_and_clear(rig);
+  expect_access(rig.last(), 0x1F50, 1, false, *rig.port.image);
+  SdoResult r;
+  r.node_id = cfg::NodeId::from(kNode);
+  r.address = {0x1F50, 1};
+  r.refusal = "a value of 4294967296 bytes is longer than an SDO download can state";
+  ASSERT_FALSE(r.ok());
+  rig.process.on_sdo_result(r, rig.now, rig.out);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+  EXPECT_NE(boot_error_text(rig).find("1F50h sub 01h download could not start: a value of "
+                                      "4294967296 bytes is longer than an SDO download can state"),
+            std::string::npos)
+      << boot_error_text(rig);
+  EXPECT_EQ(boot_error_text(rig).find("0x"), std::string::npos) << "no abort code";
+}
+
 // §3.4 part 2 b: "In case the software version will stay incorrect the process Boot NMT slave
 // shall end with error status" (I, Table 1).
 TEST(BootSlave, ReportsStatusIWhenTheVersionIsStillWrongAfterTheUpdate) {

@@ -240,7 +240,8 @@ class FlyRig {
 // An SDO client of `node`'s server (600h/580h + node-ID), as a configuration tool.
 class Tool {
  public:
-  Tool(SimBus& bus, std::uint8_t node) : bus_(bus), client_(SdoClientConfig::for_node(node)) {
+  Tool(SimBus& bus, std::uint8_t node)
+      : bus_(bus), client_(SdoClientConfig::for_node(*cfg::NodeId::from(node))) {
     bus_.attach(client_);
     client_.set_event_handler([this](const SdoResult& r, TimePoint) { results_[r.id] = r; });
   }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <type_traits>
 
 #include "cfg/device_file.hpp"
 #include "prerequisite.hpp"
@@ -21,7 +22,8 @@ using Bytes = std::vector<std::uint8_t>;
 constexpr TimePoint kNow{};  // the time of an access only matters to the hooks
 
 LocalDictionary make(std::uint8_t node_id = 5) {
-  auto d = LocalDictionary::from_device(test_support::sdo_test_device(), node_id);
+  auto d =
+      LocalDictionary::from_device(test_support::sdo_test_device(), *cfg::NodeId::from(node_id));
   EXPECT_TRUE(d.ok()) << (d.ok() ? "" : d.error().message);
   return std::move(d).value();
 }
@@ -81,15 +83,18 @@ TEST(LocalDictionary, KeepsAttributesOfEachEntry) {
   EXPECT_FALSE(d.has_object(0x1019));
 }
 
+// The node-ID is a cfg::NodeId: 0 and 128 cannot reach from_device (NodeId::from refuses them).
 TEST(LocalDictionary, RejectsNodeIdOutsideOneTo127) {
-  EXPECT_FALSE(LocalDictionary::from_device(test_support::sdo_test_device(), 0).ok());
-  EXPECT_FALSE(LocalDictionary::from_device(test_support::sdo_test_device(), 128).ok());
+  static_assert(!std::is_invocable_v<decltype(&LocalDictionary::from_device),
+                                     const cfg::DeviceDescription&, int>);
+  EXPECT_FALSE(cfg::NodeId::from(0).has_value());
+  EXPECT_FALSE(cfg::NodeId::from(128).has_value());
 }
 
 TEST(LocalDictionary, RejectsValueThatDoesNotFitItsTypeNamingTheEntry) {
   auto device = test_support::sdo_test_device();
   device.sub(0x1017, 0)->default_value = "70000";  // UNSIGNED16 holds at most 65535
-  auto d = LocalDictionary::from_device(device, 1);
+  auto d = LocalDictionary::from_device(device, *cfg::NodeId::from(1));
   ASSERT_FALSE(d.ok());
   // The one way messages write an address (cfg/object_address.hpp).
   EXPECT_NE(d.error().message.find("object 1017h sub 00h: "), std::string::npos)
@@ -361,7 +366,7 @@ TEST(LocalDictionary, InsertAddsEntriesTheDeviceImplements) {
 TEST(LocalDictionary, LoadsTheSampleIoModule) {
   auto read_result = cfg::read_device_file(std::string(CANOPEN_SAMPLES_DIR) + "/io_module.eds");
   ASSERT_TRUE(read_result.device.has_value()) << read_result.diagnostics.format();
-  auto d = LocalDictionary::from_device(*read_result.device, 3);
+  auto d = LocalDictionary::from_device(*read_result.device, *cfg::NodeId::from(3));
   ASSERT_TRUE(d.ok()) << d.error().message;
   // samples/io_module.eds [1000] DefaultValue=0x000F0191.
   EXPECT_EQ(read(*d, 0x1000, 0), (Bytes{0x91, 0x01, 0x0F, 0x00}));
@@ -378,7 +383,8 @@ TEST(LocalDictionary, CorpusFilesLoadOrFailNamingAnEntry) {
     auto r = cfg::read_device_file(file.path().string());
     if (!r.device) continue;
     const std::uint8_t node = r.device->node_id().value_or(1);
-    auto d = LocalDictionary::from_device(*r.device, cfg::is_node_id(node) ? node : 1);
+    auto d = LocalDictionary::from_device(*r.device,
+                                          cfg::NodeId::from(node).value_or(*cfg::NodeId::from(1)));
     if (d.ok()) {
       ++loaded;
       // Every value of a fixed-size type has its size.

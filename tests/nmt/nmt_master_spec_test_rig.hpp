@@ -480,7 +480,7 @@ class MasterRig {
 
   std::map<std::uint8_t, std::unique_ptr<SimEngineNode<SimulatedDevice>>> slaves_;
   std::unique_ptr<SimEngineNode<NmtMaster>> master_;
-  SimEngineNode<SdoClient> tool_{SdoClientConfig::for_node(kMaster)};
+  SimEngineNode<SdoClient> tool_{SdoClientConfig::for_node(*cfg::NodeId::from(kMaster))};
   FunctionNode other_;
   std::map<SdoClient::TransferId, SdoResult> results_;
 };

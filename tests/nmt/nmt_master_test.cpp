@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cfg/concise_dcf.hpp"
@@ -306,25 +307,55 @@ TEST(NmtMaster, PacedBootCompletes) {
 namespace nmt {
 namespace {
 
-// engine.hpp rule 5: an application transfer the master's client could not start (here a
-// response timeout of 0) returns why and puts nothing into `out`; no id is used up.
-TEST(NmtMaster, ApplicationTransferWithAResponseTimeoutOfZeroDoesNotStart) {
-  MasterOptions options;
-  options.sdo_timeout = Duration::zero();
-  auto created = NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
-  ASSERT_TRUE(created.ok());
-  NmtMaster master = std::move(created).value();
-  NmtMaster::Output out;
-  const auto refused = master.sdo_upload(*cfg::NodeId::from(2), 0x1018, 1, TimePoint{}, out);
-  ASSERT_FALSE(refused.ok());
-  EXPECT_EQ(refused.error().message,
-            "node 2: the SDO response timeout must be positive (it is 0 us)");
-  const auto too =
-      master.sdo_download(*cfg::NodeId::from(2), 0x1017, 0, le(100, 2), TimePoint{}, out);
-  ASSERT_FALSE(too.ok());
-  EXPECT_TRUE(out.frames.empty());
-  EXPECT_TRUE(out.events.empty());
-  EXPECT_EQ(master.next_deadline(), std::nullopt);
+// A response timeout of 0 (or less) could never be met: the master is not built with it, and
+// the error names the option, so no transfer later meets a timeout it cannot use.
+TEST(NmtMaster, IsNotBuiltWithAResponseTimeoutThatIsNotPositive) {
+  for (const auto timeout : {Duration::zero(), Duration{-1}}) {
+    MasterOptions options;
+    options.sdo_timeout = timeout;
+    const auto created =
+        NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+    ASSERT_FALSE(created.ok());
+    EXPECT_NE(created.error().message.find("sdo_timeout"), std::string::npos)
+        << created.error().message;
+  }
+}
+
+// The other waits of the boot and the SDO manager are refused alike; 0 is taken where it
+// means "none" (boot_up_wait: no wait; lss.period: no looks).
+TEST(NmtMaster, IsNotBuiltWithOtherTimeoutsThatAreNotPositive) {
+  using Field = Duration MasterOptions::*;
+  const std::vector<std::pair<Field, const char*>> fields{
+      {&MasterOptions::retry_interval, "retry_interval"},
+      {&MasterOptions::reboot_timeout, "reboot_timeout"},
+      {&MasterOptions::program_control_timeout, "program_control_timeout"},
+      {&MasterOptions::program_clear_timeout, "program_clear_timeout"},
+      {&MasterOptions::program_data_timeout, "program_data_timeout"},
+      {&MasterOptions::guarding_reply_timeout, "guarding_reply_timeout"},
+      {&MasterOptions::sdo_manager_scan_timeout, "sdo_manager_scan_timeout"},
+      {&MasterOptions::srd_guard_time, "srd_guard_time"},
+  };
+  for (const auto& [field, name] : fields) {
+    for (const Duration value : {Duration::zero(), Duration{-5000}}) {
+      MasterOptions options;
+      options.*field = value;
+      const auto created =
+          NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+      ASSERT_FALSE(created.ok()) << name;
+      EXPECT_NE(created.error().message.find(name), std::string::npos) << created.error().message;
+    }
+  }
+  MasterOptions lss;
+  lss.lss.timing.timeout = Duration::zero();
+  EXPECT_FALSE(lss.validate().ok());
+  MasterOptions none;
+  none.boot_up_wait = Duration::zero();
+  none.lss.period = Duration::zero();
+  EXPECT_TRUE(none.validate().ok());
+  none.boot_up_wait = -std::chrono::milliseconds(1);
+  const auto negative = none.validate();
+  ASSERT_FALSE(negative.ok());
+  EXPECT_NE(negative.error().message.find("boot_up_wait"), std::string::npos);
 }
 
 // CiA 302-2 §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager":

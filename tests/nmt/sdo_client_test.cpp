@@ -21,7 +21,7 @@ using Bytes = std::vector<std::uint8_t>;
 
 class SdoClientTest : public ::testing::Test {
  protected:
-  SdoClient client{SdoClientConfig::for_node(5)};
+  SdoClient client{SdoClientConfig::for_node(*cfg::NodeId::from(5))};
   TimePoint now{};
   Frames first;  // what the last download()/upload() put on the bus at once
   std::map<SdoClient::TransferId, SdoResult> results;
@@ -465,10 +465,10 @@ TEST(SdoClientMux, RoutesResponsesByCobId) {
   static_assert(Engine<SdoClientMux>);
   SdoClientMux mux;
   SdoClientMux::Output out;
-  auto a = mux.client(5).upload(0x1000, 0, TimePoint{}, out);
-  auto b = mux.client(6).upload(0x1000, 0, TimePoint{}, out);
+  auto a = mux.client(*cfg::NodeId::from(5)).upload(0x1000, 0, TimePoint{}, out);
+  auto b = mux.client(*cfg::NodeId::from(6)).upload(0x1000, 0, TimePoint{}, out);
   ASSERT_TRUE(a.ok() && b.ok());
-  EXPECT_EQ(&mux.client(5), &mux.client(5));
+  EXPECT_EQ(&mux.client(*cfg::NodeId::from(5)), &mux.client(*cfg::NodeId::from(5)));
   ASSERT_EQ(out.frames.size(), 2u);
   EXPECT_EQ(to_candump(out.frames[0]), "605#4000100000000000");
   EXPECT_EQ(to_candump(out.frames[1]), "606#4000100000000000");
@@ -491,8 +491,12 @@ TEST(SdoClientMux, UnansweredBitsAreTheSumOfItsClients) {
   SdoClientMux::Output out;
   SdoTransferOptions block;
   block.mode = SdoMode::Block;
-  ASSERT_TRUE(mux.client(5).download(0x2000, 0, Bytes(30, 0x11), TimePoint{}, out, block).ok());
-  ASSERT_TRUE(mux.client(6).download(0x2000, 0, Bytes(30, 0x22), TimePoint{}, out, block).ok());
+  ASSERT_TRUE(mux.client(*cfg::NodeId::from(5))
+                  .download(0x2000, 0, Bytes(30, 0x11), TimePoint{}, out, block)
+                  .ok());
+  ASSERT_TRUE(mux.client(*cfg::NodeId::from(6))
+                  .download(0x2000, 0, Bytes(30, 0x22), TimePoint{}, out, block)
+                  .ok());
   EXPECT_EQ(mux.unanswered_bits(), 0u);  // the initiates are answered
   out.clear();
   // Node 5 asks for blocks of 3, node 6 for blocks of 2.
@@ -504,8 +508,8 @@ TEST(SdoClientMux, UnansweredBitsAreTheSumOfItsClients) {
   ASSERT_TRUE(mux.on_frame(*from_candump("586#A400200002000000"), TimePoint{}, out));
   ASSERT_EQ(out.frames.size(), 2u);
   const std::uint64_t six = frame_bits(out.frames[0]).total();
-  EXPECT_EQ(mux.client(5).unanswered_bits(), five);
-  EXPECT_EQ(mux.client(6).unanswered_bits(), six);
+  EXPECT_EQ(mux.client(*cfg::NodeId::from(5)).unanswered_bits(), five);
+  EXPECT_EQ(mux.client(*cfg::NodeId::from(6)).unanswered_bits(), six);
   EXPECT_EQ(mux.unanswered_bits(), five + six);
 }
 
@@ -521,7 +525,7 @@ TEST(SdoClientMux, TimesOutEachClientAtItsOwnResponseTimeoutEarliestFirst) {
     SdoTransferOptions o;
     o.timeout = std::chrono::milliseconds(228 - n);
     const auto node = static_cast<std::uint8_t>(n);
-    ids[node] = started(mux.client(node).upload(0x1000, 0, TimePoint{}, out, o));
+    ids[node] = started(mux.client(*cfg::NodeId::from(node)).upload(0x1000, 0, TimePoint{}, out, o));
   }
   EXPECT_EQ(mux.next_deadline(), deadline(127));
   out.clear();
@@ -529,7 +533,7 @@ TEST(SdoClientMux, TimesOutEachClientAtItsOwnResponseTimeoutEarliestFirst) {
   EXPECT_TRUE(mux.on_frame(*from_candump("5FF#4300100001000000"), deadline(127) - 1ms, out));
   EXPECT_EQ(mux.next_deadline(), deadline(126));
   // Node 126's transfer is cancelled on the client itself: its deadline goes too.
-  EXPECT_TRUE(mux.client(126).cancel(ids[126], deadline(127), out));
+  EXPECT_TRUE(mux.client(*cfg::NodeId::from(126)).cancel(ids[126], deadline(127), out));
   EXPECT_EQ(mux.next_deadline(), deadline(125));
   ASSERT_EQ(out.events.size(), 2u);
   out.clear();
@@ -562,10 +566,10 @@ TEST(SdoClientMux, NextDeadlineFollowsTheQueuedTransferThatStartsOnATimeout) {
   };
   SdoTransferOptions o;
   o.timeout = 100ms;
-  ASSERT_TRUE(mux.client(5).upload(0x1000, 0, TimePoint{}, out, o).ok());
-  ASSERT_TRUE(mux.client(5).upload(0x1018, 1, TimePoint{}, out, o).ok());  // queued
+  ASSERT_TRUE(mux.client(*cfg::NodeId::from(5)).upload(0x1000, 0, TimePoint{}, out, o).ok());
+  ASSERT_TRUE(mux.client(*cfg::NodeId::from(5)).upload(0x1018, 1, TimePoint{}, out, o).ok());  // queued
   o.timeout = 150ms;
-  ASSERT_TRUE(mux.client(6).upload(0x1000, 0, TimePoint{}, out, o).ok());
+  ASSERT_TRUE(mux.client(*cfg::NodeId::from(6)).upload(0x1000, 0, TimePoint{}, out, o).ok());
   EXPECT_EQ(mux.next_deadline(), TimePoint{100ms});
   out.clear();
   mux.on_timer(TimePoint{120ms}, out);  // late: only node 5 is due

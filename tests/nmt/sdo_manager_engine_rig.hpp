@@ -134,7 +134,7 @@ class ManagerEngineRig {
     return *engine_;
   }
   void add_device(std::uint8_t node, const std::string& file) {
-    auto d = LocalDictionary::from_device(device_file(file), node);
+    auto d = LocalDictionary::from_device(device_file(file), *cfg::NodeId::from(node));
     ASSERT_TRUE(d.ok());
     port.devices.emplace(node, std::move(d).value());
   }

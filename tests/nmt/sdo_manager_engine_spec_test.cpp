@@ -40,7 +40,8 @@ using master_spec::state_word;
 class SdoManagerEngineSpec : public ::testing::Test, public ManagerEngineRig {
  protected:
   SdoManagerEngineSpec() {
-    auto master = LocalDictionary::from_device(device_file("sdo_manager/manager.dcf"), kManager);
+    auto master = LocalDictionary::from_device(device_file("sdo_manager/manager.dcf"),
+                                               *cfg::NodeId::from(kManager));
     EXPECT_TRUE(master.ok());
     dict = std::move(master).value();
     for (std::uint8_t node : {kSrd, kSrd2, kSrd3}) port.consumer[node] = 300ms;
@@ -49,7 +50,7 @@ class SdoManagerEngineSpec : public ::testing::Test, public ManagerEngineRig {
   /// Slave 2 (with channels, or `eds2`), slave 3 (default SDO only) and the SRDs.
   void start_network(std::initializer_list<std::uint8_t> srds = {kSrd},
                      const cfg::DeviceDescription& eds2 = slave_channels_eds()) {
-    auto d = LocalDictionary::from_device(eds2, kWithChannels);
+    auto d = LocalDictionary::from_device(eds2, *cfg::NodeId::from(kWithChannels));
     ASSERT_TRUE(d.ok());
     port.devices.emplace(kWithChannels, std::move(d).value());
     add_device(kDefaultOnly, "master/slave.eds");

@@ -172,7 +172,7 @@ class ManagerRig : public MasterRig {
     SdoClientConfig config;
     config.request_cob_id = cfg::CobId::from_word(entry.request);
     config.response_cob_id = cfg::CobId::from_word(entry.response);
-    config.node_id = entry.server;
+    config.node_id = cfg::NodeId::from(entry.server);
     SimEngineNode<SdoClient> client(config);
     std::optional<SdoResult> result;
     client.set_event_handler([&](const SdoResult& r, TimePoint) { result = r; });

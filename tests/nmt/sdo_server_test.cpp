@@ -18,8 +18,9 @@ using Frames = std::vector<std::string>;
 
 class SdoServerTest : public ::testing::Test {
  protected:
-  LocalDictionary dict = LocalDictionary::from_device(test_support::sdo_test_device(), 5).value();
-  SdoServer server{dict, SdoServerConfig::for_node(5)};
+  LocalDictionary dict =
+      LocalDictionary::from_device(test_support::sdo_test_device(), *cfg::NodeId::from(5)).value();
+  SdoServer server{dict, SdoServerConfig::for_node(*cfg::NodeId::from(5))};
   TimePoint now{};
 
   // Feeds one request (candump text) and returns the responses sent at once.
@@ -428,7 +429,7 @@ TEST_F(SdoServerTest, BlockUploadAckBeyondTheBlockAborts) {
 
 TEST_F(SdoServerTest, ADelayedServerAnswersAfterTheDelayInOrder) {
   // The latency of a slow device is a wrapper (nmt/fault_injection.hpp), not a server setting.
-  Delayed<SdoServer> slow(5ms, dict, SdoServerConfig::for_node(5));
+  Delayed<SdoServer> slow(5ms, dict, SdoServerConfig::for_node(*cfg::NodeId::from(5)));
   static_assert(Engine<Delayed<SdoServer>>);
   Delayed<SdoServer>::Output out;
   EXPECT_TRUE(slow.on_frame(*from_candump("605#4000100000000000"), now, out));

@@ -23,10 +23,12 @@ using Bytes = std::vector<std::uint8_t>;
 // test can make it slow (Delayed with no delay changes nothing).
 struct ServerNode {
   explicit ServerNode(std::uint8_t node_id, SdoServerConfig config)
-      : dict(LocalDictionary::from_device(test_support::sdo_test_device(), node_id).value()),
+      : dict(LocalDictionary::from_device(test_support::sdo_test_device(),
+                                          *cfg::NodeId::from(node_id))
+                 .value()),
         node(Duration{0}, dict, config) {}
   explicit ServerNode(std::uint8_t node_id)
-      : ServerNode(node_id, SdoServerConfig::for_node(node_id)) {}
+      : ServerNode(node_id, SdoServerConfig::for_node(*cfg::NodeId::from(node_id))) {}
   SdoServer& sdo() { return node.engine().engine(); }
   LocalDictionary dict;
   SimEngineNode<Delayed<SdoServer>> node;
@@ -62,7 +64,8 @@ class SdoTransferTest : public ::testing::Test {
                          SdoTransferOptions o = {}) {
     results.clear();
     client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-      test_support::started(m.client(5).download(index, sub, std::move(data), now, out, o));
+      test_support::started(
+          m.client(*cfg::NodeId::from(5)).download(index, sub, std::move(data), now, out, o));
     });
     EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
     EXPECT_EQ(results.size(), 1u);
@@ -71,7 +74,7 @@ class SdoTransferTest : public ::testing::Test {
   SdoResult run_upload(std::uint16_t index, std::uint8_t sub, SdoTransferOptions o = {}) {
     results.clear();
     client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-      test_support::started(m.client(5).upload(index, sub, now, out, o));
+      test_support::started(m.client(*cfg::NodeId::from(5)).upload(index, sub, now, out, o));
     });
     EXPECT_TRUE(bus.run_until_idle(bus.now() + 60s));
     EXPECT_EQ(results.size(), 1u);
@@ -99,7 +102,8 @@ TEST_F(SdoTransferTest, ADownloadStartedThroughTheApiIsOnTheBusAtTheNextStep) {
   // two events are the arbitration of the initiate request and its end of frame.
   const auto before = bus.events_processed();
   client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
-    test_support::started(m.client(5).download(0x1017, 0, {0xE8, 0x03}, now, out));
+    test_support::started(
+        m.client(*cfg::NodeId::from(5)).download(0x1017, 0, {0xE8, 0x03}, now, out));
   });
   EXPECT_EQ(client.engine().next_deadline(), bus.now() + 1s);  // the response timeout
   ASSERT_TRUE(bus.step());
@@ -236,7 +240,7 @@ TEST_F(SdoTransferTest, ManyConcurrentTransfersToTenNodesComplete) {
   }
   client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
     for (std::uint8_t id = 10; id < 20; ++id) {
-      auto& c = m.client(id);
+      auto& c = m.client(*cfg::NodeId::from(id));
       test_support::started(c.download(0x2000, 0, pattern(700, id), now, out, block_mode()));
       test_support::started(c.download(0x2005, 0, pattern(30, id), now, out));
       test_support::started(c.download(0x1017, 0, {id, 0}, now, out));
@@ -272,9 +276,10 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
     for (int i = 0; i < 40; ++i) {
       if (i % 2 == 0) {
         test_support::started(
-            m.client(5).download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), now, out, o));
+            m.client(*cfg::NodeId::from(5))
+                .download(0x2000, 0, pattern(300, static_cast<unsigned>(i)), now, out, o));
       } else {
-        test_support::started(m.client(5).upload(0x2000, 0, now, out, o));
+        test_support::started(m.client(*cfg::NodeId::from(5)).upload(0x2000, 0, now, out, o));
       }
     }
   });
@@ -311,9 +316,10 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
 // c, seqno). Client timeout 100 ms, server timeout 2 s; frames are handed over one by one.
 // (Until stop 27 this ended only by the client's timeout, 99 rounds later.)
 TEST(SdoLostAbort, BlockUploadMeetingAServerStillInABlockDownloadEndsAfterFourEmptyRounds) {
-  auto dict = LocalDictionary::from_device(test_support::sdo_test_device(), 5).value();
-  SdoServer server{dict, SdoServerConfig::for_node(5)};
-  SdoClient client{SdoClientConfig::for_node(5)};
+  auto dict =
+      LocalDictionary::from_device(test_support::sdo_test_device(), *cfg::NodeId::from(5)).value();
+  SdoServer server{dict, SdoServerConfig::for_node(*cfg::NodeId::from(5))};
+  SdoClient client{SdoClientConfig::for_node(*cfg::NodeId::from(5))};
   std::vector<SdoResult> results;
   TimePoint now{};
   auto text = [](const std::vector<CanFrame>& frames) {

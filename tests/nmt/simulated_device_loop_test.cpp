@@ -87,7 +87,7 @@ TEST(BusEventLoop, EnginesOfOneLoopHearEachOther) {
   FakeClockBus bus;
   BusEventLoop loop(bus, {}, [&] { return bus.now; });
   auto device = device_with_heartbeat(4, "0");
-  SdoClient client(SdoClientConfig::for_node(4));
+  SdoClient client(SdoClientConfig::for_node(*cfg::NodeId::from(4)));
   std::optional<SdoResult> result;
   EngineRef device_ref(device);
   EngineRef client_ref(client, [&](const SdoResult& r, TimePoint) { result = r; });

@@ -61,7 +61,7 @@ class Rig {
  public:
   explicit Rig(DeviceFaults faults = {}, cfg::DeviceDescription eds = sim_eds(),
                std::uint8_t node = kNode)
-      : sdo_(SdoClientConfig::for_node(node)) {
+      : sdo_(SdoClientConfig::for_node(*cfg::NodeId::from(node))) {
     auto device = SimulatedDevice::create(eds, node, std::move(faults));
     EXPECT_TRUE(device.ok()) << (device.ok() ? "" : device.error().message);
     device_ = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
@@ -1069,7 +1069,7 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     ASSERT_TRUE(device.ok()) << device.error().message;
     SimBus bus(500'000);
     SimEngineNode<SimulatedDevice> node(std::move(device).value());
-    SimEngineNode<SdoClient> client(SdoClientConfig::for_node(3));
+    SimEngineNode<SdoClient> client(SdoClientConfig::for_node(*cfg::NodeId::from(3)));
     std::vector<std::string> seen;
     bus.attach(node);
     bus.attach(client);

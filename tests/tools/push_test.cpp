@@ -350,6 +350,19 @@ TEST(Push, BadArgumentsExit2) {
   EXPECT_EQ(cfgmgr(dir, {"push", dir / "absent.cpj", "--bus", "sim:"}).exit_code, 3);
 }
 
+// The master takes only a positive SDO response timeout in whole us (MasterOptions::validate):
+// one that rounds to 0 us is a usage error naming the option, before the bus.
+TEST(Push, SdoTimeoutBelowOneMicrosecondIsAUsageError) {
+  ScratchDir dir;
+  const std::string cpj = sample_network("nodelist.cpj");
+  for (const std::string value : {"0.0000001", "1e-300"}) {
+    auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:", "--sdo-timeout", value});
+    EXPECT_EQ(r.exit_code, 2) << value << ": " << r.err;
+    EXPECT_NE(r.err.find("--sdo-timeout"), std::string::npos) << r.err;
+    EXPECT_EQ(r.out, "") << "nothing ran";
+  }
+}
+
 // --boot-time goes into 1F89h through the master's typed configuration: UNSIGNED32 ms (CiA
 // 302-2 §6.11), so 5000000 s (5e9 ms) does not fit, and nothing reaches the bus.
 TEST(Push, BootTimeBeyond1F89hIsAUsageErrorNamingTheObject) {

@@ -196,7 +196,7 @@ TEST(SimulateInNetns, DevicesBootAnswerSdoAndFollowNmtOverUdp) {
 
   nmt::BusEventLoop loop(*bus);
   Script script;
-  nmt::SdoClient client(nmt::SdoClientConfig::for_node(5));
+  nmt::SdoClient client(nmt::SdoClientConfig::for_node(*cfg::NodeId::from(5)));
   std::map<nmt::SdoClient::TransferId, nmt::SdoResult> results;
   const auto result = [&](nmt::SdoClient::TransferId id) -> const nmt::SdoResult* {
     auto it = results.find(id);
@@ -296,7 +296,7 @@ TEST(SimulateInNetns, AnswersTheIdentityOfItsFileWhere1018hHasNoValue) {
 
   nmt::BusEventLoop loop(*bus);
   Script script;
-  nmt::SdoClient client(nmt::SdoClientConfig::for_node(3));
+  nmt::SdoClient client(nmt::SdoClientConfig::for_node(*cfg::NodeId::from(3)));
   std::map<nmt::SdoClient::TransferId, nmt::SdoResult> results;
   nmt::EngineRef script_ref(script);
   nmt::EngineRef client_ref(client,

@@ -96,7 +96,7 @@ cfg::DataType parse_type(const std::string& text) {
                               "unicode, domain, tod, td, or a CiA 301 name such as UNSIGNED32");
 }
 
-std::uint8_t parse_node(const std::string& text, std::string_view what = "NODE") {
+cfg::NodeId parse_node(const std::string& text, std::string_view what = "NODE") {
   const auto node = tools::parse_node_id_argument(text);
   if (!node) fail(tools::kExitUsage, tools::node_id_argument_error(what, text));
   return *node;
@@ -222,7 +222,7 @@ std::string json_of(const Outcome& o) {
 
 // --via-manager: the node-ID the tool takes as an SRD must be free; a node that answers an
 // upload of 1000h on its default SDO (CiA 301 §7.2.4.1) holds it. 300 ms is ample on a live bus.
-void require_free_node_id(nmt::SdoSession& session, std::uint8_t own) {
+void require_free_node_id(nmt::SdoSession& session, cfg::NodeId own) {
   nmt::SdoTransferOptions probe;
   probe.timeout = std::chrono::milliseconds(300);
   auto answer = session.upload(0x1000, 0, probe);
@@ -230,7 +230,7 @@ void require_free_node_id(nmt::SdoSession& session, std::uint8_t own) {
   const auto& r = answer.value();
   if (r.ok() || r.aborted_by_server) {
     fail(tools::kExitUsage,
-         "--node-id " + std::to_string(own) + ": node " + std::to_string(own) +
+         "--node-id " + std::to_string(own.value()) + ": node " + std::to_string(own.value()) +
              " answers on the bus (its default SDO " +
              cfg::hex_digits(nmt::sdo::default_cob_ids(own).request.can_id().id, 3) + "h/" +
              cfg::hex_digits(nmt::sdo::default_cob_ids(own).response.can_id().id, 3) +
@@ -238,7 +238,7 @@ void require_free_node_id(nmt::SdoSession& session, std::uint8_t own) {
   }
 }
 
-std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, std::uint8_t node) {
+std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, cfg::NodeId node) {
   if (is_sim_url(o.bus)) {
     fail(tools::kExitUsage, "--bus " + o.bus +
                                 ": the simulated bus has no node to talk to; use the bus the "
@@ -267,9 +267,8 @@ std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, std::uint8
   if (!opened) fail(tools::kExitIo, opened.error().message);
   auto session = std::move(opened).value();
   require_free_node_id(*session, own);
-  // parse_node checked both node-IDs (1..127).
-  nmt::SdoManagerRoute route{.own_node_id = *cfg::NodeId::from(own),
-                             .slave = *cfg::NodeId::from(node),
+  nmt::SdoManagerRoute route{.own_node_id = own,
+                             .slave = node,
                              .manager_timeout = seconds_to_duration(o.manager_timeout_s)};
   // Steps on stderr with -v, or when a person watches (registration may take seconds while
   // the manager scans node-IDs, DSP 302 §7.2.4).
@@ -305,13 +304,14 @@ void finish(const SdoCliOptions& o, const Outcome& outcome) {
 void run_read(const SdoCliOptions& o) {
   Outcome out;
   out.operation = "read";
-  out.node = parse_node(o.node);
+  const cfg::NodeId node = parse_node(o.node);
+  out.node = node;
   out.address = parse_address(o.address);
   out.type = data_type_of(o, out.address);
   if (o.json && (o.raw || !o.output.empty())) {
     fail(tools::kExitUsage, "--json prints the value as JSON; --raw and -o write its bytes");
   }
-  auto session = open_session(o, out.node);
+  auto session = open_session(o, node);
   out.result = transfer_or_exit(
       session->upload(out.address.index, out.address.sub_index, transfer_options(o)));
   out.channel = session->channel();
@@ -342,7 +342,8 @@ void run_read(const SdoCliOptions& o) {
 void run_write(const SdoCliOptions& o) {
   Outcome out;
   out.operation = "write";
-  out.node = parse_node(o.node);
+  const cfg::NodeId node = parse_node(o.node);
+  out.node = node;
   out.address = parse_address(o.address);
   if (o.value.empty() == o.file.empty()) {
     fail(tools::kExitUsage, "give either VALUE or --file FILE");
@@ -368,7 +369,7 @@ void run_write(const SdoCliOptions& o) {
     }
     out.bytes = cfg::encode(*value);
   }
-  auto session = open_session(o, out.node);
+  auto session = open_session(o, node);
   out.result = transfer_or_exit(session->download(
       out.address.index, out.address.sub_index, out.bytes, transfer_options(o, out.bytes.size())));
   out.channel = session->channel();

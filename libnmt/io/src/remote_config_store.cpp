@@ -43,7 +43,7 @@ class RemoteStoreObjects final : public StoreObjects {
 
 cfg::Result<std::unique_ptr<StoreObjects>> open_remote_store(const std::string& url,
                                                              cfg::NodeId master, Duration timeout) {
-  auto session = SdoSession::open(url, SdoClientConfig::for_node(master.value()));
+  auto session = SdoSession::open(url, SdoClientConfig::for_node(master));
   if (!session) return session.error();
   return std::unique_ptr<StoreObjects>(
       std::make_unique<RemoteStoreObjects>(std::move(session).value(), timeout));

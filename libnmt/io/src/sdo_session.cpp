@@ -201,7 +201,8 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   }
   if (const auto to_manager =
           SdoClientConfig::from_dictionary(srd_->node().dictionary(), kManagerClientIndex)) {
-    progress("registered with the SDO manager, node " + std::to_string(to_manager->node_id) + " (" +
+    progress("registered with the SDO manager, node " +
+             (to_manager->node_id ? std::to_string(to_manager->node_id->value()) : "?") + " (" +
              cfg::object_name(kManagerClientIndex) + ", " + cob_ids_text(*to_manager) + ")");
   }
 

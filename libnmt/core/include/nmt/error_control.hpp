@@ -39,6 +39,8 @@ std::optional<ErrorControlMessage> parse_error_control(const CanFrame& frame);
 /// One sub-index of 1016h: node-ID in bits 16-23, heartbeat time in ms in bits 0-15; a node-ID
 /// of 0 or a time of 0 leaves the entry unused (CiA 301 §7.5.2.33).
 struct HeartbeatConsumerEntry {
+  /// The byte as 1016h holds it, raw on purpose: 0 and 128..255 are legal there (unused
+  /// entry); node() is the checked node-ID.
   std::uint8_t node_id = 0;
   std::uint16_t time_ms = 0;
   bool active() const { return cfg::is_node_id(node_id) && time_ms != 0; }

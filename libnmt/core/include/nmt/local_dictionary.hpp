@@ -118,13 +118,12 @@ class LocalDictionary {
   /// sub-object becomes an entry whose value is ParameterValue, else DefaultValue, else zeros
   /// of the type's size (empty for variable-size types), parsed with cfg::parse_value and
   /// $NODEID resolved; LowLimit/HighLimit likewise. Fails with a message naming the entry
-  /// ("object 1017h sub 00h: ...") when a value or limit does not parse, or when node_id is out
-  /// of range.
+  /// ("object 1017h sub 00h: ...") when a value or limit does not parse.
   static cfg::Result<LocalDictionary> from_device(const cfg::DeviceDescription& device,
-                                                  std::uint8_t node_id);
+                                                  cfg::NodeId node_id);
 
-  /// The node-ID the values were resolved for; 0 for a dictionary built empty.
-  std::uint8_t node_id() const { return node_id_ ? node_id_->value() : 0; }
+  /// The node-ID the values were resolved for; nullopt for a dictionary built empty.
+  std::optional<cfg::NodeId> node_id() const { return node_id_; }
   /// The node got another node-ID (LSS, CiA 305): its values are copied in from a dictionary
   /// built for `node_id` by the owner; this only changes what node_id() says (the default SDO
   /// channel of a dictionary without 1200h follows it).

@@ -141,6 +141,14 @@ struct MasterOptions {
   Duration srd_guard_time = std::chrono::milliseconds(500);
   /// Execute LSS (off by default).
   ExecuteLssOptions lss;
+
+  /// The durations checked: every timeout, wait and interval above (lss.timing's too) positive
+  /// (an SDO response timeout of 0 can never be met, SdoClient::check_start refuses it; a retry
+  /// interval of 0 would retry at the same instant without end), boot_up_wait and lss.period
+  /// not negative (0: no wait, no looks). The error names the field
+  /// ("MasterOptions::sdo_timeout must be positive (it is 0 us)"). NmtMaster::create refuses
+  /// options that fail it.
+  cfg::Status validate() const;
 };
 
 }  // namespace nmt

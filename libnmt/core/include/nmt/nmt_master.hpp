@@ -353,7 +353,8 @@ class NmtMaster {
   /// 1F83h for node-IDs 1..127, 102Ah = 0, 1F89h = 0, 1016h with 127 unused entries, 1F26h,
   /// 1F27h, 1F53h, 1F54h, 1F90h = 100, 500, 1, 1500, 10, 4000 + 10 x node-ID ms). Fails with a
   /// message naming the entry when a value does not parse, has reserved bits set, or breaks
-  /// §6.13 (1F90h priority above 2, priority time slot not above 127 x device time slot).
+  /// §6.13 (1F90h priority above 2, priority time slot not above 127 x device time slot), and
+  /// with the error of options.validate() (a timeout that is not positive).
   static cfg::Result<NmtMaster> create(const cfg::DeviceDescription& description,
                                        cfg::NodeId node_id, MasterOptions options = {});
   NmtMaster(NmtMaster&&) noexcept;
@@ -397,7 +398,7 @@ class NmtMaster {
   /// SDO transfers of the application to a slave, on the master's client for that slave (queued
   /// behind the boot's own transfers). Results come as MasterEvent::SdoFinished. Could not start
   /// (engine.hpp rule 5: the error says why, nothing in `out`): `node` is the master itself, or
-  /// SdoClient::check_start refuses (MasterOptions::sdo_timeout not positive, a value over 4 GiB).
+  /// SdoClient::check_start refuses (a value over 4 GiB).
   cfg::Result<TransferId> sdo_upload(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,
                                      TimePoint now, Output& out);
   cfg::Result<TransferId> sdo_download(cfg::NodeId node, std::uint16_t index, std::uint8_t sub,

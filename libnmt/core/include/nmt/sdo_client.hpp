@@ -22,6 +22,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "cfg/cob_id.hpp"
@@ -46,12 +47,14 @@ struct SdoClientConfig {
   cfg::CobId request_cob_id = cfg::CobId::standard(sdo::kDefaultRequestId);
   /// server -> client (1280h sub 2).
   cfg::CobId response_cob_id = cfg::CobId::standard(sdo::kDefaultResponseId);
-  std::uint8_t node_id = 0;  ///< the server's node-ID, for reports (0: unknown)
+  /// The server's node-ID, for reports (SdoResult::node_id); nullopt: unknown.
+  std::optional<cfg::NodeId> node_id;
 
-  static SdoClientConfig for_node(std::uint8_t node_id);
+  static SdoClientConfig for_node(cfg::NodeId node_id);
   /// The channel of client parameter `index` (1280h-12FFh, CiA 301 §7.5.2.34): sub 1 request,
-  /// sub 2 response, sub 3 the server's node-ID (0 when absent). nullopt when `index` is no
-  /// client entry of `dict`, or when either COB-ID is not usable (bit 31 set, ill-formed).
+  /// sub 2 response, sub 3 the server's node-ID (none when absent, 0 or above 127). nullopt when
+  /// `index` is no client entry of `dict`, or when either COB-ID is not usable (bit 31 set,
+  /// ill-formed).
   static std::optional<SdoClientConfig> from_dictionary(const LocalDictionary& dict,
                                                         std::uint16_t index);
 };
@@ -108,8 +111,12 @@ struct SdoResult {
   std::vector<std::uint8_t> data;  ///< upload: the value
   TimePoint started{};             ///< time of the first request frame
   TimePoint finished{};
+  /// Not empty: the transfer never reached the bus, and this says why (SdoClient::check_start's
+  /// words); `abort` is None then, as no abort was sent or received. Only a driver that queues
+  /// transfers before it gives them to the client reports such a result (NmtMaster's boot).
+  std::string refusal;
 
-  bool ok() const { return abort == SdoAbort::None; }
+  bool ok() const { return abort == SdoAbort::None && refusal.empty(); }
 };
 
 /// Client side of one SDO channel (one server). Transfers are queued and run one at a time, in
@@ -261,7 +268,7 @@ class SdoClientMux {
 
   /// The client for `node_id` with the pre-defined COB-IDs, created on first use. The
   /// reference stays valid for the mux's lifetime.
-  SdoClient& client(std::uint8_t node_id);
+  SdoClient& client(cfg::NodeId node_id);
   /// Adds (or returns the existing) client for a channel with other COB-IDs, keyed by its
   /// response identifier.
   SdoClient& add(SdoClientConfig config);

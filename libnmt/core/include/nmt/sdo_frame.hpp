@@ -21,6 +21,7 @@
 #include <variant>
 
 #include "cfg/cob_id.hpp"
+#include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/sdo_abort.hpp"
@@ -46,9 +47,9 @@ struct DefaultCobIds {
   cfg::CobId request;   ///< client to server, 600h + n
   cfg::CobId response;  ///< server to client, 580h + n
 };
-constexpr DefaultCobIds default_cob_ids(std::uint8_t node_id) {
-  return {cfg::CobId::standard(kDefaultRequestId + node_id),
-          cfg::CobId::standard(kDefaultResponseId + node_id)};
+constexpr DefaultCobIds default_cob_ids(cfg::NodeId node_id) {
+  return {cfg::CobId::standard(kDefaultRequestId + node_id.value()),
+          cfg::CobId::standard(kDefaultResponseId + node_id.value())};
 }
 
 /// Data bytes in one segment (segmented and block transfer).

@@ -60,7 +60,7 @@ struct SdoServerConfig {
   std::size_t max_download_size = std::size_t{16} << 20;
 
   /// The pre-defined connection set: 0x600 + node_id / 0x580 + node_id.
-  static SdoServerConfig for_node(std::uint8_t node_id);
+  static SdoServerConfig for_node(cfg::NodeId node_id);
   /// COB-IDs from 1200h sub 1/2 of the dictionary when both are present and usable (bit 31
   /// clear, well formed), else the pre-defined ones for the dictionary's node-ID.
   static SdoServerConfig from_dictionary(const LocalDictionary& dict);

@@ -263,7 +263,7 @@ class SlaveNode {
   void program_state_changed(std::uint8_t program, ProgramState state);
   void report_program_version(const cfg::ProgramVersion& version);
   bool on_lss_frame(const CanFrame& frame, TimePoint now, Output& out);
-  void take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now, Output& out);
+  void take_node_id(cfg::NodeId node_id, ResetScope scope, TimePoint now, Output& out);
   void become_unconfigured(TimePoint now);
 
   cfg::DeviceDescription description_;

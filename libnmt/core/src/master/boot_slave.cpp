@@ -24,7 +24,8 @@ std::uint32_t uploaded_u32(const SdoResult& result) {
 
 std::string transfer_failure(const SdoResult& result) {
   return cfg::to_string(result.address) + (result.upload ? " upload" : " download") +
-         " failed: " + to_string(result.abort);
+         (result.refusal.empty() ? " failed: " + to_string(result.abort)
+                                 : " could not start: " + result.refusal);
 }
 
 BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& options) {

@@ -46,7 +46,7 @@ SdoClient::TransferId NmtMaster::Impl::start_transfer(cfg::NodeId node, MasterTr
                                                       TimePoint now) {
   // DSP 302 §7.1: the manager "manages all SDO connections"; a default SDO it gave to an SRD is
   // the SRD's until released, and a second client on it would collide with the SRD's.
-  if (!transfer.for_manager && sdo_manager.default_sdo_given_out(*cfg::NodeId::from(node))) {
+  if (!transfer.for_manager && sdo_manager.default_sdo_given_out(node)) {
     held.emplace_back(node, std::move(transfer));
     return 0;
   }
@@ -71,19 +71,18 @@ SdoClient::TransferId NmtMaster::Impl::launch_transfer(cfg::NodeId node, MasterT
                       ? client.upload(index, sub, now, sdo_out, transfer.options)
                       : client.download(index, sub, transfer.data, now, sdo_out, transfer.options);
   if (!id) {
-    // A boot or manager transfer the client refuses (SdoClient::check_start: a timeout that is
-    // not positive, a program longer than 4 GiB; application transfers were checked before it
-    // was queued). It ends at once as the client ended it before rule 5 (abort 0504 0000, or
-    // 0504 0005 for the length), so its process sees the failure when settle dispatches it.
+    // A boot or manager transfer the client refuses (SdoClient::check_start: after
+    // MasterOptions::validate only a download longer than 4 GiB; application transfers were
+    // checked before they were queued). It ends at once with the client's words, and its
+    // process sees the failure when settle dispatches it; no abort code, as none was on the bus.
     SdoResult r;
     r.id = next_refused_id--;
-    r.node_id = cfg::NodeId::from(node);
+    r.node_id = node;
     r.address = transfer.object;
     r.upload = transfer.upload;
-    r.abort =
-        transfer.options.timeout <= Duration::zero() ? SdoAbort::Timeout : SdoAbort::OutOfMemory;
     r.started = now;
     r.finished = now;
+    r.refusal = id.error().message;
     transfers[{node, r.id}] = std::move(transfer);
     results.push_back(std::move(r));
     return 0;
@@ -122,7 +121,7 @@ void NmtMaster::Impl::pump_transfers(TimePoint now) {
 
 void NmtMaster::Impl::release_held(TimePoint now) {
   for (std::size_t i = 0; i < held.size();) {
-    if (sdo_manager.default_sdo_given_out(*cfg::NodeId::from(held[i].first))) {
+    if (sdo_manager.default_sdo_given_out(held[i].first)) {
       ++i;
       continue;
     }

@@ -56,6 +56,7 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
 
 cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& description,
                                          cfg::NodeId node_id, MasterOptions options) {
+  if (auto valid = options.validate(); !valid) return valid.error();
   auto dict = LocalDictionary::from_device(description, node_id);
   if (!dict) return dict.error();
   Impl::add_missing_objects(dict.value());

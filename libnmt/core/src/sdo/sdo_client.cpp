@@ -12,7 +12,7 @@
 
 namespace nmt {
 
-SdoClientConfig SdoClientConfig::for_node(std::uint8_t node_id) {
+SdoClientConfig SdoClientConfig::for_node(cfg::NodeId node_id) {
   SdoClientConfig c;
   const auto cob_ids = sdo::default_cob_ids(node_id);
   c.request_cob_id = cob_ids.request;
@@ -32,7 +32,7 @@ std::optional<SdoClientConfig> SdoClientConfig::from_dictionary(const LocalDicti
   SdoClientConfig c;
   c.request_cob_id = *request;
   c.response_cob_id = *response;
-  c.node_id = static_cast<std::uint8_t>(dict.get_unsigned(index, 3).value_or(0));
+  c.node_id = cfg::NodeId::from(dict.get_unsigned(index, 3).value_or(0));
   return c;
 }
 
@@ -134,7 +134,7 @@ void SdoClient::sync_mux_deadline() {
 SdoResult SdoClient::result_of(const Transfer& t, SdoAbort code) const {
   SdoResult r;
   r.id = t.id;
-  r.node_id = cfg::NodeId::from(config_.node_id);
+  r.node_id = config_.node_id;
   r.address = {t.index, t.sub};
   r.upload = t.upload;
   r.abort = code;
@@ -505,7 +505,7 @@ void SdoClient::block_upload_segment(Transfer& t, const sdo::BlockSegment& f, Ti
 
 // ===================================================================================== mux ==
 
-SdoClient& SdoClientMux::client(std::uint8_t node_id) {
+SdoClient& SdoClientMux::client(cfg::NodeId node_id) {
   return add(SdoClientConfig::for_node(node_id));
 }
 

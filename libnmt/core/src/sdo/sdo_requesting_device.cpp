@@ -301,9 +301,9 @@ void SdoRequestingDevice::on_state_written(DynamicSdoState state, TimePoint now,
         report({.kind = SrdEvent::Kind::Registered,
                 .at = now,
                 .client_index = index,
-                .slave_node_id = cfg::NodeId::from(config->node_id),
+                .slave_node_id = config->node_id,
                 .state = state,
-                .text = "registered at the SDO manager (node " + std::to_string(config->node_id) +
+                .text = "registered at the SDO manager (node " + node_number(config->node_id) +
                         ") on " + cfg::object_name(index) +
                         (options_.request_error_control
                              ? (state.request_error_control ? ", error control of slaves granted"
@@ -356,7 +356,7 @@ void SdoRequestingDevice::on_state_written(DynamicSdoState state, TimePoint now,
       return;
     }
     channels_[p.client_index] = Channel{std::make_unique<SdoClient>(*config), {}};
-    const auto server = cfg::NodeId::from(config->node_id);  // sub 3 of the entry (0: not given)
+    const auto server = config->node_id;  // sub 3 of the entry (0: not given)
     report({.kind = SrdEvent::Kind::Connected,
             .at = now,
             .client_index = p.client_index,
@@ -389,14 +389,14 @@ void SdoRequestingDevice::on_client_entry_written(std::uint16_t client_index, Ti
     return;
   }
   if (channels_.contains(client_index)) {
-    const std::uint8_t slave = channels_.at(client_index).client->config().node_id;
+    const auto slave = channels_.at(client_index).client->config().node_id;
     drop_channel(client_index, now, out);
     report({.kind = SrdEvent::Kind::ConnectionReleased,
             .at = now,
             .client_index = client_index,
-            .slave_node_id = cfg::NodeId::from(slave),
+            .slave_node_id = slave,
             .text = "the SDO manager released " + cfg::object_name(client_index) +
-                    " (connection to node " + std::to_string(slave) + ")"},
+                    " (connection to node " + node_number(slave) + ")"},
            out);
   }
 }
@@ -441,12 +441,12 @@ void SdoRequestingDevice::forget_registration(TimePoint now, Output& out) {
   std::vector<std::uint32_t> keys;
   for (const auto& [key, channel] : channels_) keys.push_back(key);
   for (auto key : keys) {
-    const std::uint8_t slave = channels_.at(key).client->config().node_id;
+    const auto slave = channels_.at(key).client->config().node_id;
     drop_channel(key, now, out);
     report({.kind = SrdEvent::Kind::ConnectionReleased,
             .at = now,
             .client_index = client_index_of(key),
-            .slave_node_id = cfg::NodeId::from(slave),
+            .slave_node_id = slave,
             .text = entry_name(key) + " released with the registration"},
            out);
   }

@@ -9,7 +9,7 @@
 
 namespace nmt {
 
-SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
+SdoServerConfig SdoServerConfig::for_node(cfg::NodeId node_id) {
   SdoServerConfig c;
   const auto cob_ids = sdo::default_cob_ids(node_id);
   c.request_cob_id = cob_ids.request;
@@ -18,7 +18,8 @@ SdoServerConfig SdoServerConfig::for_node(std::uint8_t node_id) {
 }
 
 SdoServerConfig SdoServerConfig::from_dictionary(const LocalDictionary& dict) {
-  auto c = for_node(dict.node_id());
+  // A dictionary built empty has no node-ID: 600h/580h, as SdoServerConfig{} has them.
+  auto c = dict.node_id() ? for_node(*dict.node_id()) : SdoServerConfig{};
   // CiA 301 object 1200h sub 1/2: the COB-IDs of the default SDO server channel.
   auto cob = [&](std::uint8_t sub) -> std::optional<cfg::CobId> {
     const auto id = dict.get_cob_id(cfg::object::kSdoServerFirst, sub);

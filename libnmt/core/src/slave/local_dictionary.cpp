@@ -7,11 +7,11 @@
 namespace nmt {
 
 cfg::Result<LocalDictionary> LocalDictionary::from_device(const cfg::DeviceDescription& device,
-                                                          std::uint8_t node_id) {
+                                                          cfg::NodeId node_id) {
   auto entries = cfg::device_entries(device, node_id);
   if (!entries) return entries.error();
   LocalDictionary dict;
-  dict.node_id_ = cfg::NodeId::from(node_id);
+  dict.node_id_ = node_id;
   dict.entries_ = std::move(entries).value();
   return dict;
 }

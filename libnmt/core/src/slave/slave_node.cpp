@@ -229,7 +229,10 @@ void SlaveNode::power_on(TimePoint now, Output& out) {
     }
     unconfigured_ = false;
     if (id != nmt_.node_id()) {
-      take_node_id(id, ResetScope::Application, now, out);
+      // LssSlave holds 1..127 or FFh (handled above); another byte is not taken.
+      if (const auto node = cfg::NodeId::from(id)) {
+        take_node_id(*node, ResetScope::Application, now, out);
+      }
       return;
     }
   }
@@ -245,18 +248,16 @@ void SlaveNode::become_unconfigured(TimePoint now) {
   boot_at_.reset();
 }
 
-void SlaveNode::take_node_id(std::uint8_t node_id, ResetScope scope, TimePoint now, Output& out) {
-  const auto id = cfg::NodeId::from(node_id);
-  auto factory = id ? device_dictionary(description_, *id)
-                    : cfg::Result<LocalDictionary>(cfg::Error{"no node-ID"});
+void SlaveNode::take_node_id(cfg::NodeId id, ResetScope scope, TimePoint now, Output& out) {
+  auto factory = device_dictionary(description_, id);
   if (!factory) return;  // the file built a dictionary before: not for another node-ID only
   // $NODEID values (COB-IDs) of the new node-ID; stored values keep what was stored.
   factory_ = std::move(factory).value();
-  dict_.set_node_id(*id);  // the default SDO channel (600h/580h + node-ID) follows
-  nmt_ = NmtSlave(*id);
+  dict_.set_node_id(id);  // the default SDO channel (600h/580h + node-ID) follows
+  nmt_ = NmtSlave(id);
   unconfigured_ = false;
   lss_->activate_pending_node_id();
-  emit(out, SlaveEvent::Kind::Lss, now, "LSS: node-ID " + std::to_string(node_id));
+  emit(out, SlaveEvent::Kind::Lss, now, "LSS: node-ID " + std::to_string(id.value()));
   enter_initialisation(scope, now);
 }
 
@@ -273,7 +274,9 @@ bool SlaveNode::on_lss_frame(const CanFrame& frame, TimePoint now, Output& out) 
     }
     // CiA 305 (CANopenNode): a device without node-ID starts with the one it got.
     if (e.kind == LssSlaveEvent::Kind::NodeIdActivate && unconfigured_) {
-      take_node_id(e.node_id, ResetScope::Application, now, out);
+      if (const auto node = cfg::NodeId::from(e.node_id)) {
+        take_node_id(*node, ResetScope::Application, now, out);
+      }
     }
   }
   return taken;
@@ -395,7 +398,9 @@ void SlaveNode::apply_nmt(const NmtTransition& t, TimePoint now, Output& out) {
       become_unconfigured(now);
       return;
     }
-    take_node_id(lss_->pending_node_id(), *t.reset, now, out);
+    if (const auto node = cfg::NodeId::from(lss_->pending_node_id())) {
+      take_node_id(*node, *t.reset, now, out);
+    }
     return;
   }
   enter_initialisation(*t.reset, now);

@@ -1,0 +1,49 @@
+// MasterOptions::validate: the durations the master's processes need, checked once when the
+// master is built, so that no process meets a timeout it cannot use.
+#include <array>
+#include <string>
+#include <utility>
+
+#include "nmt/master_options.hpp"
+
+namespace nmt {
+
+namespace {
+
+using Named = std::pair<const char*, Duration>;
+
+cfg::Status below(const Named& option, const char* bound) {
+  return cfg::Error{std::string("MasterOptions::") + option.first + " must be " + bound +
+                    " (it is " + std::to_string(option.second.count()) + " us)"};
+}
+
+}  // namespace
+
+cfg::Status MasterOptions::validate() const {
+  const std::array<Named, 11> positive{{
+      {"sdo_timeout", sdo_timeout},
+      {"retry_interval", retry_interval},
+      {"reboot_timeout", reboot_timeout},
+      {"program_control_timeout", program_control_timeout},
+      {"program_clear_timeout", program_clear_timeout},
+      {"program_data_timeout", program_data_timeout},
+      {"guarding_reply_timeout", guarding_reply_timeout},
+      {"sdo_manager_scan_timeout", sdo_manager_scan_timeout},
+      {"srd_guard_time", srd_guard_time},
+      {"lss.timing.timeout", lss.timing.timeout},
+      {"lss.timing.scan_step", lss.timing.scan_step},
+  }};
+  for (const auto& option : positive) {
+    if (option.second <= Duration::zero()) return below(option, "positive");
+  }
+  const std::array<Named, 2> not_negative{{
+      {"boot_up_wait", boot_up_wait},  // 0: no wait for boot-ups
+      {"lss.period", lss.period},      // 0: no looks for unconfigured devices
+  }};
+  for (const auto& option : not_negative) {
+    if (option.second < Duration::zero()) return below(option, "0 or more");
+  }
+  return {};
+}
+
+}  // namespace nmt
