@@ -848,7 +848,7 @@ TEST(FlyingMasterSpec, TakeoverKeepsKeepAliveSlaveAndSkipsMatchingDownload_3_1_d
   EXPECT_GE(rig.count("000#8202", killed), 1U);
   EXPECT_TRUE(rig.downloads_of(2, 0x2000, 0, killed).empty());
   EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
-  EXPECT_EQ(rig.master(6).known_state(id(3)), 0x05);
+  EXPECT_EQ(rig.master(6).known_state(id(3)), KnownState::in(NmtState::Operational));
 }
 
 // §5.5.1: "When two or more NMT master become active at the same time this shall be detected by

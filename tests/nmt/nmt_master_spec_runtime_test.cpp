@@ -52,7 +52,7 @@ TEST(NmtMasterSpec, HeartbeatLossOfOptionalSlaveRestartsItsBoot) {
   ASSERT_EQ(lost.size(), 1U);
   EXPECT_GE(lost[0].at - stopped, 150ms);
   EXPECT_LE(lost[0].at - stopped, 300ms);
-  EXPECT_EQ(rig.engine().known_state(id(3)), 0x01);
+  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::missing());
 
   rig.run_for(2s);
   EXPECT_FALSE(rig.uploads_of(3, 0x1000, 0, lost[0].at).empty()) << "boot not restarted";
@@ -161,7 +161,7 @@ TEST(NmtMasterSpec, GuardingEveryGuardTimeAndGuardingLossRestartsTheBoot) {
     EXPECT_LE(rtr[i].at - rtr[i - 1].at, 105ms);
   }
   EXPECT_TRUE(rig.events_of(Kind::GuardingLost, 3).empty());
-  EXPECT_EQ(rig.engine().known_state(id(3)), static_cast<std::uint8_t>(NmtState::Operational));
+  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::in(NmtState::Operational));
 
   const TimePoint silent = rig.bus.now();
   rig.set_faults(3, fault([](DeviceFaults& f) { f.ignore_guarding = true; }));
@@ -326,7 +326,7 @@ TEST(NmtMasterSpec, RequestNmtExcludingTheRequesterFromTheApplication) {
   auto& rig = net.rig;
   const TimePoint from = rig.bus.now();
   const SdoAbort code = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(0x80, 0x84, now, out, id(3));
+    return m.request_nmt(0x80, NmtRequest::StopExcluding, now, out, id(3));
   });
   EXPECT_EQ(code, SdoAbort::None);
   rig.run_for(2s);
@@ -440,7 +440,7 @@ TEST(NmtMasterSpec, RequestNmtReadsTheStateTheHeartbeatReports) {
   rig.run_for(300ms);
   ASSERT_EQ(rig.slave(3).node().state(), NmtState::Stopped);
   EXPECT_EQ(rig.tool_read_u(0x1F82, 3), 0x04U);
-  EXPECT_EQ(rig.engine().known_state(id(3)), 0x04);
+  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::in(NmtState::Stopped));
 }
 
 // Table 30: sub-index 80h "All nodes", access wo: a read is refused (CiA 301 abort 0601 0001).
@@ -457,18 +457,39 @@ TEST(NmtMasterSpec, RequestNmtReadsMissingForAbsentSlaveAndUnknownForOthers) {
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
   EXPECT_EQ(rig.tool_read_u(0x1F82, 3), 0x01U);
   EXPECT_EQ(rig.tool_read_u(0x1F82, 9), 0x00U);
-  EXPECT_EQ(rig.engine().known_state(id(3)), 0x01);
-  EXPECT_EQ(rig.engine().known_state(id(9)), 0x00);
+  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::missing());
+  EXPECT_EQ(rig.engine().known_state(id(9)), KnownState::unknown());
 }
 
-// The application's request goes through the same checks (header: request_nmt returns the abort
-// an SDO write gets).
-TEST(NmtMasterSpec, RequestNmtFromTheApplicationAbortsReservedValues) {
-  Operational net;
-  auto code = net.rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(3, 0x02, now, out);
-  });
-  EXPECT_TRUE(is_value_abort(code)) << code;
+// The application's request is typed (NmtRequest): a reserved value of Table 28 has no request,
+// so it is refused where the byte enters (an SDO write of it aborts, test above).
+TEST(NmtMasterSpec, RequestNmtValuesAreThoseOfTable28) {
+  for (unsigned byte = 0; byte <= 0xFF; ++byte) {
+    const auto request = nmt_request_from_byte(static_cast<std::uint8_t>(byte));
+    const bool defined = (byte >= 0x04 && byte <= 0x07) || byte == 0x7F ||
+                         (byte >= 0x84 && byte <= 0x87) || byte == 0x8F;
+    ASSERT_EQ(request.has_value(), defined) << byte;
+    if (defined) {
+      EXPECT_EQ(static_cast<unsigned>(*request), byte);
+    }
+  }
+  EXPECT_EQ(nmt_command_of(NmtRequest::EnterPreOperationalExcluding),
+            NmtCommand::EnterPreOperational);
+  EXPECT_TRUE(excludes_master_and_requester(NmtRequest::ResetNodeExcluding));
+  EXPECT_FALSE(excludes_master_and_requester(NmtRequest::ResetNode));
+}
+
+// Table 28 on upload: 00h unknown, 01h missing, else the state; the byte and KnownState convert
+// both ways.
+TEST(NmtMasterSpec, KnownStateIsTheByteOfTable28OnUpload) {
+  EXPECT_EQ(KnownState::from_byte(0x00), KnownState::unknown());
+  EXPECT_EQ(KnownState::from_byte(0x01), KnownState::missing());
+  EXPECT_EQ(KnownState::from_byte(0x04), KnownState::in(NmtState::Stopped));
+  EXPECT_EQ(KnownState::from_byte(0x05), KnownState::in(NmtState::Operational));
+  EXPECT_EQ(KnownState::from_byte(0x7F), KnownState::in(NmtState::PreOperational));
+  for (const unsigned byte : {0x00U, 0x01U, 0x04U, 0x05U, 0x7FU}) {
+    EXPECT_EQ(KnownState::from_byte(static_cast<std::uint8_t>(byte)).to_byte(), byte);
+  }
 }
 
 // ---------------------------------------------------- 1F83h request node guarding (§6.5) --------

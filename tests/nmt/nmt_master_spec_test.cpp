@@ -1264,7 +1264,7 @@ TEST(NmtMasterSpec, HeartbeatConfiguredByTheDownloadPassesStartErrorControl) {
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   rig.run_for(1s);
   EXPECT_TRUE(rig.boot_errors(3).empty());
-  EXPECT_EQ(rig.engine().known_state(id(3)), static_cast<std::uint8_t>(NmtState::Operational));
+  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::in(NmtState::Operational));
 }
 
 // Header (MasterOptions::application_step): the boot waits for configuration_done(); false ends

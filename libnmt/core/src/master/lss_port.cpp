@@ -54,7 +54,7 @@ std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
   for (const bool running : {false, true}) {
     for (unsigned node = cfg::kMinNodeId; node <= cfg::kMaxNodeId; ++node) {
       const auto n = static_cast<std::uint8_t>(node);
-      if (!m.is_slave(n) || (m.slaves[n].known_state > 1) != running) continue;
+      if (!m.is_slave(n) || m.slaves[n].known_state.nmt_state().has_value() != running) continue;
       if (const auto address = m.lss_address_of(n)) known.push_back(*address);
     }
   }

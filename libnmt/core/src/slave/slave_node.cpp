@@ -464,7 +464,10 @@ void SlaveNode::set_error_register(std::uint8_t value) {
 void SlaveNode::send_emcy(const Emergency& emcy, TimePoint now, Output& out) {
   sync_parts();
   EmcyProducer::Output emcy_out;
-  emcy_.raise(emcy, now, emcy_out);
+  // Not sent is what CiA 301 asks of a node whose state forbids EMCY (or whose 1014h is
+  // invalid, or whose queue is full): the producer counts it (EmcyProducer::dropped()); the
+  // node's error register and 1003h keep the error either way.
+  (void)emcy_.raise(emcy, now, emcy_out);
   forward_frames(emcy_out, out);
 }
 
