@@ -110,15 +110,18 @@ int main() {
   });
   master.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.start(now, out); });
   bus.run_for(3s);
-  // Request NMT (1F82h, CiA 302-2 Table 28): 04h stops node 2.
-  master.apply(
-      [](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.request_nmt(2, 0x04, now, out); });
+  // Request NMT (1F82h, CiA 302-2 Table 28): stop node 2.
+  master.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) {
+    m.request_nmt(2, nmt::NmtRequest::Stop, now, out);
+  });
   bus.run_for(500ms);
 
   const nmt::NmtMaster& m = master.engine();
   const auto error3 = m.last_error(node(3));
   std::cout << "start-up " << nmt::to_string(m.startup_state()) << "; node 2 state "
-            << cfg::hex(m.known_state(node(2)), 2) << "; node 3 boot error "
+            << cfg::hex(m.known_state(node(2)).to_byte(), 2) << "; node 3 boot error "
             << (error3 ? nmt::letter(*error3) : '-') << "\n";
-  return m.known_state(node(2)) == 0x04 && error3 == nmt::BootError::D ? 0 : 1;
+  return m.known_state(node(2)).nmt_state() == nmt::NmtState::Stopped && error3 == nmt::BootError::D
+             ? 0
+             : 1;
 }

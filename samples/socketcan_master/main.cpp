@@ -60,12 +60,12 @@ std::optional<std::uint64_t> number(const std::string& word) {
 }
 
 // 1F82h values (CiA 302-2 Table 28).
-std::optional<std::uint8_t> request_value(const std::string& word) {
-  if (word == "stop") return 0x04;
-  if (word == "start") return 0x05;
-  if (word == "reset") return 0x06;
-  if (word == "resetcomm") return 0x07;
-  if (word == "preop") return 0x7F;
+std::optional<nmt::NmtRequest> request_value(const std::string& word) {
+  if (word == "stop") return nmt::NmtRequest::Stop;
+  if (word == "start") return nmt::NmtRequest::Start;
+  if (word == "reset") return nmt::NmtRequest::ResetNode;
+  if (word == "resetcomm") return nmt::NmtRequest::ResetCommunication;
+  if (word == "preop") return nmt::NmtRequest::EnterPreOperational;
   return std::nullopt;
 }
 
@@ -84,8 +84,8 @@ void command(const std::string& line, Master& master, nmt::BusEventLoop& loop) {
       std::string text = "start-up " + std::string(nmt::to_string(m.startup_state()));
       for (unsigned n = 1; n <= 127; ++n) {
         const auto node = cfg::NodeId::from(n).value();
-        if (m.known_state(node) != 0) {
-          text += "; node " + std::to_string(n) + " " + cfg::hex(m.known_state(node), 2);
+        if (const auto known = m.known_state(node); known != nmt::KnownState::unknown()) {
+          text += "; node " + std::to_string(n) + " " + cfg::hex(known.to_byte(), 2);
         }
       }
       print(text);

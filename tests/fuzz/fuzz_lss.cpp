@@ -63,7 +63,7 @@ void start_service(LssHarness& h, Input& in) {
       started = h.master.fastscan(h.now, out);
       break;
     case 10:
-      started = h.master.fastscan(h.now, out, lss_fuzz::address_from(in));
+      started = h.master.fastscan(lss_fuzz::address_from(in), h.now, out);
       break;
     default: {
       const std::uint8_t pick = in.next();

@@ -515,7 +515,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           h.m().enter_operational(h.now, master_out);
           break;
         case 2:
-          h.m().request_nmt(k, in.next(), h.now, master_out);
+          // Reserved bytes end where bytes enter (nmt_request_from_byte); 1F82h writes of the
+          // fuzzed SDO frames reach them.
+          if (const auto request = nmt::nmt_request_from_byte(in.next())) {
+            h.m().request_nmt(k, *request, h.now, master_out);
+          }
           break;
         case 3:
           h.m().request_guarding(k, (op & 8) != 0, h.now, master_out);

@@ -211,7 +211,7 @@ TEST(UdpBus, MasterBootsPythonCanSlaves) {
     const std::string operational = cfg::hex_digits(0x700U + node, 3) + "#05";
     EXPECT_NE(std::find(received.begin(), received.end(), operational), received.end());
     EXPECT_EQ(master.known_state(cfg::NodeId::from(node).value()),
-              static_cast<std::uint8_t>(NmtState::Operational));
+              KnownState::in(NmtState::Operational));
     const auto booted = std::find_if(events.begin(), events.end(), [&](const MasterEvent& e) {
       return e.kind == MasterEvent::Kind::SlaveBooted && e.node_id == node;
     });

@@ -49,7 +49,7 @@ class FakePort final : public BootSlavePort {
  public:
   BootSlaveExpectations expect;
   std::optional<Duration> heartbeat;  ///< 1016h for the node
-  std::uint8_t state = 0;             ///< 1F82h
+  KnownState state{};                 ///< 1F82h
   std::optional<TimePoint> heard;
   std::optional<std::vector<cfg::ObjectWrite>> writes;
   std::optional<std::vector<std::uint8_t>> image;
@@ -89,7 +89,7 @@ class FakePort final : public BootSlavePort {
   }
   BootSlaveExpectations expectations(cfg::NodeId) const override { return expect; }
   std::optional<Duration> heartbeat_time(cfg::NodeId) const override { return heartbeat; }
-  std::uint8_t known_state(cfg::NodeId) const override { return state; }
+  KnownState known_state(cfg::NodeId) const override { return state; }
   std::optional<TimePoint> last_heartbeat(cfg::NodeId) const override { return heard; }
   std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId) const override {
     return writes;
@@ -465,7 +465,7 @@ TEST(BootSlave, SlaveWithoutBit2IsLeftToTheApplication) {
   EXPECT_TRUE(rig.port.accesses.empty());
   EXPECT_EQ(rig.process.step(), BootStep::Idle);
 
-  rig.process.start(rig.now, rig.out, /*asked_by_application=*/true);
+  rig.process.start(BootSlaveProcess::AskedBy::Application, rig.now, rig.out);
   ASSERT_EQ(rig.port.accesses.size(), 1U);
   expect_access(rig.last(), 0x1000, 0, true);
 }

@@ -17,11 +17,20 @@ cfg::CobId cob(std::uint32_t word) {
   return cfg::CobId::from_word(word);
 }
 
-// Raises one emergency; the frames it sent at once (the producer reports no events).
+// Raises one emergency that starts (sent or queued); the frames it sent at once (the producer
+// reports no events).
 std::vector<CanFrame> raise(EmcyProducer& p, const Emergency& e, TimePoint now) {
   EmcyProducer::Output out;
-  p.raise(e, now, out);
+  const auto started = p.raise(e, now, out);
+  EXPECT_TRUE(started.ok()) << started.error().message;
   return out.frames;
+}
+// Raises one emergency the producer refuses (engine.hpp rule 5): why, and nothing in `out`.
+std::string refusal(EmcyProducer& p, const Emergency& e, TimePoint now) {
+  EmcyProducer::Output out;
+  const auto started = p.raise(e, now, out);
+  EXPECT_TRUE(out.frames.empty());
+  return started.ok() ? std::string("started") : started.error().message;
 }
 std::vector<CanFrame> timer(EmcyProducer& p, TimePoint now) {
   EmcyProducer::Output out;
@@ -70,18 +79,24 @@ TEST(EmcyProducer, InhibitTimeDelaysTheNextMessage) {
 TEST(EmcyProducer, NothingIsSentInStoppedOrWithInvalidCobId) {
   EmcyProducer p(cob(0x81));
   p.set_allowed(false);  // stopped
-  EXPECT_TRUE(raise(p, kLifeGuard, at_ms(0)).empty());
+  EXPECT_EQ(refusal(p, kLifeGuard, at_ms(0)),
+            "EMCY 8130h not sent: the NMT state does not allow EMCY");
   p.set_allowed(true);
   p.set_cob_id(cob(0x80000081u));  // CiA 301 §7.5.2.14: bit 31 set, EMCY does not exist
-  EXPECT_TRUE(raise(p, kLifeGuard, at_ms(0)).empty());
+  EXPECT_EQ(refusal(p, kLifeGuard, at_ms(0)),
+            "EMCY 8130h not sent: the EMCY COB-ID (1014h) is invalid");
   EXPECT_EQ(p.dropped(), 2u);
 }
 
 TEST(EmcyProducer, QueueIsBounded) {
   EmcyProducer p(cob(0x81), 10'000);
-  (void)raise(p, kLifeGuard, at_ms(0));
-  for (std::size_t i = 0; i < EmcyProducer::kQueueCapacity + 3; ++i) {
-    (void)raise(p, kLifeGuard, at_ms(0));
+  ASSERT_EQ(raise(p, kLifeGuard, at_ms(0)).size(), 1u);  // sent; the inhibit time runs
+  for (std::size_t i = 0; i < EmcyProducer::kQueueCapacity; ++i) {
+    EXPECT_TRUE(raise(p, kLifeGuard, at_ms(0)).empty());  // queued: started
+  }
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(refusal(p, kLifeGuard, at_ms(0)),
+              "EMCY 8130h not sent: 16 messages already wait for the inhibit time (1015h)");
   }
   EXPECT_EQ(p.dropped(), 3u);
 }

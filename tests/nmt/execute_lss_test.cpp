@@ -665,7 +665,7 @@ TEST_F(MasterLss, ConfiguredNetworkCostsTwoLssFramesAndOneStep) {
   frames.clear();
   events.clear();
   master->apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(kMasterId, 0x06, now, out) == SdoAbort::None;  // reset node (Table 28)
+    return m.request_nmt(kMasterId, NmtRequest::ResetNode, now, out) == SdoAbort::None;
   });
   bus.run_for(8s);
   EXPECT_TRUE(of_kind(Kind::LssAssigned).empty());

@@ -469,16 +469,16 @@ TEST_F(LssBus, FastscanAfterAnAddressFindsTheNextHigherOne) {
   add(high);
   add(low);
   add(mid);
-  start([&](auto& m, auto t, auto& o) { return m.fastscan(t, o, low); });
+  start([&](auto& m, auto t, auto& o) { return m.fastscan(low, t, o); });
   run_until_done();
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].address, mid);
   start([](auto& m, auto t, auto& o) { return m.switch_state_global(LssState::Waiting, t, o); });
-  start([&](auto& m, auto t, auto& o) { return m.fastscan(t, o, mid); });
+  start([&](auto& m, auto t, auto& o) { return m.fastscan(mid, t, o); });
   run_until_done();
   EXPECT_EQ(events.back().address, high);
   start([](auto& m, auto t, auto& o) { return m.switch_state_global(LssState::Waiting, t, o); });
-  start([&](auto& m, auto t, auto& o) { return m.fastscan(t, o, high); });
+  start([&](auto& m, auto t, auto& o) { return m.fastscan(high, t, o); });
   run_until_done();
   EXPECT_EQ(events.back().kind, Kind::NotFound);
 }

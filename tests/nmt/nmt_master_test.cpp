@@ -145,7 +145,12 @@ TEST(NmtMaster, BootsConfiguresAndStartsMandatorySlaves) {
     EXPECT_EQ(d.node().dictionary().get_unsigned(0x2000, 0), 25U);
     EXPECT_EQ(d.node().dictionary().get_unsigned(0x1020, 1), 15000U);
     EXPECT_EQ(d.node().dictionary().get_unsigned(0x1020, 2), 3600000U);
-    EXPECT_FALSE(d.node().stored().empty());  // 1010h 'save'
+    // 1010h 'save' after 1020h was written (DSP 302 §6: date and time first, then "save"): the
+    // configuration and the verify configuration are what the device keeps.
+    const auto& stored = d.node().stored();
+    EXPECT_EQ(stored.at(LocalDictionary::key(0x2000, 0)), le(25, 2));
+    EXPECT_EQ(stored.at(LocalDictionary::key(0x1020, 1)), le(15000, 4));
+    EXPECT_EQ(stored.at(LocalDictionary::key(0x1020, 2)), le(3600000, 4));
     EXPECT_EQ(rig.master().boot_step(*cfg::NodeId::from(node)), BootStep::Booted);
   }
   const auto booted = rig.of_kind(MasterEvent::Kind::SlaveBooted);

@@ -106,7 +106,8 @@ TEST_F(SdoManagerEngine, NoFreeServerChannelOnTheSlaveIsReportedIn1F10hWithError
   run();
   EXPECT_EQ(at(110, 0x1F10, 0), 0x12820300U);
   ASSERT_EQ(events_of(Kind::SdoConnectionRefused, 110).size(), 1U);
-  EXPECT_EQ(events_of(Kind::SdoConnectionRefused, 110).back().connection_error, 0x03);
+  EXPECT_EQ(events_of(Kind::SdoConnectionRefused, 110).back().connection_error,
+            cfg::sdo_manager::DynamicSdoError::kNoFreeServerOnSlave);
   EXPECT_EQ(at(110, 0x1282, 1) & kInvalid, kInvalid);
   EXPECT_EQ(own(0x1F02, 5), 0x684U);  // the pool entries it would have taken stay free
 }
@@ -228,7 +229,8 @@ TEST_F(SdoManagerEngine, AllDefaultSdosAreNotGrantedWhileOneIsHeld) {
   EXPECT_FALSE(register_srd(127, 0x00000003));
   EXPECT_EQ(at(127, 0x1F10, 0), 0x00000000U);
   ASSERT_EQ(events_of(Kind::SrdRegistrationFailed, 127).size(), 1U);
-  EXPECT_EQ(events_of(Kind::SrdRegistrationFailed, 127)[0].connection_error, 0x00);
+  EXPECT_EQ(events_of(Kind::SrdRegistrationFailed, 127)[0].connection_error,
+            cfg::sdo_manager::DynamicSdoError::kNoDetails);
   EXPECT_EQ(engine().srds().size(), 1U);
 }
 

@@ -507,7 +507,8 @@ TEST(SdoManagerSpec, StandbyFlyingMasterIgnoresTheDynamicSdoRequestUntilItIsActi
   const auto confirmed = rig.register_srd(kSrd);
   EXPECT_EQ(confirmed, state_word(kClientSdo, 0, cnxn(1))) << hex_text(confirmed);
   EXPECT_EQ(rig.client_entry(kSrd, kClientSdo).server, 5U) << "the channel leads to node 5";
-  EXPECT_FALSE(rig.uploads_of(kSrd, kConnectionState, 0, from).empty());
+  // The one Dynamic SDO Request is served by one scan of the SRD's 1F10h.
+  EXPECT_EQ(rig.uploads_of(kSrd, kConnectionState, 0, from).size(), 1U);
 }
 
 // Without the SDO manager (MasterOptions::sdo_manager false and no 1F00h in the DCF) the

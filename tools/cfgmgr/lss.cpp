@@ -157,7 +157,7 @@ std::vector<nmt::LssAddress> fastscan_all(LssSession& session) {
   std::optional<nmt::LssAddress> after;
   for (;;) {
     const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-      return m.fastscan(now, out, after);
+      return m.fastscan(after, now, out);
     });
     if (e.kind == Kind::NotFound) break;
     if (!e.ok()) fail_service(session, "Fastscan", e);

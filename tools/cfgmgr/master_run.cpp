@@ -429,7 +429,11 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
       break;
     case K::SrdRegistrationFailed:
     case K::SdoConnectionRefused:
-      out += ", \"connection_error\": " + std::to_string(e.connection_error);
+      // The JSON keeps 1F10h's byte (DSP 302 §7.2.3), the value a script compares with.
+      if (e.connection_error) {
+        out +=
+            ", \"connection_error\": " + std::to_string(static_cast<unsigned>(*e.connection_error));
+      }
       break;
     case K::ProgramClearRefused:
       if (e.sdo) out += ", \"abort\": " + tools::json_string(nmt::to_string(e.sdo->abort));

@@ -12,6 +12,7 @@
 
 #include "cfg/cob_id.hpp"
 #include "cfg/node_id.hpp"
+#include "cfg/result.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/frame.hpp"
 
@@ -88,8 +89,10 @@ class EmcyProducer {
   bool allowed() const { return allowed_; }
 
   /// Reports an emergency at `now`: sent into `out` at once, or queued while the inhibit time
-  /// runs, or dropped (not allowed, COB-ID invalid, queue full).
-  void raise(const Emergency& emcy, TimePoint now, Output& out);
+  /// runs (both: started, engine.hpp rule 5). Could not start (dropped and counted, nothing in
+  /// `out`): the error says why: EMCY not allowed in the NMT state, the COB-ID invalid, or the
+  /// queue full (kQueueCapacity).
+  cfg::Status raise(const Emergency& emcy, TimePoint now, Output& out);
 
   bool on_frame(const CanFrame& /*frame*/, TimePoint /*now*/, Output& /*out*/) { return false; }
   /// Releases queued messages whose inhibit time has passed (at most one per inhibit time);

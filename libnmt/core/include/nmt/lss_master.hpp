@@ -172,7 +172,8 @@ class LssMaster {
   cfg::Status identify_non_configured(TimePoint now, Output& out);
   /// Finds one unconfigured device (the lowest address, above `after` when given) and leaves it
   /// in LSS configuration: Done with its address, or NotFound.
-  cfg::Status fastscan(TimePoint now, Output& out, std::optional<LssAddress> after = std::nullopt);
+  cfg::Status fastscan(std::optional<LssAddress> after, TimePoint now, Output& out);
+  cfg::Status fastscan(TimePoint now, Output& out) { return fastscan(std::nullopt, now, out); }
   /// Finds every unconfigured device one by one and gives each the node-ID `chooser` says (see
   /// the top of this file); one Assigned or Skipped event per device, then Done (value: the
   /// number of devices found) or, when a device stopped answering mid-scan, Timeout.

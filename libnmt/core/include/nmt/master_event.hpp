@@ -13,6 +13,7 @@
 #include "cfg/cob_id.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/program_image.hpp"
+#include "cfg/sdo_manager_objects.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/lss.hpp"
 #include "nmt/nmt_slave.hpp"
@@ -201,8 +202,8 @@ struct MasterEvent {
   std::optional<ManagedSdoConnection> connection{};  ///< SDO manager kinds (see Kind)
   /// SrdRegistrationFailed, SdoConnectionRefused: the 1F10h error code (DSP 302 §7.2.3: 00h no
   /// details, 01h no channel SRD <-> manager, 02h no free COB-IDs in the network, 03h no free
-  /// server entry on S, 04h S not available).
-  std::uint8_t connection_error = 0;
+  /// server entry on S, 04h S not available); nullopt for the other kinds.
+  std::optional<cfg::sdo_manager::DynamicSdoError> connection_error{};
   /// PersistEntry: the entry of node_id to write (cfg::ConfigManager::persist) and the ticket
   /// to complete it with. The update stays valid until entry_persisted() for that ticket.
   struct Persist {

@@ -340,6 +340,103 @@ struct FlyingMasterCobId {
   static constexpr std::uint32_t kForceNegotiation = 0x76;  ///< force NMT flying master negotiation
 };
 
+/// A 1F82h request NMT value as it is written (CiA 302-2 §6.4, Table 28 on download): the NMT
+/// service for the node(s) of the sub-index. The 8xh values exclude the NMT master and the
+/// requesting device, whose node-ID the request then needs.
+enum class NmtRequest : std::uint8_t {
+  Stop = 0x04,
+  Start = 0x05,
+  ResetNode = 0x06,
+  ResetCommunication = 0x07,
+  EnterPreOperational = 0x7F,
+  StopExcluding = 0x84,
+  StartExcluding = 0x85,
+  ResetNodeExcluding = 0x86,
+  ResetCommunicationExcluding = 0x87,
+  EnterPreOperationalExcluding = 0x8F,
+};
+
+/// The request a written 1F82h byte asks for; nullopt for the values Table 28 reserves (an SDO
+/// write of one is aborted with 0609 0030).
+constexpr std::optional<NmtRequest> nmt_request_from_byte(std::uint8_t byte) {
+  switch (byte & 0x7F) {
+    case 0x04:
+    case 0x05:
+    case 0x06:
+    case 0x07:
+      return static_cast<NmtRequest>(byte);
+    case 0x7F:  // 7Fh, but not FFh
+      return byte == 0x7F ? std::optional{NmtRequest::EnterPreOperational} : std::nullopt;
+    case 0x0F:  // 8Fh, but not 0Fh
+      return byte == 0x8F ? std::optional{NmtRequest::EnterPreOperationalExcluding} : std::nullopt;
+    default:
+      return std::nullopt;
+  }
+}
+/// Table 28: 84h-8Fh exclude the NMT master and the requesting device.
+constexpr bool excludes_master_and_requester(NmtRequest request) {
+  return (static_cast<std::uint8_t>(request) & 0x80) != 0;
+}
+/// The NMT service (CiA 301 §7.2.8.3.1) a request asks for.
+constexpr NmtCommand nmt_command_of(NmtRequest request) {
+  switch (static_cast<NmtRequest>(static_cast<std::uint8_t>(request) & 0x7F)) {
+    case NmtRequest::Stop:
+      return NmtCommand::Stop;
+    case NmtRequest::Start:
+      return NmtCommand::Start;
+    case NmtRequest::ResetNode:
+      return NmtCommand::ResetNode;
+    case NmtRequest::ResetCommunication:
+      return NmtCommand::ResetCommunication;
+    default:  // 7Fh, 8Fh
+      return NmtCommand::EnterPreOperational;
+  }
+}
+
+/// What the NMT master knows of a node's NMT state, as a 1F82h read gives it (CiA 302-2 §6.4,
+/// Table 28 on upload): unknown, missing, or the state the node last showed.
+struct KnownState {
+  enum class Kind : std::uint8_t { Unknown, Missing, InState };
+  Kind kind = Kind::Unknown;
+  NmtState state = NmtState::Initialising;  ///< Kind::InState: stopped, operational, pre-op.
+
+  static constexpr KnownState unknown() { return {}; }
+  static constexpr KnownState missing() { return {Kind::Missing}; }
+  static constexpr KnownState in(NmtState state) {
+    // Initialising is no state the master knows a node in (Table 28 has no value for it).
+    return state == NmtState::Initialising ? unknown() : KnownState{Kind::InState, state};
+  }
+  /// Table 28's byte on upload: 00h unknown, 01h missing, 04h/05h/7Fh the state; the
+  /// reserved values read as unknown.
+  static constexpr KnownState from_byte(std::uint8_t byte) {
+    switch (byte) {
+      case 0x01:
+        return missing();
+      case static_cast<std::uint8_t>(NmtState::Stopped):
+      case static_cast<std::uint8_t>(NmtState::Operational):
+      case static_cast<std::uint8_t>(NmtState::PreOperational):
+        return in(static_cast<NmtState>(byte));
+      default:
+        return unknown();
+    }
+  }
+  /// The state when the master knows it; nullopt when unknown or missing.
+  constexpr std::optional<NmtState> nmt_state() const {
+    return kind == Kind::InState ? std::optional{state} : std::nullopt;
+  }
+  constexpr std::uint8_t to_byte() const {
+    switch (kind) {
+      case Kind::Missing:
+        return 0x01;
+      case Kind::InState:
+        return static_cast<std::uint8_t>(state);
+      default:
+        return 0x00;
+    }
+  }
+  constexpr bool operator==(const KnownState&) const = default;
+};
+
 /// The NMT master. Movable (its state lives behind one pointer), not copyable.
 class NmtMaster {
  public:
@@ -374,9 +471,9 @@ class NmtMaster {
   /// nodes per bits 1 and 3). Does nothing in other start-up states.
   void enter_operational(TimePoint now, Output& out);
   /// 1F82h request NMT as the application on the master's own device asks it: `sub` 1..127 or
-  /// 80h (all), `value` as Table 28; `requester` (for 84h-8Fh) is excluded with the master.
+  /// 80h (all); `requester` (for the *Excluding requests) is excluded with the master.
   /// Returns the abort an SDO write of the same value gets (None: done).
-  SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, TimePoint now, Output& out,
+  SdoAbort request_nmt(std::uint8_t sub, NmtRequest request, TimePoint now, Output& out,
                        std::optional<cfg::NodeId> requester = std::nullopt);
   /// 1F83h request guarding: `sub` 1..127 or 80h, start or stop.
   SdoAbort request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out);
@@ -413,9 +510,8 @@ class NmtMaster {
   /// master negotiation (or without 1F80h bit 5, once start-up began), the winner's while in
   /// standby, nullopt while negotiating or when not a master.
   std::optional<cfg::NodeId> active_master() const;
-  /// The state the master knows of `node`, as a 1F82h read gives it: 00h unknown, 01h missing,
-  /// else the NmtState value.
-  std::uint8_t known_state(cfg::NodeId node) const;
+  /// The state the master knows of `node`, as a 1F82h read gives it (KnownState::to_byte).
+  KnownState known_state(cfg::NodeId node) const;
   BootStep boot_step(cfg::NodeId node) const;
   /// The error status of the last finished try of `node`; nullopt after status OK or before.
   std::optional<BootError> last_error(cfg::NodeId node) const;

@@ -195,7 +195,7 @@ cfg::Status LssMaster::identify_non_configured(TimePoint now, Output& out) {
   return {};
 }
 
-cfg::Status LssMaster::fastscan(TimePoint now, Output& out, std::optional<LssAddress> after) {
+cfg::Status LssMaster::fastscan(std::optional<LssAddress> after, TimePoint now, Output& out) {
   if (auto started = start(LssService::Fastscan); !started) return started;
   fastscan_start(after, now, out);
   return {};

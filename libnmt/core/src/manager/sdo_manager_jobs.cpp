@@ -398,7 +398,7 @@ void SdoManagerProcess::report_refusal(TimePoint now, Output& out) {
                        ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
                        std::string(sm::describe(job.error)) + "): " + job.why);
   e.connection = job.connection.row;
-  e.connection_error = static_cast<std::uint8_t>(job.error);
+  e.connection_error = job.error;
   out.report(std::move(e));
   finish_job();
 }

@@ -16,7 +16,9 @@ void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint n
   if (after_reset) {
     boot(node).start_after_reset(boot_up_gate.value_or(now + options.boot_up_wait), now, out);
   } else {
-    boot(node).start(now, out, asked_by_application);
+    boot(node).start(asked_by_application ? BootSlaveProcess::AskedBy::Application
+                                          : BootSlaveProcess::AskedBy::Master,
+                     now, out);
   }
 }
 
@@ -24,8 +26,7 @@ void NmtMaster::Impl::start_remote_node(cfg::NodeId node) {
   const auto config = startup_config();
   // §3.4 part 3 g-l. While NMT start-up runs, no slave is started: §3.1 h starts them once every
   // mandatory slave booted (finish_startup), and a halted start-up (§3.1 f) starts none.
-  const bool operational =
-      slaves[node].known_state == static_cast<std::uint8_t>(NmtState::Operational);
+  const bool operational = slaves[node].known_state.nmt_state() == NmtState::Operational;
   const bool broadcast_later = config.start_all_nodes() && own_state != NmtState::Operational;
   if (!operational && !config.no_start_slaves() && !broadcast_later &&
       startup == StartupState::Operational) {
@@ -129,7 +130,7 @@ std::optional<Duration> NmtMaster::Impl::BootPort::heartbeat_time(cfg::NodeId no
   return m_.heartbeat_time(node);
 }
 
-std::uint8_t NmtMaster::Impl::BootPort::known_state(cfg::NodeId node) const {
+KnownState NmtMaster::Impl::BootPort::known_state(cfg::NodeId node) const {
   return m_.slaves[node].known_state;
 }
 
@@ -186,7 +187,7 @@ void NmtMaster::Impl::BootPort::boot_con(cfg::NodeId node, std::optional<BootErr
   // and after B the slave is missing (1F82h).
   if (*status == BootError::L) return;
   m_.stop_error_control(node);
-  if (*status == BootError::B) m_.set_known_state(node, 1, now, out);
+  if (*status == BootError::B) m_.set_known_state(node, KnownState::missing(), now, out);
 }
 
 }  // namespace nmt

@@ -78,8 +78,8 @@ void BootSlaveProcess::reset(TimePoint now) {
   *this = std::move(fresh);
 }
 
-void BootSlaveProcess::start(TimePoint now, Output& out, bool asked_by_application) {
-  begin(std::nullopt, asked_by_application, now, out);
+void BootSlaveProcess::start(AskedBy asker, TimePoint now, Output& out) {
+  begin(std::nullopt, asker == AskedBy::Application, now, out);
 }
 
 void BootSlaveProcess::start_after_reset(TimePoint wait_until, TimePoint now, Output& out) {
@@ -245,9 +245,9 @@ void BootSlaveProcess::after_identity(TimePoint now, Output& out) {
   set_step(BootStep::CheckNmtState, now, out);
   if (const auto time = port_->heartbeat_time(node_)) {
     const auto heard = port_->last_heartbeat(node_);
-    const auto known = port_->known_state(node_);
-    if (heard && now - *heard <= *time && known > 1) {
-      keep_alive_state(static_cast<NmtState>(known), now, out);
+    const auto known = port_->known_state(node_).nmt_state();
+    if (heard && now - *heard <= *time && known) {
+      keep_alive_state(*known, now, out);
       return;
     }
     phase_ = Phase::CheckStateHeartbeat;

@@ -83,7 +83,7 @@ class BootSlavePort {
   virtual std::optional<Duration> heartbeat_time(cfg::NodeId node) const = 0;
   /// 1F82h as the master knows it (0 unknown, 1 missing, else NmtState) and when it last saw a
   /// heartbeat of the node (§3.6: a heartbeat within the consumer time is the answer).
-  virtual std::uint8_t known_state(cfg::NodeId node) const = 0;
+  virtual KnownState known_state(cfg::NodeId node) const = 0;
   virtual std::optional<TimePoint> last_heartbeat(cfg::NodeId node) const = 0;
   /// §3.5 d: the configuration to download (manager, source, or 1F22h), nullopt: none.
   virtual std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const = 0;
@@ -173,9 +173,12 @@ class BootSlaveProcess {
   std::optional<TimePoint> next_deadline() const { return deadline_; }
 
   // --- starting and ending ---
-  /// A new try (§3.3, §4.3). `asked_by_application`: the application (or 1F25h) asked, so 1F81h
-  /// bit 2 clear does not leave the slave to the application. A running try is cancelled.
-  void start(TimePoint now, Output& out, bool asked_by_application = false);
+  /// Who asks for a try: AskedBy::Application (the application or 1F25h) means 1F81h bit 2
+  /// clear does not leave the slave to the application.
+  enum class AskedBy : std::uint8_t { Master, Application };
+  /// A new try (§3.3, §4.3). A running try is cancelled.
+  void start(AskedBy asker, TimePoint now, Output& out);
+  void start(TimePoint now, Output& out) { start(AskedBy::Master, now, out); }
   /// After the start-up's reset communication: the try waits for the boot-up until `wait_until`
   /// (the start-up's boot-up gate), then identifies.
   void start_after_reset(TimePoint wait_until, TimePoint now, Output& out);

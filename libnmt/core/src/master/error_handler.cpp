@@ -19,7 +19,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
   if (!state) return;
   auto& b = boot(node);
   if (b.awaits_guard_reply()) {
-    set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+    set_known_state(node, KnownState::in(*state), now, out);
     b.on_guard_reply(*state, now, out);
     return;
   }
@@ -27,12 +27,12 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
   if (!message.toggle()) {
     slaves[node].heartbeat_at = now;
     if (b.awaits_heartbeat()) {
-      set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+      set_known_state(node, KnownState::in(*state), now, out);
       b.on_heartbeat(*state, now, out);
       return;
     }
   }
-  set_known_state(node, static_cast<std::uint8_t>(*state), now, out);
+  set_known_state(node, KnownState::in(*state), now, out);
 }
 
 void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
@@ -45,7 +45,7 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   report(out, std::move(e));
   auto& s = slaves[node];
   s.heartbeat_at.reset();
-  set_known_state(node, static_cast<std::uint8_t>(NmtState::PreOperational), now, out);
+  set_known_state(node, KnownState::in(NmtState::PreOperational), now, out);
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
   if (boot(node).on_boot_up(now, out)) return;
   if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master() ||
@@ -64,7 +64,7 @@ void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint 
          master_event(
              heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
              node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
-  set_known_state(node, 1, now, out);
+  set_known_state(node, KnownState::missing(), now, out);
   if (!is_slave(node) || slaves[node].held) return;
   const auto a = assignment(node);
   const auto config = startup_config();

@@ -52,7 +52,7 @@ std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
   std::vector<LssAddress> known;
   for (const bool running : {false, true}) {
     for (const auto n : all_node_ids()) {
-      if (!m.is_slave(n) || (m.slaves[n].known_state > 1) != running) continue;
+      if (!m.is_slave(n) || m.slaves[n].known_state.nmt_state().has_value() != running) continue;
       if (const auto address = m.lss_address_of(n)) known.push_back(*address);
     }
   }

@@ -17,27 +17,6 @@ namespace obj = cfg::object;
 
 namespace {
 
-/// Table 28 of CiA 302-2 §6.4: the NMT service a 1F82h value requests (bit 7 set: excluding the
-/// master and the requester).
-std::optional<NmtCommand> requested_command(std::uint8_t value) {
-  switch (value & 0x7F) {
-    case 0x04:
-      return NmtCommand::Stop;
-    case 0x05:
-      return NmtCommand::Start;
-    case 0x06:
-      return NmtCommand::ResetNode;
-    case 0x07:
-      return NmtCommand::ResetCommunication;
-    case 0x7F:
-      return value == 0x7F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
-    case 0x0F:
-      return value == 0x8F ? std::optional{NmtCommand::EnterPreOperational} : std::nullopt;
-    default:
-      return std::nullopt;
-  }
-}
-
 constexpr std::uint8_t kAllNodesSub = 0x80;  // 1F82h/1F83h sub 80h: all nodes (§6.4, §6.5)
 
 }  // namespace
@@ -236,8 +215,9 @@ void NmtMaster::Impl::install_hooks() {
   });
   dict.add_read_hook([this](std::uint16_t index, std::uint8_t sub, TimePoint /*now*/) {
     if (index == obj::kRequestNmt && cfg::is_node_id(sub)) {
-      const std::uint8_t state =
-          sub == node_id.value() ? static_cast<std::uint8_t>(own_state) : slaves[sub].known_state;
+      // Table 28 on upload: the one place the known state becomes 1F82h's byte.
+      const std::uint8_t state = sub == node_id.value() ? static_cast<std::uint8_t>(own_state)
+                                                        : slaves[sub].known_state.to_byte();
       dict.set_unsigned(index, sub, state);
     } else if (const auto node = cfg::NodeId::from(sub); index == obj::kRequestGuarding && node) {
       dict.set_unsigned(index, sub, guarding.guards(*node) ? 1 : 0);
@@ -265,8 +245,12 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
     case obj::kSelfStartingNodesTiming:
       if (auto timing = detection_timing(sub, value)) flying.set_detection_timing(*timing);
       return SdoAbort::None;
-    case obj::kRequestNmt:
-      return request_nmt(sub, static_cast<std::uint8_t>(value), std::nullopt, now, out);
+    case obj::kRequestNmt: {
+      // §6.4: a reserved value is refused with 0609 0030.
+      const auto request = nmt_request_from_byte(static_cast<std::uint8_t>(value));
+      if (!request) return SdoAbort::ValueRangeExceeded;
+      return request_nmt(sub, *request, std::nullopt, now, out);
+    }
     case obj::kRequestGuarding:
       return request_guarding(sub, static_cast<std::uint8_t>(value), now);
     default:
@@ -303,20 +287,18 @@ Duration NmtMaster::Impl::nmt_inhibit_time() const {
 
 // --- request NMT (1F82h) and request guarding (1F83h) ---
 
-SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
+SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, NmtRequest request,
                                       std::optional<cfg::NodeId> requester, TimePoint now,
                                       Output* out) {
   constexpr std::uint8_t kAll = 0x80;
-  const auto command = requested_command(value);
-  // §6.4: a reserved value is refused with 0609 0030.
-  if (!command) return SdoAbort::ValueRangeExceeded;
+  const auto command = nmt_command_of(request);
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
-  const bool excluding = (value & 0x80) != 0;
+  const bool excluding = excludes_master_and_requester(request);
   // §6.4: 84h-8Fh need the requester's node-ID; unknown: 0800 0000.
   if (excluding && !requester) return SdoAbort::General;
   auto hold = [&](cfg::NodeId node) {
     // DSP 302 §5.4: no automatic re-boot after a state change by request NMT (start ends it).
-    if (is_slave(node)) slaves[node].held = *command != NmtCommand::Start;
+    if (is_slave(node)) slaves[node].held = command != NmtCommand::Start;
   };
   // Each queued command waits for the inhibit time (102Ah, which a peer may set to 6.5 s):
   // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (nmt_master.hpp).
@@ -333,29 +315,29 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, std::uint8_t value,
       if (no_room_for(cfg::kMaxNodeId - (self ? 1 : 2))) return SdoAbort::OutOfMemory;
       for (const auto n : all_node_ids()) {
         if (n == node_id || n == *requester) continue;
-        queue_nmt(*command, n);
+        queue_nmt(command, n);
         hold(n);
       }
       return SdoAbort::None;
     }
     if (no_room_for(1)) return SdoAbort::OutOfMemory;
-    queue_nmt(*command, NmtTarget::all_nodes());
+    queue_nmt(command, NmtTarget::all_nodes());
     for (const auto n : all_node_ids()) hold(n);
     // DSP 302 §5.4: "A RequestNMT to all nodes will also apply for the Master itself."
-    apply_own_command(*command, now, *out);
+    apply_own_command(command, now, *out);
     return SdoAbort::None;
   }
   const auto node = cfg::NodeId::from(sub);
   if (!node) return SdoAbort::SubIndexDoesNotExist;
   if (*node == node_id) {
-    apply_own_command(*command, now, *out);
+    apply_own_command(command, now, *out);
     return SdoAbort::None;
   }
   if (excluding && *node == *requester) return SdoAbort::General;
   // A request for a node that is not a slave of this master: 0800 0000 (nmt_master.hpp, choices).
   if (!is_slave(*node)) return SdoAbort::General;
   if (no_room_for(1)) return SdoAbort::OutOfMemory;
-  queue_nmt(*command, *node);
+  queue_nmt(command, *node);
   hold(*node);
   return SdoAbort::None;
 }

@@ -22,19 +22,19 @@ namespace obj = cfg::object;
 namespace {
 
 /// The state a slave is in after a command, as far as the master can tell.
-std::uint8_t state_after(NmtCommand command) {
+KnownState state_after(NmtCommand command) {
   switch (command) {
     case NmtCommand::Start:
-      return static_cast<std::uint8_t>(NmtState::Operational);
+      return KnownState::in(NmtState::Operational);
     case NmtCommand::Stop:
-      return static_cast<std::uint8_t>(NmtState::Stopped);
+      return KnownState::in(NmtState::Stopped);
     case NmtCommand::EnterPreOperational:
-      return static_cast<std::uint8_t>(NmtState::PreOperational);
+      return KnownState::in(NmtState::PreOperational);
     case NmtCommand::ResetNode:
     case NmtCommand::ResetCommunication:
-      return 0;  // unknown until its boot-up
+      return KnownState::unknown();  // unknown until its boot-up
   }
-  return 0;
+  return KnownState::unknown();
 }
 
 }  // namespace
@@ -217,9 +217,9 @@ void NmtMaster::enter_operational(TimePoint now, Output& out) {
   impl_->settle(now, out);
 }
 
-SdoAbort NmtMaster::request_nmt(std::uint8_t sub, std::uint8_t value, TimePoint now, Output& out,
+SdoAbort NmtMaster::request_nmt(std::uint8_t sub, NmtRequest request, TimePoint now, Output& out,
                                 std::optional<cfg::NodeId> requester) {
-  const auto code = impl_->request_nmt(sub, value, requester, now, &out);
+  const auto code = impl_->request_nmt(sub, request, requester, now, &out);
   impl_->settle(now, out);
   return code;
 }
@@ -316,7 +316,7 @@ std::optional<cfg::NodeId> NmtMaster::active_master() const {
   }
   return m.flying.active_master();
 }
-std::uint8_t NmtMaster::known_state(cfg::NodeId node) const {
+KnownState NmtMaster::known_state(cfg::NodeId node) const {
   return impl_->slaves[node].known_state;
 }
 BootStep NmtMaster::boot_step(cfg::NodeId node) const {
@@ -474,7 +474,7 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     } else {
       for (const auto n : all_node_ids()) {
         if (!is_slave(n) || !boot(n).booted() || !assignment(n).boot_slave()) continue;
-        if (slaves[n].known_state == static_cast<std::uint8_t>(NmtState::Operational)) continue;
+        if (slaves[n].known_state.nmt_state() == NmtState::Operational) continue;
         queue_nmt(NmtCommand::Start, n);
       }
     }
@@ -544,20 +544,18 @@ void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
   }
 }
 
-void NmtMaster::Impl::set_known_state(cfg::NodeId node, std::uint8_t state, TimePoint now,
+void NmtMaster::Impl::set_known_state(cfg::NodeId node, KnownState state, TimePoint now,
                                       Output& out) {
   auto& s = slaves[node];
   if (s.known_state == state) return;
   s.known_state = state;
   if (!is_slave(node)) return;
   auto e = master_event(MasterEvent::Kind::SlaveStateChanged, now, node, node_text(node) + ": ");
-  if (state == 0) {
-    e.text += "state unknown";
-  } else if (state == 1) {
-    e.text += "missing";
-  } else {
-    e.state = static_cast<NmtState>(state);
+  e.state = state.nmt_state();
+  if (e.state) {
     e.text += to_string(*e.state);
+  } else {
+    e.text += state.kind == KnownState::Kind::Missing ? "missing" : "state unknown";
   }
   report(out, std::move(e));
 }

@@ -38,7 +38,7 @@ namespace nmt {
 
 /// What the master itself knows of a slave, besides its boot (BootSlaveProcess).
 struct SlaveRecord {
-  std::uint8_t known_state = 0;           ///< 1F82h read value: 0 unknown, 1 missing, else NmtState
+  KnownState known_state{};               ///< 1F82h read value (KnownState::to_byte)
   bool held = false;                      ///< state set by request NMT: no automatic re-boot
   std::optional<TimePoint> heartbeat_at;  ///< the last heartbeat seen, for §3.6
   /// Boot transfers of the current try that ended (pump_transfers: the slave furthest behind).
@@ -94,7 +94,7 @@ struct NmtMaster::Impl {
     bool start_error_control(cfg::NodeId node, TimePoint now) override;
     BootSlaveExpectations expectations(cfg::NodeId node) const override;
     std::optional<Duration> heartbeat_time(cfg::NodeId node) const override;
-    std::uint8_t known_state(cfg::NodeId node) const override;
+    KnownState known_state(cfg::NodeId node) const override;
     std::optional<TimePoint> last_heartbeat(cfg::NodeId node) const override;
     std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override;
     std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const override;
@@ -243,7 +243,7 @@ struct NmtMaster::Impl {
   /// Runs the NMT command queue: its due commands go out, and the slaves' states they set.
   void flush_nmt(TimePoint now, Output& out);
   void apply_own_command(NmtCommand command, TimePoint now, Output& out);
-  void set_known_state(cfg::NodeId node, std::uint8_t state, TimePoint now, Output& out);
+  void set_known_state(cfg::NodeId node, KnownState state, TimePoint now, Output& out);
   void on_error_control(const ErrorControlMessage& message, TimePoint now, Output& out);
   void on_boot_up(cfg::NodeId node, TimePoint now, Output& out);
   void error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out);
@@ -252,7 +252,7 @@ struct NmtMaster::Impl {
   /// to the error handler and the SDO manager.
   void guarding_timer(TimePoint now, Output& out);
   /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).
-  SdoAbort request_nmt(std::uint8_t sub, std::uint8_t value, std::optional<cfg::NodeId> requester,
+  SdoAbort request_nmt(std::uint8_t sub, NmtRequest request, std::optional<cfg::NodeId> requester,
                        TimePoint now, Output* out);
   SdoAbort request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now);
   /// Dispatches SDO results, moves frames, sends due NMT commands, moves start-up on: after

@@ -1,8 +1,11 @@
 #include "nmt/emcy.hpp"
 
 #include <algorithm>
+#include <string>
+#include <string_view>
 
 #include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
 
 namespace nmt {
 
@@ -38,20 +41,26 @@ void EmcyProducer::send(const Emergency& emcy, TimePoint now, Output& out) {
   out.send(make_emcy(cob_id_, emcy));
 }
 
-void EmcyProducer::raise(const Emergency& emcy, TimePoint now, Output& out) {
-  if (blocked()) {
+cfg::Status EmcyProducer::raise(const Emergency& emcy, TimePoint now, Output& out) {
+  const auto refused = [&](std::string_view why) {
     ++dropped_;
-    return;
-  }
+    return cfg::Error{"EMCY " + cfg::hex_digits(emcy.error_code, 4) +
+                      "h not sent: " + std::string(why)};
+  };
+  // CiA 301 §7.3.2.2: no EMCY in stopped (nor initialising).
+  if (!allowed_) return refused("the NMT state does not allow EMCY");
+  // CiA 301 §7.5.2.14: 1014h bit 31 set, the EMCY does not exist.
+  if (!cob_id_.valid()) return refused("the EMCY COB-ID (1014h) is invalid");
   if (queue_.empty() && can_send(now)) {
     send(emcy, now, out);
-    return;
+    return {};
   }
   if (queue_.size() >= kQueueCapacity) {
-    ++dropped_;
-    return;
+    return refused(std::to_string(kQueueCapacity) +
+                   " messages already wait for the inhibit time (1015h)");
   }
   queue_.push_back(emcy);
+  return {};
 }
 
 void EmcyProducer::on_timer(TimePoint now, Output& out) {

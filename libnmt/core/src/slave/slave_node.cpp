@@ -482,7 +482,10 @@ void SlaveNode::send_emcy(const Emergency& emcy, TimePoint now, Output& out) {
   sync_parts();
   auto& emcy_out = scratch_.emcy;
   emcy_out.clear();
-  emcy_.raise(emcy, now, emcy_out);
+  // Not sent is what CiA 301 asks of a node whose state forbids EMCY (or whose 1014h is
+  // invalid, or whose queue is full): the producer counts it (EmcyProducer::dropped()); the
+  // node's error register and 1003h keep the error either way.
+  (void)emcy_.raise(emcy, now, emcy_out);
   forward_frames(emcy_out, out);
 }
 
