@@ -110,7 +110,7 @@ Figure failover(const Setting& s) {
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device).value()));
     bus.attach(*slaves.back());
     slaves.back()->apply([](nmt::SimulatedDevice& d, TimePoint now,
-                            nmt::SimulatedDevice::Output& out) { d.power_on(now, out); });
+                            nmt::SimulatedDevice::Output& out) { d.start(now, out); });
   }
   std::map<std::uint8_t, std::unique_ptr<nmt::SimEngineNode<nmt::NmtMaster>>> masters;
   const std::map<std::uint8_t, std::uint16_t> priorities{{5, 0}, {10, s.priority_10}, {12, 2}};

@@ -171,7 +171,7 @@ struct Network {
     for (auto& slave : slaves) {
       slave->apply([](Device& d, TimePoint now, Device::Output& out) {
         d.discard();
-        d.engine().power_on(now, out);
+        d.engine().start(now, out);
       });
     }
     bus.run_for(50ms);

@@ -80,7 +80,7 @@ int main() {
     devices.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device).value()));
     bus.attach(*devices.back());
-    devices.back()->apply([](auto& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
+    devices.back()->apply([](auto& d, nmt::TimePoint now, auto& out) { d.start(now, out); });
   }
 
   // The master's configuration (CiA 302-2 §6) as types: no object indices, no bytes.

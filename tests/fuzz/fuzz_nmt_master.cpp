@@ -58,7 +58,7 @@ namespace {
 template <class Device>
 void power_on_at(Device& device, nmt::TimePoint now) {
   typename Device::Output out;
-  device.power_on(now, out);
+  device.start(now, out);
 }
 
 using nmt::CanFrame;

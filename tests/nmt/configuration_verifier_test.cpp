@@ -42,8 +42,7 @@ std::vector<nmt::VerifyResult> verify(const cfg::DeviceDescription& device_dcf,
   nmt::SimEngineNode<nmt::SimulatedDevice> device(
       nmt::SimulatedDevice::create(device_dcf, 2).value());
   bus.attach(device);
-  device.apply(
-      [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
+  device.apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& out) { d.start(now, out); });
   nmt::VerifyOptions options;
   options.sdo.timeout = 100ms;
   nmt::SimEngineNode<nmt::ConfigurationVerifier> reader(options);

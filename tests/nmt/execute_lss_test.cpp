@@ -538,9 +538,8 @@ class MasterLss : public ::testing::Test {
     auto& slot = devices[serial];
     slot = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
     bus.attach(*slot);
-    slot->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+    slot->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
     return slot->engine();
   }
   void start() {

@@ -151,9 +151,8 @@ class FlyRig {
     auto& slot = slaves_[node];
     slot = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
     bus.attach(*slot);
-    slot->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+    slot->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
     return slot->engine();
   }
   NmtState slave_state(std::uint8_t node) { return slaves_.at(node)->engine().node().state(); }

@@ -105,7 +105,7 @@ class FlyingRig {
   /// A slave from slave.eds, powered on now.
   SimulatedDevice& add_slave(std::uint8_t node) {
     auto& device = net_.add_slave(node);
-    net_.power_on(node);
+    net_.start(node);
     return device;
   }
   SimulatedDevice& slave(std::uint8_t node) { return net_.slave(node); }

@@ -117,7 +117,7 @@ TEST(NmtMasterSpec, SlaveRebootingWithItsSavedConfigurationIsNotDownloadedAgain)
   rig.run_for(500ms);
 
   const TimePoint reboot = rig.bus.now();
-  rig.power_on(3);
+  rig.start(3);
   ASSERT_TRUE(rig.run_until_event(
       [&](const MasterEvent& e) {
         return e.kind == Kind::SlaveBooted && e.node_id == 3 && e.at > reboot;
@@ -143,7 +143,7 @@ TEST(NmtMasterSpec, ReplacedDeviceIsConfiguredAgainAfterItsBootUp) {
   rig.add_slave(3);  // the old device leaves the bus, a new one is plugged in
   ASSERT_EQ(rig.device_value(3, 0x2000, 0), 10U);
   const TimePoint replaced = rig.bus.now();
-  rig.power_on(3);
+  rig.start(3);
   ASSERT_TRUE(rig.run_until_event(
       [&](const MasterEvent& e) {
         return e.kind == Kind::SlaveBooted && e.node_id == 3 && e.at > replaced;

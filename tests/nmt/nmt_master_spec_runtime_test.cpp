@@ -209,7 +209,7 @@ TEST(NmtMasterSpec, GuardedSlaveBootedInOperationIsStartedBeforeItsFirstGuarding
   rig.run_for(500ms);
 
   const TimePoint reboot = rig.bus.now();
-  rig.power_on(3);
+  rig.start(3);
   ASSERT_TRUE(rig.run_until_event(
       [&](const MasterEvent& e) {
         return e.kind == Kind::SlaveBooted && e.node_id == 3 && e.at > reboot;
@@ -252,7 +252,7 @@ TEST(NmtMasterSpec, SlaveRebootingDuringOperationIsBootedAndStartedAgain) {
   rig.run_for(1s);
 
   const TimePoint reboot = rig.bus.now();
-  rig.power_on(2);
+  rig.start(2);
   ASSERT_TRUE(rig.run_until_event(
       [&](const MasterEvent& e) {
         return e.kind == Kind::SlaveBooted && e.node_id == 2 && e.at > reboot;
@@ -280,14 +280,14 @@ TEST(NmtMasterSpec, BootUpOfNodeNotIn1F81IsReportedAndLeftToTheApplication) {
   rig.add_slave(2);
   rig.add_slave(3);
   rig.add_slave(5);
-  rig.power_on(2);
-  rig.power_on(3);
+  rig.start(2);
+  rig.start(3);
   rig.run_for(50ms);
   rig.start_master();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(200ms);  // the start-up's own start frames
   const TimePoint appeared = rig.bus.now();
-  rig.power_on(5);
+  rig.start(5);
   rig.run_for(3s);
 
   auto boot_up = rig.events_of(Kind::BootUp, 5);
@@ -305,7 +305,7 @@ TEST(NmtMasterSpec, BootUpOfSlaveWithoutBit2IsNotBooted) {
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(200ms);
   const TimePoint reboot = rig.bus.now();
-  rig.power_on(3);
+  rig.start(3);
   rig.run_for(3s);
   auto boot_up = rig.events_of(Kind::BootUp, 3);
   ASSERT_FALSE(boot_up.empty());

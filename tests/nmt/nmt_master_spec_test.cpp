@@ -431,7 +431,7 @@ TEST(NmtMasterSpec, OptionalSlaveAppearingLateIsRetriedEverySecondThenBootedAndS
 
   const TimePoint appeared = rig.bus.now();
   rig.set_faults(3, {});
-  rig.power_on(3);
+  rig.start(3);
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 5s, 3));
   rig.run_for(100ms);
   EXPECT_EQ(rig.count_nmt("000#0103", appeared), 1U);
@@ -495,7 +495,7 @@ TEST(NmtMasterSpec, MandatorySlaveWithoutBootTimeIsAwaitedUntilItAppears) {
   for (const auto& text : rig.nmt()) EXPECT_NE(text.substr(0, 6), "000#01") << text;
 
   rig.set_faults(3, {});
-  rig.power_on(3);
+  rig.start(3);
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(100ms);
   EXPECT_EQ(master.state(), NmtState::Operational);

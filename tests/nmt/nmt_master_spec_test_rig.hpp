@@ -228,7 +228,7 @@ class MasterRig {
     set_value(master, 0x1016, entry, std::uint32_t{node} << 16U | time_ms);
   }
 
-  /// A slave from slave.eds (or `eds`) at `node`, off until power_on().
+  /// A slave from slave.eds (or `eds`) at `node`, off until start().
   SimulatedDevice& add_slave(std::uint8_t node, DeviceFaults faults = {},
                              const cfg::DeviceDescription& eds = slave_eds(),
                              SlaveNodeOptions slave_options = {}) {
@@ -241,13 +241,12 @@ class MasterRig {
     return slot->engine();
   }
   SimulatedDevice& slave(std::uint8_t node) { return slaves_.at(node)->engine(); }
-  void power_on(std::uint8_t node) {
-    slaves_.at(node)->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+  void start(std::uint8_t node) {
+    slaves_.at(node)->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
   }
   void power_on_slaves() {
-    for (auto& [node, slot] : slaves_) power_on(node);
+    for (auto& [node, slot] : slaves_) start(node);
   }
   /// Takes a slave off the bus (it keeps its state, sends and hears nothing).
   void unplug(std::uint8_t node) { bus.detach(*slaves_.at(node)); }

@@ -78,9 +78,8 @@ class MasterRig {
     auto& slot = slaves_[node];
     slot = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
     bus.attach(*slot);
-    slot->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+    slot->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
     return slot->engine();
   }
   SimulatedDevice& slave(std::uint8_t node) { return slaves_.at(node)->engine(); }
@@ -386,9 +385,8 @@ TEST(NmtMaster, DownloadsTheConciseDcfOfItsOwn1F22) {
   SimEngineNode<SimulatedDevice> slave(std::move(device).value());
   bus.attach(master);
   bus.attach(slave);
-  slave.apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-    d.power_on(now, out);
-  });
+  slave.apply(
+      [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
   master.apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) { m.start(now, out); });
   bus.run_for(1s);
   EXPECT_EQ(slave.engine().node().dictionary().get_unsigned(0x2000, 0), 42U);

@@ -525,7 +525,8 @@ TEST(SdoClientMux, TimesOutEachClientAtItsOwnResponseTimeoutEarliestFirst) {
     SdoTransferOptions o;
     o.timeout = std::chrono::milliseconds(228 - n);
     const auto node = static_cast<std::uint8_t>(n);
-    ids[node] = started(mux.client(*cfg::NodeId::from(node)).upload(0x1000, 0, TimePoint{}, out, o));
+    ids[node] =
+        started(mux.client(*cfg::NodeId::from(node)).upload(0x1000, 0, TimePoint{}, out, o));
   }
   EXPECT_EQ(mux.next_deadline(), deadline(127));
   out.clear();
@@ -567,7 +568,8 @@ TEST(SdoClientMux, NextDeadlineFollowsTheQueuedTransferThatStartsOnATimeout) {
   SdoTransferOptions o;
   o.timeout = 100ms;
   ASSERT_TRUE(mux.client(*cfg::NodeId::from(5)).upload(0x1000, 0, TimePoint{}, out, o).ok());
-  ASSERT_TRUE(mux.client(*cfg::NodeId::from(5)).upload(0x1018, 1, TimePoint{}, out, o).ok());  // queued
+  ASSERT_TRUE(
+      mux.client(*cfg::NodeId::from(5)).upload(0x1018, 1, TimePoint{}, out, o).ok());  // queued
   o.timeout = 150ms;
   ASSERT_TRUE(mux.client(*cfg::NodeId::from(6)).upload(0x1000, 0, TimePoint{}, out, o).ok());
   EXPECT_EQ(mux.next_deadline(), TimePoint{100ms});

@@ -102,9 +102,8 @@ class ManagerRig : public MasterRig {
     if (slot) bus.detach(*slot);
     slot = std::make_unique<SimEngineNode<SimulatedDevice>>(std::move(device).value());
     bus.attach(*slot);
-    slot->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+    slot->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
     return slot->engine();
   }
   SimulatedDevice& srd(std::uint8_t node) { return srds_.at(node)->engine(); }

@@ -253,9 +253,8 @@ TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
   dict.insert(entry(0x1F10, 0, cfg::DataType::Unsigned32, 0x12810001));
   add_sdo_record(dict, 0x1281);
   bus.attach(srd_node);
-  srd_node.apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-    d.power_on(now, out);
-  });
+  srd_node.apply(
+      [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
   bus.run_for(1s);
   FunctionNode other;
   bus.attach(other);

@@ -70,7 +70,7 @@ TEST(SdoRequestingDeviceWithManager, RegistersConnectsTwiceToOneSlaveReadsAndRel
   });
   rig.bus.attach(slot);
   auto& srd = *slot.engine().srd;
-  slot.apply([](SrdSlot& s, TimePoint now, SrdSlot::Output& out) { s.srd->power_on(now, out); });
+  slot.apply([](SrdSlot& s, TimePoint now, SrdSlot::Output& out) { s.srd->start(now, out); });
   rig.bus.run_for(10ms);
 
   auto wait = [&](SrdEvent::Kind kind, std::size_t count = 1) {

@@ -19,7 +19,7 @@ namespace {
 template <class Device>
 void power_on_at(Device& device, TimePoint now) {
   typename Device::Output out;
-  device.power_on(now, out);
+  device.start(now, out);
 }
 
 using namespace std::chrono_literals;

@@ -76,10 +76,9 @@ class Rig {
   }
 
   SimulatedDevice& device() { return device_->engine(); }
-  void power_on() {
-    device_->apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+  void start() {
+    device_->apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
   }
   /// Raises an emergency at the bus's time; the frames the device sent for it at once.
   std::vector<std::string> raise_emergency(std::uint16_t code, std::uint8_t bits) {
@@ -91,7 +90,7 @@ class Rig {
     return sent;
   }
   void boot() {
-    power_on();
+    start();
     bus.run_for(10ms);
   }
   /// Sends a frame from the master and lets 5 ms pass.
@@ -450,7 +449,7 @@ TEST(SimulatedDevice, SavedParametersSurviveResetNode) {
   EXPECT_EQ(rig.read_u(0x2000, 0), 77u);
   EXPECT_EQ(rig.read_u(0x1017, 0), 500u);
   // The same after a power cycle.
-  rig.power_on();
+  rig.start();
   rig.bus.run_for(10ms);
   EXPECT_EQ(rig.read_u(0x2000, 0), 77u);
 }
@@ -813,7 +812,7 @@ TEST(SimulatedDevice, FaultLateBootSendsBootUpAfterTheDelay) {
   DeviceFaults f;
   f.boot_delay = 2s;
   Rig rig(f);
-  rig.power_on();
+  rig.start();
   rig.bus.run_for(1999ms);
   EXPECT_TRUE(rig.frames("702#").empty());
   EXPECT_EQ(rig.read(0x1000, 0).abort, SdoAbort::Timeout);  // initialising: not on the bus
@@ -1074,9 +1073,8 @@ TEST(SimulatedDevice, CorpusDevicesBootAndAnswerDeviceType) {
     bus.attach(node);
     bus.attach(client);
     bus.add_observer([&](const CanFrame& f, TimePoint) { seen.push_back(to_candump(f)); });
-    node.apply([](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) {
-      d.power_on(now, out);
-    });
+    node.apply(
+        [](SimulatedDevice& d, TimePoint now, SimulatedDevice::Output& out) { d.start(now, out); });
     bus.run_for(10ms);
     ASSERT_FALSE(seen.empty());
     EXPECT_EQ(seen.front(), "703#00");

@@ -36,7 +36,7 @@ namespace {
 template <class Device>
 void power_on_at(Device& device, TimePoint now) {
   typename Device::Output out;
-  device.power_on(now, out);
+  device.start(now, out);
 }
 
 using namespace std::chrono_literals;
@@ -108,18 +108,18 @@ class SlaveNodeSpec : public ::testing::Test {
   }
 
   // Power-on (or power cycle) at now_, then the timers due at once (the boot-up).
-  std::vector<std::string> power_on() {
+  std::vector<std::string> start() {
     power_on_at(*node_, now_);
     return run_due();
   }
   // Power off, one second later on again.
   std::vector<std::string> power_cycle() {
     now_ += 1s;
-    return power_on();
+    return start();
   }
   std::vector<std::string> boot() {
     now_ = std::max(now_, kPowerOn);
-    return power_on();
+    return start();
   }
 
   // on_timer while something is due at now_; the frames it sent.
@@ -454,7 +454,7 @@ TEST_F(SlaveNodeSpec, FirstHeartbeatComesOnePeriodAfterBootUp) {
   configure(0x1010, 1, kSave, 4);
   now_ = TimePoint{5s};
   // The boot-up counts as the first heartbeat: the next one is one period later.
-  EXPECT_EQ(power_on(), Frames{"705#00"});
+  EXPECT_EQ(start(), Frames{"705#00"});
   EXPECT_EQ(advance(250ms), (std::vector<Sent>{{TimePoint{5s + 100ms}, "705#7F"},
                                                {TimePoint{5s + 200ms}, "705#7F"}}));
 }

@@ -730,7 +730,7 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   const StopSignals signals;
   for (auto& device : devices) {
     device->apply(
-        [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
+        [](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& out) { d.start(now, out); });
   }
   node.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.start(now, out); });
 

@@ -298,7 +298,7 @@ void run_simulate(const SimulateOptions& options) {
   // Through apply: what a device reports at power-on goes to its printer like any event.
   for (auto& ref : refs) {
     ref->apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, nmt::SimulatedDevice::Output& out) {
-      d.power_on(now, out);
+      d.start(now, out);
     });
   }
   const cfg::Status status = options.for_seconds

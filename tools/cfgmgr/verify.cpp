@@ -198,7 +198,7 @@ nmt::Duration run_on_sim(const cfg::Network& network, const SimBusOptions& sim,
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));
     bus.attach(*devices.back());
     devices.back()->apply([](nmt::SimulatedDevice& d, nmt::TimePoint now, auto& device_out) {
-      d.power_on(now, device_out);
+      d.start(now, device_out);
     });
   }
   nmt::SimEngineNode<nmt::ConfigurationVerifier> reader(options);

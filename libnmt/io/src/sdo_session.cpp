@@ -165,7 +165,7 @@ cfg::Status SdoSession::connect_via_manager(SdoManagerRoute route) {
   const std::string own = "node " + std::to_string(route_->own_node_id.value());
 
   // CiA 301 §7.2.8.3.2.1: the device boots (its boot-up goes out from its first timer).
-  srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto& out) { s.power_on(now, out); });
+  srd_ref_->apply([](SdoRequestingDevice& s, TimePoint now, auto& out) { s.start(now, out); });
   auto booted = run_until([&] { return srd_->node().state() != NmtState::Initialising; },
                           std::chrono::seconds(1));
   if (!booted) return booted.error();

@@ -98,8 +98,8 @@ void FaultInjectedSlave::apply_sdo_timeout() {
 
 // --- resets --------------------------------------------------------------------------------------
 
-void FaultInjectedSlave::power_on(TimePoint now, Output& out) {
-  node_->power_on(now, out);
+void FaultInjectedSlave::start(TimePoint now, Output& out) {
+  node_->start(now, out);
   after_reset(now);
 }
 
@@ -155,7 +155,7 @@ bool FaultInjectedSlave::on_frame(const CanFrame& frame, TimePoint now, Output& 
       out.report(
           {SlaveEvent::Kind::Fault, now,
            "power cycle at SDO request " + std::to_string(state_->sdo_requests) + " (injected)"});
-      power_on(now, out);
+      start(now, out);
       return true;
     }
   }

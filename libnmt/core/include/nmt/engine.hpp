@@ -1,10 +1,11 @@
 // The one shape of every protocol engine in libnmt (SDO server and client, NMT slave, heartbeat
 // producer and consumer, node and life guarding, EMCY, LSS master and slave, the slave node, the
 // SDO requesting device, and the NMT master with its processes: boot slave, the flying master,
-// the SDO manager, the configuration manager's objects, the NMT command queue). This comment is
-// the contract; the concept
-// below checks its signatures at compile time, and each driver has one adapter that runs any
-// engine (SimEngineNode in sim_bus.hpp, EngineRef in bus_event_loop.hpp).
+// the SDO manager, the NMT command queue, Execute LSS). The configuration manager's objects are
+// a process of the master without frames or timers of their own (ConfigurationStoreObjects,
+// reached through the dictionary's hooks): they keep rules 5 and 6. This comment is the
+// contract; the concept below checks its signatures at compile time, and each driver has one
+// adapter that runs any engine (SimEngineNode in sim_bus.hpp, EngineRef in bus_event_loop.hpp).
 //
 // An engine is sans-I/O: it never reads a clock or touches a bus. It is fed
 //   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);  // a frame seen on the bus
@@ -33,10 +34,11 @@
 //    started through the API waits for a timer to reach the bus. Work that follows later is due
 //    from next_deadline(); so is the one step CiA 301 puts between a device's power-on or reset
 //    and its boot-up (initialisation), which ends at the next on_timer (due at `now`).
-//    The verbs: an engine that models a device (SlaveNode, SdoRequestingDevice, the fault
-//    wrappers) comes up with power_on(now, out), and calling it again is a power cycle; every
-//    other start is start(..., now, out) for a process beginning (the NMT master, boot slave)
-//    or one piece of work (an LSS service), or the verb of that work (upload, raise_emergency).
+//    One verb, start: start(now, out) brings up a device (SlaveNode, SdoRequestingDevice,
+//    NmtSlave, the fault wrappers; calling it again is a power cycle) or begins a process (the
+//    NMT master, a boot slave process); start(..., now, out) begins one piece of work (an LSS
+//    service, node guarding of a node); work with a verb of its own uses it (upload, download,
+//    raise). There is no second verb for beginning (no power_on).
 //    Could not start: the call returns cfg::Result<Id> (cfg::Status when the work has no id to
 //    follow it by) whose error says why, and puts nothing into `out` (SdoRequestingDevice,
 //    NmtMaster::boot_slave, SdoClient, NmtMaster::sdo_upload/sdo_download, the LssMaster
@@ -48,7 +50,7 @@
 //    HeartbeatConsumer::monitor (1016h; nothing is sent or reported at once) and
 //    NodeGuardingMaster::guard (its first request is due at `now`: the NMT master's error
 //    control, whose first request follows the NMT start and SDO requests of the same call).
-//    LssSlave::power_on takes no `now, out` on purpose: an LSS slave never sends on its own
+//    LssSlave::start takes no `now, out` on purpose: an LSS slave never sends on its own
 //    (nmt/lss_slave.hpp).
 // 6. Engines keep no reference to `out` or to a frame after a call returns; they only append,
 //    and only to the `out` of the call they are in: what a dictionary hook reports goes into

@@ -106,8 +106,8 @@ class LssSlave {
   /// nothing of its own at power-on or ever, it only answers the master's requests (CiA 305:
   /// every LSS service is initiated by the master; CANopenNode's CO_LSSslave_init and lely-core's
   /// co_lss_start send nothing either), and it has nothing to time. Whatever a device says at
-  /// power-on (its boot-up message) is its owner's, the SlaveNode's power_on(now, out).
-  void power_on(std::uint8_t node_id, std::optional<std::uint8_t> bit_timing_index = {});
+  /// power-on (its boot-up message) is its owner's, the SlaveNode's start(now, out).
+  void start(std::uint8_t node_id, std::optional<std::uint8_t> bit_timing_index = {});
 
  private:
   void answer(Output& out, lss::Cs cs, std::uint32_t value = 0);

@@ -142,14 +142,14 @@ class NmtSlave {
 
   /// A state change the node makes on its own, not by NMT command: the communication error
   /// behaviour of 1029h, or a self-starting device going operational. Not into or out of
-  /// initialising (asserted): resets go through on_frame()/power_on().
+  /// initialising (asserted): resets go through on_frame()/start().
   void set_state(NmtState state);
 
   /// Power failure / hardware reset: back to initialising with a reset-application pending.
   /// The start of engine.hpp rule 5 in its shape, though it sends and reports nothing at once:
   /// initialisation comes first, and the owner ends it with finish_initialisation(), which
   /// sends the boot-up message.
-  void power_on(TimePoint now, Output& out);
+  void start(TimePoint now, Output& out);
 
   /// Changes the node-ID used from the next initialisation on (e.g. LSS configured a new one;
   /// CiA 301 applies a new node-ID at reset communication).

@@ -4,7 +4,7 @@
 // heartbeat, its default SDO server on which the manager scans and writes) and one SdoClient per
 // connection the manager set up.
 //   auto srd = SdoRequestingDevice::create(description, node_id).value();
-//   srd->power_on(now, out);                   // boots like any slave (boot-up from on_timer)
+//   srd->start(now, out);                   // boots like any slave (boot-up from on_timer)
 //   srd->register_at_manager(now, out);        // 1F10h = index<<16 | 1, then 6E0h#  (§7.2.1)
 //   ... SrdEvent::Kind::Registered ...
 //   srd->request_connection(5, 0x1281, now, out);  // 1F00h at the manager (§7.2.2)
@@ -130,8 +130,8 @@ class SdoRequestingDevice {
   ~SdoRequestingDevice();
 
   // --- engine --------------------------------------------------------------------------------
-  /// Powers the node on (SlaveNode::power_on): every connection and the registration are gone.
-  void power_on(TimePoint now, Output& out);
+  /// Powers the node on (SlaveNode::start): every connection and the registration are gone.
+  void start(TimePoint now, Output& out);
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;

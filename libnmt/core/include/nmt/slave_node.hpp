@@ -5,7 +5,7 @@
 // an embedder can put it on a real bus (EngineRef of nmt/bus_event_loop.hpp) as it is; the
 // simulated devices of nmt/simulated_device.hpp wrap it with the faults of
 // nmt/fault_injection.hpp.
-//   node->power_on(now, out);           // initialising; the boot-up is sent from on_timer
+//   node->start(now, out);           // initialising; the boot-up is sent from on_timer
 //   node->on_frame(frame, now, out);    // frames to send and events go into `out`
 //   node->on_timer(now, out);           // call when now >= node->next_deadline()
 //
@@ -138,7 +138,7 @@ class SlaveNode {
   using Output = Outbox<Event>;
 
   /// Builds the node. Fails with a message when a value of the file does not parse. The node is
-  /// off (sends and answers nothing) until power_on().
+  /// off (sends and answers nothing) until start().
   static cfg::Result<std::unique_ptr<SlaveNode>> create(const cfg::DeviceDescription& description,
                                                         cfg::NodeId node_id,
                                                         SlaveNodeOptions options = {});
@@ -155,7 +155,7 @@ class SlaveNode {
   /// Power-on (or power cycle) at `now`: unsaved values are lost, stored ones reload; the
   /// boot-up message is due at `now` (next_deadline()). Events (an LSS node-ID taken) go into
   /// `out`.
-  void power_on(TimePoint now, Output& out);
+  void start(TimePoint now, Output& out);
   /// True for frames the node acted on: NMT commands for it, its SDO requests, guarding
   /// requests, heartbeats it consumes.
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
@@ -203,14 +203,14 @@ class SlaveNode {
   const std::map<std::uint32_t, std::vector<std::uint8_t>>& stored() const { return stored_; }
   /// Replaces the saved values (the device's non-volatile memory), e.g. with stored() of an
   /// earlier run kept in a file. Keys as stored(); a key that is not a stored parameter of this
-  /// node (see the top of this file) is dropped. Like a save, they act at the next power_on() or
+  /// node (see the top of this file) is dropped. Like a save, they act at the next start() or
   /// reset.
   void set_stored(std::map<std::uint32_t, std::vector<std::uint8_t>> values);
   /// What LSS store configuration (17h) saved, the node-ID and bit rate the node powers on
   /// with; nullopt when it never stored (or has no LSS).
   const std::optional<LssStoredConfig>& lss_stored() const { return lss_stored_; }
   /// Replaces what LSS stored (the device's non-volatile memory, e.g. lss_stored() of an
-  /// earlier run kept in a file); acts at the next power_on(). Ignored without LSS.
+  /// earlier run kept in a file); acts at the next start(). Ignored without LSS.
   void set_lss_stored(std::optional<LssStoredConfig> stored);
   /// Program state of 1F51h sub `program` (1..), nullopt when the node has no such program.
   std::optional<ProgramState> program_state(std::uint8_t program) const;
@@ -221,7 +221,7 @@ class SlaveNode {
   }
   /// Replaces the program memory (e.g. program_images() of an earlier run kept in a file).
   /// Each image is program N's as if downloaded (1F50h, 1F56h) and is started at the next
-  /// power_on(); 1F52h then reports the version of program 1's image (see the top of this
+  /// start(); 1F52h then reports the version of program 1's image (see the top of this
   /// file). Program numbers the file has no 1F50h sub for are dropped.
   void set_program_images(std::map<std::uint8_t, std::vector<std::uint8_t>> images);
 

@@ -16,7 +16,7 @@ LssSlave::LssSlave(LssAddress address, std::uint8_t node_id, LssSlaveOptions opt
       pending_node_id_(node_id),
       bit_timing_index_(bit_timing_index) {}
 
-void LssSlave::power_on(std::uint8_t node_id, std::optional<std::uint8_t> bit_timing_index) {
+void LssSlave::start(std::uint8_t node_id, std::optional<std::uint8_t> bit_timing_index) {
   state_ = LssState::Waiting;
   if (bit_timing_index) bit_timing_index_ = *bit_timing_index;
   active_node_id_ = node_id;

@@ -33,9 +33,8 @@ std::string cob_text(cfg::CobId id) {
 std::string connection_text(const ManagedSdoConnection& c) {
   // Raw node-IDs: a connection row holds the bytes written to 1F10h/1F12h (0: none yet).
   return "node " + std::to_string(c.srd) + " " + cfg::object_name(c.client_index) + " -> node " +
-         std::to_string(c.server) +
-         " " + cfg::object_name(c.server_index) + " (COB-IDs " + cob_text(c.request) + "/" +
-         cob_text(c.response) + ")";
+         std::to_string(c.server) + " " + cfg::object_name(c.server_index) + " (COB-IDs " +
+         cob_text(c.request) + "/" + cob_text(c.response) + ")";
 }
 
 }  // namespace
@@ -172,9 +171,8 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
 
 void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Output& out) {
   auto& job = jobs_.front();
-  const std::string why =
-      (result.node_id ? node_text(*result.node_id) : std::string("node 0")) + ": " +
-      transfer_failure(result);
+  const std::string why = (result.node_id ? node_text(*result.node_id) : std::string("node 0")) +
+                          ": " + transfer_failure(result);
   job.steps.clear();
   auto& c = job.connection;
   if (job.kind == Job::Kind::Register) {

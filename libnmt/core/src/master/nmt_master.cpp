@@ -78,7 +78,7 @@ NmtMaster::~NmtMaster() = default;
 // --- the public calls: each runs, then settles into the Output of the call ---
 
 void NmtMaster::start(TimePoint now, Output& out) {
-  impl_->power_on(now, out);
+  impl_->start(now, out);
   impl_->settle(now, out);
 }
 
@@ -143,7 +143,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
   if (m.startup == StartupState::Off) return;
   if (m.startup_due && now >= *m.startup_due) {
     m.startup_due.reset();
-    m.power_on(now, out);
+    m.start(now, out);
   }
   if (services_in(m.own_state).sdo) {
     auto& server_out = m.part_out;
@@ -338,7 +338,7 @@ LocalDictionary& NmtMaster::dictionary() {
 
 // --- NMT start-up (§3.1) ---
 
-void NmtMaster::Impl::power_on(TimePoint now, Output& out) {
+void NmtMaster::Impl::start(TimePoint now, Output& out) {
   // The master is a CANopen device (§3.1: "shall behave according to the NMT slave state
   // machine"): initialisation ends with its boot-up message.
   own_state = NmtState::Initialising;

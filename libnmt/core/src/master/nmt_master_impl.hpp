@@ -234,7 +234,7 @@ struct NmtMaster::Impl {
                                           options.configurations};
 
   // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
-  void power_on(TimePoint now, Output& out);
+  void start(TimePoint now, Output& out);
   void begin_startup(TimePoint now, Output& out);
   void check_startup(TimePoint now, Output& out);
   void finish_startup(TimePoint now, Output& out);

@@ -68,10 +68,10 @@ void SdoRequestingDevice::report(SrdEvent event, Output& out) {
 
 // --- engine ----------------------------------------------------------------------------------
 
-void SdoRequestingDevice::power_on(TimePoint now, Output& out) {
+void SdoRequestingDevice::start(TimePoint now, Output& out) {
   auto& node_out = scratch_.node;
   node_out.clear();
-  node_->power_on(now, node_out);
+  node_->start(now, node_out);
   take_node_output(node_out, out);
   // A power cycle ends every connection and the registration (the dictionary reloads).
   registration_ = SrdRegistration::Unregistered;

@@ -160,7 +160,7 @@ void NmtSlave::set_state(NmtState state) {
   state_ = state;
 }
 
-void NmtSlave::power_on(TimePoint /*now*/, Output& /*out*/) {
+void NmtSlave::start(TimePoint /*now*/, Output& /*out*/) {
   state_ = NmtState::Initialising;
   pending_reset_ = ResetScope::Application;
 }

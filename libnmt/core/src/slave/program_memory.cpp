@@ -69,7 +69,7 @@ void SlaveNode::set_program_images(std::map<std::uint8_t, std::vector<std::uint8
       dict_.set_unsigned(obj::kProgramSoftwareIdentification, program, cfg::crc32(image));
     }
     program_images_[program] = std::move(image);
-    // A program that was cleared in the file's default is there now; power_on() starts it.
+    // A program that was cleared in the file's default is there now; start() starts it.
     const auto state = programs_.find(program);
     if (state != programs_.end() && state->second == ProgramState::NoProgram) {
       programs_[program] = ProgramState::Stopped;

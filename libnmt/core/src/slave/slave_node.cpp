@@ -213,16 +213,16 @@ void SlaveNode::sync_parts() {
 // --- resets
 // ---------------------------------------------------------------------------------------
 
-void SlaveNode::power_on(TimePoint now, Output& out) {
+void SlaveNode::start(TimePoint now, Output& out) {
   powered_ = true;
   // The NMT slave's power-on sends nothing (finish_initialisation() does); forwarded all the same.
   auto& nmt_out = scratch_.nmt;
   nmt_out.clear();
   if (lss_) {
     const std::uint8_t id = lss_stored_ ? lss_stored_->node_id : power_on_node_id_;
-    lss_->power_on(id, lss_stored_ ? std::optional(lss_stored_->bit_timing_index) : std::nullopt);
+    lss_->start(id, lss_stored_ ? std::optional(lss_stored_->bit_timing_index) : std::nullopt);
     if (id == lss::kUnconfigured) {
-      nmt_.power_on(now, nmt_out);
+      nmt_.start(now, nmt_out);
       forward_frames(nmt_out, out);
       become_unconfigured(now);
       return;
@@ -236,7 +236,7 @@ void SlaveNode::power_on(TimePoint now, Output& out) {
       return;
     }
   }
-  nmt_.power_on(now, nmt_out);
+  nmt_.start(now, nmt_out);
   forward_frames(nmt_out, out);
   enter_initialisation(ResetScope::Application, now);
 }

@@ -6,7 +6,7 @@
 // keeps them from one run to the next as a real one keeps them across power cycles (`cfgmgr push
 // --bus sim:?state=DIR`: a second push finds 1020h as the first left it; `cfgmgr simulate
 // --state DIR FILE@255`: a device given node-ID 5 by LSS boots as node 5 next time).
-//   auto saved = nmt::load_device_state(dir, owner);   // before power_on()
+//   auto saved = nmt::load_device_state(dir, owner);   // before start()
 //   if (saved && *saved) nmt::restore_device_state(device.node(), std::move(**saved));
 //   ... on changes_device_state(event.kind): nmt::save_device_state(dir, owner, device.node());
 //
@@ -101,7 +101,7 @@ cfg::Result<std::optional<DeviceState>> load_device_state(const std::filesystem:
                                                           const DeviceStateOwner& owner);
 
 /// Gives `node` the state as its non-volatile memory (set_stored, set_lss_stored,
-/// set_program_images): it acts at the next power_on().
+/// set_program_images): it acts at the next start().
 void restore_device_state(SlaveNode& node, DeviceState state);
 
 /// True for the events after which a device's state file is written again: 1010h save, 1011h

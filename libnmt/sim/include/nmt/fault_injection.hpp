@@ -184,7 +184,7 @@ class FaultInjectedSlave {
 
   // --- engine (nmt/engine.hpp) ---------------------------------------------------------------
   /// Power-on (or power cycle) at `now`; the boot-up follows after faults().boot_delay.
-  void power_on(TimePoint now, Output& out);
+  void start(TimePoint now, Output& out);
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const;
@@ -204,7 +204,7 @@ class FaultInjectedSlave {
   const DeviceFaults& faults() const;
   /// Replaces the faults. Latency, loss, guarding and heartbeat faults take effect at once (a
   /// response waiting out the old latency is dropped), identity and boot delay at the next
-  /// reset; after changing `absent`, power_on() again.
+  /// reset; after changing `absent`, start() again.
   void set_faults(DeviceFaults faults);
   /// SDO request frames received since construction or set_faults().
   std::uint64_t sdo_requests() const;

@@ -5,7 +5,7 @@
 //   auto device = nmt::SimulatedDevice::create(description, 5, faults);
 //   nmt::SimEngineNode<nmt::SimulatedDevice> node(std::move(device).value());
 //   bus.attach(node);
-//   node.apply([](auto& d, nmt::TimePoint now, auto& out) { d.power_on(now, out); });
+//   node.apply([](auto& d, nmt::TimePoint now, auto& out) { d.start(now, out); });
 #pragma once
 
 #include <cstdint>
@@ -23,7 +23,7 @@ class SimulatedDevice : public FaultInjectedSlave {
  public:
   /// Builds the device. node_id: 1..127; nullopt takes [DeviceComissioning] NodeID. Fails with
   /// a message when there is no valid node-ID or a value of the file does not parse. The device
-  /// is off until power_on().
+  /// is off until start().
   static cfg::Result<SimulatedDevice> create(const cfg::DeviceDescription& description,
                                              std::optional<std::uint8_t> node_id,
                                              DeviceFaults faults = {},
