@@ -116,13 +116,9 @@ TEST(NmtMasterSpec, SlaveRebootingWithItsSavedConfigurationIsNotDownloadedAgain)
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(500ms);
 
-  const TimePoint reboot = rig.bus.now();
-  rig.start(3);
-  ASSERT_TRUE(rig.run_until_event(
-      [&](const MasterEvent& e) {
-        return e.kind == Kind::SlaveBooted && e.node_id == 3 && e.at > reboot;
-      },
-      5s));
+  const auto rebooted = rig.reboot_until_booted(3, 5s);
+  ASSERT_TRUE(rebooted.has_value());
+  const TimePoint reboot = *rebooted;
   rig.run_for(100ms);
   EXPECT_TRUE(rig.all_downloads(3, reboot).empty());
   EXPECT_FALSE(rig.booted(3).back().configured);

@@ -208,13 +208,9 @@ TEST(NmtMasterSpec, GuardedSlaveBootedInOperationIsStartedBeforeItsFirstGuarding
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(500ms);
 
-  const TimePoint reboot = rig.bus.now();
-  rig.start(3);
-  ASSERT_TRUE(rig.run_until_event(
-      [&](const MasterEvent& e) {
-        return e.kind == Kind::SlaveBooted && e.node_id == 3 && e.at > reboot;
-      },
-      5s));
+  const auto rebooted = rig.reboot_until_booted(3, 5s);
+  ASSERT_TRUE(rebooted.has_value());
+  const TimePoint reboot = *rebooted;
   rig.run_for(300ms);
 
   // The master's frames to node 3 after its boot-up, in bus order (NMT commands and guarding
@@ -251,13 +247,9 @@ TEST(NmtMasterSpec, SlaveRebootingDuringOperationIsBootedAndStartedAgain) {
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   rig.run_for(1s);
 
-  const TimePoint reboot = rig.bus.now();
-  rig.start(2);
-  ASSERT_TRUE(rig.run_until_event(
-      [&](const MasterEvent& e) {
-        return e.kind == Kind::SlaveBooted && e.node_id == 2 && e.at > reboot;
-      },
-      5s));
+  const auto rebooted = rig.reboot_until_booted(2, 5s);
+  ASSERT_TRUE(rebooted.has_value());
+  const TimePoint reboot = *rebooted;
   rig.run_for(100ms);
   auto boot_up = rig.events_of(Kind::BootUp, 2);
   ASSERT_FALSE(boot_up.empty());

@@ -334,6 +334,19 @@ class MasterRig {
     const bool ok = bus.run_until(found, bus.now() + limit);
     return ok || found();
   }
+  /// Power-cycles slave `node` and runs until the master reports it booted again (SlaveBooted
+  /// after the power cycle): the time of the power cycle, nullopt when no boot came in `limit`.
+  std::optional<TimePoint> reboot_until_booted(std::uint8_t node, Duration limit) {
+    const TimePoint reboot = bus.now();
+    start(node);
+    const bool booted = run_until_event(
+        [&](const MasterEvent& e) {
+          return e.kind == MasterEvent::Kind::SlaveBooted && e.node_id == node && e.at > reboot;
+        },
+        limit);
+    if (!booted) return std::nullopt;
+    return reboot;
+  }
   bool run_until_kind(MasterEvent::Kind kind, Duration limit,
                       std::optional<std::uint8_t> node = {}) {
     return run_until_event(
