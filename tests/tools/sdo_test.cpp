@@ -71,6 +71,10 @@ TEST(Sdo, UsageErrorsExit2BeforeTheBusIsOpened) {
   // The simulated bus has no node to talk to; a malformed URL is a usage error.
   EXPECT_EQ(exit_of({"read", "--bus", "sim:", "5", "1000"}).exit_code, 2);
   EXPECT_EQ(exit_of({"read", "--bus", "udp://10.0.0.1:43113", "5", "1000"}).exit_code, 2);
+  // A response timeout that rounds to 0 us can never be met (SdoClient::check_start).
+  const auto timeout = exit_of({"read", "--bus", kUrl, "5", "1000", "--sdo-timeout", "1e-7"});
+  EXPECT_EQ(timeout.exit_code, 2);
+  EXPECT_THAT(timeout.err, HasSubstr("--sdo-timeout"));
   EXPECT_EQ(exit_of({"read", "--bus", kUrl, "5", "1000", "--eds", dir / "absent.eds"}).exit_code,
             3);
 }

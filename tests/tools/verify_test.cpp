@@ -139,6 +139,13 @@ TEST(Verify, UsageErrorsExit2) {
       cfgmgr(dir, {"verify", sample_network("nodelist.cpj"), "--bus", "sim:?bogus=1"}).exit_code,
       2);
   EXPECT_EQ(cfgmgr(dir, {"verify", dir / "absent.cpj", "--bus", "sim:"}).exit_code, 3);
+  // A response timeout that rounds to 0 us can never be met (SdoClient::check_start): a usage
+  // error naming the option, not a run whose every upload "timed out".
+  const auto timeout = cfgmgr(
+      dir, {"verify", sample_network("nodelist.cpj"), "--bus", "sim:", "--sdo-timeout", "1e-7"});
+  EXPECT_EQ(timeout.exit_code, 2);
+  EXPECT_THAT(timeout.err, HasSubstr("--sdo-timeout"));
+  EXPECT_EQ(timeout.out, "");
   const auto help = cfgmgr(dir, {"verify", "--help"});
   EXPECT_EQ(help.exit_code, 0);
   EXPECT_THAT(help.out, HasSubstr("Examples:"));

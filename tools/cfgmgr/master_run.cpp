@@ -282,6 +282,18 @@ nmt::Duration seconds_to_duration(double s) {
   return nmt::Duration(static_cast<std::int64_t>(s * 1e6));
 }
 
+nmt::Duration sdo_timeout_or_exit(std::string_view tool, double seconds) {
+  constexpr double kMostS = 1e9;  // some 31 years: far below the 64-bit us the clock counts
+  if (!(seconds * 1e6 >= 1.0) || seconds > kMostS) {
+    char text[64];
+    std::snprintf(text, sizeof text, "%g", seconds);
+    fail_command(tool, tools::kExitUsage,
+                 std::string("--sdo-timeout: ") + text +
+                     " s is no SDO response timeout; give from 0.000001 s (1 us) to 1e9 s");
+  }
+  return seconds_to_duration(seconds);
+}
+
 void EventReporter::report(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
   // An event of the master itself (no node_id) is never ignored.

@@ -76,6 +76,11 @@ void finish_report_or_exit(tools::ReportFile& report, std::string_view text = {}
 /// Seconds from `start` to `at` with millisecond digits ("0.512").
 std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at);
 nmt::Duration seconds_to_duration(double s);
+/// --sdo-timeout in seconds as an SDO response timeout (whole us, positive: a 0 us timeout can
+/// never be met, SdoClient::check_start and MasterOptions::validate refuse it). A value that
+/// CLI::PositiveNumber lets through but that rounds to 0 us, or one beyond the clock's range,
+/// ends the command with exit 2 before any bus work.
+nmt::Duration sdo_timeout_or_exit(std::string_view tool, double seconds);
 
 /// The --bus URL checked: the `sim:` options, or nullopt for a real bus whose URL parses.
 /// Ends the command with exit 2 (usage) when it does not.

@@ -564,21 +564,6 @@ nmt::Duration boot_time_or_exit(double seconds) {
   return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
 }
 
-// --sdo-timeout as MasterOptions::sdo_timeout, which the master takes only positive (whole us):
-// a value CLI::PositiveNumber lets through but that rounds to 0 us, or one beyond the clock's
-// range, is a usage error before the bus rather than the master's refusal after the files.
-nmt::Duration sdo_timeout_or_exit(double seconds) {
-  constexpr double kMostS = 1e9;  // some 31 years: far below the 64-bit us the clock counts
-  if (!(seconds * 1e6 >= 1.0) || seconds > kMostS) {
-    char text[64];
-    std::snprintf(text, sizeof text, "%g", seconds);
-    fail_command(kTool, tools::kExitUsage,
-                 std::string("--sdo-timeout: ") + text +
-                     " s is no SDO response timeout; give from 0.000001 s (1 us) to 1e9 s");
-  }
-  return seconds_to_duration(seconds);
-}
-
 void run_push(const PushCliOptions& options) {
   // Arguments first, files next, the bus last: a typo should not touch the bus.
   if (!options.dry_run && options.bus.empty()) {
@@ -589,7 +574,7 @@ void run_push(const PushCliOptions& options) {
   if (options.net == 0) {
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
   }
-  const nmt::Duration sdo_timeout = sdo_timeout_or_exit(options.sdo_timeout_s);
+  const nmt::Duration sdo_timeout = sdo_timeout_or_exit(kTool, options.sdo_timeout_s);
   if (!options.only.empty()) parse_only(kTool, options.only);  // a usage error before any file
   const auto network = load_network_or_exit(options.network, options.net, options.programs);
   const auto selected = selected_nodes(*network, options);

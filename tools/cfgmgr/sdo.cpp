@@ -143,7 +143,7 @@ std::optional<cfg::DataType> data_type_of(const SdoCliOptions& o, cfg::ObjectAdd
 
 nmt::SdoTransferOptions transfer_options(const SdoCliOptions& o, std::size_t write_size = 0) {
   nmt::SdoTransferOptions options;
-  options.timeout = seconds_to_duration(o.sdo_timeout_s);
+  options.timeout = sdo_timeout_or_exit(kTool, o.sdo_timeout_s);
   // CiA 301 §7.2.4.3.9: block transfer; the client falls back to segmented when the server
   // answers 0504 0001 (nmt/sdo_client.hpp).
   if (o.block || write_size > nmt::kBlockDownloadThreshold) options.mode = nmt::SdoMode::Block;
@@ -311,9 +311,9 @@ void run_read(const SdoCliOptions& o) {
   if (o.json && (o.raw || !o.output.empty())) {
     fail(tools::kExitUsage, "--json prints the value as JSON; --raw and -o write its bytes");
   }
+  const auto options = transfer_options(o);  // a usage error before the bus
   auto session = open_session(o, node);
-  out.result = transfer_or_exit(
-      session->upload(out.address.index, out.address.sub_index, transfer_options(o)));
+  out.result = transfer_or_exit(session->upload(out.address.index, out.address.sub_index, options));
   out.channel = session->channel();
   close_session(*session);
   out.bytes = out.result.data;
@@ -369,9 +369,10 @@ void run_write(const SdoCliOptions& o) {
     }
     out.bytes = cfg::encode(*value);
   }
+  const auto options = transfer_options(o, out.bytes.size());  // a usage error before the bus
   auto session = open_session(o, node);
-  out.result = transfer_or_exit(session->download(
-      out.address.index, out.address.sub_index, out.bytes, transfer_options(o, out.bytes.size())));
+  out.result = transfer_or_exit(
+      session->download(out.address.index, out.address.sub_index, out.bytes, options));
   out.channel = session->channel();
   close_session(*session);
   finish(o, out);

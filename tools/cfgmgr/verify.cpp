@@ -245,6 +245,7 @@ void run_verify(const VerifyCliOptions& options) {
   const std::optional<SimBusOptions> sim = parse_bus_url(kTool, options.bus);
   if (options.net == 0)
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
+  const nmt::Duration sdo_timeout = sdo_timeout_or_exit(kTool, options.sdo_timeout_s);
   std::set<std::uint8_t> only;
   if (!options.only.empty()) only = parse_only(kTool, options.only);  // before any file
   auto network = load_network_or_exit(options.network, options.net);
@@ -265,7 +266,7 @@ void run_verify(const VerifyCliOptions& options) {
   tools::ReportFile json = open_report_or_exit(options.json);
 
   nmt::VerifyOptions verify_options;
-  verify_options.sdo.timeout = seconds_to_duration(options.sdo_timeout_s);
+  verify_options.sdo.timeout = sdo_timeout;
   verify_options.retries = options.retries;
   std::vector<nmt::VerifyResult> results;
   const nmt::Duration elapsed = sim ? run_on_sim(*network, *sim, verify_options, results)

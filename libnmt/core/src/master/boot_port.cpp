@@ -11,15 +11,18 @@ namespace nmt {
 
 namespace obj = cfg::object;
 
-void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out,
-                                 bool asked_by_application) {
+void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out) {
   if (after_reset) {
     boot(node).start_after_reset(boot_up_gate.value_or(now + options.boot_up_wait), now, out);
   } else {
-    boot(node).start(asked_by_application ? BootSlaveProcess::AskedBy::Application
-                                          : BootSlaveProcess::AskedBy::Master,
-                     now, out);
+    boot(node).start(BootSlaveProcess::AskedBy::Master, now, out);
   }
+}
+
+void NmtMaster::Impl::boot_as_asked(cfg::NodeId node, TimePoint now, Output& out) {
+  slaves[node].held = false;
+  stop_error_control(node);
+  boot(node).start(BootSlaveProcess::AskedBy::Application, now, out);
 }
 
 void NmtMaster::Impl::start_remote_node(cfg::NodeId node) {

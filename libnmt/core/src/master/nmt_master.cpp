@@ -241,9 +241,7 @@ cfg::Status NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) 
     return cfg::Error{node_text(node) + ": not booted: no slave of this master (1F81h sub " +
                       cfg::hex(node.value(), 2) + "h, §3.4 a: status A)"};
   }
-  m.slaves[node].held = false;
-  m.stop_error_control(node);
-  m.start_boot(node, false, now, out, /*asked_by_application=*/true);
+  m.boot_as_asked(node, now, out);
   m.settle(now, out);
   return {};
 }

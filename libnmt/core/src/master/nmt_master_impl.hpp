@@ -321,8 +321,10 @@ struct NmtMaster::Impl {
   // --- boot NMT slave: the engines and the master's side of their port (boot_port.cpp) -------
   /// A new try of boot NMT slave for `node`; `after_reset`: it waits for the boot-up first (the
   /// start-up's boot-up gate).
-  void start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out,
-                  bool asked_by_application = false);
+  void start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out);
+  /// A boot of `node` the application asks for (boot_slave(), 1F25h 'conf'): request NMT's
+  /// hold released, error control stopped, a new try begun at once.
+  void boot_as_asked(cfg::NodeId node, TimePoint now, Output& out);
   /// §3.4 part 3 g-l: start remote node after a boot with status OK.
   void start_remote_node(cfg::NodeId node);
 };

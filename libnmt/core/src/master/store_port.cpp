@@ -16,9 +16,7 @@ bool NmtMaster::Impl::StorePort::boots_slaves() const {
 
 void NmtMaster::Impl::StorePort::configure(cfg::NodeId node, TimePoint now, Output& out) {
   // As boot_slave(): the application (here a tool) asks for it.
-  m.slaves[node].held = false;
-  m.stop_error_control(node);
-  m.start_boot(node, false, now, out, /*asked_by_application=*/true);
+  m.boot_as_asked(node, now, out);
   m.boot(node).request_reconfiguration();
 }
 
