@@ -375,18 +375,22 @@ inline std::vector<Json> json_lines(const std::string& path) {
 // that with REQUIRE_ISOLATED_MULTICAST() (tests/support/multicast_netns.hpp).
 
 /// Runs this test program's tests matching `filter` inside a private network namespace, as the
-/// current test; skips it when no namespace can be made (unshare -n needs root).
+/// current test; skips it when no namespace can be made (unshare -n needs root). Fails when
+/// `filter` matches no test (tests/support/require_tests_ran.sh), so that renaming the inner
+/// suite cannot drop the tier unnoticed.
 inline void run_in_private_netns(const std::string& filter) {
-  const std::string script = std::string(CANOPEN_TEST_DATA_DIR) + "/../support/run_in_netns.sh";
+  const std::string support = std::string(CANOPEN_TEST_DATA_DIR) + "/../support/";
   const auto self = std::filesystem::read_symlink("/proc/self/exe").string();
-  const std::string command = "sh " + shell_quote(script) + " " + shell_quote(self) +
-                              " --gtest_filter=" + shell_quote(filter) + " --gtest_brief=1";
+  const std::string command = "sh " + shell_quote(support + "run_in_netns.sh") + " sh " +
+                              shell_quote(support + "require_tests_ran.sh") + " " +
+                              shell_quote(self) + " --gtest_filter=" + shell_quote(filter) +
+                              " --gtest_brief=1";
   const int status = std::system(command.c_str());
   ASSERT_TRUE(WIFEXITED(status));
   // run_in_netns.sh exits 77 only when CI is not "true" (tests/support/prerequisite.sh).
   if (WEXITSTATUS(status) == 77)
     PREREQUISITE_MISSING("no network namespace (unshare -n needs root)");
-  EXPECT_EQ(WEXITSTATUS(status), 0) << filter << " failed; output above";
+  EXPECT_EQ(WEXITSTATUS(status), 0) << filter << " failed or matched no test; output above";
 }
 
 /// A tool started in the background with posix_spawn, stdout and stderr to files, so that a
