@@ -112,7 +112,7 @@ int main() {
   bus.run_for(3s);
   // Request NMT (1F82h, CiA 302-2 Table 28): stop node 2.
   master.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) {
-    m.request_nmt(2, nmt::NmtRequest::Stop, now, out);
+    m.request_nmt(node(2), nmt::NmtRequest::Stop, now, out);
   });
   bus.run_for(500ms);
 

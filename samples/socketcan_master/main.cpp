@@ -110,17 +110,21 @@ void command(const std::string& line, Master& master, nmt::BusEventLoop& loop) {
   } else if (verb == "nmt") {
     std::string node_word, what;
     in >> node_word >> what;
-    const auto node = node_word == "all" ? std::optional<std::uint64_t>{0x80} : number(node_word);
+    std::optional<nmt::NmtTarget> target;
+    if (node_word == "all") {
+      target = nmt::NmtTarget::all_nodes();
+    } else if (const auto node = cfg::NodeId::from(number(node_word).value_or(0))) {
+      target = nmt::NmtTarget(*node);
+    }
     const auto value = request_value(what);
-    if (!node || !(cfg::is_node_id(*node) || *node == 0x80) || !value) {
+    if (!target || !value) {
       print("usage: nmt NODE|all start|stop|preop|reset|resetcomm");
       return;
     }
-    master.post(
-        [sub = std::uint8_t(*node), v = *value](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) {
-          const auto abort = m.request_nmt(sub, v, now, out);
-          if (abort != nmt::SdoAbort::None) print("request NMT refused: " + nmt::to_string(abort));
-        });
+    master.post([target = *target, v = *value](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) {
+      const auto abort = m.request_nmt(target, v, now, out);
+      if (abort != nmt::SdoAbort::None) print("request NMT refused: " + nmt::to_string(abort));
+    });
   } else {
     print("unknown command '" + verb + "' (read, nmt, state, quit)");
   }

@@ -496,6 +496,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     } else if (op < 0xE0) {
       const std::uint8_t k = in.next();
       const auto node = *cfg::NodeId::from(static_cast<std::uint8_t>(1 + k % 127));
+      // Sub-index 80h of 1F82h/1F83h addresses all nodes; the others name `node`.
+      const auto target = k == 0x80 ? nmt::NmtTarget::all_nodes() : nmt::NmtTarget(node);
       // Engine rule 5: an application transfer that cannot start (to the master's own node-ID)
       // puts nothing into the output.
       const std::size_t frames_before = master_out.frames.size();
@@ -515,14 +517,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           h.m().enter_operational(h.now, master_out);
           break;
         case 2:
-          // Reserved bytes end where bytes enter (nmt_request_from_byte); 1F82h writes of the
-          // fuzzed SDO frames reach them.
+          // Reserved bytes and sub-indices end where bytes enter (nmt_request_from_byte, the
+          // 1F82h write); 1F82h writes of the fuzzed SDO frames reach them.
           if (const auto request = nmt::nmt_request_from_byte(in.next())) {
-            h.m().request_nmt(k, *request, h.now, master_out);
+            h.m().request_nmt(target, *request, h.now, master_out);
           }
           break;
         case 3:
-          h.m().request_guarding(k, (op & 8) != 0, h.now, master_out);
+          h.m().request_guarding(target, (op & 8) != 0, h.now, master_out);
           break;
         case 4:
           transfer(h.m().sdo_upload(node, 0x1000, 0, h.now, master_out));

@@ -664,7 +664,8 @@ TEST_F(MasterLss, ConfiguredNetworkCostsTwoLssFramesAndOneStep) {
   frames.clear();
   events.clear();
   master->apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(kMasterId, NmtRequest::ResetNode, now, out) == SdoAbort::None;
+    return m.request_nmt(*cfg::NodeId::from(kMasterId), NmtRequest::ResetNode, now, out) ==
+           SdoAbort::None;
   });
   bus.run_for(8s);
   EXPECT_TRUE(of_kind(Kind::LssAssigned).empty());

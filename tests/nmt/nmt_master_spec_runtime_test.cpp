@@ -396,7 +396,7 @@ TEST(NmtMasterSpec, RequestNmtExcludingTheRequesterFromTheApplication) {
   auto& rig = net.rig;
   const TimePoint from = rig.bus.now();
   const SdoAbort code = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(0x80, NmtRequest::StopExcluding, now, out, id(3));
+    return m.request_nmt(NmtTarget::all_nodes(), NmtRequest::StopExcluding, now, out, id(3));
   });
   EXPECT_EQ(code, SdoAbort::None);
   rig.run_for(2s);

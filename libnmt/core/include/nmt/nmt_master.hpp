@@ -470,13 +470,13 @@ class NmtMaster {
   /// §3.1 g with 1F80h bit 2 set: the master enters operational and start-up goes on (start all
   /// nodes per bits 1 and 3). Does nothing in other start-up states.
   void enter_operational(TimePoint now, Output& out);
-  /// 1F82h request NMT as the application on the master's own device asks it: `sub` 1..127 or
-  /// 80h (all); `requester` (for the *Excluding requests) is excluded with the master.
-  /// Returns the abort an SDO write of the same value gets (None: done).
-  SdoAbort request_nmt(std::uint8_t sub, NmtRequest request, TimePoint now, Output& out,
+  /// 1F82h request NMT as the application on the master's own device asks it, for one node or
+  /// all nodes (the write to sub-index 80h); `requester` (for the *Excluding requests) is
+  /// excluded with the master. Returns the abort an SDO write of the same value gets (None: done).
+  SdoAbort request_nmt(NmtTarget target, NmtRequest request, TimePoint now, Output& out,
                        std::optional<cfg::NodeId> requester = std::nullopt);
-  /// 1F83h request guarding: `sub` 1..127 or 80h, start or stop.
-  SdoAbort request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out);
+  /// 1F83h request guarding for one node or all nodes (sub-index 80h), start or stop.
+  SdoAbort request_guarding(NmtTarget target, bool start, TimePoint now, Output& out);
   /// Starts the process start process boot NMT slave for `node` (also for a slave left to the
   /// application by 1F81h bit 2: the application asks for it, so it is configured and started;
   /// or held by a request NMT). Could not start (engine.hpp rule 5: an error that says why,

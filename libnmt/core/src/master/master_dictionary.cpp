@@ -177,6 +177,15 @@ bool assignment_reserved(std::uint32_t value) {
   return (value & cfg::SlaveAssignment::kReservedBit1) != 0;
 }
 
+/// §6.4/§6.5 (Tables 28 and 31): sub-index 1..127 of 1F82h/1F83h addresses that node, 80h all
+/// nodes; nullopt for any other sub-index.
+std::optional<NmtTarget> request_target(std::uint8_t sub) {
+  constexpr std::uint8_t kAllNodes = 0x80;
+  if (sub == kAllNodes) return NmtTarget::all_nodes();
+  if (const auto node = cfg::NodeId::from(sub)) return NmtTarget(*node);
+  return std::nullopt;
+}
+
 }  // namespace
 
 cfg::Status NmtMaster::Impl::check_configuration_values(const LocalDictionary& dict) {
@@ -246,13 +255,18 @@ SdoAbort NmtMaster::Impl::check_write(std::uint16_t index, std::uint8_t sub,
       if (auto timing = detection_timing(sub, value)) flying.set_detection_timing(*timing);
       return SdoAbort::None;
     case obj::kRequestNmt: {
+      const auto target = request_target(sub);
+      if (!target) return SdoAbort::SubIndexDoesNotExist;
       // §6.4: a reserved value is refused with 0609 0030.
       const auto request = nmt_request_from_byte(static_cast<std::uint8_t>(value));
       if (!request) return SdoAbort::ValueRangeExceeded;
-      return request_nmt(sub, *request, std::nullopt, now, out);
+      return request_nmt(*target, *request, std::nullopt, now, out);
     }
-    case obj::kRequestGuarding:
-      return request_guarding(sub, static_cast<std::uint8_t>(value), now);
+    case obj::kRequestGuarding: {
+      const auto target = request_target(sub);
+      if (!target) return SdoAbort::SubIndexDoesNotExist;
+      return request_guarding(*target, static_cast<std::uint8_t>(value), now);
+    }
     default:
       return SdoAbort::None;
   }
@@ -287,10 +301,9 @@ Duration NmtMaster::Impl::nmt_inhibit_time() const {
 
 // --- request NMT (1F82h) and request guarding (1F83h) ---
 
-SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, NmtRequest request,
+SdoAbort NmtMaster::Impl::request_nmt(NmtTarget target, NmtRequest request,
                                       std::optional<cfg::NodeId> requester, TimePoint now,
                                       Output* out) {
-  constexpr std::uint8_t kAll = 0x80;
   const auto command = nmt_command_of(request);
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
   const bool excluding = excludes_master_and_requester(request);
@@ -306,10 +319,9 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, NmtRequest request,
     return nmt_commands.size() + commands > options.max_queued_nmt_requests;
   };
   // A command for the master itself changes its state in this call: that needs the call's output.
-  const bool applies_to_master =
-      sub == kAll ? !excluding : cfg::is_node_id(sub) && sub == node_id.value();
+  const bool applies_to_master = target.all() ? !excluding : target.node() == node_id;
   if (applies_to_master && out == nullptr) return SdoAbort::DeviceState;
-  if (sub == kAll) {
+  if (target.all()) {
     if (excluding) {
       const bool self = requester->value() == node_id.value();
       if (no_room_for(cfg::kMaxNodeId - (self ? 1 : 2))) return SdoAbort::OutOfMemory;
@@ -327,8 +339,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, NmtRequest request,
     apply_own_command(command, now, *out);
     return SdoAbort::None;
   }
-  const auto node = cfg::NodeId::from(sub);
-  if (!node) return SdoAbort::SubIndexDoesNotExist;
+  const auto node = target.node();
   if (*node == node_id) {
     apply_own_command(command, now, *out);
     return SdoAbort::None;
@@ -342,8 +353,7 @@ SdoAbort NmtMaster::Impl::request_nmt(std::uint8_t sub, NmtRequest request,
   return SdoAbort::None;
 }
 
-SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now) {
-  constexpr std::uint8_t kAll = 0x80;
+SdoAbort NmtMaster::Impl::request_guarding(NmtTarget target, std::uint8_t value, TimePoint now) {
   // §6.5, Table 31: 0 stop, 1 start; the rest is reserved.
   if (value > 1) return SdoAbort::ValueRangeExceeded;
   if (!startup_config().is_master() || !acts_as_master()) return SdoAbort::DeviceState;
@@ -360,14 +370,13 @@ SdoAbort NmtMaster::Impl::request_guarding(std::uint8_t sub, std::uint8_t value,
     const auto started = guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
     return started ? SdoAbort::None : SdoAbort::General;
   };
-  if (sub == kAll) {
+  if (target.all()) {
     for (const auto n : all_node_ids()) {
       if (is_slave(n)) (void)apply(n);
     }
     return SdoAbort::None;
   }
-  const auto node = cfg::NodeId::from(sub);
-  if (!node) return SdoAbort::SubIndexDoesNotExist;
+  const auto node = target.node();
   // §6.5: "The sub-index corresponding to its own node-ID shall be ignored."
   if (*node == node_id) return SdoAbort::None;
   return apply(*node);

@@ -217,15 +217,15 @@ void NmtMaster::enter_operational(TimePoint now, Output& out) {
   impl_->settle(now, out);
 }
 
-SdoAbort NmtMaster::request_nmt(std::uint8_t sub, NmtRequest request, TimePoint now, Output& out,
+SdoAbort NmtMaster::request_nmt(NmtTarget target, NmtRequest request, TimePoint now, Output& out,
                                 std::optional<cfg::NodeId> requester) {
-  const auto code = impl_->request_nmt(sub, request, requester, now, &out);
+  const auto code = impl_->request_nmt(target, request, requester, now, &out);
   impl_->settle(now, out);
   return code;
 }
 
-SdoAbort NmtMaster::request_guarding(std::uint8_t sub, bool start, TimePoint now, Output& out) {
-  const auto code = impl_->request_guarding(sub, start ? 1 : 0, now);
+SdoAbort NmtMaster::request_guarding(NmtTarget target, bool start, TimePoint now, Output& out) {
+  const auto code = impl_->request_guarding(target, start ? 1 : 0, now);
   impl_->settle(now, out);
   return code;
 }

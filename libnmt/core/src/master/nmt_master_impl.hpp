@@ -252,9 +252,10 @@ struct NmtMaster::Impl {
   /// to the error handler and the SDO manager.
   void guarding_timer(TimePoint now, Output& out);
   /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).
-  SdoAbort request_nmt(std::uint8_t sub, NmtRequest request, std::optional<cfg::NodeId> requester,
+  SdoAbort request_nmt(NmtTarget target, NmtRequest request, std::optional<cfg::NodeId> requester,
                        TimePoint now, Output* out);
-  SdoAbort request_guarding(std::uint8_t sub, std::uint8_t value, TimePoint now);
+  /// 1F83h: `value` as written (0 stop, 1 start, the rest reserved).
+  SdoAbort request_guarding(NmtTarget target, std::uint8_t value, TimePoint now);
   /// Dispatches SDO results, moves frames, sends due NMT commands, moves start-up on: after
   /// every call.
   void settle(TimePoint now, Output& out);
