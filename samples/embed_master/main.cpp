@@ -18,6 +18,7 @@
 #include "nmt/simulated_device.hpp"
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 
 namespace {
 
@@ -63,10 +64,6 @@ class MyConfigurations final : public nmt::ConfigurationSource {
   }
 };
 
-cfg::NodeId node(std::uint8_t id) {
-  return cfg::NodeId::from(id).value();
-}
-
 }  // namespace
 
 int main() {
@@ -84,12 +81,13 @@ int main() {
   }
 
   // The master's configuration (CiA 302-2 §6) as types: no object indices, no bytes.
-  nmt::MasterConfig config(node(1));
+  nmt::MasterConfig config(1_node);
   config.startup.master = true;  // 1F80h: the NMT master, which starts each slave once booted
   for (const std::uint8_t id : kSlaves) {
-    nmt::SlaveConfig& slave = config.add_slave(node(id));  // 1F81h: boot and start it, optional
-    slave.identity.vendor_id = kVendor;                    // 1F85h: checked against 1018h sub 1
-    slave.heartbeat = 300ms;                               // 1016h: the master consumes it
+    nmt::SlaveConfig& slave =
+        config.add_slave(*cfg::NodeId::from(id));  // 1F81h: boot and start it, optional
+    slave.identity.vendor_id = kVendor;            // 1F85h: checked against 1018h sub 1
+    slave.heartbeat = 300ms;                       // 1016h: the master consumes it
   }
   config.options.configurations = std::make_shared<MyConfigurations>();
   config.options.application_step =
@@ -112,16 +110,16 @@ int main() {
   bus.run_for(3s);
   // Request NMT (1F82h, CiA 302-2 Table 28): stop node 2.
   master.apply([](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) {
-    m.request_nmt(node(2), nmt::NmtRequest::Stop, now, out);
+    m.request_nmt(2_node, nmt::NmtRequest::Stop, now, out);
   });
   bus.run_for(500ms);
 
   const nmt::NmtMaster& m = master.engine();
-  const auto error3 = m.last_error(node(3));
+  const auto error3 = m.last_error(3_node);
   std::cout << "start-up " << nmt::to_string(m.startup_state()) << "; node 2 state "
-            << cfg::hex(m.known_state(node(2)).to_byte(), 2) << "; node 3 boot error "
+            << cfg::hex(m.known_state(2_node).to_byte(), 2) << "; node 3 boot error "
             << (error3 ? nmt::letter(*error3) : '-') << "\n";
-  return m.known_state(node(2)).nmt_state() == nmt::NmtState::Stopped && error3 == nmt::BootError::D
+  return m.known_state(2_node).nmt_state() == nmt::NmtState::Stopped && error3 == nmt::BootError::D
              ? 0
              : 1;
 }

@@ -24,6 +24,7 @@
 
 namespace cfg {
 namespace {
+using namespace cfg::literals;
 
 namespace fs = std::filesystem;
 using test_support::le;
@@ -51,10 +52,6 @@ constexpr std::uint32_t kAbortDataSetEmpty = 0x08000024;  // DSP 302 §6 "Data s
 
 std::uint32_t code(SdoAbort abort) {
   return static_cast<std::uint32_t>(abort);
-}
-
-NodeId node(unsigned id) {
-  return *NodeId::from(id);
 }
 
 Bytes bytes_of(std::string_view text) {
@@ -133,7 +130,7 @@ TEST(ConfigManager, ConciseDcfWriteReadsBackTheSameStream) {
   const Bytes stream = encode_concise_dcf(sample_writes());
   ASSERT_TRUE(manager.write(0x1F22, 3, stream).ok());
   EXPECT_EQ(manager.read(0x1F22, 3).data, stream);
-  EXPECT_EQ(manager.concise(node(3)), stream);
+  EXPECT_EQ(manager.concise(3_node), stream);
   // Another node is untouched.
   EXPECT_THAT(manager.read(0x1F22, 4).data, ElementsAre(0, 0, 0, 0));
 }
@@ -146,7 +143,7 @@ TEST(ConfigManager, InvalidConciseStreamAbortsValueRangeWithTheDecodersMessage) 
   const ConfigWrite write = manager.write(0x1F22, 3, stream);
   EXPECT_EQ(code(write.abort), kAbortValueRange);
   EXPECT_THAT(write.message, HasSubstr("announced"));
-  EXPECT_FALSE(manager.has_configuration(node(3)));
+  EXPECT_FALSE(manager.has_configuration(3_node));
   // Bytes after the last announced entry are rejected too.
   Bytes trailing = encode_concise_dcf(sample_writes());
   trailing.push_back(0);
@@ -158,7 +155,7 @@ TEST(ConfigManager, EmptyDataSetStreamRemovesTheConciseDcf) {
   ConfigManager manager;
   ASSERT_TRUE(manager.write(0x1F22, 3, encode_concise_dcf(sample_writes())).ok());
   ASSERT_TRUE(manager.write(0x1F22, 3, Bytes{0, 0, 0, 0}).ok());
-  EXPECT_FALSE(manager.has_configuration(node(3)));
+  EXPECT_FALSE(manager.has_configuration(3_node));
   EXPECT_THAT(manager.read(0x1F22, 3).data, ElementsAre(0, 0, 0, 0));
 }
 
@@ -198,7 +195,7 @@ TEST(ConfigManager, EdsRoundTrips) {
   EXPECT_EQ(manager.read(0x1F23, 7).data, bytes_of(text));
   EXPECT_THAT(manager.read(0x1F24, 7).data, ElementsAre(0));
   // An EDS is no configuration.
-  EXPECT_FALSE(manager.has_configuration(node(7)));
+  EXPECT_FALSE(manager.has_configuration(7_node));
 }
 
 TEST(ConfigManager, ExpectedDateAndTimeReadBackAndDefaultToZero) {
@@ -209,7 +206,7 @@ TEST(ConfigManager, ExpectedDateAndTimeReadBackAndDefaultToZero) {
   ASSERT_TRUE(manager.write(0x1F27, 4, le(3'600'000, 4)).ok());
   EXPECT_EQ(manager.read(0x1F26, 4).data, le(14000, 4));
   EXPECT_EQ(manager.read(0x1F27, 4).data, le(3'600'000, 4));
-  EXPECT_EQ(manager.expected_stamp(node(4)), (ConfigurationStamp{14000, 3'600'000}));
+  EXPECT_EQ(manager.expected_stamp(4_node), (ConfigurationStamp{14000, 3'600'000}));
   // Milliseconds after midnight stay below 86 400 000.
   EXPECT_EQ(code(manager.write(0x1F27, 4, le(86'400'000, 4)).abort), kAbortValueRange);
   EXPECT_EQ(code(manager.write(0x1F26, 4, le(1, 2)).abort), kAbortLength);
@@ -230,10 +227,10 @@ TEST(ConfigManager, ConfigureSlaveTakesOnlyConf) {
           .ok());
   const ConfigWrite one = manager.write(0x1F25, 3, le(0x666E6F63, 4));
   ASSERT_TRUE(one.ok());
-  EXPECT_THAT(one.configure, ElementsAre(node(3)));
+  EXPECT_THAT(one.configure, ElementsAre(3_node));
   const ConfigWrite all = manager.write(0x1F25, 0x80, le(0x666E6F63, 4));
   ASSERT_TRUE(all.ok());
-  EXPECT_THAT(all.configure, ElementsAre(node(2), node(3)));
+  EXPECT_THAT(all.configure, ElementsAre(2_node, 3_node));
 
   // Any other value ("save", or 'conf' byte-swapped) is refused.
   EXPECT_EQ(code(manager.write(0x1F25, 3, le(kSaveSignature, 4)).abort), kAbortCannotStore);
@@ -280,7 +277,7 @@ TEST(ConfigManagerLimits, StreamOf1F22hWritesForEveryNodeStaysWithinTheTotalThen
       EXPECT_EQ(code(write.abort), kAbortOutOfMemory) << "node " << n;
       EXPECT_THAT(write.message, HasSubstr("out of memory"));
       if (!first_refused) first_refused = n;
-      EXPECT_FALSE(manager.has_configuration(node(n))) << "node " << n;
+      EXPECT_FALSE(manager.has_configuration(*NodeId::from(n))) << "node " << n;
     }
   }
   // 40 nodes fit; the 41st is refused, and the second round replaces the 40 in place.
@@ -294,7 +291,7 @@ TEST(ConfigManagerLimits, StreamOf1F22hWritesForEveryNodeStaysWithinTheTotalThen
   EXPECT_EQ(manager.read(0x1F22, 1).data, smaller);
   ASSERT_TRUE(manager.write(0x1F22, 2, Bytes{0, 0, 0, 0}).ok());
   ASSERT_TRUE(manager.write(0x1F22, 100, concise_of_size(4096)).ok());
-  EXPECT_TRUE(manager.has_configuration(node(100)));
+  EXPECT_TRUE(manager.has_configuration(100_node));
 }
 
 TEST(ConfigManagerLimits, EntryLongerThanMaxEntryBytesAbortsOutOfMemoryWithoutTouchingTheStore) {
@@ -332,9 +329,9 @@ TEST(ConfigManagerLimits, AdmitsAnswersForASizeBeforeTheDataIsThere) {
 
 TEST(ConfigManager, PlanIsTheStreamInPdoSafeOrderThen1020hAnd1010hSave) {
   ConfigManager manager;
-  ASSERT_TRUE(manager.put_concise(node(5), encode_concise_dcf(sample_writes())).ok());
-  ASSERT_TRUE(manager.set_expected_stamp(node(5), {14000, 3'600'000}).ok());
-  auto plan = manager.download_plan(node(5));
+  ASSERT_TRUE(manager.put_concise(5_node, encode_concise_dcf(sample_writes())).ok());
+  ASSERT_TRUE(manager.set_expected_stamp(5_node, {14000, 3'600'000}).ok());
+  auto plan = manager.download_plan(5_node);
   ASSERT_TRUE(plan.ok()) << plan.error().message;
   std::vector<ObjectWrite> expected = pdo_safe_order(sample_writes());
   // CiA 301 §7.5.2.19: 1020h sub 1 date, sub 2 time; §7.5.2.13: 1010h sub 1 'save'.
@@ -351,8 +348,8 @@ TEST(ConfigManager, PlanIsTheStreamInPdoSafeOrderThen1020hAnd1010hSave) {
 TEST(ConfigManager, PlanWithoutStampOrSaveHasNoTail) {
   // §3.5 a: 1F26h/1F27h of 0 mean the configuration is not verified, so 1020h is not written.
   ConfigManager manager;
-  ASSERT_TRUE(manager.put_concise(node(5), encode_concise_dcf(sample_writes())).ok());
-  auto plan = manager.download_plan(node(5), PlanOptions{.save = false});
+  ASSERT_TRUE(manager.put_concise(5_node, encode_concise_dcf(sample_writes())).ok());
+  auto plan = manager.download_plan(5_node, PlanOptions{.save = false});
   ASSERT_TRUE(plan.ok());
   EXPECT_EQ(plan->writes, pdo_safe_order(sample_writes()));
 }
@@ -363,16 +360,16 @@ TEST(ConfigManager, ConfigurationLeaves1020hAnd1010hToTheMaster) {
   writes.push_back(u32(0x1020, 1, 1));
   writes.push_back(u32(0x1010, 1, kSaveSignature));
   ConfigManager manager;
-  ASSERT_TRUE(manager.put_concise(node(5), encode_concise_dcf(writes)).ok());
-  EXPECT_EQ(manager.configuration(node(5)), sample_writes());
-  EXPECT_EQ(manager.configuration(node(6)), std::nullopt);
-  EXPECT_FALSE(manager.download_plan(node(6)).ok());
+  ASSERT_TRUE(manager.put_concise(5_node, encode_concise_dcf(writes)).ok());
+  EXPECT_EQ(manager.configuration(5_node), sample_writes());
+  EXPECT_EQ(manager.configuration(6_node), std::nullopt);
+  EXPECT_FALSE(manager.download_plan(6_node).ok());
 }
 
 TEST(ConfigManager, PlanFromDcfIsWhatDcf2ConciseGives) {
   const std::string path = samples_dir() + "/network/io_module_node2.dcf";
   ConfigManager manager;
-  ASSERT_TRUE(manager.put_dcf(node(2), read_text(path)).ok());
+  ASSERT_TRUE(manager.put_dcf(2_node, read_text(path)).ok());
   auto device = read_device_file(path);
   ASSERT_TRUE(device.ok());
   Diagnostics diagnostics;
@@ -380,14 +377,14 @@ TEST(ConfigManager, PlanFromDcfIsWhatDcf2ConciseGives) {
   options.node_id = 2;
   const auto expected = concise_writes_from_dcf(*device.device, options, diagnostics);
   ASSERT_TRUE(expected.has_value());
-  EXPECT_EQ(manager.configuration(node(2)), *expected);
-  auto plan = manager.download_plan(node(2));
+  EXPECT_EQ(manager.configuration(2_node), *expected);
+  auto plan = manager.download_plan(2_node);
   ASSERT_TRUE(plan.ok());
   EXPECT_EQ(plan->source, DownloadPlan::Source::Dcf);
   EXPECT_EQ(plan->writes.back(), u32(0x1010, 1, kSaveSignature));
   // The concise DCF, when there is one, comes first.
-  ASSERT_TRUE(manager.put_concise(node(2), encode_concise_dcf(sample_writes())).ok());
-  EXPECT_EQ(manager.configuration(node(2)), sample_writes());
+  ASSERT_TRUE(manager.put_concise(2_node, encode_concise_dcf(sample_writes())).ok());
+  EXPECT_EQ(manager.configuration(2_node), sample_writes());
 }
 
 // --- the store directory ----------------------------------------------------------------------
@@ -398,10 +395,10 @@ TEST(ConfigStore, EntriesSurviveReopeningTheDirectory) {
   const std::string eds = read_text(samples_dir() + "/drive.eds");
   {
     ConfigManager manager = open_store(dir.str());
-    ASSERT_TRUE(manager.put_concise(node(1), encode_concise_dcf(sample_writes())).ok());
-    ASSERT_TRUE(manager.put_dcf(node(3), dcf).ok());
-    ASSERT_TRUE(manager.put_eds(node(3), eds).ok());
-    ASSERT_TRUE(manager.set_expected_stamp(node(127), {14000, 1}).ok());
+    ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
+    ASSERT_TRUE(manager.put_dcf(3_node, dcf).ok());
+    ASSERT_TRUE(manager.put_eds(3_node, eds).ok());
+    ASSERT_TRUE(manager.set_expected_stamp(127_node, {14000, 1}).ok());
   }
   EXPECT_TRUE(fs::exists(dir.file("1F22-01")));
   EXPECT_TRUE(fs::exists(dir.file("1F20-03")));
@@ -409,33 +406,33 @@ TEST(ConfigStore, EntriesSurviveReopeningTheDirectory) {
   EXPECT_TRUE(fs::exists(dir.file("1F26-7F")));
   ConfigManager again = open_store(dir.str());
   EXPECT_TRUE(again.problems().empty()) << again.problems().format();
-  EXPECT_EQ(again.concise(node(1)), encode_concise_dcf(sample_writes()));
-  EXPECT_EQ(again.dcf(node(3)), dcf);
-  EXPECT_EQ(again.eds(node(3)), eds);
-  EXPECT_EQ(again.expected_stamp(node(127)), (ConfigurationStamp{14000, 1}));
-  EXPECT_THAT(again.configured_nodes(), ElementsAre(node(1), node(3)));
+  EXPECT_EQ(again.concise(1_node), encode_concise_dcf(sample_writes()));
+  EXPECT_EQ(again.dcf(3_node), dcf);
+  EXPECT_EQ(again.eds(3_node), eds);
+  EXPECT_EQ(again.expected_stamp(127_node), (ConfigurationStamp{14000, 1}));
+  EXPECT_THAT(again.configured_nodes(), ElementsAre(1_node, 3_node));
 }
 
 TEST(ConfigStore, RemovedEntriesStayRemoved) {
   TempDir dir;
   {
     ConfigManager manager = open_store(dir.str());
-    ASSERT_TRUE(manager.put_concise(node(1), encode_concise_dcf(sample_writes())).ok());
-    ASSERT_TRUE(manager.set_expected_stamp(node(1), {1, 1}).ok());
+    ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
+    ASSERT_TRUE(manager.set_expected_stamp(1_node, {1, 1}).ok());
     ASSERT_TRUE(manager.write(0x1F22, 1, Bytes{0, 0, 0, 0}).ok());
-    ASSERT_TRUE(manager.set_expected_stamp(node(1), {0, 0}).ok());
+    ASSERT_TRUE(manager.set_expected_stamp(1_node, {0, 0}).ok());
   }
   EXPECT_TRUE(fs::is_empty(dir.str()));
   ConfigManager again = open_store(dir.str());
-  EXPECT_FALSE(again.has_configuration(node(1)));
+  EXPECT_FALSE(again.has_configuration(1_node));
 }
 
 TEST(ConfigStore, FlippedByteIsReportedWithTheFileAndNeverUsed) {
   TempDir dir;
   {
     ConfigManager manager = open_store(dir.str());
-    ASSERT_TRUE(manager.put_concise(node(1), encode_concise_dcf(sample_writes())).ok());
-    ASSERT_TRUE(manager.put_concise(node(2), encode_concise_dcf(sample_writes(200))).ok());
+    ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
+    ASSERT_TRUE(manager.put_concise(2_node, encode_concise_dcf(sample_writes(200))).ok());
   }
   // Flip one bit in the middle of node 1's file.
   Bytes file = read_bytes(dir.file("1F22-01"));
@@ -450,16 +447,16 @@ TEST(ConfigStore, FlippedByteIsReportedWithTheFileAndNeverUsed) {
   EXPECT_EQ(problem.file, dir.file("1F22-01"));
   EXPECT_EQ(problem.severity, Severity::Error);
   EXPECT_THAT(problem.message, HasSubstr("CRC-32 mismatch"));
-  EXPECT_FALSE(again.has_configuration(node(1)));
-  EXPECT_EQ(again.configuration(node(2)), sample_writes(200));
+  EXPECT_FALSE(again.has_configuration(1_node));
+  EXPECT_EQ(again.configuration(2_node), sample_writes(200));
 }
 
 TEST(ConfigStore, TruncatedAndMisnamedFilesAreReported) {
   TempDir dir;
   {
     ConfigManager manager = open_store(dir.str());
-    ASSERT_TRUE(manager.put_concise(node(1), encode_concise_dcf(sample_writes())).ok());
-    ASSERT_TRUE(manager.put_concise(node(2), encode_concise_dcf(sample_writes(200))).ok());
+    ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
+    ASSERT_TRUE(manager.put_concise(2_node, encode_concise_dcf(sample_writes(200))).ok());
   }
   fs::resize_file(dir.file("1F22-01"), fs::file_size(dir.file("1F22-01")) - 3);
   fs::copy_file(dir.file("1F22-02"), dir.file("1F22-03"));
@@ -467,19 +464,19 @@ TEST(ConfigStore, TruncatedAndMisnamedFilesAreReported) {
   ASSERT_EQ(again.problems().size(), 2U) << again.problems().format();
   EXPECT_THAT(again.problems().items()[0].message, HasSubstr("truncated"));
   EXPECT_THAT(again.problems().items()[1].message, HasSubstr("not what its name says"));
-  EXPECT_THAT(again.configured_nodes(), ElementsAre(node(2)));
+  EXPECT_THAT(again.configured_nodes(), ElementsAre(2_node));
 }
 
 TEST(ConfigStore, EntryWithAGoodChecksumButNoDcfInsideIsReported) {
   // A file another program wrote with a correct CRC: the content is checked as a write is.
   TempDir dir;
-  const Bytes file = encode_store_entry({0x1F20, node(4), bytes_of("not a DCF\n")});
+  const Bytes file = encode_store_entry({0x1F20, 4_node, bytes_of("not a DCF\n")});
   std::ofstream(dir.file("1F20-04"), std::ios::binary)
       .write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
   ConfigManager manager = open_store(dir.str());
   ASSERT_EQ(manager.problems().size(), 1U);
   EXPECT_THAT(manager.problems().items()[0].message, HasSubstr("does not read"));
-  EXPECT_FALSE(manager.has_configuration(node(4)));
+  EXPECT_FALSE(manager.has_configuration(4_node));
   EXPECT_EQ(code(manager.read(0x1F20, 4).abort), kAbortDataSetEmpty);
 }
 
@@ -497,13 +494,13 @@ TEST(ConfigStore, FailedWriteAbortsAndKeepsTheOldValue) {
   // The rename cannot replace the entry (a directory has its name): works as root too.
   TempDir dir;
   ConfigManager manager = open_store(dir.str());
-  ASSERT_TRUE(manager.put_concise(node(1), encode_concise_dcf(sample_writes())).ok());
+  ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
   fs::remove(dir.file("1F22-01"));
   fs::create_directories(dir.file("1F22-01/x"));
   const ConfigWrite write = manager.write(0x1F22, 1, encode_concise_dcf(sample_writes(5)));
   EXPECT_EQ(code(write.abort), kAbortCannotStore);
   EXPECT_THAT(write.message, HasSubstr("1F22-01"));
-  EXPECT_EQ(manager.configuration(node(1)), sample_writes());
+  EXPECT_EQ(manager.configuration(1_node), sample_writes());
   // The failed write leaves no temporary file behind.
   for (const auto& file : fs::directory_iterator(dir.str())) {
     EXPECT_FALSE(file.path().filename().string().starts_with('.')) << file.path();
@@ -511,13 +508,13 @@ TEST(ConfigStore, FailedWriteAbortsAndKeepsTheOldValue) {
 }
 
 TEST(ConfigStore, EntryFileRoundTripsAndRejectsDamage) {
-  const StoreEntry entry{0x1F20, node(9), bytes_of("[FileInfo]\nFileName=x.dcf\n")};
+  const StoreEntry entry{0x1F20, 9_node, bytes_of("[FileInfo]\nFileName=x.dcf\n")};
   const Bytes file = encode_store_entry(entry);
   auto decoded = decode_store_entry(file, "1F20-09");
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   EXPECT_EQ(*decoded, entry);
   EXPECT_FALSE(decode_store_entry(file, "1F20-0A").ok());
-  EXPECT_EQ(store_entry_file_name(0x1F26, node(127)), "1F26-7F");
+  EXPECT_EQ(store_entry_file_name(0x1F26, 127_node), "1F26-7F");
   for (std::size_t i = 0; i < file.size(); ++i) {
     Bytes damaged = file;
     damaged[i] ^= 0x01;
@@ -544,10 +541,10 @@ struct CrashFixture {
 
   void seed(const std::string& dir) const {
     ConfigManager manager = open_store(dir);
-    ASSERT_TRUE(manager.put_concise(node(1), a).ok());
-    ASSERT_TRUE(manager.put_concise(node(2), other).ok());
-    ASSERT_TRUE(manager.put_eds(node(3), eds).ok());
-    ASSERT_TRUE(manager.set_expected_stamp(node(4), {14000, 5}).ok());
+    ASSERT_TRUE(manager.put_concise(1_node, a).ok());
+    ASSERT_TRUE(manager.put_concise(2_node, other).ok());
+    ASSERT_TRUE(manager.put_eds(3_node, eds).ok());
+    ASSERT_TRUE(manager.set_expected_stamp(4_node, {14000, 5}).ok());
   }
 
   /// Node 1 holds one of `a`/`b` (which one returned), nothing is damaged, the others intact,
@@ -555,11 +552,11 @@ struct CrashFixture {
   Bytes check(const std::string& dir) const {
     ConfigManager manager = open_store(dir);
     EXPECT_TRUE(manager.problems().empty()) << manager.problems().format();
-    const auto value = manager.concise(node(1));
+    const auto value = manager.concise(1_node);
     EXPECT_TRUE(value == a || value == b);
-    EXPECT_EQ(manager.concise(node(2)), other);
-    EXPECT_EQ(manager.eds(node(3)), eds);
-    EXPECT_EQ(manager.expected_stamp(node(4)), (ConfigurationStamp{14000, 5}));
+    EXPECT_EQ(manager.concise(2_node), other);
+    EXPECT_EQ(manager.eds(3_node), eds);
+    EXPECT_EQ(manager.expected_stamp(4_node), (ConfigurationStamp{14000, 5}));
     for (const auto& file : fs::directory_iterator(dir)) {
       EXPECT_FALSE(file.path().filename().string().starts_with('.')) << file.path();
     }
@@ -589,7 +586,7 @@ TEST(ConfigStore, KilledWriterAtEveryStepLeavesOldOrNewValue) {
       };
       auto manager = ConfigManager::open(dir.str(), hooks);
       if (!manager) ::_exit(2);
-      ::_exit(manager->put_concise(node(1), next).ok() ? 0 : 3);
+      ::_exit(manager->put_concise(1_node, next).ok() ? 0 : 3);
     }
     int status = 0;
     ASSERT_EQ(::waitpid(child, &status, 0), child);
@@ -626,7 +623,7 @@ TEST(ConfigStore, KilledWriterAtRandomMomentsLeavesOldOrNewValue) {
       auto manager = ConfigManager::open(dir.str(), hooks);
       if (!manager) ::_exit(2);
       for (bool flip = false;; flip = !flip) {
-        if (!manager->put_concise(node(1), flip ? fixture.a : fixture.b).ok()) ::_exit(3);
+        if (!manager->put_concise(1_node, flip ? fixture.a : fixture.b).ok()) ::_exit(3);
       }
     }
     std::this_thread::sleep_for(std::chrono::microseconds(delay_us(random)));

@@ -15,6 +15,7 @@
 #include "test_paths.hpp"
 
 namespace {
+using namespace cfg::literals;
 
 using ::testing::HasSubstr;
 
@@ -35,10 +36,6 @@ std::uint32_t value_of(const cfg::DeviceDescription& d, std::uint16_t index, std
   return value ? static_cast<std::uint32_t>(value->as_unsigned()) : 0;
 }
 
-cfg::NodeId id(unsigned n) {
-  return *cfg::NodeId::from(n);
-}
-
 const cfg::Diagnostic* find_diagnostic(const cfg::Diagnostics& diagnostics,
                                        const std::string& text) {
   for (const auto& d : diagnostics.items()) {
@@ -55,11 +52,11 @@ TEST(Network, LoadsTheFirstTopologyOfAProjectFile) {
   EXPECT_EQ(net.net, 1U);
   // Node5Present=0x00: named but not present (CiA 306-3), so not loaded.
   ASSERT_EQ(net.nodes.size(), 2U);
-  EXPECT_EQ(net.nodes[0].node_id, id(2));
+  EXPECT_EQ(net.nodes[0].node_id, 2_node);
   EXPECT_EQ(net.nodes[0].name, "io left");
-  EXPECT_EQ(net.nodes[1].node_id, id(3));
+  EXPECT_EQ(net.nodes[1].node_id, 3_node);
   EXPECT_EQ(net.nodes[1].name, "axis x");
-  EXPECT_EQ(net.find(id(5)), nullptr);
+  EXPECT_EQ(net.find(5_node), nullptr);
   EXPECT_FALSE(net.master_from_file);
   EXPECT_FALSE(net.master_node_id.has_value());
 }
@@ -111,7 +108,7 @@ TEST(Network, NetOptionSelectsTopology2) {
   EXPECT_EQ(load.network->name, "second net");
   EXPECT_EQ(load.network->net, 2U);
   ASSERT_EQ(load.network->nodes.size(), 1U);
-  EXPECT_EQ(load.network->nodes[0].node_id, id(4));
+  EXPECT_EQ(load.network->nodes[0].node_id, 4_node);
 }
 
 TEST(Network, AMissingTopologyIsAnErrorNamingTheNetworksThereAre) {
@@ -137,7 +134,7 @@ TEST(Network, AMissingDcfIsAnErrorAtTheLineThatNamesIt) {
   // The other node is still loaded.
   ASSERT_TRUE(load.network.has_value());
   ASSERT_EQ(load.network->nodes.size(), 1U);
-  EXPECT_EQ(load.network->nodes[0].node_id, id(3));
+  EXPECT_EQ(load.network->nodes[0].node_id, 3_node);
 }
 
 TEST(Network, ReportsANodeIdClashBetweenProjectFileAndDcf) {
@@ -155,7 +152,7 @@ TEST(Network, TheProjectFileGivesTheNodeIdOfTheWrites) {
   // $NODEID and the node-ID of the writes are the project's, even where the DCF clashes.
   const auto load = cfg::load_network(data("clash.cpj"));
   ASSERT_TRUE(load.network.has_value());
-  EXPECT_NE(load.network->find(id(6)), nullptr);
+  EXPECT_NE(load.network->find(6_node), nullptr);
 }
 
 TEST(Network, NodeWritesAreTheDcfsConfiguredValues) {
@@ -285,10 +282,10 @@ TEST(Network, AMasterDcfInTheProjectRulesTheBoot) {
   EXPECT_TRUE(net.master_from_file);
   EXPECT_EQ(net.master_file, data("master_wrong_vendor.dcf"));
   ASSERT_TRUE(net.master_node_id.has_value());
-  EXPECT_EQ(*net.master_node_id, id(1));
+  EXPECT_EQ(*net.master_node_id, 1_node);
   // The master is no slave; its 1F85h is taken as written.
   ASSERT_EQ(net.nodes.size(), 1U);
-  EXPECT_EQ(net.nodes[0].node_id, id(2));
+  EXPECT_EQ(net.nodes[0].node_id, 2_node);
   EXPECT_EQ(value_of(net.master, 0x1F85, 2), 0x00000BADU);
 }
 
@@ -298,15 +295,15 @@ TEST(Network, AMasterDcfAloneNamesNodeFilesWithDownloadFile) {
   const auto& net = *load.network;
   EXPECT_TRUE(net.master_from_file);
   ASSERT_TRUE(net.master_node_id.has_value());
-  EXPECT_EQ(*net.master_node_id, id(1));
+  EXPECT_EQ(*net.master_node_id, 1_node);
   ASSERT_EQ(net.nodes.size(), 2U);
   // 1F20h sub 2: a DCF.
-  EXPECT_EQ(net.nodes[0].node_id, id(2));
+  EXPECT_EQ(net.nodes[0].node_id, 2_node);
   EXPECT_TRUE(net.nodes[0].dcf.has_value());
   EXPECT_EQ(net.nodes[0].file, data("nodes/io_node2.dcf"));
   // 1F22h sub 3: tests/data/concise/heartbeat_1000.bin, one entry 1017h sub 0 = 1000 (DSP 302
   // §6.2 layout).
-  EXPECT_EQ(net.nodes[1].node_id, id(3));
+  EXPECT_EQ(net.nodes[1].node_id, 3_node);
   EXPECT_FALSE(net.nodes[1].dcf.has_value());
   EXPECT_EQ(net.nodes[1].writes, (std::vector<cfg::ObjectWrite>{{0x1017, 0, {0xE8, 0x03}}}));
   EXPECT_EQ(value_of(net.master, 0x1F81, 3), 0x00000005U);

@@ -14,6 +14,7 @@
 #include "test_paths.hpp"
 
 namespace {
+using namespace cfg::literals;
 
 // Powers `device` on at `now` (nothing it reports at power-on is looked at here).
 template <class Device>
@@ -36,19 +37,15 @@ class TempDir {
   fs::path path_;
 };
 
-cfg::NodeId node(int n) {
-  return *cfg::NodeId::from(static_cast<std::uint8_t>(n));
-}
-
 TEST(DeviceState, FormatsAndParsesBackTheSameValues) {
   // 1017h = 1000 ms (UNSIGNED16 E8h 03h on the bus), 1020h sub 1 = 0x11223344, an empty entry.
   const nmt::SavedValues values = {
       {0x101700, {0xE8, 0x03}}, {0x102001, {0x44, 0x33, 0x22, 0x11}}, {0x200000, {}}};
-  const std::string text = nmt::format_device_state(node(5), {values, std::nullopt, {}});
+  const std::string text = nmt::format_device_state(5_node, {values, std::nullopt, {}});
   EXPECT_NE(text.find("\n1017sub00=E803\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\n1020sub01=44332211\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\nend=3\n"), std::string::npos) << text;
-  const auto parsed = nmt::parse_device_state(text, "f", node(5));
+  const auto parsed = nmt::parse_device_state(text, "f", 5_node);
   ASSERT_TRUE(parsed) << parsed.error().message;
   EXPECT_EQ(parsed->values, values);
   EXPECT_FALSE(parsed->lss) << "LSS never stored";
@@ -67,37 +64,37 @@ TEST(DeviceState, KeepsWhatLssStoredAndNamesAnUnconfiguredDevicesFileByItsLssAdd
   EXPECT_EQ(*parsed, state);
   EXPECT_EQ(nmt::device_state_file("d", address),
             fs::path("d") / "lss-7E57C0DE-00000305-00010002-00001001.saved");
-  EXPECT_EQ(nmt::device_state_file("d", node(5)), fs::path("d") / "node-05.saved");
+  EXPECT_EQ(nmt::device_state_file("d", 5_node), fs::path("d") / "node-05.saved");
 
   // Another device's file, a node's file, half the LSS lines, a node-ID out of range: refused.
   nmt::LssAddress other = address;
   other.serial = 0x1003;
   EXPECT_FALSE(nmt::parse_device_state(text, "f", other));
-  EXPECT_FALSE(nmt::parse_device_state(text, "f", node(5)));
-  EXPECT_FALSE(nmt::parse_device_state(nmt::format_device_state(node(5), state), "f", address));
-  EXPECT_FALSE(nmt::parse_device_state("node=5\nlss_node=5\nend=0\n", "f", node(5)));
+  EXPECT_FALSE(nmt::parse_device_state(text, "f", 5_node));
+  EXPECT_FALSE(nmt::parse_device_state(nmt::format_device_state(5_node, state), "f", address));
+  EXPECT_FALSE(nmt::parse_device_state("node=5\nlss_node=5\nend=0\n", "f", 5_node));
   const auto bad =
-      nmt::parse_device_state("node=5\nlss_node=128\nlss_bit_timing=2\nend=0\n", "f", node(5));
+      nmt::parse_device_state("node=5\nlss_node=128\nlss_bit_timing=2\nend=0\n", "f", 5_node);
   ASSERT_FALSE(bad);
   EXPECT_NE(bad.error().message.find("f:2: error: lss_node=128"), std::string::npos)
       << bad.error().message;
   EXPECT_FALSE(
-      nmt::parse_device_state("node=5\nlss_node=255\nlss_bit_timing=10\nend=0\n", "f", node(5)));
+      nmt::parse_device_state("node=5\nlss_node=255\nlss_bit_timing=10\nend=0\n", "f", 5_node));
   EXPECT_TRUE(
-      nmt::parse_device_state("node=5\nlss_node=255\nlss_bit_timing=9\nend=0\n", "f", node(5)));
+      nmt::parse_device_state("node=5\nlss_node=255\nlss_bit_timing=9\nend=0\n", "f", 5_node));
 }
 
 TEST(DeviceState, RefusesATextCutShortAnotherNodesOrABadLine) {
   const std::string text =
-      nmt::format_device_state(node(5), {{{0x101700, {0xE8, 0x03}}}, std::nullopt, {}});
-  const auto cut = nmt::parse_device_state(text.substr(0, text.find("end=")), "f", node(5));
+      nmt::format_device_state(5_node, {{{0x101700, {0xE8, 0x03}}}, std::nullopt, {}});
+  const auto cut = nmt::parse_device_state(text.substr(0, text.find("end=")), "f", 5_node);
   ASSERT_FALSE(cut);
   EXPECT_NE(cut.error().message.find("f:3: error: "), std::string::npos) << cut.error().message;
   EXPECT_NE(cut.error().message.find("cut short"), std::string::npos);
-  EXPECT_FALSE(nmt::parse_device_state(text, "f", node(6)));
-  EXPECT_FALSE(nmt::parse_device_state("node=5\n1017sub00=E80\nend=1\n", "f", node(5)));
-  EXPECT_FALSE(nmt::parse_device_state("node=5\n1017sub00=E803\nend=2\n", "f", node(5)));
-  EXPECT_FALSE(nmt::parse_device_state("node=5\n1017sub0=E803\nend=1\n", "f", node(5)));
+  EXPECT_FALSE(nmt::parse_device_state(text, "f", 6_node));
+  EXPECT_FALSE(nmt::parse_device_state("node=5\n1017sub00=E80\nend=1\n", "f", 5_node));
+  EXPECT_FALSE(nmt::parse_device_state("node=5\n1017sub00=E803\nend=2\n", "f", 5_node));
+  EXPECT_FALSE(nmt::parse_device_state("node=5\n1017sub0=E803\nend=1\n", "f", 5_node));
 }
 
 // A device with 1017h (rw) and 1010h sub 1, built from a small DCF text.
@@ -133,10 +130,10 @@ TEST(DeviceState, ADeviceGivenItsSavedValuesHasThemAfterPowerOn) {
   // What a 1010h sub 1 'save' stores, here set directly: the node's stored values.
   first.node().set_stored({{0x101700, {0xE8, 0x03}}, {0x100000, {0x00, 0x00, 0x00, 0x00}}});
   EXPECT_EQ(first.node().stored().size(), 1U) << "1000h is read-only: no stored parameter";
-  ASSERT_TRUE(nmt::save_device_state(dir.path(), node(5), first.node()));
+  ASSERT_TRUE(nmt::save_device_state(dir.path(), 5_node, first.node()));
 
   nmt::SimulatedDevice second = device();
-  auto loaded = nmt::load_device_state(dir.path(), node(5));
+  auto loaded = nmt::load_device_state(dir.path(), 5_node);
   ASSERT_TRUE(loaded) << loaded.error().message;
   ASSERT_TRUE(loaded->has_value());
   nmt::restore_device_state(second.node(), std::move(**loaded));
@@ -144,7 +141,7 @@ TEST(DeviceState, ADeviceGivenItsSavedValuesHasThemAfterPowerOn) {
   power_on_at(second, nmt::TimePoint{});
   EXPECT_EQ(second.node().dictionary().get_unsigned(0x1017, 0), 1000U);
 
-  auto none = nmt::load_device_state(dir.path(), node(6));
+  auto none = nmt::load_device_state(dir.path(), 6_node);
   ASSERT_TRUE(none);
   EXPECT_FALSE(none->has_value()) << "no file: the device never saved";
 }

@@ -13,6 +13,8 @@
 namespace nmt {
 namespace {
 
+using namespace cfg::literals;
+
 using std::chrono::milliseconds;
 
 TimePoint at_ms(std::int64_t ms) {
@@ -23,10 +25,6 @@ CanFrame frame(std::string_view candump) {
   auto f = from_candump(candump);
   EXPECT_TRUE(f.has_value()) << candump;
   return f.value_or(CanFrame{});
-}
-
-cfg::NodeId id(std::uint8_t node_id) {
-  return cfg::NodeId::from(node_id).value();
 }
 
 // The engines through their one shape (nmt/engine.hpp), read back as what each call produced.
@@ -60,14 +58,14 @@ std::vector<NodeGuardingEvent> tick(NodeGuardingMaster& m, TimePoint now,
 void start(NodeGuardingMaster& m, std::uint8_t node, std::uint16_t guard_time_ms,
            std::uint8_t life_time_factor, TimePoint now, std::vector<CanFrame>& frames) {
   NodeGuardingMaster::Output out;
-  EXPECT_TRUE(m.start(id(node), guard_time_ms, life_time_factor, now, out));
+  EXPECT_TRUE(m.start(*cfg::NodeId::from(node), guard_time_ms, life_time_factor, now, out));
   EXPECT_TRUE(out.events.empty());
   frames.insert(frames.end(), out.frames.begin(), out.frames.end());
 }
 // The heartbeat the producer sends at `now` for `node` in `state`, if one is due.
 std::optional<CanFrame> beat(HeartbeatProducer& p, TimePoint now, std::uint8_t node,
                              NmtState state) {
-  p.set_node_id(id(node));
+  p.set_node_id(*cfg::NodeId::from(node));
   p.set_state(state);
   HeartbeatProducer::Output out;
   p.on_timer(now, out);
@@ -82,7 +80,7 @@ struct GuardResult {
 };
 GuardResult guard(NodeGuardingSlave& g, const CanFrame& f, TimePoint now, std::uint8_t node,
                   NmtState state) {
-  g.set_node_id(id(node));
+  g.set_node_id(*cfg::NodeId::from(node));
   g.set_state(state);
   NodeGuardingSlave::Output out;
   const bool taken = g.on_frame(f, now, out);
@@ -109,7 +107,7 @@ static_assert(Engine<NodeGuardingMaster>);
 // --- heartbeat producer ---
 
 TEST(HeartbeatProducer, SendsStateEveryPeriodAfterBootUp) {
-  HeartbeatProducer p(id(1));
+  HeartbeatProducer p(1_node);
   p.set_period(100, at_ms(0));
   p.on_boot_up(at_ms(0));  // the boot-up message counts as the first heartbeat
   EXPECT_EQ(p.next_deadline(), at_ms(100));
@@ -125,7 +123,7 @@ TEST(HeartbeatProducer, SendsStateEveryPeriodAfterBootUp) {
 }
 
 TEST(HeartbeatProducer, ZeroPeriodDisablesTheProducer) {
-  HeartbeatProducer p(id(1));
+  HeartbeatProducer p(1_node);
   p.on_boot_up(at_ms(0));
   EXPECT_FALSE(p.next_deadline().has_value());
   p.set_period(50, at_ms(10));
@@ -136,7 +134,7 @@ TEST(HeartbeatProducer, ZeroPeriodDisablesTheProducer) {
 }
 
 TEST(HeartbeatProducer, DoesNotBurstAfterStall) {
-  HeartbeatProducer p(id(1));
+  HeartbeatProducer p(1_node);
   p.set_period(10, at_ms(0));
   p.on_boot_up(at_ms(0));
   ASSERT_TRUE(beat(p, at_ms(95), 1, NmtState::Operational).has_value());
@@ -232,7 +230,7 @@ TEST(HeartbeatConsumer, InactiveEntryStopsMonitoring) {
   HeartbeatConsumer c({.timeout_from_start = true});
   c.monitor({7, 50}, at_ms(0));
   c.monitor({7, 0}, at_ms(10));
-  EXPECT_FALSE(c.monitors(id(7)));
+  EXPECT_FALSE(c.monitors(7_node));
   EXPECT_TRUE(tick(c, at_ms(100)).empty());
 }
 
@@ -283,7 +281,7 @@ TEST(HeartbeatConsumer, NextDeadlineIsTheEarliestAfterHeartbeatsRestartsAndStops
   EXPECT_EQ(c.next_deadline(), at_ms(100));
   (void)feed(c, frame("701#05"), at_ms(150));  // node 1 re-armed: 250
   EXPECT_EQ(c.next_deadline(), at_ms(200));
-  c.stop(id(2));
+  c.stop(2_node);
   EXPECT_EQ(c.next_deadline(), at_ms(250));
   (void)feed(c, frame("701#00"), at_ms(160));  // boot-up: node 1 waits for a heartbeat
   EXPECT_EQ(c.next_deadline(), at_ms(300));
@@ -306,7 +304,7 @@ TEST(HeartbeatConsumer, NextDeadlineIsTheEarliestAfterHeartbeatsRestartsAndStops
 // --- node guarding / life guarding ---
 
 TEST(NodeGuardingSlave, RepliesWithToggleBitStartingAtZero) {
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   const CanFrame rtr = frame("705#R1");
   auto r1 = guard(g, rtr, at_ms(0), 5, NmtState::Operational);
   ASSERT_TRUE(r1.reply.has_value());
@@ -317,19 +315,19 @@ TEST(NodeGuardingSlave, RepliesWithToggleBitStartingAtZero) {
 
 TEST(NodeGuardingSlave, PreOperationalRepliesMatchSpecExample) {
   // spec/002: "701 7F" then "701 FF" for node 1 in pre-operational.
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   const CanFrame rtr = frame("701#R");
   EXPECT_EQ(to_candump(*guard(g, rtr, at_ms(0), 1, NmtState::PreOperational).reply), "701#7F");
   EXPECT_EQ(to_candump(*guard(g, rtr, at_ms(1), 1, NmtState::PreOperational).reply), "701#FF");
 }
 
 TEST(NodeGuardingSlave, StoppedStateIsFour) {
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   EXPECT_EQ(to_candump(*guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Stopped).reply), "705#04");
 }
 
 TEST(NodeGuardingSlave, ResetReturnsToggleToZero) {
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   (void)guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Operational);
   g.reset();
   EXPECT_EQ(to_candump(*guard(g, frame("705#R1"), at_ms(1), 5, NmtState::PreOperational).reply),
@@ -337,14 +335,14 @@ TEST(NodeGuardingSlave, ResetReturnsToggleToZero) {
 }
 
 TEST(NodeGuardingSlave, IgnoresOtherNodesAndDataFrames) {
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   EXPECT_FALSE(guard(g, frame("706#R1"), at_ms(0), 5, NmtState::Operational).reply);
   EXPECT_FALSE(guard(g, frame("705#05"), at_ms(0), 5, NmtState::Operational).reply);
   EXPECT_FALSE(g.toggle());
 }
 
 TEST(NodeGuardingSlave, LifeGuardingStartsWithFirstRequestAndFiresAfterLifeTime) {
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   g.configure(100, 3);                          // life time 300 ms
   EXPECT_FALSE(g.next_deadline().has_value());  // spec/002: starts with the first remote frame
   (void)guard(g, frame("705#R1"), at_ms(1000), 5, NmtState::Operational);
@@ -359,7 +357,7 @@ TEST(NodeGuardingSlave, LifeGuardingStartsWithFirstRequestAndFiresAfterLifeTime)
 }
 
 TEST(NodeGuardingSlave, LifeGuardingNeedsBothGuardTimeAndLifeTimeFactor) {
-  NodeGuardingSlave g(id(1));
+  NodeGuardingSlave g(1_node);
   g.configure(100, 0);
   (void)guard(g, frame("705#R1"), at_ms(0), 5, NmtState::Operational);
   EXPECT_FALSE(g.next_deadline().has_value());
@@ -369,8 +367,8 @@ TEST(NodeGuardingSlave, LifeGuardingNeedsBothGuardTimeAndLifeTimeFactor) {
 }
 
 TEST(ErrorControl, FramesAreEncodedAsTheSpecExamples) {
-  EXPECT_EQ(to_candump(make_heartbeat(id(5), NmtState::PreOperational)), "705#7F");
-  EXPECT_EQ(to_candump(make_guarding_request(id(1))), "701#R1");
+  EXPECT_EQ(to_candump(make_heartbeat(5_node, NmtState::PreOperational)), "705#7F");
+  EXPECT_EQ(to_candump(make_guarding_request(1_node)), "701#R1");
   auto msg = parse_error_control(frame("701#FF"));
   ASSERT_TRUE(msg.has_value());
   EXPECT_EQ(msg->node_id, 1);
@@ -407,17 +405,17 @@ TEST(NodeGuardingMaster, SendsARequestEveryGuardTime) {
 TEST(NodeGuardingMaster, StartWithZeroGuardTimeOrLifeTimeFactorIsRefused) {
   NodeGuardingMaster m;
   NodeGuardingMaster::Output out;
-  EXPECT_FALSE(m.start(id(5), 0, 3, at_ms(0), out));
-  EXPECT_FALSE(m.start(id(5), 100, 0, at_ms(0), out));
+  EXPECT_FALSE(m.start(5_node, 0, 3, at_ms(0), out));
+  EXPECT_FALSE(m.start(5_node, 100, 0, at_ms(0), out));
   EXPECT_TRUE(out.empty());
-  EXPECT_FALSE(m.guards(id(5)));
+  EXPECT_FALSE(m.guards(5_node));
   EXPECT_EQ(m.next_deadline(), std::nullopt);
 
   std::vector<CanFrame> frames;
   start(m, 6, 100, 3, at_ms(0), frames);
-  EXPECT_FALSE(m.start(id(6), 0, 3, at_ms(10), out));
+  EXPECT_FALSE(m.start(6_node, 0, 3, at_ms(10), out));
   EXPECT_TRUE(out.empty());
-  EXPECT_TRUE(m.guards(id(6)));
+  EXPECT_TRUE(m.guards(6_node));
   EXPECT_EQ(m.next_deadline(), at_ms(100));
 }
 
@@ -425,15 +423,15 @@ TEST(NodeGuardingMaster, StartWithZeroGuardTimeOrLifeTimeFactorIsRefused) {
 // first request is due at `now` and leaves at the next on_timer, the next one guard time later.
 TEST(NodeGuardingMaster, GuardMakesTheFirstRequestDueAtNow) {
   NodeGuardingMaster m;
-  EXPECT_TRUE(m.guard(id(5), 100, 3, at_ms(20)));
-  EXPECT_TRUE(m.guards(id(5)));
+  EXPECT_TRUE(m.guard(5_node, 100, 3, at_ms(20)));
+  EXPECT_TRUE(m.guards(5_node));
   EXPECT_EQ(m.next_deadline(), at_ms(20));
   std::vector<CanFrame> out;
   EXPECT_TRUE(tick(m, at_ms(20), out).empty());
   EXPECT_EQ(texts(out), std::vector<std::string>{"705#R1"});
   EXPECT_EQ(m.next_deadline(), at_ms(120));
-  EXPECT_FALSE(m.guard(id(6), 0, 3, at_ms(20)));  // §6.3: refused as start() refuses it
-  EXPECT_FALSE(m.guards(id(6)));
+  EXPECT_FALSE(m.guard(6_node, 0, 3, at_ms(20)));  // §6.3: refused as start() refuses it
+  EXPECT_FALSE(m.guards(6_node));
 }
 
 TEST(NodeGuardingMaster, AlternatingRepliesKeepTheNodeGuarded) {
@@ -495,7 +493,7 @@ TEST(NodeGuardingMaster, GuardsTheSlaveEngineWithoutEvents) {
   // Master and slave engines exchanging frames directly for 10 s of guarding at 100 ms, life
   // time factor 3 on both sides.
   NodeGuardingMaster m;
-  NodeGuardingSlave s(id(9));
+  NodeGuardingSlave s(9_node);
   s.configure(100, 3);
   std::vector<CanFrame> first;
   start(m, 9, 100, 3, at_ms(0), first);
@@ -557,7 +555,7 @@ TEST(NodeGuardingMaster, NextDeadlineIsTheEarliestAfterRestartsAndStops) {
   start(m, 2, 200, 3, at_ms(0), out);
   start(m, 3, 300, 3, at_ms(0), out);
   EXPECT_EQ(m.next_deadline(), at_ms(100));
-  m.stop(id(1));
+  m.stop(1_node);
   EXPECT_EQ(m.next_deadline(), at_ms(200));
   start(m, 3, 50, 3, at_ms(20), out);  // a restart replaces node 3's request time
   EXPECT_EQ(m.next_deadline(), at_ms(70));
@@ -565,9 +563,9 @@ TEST(NodeGuardingMaster, NextDeadlineIsTheEarliestAfterRestartsAndStops) {
   (void)tick(m, at_ms(300), out);  // late: node 3 (due 70) and node 2 (due 200), once each
   EXPECT_EQ(texts(out), (std::vector<std::string>{"703#R1", "702#R1"}));
   EXPECT_EQ(m.next_deadline(), at_ms(350));
-  m.stop(id(3));
+  m.stop(3_node);
   EXPECT_EQ(m.next_deadline(), at_ms(400));
-  m.stop(id(2));
+  m.stop(2_node);
   EXPECT_EQ(m.next_deadline(), std::nullopt);
 }
 

@@ -28,6 +28,7 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 using Frames = std::vector<std::string>;
 using Kind = MasterEvent::Kind;
 using Phase = ExecuteLssProcess::Phase;
@@ -489,7 +490,7 @@ TEST_F(ExecuteLssBus, TargetWhoseConfigureFailedIsReportedOnceAndDevicesBelowItA
 
 // --- composed into the NMT master ----------------------------------------------------------
 
-constexpr std::uint8_t kMasterId = 0x7F;
+constexpr cfg::NodeId kMasterId = 0x7F_node;
 constexpr std::uint32_t kSlaveBootStart = 0x05;  // 1F81h bits 0 and 2: slave, boot it
 
 // The device's serial number in [DeviceComissioning] LSS_SerialNumber, or (`in_1018h`) as 1018h
@@ -522,8 +523,7 @@ class MasterLss : public ::testing::Test {
     });
   }
   void make_master(MasterOptions options, const std::vector<std::uint8_t>& slaves) {
-    auto created = NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMasterId),
-                                     std::move(options));
+    auto created = NmtMaster::create(cfg::DeviceDescription{}, kMasterId, std::move(options));
     ASSERT_TRUE(created.ok()) << created.error().message;
     master = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());
     master->set_event_handler([this](const MasterEvent& e, TimePoint) { events.push_back(e); });
@@ -664,8 +664,7 @@ TEST_F(MasterLss, ConfiguredNetworkCostsTwoLssFramesAndOneStep) {
   frames.clear();
   events.clear();
   master->apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(*cfg::NodeId::from(kMasterId), NmtRequest::ResetNode, now, out) ==
-           SdoAbort::None;
+    return m.request_nmt(kMasterId, NmtRequest::ResetNode, now, out) == SdoAbort::None;
   });
   bus.run_for(8s);
   EXPECT_TRUE(of_kind(Kind::LssAssigned).empty());

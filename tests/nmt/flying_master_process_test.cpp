@@ -20,10 +20,10 @@
 namespace nmt {
 namespace {
 
-using master_spec::id;
 using master_spec::reply_71;
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 using Kind = MasterEvent::Kind;
 using Phase = FlyingMasterProcess::Phase;
 
@@ -87,7 +87,7 @@ struct Sent {
 class Rig {
  public:
   Rig(std::uint8_t node, std::uint16_t priority)
-      : node_(node), timing(timing_of(node, priority)), engine(id(node), port) {}
+      : node_(node), timing(timing_of(node, priority)), engine(*cfg::NodeId::from(node), port) {}
 
   /// Power-on (or the master's start-up after a reset communication) at `at`.
   void start(TimePoint at) {
@@ -236,7 +236,7 @@ TEST(FlyingMasterProcess, PowerOnWithoutActiveMasterResetsAllThenNegotiatesWarm_
   EXPECT_EQ(won->at - trigger->at, waiting_time(rig.timing, 4));
   EXPECT_EQ(rig.port.resets, 1);
   EXPECT_EQ(rig.port.active_at, std::vector<TimePoint>{won->at});
-  EXPECT_EQ(rig.engine.active_master(), id(4));
+  EXPECT_EQ(rig.engine.active_master(), 4_node);
   EXPECT_EQ(rig.events_of(Kind::ActiveMaster).size(), 1U);
 }
 
@@ -352,7 +352,7 @@ TEST(FlyingMasterProcess, DetectionAnsweredByAHigherOrEqualLevelStandsBy_3_7_f) 
     EXPECT_TRUE(rig.hear(reply_71(level, 6), at_ms(501)));
     EXPECT_EQ(rig.engine.phase(), Phase::Standby);
     EXPECT_EQ(rig.port.startup, StartupState::Standby);
-    EXPECT_EQ(rig.engine.active_master(), id(6));
+    EXPECT_EQ(rig.engine.active_master(), 6_node);
     rig.run_for(150ms);  // past the detection's timeout: still nothing
     EXPECT_TRUE(rig.sent_on("076#").empty());
     EXPECT_TRUE(rig.sent_on("072#").empty());
@@ -401,7 +401,7 @@ TEST(FlyingMasterProcess, NegotiationWonByEqualLevelIsTakenByLowerLevelForced_3_
     if (winner == 1) {
       EXPECT_TRUE(rig.sent_on("076#", sent).empty());
       EXPECT_EQ(rig.port.startup, StartupState::Standby);
-      EXPECT_EQ(rig.engine.active_master(), id(9));
+      EXPECT_EQ(rig.engine.active_master(), 9_node);
     } else {
       auto force = rig.first_on("076#", sent);
       ASSERT_TRUE(force.has_value());

@@ -26,6 +26,7 @@
 
 namespace nmt::master_spec {
 namespace {
+using namespace cfg::literals;
 
 using Kind = MasterEvent::Kind;
 using NodeList = std::initializer_list<std::uint8_t>;
@@ -95,7 +96,7 @@ class FlyRig {
 
   /// A flying master at `node` with 1F90h sub 3 = `priority`, built from `dcf` now, not started.
   NmtMaster& add_master(std::uint8_t node, std::uint16_t priority, Timing timing = {}) {
-    auto created = NmtMaster::create(dcf, id(node), options);
+    auto created = NmtMaster::create(dcf, *cfg::NodeId::from(node), options);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     if (!created.ok()) throw std::runtime_error("NmtMaster::create failed");
     auto& slot = masters_[node];
@@ -312,7 +313,7 @@ TEST(FlyingMasterSpec, PowerOnWithoutActiveMasterResetsAllThenNegotiatesWarm_3_7
   ASSERT_TRUE(won.has_value());
   EXPECT_EQ(won->text(), reply_71(1, 4));
   EXPECT_GT(won->at, trigger->at);
-  EXPECT_EQ(rig.master(4).active_master(), id(4));
+  EXPECT_EQ(rig.master(4).active_master(), 4_node);
   EXPECT_EQ(rig.events_of(4, Kind::ActiveMaster).size(), 1U);
 }
 
@@ -458,7 +459,7 @@ TEST(FlyingMasterSpec, TwoMastersHigherPriorityWinsDespiteHigherNodeId_5_3_1) {
   ASSERT_TRUE(rig.run_until_settled_on(6, 15s));
   expect_won_negotiation(rig, 6, 0);
   EXPECT_EQ(rig.master(4).startup_state(), StartupState::Standby);
-  EXPECT_EQ(rig.master(4).active_master(), id(6));
+  EXPECT_EQ(rig.master(4).active_master(), 6_node);
   EXPECT_TRUE(rig.events_of(4, Kind::ActiveMaster).empty());
   auto standby = rig.events_of(4, Kind::Standby);
   ASSERT_FALSE(standby.empty());
@@ -483,7 +484,7 @@ TEST(FlyingMasterSpec, ThreeMastersBestWinsAndBootsTheNetwork_5_3_1_3_7_h) {
   expect_won_negotiation(rig, 5, 0);
   for (std::uint8_t loser : NodeList{4, 6}) {
     EXPECT_EQ(rig.master(loser).startup_state(), StartupState::Standby) << int{loser};
-    EXPECT_EQ(rig.master(loser).active_master(), id(5)) << int{loser};
+    EXPECT_EQ(rig.master(loser).active_master(), 5_node) << int{loser};
   }
   ASSERT_TRUE(
       rig.bus.run_until([&] { return rig.master(5).startup_state() == StartupState::Operational; },
@@ -558,7 +559,7 @@ TEST(FlyingMasterSpec, LateMasterWithHigherPriorityForcesNegotiationAndWins_3_7_
   ASSERT_TRUE(trigger.has_value());
   EXPECT_GT(trigger->at, reset->at);
   EXPECT_EQ(rig.master(6).startup_state(), StartupState::Standby);
-  EXPECT_EQ(rig.master(6).active_master(), id(4));
+  EXPECT_EQ(rig.master(6).active_master(), 4_node);
   // One 76h (checked above), one force: node 4 wins the negotiation it forced.
   const auto forced = rig.events_of(4, Kind::ForceNegotiation);
   ASSERT_EQ(forced.size(), 1U);
@@ -794,7 +795,7 @@ TEST(FlyingMasterSpec, RejoiningMasterOfHigherLevelForcesNegotiationAndWins_3_7_
   ASSERT_TRUE(won.has_value());
   for (std::uint8_t loser : NodeList{0x7E, 0x7F}) {
     EXPECT_EQ(rig.master(loser).startup_state(), StartupState::Standby) << int{loser};
-    EXPECT_EQ(rig.master(loser).active_master(), id(0x7D)) << int{loser};
+    EXPECT_EQ(rig.master(loser).active_master(), 0x7D_node) << int{loser};
   }
 }
 
@@ -848,7 +849,7 @@ TEST(FlyingMasterSpec, TakeoverKeepsKeepAliveSlaveAndSkipsMatchingDownload_3_1_d
   EXPECT_GE(rig.count("000#8202", killed), 1U);
   EXPECT_TRUE(rig.downloads_of(2, 0x2000, 0, killed).empty());
   EXPECT_EQ(rig.slave_state(2), NmtState::Operational);
-  EXPECT_EQ(rig.master(6).known_state(id(3)), KnownState::in(NmtState::Operational));
+  EXPECT_EQ(rig.master(6).known_state(3_node), KnownState::in(NmtState::Operational));
 }
 
 // §5.5.1: "When two or more NMT master become active at the same time this shall be detected by
@@ -875,8 +876,8 @@ TEST(FlyingMasterSpec, SplitNetworkHealsToOneMasterByTheDetectCycle_5_5_1_5_5_3)
   rig.start(4);
   rig.start(6);
   rig.bus.run_for(8s);
-  ASSERT_EQ(rig.master(4).active_master(), id(4));
-  ASSERT_EQ(rig.master(6).active_master(), id(6));
+  ASSERT_EQ(rig.master(4).active_master(), 4_node);
+  ASSERT_EQ(rig.master(6).active_master(), 6_node);
 
   split = false;
   const TimePoint healed = rig.bus.now();
@@ -902,7 +903,7 @@ TEST(FlyingMasterSpec, OnePercentFrameLossStillEndsWithOneActiveMaster_5_3_5_5) 
     rig.bus.run_for(40s);
     std::optional<std::uint8_t> active;
     for (std::uint8_t node : NodeList{4, 5, 6}) {
-      if (rig.master(node).active_master() == id(node)) {
+      if (rig.master(node).active_master() == *cfg::NodeId::from(node)) {
         EXPECT_FALSE(active.has_value())
             << "two active masters: " << int{*active} << ", " << int{node};
         active = node;

@@ -17,7 +17,7 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
-using master_spec::id;
+using namespace cfg::literals;
 using master_spec::le;
 using master_spec::Seen;
 using master_spec::slave_eds;
@@ -64,7 +64,7 @@ class FlyingRig {
   FlyingRig& operator=(const FlyingRig&) = delete;
 
   NmtMaster& add_master(std::uint8_t node, std::uint16_t priority) {
-    auto created = NmtMaster::create(master_spec::master_dcf(), id(node), options);
+    auto created = NmtMaster::create(master_spec::master_dcf(), *cfg::NodeId::from(node), options);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     auto slot = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());
     auto& dict = slot->engine().dictionary();
@@ -134,7 +134,7 @@ class FlyingRig {
     std::vector<std::uint8_t> out;
     for (auto& [node, slot] : masters_) {
       if (slot->bus() == nullptr) continue;
-      if (slot->engine().active_master() == id(node)) out.push_back(node);
+      if (slot->engine().active_master() == *cfg::NodeId::from(node)) out.push_back(node);
     }
     return out;
   }
@@ -190,7 +190,8 @@ void expect_settled(FlyingRig& rig, std::uint8_t winner,
   EXPECT_EQ(rig.master(winner).startup_state(), StartupState::Operational);
   for (auto node : others) {
     EXPECT_EQ(rig.master(node).startup_state(), StartupState::Standby) << "master " << int{node};
-    EXPECT_EQ(rig.master(node).active_master(), id(winner)) << "master " << int{node};
+    EXPECT_EQ(rig.master(node).active_master(), *cfg::NodeId::from(winner))
+        << "master " << int{node};
   }
 }
 
@@ -367,7 +368,7 @@ TEST(FlyingMaster, TakeoverKeepsOperationalKeepAliveSlavesRunning) {
     EXPECT_NE(s.text(), "000#8200") << s;
     EXPECT_NE(s.text(), "000#8203") << s;
   }
-  EXPECT_EQ(rig.master(10).last_error(id(3)), BootError::L);
+  EXPECT_EQ(rig.master(10).last_error(3_node), BootError::L);
   EXPECT_EQ(rig.slave(2).node().state(), NmtState::Operational);
 }
 
@@ -381,9 +382,9 @@ TEST(FlyingMaster, SplitHealsAndMultipleMasterDetectionLeavesOneActiveMaster) {
   Running net;
   auto& rig = net.rig;
   rig.split(12);
-  ASSERT_TRUE(rig.run_until([&] { return rig.master(12).active_master() == id(12); }, 10s));
+  ASSERT_TRUE(rig.run_until([&] { return rig.master(12).active_master() == 12_node; }, 10s));
   rig.run_for(1s);
-  EXPECT_EQ(rig.master(11).active_master(), id(11));
+  EXPECT_EQ(rig.master(11).active_master(), 11_node);
   rig.heal(12);
   const auto healed = rig.bus.now();
   // Worst case: a full cycle of the faster master, then the negotiation after a reset.
@@ -453,8 +454,8 @@ TEST(FlyingMaster, OnePercentFrameLossStillElectsOneMaster) {
     rig.start_all({10, 11, 12});
     rig.run_for(15s);
     EXPECT_EQ(rig.actives(), std::vector<std::uint8_t>{11});
-    EXPECT_EQ(rig.master(10).active_master(), id(11));
-    EXPECT_EQ(rig.master(12).active_master(), id(11));
+    EXPECT_EQ(rig.master(10).active_master(), 11_node);
+    EXPECT_EQ(rig.master(12).active_master(), 11_node);
   }
 }
 
@@ -462,7 +463,7 @@ TEST(FlyingMaster, OnePercentFrameLossStillElectsOneMaster) {
 
 // §6.13 Table 50 defaults (sub 3 manufacturer-specific: 1, header), sub 6 = 4000 + 10 x node-ID;
 TEST(FlyingMaster, TimingParametersHaveTheirDefaults) {
-  auto m = NmtMaster::create(master_spec::master_dcf(), id(5)).value();
+  auto m = NmtMaster::create(master_spec::master_dcf(), 5_node).value();
   const auto& dict = m.dictionary();
   EXPECT_EQ(dict.get_unsigned(0x1F90, 0), 6U);
   EXPECT_EQ(dict.get_unsigned(0x1F90, 1), 100U);
@@ -480,7 +481,7 @@ TEST(FlyingMaster, TimingParametersHaveTheirDefaults) {
 
 // Table 48: priorities 3..FFFFh are reserved; §6.13: priority time slot > 127 x device time slot.
 TEST(FlyingMaster, TimingParameterWritesAreChecked) {
-  auto m = NmtMaster::create(master_spec::master_dcf(), id(5)).value();
+  auto m = NmtMaster::create(master_spec::master_dcf(), 5_node).value();
   auto& dict = m.dictionary();
   EXPECT_EQ(FlyingRig::write(dict, 0x1F90, 3, 2, 2), SdoAbort::None);
   EXPECT_EQ(FlyingRig::write(dict, 0x1F90, 3, 3, 2), SdoAbort::ValueRangeExceeded);
@@ -502,10 +503,10 @@ TEST(FlyingMaster, StandbyMasterRefusesRequestNmt) {
   EXPECT_EQ(FlyingRig::write(rig.master(11).dictionary(), 0x1F82, 2, 0x04, 1), SdoAbort::None);
   // Nor does it boot a slave when its application asks.
   const cfg::Status booting = rig.call(10, [](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.boot_slave(id(2), now, out);
+    return m.boot_slave(2_node, now, out);
   });
   EXPECT_FALSE(booting.ok());
-  EXPECT_EQ(rig.master(10).boot_step(id(2)), BootStep::Idle);
+  EXPECT_EQ(rig.master(10).boot_step(2_node), BootStep::Idle);
 }
 
 }  // namespace
@@ -567,7 +568,7 @@ TEST(MasterDetection, OfTwoSelfStartingDevicesOnlyTheLowerNodeIdStartsTheNetwork
   MasterRig rig;
   rig.startup(Startup::kStartAllNodes);
   rig.add_slave(2);
-  auto second = NmtMaster::create(rig.master, master_spec::id(4)).value();
+  auto second = NmtMaster::create(rig.master, 4_node).value();
   SimEngineNode<NmtMaster> node4(std::move(second));
   rig.bus.attach(node4);
   rig.power_on_slaves();

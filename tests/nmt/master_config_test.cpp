@@ -21,10 +21,7 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
-
-cfg::NodeId id(unsigned n) {
-  return cfg::NodeId::from(n).value();
-}
+using namespace cfg::literals;
 
 std::uint64_t value(const NmtMaster& m, std::uint16_t index, std::uint8_t sub) {
   return m.dictionary().get_unsigned(index, sub).value_or(0xDEADBEEF);
@@ -72,23 +69,23 @@ TEST(MasterConfig, SlaveFlagsAreTheBitsOf1F81hTables19To25WithGuardingInBytes1To
       {&SlaveConfig::restore, 1U << 7},          // Table 25
   };
   for (const auto& [flag, bit] : bits) {
-    SlaveConfig s(id(2));
+    SlaveConfig s(2_node);
     s.slave = false;
     s.boot = false;
     s.*flag = true;
     EXPECT_EQ(s.assignment().value, bit);
   }
-  SlaveConfig guarded(id(2));
+  SlaveConfig guarded(2_node);
   guarded.guarding = GuardingConfig{500ms, 3};
   // §6.3: byte 1 retry factor, bytes 2-3 guard time in ms; bits 0 and 2 by default.
   EXPECT_EQ(guarded.assignment().value, 0x01F40305U);
 }
 
 TEST(MasterConfig, BuildsTheObjectsOfCiA302_2Section6WithoutBytesFromTheEmbedder) {
-  MasterConfig config(id(1));
+  MasterConfig config(1_node);
   config.startup.start_all_nodes = true;
   config.startup.stop_all_nodes = true;
-  SlaveConfig& drive = config.add_slave(id(3));
+  SlaveConfig& drive = config.add_slave(3_node);
   drive.mandatory = true;
   drive.keep_alive = true;
   drive.identity.device_type = 0x000F0192;
@@ -97,7 +94,7 @@ TEST(MasterConfig, BuildsTheObjectsOfCiA302_2Section6WithoutBytesFromTheEmbedder
   drive.identity.revision = 0x00010000;
   drive.identity.serial_number = 7;
   drive.heartbeat = 300ms;
-  SlaveConfig& io = config.add_slave(id(5));
+  SlaveConfig& io = config.add_slave(5_node);
   io.guarding = GuardingConfig{200ms, 2};
   io.restore = true;
   io.restore_subindex = 2;
@@ -128,7 +125,7 @@ TEST(MasterConfig, BuildsTheObjectsOfCiA302_2Section6WithoutBytesFromTheEmbedder
   EXPECT_EQ(value(m, 0x1F90, 4), 1500U);
   EXPECT_EQ(value(m, 0x1F90, 5), 10U);
   EXPECT_EQ(value(m, 0x1F90, 6), 0U);
-  EXPECT_EQ(m.node_id(), id(1));
+  EXPECT_EQ(m.node_id(), 1_node);
 }
 
 std::string master_dcf_text() {
@@ -204,17 +201,17 @@ void expect_same_master_objects(const NmtMaster& a, const NmtMaster& b, bool sam
 
 TEST(MasterConfig, TheDcfPathAndATypedConfigOfTheSameValuesGiveTheSameDictionary) {
   const cfg::DeviceDescription dcf = changed_master_dcf();
-  auto direct = NmtMaster::create(dcf, id(1));
+  auto direct = NmtMaster::create(dcf, 1_node);
   ASSERT_TRUE(direct.ok()) << direct.error().message;
   ASSERT_EQ(value(direct.value(), 0x1016, 4), 0x0003012CU);  // the DCF says what we think
 
-  auto read = MasterConfig::from_dcf(dcf, id(1));
+  auto read = MasterConfig::from_dcf(dcf, 1_node);
   ASSERT_TRUE(read.ok()) << read.error().message;
   const MasterConfig& from_dcf = read.value();
   EXPECT_EQ(from_dcf.startup.value().value, 0x43U);
   ASSERT_EQ(from_dcf.slaves.size(), 2U);
-  const SlaveConfig* two = from_dcf.slave(id(2));
-  const SlaveConfig* three = from_dcf.slave(id(3));
+  const SlaveConfig* two = from_dcf.slave(2_node);
+  const SlaveConfig* three = from_dcf.slave(3_node);
   ASSERT_TRUE(two && three);
   EXPECT_EQ(two->guarding, (GuardingConfig{200ms, 2}));
   EXPECT_FALSE(two->mandatory);
@@ -227,18 +224,18 @@ TEST(MasterConfig, TheDcfPathAndATypedConfigOfTheSameValuesGiveTheSameDictionary
   expect_same_master_objects(built(from_dcf), direct.value(), true);
 
   // The same in code, on the same DCF (its other objects), but the values typed.
-  MasterConfig typed(id(1));
+  MasterConfig typed(1_node);
   typed.dcf = parse(master_dcf_text());
   typed.startup.start_all_nodes = true;
   typed.startup.stop_all_nodes = true;
   for (unsigned n : {2U, 3U}) {
-    SlaveConfig& s = typed.add_slave(id(n));
+    SlaveConfig& s = typed.add_slave(*cfg::NodeId::from(n));
     s.identity.device_type = 0x000F0191;
     s.identity.vendor_id = 0x0000ABCD;
   }
-  typed.add_slave(id(2)).guarding = GuardingConfig{200ms, 2};
-  typed.add_slave(id(3)).mandatory = true;
-  typed.add_slave(id(3)).heartbeat = 300ms;
+  typed.add_slave(2_node).guarding = GuardingConfig{200ms, 2};
+  typed.add_slave(3_node).mandatory = true;
+  typed.add_slave(3_node).heartbeat = 300ms;
   typed.boot_time = 10s;
   typed.nmt_inhibit_time = 1500us;
   const NmtMaster from_code = built(typed);
@@ -249,35 +246,35 @@ TEST(MasterConfig, TheDcfPathAndATypedConfigOfTheSameValuesGiveTheSameDictionary
 // DSP 302 §9: "Sub-Index i ... Stores the expected application software date/time of the slave
 // that has Node-ID i" (1F53h days since 1984-01-01, 1F54h ms after midnight).
 TEST(MasterConfig, TheExpectedProgramVersionIs1F53hAnd1F54hSubNodeBothWays) {
-  MasterConfig config(id(1));
-  SlaveConfig& drive = config.add_slave(id(3));
+  MasterConfig config(1_node);
+  SlaveConfig& drive = config.add_slave(3_node);
   drive.verify_software = true;
   drive.program_version = cfg::ProgramVersion{15671, 29'700'000};
-  config.add_slave(id(4));
+  config.add_slave(4_node);
   const NmtMaster m = built(config);
   EXPECT_EQ(value(m, 0x1F53, 3), 15671U);
   EXPECT_EQ(value(m, 0x1F54, 3), 29'700'000U);
   EXPECT_EQ(value(m, 0x1F53, 4), 0U) << "unset: not configured";
   EXPECT_EQ(value(m, 0x1F54, 4), 0U);
 
-  const MasterConfig back = MasterConfig::from_dictionary(m.dictionary(), id(1));
-  ASSERT_NE(back.slave(id(3)), nullptr);
-  EXPECT_EQ(back.slave(id(3))->program_version, (cfg::ProgramVersion{15671, 29'700'000}));
-  ASSERT_NE(back.slave(id(4)), nullptr);
-  EXPECT_EQ(back.slave(id(4))->program_version, std::nullopt);
+  const MasterConfig back = MasterConfig::from_dictionary(m.dictionary(), 1_node);
+  ASSERT_NE(back.slave(3_node), nullptr);
+  EXPECT_EQ(back.slave(3_node)->program_version, (cfg::ProgramVersion{15671, 29'700'000}));
+  ASSERT_NE(back.slave(4_node), nullptr);
+  EXPECT_EQ(back.slave(4_node)->program_version, std::nullopt);
 
   // Table 1 G's "not configured" cannot be an expected version.
-  config.add_slave(id(3)).program_version = cfg::ProgramVersion{};
+  config.add_slave(3_node).program_version = cfg::ProgramVersion{};
   EXPECT_EQ(error_of(config),
             "slave 3: program version 0, 0 means 'not configured' in 1F53h/1F54h; leave it "
             "unset");
 }
 
 TEST(MasterConfig, ASlaveRemovedInCodeFromADcfConfigIsNoLongerAssigned) {
-  auto read = MasterConfig::from_dcf(changed_master_dcf(), id(1));
+  auto read = MasterConfig::from_dcf(changed_master_dcf(), 1_node);
   ASSERT_TRUE(read.ok()) << read.error().message;
   MasterConfig config = std::move(read).value();
-  std::erase_if(config.slaves, [](const SlaveConfig& s) { return s.node == id(3); });
+  std::erase_if(config.slaves, [](const SlaveConfig& s) { return s.node == 3_node; });
   const NmtMaster m = built(config);
   EXPECT_EQ(value(m, 0x1F81, 3), 0U);
   EXPECT_EQ(value(m, 0x1F85, 3), 0U);
@@ -288,10 +285,10 @@ TEST(MasterConfig, ASlaveRemovedInCodeFromADcfConfigIsNoLongerAssigned) {
 TEST(MasterConfig, ADcfWithFewerHeartbeatEntriesThanConfiguredFailsSayingSo) {
   std::string text = master_dcf_text();
   replace(text, "CompactSubObj=127\n\n[1017]", "CompactSubObj=1\n\n[1017]");
-  MasterConfig config(id(1));
+  MasterConfig config(1_node);
   config.dcf = parse(text);
-  config.add_slave(id(2)).heartbeat = 100ms;
-  config.add_slave(id(3)).heartbeat = 100ms;
+  config.add_slave(2_node).heartbeat = 100ms;
+  config.add_slave(3_node).heartbeat = 100ms;
   auto m = config.build();
   ASSERT_FALSE(m.ok());
   EXPECT_EQ(m.error().message,
@@ -301,48 +298,48 @@ TEST(MasterConfig, ADcfWithFewerHeartbeatEntriesThanConfiguredFailsSayingSo) {
 }
 
 TEST(MasterConfig, ValidateNamesTheSlaveAndTheValueInWords) {
-  MasterConfig config(id(1));
+  MasterConfig config(1_node);
   EXPECT_EQ(error_of(config), "(valid)");
 
-  config.add_slave(id(1));
+  config.add_slave(1_node);
   EXPECT_EQ(error_of(config),
             "slave 1: is the master's own node-ID; remove it or give the master another");
   config.slaves.clear();
 
-  config.slaves.emplace_back(id(2));
-  config.slaves.emplace_back(id(2));
+  config.slaves.emplace_back(2_node);
+  config.slaves.emplace_back(2_node);
   EXPECT_EQ(error_of(config),
             "slave 2: listed twice; keep one entry per node (add_slave gives the one there)");
   config.slaves.pop_back();
 
-  config.add_slave(id(2)).heartbeat = 70s;
+  config.add_slave(2_node).heartbeat = 70s;
   EXPECT_EQ(error_of(config),
             "slave 2: heartbeat time 70000 ms is above 65535 ms (1016h: 1..65535 ms); give "
             "whole ms in that range, or leave it unset");
-  config.add_slave(id(2)).heartbeat = 1500us;
+  config.add_slave(2_node).heartbeat = 1500us;
   EXPECT_EQ(error_of(config),
             "slave 2: heartbeat time 1500 us is not a whole number of "
             "milliseconds (1016h: 1..65535 ms); give whole ms in that range, or leave it unset");
-  config.add_slave(id(2)).heartbeat = 0ms;
+  config.add_slave(2_node).heartbeat = 0ms;
   EXPECT_EQ(error_of(config),
             "slave 2: heartbeat time 0 ms is below 1 ms (1016h: 1..65535 ms); give whole ms in "
             "that range, or leave it unset");
-  config.add_slave(id(2)).heartbeat.reset();
+  config.add_slave(2_node).heartbeat.reset();
 
-  config.add_slave(id(2)).guarding = GuardingConfig{100ms, 0};
+  config.add_slave(2_node).guarding = GuardingConfig{100ms, 0};
   EXPECT_EQ(error_of(config),
             "slave 2: retry factor 0 disables guarding (1F81h byte 1: 1..255); "
             "leave guarding unset instead");
-  config.add_slave(id(2)).guarding = GuardingConfig{0ms, 3};
+  config.add_slave(2_node).guarding = GuardingConfig{0ms, 3};
   EXPECT_EQ(error_of(config),
             "slave 2: guard time 0 ms is below 1 ms (1F81h bytes 2-3: 1..65535 ms); give whole "
             "ms in that range, or leave guarding unset");
-  config.add_slave(id(2)).guarding.reset();
+  config.add_slave(2_node).guarding.reset();
 
-  config.add_slave(id(2)).identity.vendor_id = 0;
+  config.add_slave(2_node).identity.vendor_id = 0;
   EXPECT_EQ(error_of(config),
             "slave 2: expected vendor-ID 0 means 'not checked' in 1F85h sub 02h; leave it unset");
-  config.add_slave(id(2)).identity.vendor_id.reset();
+  config.add_slave(2_node).identity.vendor_id.reset();
 
   config.nmt_inhibit_time = 150us;
   EXPECT_EQ(error_of(config),
@@ -379,10 +376,10 @@ TEST(MasterConfig, ADcfListingOnlySome1F81hSubIndicesBuildsWithTheOthersZero) {
   const cfg::DeviceDescription dcf = parse(text.str());
   ASSERT_NE(dcf.sub(0x1F81, 2), nullptr);
   ASSERT_EQ(dcf.sub(0x1F81, 3), nullptr);  // the file lists subs 0-2 only
-  auto read = MasterConfig::from_dcf(dcf, id(1));
+  auto read = MasterConfig::from_dcf(dcf, 1_node);
   ASSERT_TRUE(read.ok()) << read.error().message;
   const NmtMaster m = built(read.value());
-  auto direct = NmtMaster::create(dcf, id(1));
+  auto direct = NmtMaster::create(dcf, 1_node);
   ASSERT_TRUE(direct.ok()) << direct.error().message;
   EXPECT_EQ(value(m, 0x1F81, 2), 0x0000000DU);  // the file's ParameterValue (slave, bits 0, 2, 3)
   EXPECT_EQ(value(direct.value(), 0x1F81, 2), 0x0000000DU);
@@ -405,22 +402,22 @@ TEST(MasterConfig, ProducerHeartbeatAndExpectedConfigurationAreReadFromTheDcfAnd
   replace(text, "CompactSubObj=127\n\n[1F53]",
           "CompactSubObj=127\n\n[1F27Value]\nNrOfEntries=1\n3=0x02160EC0\n\n[1F53]");
   const cfg::DeviceDescription dcf = parse(text);
-  auto read = MasterConfig::from_dcf(dcf, id(1));
+  auto read = MasterConfig::from_dcf(dcf, 1_node);
   ASSERT_TRUE(read.ok()) << read.error().message;
   MasterConfig config = read.value();
   EXPECT_EQ(config.heartbeat_producer, Duration{500ms});
-  ASSERT_NE(config.slave(id(3)), nullptr);
-  EXPECT_EQ(config.slave(id(3))->expected_configuration,
+  ASSERT_NE(config.slave(3_node), nullptr);
+  EXPECT_EQ(config.slave(3_node)->expected_configuration,
             (cfg::ConfigurationStamp{0x2A4B, 0x02160EC0}));
-  ASSERT_NE(config.slave(id(2)), nullptr);
-  EXPECT_TRUE(config.slave(id(2))->expected_configuration.is_zero());
-  auto direct = NmtMaster::create(dcf, id(1));
+  ASSERT_NE(config.slave(2_node), nullptr);
+  EXPECT_TRUE(config.slave(2_node)->expected_configuration.is_zero());
+  auto direct = NmtMaster::create(dcf, 1_node);
   ASSERT_TRUE(direct.ok()) << direct.error().message;
   expect_same_master_objects(built(config), direct.value(), true);
 
   config.heartbeat_producer = 250ms;
-  config.add_slave(id(2)).expected_configuration = {1, 2};
-  config.add_slave(id(3)).expected_configuration = {};
+  config.add_slave(2_node).expected_configuration = {1, 2};
+  config.add_slave(3_node).expected_configuration = {};
   const NmtMaster m = built(config);
   EXPECT_EQ(value(m, 0x1017, 0), 250U);
   EXPECT_EQ(value(m, 0x1F26, 2), 1U);
@@ -440,10 +437,10 @@ TEST(MasterConfig, ASlaveBeyondTheDcfsSubIndicesFailsSayingWhatToDo) {
   std::ifstream in(std::string(CANOPEN_TEST_DATA_DIR) + "/network/master_wrong_vendor.dcf");
   std::stringstream text;
   text << in.rdbuf();
-  auto read = MasterConfig::from_dcf(parse(text.str()), id(1));
+  auto read = MasterConfig::from_dcf(parse(text.str()), 1_node);
   ASSERT_TRUE(read.ok()) << read.error().message;
   MasterConfig config = read.value();
-  config.add_slave(id(5));  // 1F81h bits 0 and 2 (Tables 19, 20): 5
+  config.add_slave(5_node);  // 1F81h bits 0 and 2 (Tables 19, 20): 5
   auto m = config.build();
   ASSERT_FALSE(m.ok());
   EXPECT_EQ(m.error().message,

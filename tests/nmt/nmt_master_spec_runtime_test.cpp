@@ -9,6 +9,7 @@
 
 namespace nmt::master_spec {
 namespace {
+using namespace cfg::literals;
 
 using Kind = MasterEvent::Kind;
 
@@ -59,7 +60,7 @@ TEST(NmtMasterSpec, HeartbeatLossOfOptionalSlaveRestartsItsBoot) {
   ASSERT_EQ(lost.size(), 1U);
   EXPECT_GE(lost[0].at - stopped, 150ms);
   EXPECT_LE(lost[0].at - stopped, 300ms);
-  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::missing());
+  EXPECT_EQ(rig.engine().known_state(3_node), KnownState::missing());
 
   rig.run_for(2s);
   // §4.2: the error event restarts the boot at once (engine.hpp rule 5): its 1000h read is sent
@@ -178,7 +179,7 @@ TEST(NmtMasterSpec, GuardingEveryGuardTimeAndGuardingLossRestartsTheBoot) {
     EXPECT_LE(rtr[i].at - rtr[i - 1].at, 105ms);
   }
   EXPECT_TRUE(rig.events_of(Kind::GuardingLost, 3).empty());
-  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::in(NmtState::Operational));
+  EXPECT_EQ(rig.engine().known_state(3_node), KnownState::in(NmtState::Operational));
 
   const TimePoint silent = rig.bus.now();
   rig.set_faults(3, fault([](DeviceFaults& f) { f.ignore_guarding = true; }));
@@ -323,7 +324,7 @@ TEST(NmtMasterSpec, ApplicationBootsASlaveLeftToItByBit2) {
 
   const TimePoint asked = rig.bus.now();
   const cfg::Status started = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.boot_slave(id(3), now, out);
+    return m.boot_slave(3_node, now, out);
   });
   EXPECT_TRUE(started.ok());
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 5s, 3));
@@ -396,7 +397,7 @@ TEST(NmtMasterSpec, RequestNmtExcludingTheRequesterFromTheApplication) {
   auto& rig = net.rig;
   const TimePoint from = rig.bus.now();
   const SdoAbort code = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.request_nmt(NmtTarget::all_nodes(), NmtRequest::StopExcluding, now, out, id(3));
+    return m.request_nmt(NmtTarget::all_nodes(), NmtRequest::StopExcluding, now, out, 3_node);
   });
   EXPECT_EQ(code, SdoAbort::None);
   rig.run_for(2s);
@@ -510,7 +511,7 @@ TEST(NmtMasterSpec, RequestNmtReadsTheStateTheHeartbeatReports) {
   rig.run_for(300ms);
   ASSERT_EQ(rig.slave(3).node().state(), NmtState::Stopped);
   EXPECT_EQ(rig.tool_read_u(0x1F82, 3), 0x04U);
-  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::in(NmtState::Stopped));
+  EXPECT_EQ(rig.engine().known_state(3_node), KnownState::in(NmtState::Stopped));
 }
 
 // Table 30: sub-index 80h "All nodes", access wo: a read is refused (CiA 301 abort 0601 0001).
@@ -527,8 +528,8 @@ TEST(NmtMasterSpec, RequestNmtReadsMissingForAbsentSlaveAndUnknownForOthers) {
   ASSERT_TRUE(rig.run_until_kind(Kind::BootError, 10s, 3));
   EXPECT_EQ(rig.tool_read_u(0x1F82, 3), 0x01U);
   EXPECT_EQ(rig.tool_read_u(0x1F82, 9), 0x00U);
-  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::missing());
-  EXPECT_EQ(rig.engine().known_state(id(9)), KnownState::unknown());
+  EXPECT_EQ(rig.engine().known_state(3_node), KnownState::missing());
+  EXPECT_EQ(rig.engine().known_state(9_node), KnownState::unknown());
 }
 
 // The application's request is typed (NmtRequest): a reserved value of Table 28 has no request,
@@ -668,7 +669,7 @@ TEST(NmtMasterSpec, ObjectsTheDcfLacksGetTheirDefaults) {
   for (std::uint16_t index : std::initializer_list<std::uint16_t>{0x102A, 0x1F89, 0x1F8A, 0x1F84,
                                                                   0x1F85, 0x1F86, 0x1F87, 0x1F88})
     dcf.objects.erase(index);
-  auto created = NmtMaster::create(dcf, id(kMaster));
+  auto created = NmtMaster::create(dcf, kMaster);
   ASSERT_TRUE(created.ok()) << created.error().message;
   const auto& dict = created.value().dictionary();
   EXPECT_EQ(dict.get_unsigned(0x102A, 0), 0U);
@@ -690,7 +691,7 @@ TEST(NmtMasterSpec, ObjectsTheDcfLacksGetTheirDefaults) {
 TEST(NmtMasterSpec, CreateRefusesReservedBitsInTheDcf) {
   auto startup = master_dcf();
   set_value(startup, 0x1F80, 0, 0x81);
-  auto created = NmtMaster::create(startup, id(kMaster));
+  auto created = NmtMaster::create(startup, kMaster);
   ASSERT_FALSE(created.ok());
   EXPECT_NE(created.error().message.find("1F80"), std::string::npos) << created.error().message;
 }
@@ -702,7 +703,7 @@ TEST(NmtMasterSpec, ApplicationUploadThroughTheMasterReportsSdoFinished) {
   Operational net;
   auto& rig = net.rig;
   ASSERT_TRUE(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-                   return m.sdo_upload(id(2), 0x1018, 1, now, out);
+                   return m.sdo_upload(2_node, 0x1018, 1, now, out);
                  })
                   .ok());
   ASSERT_TRUE(rig.run_until_kind(Kind::SdoFinished, 2s, 2));
@@ -735,7 +736,7 @@ TEST(NmtMasterSpec, ApplicationTransferToTheMasterItselfDoesNotStart) {
   EXPECT_TRUE(rig.requests_to(1, from).empty());
   // The next application transfer is numbered as if the refused one had not been asked for.
   const auto next = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.sdo_upload(id(2), 0x1018, 1, now, out);
+    return m.sdo_upload(2_node, 0x1018, 1, now, out);
   });
   ASSERT_TRUE(next.ok()) << next.error().message;
   EXPECT_EQ(*next, 1u);

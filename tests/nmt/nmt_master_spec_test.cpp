@@ -19,6 +19,7 @@
 
 namespace nmt::master_spec {
 namespace {
+using namespace cfg::literals;
 
 using Kind = MasterEvent::Kind;
 
@@ -347,7 +348,7 @@ TEST(NmtMasterSpec, FlyingMasterBit5NegotiatesBeforeStartup) {
   EXPECT_GE(won[0].at - t0, 2710ms);
   EXPECT_LT(won[0].at - t0, 2720ms);
   EXPECT_EQ(rig.events_of(Kind::ActiveMaster).size(), 1U);
-  EXPECT_EQ(master.active_master(), id(kMaster));
+  EXPECT_EQ(master.active_master(), kMaster);
   // The power-on reset (§3.7 d), then NMT start-up's own (§3.1 d), then start of node 2 (node 3
   // is absent, so not every slave booted: §3.1 h).
   EXPECT_EQ(rig.nmt(), (std::vector<std::string>{"000#8200", "000#8200", "000#0102"}));
@@ -437,7 +438,7 @@ TEST(NmtMasterSpec, OptionalSlaveAppearingLateIsRetriedEverySecondThenBootedAndS
   EXPECT_EQ(rig.count_nmt("000#0103", appeared), 1U);
   EXPECT_EQ(rig.count_nmt("000#0100", appeared), 0U);
   EXPECT_EQ(rig.slave(3).node().state(), NmtState::Operational);
-  EXPECT_FALSE(master.last_error(id(3)).has_value());
+  EXPECT_FALSE(master.last_error(3_node).has_value());
 }
 
 // §3.1 f: "If an error is detected during process boot slave for the NMT slaves that are marked as
@@ -746,7 +747,7 @@ TEST(NmtMasterSpec, BootSlaveOfNodeNotIn1F81IsRefused) {
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
 
   const cfg::Status started = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.boot_slave(id(5), now, out);
+    return m.boot_slave(5_node, now, out);
   });
   rig.run_for(3s);
   ASSERT_FALSE(started.ok());
@@ -785,7 +786,7 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenTheDeviceDoesNotAnswer) {
   EXPECT_EQ(error.error, BootError::B);
   EXPECT_FALSE(error.final);
   EXPECT_NE(error.text.find("boot error B"), std::string::npos) << error.text;
-  EXPECT_EQ(master.last_error(id(3)), BootError::B);
+  EXPECT_EQ(master.last_error(3_node), BootError::B);
   EXPECT_EQ(rig.uploads_of(3, 0x1000, 0).size(), 1U + rig.options.sdo_retries);
   // DSP 302 §4 step 5: start-up tries "all optional slaves at least once" before it goes on.
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 5s));
@@ -833,7 +834,7 @@ TEST(NmtMasterSpec, BootReportsStatusCWhenDeviceTypeDiffersFrom1F84) {
   rig.run_for(100ms);
 
   EXPECT_EQ(rig.boot_errors(3).front().error, BootError::C);
-  EXPECT_EQ(master.last_error(id(3)), BootError::C);
+  EXPECT_EQ(master.last_error(3_node), BootError::C);
   EXPECT_TRUE(rig.all_downloads(3).empty());
   EXPECT_EQ(rig.count_nmt("000#0103"), 0U);
 }
@@ -908,7 +909,7 @@ TEST(NmtMasterSpec, MatchingIdentityIn1F84To1F88Boots) {
   rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
-  EXPECT_EQ(rig.engine().boot_step(id(3)), BootStep::Booted);
+  EXPECT_EQ(rig.engine().boot_step(3_node), BootStep::Booted);
 }
 
 // E (§3.6): keep-alive with a heartbeat consumer for the slave, and no heartbeat "in time".
@@ -1293,7 +1294,7 @@ TEST(NmtMasterSpec, HeartbeatConfiguredByTheDownloadPassesStartErrorControl) {
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
   rig.run_for(1s);
   EXPECT_TRUE(rig.boot_errors(3).empty());
-  EXPECT_EQ(rig.engine().known_state(id(3)), KnownState::in(NmtState::Operational));
+  EXPECT_EQ(rig.engine().known_state(3_node), KnownState::in(NmtState::Operational));
 }
 
 // Header (MasterOptions::application_step): the boot waits for configuration_done(); false ends
@@ -1308,9 +1309,9 @@ TEST(NmtMasterSpec, ApplicationConfigurationStepContinuesOrFailsTheBoot) {
     ASSERT_TRUE(rig.run_until_kind(Kind::ApplicationStep, 10s, 3));
     rig.run_for(1s);
     EXPECT_TRUE(rig.booted(3).empty());
-    EXPECT_EQ(rig.engine().boot_step(id(3)), BootStep::ApplicationStep);
+    EXPECT_EQ(rig.engine().boot_step(3_node), BootStep::ApplicationStep);
     rig.call([ok](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-      m.configuration_done(id(3), ok, now, out);
+      m.configuration_done(3_node, ok, now, out);
     });
     rig.run_for(1s);
     if (ok) {

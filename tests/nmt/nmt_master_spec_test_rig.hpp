@@ -43,8 +43,9 @@
 namespace nmt::master_spec {
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 
-constexpr std::uint8_t kMaster = 1;
+constexpr cfg::NodeId kMaster = 1_node;
 // slave.eds identity.
 constexpr std::uint32_t kDeviceType = 0x000F0191;
 constexpr std::uint32_t kVendor = 0x0000ABCD;
@@ -64,11 +65,6 @@ constexpr std::uint8_t kVerifySoftware = Assign::kVerifySoftware;
 constexpr std::uint8_t kUpdateSoftware = Assign::kUpdateSoftware;
 constexpr std::uint8_t kRestore = Assign::kRestore;
 using Startup = cfg::NmtStartup;
-
-/// A node-ID known to be valid (1..127).
-inline cfg::NodeId id(std::uint8_t node) {
-  return cfg::NodeId::from(node).value();
-}
 
 // "071#PPNN": DSP 302 §5.5.1.1 / §5.5.1.3, data byte 0 the priority level, byte 1 the node-ID.
 inline std::string reply_71(std::uint16_t priority, std::uint8_t node) {
@@ -256,7 +252,7 @@ class MasterRig {
 
   /// Builds the master from `master` and `options`, attaches it and starts it at the bus time.
   NmtMaster& start_master() {
-    auto created = NmtMaster::create(master, id(kMaster), options);
+    auto created = NmtMaster::create(master, kMaster, options);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     if (!created.ok()) throw std::runtime_error("NmtMaster::create failed");
     master_ = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());
@@ -492,7 +488,7 @@ class MasterRig {
 
   std::map<std::uint8_t, std::unique_ptr<SimEngineNode<SimulatedDevice>>> slaves_;
   std::unique_ptr<SimEngineNode<NmtMaster>> master_;
-  SimEngineNode<SdoClient> tool_{SdoClientConfig::for_node(*cfg::NodeId::from(kMaster))};
+  SimEngineNode<SdoClient> tool_{SdoClientConfig::for_node(kMaster)};
   FunctionNode other_;
   std::map<SdoClient::TransferId, SdoResult> results_;
 };

@@ -488,7 +488,7 @@ TEST(NmtMasterStore, TheLoopKeepsServingFramesWhileAWorkerPersistsAnEntry) {
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   MasterOptions options;
   options.manager = std::make_shared<cfg::ConfigManager>(std::move(opened).value());
-  auto created = NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+  auto created = NmtMaster::create(cfg::DeviceDescription{}, kMaster, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
   NmtMaster master = std::move(created).value();
   SocketPairBus bus;

@@ -24,8 +24,9 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 
-constexpr std::uint8_t kMaster = 0x7F;
+constexpr cfg::NodeId kMaster = 0x7F_node;
 
 cfg::DeviceDescription sim_eds() {
   static const cfg::DeviceDescription eds = [] {
@@ -56,8 +57,7 @@ class MasterRig {
   explicit MasterRig(MasterOptions options = {}) : bus(500'000) {
     configurations = std::make_shared<Configurations>();
     if (!options.configurations) options.configurations = configurations;
-    auto master = NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster),
-                                    std::move(options));
+    auto master = NmtMaster::create(cfg::DeviceDescription{}, kMaster, std::move(options));
     EXPECT_TRUE(master.ok()) << (master.ok() ? "" : master.error().message);
     master_ = std::make_unique<SimEngineNode<NmtMaster>>(std::move(master).value());
     master_->set_event_handler([this](const MasterEvent& e, TimePoint) { events.push_back(e); });
@@ -317,8 +317,7 @@ TEST(NmtMaster, IsNotBuiltWithAResponseTimeoutThatIsNotPositive) {
   for (const auto timeout : {Duration::zero(), Duration{-1}}) {
     MasterOptions options;
     options.sdo_timeout = timeout;
-    const auto created =
-        NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+    const auto created = NmtMaster::create(cfg::DeviceDescription{}, kMaster, options);
     ASSERT_FALSE(created.ok());
     EXPECT_NE(created.error().message.find("sdo_timeout"), std::string::npos)
         << created.error().message;
@@ -343,8 +342,7 @@ TEST(NmtMaster, IsNotBuiltWithOtherTimeoutsThatAreNotPositive) {
     for (const Duration value : {Duration::zero(), Duration{-5000}}) {
       MasterOptions options;
       options.*field = value;
-      const auto created =
-          NmtMaster::create(cfg::DeviceDescription{}, *cfg::NodeId::from(kMaster), options);
+      const auto created = NmtMaster::create(cfg::DeviceDescription{}, kMaster, options);
       ASSERT_FALSE(created.ok()) << name;
       EXPECT_NE(created.error().message.find(name), std::string::npos) << created.error().message;
     }
@@ -367,7 +365,7 @@ TEST(NmtMaster, IsNotBuiltWithOtherTimeoutsThatAreNotPositive) {
 TEST(NmtMaster, DownloadsTheConciseDcfOfItsOwn1F22) {
   cfg::DeviceDescription description;
   MasterOptions options;
-  auto created = NmtMaster::create(description, *cfg::NodeId::from(kMaster), options);
+  auto created = NmtMaster::create(description, kMaster, options);
   ASSERT_TRUE(created.ok());
   SimBus bus(500'000);
   SimEngineNode<NmtMaster> master(std::move(created).value());
@@ -406,7 +404,7 @@ TEST(NmtMaster, CreateRefusesReservedBit1Of1F81) {
       "ParameterName=b\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=0\n"
       "PDOMapping=0\n");
   ASSERT_TRUE(eds.device.has_value()) << eds.diagnostics.format();
-  auto created = NmtMaster::create(*eds.device, *cfg::NodeId::from(kMaster), {});
+  auto created = NmtMaster::create(*eds.device, kMaster, {});
   ASSERT_FALSE(created.ok());
   EXPECT_NE(created.error().message.find("1F81h sub 01h"), std::string::npos)
       << created.error().message;

@@ -8,14 +8,12 @@
 namespace nmt {
 namespace {
 
+using namespace cfg::literals;
+
 CanFrame frame(std::string_view candump) {
   auto f = from_candump(candump);
   EXPECT_TRUE(f.has_value()) << candump;
   return f.value_or(CanFrame{});
-}
-
-cfg::NodeId id(std::uint8_t node_id) {
-  return cfg::NodeId::from(node_id).value();
 }
 
 // Feeds one frame; the transition it reported (the slave reports at most one and sends nothing).
@@ -38,7 +36,7 @@ std::string finish(NmtSlave& slave) {
 }
 
 NmtSlave booted(std::uint8_t node_id) {
-  NmtSlave slave(id(node_id));
+  NmtSlave slave(*cfg::NodeId::from(node_id));
   (void)finish(slave);
   return slave;
 }
@@ -46,7 +44,7 @@ NmtSlave booted(std::uint8_t node_id) {
 static_assert(Engine<NmtSlave>);
 
 TEST(NmtSlave, StartsInitialisingAndBootsIntoPreOperationalWithBootUpMessage) {
-  NmtSlave slave(id(2));
+  NmtSlave slave(2_node);
   EXPECT_EQ(slave.state(), NmtState::Initialising);
   EXPECT_EQ(slave.pending_reset(), ResetScope::Application);  // power-on: reset application
   EXPECT_EQ(finish(slave), "702#00");
@@ -55,7 +53,7 @@ TEST(NmtSlave, StartsInitialisingAndBootsIntoPreOperationalWithBootUpMessage) {
 }
 
 TEST(NmtSlave, IgnoresCommandsWhileInitialising) {
-  NmtSlave slave(id(1));
+  NmtSlave slave(1_node);
   EXPECT_FALSE(feed(slave, "000#0101").has_value());
   EXPECT_EQ(slave.state(), NmtState::Initialising);
   EXPECT_FALSE(slave.next_deadline().has_value());  // nothing in the NMT slave is timed
@@ -131,7 +129,7 @@ TEST(NmtSlave, RepeatedCommandIsReportedWithoutStateChange) {
 
 TEST(NmtSlave, NewNodeIdTakesEffectAtNextInitialisation) {
   NmtSlave slave = booted(3);
-  slave.set_node_id(id(9));
+  slave.set_node_id(9_node);
   EXPECT_EQ(slave.node_id(), 3);
   (void)feed(slave, "000#8203");
   EXPECT_EQ(finish(slave), "709#00");
@@ -168,10 +166,10 @@ TEST(NmtSlave, ServicesPerStateFollowCia301Table) {
 
 TEST(NmtSlave, CommandFramesAreEncodedAsTheSpecExamples) {
   // spec/002: "000 2 80 01: NMT host commands node 1 into pre-operational state" etc.
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::EnterPreOperational, id(1))), "000#8001");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Start, id(5))), "000#0105");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Stop, id(1))), "000#0201");
-  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetCommunication, id(1))), "000#8201");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::EnterPreOperational, 1_node)), "000#8001");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Start, 5_node)), "000#0105");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::Stop, 1_node)), "000#0201");
+  EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetCommunication, 1_node)), "000#8201");
   EXPECT_EQ(to_candump(make_nmt_command(NmtCommand::ResetNode, NmtTarget::all_nodes())),
             "000#8100");
 }
@@ -183,14 +181,14 @@ TEST(NmtSlave, CommandFramesNameOneNodeOrAllNodes) {
   EXPECT_EQ(all->command, NmtCommand::ResetNode);
   EXPECT_TRUE(all->target.all());
   EXPECT_EQ(all->target.node(), std::nullopt);
-  EXPECT_TRUE(all->target.addresses(id(1)));
-  EXPECT_TRUE(all->target.addresses(id(127)));
+  EXPECT_TRUE(all->target.addresses(1_node));
+  EXPECT_TRUE(all->target.addresses(127_node));
 
   auto one = parse_nmt_command(*from_candump("000#017F"));
   ASSERT_TRUE(one.has_value());
-  EXPECT_EQ(one->target, NmtTarget(id(127)));
-  EXPECT_TRUE(one->target.addresses(id(127)));
-  EXPECT_FALSE(one->target.addresses(id(1)));
+  EXPECT_EQ(one->target, NmtTarget(127_node));
+  EXPECT_TRUE(one->target.addresses(127_node));
+  EXPECT_FALSE(one->target.addresses(1_node));
   EXPECT_EQ(to_candump(make_nmt_command(one->command, one->target)), "000#017F");
 
   EXPECT_EQ(NmtTarget::from_byte(0x80), std::nullopt);

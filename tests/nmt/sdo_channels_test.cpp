@@ -18,6 +18,8 @@
 #include "test_paths.hpp"
 
 namespace nmt {
+using namespace cfg::literals;
+
 namespace {
 
 // Powers `device` on at `now` (nothing it reports at power-on is looked at here).
@@ -29,7 +31,7 @@ void power_on_at(Device& device, TimePoint now) {
 
 using Frames = std::vector<std::string>;
 
-constexpr cfg::NodeId kNode = cfg::NodeId::from(5).value();
+constexpr cfg::NodeId kNode = 5_node;
 
 cfg::DeviceDescription channels_eds() {
   auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sdo_channels.eds");

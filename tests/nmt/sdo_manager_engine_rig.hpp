@@ -26,7 +26,7 @@
 namespace nmt::engine_test {
 
 using namespace std::chrono_literals;
-using master_spec::id;
+using namespace cfg::literals;
 using master_spec::le;
 using master_spec::request_word;
 using Kind = MasterEvent::Kind;

@@ -189,7 +189,7 @@ TEST_F(SdoManagerEngine, AllDefaultSdosAreGrantedWithCnxnState2) {
   ASSERT_EQ(engine().srds().size(), 1U);
   EXPECT_TRUE(engine().srds()[0].all_default_sdos);
   // §7.1: the master's own transfers keep off every default SDO now.
-  EXPECT_TRUE(engine().default_sdo_given_out(id(3)));
+  EXPECT_TRUE(engine().default_sdo_given_out(3_node));
 }
 
 TEST_F(SdoManagerEngine, DeregistrationReleasesEverythingAndTheChannelToTheManagerLast) {
@@ -197,7 +197,7 @@ TEST_F(SdoManagerEngine, DeregistrationReleasesEverythingAndTheChannelToTheManag
   add_slaves();
   ASSERT_TRUE(register_srd(120, 0x12810001));
   ASSERT_NO_FATAL_FAILURE(connect(120, 2));
-  EXPECT_TRUE(engine().default_sdo_given_out(id(2)));
+  EXPECT_TRUE(engine().default_sdo_given_out(2_node));
   // §7.2.3: slave node-ID 0 releases all connections and de-registers.
   const auto answer = srd_write(120, 0x1281, 0x1F01, request_word(0, 120, 0));
   ASSERT_TRUE(answer.has_value());
@@ -214,7 +214,7 @@ TEST_F(SdoManagerEngine, DeregistrationReleasesEverythingAndTheChannelToTheManag
   EXPECT_EQ(own(0x1F03, 1), 0U);
   EXPECT_EQ(own(0x1F02, 1), 0x680U);
   EXPECT_EQ(own(0x1201, 1), kInvalid | 0x680);  // the own channel is closed
-  EXPECT_FALSE(engine().default_sdo_given_out(id(2)));
+  EXPECT_FALSE(engine().default_sdo_given_out(2_node));
   EXPECT_EQ(std::count(port.unwatched.begin(), port.unwatched.end(), 120), 1);
 }
 
@@ -271,7 +271,7 @@ TEST_F(SdoManagerEngine, SrdErrorControlLossReleasesItsConnectionsOnBothSides) {
   ASSERT_EQ(at(2, 0x1201, 3), 110U);
   port.devices.erase(110);
   port.accesses.clear();
-  engine().node_lost(id(110), now, out);
+  engine().node_lost(110_node, now, out);
   ASSERT_EQ(events_of(Kind::SrdLost, 110).size(), 1U);
   run();
   // The connection to S first, the SRD's channel to the manager last.
@@ -301,7 +301,7 @@ TEST_F(SdoManagerEngine, SlaveFailureIsReportedIn1F11hToAnSrdThatAskedForErrorCo
   EXPECT_EQ(at(120, 0x1F10, 0), 0x1282000EU);
   ASSERT_EQ(port.watched.count(5), 1U);  // §7.2.5 step 4.4
   port.devices.erase(5);
-  engine().node_lost(id(5), now, out);
+  engine().node_lost(5_node, now, out);
   run();
   ASSERT_EQ(events_of(Kind::SlaveFailedReported, 120).size(), 1U);
   EXPECT_EQ(at(120, 0x1F11, 0), 0x0005U);
@@ -344,7 +344,7 @@ TEST_F(SdoManagerEngine, SlaveBootUpReleasesTheConnectionsOnItsAdditionalServerE
   ASSERT_NO_FATAL_FAILURE(connect(110, 2));  // 2's 1201h, pool subs 5/6
   ASSERT_EQ(own(0x1F03, 4), 0x026E0102U);
   port.accesses.clear();
-  engine().node_booted(id(2), now, out);
+  engine().node_booted(2_node, now, out);
   run();
   const std::vector<Access> expected{write(110, 0x1282, 1, kInvalid | 0x684),
                                      write(110, 0x1282, 2, kInvalid | 0x685)};

@@ -460,7 +460,7 @@ TEST(SdoManagerSpec, StandbyFlyingMasterIgnoresTheDynamicSdoRequestUntilItIsActi
                   std::uint16_t priority) {
     MasterOptions options;
     options.sdo_manager = sdo_manager;
-    auto created = NmtMaster::create(dcf, id(node), options);
+    auto created = NmtMaster::create(dcf, *cfg::NodeId::from(node), options);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     if (!created.ok()) throw std::runtime_error("NmtMaster::create failed");
     auto m = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());

@@ -19,6 +19,7 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 using master_spec::MasterRig;
 using Kind = MasterEvent::Kind;
 
@@ -179,10 +180,10 @@ TEST_F(SdoManagerTest, MasterTransfersToASlaveWaitWhileAnSrdHoldsItsDefaultSdo) 
   ASSERT_NO_FATAL_FAILURE(connect(120, 2));
   const auto from = rig.bus.now();
   test_support::started(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.sdo_upload(master_spec::id(2), 0x1000, 0, now, out);
+    return m.sdo_upload(2_node, 0x1000, 0, now, out);
   }));
   ASSERT_TRUE(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-                   return m.boot_slave(master_spec::id(2), now, out);
+                   return m.boot_slave(2_node, now, out);
                  })
                   .ok());
   rig.run_for(2s);
@@ -205,7 +206,7 @@ TEST_F(SdoManagerTest, MasterTransfersWaitWhileAnSrdOwnsAllDefaultSdos) {
   ASSERT_TRUE(register_srd(120, 0x00000003));  // §7.2.3: all default SDOs, Cnxn 2
   const auto from = rig.bus.now();
   test_support::started(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.sdo_upload(master_spec::id(3), 0x1000, 0, now, out);
+    return m.sdo_upload(3_node, 0x1000, 0, now, out);
   }));
   rig.run_for(2s);
   EXPECT_TRUE(rig.requests_to(3, from).empty());
@@ -225,7 +226,7 @@ TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
   std::map<std::uint8_t, std::unique_ptr<SimEngineNode<NmtMaster>>> masters;
   std::vector<std::pair<std::uint8_t, MasterEvent>> events;
   for (std::uint8_t node : {std::uint8_t{10}, std::uint8_t{11}}) {
-    auto created = NmtMaster::create(master_spec::master_dcf(), master_spec::id(node), options);
+    auto created = NmtMaster::create(master_spec::master_dcf(), *cfg::NodeId::from(node), options);
     ASSERT_TRUE(created.ok());
     auto slot = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());
     auto& dict = slot->engine().dictionary();
@@ -244,7 +245,7 @@ TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
     slot->apply([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) { m.start(now, out); });
   }
   bus.run_for(10s);
-  ASSERT_EQ(masters[10]->engine().active_master(), master_spec::id(10));
+  ASSERT_EQ(masters[10]->engine().active_master(), 10_node);
   ASSERT_EQ(masters[11]->engine().startup_state(), StartupState::Standby);
   // An SRD at 120 asks; only the active master scans and registers it.
   auto srd = SimulatedDevice::create(master_spec::slave_eds(), 120).value();

@@ -25,14 +25,11 @@ void power_on_at(Device& device, TimePoint now) {
 }
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 using Frames = std::vector<std::string>;
 using Kind = SrdEvent::Kind;
 
-constexpr cfg::NodeId kSrd = cfg::NodeId::from(0x7F).value();
-
-constexpr cfg::NodeId id(unsigned node) {
-  return cfg::NodeId::from(node).value();
-}
+constexpr cfg::NodeId kSrd = 0x7F_node;
 
 cfg::DeviceDescription channels_eds() {
   auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sdo_channels.eds");
@@ -101,7 +98,7 @@ struct Rig {
   void connected() {
     registered();
     EXPECT_TRUE(
-        call([](auto& s, auto t, auto& o) { return s.request_connection(id(5), 0x1281, t, o); }));
+        call([](auto& s, auto t, auto& o) { return s.request_connection(5_node, 0x1281, t, o); }));
     frame("681#60001F0000000000");
     frame("67F#2F811203 05000000");
     frame("67F#23811201 82060000");
@@ -194,7 +191,7 @@ TEST(SdoRequestingDevice, ConnectionRequestWrites1F00hOverTheManagerChannel_7_2_
   Rig r;
   r.registered();
   ASSERT_TRUE(
-      r.call([](auto& s, auto t, auto& o) { return s.request_connection(id(5), 0x1281, t, o); }));
+      r.call([](auto& s, auto t, auto& o) { return s.request_connection(5_node, 0x1281, t, o); }));
   // 1F00h = 1281h << 16 | 7Fh << 8 | 05h, expedited on the channel's request COB-ID 680h.
   EXPECT_EQ(r.sent, Frames{"680#23001F00057F8112"});
   EXPECT_EQ(r.frame("681#60001F0000000000"), Frames{});
@@ -254,20 +251,20 @@ TEST(SdoRequestingDevice, ATransferTheClientCannotStartReturnsWhyAndSendsNothing
 TEST(SdoRequestingDevice, RefusalByAbort060A0023EndsTheRequest_7_2_3) {
   Rig r;
   r.registered();
-  (void)r.call([](auto& s, auto t, auto& o) { return s.request_connection(id(5), 0x1281, t, o); });
+  (void)r.call([](auto& s, auto t, auto& o) { return s.request_connection(5_node, 0x1281, t, o); });
   r.frame("681#80001F00 2300 0A06");
   ASSERT_EQ(r.events.size(), 1u);
   EXPECT_EQ(r.events[0].kind, Kind::ConnectionFailed);
   EXPECT_EQ(r.events[0].abort, SdoAbort::ResourceNotAvailable);
   // The next request may go.
   EXPECT_TRUE(
-      r.call([](auto& s, auto t, auto& o) { return s.request_connection(id(6), 0x1281, t, o); }));
+      r.call([](auto& s, auto t, auto& o) { return s.request_connection(6_node, 0x1281, t, o); }));
 }
 
 TEST(SdoRequestingDevice, FailureIn1F10hNamesTheReason_7_2_3) {
   Rig r;
   r.registered();
-  (void)r.call([](auto& s, auto t, auto& o) { return s.request_connection(id(5), 0x1281, t, o); });
+  (void)r.call([](auto& s, auto t, auto& o) { return s.request_connection(5_node, 0x1281, t, o); });
   r.frame("681#60001F0000000000");
   // Cnxn state 0, error 03h: no more free server SDO entries on slave S.
   r.frame("67F#23101F00 00038112");
@@ -281,7 +278,7 @@ TEST(SdoRequestingDevice, FailureIn1F10hNamesTheReason_7_2_3) {
 TEST(SdoRequestingDevice, MissingConfirmationTimesOutTheRequest) {
   Rig r({.connection_timeout = 1s});
   r.registered();
-  (void)r.call([](auto& s, auto t, auto& o) { return s.request_connection(id(5), 0x1281, t, o); });
+  (void)r.call([](auto& s, auto t, auto& o) { return s.request_connection(5_node, 0x1281, t, o); });
   r.frame("681#60001F0000000000");
   r.timer(r.now + 1s);
   ASSERT_EQ(r.events.size(), 1u);
@@ -291,7 +288,7 @@ TEST(SdoRequestingDevice, MissingConfirmationTimesOutTheRequest) {
 TEST(SdoRequestingDevice, ReleaseWrites1F01hAndTheManagerInvalidatingTheEntryEndsIt_7_2_2) {
   Rig r;
   r.connected();
-  ASSERT_TRUE(r.call([](auto& s, auto t, auto& o) { return s.release(id(5), 0x1281, t, o); }));
+  ASSERT_TRUE(r.call([](auto& s, auto t, auto& o) { return s.release(5_node, 0x1281, t, o); }));
   EXPECT_EQ(r.sent, Frames{"680#23011F00057F8112"});
   r.frame("681#60011F0000000000");
   EXPECT_TRUE(r.events.empty());
@@ -342,7 +339,7 @@ TEST(SdoRequestingDevice, AllDefaultSdosGrantLetsTheSrdUseDefaultSdos_7_2_2) {
   EXPECT_EQ(r.events[0].kind, Kind::Registered);
   EXPECT_EQ(r.srd->registration(), SrdRegistration::AllDefaultSdos);
   EXPECT_TRUE(r.call(
-      [](auto& s, auto t, auto& o) { return s.upload_default(id(5), 0x1000, 0, t, o).ok(); }));
+      [](auto& s, auto t, auto& o) { return s.upload_default(5_node, 0x1000, 0, t, o).ok(); }));
   EXPECT_EQ(r.sent, Frames{"605#4000100000000000"});
   r.frame("585#4300100091010F00");
   ASSERT_EQ(r.events.size(), 1u);

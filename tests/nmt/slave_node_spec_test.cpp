@@ -40,8 +40,9 @@ void power_on_at(Device& device, TimePoint now) {
 }
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 
-constexpr cfg::NodeId kNode = cfg::NodeId::from(5).value();
+constexpr cfg::NodeId kNode = 5_node;
 constexpr TimePoint kPowerOn{1s};
 
 const cfg::DeviceDescription& spec_eds() {

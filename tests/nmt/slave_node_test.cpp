@@ -24,10 +24,11 @@ void power_on_at(Device& device, TimePoint now) {
 }
 
 using namespace std::chrono_literals;
+using namespace cfg::literals;
 
 static_assert(Engine<SlaveNode>);
 
-constexpr cfg::NodeId kNode = cfg::NodeId::from(2).value();
+constexpr cfg::NodeId kNode = 2_node;
 
 cfg::DeviceDescription sim_eds() {
   auto result = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/sim_device.eds");

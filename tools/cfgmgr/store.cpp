@@ -64,7 +64,7 @@ void must(const cfg::Status& status) {
 cfg::NodeId parse_node(const std::string& text) {
   const auto node = tools::parse_node_id_argument(text);
   if (!node) fail(tools::kExitUsage, tools::node_id_argument_error("NODE", text));
-  return *cfg::NodeId::from(*node);
+  return *node;
 }
 
 std::optional<nmt::StoreFile> parse_what(const std::string& text) {
@@ -117,7 +117,7 @@ std::unique_ptr<nmt::StoreObjects> open_store(const StoreCliOptions& o) {
     fail(tools::kExitUsage, checked.error().message);
   }
   const auto timeout = nmt::Duration(static_cast<std::int64_t>(o.sdo_timeout_s * 1e6));
-  auto opened = nmt::open_remote_store(o.bus, *cfg::NodeId::from(*master), timeout);
+  auto opened = nmt::open_remote_store(o.bus, *master, timeout);
   if (!opened) fail(tools::kExitIo, opened.error().message);
   return std::move(opened).value();
 }
@@ -202,7 +202,7 @@ void configure(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
   if (o.node != "all") {
     const auto id = tools::parse_node_id_argument(o.node);
     if (!id) fail(tools::kExitUsage, tools::node_id_argument_error("NODE", o.node) + " or all");
-    node = cfg::NodeId::from(*id);
+    node = *id;
   }
   if (!store.remote()) {
     fail(tools::kExitUsage, "configure asks a running master: give --bus URL --master N");

@@ -231,12 +231,8 @@ std::optional<TimePoint> SdoManagerProcess::next_deadline() const {
 void SdoManagerProcess::clear() {
   for (auto& c : connections_) set_row(c.row.row, 0);
   connections_.clear();
-  for (const auto& [node, srd] : srds_) {
-    if (const auto id = cfg::NodeId::from(node)) port_.unwatch(*id);
-  }
-  for (auto node : watched_) {
-    if (const auto id = cfg::NodeId::from(node)) port_.unwatch(*id);
-  }
+  for (const auto& [node, srd] : srds_) port_.unwatch(node);
+  for (const auto node : watched_) port_.unwatch(node);
   srds_.clear();
   watched_.clear();
   jobs_.clear();
@@ -273,7 +269,7 @@ void SdoManagerProcess::node_lost(cfg::NodeId node, TimePoint now, Output& out) 
   // §7.2.2 "Error Control of Slave Devices": 1F11h on each SRD with Req EC, then its client
   // entry cleared.
   watched_.erase(node);
-  if (const auto id = cfg::NodeId::from(node)) port_.unwatch(*id);
+  port_.unwatch(node);
   auto rows = take_connections([&](const ManagedSdoConnection& c) {
     const auto srd = srds_.find(c.srd);
     return c.server == node && !c.to_manager && srd != srds_.end() &&
@@ -295,7 +291,7 @@ void SdoManagerProcess::srd_gone(cfg::NodeId node, bool boot_up, TimePoint now, 
   // §7.2.1: "the Manager forces all SDOs requested by that SRD to be released".
   auto rows = take_connections([node](const ManagedSdoConnection& c) { return c.srd == node; });
   srds_.erase(node);
-  if (const auto id = cfg::NodeId::from(node)) port_.unwatch(*id);
+  port_.unwatch(node);
   const std::string why = node_text(node) + (boot_up ? ": SRD booted up" : ": SRD lost");
   out.report(
       master_event(MasterEvent::Kind::SrdLost, now, node,
