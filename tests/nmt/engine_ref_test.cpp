@@ -30,6 +30,12 @@ struct Echo {
     out.send(*from_candump("200#" + cfg::hex_digits(b, 2)));
     return b;
   }
+  // An API call that sends 202#xx and reports xx.
+  int note(std::uint8_t b, TimePoint /*now*/, Output& out) {
+    out.send(*from_candump("202#" + cfg::hex_digits(b, 2)));
+    out.report(b);
+    return b;
+  }
 };
 
 TEST(EngineRef, ApplySendsAtOnceAndTheLoopsOtherEnginesHearIt) {
@@ -66,6 +72,40 @@ TEST(EngineRef, TheEventHandlerMayApply) {
   ref_a.apply([](Echo& e, TimePoint now, Echo::Output& out) { return e.say(1, now, out); });
   // b answers 1, its handler says 2, a answers 2: every frame in the order it was sent.
   EXPECT_EQ(bus.sent, (std::vector<std::string>{"200#01", "201#01", "200#02", "201#02"}));
+}
+
+TEST(EngineRef, AnExceptionOfTheEventHandlerInApplyReachesTheCaller) {
+  FakeClockBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  Echo a;
+  std::vector<int> events;
+  EngineRef ref(a, [&](const int& e, TimePoint) {
+    events.push_back(e);
+    if (e == 5) throw std::runtime_error("the handler refuses 5");
+  });
+  loop.add(ref);
+  auto note = [](std::uint8_t b) {
+    return [b](Echo& e, TimePoint now, Echo::Output& out) { return e.note(b, now, out); };
+  };
+  EXPECT_THROW(ref.apply(note(5)), std::runtime_error);
+  EXPECT_EQ(ref.apply(note(6)), 6);
+  EXPECT_EQ(events, (std::vector<int>{5, 6}));
+  // Each call's frame was sent before its event was handed out.
+  EXPECT_EQ(bus.sent, (std::vector<std::string>{"202#05", "202#06"}));
+}
+
+TEST(EngineRef, AnExceptionOfTheCallItselfReachesTheCallerAfterItsFramesAreSent) {
+  FakeClockBus bus;
+  BusEventLoop loop(bus, {}, [&] { return bus.now; });
+  Echo a;
+  EngineRef ref(a);
+  loop.add(ref);
+  EXPECT_THROW(ref.apply([](Echo& e, TimePoint now, Echo::Output& out) {
+    e.say(1, now, out);
+    throw std::runtime_error("after the engine call");
+  }),
+               std::runtime_error);
+  EXPECT_EQ(bus.sent, std::vector<std::string>{"200#01"});
 }
 
 TEST(EngineRef, ApplyBeforeAddIsAProgrammingError) {

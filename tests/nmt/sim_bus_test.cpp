@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -420,6 +421,12 @@ struct EchoEngine {
     out.send(*from_candump("102#"));
     return 7;
   }
+  // An API call that sends 103# and reports `value`.
+  int note(int value, TimePoint /*now*/, Output& out) {
+    out.send(*from_candump("103#"));
+    out.report(value);
+    return value;
+  }
 };
 static_assert(Engine<EchoEngine>);
 
@@ -487,6 +494,46 @@ TEST(SimEngineNode, TheEventHandlerMayApply) {
   ASSERT_TRUE(bus.run_until_idle(TimePoint{Duration{1'000'000}}));
   // The answer, then what the handler started, then its timer's frame.
   EXPECT_EQ(seen, (std::vector<std::string>{"100#01", "101#01", "102#", "7FF#01"}));
+}
+
+TEST(SimEngineNode, AnExceptionOfTheEventHandlerInApplyReachesTheCaller) {
+  SimBus bus(1'000'000);
+  SimEngineNode<EchoEngine> node;
+  std::vector<std::string> seen;
+  std::vector<int> events;
+  bus.attach(node);
+  bus.add_observer([&](const CanFrame& f, TimePoint) { seen.push_back(to_candump(f)); });
+  node.set_event_handler([&](const int& event, TimePoint) {
+    events.push_back(event);
+    if (event == 5) throw std::runtime_error("the handler refuses 5");
+  });
+  auto note = [](int value) {
+    return [value](EchoEngine& e, TimePoint now, EchoEngine::Output& out) {
+      return e.note(value, now, out);
+    };
+  };
+  EXPECT_THROW(node.apply(note(5)), std::runtime_error);
+  // The node goes on: the next call's event reaches the handler.
+  EXPECT_EQ(node.apply(note(6)), 6);
+  EXPECT_EQ(events, (std::vector<int>{5, 6}));
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{Duration{1'000'000}}));
+  // Both calls' frames were sent (before their events were handed out).
+  EXPECT_EQ(seen, (std::vector<std::string>{"103#", "103#"}));
+}
+
+TEST(SimEngineNode, AnExceptionOfTheCallItselfReachesTheCallerAfterItsFramesAreSent) {
+  SimBus bus(1'000'000);
+  SimEngineNode<EchoEngine> node;
+  std::vector<std::string> seen;
+  bus.attach(node);
+  bus.add_observer([&](const CanFrame& f, TimePoint) { seen.push_back(to_candump(f)); });
+  EXPECT_THROW(node.apply([](EchoEngine& e, TimePoint now, EchoEngine::Output& out) {
+    e.note(1, now, out);
+    throw std::runtime_error("after the engine call");
+  }),
+               std::runtime_error);
+  ASSERT_TRUE(bus.run_until_idle(TimePoint{Duration{1'000'000}}));
+  EXPECT_EQ(seen, std::vector<std::string>{"103#"});
 }
 
 }  // namespace

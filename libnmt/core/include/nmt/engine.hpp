@@ -64,6 +64,7 @@
 
 #include <concepts>
 #include <optional>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -109,6 +110,32 @@ inline std::optional<TimePoint> earliest(std::optional<TimePoint> a, std::option
   if (!a) return b;
   if (!b) return a;
   return *a < *b ? a : b;
+}
+
+/// For engine drivers (EngineRef, SimEngineNode): returns what `call()` returns after running
+/// `flush()` (send the call's frames, hand its events to the user's handler); when `call()`
+/// throws, flushes what it put out before and lets its exception go on. `flush()` runs as plain
+/// code, not from a destructor: an exception of the user's handler reaches the caller instead
+/// of ending in std::terminate.
+template <class Call, class Flush>
+std::invoke_result_t<Call> call_then_flush(Call&& call, Flush&& flush) {
+  using Result = std::invoke_result_t<Call>;
+  auto guarded = [&]() -> Result {
+    try {
+      return std::forward<Call>(call)();
+    } catch (...) {
+      flush();
+      throw;
+    }
+  };
+  if constexpr (std::is_void_v<Result>) {
+    guarded();
+    flush();
+  } else {
+    Result result = guarded();
+    flush();
+    return std::forward<Result>(result);
+  }
 }
 
 }  // namespace nmt

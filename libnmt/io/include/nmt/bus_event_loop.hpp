@@ -52,6 +52,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "cfg/result.hpp"
@@ -111,8 +112,10 @@ class EngineRef final : public LoopEngine {
   /// frames it put into `out` at once (the loop's other engines see them too), then reports its
   /// events. Returns what fn returns. The engine must have been added to a loop (else
   /// std::logic_error); a frame the bus refuses makes the loop's next run*() return that error.
+  /// An exception of fn or of the handler reaches the caller (fn's frames and events are
+  /// delivered first).
   template <class Fn>
-  decltype(auto) apply(Fn&& fn);
+  std::invoke_result_t<Fn, E&, TimePoint, typename E::Output&> apply(Fn&& fn);
   /// Thread-safe: BusEventLoop::post() of apply(fn), for another thread (a UI, an RPC server)
   /// that calls into the engine while the loop runs; fn's result is dropped (hand it back
   /// through a std::promise or a queue of the caller's). The EngineRef must have been added to
@@ -376,18 +379,16 @@ class BusEventLoop {
 
 template <Engine E>
 template <class Fn>
-decltype(auto) EngineRef<E>::apply(Fn&& fn) {
+std::invoke_result_t<Fn, E&, TimePoint, typename E::Output&> EngineRef<E>::apply(Fn&& fn) {
   if (loop() == nullptr) throw std::logic_error("EngineRef::apply before BusEventLoop::add");
-  struct Flush {
-    EngineRef* self;
-    Output out;
-    TimePoint now;
-    ~Flush() {
-      (void)self->loop()->send_now(*self, out.frames, now);
-      self->report(out, now);
-    }
-  } flush_on_exit{this, {}, loop()->now()};
-  return std::forward<Fn>(fn)(*engine_, flush_on_exit.now, flush_on_exit.out);
+  Output out;
+  const TimePoint now = loop()->now();
+  return call_then_flush(
+      [&]() -> decltype(auto) { return std::forward<Fn>(fn)(*engine_, now, out); },
+      [&] {
+        (void)loop()->send_now(*this, out.frames, now);
+        report(out, now);
+      });
 }
 
 template <Engine E>

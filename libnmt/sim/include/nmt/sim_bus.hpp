@@ -35,6 +35,7 @@
 #include <queue>
 #include <random>
 #include <span>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -269,20 +270,18 @@ class SimEngineNode : public SimNode {
 
   /// Runs an API call of the engine, `fn(engine(), now, out)` at the bus's current time, then
   /// sends the frames it put into `out` at once, re-arms the timer and reports its events.
-  /// Returns what fn returns. Attach the node first (unattached, frames are dropped).
+  /// Returns what fn returns. Attach the node first (unattached, frames are dropped). An
+  /// exception of fn or of the handler reaches the caller (fn's frames and events are
+  /// delivered first).
   template <class Fn>
-  decltype(auto) apply(Fn&& fn) {
+  std::invoke_result_t<Fn, E&, TimePoint, Output&> apply(Fn&& fn) {
     // The outermost call reuses one Output; a nested one (from the event handler) its own.
-    struct Flush {
-      SimEngineNode* self;
-      Output* out;
-      TimePoint now;
-      ~Flush() { self->flush(*out, now); }
-    };
     Output nested;
     Output& out = out_.frames.empty() && !in_handler_ ? out_ : nested;
-    Flush flush_on_exit{this, &out, now()};
-    return std::forward<Fn>(fn)(engine_, flush_on_exit.now, out);
+    const TimePoint at = now();
+    return call_then_flush(
+        [&]() -> decltype(auto) { return std::forward<Fn>(fn)(engine_, at, out); },
+        [&] { flush(out, at); });
   }
 
   void on_frame(const CanFrame& frame, TimePoint now) override {
@@ -308,12 +307,20 @@ class SimEngineNode : public SimNode {
     }
     in_handler_ = true;
     pending_.swap(out.events);  // keeps both buffers' capacity
-    while (!pending_.empty()) {
-      for (const auto& e : pending_) {
-        if (handler_) handler_(e, now);
+    try {
+      while (!pending_.empty()) {
+        for (const auto& e : pending_) {
+          if (handler_) handler_(e, now);
+        }
+        pending_.clear();
+        pending_.swap(deferred_);
       }
+    } catch (...) {
+      // The handler threw: the events after it are dropped, the next call reports afresh.
       pending_.clear();
-      pending_.swap(deferred_);
+      deferred_.clear();
+      in_handler_ = false;
+      throw;
     }
     in_handler_ = false;
   }
