@@ -565,7 +565,7 @@ class MasterLss : public ::testing::Test {
     }
     return std::nullopt;
   }
-  static MasterOptions lss_options(std::map<std::uint8_t, LssAddress> addresses) {
+  static MasterOptions lss_options(std::map<cfg::NodeId, LssAddress> addresses) {
     MasterOptions options;
     options.lss.enabled = true;
     options.lss.addresses = std::move(addresses);
@@ -575,7 +575,7 @@ class MasterLss : public ::testing::Test {
   // box at start-up, node 3's absent (its boot ends with B); then node 3's device arrives out of
   // the box and the master runs 8 s more. `frames` and `events` are those of the last 8 s.
   void node3s_device_arrives_later() {
-    auto options = lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}});
+    auto options = lss_options({{2_node, sim_address(0x102)}, {3_node, sim_address(0x103)}});
     options.lss.period = 500ms;
     make_master(std::move(options), {2, 3});
     power_on_unconfigured(0x102);
@@ -590,9 +590,10 @@ class MasterLss : public ::testing::Test {
 };
 
 TEST_F(MasterLss, ExecuteLssGivesEachDeviceItsSlavesNodeIdBeforeTheResetOfAllNodes) {
-  make_master(
-      lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}, {4, sim_address(0x104)}}),
-      {2, 3, 4});
+  make_master(lss_options({{2_node, sim_address(0x102)},
+                           {3_node, sim_address(0x103)},
+                           {4_node, sim_address(0x104)}}),
+              {2, 3, 4});
   for (const std::uint32_t serial : {0x104u, 0x102u, 0x103u}) power_on_unconfigured(serial);
   start();
   bus.run_for(8s);
@@ -630,7 +631,7 @@ TEST_F(MasterLss, AddressesComeFrom1F85hTo1F88hWhenAllFourAreGivenSerialFrom1018
 }
 
 TEST_F(MasterLss, UnmatchedDeviceIsReportedAndTheSlaveWithoutDeviceIsMissing) {
-  make_master(lss_options({{2, sim_address(0x102)}, {3, sim_address(0x103)}}), {2, 3});
+  make_master(lss_options({{2_node, sim_address(0x102)}, {3_node, sim_address(0x103)}}), {2, 3});
   power_on_unconfigured(0x102);
   power_on_unconfigured(0x999);
   start();
@@ -655,7 +656,7 @@ TEST_F(MasterLss, OffByDefaultNoLssFrame) {
 }
 
 TEST_F(MasterLss, ConfiguredNetworkCostsTwoLssFramesAndOneStep) {
-  make_master(lss_options({{2, sim_address(0x102)}}), {2});
+  make_master(lss_options({{2_node, sim_address(0x102)}}), {2});
   power_on_unconfigured(0x102);
   start();
   bus.run_for(8s);

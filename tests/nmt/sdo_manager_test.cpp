@@ -146,9 +146,9 @@ TEST_F(SdoManagerTest, SrdErrorControlLossReleasesItsConnectionsOnBothSides) {
   EXPECT_EQ(at(2, 0x1201, 1) & kInvalid, kInvalid);
   EXPECT_EQ(rig.tool_read_u(0x1F02, 3), 0x682U);
   EXPECT_EQ(rig.tool_read_u(0x1F02, 5), 0x684U);
-  for (const auto& row : rig.engine().sdo_connections()) EXPECT_NE(row.srd, 110);
+  for (const auto& row : rig.engine().sdo_connections()) EXPECT_NE(row.srd, 110_node);
   ASSERT_EQ(rig.engine().registered_srds().size(), 1U);
-  EXPECT_EQ(rig.engine().registered_srds()[0].node, 120);
+  EXPECT_EQ(rig.engine().registered_srds()[0].node, 120_node);
 }
 
 TEST_F(SdoManagerTest, SrdWithHeartbeatIsWatchedByItsHeartbeatNotGuarded) {

@@ -170,9 +170,9 @@ nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::Node
   return faults;
 }
 
-std::map<std::uint8_t, nmt::LssAddress> lss_addresses(const cfg::Network& network,
-                                                      std::vector<std::string>& notes) {
-  std::map<nmt::LssAddress, std::vector<std::uint8_t>> by_address;
+std::map<cfg::NodeId, nmt::LssAddress> lss_addresses(const cfg::Network& network,
+                                                     std::vector<std::string>& notes) {
+  std::map<nmt::LssAddress, std::vector<cfg::NodeId>> by_address;
   for (const auto& node : network.nodes) {
     if (!node.dcf) continue;
     const cfg::DeviceIdentity identity = cfg::identity_of(*node.dcf, node.node_id);
@@ -184,9 +184,9 @@ std::map<std::uint8_t, nmt::LssAddress> lss_addresses(const cfg::Network& networ
         address.serial == 0) {
       continue;
     }
-    by_address[address].push_back(node.node_id.value());
+    by_address[address].push_back(node.node_id);
   }
-  std::map<std::uint8_t, nmt::LssAddress> addresses;
+  std::map<cfg::NodeId, nmt::LssAddress> addresses;
   for (const auto& [address, nodes] : by_address) {
     if (nodes.size() == 1) {
       addresses[nodes.front()] = address;

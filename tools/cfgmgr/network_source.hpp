@@ -81,8 +81,8 @@ nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::Node
 /// cfg::identity_of gives them (the serial number from [DeviceComissioning] LSS_SerialNumber,
 /// else 1018h sub 4), for each node whose DCF gives all four non-zero. Nodes that share one
 /// address are left out, and `notes` gets a line naming them.
-std::map<std::uint8_t, nmt::LssAddress> lss_addresses(const cfg::Network& network,
-                                                      std::vector<std::string>& notes);
+std::map<cfg::NodeId, nmt::LssAddress> lss_addresses(const cfg::Network& network,
+                                                     std::vector<std::string>& notes);
 
 /// One simulated device for each node of the network that has a DCF (a node given only by a
 /// concise DCF has no dictionary to simulate: it is left out, and `skipped` gets its node-ID),

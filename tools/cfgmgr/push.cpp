@@ -595,7 +595,7 @@ void run_push(const PushCliOptions& options) {
     // (found without one, they are reported as matching no node).
     std::erase_if(master_options.lss.addresses, [&selected](const auto& entry) {
       return std::none_of(selected.begin(), selected.end(), [&entry](const cfg::NetworkNode* n) {
-        return n->node_id.value() == entry.first;
+        return n->node_id == entry.first;
       });
     });
   }

@@ -89,20 +89,20 @@ std::string_view to_string(StartupState state);
 /// One SDO connection the SDO manager set up (DSP 302 §7.2.3, a row of 1F03h-1F06h, with the
 /// COB-IDs it gave it). The client is always an SRD.
 struct ManagedSdoConnection {
-  std::uint16_t row = 0;           ///< 1..1016: 1F03h sub 1..254, then 1F04h sub 1..254, ...
-  std::uint8_t srd = 0;            ///< client node-ID
-  std::uint16_t client_index = 0;  ///< the SRD's client entry, 1280h..12FFh
-  std::uint8_t server = 0;         ///< server node-ID: the slave S, or the manager itself
-  std::uint16_t server_index = 0;  ///< the server's entry; 1200h: S's default SDO
-  cfg::CobId request{};            ///< client -> server (sub 1 of both entries)
-  cfg::CobId response{};           ///< server -> client (sub 2)
-  bool to_manager = false;         ///< the SRD's registration channel to the manager
+  std::uint16_t row = 0;  ///< 1..1016: 1F03h sub 1..254, then 1F04h sub 1..254, ...
+  cfg::NodeId srd = *cfg::NodeId::from(1);     ///< client node-ID
+  std::uint16_t client_index = 0;              ///< the SRD's client entry, 1280h..12FFh
+  cfg::NodeId server = *cfg::NodeId::from(1);  ///< server node-ID: the slave S, or the manager
+  std::uint16_t server_index = 0;              ///< the server's entry; 1200h: S's default SDO
+  cfg::CobId request{};                        ///< client -> server (sub 1 of both entries)
+  cfg::CobId response{};                       ///< server -> client (sub 2)
+  bool to_manager = false;                     ///< the SRD's registration channel to the manager
   bool operator==(const ManagedSdoConnection&) const = default;
 };
 
 /// An SRD the SDO manager registered (DSP 302 §7.2.1).
 struct RegisteredSrd {
-  std::uint8_t node = 0;
+  cfg::NodeId node = *cfg::NodeId::from(1);
   std::uint16_t client_index = 0;    ///< its channel to the manager; 0 with all default SDOs
   bool all_default_sdos = false;     ///< 1F10h Cnxn 2 granted
   bool slave_error_control = false;  ///< Req EC granted (bit 3 of 1F10h)

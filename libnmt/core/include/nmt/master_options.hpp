@@ -62,7 +62,7 @@ struct ExecuteLssOptions {
   /// slaves whose 1F85h-1F88h do not give all four parts (a derived master leaves 1F88h 0; a
   /// DCF's [DeviceComissioning] LSS_SerialNumber, else its 1018h sub 4, names the serial).
   /// A slave in neither is never given its node-ID by LSS.
-  std::map<std::uint8_t, LssAddress> addresses;
+  std::map<cfg::NodeId, LssAddress> addresses;
   /// After the start-up pass, look for devices that appear unconfigured (a replaced device)
   /// this often: identify non-configured remote slave (4Ch, one frame), and a scan only when a
   /// device answers. 0: never.

@@ -281,7 +281,7 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   mark_pool(c.pool_request, true);
   mark_pool(c.pool_response, true);
   c.row.client_index = index;
-  c.row.server = node_id_.value();
+  c.row.server = node_id_;
   c.row.server_index = channel;
   c.row.request = pool_cob_id(pool[0]);
   c.row.response = pool_cob_id(pool[1]);

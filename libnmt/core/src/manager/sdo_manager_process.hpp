@@ -171,8 +171,8 @@ class SdoManagerProcess {
     std::uint8_t pool_response = 0;
     /// The row's SRD and server S. A row is only ever filled from NodeIds (the registration
     /// and the connection jobs): its node bytes are 1..127.
-    cfg::NodeId srd() const { return *cfg::NodeId::from(row.srd); }
-    cfg::NodeId server() const { return *cfg::NodeId::from(row.server); }
+    cfg::NodeId srd() const { return row.srd; }
+    cfg::NodeId server() const { return row.server; }
   };
   /// One SDO access of a job.
   struct Step {
@@ -284,7 +284,7 @@ class SdoManagerProcess {
   cfg::NodeId node_id_;
   SdoManagerSettings settings_;
   bool enabled_ = false;
-  /// By node-ID; std::less<> finds the node bytes of a ManagedSdoConnection row too.
+  /// By node-ID.
   std::map<cfg::NodeId, Srd, std::less<>> srds_;
   std::vector<Connection> connections_;  ///< in row order
   std::deque<Job> jobs_;
