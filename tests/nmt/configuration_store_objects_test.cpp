@@ -204,6 +204,37 @@ TEST(ConfigurationStoreObjects, UnstoredNodeReadsTheNetworksDcfIn1F20h) {
   EXPECT_EQ(s.read(0x1F20, 6).abort, SdoAbort::CannotStoreOrTransfer);
 }
 
+// The network's source, counting the DCFs it is asked for (a real one reads each from disk).
+class CountingSource final : public ConfigurationSource {
+ public:
+  std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override {
+    return network_.configuration(node);
+  }
+  cfg::Result<std::optional<std::string>> dcf(cfg::NodeId node) const override {
+    ++dcf_reads;
+    return network_.dcf(node);
+  }
+  mutable int dcf_reads = 0;
+
+ private:
+  NetworkLikeSource network_;
+};
+
+// An SDO read is answered on the frame path, which must not wait for a disk: the source's DCFs
+// are read once, when the objects are installed (one per node-ID 1..127), and 1F20h/1F21h
+// (DSP 302 §6.1) are answered from what was read then.
+TEST(ConfigurationStoreObjects, ReadsTheSourcesDcfsOnceWhenInstalledNotOnAnSdoRead) {
+  auto source = std::make_shared<CountingSource>();
+  StoreObjects s(std::make_shared<cfg::ConfigManager>(), source);
+  EXPECT_EQ(source->dcf_reads, 127);
+  EXPECT_EQ(s.read(0x1F20, kNode).data, bytes_of(kNetworkDcf));
+  EXPECT_EQ(s.read(0x1F20, kNode).data, bytes_of(kNetworkDcf));
+  EXPECT_EQ(s.read_u(0x1F21, kNode), 0U);
+  EXPECT_EQ(s.read(0x1F21, 9).abort, SdoAbort::NoDataAvailable);
+  EXPECT_EQ(s.read(0x1F21, 6).abort, SdoAbort::CannotStoreOrTransfer);
+  EXPECT_EQ(source->dcf_reads, 127);
+}
+
 // CiA 302-2 §3.5 d: the configuration downloaded to a node is the manager's when it stores one
 // (DSP 302 §6.2), else the network's (the source), else nothing.
 TEST(ConfigurationStoreObjects, ConfigurationIsTheStoredOneElseTheNetworks) {

@@ -62,6 +62,17 @@ void ConfigurationStoreObjects::install() {
       file_concise_[s].assign(bytes->begin(), bytes->end());
     }
   }
+  if (configurations_) {
+    for (unsigned sub = cfg::kMinNodeId; sub <= cfg::kMaxNodeId; ++sub) {
+      const auto node = *cfg::NodeId::from(sub);
+      auto text = configurations_->dcf(node);
+      if (!text) {
+        source_dcfs_.emplace(node, text.error());
+      } else if (*text) {
+        source_dcfs_.emplace(node, std::move(**text));
+      }
+    }
+  }
   // A DCF text may be large; the SDO server's own limit is the bound.
   const std::size_t file_limit = SdoServerConfig{}.max_download_size;
   constexpr auto nodes = static_cast<std::uint8_t>(cfg::kMaxNodeId);
@@ -180,11 +191,11 @@ std::optional<ConfigurationStoreObjects::StoreValue> ConfigurationStoreObjects::
   if ((index != obj::kStoreDcf && index != obj::kStorageFormat) || source == nullptr) {
     return std::nullopt;
   }
-  auto text = source->dcf(node);
-  if (!text) return StoreValue{SdoAbort::CannotStoreOrTransfer, {}};
-  if (!*text) return std::nullopt;  // 0800 0024h, as the manager answers
+  const auto text = source_dcfs_.find(node);
+  if (text == source_dcfs_.end()) return std::nullopt;  // 0800 0024h, as the manager answers
+  if (!text->second) return StoreValue{SdoAbort::CannotStoreOrTransfer, {}};
   if (index == obj::kStorageFormat) return StoreValue{SdoAbort::None, {cfg::kStorageFormatAscii}};
-  return StoreValue{SdoAbort::None, {(*text)->begin(), (*text)->end()}};
+  return StoreValue{SdoAbort::None, {text->second->begin(), text->second->end()}};
 }
 
 WriteVerdict ConfigurationStoreObjects::write(std::uint16_t index, std::uint8_t sub,

@@ -28,6 +28,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -76,7 +77,8 @@ class ConfigurationStoreObjects {
   ConfigurationStoreObjects(const ConfigurationStoreObjects&) = delete;
   ConfigurationStoreObjects& operator=(const ConfigurationStoreObjects&) = delete;
 
-  /// Adds 1F20h-1F25h served from the manager and its hooks; nothing without one.
+  /// Adds 1F20h-1F25h served from the manager and its hooks; nothing without one. Reads the
+  /// configuration source's DCFs here, once (see source_dcfs_).
   void install();
 
   /// The driver made the entry of `ticket` durable (or failed to, `result`): the update taken
@@ -129,6 +131,11 @@ class ConfigurationStoreObjects {
   /// With a manager: the master DCF's own 1F22h streams by node-ID, used for a node the manager
   /// holds no configuration for.
   std::map<std::uint8_t, std::vector<std::uint8_t>> file_concise_;
+  /// With a manager and a configuration source: the source's DCF texts by node-ID (what 1F20h
+  /// and 1F21h of a node the manager stores nothing for answer), or why one cannot be read;
+  /// absent where the source has none. Read once in install(): a source may read them from
+  /// disk, which an SDO read, answered on the frame path, must not wait for.
+  std::map<cfg::NodeId, cfg::Result<std::string>> source_dcfs_;
   /// The entry whose value a read of 1F20h/1F22h/1F23h filled last (emptied at the next read, so
   /// the dictionary keeps at most one copy of a stored file).
   std::optional<std::pair<std::uint16_t, std::uint8_t>> read_entry_;
