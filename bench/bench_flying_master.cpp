@@ -1,4 +1,4 @@
-// The NMT flying master's failover on the simulated bus (issue 12, "Figure"): three masters
+// The NMT flying master's failover on the simulated bus: three masters
 // (node 5 with priority 0, node 10 with the setting's priority, node 12 with priority 2) and
 // two slaves at 500 kbit/s; once node 5 runs the network, its frames stop. Measured in simulated
 // time:

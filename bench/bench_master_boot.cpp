@@ -1,4 +1,4 @@
-// The NMT master booting a full network on the simulated bus (issue 10, "Figures"): 126 slaves
+// The NMT master booting a full network on the simulated bus: 126 slaves
 // with 100 configuration entries each at 500 kbit/s, every device answering 1 ms after a request.
 // Node-IDs 1..126 are the slaves and the master is node 127: a master's own SDO server and NMT
 // need a node-ID that no slave has, so 127 slaves and a master cannot share the 127 node-IDs.
@@ -511,7 +511,7 @@ void BM_MasterBootAllMatch(benchmark::State& state) {
 }
 
 // hb: the slaves' heartbeat period in ms (0: none, and no error control); loss_per_1000: the
-// frame loss (issue 22's field conditions: 1 % loss, 100 ms heartbeats; not both: with 1016h at
+// frame loss (field conditions: 1 % loss, 100 ms heartbeats; not both: with 1016h at
 // 1.5 heartbeat periods one lost heartbeat is a heartbeat event, and the boot rightly fails).
 void boot_arguments(benchmark::internal::Benchmark* b) {
   b->ArgNames({"hb", "loss_per_1000"})

@@ -1,4 +1,4 @@
-// Software update in the boot (issue 24, DSP 302 §9) as `cfgmgr push` runs it on sim: at
+// Software update in the boot (DSP 302 §9) as `cfgmgr push` runs it on sim: at
 // 500 kbit/s: a 256 KiB image (262 144 bytes, our version trailer included) to 1 node and to 10
 // nodes (tests/data/program/nodes/drive_node3.dcf at node-IDs 1..N, 1F52h differing), and the
 // same networks booted without the update (--program-version = the devices' 1F52h).

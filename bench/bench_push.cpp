@@ -1,11 +1,11 @@
-// `cfgmgr push` as a whole process (start to exit) on the simulated bus, issue 11's figure: a
+// `cfgmgr push` as a whole process (start to exit) on the simulated bus: a
 // generated network of 126 slaves (node-IDs 1..126; the master is 127) x 100 configuration
 // values at 500 kbit/s, each device answering 1 ms after a request (sim:?latency_ms=1), no
 // heartbeats. Run 1 downloads into fresh devices and saves (state=DIR keeps what they saved);
 // run 2 is the same push again: every 1020h matches, every node is skipped. "1 % loss": the
 // first push without state= with each frame lost with probability 0.01 (sim:?loss=0.01&seed=1,
-// the same frames lost in every run; issue 22's field conditions).
-// "--lss" (issue 23): instead, the push --lss of the same network whose 126 devices all come out
+// the same frames lost in every run; conditions as in the field).
+// "--lss": instead, the push --lss of the same network whose 126 devices all come out
 // of the box without node-ID (sim:?unconfigured=1-126, every DCF with LSS_Supported=1 and a
 // serial number of its own): Execute LSS gives each its node-ID, then the usual first push. Its
 // bound adds the LSS requests the protocol needs when the master knows every device's address

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak benchmark (issue 22, "Long runs"; a benchmark, not a test): `cfgmgr master` on the UDP
+# Soak benchmark (long runs; a benchmark, not a test): `cfgmgr master` on the UDP
 # bus with 20 `cfgmgr simulate` devices heartbeating every 100 ms and losing 1 % of their frames,
 # for MINUTES (default 10) while two busy processes load the machine. It reports, from the
 # master's --json-events: heartbeat losses (false ones: see the consumer time below), NMT

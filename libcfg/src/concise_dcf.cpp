@@ -247,7 +247,8 @@ class WriteBuilder {
 
 std::optional<Value> WriteBuilder::parse(const Location& at, std::string_view key,
                                          std::string_view text, Severity severity) {
-  // Messages about the value name the line of its own key (issue 9), not its section's.
+  // Messages about the value name the line of its own key, not its section's: that is the line
+  // a person has to change.
   const int key_line = key == "ParameterValue" ? at.sub->parameter_value_line
                        : key == "DefaultValue" ? at.sub->default_value_line
                                                : 0;

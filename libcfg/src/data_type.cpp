@@ -40,8 +40,8 @@ constexpr std::array<DataTypeInfo, 25> kDataTypes{{
 }};
 
 // Position in kDataTypes by index (0001h-001Bh), -1 where CiA 301 defines no basic type: a
-// value check asks for its type's entry several times per value (issue 9: tens of thousands of
-// values per file), so the lookup is one load, not a scan.
+// value check asks for its type's entry several times per value (and a file holds tens of
+// thousands of values), so the lookup is one load, not a scan.
 constexpr std::size_t kLastBasicIndex = 0x1B;
 constexpr auto kPositionByIndex = [] {
   std::array<std::int8_t, kLastBasicIndex + 1> positions{};

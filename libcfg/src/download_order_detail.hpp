@@ -1,6 +1,6 @@
 // Private to libcfg: order_for_download for a caller that gives its writes up (the DCF -> writes
 // stage of concise_dcf.cpp): they are moved into the result instead of copied, one allocation
-// fewer per write (issue 9: tens of thousands of writes per DCF).
+// fewer per write (a DCF holds tens of thousands of writes).
 #pragma once
 
 #include <vector>

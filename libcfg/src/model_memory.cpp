@@ -20,7 +20,7 @@ constexpr std::size_t kHugePage = std::size_t{2} << 20;
 // A block of at least a huge page (a reader's first block is 1.5x the file) is mapped on its own
 // at a 2 MiB boundary and marked for transparent huge pages as a whole: building the model of a
 // 3 MB file then takes a few page faults instead of a thousand, which were a tenth of a tool's
-// run (issue 9, perf). On the heap, only a block's aligned interior could be marked. A hint
+// run. On the heap, only a block's aligned interior could be marked. A hint
 // only: where the kernel gives no huge pages the block is faulted page by page. nullptr when
 // the mapping fails (the caller then takes the heap).
 std::byte* map_huge_block(std::size_t size) {

@@ -465,7 +465,7 @@ TEST(ConciseWrites, MissingNodeIdIsAnErrorWithFileAndLine) {
   EXPECT_THAT(with_hint.items()[0].message, HasSubstr("; give one with --node-id N"));
 }
 
-// Issue 9: what the concise stage says about a value names the line of the value's own key,
+// What the concise stage says about a value names the line of the value's own key,
 // as read from the file (ParameterValue=, DefaultValue=, an entry of [xxxxValue]), not the
 // line of its section. No node-ID is known, so every $NODEID value is an error (DSP 302 §6.2
 // needs the node-ID to compute it).

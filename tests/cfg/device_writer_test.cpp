@@ -409,7 +409,7 @@ TEST(DeviceWriter, ValuesSetInCodeAreWrittenAsTheReaderStoresThem) {
   };
   add(0x2001, DataType::Unsigned16, "0180h");       // CiA 301 document style: read as 0x hex
   add(0x2002, DataType::Unsigned8, "5 ; five");     // an inline comment after a number is cut
-  add(0x2003, DataType::OctetString, "0x0A0B");     // vendor form of issue 9: the digits are kept
+  add(0x2003, DataType::OctetString, "0x0A0B");     // the vendor form: the digits are kept
   add(0x2004, DataType::Domain, "0XABCD");          // the same, upper-case prefix
   add(0x2005, DataType::VisibleString, "a ; b");    // a string keeps what looks like a comment
   add(0x2006, DataType::Unsigned8, "");             // empty fixed-size value: not given
@@ -448,7 +448,7 @@ TEST(DeviceWriter, ValuesSetInCodeAreWrittenAsTheReaderStoresThem) {
 }
 
 // A DOMAIN value can be far longer than the writer's 64 KiB pieces (vendor tools export
-// firmware-sized DOMAIN values on one line, issue 9): it is written whole.
+// firmware-sized DOMAIN values on one line): it is written whole.
 TEST(DeviceWriter, AValueLongerThanAPieceIsWrittenWhole) {
   DeviceDescription d = model();
   std::string digits;

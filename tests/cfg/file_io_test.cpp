@@ -1,4 +1,4 @@
-// cfg::read_file: the one way tools read a file, in one piece (issue 9: whole-process speed).
+// cfg::read_file: the one way tools read a file, in one piece (whole-process speed).
 // Bytes must come back exactly, whatever the file is: mapped regular files, pipes, empty files.
 #include <fcntl.h>
 #include <sys/wait.h>

@@ -1,4 +1,4 @@
-// The application program of a node in the network description (issue 24; DSP 302 §9 program
+// The application program of a node in the network description (DSP 302 §9 program
 // download, §5.2 1F81h bits 5/6, 1F53h/1F54h): our NodeXProgramFile=/NodeXProgramVersion= keys
 // (CiA 306-3 has none), the master's objects made from them, command-line overrides and
 // check_programs. Files in tests/data/program (README there).

@@ -49,7 +49,7 @@ TEST(OptionalText, CopiesAreDeepAndMovesLeaveTheSourceAbsent) {
   EXPECT_FALSE(b.has_value());  // NOLINT(bugprone-use-after-move): moved-from is empty by design
 }
 
-// The point of the type: the model's per-entry size (issue 2: memory within 3x the file size).
+// The point of the type: the model's per-entry size (memory within 3x the file size).
 TEST(OptionalText, IsOnePointerSoASubObjectStaysSmall) {
   EXPECT_EQ(sizeof(OptionalText), sizeof(void*));
   EXPECT_LE(sizeof(SubObject), 128u);

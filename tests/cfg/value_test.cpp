@@ -292,7 +292,7 @@ TEST(Value, OctetStringAndDomainAreHexPairs) {
 }
 
 // Motor-controller vendor tools export DOMAIN and OCTET_STRING values as one 0x-prefixed run of
-// hex digits (issue 9; hand-written values of that shape). The digits are the bytes in order.
+// hex digits (hand-written values of that shape). The digits are the bytes in order.
 TEST(Value, DomainAndOctetStringAcceptOne0xPrefixedRunOfDigits) {
   EXPECT_EQ(encoded(DataType::Domain, "0x0400003700002401"),
             (Bytes{0x04, 0x00, 0x00, 0x37, 0x00, 0x00, 0x24, 0x01}));

@@ -1,6 +1,6 @@
 // libFuzzer target: the program version texts of the project file (NodeXProgramVersion=),
 // --program-version and cfgmgr program-image (cfg::parse_program_version), and the version
-// trailer of an image (issue 24, DSP 302 §9; cfg/program_image.hpp).
+// trailer of an image (DSP 302 §9; cfg/program_image.hpp).
 // Input: byte 0 even: the rest is a version text; odd: the rest is an image payload.
 // Checks the promises of cfg/program_image.hpp: no crash; an accepted version has a time below
 // 24 h; an image stamped with a version carries exactly that version, grows by the trailer at

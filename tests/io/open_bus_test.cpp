@@ -20,7 +20,7 @@ void expect_names_url_and_forms(const std::string& url) {
   EXPECT_NE(message.find("udp://GROUP:PORT"), std::string::npos) << message;
 }
 
-// Issue 22: a full transmit queue is back-pressure (ENOBUFS from the qdisc, net/can/af_can.c
+// A full transmit queue is back-pressure (ENOBUFS from the qdisc, net/can/af_can.c
 // can_send; EAGAIN from a full socket buffer), a vanished or downed interface ends the loop,
 // anything else is retried.
 TEST(SendStatusOfErrno, TellsBackPressureAVanishedInterfaceAndOtherFailuresApart) {

@@ -306,7 +306,7 @@ TEST_F(SocketCan, ZeroTimeoutDoesNotWait) {
 }
 
 // can.rst, "How to use SocketCAN" and socket(7), SO_TIMESTAMPNS: the kernel stamps a frame as it
-// is received (CLOCK_REALTIME), so a frame read late keeps the time it arrived (issue 22).
+// is received (CLOCK_REALTIME), so a frame read late keeps the time it arrived.
 TEST_F(SocketCan, TimestampIsTheKernelReceiveTimeNotWhenTheFrameWasRead) {
   const TimePoint before = wall_clock_now();
   send_all({"080#"});  // CiA 301 SYNC
@@ -319,7 +319,7 @@ TEST_F(SocketCan, TimestampIsTheKernelReceiveTimeNotWhenTheFrameWasRead) {
   EXPECT_LE((*r)->timestamp, sent + 100ms);  // vcan forwards at once
 }
 
-// Issue 22 on vcan (in the VM tier): a 2 s stall of the event loop while a peer keeps sending
+// On vcan (in the VM tier): a 2 s stall of the event loop while a peer keeps sending
 // heartbeats is no heartbeat loss; a peer that stops is (tests/support/heartbeat_stall.hpp).
 TEST_F(SocketCan, HeartbeatsQueuedWhileTheLoopStallsCountAsInTimeAndARealLossIsSeen) {
   test_support::check_stall_is_not_a_heartbeat_loss(*rx_, std::move(tx_));
@@ -486,7 +486,7 @@ TEST_F(SocketCan, FullTransmitQueueMakesSendWaitNotDrop) {
   for (std::uint32_t i = 0; i < kCount; ++i) ASSERT_EQ(got[i], numbered(i)) << "frame " << i;
 }
 
-// Issue 22, "The transmit path survives a real controller": the event loop meets the full
+// The transmit path survives a real controller: the event loop meets the full
 // queue (ENOBUFS) of the paced vcan0 as back-pressure. Every frame of a burst goes out, in
 // order, none is reported failed, and the loop keeps receiving while its queue holds frames.
 struct Burst {

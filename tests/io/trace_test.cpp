@@ -404,7 +404,7 @@ TEST_F(Trace, TracingBusRecordsSentAndReceivedFrames) {
                                       "(0000000001.002000) can0 581#4B00100091010000"}));
 }
 
-// The event loop sends with try_send (issue 22): a frame the inner bus took is traced, one it did
+// The event loop sends with try_send: a frame the inner bus took is traced, one it did
 // not take (retried later by the loop) is not.
 TEST_F(Trace, TracingBusTracesWhatTrySendHandedOver) {
   auto inner = std::make_unique<ScriptedBus>();

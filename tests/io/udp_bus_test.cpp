@@ -361,7 +361,7 @@ TEST(UdpBus, OpenFailsOnAnAddressThatIsNotLocal) {
 }
 
 // socket(7), SO_TIMESTAMPNS: the kernel stamps a datagram as it reaches the socket, so a datagram
-// read late keeps the time it arrived (issue 22: engines judge by when frames arrived).
+// read late keeps the time it arrived (engines judge by when frames arrived).
 TEST(UdpBus, TimestampIsWhenTheDatagramArrivedNotWhenItWasRead) {
   REQUIRE_ISOLATED_MULTICAST();
   auto a = open_udp(47003);

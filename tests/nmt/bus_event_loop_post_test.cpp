@@ -1,4 +1,4 @@
-// BusEventLoop::post (bus_event_loop.hpp, "Threads"; issue 21, "The embedder's API"): other
+// BusEventLoop::post (bus_event_loop.hpp, "Threads"): other
 // threads call into a running loop; each posted function runs exactly once, on the loop's thread,
 // in each poster's order, and a loop waiting for frames wakes for it at once. The bus here is a
 // virtual one on a socketpair: a descriptor the loop polls (Bus::readable_fd) like the SocketCAN

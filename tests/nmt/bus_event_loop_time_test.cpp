@@ -1,5 +1,5 @@
-// BusEventLoop judges by when frames arrived (issue 22, "The event loop judges by when frames
-// arrived"; bus_event_loop.hpp, "Time"): frames already queued are handed to the engines, in
+// BusEventLoop judges by when frames arrived (bus_event_loop.hpp,
+// "Time"): frames already queued are handed to the engines, in
 // arrival order and at their arrival time, before the timers due after them; a frame that
 // arrived after a deadline does not stop the timer; the time engines are given never goes back
 // (engine.hpp rule 1). A scripted bus with a fake clock stands for the socket: frames arrive at

@@ -1,5 +1,5 @@
-// BusEventLoop's transmit path and the controller's error frames (issue 22, "The transmit path
-// survives a real controller"; bus_event_loop.hpp, "Transmit"): a full transmit queue is
+// BusEventLoop's transmit path and the controller's error frames (bus_event_loop.hpp,
+// "Transmit": the path survives a real controller): a full transmit queue is
 // back-pressure (in order, nothing lost, the loop goes on receiving), other send failures are
 // reported and retried, only a vanished interface ends the run; error frames are counted and
 // reported, and bus-off stops sending without charging the engines' timers. A scripted bus on a

@@ -275,7 +275,7 @@ TEST(ConfigurationStoreObjects, ConfIsRefusedWhereTheMasterCannotBoot) {
   EXPECT_TRUE(s.port.configured.empty());
 }
 
-// --- the persist-hold flow (issue 21, "No disk I/O inside on_frame") ---------------------
+// --- the persist-hold flow (no disk I/O inside on_frame) ---------------------------------
 
 // With a store directory, a 1F22h download is reported as PersistEntry (ticket, the entry to
 // write) and held (WriteVerdict::hold): nothing is on disk and the manager keeps its old value

@@ -695,7 +695,7 @@ TEST(FlyingMasterSpec, FailoverWithinConsumerTimePlusNegotiationAfterHeartbeatSt
   }
 }
 
-// Issue 22: masters 7Dh, 7Eh, 7Fh of priority level 1; 7Dh wins, dies, 7Eh takes over (§5.5.2);
+// Masters 7Dh, 7Eh, 7Fh of priority level 1; 7Dh wins, dies, 7Eh takes over (§5.5.2);
 // then 7Dh powers on again with 1F90h sub 3 = `rejoin_priority` (the same device, or one
 // reconfigured). What decides is the level alone: §3.7 g "the priority of the active NMT master is
 // lower then the own priority" forces (DSP 302 §5.5: "If in the system already an NMT Master is
@@ -799,7 +799,7 @@ TEST(FlyingMasterSpec, RejoiningMasterOfHigherLevelForcesNegotiationAndWins_3_7_
   }
 }
 
-// Issue 12 with §3.1 d and §3.5: after a takeover the new master resets a keep-alive slave that is
+// §3.1 d and §3.5: after a takeover the new master resets a keep-alive slave that is
 // operational not at all ("If at least for one entry of object 1F81h bit 4 is set to 1b and the
 // corresponding CANopen device is in NMT state Operational the NMT master shall not issue the
 // NMT service Reset communication with node-ID set to 0. In this case each CANopen device shall be
@@ -891,7 +891,7 @@ TEST(FlyingMasterSpec, SplitNetworkHealsToOneMasterByTheDetectCycle_5_5_1_5_5_3)
   EXPECT_TRUE(rig.settled_on(6)) << "did not stay settled";
 }
 
-// Issue 12: 1 % frame loss during negotiation (several seeds): the masters still end with one
+// 1 % frame loss during negotiation (several seeds): the masters still end with one
 // active master that all agree on, and the network operational.
 TEST(FlyingMasterSpec, OnePercentFrameLossStillEndsWithOneActiveMaster_5_3_5_5) {
   for (std::uint64_t seed : {1U, 2U, 3U, 4U, 5U, 6U, 7U, 8U}) {
@@ -942,7 +942,7 @@ TEST(FlyingMasterSpec, LoserDoesNotForceAgainAfterLosingTwice_DSP302_5_5_2_Hint)
   EXPECT_TRUE(rig.on_id(kId72, rig.bus.now() - 20s).empty());
 }
 
-// Issue 12 / §5.5.2 under 1 % frame loss: the active master dies; the remaining masters end with
+// §5.5.2 under 1 % frame loss: the active master dies; the remaining masters end with
 // one active master they agree on, and the network operational again.
 TEST(FlyingMasterSpec, OnePercentFrameLossFailoverEndsWithOneActiveMaster_5_5_2) {
   for (std::uint64_t seed : {11U, 12U, 13U, 14U, 15U, 16U}) {

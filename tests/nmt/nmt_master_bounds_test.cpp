@@ -1,4 +1,4 @@
-// Memory a peer on the bus can make the NMT master use is bounded (issue 22; the choice "Memory a
+// Memory a peer on the bus can make the NMT master use is bounded (the choice "Memory a
 // peer can make the master use" at the top of nmt/nmt_master.hpp). Beyond a bound the request is
 // refused with 0504 0005h, CiA 301 §7.2.4.3.17 "Out of memory": the configuration manager's
 // files (1F20h, 1F22h, 1F23h: DSP 302 §6) by cfg::ConfigManagerLimits, at the initiate request

@@ -352,7 +352,7 @@ TEST(NmtMasterSpec, LongConfigurationValueGoesByBlockTransfer) {
 
 // Header, "pipelined across slaves" (§3.3: boot NMT slave runs as a parallel process per slave,
 // "The sub process ... shall run asynchronously to other processes"): the downloads of several
-// slaves overlap in time. The devices answer after 1 ms, as real ones do (issue 10's benchmark):
+// slaves overlap in time. The devices answer after 1 ms, as real ones do (bench_master_boot):
 // with answers in zero time one slave's SDO exchange never leaves the bus idle, and the boot-up
 // messages of the others (7xxh) lose every arbitration against it.
 TEST(NmtMasterSpec, SlavesAreConfiguredInParallel) {

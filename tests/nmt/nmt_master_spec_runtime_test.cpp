@@ -410,7 +410,7 @@ TEST(NmtMasterSpec, RequestNmtExcludingTheRequesterFromTheApplication) {
   EXPECT_EQ(rig.engine().state(), NmtState::Operational);
 }
 
-// Issue 10 / DSP 302 §5.2 ("All other parameters according to a slave in the Network List are
+// DSP 302 §5.2 ("All other parameters according to a slave in the Network List are
 // only valid, if the slave is assigned"): a request for a node that is no slave aborts. The
 // spec gives no code; 0800 0000 is the one §6.4 uses for its other refusals (nmt_master.hpp's
 // choices say why not a more specific CiA 301 code).
@@ -744,7 +744,7 @@ TEST(NmtMasterSpec, ApplicationTransferToTheMasterItselfDoesNotStart) {
 
 // ------------------------------------------------------------------------ frame loss ------------
 
-// Issue 10: "1% frame loss during boot (the boot still succeeds through SDO retries)". Seeded
+// 1 % frame loss during boot: the boot still succeeds through SDO retries. Seeded
 // loss on the whole bus; every slave ends booted with its configuration in place.
 TEST(NmtMasterSpec, BootSucceedsWithOnePercentFrameLoss) {
   for (std::uint64_t seed : {1U, 2U, 3U}) {

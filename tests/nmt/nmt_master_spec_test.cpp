@@ -800,7 +800,7 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenThe1000hUploadIsAborted) {
             BootError::B);
 }
 
-// Issue 22: a device that answers the 1000h upload with no data (segmented upload, size 0
+// A device that answers the 1000h upload with no data (segmented upload, size 0
 // indicated, one empty last segment) gave the boot nothing to read as UNSIGNED32 (an assert in
 // cfg::load_le). It is a failed upload with words, status B like any other, CiA 301 0607 0010
 // ("length of service parameter does not match"), not a device type of 0 (status C).

@@ -89,7 +89,7 @@ struct StoreRig {
 // Manager is done by writing the stream to the object 1F22h with the sub-index equal to the
 // devices Node-ID" - here by block download (CiA 301 §7.2.4.3.9: initiate ccs 6), and reading
 // it back gives the same bytes.
-// Issue 22: with the SDO manager on (DSP 302 §7), its write hook saw every write to the master's
+// With the SDO manager on (DSP 302 §7), its write hook saw every write to the master's
 // dictionary and read the data as a number of data.size() bytes, DOMAINs of any length too:
 // cfg::load_le asserts 1..8 bytes (builds with assertions on stopped here). A concise DCF
 // (DOMAIN, §6.2) of 36 bytes by block and by segmented transfer is stored as it is.
@@ -264,7 +264,7 @@ TEST(NmtMasterStore, ConfToSub80hConfiguresEverySlaveWithAConfiguration) {
   EXPECT_EQ(s.rig.downloads_of(2, 0x2000, 0, from).size(), 1U);
 }
 
-// Issue 11: "The writes persist in the store directory": a manager opened again on the
+// The writes persist in the store directory: a manager opened again on the
 // directory has what the tool wrote over the bus.
 TEST(NmtMasterStore, WritesOverSdoPersistInTheStoreDirectory) {
   TempDir dir;
@@ -316,7 +316,7 @@ struct DurableStoreRig {
   StoreRig s;
 };
 
-// Issue 21 "No disk I/O inside on_frame": a 1F22h download to a master with a store directory
+// No disk I/O inside on_frame: a 1F22h download to a master with a store directory
 // is reported as PersistEntry; the response to its last segment (CiA 301 §7.2.4.3.6: scs 1,
 // toggle of the request; the sixth segment of 36 bytes has t = 1: 30h) leaves only after the
 // driver made the entry durable and said so, and the manager has the value from then on.
@@ -468,7 +468,7 @@ TEST(NmtMasterStore, ConfDownloadsTheNetworksConfigurationOfAnUnstoredNode) {
   EXPECT_EQ(s.rig.tool_write_u(0x1F25, 9, kConf, 4), SdoAbort::NoDataAvailable);
 }
 
-// Issue 21, "No disk I/O inside on_frame", on a real loop: the driver writes the entry on a
+// No disk I/O inside on_frame, on a real loop: the driver writes the entry on a
 // worker thread (nmt::EntryPersister). While the write is held (a store hook that waits: the
 // slow disk, a wrapper in this test), the loop keeps serving frames: a boot-up that arrives
 // meanwhile is reported (CiA 302-2 §4, boot-up handler). The SDO confirmation of the 1F26h

@@ -291,7 +291,7 @@ TEST_F(SdoClientTest, BlockUploadWithCrc) {
   EXPECT_EQ(result(id)->data, Bytes(text.begin(), text.end()));
 }
 
-// Issue 22 (fuzz_sdo_client): inside a sub-block every frame is a segment (CiA 301 block
+// Found by fuzz_sdo_client: inside a sub-block every frame is a segment (CiA 301 block
 // upload), so a server's block download acknowledgement (A2h: c=1, seqno 34) reads as an
 // out-of-order last segment, which the client answers with an acknowledgement of no segment.
 // Such rounds bring nothing forward: 0504 0000 comes the timeout after the last progress.

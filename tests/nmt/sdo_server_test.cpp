@@ -299,7 +299,7 @@ TEST_F(SdoServerTest, BlockDownloadAcknowledgesLastSegmentReceivedInOrder) {
   EXPECT_EQ(value(0x2000, 0), (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
 }
 
-// Issue 22 (fuzz_sdo_client): inside a sub-block every frame is a segment (CiA 301 block
+// Found by fuzz_sdo_client: inside a sub-block every frame is a segment (CiA 301 block
 // download), so a client's block upload acknowledgement (A2h: c=1, seqno 34) reads as an
 // out-of-order last segment, which the server answers with an acknowledgement of no segment.
 // Such rounds bring nothing forward and do not extend the timeout: 0504 0000 comes the server

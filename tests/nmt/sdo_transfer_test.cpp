@@ -286,7 +286,7 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
   ASSERT_TRUE(bus.run_until_idle(bus.now() + 600s));
   ASSERT_EQ(results.size(), 40u);
   // Seed 7 is deterministic: these outcomes were recorded on the code before the engine
-  // refactoring (issue 8) and must not change. Every failure is the client's own timeout
+  // refactoring and must not change. Every failure is the client's own timeout
   // (0504 0000, no server abort); two downloads fell back to segmented after a 0504 0001.
   std::vector<std::uint32_t> timed_out;
   std::vector<std::uint32_t> fell_back;
@@ -309,7 +309,7 @@ TEST_F(SdoTransferTest, EveryTransferEndsOnALossyBus) {
   EXPECT_FALSE(server.sdo().busy());
 }
 
-// Issue 22, the fuzz_sdo_client finding (seeds/sdo_client/lost_abort_block_livelock) in words.
+// The fuzz_sdo_client finding (seeds/sdo_client/lost_abort_block_livelock) in words.
 // Two CiA 301 facts meet: an SDO abort is not confirmed (a lost one leaves the server in its
 // transfer), SDO frames carry no transaction number (a late answer naming the same object is
 // taken for the running transfer's), and inside a sub-block every frame is a segment (byte 0:

@@ -162,7 +162,7 @@ TEST(BusEventLoop, WaitsAreBoundedByMaxWait) {
   EXPECT_EQ(bus.waits, std::vector<Duration>(5, 20ms));
 }
 
-// Issue 22, "The transmit path survives a real controller": a send error that is not fatal is
+// The transmit path survives a real controller: a send error that is not fatal is
 // reported and retried; the loop goes on and nothing is lost or reordered.
 TEST(BusEventLoop, SendFailureIsReportedAndRetriedWhileTheRunGoesOn) {
   FakeClockBus bus;

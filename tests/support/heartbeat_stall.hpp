@@ -1,4 +1,4 @@
-// The stall scenario of issue 22 ("The event loop judges by when frames arrived"), for any bus
+// The stall scenario ("The event loop judges by when frames arrived"), for any bus
 // driver: a peer heartbeats every 100 ms on a second bus of the same network while the loop is
 // stopped for 2 s (the test sleeps inside the loop's observer, and between two run*() calls).
 // The consumer (1016h: 500 ms) must not report the live node lost, and must still report a node

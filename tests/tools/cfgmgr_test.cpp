@@ -355,7 +355,7 @@ TEST(Cfgmgr, CheckReadsStdin) {
   EXPECT_THAT(twice.err, HasSubstr("stdin"));
 }
 
-// Issue 9: vendor tools export DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits
+// Vendor tools export DOMAIN/OCTET_STRING values as one 0x-prefixed run of hex digits
 // (tests/data/concise/vendor_hex_domain.dcf, written for the tests). Such a DCF passes check,
 // also strict, and fmt writes the values in its own form (digit pairs without a prefix).
 TEST(Cfgmgr, CheckAndFmtAcceptHexPrefixedDomainValues) {

@@ -253,7 +253,7 @@ TEST(Dcf2Concise, MissingNodeIdIsAnError) {
       run("dcf2concise", {data_path("concise/no_node_id.dcf"), "-o", dir / "out.bin"}, dir.path());
   EXPECT_EQ(r.exit_code, 1);
   // Line 130 is [1400sub1]'s DefaultValue=$NODEID+0x200 (the section starts at 125): the
-  // message names the key's own line (issue 9).
+  // message names the key's own line.
   EXPECT_THAT(r.err, HasSubstr("no_node_id.dcf:130: error: [1400sub1] DefaultValue"));
   EXPECT_THAT(r.err, HasSubstr("no node-ID"));
   EXPECT_THAT(r.err, HasSubstr("give one with --node-id N"));
@@ -349,7 +349,7 @@ TEST(Dcf2Concise, DecodePrintsNamesAndValuesInWords) {
       lines[0], std::regex(R"(1017sub0  Producer heartbeat time += 1000 \(0x03E8\))")))
       << lines[0];
   EXPECT_THAT(lines[1], HasSubstr("1400sub1  RPDO1 communication parameter: COB-ID used by RPDO"));
-  // A COB-ID reads as hex alone (issue 9): bit 31 set, CAN-ID 205h (CiA 301 §7.5.2.35).
+  // A COB-ID reads as hex alone: bit 31 set, CAN-ID 205h (CiA 301 §7.5.2.35).
   EXPECT_TRUE(lines[1].ends_with("  = 0x80000205")) << lines[1];
   EXPECT_THAT(lines[8], HasSubstr("1F50sub1"));
 }
@@ -462,7 +462,7 @@ TEST(Dcf2Concise, VersionPrintsNameAndProjectVersion) {
 }
 
 // An EDS has no ParameterValue: the stream is only its entry count, UNSIGNED32 0 (DSP 302
-// §6.2). A valid configuration, so rc 0 and a note, also under --strict (issue 9).
+// §6.2). A valid configuration, so rc 0 and a note, also under --strict.
 TEST(Dcf2Concise, SaysThatAFileWithoutParameterValuesGivesAnEmptyStream) {
   const fs::path eds = fs::path(CANOPEN_SAMPLES_DIR) / "drive.eds";
   if (!fs::exists(eds)) PREREQUISITE_MISSING("no samples/drive.eds at ", eds);
@@ -523,7 +523,7 @@ TEST(Dcf2Concise, DecodeSaysOneByteInTheSingular) {
 }
 
 // A DCF without any ParameterValue under --strict: the empty configuration is valid (DSP 302
-// §6.2), so it is written and said, not failed (issue 9). no_params.dcf is written here: one
+// §6.2), so it is written and said, not failed. no_params.dcf is written here: one
 // writable VAR with a DefaultValue only, node-ID 5.
 TEST(Dcf2Concise, StrictAcceptsAnEmptyConfiguration) {
   ScratchDir dir;
@@ -554,7 +554,7 @@ TEST(Dcf2Concise, StrictAcceptsAnEmptyConfiguration) {
 }
 
 // COB-IDs and PDO mapping entries are bit fields: --decode shows them as hex alone, with or
-// without a device file; an ordinary number keeps its decimal first (issue 9). Entries: 1400h
+// without a device file; an ordinary number keeps its decimal first. Entries: 1400h
 // sub 1 = 80000202h (RPDO1 of node 2, not valid: CiA 301 §7.5.2.35), 1600h sub 1 = 60400010h
 // (maps 6040h sub 0, 16 bits: CiA 301 §7.5.2.36), 1600h sub 0 = 1 (a count), 1005h = 80h (SYNC
 // COB-ID, CiA 301 §7.5.2.5), 1017h = 1000 (a time in ms).
@@ -596,7 +596,7 @@ TEST(Dcf2Concise, DecodeShowsCobIdsAndMappingEntriesAsHex) {
   EXPECT_TRUE(lines[2].ends_with("= 1000 (0x03E8)")) << lines[2];
 }
 
-// Issue 9: tests/data/concise/vendor_hex_domain.dcf (written for the tests) gives DOMAIN and
+// The file tests/data/concise/vendor_hex_domain.dcf (written for the tests) gives DOMAIN and
 // OCTET_STRING values as one 0x-prefixed run of digits; 2000h holds 8000 bytes of the pattern
 // (i * 37 + 11) mod 256 on one line. The concise DCF carries the bytes as they are (DSP 302 §6.2).
 TEST(Dcf2Concise, HexPrefixedDomainValuesConvertToTheirBytes) {

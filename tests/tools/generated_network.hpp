@@ -40,7 +40,7 @@ struct NetworkSpec {
   /// Nodes whose 2001h is not mappable (PDOMapping=0) though their RPDO 1 maps it: the device
   /// refuses that mapping entry with SDO abort 0604 0041 (CiA 301 §7.5.2.36).
   std::vector<int> unmappable;
-  /// Devices that support LSS (CiA 305, issue 23): LSS_Supported=1 and a serial number of their
+  /// Devices that support LSS (CiA 305): LSS_Supported=1 and a serial number of their
   /// own per node ([DeviceComissioning] LSS_SerialNumber, lss_serial(node)).
   bool lss = false;
 };

@@ -92,7 +92,7 @@ TEST(Lss, SimulateUnconfiguredNeedsLssSupportedInTheFile) {
   EXPECT_THAT(range.err, HasSubstr("255 or 'unconfigured'"));
 }
 
-// Issue 23: the --state file of a DEVICE@255 is named by its LSS address; two devices with one
+// The --state file of a DEVICE@255 is named by its LSS address; two devices with one
 // address would share it, so simulate refuses them (before the bus) instead of letting one
 // overwrite the other's stored node-ID. Without --state they may run (CiA 305's uniqueness is
 // then the user's business, e.g. to test a master against it); devices with different addresses

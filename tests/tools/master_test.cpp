@@ -416,7 +416,7 @@ class HeartbeatingNetwork {
   bool slaves_up_ = true;
 };
 
-// Issue 22: the master process is frozen for 2 s (SIGSTOP, SIGCONT: what a scheduler hiccup or
+// The master process is frozen for 2 s (SIGSTOP, SIGCONT: what a scheduler hiccup or
 // a debugger does) while two independent slaves heartbeat every 100 ms (consumed with
 // 1.5 x 100 + 100 = 250 ms, cfg/network.hpp) and their heartbeats wait in its socket. They
 // arrived in time, so no heartbeat event (CiA 301 §7.2.8.3.2.2) and no error handling (CiA
@@ -431,7 +431,7 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
   const auto wait_for = [&network](const std::string& event, std::chrono::milliseconds limit) {
     return network.wait_for(event, limit);
   };
-  // The start commands follow start-up's end (issue 20); the network is quiet once every slave
+  // The start commands follow start-up's end; the network is quiet once every slave
   // says operational in its heartbeat.
   ASSERT_TRUE(network.wait_for_heartbeats(0x05, 1, std::chrono::seconds(2)))
       << network.master_err();
@@ -479,7 +479,7 @@ TEST(MasterInNetns, AStallOfTheMasterProcessDoesNotResetSlavesThatKeptSending) {
   EXPECT_EQ(lost, std::vector<int>{2}) << err;
 }
 
-// Issue 22: CAN error frames reach cfgmgr master as events (python-can's UDP bus carries them as
+// CAN error frames reach cfgmgr master as events (python-can's UDP bus carries them as
 // SocketCAN reports them: CAN_ERR_BUSOFF 40h, CAN_ERR_RESTARTED 100h, linux/can/error.h): on
 // stderr, in --json-events, and summed up at the end of the run. (That the bus-off time is not
 // charged to the slaves' timers is shown in tests/nmt/bus_event_loop_transmit_test.cpp: here
@@ -528,8 +528,8 @@ TEST(MasterInNetns, ReportsBusOffAndRestartFromErrorFrames) {
 
 namespace {
 
-// Issue 12 over UDP: three `cfgmgr master` processes from flying_master.dcf (1F80h = 23h, 1F90h
-// defaults: all priority 1, so the lowest node-ID wins, CiA 302-2 §5.3) and node 2 as a
+// The flying master over UDP: three `cfgmgr master` processes from flying_master.dcf (1F80h = 23h,
+// 1F90h defaults: all priority 1, so the lowest node-ID wins, CiA 302-2 §5.3) and node 2 as a
 // `cfgmgr simulate` process. The active master (node 1) is killed with SIGKILL; the standby
 // masters miss its heartbeat (2 x 200 + 100 ms) and reset all nodes (§5.5.2); node 4, the next
 // in the waiting time order, wins the negotiation and boots the network again; node 5 stands by

@@ -1,4 +1,4 @@
-// The software update in the boot (issue 24, DSP 302 §9) of `cfgmgr push` over the UDP
+// The software update in the boot (DSP 302 §9) of `cfgmgr push` over the UDP
 // multicast bus, against slaves written with python-can alone from the spec
 // (tests/io/python/program_slaves.py: 1F50h by block download, 1F51h with DSP 302 v3.2.1's range
 // 0..2, so that the master's clear (3) is refused, 1F52h from the image's trailer). Runs inside
@@ -91,7 +91,7 @@ TEST(ProgramUpdateInNetns, PushUpdatesAPythonSlaveOnceAndTheSecondPushDoesNot) {
 }
 
 // DSP 302 v3.2.1 §9: 1F51h range 0..2; a device built to it refuses clear (3) with 0609 0030,
-// which is no failure (issue 24): the download goes on.
+// which is no failure: the download goes on.
 TEST(ProgramUpdateInNetns, ASlaveRefusingClearIsUpdatedAnyway) {
   REQUIRE_ISOLATED_MULTICAST();
   REQUIRE_PYTHON_CAN();

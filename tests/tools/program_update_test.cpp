@@ -1,4 +1,4 @@
-// Software update in the boot from the tools (issue 24; DSP 302 §9 program download, §4 figure 7
+// Software update in the boot from the tools (DSP 302 §9 program download, §4 figure 7
 // "check and update software version", CiA 302-2 Table 1 statuses G, H, I): what a network
 // description says per node (NodeXProgramFile=/NodeXProgramVersion=, our keys, CiA 306-3 has
 // none; the master DCF's 1F53h/1F54h and 1F81h bits 5/6), `cfgmgr check` at file:line, the image

@@ -1,4 +1,4 @@
-// `cfgmgr push --lss` and `cfgmgr master --lss` (issue 23): devices out of the box, without
+// `cfgmgr push --lss` and `cfgmgr master --lss`: devices out of the box, without
 // node-ID (CiA 305), are found by Fastscan and given the node-ID of the node whose DCF has their
 // LSS address (DSP 302 §4 figure 1 step 3, before the reset of all nodes), then booted as usual.
 // The network is made in the test from tests/data/lss/lss_io_1003.dcf (1018h: vendor 7E57C0DEh,

@@ -137,7 +137,7 @@ class EventReporter {
   }
 
   void report(const nmt::MasterEvent& e);
-  /// What the event loop says about the bus itself (issue 22): send failures, refused frames
+  /// What the event loop says about the bus itself: send failures, refused frames
   /// and the controller's state from error frames. On stderr as "bus: ..." (lost arbitration,
   /// bus errors and the warning level only with verbose), in JSON as an event named after the
   /// kind (bus_off, restarted, send_failed, ...) with node_id 0 and the frame.

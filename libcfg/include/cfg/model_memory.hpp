@@ -1,6 +1,6 @@
 // The memory a model read from a file lives in: a few large blocks instead of a heap allocation
 // per map node and per value text, so that building a model and dropping it cost a few
-// allocations, not tens of thousands (issue 9: a tool's whole process on a 3 MB DCF).
+// allocations, not tens of thousands (they were much of a tool's whole run on a 3 MB DCF).
 //
 // Who uses it: the EDS/DCF reader builds DeviceDescription's maps with ModelAllocator and keeps
 // value texts (OptionalText) in the arena; after the read the arena is sealed and serves no more

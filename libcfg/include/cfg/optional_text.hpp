@@ -1,6 +1,6 @@
 // An optional string that costs one pointer when absent. SubObject has seven optional text
 // attributes of which a file sets one or two; std::optional<std::string> would spend 40 bytes on
-// each, and the model must stay within 3x the size of the file it was read from (issue 2).
+// each, and the model must stay within 3x the size of the file it was read from.
 #pragma once
 
 #include <cstdint>

@@ -135,14 +135,15 @@ cfg::Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(const std::string&
   //
   // SO_TIMESTAMPNS delivers the receive time with each frame as a control message (socket(7));
   // the stamp SIOCGSTAMPNS would return, without a second system call per frame. The event loop
-  // judges frames by it (issue 22): a frame that waited in the socket while the process was
-  // stopped keeps the time it arrived.
+  // judges frames by it (bus_event_loop.hpp, "Time"): a frame that waited in the socket while the
+  // process was stopped keeps the time it arrived.
   const int on = 1;
   if (::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) < 0) {
     const int err = errno;
     return failure(interface_name, "cannot enable SO_TIMESTAMPNS", err);
   }
-  // A bigger receive buffer keeps what arrives while the process is stopped (issue 22); the
+  // A bigger receive buffer keeps what arrives while the process is stopped (a scheduler
+  // hiccup must cost no frame); the
   // kernel silently caps the request at net.core.rmem_max, which is fine.
   (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes,
                      sizeof options.receive_buffer_bytes);

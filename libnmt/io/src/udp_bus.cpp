@@ -96,7 +96,8 @@ cfg::Result<std::unique_ptr<UdpBus>> UdpBus::open(const UdpBusOptions& options) 
   (void)setsockopt(rx.get(), SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes,
                    sizeof options.receive_buffer_bytes);
   // SO_TIMESTAMPNS (socket(7)): the kernel's receive time comes with each datagram, so a datagram
-  // that waited in the socket while the process was stopped keeps the time it arrived (issue 22).
+  // that waited in the socket while the process was stopped keeps the time it arrived
+  // (bus_event_loop.hpp, "Time").
   if (setsockopt(rx.get(), SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one) != 0) {
     return fail("cannot enable receive timestamps (SO_TIMESTAMPNS)", errno);
   }

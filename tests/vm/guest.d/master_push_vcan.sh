@@ -1,8 +1,9 @@
 # vm-tools: cfgmgr
 # Guest hook (busybox sh, run by guest-init.sh with vcan0/vcan1 up; vcan0 paced by tbf: about
-# 125 kbit/s with a 10-frame transmit queue, so a burst meets ENOBUFS). Issue 22 on a kernel CAN
-# stack, against the sample cell (samples/network/nodelist.cpj: nodes 2, 3, 4) simulated by
-# `cfgmgr simulate` from the network's own DCFs (push over vcan0 is guest.d/push_master.sh's):
+# 125 kbit/s with a 10-frame transmit queue, so a burst meets ENOBUFS). Field conditions on a
+# kernel CAN stack, against the sample cell (samples/network/nodelist.cpj: nodes 2, 3, 4)
+# simulated by `cfgmgr simulate` from the network's own DCFs (push over vcan0 is
+# guest.d/push_master.sh's):
 # `cfgmgr master` over vcan0 is frozen for 2 s (SIGSTOP, SIGCONT) after start-up while the
 # slaves keep heartbeating (1000 ms and 500 ms, consumed with 1600 and 850 ms): no
 # heartbeat_lost, no NMT command, no boot-up follows; it still ends cleanly on SIGTERM.

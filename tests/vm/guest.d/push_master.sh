@@ -2,7 +2,7 @@
 # Guest hook (busybox sh, run by guest-init.sh with vcan0/vcan1 up): the NMT master of
 # `cfgmgr push` and `cfgmgr master` over SocketCAN against `cfgmgr simulate` devices, on vcan0,
 # which guest-init.sh paces with a token bucket (about 1000 frames/s, a 10-frame transmit queue,
-# so bursts meet ENOBUFS as on a real controller: tests/vm/README.md). Issue 22: the master on a
+# so bursts meet ENOBUFS as on a real controller: tests/vm/README.md). The master on a
 # real CAN stack gives every node the same result as on the simulated bus (sim:).
 #   1. The sample network (samples/network, three nodes): `cfgmgr push` configures every node
 #      with the same entries and bytes as `cfgmgr push --bus sim:` in the same guest; a second

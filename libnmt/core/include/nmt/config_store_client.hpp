@@ -6,8 +6,8 @@
 //   - a store directory: StoreDirectoryObjects (a cfg::ConfigManager, read and written directly);
 //   - a running master's configuration manager over SDO: nmt::open_remote_store
 //     (nmt/remote_config_store.hpp, libnmt io).
-// Tools hold no protocol (issue 21): the rules of what a put also writes (1F26h/1F27h) and
-// what a removal writes live here, with their tests.
+// Tools hold no protocol (an embedder needs the same rules): the rules of what a put also writes
+// (1F26h/1F27h) and what a removal writes live here, with their tests.
 #pragma once
 
 #include <cstddef>

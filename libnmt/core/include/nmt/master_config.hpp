@@ -1,4 +1,4 @@
-// The NMT master's configuration as types (issue 21, "The embedder's API"): what a master DCF
+// The NMT master's configuration as types: what a master DCF
 // says in the objects of CiA 302-2 §6, in words an embedder writes without little-endian bytes
 // or object indices, checked before the master is built:
 //

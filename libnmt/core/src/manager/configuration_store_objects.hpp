@@ -9,12 +9,12 @@
 // slave", "does this device boot slaves now", "configure this slave" (1F25h 'conf') and
 // "complete the held download with this ticket".
 //
-// No disk I/O in the engine (issue 21, nmt_master.hpp): a write of a stored entry is decided at
-// once (cfg::ConfigManager::stage: checks and abort codes) and, with a store directory, reported
-// as MasterEvent::PersistEntry into the output of the call the write runs in; the write hook
-// answers WriteVerdict::hold(ticket), so the SDO server holds the confirmation. The driver
-// writes the entry and calls entry_persisted(): the manager takes the value (commit) and the
-// port completes the download, confirmed or aborted with 0800 0020h.
+// No disk I/O in the engine (an SDO write is answered on the frame path; nmt_master.hpp): a write
+// of a stored entry is decided at once (cfg::ConfigManager::stage: checks and abort codes) and,
+// with a store directory, reported as MasterEvent::PersistEntry into the output of the call the
+// write runs in; the write hook answers WriteVerdict::hold(ticket), so the SDO server holds the
+// confirmation. The driver writes the entry and calls entry_persisted(): the manager takes the
+// value (commit) and the port completes the download, confirmed or aborted with 0800 0020h.
 //
 // A process with a port rather than a full nmt::Engine: it has no frames and no timers of its
 // own. Its work is reached through the master's dictionary (hooks on 1F20h-1F27h, which the

@@ -31,7 +31,7 @@ CanFrame response_71(std::uint16_t priority, cfg::NodeId node) {
 /// CiA 302-2 §3.7 f/g/i, §5.4.1 and DSP 302 §5.5: an active master stays unless its priority
 /// level is lower (a higher 1F90h sub 3 value, Table 48: 0 is high) than this device's. The
 /// node-ID only orders the time slots within one negotiation (§5.3); comparing it too made a
-/// master of the same level that came back reset the running network for nothing (issue 22).
+/// master of the same level that came back reset the running network for nothing.
 bool forces_negotiation(std::uint16_t active_priority, std::uint16_t own_priority) {
   return active_priority > own_priority;
 }

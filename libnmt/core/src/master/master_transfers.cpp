@@ -218,8 +218,8 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   for (;;) {
     if (options.bitrate != 0 && sdo_out.frames.size() > counted) {
       // Each request and the answer it causes (taken to be as long), within the load limit;
-      // the segments of a block download sub-block but its last cause none (issue 24: a
-      // program image booked twice its air time).
+      // the segments of a block download sub-block but its last cause none (booking an answer
+      // for each booked a program image twice its air time).
       double bits = 0;
       for (std::size_t i = counted; i < sdo_out.frames.size(); ++i) {
         bits += 2.0 * frame_bits(sdo_out.frames[i]).total();

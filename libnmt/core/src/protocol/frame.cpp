@@ -8,7 +8,7 @@
 
 namespace nmt {
 
-// The mix-ups distinct TimePoint and Duration types exist to catch (issue 21; engine.hpp rule 1):
+// The mix-ups distinct TimePoint and Duration types exist to catch (engine.hpp rule 1):
 // a Duration is no TimePoint, and two points in time do not add up.
 template <class A, class B>
 concept Addable = requires(A a, B b) {

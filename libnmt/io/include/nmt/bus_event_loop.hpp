@@ -5,16 +5,17 @@
 // sockets. EngineRef<E> is the one adapter from any engine to the loop.
 //
 // Time. Engines judge by when frames arrived, not by when the loop got round to reading them
-// (issue 22): a received frame is given to the engines at its receive stamp (ReceivedFrame:
-// the kernel's, for the SocketCAN and UDP drivers), moved onto the loop's clock by
-// arrival_on_loop_clock(). Frames and timers are merged on that one time line: for each frame
-// still queued in the socket, in arrival order, the timers due at or before its stamp fire
-// first (at the stamp), then the frame is delivered; only when the queue is empty do the timers
-// due up to now fire. So after a stall of the process (a scheduler hiccup, SIGSTOP, a debugger)
-// a heartbeat that arrived in time counts as in time, and a real loss (no frame before the
-// deadline) is still seen. The time given to engines never goes back (engine.hpp rule 1).
+// (a timeout must not fire because the process was stopped): a received frame is given to the
+// engines at its receive stamp (ReceivedFrame: the kernel's, for the SocketCAN and UDP drivers),
+// moved onto the loop's clock by arrival_on_loop_clock(). Frames and timers are merged on that one
+// time line: for each frame still queued in the socket, in arrival order, the timers due at or
+// before its stamp fire first (at the stamp), then the frame is delivered; only when the queue is
+// empty do the timers due up to now fire. So after a stall of the process (a scheduler hiccup,
+// SIGSTOP, a debugger) a heartbeat that arrived in time counts as in time, and a real loss (no
+// frame before the deadline) is still seen. The time given to engines never goes back (engine.hpp
+// rule 1).
 //
-// Transmit (issue 22, "The transmit path survives a real controller"). Frames the engines send
+// Transmit: the path survives a real controller. Frames the engines send
 // join one ordered transmit queue and go out in that order. A full transmit queue (ENOBUFS,
 // EAGAIN) is back-pressure: the frame stays first in the queue and is retried after a short
 // backoff while the loop keeps receiving and firing timers; nothing is dropped, the loop goes
@@ -31,7 +32,7 @@
 // stopped (now() is the loop's clock less the bus-off time). run_until() keeps to the clock
 // itself, so a bounded run ends during a bus-off too.
 //
-// Threads (issue 21, "The embedder's API"). The loop and its engines belong to the thread that
+// Threads. The loop and its engines belong to the thread that
 // runs it. Another thread (a UI, an RPC server) calls into them with post(fn): fn is queued
 // under a mutex and the loop is woken (an eventfd it waits on together with the bus's
 // descriptor, Bus::readable_fd()); it runs fn on its own thread between two engine calls, at the
