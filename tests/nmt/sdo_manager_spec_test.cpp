@@ -441,6 +441,59 @@ TEST(SdoManagerSpec, ReqEcReportsASlaveHeartbeatLossIn1F11hThenClearsTheEntry) {
   EXPECT_EQ(rig.writes_to(kSrd, kSlaveFailed, 0, from).size(), 1U) << "one report for one failure";
 }
 
+// The same report when the master no longer watches S itself: CiA 302-2 §3.4 and Table 1 end a
+// boot with an error without error control (the master stops its heartbeat consumer of S), but
+// the SRD asked for S's error control (Req EC) and the manager watches S for it (§7.2.2 "On a
+// Error Control Error Event caused by the slave S, first the Manager reports the fail of slave S
+// by writing to object 1F11h"). S is a booted slave whose heartbeat the master consumes; SRD 126
+// holds S's default SDO while SRD 127 connects, so SRD 127 gets S's server channel 1201h, and
+// then lets it go, so that S's next boot reaches S. That boot fails with status C (1F84h expects
+// another device type, §3.4 d) and S leaves the bus.
+TEST(SdoManagerSpec, ReqEcReportsASlaveLostAfterItsBootFailedIn1F11h) {
+  ManagerRig rig;
+  cfg::DeviceDescription eds = slave_channels_eds();
+  set_value(eds, 0x1017, 0, 100);
+  rig.consume_heartbeat(1, kWithChannels, 300);
+  rig.start_network({kSrd, kSrd2}, eds);
+  rig.register_ok(kSrd2);
+  const auto confirmed = rig.register_srd(kSrd, state_word(kClientSdo, 0, kRq | kReqEc));
+  ASSERT_EQ(confirmed, state_word(kClientSdo, 0, cnxn(1) | kReqEc)) << hex_text(confirmed);
+  rig.set_state(kSrd, 0);
+  rig.connect_ok(kSrd2, kWithChannels, 0x1281);  // S's default SDO
+  rig.connect_ok(kSrd, kWithChannels, 0x1281);   // 1201h on S
+  ASSERT_NE(rig.client_entry(kSrd, 0x1281).request, 0x600U + kWithChannels) << "S's default SDO";
+  rig.release(kSrd2, request_word(0x1281, kSrd2, kWithChannels));
+  ASSERT_TRUE(rig.client_entry(kSrd, 0x1281).valid());
+
+  EXPECT_EQ(
+      rig.engine().dictionary().write(0x1F84, kWithChannels, le(0x12345678, 4), rig.bus.now()),
+      SdoAbort::None);
+  const auto booted = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.boot_slave(id(kWithChannels), now, out);
+  });
+  ASSERT_TRUE(booted.ok());
+  ASSERT_TRUE(rig.run_until_event(
+      [](const MasterEvent& e) {
+        return e.kind == Kind::BootError && e.node_id == id(kWithChannels) &&
+               e.error == BootError::C;
+      },
+      5s))
+      << "S's boot did not fail with status C";
+  rig.run_for(1s);
+  EXPECT_TRUE(rig.writes_to(kSrd, kSlaveFailed, 0).empty()) << "1F11h while S is alive";
+  ASSERT_TRUE(rig.client_entry(kSrd, 0x1281).valid());
+
+  const TimePoint from = rig.bus.now();
+  rig.unplug(kWithChannels);
+  rig.run_for(5s);
+  const auto failed = rig.writes_to(kSrd, kSlaveFailed, 0, from);
+  ASSERT_EQ(failed.size(), 1U) << "1F11h not written once: the manager did not learn S is lost";
+  EXPECT_EQ(failed.front().value, 0x0000U << 8U | kWithChannels) << "reason 00h, slave 2";
+  // §7.2.2: heartbeat consumed at 300 ms (1016h), S's last heartbeat at most 100 ms before `from`.
+  EXPECT_LE(failed.front().at - from, 300ms + 50ms) << "reported late";
+  EXPECT_FALSE(rig.client_entry(kSrd, 0x1281).valid()) << "the client entry stays";
+}
+
 // ------------------------------------------------------------------------------------------------
 // The manager's activity
 
