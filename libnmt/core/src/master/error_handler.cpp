@@ -66,12 +66,16 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   if (assignment(node).boot_slave()) start_boot(node, false, now, out);
 }
 
-void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
+void NmtMaster::Impl::report_loss(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
   report(out,
          master_event(
              heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
              node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
   set_known_state(node, KnownState::missing(), now, out);
+}
+
+void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
+  report_loss(node, heartbeat, now, out);
   if (!is_slave(node) || slaves[node].held) return;
   const auto a = assignment(node);
   const auto config = startup_config();
@@ -109,12 +113,17 @@ void NmtMaster::Impl::dispatch_error_control(TimePoint now, Output& out) {
       continue;
     }
     // §4.1: no first heartbeat within the consumer time ends start error control with status
-    // K; any other loss is the error handler's (§4.2).
+    // K; any other loss of the master's own error control is the error handler's (§4.2). A node
+    // watched for the SDO manager alone (an SRD; a slave whose error control the master stopped
+    // after a boot error) is reported lost and missing (1F82h), but the master does not act on
+    // an error control it does not run.
     if (heartbeat && boot(e.node).awaits_first_heartbeat()) {
       boot(e.node).on_heartbeat_timeout(now, out);
       track_boot_deadline(e.node);
-    } else {
+    } else if (e.watchers.master) {
       error_handler(e.node, heartbeat, now, out);
+    } else {
+      report_loss(e.node, heartbeat, now, out);
     }
     // DSP 302 §7.2.1-§7.2.2: the manager learns the loss of a node it watches (an SRD, a slave
     // of an SRD with Req EC: 1F11h), whoever else watches it.

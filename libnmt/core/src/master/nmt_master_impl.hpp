@@ -249,6 +249,8 @@ struct NmtMaster::Impl {
   void on_error_control(const ErrorControlMessage& message, TimePoint now, Output& out);
   void on_boot_up(cfg::NodeId node, TimePoint now, Output& out);
   void error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out);
+  /// A heartbeat or guarding loss seen: reported, and the node missing (1F82h).
+  void report_loss(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out);
   /// The master's own error control of `node` ends (the SDO manager's watch, if any, goes on).
   void stop_error_control(cfg::NodeId node) { error_control.stop(node, Watcher::Master); }
   /// What error_control put into error_control_out: its frames out; a loss to the boot waiting
