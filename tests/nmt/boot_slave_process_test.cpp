@@ -53,15 +53,12 @@ class FakePort final : public BootSlavePort {
   std::optional<TimePoint> heard;
   std::optional<std::vector<cfg::ObjectWrite>> writes;
   std::optional<std::vector<std::uint8_t>> image;
-  bool gate_closed = false;
 
   std::vector<Access> accesses;
   std::vector<std::pair<NmtCommand, std::uint8_t>> nmt;
   std::size_t cancels = 0;
   std::size_t error_control_starts = 0;
   std::vector<Report> reports;
-  std::optional<TimePoint> deadline;
-  bool wait_over = false;
 
   void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
               TimePoint) override {
@@ -96,10 +93,6 @@ class FakePort final : public BootSlavePort {
   }
   std::optional<std::vector<std::uint8_t>> program(cfg::NodeId) const override { return image; }
   TimePoint startup_began() const override { return TimePoint{}; }
-  void deadline_changed(cfg::NodeId, std::optional<TimePoint> at) override { deadline = at; }
-  bool boot_up_gate_closed() const override { return gate_closed; }
-  void booted_up_at_gate(cfg::NodeId, TimePoint, Outbox<MasterEvent>&) override {}
-  void boot_up_wait_over() override { wait_over = true; }
   void boot_con(cfg::NodeId, std::optional<BootError> status, bool left, TimePoint,
                 Outbox<MasterEvent>&) override {
     reports.push_back({status, left});
@@ -108,8 +101,9 @@ class FakePort final : public BootSlavePort {
 
 struct Rig {
   FakePort port;
+  BootUpGate gate;  // open unless a test closes it (the start-up's reset)
   BootSlaveProcess::Options options = BootSlaveProcess::Options::from(MasterOptions{});
-  BootSlaveProcess process{*cfg::NodeId::from(kNode), port, options};
+  BootSlaveProcess process{*cfg::NodeId::from(kNode), port, gate, options};
   BootSlaveProcess::Output out;
   TimePoint now{Duration{1'000'000}};
 
@@ -219,7 +213,6 @@ TEST(BootSlave, ReportsStatusBAndRetriesAnOptionalSlaveSilently) {
   EXPECT_FALSE(rig.events_of(Kind::BootError)[0].final);
   EXPECT_EQ(rig.process.step(), BootStep::RetryWait);
   EXPECT_EQ(rig.process.next_deadline(), rig.now + rig.options.retry_interval);
-  EXPECT_EQ(rig.port.deadline, rig.process.next_deadline());  // the master's index follows
 
   rig.advance(rig.options.retry_interval - 1us);
   EXPECT_EQ(rig.port.accesses.size(), 1U);  // not yet
@@ -328,10 +321,8 @@ TEST(BootSlave, ReportsStatusLForAKeepAliveSlaveFoundOperational) {
   rig.process.start(rig.now, rig.out);
   rig.answer(0);
   ASSERT_TRUE(rig.process.awaits_guard_reply());
-  // The engine shape: the guarding reply of its node with state 05h (toggle bit set).
-  CanFrame reply = make_heartbeat(*cfg::NodeId::from(kNode), NmtState::Operational);
-  reply.data[0] |= 0x80;
-  EXPECT_TRUE(rig.process.on_frame(reply, rig.now, rig.out));
+  // The guarding reply of its node with state 05h, as the master routes it.
+  rig.process.on_guard_reply(NmtState::Operational, rig.now, rig.out);
 
   EXPECT_EQ(rig.port.error_control_starts, 1U);
   ASSERT_EQ(rig.port.reports.size(), 1U);
@@ -354,7 +345,7 @@ TEST(BootSlave, KeepAliveSlaveFoundPreOperationalIsResetAndGoesOnAfterItsBootUp)
   EXPECT_EQ(rig.port.nmt[0], std::make_pair(NmtCommand::ResetCommunication, kNode));
   EXPECT_EQ(rig.process.step(), BootStep::AwaitBootUp);
   EXPECT_EQ(rig.process.next_deadline(), rig.now + rig.options.reboot_timeout);
-  EXPECT_TRUE(rig.process.on_frame(make_boot_up(*cfg::NodeId::from(kNode)), rig.now, rig.out));
+  EXPECT_TRUE(rig.process.on_boot_up(rig.now, rig.out));
   EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
   // Nothing to verify or download: error control, then status OK.
   EXPECT_EQ(rig.port.error_control_starts, 1U);
@@ -484,11 +475,31 @@ TEST(BootSlave, AfterResetTheTryBeginsWithTheBootUp) {
   EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
 
   Rig lost;
+  lost.gate.close(lost.now + 500ms, false);
   lost.process.start_after_reset(lost.now + 500ms, lost.now, lost.out);
   lost.advance(500ms);  // its boot-up was lost: identify anyway
-  EXPECT_TRUE(lost.port.wait_over);
+  EXPECT_FALSE(lost.gate.closed()) << "the wait's end opens the gate for all";
   ASSERT_EQ(lost.port.accesses.size(), 1U);
   expect_access(lost.last(), 0x1000, 0, true);
+}
+
+// The start-up's boot-up gate (CiA 302-2 §3.1 d-e, boot_up_gate.hpp): a boot-up while the gate
+// is closed is seen, and the try waits for the others; it identifies when the master opens the
+// gate (pass_boot_up_gate), at once, its wait's deadline gone.
+TEST(BootSlave, BootUpAtTheClosedGateWaitsUntilTheGateOpens) {
+  Rig rig;
+  rig.gate.close(rig.now + 500ms, false);
+  rig.process.start_after_reset(rig.now + 500ms, rig.now, rig.out);
+  EXPECT_TRUE(rig.process.on_boot_up(rig.now + 10ms, rig.out));
+  EXPECT_TRUE(rig.process.at_boot_up_gate());
+  EXPECT_TRUE(rig.process.boot_up_seen());
+  EXPECT_TRUE(rig.port.accesses.empty()) << "an SDO request before the gate opened";
+  EXPECT_EQ(rig.process.next_deadline(), rig.now + 500ms);
+  rig.gate.open();
+  rig.process.pass_boot_up_gate(rig.now + 20ms, rig.out);
+  ASSERT_EQ(rig.port.accesses.size(), 1U);
+  expect_access(rig.last(), 0x1000, 0, true);
+  EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
 }
 
 // 1F25h: a reconfiguration request downloads although 1020h would match, until a try succeeds.

@@ -74,8 +74,7 @@ class FakeMaster final : public SdoManagerPort {
   std::map<std::uint8_t, LocalDictionary> devices;
   std::vector<Access> accesses;
   std::deque<SdoManagerTransfer> pending;
-  std::map<std::uint8_t, Duration> consumer;  ///< the master's 1016h entries
-  std::set<std::uint8_t> master_watches;      ///< error control the master runs anyway
+  std::map<std::uint8_t, Duration> consumer;                ///< the master's 1016h entries
   std::map<std::uint8_t, std::optional<Duration>> watched;  ///< watch() calls
   std::vector<std::uint8_t> unwatched;
 
@@ -90,9 +89,6 @@ class FakeMaster final : public SdoManagerPort {
   std::optional<Duration> consumer_time(cfg::NodeId node) const override {
     auto it = consumer.find(node);
     return it == consumer.end() ? std::nullopt : std::optional<Duration>(it->second);
-  }
-  bool watches(cfg::NodeId node) const override {
-    return master_watches.count(node) != 0 || watched.count(node) != 0;
   }
   void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint) override {
     watched[node] = heartbeat;

@@ -441,6 +441,84 @@ TEST(SdoManagerSpec, ReqEcReportsASlaveHeartbeatLossIn1F11hThenClearsTheEntry) {
   EXPECT_EQ(rig.writes_to(kSrd, kSlaveFailed, 0, from).size(), 1U) << "one report for one failure";
 }
 
+// The scene of the next two tests: S is a booted slave whose heartbeat the master consumes
+// (1016h: 300 ms; S's 1017h: 100 ms); SRD 126 holds S's default SDO while SRD 127 registers with
+// Req EC and connects to S, so SRD 127 gets S's server channel 1201h; SRD 126 then lets S's
+// default SDO go, so that S's next boot reaches S. That boot, asked by the application, fails
+// with status C (1F84h expects another device type, §3.4 d): CiA 302-2 §3.4 and Table 1 end it
+// without error control, so the master's own heartbeat consumer of S stops. Returns with S
+// still on the bus, 1 s after the boot error.
+void boot_of_a_watched_slave_fails(ManagerRig& rig) {
+  cfg::DeviceDescription eds = slave_channels_eds();
+  set_value(eds, 0x1017, 0, 100);
+  rig.consume_heartbeat(1, kWithChannels, 300);
+  rig.start_network({kSrd, kSrd2}, eds);
+  rig.register_ok(kSrd2);
+  const auto confirmed = rig.register_srd(kSrd, state_word(kClientSdo, 0, kRq | kReqEc));
+  ASSERT_EQ(confirmed, state_word(kClientSdo, 0, cnxn(1) | kReqEc)) << hex_text(confirmed);
+  rig.set_state(kSrd, 0);
+  rig.connect_ok(kSrd2, kWithChannels, 0x1281);  // S's default SDO
+  rig.connect_ok(kSrd, kWithChannels, 0x1281);   // 1201h on S
+  ASSERT_NE(rig.client_entry(kSrd, 0x1281).request, 0x600U + kWithChannels) << "S's default SDO";
+  rig.release(kSrd2, request_word(0x1281, kSrd2, kWithChannels));
+  ASSERT_TRUE(rig.client_entry(kSrd, 0x1281).valid());
+
+  EXPECT_EQ(
+      rig.engine().dictionary().write(0x1F84, kWithChannels, le(0x12345678, 4), rig.bus.now()),
+      SdoAbort::None);
+  const auto booted = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+    return m.boot_slave(id(kWithChannels), now, out);
+  });
+  ASSERT_TRUE(booted.ok());
+  ASSERT_TRUE(rig.run_until_event(
+      [](const MasterEvent& e) {
+        return e.kind == Kind::BootError && e.node_id == id(kWithChannels) &&
+               e.error == BootError::C;
+      },
+      5s))
+      << "S's boot did not fail with status C";
+  rig.run_for(1s);
+  EXPECT_TRUE(rig.writes_to(kSrd, kSlaveFailed, 0).empty()) << "1F11h while S is alive";
+  ASSERT_TRUE(rig.client_entry(kSrd, 0x1281).valid());
+}
+
+// §7.2.2 ("On a Error Control Error Event caused by the slave S, first the Manager reports the
+// fail of slave S by writing to object 1F11h") when the master no longer watches S itself: the
+// manager watches S for the SRD, and when S leaves the bus, 1F11h reports it.
+TEST(SdoManagerSpec, ReqEcReportsASlaveLostAfterItsBootFailedIn1F11h) {
+  ManagerRig rig;
+  ASSERT_NO_FATAL_FAILURE(boot_of_a_watched_slave_fails(rig));
+  const TimePoint from = rig.bus.now();
+  rig.unplug(kWithChannels);
+  rig.run_for(5s);
+  const auto failed = rig.writes_to(kSrd, kSlaveFailed, 0, from);
+  ASSERT_EQ(failed.size(), 1U) << "1F11h not written once: the manager did not learn S is lost";
+  EXPECT_EQ(failed.front().value, 0x0000U << 8U | kWithChannels) << "reason 00h, slave 2";
+  // Heartbeat consumed at 300 ms (1016h), S's last heartbeat at most 100 ms before `from`.
+  EXPECT_LE(failed.front().at - from, 300ms + 50ms) << "reported late";
+  EXPECT_FALSE(rig.client_entry(kSrd, 0x1281).valid()) << "the client entry stays";
+}
+
+// The same loss as the master sees it: the master reports the heartbeat lost and S missing
+// (1F82h), but its error handler (§4.2, DSP 302 §5.3) does not act on an error control the master
+// no longer runs: for a mandatory S it would reset S (Table 12, 1F80h bit 4 clear) or all nodes.
+TEST(SdoManagerSpec, MasterDoesNotHandleALossItWatchedOnlyForTheManager) {
+  ManagerRig rig;
+  rig.assign(kWithChannels, kSlave | kBoot | kMandatory);
+  ASSERT_NO_FATAL_FAILURE(boot_of_a_watched_slave_fails(rig));
+  const TimePoint from = rig.bus.now();
+  rig.unplug(kWithChannels);
+  rig.run_for(5s);
+  EXPECT_EQ(rig.writes_to(kSrd, kSlaveFailed, 0, from).size(), 1U) << "1F11h";
+  std::size_t lost = 0;
+  for (const auto& e : rig.events_of(Kind::HeartbeatLost, kWithChannels)) {
+    if (e.at >= from) ++lost;
+  }
+  EXPECT_EQ(lost, 1U) << "the loss is not reported";
+  EXPECT_EQ(rig.engine().known_state(id(kWithChannels)), KnownState::missing());
+  EXPECT_TRUE(rig.nmt(from).empty()) << "an NMT command after the loss: " << rig.nmt(from).front();
+}
+
 // ------------------------------------------------------------------------------------------------
 // The manager's activity
 

@@ -1,11 +1,14 @@
 // The one shape of every protocol engine in libnmt (SDO server and client, NMT slave, heartbeat
 // producer and consumer, node and life guarding, EMCY, LSS master and slave, the slave node, the
-// SDO requesting device, and the NMT master with its processes: boot slave, the flying master,
-// the SDO manager, the NMT command queue, Execute LSS). The configuration manager's objects are
-// a process of the master without frames or timers of their own (ConfigurationStoreObjects,
-// reached through the dictionary's hooks): they keep rules 5 and 6. This comment is the
-// contract; the concept below checks its signatures at compile time, and each driver has one
-// adapter that runs any engine (SimEngineNode in sim_bus.hpp, EngineRef in bus_event_loop.hpp).
+// SDO requesting device, and the NMT master with its processes: its error control, the flying
+// master, the SDO manager, the NMT command queue, Execute LSS). The configuration manager's
+// objects are a process of the master without frames or timers of their own
+// (ConfigurationStoreObjects, reached through the dictionary's hooks): they keep rules 5 and 6.
+// Boot slave has timers but no frames of its own: the master hands it its node's error control
+// messages as typed inputs (it updates 1F82h first) and reads its deadline after each call.
+// This comment is the contract; the concept below checks its signatures at compile time, and
+// each driver has one adapter that runs any engine (SimEngineNode in sim_bus.hpp, EngineRef in
+// bus_event_loop.hpp).
 //
 // An engine is sans-I/O: it never reads a clock or touches a bus. It is fed
 //   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);  // a frame seen on the bus

@@ -475,7 +475,7 @@ void SdoManagerProcess::advance_connect(TimePoint now, Output& out) {
   const auto srd = srds_.find(job.node);
   if (srd != srds_.end() && srd->second.info.slave_error_control) {
     const auto slave = *job.slave;
-    if (watched_.count(slave) == 0 && !port_.watches(slave)) {
+    if (watched_.count(slave) == 0) {
       // §7.2.5 step 4.4: error control of S for the SRD.
       port_.watch(slave, std::nullopt, now);
     }

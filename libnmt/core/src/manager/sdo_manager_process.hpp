@@ -82,13 +82,13 @@ class SdoManagerPort {
   virtual void start_transfer(SdoManagerTransfer transfer, TimePoint now) = 0;
   /// The master's heartbeat consumer time for `node` (its 1016h entry); nullopt without one.
   virtual std::optional<Duration> consumer_time(cfg::NodeId node) const = 0;
-  /// The master watches `node` already (heartbeat consumer or node guarding).
-  virtual bool watches(cfg::NodeId node) const = 0;
   /// Error control of `node` for the manager (§7.2.1 SRDs, §7.2.2 slaves with Req EC): heartbeat
   /// consumption with `heartbeat` (else the master's 1016h entry), else node guarding (1F81h,
-  /// else MasterOptions::srd_guard_time). Its loss comes back as node_lost().
+  /// else MasterOptions::srd_guard_time); a node the master watches already stays watched as it
+  /// is. Its loss comes back as node_lost() until unwatch(), whatever the master does with its
+  /// own error control of the node.
   virtual void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) = 0;
-  /// The manager no longer needs `node`'s error control (the master keeps that of its slaves).
+  /// The manager no longer needs `node`'s error control (the master keeps its own).
   virtual void unwatch(cfg::NodeId node) = 0;
 };
 

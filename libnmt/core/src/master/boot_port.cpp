@@ -1,7 +1,8 @@
 // The master's side of the boot NMT slave engines (BootSlaveProcess, boot_slave_process.hpp):
 // their port (transfers, NMT queue, error control, the values they compare against), the
-// start-up's boot-up gate, and what follows a boot's report: start remote node (CiA 302-2 §3.4
-// part 3 g-l), "missing" after status B, error control stopped after an error.
+// opening of the start-up's boot-up gate (boot_up_gate.hpp), and what follows a boot's report:
+// start remote node (CiA 302-2 §3.4 part 3 g-l), "missing" after status B, error control stopped
+// after an error.
 #include <string>
 
 #include "cfg/object_index.hpp"
@@ -13,16 +14,18 @@ namespace obj = cfg::object;
 
 void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out) {
   if (after_reset) {
-    boot(node).start_after_reset(boot_up_gate.value_or(now + options.boot_up_wait), now, out);
+    boot(node).start_after_reset(boot_up_gate.wait_until(now, options.boot_up_wait), now, out);
   } else {
     boot(node).start(BootSlaveProcess::AskedBy::Master, now, out);
   }
+  track_boot_deadline(node);
 }
 
 void NmtMaster::Impl::boot_as_asked(cfg::NodeId node, TimePoint now, Output& out) {
   slaves[node].held = false;
   stop_error_control(node);
   boot(node).start(BootSlaveProcess::AskedBy::Application, now, out);
+  track_boot_deadline(node);
 }
 
 void NmtMaster::Impl::start_remote_node(cfg::NodeId node) {
@@ -41,9 +44,11 @@ void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) 
   for (const auto& b : boots) {
     if (!quiet && b.at_boot_up_gate() && !b.boot_up_seen()) return;  // not yet
   }
-  boot_up_gate.reset();
-  boot_up_quiet.reset();
-  for (auto& b : boots) b.pass_boot_up_gate(now, out);
+  boot_up_gate.open();
+  for (auto& b : boots) {
+    b.pass_boot_up_gate(now, out);
+    track_boot_deadline(b.node());
+  }
 }
 
 // --- the port ---
@@ -101,16 +106,13 @@ void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, cfg::NodeId node) 
 bool NmtMaster::Impl::BootPort::start_error_control(cfg::NodeId node, TimePoint now) {
   // §4.1: heartbeat when 1016h has the node; the first timeout counts from now.
   if (const auto time = m_.heartbeat_time(node)) {
-    m_.heartbeats.monitor(
-        {node, static_cast<std::uint16_t>(
-                   std::chrono::duration_cast<std::chrono::milliseconds>(*time).count())},
-        now);
+    m_.error_control.monitor(node, Watcher::Master, *time, now);
     return true;
   }
   // Else guarding when 1F81h bytes 2-3 (guard time) and byte 1 (retry factor) are non-zero
   // (guard refuses 0s); its first request leaves at the end of this call (settle()).
   const auto a = m_.assignment(node);
-  (void)m_.guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
+  (void)m_.error_control.guard(node, Watcher::Master, a.guard_time_ms(), a.retry_factor(), now);
   return false;
 }
 
@@ -156,29 +158,6 @@ TimePoint NmtMaster::Impl::BootPort::startup_began() const {
   return m_.startup_began;
 }
 
-void NmtMaster::Impl::BootPort::deadline_changed(cfg::NodeId node,
-                                                 std::optional<TimePoint> deadline) {
-  auto& known = m_.boot_deadline_of[node];
-  if (known) m_.boot_deadlines.erase({*known, node});
-  known = deadline;
-  if (known) m_.boot_deadlines.emplace(*known, node);
-}
-
-bool NmtMaster::Impl::BootPort::boot_up_gate_closed() const {
-  return m_.boot_up_gate.has_value();
-}
-
-void NmtMaster::Impl::BootPort::booted_up_at_gate(cfg::NodeId, TimePoint now,
-                                                  Outbox<MasterEvent>& out) {
-  if (m_.options.bitrate != 0) m_.boot_up_quiet = now + kBootUpQuiet;
-  m_.open_boot_up_gate(now, out);  // when it was the last one
-}
-
-void NmtMaster::Impl::BootPort::boot_up_wait_over() {
-  m_.boot_up_gate.reset();
-  m_.boot_up_quiet.reset();
-}
-
 void NmtMaster::Impl::BootPort::boot_con(cfg::NodeId node, std::optional<BootError> status,
                                          bool left_to_application, TimePoint now,
                                          Outbox<MasterEvent>& out) {
@@ -186,8 +165,9 @@ void NmtMaster::Impl::BootPort::boot_con(cfg::NodeId node, std::optional<BootErr
     if (!left_to_application) m_.start_remote_node(node);
     return;
   }
-  // L: the slave runs and is under error control. Any other error: its error control stops,
-  // and after B the slave is missing (1F82h).
+  // L: the slave runs and is under error control. Any other error: the master's error control
+  // of it stops (the SDO manager's watch for an SRD goes on: DSP 302 §7.2.2, 1F11h), and after B
+  // the slave is missing (1F82h).
   if (*status == BootError::L) return;
   m_.stop_error_control(node);
   if (*status == BootError::B) m_.set_known_state(node, KnownState::missing(), now, out);

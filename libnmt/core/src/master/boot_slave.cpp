@@ -41,13 +41,12 @@ BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& o
           .sdo_retries = options.sdo_retries};
 }
 
-BootSlaveProcess::BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, Options options)
-    : node_(node), port_(&port), options_(options) {}
+BootSlaveProcess::BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, BootUpGate& gate,
+                                   Options options)
+    : node_(node), port_(&port), gate_(&gate), options_(options) {}
 
 void BootSlaveProcess::set_deadline(std::optional<TimePoint> deadline) {
-  if (deadline_ == deadline) return;
   deadline_ = deadline;
-  port_->deadline_changed(node_, deadline_);
 }
 
 void BootSlaveProcess::set_step(BootStep step, TimePoint now, Output& out) {
@@ -73,7 +72,7 @@ void BootSlaveProcess::cancel(TimePoint now) {
 void BootSlaveProcess::reset(TimePoint now) {
   cancel(now);
   // try_id_ goes on counting: a transfer of an old try still queued in the master never matches.
-  BootSlaveProcess fresh(node_, *port_, options_);
+  BootSlaveProcess fresh(node_, *port_, *gate_, options_);
   fresh.try_id_ = try_id_;
   *this = std::move(fresh);
 }
@@ -417,8 +416,9 @@ void BootSlaveProcess::on_timer(TimePoint now, Output& out) {
   set_deadline(std::nullopt);
   switch (phase_) {
     case Phase::AwaitBootUp:
-      // No boot-up within the wait: identify anyway (a boot-up may have been missed).
-      port_->boot_up_wait_over();
+      // No boot-up within the wait: identify anyway (a boot-up may have been missed); the gate
+      // opens for all.
+      gate_->open();
       identify(now, out);
       return;
     case Phase::CheckStateHeartbeat:
@@ -458,9 +458,10 @@ bool BootSlaveProcess::on_boot_up(TimePoint now, Output& out) {
   expect_boot_up_ = false;
   switch (phase_) {
     case Phase::AwaitBootUp:
-      if (port_->boot_up_gate_closed()) {
+      if (gate_->closed()) {
+        // It waits for the others (the master opens the gate after the last one).
         boot_up_seen_ = true;
-        port_->booted_up_at_gate(node_, now, out);  // it may open the gate
+        gate_->booted_up(now);
         break;
       }
       set_deadline(std::nullopt);
@@ -488,22 +489,6 @@ void BootSlaveProcess::pass_boot_up_gate(TimePoint now, Output& out) {
   if (!at_boot_up_gate() || !boot_up_seen_) return;
   set_deadline(std::nullopt);
   identify(now, out);
-}
-
-bool BootSlaveProcess::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  const auto message = parse_error_control(frame);
-  if (!message || message->node_id != node_.value()) return false;
-  if (message->byte == 0) return on_boot_up(now, out);
-  const auto state = message->state();
-  if (!state) return false;
-  if (awaits_guard_reply()) {
-    on_guard_reply(*state, now, out);
-    return true;
-  }
-  // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
-  if (message->toggle() || !awaits_heartbeat()) return false;
-  on_heartbeat(*state, now, out);
-  return true;
 }
 
 }  // namespace nmt

@@ -24,6 +24,7 @@
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/program_image.hpp"
+#include "master/boot_up_gate.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
@@ -91,16 +92,6 @@ class BootSlavePort {
   virtual std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const = 0;
   /// When NMT start-up began (§3.3: 1F89h counts from there).
   virtual TimePoint startup_began() const = 0;
-  /// The process's deadline changed (the master keeps the earliest of all without a scan).
-  virtual void deadline_changed(cfg::NodeId node, std::optional<TimePoint> deadline) = 0;
-
-  // --- The start-up's boot-up gate (NmtMaster::Impl::boot_up_gate): after the start-up's reset
-  // no SDO request goes out before every reset slave booted up (or the wait ends).
-  virtual bool boot_up_gate_closed() const = 0;
-  /// The node booted up while the gate is closed (the master may open it: pass_boot_up_gate).
-  virtual void booted_up_at_gate(cfg::NodeId node, TimePoint now, Outbox<MasterEvent>& out) = 0;
-  /// A process's wait for its boot-up ran out: the gate opens for all.
-  virtual void boot_up_wait_over() = 0;
 
   /// The ONE report (lely's co_nmt_boot_con): the try ended with `status` (nullopt: OK, the node
   /// is to be started per §3.4 part 3 g-l; `left_to_application`: 1F81h bit 2 clear, neither
@@ -162,13 +153,13 @@ class BootSlaveProcess {
     RetryWait,            // §3.3: the next try
   };
 
-  BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, Options options);
+  /// `gate`: the start-up's boot-up gate, which every process of the master shares (a try after
+  /// the start-up's reset waits at it; the wait's end opens it).
+  BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, BootUpGate& gate, Options options);
 
-  // --- the engine shape ---
-  /// The error control frames of its node: a boot-up (on_boot_up), a heartbeat or guarding reply
-  /// the try waits for; true when the try took the frame. The master calls the typed inputs
-  /// below instead, as it updates 1F82h (and reports it) before the boot sees the state.
-  bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
+  // --- time (engine.hpp rules 3 and 4). No on_frame: the master routes its node's error control
+  // messages to the typed inputs below, as it updates 1F82h (and reports it) before the boot
+  // sees the state. The master reads next_deadline() after each call.
   void on_timer(TimePoint now, Output& out);
   std::optional<TimePoint> next_deadline() const { return deadline_; }
 
@@ -253,7 +244,8 @@ class BootSlaveProcess {
   void configuration_sdo_result(const SdoResult& result, TimePoint now, Output& out);
 
   cfg::NodeId node_;
-  BootSlavePort* port_;  // never null (a pointer: the process is assignable)
+  BootSlavePort* port_;  // never null (pointers: the process is assignable)
+  BootUpGate* gate_;
   Options options_;
 
   Phase phase_ = Phase::Idle;
@@ -291,7 +283,5 @@ class BootSlaveProcess {
   bool final_error_ = false;
   std::optional<BootError> reported_error_;  ///< the error last reported (retries repeat silently)
 };
-
-static_assert(Engine<BootSlaveProcess>);
 
 }  // namespace nmt

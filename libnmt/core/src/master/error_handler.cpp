@@ -21,6 +21,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
   if (b.awaits_guard_reply()) {
     set_known_state(node, KnownState::in(*state), now, out);
     b.on_guard_reply(*state, now, out);
+    track_boot_deadline(node);
     return;
   }
   // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
@@ -29,6 +30,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
     if (b.awaits_heartbeat()) {
       set_known_state(node, KnownState::in(*state), now, out);
       b.on_heartbeat(*state, now, out);
+      track_boot_deadline(node);
       return;
     }
   }
@@ -47,7 +49,12 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   s.heartbeat_at.reset();
   set_known_state(node, KnownState::in(NmtState::PreOperational), now, out);
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
-  if (boot(node).on_boot_up(now, out)) return;
+  if (auto& b = boot(node); b.on_boot_up(now, out)) {
+    track_boot_deadline(node);
+    // The boot-up the gate waited for: when it was the last one, the gate opens for all.
+    if (b.at_boot_up_gate() && b.boot_up_seen()) open_boot_up_gate(now, out);
+    return;
+  }
   if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master() ||
       startup == StartupState::ExecutingLss) {
     return;  // Execute LSS: the reset of all nodes follows
@@ -59,12 +66,16 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   if (assignment(node).boot_slave()) start_boot(node, false, now, out);
 }
 
-void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
+void NmtMaster::Impl::report_loss(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
   report(out,
          master_event(
              heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
              node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
   set_known_state(node, KnownState::missing(), now, out);
+}
+
+void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
+  report_loss(node, heartbeat, now, out);
   if (!is_slave(node) || slaves[node].held) return;
   const auto a = assignment(node);
   const auto config = startup_config();
@@ -91,21 +102,33 @@ void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint 
   if (a.boot_slave()) start_boot(node, false, now, out);
 }
 
-void NmtMaster::Impl::guarding_timer(TimePoint now, Output& out) {
-  auto& guard_out = guarding_out;
-  guard_out.clear();
-  guarding.on_timer(now, guard_out);
-  for (const auto& f : guard_out.frames) out.send(f);
-  for (const auto& e : guard_out.events) {
-    if (e.kind != NodeGuardingEventKind::Timeout) continue;
-    error_handler(e.node_id, false, now, out);
-    sdo_manager.node_lost(e.node_id, now, out);
+void NmtMaster::Impl::dispatch_error_control(TimePoint now, Output& out) {
+  for (const auto& f : error_control_out.frames) out.send(f);
+  for (const auto& e : error_control_out.events) {
+    const bool heartbeat = e.protocol == ErrorControlProtocol::Heartbeat;
+    if (e.kind == ErrorControlEvent::Kind::Resolved) {
+      report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node,
+                               node_text(e.node) + (heartbeat ? ": heartbeat received again"
+                                                              : ": node guarding replies again")));
+      continue;
+    }
+    // §4.1: no first heartbeat within the consumer time ends start error control with status
+    // K; any other loss of the master's own error control is the error handler's (§4.2). A node
+    // watched for the SDO manager alone (an SRD; a slave whose error control the master stopped
+    // after a boot error) is reported lost and missing (1F82h), but the master does not act on
+    // an error control it does not run.
+    if (heartbeat && boot(e.node).awaits_first_heartbeat()) {
+      boot(e.node).on_heartbeat_timeout(now, out);
+      track_boot_deadline(e.node);
+    } else if (e.watchers.master) {
+      error_handler(e.node, heartbeat, now, out);
+    } else {
+      report_loss(e.node, heartbeat, now, out);
+    }
+    // DSP 302 §7.2.1-§7.2.2: the manager learns the loss of a node it watches (an SRD, a slave
+    // of an SRD with Req EC: 1F11h), whoever else watches it.
+    if (e.watchers.manager) sdo_manager.node_lost(e.node, now, out);
   }
-}
-
-void NmtMaster::Impl::stop_error_control(cfg::NodeId node) {
-  heartbeats.stop(node);
-  guarding.stop(node);
 }
 
 }  // namespace nmt

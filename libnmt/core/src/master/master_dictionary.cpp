@@ -229,7 +229,7 @@ void NmtMaster::Impl::install_hooks() {
                                                         : slaves[sub].known_state.to_byte();
       dict.set_unsigned(index, sub, state);
     } else if (const auto node = cfg::NodeId::from(sub); index == obj::kRequestGuarding && node) {
-      dict.set_unsigned(index, sub, guarding.guards(*node) ? 1 : 0);
+      dict.set_unsigned(index, sub, error_control.guards(*node) ? 1 : 0);
     }
     return SdoAbort::None;
   });
@@ -360,14 +360,15 @@ SdoAbort NmtMaster::Impl::request_guarding(NmtTarget target, std::uint8_t value,
   auto apply = [&](cfg::NodeId node) {
     if (!is_slave(node)) return SdoAbort::General;
     if (value == 0) {
-      guarding.stop(node);
+      error_control.stop_guarding(node, Watcher::Master);
       return SdoAbort::None;
     }
     const auto a = assignment(node);
     // §6.3: guard time or retry factor 0 disable guarding for the device (guard refuses them).
     // The first request leaves at the end of the call (settle()), or at the next call of the
     // master for a write through dictionary() (next_deadline: due at `now`).
-    const auto started = guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now);
+    const auto started =
+        error_control.guard(node, Watcher::Master, a.guard_time_ms(), a.retry_factor(), now);
     return started ? SdoAbort::None : SdoAbort::General;
   };
   if (target.all()) {

@@ -191,6 +191,7 @@ void NmtMaster::Impl::dispatch(const SdoResult& result, TimePoint now, Output& o
     report(out, program_progress(node, transfer.data.size(), transfer.data.size(), now));
   }
   b.on_sdo_result(result, now, out);
+  track_boot_deadline(node);
 }
 
 void NmtMaster::Impl::report_program_progress(TimePoint now, Output& out) {
@@ -252,11 +253,13 @@ void NmtMaster::Impl::settle(TimePoint now, Output& out) {
   sdo_out.frames.clear();
   // Node guarding started in this call (boot's start error control, the SDO manager's watch,
   // request node guarding) has its first request due at `now` (NodeGuardingMaster::guard): the
-  // guarding engine sends it here, last, after the call's NMT commands and SDO requests, where
-  // it has always gone: a slave that boot starts is started before its first guarding request,
-  // so its first reply says operational (CiA 302-2 §3.4 part 3 e before g-l). (A request that
-  // fell due before on_timer came goes with it: engine.hpp rule 3.)
-  if (const auto due = guarding.next_deadline(); due && *due <= now) guarding_timer(now, out);
+  // error control service sends it here, last, after the call's NMT commands and SDO requests,
+  // where it has always gone: a slave that boot starts is started before its first guarding
+  // request, so its first reply says operational (CiA 302-2 §3.4 part 3 e before g-l). (A request
+  // that fell due before on_timer came goes with it: engine.hpp rule 3.)
+  error_control_out.clear();
+  error_control.send_due_requests(now, error_control_out);
+  dispatch_error_control(now, out);
 }
 
 }  // namespace nmt

@@ -50,7 +50,7 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
       sdo_manager(dict, manager_port, id, manager_settings(options, server.config())) {
   boots.reserve(cfg::kMaxNodeId);
   for (const auto node : all_node_ids()) {
-    boots.emplace_back(node, boot_port, BootSlaveProcess::Options::from(options));
+    boots.emplace_back(node, boot_port, boot_up_gate, BootSlaveProcess::Options::from(options));
   }
 }
 
@@ -113,24 +113,9 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     return true;
   }
   if (auto message = parse_error_control(frame)) {
-    auto& guard_out = m.guarding_out;
-    guard_out.clear();
-    m.guarding.on_frame(frame, now, guard_out);
-    for (const auto& e : guard_out.events) {
-      if (e.kind == NodeGuardingEventKind::Resolved) {
-        m.report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
-                                   node_text(e.node_id) + ": node guarding replies again"));
-      }
-    }
-    auto& heartbeat_out = m.heartbeat_out;
-    heartbeat_out.clear();
-    m.heartbeats.on_frame(frame, now, heartbeat_out);
-    for (const auto& e : heartbeat_out.events) {
-      if (e.kind == HeartbeatEventKind::Resolved) {
-        m.report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node_id,
-                                   node_text(e.node_id) + ": heartbeat received again"));
-      }
-    }
+    m.error_control_out.clear();
+    m.error_control.on_frame(frame, now, m.error_control_out);
+    m.dispatch_error_control(now, out);
     m.on_error_control(*message, now, out);
     mine = true;
   }
@@ -161,29 +146,21 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     m.producer.on_timer(now, producer_out);
     for (const auto& f : producer_out.frames) out.send(f);
   }
-  auto& heartbeat_out = m.heartbeat_out;
-  heartbeat_out.clear();
-  m.heartbeats.on_timer(now, heartbeat_out);
-  for (const auto& e : heartbeat_out.events) {
-    if (e.kind != HeartbeatEventKind::Timeout) continue;
-    if (m.boot(e.node_id).awaits_first_heartbeat()) {
-      m.boot(e.node_id).on_heartbeat_timeout(now, out);
-    } else {
-      m.error_handler(e.node_id, true, now, out);
-    }
-    m.sdo_manager.node_lost(e.node_id, now, out);
-  }
-  m.guarding_timer(now, out);
-  if (m.boot_up_quiet && now >= *m.boot_up_quiet) m.open_boot_up_gate(now, out, true);
-  if (!m.boot_deadlines.empty() && m.boot_deadlines.begin()->first <= now) {
-    // The boot engines that are due, in node-ID order (as the events have always come).
-    std::bitset<128> due;
-    for (const auto& [at, node] : m.boot_deadlines) {
-      if (at > now) break;
-      due.set(node);
-    }
+  m.error_control_out.clear();
+  m.error_control.on_timer(now, m.error_control_out);
+  m.dispatch_error_control(now, out);
+  if (m.boot_up_gate.quiet_over(now)) m.open_boot_up_gate(now, out, true);
+  // The boot engines that are due, in node-ID order (as the events have always come).
+  struct DueNodes {
+    std::bitset<128> nodes;
+    void push_back(cfg::NodeId node) { nodes.set(node.value()); }
+  } due;
+  m.boot_deadlines.due(now, due);
+  if (due.nodes.any()) {
     for (const auto node : all_node_ids()) {
-      if (due[node]) m.boot(node).on_timer(now, out);
+      if (!due.nodes[node.value()]) continue;
+      m.boot(node).on_timer(now, out);
+      m.track_boot_deadline(node);
     }
   }
   m.settle(now, out);
@@ -196,13 +173,12 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.server.next_deadline());
   due = earliest(due, m.clients.next_deadline());
   due = earliest(due, m.producer.next_deadline());
-  due = earliest(due, m.heartbeats.next_deadline());
-  due = earliest(due, m.guarding.next_deadline());
+  due = earliest(due, m.error_control.next_deadline());
   due = earliest(due, m.flying.next_deadline());
   due = earliest(due, m.execute_lss.next_deadline());
   due = earliest(due, m.sdo_manager.next_deadline());
-  due = earliest(due, m.boot_up_quiet);
-  if (!m.boot_deadlines.empty()) due = earliest(due, m.boot_deadlines.begin()->first);
+  due = earliest(due, m.boot_up_gate.next_deadline());
+  due = earliest(due, m.boot_deadlines.earliest());
   // Waiting boot transfers are due when the pacing allows, if the window has room (else an
   // answer frees a place, and the call that brings it starts the next).
   if (!m.waiting.empty() && static_cast<double>(m.boot_transfers) < std::floor(m.window)) {
@@ -249,6 +225,7 @@ cfg::Status NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) 
 void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out) {
   auto& m = *impl_;
   m.boot(node).configuration_done(ok, now, out);
+  m.track_boot_deadline(node);
   m.settle(now, out);
 }
 
@@ -354,6 +331,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   sdo_manager.clear();
   for (const auto n : all_node_ids()) {
     boot(n).reset(now);
+    track_boot_deadline(n);
     stop_error_control(n);
     auto& s = slaves[n];
     const auto held_state = s.known_state;
@@ -390,8 +368,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
          master_event(MasterEvent::Kind::StartupBegan, now, std::nullopt, "NMT start-up began"));
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
-  boot_up_gate = now + options.boot_up_wait;
-  boot_up_quiet.reset();
+  boot_up_gate.close(now + options.boot_up_wait, options.bitrate != 0);
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
   for (const auto n : all_node_ids()) {
     if (!is_slave(n)) continue;

@@ -25,11 +25,14 @@
 #include "manager/configuration_store_objects.hpp"
 #include "manager/sdo_manager_process.hpp"
 #include "master/boot_slave_process.hpp"
+#include "master/boot_up_gate.hpp"
+#include "master/error_control_service.hpp"
 #include "master/execute_lss.hpp"
 #include "master/flying_master.hpp"
 #include "master/master_support.hpp"
 #include "master/master_text.hpp"
 #include "master/nmt_command_queue.hpp"
+#include "nmt/deadline_queue.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_server.hpp"
@@ -68,8 +71,9 @@ struct NmtMaster::Impl {
   LocalDictionary dict;
   SdoServer server;
   SdoClientMux clients;
-  HeartbeatConsumer heartbeats{HeartbeatConsumerOptions{.timeout_from_start = true}};
-  NodeGuardingMaster guarding;
+  /// Heartbeat consumer and node guarding of the slaves (boot's start error control, request
+  /// node guarding) and of the SDO manager's nodes, each watched while one of them wants it.
+  ErrorControlService error_control;
   HeartbeatProducer producer;
 
   NmtState own_state = NmtState::Initialising;
@@ -99,10 +103,6 @@ struct NmtMaster::Impl {
     std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override;
     std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const override;
     TimePoint startup_began() const override;
-    void deadline_changed(cfg::NodeId node, std::optional<TimePoint> deadline) override;
-    bool boot_up_gate_closed() const override;
-    void booted_up_at_gate(cfg::NodeId node, TimePoint now, Outbox<MasterEvent>& out) override;
-    void boot_up_wait_over() override;
     void boot_con(cfg::NodeId node, std::optional<BootError> status, bool left_to_application,
                   TimePoint now, Outbox<MasterEvent>& out) override;
 
@@ -110,14 +110,23 @@ struct NmtMaster::Impl {
     Impl& m_;
   };
   BootPort boot_port{*this};
+  /// Start-up: SDO requests of the boots wait until every reset slave booted up (boot_up_gate.hpp).
+  BootUpGate boot_up_gate;
   /// Boot NMT slave, one engine per node-ID 1..127 (boot(node)).
   std::vector<BootSlaveProcess> boots;
   BootSlaveProcess& boot(cfg::NodeId node) { return boots[node.value() - 1U]; }
   const BootSlaveProcess& boot(cfg::NodeId node) const { return boots[node.value() - 1U]; }
-  /// The boot engines' deadlines, earliest first, kept as they change (deadline_changed), so
-  /// next_deadline() and on_timer() need no scan of 127 engines.
-  std::set<std::pair<TimePoint, cfg::NodeId>> boot_deadlines;
+  /// The boot engines' deadlines, earliest first, and each one's as the index holds it: read
+  /// after every call of a boot engine (track_boot_deadline), so that next_deadline() and
+  /// on_timer() need no scan of 127 engines.
+  DeadlineQueue<cfg::NodeId> boot_deadlines;
   std::array<std::optional<TimePoint>, 128> boot_deadline_of;
+  /// After a call of boot(node): its deadline into boot_deadlines.
+  void track_boot_deadline(cfg::NodeId node) {
+    const auto deadline = boot(node).next_deadline();
+    boot_deadlines.move(node, boot_deadline_of[node], deadline);
+    boot_deadline_of[node] = deadline;
+  }
 
   std::map<std::pair<cfg::NodeId, SdoClient::TransferId>, MasterTransfer> transfers;
   /// Boot transfers in `transfers`, the window they may fill, and those waiting for a place.
@@ -135,12 +144,6 @@ struct NmtMaster::Impl {
   TimePoint paced_until{};
   /// clients.unanswered_bits() when the pacing last counted: the bits of block segments since.
   std::uint64_t unanswered_bits_paced = 0;
-  /// Start-up: SDO requests wait until every reset slave booted up, or until this time.
-  std::optional<TimePoint> boot_up_gate;
-  /// Paced: the gate also opens for the slaves that booted up when no boot-up came for
-  /// kBootUpQuiet (the others' were lost or are late; pacing leaves room for them).
-  static constexpr Duration kBootUpQuiet = std::chrono::milliseconds(20);
-  std::optional<TimePoint> boot_up_quiet;
   SdoClient::TransferId next_application_id = 1;
   /// Keys (in `transfers`) of boot/manager transfers the client refused, counting down from
   /// the top, where the client's own ids (from 1 up) do not reach.
@@ -150,8 +153,7 @@ struct NmtMaster::Impl {
   /// Scratch outputs of the parts in on_frame/on_timer (server, producer; error control),
   /// cleared before each use so that a call allocates nothing once they have grown.
   Outbox<NoEvent> part_out;
-  Outbox<HeartbeatEvent> heartbeat_out;
-  Outbox<NodeGuardingEvent> guarding_out;
+  ErrorControlService::Output error_control_out;
 
   /// The flying master's port to this master (master_flying_port.cpp).
   struct FlyingPort final : FlyingMasterPort {
@@ -247,10 +249,14 @@ struct NmtMaster::Impl {
   void on_error_control(const ErrorControlMessage& message, TimePoint now, Output& out);
   void on_boot_up(cfg::NodeId node, TimePoint now, Output& out);
   void error_handler(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out);
-  void stop_error_control(cfg::NodeId node);
-  /// Runs node guarding (NodeGuardingMaster::on_timer): its due requests out, a guarding lost
-  /// to the error handler and the SDO manager.
-  void guarding_timer(TimePoint now, Output& out);
+  /// A heartbeat or guarding loss seen: reported, and the node missing (1F82h).
+  void report_loss(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out);
+  /// The master's own error control of `node` ends (the SDO manager's watch, if any, goes on).
+  void stop_error_control(cfg::NodeId node) { error_control.stop(node, Watcher::Master); }
+  /// What error_control put into error_control_out: its frames out; a loss to the boot waiting
+  /// for the first heartbeat (status K) or the error handler, and to the SDO manager when it
+  /// watches the node; a loss's end reported.
+  void dispatch_error_control(TimePoint now, Output& out);
   /// 1F82h. A request that applies to the master itself needs `out` (0800 0022 without one).
   SdoAbort request_nmt(NmtTarget target, NmtRequest request, std::optional<cfg::NodeId> requester,
                        TimePoint now, Output* out);
@@ -284,7 +290,6 @@ struct NmtMaster::Impl {
     bool serves_sdo() const override;
     void start_transfer(SdoManagerTransfer transfer, TimePoint now) override;
     std::optional<Duration> consumer_time(cfg::NodeId node) const override;
-    bool watches(cfg::NodeId node) const override;
     void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) override;
     void unwatch(cfg::NodeId node) override;
     Impl& m;
@@ -311,7 +316,7 @@ struct NmtMaster::Impl {
   void release_held(TimePoint now);
   SdoClient::TransferId launch_transfer(cfg::NodeId node, MasterTransfer transfer, TimePoint now);
   /// Starts the slaves waiting at the gate that booted up: when every one did, or (`quiet`) when
-  /// no boot-up came for kBootUpQuiet.
+  /// no boot-up came for BootUpGate::kQuiet.
   void open_boot_up_gate(TimePoint now, Output& out, bool quiet = false);
   /// Pacing (MasterOptions::bitrate): the bus time `bits` take within bus_load_limit.
   Duration paced_time(double bits) const;

@@ -54,32 +54,31 @@ std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(cfg::NodeId 
   return m.heartbeat_time(node);
 }
 
-bool NmtMaster::Impl::ManagerPort::watches(cfg::NodeId node) const {
-  return m.heartbeats.monitors(node) || m.guarding.guards(node);
-}
-
 void NmtMaster::Impl::ManagerPort::watch(cfg::NodeId node, std::optional<Duration> heartbeat,
                                          TimePoint now) {
+  // A node the master watches already (a slave under error control since its boot) stays
+  // watched as it is, now for the manager too: the master's stop no longer ends it.
+  if (m.error_control.join(node, Watcher::Manager)) return;
   if (!heartbeat) heartbeat = m.heartbeat_time(node);
   if (heartbeat && heartbeat->count() > 0) {
-    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(*heartbeat).count();
-    m.heartbeats.monitor({node, static_cast<std::uint16_t>(std::min<std::int64_t>(ms, 0xFFFF))},
-                         now);
+    m.error_control.monitor(node, Watcher::Manager, *heartbeat, now);
     return;
   }
   const auto a = m.assignment(node);
   // Its first request leaves at the end of the call (NmtMaster::Impl::settle()).
-  if (m.guarding.guard(node, a.guard_time_ms(), a.retry_factor(), now)) return;
+  if (m.error_control.guard(node, Watcher::Manager, a.guard_time_ms(), a.retry_factor(), now)) {
+    return;
+  }
   const auto guard_ms =
       std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
-  (void)m.guarding.guard(node,
-                         static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
-                         kGuardLifeTimeFactor, now);
+  (void)m.error_control.guard(
+      node, Watcher::Manager,
+      static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),
+      kGuardLifeTimeFactor, now);
 }
 
 void NmtMaster::Impl::ManagerPort::unwatch(cfg::NodeId node) {
-  // A slave's error control is the master's own (boot NMT slave starts and stops it).
-  if (!m.is_slave(node)) m.stop_error_control(node);
+  m.error_control.stop(node, Watcher::Manager);
 }
 
 // --- the public accessors ---
