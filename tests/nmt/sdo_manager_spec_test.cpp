@@ -467,12 +467,12 @@ void boot_of_a_watched_slave_fails(ManagerRig& rig) {
       rig.engine().dictionary().write(0x1F84, kWithChannels, le(0x12345678, 4), rig.bus.now()),
       SdoAbort::None);
   const auto booted = rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-    return m.boot_slave(id(kWithChannels), now, out);
+    return m.boot_slave(*cfg::NodeId::from(kWithChannels), now, out);
   });
   ASSERT_TRUE(booted.ok());
   ASSERT_TRUE(rig.run_until_event(
       [](const MasterEvent& e) {
-        return e.kind == Kind::BootError && e.node_id == id(kWithChannels) &&
+        return e.kind == Kind::BootError && e.node_id == *cfg::NodeId::from(kWithChannels) &&
                e.error == BootError::C;
       },
       5s))
@@ -515,7 +515,7 @@ TEST(SdoManagerSpec, MasterDoesNotHandleALossItWatchedOnlyForTheManager) {
     if (e.at >= from) ++lost;
   }
   EXPECT_EQ(lost, 1U) << "the loss is not reported";
-  EXPECT_EQ(rig.engine().known_state(id(kWithChannels)), KnownState::missing());
+  EXPECT_EQ(rig.engine().known_state(*cfg::NodeId::from(kWithChannels)), KnownState::missing());
   EXPECT_TRUE(rig.nmt(from).empty()) << "an NMT command after the loss: " << rig.nmt(from).front();
 }
 
