@@ -9,12 +9,12 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdio>
 #include <map>
 #include <set>
 #include <string>
 #include <vector>
 
+#include "cfg/hex.hpp"
 #include "nmt/frame_bits.hpp"
 
 namespace nmt {
@@ -49,10 +49,9 @@ constexpr const char* kAnswer1000 = "4300100092010000";
 // CiA 301 §7.2.4.3.17 abort of 1000h sub 0 with 0504 0000 (protocol timed out).
 constexpr const char* kTimeout1000 = "8000100000000405";
 
+// The candump text of an SDO frame on COB-ID `base` + node-ID `n`.
 std::string on(std::uint16_t base, std::uint8_t n, const char* data) {
-  char id[8];
-  std::snprintf(id, sizeof id, "%03X#", static_cast<unsigned>(base + n));
-  return std::string(id) + data;
+  return cfg::hex_digits(base + n, 3) + "#" + data;
 }
 
 struct Rig {
