@@ -191,11 +191,6 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
   return bus;
 }
 
-void fail_command(std::string_view tool, int code, const std::string& message) {
-  std::cerr << prefix(tool) << message << '\n';
-  exit_with(code);
-}
-
 void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
   cmd.add_flag("--lss", args.lss,
                "Execute LSS first (CiA 305, DSP 302 section 4 step 3): before the reset of all "
@@ -259,16 +254,14 @@ double lss_bound_s(const nmt::MasterOptions& options) {
 tools::ReportFile open_report_or_exit(const std::string& path) {
   auto opened = tools::ReportFile::open(path);
   if (!opened) {
-    std::cerr << opened.error().message << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::kExitIo, opened.error().message);
   }
   return std::move(*opened);
 }
 
 void finish_report_or_exit(tools::ReportFile& report, std::string_view text) {
   if (auto written = report.finish(text); !written) {
-    std::cerr << written.error().message << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::kExitIo, written.error().message);
   }
 }
 
@@ -562,10 +555,9 @@ std::pair<cfg::NodeId, std::string> node_assignment_or_exit(std::string_view opt
   const std::size_t eq = spec.find('=');
   const auto id = tools::parse_node_id_argument(std::string_view(spec).substr(0, eq));
   if (eq == std::string::npos || !id || eq + 1 == spec.size()) {
-    std::cerr << "cfgmgr: " << option << " " << spec
-              << ": expected NODE=" << (option == "--program" ? "FILE" : "VERSION")
-              << " with NODE a node-ID (1..127)\n";
-    exit_with(tools::kExitUsage);
+    exit_with(tools::kExitUsage,
+              "cfgmgr: " + std::string(option) + " " + spec + ": expected NODE=" +
+                  (option == "--program" ? "FILE" : "VERSION") + " with NODE a node-ID (1..127)");
   }
   return {*id, spec.substr(eq + 1)};
 }
@@ -582,8 +574,8 @@ void apply_program_overrides(cfg::Network& network, const ProgramOverrides& prog
     auto [node, text] = node_assignment_or_exit("--program-version", spec);
     auto version = cfg::parse_program_version(text);
     if (!version) {
-      std::cerr << "cfgmgr: --program-version " << spec << ": " << version.error().message << '\n';
-      exit_with(tools::kExitUsage);
+      exit_with(tools::kExitUsage,
+                "cfgmgr: --program-version " + spec + ": " + version.error().message);
     }
     wanted[node.value()].second = *version;
   }
@@ -646,8 +638,7 @@ nmt::MasterConfig master_config_or_exit(std::string_view tool, const std::string
   cfg::Status valid = config ? config->validate() : cfg::Status(config.error());
   if (!valid) {
     const std::string& from = network->master_from_file ? network->master_file : description;
-    std::cerr << from << ": error: " << valid.error().message << '\n';
-    exit_with(tools::kExitInputErrors);
+    exit_with(tools::kExitInputErrors, from + ": error: " + valid.error().message);
   }
   return std::move(config).value();
 }
@@ -657,8 +648,7 @@ nmt::NmtMaster build_master_or_exit(const nmt::MasterConfig& config, const std::
   auto master = config.build();
   if (!master) {
     const std::string& from = network.master_from_file ? network.master_file : description;
-    std::cerr << from << ": error: " << master.error().message << '\n';
-    exit_with(tools::kExitInputErrors);
+    exit_with(tools::kExitInputErrors, from + ": error: " + master.error().message);
   }
   return std::move(master).value();
 }
@@ -677,8 +667,7 @@ std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(std::string_view too
   std::vector<cfg::NodeId> skipped;
   auto built = simulated_devices(network, sim, &skipped);
   if (!built) {
-    std::cerr << built.error().message << '\n';
-    exit_with(tools::kExitInputErrors);
+    exit_with(tools::kExitInputErrors, built.error().message);
   }
   for (const cfg::NodeId node : skipped) {
     std::cerr << prefix(tool) << "note: node " << int{node.value()}

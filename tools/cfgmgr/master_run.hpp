@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
 #include "cfg/network.hpp"
 #include "network_source.hpp"
@@ -63,9 +64,6 @@ void apply_lss_options(std::string_view tool, const LssRunArgs& args, const cfg:
 /// A bound on the simulated time Execute LSS takes for `options` (Fastscan: 133 steps per
 /// device and a few more, each the scan step), to add to a run's bound.
 double lss_bound_s(const nmt::MasterOptions& options);
-
-/// Prints "cfgmgr TOOL: message" on stderr and ends the command with `code`.
-[[noreturn]] void fail_command(std::string_view tool, int code, const std::string& message);
 
 /// The --json / --json-events file opened before any bus work ("" gives none); prints
 /// "PATH: error: cannot open for writing: ..." and ends the command with exit 3 when it cannot.
