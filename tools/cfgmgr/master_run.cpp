@@ -27,6 +27,7 @@
 #include "nmt/device_state.hpp"
 #include "nmt/entry_persister.hpp"
 #include "nmt/master_config.hpp"
+#include "nmt/master_host.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
 #include "nmt/trace.hpp"
@@ -69,37 +70,17 @@ class StopSignals {
   struct sigaction old_term_ {};
 };
 
-// CiA 302-2 §3.1 g, 1F80h bit 2: the application lets the master enter operational. This
-// program is the application and has nothing of its own to do first, so it does so at once.
-template <class Apply>
-void continue_when_awaited(const nmt::NmtMaster& master, bool& done, Apply&& apply) {
-  if (done || master.startup_state() != nmt::StartupState::AwaitApplication) return;
-  done = true;
-  apply([](nmt::NmtMaster& m, nmt::TimePoint now, nmt::NmtMaster::Output& out) {
-    m.enter_operational(now, out);
-  });
-}
-
 std::string prefix(std::string_view tool) {
   return "cfgmgr " + std::string(tool) + ": ";
 }
 
-// --store DIR: the master leaves the disk to its driver (nmt_master.hpp, PersistEntry). On sim:
-// the entry is written here, in the loop after the master's call (simulated time stands still
-// meanwhile; a real bus uses nmt::EntryPersister's worker thread), and the master told, so that
-// the SDO confirmation of the write leaves once the entry is durable (or an abort when it failed).
-template <class Apply>
-void persist_when_asked(const nmt::MasterEvent& e, const nmt::NmtMaster& master,
-                        EventReporter& reporter, std::string_view tool, Apply&& apply) {
-  if (e.kind != nmt::MasterEvent::Kind::PersistEntry || !e.persist) return;
-  const cfg::ConfigManager* manager = master.config_manager();
-  cfg::Status done = manager != nullptr ? manager->persist(*e.persist->update)
-                                        : cfg::Status{cfg::Error{"no configuration manager"}};
-  if (!done) reporter.note(prefix(tool) + "error: " + done.error().message);
-  apply([ticket = e.persist->ticket, done = std::move(done)](nmt::NmtMaster& m, nmt::TimePoint now,
-                                                             nmt::NmtMaster::Output& out) {
-    m.entry_persisted(ticket, done, now, out);
-  });
+// The master's driver duties (nmt/master_host.hpp): --store DIR's entries written, and start-up
+// let enter operational at once (this program is the application, with nothing of its own to do
+// first). A failed write is said on stderr; the master aborts the download.
+nmt::MasterHost::Done note_failed_writes(EventReporter& reporter, std::string_view tool) {
+  return [&reporter, tool](const cfg::Status& done) {
+    if (!done) reporter.note(prefix(tool) + "error: " + done.error().message);
+  };
 }
 
 // The trace files of a run, open; exit 3 when one cannot be created.
@@ -716,12 +697,13 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   }
   nmt::SimEngineNode<nmt::NmtMaster> node(std::move(master));
   bus.attach(node);
-  bool continued = false;
+  // On sim: entries are written at once, after the master's call (simulated time stands still).
+  nmt::MasterHost host(
+      node.engine(), [&node](const nmt::MasterHost::Call& call) { node.apply(call); },
+      note_failed_writes(reporter, limits.tool));
   node.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
     reporter.report(e);
-    persist_when_asked(e, node.engine(), reporter, limits.tool,
-                       [&node](auto fn) { node.apply(fn); });
-    continue_when_awaited(node.engine(), continued, [&node](auto fn) { node.apply(fn); });
+    host.on_event(e);
   });
 
   std::cerr << prefix(limits.tool) << "node-ID " << int{node.engine().node_id().value()} << ", "
@@ -776,16 +758,15 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
   reporter.set_start(loop.now());
   nmt::EngineRef<nmt::NmtMaster> ref(master);
   loop.add(ref);
+  nmt::MasterHost host(
+      master, [&ref](const nmt::MasterHost::Call& call) { ref.apply(call); },
+      note_failed_writes(reporter, limits.tool));
   // --store DIR: entries are written on a worker thread, so an fsync does not stall the loop;
   // the SDO confirmation leaves once the entry is durable (nmt/entry_persister.hpp).
-  nmt::EntryPersister persister(ref, [&reporter, &limits](const cfg::Status& done) {
-    if (!done) reporter.note(prefix(limits.tool) + "error: " + done.error().message);
-  });
-  bool continued = false;
+  nmt::EntryPersister persister(ref, host);
   ref.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
     reporter.report(e);
-    persister.on_event(e);
-    continue_when_awaited(master, continued, [&ref](auto fn) { ref.apply(fn); });
+    host.on_event(e);
     if (limits.until_startup_ends && !limits.run_for_s && ended(limits, reporter)) {
       loop.request_stop();
     }
