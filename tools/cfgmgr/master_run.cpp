@@ -35,10 +35,6 @@
 namespace cfgmgr {
 namespace {
 
-/// The master's node-ID when neither --node-id nor the master DCF gives one: 7Fh, the highest,
-/// so that the slaves keep the low node-IDs (and their higher-priority COB-IDs).
-constexpr std::uint8_t kDefaultMasterNodeId = 0x7F;
-
 // Set by SIGINT/SIGTERM; the running real-time loop is told at once.
 std::atomic<bool> g_stop{false};
 std::atomic<nmt::BusEventLoop*> g_running_loop{nullptr};
@@ -590,7 +586,7 @@ nmt::MasterConfig master_config_or_exit(std::string_view tool, const std::string
                                         const std::shared_ptr<const cfg::Network>& network,
                                         const std::string& node_id_text,
                                         nmt::MasterOptions options) {
-  std::uint8_t node_id = kDefaultMasterNodeId;
+  cfg::NodeId node_id = nmt::MasterConfig::default_node_id(*network);
   if (!node_id_text.empty()) {
     const auto parsed = tools::parse_node_id_argument(node_id_text);
     if (!parsed) {
@@ -598,22 +594,16 @@ nmt::MasterConfig master_config_or_exit(std::string_view tool, const std::string
                    tools::node_id_argument_error("--node-id", node_id_text));
     }
     node_id = *parsed;
-  } else if (network->master_node_id) {
-    node_id = network->master_node_id->value();
   }
-  if (const cfg::NetworkNode* clash = network->find(*cfg::NodeId::from(node_id))) {
+  // Said here with the flag that changes it (from_network refuses it too).
+  if (const cfg::NetworkNode* clash = network->find(node_id)) {
     fail_command(tool, node_id_text.empty() ? tools::kExitInputErrors : tools::kExitUsage,
-                 "the master's node-ID " + std::to_string(node_id) + " is also the node-ID of " +
-                     clash->file + " (give another with --node-id N)");
+                 "the master's node-ID " + std::to_string(node_id.value()) +
+                     " is also the node-ID of " + clash->file + " (give another with --node-id N)");
   }
-  options.configurations = std::make_shared<NetworkSource>(network);
-  // DSP 302 §6: the master is the network's configuration manager, 1F20h-1F27h included; a
-  // node with nothing stored reads the network's configuration (NetworkSource). Without a store
-  // directory, what a tool writes over SDO lives as long as the process.
-  if (!options.manager) options.manager = std::make_shared<cfg::ConfigManager>();
-  // The master DCF goes through the typed configuration, as an embedder's master does.
-  auto config =
-      nmt::MasterConfig::from_dcf(network->master, *cfg::NodeId::from(node_id), std::move(options));
+  // DSP 302 §6: the master is the network's configuration manager, 1F20h-1F27h included; the
+  // master DCF goes through the typed configuration, as an embedder's master does.
+  auto config = nmt::MasterConfig::from_network(network, node_id, std::move(options));
   // What the DCF says is checked here, so that a later failure of build_master_or_exit is the
   // caller's change.
   cfg::Status valid = config ? config->validate() : cfg::Status(config.error());
