@@ -5,9 +5,9 @@
 #include <string>
 
 #include "../common/tool_support.hpp"
-#include "master_run.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/lss.hpp"
+#include "run_args.hpp"
 
 namespace cfgmgr {
 

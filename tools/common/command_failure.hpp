@@ -45,9 +45,14 @@ namespace cfgmgr {
 
 using tools::exit_with;
 
+/// "cfgmgr TOOL: ", the start of the lines the cfgmgr subcommand `tool` prints.
+inline std::string command_prefix(std::string_view tool) {
+  return "cfgmgr " + std::string(tool) + ": ";
+}
+
 /// Ends the cfgmgr subcommand `tool` with `code` and "cfgmgr TOOL: message" on stderr.
 [[noreturn]] inline void fail_command(std::string_view tool, int code, const std::string& message) {
-  exit_with(code, "cfgmgr " + std::string(tool) + ": " + message);
+  exit_with(code, command_prefix(tool) + message);
 }
 
 }  // namespace cfgmgr
