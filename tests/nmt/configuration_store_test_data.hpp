@@ -32,7 +32,7 @@ inline const std::vector<std::uint8_t> kStream = {
     0x01, 0x20, 0x00, 0x07, 0x00, 0x00, 0x00,              // 2001h sub 0, 7 bytes
     's',  'p',  'i',  'n',  'd',  'l',  'e'};
 
-// Node 5's configuration as the network gives it (cfgmgr's NetworkSource): 2 entries, 2000h
+// Node 5's configuration as the network gives it (nmt::NetworkSource): 2 entries, 2000h
 // sub 0 = 5678h (UNSIGNED16), 1017h sub 0 = 300 ms (UNSIGNED16); 4 + 9 + 9 = 22 bytes.
 inline const std::vector<std::uint8_t> kNetworkStream = {
     0x02, 0x00, 0x00, 0x00,                                 // number of entries
@@ -41,8 +41,8 @@ inline const std::vector<std::uint8_t> kNetworkStream = {
 inline const std::string kNetworkDcf =
     "[DeviceInfo]\r\nProductName=node 5 as the network has it\r\n";
 
-/// A source that has node 5's configuration, its concise DCF and its DCF (as cfgmgr's
-/// NetworkSource has a network node's), and for node 6 a DCF it cannot read.
+/// A source that has node 5's configuration, its concise DCF and its DCF (as nmt::NetworkSource
+/// has a network node's), and for node 6 a DCF it cannot read.
 class NetworkLikeSource final : public ConfigurationSource {
  public:
   std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override {

@@ -33,6 +33,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
+#include "nmt/master_host.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_client.hpp"
 #include "nmt/sim_bus.hpp"
@@ -256,16 +257,14 @@ class MasterRig {
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     if (!created.ok()) throw std::runtime_error("NmtMaster::create failed");
     master_ = std::make_unique<SimEngineNode<NmtMaster>>(std::move(created).value());
+    // The rig is the driver (as cfgmgr master is): entries are written after the call; the tests
+    // call enter_operational() themselves.
+    host = std::make_unique<MasterHost>(
+        master_->engine(), [this](const MasterHost::Call& call) { master_->apply(call); });
+    host->set_enters_operational(false);
     master_->set_event_handler([this](const MasterEvent& e, TimePoint) {
       events.push_back(e);
-      if (persist_entries && e.kind == MasterEvent::Kind::PersistEntry && e.persist) {
-        // The rig is the driver (as cfgmgr master is): the entry is written after the call.
-        auto done = master_->engine().config_manager()->persist(*e.persist->update);
-        master_->apply([ticket = e.persist->ticket, done](NmtMaster& m, TimePoint now,
-                                                          NmtMaster::Output& out) {
-          m.entry_persisted(ticket, done, now, out);
-        });
-      }
+      if (persist_entries) host->on_event(e);
     });
     bus.attach(*master_);
     started_at = bus.now();
@@ -470,9 +469,12 @@ class MasterRig {
   std::shared_ptr<TestConfigurations> configurations = std::make_shared<TestConfigurations>();
   std::vector<Seen> seen;
   std::vector<MasterEvent> events;
-  /// MasterEvent::PersistEntry (a manager with a store directory): the rig writes the entry at
-  /// once and calls entry_persisted(); false leaves that to the test.
+  /// MasterEvent::PersistEntry (a manager with a store directory): the rig's host writes the
+  /// entry at once and calls entry_persisted() (or gives it to the host's writer); false leaves
+  /// that to the test.
   bool persist_entries = true;
+  /// The driver's duties (nmt/master_host.hpp), from start_master() on.
+  std::unique_ptr<MasterHost> host;
   TimePoint started_at{};
 
  private:

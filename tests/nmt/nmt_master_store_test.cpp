@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "configuration_store_test_data.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/entry_persister.hpp"
+#include "nmt/master_host.hpp"
 #include "nmt_master_spec_test_rig.hpp"
 #include "socket_pair_bus.hpp"
 
@@ -468,10 +470,103 @@ TEST(NmtMasterStore, ConfDownloadsTheNetworksConfigurationOfAnUnstoredNode) {
   EXPECT_EQ(s.rig.tool_write_u(0x1F25, 9, kConf, 4), SdoAbort::NoDataAvailable);
 }
 
-// No disk I/O inside on_frame, on a real loop: the driver writes the entry on a
-// worker thread (nmt::EntryPersister). While the write is held (a store hook that waits: the
-// slow disk, a wrapper in this test), the loop keeps serving frames: a boot-up that arrives
-// meanwhile is reported (CiA 302-2 §4, boot-up handler). The SDO confirmation of the 1F26h
+// --- the driver's duties (nmt/master_host.hpp) ---------------------------------------------
+
+/// A store directory whose entry writes call `on_write` when the data is written (before the
+/// rename that makes it the entry), and the rig on it; the rig's MasterHost writes the entries.
+struct HostedStoreRig {
+  explicit HostedStoreRig(std::function<void()> on_write)
+      : manager(open_manager(dir.str(), std::move(on_write))), s(manager) {
+    s.start();
+  }
+  static std::shared_ptr<cfg::ConfigManager> open_manager(const std::string& path,
+                                                          std::function<void()> on_write) {
+    cfg::StoreWriteHooks hooks;
+    hooks.on_step = [on_write = std::move(on_write)](cfg::StoreWriteHooks::Step step, std::size_t) {
+      if (step == cfg::StoreWriteHooks::Step::Wrote && on_write) on_write();
+    };
+    auto opened = cfg::ConfigManager::open(path, hooks);
+    EXPECT_TRUE(opened.ok()) << opened.error().message;
+    return std::make_shared<cfg::ConfigManager>(std::move(opened).value());
+  }
+  /// The master's SDO responses to the tool (580h + its node-ID) at or after `from`.
+  std::vector<CanFrame> responses(TimePoint from) const {
+    std::vector<CanFrame> out;
+    for (const auto& seen : s.rig.on_id(0x580 + kMaster, from)) out.push_back(seen.frame);
+    return out;
+  }
+  TempDir dir;
+  std::shared_ptr<cfg::ConfigManager> manager;
+  StoreRig s;
+};
+
+/// A writer that keeps the entries until the test writes them.
+struct HeldWriter final : MasterHost::Writer {
+  void write(MasterEvent::Persist entry) override { entries.push_back(std::move(entry)); }
+  std::vector<MasterEvent::Persist> entries;
+};
+
+// On the simulated bus the host writes the entry at once, after the master's call: when the
+// data reaches the disk the tool has no answer yet; the confirmation of the expedited 1F26h
+// write (CiA 301 §7.2.4.3.3: 60h) is queued right after, and the manager has the stamp
+// (DSP 302 §6.6).
+TEST(MasterHost, OnSimTheConfirmationFollowsTheWriteOfTheEntry) {
+  std::optional<std::size_t> answered_when_written;
+  HostedStoreRig* rig = nullptr;
+  TimePoint from{};
+  HostedStoreRig d([&] {
+    if (rig != nullptr) answered_when_written = rig->responses(from).size();
+  });
+  rig = &d;
+  from = d.s.rig.bus.now();
+  const auto id = d.s.rig.tool_begin_write(0x1F26, kNode, le(0x3A99, 4));
+  d.s.rig.run_for(100ms);
+  ASSERT_TRUE(answered_when_written.has_value());
+  EXPECT_EQ(*answered_when_written, 0U);
+  const auto answers = d.responses(from);
+  ASSERT_EQ(answers.size(), 1U);
+  EXPECT_EQ(answers[0].data[0], 0x60);
+  const auto asked = d.s.rig.events_of(Kind::PersistEntry, kNode);
+  ASSERT_EQ(asked.size(), 1U);
+  // Queued in the call that reported the entry (no simulated time passes for the write), it is
+  // on the bus 734 us later in this deterministic run: its turn and its bits at 500 kbit/s.
+  EXPECT_EQ(d.s.rig.on_id(0x580 + kMaster, from).front().at - asked.front().at, Duration{734});
+  const auto result = d.s.rig.tool_result(id);
+  ASSERT_TRUE(result.has_value());
+  EXPECT_EQ(result->abort, SdoAbort::None);
+  EXPECT_EQ(d.manager->expected_stamp(*cfg::NodeId::from(kNode)).days, 0x3A99U);
+}
+
+// The other way of the same duty on the simulated bus: a writer that holds the entry. The
+// download stays unconfirmed for as long (200 ms here) and the manager without the value; once
+// the entry is written and the host's completion runs, the confirmation (60h) leaves.
+TEST(MasterHost, AStoreWriteIsHeldUntilItsWriterCompletesIt) {
+  HostedStoreRig d({});
+  HeldWriter writer;
+  d.s.rig.host->set_writer(&writer);
+  const auto node = *cfg::NodeId::from(kNode);
+  const TimePoint from = d.s.rig.bus.now();
+  const auto id = d.s.rig.tool_begin_write(0x1F26, kNode, le(0x3A99, 4));
+  d.s.rig.run_for(200ms);
+  ASSERT_EQ(writer.entries.size(), 1U);
+  EXPECT_TRUE(d.responses(from).empty());
+  EXPECT_FALSE(d.s.rig.tool_result(id).has_value());
+  EXPECT_EQ(d.manager->expected_stamp(node), cfg::ConfigurationStamp{});
+  const cfg::Status written = d.s.rig.host->write(writer.entries.front());
+  ASSERT_TRUE(written.ok()) << written.error().message;
+  const TimePoint told = d.s.rig.bus.now();
+  d.s.rig.call(d.s.rig.host->completion(writer.entries.front().ticket, written));
+  d.s.rig.run_for(10ms);
+  const auto answers = d.responses(told);
+  ASSERT_EQ(answers.size(), 1U);
+  EXPECT_EQ(answers[0].data[0], 0x60);
+  EXPECT_EQ(d.manager->expected_stamp(node).days, 0x3A99U);
+}
+
+// No disk I/O inside on_frame, on a real loop: the driver's MasterHost writes the entry on a
+// worker thread (nmt::EntryPersister, its writer). While the write is held (a store hook that
+// waits: the slow disk, a wrapper in this test), the loop keeps serving frames: a boot-up that
+// arrives meanwhile is reported (CiA 302-2 §4, boot-up handler). The SDO confirmation of the 1F26h
 // write (DSP 302 §6.6) leaves only after the write ended (CiA 301 §7.2.4.3.3: 60h).
 TEST(NmtMasterStore, TheLoopKeepsServingFramesWhileAWorkerPersistsAnEntry) {
   TempDir dir;
@@ -515,10 +610,11 @@ TEST(NmtMasterStore, TheLoopKeepsServingFramesWhileAWorkerPersistsAnEntry) {
     return done();
   };
   {
-    EntryPersister persister(ref);
+    MasterHost host(master, [&ref](const MasterHost::Call& call) { ref.apply(call); });
+    EntryPersister persister(ref, host);
     ref.set_event_handler([&](const MasterEvent& e, TimePoint) {
       events.push_back(e);
-      persister.on_event(e);
+      host.on_event(e);
     });
     ref.apply([](NmtMaster& m, TimePoint now, auto& out) { m.start(now, out); });
     bus.inject("601#23261F0201000000");  // 1F26h sub 2 = 1, expedited

@@ -35,8 +35,7 @@ struct BuildCliOptions {
 
 void write_or_exit(const std::string& path, std::string_view bytes) {
   if (auto written = tools::write_output(path, bytes); !written) {
-    std::cerr << written.error().message << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::kExitIo, written.error().message);
   }
 }
 
@@ -103,11 +102,10 @@ void run_build(const BuildCliOptions& options) {
   std::error_code ec;
   fs::create_directories(options.output_dir, ec);
   if (ec || !fs::is_directory(options.output_dir)) {
-    std::cerr << tools::io_error(options.output_dir, "cannot create the directory" +
-                                                         (ec ? ": " + ec.message() : std::string()))
-                     .message
-              << '\n';
-    exit_with(tools::kExitIo);
+    exit_with(tools::kExitIo,
+              tools::io_error(options.output_dir, "cannot create the directory" +
+                                                      (ec ? ": " + ec.message() : std::string()))
+                  .message);
   }
   const fs::path dir(options.output_dir);
   for (const std::string& spec : options.variables) {

@@ -140,8 +140,7 @@ FileReport check_network_file(const std::string& file, const CheckOptions& optio
 
 void run_check(const CheckOptions& options) {
   if (std::count(options.files.begin(), options.files.end(), "-") > 1) {
-    std::cerr << "cfgmgr check: error: '-' (stdin) can be given only once\n";
-    exit_with(tools::kExitUsage);
+    fail_command("check", tools::kExitUsage, "error: '-' (stdin) can be given only once");
   }
   // The standard's object definitions: from --schema-dir, else as cfg::find_schema_dir() finds
   // them ($CANOPEN_SCHEMA_DIR, or installed beside the program). Never skipped silently: when
@@ -153,9 +152,9 @@ void run_check(const CheckOptions& options) {
     if (!asked) {
       auto found = cfg::find_schema_dir();
       if (!found) {
-        std::cerr << "cfgmgr check: error: " << found.error().message
-                  << "; give --schema-dir DIR, or --no-schema to check without them\n";
-        exit_with(tools::kExitIo);
+        fail_command("check", tools::kExitIo,
+                     "error: " + found.error().message +
+                         "; give --schema-dir DIR, or --no-schema to check without them");
       }
       dir = std::move(found).value();
     }
@@ -165,9 +164,9 @@ void run_check(const CheckOptions& options) {
         // The message may end with the schema file's diagnostics, one a line.
         std::string why = schema.error().message;
         while (!why.empty() && why.back() == '\n') why.pop_back();
-        std::cerr << "cfgmgr check: error: " << (asked ? "--schema-dir " : "schema directory ")
-                  << dir << ": cannot load schema " << name << ": " << why << '\n';
-        exit_with(tools::kExitIo);
+        fail_command("check", tools::kExitIo,
+                     "error: " + std::string(asked ? "--schema-dir " : "schema directory ") + dir +
+                         ": cannot load schema " + std::string(name) + ": " + why);
       }
       schemas.push_back(std::move(schema).value());
     }

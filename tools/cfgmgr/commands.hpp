@@ -1,9 +1,12 @@
 // cfgmgr subcommands: each lives in its own file and registers itself on the app with one
 // add_<name>_command call in main.cpp. A command's callback does its work and, when the exit
-// code is not 0, ends with exit_with(code); main returns that code.
+// code is not 0, ends with exit_with(code) or fail_command(TOOL, code, message) (one way to end a
+// command: ../common/command_failure.hpp); main prints the message and returns that code.
 #pragma once
 
 #include <CLI/CLI.hpp>
+
+#include "../common/command_failure.hpp"
 
 namespace cfgmgr {
 
@@ -33,11 +36,5 @@ void add_lss_command(CLI::App& app);
 /// `cfgmgr program-image PAYLOAD --version V -o IMAGE`: an image with a version trailer
 /// (program_image.cpp).
 void add_program_image_command(CLI::App& app);
-
-/// Ends the running command with `code` (a tools::ExitCode). CLI11 carries it out of
-/// App::parse as a RuntimeError, which main turns into the process exit code.
-[[noreturn]] inline void exit_with(int code) {
-  throw CLI::RuntimeError(code);
-}
 
 }  // namespace cfgmgr

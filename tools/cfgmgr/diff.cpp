@@ -29,8 +29,7 @@ struct DiffCliOptions {
 };
 
 [[noreturn]] void trouble(const std::string& message) {
-  std::cerr << "cfgmgr diff: " << message << '\n';
-  exit_with(kExitTrouble);
+  fail_command("diff", kExitTrouble, message);
 }
 
 cfg::DeviceDescription read_or_exit(const std::string& path) {

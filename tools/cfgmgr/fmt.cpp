@@ -47,8 +47,7 @@ void run_fmt(const FmtOptions& options) {
   // One read of the file: parsed, and compared with the output below.
   auto input = tools::read_input(options.input);
   if (!input) {
-    std::cerr << input.error().message << '\n';
-    exit_with(tools::exit_code_for(input.error()));
+    exit_with(tools::exit_code_for(input.error()), input.error().message);
   }
   cfg::ReadOptions read_options;
   read_options.file_name = options.input;
@@ -74,8 +73,7 @@ void run_fmt(const FmtOptions& options) {
   // replaces the old file only once complete.
   auto output = tools::OutputFile::open(options.output);
   if (!output) {
-    std::cerr << output.error().message << '\n';
-    exit_with(tools::exit_code_for(output.error()));
+    exit_with(tools::exit_code_for(output.error()), output.error().message);
   }
   cfg::Status written;
   cfg::write_device_description(*read.device, write_options, [&](std::string_view piece) {
@@ -84,8 +82,7 @@ void run_fmt(const FmtOptions& options) {
   });
   if (written) written = output->commit();
   if (!written) {
-    std::cerr << written.error().message << '\n';
-    exit_with(tools::exit_code_for(written.error()));
+    exit_with(tools::exit_code_for(written.error()), written.error().message);
   }
   tools::keep_until_exit(std::move(read));  // the process exits next: the model goes with it
 }

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <string>
 
+#include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
 #include "commands.hpp"
 
@@ -38,8 +39,8 @@ int run(int argc, char** argv) {
 
   try {
     app.parse(argc, argv);
-  } catch (const CLI::RuntimeError& e) {
-    return e.get_exit_code();  // a command's own exit code (cfgmgr::exit_with)
+  } catch (const tools::CommandFailure& failure) {
+    return tools::finish_command(failure);  // a command ended early (tools::exit_with)
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? tools::kExitOk : tools::kExitUsage;

@@ -24,8 +24,7 @@ struct ProgramImageOptions {
 void run_program_image(const ProgramImageOptions& options) {
   auto input = tools::read_input(options.input);
   if (!input) {
-    std::cerr << input.error().message << '\n';
-    exit_with(tools::exit_code_for(input.error()));
+    exit_with(tools::exit_code_for(input.error()), input.error().message);
   }
   const std::string_view text = input->view();
   const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(text.data()),
@@ -34,10 +33,10 @@ void run_program_image(const ProgramImageOptions& options) {
     // Inspect: the trailer's version, or say there is none (exit 1: nothing to report).
     const auto version = cfg::program_image_version(bytes);
     if (!version) {
-      std::cerr << options.input << ": error: no version trailer (the last "
-                << cfg::kProgramTrailerSize << " bytes do not end in \""
-                << cfg::kProgramTrailerMagic << "\")\n";
-      exit_with(tools::kExitInputErrors);
+      exit_with(tools::kExitInputErrors, options.input + ": error: no version trailer (the last " +
+                                             std::to_string(cfg::kProgramTrailerSize) +
+                                             " bytes do not end in \"" +
+                                             std::string(cfg::kProgramTrailerMagic) + "\")");
     }
     std::cout << options.input << ": " << tools::plural(bytes.size(), "byte") << ", version "
               << cfg::to_string(*version) << '\n';
@@ -45,21 +44,19 @@ void run_program_image(const ProgramImageOptions& options) {
   }
   const auto version = cfg::parse_program_version(options.version);
   if (!version) {
-    std::cerr << "cfgmgr program-image: --version " << options.version << ": "
-              << version.error().message << '\n';
-    exit_with(tools::kExitUsage);
+    fail_command("program-image", tools::kExitUsage,
+                 "--version " + options.version + ": " + version.error().message);
   }
   if (options.output.empty()) {
-    std::cerr << "cfgmgr program-image: --version needs -o IMAGE (the image is binary)\n";
-    exit_with(tools::kExitUsage);
+    fail_command("program-image", tools::kExitUsage,
+                 "--version needs -o IMAGE (the image is binary)");
   }
   const auto image = cfg::with_program_trailer(bytes, *version);
   if (auto written = tools::write_output(
           options.output,
           std::string_view(reinterpret_cast<const char*>(image.data()), image.size()));
       !written) {
-    std::cerr << written.error().message << '\n';
-    exit_with(tools::exit_code_for(written.error()));
+    exit_with(tools::exit_code_for(written.error()), written.error().message);
   }
   std::cerr << options.output << ": " << tools::plural(image.size(), "byte") << ", version "
             << cfg::to_string(*version) << '\n';

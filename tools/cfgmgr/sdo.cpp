@@ -79,10 +79,6 @@ constexpr TypeName kTypeNames[] = {
     {"td", cfg::DataType::TimeDifference},
 };
 
-[[noreturn]] void fail(int code, const std::string& message) {
-  fail_command(kTool, code, message);
-}
-
 cfg::DataType parse_type(const std::string& text) {
   std::string lower = text;
   std::transform(lower.begin(), lower.end(), lower.begin(),
@@ -91,14 +87,15 @@ cfg::DataType parse_type(const std::string& text) {
     if (t.name == lower) return t.type;
   }
   if (auto type = cfg::data_type_from_name(text)) return *type;
-  fail(tools::kExitUsage, "--type " + text +
-                              ": expected u8..u64, i8..i64, bool, f32, f64, str, octets, "
-                              "unicode, domain, tod, td, or a CiA 301 name such as UNSIGNED32");
+  fail_command(kTool, tools::kExitUsage,
+               "--type " + text +
+                   ": expected u8..u64, i8..i64, bool, f32, f64, str, octets, "
+                   "unicode, domain, tod, td, or a CiA 301 name such as UNSIGNED32");
 }
 
 cfg::NodeId parse_node(const std::string& text, std::string_view what = "NODE") {
   const auto node = tools::parse_node_id_argument(text);
-  if (!node) fail(tools::kExitUsage, tools::node_id_argument_error(what, text));
+  if (!node) fail_command(kTool, tools::kExitUsage, tools::node_id_argument_error(what, text));
   return *node;
 }
 
@@ -110,9 +107,10 @@ cfg::ObjectAddress parse_address(const std::string& text) {
   std::optional<std::uint64_t> sub = 0;
   if (colon != std::string::npos) sub = parse_hex_argument(all.substr(colon + 1), 2);
   if (!index || !sub) {
-    fail(tools::kExitUsage, "INDEX[:SUB] " + text +
-                                ": expected a hex index and sub-index, e.g. 1018:1 or "
-                                "0x1017:0x00");
+    fail_command(kTool, tools::kExitUsage,
+                 "INDEX[:SUB] " + text +
+                     ": expected a hex index and sub-index, e.g. 1018:1 or "
+                     "0x1017:0x00");
   }
   return {static_cast<std::uint16_t>(*index), static_cast<std::uint8_t>(*sub)};
 }
@@ -131,12 +129,14 @@ std::optional<cfg::DataType> data_type_of(const SdoCliOptions& o, cfg::ObjectAdd
   }
   const cfg::SubObject* sub = read.device->sub(address.index, address.sub_index);
   if (sub == nullptr) {
-    fail(tools::kExitUsage, o.eds + ": has no " + cfg::to_string(address) + " (give --type)");
+    fail_command(kTool, tools::kExitUsage,
+                 o.eds + ": has no " + cfg::to_string(address) + " (give --type)");
   }
   const auto type = sub->basic_type();
   if (!type) {
-    fail(tools::kExitUsage, o.eds + ":" + std::to_string(sub->line) + ": " +
-                                cfg::to_string(address) + " has no basic data type (give --type)");
+    fail_command(kTool, tools::kExitUsage,
+                 o.eds + ":" + std::to_string(sub->line) + ": " + cfg::to_string(address) +
+                     " has no basic data type (give --type)");
   }
   return type;
 }
@@ -217,7 +217,9 @@ std::string json_of(const Outcome& o) {
   std::string text = "node " + std::to_string(o.node) + ": " + cfg::to_string(o.address) + ": " +
                      o.operation + " failed: SDO abort " + nmt::to_string(o.result.abort);
   text += o.result.aborted_by_server ? ", sent by the device" : ", sent by this client";
-  fail(o.result.abort == nmt::SdoAbort::Timeout ? tools::kExitIo : tools::kExitInputErrors, text);
+  fail_command(kTool,
+               o.result.abort == nmt::SdoAbort::Timeout ? tools::kExitIo : tools::kExitInputErrors,
+               text);
 }
 
 // --via-manager: the node-ID the tool takes as an SRD must be free; a node that answers an
@@ -226,45 +228,49 @@ void require_free_node_id(nmt::SdoSession& session, cfg::NodeId own) {
   nmt::SdoTransferOptions probe;
   probe.timeout = std::chrono::milliseconds(300);
   auto answer = session.upload(0x1000, 0, probe);
-  if (!answer) fail(tools::kExitIo, answer.error().message);
+  if (!answer) fail_command(kTool, tools::kExitIo, answer.error().message);
   const auto& r = answer.value();
   if (r.ok() || r.aborted_by_server) {
-    fail(tools::kExitUsage,
-         "--node-id " + std::to_string(own.value()) + ": node " + std::to_string(own.value()) +
-             " answers on the bus (its default SDO " +
-             cfg::hex_digits(nmt::sdo::default_cob_ids(own).request.can_id().id, 3) + "h/" +
-             cfg::hex_digits(nmt::sdo::default_cob_ids(own).response.can_id().id, 3) +
-             "h); give this tool a free node-ID with --node-id");
+    fail_command(kTool, tools::kExitUsage,
+                 "--node-id " + std::to_string(own.value()) + ": node " +
+                     std::to_string(own.value()) + " answers on the bus (its default SDO " +
+                     cfg::hex_digits(nmt::sdo::default_cob_ids(own).request.can_id().id, 3) + "h/" +
+                     cfg::hex_digits(nmt::sdo::default_cob_ids(own).response.can_id().id, 3) +
+                     "h); give this tool a free node-ID with --node-id");
   }
 }
 
 std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, cfg::NodeId node) {
   if (is_sim_url(o.bus)) {
-    fail(tools::kExitUsage, "--bus " + o.bus +
-                                ": the simulated bus has no node to talk to; use the bus the "
-                                "node is on (socketcan:IF, udp://GROUP:PORT)");
+    fail_command(kTool, tools::kExitUsage,
+                 "--bus " + o.bus +
+                     ": the simulated bus has no node to talk to; use the bus the "
+                     "node is on (socketcan:IF, udp://GROUP:PORT)");
   }
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
-    fail(tools::kExitUsage, "--bus: " + checked.error().message);
+    fail_command(kTool, tools::kExitUsage, "--bus: " + checked.error().message);
   }
   if (!o.via_manager) {
-    if (!o.own_node_id.empty()) fail(tools::kExitUsage, "--node-id is for --via-manager");
+    if (!o.own_node_id.empty())
+      fail_command(kTool, tools::kExitUsage, "--node-id is for --via-manager");
     // CiA 301 §7.2.4.1: the default SDO of a node is 600h + node-ID (client to server) and
     // 580h + node-ID (server to client).
     auto session = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(node));
-    if (!session) fail(tools::kExitIo, session.error().message);
+    if (!session) fail_command(kTool, tools::kExitIo, session.error().message);
     return std::move(session).value();
   }
   if (o.own_node_id.empty()) {
-    fail(tools::kExitUsage, "--via-manager needs --node-id: a free node-ID for this tool");
+    fail_command(kTool, tools::kExitUsage,
+                 "--via-manager needs --node-id: a free node-ID for this tool");
   }
   const auto own = parse_node(o.own_node_id, "--node-id");
   if (own == node) {
-    fail(tools::kExitUsage, "--node-id " + o.own_node_id + ": that is NODE; give this tool a " +
-                                "free node-ID of its own");
+    fail_command(kTool, tools::kExitUsage,
+                 "--node-id " + o.own_node_id + ": that is NODE; give this tool a " +
+                     "free node-ID of its own");
   }
   auto opened = nmt::SdoSession::open(o.bus, nmt::SdoClientConfig::for_node(own));
-  if (!opened) fail(tools::kExitIo, opened.error().message);
+  if (!opened) fail_command(kTool, tools::kExitIo, opened.error().message);
   auto session = std::move(opened).value();
   require_free_node_id(*session, own);
   nmt::SdoManagerRoute route{.own_node_id = own,
@@ -278,7 +284,7 @@ std::unique_ptr<nmt::SdoSession> open_session(const SdoCliOptions& o, cfg::NodeI
     };
   }
   if (auto connected = session->connect_via_manager(std::move(route)); !connected) {
-    fail(tools::exit_code_for(connected.error()), connected.error().message);
+    fail_command(kTool, tools::exit_code_for(connected.error()), connected.error().message);
   }
   return session;
 }
@@ -292,7 +298,7 @@ void close_session(nmt::SdoSession& session) {
 }
 
 nmt::SdoResult transfer_or_exit(cfg::Result<nmt::SdoResult> result) {
-  if (!result) fail(tools::kExitIo, result.error().message);
+  if (!result) fail_command(kTool, tools::kExitIo, result.error().message);
   return std::move(result).value();
 }
 
@@ -309,7 +315,8 @@ void run_read(const SdoCliOptions& o) {
   out.address = parse_address(o.address);
   out.type = data_type_of(o, out.address);
   if (o.json && (o.raw || !o.output.empty())) {
-    fail(tools::kExitUsage, "--json prints the value as JSON; --raw and -o write its bytes");
+    fail_command(kTool, tools::kExitUsage,
+                 "--json prints the value as JSON; --raw and -o write its bytes");
   }
   const auto options = transfer_options(o);  // a usage error before the bus
   auto session = open_session(o, node);
@@ -321,9 +328,10 @@ void run_read(const SdoCliOptions& o) {
     // Untyped: the bytes as a DOMAIN (hex pairs).
     auto decoded = cfg::decode(out.type.value_or(cfg::DataType::Domain), out.bytes);
     if (!decoded) {
-      fail(tools::kExitInputErrors,
-           "node " + std::to_string(out.node) + ": " + cfg::to_string(out.address) + ": " +
-               decoded.error().message + " (" + std::to_string(out.bytes.size()) + " bytes read)");
+      fail_command(kTool, tools::kExitInputErrors,
+                   "node " + std::to_string(out.node) + ": " + cfg::to_string(out.address) + ": " +
+                       decoded.error().message + " (" + std::to_string(out.bytes.size()) +
+                       " bytes read)");
     }
     out.value = std::move(decoded).value();
   }
@@ -332,7 +340,7 @@ void run_read(const SdoCliOptions& o) {
   const std::string_view bytes(reinterpret_cast<const char*>(out.bytes.data()), out.bytes.size());
   if (!o.output.empty() || o.raw) {
     if (auto written = tools::write_output(o.output.empty() ? "-" : o.output, bytes); !written) {
-      fail(tools::kExitIo, written.error().message);
+      fail_command(kTool, tools::kExitIo, written.error().message);
     }
     return;
   }
@@ -346,26 +354,27 @@ void run_write(const SdoCliOptions& o) {
   out.node = node;
   out.address = parse_address(o.address);
   if (o.value.empty() == o.file.empty()) {
-    fail(tools::kExitUsage, "give either VALUE or --file FILE");
+    fail_command(kTool, tools::kExitUsage, "give either VALUE or --file FILE");
   }
   if (!o.file.empty()) {
     // The file's bytes are the value, whatever the type (a DOMAIN such as a program).
     auto text = tools::read_input(o.file);
-    if (!text) fail(tools::kExitIo, text.error().message);
+    if (!text) fail_command(kTool, tools::kExitIo, text.error().message);
     const std::string_view view = text.value().view();
     out.bytes.assign(view.begin(), view.end());
     if (!o.type.empty() || !o.eds.empty()) out.type = data_type_of(o, out.address);
   } else {
     out.type = data_type_of(o, out.address);
     if (!out.type) {
-      fail(tools::kExitUsage, "VALUE " + o.value +
-                                  ": give its data type with --type, or the node's EDS/DCF "
-                                  "with --eds");
+      fail_command(kTool, tools::kExitUsage,
+                   "VALUE " + o.value +
+                       ": give its data type with --type, or the node's EDS/DCF "
+                       "with --eds");
     }
     // $NODEID in a value stands for NODE, as in the node's DCF (CiA 306 §4.6.3).
     auto value = cfg::parse_value(*out.type, o.value, out.node);
     if (!value) {
-      fail(tools::kExitUsage, "VALUE " + o.value + ": " + value.error().message);
+      fail_command(kTool, tools::kExitUsage, "VALUE " + o.value + ": " + value.error().message);
     }
     out.bytes = cfg::encode(*value);
   }

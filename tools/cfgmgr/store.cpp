@@ -45,25 +45,21 @@ struct StoreCliOptions {
   bool json = false;
 };
 
-[[noreturn]] void fail(int code, const std::string& message) {
-  std::cerr << "cfgmgr store: " << message << '\n';
-  exit_with(code);
-}
-
 /// The client's failures: exit 3 when the store or the master could not be reached, else 1.
 template <class T>
 T must(cfg::Result<T> result, const std::string& prefix = {}) {
-  if (!result) fail(tools::exit_code_for(result.error()), prefix + result.error().message);
+  if (!result)
+    fail_command(kTool, tools::exit_code_for(result.error()), prefix + result.error().message);
   return std::move(result).value();
 }
 
 void must(const cfg::Status& status) {
-  if (!status) fail(tools::exit_code_for(status.error()), status.error().message);
+  if (!status) fail_command(kTool, tools::exit_code_for(status.error()), status.error().message);
 }
 
 cfg::NodeId parse_node(const std::string& text) {
   const auto node = tools::parse_node_id_argument(text);
-  if (!node) fail(tools::kExitUsage, tools::node_id_argument_error("NODE", text));
+  if (!node) fail_command(kTool, tools::kExitUsage, tools::node_id_argument_error("NODE", text));
   return *node;
 }
 
@@ -71,7 +67,8 @@ std::optional<nmt::StoreFile> parse_what(const std::string& text) {
   if (text == "dcf") return nmt::StoreFile::Dcf;
   if (text == "concise") return nmt::StoreFile::Concise;
   if (text == "eds") return nmt::StoreFile::Eds;
-  if (!text.empty()) fail(tools::kExitUsage, "--what " + text + ": expected dcf, concise or eds");
+  if (!text.empty())
+    fail_command(kTool, tools::kExitUsage, "--what " + text + ": expected dcf, concise or eds");
   return std::nullopt;
 }
 
@@ -85,40 +82,43 @@ nmt::StoreFile what_of_file(const std::string& path, const std::string& what) {
   if (ext == "dcf") return nmt::StoreFile::Dcf;
   if (ext == "eds") return nmt::StoreFile::Eds;
   if (ext == "bin" || ext == "cdcf" || ext == "concise") return nmt::StoreFile::Concise;
-  fail(tools::kExitUsage, path +
-                              ": cannot tell a DCF (.dcf), an EDS (.eds) or a concise DCF (.bin, "
-                              ".cdcf) from the name; give --what dcf|concise|eds");
+  fail_command(kTool, tools::kExitUsage,
+               path +
+                   ": cannot tell a DCF (.dcf), an EDS (.eds) or a concise DCF (.bin, "
+                   ".cdcf) from the name; give --what dcf|concise|eds");
 }
 
 std::unique_ptr<nmt::StoreObjects> open_store(const StoreCliOptions& o) {
   const bool local = !o.store.empty();
   const bool remote = !o.bus.empty() || !o.master.empty();
   if (local == remote) {
-    fail(tools::kExitUsage, "give either --store DIR or --bus URL --master N");
+    fail_command(kTool, tools::kExitUsage, "give either --store DIR or --bus URL --master N");
   }
   if (local) {
     auto opened = cfg::ConfigManager::open(o.store);
-    if (!opened) fail(tools::kExitIo, opened.error().message);
+    if (!opened) fail_command(kTool, tools::kExitIo, opened.error().message);
     // A damaged entry is reported and not used (cfg/config_manager.hpp).
     tools::print_diagnostics(opened.value().problems());
     return std::make_unique<nmt::StoreDirectoryObjects>(std::move(opened).value());
   }
   if (o.bus.empty() || o.master.empty()) {
-    fail(tools::kExitUsage, "--bus URL and --master N go together");
+    fail_command(kTool, tools::kExitUsage, "--bus URL and --master N go together");
   }
   if (o.bus.rfind("sim:", 0) == 0) {
-    fail(tools::kExitUsage, "--bus " + o.bus +
-                                ": the simulated bus has no master to talk to; use the bus a "
-                                "`cfgmgr master` runs on (socketcan:IF, udp://GROUP:PORT)");
+    fail_command(kTool, tools::kExitUsage,
+                 "--bus " + o.bus +
+                     ": the simulated bus has no master to talk to; use the bus a "
+                     "`cfgmgr master` runs on (socketcan:IF, udp://GROUP:PORT)");
   }
   const auto master = tools::parse_node_id_argument(o.master);
-  if (!master) fail(tools::kExitUsage, tools::node_id_argument_error("--master", o.master));
+  if (!master)
+    fail_command(kTool, tools::kExitUsage, tools::node_id_argument_error("--master", o.master));
   if (auto checked = nmt::check_bus_url(o.bus); !checked) {
-    fail(tools::kExitUsage, checked.error().message);
+    fail_command(kTool, tools::kExitUsage, checked.error().message);
   }
   const auto timeout = nmt::Duration(static_cast<std::int64_t>(o.sdo_timeout_s * 1e6));
   auto opened = nmt::open_remote_store(o.bus, *master, timeout);
-  if (!opened) fail(tools::kExitIo, opened.error().message);
+  if (!opened) fail_command(kTool, tools::kExitIo, opened.error().message);
   return std::move(opened).value();
 }
 
@@ -126,10 +126,11 @@ void put(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
   const cfg::NodeId node = parse_node(o.node);
   const nmt::StoreFile what = what_of_file(o.file, o.what);
   auto text = tools::read_input(o.file);
-  if (!text) fail(tools::kExitIo, text.error().message);
+  if (!text) fail_command(kTool, tools::kExitIo, text.error().message);
   const std::string_view view = text.value().view();
   std::vector<std::uint8_t> data(view.begin(), view.end());
-  if (data.empty()) fail(tools::kExitInputErrors, o.file + ": the file is empty (rm removes)");
+  if (data.empty())
+    fail_command(kTool, tools::kExitInputErrors, o.file + ": the file is empty (rm removes)");
   const std::size_t size = data.size();
   // A file the manager would refuse is named by its path.
   const auto stamp = must(store.put(node, what, std::move(data)), o.file + ": ");
@@ -146,7 +147,7 @@ void get(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
   const auto data = must(store.get(node, parse_what(o.what).value_or(nmt::StoreFile::Concise)));
   const std::string_view bytes(reinterpret_cast<const char*>(data.data()), data.size());
   if (auto written = tools::write_output(o.output, bytes); !written) {
-    fail(tools::kExitIo, written.error().message);
+    fail_command(kTool, tools::kExitIo, written.error().message);
   }
 }
 
@@ -190,7 +191,7 @@ void list(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
   }
   std::cout << out.str();
   std::cout.flush();
-  if (!std::cout) fail(tools::kExitIo, "<stdout>: write error");
+  if (!std::cout) fail_command(kTool, tools::kExitIo, "<stdout>: write error");
 }
 
 void remove(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
@@ -201,11 +202,14 @@ void configure(nmt::ConfigStoreClient& store, const StoreCliOptions& o) {
   std::optional<cfg::NodeId> node;
   if (o.node != "all") {
     const auto id = tools::parse_node_id_argument(o.node);
-    if (!id) fail(tools::kExitUsage, tools::node_id_argument_error("NODE", o.node) + " or all");
+    if (!id)
+      fail_command(kTool, tools::kExitUsage,
+                   tools::node_id_argument_error("NODE", o.node) + " or all");
     node = *id;
   }
   if (!store.remote()) {
-    fail(tools::kExitUsage, "configure asks a running master: give --bus URL --master N");
+    fail_command(kTool, tools::kExitUsage,
+                 "configure asks a running master: give --bus URL --master N");
   }
   must(store.configure(node));
 }

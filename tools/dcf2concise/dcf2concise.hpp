@@ -28,7 +28,8 @@ struct DecodeOptions {
 /// The input with extension .bin ("-" for "-"): where the stream goes without -o.
 std::string default_output(const std::string& input);
 
-/// Each returns the process exit code (tools::ExitCode).
+/// Each returns the process exit code (tools::ExitCode), or ends early with tools::exit_with
+/// (an input that cannot be read).
 int run_encode(const EncodeOptions& options);
 int run_decode(const DecodeOptions& options);
 

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
 #include "cfg/bytes.hpp"
 #include "cfg/concise_dcf.hpp"
@@ -191,10 +192,7 @@ int run_decode(const DecodeOptions& options) {
   std::optional<cfg::DeviceDescription> device;
   if (!options.device_file.empty()) {
     auto text = tools::read_input(options.device_file);
-    if (!text) {
-      std::cerr << text.error().message << '\n';
-      return tools::exit_code_for(text.error());
-    }
+    if (!text) tools::exit_with(tools::exit_code_for(text.error()), text.error().message);
     cfg::ReadOptions read_options;
     read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
     read_options.file_name = options.device_file;
@@ -219,10 +217,9 @@ int run_decode(const DecodeOptions& options) {
   if (options.input != "-") {
     fd = ::open(options.input.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
-      std::cerr
-          << tools::io_error(name, std::string("cannot open: ") + std::strerror(errno)).message
-          << '\n';
-      return tools::kExitIo;
+      tools::exit_with(
+          tools::kExitIo,
+          tools::io_error(name, std::string("cannot open: ") + std::strerror(errno)).message);
     }
     closer.fd = fd;
   }
@@ -242,9 +239,9 @@ int run_decode(const DecodeOptions& options) {
     const ssize_t n = ::read(fd, chunk.data(), chunk.size());
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
-      std::cerr << tools::io_error(name, std::string("read error: ") + std::strerror(errno)).message
-                << '\n';
-      return tools::kExitIo;
+      tools::exit_with(
+          tools::kExitIo,
+          tools::io_error(name, std::string("read error: ") + std::strerror(errno)).message);
     }
     if (n == 0) break;
     status = decoder.feed(

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <string>
 
+#include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
@@ -51,10 +52,7 @@ std::string default_output(const std::string& input) {
 
 int run_encode(const EncodeOptions& options) {
   auto text = tools::read_input(options.input);
-  if (!text) {
-    std::cerr << text.error().message << '\n';
-    return tools::exit_code_for(text.error());
-  }
+  if (!text) tools::exit_with(tools::exit_code_for(text.error()), text.error().message);
   const std::string name = options.input == "-" ? "<stdin>" : options.input;
   cfg::ReadOptions read_options;
   read_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;

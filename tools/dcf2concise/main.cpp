@@ -6,6 +6,7 @@
 #include <iostream>
 #include <string>
 
+#include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
 #include "dcf2concise.hpp"
 
@@ -103,6 +104,8 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   try {
     return run(argc, argv);
+  } catch (const tools::CommandFailure& failure) {
+    return tools::finish_command(failure);  // ended early (tools::exit_with)
   } catch (const std::exception& e) {
     // Only resource exhaustion and the like end up here; bad input is a diagnostic.
     std::cerr << "dcf2concise: error: " << e.what() << '\n';

@@ -3,17 +3,15 @@
 
 #include <utility>
 
-#include "cfg/config_manager.hpp"
-
 namespace nmt {
 
-EntryPersister::EntryPersister(EngineRef<NmtMaster>& master, Done on_done)
-    : master_(master),
-      manager_(master.engine().config_manager()),
-      on_done_(std::move(on_done)),
-      worker_([this] { run(); }) {}
+EntryPersister::EntryPersister(EngineRef<NmtMaster>& master, MasterHost& host)
+    : master_(master), host_(host), worker_([this] { run(); }) {
+  host_.set_writer(this);
+}
 
 EntryPersister::~EntryPersister() {
+  host_.set_writer(nullptr);
   {
     const std::lock_guard lock(mutex_);
     stopping_ = true;
@@ -22,11 +20,10 @@ EntryPersister::~EntryPersister() {
   worker_.join();
 }
 
-void EntryPersister::on_event(const MasterEvent& e) {
-  if (e.kind != MasterEvent::Kind::PersistEntry || !e.persist) return;
+void EntryPersister::write(MasterEvent::Persist entry) {
   {
     const std::lock_guard lock(mutex_);
-    queue_.push_back(*e.persist);
+    queue_.push_back(std::move(entry));
   }
   wake_.notify_one();
 }
@@ -41,16 +38,9 @@ void EntryPersister::run() {
       job = std::move(queue_.front());
       queue_.pop_front();
     }
-    // persist() reads only the update and the store's directory: safe beside the loop's thread
-    // (cfg/config_manager.hpp).
-    cfg::Status done = manager_ != nullptr ? manager_->persist(*job.update)
-                                           : cfg::Status{cfg::Error{"no configuration manager"}};
-    // The callback by value: the posted call may run after this persister is gone.
-    master_.post([on_done = on_done_, ticket = job.ticket, done = std::move(done)](
-                     NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
-      if (on_done) on_done(done);
-      m.entry_persisted(ticket, done, now, out);
-    });
+    // MasterHost::write reads only the update and the store's directory: safe beside the loop's
+    // thread. The completion holds copies: the posted call may run after this persister is gone.
+    master_.post(host_.completion(job.ticket, host_.write(job)));
   }
 }
 

@@ -25,6 +25,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -36,6 +37,10 @@
 #include "nmt/frame.hpp"
 #include "nmt/local_dictionary.hpp"
 #include "nmt/nmt_master.hpp"
+
+namespace cfg {
+struct Network;
+}  // namespace cfg
 
 namespace nmt {
 
@@ -168,6 +173,18 @@ struct MasterConfig {
                                             MasterOptions options = {});
   /// The same, from the dictionary of a built master.
   static MasterConfig from_dictionary(const LocalDictionary& dictionary, cfg::NodeId node_id);
+  /// The master of a loaded network (cfg::load_network) as the network's configuration manager
+  /// (DSP 302 §6, 1F20h-1F27h): from_dcf of the network's master DCF at `node_id`, its
+  /// configurations from the network (options.configurations becomes a NetworkSource,
+  /// nmt/network_source.hpp), and options.manager, or a manager in memory when there is none
+  /// (what is written over SDO then lives as long as the master), so that a node with nothing
+  /// stored reads the network's configuration. Fails as from_dcf does, and when `node_id` is the
+  /// node-ID of one of the network's nodes.
+  static cfg::Result<MasterConfig> from_network(std::shared_ptr<const cfg::Network> network,
+                                                cfg::NodeId node_id, MasterOptions options = {});
+  /// The master's node-ID for a network when none is chosen: its master DCF's NodeID, else 7Fh,
+  /// the highest, so that the slaves keep the low node-IDs (and their higher-priority COB-IDs).
+  static cfg::NodeId default_node_id(const cfg::Network& network);
 };
 
 }  // namespace nmt

@@ -210,8 +210,8 @@
 //   With a store directory (cfg::ConfigManager::persistent()) the master does no disk I/O: an
 //   SDO write of 1F20h, 1F22h, 1F23h, 1F26h or 1F27h that changes a stored entry is decided at
 //   once (cfg::ConfigManager::stage, its aborts as above) and reported as a
-//   MasterEvent::PersistEntry; the driver writes the entry (cfg::ConfigManager::persist; off
-//   the loop's thread with nmt::EntryPersister, nmt/entry_persister.hpp) and calls
+//   MasterEvent::PersistEntry; the driver writes the entry (cfg::ConfigManager::persist, by
+//   nmt::MasterHost, nmt/master_host.hpp; off the loop's thread its EntryPersister) and calls
 //   entry_persisted() on the loop's thread. Only then does the manager take the value
 //   and the SDO confirmation leave (the expedited or last segment's response, or the block end
 //   response): a tool that saw the confirmation knows the entry survives a crash. A failed

@@ -8,9 +8,12 @@
 #include <set>
 #include <string>
 
+#include "cfg/config_manager.hpp"
+#include "cfg/network.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "nmt/error_control.hpp"
+#include "nmt/network_source.hpp"
 
 namespace nmt {
 
@@ -383,6 +386,23 @@ cfg::Result<MasterConfig> MasterConfig::from_dcf(const cfg::DeviceDescription& d
   config.options = std::move(options);
   config.dcf = dcf;
   return config;
+}
+
+cfg::Result<MasterConfig> MasterConfig::from_network(std::shared_ptr<const cfg::Network> network,
+                                                     cfg::NodeId node_id, MasterOptions options) {
+  if (const cfg::NetworkNode* clash = network->find(node_id)) {
+    return cfg::Error{"the master's node-ID " + std::to_string(node_id.value()) +
+                      " is also the node-ID of " + clash->file};
+  }
+  const cfg::DeviceDescription& dcf = network->master;
+  options.configurations = std::make_shared<NetworkSource>(std::move(network));
+  if (!options.manager) options.manager = std::make_shared<cfg::ConfigManager>();
+  return from_dcf(dcf, node_id, std::move(options));
+}
+
+cfg::NodeId MasterConfig::default_node_id(const cfg::Network& network) {
+  constexpr std::uint8_t kHighest = 0x7F;
+  return network.master_node_id ? *network.master_node_id : *cfg::NodeId::from(kHighest);
 }
 
 }  // namespace nmt

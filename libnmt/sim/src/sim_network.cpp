@@ -1,50 +1,20 @@
-#include "network_source.hpp"
+// A loaded network on the simulated bus (nmt/sim_network.hpp).
+#include "nmt/sim_network.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <map>
+#include <exception>
 #include <optional>
 #include <set>
 #include <string>
 #include <utility>
 
-#include "../common/tool_support.hpp"
-#include "cfg/device_file.hpp"
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
 #include "nmt/device_state.hpp"
 
-namespace cfgmgr {
-
-NetworkSource::NetworkSource(std::shared_ptr<const cfg::Network> network)
-    : network_(std::move(network)) {}
-
-std::optional<std::vector<cfg::ObjectWrite>> NetworkSource::configuration(cfg::NodeId node) const {
-  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
-  if (found == nullptr) return std::nullopt;
-  return found->writes;
-}
-
-std::optional<std::vector<std::uint8_t>> NetworkSource::concise_dcf(cfg::NodeId node) const {
-  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
-  if (found == nullptr) return std::nullopt;
-  return cfg::node_concise_dcf(*found);
-}
-
-cfg::Result<std::optional<std::string>> NetworkSource::dcf(cfg::NodeId node) const {
-  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
-  if (found == nullptr || !found->dcf) return std::optional<std::string>{};
-  auto text = cfg::read_file(found->file);
-  if (!text) return cfg::Error{found->file + ": " + text.error().message, text.error().category};
-  return std::optional<std::string>{std::string(text->view())};
-}
-
-std::optional<std::vector<std::uint8_t>> NetworkSource::program(cfg::NodeId node) const {
-  const cfg::NetworkNode* found = network_ ? network_->find(node) : nullptr;
-  if (found == nullptr || !found->program || found->program->image.empty()) return std::nullopt;
-  return found->program->image;
-}
+namespace nmt {
 
 namespace {
 
@@ -74,7 +44,8 @@ cfg::Result<std::set<std::uint8_t>> parse_node_list(std::string_view text) {
   std::set<std::uint8_t> out;
   std::optional<cfg::Error> error;
   const auto node = [&](std::string_view part) -> std::uint8_t {
-    const auto parsed = tools::parse_node_id_argument(part);
+    const auto literal = cfg::parse_integer_literal(part).literal;
+    const auto parsed = literal ? cfg::NodeId::from(literal->value) : std::nullopt;
     if (!parsed) {
       if (!error) error = cfg::Error{"'" + std::string(part) + "' is no node-ID 1..127"};
       return 1;
@@ -159,8 +130,8 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
   return options;
 }
 
-nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId node,
-                                   nmt::DeviceFaults faults) {
+DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId node,
+                              DeviceFaults faults) {
   const cfg::DeviceIdentity identity = cfg::identity_of(file, node);
   faults.device_type = identity.device_type;
   faults.vendor_id = identity.vendor_id;
@@ -170,42 +141,13 @@ nmt::DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::Node
   return faults;
 }
 
-std::map<cfg::NodeId, nmt::LssAddress> lss_addresses(const cfg::Network& network,
-                                                     std::vector<std::string>& notes) {
-  std::map<nmt::LssAddress, std::vector<cfg::NodeId>> by_address;
-  for (const auto& node : network.nodes) {
-    if (!node.dcf) continue;
-    const cfg::DeviceIdentity identity = cfg::identity_of(*node.dcf, node.node_id);
-    const nmt::LssAddress address{identity.vendor_id.value_or(0), identity.product_code.value_or(0),
-                                  identity.revision_number.value_or(0),
-                                  identity.serial_number.value_or(0)};
-    // 0 is "not given" (an EDS default serial number is no device's), as in 1F85h-1F88h.
-    if (address.vendor_id == 0 || address.product_code == 0 || address.revision == 0 ||
-        address.serial == 0) {
-      continue;
-    }
-    by_address[address].push_back(node.node_id);
-  }
-  std::map<cfg::NodeId, nmt::LssAddress> addresses;
-  for (const auto& [address, nodes] : by_address) {
-    if (nodes.size() == 1) {
-      addresses[nodes.front()] = address;
-      continue;
-    }
-    std::string list;
-    for (const auto n : nodes) list += (list.empty() ? "" : ", ") + std::to_string(n);
-    notes.push_back("nodes " + list + " share the LSS address " + nmt::address_digits(address) +
-                    ": none of them gets its node-ID by LSS");
-  }
-  return addresses;
-}
-
-cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
-    const cfg::Network& network, const SimBusOptions& options, std::vector<cfg::NodeId>* skipped) {
-  nmt::DeviceFaults faults;
-  faults.sdo_latency = std::chrono::duration_cast<nmt::Duration>(
+cfg::Result<std::vector<SimulatedDevice>> simulated_devices(const cfg::Network& network,
+                                                            const SimBusOptions& options,
+                                                            std::vector<cfg::NodeId>* skipped) {
+  DeviceFaults faults;
+  faults.sdo_latency = std::chrono::duration_cast<Duration>(
       std::chrono::duration<double, std::milli>(options.latency_ms));
-  std::vector<nmt::SimulatedDevice> devices;
+  std::vector<SimulatedDevice> devices;
   devices.reserve(network.nodes.size());
   for (const auto& node : network.nodes) {
     if (!node.dcf) {
@@ -216,9 +158,8 @@ cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
     // give it one (CiA 305); the node-ID is only where its DCF says it belongs.
     const bool unconfigured = options.unconfigured.contains(node.node_id.value());
     const auto identity = with_identity_of(*node.dcf, node.node_id, faults);
-    auto device = unconfigured
-                      ? nmt::SimulatedDevice::create_unconfigured(*node.dcf, identity)
-                      : nmt::SimulatedDevice::create(*node.dcf, node.node_id.value(), identity);
+    auto device = unconfigured ? SimulatedDevice::create_unconfigured(*node.dcf, identity)
+                               : SimulatedDevice::create(*node.dcf, node.node_id.value(), identity);
     if (!device) {
       return cfg::Error{node.file + ": error: cannot simulate node " +
                         std::to_string(node.node_id.value()) +
@@ -227,16 +168,16 @@ cfg::Result<std::vector<nmt::SimulatedDevice>> simulated_devices(
     if (!options.state_dir.empty()) {
       // Like a real device, it powers on with what it saved last time (CiA 301 §7.5.2.13),
       // the node-ID LSS stored included (CiA 305).
-      auto saved = nmt::load_device_state(options.state_dir, node.node_id);
+      auto saved = load_device_state(options.state_dir, node.node_id);
       if (!saved) {
         return cfg::Error{saved.error().message + " (remove the file to start from the DCF)",
                           saved.error().category};
       }
-      if (*saved) nmt::restore_device_state(device->node(), std::move(**saved));
+      if (*saved) restore_device_state(device->node(), std::move(**saved));
     }
     devices.push_back(std::move(device).value());
   }
   return devices;
 }
 
-}  // namespace cfgmgr
+}  // namespace nmt

@@ -1,0 +1,83 @@
+// A loaded network on the simulated bus (nmt/sim_network.hpp): the `sim:` URL, node lists, and a
+// simulated device per node with a DCF.
+#include "nmt/sim_network.hpp"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include "cfg/network.hpp"
+#include "test_paths.hpp"
+
+namespace nmt {
+namespace {
+
+TEST(SimUrl, BareSimIsTheDefaults) {
+  EXPECT_TRUE(is_sim_url("sim:"));
+  EXPECT_TRUE(is_sim_url("sim:?loss=0.1"));
+  EXPECT_FALSE(is_sim_url("socketcan:vcan0"));
+  const auto options = parse_sim_url("sim:");
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  EXPECT_EQ(options->bitrate_bps, 500'000U);
+  EXPECT_EQ(options->latency_ms, 0.0);
+  EXPECT_EQ(options->loss, 0.0);
+  EXPECT_EQ(options->seed, 1U);
+  EXPECT_TRUE(options->state_dir.empty());
+  EXPECT_TRUE(options->unconfigured.empty());
+}
+
+TEST(SimUrl, ReadsEveryParameterInAnyOrder) {
+  const auto options = parse_sim_url(
+      "sim:?unconfigured=3,5-7&seed=0x10&state=/tmp/s&loss=0.25&latency_ms=1.5&bitrate=250000");
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  EXPECT_EQ(options->bitrate_bps, 250'000U);
+  EXPECT_EQ(options->latency_ms, 1.5);
+  EXPECT_EQ(options->loss, 0.25);
+  EXPECT_EQ(options->seed, 16U);
+  EXPECT_EQ(options->state_dir, "/tmp/s");
+  EXPECT_EQ(options->unconfigured, (std::set<std::uint8_t>{3, 5, 6, 7}));
+}
+
+TEST(SimUrl, NamesTheParameterItRefuses) {
+  const auto message = [](std::string_view url) {
+    const auto parsed = parse_sim_url(url);
+    return parsed.ok() ? std::string("ok") : parsed.error().message;
+  };
+  EXPECT_EQ(message("sim:?bitrate=0"), "sim: bitrate=0: expected 1 ... 1000000000 bit/s");
+  EXPECT_EQ(message("sim:?loss=2"), "sim: loss=2: expected a probability 0 ... 1");
+  EXPECT_EQ(message("sim:?seed=1&seed=2"), "sim: parameter 'seed' given twice");
+  EXPECT_EQ(message("sim:?speed=1"),
+            "sim: unknown parameter 'speed' (known: bitrate, latency_ms, loss, seed, state, "
+            "unconfigured)");
+  EXPECT_EQ(message("sim:x"), "sim: expected '?' and parameters after 'sim:', got 'x'");
+  EXPECT_EQ(message("sim:?unconfigured=0"), "sim: unconfigured=0: '0' is no node-ID 1..127");
+}
+
+TEST(NodeList, RangesAndSingleNodes) {
+  const auto nodes = parse_node_list("3,5-7,0x10");
+  ASSERT_TRUE(nodes.ok()) << nodes.error().message;
+  EXPECT_EQ(nodes.value(), (std::set<std::uint8_t>{3, 5, 6, 7, 16}));
+  EXPECT_EQ(parse_node_list("7-5").error().message, "range 7-5 is empty");
+  EXPECT_EQ(parse_node_list("3,128").error().message, "'128' is no node-ID 1..127");
+}
+
+// tests/data/network/README.md: nodes 2 and 3 have DCFs, node 5 is not present; each device
+// answers the identity of its DCF (io_node2.dcf: 1000h = 00030191h, 1018h sub 1 = ABCh).
+TEST(SimulatedDevices, OneDevicePerNodeWithADcf) {
+  auto load = cfg::load_network(CANOPEN_TEST_DATA_DIR + "/network/nodelist.cpj");
+  ASSERT_TRUE(load.ok());
+  std::vector<cfg::NodeId> skipped;
+  auto devices = simulated_devices(*load.network, SimBusOptions{}, &skipped);
+  ASSERT_TRUE(devices.ok()) << devices.error().message;
+  ASSERT_EQ(devices->size(), 2U);
+  EXPECT_TRUE(skipped.empty());
+  const DeviceFaults identity =
+      with_identity_of(*load.network->find(*cfg::NodeId::from(2))->dcf, *cfg::NodeId::from(2), {});
+  EXPECT_EQ(identity.device_type, 0x00030191U);
+  EXPECT_EQ(identity.vendor_id, 0xABCU);
+}
+
+}  // namespace
+}  // namespace nmt

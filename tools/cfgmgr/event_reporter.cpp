@@ -1,0 +1,205 @@
+// The master's events printed (event_reporter.hpp).
+#include "event_reporter.hpp"
+
+#include <iostream>
+#include <string>
+
+#include "../common/tool_support.hpp"
+#include "nmt/frame.hpp"
+#include "nmt/lss.hpp"
+#include "run_args.hpp"
+
+namespace cfgmgr {
+
+void EventReporter::report(const nmt::MasterEvent& e) {
+  using K = nmt::MasterEvent::Kind;
+  // An event of the master itself (no node_id) is never ignored.
+  const int node_id = e.node_id ? int{e.node_id->value()} : 0;
+  if (e.node_id && ignored_.contains(*e.node_id)) {
+    if (observer_) observer_(e);
+    return;
+  }
+  if (const auto updated = programs_.observe(e)) {
+    note(seconds_text(start_, e.at) + "  " + *updated);
+  }
+  std::string line;
+  const std::string node = "node " + std::to_string(node_id) + ": ";
+  bool again = false;
+  switch (e.kind) {
+    case K::NotMaster:
+      finished_ = true;
+      line = e.text;
+      break;
+    case K::StartupBegan:
+      line = "NMT start-up began";
+      break;
+    case K::SlaveBooted:
+      again = !booted_.insert(*e.node_id).second;
+      if (e.configured) {
+        line = node + (again ? "reconfigured" : "booted, configured") + " (" +
+               std::to_string(e.written) + (e.written == 1 ? " entry" : " entries") + ", " +
+               tools::plural(e.bytes, "byte") + ")";
+      } else {
+        line = node + (again ? "booted again" : "booted") + " (configuration up to date)";
+      }
+      break;
+    case K::BootError:
+      if (e.error) {
+        line = node + "boot error " + std::string(1, nmt::letter(*e.error)) + ": " +
+               std::string(nmt::describe(*e.error));
+      } else {
+        line = node + "boot error: " + e.text;
+      }
+      if (!e.final) line += " (trying again)";
+      break;
+    case K::StartupHalted:
+      halted_ = true;
+      finished_ = true;
+      line = e.text;  // "NMT start-up halted: mandatory node N failed with status X (...)"
+      break;
+    case K::StartupComplete:
+      complete_ = true;
+      finished_ = true;
+      line = "NMT start-up complete";
+      break;
+    case K::HeartbeatLost:
+      line = node + "heartbeat lost";
+      break;
+    case K::GuardingLost:
+      line = node + "node guarding lost";
+      break;
+    case K::ErrorControlResolved:
+      line = node + "error control resolved";
+      break;
+    case K::BootUp:
+      line = node + "boot-up seen" + (e.assigned ? "" : " (not a slave of this master)");
+      break;
+    case K::ProgramClearRefused:
+      break;  // noted above (programs_), also under a live view
+    case K::ActiveMaster:
+    case K::Standby:
+    case K::ForceNegotiation:
+    case K::MultipleMasters:
+    case K::ActiveMasterLost:
+    case K::SrdRegistered:
+    case K::SrdRegistrationFailed:
+    case K::SdoConnectionEstablished:
+    case K::SdoConnectionRefused:
+    case K::SdoConnectionReleased:
+    case K::SrdLost:
+    case K::SrdDeregistered:
+    case K::SlaveFailedReported:
+    case K::LssAssigned:
+    case K::LssUnmatched:
+    case K::LssFailed:
+    case K::LssScanEnded:
+      // flying master: who is active and why; SDO manager: what it did; LSS: which device got
+      // which node-ID, and which matched no node
+      line = e.text;
+      break;
+    default:
+      if (verbose_) line = e.text;
+      break;
+  }
+  if (!line.empty() && !quiet_)
+    std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
+  if (json_ != nullptr) write_json(e);
+  if (observer_) observer_(e);
+}
+
+void EventReporter::note(const std::string& line) {
+  if (note_handler_) {
+    note_handler_(line);
+  } else {
+    std::cerr << line << '\n' << std::flush;
+  }
+}
+
+void EventReporter::write_json(const nmt::MasterEvent& e) {
+  using K = nmt::MasterEvent::Kind;
+  std::string out = "{\"time_s\": " + seconds_text(start_, e.at) +
+                    ", \"event\": " + tools::json_string(nmt::to_string(e.kind)) +
+                    ", \"node_id\": " + std::to_string(e.node_id ? int{e.node_id->value()} : 0);
+  switch (e.kind) {
+    case K::BootError:
+      if (e.error) {
+        out += ", \"error\": " + tools::json_string(std::string(1, nmt::letter(*e.error))) +
+               ", \"description\": " + tools::json_string(nmt::describe(*e.error));
+      } else {
+        out += ", \"error\": null";
+      }
+      out += std::string(", \"final\": ") + (e.final ? "true" : "false");
+      break;
+    case K::SlaveBooted:
+      out += std::string(", \"configured\": ") + (e.configured ? "true" : "false") +
+             ", \"entries\": " + std::to_string(e.written) +
+             ", \"bytes\": " + std::to_string(e.bytes);
+      break;
+    case K::BootUp:
+      out += std::string(", \"assigned\": ") + (e.assigned ? "true" : "false");
+      break;
+    case K::BootStepChanged:
+      out += ", \"step\": " + tools::json_string(nmt::to_string(e.step));
+      break;
+    case K::MasterStateChanged:
+    case K::SlaveStateChanged:
+      if (e.state) out += ", \"state\": " + tools::json_string(nmt::to_string(*e.state));
+      break;
+    case K::NmtCommandSent:
+      if (e.command) out += ", \"command\": " + tools::json_string(nmt::to_string(*e.command));
+      break;
+    case K::NegotiationBegan:
+    case K::ActiveMaster:
+    case K::Standby:
+    case K::ForceNegotiation:
+    case K::MultipleMasters:
+    case K::ActiveMasterLost:
+      if (e.priority) out += ", \"priority\": " + std::to_string(*e.priority);
+      break;
+    case K::SrdRegistrationFailed:
+    case K::SdoConnectionRefused:
+      // The JSON keeps 1F10h's byte (DSP 302 §7.2.3), the value a script compares with.
+      if (e.connection_error) {
+        out +=
+            ", \"connection_error\": " + std::to_string(static_cast<unsigned>(*e.connection_error));
+      }
+      break;
+    case K::ProgramClearRefused:
+      if (e.sdo) out += ", \"abort\": " + tools::json_string(nmt::to_string(e.sdo->abort));
+      break;
+    default:
+      break;
+  }
+  if (e.connection) {
+    // SDO manager kinds (DSP 302 §7.2.3): the connection, as 1F03h describes it, and its COB-IDs.
+    const auto& c = *e.connection;
+    out += ", \"connection\": {\"row\": " + std::to_string(c.row) +
+           ", \"client_node_id\": " + std::to_string(c.srd) +
+           ", \"client_index\": " + std::to_string(c.client_index) +
+           ", \"server_node_id\": " + std::to_string(c.server) +
+           ", \"server_index\": " + std::to_string(c.server_index) +
+           ", \"request_cob_id\": " + std::to_string(c.request.word()) +
+           ", \"response_cob_id\": " + std::to_string(c.response.word()) + "}";
+  }
+  if (e.lss_address)
+    out += ", \"lss_address\": " + tools::json_string(nmt::address_digits(*e.lss_address));
+  out += ", \"text\": " + tools::json_string(e.text) + "}\n";
+  *json_ << out << std::flush;
+}
+
+void EventReporter::report_bus(const nmt::BusEvent& e, nmt::TimePoint at) {
+  using K = nmt::BusEvent::Kind;
+  const bool routine =
+      e.kind == K::LostArbitration || e.kind == K::BusError || e.kind == K::ErrorWarning;
+  if (!quiet_ && (verbose_ || !routine)) {
+    note(seconds_text(start_, at) + "  bus: " + e.text);
+  }
+  if (json_ == nullptr) return;
+  *json_ << "{\"time_s\": " << seconds_text(start_, at)
+         << ", \"event\": " << tools::json_string(nmt::to_string(e.kind))
+         << ", \"node_id\": 0, \"frame\": " << tools::json_string(nmt::to_candump(e.frame))
+         << ", \"text\": " << tools::json_string(e.text) << "}\n"
+         << std::flush;
+}
+
+}  // namespace cfgmgr

@@ -1,0 +1,93 @@
+// The arguments of the cfgmgr commands that run a network (master, push, verify; build and sdo
+// use some): the options they add, how their values are checked, and the report files. Each
+// ends the command (command_failure.hpp) on a value it cannot take.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "../common/command_failure.hpp"
+#include "../common/tool_support.hpp"
+#include "cfg/network.hpp"
+#include "network_source.hpp"
+#include "nmt/master_options.hpp"
+#include "nmt/nmt_master.hpp"
+
+namespace cfgmgr {
+
+/// Exit code when NMT start-up did not end in operation (a mandatory node failed).
+inline constexpr int kExitMandatoryFailed = 4;
+
+/// --program NODE=FILE and --program-version NODE=VERSION as given (each repeatable): they
+/// override the description's NodeXProgramFile=/NodeXProgramVersion= (cfg::set_node_program).
+struct ProgramOverrides {
+  std::vector<std::string> files;
+  std::vector<std::string> versions;
+};
+
+/// The arguments every command that runs a network takes.
+struct NetworkRunArgs {
+  std::string network;  ///< the description (project file or master DCF)
+  std::string bus;      ///< --bus URL
+  std::string node_id;  ///< --node-id as given; empty: the default
+  unsigned net = 1;     ///< --net
+  bool verbose = false;
+  ProgramOverrides programs;
+};
+
+/// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
+/// required).
+CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args);
+
+/// `--lss` of push and master: Execute LSS before NMT start-up's reset of all nodes (CiA 305
+/// Fastscan; nmt_master.hpp), and for master `--lss-period MS`, the look for replaced devices.
+struct LssRunArgs {
+  bool lss = false;
+  std::optional<unsigned> period_ms;  ///< --lss-period
+  unsigned scan_step_ms = 10;         ///< --lss-scan-step
+};
+/// Adds --lss to `cmd`, and --lss-period when `with_period`.
+void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period);
+/// MasterOptions::lss from the arguments, with the network's LSS addresses (lss_addresses; its
+/// notes on stderr). Ends the command with exit 2 for --lss-period without --lss.
+void apply_lss_options(std::string_view tool, const LssRunArgs& args, const cfg::Network& network,
+                       nmt::MasterOptions& options);
+/// A bound on the simulated time Execute LSS takes for `options` (Fastscan: 133 steps per
+/// device and a few more, each the scan step), to add to a run's bound.
+double lss_bound_s(const nmt::MasterOptions& options);
+
+/// The --json / --json-events file opened before any bus work ("" gives none); prints
+/// "PATH: error: cannot open for writing: ..." and ends the command with exit 3 when it cannot.
+tools::ReportFile open_report_or_exit(const std::string& path);
+/// Writes `text` to the report file and flushes it; a write error ends the command with exit 3.
+void finish_report_or_exit(tools::ReportFile& report, std::string_view text = {});
+
+/// Seconds from `start` to `at` with millisecond digits ("0.512").
+std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at);
+nmt::Duration seconds_to_duration(double s);
+/// --sdo-timeout in seconds as an SDO response timeout (whole us, positive: a 0 us timeout can
+/// never be met, SdoClient::check_start and MasterOptions::validate refuse it). A value that
+/// CLI::PositiveNumber lets through but that rounds to 0 us, or one beyond the clock's range,
+/// ends the command with exit 2 before any bus work.
+nmt::Duration sdo_timeout_or_exit(std::string_view tool, double seconds);
+
+/// The --bus URL checked: the `sim:` options, or nullopt for a real bus whose URL parses.
+/// Ends the command with exit 2 (usage) when it does not.
+std::optional<SimBusOptions> parse_bus_url(std::string_view tool, const std::string& url);
+
+/// One hex number of at most `digits` digits as a command line writes it: "1018", "0x1018" or
+/// "1018h"; nullopt for anything else.
+std::optional<std::uint64_t> parse_hex_argument(std::string_view text, std::size_t digits);
+
+/// The node-IDs of an --only list ("3,5-7" -> {3, 5, 6, 7}); prints "cfgmgr TOOL: --only ..."
+/// and ends the command with exit 2 on anything else.
+std::set<std::uint8_t> parse_only(std::string_view tool, const std::string& text);
+
+}  // namespace cfgmgr
