@@ -1,13 +1,13 @@
 // LSS Fastscan (CiA 305) of N unconfigured devices at 500 kbit/s on the simulated bus: the bus
-// time of `LssMaster::scan` (find each device by Fastscan, give it a node-ID, store it) against
+// time of `LssProcedure::scan` (find each device by Fastscan, give it a node-ID, store it) against
 // the frame bound of the scan.
 //
-// The frame bound, counted from the protocol as nmt/lss_master.hpp describes it: per device the
+// The frame bound, counted from the protocol as nmt/lss_procedure.hpp describes it: per device the
 // Fastscan reset (BitCheck 80h), then per part of the LSS address (vendor-ID, product code,
 // revision, serial number) 32 bit queries and a confirmation, 1 + 4 x 33 = 133 requests; then
 // configure node-ID, store configuration and switch state global to waiting, 3 more: 136 per
 // device. Before them one switch state global of all devices, after them the reset nobody
-// answers: 136 N + 2 requests (tests/nmt/lss_master_test.cpp checks this count). Each is an
+// answers: 136 N + 2 requests (tests/nmt/lss_procedure_test.cpp checks this count). Each is an
 // 8-byte standard frame, 111 bits on the wire before stuffing (SOF to CRC 98, delimiters, ACK
 // and EOF 10, intermission 3): 222 us at 500 kbit/s. The bound counts the master's requests
 // only, sent back to back; the devices' answers and the time a Fastscan step waits for them
@@ -28,6 +28,7 @@
 
 #include "nmt/lss.hpp"
 #include "nmt/lss_master.hpp"
+#include "nmt/lss_procedure.hpp"
 #include "nmt/lss_slave.hpp"
 #include "nmt/sim_bus.hpp"
 
@@ -49,7 +50,7 @@ void BM_LssFastscan(benchmark::State& state) {
     nmt::SimBus bus(kBitrate);
     nmt::LssMasterOptions options;
     options.scan_step = step;
-    nmt::SimEngineNode<nmt::LssMaster> master(options);
+    nmt::SimEngineNode<nmt::LssProcedure> master(options);
     bus.attach(master);
     // One product, random serial numbers (a batch of new devices), the same every run.
     std::mt19937 rng(static_cast<std::uint32_t>(n));
@@ -75,8 +76,8 @@ void BM_LssFastscan(benchmark::State& state) {
       sent += f.id == nmt::lss::kMasterCobId ? 1 : 0;
     });
     std::uint32_t assigned = 0;
-    master.set_event_handler([&assigned](const nmt::LssMasterEvent& e, nmt::TimePoint) {
-      assigned += e.kind == nmt::LssMasterEvent::Kind::Assigned ? 1 : 0;
+    master.set_event_handler([&assigned](const nmt::LssProcedureEvent& e, nmt::TimePoint) {
+      assigned += e.kind == nmt::LssProcedureEvent::Kind::Assigned ? 1 : 0;
     });
     state.ResumeTiming();
     std::uint8_t next = 1;

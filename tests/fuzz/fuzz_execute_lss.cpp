@@ -1,5 +1,5 @@
 // libFuzzer target: the NMT master's Execute LSS (master/execute_lss.hpp: the start-up pass and
-// the looks for unconfigured devices, over an LssMaster) and up to four LSS slaves on a bus the
+// the looks for unconfigured devices, over an LssProcedure) and up to four LSS slaves on a bus the
 // input controls (lss_fuzz_harness.hpp), with a port whose slaves' LSS addresses the input
 // chooses (some devices' addresses, some of nobody's, one node-ID for two addresses).
 // Operations beyond the harness's: start(), watch(), stop(), the port's "may look" toggled.

@@ -1,14 +1,13 @@
 // LSS master (CiA 305): each service's request bytes and its reading of the answers, written out
 // by hand from the layouts nmt/lss.hpp cites (CANopenNode 305/CO_LSS.h, lely-core src/co/lss.c);
-// then the master against LSS slaves on the simulated bus in simulated time: Fastscan and the
-// scan of many unconfigured devices, a device that never answers, a refused configure node-ID.
+// then the master against LSS slaves on the simulated bus in simulated time: Fastscan, Fastscan
+// of a known address, a device that never answers, a refused configure node-ID. The procedures
+// built from these services (the scan of many devices) are tests/nmt/lss_procedure_test.cpp's.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <map>
 #include <memory>
-#include <random>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -213,6 +212,49 @@ TEST_F(LssMasterTest, FastscanWithoutAnswerToTheResetFindsNothing) {
   EXPECT_FALSE(master.busy());
 }
 
+// CiA 305 Fastscan with BitCheck 0: all 32 bits of part LSSSub compared, LSSNext the next part
+// (0 after the serial number, which puts the matching device in LSS configuration).
+TEST_F(LssMasterTest, FastscanConfirmSendsTheResetThenTheFourPartsWithBitCheckZero) {
+  const LssAddress a{0x7E57C0DE, 0x00000305, 0x00010002, 0x00001001};
+  EXPECT_EQ(call([&](auto& m, auto t, auto& o) { return m.fastscan_confirm(a, t, o); }),
+            Frames{"7E5#5100000000800000"});
+  answer("7E4#4F00000000000000");
+  EXPECT_TRUE(tick(TimePoint{9ms}).empty());
+  EXPECT_EQ(tick(TimePoint{10ms}), Frames{"7E5#51DEC0577E000001"});
+  answer("7E4#4F00000000000000");
+  EXPECT_EQ(tick(TimePoint{20ms}), Frames{"7E5#5105030000000102"});
+  answer("7E4#4F00000000000000");
+  EXPECT_EQ(tick(TimePoint{30ms}), Frames{"7E5#5102000100000203"});
+  answer("7E4#4F00000000000000");
+  EXPECT_EQ(tick(TimePoint{40ms}), Frames{"7E5#5101100000000300"});
+  answer("7E4#4F00000000000000");
+  EXPECT_TRUE(events.empty());
+  EXPECT_TRUE(tick(TimePoint{50ms}).empty());
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].service, LssService::Fastscan);
+  EXPECT_EQ(events[0].kind, Kind::Done);
+  EXPECT_EQ(events[0].address, a);
+}
+
+TEST_F(LssMasterTest, FastscanConfirmOfAnAbsentAddressEndsAbsentAfterOneSilentStep) {
+  const LssAddress a{0x7E57C0DE, 0x00000305, 0x00010002, 0x00001001};
+  call([&](auto& m, auto t, auto& o) { return m.fastscan_confirm(a, t, o); });
+  answer("7E4#4F00000000000000");  // some unconfigured device
+  EXPECT_EQ(tick(TimePoint{10ms}), Frames{"7E5#51DEC0577E000001"});
+  EXPECT_TRUE(tick(TimePoint{20ms}).empty());  // nobody has vendor-ID 7E57C0DEh
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, Kind::Absent);
+  EXPECT_EQ(events[0].address, a);
+  EXPECT_FALSE(master.busy());
+}
+
+TEST_F(LssMasterTest, FastscanConfirmWithoutAnswerToTheResetFindsNothing) {
+  call([](auto& m, auto t, auto& o) { return m.fastscan_confirm({1, 2, 3, 4}, t, o); });
+  EXPECT_TRUE(tick(TimePoint{10ms}).empty());
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, Kind::NotFound);
+}
+
 TEST_F(LssMasterTest, NoAnswerWithinTheTimeoutIsATimeoutEvent) {
   call([](auto& m, auto t, auto& o) { return m.configure_node_id(cfg::NodeId::from(5), t, o); });
   EXPECT_TRUE(tick(TimePoint{99ms}).empty());
@@ -283,17 +325,6 @@ class LssBus : public ::testing::Test {
     slaves.push_back(std::move(node));
     return *raw;
   }
-  // Devices of one product (the usual case: a batch of new drives) with random serial numbers.
-  std::vector<LssAddress> add_random(int n, std::uint32_t seed) {
-    std::mt19937 rng(seed);
-    auto draw = [&rng] { return static_cast<std::uint32_t>(rng()); };
-    std::set<LssAddress> made;
-    while (static_cast<int>(made.size()) < n) {
-      made.insert(LssAddress{0x0000019A, 0x00020001, 0x00010000 + draw() % 3, draw()});
-    }
-    for (const auto& a : made) add(a);
-    return {made.begin(), made.end()};
-  }
   // Starts a service that must start (engine.hpp rule 5: a start that fails says why).
   template <class Fn>
   void start(Fn fn) {
@@ -302,35 +333,6 @@ class LssBus : public ::testing::Test {
   }
   void run_until_done() {
     ASSERT_TRUE(bus.run_until([this] { return !master.engine().busy(); }, TimePoint{3600s}));
-  }
-  // Scans with node-IDs 1, 2, ... in the order devices are found.
-  std::vector<LssMasterEvent> scan_all() {
-    std::uint8_t next = 1;
-    start([&](auto& m, auto t, auto& o) {
-      return m.scan([&next](const LssAddress&) { return cfg::NodeId::from(next++); }, t, o);
-    });
-    run_until_done();
-    return events;
-  }
-  void expect_all_configured(const std::vector<LssAddress>& addresses) {
-    ASSERT_FALSE(events.empty());
-    EXPECT_EQ(events.back().service, LssService::Scan);
-    EXPECT_EQ(events.back().kind, Kind::Done);
-    EXPECT_EQ(events.back().value, addresses.size());
-    std::vector<LssAddress> found;
-    std::map<LssAddress, std::uint8_t> node_ids;  // the slaves' raw node-IDs (lss_slave.hpp)
-    for (const auto& e : events) {
-      if (e.kind != Kind::Assigned) continue;
-      found.push_back(e.address);
-      node_ids[e.address] = e.node_id.value();
-    }
-    // Every device once, lowest LSS address first (Fastscan finds the lowest).
-    EXPECT_EQ(found, addresses);
-    for (const auto& s : slaves) {
-      const auto& slave = s->engine();
-      EXPECT_EQ(slave.active_node_id(), node_ids[slave.address()]) << to_string(slave.address());
-      EXPECT_EQ(slave.state(), LssState::Waiting);
-    }
   }
 };
 
@@ -354,112 +356,6 @@ TEST_F(LssBus, FastscanSends133RequestsForOneDevice) {
   run_until_done();
   // The reset, then per part 32 bit queries and a confirmation (lely-core's walk).
   EXPECT_EQ(requests, 1 + 4 * 33);
-}
-
-TEST_F(LssBus, ScanConfiguresOneUnconfiguredDevice) {
-  auto addresses = add_random(1, 1);
-  scan_all();
-  expect_all_configured(addresses);
-}
-
-TEST_F(LssBus, ScanConfiguresTwoDevices) {
-  auto addresses = add_random(2, 2);
-  scan_all();
-  expect_all_configured(addresses);
-}
-
-TEST_F(LssBus, ScanTellsApartTwoDevicesWhoseAddressesDifferInOneBit) {
-  // Serial numbers 0x5A5A0F0F and 0x5A5A0F0E: only bit 0 differs; likewise bit 31 of two
-  // revisions.
-  const LssAddress a{0x0000019A, 0x00020001, 0x00010000, 0x5A5A0F0E};
-  const LssAddress b{0x0000019A, 0x00020001, 0x00010000, 0x5A5A0F0F};
-  const LssAddress c{0x0000019A, 0x00020001, 0x80010000, 0x5A5A0F0E};
-  add(c);
-  add(b);
-  add(a);
-  scan_all();
-  expect_all_configured({a, b, c});
-}
-
-TEST_F(LssBus, ScanConfiguresTenDevicesWithRandomSerialNumbers) {
-  auto addresses = add_random(10, 10);
-  scan_all();
-  expect_all_configured(addresses);
-}
-
-TEST_F(LssBus, ScanConfiguresFiftyDevicesWithRandomSerialNumbers) {
-  auto addresses = add_random(50, 50);
-  int requests = 0;
-  bus.add_observer([&](const CanFrame& f, TimePoint) { requests += f.id == lss::kMasterCobId; });
-  scan_all();
-  expect_all_configured(addresses);
-  // Per device: the Fastscan reset, 4 x (32 bit queries + confirmation), configure node-ID,
-  // store configuration, switch state global; before them the switch of all devices to
-  // waiting, after them the reset nobody answers.
-  EXPECT_EQ(requests, 1 + 50 * (1 + 4 * 33 + 3) + 1);
-}
-
-TEST_F(LssBus, ScanLooksPastADeviceItGivesNoNodeId) {
-  auto addresses = add_random(6, 6);
-  std::set<LssAddress> skip{addresses[0], addresses[3]};
-  std::uint8_t next = 1;
-  start([&](auto& m, auto t, auto& o) {
-    return m.scan(
-        [&](const LssAddress& a) -> std::optional<cfg::NodeId> {
-          if (skip.count(a) != 0) return std::nullopt;
-          return cfg::NodeId::from(next++);
-        },
-        t, o);
-  });
-  run_until_done();
-  std::vector<LssAddress> skipped;
-  std::vector<LssAddress> assigned;
-  for (const auto& e : events) {
-    if (e.kind == Kind::Skipped) skipped.push_back(e.address);
-    if (e.kind == Kind::Assigned) assigned.push_back(e.address);
-  }
-  EXPECT_EQ(skipped, (std::vector<LssAddress>{addresses[0], addresses[3]}));
-  EXPECT_EQ(assigned,
-            (std::vector<LssAddress>{addresses[1], addresses[2], addresses[4], addresses[5]}));
-  EXPECT_EQ(events.back().value, 6u);
-  for (const auto& s : slaves) {
-    EXPECT_EQ(s->engine().configured(), skip.count(s->engine().address()) == 0);
-  }
-}
-
-TEST_F(LssBus, ScanLeavesTwoDevicesWithOneLssAddressUnconfiguredAndFindsTheOthers) {
-  // CiA 305 takes LSS addresses to be unique; two devices with one answer configure node-ID
-  // twice: FFh is configured and stored in both, the address Skipped, the others configured.
-  const LssAddress twin{0x0000019A, 0x00020001, 0x00010000, 0x00000005};
-  const LssAddress other{0x0000019A, 0x00020001, 0x00010000, 0x00000009};
-  for (const LssAddress& address : {twin, twin, other}) add(address);
-  scan_all();
-  ASSERT_EQ(events.size(), 3u);
-  EXPECT_EQ(events[0].kind, Kind::Skipped);
-  EXPECT_EQ(events[0].address, twin);
-  EXPECT_NE(events[0].text.find("more than one device answered configure node-ID with this LSS "
-                                "address"),
-            std::string::npos)
-      << events[0].text;
-  EXPECT_EQ(events[1].kind, Kind::Assigned);
-  EXPECT_EQ(events[1].address, other);
-  EXPECT_EQ(events[2].kind, Kind::Done);
-  EXPECT_EQ(events[2].value, 2u);
-  EXPECT_EQ(slaves[0]->engine().active_node_id(), lss::kUnconfigured);
-  EXPECT_EQ(slaves[1]->engine().active_node_id(), lss::kUnconfigured);
-  EXPECT_EQ(slaves[2]->engine().active_node_id(), 2);  // node-ID 1 went to the twins, undone
-}
-
-TEST_F(LssBus, ScanFirstSwitchesADeviceLeftInConfigurationBackToWaiting) {
-  auto& bystander = add({0x0000019A, 0x00020001, 0x00010000, 0x00000001}, 9);
-  LssSlave::Output ignored;
-  bystander.engine().on_frame(*from_candump("7E5#0401000000000000"), TimePoint{}, ignored);
-  ASSERT_EQ(bystander.engine().state(), LssState::Configuration);
-  auto addresses = std::vector<LssAddress>{{0x0000019A, 0x00020001, 0x00010000, 0x00000002}};
-  add(addresses[0]);
-  scan_all();
-  EXPECT_EQ(bystander.engine().pending_node_id(), 9);  // the node-ID 1 went to the new device
-  EXPECT_EQ(slaves[1]->engine().active_node_id(), 1);
 }
 
 TEST_F(LssBus, FastscanAfterAnAddressFindsTheNextHigherOne) {

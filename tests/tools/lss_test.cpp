@@ -199,7 +199,7 @@ TEST_F(LssInNetns, ScanListsTheUnconfiguredDevicesAndSetIdBootsOne) {
   const auto set = lss({"set-id", kAddress1003, "5"});
   ASSERT_EQ(set.exit_code, 0) << set.err;
   EXPECT_THAT(set.out, HasSubstr("node-ID 5 configured and stored; the device boots with it now"));
-  EXPECT_THAT(sim_out(), HasSubstr("tx  705#00"));
+  EXPECT_THAT(sim_out_with("tx  705#00"), HasSubstr("tx  705#00"));
   const auto read = cfgmgr(dir_, {"sdo", "--bus", kUrl, "read", "5", "1000", "--type", "u32"});
   EXPECT_EQ(read.exit_code, 0) << read.err;
   EXPECT_EQ(read.out, "197009 (0x00030191)\n");

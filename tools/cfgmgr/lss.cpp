@@ -1,7 +1,8 @@
 // cfgmgr lss scan|set-id|inquire|set-bitrate --bus URL: the Layer Setting Services of CiA 305
 // from the command line, for devices straight out of the box (no node-ID, or the factory's
-// one) on a running bus. The protocol is libnmt's LssMaster (nmt/lss_master.hpp, which cites
-// its sources) run by LssSession (lss_session.hpp); this file parses arguments and prints.
+// one) on a running bus. The procedures are libnmt's LssProcedure (nmt/lss_procedure.hpp, which
+// cites its sources) run by LssSession (nmt/lss_session.hpp); this file parses arguments and
+// prints.
 #include <cstdint>
 #include <iostream>
 #include <memory>
@@ -18,12 +19,12 @@
 #include "cfg/integer_literal.hpp"
 #include "cfg/network.hpp"
 #include "commands.hpp"
-#include "lss_session.hpp"
 #include "master_run.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/lss.hpp"
 #include "nmt/lss_master.hpp"
-#include "nmt/lss_search.hpp"
+#include "nmt/lss_procedure.hpp"
+#include "nmt/lss_session.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -32,7 +33,7 @@ constexpr std::string_view kTool = "lss";
 /// A device refused a service (its error code in words) or no device answered.
 constexpr int kExitDevice = 4;
 
-using Kind = nmt::LssMasterEvent::Kind;
+using Event = nmt::LssProcedureEvent;
 
 struct LssCliOptions {
   std::string bus;
@@ -55,6 +56,25 @@ struct LssCliOptions {
 
 nmt::Duration ms(double value) {
   return nmt::Duration(static_cast<std::int64_t>(value * 1000.0));
+}
+
+std::string address_text(const nmt::LssAddress& a) {
+  return nmt::address_digits(a);
+}
+
+// VENDOR:PRODUCT:REVISION:SERIAL, each part hex with up to 8 digits (0x prefix or h suffix
+// allowed); nullopt for anything else.
+std::optional<nmt::LssAddress> parse_lss_address(std::string_view text) {
+  nmt::LssAddress address;
+  for (int part = 0; part < 4; ++part) {
+    const auto colon = text.find(':');
+    if ((colon == std::string_view::npos) != (part == 3)) return std::nullopt;
+    const auto value = parse_hex_argument(text.substr(0, colon), 8);
+    if (!value) return std::nullopt;
+    address.part(part) = static_cast<std::uint32_t>(*value);
+    if (colon != std::string_view::npos) text.remove_prefix(colon + 1);
+  }
+  return address;
 }
 
 nmt::LssAddress address_or_exit(const std::string& text) {
@@ -86,7 +106,7 @@ int node_id_number(std::optional<cfg::NodeId> node_id) {
   return node_id ? int{node_id->value()} : int{nmt::lss::kUnconfigured};
 }
 
-std::unique_ptr<LssSession> open_or_exit(const LssCliOptions& o) {
+std::unique_ptr<nmt::LssSession> open_or_exit(const LssCliOptions& o) {
   if (is_sim_url(o.bus)) {
     fail(tools::kExitUsage, "--bus " + o.bus +
                                 ": the simulated bus has no device to talk to; use the bus the "
@@ -98,48 +118,32 @@ std::unique_ptr<LssSession> open_or_exit(const LssCliOptions& o) {
   nmt::LssMasterOptions options;
   options.timeout = ms(o.timeout_ms);
   options.scan_step = ms(o.scan_step_ms);
-  auto session = LssSession::open(o.bus, options);
+  auto session = nmt::LssSession::open(o.bus, options);
   if (!session) fail(tools::kExitIo, session.error().message);
   return std::move(session).value();
 }
 
-nmt::LssMasterEvent run_or_exit(LssSession& session, const LssSession::Start& start) {
-  auto event = session.run_one(start);
-  if (!event) fail(tools::kExitIo, event.error().message);
-  return std::move(event).value();
-}
-
-void switch_all(LssSession& session, nmt::LssState state) {
-  (void)run_or_exit(session, [state](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-    return m.switch_state_global(state, now, out);
-  });
-}
-
-// Ends the command after a service that did not end as asked: every device back to LSS waiting
-// (so none is left in configuration), then exit 4 with the master's words.
-[[noreturn]] void fail_service(LssSession& session, const std::string& who,
-                               const nmt::LssMasterEvent& e) {
-  switch_all(session, nmt::LssState::Waiting);
+// The procedure's end: Done, or exit 3 (the bus failed) or 4 (a device refused or did not
+// answer: `who` and the procedure's words, with `hint` when the selection went unanswered).
+Event done_or_exit(cfg::Result<Event> result, const std::string& who,
+                   const std::string& select_hint = {}) {
+  if (!result) fail(tools::kExitIo, result.error().message);
+  Event e = std::move(result).value();
+  if (e.kind == Event::Kind::Done) return e;
   std::string text = who.empty() ? e.text : who + ": " + e.text;
-  if (e.kind == Kind::Timeout) text += " (is the device on this bus and at this bit rate?)";
+  const bool timeout = e.step && e.step->kind == nmt::LssMasterEvent::Kind::Timeout;
+  if (e.step && e.step->service == nmt::LssService::SwitchStateSelective) {
+    text += select_hint;
+  } else if (timeout) {
+    text += " (is the device on this bus and at this bit rate?)";
+  }
   fail(kExitDevice, text);
 }
 
-// Switch state selective (40h-43h): only the device with `address` goes to LSS configuration.
-// Everything first to waiting: selective switching is obeyed in waiting only.
-void select_or_exit(LssSession& session, const nmt::LssAddress& address) {
-  switch_all(session, nmt::LssState::Waiting);
-  const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-    return m.switch_state_selective(address, now, out);
-  });
-  if (!e.ok()) {
-    fail(kExitDevice, "LSS address " + lss_address_text(address) + ": " + e.text +
-                          " (no device with this address on the bus, or not in LSS waiting)");
-  }
-}
+const std::string kSelectHint = " (no device with this address on the bus, or not in LSS waiting)";
 
 std::string json_address(const nmt::LssAddress& a) {
-  return "{\"address\": " + tools::json_string(lss_address_text(a)) +
+  return "{\"address\": " + tools::json_string(address_text(a)) +
          ", \"vendor_id\": " + std::to_string(a.vendor_id) +
          ", \"product_code\": " + std::to_string(a.product_code) +
          ", \"revision\": " + std::to_string(a.revision) +
@@ -147,26 +151,6 @@ std::string json_address(const nmt::LssAddress& a) {
 }
 
 // --- scan ---------------------------------------------------------------------------------------
-
-// Fastscan finds the lowest unconfigured address (above the last one found) and leaves that
-// device in LSS configuration; switch state global to waiting puts it back, still without
-// node-ID, and the next Fastscan looks above it (nmt/lss_master.hpp), so each is listed once.
-std::vector<nmt::LssAddress> fastscan_all(LssSession& session) {
-  switch_all(session, nmt::LssState::Waiting);
-  std::vector<nmt::LssAddress> found;
-  std::optional<nmt::LssAddress> after;
-  for (;;) {
-    const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-      return m.fastscan(after, now, out);
-    });
-    if (e.kind == Kind::NotFound) break;
-    if (!e.ok()) fail_service(session, "Fastscan", e);
-    found.push_back(e.address);
-    after = e.address;
-    switch_all(session, nmt::LssState::Waiting);
-  }
-  return found;
-}
 
 // A product to look for with --all: vendor-ID and product code (1018h sub 1 and 2).
 using Product = std::pair<std::uint32_t, std::uint32_t>;
@@ -204,48 +188,6 @@ std::set<Product> products_or_exit(const LssCliOptions& o) {
   return products;
 }
 
-// Slowscan (nmt/lss_search.hpp): every device of the product, configured or not.
-std::vector<nmt::LssAddress> identify_all(LssSession& session, const Product& product) {
-  nmt::LssAddressSearch search(product.first, product.second);
-  while (const auto range = search.next()) {
-    const auto e = run_or_exit(session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-      return m.identify_remote_slaves(*range, now, out);
-    });
-    if (!e.ok() && e.kind != Kind::NotFound) fail_service(session, "identify remote slave", e);
-    search.answered(e.ok());
-  }
-  return search.found();
-}
-
-// An inquire node-ID (5Eh) answer: the active node-ID, nullopt for FFh (not configured, CiA
-// 305); any other value is no node-ID: the device's fault, exit 4.
-std::optional<cfg::NodeId> answered_node_id_or_exit(LssSession& session, const std::string& who,
-                                                    std::uint32_t value) {
-  if (value == nmt::lss::kUnconfigured) return std::nullopt;
-  const auto node_id = cfg::NodeId::from(value);
-  if (!node_id) {
-    switch_all(session, nmt::LssState::Waiting);
-    fail(kExitDevice, who + "inquire node-ID answered " + std::to_string(value) +
-                          ": no node-ID (CiA 305: 1..127, or 255 for not configured)");
-  }
-  return node_id;
-}
-
-// The active node-ID of the device with `address` (nullopt: unconfigured): switch state
-// selective, inquire node-ID (5Eh), back to waiting.
-std::optional<cfg::NodeId> inquire_node_id_or_exit(LssSession& session,
-                                                   const nmt::LssAddress& address) {
-  const std::string who = "LSS address " + lss_address_text(address);
-  select_or_exit(session, address);
-  const auto e = run_or_exit(session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-    return m.inquire(nmt::LssService::InquireNodeId, now, out);
-  });
-  if (!e.ok()) fail_service(session, who, e);
-  const auto node_id = answered_node_id_or_exit(session, who + ": ", e.value);
-  switch_all(session, nmt::LssState::Waiting);
-  return node_id;
-}
-
 std::string node_id_text(std::optional<cfg::NodeId> node_id) {
   return node_id ? std::to_string(node_id->value()) : std::string("FFh (unconfigured)");
 }
@@ -266,17 +208,24 @@ void run_scan(const LssCliOptions& o) {
   }
   std::set<Product> products = products_or_exit(o);
   auto session = open_or_exit(o);
-  const std::vector<nmt::LssAddress> found = fastscan_all(*session);
+  const std::vector<nmt::LssAddress> found =
+      done_or_exit(session->find_unconfigured(), "").addresses;
   // --all: the products of the unconfigured devices too, then every device of each product
   // with its node-ID.
   std::set<nmt::LssAddress> all(found.begin(), found.end());
   std::vector<ScannedDevice> devices;
   if (o.all) {
     for (const auto& a : found) products.emplace(a.vendor_id, a.product_code);
-    for (const auto& product : products) {
-      for (const auto& a : identify_all(*session, product)) all.insert(a);
+    for (const auto& [vendor, product] : products) {
+      for (const auto& a : done_or_exit(session->find_product(vendor, product), "").addresses) {
+        all.insert(a);
+      }
     }
-    for (const auto& a : all) devices.push_back({a, inquire_node_id_or_exit(*session, a)});
+    for (const auto& a : all) {
+      const auto e =
+          done_or_exit(session->inquire_node_id(a), "LSS address " + address_text(a), kSelectHint);
+      devices.push_back({a, e.node_id});
+    }
   }
   if (o.json) {
     std::string out = "{\"unconfigured\": [";
@@ -298,13 +247,13 @@ void run_scan(const LssCliOptions& o) {
     return;
   }
   if (!o.all) {
-    for (const auto& a : found) std::cout << lss_address_text(a) << '\n';
+    for (const auto& a : found) std::cout << address_text(a) << '\n';
     std::cout << std::flush;
     std::cerr << "cfgmgr lss: " << tools::plural(found.size(), "unconfigured device") << '\n';
     return;
   }
   for (const auto& [a, node_id] : devices) {
-    std::cout << lss_address_text(a) << "  node-ID " << node_id_text(node_id) << '\n';
+    std::cout << address_text(a) << "  node-ID " << node_id_text(node_id) << '\n';
   }
   std::cout << std::flush;
   std::size_t unconfigured = 0;
@@ -314,39 +263,22 @@ void run_scan(const LssCliOptions& o) {
             << " looked for)\n";
 }
 
-// --- set-id
-// ---------------------------------------------------------------------------------------
+// --- set-id -------------------------------------------------------------------------------------
 
 void run_set_id(const LssCliOptions& o) {
   const auto address = address_or_exit(o.address);
   const auto node_id = node_id_or_exit(o.node_id);
   auto session = open_or_exit(o);
-  const std::string who = "LSS address " + lss_address_text(address);
-  select_or_exit(*session, address);
-  // The node-ID it runs with now: one that had a node-ID takes the new one only at its next
-  // NMT reset (communication or application); an unconfigured one boots as soon as it is back
-  // in waiting.
-  const auto before = run_or_exit(*session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-    return m.inquire(nmt::LssService::InquireNodeId, now, out);
-  });
-  const auto configured =
-      run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-        return m.configure_node_id(node_id, now, out);
-      });
-  if (!configured.ok()) fail_service(*session, who, configured);
-  if (!o.no_store) {
-    const auto stored = run_or_exit(*session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-      return m.store_configuration(now, out);
-    });
-    if (!stored.ok()) fail_service(*session, who, stored);
-  }
-  switch_all(*session, nmt::LssState::Waiting);
-  const bool was_unconfigured = before.ok() && before.value == nmt::lss::kUnconfigured;
+  const std::string who = "LSS address " + address_text(address);
+  const auto e =
+      done_or_exit(session->assign_node_id(address, node_id, !o.no_store), who, kSelectHint);
+  const auto& before = e.previous_node_id;
+  const bool was_unconfigured = before == nmt::lss::kUnconfigured;
   if (o.json) {
-    std::cout << "{\"address\": " << tools::json_string(lss_address_text(address))
+    std::cout << "{\"address\": " << tools::json_string(address_text(address))
               << ", \"node_id\": " << node_id_number(node_id)
               << ", \"stored\": " << (o.no_store ? "false" : "true") << ", \"previous_node_id\": "
-              << (before.ok() ? std::to_string(before.value) : std::string("null")) << "}\n"
+              << (before ? std::to_string(*before) : std::string("null")) << "}\n"
               << std::flush;
     return;
   }
@@ -358,45 +290,25 @@ void run_set_id(const LssCliOptions& o) {
             << std::flush;
 }
 
-// --- inquire
-// --------------------------------------------------------------------------------------
+// --- inquire ------------------------------------------------------------------------------------
 
 void run_inquire(const LssCliOptions& o) {
   std::optional<nmt::LssAddress> address;
   if (!o.address.empty()) address = address_or_exit(o.address);
   auto session = open_or_exit(o);
-  if (address) {
-    select_or_exit(*session, *address);
-  } else {
-    switch_all(*session, nmt::LssState::Configuration);
-  }
-  constexpr nmt::LssService kInquiries[] = {
-      nmt::LssService::InquireVendorId, nmt::LssService::InquireProductCode,
-      nmt::LssService::InquireRevision, nmt::LssService::InquireSerial,
-      nmt::LssService::InquireNodeId};
-  std::uint32_t values[5] = {};
-  for (int i = 0; i < 5; ++i) {
-    const auto e = run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-      return m.inquire(kInquiries[i], now, out);
-    });
-    if (!e.ok()) fail_service(*session, "", e);
-    values[i] = e.value;
-  }
-  switch_all(*session, nmt::LssState::Waiting);
-  const nmt::LssAddress found{values[0], values[1], values[2], values[3]};
-  const auto node_id = answered_node_id_or_exit(*session, "", values[4]);
+  const std::string who = address ? "LSS address " + address_text(*address) : std::string();
+  const auto e = done_or_exit(session->inquire_identity(address), who, kSelectHint);
   if (o.json) {
-    std::string out = json_address(found);
+    std::string out = json_address(e.address);
     out.pop_back();
-    std::cout << out << ", \"node_id\": " << node_id_json(node_id) << "}\n" << std::flush;
+    std::cout << out << ", \"node_id\": " << node_id_json(e.node_id) << "}\n" << std::flush;
     return;
   }
-  std::cout << lss_address_text(found) << "  node-ID " << node_id_text(node_id) << '\n'
+  std::cout << address_text(e.address) << "  node-ID " << node_id_text(e.node_id) << '\n'
             << std::flush;
 }
 
-// --- set-bitrate
-// ----------------------------------------------------------------------------------
+// --- set-bitrate --------------------------------------------------------------------------------
 
 void run_set_bitrate(const LssCliOptions& o) {
   const auto kbit = cfg::parse_integer_literal(o.kbit);
@@ -415,26 +327,10 @@ void run_set_bitrate(const LssCliOptions& o) {
                "to "
             << o.kbit << " kbit/s: the whole network must follow (this bus too)\n"
             << std::flush;
-  switch_all(*session, nmt::LssState::Configuration);
   // Every device answers configure bit timing and store; the first answer is taken, a refusal
   // of any device that comes first ends the command.
-  const auto configured =
-      run_or_exit(*session, [&](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-        return m.configure_bit_timing(*index, now, out);
-      });
-  if (!configured.ok()) fail_service(*session, "", configured);
-  if (!o.no_store) {
-    const auto stored = run_or_exit(*session, [](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-      return m.store_configuration(now, out);
-    });
-    if (!stored.ok()) fail_service(*session, "", stored);
-  }
-  const auto delay = static_cast<std::uint16_t>(o.delay_ms);
-  const auto activated =
-      run_or_exit(*session, [delay](nmt::LssMaster& m, nmt::TimePoint now, auto& out) {
-        return m.activate_bit_timing(delay, now, out);
-      });
-  if (!activated.ok()) fail(kExitDevice, activated.text);
+  (void)done_or_exit(
+      session->set_bit_rate(*index, !o.no_store, static_cast<std::uint16_t>(o.delay_ms)), "");
   if (o.json) {
     std::cout << "{\"kbit\": " << o.kbit << ", \"table_index\": " << int{*index}
               << ", \"delay_ms\": " << o.delay_ms

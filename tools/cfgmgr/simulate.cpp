@@ -17,11 +17,11 @@
 #include "cfg/device_file.hpp"
 #include "cfg/node_id.hpp"
 #include "commands.hpp"
-#include "lss_session.hpp"
 #include "network_source.hpp"
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/device_state.hpp"
+#include "nmt/lss.hpp"
 #include "nmt/simulated_device.hpp"
 #include "nmt/trace.hpp"
 
@@ -266,8 +266,8 @@ void run_simulate(const SimulateOptions& options) {
                             : unconfigured[i] ? nmt::lss::kUnconfigured
                                               : device.node().node_id().value();
     if (id == nmt::lss::kUnconfigured) {
-      std::cout << "unconfigured (LSS address " << lss_address_text(device.node().lss()->address())
-                << ")";
+      std::cout << "unconfigured (LSS address "
+                << nmt::address_digits(device.node().lss()->address()) << ")";
     } else {
       std::cout << "node " << int{id} << (stored ? " (node-ID stored by LSS)" : "");
     }

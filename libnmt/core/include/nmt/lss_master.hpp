@@ -1,16 +1,18 @@
 // The LSS master of CiA 305 (nmt/lss.hpp has the protocol and its sources), an engine of the
 // shape of nmt/engine.hpp: services are started with `TimePoint now, Output& out` and put their
-// first frames into `out` at once; each ends with one LssMasterEvent (Scan: one per device found
-// and a last one). One service at a time: a start while one runs returns an error that says so
-// and puts nothing into `out` (engine.hpp rule 5).
+// first frames into `out` at once; each ends with one LssMasterEvent. One service at a time: a
+// start while one runs returns an error that says so and puts nothing into `out` (engine.hpp rule
+// 5).
 //
 //   LssMaster master;
 //   master.switch_state_selective(address, now, out);   // 40h..43h, answer 44h
 //   master.configure_node_id(cfg::NodeId::from(5), now, out);  // 11h, answer 11h + error code
 //   master.store_configuration(now, out);               // 17h
 //   master.switch_state_global(LssState::Waiting, now, out);
-//   master.scan(chooser, now, out);   // every unconfigured device: Fastscan, node-ID, store
-//   master.scan(chooser, now, out, known);  // the known addresses confirmed first (see below)
+//   master.fastscan(now, out);                          // 51h: the lowest unconfigured device
+//   master.fastscan_confirm(known, now, out);           // 51h: a known address in 4 requests
+// The procedures of CiA 305 that chain these services (find and configure every unconfigured
+// device, give one device its node-ID, set the bit rate) are nmt/lss_procedure.hpp's.
 //
 // Behaviour where CiA 305 leaves room (each says why):
 // - Services one device answers (switch state selective, configure, store, inquire) end at the
@@ -30,38 +32,20 @@
 //   unconfigured LSS address (ordered as LssAddress), or with `after` the lowest above it: it
 //   probes, from the deepest bit up, the branches of `after`'s address that hold higher
 //   addresses. A device that stops answering in the middle ends the scan with Timeout.
-// - Scan (find all) first switches every device to LSS waiting, so that no device someone left
-//   in configuration takes the node-IDs it hands out. Then Fastscan; the chooser gives the found
-//   device its node-ID, configured, stored (LssMasterOptions::store) and then the device is
-//   switched back to waiting, where it starts with its node-ID and no longer answers Fastscan. A
-//   device the chooser gives none, or whose configure node-ID fails, is switched back unconfigured
-//   and the next Fastscan looks above its address, so every device is found once. A device that
-//   appears during the scan with an address below one already skipped is not found: scan again.
-// - Scan with known addresses (`targets`): Fastscan with BitCheck 0 compares all 32 bits of part
-//   LSSSub, and a device whose part matches answers and moves on to part LSSNext; a match of the
-//   serial number with LSSNext < LSSSub puts it in LSS configuration (CiA 305 Fastscan; read in
-//   CANopenNode 305/CO_LSSslave.c, which answers BitCheck 80h always and otherwise only when LSSSub
-//   is its position and the bits BitCheck..31 match, and whose master, CO_LSSmaster.h
-//   CO_LSSmaster_FS_MATCH, confirms a part it is given instead of scanning it; lely-core
-//   src/co/lss.c's slave keeps such a position, lsspos; our LssSlave::fastscan compares the same
-//   way). So a known address is confirmed in 4 requests instead of 128 bit queries: before each
-//   target the reset (BitCheck 80h), which tells whether any unconfigured device is left (no
-//   answer: the scan ends, no more targets), then part 0..3 with BitCheck 0 and LSSNext the next
-//   part (0 after the serial number). A missing answer ends that target after one scan step (its
-//   device is absent or configured); all 4 answered: the device is in configuration and gets its
-//   node-ID as above. When every target is done and the reset is still answered, the devices left
-//   are found bit by bit as above (that reset is the bit-by-bit Fastscan's first). A target whose
-//   configure node-ID failed is left in waiting unconfigured; the bit-by-bit Fastscan finds it
-//   again and passes it without a second event. A target absent at its turn that appears later is
-//   found bit by bit and gets its node-ID from the chooser.
-// - Two devices with one LSS address (CiA 305 takes it to be unique; a factory mistake, a
-//   cloned serial number) answer every Fastscan step alike and are in configuration together.
-//   A second answer to the scan's configure node-ID, heard while the store waits for its
-//   answer, tells: the master then configures FFh (not configured) and stores it in all of
-//   them, switches them back to waiting, and reports the address Skipped (text: "more than one
-//   device answered ..."); the scan looks past it. It needs LssMasterOptions::store (the
-//   default): without the store's wait nothing is listened for. On a real bus two identical
-//   answers sent in the same bit time are one frame; then it is not seen (a known limit).
+// - Fastscan of a known address (fastscan_confirm): Fastscan with BitCheck 0 compares all 32
+//   bits of part LSSSub, and a device whose part matches answers and moves on to part LSSNext; a
+//   match of the serial number with LSSNext < LSSSub puts it in LSS configuration (CiA 305
+//   Fastscan; read in CANopenNode 305/CO_LSSslave.c, which answers BitCheck 80h always and
+//   otherwise only when LSSSub is its position and the bits BitCheck..31 match, and whose master,
+//   CO_LSSmaster.h CO_LSSmaster_FS_MATCH, confirms a part it is given instead of scanning it;
+//   lely-core src/co/lss.c's slave keeps such a position, lsspos; our LssSlave::fastscan compares
+//   the same way). So a known address is confirmed in 4 requests instead of 128 bit queries:
+//   first the reset (BitCheck 80h), which tells whether any unconfigured device is left (no
+//   answer: NotFound), then part 0..3 with BitCheck 0 and LSSNext the next part (0 after the
+//   serial number). A missing answer ends it after one scan step with Absent (its device is
+//   absent or configured; the devices that matched the parts before stay there until the next
+//   reset brings every unconfigured device back to part 0); all 4 answered: Done, the device is
+//   in LSS configuration.
 #pragma once
 
 #include <chrono>
@@ -96,7 +80,6 @@ enum class LssService : std::uint8_t {
   IdentifyRemoteSlaves,
   IdentifyNonConfigured,
   Fastscan,
-  Scan,
 };
 std::string_view to_string(LssService service);  ///< "configure node-ID", ...
 
@@ -105,23 +88,22 @@ struct LssMasterEvent {
     Done,      ///< the service ended as asked (Identify*: a device answered; Fastscan: found)
     NotFound,  ///< Identify* / Fastscan: no device answered in its time (an answer, not a fault)
     Refused,   ///< the device answered with an error code (`error_code`, `spec_error`)
-    Timeout,   ///< no answer within the timeout
-    Assigned,  ///< Scan: a found device got `node_id` (stored unless `error_code` says why not)
-    Skipped,   ///< Scan: a found device was left without node-ID (`text` says why)
+    Timeout,   ///< no answer within the timeout (Fastscan: a device stopped answering midway)
+    Absent,    ///< fastscan_confirm: unconfigured devices answered the reset, not that address
   };
   LssService service = LssService::SwitchStateGlobal;
   Kind kind = Kind::Done;
   TimePoint at{};
-  LssAddress address{};     ///< Fastscan / Scan: the device's LSS address
-  std::uint32_t value = 0;  ///< inquire: the value (InquireNodeId: the node-ID); Scan end: found
-  /// ConfigureNodeId / Assigned: the node-ID (ConfigureNodeId: nullopt for FFh, not configured)
+  LssAddress address{};     ///< Fastscan, switch state selective: the device's LSS address
+  std::uint32_t value = 0;  ///< inquire: the value (InquireNodeId: the node-ID)
+  /// ConfigureNodeId: the node-ID (nullopt for FFh, not configured)
   std::optional<cfg::NodeId> node_id;
   std::uint8_t error_code = 0;
   std::uint8_t spec_error = 0;
   std::string text;  ///< one line for people, e.g. "configure node-ID refused: node-ID out of
                      ///< range (error code 1)"
 
-  bool ok() const { return kind == Kind::Done || kind == Kind::Assigned; }
+  bool ok() const { return kind == Kind::Done; }
 };
 
 struct LssMasterOptions {
@@ -131,7 +113,8 @@ struct LssMasterOptions {
   /// request): from the request and from each answer. Choose it above the devices' answer time
   /// and the air time of all devices' answers (at 125 kbit/s one LSS frame takes about 1 ms).
   Duration scan_step = std::chrono::milliseconds(10);
-  /// Scan: store each assigned node-ID (17h) before switching the device back.
+  /// LssProcedure::scan (nmt/lss_procedure.hpp): store each assigned node-ID (17h) before
+  /// switching the device back.
   bool store = true;
 };
 
@@ -150,8 +133,6 @@ class LssMaster {
  public:
   using Event = LssMasterEvent;
   using Output = Outbox<Event>;
-  /// Scan: the node-ID a found device gets (1..127), or nullopt to leave it unconfigured.
-  using NodeIdChooser = std::function<std::optional<cfg::NodeId>(const LssAddress&)>;
 
   explicit LssMaster(LssMasterOptions options = {}) : options_(options) {}
 
@@ -174,12 +155,9 @@ class LssMaster {
   /// in LSS configuration: Done with its address, or NotFound.
   cfg::Status fastscan(std::optional<LssAddress> after, TimePoint now, Output& out);
   cfg::Status fastscan(TimePoint now, Output& out) { return fastscan(std::nullopt, now, out); }
-  /// Finds every unconfigured device one by one and gives each the node-ID `chooser` says (see
-  /// the top of this file); one Assigned or Skipped event per device, then Done (value: the
-  /// number of devices found) or, when a device stopped answering mid-scan, Timeout.
-  /// With `targets`, those addresses are confirmed first, in order (see the top).
-  cfg::Status scan(NodeIdChooser chooser, TimePoint now, Output& out,
-                   std::vector<LssAddress> targets = {});
+  /// Fastscan for the known address `address` (see the top): Done with it (the device is in LSS
+  /// configuration), Absent (not that device), or NotFound (no unconfigured device answered).
+  cfg::Status fastscan_confirm(const LssAddress& address, TimePoint now, Output& out);
 
   // --- engine --------------------------------------------------------------------------------
   /// True for answers (8-byte frames on 7E4h) the running service waited for.
@@ -196,26 +174,13 @@ class LssMaster {
   enum class Step : std::uint8_t { Reset, Position, Probe, Descend, Confirm, Target };
   struct FastscanState {
     std::optional<LssAddress> after;
+    bool confirm = false;  // fastscan_confirm: `id` is the known address
     LssAddress id;
     Step step = Step::Reset;
     int sub = 0;       // Descend/Confirm: the part being found; Target: the part confirmed
     int bit = 31;      // Descend: the bit queried
     int level = 3;     // Position/Probe: the part whose branches are probed
     int position = 0;  // Position: the part being confirmed
-  };
-  // Unconfiguring, Unstoring: FFh configured and stored again after a duplicate LSS address.
-  enum class ScanPhase : std::uint8_t { Searching, Configuring, Storing, Unconfiguring, Unstoring };
-  struct ScanState {
-    NodeIdChooser chooser;
-    std::optional<LssAddress> cursor;  // the highest address skipped
-    LssAddress current;
-    std::optional<cfg::NodeId> node_id;  // Configuring/Storing: the node-ID chosen
-    ScanPhase phase = ScanPhase::Searching;
-    std::uint32_t found = 0;
-    std::vector<LssAddress> targets;  // known addresses, confirmed before the bit-by-bit search
-    std::size_t next_target = 0;
-    std::set<LssAddress> failed;  // targets whose configure node-ID failed (reported once)
-    bool duplicate = false;       // a second device answered this device's configure node-ID
   };
 
   cfg::Status start(LssService service);
@@ -228,19 +193,12 @@ class LssMaster {
 
   void send_fastscan(std::uint32_t id, int bit_check, int sub, int next, Output& out,
                      TimePoint now);
-  void fastscan_start(std::optional<LssAddress> after, TimePoint now, Output& out);
+  void fastscan_start(TimePoint now, Output& out);
   void fastscan_step(bool answer, TimePoint now, Output& out);
   void fastscan_probe(TimePoint now, Output& out, int from_bit);
   void fastscan_descend(TimePoint now, Output& out);
   void fastscan_target(TimePoint now, Output& out);
   void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text);
-  void scan_next(TimePoint now, Output& out);
-  void scan_found(TimePoint now, Output& out);
-  void scan_back_to_waiting(TimePoint now, Output& out);
-  void scan_undo(TimePoint now, Output& out);
-  static std::string duplicate_text();
-  void scan_device_done(LssMasterEvent::Kind kind, std::string text, std::uint8_t error_code,
-                        TimePoint now, Output& out);
 
   LssMasterOptions options_;
   std::optional<LssService> service_;
@@ -250,7 +208,6 @@ class LssMaster {
   bool heard_ = false;                  // Collect: an answer came in this step
   std::optional<cfg::NodeId> node_id_;  // configure node-ID: the node-ID asked for (nullopt: FFh)
   FastscanState fs_;
-  std::optional<ScanState> scan_;
 };
 static_assert(Engine<LssMaster>);
 

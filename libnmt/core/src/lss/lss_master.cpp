@@ -41,8 +41,6 @@ std::string_view to_string(LssService service) {
       return "identify non-configured remote slave";
     case LssService::Fastscan:
       return "Fastscan";
-    case LssService::Scan:
-      return "scan";
   }
   return "LSS service";
 }
@@ -86,7 +84,6 @@ void LssMaster::await(Cs cs, Wait wait, Duration d, TimePoint now) {
 void LssMaster::finish(Event e, Output& out) {
   service_.reset();
   deadline_.reset();
-  scan_.reset();
   out.report(std::move(e));
 }
 
@@ -197,20 +194,18 @@ cfg::Status LssMaster::identify_non_configured(TimePoint now, Output& out) {
 
 cfg::Status LssMaster::fastscan(std::optional<LssAddress> after, TimePoint now, Output& out) {
   if (auto started = start(LssService::Fastscan); !started) return started;
-  fastscan_start(after, now, out);
+  fs_ = FastscanState{};
+  fs_.after = after;
+  fastscan_start(now, out);
   return {};
 }
 
-cfg::Status LssMaster::scan(NodeIdChooser chooser, TimePoint now, Output& out,
-                            std::vector<LssAddress> targets) {
-  if (auto started = start(LssService::Scan); !started) return started;
-  scan_ = ScanState{};
-  scan_->chooser = std::move(chooser);
-  scan_->targets = std::move(targets);
-  // No device someone left in configuration may take the node-IDs the scan hands out.
-  out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
-                           {static_cast<std::uint8_t>(LssState::Waiting)}));
-  fastscan_start(std::nullopt, now, out);
+cfg::Status LssMaster::fastscan_confirm(const LssAddress& address, TimePoint now, Output& out) {
+  if (auto started = start(LssService::Fastscan); !started) return started;
+  fs_ = FastscanState{};
+  fs_.confirm = true;
+  fs_.id = address;
+  fastscan_start(now, out);
   return {};
 }
 
@@ -224,13 +219,6 @@ bool LssMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     // It arrived after the service's time: the service ended before it (receive time counts).
     on_timer(now, out);
     return false;
-  }
-  if (scan_ && scan_->phase == ScanPhase::Storing &&
-      frame.data[0] == static_cast<std::uint8_t>(Cs::ConfigureNodeId)) {
-    // A second answer to the scan's configure node-ID: more than one device has this LSS
-    // address (see the top of lss_master.hpp); undone when the store is answered.
-    scan_->duplicate = true;
-    return true;
   }
   if (frame.data[0] != static_cast<std::uint8_t>(expect_)) return false;
   if (wait_ == Wait::Collect) {
@@ -273,31 +261,6 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
     case Cs::ConfigureNodeId:
     case Cs::ConfigureBitTiming:
     case Cs::StoreConfiguration: {
-      if (scan_) {
-        const std::string words = lss::error_text(expect_, code, spec);
-        if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
-          scan_undo(now, out);
-        } else if (scan_->phase == ScanPhase::Unconfiguring) {
-          scan_->phase = ScanPhase::Unstoring;
-          out.send(request(Cs::StoreConfiguration));
-          await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
-        } else if (scan_->phase == ScanPhase::Unstoring) {
-          scan_device_done(Kind::Skipped, duplicate_text(), 0, now, out);
-        } else if (scan_->phase == ScanPhase::Configuring && code != 0) {
-          scan_device_done(Kind::Skipped, "configure node-ID refused: " + words, code, now, out);
-        } else if (scan_->phase == ScanPhase::Configuring && options_.store) {
-          scan_->phase = ScanPhase::Storing;
-          out.send(request(Cs::StoreConfiguration));
-          await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
-        } else if (scan_->phase == ScanPhase::Storing && code != 0) {
-          scan_device_done(Kind::Assigned, "not stored: store configuration refused: " + words,
-                           code, now, out);
-        } else {
-          scan_device_done(Kind::Assigned, options_.store ? "stored" : "not stored (as asked)", 0,
-                           now, out);
-        }
-        return;
-      }
       auto e = code == 0 ? event(service, Kind::Done, now, "done")
                          : event(service, Kind::Refused, now,
                                  "refused: " + lss::error_text(expect_, code, spec));
@@ -327,19 +290,6 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
 
 void LssMaster::timed_out(TimePoint now, Output& out) {
   const std::string text = "no answer within " + ms(options_.timeout);
-  if (scan_) {
-    if (scan_->phase == ScanPhase::Configuring) {
-      scan_device_done(Kind::Skipped, "configure node-ID: " + text, 0, now, out);
-    } else if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
-      scan_undo(now, out);
-    } else if (scan_->phase == ScanPhase::Unconfiguring || scan_->phase == ScanPhase::Unstoring) {
-      scan_device_done(Kind::Skipped, duplicate_text() + "; undoing its node-ID: " + text, 0, now,
-                       out);
-    } else {
-      scan_device_done(Kind::Assigned, "not stored: store configuration: " + text, 0, now, out);
-    }
-    return;
-  }
   auto e = event(*service_, Kind::Timeout, now, text);
   if (*service_ == LssService::SwitchStateSelective) e.address = fs_.id;
   finish(std::move(e), out);
@@ -365,9 +315,8 @@ void LssMaster::send_fastscan(std::uint32_t id, int bit_check, int sub, int next
   await(Cs::IdentifyAnswer, Wait::Collect, options_.scan_step, now);
 }
 
-void LssMaster::fastscan_start(std::optional<LssAddress> after, TimePoint now, Output& out) {
-  fs_ = FastscanState{};
-  fs_.after = after;
+void LssMaster::fastscan_start(TimePoint now, Output& out) {
+  fs_.step = Step::Reset;
   send_fastscan(0, lss::kFastscanReset, 0, 0, out, now);
 }
 
@@ -411,7 +360,7 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
         fastscan_end(Kind::NotFound, now, out, "no unconfigured device answered");
         return;
       }
-      if (scan_ && scan_->next_target < scan_->targets.size()) {
+      if (fs_.confirm) {
         fastscan_target(now, out);
         return;
       }
@@ -476,8 +425,8 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
     case Step::Target:
       if (!answer) {
         // Its device is absent or configured; the devices that matched the parts before stay
-        // there: the reset brings every unconfigured device back to part 0.
-        fastscan_start(scan_->cursor, now, out);
+        // there until the next reset brings every unconfigured device back to part 0.
+        fastscan_end(Kind::Absent, now, out, "no device " + to_string(fs_.id) + " unconfigured");
         return;
       }
       if (fs_.sub == 3) {
@@ -491,99 +440,16 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
 }
 
 void LssMaster::fastscan_target(TimePoint now, Output& out) {
-  // Confirm the next known address part by part (BitCheck 0: all 32 bits compared).
-  fs_.id = scan_->targets[scan_->next_target++];
+  // Confirm the known address part by part (BitCheck 0: all 32 bits compared).
   fs_.step = Step::Target;
   fs_.sub = 0;
   send_fastscan(fs_.id.part(0), 0, 0, 1, out, now);
 }
 
 void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text) {
-  if (!scan_) {
-    auto e = event(LssService::Fastscan, kind, now, std::move(text));
-    if (kind == Kind::Done) e.address = fs_.id;
-    finish(std::move(e), out);
-    return;
-  }
-  if (kind == Kind::Done) {
-    scan_found(now, out);
-    return;
-  }
-  auto e = kind == Kind::NotFound
-               ? event(LssService::Scan, Kind::Done, now,
-                       std::to_string(scan_->found) + " unconfigured devices found")
-               : event(LssService::Scan, kind, now, std::move(text));
-  e.value = scan_->found;
+  auto e = event(LssService::Fastscan, kind, now, std::move(text));
+  if (kind == Kind::Done || kind == Kind::Absent) e.address = fs_.id;
   finish(std::move(e), out);
-}
-
-// --- scan --------------------------------------------------------------------------------------
-
-void LssMaster::scan_found(TimePoint now, Output& out) {
-  scan_->current = fs_.id;
-  if (fs_.step != Step::Target && scan_->failed.contains(fs_.id)) {
-    // A target whose configure node-ID failed, reported then: passed by without a second event.
-    scan_->cursor = fs_.id;
-    scan_back_to_waiting(now, out);
-    return;
-  }
-  ++scan_->found;
-  std::optional<cfg::NodeId> node_id;
-  if (scan_->chooser) node_id = scan_->chooser(scan_->current);
-  if (!node_id) {
-    scan_device_done(Kind::Skipped, "no node-ID for it", 0, now, out);
-    return;
-  }
-  scan_->node_id = node_id;
-  scan_->duplicate = false;
-  scan_->phase = ScanPhase::Configuring;
-  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {node_id->value()}));
-  await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
-}
-
-std::string LssMaster::duplicate_text() {
-  return "more than one device answered configure node-ID with this LSS address (CiA 305 takes "
-         "LSS addresses to be unique)";
-}
-
-void LssMaster::scan_undo(TimePoint now, Output& out) {
-  // Every device with the address is in LSS configuration and took the node-ID: FFh (not
-  // configured) to all of them, stored, then back to waiting without a node-ID.
-  scan_->phase = ScanPhase::Unconfiguring;
-  out.send(lss::make_frame(lss::kMasterCobId, Cs::ConfigureNodeId, {lss::kUnconfigured}));
-  await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
-}
-
-void LssMaster::scan_device_done(Kind kind, std::string text, std::uint8_t error_code,
-                                 TimePoint now, Output& out) {
-  const std::string head =
-      to_string(scan_->current) +
-      (kind == Kind::Assigned ? " got node-ID " + std::to_string(scan_->node_id.value()) + ", "
-                              : " left unconfigured: ");
-  auto e = event(LssService::Scan, kind, now, head + text);
-  e.address = scan_->current;
-  if (kind == Kind::Assigned) e.node_id = scan_->node_id;
-  e.error_code = error_code;
-  out.report(std::move(e));
-  if (kind == Kind::Skipped) {
-    // A skipped target is found again bit by bit (only then is it looked past): devices with
-    // lower addresses are still to be found after the targets.
-    if (fs_.step == Step::Target) {
-      scan_->failed.insert(scan_->current);
-    } else {
-      scan_->cursor = scan_->current;
-    }
-  }
-  scan_back_to_waiting(now, out);
-}
-
-void LssMaster::scan_back_to_waiting(TimePoint now, Output& out) {
-  // Back to waiting: a device with its new node-ID starts with it and no longer answers
-  // Fastscan; a skipped one is looked past.
-  out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
-                           {static_cast<std::uint8_t>(LssState::Waiting)}));
-  scan_->phase = ScanPhase::Searching;
-  fastscan_start(scan_->cursor, now, out);
 }
 
 }  // namespace nmt

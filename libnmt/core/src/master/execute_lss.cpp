@@ -1,5 +1,5 @@
 // Execute LSS (execute_lss.hpp): the start-up pass and the looks for unconfigured devices, the
-// node-ID each found device gets, and the MasterEvents the LssMaster's events become.
+// node-ID each found device gets, and the MasterEvents the LssProcedure's events become.
 #include "master/execute_lss.hpp"
 
 #include <string>
@@ -9,13 +9,13 @@
 
 namespace nmt {
 
-using Kind = LssMasterEvent::Kind;
+using Kind = LssProcedureEvent::Kind;
 
 namespace {
 
-// The LssMaster's text without its "scan: " head: "vendor ... got node-ID 5, stored".
-std::string scan_text(const LssMasterEvent& e) {
-  const std::string head = std::string(to_string(LssService::Scan)) + ": ";
+// The scan's text without its "scan: " head: "vendor ... got node-ID 5, stored".
+std::string scan_text(const LssProcedureEvent& e) {
+  const std::string head = std::string(to_string(LssProcedureKind::Scan)) + ": ";
   return e.text.rfind(head, 0) == 0 ? e.text.substr(head.size()) : e.text;
 }
 
@@ -36,8 +36,8 @@ void ExecuteLssProcess::watch(TimePoint now) {
 }
 
 void ExecuteLssProcess::stop() {
-  // A fresh LssMaster: the running service's answers no longer match anything it waits for.
-  lss_ = LssMaster(lss_.options());
+  // A fresh LssProcedure: the running service's answers no longer match anything it waits for.
+  lss_ = LssProcedure(lss_.options());
   phase_ = Phase::Off;
   next_look_.reset();
 }
@@ -59,8 +59,8 @@ void ExecuteLssProcess::on_timer(TimePoint now, Output& out) {
     // a node-ID; the scan (the slaves' addresses confirmed, then the rest searched bit by bit)
     // only when one answers.
     lss_out_.clear();
-    // The LssMaster is idle between looks, so the start cannot fail; were it so, no look.
-    if (lss_.identify_non_configured(now, lss_out_)) phase_ = Phase::Probe;
+    // The LssProcedure is idle between looks, so the start cannot fail; were it so, no look.
+    if (lss_.any_unconfigured(now, lss_out_)) phase_ = Phase::Probe;
     forward(now, out);
     return;
   }
@@ -88,11 +88,11 @@ void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
   auto started = lss_.scan([this](const LssAddress& address) { return choose(address); }, now,
                            lss_out_, port_.known_addresses());
   if (!started) {
-    // The LssMaster is idle here (stopped, or its identify ended), so this cannot happen; were
+    // The LssProcedure is idle here (stopped, or its look ended), so this cannot happen; were
     // it so, the pass or look ends at once with the reason.
-    LssMasterEvent e;
-    e.service = LssService::Scan;
-    e.kind = Kind::NotFound;
+    LssProcedureEvent e;
+    e.procedure = LssProcedureKind::Scan;
+    e.kind = Kind::Failed;
     e.at = now;
     e.text = started.error().message;
     scan_ended(e, now, out);
@@ -115,9 +115,9 @@ void ExecuteLssProcess::forward(TimePoint now, Output& out) {
   for (const auto& e : events) handle(e, now, out);
 }
 
-void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
-  if (e.service == LssService::IdentifyNonConfigured) {
-    if (e.kind == Kind::Done) {
+void ExecuteLssProcess::handle(const LssProcedureEvent& e, TimePoint now, Output& out) {
+  if (e.procedure == LssProcedureKind::AnyUnconfigured) {
+    if (e.found > 0) {
       phase_ = Phase::Scan;
       begin_scan(now, out);
     } else {
@@ -125,7 +125,7 @@ void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& o
     }
     return;
   }
-  if (e.service != LssService::Scan) return;
+  if (e.procedure != LssProcedureKind::Scan) return;
   switch (e.kind) {
     case Kind::Assigned: {
       ++assigned_;
@@ -160,10 +160,10 @@ void ExecuteLssProcess::handle(const LssMasterEvent& e, TimePoint now, Output& o
   }
 }
 
-void ExecuteLssProcess::scan_ended(const LssMasterEvent& e, TimePoint now, Output& out) {
+void ExecuteLssProcess::scan_ended(const LssProcedureEvent& e, TimePoint now, Output& out) {
   const bool startup = phase_ == Phase::Startup;
-  std::string text = "LSS: " + std::to_string(e.value) + " unconfigured device" +
-                     (e.value == 1 ? "" : "s") + " found, " + std::to_string(assigned_) +
+  std::string text = "LSS: " + std::to_string(e.found) + " unconfigured device" +
+                     (e.found == 1 ? "" : "s") + " found, " + std::to_string(assigned_) +
                      " given a node-ID";
   if (e.kind != Kind::Done) text += " (scan ended early: " + e.text + ")";
   auto m = master_event(MasterEvent::Kind::LssScanEnded, e.at, std::nullopt, std::move(text));

@@ -2,8 +2,9 @@
 // nodes; CiA 302-2 §3.1 c: the master runs the LSS master services where node-IDs must be set)
 // and the later look for devices that appear unconfigured (a replaced device), as one engine of
 // the shape of nmt/engine.hpp. Private to the library. The LSS protocol (CiA 305) is the
-// LssMaster's (nmt/lss_master.hpp, its sources in nmt/lss.hpp); this engine decides which node-ID
-// a found device gets and what the master hears of it. The choices are listed at the top of
+// LssProcedure's (nmt/lss_procedure.hpp: its scan, built from nmt/lss_master.hpp's services, the
+// sources in nmt/lss.hpp); this engine decides which node-ID a found device gets and what the
+// master hears of it. The choices are listed at the top of
 // nmt/nmt_master.hpp.
 //
 // It talks to the NMT master only through ExecuteLssPort: "which slave has this LSS address",
@@ -11,7 +12,8 @@
 // the bus now" (only the active master sends LSS requests). Its events are the master's own
 // (MasterEvent: LssAssigned, LssUnmatched, LssFailed, LssScanEnded).
 //
-//   start(now, out)   the start-up pass: one LssMaster::scan (every unconfigured device: Fastscan,
+//   start(now, out)   the start-up pass: one LssProcedure::scan (every unconfigured device:
+//   Fastscan,
 //                     configure node-ID, store, switch back to waiting), then port.pass_ended();
 //                     the scan first confirms the slaves' known addresses (port.known_addresses,
 //                     4 requests each) and searches bit by bit only for the devices left over
@@ -30,6 +32,7 @@
 #include "cfg/node_id.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/lss_master.hpp"
+#include "nmt/lss_procedure.hpp"
 #include "nmt/nmt_master.hpp"
 
 namespace nmt {
@@ -86,16 +89,16 @@ class ExecuteLssProcess {
  private:
   void begin_scan(TimePoint now, Output& out);
   void forward(TimePoint now, Output& out);
-  void handle(const LssMasterEvent& e, TimePoint now, Output& out);
-  void scan_ended(const LssMasterEvent& e, TimePoint now, Output& out);
+  void handle(const LssProcedureEvent& e, TimePoint now, Output& out);
+  void scan_ended(const LssProcedureEvent& e, TimePoint now, Output& out);
   std::optional<cfg::NodeId> choose(const LssAddress& address);
 
   ExecuteLssPort& port_;
-  LssMaster lss_;
+  LssProcedure lss_;
   Duration period_;
   Phase phase_ = Phase::Off;
   std::optional<TimePoint> next_look_;
-  LssMaster::Output lss_out_;  ///< scratch output of lss_
+  LssProcedure::Output lss_out_;  ///< scratch output of lss_
   /// This scan: the node-ID chosen for each address found (its LssFailed names the slave).
   std::map<LssAddress, cfg::NodeId> chosen_;
   std::uint32_t assigned_ = 0;
