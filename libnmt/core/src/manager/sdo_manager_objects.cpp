@@ -121,7 +121,7 @@ SdoAbort SdoManagerProcess::check_write(std::uint16_t index, std::uint8_t sub,
     return SdoAbort::None;
   }
   if (obj::is_sdo_server_parameter(index) && index != kDefaultServer) {
-    // The manager's own server channels for SRDs (choice, nmt/nmt_master.hpp): it opens and
+    // The manager's own server channels for SRDs (choice, docs/master.md): it opens and
     // closes them; §7.2.3 lets tools change connections only through 1F00h/1F01h.
     return SdoAbort::LocalControl;
   }

@@ -3,8 +3,8 @@
 // Dynamic SDO Request (6E0h, §7.2.1), the connections an SRD asks for with 1F00h and gives back
 // with 1F01h (§7.2.2, §7.2.3), the error control of SRDs and, for SRDs with Req EC, of their
 // slaves (1F11h, §7.2.2), and the manager's objects 1F00h-1F06h (§7.2.3) with the own server
-// channels 1201h.. an SRD gets. The choices where §7 leaves room are listed at the top of
-// nmt/nmt_master.hpp ("SDO manager").
+// channels 1201h.. an SRD gets. The choices where §7 leaves room are listed in
+// docs/master.md ("SDO manager").
 //
 // The engine (nmt::Engine, engine.hpp) owns its state: the SRDs, the connections (1F03h-1F06h
 // rows), the jobs that set them up and take them down (one at a time; a scan lets the others go

@@ -1,4 +1,4 @@
-// The driver's half of "no disk I/O inside on_frame" (nmt_master.hpp, MasterEvent::PersistEntry)
+// The driver's half of "no disk I/O inside on_frame" (docs/master.md, MasterEvent::PersistEntry)
 // for a master on a BusEventLoop: each staged store entry is written (cfg::ConfigManager::persist,
 // an fsync'd atomic file write) on a worker thread, so the loop keeps serving frames and timers
 // while the disk works, and the completion goes back to the loop's thread with EngineRef::post,
