@@ -19,6 +19,7 @@
 #include "cfg/object_index.hpp"
 #include "multicast_netns.hpp"
 #include "nmt/bus_event_loop.hpp"
+#include "nmt/local_dictionary.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/udp_bus.hpp"
 #include "python_peer.hpp"

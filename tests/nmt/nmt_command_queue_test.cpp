@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cfg/master_objects.hpp"
+#include "nmt/local_dictionary.hpp"
 #include "nmt/nmt_master.hpp"
 
 namespace nmt {

@@ -414,6 +414,66 @@ TEST_F(SdoManagerEngine, SrdRefusedForLackOfAChannelRegistersOnceAnotherDeregist
   EXPECT_EQ(at(110, 0x1F10, 0), 0x12810002U);  // Cnxn 1, no error
 }
 
+// §7.2.1: a 6E0h that comes while a scan runs may be from an SRD the scan has passed: another
+// scan follows the registration the first one ends in, and finds it.
+TEST_F(SdoManagerEngine, DynamicSdoRequestDuringAScanMakesAnotherScanFollowIt) {
+  add_srd(120);
+  add_srd(100);
+  port.devices.at(120).set_unsigned(0x1F10, 0, 0x12810001);
+  ASSERT_TRUE(engine().on_frame(*from_candump("6E0#"), now, out));
+  engine().on_timer(now, out);
+  ASSERT_EQ(port.accesses.size(), 1U);  // 127's 1F10h
+  port.devices.at(100).set_unsigned(0x1F10, 0, 0x12810001);
+  ASSERT_TRUE(engine().on_frame(*from_candump("6E0#"), now, out));
+  run();
+  EXPECT_EQ(events_of(Kind::SrdRegistered, 120).size(), 1U);
+  ASSERT_EQ(events_of(Kind::SrdRegistered, 100).size(), 1U);
+  // The second scan starts at 127 again and skips the registered 120.
+  const auto second =
+      std::find(port.accesses.begin(), port.accesses.end(), write(120, 0x1F10, 0, 0x12810002));
+  ASSERT_NE(second, port.accesses.end());
+  ASSERT_NE(std::next(second), port.accesses.end());
+  EXPECT_EQ(*std::next(second), read(127, 0x1F10, 0));
+  EXPECT_EQ(std::count(second, port.accesses.end(), read(120, 0x1F10, 0)), 0);
+  EXPECT_EQ(at(100, 0x1F10, 0), 0x12810002U);
+}
+
+// §7.2.2: the SRD refuses the write of its client entry (here: 1284h, which it does not have)
+// after S's server entry was written: S's entry is invalidated again, the pool entries are
+// free, and the refusal is reported with error 00h; 1F10h is not written (the SRD did not take
+// its entry, so it cannot take a confirmation either).
+TEST_F(SdoManagerEngine, ConnectionTheSrdRefusesIsUndoneOnTheSlaveAndReported) {
+  add_srd(120);
+  add_srd(110);
+  add_slaves();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  ASSERT_NO_FATAL_FAILURE(connect(120, 2));  // 2's default SDO is now held
+  ASSERT_TRUE(register_srd(110, 0x12810001));
+  port.accesses.clear();
+  const auto answer = srd_write(110, 0x1281, 0x1F00, request_word(0x1284, 110, 2));
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->data[0], 0x60);
+  run();
+  const std::vector<Access> expected{
+      read(2, 0x1201, 1),
+      write(2, 0x1201, 3, 110),
+      write(2, 0x1201, 1, 0x684),
+      write(2, 0x1201, 2, 0x685),
+      write(110, 0x1284, 3, 2),  // refused: no such object
+      write(2, 0x1201, 1, kInvalid | 0x684),
+      write(2, 0x1201, 2, kInvalid | 0x685),
+  };
+  EXPECT_EQ(port.accesses, expected);
+  ASSERT_EQ(events_of(Kind::SdoConnectionRefused, 110).size(), 1U);
+  EXPECT_EQ(events_of(Kind::SdoConnectionRefused, 110)[0].connection_error,
+            cfg::sdo_manager::DynamicSdoError::kNoDetails);
+  EXPECT_EQ(at(110, 0x1F10, 0), 0x12810002U);
+  EXPECT_EQ(at(2, 0x1201, 1), kInvalid | 0x684);
+  EXPECT_EQ(own(0x1F02, 5), 0x684U);
+  EXPECT_EQ(own(0x1F02, 6), 0x685U);
+  EXPECT_EQ(engine().connections().size(), 3U);  // two registrations and 120's connection
+}
+
 // Reset communication of all nodes: the tables go, and a result of a transfer that still ran
 // is stale.
 TEST_F(SdoManagerEngine, ClearEmptiesTheTablesAndDropsStaleResults) {

@@ -37,9 +37,10 @@ using DictionaryEntry = cfg::DeviceEntry;
 /// A write hook's answer: accept (SdoAbort::None, the default), refuse with a code, or accept
 /// and hold the confirmation of the SDO download until the dictionary's owner completes it
 /// under `held` (SdoServer::complete_download): the master's 1F20h-1F27h, whose confirmation
-/// leaves once the entry is durable (nmt_master.hpp). A plain SdoAbort converts to it, so a hook
-/// that never holds returns SdoAbort. A hook that holds must run after every hook that may
-/// refuse the same entry: a later refusal does not undo what the holding hook started.
+/// leaves once the entry is durable (docs/master.md, "Configuration manager"). A plain SdoAbort
+/// converts to it, so a hook that never holds returns SdoAbort. A hook that holds must run after
+/// every hook that may refuse the same entry: a later refusal does not undo what the holding hook
+/// started.
 struct WriteVerdict {
   SdoAbort abort = SdoAbort::None;
   /// The ticket of a held confirmation; nullopt: confirm at once.

@@ -21,7 +21,7 @@
 // in `slaves` that have a heartbeat time, the others cleared), 1017h, 1F89h, 102Ah, 1F90h sub
 // 1..6, and 1F8Ah sub node of each node in `slaves`. Every error says what is wrong and what to
 // do about it. The rest of the master's
-// dictionary comes from `dcf` (or the defaults, nmt_master.hpp).
+// dictionary comes from `dcf` (or the defaults, NmtMaster::create).
 #pragma once
 
 #include <cstdint>
@@ -77,7 +77,7 @@ struct ExpectedIdentity {
   std::optional<std::uint32_t> device_type;    ///< 1F84h: 1000h
   std::optional<std::uint32_t> vendor_id;      ///< 1F85h: 1018h sub 1 (boot error D)
   std::optional<std::uint32_t> product_code;   ///< 1F86h: 1018h sub 2 (M)
-  std::optional<std::uint32_t> revision;       ///< 1F87h: 1018h sub 3 (N; nmt_master.hpp)
+  std::optional<std::uint32_t> revision;       ///< 1F87h: 1018h sub 3 (N; docs/master.md)
   std::optional<std::uint32_t> serial_number;  ///< 1F88h: 1018h sub 4 (O)
   bool operator==(const ExpectedIdentity&) const = default;
 };
@@ -107,7 +107,7 @@ struct SlaveConfig {
   /// 1F26h/1F27h sub node (DSP 302 §6.6): the configuration date (days since 1984-01-01) and
   /// time (ms after midnight) the master expects in the slave's 1020h; while both match, check
   /// configuration skips the download. Zero: not verified. A configuration manager that holds
-  /// a stamp for the node owns it instead (nmt_master.hpp).
+  /// a stamp for the node owns it instead (docs/master.md, "Configuration manager").
   cfg::ConfigurationStamp expected_configuration;
 
   cfg::SlaveAssignment assignment() const;

@@ -1,6 +1,6 @@
 // What the NMT master reports (MasterEvent) and the vocabulary its events use: boot status
 // (CiA 302-2 Table 1), boot steps, start-up states, the SDO manager's connections and SRDs.
-// Included by nmt/nmt_master.hpp, whose top comment ("see the top") describes the behaviour.
+// Included by nmt/nmt_master.hpp; the behaviour they report is described in docs/master.md.
 #pragma once
 
 #include <cstddef>
@@ -119,7 +119,7 @@ struct MasterEvent {
     SlaveBooted,               ///< boot NMT slave: status OK (`configured`: a download happened)
     BootError,                 ///< boot NMT slave: `error`; `final` when no try follows
     StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f);
-                               ///< reported once every slave's boot ended (see the top)
+                               ///< reported once every slave's boot ended (docs/master.md)
     StartupAwaitsApplication,  ///< 1F80h bit 2: every mandatory slave booted; call
                                ///< enter_operational() (§3.1 g)
     StartupComplete,           ///< NMT start-up ended (§3.1 i)
@@ -154,16 +154,16 @@ struct MasterEvent {
     SrdLost,                   ///< node_id's error control failed (or it booted up): released
     SrdDeregistered,           ///< 1F01h with slave 0: node_id is no longer registered
     SlaveFailedReported,       ///< 1F11h written on SRD node_id: connection->server failed
-    // Configuration manager with a store directory (see the top).
+    // Configuration manager with a store directory (docs/master.md).
     PersistEntry,  ///< make `persist` durable, then call entry_persisted(persist->ticket, ...)
-    // Execute LSS (MasterOptions::lss; CiA 305, see the top); `lss_address` is the device's.
+    // Execute LSS (MasterOptions::lss; CiA 305, docs/master.md); `lss_address` is the device's.
     LssAssigned,   ///< the device got node_id by LSS (text: stored or why not)
     LssUnmatched,  ///< an unconfigured device matches no slave (or a slave another device got):
                    ///< left unconfigured
     LssFailed,     ///< the device of slave node_id refused or missed configure node-ID
     LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
     /// Software update of node_id: the device refused 1F51h sub 1 = 3 (clear, CiA 302-3) with
-    /// `sdo->abort`, one of the refusals of a DSP 302 v3.2.1 device (see the top); the download
+    /// `sdo->abort`, one of the refusals of a DSP 302 v3.2.1 device (docs/master.md); the download
     /// goes on. `program->clear_refused` of the boot's SlaveBooted/BootError I says it again.
     ProgramClearRefused,
   };

@@ -1,6 +1,6 @@
 // How an NMT master is built (MasterOptions) and where it finds configurations and program
-// images (ConfigurationSource). Included by nmt/nmt_master.hpp, whose top comment ("see the top")
-// describes the behaviour.
+// images (ConfigurationSource). Included by nmt/nmt_master.hpp; the behaviour each option
+// tunes is described in docs/master.md, by process.
 #pragma once
 
 #include <chrono>
@@ -53,7 +53,8 @@ class ConfigurationSource {
   }
 };
 
-/// "Execute LSS" in the master's boot (DSP 302 §4 figure 1 step 3; CiA 302-2 §3.1 c; see the top).
+/// "Execute LSS" in the master's boot (DSP 302 §4 figure 1 step 3; CiA 302-2 §3.1 c;
+/// docs/master.md).
 struct ExecuteLssOptions {
   /// Before NMT start-up's reset of all nodes, find every unconfigured device (CiA 305 Fastscan)
   /// and give the slave's node-ID to each whose LSS address is a slave's.
@@ -74,11 +75,11 @@ struct ExecuteLssOptions {
 struct MasterOptions {
   /// nullptr: configurations from the master's own 1F22h, no program images.
   std::shared_ptr<const ConfigurationSource> configurations;
-  /// The configuration manager the master serves over SDO (1F20h-1F27h, see the top) and asks
+  /// The configuration manager the master serves over SDO (1F20h-1F27h, docs/master.md) and asks
   /// first for a node's configuration and 1F26h/1F27h. Shared: the owner may use its C++ API
   /// between the master's calls (not from another thread). SDO writes of 1F20h, 1F22h, 1F23h,
   /// 1F26h and 1F27h go to the manager's store directory when it has one, written by the
-  /// driver, not the master: MasterEvent::PersistEntry and entry_persisted() (see the top).
+  /// driver, not the master: MasterEvent::PersistEntry and entry_persisted() (docs/master.md).
   /// nullptr: 1F20h-1F25h are served only as the master DCF has them, as plain values.
   std::shared_ptr<cfg::ConfigManager> manager;
   /// Timeout of each SDO response, and how often a timed-out transfer is repeated.
@@ -103,7 +104,7 @@ struct MasterOptions {
   Duration boot_up_wait = std::chrono::milliseconds(500);
   /// How long a restore or a software update waits for the boot-up after its reset node.
   Duration reboot_timeout = std::chrono::seconds(5);
-  /// Software update (DSP 302 §9, see the top): the wait for the answer to 1F51h sub 1 = 0
+  /// Software update (DSP 302 §9, docs/master.md): the wait for the answer to 1F51h sub 1 = 0
   /// (stop) and = 1 (start), which a device may give only once its program stopped or booted.
   Duration program_control_timeout = std::chrono::seconds(10);
   /// The wait for the answer to 1F51h sub 1 = 3 (clear, CiA 302-3), during which a device may
@@ -120,7 +121,7 @@ struct MasterOptions {
   bool force_download = false;
   /// After the download, wait for configuration_done() (MasterEvent::ApplicationStep).
   bool application_step = false;
-  /// The SDO manager of DSP 302 §7 (see the top). Also on when the master DCF has 1F00h.
+  /// The SDO manager of DSP 302 §7 (docs/master.md). Also on when the master DCF has 1F00h.
   bool sdo_manager = false;
   /// Own server channels 1201h.. the manager adds for SRDs (one per registered SRD), 1..127:
   /// also the bound of registrations (this many SRDs, plus one granted all default SDOs); the

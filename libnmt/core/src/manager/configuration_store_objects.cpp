@@ -1,6 +1,6 @@
 // The configuration manager's objects on the NMT master's SDO server (DSP 302 §6; see
 // configuration_store_objects.hpp): 1F20h-1F25h are served from MasterOptions::manager, and
-// 1F26h/1F27h have one owner (nmt_master.hpp). The dictionary keeps only the entries'
+// 1F26h/1F27h have one owner (docs/master.md). The dictionary keeps only the entries'
 // attributes: a read fills the value from the manager, a write hands it over and the
 // dictionary's copy of a file is dropped at once.
 #include "manager/configuration_store_objects.hpp"
@@ -114,7 +114,7 @@ std::optional<cfg::ConfigurationStamp> ConfigurationStoreObjects::stored_stamp(
 }
 
 cfg::ConfigurationStamp ConfigurationStoreObjects::expected_configuration(cfg::NodeId node) const {
-  // One owner (nmt_master.hpp): the configuration manager for a node it holds anything for.
+  // One owner (docs/master.md): the configuration manager for a node it holds anything for.
   if (auto stamp = stored_stamp(node)) return *stamp;
   auto value = [this](std::uint16_t index, cfg::NodeId n) {
     return static_cast<std::uint32_t>(dict_.get_unsigned(index, n.value()).value_or(0));
@@ -174,7 +174,7 @@ SdoAbort ConfigurationStoreObjects::read(std::uint16_t index, std::uint8_t sub) 
 
 std::optional<ConfigurationStoreObjects::StoreValue> ConfigurationStoreObjects::unstored_read(
     std::uint16_t index, cfg::NodeId node) const {
-  // "Stored, else the network" (nmt_master.hpp): a stored configuration takes the place of the
+  // "Stored, else the network" (docs/master.md): a stored configuration takes the place of the
   // source's, as in configuration().
   if (manager_->has_configuration(node)) return std::nullopt;
   const ConfigurationSource* source = configurations_.get();
@@ -228,7 +228,7 @@ WriteVerdict ConfigurationStoreObjects::persist_entry(cfg::StoreUpdate update, T
     return SdoAbort::None;
   }
   if (out == nullptr) return SdoAbort::DeviceState;  // no output to ask the driver in
-  // No disk I/O in the engine (nmt_master.hpp): the driver writes the entry and answers with
+  // No disk I/O in the engine (docs/master.md): the driver writes the entry and answers with
   // entry_persisted(); until then the SDO confirmation waits and the manager keeps its value.
   const std::uint64_t ticket = ++last_persist_ticket_;
   const auto node = update.node;
@@ -262,7 +262,7 @@ void ConfigurationStoreObjects::add_unstored_configurations(std::uint8_t sub,
                                                             cfg::ConfigWrite& written) const {
   // DSP 302 §6.4: 'conf' configures a node "with the stored configuration"; a node the manager
   // stores nothing for has the source's (or the master DCF's) configuration, which the master
-  // downloads just the same (nmt_master.hpp), so 1F25h takes those nodes too.
+  // downloads just the same (docs/master.md), so 1F25h takes those nodes too.
   const auto has_configuration = [this](cfg::NodeId node) {
     return configuration(node).has_value();
   };

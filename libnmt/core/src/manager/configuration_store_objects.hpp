@@ -1,6 +1,6 @@
 // The configuration manager's objects on the NMT master's SDO server (CiA DSP 302 v3.2.1 §6):
 // 1F20h-1F25h served from a cfg::ConfigManager (MasterOptions::manager), and the one owner of
-// 1F26h/1F27h (nmt_master.hpp), as a process of its own. Private to the library.
+// 1F26h/1F27h (docs/master.md), as a process of its own. Private to the library.
 //
 // It owns its state: the master DCF's own 1F22h streams (the fallback of a node the manager
 // holds nothing for), the entry whose file a read filled last (the dictionary keeps at most one
@@ -9,7 +9,7 @@
 // slave", "does this device boot slaves now", "configure this slave" (1F25h 'conf') and
 // "complete the held download with this ticket".
 //
-// No disk I/O in the engine (an SDO write is answered on the frame path; nmt_master.hpp): a write
+// No disk I/O in the engine (an SDO write is answered on the frame path; docs/master.md): a write
 // of a stored entry is decided at once (cfg::ConfigManager::stage: checks and abort codes) and,
 // with a store directory, reported as MasterEvent::PersistEntry into the output of the call the
 // write runs in; the write hook answers WriteVerdict::hold(ticket), so the SDO server holds the
@@ -87,7 +87,7 @@ class ConfigurationStoreObjects {
   void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
 
   /// 1F26h/1F27h of `node`: the manager's when it holds anything for the node (one owner,
-  /// nmt_master.hpp), else the dictionary's.
+  /// docs/master.md), else the dictionary's.
   cfg::ConfigurationStamp expected_configuration(cfg::NodeId node) const;
   /// The configuration to download to `node` (CiA 302-2 §3.5 d): the manager's, the source's,
   /// or the master's own 1F22h.
@@ -106,13 +106,13 @@ class ConfigurationStoreObjects {
   std::optional<cfg::ConfigurationStamp> stored_stamp(cfg::NodeId node) const;
   SdoAbort read(std::uint16_t index, std::uint8_t sub);
   /// 1F20h-1F22h of a node the manager stores no configuration for: the configuration source's
-  /// concise DCF and DCF, else the master DCF's own 1F22h (nmt_master.hpp). nullopt: the
+  /// concise DCF and DCF, else the master DCF's own 1F22h (docs/master.md). nullopt: the
   /// manager's answer applies.
   std::optional<StoreValue> unstored_read(std::uint16_t index, cfg::NodeId node) const;
   /// 1F25h: the nodes with a configuration that is not stored join the manager's answer.
   void add_unstored_configurations(std::uint8_t sub, cfg::ConfigWrite& written) const;
   /// An SDO write of 1F20h-1F27h: decided by the manager; a change of a stored entry is held
-  /// for persist_entry() (see nmt_master.hpp).
+  /// for persist_entry() (see docs/master.md).
   WriteVerdict write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                      TimePoint now, Output* out);
   /// Takes `update` at once (no store directory), or reports it as PersistEntry into `out` and

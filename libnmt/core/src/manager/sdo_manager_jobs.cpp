@@ -5,7 +5,9 @@
 // its reads). A 1F00h/1F01h write only queues one (§7.2.3: a successful response means the
 // manager started). The engine and its port: sdo_manager_process.hpp.
 #include <algorithm>
+#include <type_traits>
 #include <utility>
+#include <variant>
 
 #include "cfg/bytes.hpp"
 #include "cfg/hex.hpp"
@@ -59,14 +61,14 @@ SdoManagerProcess::Step SdoManagerProcess::read_step(cfg::NodeId node, cfg::Obje
 }
 
 SdoManagerProcess::Job SdoManagerProcess::scan_job() {
-  return Job{.kind = Job::Kind::Scan, .node = *cfg::NodeId::from(cfg::kMaxNodeId)};
+  return Job{.work = ScanJob{.node = *cfg::NodeId::from(cfg::kMaxNodeId)}};
 }
 
-void SdoManagerProcess::scan_next(Job& job) {
-  if (const auto below = cfg::NodeId::from(job.node.value() - 1U)) {
-    job.node = *below;
+void SdoManagerProcess::scan_next(ScanJob& scan) {
+  if (const auto below = cfg::NodeId::from(scan.node.value() - 1U)) {
+    scan.node = *below;
   } else {
-    job.scanned_all = true;
+    scan.scanned_all = true;
   }
 }
 
@@ -76,11 +78,11 @@ void SdoManagerProcess::pump(TimePoint now, Output& out) {
   if (!enabled_) return;
   while (!in_flight_ && !jobs_.empty()) {
     if (!active()) return;  // resumes when the master is active again
-    if (jobs_.front().kind == Job::Kind::Scan) {
+    const auto is_scan = [](const Job& j) { return std::holds_alternative<ScanJob>(j.work); };
+    if (is_scan(jobs_.front())) {
       // Between two reads of a scan (126 silent node-IDs take 126 x the scan timeout), the
       // requests and releases that came meanwhile go first: a scan step costs them one read.
-      const auto other = std::find_if(jobs_.begin(), jobs_.end(),
-                                      [](const Job& j) { return j.kind != Job::Kind::Scan; });
+      const auto other = std::find_if_not(jobs_.begin(), jobs_.end(), is_scan);
       if (other != jobs_.end()) {
         std::rotate(jobs_.begin(), other, std::next(other));
         continue;
@@ -95,7 +97,7 @@ void SdoManagerProcess::pump(TimePoint now, Output& out) {
     SdoManagerTransfer t{
         .tag = ++serial_, .node = step.node, .address = step.address, .upload = step.upload};
     if (!step.upload) cfg::append_le(t.data, step.value, step.size);
-    t.timeout = job.kind == Job::Kind::Scan ? settings_.scan_timeout : settings_.sdo_timeout;
+    t.timeout = is_scan(job) ? settings_.scan_timeout : settings_.sdo_timeout;
     t.retries = step.retry ? settings_.sdo_retries : 0;
     in_flight_ = true;
     port_.start_transfer(std::move(t), now);
@@ -104,7 +106,6 @@ void SdoManagerProcess::pump(TimePoint now, Output& out) {
 
 void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& result,
                                            TimePoint now, Output& out) {
-  using Phase = Job::Phase;
   if (!in_flight_ || tag != serial_) return;  // of a job the tables' clearing dropped
   in_flight_ = false;
   if (jobs_.empty() || jobs_.front().steps.empty()) return;
@@ -116,55 +117,64 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
     return;
   }
   const bool answered = result.ok() || result.aborted_by_server;
-  switch (job.phase) {
-    case Phase::Scanning:
-      // §7.2.1: an open request has Rq indication set.
-      if (result.ok() && DynamicSdoState::decode(uploaded_u32(result)).request_indication) {
-        start_register(uploaded_u32(result));
-      } else {
-        scan_next(job);
-      }
-      return;
-    case Phase::ReadHeartbeat: {
-      // Consumer time 2 x the SRD's producer time + 100 ms (its 1017h; 0: guarding).
-      const auto ms = result.ok() ? (uploaded_u32(result) & 0xFFFF) : 0;
-      if (ms != 0)
-        job.heartbeat = 2 * std::chrono::milliseconds(ms) + std::chrono::milliseconds(100);
-      // Confirmed last (§7.2.3: reset 1F10h): the SRD may use its channel as soon as it sees it.
-      job.phase = Phase::Writing;
-      job.steps.push_back(
-          write_step(job.node, {obj::kDynamicSdoConnectionState, 0}, job.confirmation, 4));
-      return;
+  // The reads whose result a job looks at; the other steps (writes that may fail, a refusal's
+  // best-effort writes) move it on from the next pump() when its steps are done.
+  if (auto* scan = std::get_if<ScanJob>(&job.work)) {
+    // §7.2.1: an open request has Rq indication set.
+    if (result.ok() && DynamicSdoState::decode(uploaded_u32(result)).request_indication) {
+      start_register(job, scan->node, uploaded_u32(result));
+    } else {
+      scan_next(*scan);
     }
-    case Phase::ProbeSlave:
+    return;
+  }
+  if (auto* reg = std::get_if<RegisterJob>(&job.work)) {
+    if (reg->refusal || reg->phase != RegisterJob::Phase::ReadHeartbeat) return;
+    // Consumer time 2 x the SRD's producer time + 100 ms (its 1017h; 0: guarding).
+    const auto ms = result.ok() ? (uploaded_u32(result) & 0xFFFF) : 0;
+    if (ms != 0)
+      reg->heartbeat = 2 * std::chrono::milliseconds(ms) + std::chrono::milliseconds(100);
+    // Confirmed last (§7.2.3: reset 1F10h): the SRD may use its channel as soon as it sees it.
+    reg->phase = RegisterJob::Phase::Writing;
+    job.steps.push_back(
+        write_step(reg->srd, {obj::kDynamicSdoConnectionState, 0}, reg->confirmation, 4));
+    return;
+  }
+  auto* connect = std::get_if<ConnectJob>(&job.work);
+  if (connect == nullptr || connect->refusal) return;
+  switch (connect->phase) {
+    case ConnectJob::Phase::ProbeSlave:
       if (!answered) {
-        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(*job.slave) + " does not answer");
+        refuse(job, DynamicSdoError::kSlaveNotAvailable,
+               node_text(connect->slave) + " does not answer");
       } else {
-        connect_with(kDefaultServer);
+        connect_with(job, *connect, kDefaultServer);
       }
       return;
-    case Phase::SearchChannel: {
+    case ConnectJob::Phase::SearchChannel: {
       if (!answered) {
-        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(*job.slave) + " does not answer");
+        refuse(job, DynamicSdoError::kSlaveNotAvailable,
+               node_text(connect->slave) + " does not answer");
         return;
       }
       const bool free =
           result.ok() && (uploaded_u32(result) & cfg::kCobIdInvalidBit) != 0 &&
           std::none_of(connections_.begin(), connections_.end(), [&](const Connection& c) {
-            return c.row.server == *job.slave && c.row.server_index == job.probe;
+            return c.row.server == connect->slave && c.row.server_index == connect->probe;
           });
       if (free) {
-        connect_with(job.probe);
-      } else if (!result.ok() || job.probe >= obj::kSdoServerLast) {
-        refuse(DynamicSdoError::kNoFreeServerOnSlave,
-               node_text(*job.slave) + " has no free server SDO entry");
+        connect_with(job, *connect, connect->probe);
+      } else if (!result.ok() || connect->probe >= obj::kSdoServerLast) {
+        refuse(job, DynamicSdoError::kNoFreeServerOnSlave,
+               node_text(connect->slave) + " has no free server SDO entry");
       } else {
-        ++job.probe;
-        job.steps.push_back(read_step(*job.slave, {job.probe, 1}));
+        ++connect->probe;
+        job.steps.push_back(read_step(connect->slave, {connect->probe, 1}));
       }
       return;
     }
-    default:
+    case ConnectJob::Phase::Start:
+    case ConnectJob::Phase::Writing:
       return;
   }
 }
@@ -174,70 +184,69 @@ void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Outpu
   const std::string why = (result.node_id ? node_text(*result.node_id) : std::string("node 0")) +
                           ": " + transfer_failure(result);
   job.steps.clear();
-  auto& c = job.connection;
-  if (job.kind == Job::Kind::Register) {
+  if (auto* reg = std::get_if<RegisterJob>(&job.work)) {
     // The SRD did not take the channel: give it back.
+    const auto& c = reg->connection;
     if (c.row.server_index != 0) close_channel(c.row.server_index);
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
-    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, job.node,
-                          node_text(job.node) + ": registration failed: " + why);
+    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, reg->srd,
+                          node_text(reg->srd) + ": registration failed: " + why);
     e.connection = c.row;
     out.report(std::move(e));
     finish_job();
     return;
   }
-  if (job.kind == Job::Kind::Connect) {
-    if (result.node_id == job.slave) {
+  if (auto* connect = std::get_if<ConnectJob>(&job.work)) {
+    const auto& c = connect->connection;
+    if (result.node_id == connect->slave) {
       mark_pool(c.pool_request, false);
       mark_pool(c.pool_response, false);
       const bool timed_out = !result.aborted_by_server && result.abort == SdoAbort::Timeout;
-      refuse(timed_out ? DynamicSdoError::kSlaveNotAvailable : DynamicSdoError::kNoDetails, why);
+      refuse(job, timed_out ? DynamicSdoError::kSlaveNotAvailable : DynamicSdoError::kNoDetails,
+             why);
       return;
     }
     // The SRD did not take its entry: undo S's side (best effort), no confirmation possible.
     if (c.row.server_index != kDefaultServer) {
-      job.steps.push_back(write_step(*job.slave, {c.row.server_index, 1},
+      job.steps.push_back(write_step(connect->slave, {c.row.server_index, 1},
                                      c.row.request.with_valid(false).word(), 4, false));
-      job.steps.push_back(write_step(*job.slave, {c.row.server_index, 2},
+      job.steps.push_back(write_step(connect->slave, {c.row.server_index, 2},
                                      c.row.response.with_valid(false).word(), 4, false));
     }
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
-    job.phase = Job::Phase::Refusing;
-    job.error = DynamicSdoError::kNoDetails;
-    job.why = why;
+    connect->refusal = Refusal{.error = DynamicSdoError::kNoDetails, .why = why};
     return;
   }
   finish_job();
 }
 
-void SdoManagerProcess::refuse(DynamicSdoError error, const std::string& why) {
-  auto& job = jobs_.front();
+void SdoManagerProcess::refuse(Job& job, DynamicSdoError error, const std::string& why) {
   job.steps.clear();
-  job.phase = Job::Phase::Refusing;
-  job.error = error;
-  job.why = why;
-  // §7.2.3: Cnxn state 0 and the reason in the error code.
-  const auto srd = srds_.find(job.node);
-  const bool registering = job.kind == Job::Kind::Register;
-  const bool ec = registering ? DynamicSdoState::decode(job.request).request_error_control
-                              : srd != srds_.end() && srd->second.info.slave_error_control;
-  const std::uint16_t index =
-      registering ? DynamicSdoState::decode(job.request).client_index : job.client_index;
-  auto state = DynamicSdoState::failure(index, error);
-  state.request_error_control = ec;
-  job.steps.push_back(
-      write_step(job.node, {obj::kDynamicSdoConnectionState, 0}, state.encode(), 4, false));
+  // §7.2.3: Cnxn state 0 and the reason in the error code, Req EC as the SRD has it.
+  const auto failure = [&](auto& work, std::uint16_t client_index, bool error_control) {
+    work.refusal = Refusal{.error = error, .why = why};
+    auto state = DynamicSdoState::failure(client_index, error);
+    state.request_error_control = error_control;
+    job.steps.push_back(
+        write_step(work.srd, {obj::kDynamicSdoConnectionState, 0}, state.encode(), 4, false));
+  };
+  if (auto* reg = std::get_if<RegisterJob>(&job.work)) {
+    const auto request = DynamicSdoState::decode(reg->request);
+    failure(*reg, request.client_index, request.request_error_control);
+    return;
+  }
+  auto& connect = std::get<ConnectJob>(job.work);
+  const auto srd = srds_.find(connect.srd);
+  failure(connect, connect.client_index,
+          srd != srds_.end() && srd->second.info.slave_error_control);
 }
 
-void SdoManagerProcess::start_register(std::uint32_t request) {
-  auto& job = jobs_.front();
-  const auto srd = job.node;
-  job.kind = Job::Kind::Register;
-  job.request = request;
-  job.connection = {};
-  job.connection.row.srd = srd;
+void SdoManagerProcess::start_register(Job& job, cfg::NodeId srd, std::uint32_t request) {
+  job.work = RegisterJob{.srd = srd, .request = request};
+  auto& reg = std::get<RegisterJob>(job.work);
+  reg.connection.row.srd = srd;
   if (rescan_) {
     // Another 6E0h came during the scan: scan again after this registration.
     rescan_ = false;
@@ -253,17 +262,16 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
                     }) ||
         all_default_sdos_owned();
     if (taken) {
-      refuse(DynamicSdoError::kNoDetails, "a default SDO is in use");
+      refuse(job, DynamicSdoError::kNoDetails, "a default SDO is in use");
       return;
     }
-    job.phase = Job::Phase::Confirming;
-    job.confirmation =
+    reg.confirmation =
         DynamicSdoState::confirmation(0, ConnectionState::kAllDefaultSdosOwned).encode();
     return;
   }
   const auto index = state.client_index;
   if (!obj::is_sdo_client_parameter(index)) {
-    refuse(DynamicSdoError::kNoDetails,
+    refuse(job, DynamicSdoError::kNoDetails,
            "1F10h names " + cfg::object_name(index) + ", no client SDO entry");
     return;
   }
@@ -271,11 +279,11 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   const auto pool = free_pool();
   const auto row = free_row();
   if (channel == 0 || pool.size() < 2 || row == 0) {
-    refuse(DynamicSdoError::kNoChannelToManager,
+    refuse(job, DynamicSdoError::kNoChannelToManager,
            channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h");
     return;
   }
-  auto& c = job.connection;
+  auto& c = reg.connection;
   c.pool_request = pool[0];
   c.pool_response = pool[1];
   mark_pool(c.pool_request, true);
@@ -287,46 +295,44 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   c.row.response = pool_cob_id(pool[1]);
   c.row.to_manager = true;
   open_channel(channel, c);
-  job.phase = Job::Phase::Confirming;
   // §7.2.1: enable the SRD's client entry named in 1F10h, then reset 1F10h (Cnxn 1).
   job.steps.push_back(write_step(srd, {index, 3}, node_id_.value(), 1));
   job.steps.push_back(write_step(srd, {index, 1}, c.row.request.word(), 4));
   job.steps.push_back(write_step(srd, {index, 2}, c.row.response.word(), 4));
-  job.confirmation = DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
+  reg.confirmation = DynamicSdoState::confirmation(index, ConnectionState::kManagerConnected,
                                                    state.request_error_control)
                          .encode();
 }
 
-void SdoManagerProcess::start_connect() {
-  auto& job = jobs_.front();
-  if (srds_.count(job.node) == 0) {  // lost or gone meanwhile
+void SdoManagerProcess::start_connect(Job& job, ConnectJob& connect) {
+  if (srds_.count(connect.srd) == 0) {  // lost or gone meanwhile
     finish_job();
     return;
   }
-  job.connection = {};
-  job.connection.row.srd = job.node;
-  job.connection.row.client_index = job.client_index;
-  const auto slave = *job.slave;
-  job.connection.row.server = slave;
+  connect.connection = {};
+  connect.connection.row.srd = connect.srd;
+  connect.connection.row.client_index = connect.client_index;
+  const auto slave = connect.slave;
+  connect.connection.row.server = slave;
   if (!default_sdo_taken(slave) && !all_default_sdos_owned()) {
     // Is S there? Its default SDO needs no write (§7.1).
-    job.phase = Job::Phase::ProbeSlave;
+    connect.phase = ConnectJob::Phase::ProbeSlave;
     job.steps.push_back(read_step(slave, {obj::kDeviceType, 0}));
     return;
   }
   if (free_pool().size() < 2) {
-    refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
+    refuse(job, DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
     return;
   }
-  job.phase = Job::Phase::SearchChannel;
-  job.probe = obj::kSdoServerFirst + 1;
-  job.steps.push_back(read_step(slave, {job.probe, 1}));
+  connect.phase = ConnectJob::Phase::SearchChannel;
+  connect.probe = obj::kSdoServerFirst + 1;
+  job.steps.push_back(read_step(slave, {connect.probe, 1}));
 }
 
-void SdoManagerProcess::connect_with(std::uint16_t server_index) {
-  auto& job = jobs_.front();
-  auto& c = job.connection;
-  const auto slave = *job.slave;
+void SdoManagerProcess::connect_with(Job& job, ConnectJob& connect, std::uint16_t server_index) {
+  auto& c = connect.connection;
+  const auto slave = connect.slave;
+  const auto srd = connect.srd;
   c.row.server_index = server_index;
   if (server_index == kDefaultServer) {
     const auto cob_ids = sdo::default_cob_ids(slave);
@@ -335,7 +341,7 @@ void SdoManagerProcess::connect_with(std::uint16_t server_index) {
   } else {
     const auto pool = free_pool();
     if (pool.size() < 2) {
-      refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
+      refuse(job, DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
       return;
     }
     c.pool_request = pool[0];
@@ -345,72 +351,71 @@ void SdoManagerProcess::connect_with(std::uint16_t server_index) {
     c.row.request = pool_cob_id(pool[0]);
     c.row.response = pool_cob_id(pool[1]);
     // §7.1: the free server entry of S, for the SRD.
-    job.steps.push_back(write_step(slave, {server_index, 3}, job.node.value(), 1));
+    job.steps.push_back(write_step(slave, {server_index, 3}, srd.value(), 1));
     job.steps.push_back(write_step(slave, {server_index, 1}, c.row.request.word(), 4));
     job.steps.push_back(write_step(slave, {server_index, 2}, c.row.response.word(), 4));
   }
-  const bool ec = srds_.at(job.node).info.slave_error_control;
-  job.steps.push_back(write_step(job.node, {job.client_index, 3}, slave.value(), 1));
-  job.steps.push_back(write_step(job.node, {job.client_index, 1}, c.row.request.word(), 4));
-  job.steps.push_back(write_step(job.node, {job.client_index, 2}, c.row.response.word(), 4));
+  const bool ec = srds_.at(srd).info.slave_error_control;
+  job.steps.push_back(write_step(srd, {connect.client_index, 3}, slave.value(), 1));
+  job.steps.push_back(write_step(srd, {connect.client_index, 1}, c.row.request.word(), 4));
+  job.steps.push_back(write_step(srd, {connect.client_index, 2}, c.row.response.word(), 4));
   job.steps.push_back(write_step(
-      job.node, {obj::kDynamicSdoConnectionState, 0},
-      DynamicSdoState::confirmation(job.client_index, ConnectionState::kSlaveConnected, ec)
+      srd, {obj::kDynamicSdoConnectionState, 0},
+      DynamicSdoState::confirmation(connect.client_index, ConnectionState::kSlaveConnected, ec)
           .encode(),
       4));
-  job.phase = Job::Phase::Writing;
+  connect.phase = ConnectJob::Phase::Writing;
 }
 
 void SdoManagerProcess::advance(TimePoint now, Output& out) {
   auto& job = jobs_.front();
-  if (job.phase == Job::Phase::Refusing) {
-    report_refusal(now, out);
-    return;
-  }
-  switch (job.kind) {
-    case Job::Kind::Scan:
-      advance_scan();
-      return;
-    case Job::Kind::Register:
-      advance_register(now, out);
-      return;
-    case Job::Kind::Connect:
-      advance_connect(now, out);
-      return;
-    case Job::Kind::Release:
-      advance_release(now, out);
-      return;
-  }
+  // The front job's steps are done: its next phase, or its end.
+  std::visit(
+      [&](auto& work) {
+        using Work = std::decay_t<decltype(work)>;
+        if constexpr (std::is_same_v<Work, ScanJob>) {
+          advance_scan(job, work);
+        } else if constexpr (std::is_same_v<Work, ReleaseJob>) {
+          advance_release(job, work, now, out);
+        } else if (work.refusal) {
+          report_refusal(job, now, out);
+        } else if constexpr (std::is_same_v<Work, RegisterJob>) {
+          advance_register(job, work, now, out);
+        } else {
+          advance_connect(job, work, now, out);
+        }
+      },
+      job.work);
 }
 
-void SdoManagerProcess::report_refusal(TimePoint now, Output& out) {
-  auto& job = jobs_.front();
-  const bool registering = job.kind == Job::Kind::Register;
-  auto e =
-      master_event(registering ? MasterEvent::Kind::SrdRegistrationFailed
-                               : MasterEvent::Kind::SdoConnectionRefused,
-                   now, job.node,
-                   node_text(job.node) +
-                       (registering ? ": registration refused"
-                                    : ": SDO connection to " + node_text(*job.slave) + " refused") +
-                       ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
-                       std::string(sm::describe(job.error)) + "): " + job.why);
-  e.connection = job.connection.row;
-  e.connection_error = job.error;
+void SdoManagerProcess::report_refusal(const Job& job, TimePoint now, Output& out) {
+  const auto* reg = std::get_if<RegisterJob>(&job.work);
+  const auto* connect = std::get_if<ConnectJob>(&job.work);
+  const auto srd = reg ? reg->srd : connect->srd;
+  const auto& refusal = reg ? *reg->refusal : *connect->refusal;
+  auto e = master_event(
+      reg ? MasterEvent::Kind::SrdRegistrationFailed : MasterEvent::Kind::SdoConnectionRefused, now,
+      srd,
+      node_text(srd) +
+          (reg ? ": registration refused"
+               : ": SDO connection to " + node_text(connect->slave) + " refused") +
+          ", error " + cfg::hex(static_cast<std::uint8_t>(refusal.error), 2) + " (" +
+          std::string(sm::describe(refusal.error)) + "): " + refusal.why);
+  e.connection = reg ? reg->connection.row : connect->connection.row;
+  e.connection_error = refusal.error;
   out.report(std::move(e));
   finish_job();
 }
 
-void SdoManagerProcess::advance_scan() {
-  auto& job = jobs_.front();
-  job.phase = Job::Phase::Scanning;  // from 127 (scan_job)
+void SdoManagerProcess::advance_scan(Job& job, ScanJob& scan) {
+  scan.started = true;  // from 127 (scan_job)
   // §7.2.1 / §7.2.4 guideline 2: from 127 down, node-IDs not registered, whose default SDO
   // no connection holds.
-  while (!job.scanned_all &&
-         (job.node == node_id_ || srds_.count(job.node) != 0 || default_sdo_taken(job.node))) {
-    scan_next(job);
+  while (!scan.scanned_all &&
+         (scan.node == node_id_ || srds_.count(scan.node) != 0 || default_sdo_taken(scan.node))) {
+    scan_next(scan);
   }
-  if (job.scanned_all) {
+  if (scan.scanned_all) {
     finish_job();
     if (rescan_) {
       rescan_ = false;
@@ -418,35 +423,34 @@ void SdoManagerProcess::advance_scan() {
     }
     return;
   }
-  job.steps.push_back(read_step(job.node, {obj::kDynamicSdoConnectionState, 0}, false));
+  job.steps.push_back(read_step(scan.node, {obj::kDynamicSdoConnectionState, 0}, false));
 }
 
-void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
-  auto& job = jobs_.front();
-  if (job.phase == Job::Phase::Confirming) {
+void SdoManagerProcess::advance_register(Job& job, RegisterJob& reg, TimePoint now, Output& out) {
+  if (reg.phase == RegisterJob::Phase::Confirming) {
     // §7.2.1 "Error Control of SRD": the master's 1016h entry, else the SRD's 1017h; known
     // before the confirmation, so the SRD is registered once it has taken it.
-    job.heartbeat = port_.consumer_time(job.node);
-    if (job.heartbeat) {
-      job.phase = Job::Phase::Writing;
+    reg.heartbeat = port_.consumer_time(reg.srd);
+    if (reg.heartbeat) {
+      reg.phase = RegisterJob::Phase::Writing;
       job.steps.push_back(
-          write_step(job.node, {obj::kDynamicSdoConnectionState, 0}, job.confirmation, 4));
+          write_step(reg.srd, {obj::kDynamicSdoConnectionState, 0}, reg.confirmation, 4));
     } else {
-      job.phase = Job::Phase::ReadHeartbeat;
-      job.steps.push_back(read_step(job.node, {obj::kProducerHeartbeatTime, 0}));
+      reg.phase = RegisterJob::Phase::ReadHeartbeat;
+      job.steps.push_back(read_step(reg.srd, {obj::kProducerHeartbeatTime, 0}));
     }
     return;
   }
-  port_.watch(job.node, job.heartbeat, now);
+  port_.watch(reg.srd, reg.heartbeat, now);
   Srd srd;
-  srd.info.node = job.node;
-  const auto request = DynamicSdoState::decode(job.request);
+  srd.info.node = reg.srd;
+  const auto request = DynamicSdoState::decode(reg.request);
   srd.info.all_default_sdos = request.is_all_default_sdos_request();
   srd.info.slave_error_control = request.request_error_control;
-  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node,
-                        node_text(job.node) + ": SRD registered");
+  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, reg.srd,
+                        node_text(reg.srd) + ": SRD registered");
   if (!srd.info.all_default_sdos) {
-    auto c = job.connection;
+    auto c = reg.connection;
     c.row.row = free_row();
     srd.info.client_index = c.row.client_index;
     srd.own_channel = c.row.server_index;
@@ -457,59 +461,57 @@ void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
     e.text += " with all default SDOs";
   }
   if (srd.info.slave_error_control) e.text += ", error control of its slaves";
-  srds_[job.node] = srd;
+  srds_[reg.srd] = srd;
   out.report(std::move(e));
   finish_job();
 }
 
-void SdoManagerProcess::advance_connect(TimePoint now, Output& out) {
-  auto& job = jobs_.front();
-  if (job.phase == Job::Phase::Start) {
-    start_connect();
+void SdoManagerProcess::advance_connect(Job& job, ConnectJob& connect, TimePoint now, Output& out) {
+  if (connect.phase == ConnectJob::Phase::Start) {
+    start_connect(job, connect);
     return;
   }
   // Phase::Writing done: established (§7.2.2).
-  auto c = job.connection;
+  auto c = connect.connection;
   c.row.row = free_row();
   add_row(c);
-  const auto srd = srds_.find(job.node);
+  const auto srd = srds_.find(connect.srd);
   if (srd != srds_.end() && srd->second.info.slave_error_control) {
-    const auto slave = *job.slave;
+    const auto slave = connect.slave;
     if (watched_.count(slave) == 0) {
       // §7.2.5 step 4.4: error control of S for the SRD.
       port_.watch(slave, std::nullopt, now);
     }
     watched_.insert(slave);
   }
-  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node,
+  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, connect.srd,
                         "SDO connection established: " + connection_text(c.row));
   e.connection = c.row;
   out.report(std::move(e));
   finish_job();
 }
 
-void SdoManagerProcess::advance_release(TimePoint now, Output& out) {
-  auto& job = jobs_.front();
-  if (job.phase == Job::Phase::Start) {
-    job.phase = Job::Phase::Releasing;
-    if (job.failed) {
+void SdoManagerProcess::advance_release(Job& job, ReleaseJob& release, TimePoint now, Output& out) {
+  if (!release.started) {
+    release.started = true;
+    if (release.failed) {
       // §7.2.3 1F11h: reason 00h, the failed slave's node-ID.
       job.steps.push_back(write_step(
-          job.node, {obj::kSlaveFailed, 0},
+          release.srd, {obj::kSlaveFailed, 0},
           sm::SlaveFailed{static_cast<std::uint8_t>(sm::SlaveFailedReason::kErrorControl),
-                          job.failed->value()}
+                          release.failed->value()}
               .encode(),
-          2, false, !job.srd_lost));
+          2, false, !release.srd_lost));
     }
-    for (const auto& c : job.releases) {
+    for (const auto& c : release.releases) {
       // §7.2.1: invalidate the SRD's client entry, then S's server entry (not its default).
-      job.steps.push_back(write_step(job.node, {c.row.client_index, 1},
+      job.steps.push_back(write_step(release.srd, {c.row.client_index, 1},
                                      c.row.request.with_valid(false).word(), 4, false,
-                                     !job.srd_lost));
-      job.steps.push_back(write_step(job.node, {c.row.client_index, 2},
+                                     !release.srd_lost));
+      job.steps.push_back(write_step(release.srd, {c.row.client_index, 2},
                                      c.row.response.with_valid(false).word(), 4, false,
-                                     !job.srd_lost));
-      if (!c.row.to_manager && c.row.server_index != kDefaultServer && !job.server_gone) {
+                                     !release.srd_lost));
+      if (!c.row.to_manager && c.row.server_index != kDefaultServer && !release.server_gone) {
         job.steps.push_back(write_step(c.server(), {c.row.server_index, 1},
                                        c.row.request.with_valid(false).word(), 4, false));
         job.steps.push_back(write_step(c.server(), {c.row.server_index, 2},
@@ -518,29 +520,30 @@ void SdoManagerProcess::advance_release(TimePoint now, Output& out) {
     }
     if (!job.steps.empty()) return;
   }
-  if (job.failed) {
+  if (release.failed) {
     ManagedSdoConnection failed;
-    failed.srd = job.node;
-    failed.server = *job.failed;
-    auto e =
-        master_event(MasterEvent::Kind::SlaveFailedReported, now, job.node,
-                     node_text(job.node) + ": 1F11h reports " + node_text(*job.failed) + " failed");
+    failed.srd = release.srd;
+    failed.server = *release.failed;
+    auto e = master_event(
+        MasterEvent::Kind::SlaveFailedReported, now, release.srd,
+        node_text(release.srd) + ": 1F11h reports " + node_text(*release.failed) + " failed");
     e.connection = failed;
     out.report(std::move(e));
   }
-  for (const auto& c : job.releases) {
+  for (const auto& c : release.releases) {
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
     if (c.row.to_manager) close_channel(c.row.server_index);
-    auto e = master_event(MasterEvent::Kind::SdoConnectionReleased, now, job.node,
-                          "SDO connection released (" + job.why + "): " + connection_text(c.row));
+    auto e =
+        master_event(MasterEvent::Kind::SdoConnectionReleased, now, release.srd,
+                     "SDO connection released (" + release.why + "): " + connection_text(c.row));
     e.connection = c.row;
     out.report(std::move(e));
   }
-  if (job.deregister && !job.srd_lost) {
-    port_.unwatch(job.node);
-    out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, job.node,
-                            node_text(job.node) + ": SRD de-registered"));
+  if (release.deregister && !release.srd_lost) {
+    port_.unwatch(release.srd);
+    out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, release.srd,
+                            node_text(release.srd) + ": SRD de-registered"));
   }
   finish_job();
 }

@@ -5,6 +5,7 @@
 // port are described in sdo_manager_process.hpp.
 #include <algorithm>
 #include <utility>
+#include <variant>
 
 #include "cfg/bytes.hpp"
 #include "cfg/object_index.hpp"
@@ -120,7 +121,7 @@ SdoAbort SdoManagerProcess::check_write(std::uint16_t index, std::uint8_t sub,
     return SdoAbort::None;
   }
   if (obj::is_sdo_server_parameter(index) && index != kDefaultServer) {
-    // The manager's own server channels for SRDs (choice, nmt/nmt_master.hpp): it opens and
+    // The manager's own server channels for SRDs (choice, docs/master.md): it opens and
     // closes them; §7.2.3 lets tools change connections only through 1F00h/1F01h.
     return SdoAbort::LocalControl;
   }
@@ -153,18 +154,20 @@ SdoAbort SdoManagerProcess::request_connection(cfg::NodeId srd, cfg::NodeId slav
                     return c.row.srd == srd && c.row.client_index == client_index;
                   }) ||
       std::any_of(jobs_.begin(), jobs_.end(), [&](const Job& j) {
-        return j.kind == Job::Kind::Connect && j.node == srd && j.client_index == client_index;
+        const auto* connect = std::get_if<ConnectJob>(&j.work);
+        return connect != nullptr && connect->srd == srd && connect->client_index == client_index;
       });
   if (taken) return SdoAbort::ResourceNotAvailable;
   // A bounded queue (MasterOptions::sdo_manager_max_queued_requests): 0504 0005, the request
   // is valid but there is no room to keep it.
-  const auto queued = std::count_if(jobs_.begin(), jobs_.end(),
-                                    [](const Job& j) { return j.kind == Job::Kind::Connect; });
+  const auto queued = std::count_if(jobs_.begin(), jobs_.end(), [](const Job& j) {
+    return std::holds_alternative<ConnectJob>(j.work);
+  });
   if (static_cast<std::size_t>(queued) >= settings_.max_queued_requests) {
     return SdoAbort::OutOfMemory;
   }
   jobs_.push_back(
-      Job{.kind = Job::Kind::Connect, .node = srd, .slave = slave, .client_index = client_index});
+      Job{.work = ConnectJob{.srd = srd, .slave = slave, .client_index = client_index}});
   return SdoAbort::None;
 }
 
@@ -247,11 +250,12 @@ void SdoManagerProcess::clear() {
 }
 
 void SdoManagerProcess::queue_scan() {
-  const auto scan = std::find_if(jobs_.begin(), jobs_.end(),
-                                 [](const Job& j) { return j.kind == Job::Kind::Scan; });
+  const auto scan = std::find_if(jobs_.begin(), jobs_.end(), [](const Job& j) {
+    return std::holds_alternative<ScanJob>(j.work);
+  });
   if (scan == jobs_.end()) {
     jobs_.push_back(scan_job());
-  } else if (scan->phase != Job::Phase::Start) {
+  } else if (std::get<ScanJob>(scan->work).started) {
     rescan_ = true;  // the running scan may have passed the new SRD
   }
 }
@@ -316,12 +320,11 @@ void SdoManagerProcess::release_per_srd(const std::vector<Connection>& rows,
   std::map<cfg::NodeId, std::vector<Connection>> by_srd;
   for (const auto& c : rows) by_srd[c.srd()].push_back(c);
   for (auto& [srd, its_rows] : by_srd) {
-    jobs_.push_back(Job{.kind = Job::Kind::Release,
-                        .node = srd,
-                        .releases = std::move(its_rows),
-                        .why = why,
-                        .failed = failed,  // 1F11h first
-                        .server_gone = true});
+    jobs_.push_back(Job{.work = ReleaseJob{.srd = srd,
+                                           .releases = std::move(its_rows),
+                                           .why = why,
+                                           .failed = failed,  // 1F11h first
+                                           .server_gone = true}});
   }
 }
 
@@ -330,12 +333,11 @@ void SdoManagerProcess::release_job(cfg::NodeId srd, std::vector<Connection> row
   // The SRD's channel to the manager goes last: the SRD keeps its line until the end.
   std::stable_partition(rows.begin(), rows.end(),
                         [](const Connection& c) { return !c.row.to_manager; });
-  jobs_.push_back(Job{.kind = Job::Kind::Release,
-                      .node = srd,
-                      .releases = std::move(rows),
-                      .why = std::move(why),
-                      .deregister = deregister,
-                      .srd_lost = lost});
+  jobs_.push_back(Job{.work = ReleaseJob{.srd = srd,
+                                         .releases = std::move(rows),
+                                         .why = std::move(why),
+                                         .deregister = deregister,
+                                         .srd_lost = lost}});
 }
 
 // --- tables ---

@@ -3,8 +3,8 @@
 // Dynamic SDO Request (6E0h, §7.2.1), the connections an SRD asks for with 1F00h and gives back
 // with 1F01h (§7.2.2, §7.2.3), the error control of SRDs and, for SRDs with Req EC, of their
 // slaves (1F11h, §7.2.2), and the manager's objects 1F00h-1F06h (§7.2.3) with the own server
-// channels 1201h.. an SRD gets. The choices where §7 leaves room are listed at the top of
-// nmt/nmt_master.hpp ("SDO manager").
+// channels 1201h.. an SRD gets. The choices where §7 leaves room are listed in
+// docs/master.md ("SDO manager").
 //
 // The engine (nmt::Engine, engine.hpp) owns its state: the SRDs, the connections (1F03h-1F06h
 // rows), the jobs that set them up and take them down (one at a time; a scan lets the others go
@@ -41,6 +41,7 @@
 #include <set>
 #include <span>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "cfg/node_id.hpp"
@@ -184,39 +185,68 @@ class SdoManagerProcess {
     bool must_succeed = true;  ///< a failure ends the job (job-specific handling)
     bool retry = true;         ///< repeated after a timeout (SdoManagerSettings::sdo_retries)
   };
-  /// Built with designated initializers: every job names its node.
-  struct Job {
-    enum class Kind : std::uint8_t { Scan, Register, Connect, Release };
+  /// A refusal under way (§7.2.3): 1F10h written with Cnxn state 0 and `error` (for a
+  /// connection the SRD did not take, S's side undone instead), then the event.
+  struct Refusal {
+    cfg::sdo_manager::DynamicSdoError error{};
+    std::string why;
+  };
+  /// The scan of 1F10h from node-ID 127 down (§7.2.1); a read with Rq set turns it into the
+  /// registration of that node.
+  struct ScanJob {
+    cfg::NodeId node;          ///< the node-ID read now
+    bool started = false;      ///< its first read is out: a new 6E0h may come too late for it
+    bool scanned_all = false;  ///< node-ID 1 is passed
+  };
+  /// The registration of an SRD whose 1F10h the scan read with Rq set (§7.2.1).
+  struct RegisterJob {
+    enum class Phase : std::uint8_t {
+      Confirming,     // the SRD's client entry
+      ReadHeartbeat,  // the SRD's 1017h
+      Writing,        // the 1F10h confirmation
+    };
+    cfg::NodeId srd;
+    Phase phase = Phase::Confirming;
+    std::uint32_t request = 0;            ///< 1F10h as read
+    std::uint32_t confirmation = 0;       ///< the 1F10h value that confirms
+    std::optional<Duration> heartbeat{};  ///< the SRD's heartbeat consumer time
+    /// Its channel to the manager (only `row.srd` for all default SDOs).
+    Connection connection{};
+    std::optional<Refusal> refusal{};
+  };
+  /// A connection an SRD asked for with 1F00h (§7.2.2): to S's default SDO or to a free
+  /// server entry of S.
+  struct ConnectJob {
     enum class Phase : std::uint8_t {
       Start,
-      Scanning,       // 1F10h of `node`
-      Confirming,     // registration: the SRD's client entry
-      ReadHeartbeat,  // the SRD's 1017h
       ProbeSlave,     // S's 1000h (its default SDO is given)
       SearchChannel,  // S's `probe` sub 1
-      Writing,        // connection writes; registration: the 1F10h confirmation
-      Releasing,      // release writes (best effort)
-      Refusing,       // 1F10h with Cnxn 0 (or S's side undone), then the event
+      Writing,        // S's server entry, the SRD's client entry, the 1F10h confirmation
     };
-    Kind kind = Kind::Scan;
-    Phase phase = Phase::Start;
-    cfg::NodeId node;           ///< Scan: the node-ID read now (from 127 down); else the SRD
-    bool scanned_all = false;   ///< Scan: node-ID 1 is passed
-    std::uint32_t request = 0;  ///< Register: 1F10h as read
-    std::optional<cfg::NodeId> slave{};  ///< Connect: S
+    cfg::NodeId srd;
+    cfg::NodeId slave;  ///< S
     std::uint16_t client_index = 0;
-    std::uint16_t probe = 0;                    ///< SearchChannel: S's server entry read now
-    Connection connection{};                    ///< Register/Connect: the connection being set up
-    std::vector<Connection> releases{};         ///< Release: in order
-    std::string why{};                          ///< Release: for the events
-    bool deregister = false;                    ///< Release: the SRD goes too
-    bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
-    std::optional<cfg::NodeId> failed{};        ///< Release: the slave whose failure 1F11h reports
-    bool server_gone = false;                   ///< Release: no write to S (failed, or reset)
-    cfg::sdo_manager::DynamicSdoError error{};  ///< Refusing: the 1F10h error code
-    std::uint32_t confirmation = 0;             ///< Register: the 1F10h value that confirms
-    std::optional<Duration> heartbeat{};        ///< Register: the SRD's heartbeat consumer time
-    std::deque<Step> steps{};                   ///< accesses still to do, in order
+    Phase phase = Phase::Start;
+    std::uint16_t probe = 0;  ///< SearchChannel: S's server entry read now
+    Connection connection{};  ///< the connection being set up
+    std::optional<Refusal> refusal{};
+  };
+  /// Connections of an SRD released (1F01h, a lost or booted SRD or slave; §7.2.1, §7.2.3),
+  /// best effort: the writes may fail, the rows are gone already.
+  struct ReleaseJob {
+    cfg::NodeId srd;
+    std::vector<Connection> releases{};   ///< in order
+    std::string why{};                    ///< for the events
+    bool deregister = false;              ///< the SRD goes too
+    bool srd_lost = false;                ///< the SRD does not answer (no retries)
+    std::optional<cfg::NodeId> failed{};  ///< the slave whose failure 1F11h reports (first)
+    bool server_gone = false;             ///< no write to S (failed, or reset)
+    bool started = false;                 ///< its writes are queued
+  };
+  /// One job of the queue: what it does, and its SDO accesses still to do.
+  struct Job {
+    std::variant<ScanJob, RegisterJob, ConnectJob, ReleaseJob> work;
+    std::deque<Step> steps{};  ///< in order
   };
 
   // --- objects and tables (sdo_manager_objects.cpp) ---
@@ -258,22 +288,23 @@ class SdoManagerProcess {
   // --- jobs (sdo_manager_jobs.cpp) ---
   void advance(TimePoint now, Output& out);
   // One step of the front job, by its kind (advance dispatches).
-  void report_refusal(TimePoint now, Output& out);
-  void advance_scan();
+  void report_refusal(const Job& job, TimePoint now, Output& out);
+  void advance_scan(Job& job, ScanJob& scan);
   /// A scan of 1F10h from node-ID 127 down (§7.2.1).
   static Job scan_job();
   /// The scan moves to the node-ID below (scanned_all after 1).
-  static void scan_next(Job& job);
-  void advance_register(TimePoint now, Output& out);
-  void advance_connect(TimePoint now, Output& out);
-  void advance_release(TimePoint now, Output& out);
+  static void scan_next(ScanJob& scan);
+  void advance_register(Job& job, RegisterJob& reg, TimePoint now, Output& out);
+  void advance_connect(Job& job, ConnectJob& connect, TimePoint now, Output& out);
+  void advance_release(Job& job, ReleaseJob& release, TimePoint now, Output& out);
   void finish_job();
   void job_failed(const SdoResult& result, TimePoint now, Output& out);
-  void start_register(std::uint32_t request);
-  void start_connect();
-  void connect_with(std::uint16_t server_index);
-  /// Ends the front job with 1F10h Cnxn 0 and `error`, then its event.
-  void refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why);
+  /// The scan `job` found an SRD with an open request: the job becomes its registration.
+  void start_register(Job& job, cfg::NodeId srd, std::uint32_t request);
+  void start_connect(Job& job, ConnectJob& connect);
+  void connect_with(Job& job, ConnectJob& connect, std::uint16_t server_index);
+  /// Ends `job` (a registration or a connection) with 1F10h Cnxn 0 and `error`, then its event.
+  void refuse(Job& job, cfg::sdo_manager::DynamicSdoError error, const std::string& why);
 
   static Step write_step(cfg::NodeId node, cfg::ObjectAddress address, std::uint32_t value,
                          std::size_t size, bool must_succeed = true, bool retry = true);

@@ -125,7 +125,7 @@ void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Ou
     case Phase::ProgramData:
     case Phase::ProgramStart: {
       // A device built to DSP 302 v3.2.1 §9 (1F51h range 0..2) refuses CiA 302-3's clear:
-      // no failure, the download goes on (nmt_master.hpp, "Software update").
+      // no failure, the download goes on (docs/master.md, "Software update").
       const bool clear_refused =
           phase_ == Phase::ProgramClear && r.aborted_by_server &&
           (r.abort == SdoAbort::ValueRangeExceeded || r.abort == SdoAbort::ValueTooHigh ||

@@ -4,8 +4,7 @@
 // the shape of nmt/engine.hpp. Private to the library. The LSS protocol (CiA 305) is the
 // LssProcedure's (nmt/lss_procedure.hpp: its scan, built from nmt/lss_master.hpp's services, the
 // sources in nmt/lss.hpp); this engine decides which node-ID a found device gets and what the
-// master hears of it. The choices are listed at the top of
-// nmt/nmt_master.hpp.
+// master hears of it. The choices are listed in docs/master.md ("Execute LSS").
 //
 // It talks to the NMT master only through ExecuteLssPort: "which slave has this LSS address",
 // "the start-up pass ended" (the master goes on with its reset of all nodes), and "may I use

@@ -2,7 +2,7 @@
 // and NMT master detection (§5.1) for self-starting devices and master-capable ones: the engine
 // FlyingMasterProcess (flying_master.hpp describes it and its port). The COB-IDs and bytes are
 // DSP 302 §5.5's, whose figures the 302-2 text lacks. The choices where the spec leaves room
-// are listed at the top of nmt/nmt_master.hpp.
+// are listed in docs/master.md.
 #include "master/flying_master.hpp"
 
 #include <array>

@@ -2,7 +2,7 @@
 // and NMT master detection (§5.1) for self-starting devices and master-capable ones, as one
 // engine of the shape of nmt/engine.hpp. Private to the library. The COB-IDs and bytes are
 // DSP 302 §5.5's (Figures 15-19: 71h-76h), which the 302-2 text lacks; the choices where the
-// spec leaves room are listed at the top of nmt/nmt_master.hpp.
+// spec leaves room are listed in docs/master.md.
 //
 // The engine owns its state (the phase of the start-up, the active master it knows, the force
 // it sent, the detection of §5.1) and talks to the NMT master only through FlyingMasterPort:

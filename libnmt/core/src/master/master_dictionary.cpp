@@ -314,7 +314,7 @@ SdoAbort NmtMaster::Impl::request_nmt(NmtTarget target, NmtRequest request,
     if (is_slave(node)) slaves[node].held = command != NmtCommand::Start;
   };
   // Each queued command waits for the inhibit time (102Ah, which a peer may set to 6.5 s):
-  // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (nmt_master.hpp).
+  // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (docs/master.md).
   auto no_room_for = [&](std::size_t commands) {
     return nmt_commands.size() + commands > options.max_queued_nmt_requests;
   };
@@ -345,7 +345,7 @@ SdoAbort NmtMaster::Impl::request_nmt(NmtTarget target, NmtRequest request,
     return SdoAbort::None;
   }
   if (excluding && *node == *requester) return SdoAbort::General;
-  // A request for a node that is not a slave of this master: 0800 0000 (nmt_master.hpp, choices).
+  // A request for a node that is not a slave of this master: 0800 0000 (docs/master.md, choices).
   if (!is_slave(*node)) return SdoAbort::General;
   if (no_room_for(1)) return SdoAbort::OutOfMemory;
   queue_nmt(command, *node);
