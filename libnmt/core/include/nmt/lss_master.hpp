@@ -100,6 +100,20 @@ enum class LssService : std::uint8_t {
 };
 std::string_view to_string(LssService service);  ///< "configure node-ID", ...
 
+/// What became of a device a scan found (CiA 305 §8.3 configure node-ID, store configuration):
+/// the fact behind the text of a Scan Assigned or Skipped event.
+enum class LssScanOutcome : std::uint8_t {
+  Stored,                   ///< Assigned: node-ID configured and stored
+  NotStoredAsAsked,         ///< Assigned: configured, not stored (LssMasterOptions::store)
+  StoreRefused,             ///< Assigned: store configuration answered `error_code`
+  StoreUnanswered,          ///< Assigned: no answer to store configuration within the timeout
+  ConfigureRefused,         ///< Skipped: configure node-ID answered `error_code`
+  ConfigureUnanswered,      ///< Skipped: no answer to configure node-ID within the timeout
+  Duplicate,                ///< Skipped: more than one device answered with the LSS address
+  DuplicateUndoUnanswered,  ///< Skipped: as Duplicate, and undoing its node-ID got no answer
+  NoNodeId,                 ///< Skipped: the chooser gave no node-ID for it
+};
+
 struct LssMasterEvent {
   enum class Kind : std::uint8_t {
     Done,      ///< the service ended as asked (Identify*: a device answered; Fastscan: found)
@@ -118,6 +132,10 @@ struct LssMasterEvent {
   std::optional<cfg::NodeId> node_id;
   std::uint8_t error_code = 0;
   std::uint8_t spec_error = 0;
+  /// Scan Assigned / Skipped: what became of the device.
+  std::optional<LssScanOutcome> outcome;
+  /// Fastscan / Scan Timeout of a device that stopped answering: the part (0..3) of its address.
+  std::uint8_t part = 0;
   std::string text;  ///< one line for people, e.g. "configure node-ID refused: node-ID out of
                      ///< range (error code 1)"
 
@@ -233,14 +251,16 @@ class LssMaster {
   void fastscan_probe(TimePoint now, Output& out, int from_bit);
   void fastscan_descend(TimePoint now, Output& out);
   void fastscan_target(TimePoint now, Output& out);
-  void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text);
+  void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text,
+                    std::uint8_t part = 0);
   void scan_next(TimePoint now, Output& out);
   void scan_found(TimePoint now, Output& out);
   void scan_back_to_waiting(TimePoint now, Output& out);
   void scan_undo(TimePoint now, Output& out);
   static std::string duplicate_text();
-  void scan_device_done(LssMasterEvent::Kind kind, std::string text, std::uint8_t error_code,
-                        TimePoint now, Output& out);
+  void scan_device_done(LssMasterEvent::Kind kind, LssScanOutcome outcome, std::string text,
+                        std::uint8_t error_code, TimePoint now, Output& out,
+                        std::uint8_t spec_error = 0);
 
   LssMasterOptions options_;
   std::optional<LssService> service_;

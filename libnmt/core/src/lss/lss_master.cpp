@@ -282,19 +282,23 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
           out.send(request(Cs::StoreConfiguration));
           await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
         } else if (scan_->phase == ScanPhase::Unstoring) {
-          scan_device_done(Kind::Skipped, duplicate_text(), 0, now, out);
+          scan_device_done(Kind::Skipped, LssScanOutcome::Duplicate, duplicate_text(), 0, now, out);
         } else if (scan_->phase == ScanPhase::Configuring && code != 0) {
-          scan_device_done(Kind::Skipped, "configure node-ID refused: " + words, code, now, out);
+          scan_device_done(Kind::Skipped, LssScanOutcome::ConfigureRefused,
+                           "configure node-ID refused: " + words, code, now, out, spec);
         } else if (scan_->phase == ScanPhase::Configuring && options_.store) {
           scan_->phase = ScanPhase::Storing;
           out.send(request(Cs::StoreConfiguration));
           await(Cs::StoreConfiguration, Wait::Answer, options_.timeout, now);
         } else if (scan_->phase == ScanPhase::Storing && code != 0) {
-          scan_device_done(Kind::Assigned, "not stored: store configuration refused: " + words,
-                           code, now, out);
+          scan_device_done(Kind::Assigned, LssScanOutcome::StoreRefused,
+                           "not stored: store configuration refused: " + words, code, now, out,
+                           spec);
         } else {
-          scan_device_done(Kind::Assigned, options_.store ? "stored" : "not stored (as asked)", 0,
-                           now, out);
+          scan_device_done(
+              Kind::Assigned,
+              options_.store ? LssScanOutcome::Stored : LssScanOutcome::NotStoredAsAsked,
+              options_.store ? "stored" : "not stored (as asked)", 0, now, out);
         }
         return;
       }
@@ -329,14 +333,16 @@ void LssMaster::timed_out(TimePoint now, Output& out) {
   const std::string text = "no answer within " + ms(options_.timeout);
   if (scan_) {
     if (scan_->phase == ScanPhase::Configuring) {
-      scan_device_done(Kind::Skipped, "configure node-ID: " + text, 0, now, out);
+      scan_device_done(Kind::Skipped, LssScanOutcome::ConfigureUnanswered,
+                       "configure node-ID: " + text, 0, now, out);
     } else if (scan_->phase == ScanPhase::Storing && scan_->duplicate) {
       scan_undo(now, out);
     } else if (scan_->phase == ScanPhase::Unconfiguring || scan_->phase == ScanPhase::Unstoring) {
-      scan_device_done(Kind::Skipped, duplicate_text() + "; undoing its node-ID: " + text, 0, now,
-                       out);
+      scan_device_done(Kind::Skipped, LssScanOutcome::DuplicateUndoUnanswered,
+                       duplicate_text() + "; undoing its node-ID: " + text, 0, now, out);
     } else {
-      scan_device_done(Kind::Assigned, "not stored: store configuration: " + text, 0, now, out);
+      scan_device_done(Kind::Assigned, LssScanOutcome::StoreUnanswered,
+                       "not stored: store configuration: " + text, 0, now, out);
     }
     return;
   }
@@ -461,7 +467,8 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
     case Step::Confirm:
       if (!answer) {
         fastscan_end(Kind::Timeout, now, out,
-                     "the device stopped answering (part " + std::to_string(fs_.sub) + ")");
+                     "the device stopped answering (part " + std::to_string(fs_.sub) + ")",
+                     static_cast<std::uint8_t>(fs_.sub));
         return;
       }
       if (fs_.sub == 3) {
@@ -498,10 +505,12 @@ void LssMaster::fastscan_target(TimePoint now, Output& out) {
   send_fastscan(fs_.id.part(0), 0, 0, 1, out, now);
 }
 
-void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text) {
+void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text,
+                             std::uint8_t part) {
   if (!scan_) {
     auto e = event(LssService::Fastscan, kind, now, std::move(text));
     if (kind == Kind::Done) e.address = fs_.id;
+    e.part = part;
     finish(std::move(e), out);
     return;
   }
@@ -514,6 +523,7 @@ void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string 
                        std::to_string(scan_->found) + " unconfigured devices found")
                : event(LssService::Scan, kind, now, std::move(text));
   e.value = scan_->found;
+  e.part = part;
   finish(std::move(e), out);
 }
 
@@ -531,7 +541,7 @@ void LssMaster::scan_found(TimePoint now, Output& out) {
   std::optional<cfg::NodeId> node_id;
   if (scan_->chooser) node_id = scan_->chooser(scan_->current);
   if (!node_id) {
-    scan_device_done(Kind::Skipped, "no node-ID for it", 0, now, out);
+    scan_device_done(Kind::Skipped, LssScanOutcome::NoNodeId, "no node-ID for it", 0, now, out);
     return;
   }
   scan_->node_id = node_id;
@@ -554,8 +564,9 @@ void LssMaster::scan_undo(TimePoint now, Output& out) {
   await(Cs::ConfigureNodeId, Wait::Answer, options_.timeout, now);
 }
 
-void LssMaster::scan_device_done(Kind kind, std::string text, std::uint8_t error_code,
-                                 TimePoint now, Output& out) {
+void LssMaster::scan_device_done(Kind kind, LssScanOutcome outcome, std::string text,
+                                 std::uint8_t error_code, TimePoint now, Output& out,
+                                 std::uint8_t spec_error) {
   const std::string head =
       to_string(scan_->current) +
       (kind == Kind::Assigned ? " got node-ID " + std::to_string(scan_->node_id.value()) + ", "
@@ -564,6 +575,8 @@ void LssMaster::scan_device_done(Kind kind, std::string text, std::uint8_t error
   e.address = scan_->current;
   if (kind == Kind::Assigned) e.node_id = scan_->node_id;
   e.error_code = error_code;
+  e.spec_error = error_code == 0xFF ? spec_error : 0;
+  e.outcome = outcome;
   out.report(std::move(e));
   if (kind == Kind::Skipped) {
     // A skipped target is found again bit by bit (only then is it looked past): devices with

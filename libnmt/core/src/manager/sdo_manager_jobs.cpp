@@ -26,17 +26,6 @@ using sm::DynamicSdoState;
 
 constexpr std::uint16_t kDefaultServer = obj::kSdoServerFirst;  // 1200h
 
-std::string cob_text(cfg::CobId id) {
-  return cfg::hex(id.can_id().id, 3);
-}
-
-std::string connection_text(const ManagedSdoConnection& c) {
-  // Raw node-IDs: a connection row holds the bytes written to 1F10h/1F12h (0: none yet).
-  return "node " + std::to_string(c.srd) + " " + cfg::object_name(c.client_index) + " -> node " +
-         std::to_string(c.server) + " " + cfg::object_name(c.server_index) + " (COB-IDs " +
-         cob_text(c.request) + "/" + cob_text(c.response) + ")";
-}
-
 }  // namespace
 
 SdoManagerProcess::Step SdoManagerProcess::write_step(cfg::NodeId node, cfg::ObjectAddress address,
@@ -138,14 +127,16 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
     }
     case Phase::ProbeSlave:
       if (!answered) {
-        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(*job.slave) + " does not answer");
+        refuse(DynamicSdoError::kSlaveNotAvailable,
+               {.kind = SdoManagerReason::Kind::SlaveDoesNotAnswer, .node = job.slave});
       } else {
         connect_with(kDefaultServer);
       }
       return;
     case Phase::SearchChannel: {
       if (!answered) {
-        refuse(DynamicSdoError::kSlaveNotAvailable, node_text(*job.slave) + " does not answer");
+        refuse(DynamicSdoError::kSlaveNotAvailable,
+               {.kind = SdoManagerReason::Kind::SlaveDoesNotAnswer, .node = job.slave});
         return;
       }
       const bool free =
@@ -157,7 +148,7 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
         connect_with(job.probe);
       } else if (!result.ok() || job.probe >= obj::kSdoServerLast) {
         refuse(DynamicSdoError::kNoFreeServerOnSlave,
-               node_text(*job.slave) + " has no free server SDO entry");
+               {.kind = SdoManagerReason::Kind::NoFreeServerEntry, .node = job.slave});
       } else {
         ++job.probe;
         job.steps.push_back(read_step(*job.slave, {job.probe, 1}));
@@ -171,8 +162,8 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
 
 void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Output& out) {
   auto& job = jobs_.front();
-  const std::string why = (result.node_id ? node_text(*result.node_id) : std::string("node 0")) +
-                          ": " + transfer_failure(result);
+  const SdoManagerReason why{
+      .kind = SdoManagerReason::Kind::TransferFailed, .node = result.node_id, .transfer = result};
   job.steps.clear();
   auto& c = job.connection;
   if (job.kind == Job::Kind::Register) {
@@ -180,9 +171,9 @@ void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Outpu
     if (c.row.server_index != 0) close_channel(c.row.server_index);
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
-    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, job.node,
-                          node_text(job.node) + ": registration failed: " + why);
+    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, job.node);
     e.connection = c.row;
+    e.manager_reason = why;
     out.report(std::move(e));
     finish_job();
     return;
@@ -212,12 +203,12 @@ void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Outpu
   finish_job();
 }
 
-void SdoManagerProcess::refuse(DynamicSdoError error, const std::string& why) {
+void SdoManagerProcess::refuse(DynamicSdoError error, SdoManagerReason why) {
   auto& job = jobs_.front();
   job.steps.clear();
   job.phase = Job::Phase::Refusing;
   job.error = error;
-  job.why = why;
+  job.why = std::move(why);
   // §7.2.3: Cnxn state 0 and the reason in the error code.
   const auto srd = srds_.find(job.node);
   const bool registering = job.kind == Job::Kind::Register;
@@ -253,7 +244,7 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
                     }) ||
         all_default_sdos_owned();
     if (taken) {
-      refuse(DynamicSdoError::kNoDetails, "a default SDO is in use");
+      refuse(DynamicSdoError::kNoDetails, {.kind = SdoManagerReason::Kind::DefaultSdoInUse});
       return;
     }
     job.phase = Job::Phase::Confirming;
@@ -264,7 +255,7 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   const auto index = state.client_index;
   if (!obj::is_sdo_client_parameter(index)) {
     refuse(DynamicSdoError::kNoDetails,
-           "1F10h names " + cfg::object_name(index) + ", no client SDO entry");
+           {.kind = SdoManagerReason::Kind::NotAClientEntry, .index = index});
     return;
   }
   const auto channel = free_own_channel();
@@ -272,7 +263,8 @@ void SdoManagerProcess::start_register(std::uint32_t request) {
   const auto row = free_row();
   if (channel == 0 || pool.size() < 2 || row == 0) {
     refuse(DynamicSdoError::kNoChannelToManager,
-           channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h");
+           SdoManagerReason{.kind = channel == 0 ? SdoManagerReason::Kind::NoFreeServerChannel
+                                                 : SdoManagerReason::Kind::NoFreeCobIds});
     return;
   }
   auto& c = job.connection;
@@ -315,7 +307,8 @@ void SdoManagerProcess::start_connect() {
     return;
   }
   if (free_pool().size() < 2) {
-    refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
+    refuse(DynamicSdoError::kNoFreeChannelInNetwork,
+           {.kind = SdoManagerReason::Kind::NoTwoFreeCobIds});
     return;
   }
   job.phase = Job::Phase::SearchChannel;
@@ -335,7 +328,8 @@ void SdoManagerProcess::connect_with(std::uint16_t server_index) {
   } else {
     const auto pool = free_pool();
     if (pool.size() < 2) {
-      refuse(DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
+      refuse(DynamicSdoError::kNoFreeChannelInNetwork,
+             {.kind = SdoManagerReason::Kind::NoTwoFreeCobIds});
       return;
     }
     c.pool_request = pool[0];
@@ -386,17 +380,12 @@ void SdoManagerProcess::advance(TimePoint now, Output& out) {
 void SdoManagerProcess::report_refusal(TimePoint now, Output& out) {
   auto& job = jobs_.front();
   const bool registering = job.kind == Job::Kind::Register;
-  auto e =
-      master_event(registering ? MasterEvent::Kind::SrdRegistrationFailed
-                               : MasterEvent::Kind::SdoConnectionRefused,
-                   now, job.node,
-                   node_text(job.node) +
-                       (registering ? ": registration refused"
-                                    : ": SDO connection to " + node_text(*job.slave) + " refused") +
-                       ", error " + cfg::hex(static_cast<std::uint8_t>(job.error), 2) + " (" +
-                       std::string(sm::describe(job.error)) + "): " + job.why);
+  auto e = master_event(registering ? MasterEvent::Kind::SrdRegistrationFailed
+                                    : MasterEvent::Kind::SdoConnectionRefused,
+                        now, job.node);
   e.connection = job.connection.row;
   e.connection_error = job.error;
+  e.manager_reason = job.why;
   out.report(std::move(e));
   finish_job();
 }
@@ -443,20 +432,16 @@ void SdoManagerProcess::advance_register(TimePoint now, Output& out) {
   const auto request = DynamicSdoState::decode(job.request);
   srd.info.all_default_sdos = request.is_all_default_sdos_request();
   srd.info.slave_error_control = request.request_error_control;
-  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node,
-                        node_text(job.node) + ": SRD registered");
+  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, job.node);
   if (!srd.info.all_default_sdos) {
     auto c = job.connection;
     c.row.row = free_row();
     srd.info.client_index = c.row.client_index;
     srd.own_channel = c.row.server_index;
     e.connection = c.row;
-    e.text += ", " + connection_text(c.row);
     add_row(c);
-  } else {
-    e.text += " with all default SDOs";
   }
-  if (srd.info.slave_error_control) e.text += ", error control of its slaves";
+  e.srd = srd.info;
   srds_[job.node] = srd;
   out.report(std::move(e));
   finish_job();
@@ -481,8 +466,7 @@ void SdoManagerProcess::advance_connect(TimePoint now, Output& out) {
     }
     watched_.insert(slave);
   }
-  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node,
-                        "SDO connection established: " + connection_text(c.row));
+  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, job.node);
   e.connection = c.row;
   out.report(std::move(e));
   finish_job();
@@ -522,9 +506,7 @@ void SdoManagerProcess::advance_release(TimePoint now, Output& out) {
     ManagedSdoConnection failed;
     failed.srd = job.node;
     failed.server = *job.failed;
-    auto e =
-        master_event(MasterEvent::Kind::SlaveFailedReported, now, job.node,
-                     node_text(job.node) + ": 1F11h reports " + node_text(*job.failed) + " failed");
+    auto e = master_event(MasterEvent::Kind::SlaveFailedReported, now, job.node);
     e.connection = failed;
     out.report(std::move(e));
   }
@@ -532,15 +514,14 @@ void SdoManagerProcess::advance_release(TimePoint now, Output& out) {
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
     if (c.row.to_manager) close_channel(c.row.server_index);
-    auto e = master_event(MasterEvent::Kind::SdoConnectionReleased, now, job.node,
-                          "SDO connection released (" + job.why + "): " + connection_text(c.row));
+    auto e = master_event(MasterEvent::Kind::SdoConnectionReleased, now, job.node);
     e.connection = c.row;
+    e.manager_reason = job.why;
     out.report(std::move(e));
   }
   if (job.deregister && !job.srd_lost) {
     port_.unwatch(job.node);
-    out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, job.node,
-                            node_text(job.node) + ": SRD de-registered"));
+    out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, job.node));
   }
   finish_job();
 }

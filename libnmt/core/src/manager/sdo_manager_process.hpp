@@ -208,7 +208,7 @@ class SdoManagerProcess {
     std::uint16_t probe = 0;                    ///< SearchChannel: S's server entry read now
     Connection connection{};                    ///< Register/Connect: the connection being set up
     std::vector<Connection> releases{};         ///< Release: in order
-    std::string why{};                          ///< Release: for the events
+    SdoManagerReason why{};                     ///< Refusing, Release: for the events
     bool deregister = false;                    ///< Release: the SRD goes too
     bool srd_lost = false;                      ///< Release: the SRD does not answer (no retries)
     std::optional<cfg::NodeId> failed{};        ///< Release: the slave whose failure 1F11h reports
@@ -251,9 +251,9 @@ class SdoManagerProcess {
   void srd_gone(cfg::NodeId node, bool boot_up, TimePoint now, Output& out);
   /// One release job per SRD for `rows` whose server side is gone; with `failed`: 1F11h first.
   void release_per_srd(const std::vector<Connection>& rows, std::optional<cfg::NodeId> failed,
-                       const std::string& why);
+                       const SdoManagerReason& why);
   void release_job(cfg::NodeId srd, std::vector<Connection> rows, bool deregister, bool lost,
-                   std::string why);
+                   SdoManagerReason why);
 
   // --- jobs (sdo_manager_jobs.cpp) ---
   void advance(TimePoint now, Output& out);
@@ -273,7 +273,7 @@ class SdoManagerProcess {
   void start_connect();
   void connect_with(std::uint16_t server_index);
   /// Ends the front job with 1F10h Cnxn 0 and `error`, then its event.
-  void refuse(cfg::sdo_manager::DynamicSdoError error, const std::string& why);
+  void refuse(cfg::sdo_manager::DynamicSdoError error, SdoManagerReason why);
 
   static Step write_step(cfg::NodeId node, cfg::ObjectAddress address, std::uint32_t value,
                          std::size_t size, bool must_succeed = true, bool retry = true);
