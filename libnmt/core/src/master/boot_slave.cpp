@@ -85,8 +85,11 @@ void BootSlaveProcess::start_after_reset(TimePoint wait_until, TimePoint now, Ou
 
 void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_by_application,
                              TimePoint now, Output& out) {
+  // A start without a wait for the boot-up while the try still waited for one (a boot-up that
+  // came after the one it took, a power-on boot-up before the reset's) goes on with that try:
+  // it had not asked the slave anything yet.
+  if (!(phase_ == Phase::AwaitBootUp && running_ && !boot_up_until)) ++tries_;
   cancel(now);
-  ++tries_;
   // A new try: its data goes, what outlives a try stays (a 1F25h request holds until a try
   // succeeds).
   step_ = BootStep::Idle;
