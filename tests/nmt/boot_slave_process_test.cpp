@@ -30,9 +30,9 @@ struct Access {
   std::uint16_t index = 0;
   std::uint8_t sub = 0;
   bool upload = false;
-  std::vector<std::uint8_t> data;   ///< download
-  std::optional<Duration> timeout;  ///< program_download: its response timeout
-  unsigned retries = 0;             ///< program_download: repetitions after a timeout
+  std::vector<std::uint8_t> data;  ///< download
+  Duration timeout{};              ///< its response timeout
+  unsigned retries = 0;            ///< repetitions after a timeout
 };
 
 /// boot_con as the master received it.
@@ -61,23 +61,10 @@ class FakePort final : public BootSlavePort {
   std::size_t error_control_starts = 0;
   std::vector<Report> reports;
 
-  void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-              TimePoint) override {
-    EXPECT_EQ(node, kNode);
-    accesses.push_back({try_id, object.index, object.sub_index, true, {}, std::nullopt, 0});
-  }
-  void download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                std::vector<std::uint8_t> data, TimePoint) override {
-    EXPECT_EQ(node, kNode);
-    accesses.push_back(
-        {try_id, object.index, object.sub_index, false, std::move(data), std::nullopt, 0});
-  }
-  void program_download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                        std::vector<std::uint8_t> data, Duration timeout, unsigned retries,
-                        TimePoint) override {
-    EXPECT_EQ(node, kNode);
-    accesses.push_back(
-        {try_id, object.index, object.sub_index, false, std::move(data), timeout, retries});
+  void transfer(std::uint64_t try_id, SdoTransferScheduler::Request r, TimePoint) override {
+    EXPECT_EQ(r.node, kNode);
+    accesses.push_back({try_id, r.object.index, r.object.sub_index, r.upload, std::move(r.data),
+                        r.timeout, r.retries});
   }
   void cancel_transfers(cfg::NodeId, TimePoint) override { ++cancels; }
   void queue_nmt(NmtCommand command, cfg::NodeId node) override { nmt.emplace_back(command, node); }

@@ -4,6 +4,7 @@
 // start remote node (CiA 302-2 §3.4 part 3 g-l), "missing" after status B, error control stopped
 // after an error.
 #include <string>
+#include <utility>
 
 #include "cfg/object_index.hpp"
 #include "master/nmt_master_impl.hpp"
@@ -53,50 +54,13 @@ void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) 
 
 // --- the port ---
 
-void NmtMaster::Impl::BootPort::upload(cfg::NodeId node, std::uint64_t try_id,
-                                       cfg::ObjectAddress object, TimePoint now) {
-  MasterTransfer t;
-  t.try_id = try_id;
-  t.object = object;
-  t.upload = true;
-  t.options.timeout = m_.options.sdo_timeout;
-  t.retries_left = m_.options.sdo_retries;
-  m_.start_transfer(node, std::move(t), now);
-}
-
-void NmtMaster::Impl::BootPort::download(cfg::NodeId node, std::uint64_t try_id,
-                                         cfg::ObjectAddress object, std::vector<std::uint8_t> data,
-                                         TimePoint now) {
-  program_download(node, try_id, object, std::move(data), m_.options.sdo_timeout,
-                   m_.options.sdo_retries, now);
-}
-
-void NmtMaster::Impl::BootPort::program_download(cfg::NodeId node, std::uint64_t try_id,
-                                                 cfg::ObjectAddress object,
-                                                 std::vector<std::uint8_t> data, Duration timeout,
-                                                 unsigned retries, TimePoint now) {
-  MasterTransfer t;
-  t.try_id = try_id;
-  t.object = object;
-  t.data = std::move(data);
-  t.options.timeout = timeout;
-  // Large values by block transfer; SdoClient falls back to segmented when refused.
-  if (t.data.size() > m_.options.block_threshold) t.options.mode = SdoMode::Block;
-  t.retries_left = retries;
-  m_.start_transfer(node, std::move(t), now);
+void NmtMaster::Impl::BootPort::transfer(std::uint64_t try_id,
+                                         SdoTransferScheduler::Request request, TimePoint now) {
+  m_.transfers.start_boot(try_id, std::move(request), now, m_.transfer_out);
 }
 
 void NmtMaster::Impl::BootPort::cancel_transfers(cfg::NodeId node, TimePoint now) {
-  m_.slaves[node].transfers_done = 0;  // a new try (or none) follows
-  for (auto it = m_.transfers.begin(); it != m_.transfers.end();) {
-    if (it->first.first == node && !it->second.for_application) {
-      const auto id = it->first.second;
-      m_.forget_transfer(it++);
-      m_.clients.client(node).cancel(id, now, m_.sdo_out);
-    } else {
-      ++it;
-    }
-  }
+  m_.transfers.cancel(node, now, m_.transfer_out);
 }
 
 void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, cfg::NodeId node) {

@@ -36,6 +36,7 @@ BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& o
           .program_control_timeout = options.program_control_timeout,
           .program_clear_timeout = options.program_clear_timeout,
           .program_data_timeout = options.program_data_timeout,
+          .sdo_timeout = options.sdo_timeout,
           .sdo_retries = options.sdo_retries};
 }
 
@@ -141,13 +142,25 @@ void BootSlaveProcess::identify(TimePoint now, Output& out) {
 
 void BootSlaveProcess::upload(Phase phase, std::uint16_t index, std::uint8_t sub, TimePoint now) {
   phase_ = phase;
-  port_->upload(node_, try_id_, {index, sub}, now);
+  port_->transfer(try_id_,
+                  {.node = node_,
+                   .object = {index, sub},
+                   .upload = true,
+                   .timeout = options_.sdo_timeout,
+                   .retries = options_.sdo_retries},
+                  now);
 }
 
 void BootSlaveProcess::download(Phase phase, std::uint16_t index, std::uint8_t sub,
                                 std::vector<std::uint8_t> data, TimePoint now) {
   phase_ = phase;
-  port_->download(node_, try_id_, {index, sub}, std::move(data), now);
+  port_->transfer(try_id_,
+                  {.node = node_,
+                   .object = {index, sub},
+                   .data = std::move(data),
+                   .timeout = options_.sdo_timeout,
+                   .retries = options_.sdo_retries},
+                  now);
 }
 
 void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& out) {

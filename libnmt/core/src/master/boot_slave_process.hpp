@@ -25,6 +25,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/program_image.hpp"
 #include "master/boot_up_gate.hpp"
+#include "master/sdo_transfer_scheduler.hpp"
 #include "nmt/engine.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
@@ -52,19 +53,15 @@ class BootSlavePort {
  public:
   virtual ~BootSlavePort() = default;
 
-  // --- SDO: the master runs the transfers (window, pacing, repetition after a timeout, held
-  // while the SDO manager gave the default SDO away) and routes each result back to
-  // BootSlaveProcess::on_sdo_result when `try_id` is still the process's current try.
-  virtual void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                      TimePoint now) = 0;
-  virtual void download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                        std::vector<std::uint8_t> data, TimePoint now) = 0;
-  /// A download of the software update (DSP 302 §9, 1F51h/1F50h) with its own wait for each
-  /// response and its own number of repetitions after a timeout (each from the start of the
-  /// value), as MasterOptions::program_*_timeout give them.
-  virtual void program_download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                                std::vector<std::uint8_t> data, Duration timeout, unsigned retries,
-                                TimePoint now) = 0;
+  // --- SDO: the master runs the transfers (SdoTransferScheduler: window, pacing, repetition
+  // after a timeout, held while the SDO manager gave the default SDO away).
+  /// Every SDO access of a try (identify, software check and update, check configuration): an
+  /// upload, or a download of `request.data`, to `request.node` with its wait for each response
+  /// and its repetitions after a timeout (each from the start of the value; the software
+  /// update's as MasterOptions::program_*_timeout give them). The result comes back through
+  /// BootSlaveProcess::on_sdo_result while try `try_id` runs.
+  virtual void transfer(std::uint64_t try_id, SdoTransferScheduler::Request request,
+                        TimePoint now) = 0;
   /// A try ended: stop its transfers (on the bus too) and forget their results.
   virtual void cancel_transfers(cfg::NodeId node, TimePoint now) = 0;
 
@@ -79,12 +76,15 @@ class BootSlavePort {
   virtual bool start_error_control(cfg::NodeId node, TimePoint now) = 0;
 
   // --- What the master knows.
+  /// Its objects the boot compares the slave against (read at each step: a write between two
+  /// steps applies to the next).
   virtual BootSlaveExpectations expectations(cfg::NodeId node) const = 0;
   /// 1016h: the consumer time for the node, nullopt when the master consumes no heartbeat of it.
   virtual std::optional<Duration> heartbeat_time(cfg::NodeId node) const = 0;
-  /// 1F82h as the master knows it (0 unknown, 1 missing, else NmtState) and when it last saw a
-  /// heartbeat of the node (§3.6: a heartbeat within the consumer time is the answer).
+  /// 1F82h as the master knows it (0 unknown, 1 missing, else NmtState): check NMT state (§3.6).
   virtual KnownState known_state(cfg::NodeId node) const = 0;
+  /// When the master last saw a heartbeat of the node (§3.6: a heartbeat within the consumer
+  /// time is the answer, no guarding request is needed).
   virtual std::optional<TimePoint> last_heartbeat(cfg::NodeId node) const = 0;
   /// §3.5 d: the configuration to download (manager, source, or 1F22h), nullopt: none.
   virtual std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const = 0;
@@ -120,6 +120,7 @@ class BootSlaveProcess {
     Duration program_control_timeout{};
     Duration program_clear_timeout{};
     Duration program_data_timeout{};
+    Duration sdo_timeout{};  ///< every other SDO access: the wait for each response
     unsigned sdo_retries = 0;
     static Options from(const MasterOptions& options);
   };

@@ -67,8 +67,13 @@ void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
   // (MasterOptions::program_*_timeout); the image is repeated once after a timeout.
   phase_ = phase;
   const auto control = [&](std::uint8_t value, Duration timeout) {
-    port_->program_download(node_, try_id_, {obj::kProgramControl, 1}, {value}, timeout,
-                            options_.sdo_retries, now);
+    port_->transfer(try_id_,
+                    {.node = node_,
+                     .object = {obj::kProgramControl, 1},
+                     .data = {value},
+                     .timeout = timeout,
+                     .retries = options_.sdo_retries},
+                    now);
   };
   switch (phase) {
     case Phase::ProgramStop:
@@ -83,9 +88,13 @@ void BootSlaveProcess::program_step(Phase phase, TimePoint now) {
     default: {
       auto image = port_->program(node_);
       update_->bytes = image ? image->size() : 0;
-      port_->program_download(node_, try_id_, {obj::kProgramData, 1},
-                              image ? std::move(*image) : std::vector<std::uint8_t>{},
-                              options_.program_data_timeout, 1, now);
+      port_->transfer(try_id_,
+                      {.node = node_,
+                       .object = {obj::kProgramData, 1},
+                       .data = image ? std::move(*image) : std::vector<std::uint8_t>{},
+                       .timeout = options_.program_data_timeout,
+                       .retries = 1},
+                      now);
       return;
     }
   }

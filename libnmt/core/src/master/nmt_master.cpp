@@ -3,12 +3,12 @@
 // routing of frames and time to the parts. The boot-up handler and the error handler are in
 // error_handler.cpp. Boot NMT slave is an engine per node (boot_slave_process.hpp, its port in
 // boot_port.cpp), the objects and request NMT/guarding in master_dictionary.cpp, the SDO
-// transfers in master_transfers.cpp, the texts of the enums and events in master_text.cpp.
+// transfers in sdo_transfer_scheduler.hpp (the master's side in master_transfers.cpp), the texts
+// of the enums and events in master_text.cpp.
 #include "nmt/nmt_master.hpp"
 
 #include <algorithm>
 #include <bitset>
-#include <cmath>
 #include <utility>
 
 #include "cfg/hex.hpp"
@@ -91,7 +91,7 @@ void NmtMaster::entry_persisted(std::uint64_t ticket, const cfg::Status& result,
 bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   auto& m = *impl_;
   if (m.startup == StartupState::Off) return false;
-  m.pace_frame_of_others(frame, now);
+  m.transfers.pace_frame_of_others(frame, now);
   bool mine = false;
   const auto services = services_in(m.own_state);
   if (services.sdo) {
@@ -103,7 +103,7 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     }
   }
   if (m.sdo_manager.on_frame(frame, now, out)) mine = true;
-  if (m.clients.on_frame(frame, now, m.sdo_out)) mine = true;
+  if (m.transfers.on_frame(frame, now, m.transfer_out)) mine = true;
   if (m.flying.on_frame(frame, now, out)) {
     m.settle(now, out);
     return true;
@@ -137,7 +137,7 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
     for (const auto& f : server_out.frames) out.send(f);
   }
   m.sdo_manager.on_timer(now, out);
-  m.clients.on_timer(now, m.sdo_out);
+  m.transfers.on_timer(now, m.transfer_out);
   m.flying.on_timer(now, out);
   m.execute_lss.on_timer(now, out);
   {
@@ -171,7 +171,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   if (m.startup == StartupState::Off) return std::nullopt;
   auto due = m.startup_due;
   due = earliest(due, m.server.next_deadline());
-  due = earliest(due, m.clients.next_deadline());
+  due = earliest(due, m.transfers.next_deadline());
   due = earliest(due, m.producer.next_deadline());
   due = earliest(due, m.error_control.next_deadline());
   due = earliest(due, m.flying.next_deadline());
@@ -179,11 +179,6 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.sdo_manager.next_deadline());
   due = earliest(due, m.boot_up_gate.next_deadline());
   due = earliest(due, m.boot_deadlines.earliest());
-  // Waiting boot transfers are due when the pacing allows, if the window has room (else an
-  // answer frees a place, and the call that brings it starts the next).
-  if (!m.waiting.empty() && static_cast<double>(m.boot_transfers) < std::floor(m.window)) {
-    due = earliest(due, m.paced_until);
-  }
   due = earliest(due, m.nmt_commands.next_deadline());
   return due;
 }
@@ -255,23 +250,8 @@ cfg::Result<SdoClient::TransferId> NmtMaster::Impl::start_application_transfer(
     return cfg::Error{"node " + std::to_string(node.value()) +
                       " is this master; read and write its own objects through dictionary()"};
   }
-  MasterTransfer t;
-  t.for_application = true;
-  t.object = {index, sub};
-  t.upload = upload;
-  t.data = std::move(data);
-  t.options.timeout = options.sdo_timeout;
-  if (t.data.size() > options.block_threshold) t.options.mode = SdoMode::Block;
-  // Checked now, not when the client gets it: it may wait behind the boot's transfers.
-  if (auto ok = SdoClient::check_start(
-          t.options, upload ? std::nullopt : std::optional<std::size_t>(t.data.size()));
-      !ok) {
-    return cfg::Error{node_text(node) + ": " + ok.error().message};
-  }
-  t.application_id = next_application_id++;  // only a transfer that starts uses up an id
-  const auto id = t.application_id;
-  start_transfer(node, std::move(t), now);
-  return id;
+  return transfers.start_application(node, {index, sub}, upload, std::move(data), now,
+                                     transfer_out);
 }
 
 cfg::NodeId NmtMaster::node_id() const {

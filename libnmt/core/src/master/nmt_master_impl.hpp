@@ -7,9 +7,7 @@
 
 #include <array>
 #include <cstdint>
-#include <deque>
 #include <functional>
-#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -32,6 +30,7 @@
 #include "master/master_support.hpp"
 #include "master/master_text.hpp"
 #include "master/nmt_command_queue.hpp"
+#include "master/sdo_transfer_scheduler.hpp"
 #include "nmt/deadline_queue.hpp"
 #include "nmt/error_control.hpp"
 #include "nmt/nmt_master.hpp"
@@ -44,23 +43,6 @@ struct SlaveRecord {
   KnownState known_state{};               ///< 1F82h read value (KnownState::to_byte)
   bool held = false;                      ///< state set by request NMT: no automatic re-boot
   std::optional<TimePoint> heartbeat_at;  ///< the last heartbeat seen, for §3.6
-  /// Boot transfers of the current try that ended (pump_transfers: the slave furthest behind).
-  std::size_t transfers_done = 0;
-};
-
-/// An SDO transfer the master runs: for a boot try or for the application.
-struct MasterTransfer {
-  bool for_application = false;
-  bool for_manager = false;                  ///< of the SDO manager (try_id: its tag)
-  std::uint64_t try_id = 0;                  ///< boot: the try that started it
-  SdoClient::TransferId application_id = 0;  ///< application: the id the caller got
-  cfg::ObjectAddress object;
-  bool upload = false;
-  std::vector<std::uint8_t> data;  ///< download: kept for a repetition after a timeout
-  SdoTransferOptions options;
-  unsigned retries_left = 0;
-  TimePoint launched{};      ///< when its (latest) request went out: the window's loss events
-  std::size_t reported = 0;  ///< software update: the bytes the last ProgramProgress reported
 };
 
 struct NmtMaster::Impl {
@@ -70,7 +52,6 @@ struct NmtMaster::Impl {
   MasterOptions options;
   LocalDictionary dict;
   SdoServer server;
-  SdoClientMux clients;
   /// Heartbeat consumer and node guarding of the slaves (boot's start error control, request
   /// node guarding) and of the SDO manager's nodes, each watched while one of them wants it.
   ErrorControlService error_control;
@@ -86,13 +67,8 @@ struct NmtMaster::Impl {
   class BootPort final : public BootSlavePort {
    public:
     explicit BootPort(Impl& master) : m_(master) {}
-    void upload(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                TimePoint now) override;
-    void download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                  std::vector<std::uint8_t> data, TimePoint now) override;
-    void program_download(cfg::NodeId node, std::uint64_t try_id, cfg::ObjectAddress object,
-                          std::vector<std::uint8_t> data, Duration timeout, unsigned retries,
-                          TimePoint now) override;
+    void transfer(std::uint64_t try_id, SdoTransferScheduler::Request request,
+                  TimePoint now) override;
     void cancel_transfers(cfg::NodeId node, TimePoint now) override;
     void queue_nmt(NmtCommand command, cfg::NodeId node) override;
     bool start_error_control(cfg::NodeId node, TimePoint now) override;
@@ -128,28 +104,19 @@ struct NmtMaster::Impl {
     boot_deadline_of[node] = deadline;
   }
 
-  std::map<std::pair<cfg::NodeId, SdoClient::TransferId>, MasterTransfer> transfers;
-  /// Boot transfers in `transfers`, the window they may fill, and those waiting for a place.
-  static constexpr double kMaxWindow = 128;
-  std::size_t boot_transfers = 0;
-  double window = kMaxWindow;
-  /// When the window was last halved (unpaced): timeouts of transfers launched before are the
-  /// same loss event and do not halve it again.
-  std::optional<TimePoint> window_cut;
-  std::deque<std::pair<cfg::NodeId, MasterTransfer>> waiting;
-  /// Boot and application transfers to a slave whose default SDO the SDO manager gave to an SRD
-  /// (DSP 302 §7.1): they wait here, in order, until it is free again (release_held).
-  std::deque<std::pair<cfg::NodeId, MasterTransfer>> held;
-  /// With MasterOptions::bitrate: no new boot transfer before this time (bus load pacing).
-  TimePoint paced_until{};
-  /// clients.unanswered_bits() when the pacing last counted: the bits of block segments since.
-  std::uint64_t unanswered_bits_paced = 0;
-  SdoClient::TransferId next_application_id = 1;
-  /// Keys (in `transfers`) of boot/manager transfers the client refused, counting down from
-  /// the top, where the client's own ids (from 1 up) do not reach.
-  SdoClient::TransferId next_refused_id = 0xFFFFFFFF;
-  Outbox<SdoResult> sdo_out;      ///< scratch output of the SDO client calls
-  std::deque<SdoResult> results;  ///< SDO results not yet dispatched
+  /// The SDO transfers of the boots, the application and the SDO manager, one client per slave
+  /// (sdo_transfer_scheduler.hpp), and its port (master_transfers.cpp).
+  struct TransferPort final : SdoTransferPort {
+    explicit TransferPort(Impl& impl) : m(impl) {}
+    bool default_sdo_given_out(cfg::NodeId node) const override;
+    bool boot_try_runs(cfg::NodeId node, std::uint64_t try_id) const override;
+    Impl& m;
+  };
+  TransferPort transfer_port{*this};
+  SdoTransferScheduler transfers{transfer_port, SdoTransferScheduler::Settings::from(options)};
+  /// The transfers' output of the call: their frames leave at the end of settle(), after the
+  /// call's NMT commands; their events are routed as they come (route_transfer_events).
+  SdoTransferScheduler::Output transfer_out;
   /// Scratch outputs of the parts in on_frame/on_timer (server, producer; error control),
   /// cleared before each use so that a call allocates nothing once they have grown.
   Outbox<NoEvent> part_out;
@@ -265,7 +232,6 @@ struct NmtMaster::Impl {
   /// Dispatches SDO results, moves frames, sends due NMT commands, moves start-up on: after
   /// every call.
   void settle(TimePoint now, Output& out);
-  void report_program_progress(TimePoint now, Output& out);
   void report(Output& out, MasterEvent event);
   bool is_slave(cfg::NodeId node) const { return node != node_id && assignment(node).is_slave(); }
 
@@ -299,30 +265,21 @@ struct NmtMaster::Impl {
   static SdoManagerSettings manager_settings(const MasterOptions& options,
                                              const SdoServerConfig& server);
 
-  // --- SDO for boot and application ------------------------------------------------------------
-  SdoClient::TransferId start_transfer(cfg::NodeId node, MasterTransfer transfer, TimePoint now);
-  /// sdo_upload()/sdo_download() of the application: its id, timeout, block above the threshold;
-  /// the error (nothing started) when it cannot start.
+  // --- SDO for boot and application (master_transfers.cpp) ---------------------------------
+  /// sdo_upload()/sdo_download() of the application: its id; the error (nothing started) when it
+  /// cannot start.
   cfg::Result<SdoClient::TransferId> start_application_transfer(cfg::NodeId node,
                                                                 std::uint16_t index,
                                                                 std::uint8_t sub, bool upload,
                                                                 std::vector<std::uint8_t> data,
                                                                 TimePoint now);
-  void dispatch(const SdoResult& result, TimePoint now, Output& out);
-  void forget_transfer(
-      std::map<std::pair<cfg::NodeId, SdoClient::TransferId>, MasterTransfer>::iterator it);
-  void pump_transfers(TimePoint now);
-  /// Starts the `held` transfers whose slave's default SDO is free again.
-  void release_held(TimePoint now);
-  SdoClient::TransferId launch_transfer(cfg::NodeId node, MasterTransfer transfer, TimePoint now);
+  /// The events in transfer_out to their owners: a boot try's result to its BootSlaveProcess,
+  /// the application's as MasterEvent::SdoFinished, the SDO manager's to SdoManagerProcess, the
+  /// software update's progress as MasterEvent::ProgramProgress.
+  void route_transfer_events(TimePoint now, Output& out);
   /// Starts the slaves waiting at the gate that booted up: when every one did, or (`quiet`) when
   /// no boot-up came for BootUpGate::kQuiet.
   void open_boot_up_gate(TimePoint now, Output& out, bool quiet = false);
-  /// Pacing (MasterOptions::bitrate): the bus time `bits` take within bus_load_limit.
-  Duration paced_time(double bits) const;
-  /// Pacing: a frame of another node (heartbeats, PDOs, others' SDO) takes its share of the
-  /// load limit too, so the boot's requests leave room for it.
-  void pace_frame_of_others(const CanFrame& frame, TimePoint now);
 
   // --- boot NMT slave: the engines and the master's side of their port (boot_port.cpp) -------
   /// A new try of boot NMT slave for `node`; `after_reset`: it waits for the boot-up first (the

@@ -39,15 +39,14 @@ bool NmtMaster::Impl::ManagerPort::serves_sdo() const {
 }
 
 void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, TimePoint now) {
-  MasterTransfer t;
-  t.for_manager = true;
-  t.try_id = transfer.tag;
-  t.object = transfer.address;
-  t.upload = transfer.upload;
-  t.data = std::move(transfer.data);
-  t.options.timeout = transfer.timeout;
-  t.retries_left = transfer.retries;
-  m.launch_transfer(transfer.node, std::move(t), now);
+  m.transfers.start_manager(transfer.tag,
+                            {.node = transfer.node,
+                             .object = transfer.address,
+                             .upload = transfer.upload,
+                             .data = std::move(transfer.data),
+                             .timeout = transfer.timeout,
+                             .retries = transfer.retries},
+                            now, m.transfer_out);
 }
 
 std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(cfg::NodeId node) const {
