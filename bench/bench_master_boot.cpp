@@ -45,6 +45,7 @@
 #include "cfg/object_dictionary.hpp"
 #include "cfg/object_index.hpp"
 #include "nmt/fault_injection.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
@@ -347,7 +348,8 @@ BootResult boot(Network& net, std::uint16_t heartbeat_ms) {
   master.set_event_handler([&](const nmt::MasterEvent& e, TimePoint now) {
     using Kind = nmt::MasterEvent::Kind;
     if (e.kind != Kind::BootStepChanged && e.kind != Kind::SlaveStateChanged) {
-      events.push_back("event " + std::to_string(now.time_since_epoch().count()) + ' ' + e.text);
+      events.push_back("event " + std::to_string(now.time_since_epoch().count()) + ' ' +
+                       nmt::describe(e));
     }
     if (e.kind == Kind::StartupComplete) complete_at = now;
     if (e.kind == Kind::SlaveBooted) {
@@ -357,11 +359,11 @@ BootResult boot(Network& net, std::uint16_t heartbeat_ms) {
     // A failed try is tried again (§3.3); only the end of NMT start-up ends the boot.
     if (e.kind == Kind::BootError) {
       ++result.boot_errors;
-      if (result.first_boot_error.empty()) result.first_boot_error = e.text;
+      if (result.first_boot_error.empty()) result.first_boot_error = nmt::describe(e);
     }
     if ((e.kind == Kind::StartupHalted || (e.kind == Kind::BootError && e.final)) &&
         result.error.empty()) {
-      result.error = e.text;
+      result.error = nmt::describe(e);
     }
   });
   const auto observer = net.bus.add_observer([&](const nmt::CanFrame& f, TimePoint at) {

@@ -13,6 +13,7 @@
 
 #include "cfg/hex.hpp"
 #include "nmt/master_config.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
@@ -99,7 +100,7 @@ int main() {
 
   master.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint now) {
     std::cout << now.time_since_epoch().count() / 1000 << " ms  " << nmt::to_string(e.kind) << ": "
-              << e.text << "\n";
+              << nmt::describe(e) << "\n";
     if (e.kind == nmt::MasterEvent::Kind::ApplicationStep) {  // the application's own step
       master.apply([&](nmt::NmtMaster& m, nmt::TimePoint t, auto& out) {
         m.configuration_done(*e.node_id, true, t, out);  // ApplicationStep: always a node

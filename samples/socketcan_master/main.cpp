@@ -31,6 +31,7 @@
 #include "nmt/bus.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/master_config.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/nmt_master.hpp"
 
 using namespace std::chrono_literals;
@@ -177,7 +178,7 @@ int main(int argc, char** argv) {
   const nmt::TimePoint started = loop.now();  // events print their time since the start
   Master master(engine, [started](const nmt::MasterEvent& e, nmt::TimePoint now) {
     std::string line = std::to_string((now - started).count() / 1000) + " ms  " +
-                       std::string(nmt::to_string(e.kind)) + ": " + e.text;
+                       std::string(nmt::to_string(e.kind)) + ": " + nmt::describe(e);
     if (e.kind == nmt::MasterEvent::Kind::SdoFinished && e.sdo && e.sdo->upload &&
         e.sdo->abort == nmt::SdoAbort::None) {
       line += " =";

@@ -48,6 +48,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_client.hpp"
 #include "nmt/simulated_device.hpp"
@@ -168,7 +169,8 @@ struct Harness {
     for (const auto& e : out.events) {
       if (trace)
         std::fprintf(stderr, "%lld us %s\n",
-                     static_cast<long long>(e.at.time_since_epoch().count()), e.text.c_str());
+                     static_cast<long long>(e.at.time_since_epoch().count()),
+                     nmt::describe(e).c_str());
       check_at_time(e.at == now, now);  // reported by the call at `now`
       check_at_time(e.at >= last_event, now);
       last_event = e.at;

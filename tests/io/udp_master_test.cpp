@@ -20,6 +20,7 @@
 #include "multicast_netns.hpp"
 #include "nmt/bus_event_loop.hpp"
 #include "nmt/local_dictionary.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/udp_bus.hpp"
 #include "python_peer.hpp"
@@ -156,7 +157,7 @@ TEST(UdpBus, MasterBootsPythonCanSlaves) {
   auto status = loop.run_for(10s);
   ASSERT_TRUE(status.ok()) << status.error().message;
   for (const auto& e : events) {
-    EXPECT_NE(e.kind, MasterEvent::Kind::BootError) << e.text;
+    EXPECT_NE(e.kind, MasterEvent::Kind::BootError) << describe(e);
   }
   ASSERT_TRUE(complete) << "NMT start-up did not complete within 10 s";
   // Heartbeats of the started slaves come in (100 ms period).

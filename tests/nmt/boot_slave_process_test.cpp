@@ -11,6 +11,7 @@
 
 #include "master/boot_slave_process.hpp"
 #include "nmt/error_control.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/master_options.hpp"
 #include "nmt/nmt_slave.hpp"
 
@@ -164,8 +165,19 @@ TEST(BootSlave, ReportsStatusCWhenDeviceTypeDiffers) {
   EXPECT_EQ(errors[0].error, BootError::C);
   EXPECT_TRUE(errors[0].final);  // §3.3: a mandatory slave is retried only after B
   EXPECT_EQ(errors[0].node_id, kNode);
-  EXPECT_NE(errors[0].text.find("1000h is 0x00020191, 1F84h expects 0x00020192"), std::string::npos)
-      << errors[0].text;
+  EXPECT_NE(describe(errors[0]).find("1000h is 0x00020191, 1F84h expects 0x00020192"),
+            std::string::npos)
+      << describe(errors[0]);
+  // The facts behind the letter: 1000h as the device answered, 1F84h as the master expects.
+  ASSERT_TRUE(errors[0].failure.has_value());
+  const BootFailure& failure = *errors[0].failure;
+  EXPECT_EQ(failure.reason, BootFailure::Reason::ValueDiffers);
+  EXPECT_EQ(failure.step, BootStep::Identify);
+  EXPECT_EQ(failure.object, (cfg::ObjectAddress{0x1000, 0}));
+  EXPECT_EQ(failure.actual, 0x00020191U);
+  EXPECT_EQ(failure.expected_by, 0x1F84);
+  EXPECT_EQ(failure.expected, 0x00020192U);
+  EXPECT_EQ(errors[0].boot_try, 1U);
   EXPECT_EQ(rig.port.accesses.size(), 1U);  // no identity, no configuration
   EXPECT_TRUE(rig.port.nmt.empty());
   EXPECT_FALSE(rig.process.running());
@@ -198,6 +210,12 @@ TEST(BootSlave, ReportsStatusBAndRetriesAnOptionalSlaveSilently) {
   EXPECT_EQ(rig.port.reports[0].status, BootError::B);
   ASSERT_EQ(rig.events_of(Kind::BootError).size(), 1U);
   EXPECT_FALSE(rig.events_of(Kind::BootError)[0].final);
+  EXPECT_EQ(rig.events_of(Kind::BootError)[0].boot_try, 1U);
+  ASSERT_TRUE(rig.events_of(Kind::BootError)[0].failure.has_value());
+  EXPECT_EQ(rig.events_of(Kind::BootError)[0].failure->reason, BootFailure::Reason::TransferFailed);
+  EXPECT_EQ(rig.events_of(Kind::BootError)[0].failure->transfer->address,
+            (cfg::ObjectAddress{0x1000, 0}));
+  EXPECT_EQ(rig.events_of(Kind::BootError)[0].failure->transfer->abort, SdoAbort::Timeout);
   EXPECT_EQ(rig.process.step(), BootStep::RetryWait);
   EXPECT_EQ(rig.process.next_deadline(), rig.now + rig.options.retry_interval);
 
@@ -208,6 +226,11 @@ TEST(BootSlave, ReportsStatusBAndRetriesAnOptionalSlaveSilently) {
   expect_access(rig.last(), 0x1000, 0, true);
   EXPECT_GT(rig.last().try_id, first_try);  // results of the old try are not this try's
   EXPECT_EQ(rig.process.try_id(), rig.last().try_id);
+  // The second try's first step says its number (a tool counts retries from it).
+  const auto steps = rig.events_of(Kind::BootStepChanged);
+  ASSERT_FALSE(steps.empty());
+  EXPECT_EQ(steps.back().step, BootStep::Identify);
+  EXPECT_EQ(steps.back().boot_try, 2U);
 
   rig.abort(SdoAbort::Timeout);
   EXPECT_EQ(rig.port.reports.size(), 2U);
@@ -225,10 +248,16 @@ TEST(BootSlave, ReportsStatusDWhenVendorIdDiffers) {
   rig.answer(0x0000032D);
   ASSERT_EQ(rig.port.reports.size(), 1U);
   EXPECT_EQ(rig.port.reports[0].status, BootError::D);
-  EXPECT_NE(rig.events_of(Kind::BootError)[0].text.find(
-                "1018h sub 01h is 0x0000032D, 1F85h expects 0x0000032C"),
+  EXPECT_NE(describe(rig.events_of(Kind::BootError)[0])
+                .find("1018h sub 01h is 0x0000032D, 1F85h expects 0x0000032C"),
             std::string::npos)
-      << rig.events_of(Kind::BootError)[0].text;
+      << describe(rig.events_of(Kind::BootError)[0]);
+  const auto failure = rig.events_of(Kind::BootError)[0].failure.value();
+  EXPECT_EQ(failure.reason, BootFailure::Reason::ValueDiffers);
+  EXPECT_EQ(failure.object, (cfg::ObjectAddress{0x1018, 1}));
+  EXPECT_EQ(failure.actual, 0x0000032DU);
+  EXPECT_EQ(failure.expected_by, 0x1F85);
+  EXPECT_EQ(failure.expected, 0x0000032CU);
 }
 
 TEST(BootSlave, ReportsStatusMWhenProductCodeDiffers) {
@@ -372,7 +401,7 @@ TEST(BootSlave, DownloadsTheConfigurationWhen1020hDiffersThenStoresItsDateAndSav
   EXPECT_EQ(booted[0].written, 1U);
   EXPECT_EQ(booted[0].total, 1U);
   EXPECT_EQ(booted[0].bytes, 2U);
-  EXPECT_EQ(booted[0].text, "node 5: booted (configured: 1 entries, 2 bytes)");
+  EXPECT_EQ(describe(booted[0]), "node 5: booted (configured: 1 entries, 2 bytes)");
 }
 
 // §3.5 c: 1020h equal to 1F26h/1F27h: no download.
@@ -388,7 +417,8 @@ TEST(BootSlave, SkipsTheDownloadWhen1020hMatches) {
   EXPECT_EQ(rig.port.accesses.size(), 3U);
   ASSERT_EQ(rig.port.reports.size(), 1U);
   EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
-  EXPECT_EQ(rig.events_of(Kind::SlaveBooted)[0].text, "node 5: booted (configuration up to date)");
+  EXPECT_EQ(describe(rig.events_of(Kind::SlaveBooted)[0]),
+            "node 5: booted (configuration up to date)");
 }
 
 // J: "Configuration download failed".
@@ -402,7 +432,17 @@ TEST(BootSlave, ReportsStatusJWhenTheSlaveAbortsAConfigurationWrite) {
   rig.abort(SdoAbort::WriteOfReadOnly);  // 0601 0002
   ASSERT_EQ(rig.port.reports.size(), 1U);
   EXPECT_EQ(rig.port.reports[0].status, BootError::J);
-  EXPECT_NE(rig.events_of(Kind::BootError)[0].text.find("(entry 2 of 2)"), std::string::npos);
+  const auto error = rig.events_of(Kind::BootError)[0];
+  EXPECT_NE(describe(error).find("(entry 2 of 2)"), std::string::npos);
+  // The typed reason: the second of two writes, 2001h sub 00h, aborted with 0601 0002.
+  ASSERT_TRUE(error.failure.has_value());
+  EXPECT_EQ(error.failure->reason, BootFailure::Reason::WriteFailed);
+  EXPECT_EQ(error.failure->step, BootStep::Download);
+  EXPECT_EQ(error.failure->entry, 2U);
+  EXPECT_EQ(error.failure->entries, 2U);
+  ASSERT_TRUE(error.failure->transfer.has_value());
+  EXPECT_EQ(error.failure->transfer->address, (cfg::ObjectAddress{0x2001, 0}));
+  EXPECT_EQ(error.failure->transfer->abort, SdoAbort::WriteOfReadOnly);
 }
 
 // §4.1: with a consumed heartbeat the boot waits for the first one; none within the consumer
@@ -417,8 +457,12 @@ TEST(BootSlave, ReportsStatusKWhenTheFirstHeartbeatNeverComes) {
   rig.process.on_heartbeat_timeout(rig.now + 300ms, rig.out);
   ASSERT_EQ(rig.port.reports.size(), 1U);
   EXPECT_EQ(rig.port.reports[0].status, BootError::K);
-  EXPECT_NE(rig.events_of(Kind::BootError)[0].text.find("consumer time of 300 ms"),
+  EXPECT_NE(describe(rig.events_of(Kind::BootError)[0]).find("consumer time of 300 ms"),
             std::string::npos);
+  ASSERT_TRUE(rig.events_of(Kind::BootError)[0].failure.has_value());
+  EXPECT_EQ(rig.events_of(Kind::BootError)[0].failure->reason,
+            BootFailure::Reason::NoFirstHeartbeat);
+  EXPECT_EQ(rig.events_of(Kind::BootError)[0].failure->consumer_time_ms, 300U);
 }
 
 // §3.4 a: a node without 1F81h bit 0 ends with status A, final.
@@ -548,7 +592,7 @@ void stop_and_clear(Rig& rig, std::optional<SdoAbort> clear_abort = std::nullopt
 
 std::string boot_error_text(const Rig& rig) {
   const auto errors = rig.events_of(Kind::BootError);
-  return errors.empty() ? std::string() : errors.back().text;
+  return errors.empty() ? std::string() : describe(errors.back());
 }
 
 // DSP 302 §9 / CiA 302-3: 1F51h sub 1 = 0 (stop), = 3 (clear), 1F50h sub 1 = image, 1F51h sub 1
@@ -589,11 +633,12 @@ TEST(BootSlave, Dsp302Sec9UpdateStopsClearsDownloadsStartsAndReadsTheVersionAgai
   EXPECT_TRUE(booted[0].program->ended.has_value());
   EXPECT_EQ(booted[0].program->clear_refused, std::nullopt);  // clear was accepted
   EXPECT_TRUE(rig.events_of(Kind::ProgramClearRefused).empty());
-  EXPECT_NE(booted[0].text.find("; program updated from 2025-01-25 00:00:01.000 (1F52h 15000, "
-                                "1000) to 2026-11-27 08:15:00.000 (1F52h 15671, 29700000), 300 "
-                                "bytes"),
-            std::string::npos)
-      << booted[0].text;
+  EXPECT_NE(
+      describe(booted[0]).find("; program updated from 2025-01-25 00:00:01.000 (1F52h 15000, "
+                               "1000) to 2026-11-27 08:15:00.000 (1F52h 15671, 29700000), 300 "
+                               "bytes"),
+      std::string::npos)
+      << describe(booted[0]);
   // The defaults differ, so the steps above took their own.
   EXPECT_NE(rig.options.program_control_timeout, rig.options.program_clear_timeout);
   EXPECT_NE(rig.options.program_data_timeout, rig.options.program_control_timeout);
@@ -623,8 +668,8 @@ TEST_P(BootSlaveClearRefused, Dsp302Sec9DeviceRefusingClearStillGetsTheImage) {
   ASSERT_EQ(refused.size(), 1U);
   ASSERT_TRUE(refused[0].sdo.has_value());
   EXPECT_EQ(refused[0].sdo->abort, GetParam());
-  EXPECT_NE(refused[0].text.find("refused: " + to_string(GetParam())), std::string::npos)
-      << refused[0].text;
+  EXPECT_NE(describe(refused[0]).find("refused: " + to_string(GetParam())), std::string::npos)
+      << describe(refused[0]);
   const auto booted = rig.events_of(Kind::SlaveBooted);
   ASSERT_EQ(booted.size(), 1U);
   ASSERT_TRUE(booted[0].program.has_value());

@@ -19,6 +19,7 @@
 
 #include "cfg/device_file.hpp"
 #include "nmt/lss_slave.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sim_bus.hpp"
 #include "nmt/simulated_device.hpp"
@@ -61,7 +62,7 @@ struct FakePort final : ExecuteLssPort {
 std::vector<std::string> texts(const std::vector<MasterEvent>& events, Kind kind) {
   std::vector<std::string> found;
   for (const auto& e : events) {
-    if (e.kind == kind) found.push_back(e.text);
+    if (e.kind == kind) found.push_back(describe(e));
   }
   return found;
 }
@@ -241,8 +242,17 @@ TEST_F(ExecuteLssBus, FoundDeviceGetsItsSlavesNodeIdStoredThenBackToWaiting) {
   ASSERT_NE(assigned, nullptr);
   EXPECT_EQ(assigned->node_id, 5);
   EXPECT_EQ(assigned->lss_address, sim_address(0xCAFEBABE));
+  // Store configuration answered 0 (CiA 305 §8.3.4): stored.
+  ASSERT_TRUE(assigned->lss.has_value());
+  EXPECT_EQ(assigned->lss->outcome, LssScanOutcome::Stored);
   EXPECT_EQ(texts(events, Kind::LssScanEnded),
             Frames{"LSS: 1 unconfigured device found, 1 given a node-ID"});
+  const MasterEvent* ended = event_of(Kind::LssScanEnded);
+  ASSERT_NE(ended, nullptr);
+  ASSERT_TRUE(ended->lss_scan.has_value());
+  EXPECT_EQ(ended->lss_scan->found, 1U);
+  EXPECT_EQ(ended->lss_scan->assigned, 1U);
+  EXPECT_EQ(ended->lss_scan->stopped, MasterEvent::LssScan::Stop::None);
 }
 
 TEST_F(ExecuteLssBus, DeviceMatchingNoSlaveIsReportedWithItsAddressAndLeftUnconfigured) {
@@ -277,6 +287,8 @@ TEST_F(ExecuteLssBus, TwoDevicesWithOneLssAddressAreReportedWithTheAddressAndLef
   const MasterEvent* failed = event_of(Kind::LssFailed);
   ASSERT_NE(failed, nullptr);
   EXPECT_EQ(failed->lss_address, sim_address(42));
+  ASSERT_TRUE(failed->lss.has_value());
+  EXPECT_EQ(failed->lss->outcome, LssScanOutcome::Duplicate);
   for (const LssSlave* d : {&first, &second}) {
     EXPECT_EQ(d->active_node_id(), lss::kUnconfigured);
     EXPECT_EQ(d->pending_node_id(), lss::kUnconfigured);
@@ -299,6 +311,13 @@ TEST_F(ExecuteLssBus, RefusedConfigureNodeIdIsTheSlavesLssFailure) {
   EXPECT_NE(texts(events, Kind::LssFailed)[0].find("node-ID out of range (error code 1)"),
             std::string::npos)
       << texts(events, Kind::LssFailed)[0];
+  // CiA 305 §8.3.1: configure node-ID error code 1, node-ID out of range.
+  const MasterEvent* failed = event_of(Kind::LssFailed);
+  ASSERT_NE(failed, nullptr);
+  ASSERT_TRUE(failed->lss.has_value());
+  EXPECT_EQ(failed->lss->outcome, LssScanOutcome::ConfigureRefused);
+  EXPECT_EQ(failed->lss->error_code, 1U);
+  EXPECT_EQ(failed->node_id, 9);
 }
 
 TEST_F(ExecuteLssBus, TenDevicesOfTenSlavesAllGetTheirNodeIds) {
@@ -637,7 +656,7 @@ TEST_F(MasterLss, UnmatchedDeviceIsReportedAndTheSlaveWithoutDeviceIsMissing) {
   start();
   bus.run_for(8s);
   ASSERT_EQ(of_kind(Kind::LssUnmatched).size(), 1u);
-  EXPECT_NE(of_kind(Kind::LssUnmatched)[0]->text.find("7E57C0DE:00000508:00020001:00000999"),
+  EXPECT_NE(describe(*of_kind(Kind::LssUnmatched)[0]).find("7E57C0DE:00000508:00020001:00000999"),
             std::string::npos);
   EXPECT_FALSE(devices[0x999]->engine().node().has_node_id());
   EXPECT_EQ(master->engine().last_error(*cfg::NodeId::from(3)), BootError::B);

@@ -361,6 +361,11 @@ TEST(FlyingMasterProcess, DetectionAnsweredByAHigherOrEqualLevelStandsBy_3_7_f) 
     ASSERT_EQ(standby.size(), 1U);
     EXPECT_EQ(standby[0].node_id, 6);
     EXPECT_EQ(standby[0].priority, level);
+    // Why: level 0 is higher than this device's 2, level 2 the same (Table 48: 0 is high).
+    ASSERT_TRUE(standby[0].flying.has_value());
+    EXPECT_EQ(standby[0].flying->reason,
+              level == 2 ? FlyingMasterReason::SamePriority : FlyingMasterReason::HigherPriority);
+    EXPECT_EQ(standby[0].flying->own_priority, 2U);
     EXPECT_TRUE(rig.events_of(Kind::ForceNegotiation).empty());
   }
 }
@@ -381,6 +386,10 @@ TEST(FlyingMasterProcess, DetectionAnsweredByALowerLevelForcesNegotiation_3_7_g_
   auto forced = rig.events_of(Kind::ForceNegotiation);
   ASSERT_EQ(forced.size(), 1U);
   EXPECT_EQ(forced[0].node_id, 6);
+  EXPECT_EQ(forced[0].priority, 2U);
+  ASSERT_TRUE(forced[0].flying.has_value());
+  EXPECT_EQ(forced[0].flying->reason, FlyingMasterReason::LowerPriority);
+  EXPECT_EQ(forced[0].flying->own_priority, 0U);
   // The active master's reset communication restarts this device (DSP 302 §5.5.1.2).
   EXPECT_TRUE(rig.hear("000#8200", at_ms(510)));
   EXPECT_EQ(rig.port.restart_at, at_ms(510));

@@ -57,7 +57,7 @@ class FlyingRig {
       std::cerr << s.at.time_since_epoch().count() << "us " << s.text() << "\n";
     for (const auto& e : events) {
       std::cerr << "EVENT " << int{e.master} << " " << e.event.at.time_since_epoch().count()
-                << "us " << to_string(e.event.kind) << ": " << e.event.text << "\n";
+                << "us " << to_string(e.event.kind) << ": " << describe(e.event) << "\n";
     }
   }
   FlyingRig(const FlyingRig&) = delete;

@@ -566,8 +566,12 @@ TEST(NmtMasterSpec, EveryMandatorySlaveBootsToItsOwnEndWhenAnotherFailsAndNoneIs
   EXPECT_GE(halted.front().at, booted4.front().at);
   EXPECT_EQ(halted.front().node_id, 2);
   EXPECT_EQ(halted.front().error, BootError::C);
-  EXPECT_NE(halted.front().text.find("node 2"), std::string::npos) << halted.front().text;
-  EXPECT_NE(halted.front().text.find("node 3"), std::string::npos) << halted.front().text;
+  EXPECT_NE(describe(halted.front()).find("node 2"), std::string::npos) << describe(halted.front());
+  EXPECT_NE(describe(halted.front()).find("node 3"), std::string::npos) << describe(halted.front());
+  // The typed list: both mandatory slaves with their letters, in node-ID order (§3.1 f).
+  EXPECT_EQ(halted.front().halted_by,
+            (std::vector<MandatoryFailure>{{*cfg::NodeId::from(2), BootError::C},
+                                           {*cfg::NodeId::from(3), BootError::D}}));
   EXPECT_EQ(master.startup_state(), StartupState::Halted);
   EXPECT_EQ(master.state(), NmtState::PreOperational);
   EXPECT_TRUE(rig.events_of(Kind::StartupComplete).empty());
@@ -664,7 +668,7 @@ TEST(NmtMasterSpec, HaltDoesNotWaitForAMandatorySlaveTriedWithoutEnd) {
   ASSERT_EQ(halted.size(), 1U);
   EXPECT_EQ(halted.front().node_id, 2);
   EXPECT_EQ(halted.front().error, BootError::C);
-  EXPECT_EQ(halted.front().text.find("node 3"), std::string::npos) << halted.front().text;
+  EXPECT_EQ(describe(halted.front()).find("node 3"), std::string::npos) << describe(halted.front());
   ASSERT_FALSE(rig.boot_errors(3).empty());
   EXPECT_EQ(rig.boot_errors(3).front().error, BootError::B);
   EXPECT_FALSE(rig.boot_errors(3).back().final);
@@ -785,7 +789,7 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenTheDeviceDoesNotAnswer) {
   auto error = rig.boot_errors(3).front();
   EXPECT_EQ(error.error, BootError::B);
   EXPECT_FALSE(error.final);
-  EXPECT_NE(error.text.find("boot error B"), std::string::npos) << error.text;
+  EXPECT_NE(describe(error).find("boot error B"), std::string::npos) << describe(error);
   EXPECT_EQ(master.last_error(3_node), BootError::B);
   EXPECT_EQ(rig.uploads_of(3, 0x1000, 0).size(), 1U + rig.options.sdo_retries);
   // DSP 302 §4 step 5: start-up tries "all optional slaves at least once" before it goes on.
@@ -819,8 +823,9 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenThe1000hUploadReturnsNoBytes) {
   rig.bus.attach(device);
   ASSERT_EQ(rig.boot_error_of_3(absent_device()), BootError::B);
   const auto error = rig.boot_errors(3).front();
-  EXPECT_NE(error.text.find("1000h"), std::string::npos) << error.text;
-  EXPECT_NE(error.text.find(to_string(SdoAbort::LengthMismatch)), std::string::npos) << error.text;
+  EXPECT_NE(describe(error).find("1000h"), std::string::npos) << describe(error);
+  EXPECT_NE(describe(error).find(to_string(SdoAbort::LengthMismatch)), std::string::npos)
+      << describe(error);
   EXPECT_EQ(rig.uploads_of(3, 0x1000, 0).size(), 1U);  // an answer: not retried as a timeout
 }
 
@@ -1204,7 +1209,7 @@ TEST(NmtMasterSpec, SoftwareUpdateGoesOnWhenTheDeviceRefusesClearAsDsp302AllowsO
   EXPECT_EQ(refused[0].step, BootStep::UpdateSoftware);
   ASSERT_TRUE(refused[0].sdo.has_value());
   EXPECT_EQ(refused[0].sdo->abort, SdoAbort::ValueTooHigh);
-  EXPECT_EQ(refused[0].text,
+  EXPECT_EQ(describe(refused[0]),
             "node 3: program clear (1F51h sub 01h = 3) refused: 0x06090031 (value of parameter "
             "written too high (download only)); the download goes on");
   ASSERT_EQ(rig.booted(3).size(), 1U);
@@ -1243,8 +1248,8 @@ TEST(NmtMasterSpec, SoftwareUpdateRepeatsTheImageOnceAfterAnSdoTimeout) {
     } else {
       ASSERT_FALSE(rig.boot_errors(3).empty());
       EXPECT_EQ(rig.boot_errors(3).front().error, BootError::I);
-      EXPECT_NE(rig.boot_errors(3).front().text.find("0x05040000"), std::string::npos)
-          << rig.boot_errors(3).front().text;
+      EXPECT_NE(describe(rig.boot_errors(3).front()).find("0x05040000"), std::string::npos)
+          << describe(rig.boot_errors(3).front());
     }
   }
 }

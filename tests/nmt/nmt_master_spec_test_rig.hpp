@@ -33,6 +33,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
+#include "nmt/master_event_text.hpp"
 #include "nmt/master_host.hpp"
 #include "nmt/nmt_master.hpp"
 #include "nmt/sdo_client.hpp"
@@ -208,7 +209,7 @@ class MasterRig {
     for (const auto& s : seen)
       std::cerr << s.at.time_since_epoch().count() << "us " << s.text() << "\n";
     for (const auto& e : events)
-      std::cerr << "EVENT " << e.at.time_since_epoch().count() << "us " << e.text << "\n";
+      std::cerr << "EVENT " << e.at.time_since_epoch().count() << "us " << describe(e) << "\n";
   }
   MasterRig(const MasterRig&) = delete;
   MasterRig& operator=(const MasterRig&) = delete;
@@ -509,6 +510,6 @@ inline std::ostream& operator<<(std::ostream& os, const Seen& s) {
 namespace nmt {
 inline std::ostream& operator<<(std::ostream& os, const MasterEvent& e) {
   return os << e.at.time_since_epoch().count() << "us " << to_string(e.kind) << " node "
-            << (e.node_id ? int{e.node_id->value()} : 0) << ": " << e.text;
+            << (e.node_id ? int{e.node_id->value()} : 0) << ": " << describe(e);
 }
 }  // namespace nmt

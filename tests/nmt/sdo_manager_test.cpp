@@ -141,6 +141,14 @@ TEST_F(SdoManagerTest, SrdErrorControlLossReleasesItsConnectionsOnBothSides) {
   // Guarding of an SRD without 1016h/1017h/1F81h values: 500 ms x 3 (header).
   ASSERT_TRUE(wait_for(Kind::SrdLost, 110, 5s));
   ASSERT_TRUE(wait_for(Kind::SdoConnectionReleased, 110, 10s));
+  // DSP 302 §7.2.1: the SRD's loss is the reason, with the count of its connections (its
+  // channel to the manager and the one to node 2).
+  const auto lost = rig.events_of(Kind::SrdLost, 110).front();
+  EXPECT_EQ(lost.manager_reason.kind, SdoManagerReason::Kind::SrdLost);
+  EXPECT_EQ(lost.manager_reason.node, 110_node);
+  EXPECT_EQ(lost.released, 2U);
+  EXPECT_EQ(rig.events_of(Kind::SdoConnectionReleased, 110).front().manager_reason.kind,
+            SdoManagerReason::Kind::SrdLost);
   rig.run_for(5s);
   // S's server entry is invalid again, the pool entries are free, 110 is gone from the tables.
   EXPECT_EQ(at(2, 0x1201, 1) & kInvalid, kInvalid);

@@ -102,6 +102,14 @@ TEST(PushSim, EachMandatoryNodeGetsItsOwnResultWhenOthersFailAndNoneIsStarted) {
   EXPECT_NE(table[3].find("  configured  "), std::string::npos) << table[3];
   EXPECT_NE(r.out.find("\nnode 1 (gen1): error C: "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\nnode 2 (gen2): error D: "), std::string::npos) << r.out;
+  // The report's words come from the boot error's typed facts (the device's 1000h and the
+  // master's 1F84h from the generated files, Table 1's text for the letter), not from a log line.
+  EXPECT_EQ(nodes.at(1)->get("message")->string,
+            "value of object 1000h differs from object 1F84h (device type) (1000h is 0x000F0191, "
+            "1F84h expects 0x000F0192)");
+  EXPECT_EQ(nodes.at(2)->get("message")->string,
+            "value of object 1018h sub 01h differs from object 1F85h (vendor-ID) (1018h sub 01h "
+            "is 0x00000ABC, 1F85h expects 0x00000BAD)");
 }
 
 // §3.3: a mandatory node that does not answer is tried again until the boot time (1F89h,

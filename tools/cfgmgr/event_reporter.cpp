@@ -5,8 +5,10 @@
 #include <string>
 
 #include "../common/tool_support.hpp"
+#include "cfg/hex.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/lss.hpp"
+#include "nmt/master_event_text.hpp"
 #include "run_args.hpp"
 
 namespace cfgmgr {
@@ -28,7 +30,7 @@ void EventReporter::report(const nmt::MasterEvent& e) {
   switch (e.kind) {
     case K::NotMaster:
       finished_ = true;
-      line = e.text;
+      line = nmt::describe(e);
       break;
     case K::StartupBegan:
       line = "NMT start-up began";
@@ -48,14 +50,15 @@ void EventReporter::report(const nmt::MasterEvent& e) {
         line = node + "boot error " + std::string(1, nmt::letter(*e.error)) + ": " +
                std::string(nmt::describe(*e.error));
       } else {
-        line = node + "boot error: " + e.text;
+        line = node + "boot error: " + nmt::describe(e);
       }
       if (!e.final) line += " (trying again)";
       break;
     case K::StartupHalted:
       halted_ = true;
       finished_ = true;
-      line = e.text;  // "NMT start-up halted: mandatory node N failed with status X (...)"
+      line =
+          nmt::describe(e);  // "NMT start-up halted: mandatory node N failed with status X (...)"
       break;
     case K::StartupComplete:
       complete_ = true;
@@ -95,10 +98,10 @@ void EventReporter::report(const nmt::MasterEvent& e) {
     case K::LssScanEnded:
       // flying master: who is active and why; SDO manager: what it did; LSS: which device got
       // which node-ID, and which matched no node
-      line = e.text;
+      line = nmt::describe(e);
       break;
     default:
-      if (verbose_) line = e.text;
+      if (verbose_) line = nmt::describe(e);
       break;
   }
   if (!line.empty() && !quiet_)
@@ -115,6 +118,36 @@ void EventReporter::note(const std::string& line) {
   }
 }
 
+namespace {
+// A boot error's facts (nmt::BootFailure) as a JSON object: the reason, the step it failed in,
+// and what the reason has (the object and values compared, the failed transfer and its abort).
+std::string json_failure(const nmt::BootFailure& f) {
+  using R = nmt::BootFailure::Reason;
+  std::string out = "{\"reason\": " + tools::json_string(nmt::to_string(f.reason)) +
+                    ", \"step\": " + tools::json_string(nmt::to_string(f.step));
+  if (f.reason == R::ValueDiffers) {
+    out += ", \"object\": " + tools::json_string(cfg::to_string(f.object)) +
+           ", \"actual\": " + std::to_string(f.actual) +
+           ", \"expected_by\": " + tools::json_string(cfg::hex_digits(f.expected_by, 4) + "h") +
+           ", \"expected\": " + std::to_string(f.expected);
+  }
+  if (f.transfer) {
+    out += ", \"object\": " + tools::json_string(cfg::to_string(f.transfer->address)) +
+           ", \"abort\": " + std::to_string(static_cast<std::uint32_t>(f.transfer->abort)) +
+           ", \"abort_text\": " + tools::json_string(nmt::to_string(f.transfer->abort));
+  }
+  if (f.reason == R::WriteFailed) {
+    out +=
+        ", \"entry\": " + std::to_string(f.entry) + ", \"entries\": " + std::to_string(f.entries);
+  }
+  if (f.reason == R::NoFirstHeartbeat) {
+    out += ", \"consumer_time_ms\": " + std::to_string(f.consumer_time_ms);
+  }
+  if (f.boot_time_ms) out += ", \"boot_time_ms\": " + std::to_string(*f.boot_time_ms);
+  return out + "}";
+}
+}  // namespace
+
 void EventReporter::write_json(const nmt::MasterEvent& e) {
   using K = nmt::MasterEvent::Kind;
   std::string out = "{\"time_s\": " + seconds_text(start_, e.at) +
@@ -129,6 +162,20 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
         out += ", \"error\": null";
       }
       out += std::string(", \"final\": ") + (e.final ? "true" : "false");
+      if (e.failure) out += ", \"failure\": " + json_failure(*e.failure);
+      break;
+    case K::StartupHalted: {
+      std::string list;
+      for (const auto& f : e.halted_by) {
+        list += std::string(list.empty() ? "" : ", ") +
+                "{\"node_id\": " + std::to_string(f.node.value()) +
+                ", \"error\": " + tools::json_string(std::string(1, nmt::letter(f.error))) + "}";
+      }
+      out += ", \"halted_by\": [" + list + "]";
+      break;
+    }
+    case K::NotMaster:
+      out += ", \"nmt_startup\": " + std::to_string(e.nmt_startup);
       break;
     case K::SlaveBooted:
       out += std::string(", \"configured\": ") + (e.configured ? "true" : "false") +
@@ -154,7 +201,27 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
     case K::ForceNegotiation:
     case K::MultipleMasters:
     case K::ActiveMasterLost:
+    case K::MasterDetection:
       if (e.priority) out += ", \"priority\": " + std::to_string(*e.priority);
+      if (e.flying) out += ", \"reason\": " + tools::json_string(nmt::to_string(e.flying->reason));
+      break;
+    case K::LssAssigned:
+    case K::LssFailed:
+    case K::LssUnmatched:
+      if (e.lss) {
+        out += ", \"outcome\": " + tools::json_string(nmt::to_string(e.lss->outcome)) +
+               ", \"error_code\": " + std::to_string(e.lss->error_code);
+      }
+      break;
+    case K::LssScanEnded:
+      if (e.lss_scan) {
+        out += ", \"found\": " + std::to_string(e.lss_scan->found) +
+               ", \"assigned\": " + std::to_string(e.lss_scan->assigned);
+      }
+      break;
+    case K::SdoConnectionReleased:
+    case K::SrdLost:
+      out += ", \"reason\": " + tools::json_string(nmt::to_string(e.manager_reason.kind));
       break;
     case K::SrdRegistrationFailed:
     case K::SdoConnectionRefused:
@@ -163,6 +230,7 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
         out +=
             ", \"connection_error\": " + std::to_string(static_cast<unsigned>(*e.connection_error));
       }
+      out += ", \"reason\": " + tools::json_string(nmt::to_string(e.manager_reason.kind));
       break;
     case K::ProgramClearRefused:
       if (e.sdo) out += ", \"abort\": " + tools::json_string(nmt::to_string(e.sdo->abort));
@@ -183,7 +251,8 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
   }
   if (e.lss_address)
     out += ", \"lss_address\": " + tools::json_string(nmt::address_digits(*e.lss_address));
-  out += ", \"text\": " + tools::json_string(e.text) + "}\n";
+  if (e.boot_try != 0) out += ", \"try\": " + std::to_string(e.boot_try);
+  out += ", \"text\": " + tools::json_string(nmt::describe(e)) + "}\n";
   *json_ << out << std::flush;
 }
 

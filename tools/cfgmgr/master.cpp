@@ -101,7 +101,12 @@ void add_master_command(CLI::App& app) {
                   "description/final, configured/entries/bytes, assigned, step, state, command, "
                   "priority, connection_error, lss_address (lss_assigned, lss_unmatched, "
                   "lss_failed) and connection (row, client_node_id, client_index, "
-                  "server_node_id, server_index, request_cob_id, response_cob_id)")
+                  "server_node_id, server_index, request_cob_id, response_cob_id); try (the "
+                  "boot's try), failure (boot_error: reason, step, object, actual/expected_by/"
+                  "expected, abort/abort_text, entry/entries, consumer_time_ms, boot_time_ms), "
+                  "halted_by (startup_halted), nmt_startup (not_master), reason (flying master "
+                  "and SDO manager kinds), outcome/error_code (lss_*), found/assigned "
+                  "(lss_scan_ended)")
       ->type_name("FILE");
   cmd->add_option("--store", options->store,
                   "Keep what tools write to 1F20h-1F27h in this store directory (created when "

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "../common/tool_support.hpp"
+#include "nmt/master_event_text.hpp"
 
 namespace cfgmgr {
 
@@ -33,7 +34,7 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   }
   if (e.kind == K::ProgramClearRefused) {
     if (e.sdo) u.clear_refused = e.sdo->abort;
-    return e.text;
+    return nmt::describe(e);
   }
   // The master's own account (MasterEvent::program) on SlaveBooted, or BootError I.
   if ((e.kind != K::SlaveBooted && e.kind != K::BootError) || !e.program || u.updated || u.failed) {

@@ -29,6 +29,7 @@
 #include "cfg/object_index.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
+#include "nmt/master_event_text.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -74,7 +75,8 @@ struct NodeReport {
   std::uint64_t program_total = 0;
   std::optional<nmt::TimePoint> program_began;
   nmt::TimePoint program_at{};
-  unsigned retries = 0;  ///< boot tries repeated (CiA 302-2 §3.3)
+  unsigned retries = 0;   ///< boot tries repeated (CiA 302-2 §3.3)
+  unsigned boot_try = 0;  ///< the try the last boot step belonged to (MasterEvent::boot_try)
   nmt::BootStep step = nmt::BootStep::Idle;
   std::optional<nmt::NmtState> state;  ///< as the master knows it
   std::optional<nmt::TimePoint> began;
@@ -141,16 +143,11 @@ void print_plan(const std::vector<const cfg::NetworkNode*>& nodes, const PushCli
   }
 }
 
-// The event's words without its "node N: boot error X: " prefix: Table 1's text and why (the
-// object and the SDO abort in words for J, the values compared for C, D, M, N, O).
+// A boot error in words from its fields, without the "node N: boot error X: " head: Table 1's
+// text and why (the object and the SDO abort for J, the values compared for C, D, M, N, O).
 std::string error_message(const nmt::MasterEvent& e) {
-  if (!e.error) return e.text;
-  std::string marker = "boot error ";
-  marker += nmt::letter(*e.error);
-  marker += ": ";
-  const std::size_t at = e.text.find(marker);
-  if (at == std::string::npos) return std::string(nmt::describe(*e.error));
-  return e.text.substr(at + marker.size());
+  if (!e.error) return nmt::describe(e);
+  return nmt::describe_boot_error(e);
 }
 
 // Keeps each selected node's outcome from the master's events.
@@ -161,7 +158,7 @@ class Collector {
   void observe(const nmt::MasterEvent& e) {
     using K = nmt::MasterEvent::Kind;
     if (e.kind == K::StartupHalted || e.kind == K::NotMaster) {
-      stop_ = e.text;
+      stop_ = nmt::describe(e);
     }
     if (e.kind == K::LssUnmatched && e.lss_address) unmatched_.push_back(*e.lss_address);
     if (!e.node_id) return;  // an event of the master, about no node
@@ -181,13 +178,11 @@ class Collector {
           r->program_began = e.at;
           r->program_bytes = 0;
         }
-        if (e.step == nmt::BootStep::Identify || e.step == nmt::BootStep::AwaitBootUp) {
-          // A try begins with AwaitBootUp (after a reset) or Identify; the engine does not
-          // report a repeated error again, so a try is counted by its first step.
-          if (r->began &&
-              (e.step == nmt::BootStep::AwaitBootUp || r->step != nmt::BootStep::AwaitBootUp)) {
-            ++r->retries;
-          }
+        if (e.boot_try != r->boot_try) {
+          // The first event of a try (CiA 302-2 §3.3): the engine does not report a repeated
+          // error again, so a try is counted by its number.
+          if (r->boot_try != 0) ++r->retries;
+          r->boot_try = e.boot_try;
           r->entries = 0;  // a new try downloads from its first entry
           r->bytes = 0;
         }

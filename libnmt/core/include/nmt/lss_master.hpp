@@ -83,6 +83,21 @@ enum class LssService : std::uint8_t {
 };
 std::string_view to_string(LssService service);  ///< "configure node-ID", ...
 
+/// What became of a device a scan found (CiA 305 §8.3 configure node-ID, store configuration):
+/// the fact behind the text of an LssProcedure scan's Assigned or Skipped event
+/// (nmt/lss_procedure.hpp).
+enum class LssScanOutcome : std::uint8_t {
+  Stored,                   ///< Assigned: node-ID configured and stored
+  NotStoredAsAsked,         ///< Assigned: configured, not stored (LssMasterOptions::store)
+  StoreRefused,             ///< Assigned: store configuration answered `error_code`
+  StoreUnanswered,          ///< Assigned: no answer to store configuration within the timeout
+  ConfigureRefused,         ///< Skipped: configure node-ID answered `error_code`
+  ConfigureUnanswered,      ///< Skipped: no answer to configure node-ID within the timeout
+  Duplicate,                ///< Skipped: more than one device answered with the LSS address
+  DuplicateUndoUnanswered,  ///< Skipped: as Duplicate, and undoing its node-ID got no answer
+  NoNodeId,                 ///< Skipped: the chooser gave no node-ID for it
+};
+
 struct LssMasterEvent {
   enum class Kind : std::uint8_t {
     Done,      ///< the service ended as asked (Identify*: a device answered; Fastscan: found)
@@ -100,6 +115,8 @@ struct LssMasterEvent {
   std::optional<cfg::NodeId> node_id;
   std::uint8_t error_code = 0;
   std::uint8_t spec_error = 0;
+  /// Fastscan Timeout of a device that stopped answering: the part (0..3) of its address.
+  std::uint8_t part = 0;
   std::string text;  ///< one line for people, e.g. "configure node-ID refused: node-ID out of
                      ///< range (error code 1)"
 
@@ -198,7 +215,8 @@ class LssMaster {
   void fastscan_probe(TimePoint now, Output& out, int from_bit);
   void fastscan_descend(TimePoint now, Output& out);
   void fastscan_target(TimePoint now, Output& out);
-  void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text);
+  void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text,
+                    std::uint8_t part = 0);
 
   LssMasterOptions options_;
   std::optional<LssService> service_;

@@ -104,8 +104,12 @@ struct LssProcedureEvent {
   std::vector<LssAddress> addresses;
   /// Scan: the devices found (assigned and skipped); AnyUnconfigured: 1 when any answered.
   std::uint32_t found = 0;
-  /// Assigned: store configuration's error code when it refused (0: stored, or not asked).
+  /// Assigned/Skipped: what became of the device.
+  std::optional<LssScanOutcome> outcome;
+  /// Assigned/Skipped: the error code of store configuration or configure node-ID when it
+  /// refused (0: none), and the manufacturer-specific error with code FFh.
   std::uint8_t error_code = 0;
+  std::uint8_t spec_error = 0;
   /// Failed: the event of the service that ended the procedure.
   std::optional<LssMasterEvent> step;
   /// One line for people, e.g. "scan: vendor ... got node-ID 5, stored"; Failed: the service's
@@ -226,8 +230,10 @@ class LssProcedure {
   void search_next(TimePoint now);
   void search_event(const LssMasterEvent& e, TimePoint now, Output& out);
   void device_found(const LssAddress& address, TimePoint now, Output& out);
-  void device_done(Event::Kind kind, std::string text, std::uint8_t error_code, TimePoint now,
-                   Output& out);
+  /// A scan's device ends Assigned or Skipped with `outcome`; `refusal` the service's event when
+  /// a device refused it (its error codes), else a default one.
+  void device_done(Event::Kind kind, LssScanOutcome outcome, std::string text,
+                   const LssMasterEvent& refusal, TimePoint now, Output& out);
   void scan_event(const LssMasterEvent& e, TimePoint now, Output& out);
   Event event(Event::Kind kind, TimePoint now, std::string text) const;
 

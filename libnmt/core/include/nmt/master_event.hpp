@@ -9,13 +9,16 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "cfg/cob_id.hpp"
 #include "cfg/node_id.hpp"
+#include "cfg/object_address.hpp"
 #include "cfg/program_image.hpp"
 #include "cfg/sdo_manager_objects.hpp"
 #include "nmt/frame.hpp"
 #include "nmt/lss.hpp"
+#include "nmt/lss_master.hpp"
 #include "nmt/nmt_slave.hpp"
 #include "nmt/sdo_client.hpp"
 
@@ -109,25 +112,128 @@ struct RegisteredSrd {
   bool operator==(const RegisteredSrd&) const = default;
 };
 
-/// What the master reports. One line for people is in `text` ("node 3: boot error C: ...");
-/// the other fields are for programs and depend on the kind.
+/// Why boot NMT slave ended with an error status: the facts behind the letter (CiA 302-2 §3.4,
+/// §3.5, §3.8). `reason` says which of the other fields are set.
+struct BootFailure {
+  enum class Reason : std::uint8_t {
+    NotListed,           ///< A: 1F81h sub node-ID has bit 0 clear
+    TransferFailed,      ///< B, D/M/N/O, G, I, J: `transfer` (1000h, 1018h, 1F52h, 1020h)
+    ValueDiffers,        ///< C, D, M, N, O: `object` is `actual`, `expected_by` holds `expected`
+    NoExpectedSoftware,  ///< G: 1F81h bit 5 set, but 1F53h and 1F54h of the node are 0
+    SoftwareDiffers,     ///< H: 1F52h `software` differs from `expected_software`, and ...
+    UpdateNotAllowed,    ///< H: ... 1F81h bit 6 does not allow an update
+    NoProgramImage,      ///< H: ... no program image is available
+    SoftwareDiffersAfterUpdate,  ///< I: 1F52h after the program download still differs
+    ProgramDownloadFailed,       ///< I: `transfer` of the update (1F51h, 1F50h) failed
+    NoHeartbeat,                 ///< E: no heartbeat within the consumer time (1016h)
+    NoGuardingReply,             ///< F: no reply to the node guarding request
+    NoConfigurationStored,       ///< J: 1F26h/1F27h expect a configuration, none is stored
+    RestoreFailed,               ///< J: `transfer` of 1011h 'load' failed
+    NoBootUpAfterRestore,        ///< J: no boot-up after the restore and reset
+    WriteFailed,                 ///< J: `transfer` of entry `entry` of `entries` failed
+    SaveFailed,                  ///< J: `transfer` of 1010h 'save' failed
+    ApplicationStepFailed,       ///< J: configuration_done(node, false)
+    NoFirstHeartbeat,            ///< K: no heartbeat within `consumer_time_ms` (1016h)
+    KeptAlive,                   ///< L: kept alive (1F81h bit 4), configuration not checked
+  };
+  Reason reason = Reason::NotListed;
+  BootStep step = BootStep::Idle;       ///< the step the try was in when it failed
+  std::optional<SdoResult> transfer{};  ///< the SDO transfer that failed (object, abort, refusal)
+  /// ValueDiffers: the object read from the device, the value it had, the object of the master
+  /// that holds the expected value (1F84h..1F88h) and that value.
+  cfg::ObjectAddress object{};
+  std::uint32_t actual = 0;
+  std::uint16_t expected_by = 0;
+  std::uint32_t expected = 0;
+  /// Software*, UpdateNotAllowed, NoProgramImage: 1F52h as read and 1F53h/1F54h.
+  cfg::ProgramVersion software{};
+  cfg::ProgramVersion expected_software{};
+  std::size_t entry = 0;               ///< WriteFailed: the entry that failed, 1-based
+  std::size_t entries = 0;             ///< WriteFailed: entries in the download
+  std::uint64_t consumer_time_ms = 0;  ///< NoFirstHeartbeat: the consumer time waited
+  /// A mandatory slave's final B: 1F89h (boot time, ms) elapsed; nullopt otherwise.
+  std::optional<std::uint32_t> boot_time_ms{};
+  bool operator==(const BootFailure&) const = default;
+};
+
+/// A mandatory slave whose boot ended with an error status (MasterEvent::StartupHalted).
+struct MandatoryFailure {
+  cfg::NodeId node = *cfg::NodeId::from(1);
+  BootError error = BootError::A;
+  bool operator==(const MandatoryFailure&) const = default;
+};
+
+/// Why an event of NMT flying master start-up or master detection came (CiA 302-2 §3.7,
+/// §5.1-§5.5); MasterEvent::FlyingMaster says which times apply.
+enum class FlyingMasterReason : std::uint8_t {
+  PowerOn,                     ///< NegotiationBegan: detection in `wait` after power-on
+  ResetCommunication,          ///< NegotiationBegan: detection in `wait` after a reset
+  TriggerHeard,                ///< NegotiationBegan: 72h heard, waiting `wait`
+  NoActiveMaster,              ///< NegotiationBegan: none answered within `timeout`, waiting `wait`
+  NoActiveMasterAfterPowerOn,  ///< NegotiationBegan: none answered within `timeout`: reset all
+  NoBetterMaster,              ///< ActiveMaster: no better master answered within the wait
+  SamePriority,                ///< Standby: the active master has our priority level
+  HigherPriority,              ///< Standby: the active master has a higher priority level
+  WonAgainAfterForce,          ///< Standby: worse, but it won again after our force
+  LowerPriority,               ///< ForceNegotiation: the active master has a lower priority
+  AnsweredToo,                 ///< MultipleMasters: node_id answered as active master too
+  ForceReceived,               ///< MultipleMasters: 76h received while active: reset all
+  HeartbeatLost,               ///< ActiveMasterLost: its heartbeat stopped
+  CapableDeviceAnswered,       ///< MasterDetection: 74h came: the network is left to it
+  OtherStartedAllNodes,        ///< MasterDetection: another device started all nodes first
+  NoCapableDevice,             ///< MasterDetection: none answered within `timeout`: start in `wait`
+};
+
+/// Why the SDO manager refused or released something (DSP 302 §7.2): the `why` of
+/// SrdRegistrationFailed, SdoConnectionRefused and SdoConnectionReleased.
+struct SdoManagerReason {
+  enum class Kind : std::uint8_t {
+    None,
+    SlaveDoesNotAnswer,   ///< `node` (the slave S) did not answer
+    NoFreeServerEntry,    ///< `node` (S) has no free server SDO entry
+    TransferFailed,       ///< `transfer` to `node` (nullopt: node 0) failed
+    DefaultSdoInUse,      ///< all default SDOs asked for, but one is in use
+    NotAClientEntry,      ///< 1F10h names `index`, no client SDO entry
+    NoFreeServerChannel,  ///< no free server channel on the manager
+    NoFreeCobIds,         ///< no free COB-IDs in 1F02h (registration)
+    NoTwoFreeCobIds,      ///< no two free COB-IDs in 1F02h (connection)
+    Releases,             ///< 1F01h: the SRD `node` releases
+    Deregisters,          ///< 1F01h: the SRD `node` de-registers
+    SrdBootedUp,          ///< the SRD `node` booted up
+    SrdLost,              ///< the SRD `node` is lost (error control)
+    SlaveFailed,          ///< the slave `node` failed (error control)
+    SlaveBootedUp,        ///< the slave `node` booted up: its server entry is gone
+  };
+  Kind kind = Kind::None;
+  std::optional<cfg::NodeId> node{};
+  std::optional<SdoResult> transfer{};
+  std::uint16_t index = 0;
+};
+
+/// What the master reports: the kind and the typed facts of it; which fields are set depends on
+/// the kind (see Kind). The engine makes no words: describe(event) (nmt/master_event_text.hpp)
+/// makes the line a person reads ("node 3: boot error C: ..."), and a program reads the fields.
 struct MasterEvent {
   enum class Kind : std::uint8_t {
-    NotMaster,                 ///< 1F80h bit 0 is 0: the device is no NMT master (§3.1 a)
+    NotMaster,                 ///< 1F80h bit 0 is 0 (`nmt_startup`): no NMT master (§3.1 a)
     StartupBegan,              ///< the master decided and sent its reset communication
-    BootStepChanged,           ///< node_id moved to `step`; Download also reports written/total
+    BootStepChanged,           ///< node_id moved to `step` (try `boot_try`); Download also
+                               ///< reports written/total (`entry_written`: one more entry)
     SlaveBooted,               ///< boot NMT slave: status OK (`configured`: a download happened)
-    BootError,                 ///< boot NMT slave: `error`; `final` when no try follows
-    StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f);
-                               ///< reported once every slave's boot ended (docs/master.md)
+    BootError,                 ///< boot NMT slave: `error` and `failure`; `final` when no try
+                               ///< follows
+    StartupHalted,             ///< a mandatory slave's error stopped NMT start-up (§3.1 f),
+                               ///< `halted_by` every such slave; reported once every slave's
+                               ///< boot ended (docs/master.md)
     StartupAwaitsApplication,  ///< 1F80h bit 2: every mandatory slave booted; call
                                ///< enter_operational() (§3.1 g)
     StartupComplete,           ///< NMT start-up ended (§3.1 i)
     MasterStateChanged,        ///< the master's own NMT state is `state`
-    SlaveStateChanged,         ///< the state the master knows of node_id is `state`
+    SlaveStateChanged,         ///< the state the master knows of node_id is `state` (nullopt:
+                               ///< `missing`, or unknown)
     HeartbeatLost,             ///< heartbeat event of node_id (error handler follows)
     GuardingLost,              ///< node guarding event of node_id (error handler follows)
-    ErrorControlResolved,      ///< heartbeat or guarding replies again
+    ErrorControlResolved,      ///< heartbeat (`heartbeat`) or guarding replies again
     BootUp,                    ///< a boot-up message of node_id (`assigned`: listed in 1F81h)
     NmtCommandSent,            ///< `command` for node_id (nullopt: all nodes) went out
     ApplicationStep,           ///< call configuration_done(node_id, ...) to continue its boot
@@ -135,7 +241,7 @@ struct MasterEvent {
                                ///< 1F50h image confirmed (while it runs, about every 1/32;
                                ///< `bytes` == `total` once, block or segmented)
     SdoFinished,               ///< an application transfer ended (`sdo`)
-    // Flying master (§3.7, §5.2-§5.5); text says why, `priority` is node_id's 1F90h sub 3.
+    // Flying master (§3.7, §5.2-§5.5); `flying` says why, `priority` is node_id's 1F90h sub 3.
     NegotiationBegan,  ///< detection or negotiation started (after power-on, reset, 72h, ...)
     ActiveMaster,      ///< this device (node_id) won and is the active NMT master
     Standby,           ///< node_id is the active master; this device is an NMT slave
@@ -144,24 +250,27 @@ struct MasterEvent {
     ActiveMasterLost,  ///< the heartbeat of the active master node_id stopped (§5.5.2)
     MasterDetection,   ///< §5.1 (self-starting device, 1F80h bit 1): the outcome of 75h/74h
     // SDO manager (DSP 302 §7); node_id is the SRD, `connection` the row concerned.
-    SrdRegistered,             ///< node_id registered; `connection`: its channel to the manager
-                               ///< (nullopt when it was granted all default SDOs)
+    SrdRegistered,             ///< node_id registered (`srd`); `connection`: its channel to the
+                               ///< manager (nullopt when it was granted all default SDOs)
     SrdRegistrationFailed,     ///< 1F10h Cnxn 0 written with `connection_error`, or the SRD did
-                               ///< not take the manager's writes (text says which)
+                               ///< not take the manager's writes (no error); `manager_reason`
     SdoConnectionEstablished,  ///< `connection` from node_id to connection->server is up
-    SdoConnectionRefused,      ///< 1F10h Cnxn 0: `connection_error`; `connection` as requested
-    SdoConnectionReleased,     ///< `connection` was released (1F01h, SRD or slave lost)
-    SrdLost,                   ///< node_id's error control failed (or it booted up): released
+    SdoConnectionRefused,      ///< 1F10h Cnxn 0: `connection_error`, `manager_reason`;
+                               ///< `connection` as requested
+    SdoConnectionReleased,     ///< `connection` was released (`manager_reason`: 1F01h, SRD or
+                               ///< slave lost)
+    SrdLost,                   ///< node_id's error control failed (or it booted up:
+                               ///< `manager_reason`): `released` connections released
     SrdDeregistered,           ///< 1F01h with slave 0: node_id is no longer registered
     SlaveFailedReported,       ///< 1F11h written on SRD node_id: connection->server failed
     // Configuration manager with a store directory (docs/master.md).
     PersistEntry,  ///< make `persist` durable, then call entry_persisted(persist->ticket, ...)
     // Execute LSS (MasterOptions::lss; CiA 305, docs/master.md); `lss_address` is the device's.
-    LssAssigned,   ///< the device got node_id by LSS (text: stored or why not)
+    LssAssigned,   ///< the device got node_id by LSS (`lss`: stored or why not)
     LssUnmatched,  ///< an unconfigured device matches no slave (or a slave another device got):
                    ///< left unconfigured
-    LssFailed,     ///< the device of slave node_id refused or missed configure node-ID
-    LssScanEnded,  ///< a scan ended (text: devices found and given a node-ID)
+    LssFailed,     ///< the device of slave node_id refused or missed configure node-ID (`lss`)
+    LssScanEnded,  ///< a scan ended (`lss_scan`: devices found and given a node-ID)
     /// Software update of node_id: the device refused 1F51h sub 1 = 3 (clear, CiA 302-3) with
     /// `sdo->abort`, one of the refusals of a DSP 302 v3.2.1 device (docs/master.md); the download
     /// goes on. `program->clear_refused` of the boot's SlaveBooted/BootError I says it again.
@@ -174,19 +283,28 @@ struct MasterEvent {
   std::optional<cfg::NodeId> node_id{};
   std::optional<BootError> error{};
   BootStep step = BootStep::Idle;
+  /// BootStepChanged, ApplicationStep, SlaveBooted, BootError, ProgramClearRefused: the try of
+  /// process boot NMT slave (CiA 302-2 §3.3) they belong to, 1 for the first since start-up.
+  unsigned boot_try = 0;
+  /// BootError: what failed (the letter's reason, the objects and values, the transfer).
+  std::optional<BootFailure> failure{};
   std::optional<NmtState> state{};
+  bool missing = false;  ///< SlaveStateChanged without `state`: missing (1F82h), else unknown
   std::optional<NmtCommand> command{};
-  bool configured = false;  ///< SlaveBooted: the configuration was downloaded
-  bool final = false;       ///< BootError: the last try (mandatory, or boot time over)
-  bool assigned = false;    ///< BootUp: the node is a slave in 1F81h
-  std::size_t written = 0;  ///< Download/SlaveBooted: configuration entries written
-  std::size_t total = 0;    ///< Download/SlaveBooted: entries to write
-  std::uint64_t bytes = 0;  ///< SlaveBooted: bytes of configuration written
+  bool configured = false;        ///< SlaveBooted: the configuration was downloaded
+  bool final = false;             ///< BootError: the last try (mandatory, or boot time over)
+  bool assigned = false;          ///< BootUp: the node is a slave in 1F81h
+  bool entry_written = false;     ///< BootStepChanged Download: an entry was written (`written`)
+  bool heartbeat = false;         ///< ErrorControlResolved: heartbeat (false: node guarding)
+  std::size_t written = 0;        ///< Download/SlaveBooted: configuration entries written
+  std::size_t total = 0;          ///< Download/SlaveBooted: entries to write
+  std::uint64_t bytes = 0;        ///< SlaveBooted: bytes of configuration written
+  std::uint32_t nmt_startup = 0;  ///< NotMaster: 1F80h (NMT start-up)
+  std::vector<MandatoryFailure> halted_by{};  ///< StartupHalted: in node-ID order
   std::optional<SdoResult> sdo{};
   /// SlaveBooted, or BootError I, after the boot began a software update (DSP 302 §9): 1F52h
   /// before it and after it (nullopt when the update failed before 1F52h was read again), the
-  /// image's size and when the update began (1F51h stop sent) and ended (start confirmed). The
-  /// SlaveBooted text then ends "; program updated from BEFORE to AFTER, N bytes".
+  /// image's size and when the update began (1F51h stop sent) and ended (start confirmed).
   struct ProgramUpdate {
     cfg::ProgramVersion before;
     std::optional<cfg::ProgramVersion> after;
@@ -199,11 +317,26 @@ struct MasterEvent {
   };
   std::optional<ProgramUpdate> program{};
   std::optional<std::uint16_t> priority{};  ///< flying master kinds: 1F90h sub 3 of node_id
+  /// Flying master kinds and MasterDetection: why, this device's priority (1F90h sub 3), the
+  /// detection timeout that passed, the delay or waiting time that follows, and (Standby) the
+  /// time the active master's heartbeat is watched with (nullopt: not watched).
+  struct FlyingMaster {
+    FlyingMasterReason reason = FlyingMasterReason::PowerOn;
+    std::uint16_t own_priority = 0;
+    Duration timeout{};
+    Duration wait{};
+    std::optional<Duration> watch{};
+  };
+  std::optional<FlyingMaster> flying{};
   std::optional<ManagedSdoConnection> connection{};  ///< SDO manager kinds (see Kind)
+  std::optional<RegisteredSrd> srd{};                ///< SrdRegistered: what was granted
   /// SrdRegistrationFailed, SdoConnectionRefused: the 1F10h error code (DSP 302 §7.2.3: 00h no
   /// details, 01h no channel SRD <-> manager, 02h no free COB-IDs in the network, 03h no free
   /// server entry on S, 04h S not available); nullopt for the other kinds.
   std::optional<cfg::sdo_manager::DynamicSdoError> connection_error{};
+  /// SrdRegistrationFailed, SdoConnectionRefused, SdoConnectionReleased, SrdLost: why.
+  SdoManagerReason manager_reason{};
+  std::size_t released = 0;  ///< SrdLost: the SDO connections released
   /// PersistEntry: the entry of node_id to write (cfg::ConfigManager::persist) and the ticket
   /// to complete it with. The update stays valid until entry_persisted() for that ticket.
   struct Persist {
@@ -212,7 +345,25 @@ struct MasterEvent {
   };
   std::optional<Persist> persist{};
   std::optional<LssAddress> lss_address{};  ///< Lss* kinds: the device's LSS address
-  std::string text{};
+  /// LssAssigned, LssFailed, LssUnmatched: what became of the device; the LSS error code and
+  /// manufacturer-specific error of a refusal, the timeout of an unanswered service.
+  struct Lss {
+    LssScanOutcome outcome = LssScanOutcome::Stored;
+    std::uint8_t error_code = 0;
+    std::uint8_t spec_error = 0;
+    Duration timeout{};
+  };
+  std::optional<Lss> lss{};
+  /// LssScanEnded: devices found and given a node-ID; `stopped`: the scan ended early (the
+  /// device stopped answering in `part` of its address, or the scan could not start).
+  struct LssScan {
+    std::uint32_t found = 0;
+    std::size_t assigned = 0;
+    enum class Stop : std::uint8_t { None, DeviceStoppedAnswering, CouldNotStart };
+    Stop stopped = Stop::None;
+    unsigned part = 0;
+  };
+  std::optional<LssScan> lss_scan{};
 };
 /// "slave_booted", "boot_error", ...: names for logs and JSON.
 std::string_view to_string(MasterEvent::Kind kind);

@@ -410,7 +410,8 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
     case Step::Confirm:
       if (!answer) {
         fastscan_end(Kind::Timeout, now, out,
-                     "the device stopped answering (part " + std::to_string(fs_.sub) + ")");
+                     "the device stopped answering (part " + std::to_string(fs_.sub) + ")",
+                     static_cast<std::uint8_t>(fs_.sub));
         return;
       }
       if (fs_.sub == 3) {
@@ -446,9 +447,11 @@ void LssMaster::fastscan_target(TimePoint now, Output& out) {
   send_fastscan(fs_.id.part(0), 0, 0, 1, out, now);
 }
 
-void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text) {
+void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text,
+                             std::uint8_t part) {
   auto e = event(LssService::Fastscan, kind, now, std::move(text));
   if (kind == Kind::Done || kind == Kind::Absent) e.address = fs_.id;
+  e.part = part;
   finish(std::move(e), out);
 }
 

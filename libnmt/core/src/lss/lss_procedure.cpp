@@ -390,15 +390,16 @@ void LssProcedure::scan_event(const LssMasterEvent& e, TimePoint now, Output& ou
       return;
     case Step::Configure:
       if (e.kind == ServiceKind::Timeout) {
-        device_done(Kind::Skipped, e.text, 0, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::ConfigureUnanswered, e.text, e, now, out);
       } else if (e.kind == ServiceKind::Refused) {
-        device_done(Kind::Skipped, "configure node-ID refused: " + words(Cs::ConfigureNodeId),
-                    e.error_code, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::ConfigureRefused,
+                    "configure node-ID refused: " + words(Cs::ConfigureNodeId), e, now, out);
       } else if (lss_.options().store) {
         r.step = Step::Store;
         (void)lss_.store_configuration(now, lss_out_);
       } else {
-        device_done(Kind::Assigned, "not stored (as asked)", 0, now, out);
+        device_done(Kind::Assigned, LssScanOutcome::NotStoredAsAsked, "not stored (as asked)", {},
+                    now, out);
       }
       return;
     case Step::Store:
@@ -408,25 +409,26 @@ void LssProcedure::scan_event(const LssMasterEvent& e, TimePoint now, Output& ou
         r.step = Step::Unconfigure;
         (void)lss_.configure_node_id(std::nullopt, now, lss_out_);
       } else if (e.kind == ServiceKind::Timeout) {
-        device_done(Kind::Assigned, "not stored: " + e.text, 0, now, out);
+        device_done(Kind::Assigned, LssScanOutcome::StoreUnanswered, "not stored: " + e.text, e,
+                    now, out);
       } else if (e.kind == ServiceKind::Refused) {
-        device_done(Kind::Assigned,
-                    "not stored: store configuration refused: " + words(Cs::StoreConfiguration),
-                    e.error_code, now, out);
+        device_done(Kind::Assigned, LssScanOutcome::StoreRefused,
+                    "not stored: store configuration refused: " + words(Cs::StoreConfiguration), e,
+                    now, out);
       } else {
-        device_done(Kind::Assigned, "stored", 0, now, out);
+        device_done(Kind::Assigned, LssScanOutcome::Stored, "stored", {}, now, out);
       }
       return;
     case Step::Unconfigure:
     case Step::Unstore:
       if (e.kind == ServiceKind::Timeout) {
-        device_done(Kind::Skipped, duplicate_text() + "; undoing its node-ID: " + words_of(e), 0,
-                    now, out);
+        device_done(Kind::Skipped, LssScanOutcome::DuplicateUndoUnanswered,
+                    duplicate_text() + "; undoing its node-ID: " + words_of(e), {}, now, out);
       } else if (r.step == Step::Unconfigure) {
         r.step = Step::Unstore;
         (void)lss_.store_configuration(now, lss_out_);
       } else {
-        device_done(Kind::Skipped, duplicate_text(), 0, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::Duplicate, duplicate_text(), {}, now, out);
       }
       return;
     default:
@@ -484,7 +486,7 @@ void LssProcedure::device_found(const LssAddress& address, TimePoint now, Output
   std::optional<cfg::NodeId> node_id;
   if (r.chooser) node_id = r.chooser(address);
   if (!node_id) {
-    device_done(Kind::Skipped, "no node-ID for it", 0, now, out);
+    device_done(Kind::Skipped, LssScanOutcome::NoNodeId, "no node-ID for it", {}, now, out);
     return;
   }
   r.node_id = node_id;
@@ -493,8 +495,8 @@ void LssProcedure::device_found(const LssAddress& address, TimePoint now, Output
   (void)lss_.configure_node_id(node_id, now, lss_out_);
 }
 
-void LssProcedure::device_done(Kind kind, std::string text, std::uint8_t error_code, TimePoint now,
-                               Output& out) {
+void LssProcedure::device_done(Kind kind, LssScanOutcome outcome, std::string text,
+                               const LssMasterEvent& refusal, TimePoint now, Output& out) {
   Running& r = *run_;
   const std::string head =
       to_string(r.address) + (kind == Kind::Assigned
@@ -503,7 +505,12 @@ void LssProcedure::device_done(Kind kind, std::string text, std::uint8_t error_c
   auto e = event(kind, now, std::string(to_string(r.kind)) + ": " + head + text);
   e.address = r.address;
   if (kind == Kind::Assigned) e.node_id = r.node_id;
-  e.error_code = error_code;
+  e.outcome = outcome;
+  // Only a refusal carries an error code; a timeout's event has none.
+  if (refusal.kind == ServiceKind::Refused) {
+    e.error_code = refusal.error_code;
+    e.spec_error = refusal.error_code == 0xFF ? refusal.spec_error : 0;
+  }
   out.report(std::move(e));
   if (kind == Kind::Skipped) {
     // A skipped target is found again bit by bit (only then is it looked past): devices with

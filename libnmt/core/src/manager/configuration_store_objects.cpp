@@ -232,11 +232,9 @@ WriteVerdict ConfigurationStoreObjects::persist_entry(cfg::StoreUpdate update, T
   // entry_persisted(); until then the SDO confirmation waits and the manager keeps its value.
   const std::uint64_t ticket = ++last_persist_ticket_;
   const auto node = update.node;
-  const std::string what = cfg::to_string(cfg::ObjectAddress{update.index, node});
   auto shared = std::make_shared<cfg::StoreUpdate>(std::move(update));
   persists_.emplace(ticket, shared);
-  auto event = master_event(MasterEvent::Kind::PersistEntry, now, node,
-                            what + ": store the entry of " + node_text(node));
+  auto event = master_event(MasterEvent::Kind::PersistEntry, now, node);
   event.persist = MasterEvent::Persist{ticket, std::move(shared)};
   out->report(std::move(event));
   return WriteVerdict::hold(ticket);

@@ -28,17 +28,6 @@ using sm::DynamicSdoState;
 
 constexpr std::uint16_t kDefaultServer = obj::kSdoServerFirst;  // 1200h
 
-std::string cob_text(cfg::CobId id) {
-  return cfg::hex(id.can_id().id, 3);
-}
-
-std::string connection_text(const ManagedSdoConnection& c) {
-  // Raw node-IDs: a connection row holds the bytes written to 1F10h/1F12h (0: none yet).
-  return "node " + std::to_string(c.srd) + " " + cfg::object_name(c.client_index) + " -> node " +
-         std::to_string(c.server) + " " + cfg::object_name(c.server_index) + " (COB-IDs " +
-         cob_text(c.request) + "/" + cob_text(c.response) + ")";
-}
-
 }  // namespace
 
 SdoManagerProcess::Step SdoManagerProcess::write_step(cfg::NodeId node, cfg::ObjectAddress address,
@@ -146,7 +135,7 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
     case ConnectJob::Phase::ProbeSlave:
       if (!answered) {
         refuse(job, DynamicSdoError::kSlaveNotAvailable,
-               node_text(connect->slave) + " does not answer");
+               {.kind = SdoManagerReason::Kind::SlaveDoesNotAnswer, .node = connect->slave});
       } else {
         connect_with(job, *connect, kDefaultServer);
       }
@@ -154,7 +143,7 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
     case ConnectJob::Phase::SearchChannel: {
       if (!answered) {
         refuse(job, DynamicSdoError::kSlaveNotAvailable,
-               node_text(connect->slave) + " does not answer");
+               {.kind = SdoManagerReason::Kind::SlaveDoesNotAnswer, .node = connect->slave});
         return;
       }
       const bool free =
@@ -166,7 +155,7 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
         connect_with(job, *connect, connect->probe);
       } else if (!result.ok() || connect->probe >= obj::kSdoServerLast) {
         refuse(job, DynamicSdoError::kNoFreeServerOnSlave,
-               node_text(connect->slave) + " has no free server SDO entry");
+               {.kind = SdoManagerReason::Kind::NoFreeServerEntry, .node = connect->slave});
       } else {
         ++connect->probe;
         job.steps.push_back(read_step(connect->slave, {connect->probe, 1}));
@@ -181,8 +170,8 @@ void SdoManagerProcess::on_transfer_result(std::uint64_t tag, const SdoResult& r
 
 void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Output& out) {
   auto& job = jobs_.front();
-  const std::string why = (result.node_id ? node_text(*result.node_id) : std::string("node 0")) +
-                          ": " + transfer_failure(result);
+  const SdoManagerReason why{
+      .kind = SdoManagerReason::Kind::TransferFailed, .node = result.node_id, .transfer = result};
   job.steps.clear();
   if (auto* reg = std::get_if<RegisterJob>(&job.work)) {
     // The SRD did not take the channel: give it back.
@@ -190,9 +179,9 @@ void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Outpu
     if (c.row.server_index != 0) close_channel(c.row.server_index);
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
-    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, reg->srd,
-                          node_text(reg->srd) + ": registration failed: " + why);
+    auto e = master_event(MasterEvent::Kind::SrdRegistrationFailed, now, reg->srd);
     e.connection = c.row;
+    e.manager_reason = why;
     out.report(std::move(e));
     finish_job();
     return;
@@ -222,7 +211,7 @@ void SdoManagerProcess::job_failed(const SdoResult& result, TimePoint now, Outpu
   finish_job();
 }
 
-void SdoManagerProcess::refuse(Job& job, DynamicSdoError error, const std::string& why) {
+void SdoManagerProcess::refuse(Job& job, DynamicSdoError error, SdoManagerReason why) {
   job.steps.clear();
   // §7.2.3: Cnxn state 0 and the reason in the error code, Req EC as the SRD has it.
   const auto failure = [&](auto& work, std::uint16_t client_index, bool error_control) {
@@ -262,7 +251,7 @@ void SdoManagerProcess::start_register(Job& job, cfg::NodeId srd, std::uint32_t 
                     }) ||
         all_default_sdos_owned();
     if (taken) {
-      refuse(job, DynamicSdoError::kNoDetails, "a default SDO is in use");
+      refuse(job, DynamicSdoError::kNoDetails, {.kind = SdoManagerReason::Kind::DefaultSdoInUse});
       return;
     }
     reg.confirmation =
@@ -272,7 +261,7 @@ void SdoManagerProcess::start_register(Job& job, cfg::NodeId srd, std::uint32_t 
   const auto index = state.client_index;
   if (!obj::is_sdo_client_parameter(index)) {
     refuse(job, DynamicSdoError::kNoDetails,
-           "1F10h names " + cfg::object_name(index) + ", no client SDO entry");
+           {.kind = SdoManagerReason::Kind::NotAClientEntry, .index = index});
     return;
   }
   const auto channel = free_own_channel();
@@ -280,7 +269,8 @@ void SdoManagerProcess::start_register(Job& job, cfg::NodeId srd, std::uint32_t 
   const auto row = free_row();
   if (channel == 0 || pool.size() < 2 || row == 0) {
     refuse(job, DynamicSdoError::kNoChannelToManager,
-           channel == 0 ? "no free server channel on the manager" : "no free COB-IDs in 1F02h");
+           SdoManagerReason{.kind = channel == 0 ? SdoManagerReason::Kind::NoFreeServerChannel
+                                                 : SdoManagerReason::Kind::NoFreeCobIds});
     return;
   }
   auto& c = reg.connection;
@@ -321,7 +311,8 @@ void SdoManagerProcess::start_connect(Job& job, ConnectJob& connect) {
     return;
   }
   if (free_pool().size() < 2) {
-    refuse(job, DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
+    refuse(job, DynamicSdoError::kNoFreeChannelInNetwork,
+           {.kind = SdoManagerReason::Kind::NoTwoFreeCobIds});
     return;
   }
   connect.phase = ConnectJob::Phase::SearchChannel;
@@ -341,7 +332,8 @@ void SdoManagerProcess::connect_with(Job& job, ConnectJob& connect, std::uint16_
   } else {
     const auto pool = free_pool();
     if (pool.size() < 2) {
-      refuse(job, DynamicSdoError::kNoFreeChannelInNetwork, "no two free COB-IDs in 1F02h");
+      refuse(job, DynamicSdoError::kNoFreeChannelInNetwork,
+             {.kind = SdoManagerReason::Kind::NoTwoFreeCobIds});
       return;
     }
     c.pool_request = pool[0];
@@ -395,14 +387,10 @@ void SdoManagerProcess::report_refusal(const Job& job, TimePoint now, Output& ou
   const auto& refusal = reg ? *reg->refusal : *connect->refusal;
   auto e = master_event(
       reg ? MasterEvent::Kind::SrdRegistrationFailed : MasterEvent::Kind::SdoConnectionRefused, now,
-      srd,
-      node_text(srd) +
-          (reg ? ": registration refused"
-               : ": SDO connection to " + node_text(connect->slave) + " refused") +
-          ", error " + cfg::hex(static_cast<std::uint8_t>(refusal.error), 2) + " (" +
-          std::string(sm::describe(refusal.error)) + "): " + refusal.why);
+      srd);
   e.connection = reg ? reg->connection.row : connect->connection.row;
   e.connection_error = refusal.error;
+  e.manager_reason = refusal.why;
   out.report(std::move(e));
   finish_job();
 }
@@ -447,20 +435,16 @@ void SdoManagerProcess::advance_register(Job& job, RegisterJob& reg, TimePoint n
   const auto request = DynamicSdoState::decode(reg.request);
   srd.info.all_default_sdos = request.is_all_default_sdos_request();
   srd.info.slave_error_control = request.request_error_control;
-  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, reg.srd,
-                        node_text(reg.srd) + ": SRD registered");
+  auto e = master_event(MasterEvent::Kind::SrdRegistered, now, reg.srd);
   if (!srd.info.all_default_sdos) {
     auto c = reg.connection;
     c.row.row = free_row();
     srd.info.client_index = c.row.client_index;
     srd.own_channel = c.row.server_index;
     e.connection = c.row;
-    e.text += ", " + connection_text(c.row);
     add_row(c);
-  } else {
-    e.text += " with all default SDOs";
   }
-  if (srd.info.slave_error_control) e.text += ", error control of its slaves";
+  e.srd = srd.info;
   srds_[reg.srd] = srd;
   out.report(std::move(e));
   finish_job();
@@ -484,8 +468,7 @@ void SdoManagerProcess::advance_connect(Job& job, ConnectJob& connect, TimePoint
     }
     watched_.insert(slave);
   }
-  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, connect.srd,
-                        "SDO connection established: " + connection_text(c.row));
+  auto e = master_event(MasterEvent::Kind::SdoConnectionEstablished, now, connect.srd);
   e.connection = c.row;
   out.report(std::move(e));
   finish_job();
@@ -524,9 +507,7 @@ void SdoManagerProcess::advance_release(Job& job, ReleaseJob& release, TimePoint
     ManagedSdoConnection failed;
     failed.srd = release.srd;
     failed.server = *release.failed;
-    auto e = master_event(
-        MasterEvent::Kind::SlaveFailedReported, now, release.srd,
-        node_text(release.srd) + ": 1F11h reports " + node_text(*release.failed) + " failed");
+    auto e = master_event(MasterEvent::Kind::SlaveFailedReported, now, release.srd);
     e.connection = failed;
     out.report(std::move(e));
   }
@@ -534,16 +515,14 @@ void SdoManagerProcess::advance_release(Job& job, ReleaseJob& release, TimePoint
     mark_pool(c.pool_request, false);
     mark_pool(c.pool_response, false);
     if (c.row.to_manager) close_channel(c.row.server_index);
-    auto e =
-        master_event(MasterEvent::Kind::SdoConnectionReleased, now, release.srd,
-                     "SDO connection released (" + release.why + "): " + connection_text(c.row));
+    auto e = master_event(MasterEvent::Kind::SdoConnectionReleased, now, release.srd);
     e.connection = c.row;
+    e.manager_reason = release.why;
     out.report(std::move(e));
   }
   if (release.deregister && !release.srd_lost) {
     port_.unwatch(release.srd);
-    out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, release.srd,
-                            node_text(release.srd) + ": SRD de-registered"));
+    out.report(master_event(MasterEvent::Kind::SrdDeregistered, now, release.srd));
   }
   finish_job();
 }

@@ -178,14 +178,16 @@ SdoAbort SdoManagerProcess::release_connections(cfg::NodeId srd, cfg::NodeId sla
            (client_index == 0 || c.client_index == client_index);
   });
   if (!rows.empty()) {
-    release_job(srd, std::move(rows), false, false, "1F01h: " + node_text(srd) + " releases");
+    release_job(srd, std::move(rows), false, false,
+                {.kind = SdoManagerReason::Kind::Releases, .node = srd});
   }
   return SdoAbort::None;
 }
 
 SdoAbort SdoManagerProcess::deregister(cfg::NodeId srd) {
   auto rows = take_connections([&](const ManagedSdoConnection& c) { return c.srd == srd; });
-  release_job(srd, std::move(rows), true, false, "1F01h: " + node_text(srd) + " de-registers");
+  release_job(srd, std::move(rows), true, false,
+              {.kind = SdoManagerReason::Kind::Deregisters, .node = srd});
   srds_.erase(srd);
   return SdoAbort::None;
 }
@@ -279,7 +281,7 @@ void SdoManagerProcess::node_lost(cfg::NodeId node, TimePoint now, Output& out) 
     return c.server == node && !c.to_manager && srd != srds_.end() &&
            srd->second.info.slave_error_control;
   });
-  release_per_srd(rows, node, node_text(node) + " failed (error control)");
+  release_per_srd(rows, node, {.kind = SdoManagerReason::Kind::SlaveFailed, .node = node});
 }
 
 void SdoManagerProcess::node_booted(cfg::NodeId node, TimePoint now, Output& out) {
@@ -296,10 +298,13 @@ void SdoManagerProcess::srd_gone(cfg::NodeId node, bool boot_up, TimePoint now, 
   auto rows = take_connections([node](const ManagedSdoConnection& c) { return c.srd == node; });
   srds_.erase(node);
   port_.unwatch(node);
-  const std::string why = node_text(node) + (boot_up ? ": SRD booted up" : ": SRD lost");
-  out.report(
-      master_event(MasterEvent::Kind::SrdLost, now, node,
-                   why + ", releasing " + std::to_string(rows.size()) + " SDO connection(s)"));
+  const SdoManagerReason why{
+      .kind = boot_up ? SdoManagerReason::Kind::SrdBootedUp : SdoManagerReason::Kind::SrdLost,
+      .node = node};
+  auto e = master_event(MasterEvent::Kind::SrdLost, now, node);
+  e.manager_reason = why;
+  e.released = rows.size();
+  out.report(std::move(e));
   release_job(node, std::move(rows), true, true, why);
 }
 
@@ -311,11 +316,13 @@ void SdoManagerProcess::slave_booted(cfg::NodeId node) {
   auto rows = take_connections([node](const ManagedSdoConnection& c) {
     return c.server == node && !c.to_manager && c.server_index != kDefaultServer;
   });
-  release_per_srd(rows, std::nullopt, node_text(node) + " booted up: its server entry is gone");
+  release_per_srd(rows, std::nullopt,
+                  {.kind = SdoManagerReason::Kind::SlaveBootedUp, .node = node});
 }
 
 void SdoManagerProcess::release_per_srd(const std::vector<Connection>& rows,
-                                        std::optional<cfg::NodeId> failed, const std::string& why) {
+                                        std::optional<cfg::NodeId> failed,
+                                        const SdoManagerReason& why) {
   // S's side is gone (it failed, or its reset dropped the entry): only the SRDs are written.
   std::map<cfg::NodeId, std::vector<Connection>> by_srd;
   for (const auto& c : rows) by_srd[c.srd()].push_back(c);
@@ -329,7 +336,7 @@ void SdoManagerProcess::release_per_srd(const std::vector<Connection>& rows,
 }
 
 void SdoManagerProcess::release_job(cfg::NodeId srd, std::vector<Connection> rows, bool deregister,
-                                    bool lost, std::string why) {
+                                    bool lost, SdoManagerReason why) {
   // The SRD's channel to the manager goes last: the SRD keeps its line until the end.
   std::stable_partition(rows.begin(), rows.end(),
                         [](const Connection& c) { return !c.row.to_manager; });

@@ -189,7 +189,7 @@ class SdoManagerProcess {
   /// connection the SRD did not take, S's side undone instead), then the event.
   struct Refusal {
     cfg::sdo_manager::DynamicSdoError error{};
-    std::string why;
+    SdoManagerReason why;
   };
   /// The scan of 1F10h from node-ID 127 down (§7.2.1); a read with Rq set turns it into the
   /// registration of that node.
@@ -236,7 +236,7 @@ class SdoManagerProcess {
   struct ReleaseJob {
     cfg::NodeId srd;
     std::vector<Connection> releases{};   ///< in order
-    std::string why{};                    ///< for the events
+    SdoManagerReason why{};               ///< for the events
     bool deregister = false;              ///< the SRD goes too
     bool srd_lost = false;                ///< the SRD does not answer (no retries)
     std::optional<cfg::NodeId> failed{};  ///< the slave whose failure 1F11h reports (first)
@@ -281,9 +281,9 @@ class SdoManagerProcess {
   void srd_gone(cfg::NodeId node, bool boot_up, TimePoint now, Output& out);
   /// One release job per SRD for `rows` whose server side is gone; with `failed`: 1F11h first.
   void release_per_srd(const std::vector<Connection>& rows, std::optional<cfg::NodeId> failed,
-                       const std::string& why);
+                       const SdoManagerReason& why);
   void release_job(cfg::NodeId srd, std::vector<Connection> rows, bool deregister, bool lost,
-                   std::string why);
+                   SdoManagerReason why);
 
   // --- jobs (sdo_manager_jobs.cpp) ---
   void advance(TimePoint now, Output& out);
@@ -304,7 +304,7 @@ class SdoManagerProcess {
   void start_connect(Job& job, ConnectJob& connect);
   void connect_with(Job& job, ConnectJob& connect, std::uint16_t server_index);
   /// Ends `job` (a registration or a connection) with 1F10h Cnxn 0 and `error`, then its event.
-  void refuse(Job& job, cfg::sdo_manager::DynamicSdoError error, const std::string& why);
+  void refuse(Job& job, cfg::sdo_manager::DynamicSdoError error, SdoManagerReason why);
 
   static Step write_step(cfg::NodeId node, cfg::ObjectAddress address, std::uint32_t value,
                          std::size_t size, bool must_succeed = true, bool retry = true);

@@ -22,10 +22,8 @@ std::uint32_t uploaded_u32(const SdoResult& result) {
   return cfg::low_le32(result.data);
 }
 
-std::string transfer_failure(const SdoResult& result) {
-  return cfg::to_string(result.address) + (result.upload ? " upload" : " download") +
-         (result.refusal.empty() ? " failed: " + to_string(result.abort)
-                                 : " could not start: " + result.refusal);
+BootFailure transfer_failed(const SdoResult& result, BootFailure::Reason reason) {
+  return {.reason = reason, .transfer = result};
 }
 
 BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& options) {
@@ -53,11 +51,11 @@ void BootSlaveProcess::set_deadline(std::optional<TimePoint> deadline) {
 void BootSlaveProcess::set_step(BootStep step, TimePoint now, Output& out) {
   if (step_ == step) return;
   step_ = step;
-  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_, "");
+  auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_);
   e.step = step;
+  e.boot_try = tries_;
   e.total = plan_.size();
   e.written = next_;
-  e.text = node_text(node_) + ": " + std::string(to_string(step));
   out.report(std::move(e));
 }
 
@@ -74,7 +72,7 @@ void BootSlaveProcess::reset(TimePoint now) {
   cancel(now);
   // try_id_ goes on counting: a transfer of an old try still queued in the master never matches.
   BootSlaveProcess fresh(node_, *port_, *gate_, options_);
-  fresh.try_id_ = try_id_;
+  fresh.try_id_ = try_id_;  // tries_ starts again: a new start-up
   *this = std::move(fresh);
 }
 
@@ -88,6 +86,10 @@ void BootSlaveProcess::start_after_reset(TimePoint wait_until, TimePoint now, Ou
 
 void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_by_application,
                              TimePoint now, Output& out) {
+  // A start without a wait for the boot-up while the try still waited for one (a boot-up that
+  // came after the one it took, a power-on boot-up before the reset's) goes on with that try:
+  // it had not asked the slave anything yet.
+  if (!(phase_ == Phase::AwaitBootUp && running_ && !boot_up_until)) ++tries_;
   cancel(now);
   // A new try: its data goes, what outlives a try stays (a 1F25h request holds until a try
   // succeeds).
@@ -115,7 +117,7 @@ void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_
   const auto a = port_->expectations(node_).assignment;
   // §3.4 a: a device that is not an NMT slave of this master ends with status A.
   if (!a.is_slave()) {
-    failed(BootError::A, "1F81h sub " + cfg::hex(node_.value(), 2) + "h has bit 0 clear", now, out);
+    failed(BootError::A, {.reason = BootFailure::Reason::NotListed}, now, out);
     return;
   }
   // §3.4 b, Table 20: with bit 2 clear the application configures and starts the slave.
@@ -175,15 +177,19 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
     case Phase::ReadDeviceType: {
       // §3.4 c: no response -> B; d: 1F84h non-zero and different -> C.
       if (!r.ok()) {
-        failed(BootError::B, transfer_failure(r), now, out);
+        failed(BootError::B, transfer_failed(r), now, out);
         return;
       }
       const auto actual = uploaded_u32(r);
       const auto expected = port_->expectations(node_).device_type;
       if (expected != 0 && actual != expected) {
         failed(BootError::C,
-               "1000h is " + cfg::hex(actual, 8) + ", 1F84h expects " + cfg::hex(expected, 8), now,
-               out);
+               {.reason = BootFailure::Reason::ValueDiffers,
+                .object = {obj::kDeviceType, 0},
+                .actual = actual,
+                .expected_by = obj::kDeviceTypeIdentification,
+                .expected = expected},
+               now, out);
         return;
       }
       identity_sub_ = 0;
@@ -197,7 +203,7 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
       const auto sub = identity_sub_;
       const auto error = kLetters[sub - 1];
       if (!r.ok()) {
-        failed(error, transfer_failure(r), now, out);
+        failed(error, transfer_failed(r), now, out);
         return;
       }
       const auto actual = uploaded_u32(r);
@@ -209,13 +215,13 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
         match = (actual >> 16) == (expected >> 16) && (actual & 0xFFFF) >= (expected & 0xFFFF);
       }
       if (!match) {
-        failed(
-            error,
-            cfg::to_string(cfg::ObjectAddress{obj::kIdentity, sub}) + " is " + cfg::hex(actual, 8) +
-                ", " +
-                cfg::object_name(static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1)) +
-                " expects " + cfg::hex(expected, 8),
-            now, out);
+        failed(error,
+               {.reason = BootFailure::Reason::ValueDiffers,
+                .object = {obj::kIdentity, sub},
+                .actual = actual,
+                .expected_by = static_cast<std::uint16_t>(obj::kVendorIdentification + sub - 1),
+                .expected = expected},
+               now, out);
         return;
       }
       next_identity(now, out);
@@ -315,15 +321,15 @@ void BootSlaveProcess::on_guard_reply(NmtState state, TimePoint now, Output& out
 void BootSlaveProcess::on_heartbeat_timeout(TimePoint now, Output& out) {
   const auto time = port_->heartbeat_time(node_).value_or(Duration{0});
   failed(BootError::K,
-         "no heartbeat within the consumer time of " +
-             std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(time).count()) +
-             " ms (1016h)",
+         {.reason = BootFailure::Reason::NoFirstHeartbeat,
+          .consumer_time_ms = static_cast<std::uint64_t>(
+              std::chrono::duration_cast<std::chrono::milliseconds>(time).count())},
          now, out);
 }
 
 void BootSlaveProcess::error_control_started(TimePoint now, Output& out) {
   if (keep_alive_operational_) {
-    failed(BootError::L, "kept alive (1F81h bit 4): configuration not checked", now, out);
+    failed(BootError::L, {.reason = BootFailure::Reason::KeptAlive}, now, out);
     return;
   }
   succeeded(now, out);
@@ -335,7 +341,7 @@ void BootSlaveProcess::configuration_done(bool ok, TimePoint now, Output& out) {
   if (ok) {
     start_error_control(now, out);
   } else {
-    failed(BootError::J, "the application's configuration step failed", now, out);
+    failed(BootError::J, {.reason = BootFailure::Reason::ApplicationStepFailed}, now, out);
   }
 }
 
@@ -352,27 +358,19 @@ void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   last_error_.reset();
   reported_error_.reset();
   step_ = left_to_application_ ? BootStep::Idle : BootStep::Booted;
-  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node_, "");
+  auto e = master_event(MasterEvent::Kind::SlaveBooted, now, node_);
   e.step = step_;
+  e.boot_try = tries_;
   e.configured = configured_;
   e.written = configured_ ? plan_.size() : 0;
   e.total = plan_.size();
   e.bytes = bytes_;
   e.program = update_;
-  e.text = node_text(node_) + ": booted" +
-           (left_to_application_ ? std::string(" and left to the application (1F81h bit 2 clear: "
-                                               "no configuration, no start)")
-            : configured_        ? " (configured: " + std::to_string(plan_.size()) + " entries, " +
-                                std::to_string(bytes_) + " bytes)"
-                          : " (configuration up to date)");
-  if (update_ && update_->after) {
-    e.text += "; program updated from " + cfg::to_string(update_->before) + " to " +
-              cfg::to_string(*update_->after) + ", " + std::to_string(update_->bytes) + " bytes";
-  }
   out.report(std::move(e));
 }
 
-void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint now, Output& out) {
+void BootSlaveProcess::failed(BootError error, BootFailure failure, TimePoint now, Output& out) {
+  failure.step = step_;
   set_deadline(std::nullopt);
   phase_ = Phase::Idle;
   tried_ = true;
@@ -400,17 +398,17 @@ void BootSlaveProcess::failed(BootError error, const std::string& why, TimePoint
   // Retries that end the same way are not reported again.
   if (reported_error_ != error || !retry) {
     reported_error_ = error;
-    auto e = master_event(MasterEvent::Kind::BootError, now, node_, "");
+    auto e = master_event(MasterEvent::Kind::BootError, now, node_);
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;
+    e.boot_try = tries_;
     if (error == BootError::I) e.program = update_;
-    e.text = node_text(node_) + ": boot error " + std::string(1, letter(error)) + ": " +
-             std::string(describe(error)) + " (" + why + ")";
     if (!retry && expect.assignment.mandatory() && error == BootError::B &&
         expect.boot_time_ms != 0) {
-      e.text += "; boot time 1F89h (" + std::to_string(expect.boot_time_ms) + " ms) elapsed";
+      failure.boot_time_ms = expect.boot_time_ms;
     }
+    e.failure = std::move(failure);
     out.report(std::move(e));
   }
   if (retry) {
@@ -435,16 +433,16 @@ void BootSlaveProcess::on_timer(TimePoint now, Output& out) {
       identify(now, out);
       return;
     case Phase::CheckStateHeartbeat:
-      failed(BootError::E, "no heartbeat within the consumer time (1016h)", now, out);
+      failed(BootError::E, {.reason = BootFailure::Reason::NoHeartbeat}, now, out);
       return;
     case Phase::CheckStateGuarding:
-      failed(BootError::F, "no reply to the node guarding request", now, out);
+      failed(BootError::F, {.reason = BootFailure::Reason::NoGuardingReply}, now, out);
       return;
     case Phase::AwaitResetBootUp:
       check_software(now, out);
       return;
     case Phase::AwaitRestoreBootUp:
-      failed(BootError::J, "no boot-up after the restore and reset", now, out);
+      failed(BootError::J, {.reason = BootFailure::Reason::NoBootUpAfterRestore}, now, out);
       return;
     case Phase::RetryWait:
       start(now, out);

@@ -224,7 +224,7 @@ class BootSlaveProcess {
   void download(Phase phase, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
                 TimePoint now);
   void identify(TimePoint now, Output& out);
-  void failed(BootError error, const std::string& why, TimePoint now, Output& out);
+  void failed(BootError error, BootFailure failure, TimePoint now, Output& out);
   void succeeded(TimePoint now, Output& out);
   void next_identity(TimePoint now, Output& out);
   void after_identity(TimePoint now, Output& out);
@@ -253,6 +253,7 @@ class BootSlaveProcess {
   BootStep step_ = BootStep::Idle;
   bool running_ = false;      ///< a try is in progress (or waits for its retry)
   std::uint64_t try_id_ = 0;  ///< results of older tries are ignored
+  unsigned tries_ = 0;        ///< tries begun since the start-up (MasterEvent::boot_try)
   std::optional<TimePoint> deadline_;
   bool expect_boot_up_ = false;  ///< the master reset the node and has not seen its boot-up
   bool boot_up_seen_ = false;    ///< AwaitBootUp: seen, waiting for the others (boot-up gate)

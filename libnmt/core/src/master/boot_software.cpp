@@ -23,10 +23,7 @@ void BootSlaveProcess::check_software(TimePoint now, Output& out) {
     return;
   }
   if (expect.software == cfg::ProgramVersion{}) {
-    failed(BootError::G,
-           "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
-               cfg::hex(node_.value(), 2) + "h are 0",
-           now, out);
+    failed(BootError::G, {.reason = BootFailure::Reason::NoExpectedSoftware}, now, out);
     return;
   }
   set_step(BootStep::CheckSoftware, now, out);
@@ -39,18 +36,20 @@ void BootSlaveProcess::software_checked(TimePoint now, Output& out) {
     check_configuration(now, out);
     return;
   }
-  const std::string versions = "1F52h reports " + cfg::to_string(software_) +
-                               ", 1F53h/1F54h expect " + cfg::to_string(expect.software);
+  const auto differs = [&](BootFailure::Reason reason) {
+    return BootFailure{
+        .reason = reason, .software = software_, .expected_software = expect.software};
+  };
   if (software_updated_) {
-    failed(BootError::I, "after the program download " + versions, now, out);
+    failed(BootError::I, differs(BootFailure::Reason::SoftwareDiffersAfterUpdate), now, out);
     return;
   }
   if (!expect.assignment.update_software()) {
-    failed(BootError::H, versions + "; 1F81h bit 6 does not allow an update", now, out);
+    failed(BootError::H, differs(BootFailure::Reason::UpdateNotAllowed), now, out);
     return;
   }
   if (!port_->program(node_).has_value()) {
-    failed(BootError::H, versions + "; no program image is available", now, out);
+    failed(BootError::H, differs(BootFailure::Reason::NoProgramImage), now, out);
     return;
   }
   set_step(BootStep::UpdateSoftware, now, out);
@@ -107,7 +106,7 @@ void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Ou
     case Phase::ReadSoftwareTime: {
       if (!r.ok()) {
         // The slave's program objects do not answer as CiA 302-3 has them.
-        failed(software_updated_ ? BootError::I : BootError::G, transfer_failure(r), now, out);
+        failed(software_updated_ ? BootError::I : BootError::G, transfer_failed(r), now, out);
         return;
       }
       if (phase_ == Phase::ReadSoftwareDate) {
@@ -132,18 +131,17 @@ void BootSlaveProcess::software_sdo_result(const SdoResult& r, TimePoint now, Ou
            r.abort == SdoAbort::ValueTooLow || r.abort == SdoAbort::NoDataAvailable ||
            r.abort == SdoAbort::General || r.abort == SdoAbort::CannotStoreOrTransfer);
       if (!r.ok() && !clear_refused) {
-        failed(BootError::I, "program download: " + transfer_failure(r), now, out);
+        failed(BootError::I, transfer_failed(r, BootFailure::Reason::ProgramDownloadFailed), now,
+               out);
         return;
       }
       if (clear_refused) {
         // Reported, else only the bus would show it: the memory was not cleared before the
         // image (the device's own affair by DSP 302 §9; 1F50h says when it cannot take it).
         update_->clear_refused = r.abort;
-        auto e =
-            master_event(MasterEvent::Kind::ProgramClearRefused, now, node_,
-                         node_text(node_) + ": program clear (" + cfg::to_string(r.address) +
-                             " = 3) refused: " + to_string(r.abort) + "; the download goes on");
+        auto e = master_event(MasterEvent::Kind::ProgramClearRefused, now, node_);
         e.step = BootStep::UpdateSoftware;
+        e.boot_try = tries_;
         e.sdo = r;
         out.report(std::move(e));
       }

@@ -46,8 +46,7 @@ void BootSlaveProcess::begin_download(TimePoint now, Output& out) {
   const bool restore = expect.assignment.restore() && restore_sub != 0;
   if (!configuration && !restore) {
     if (!expected.is_zero()) {
-      failed(BootError::J, "1F26h/1F27h expect a configuration, but none is stored for the node",
-             now, out);
+      failed(BootError::J, {.reason = BootFailure::Reason::NoConfigurationStored}, now, out);
       return;
     }
     start_error_control(now, out);  // nothing to configure
@@ -147,7 +146,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       return;
     case Phase::RestoreLoad: {
       if (!r.ok()) {
-        failed(BootError::J, "restore: " + transfer_failure(r), now, out);
+        failed(BootError::J, transfer_failed(r, BootFailure::Reason::RestoreFailed), now, out);
         return;
       }
       // CiA 301 §7.5.2.14: restored values take effect at the next reset: reset communication
@@ -171,28 +170,28 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
     }
     case Phase::Write: {
       if (!r.ok()) {
-        failed(BootError::J,
-               transfer_failure(r) + " (entry " + std::to_string(next_ + 1) + " of " +
-                   std::to_string(plan_.size()) + ")",
-               now, out);
+        auto failure = transfer_failed(r, BootFailure::Reason::WriteFailed);
+        failure.entry = next_ + 1;
+        failure.entries = plan_.size();
+        failed(BootError::J, std::move(failure), now, out);
         return;
       }
       bytes_ += plan_[next_].data.size();
       ++next_;
-      auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_, "");
+      auto e = master_event(MasterEvent::Kind::BootStepChanged, now, node_);
       e.step = BootStep::Download;
+      e.boot_try = tries_;
+      e.entry_written = true;
       e.written = next_;
       e.total = plan_.size();
       e.bytes = bytes_;
-      e.text = node_text(node_) + ": " + std::to_string(next_) + " of " +
-               std::to_string(plan_.size()) + " entries written";
       out.report(std::move(e));
       write_next(now, out);
       return;
     }
     case Phase::WriteVerifyDate:
       if (!r.ok()) {
-        failed(BootError::J, transfer_failure(r), now, out);
+        failed(BootError::J, transfer_failed(r), now, out);
         return;
       }
       download(Phase::WriteVerifyTime, obj::kVerifyConfiguration, 2,
@@ -200,7 +199,7 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       return;
     case Phase::WriteVerifyTime:
       if (!r.ok()) {
-        failed(BootError::J, transfer_failure(r), now, out);
+        failed(BootError::J, transfer_failed(r), now, out);
         return;
       }
       if (options_.save_configuration) {
@@ -211,15 +210,15 @@ void BootSlaveProcess::configuration_sdo_result(const SdoResult& r, TimePoint no
       [[fallthrough]];
     case Phase::WriteSave:
       if (phase_ == Phase::WriteSave && !r.ok() && !no_storage(r.abort)) {
-        failed(BootError::J, "save: " + transfer_failure(r), now, out);
+        failed(BootError::J, transfer_failed(r, BootFailure::Reason::SaveFailed), now, out);
         return;
       }
       if (options_.application_step) {
         phase_ = Phase::Application;
         set_step(BootStep::ApplicationStep, now, out);
-        auto e = master_event(MasterEvent::Kind::ApplicationStep, now, node_, "");
+        auto e = master_event(MasterEvent::Kind::ApplicationStep, now, node_);
         e.step = BootStep::ApplicationStep;
-        e.text = node_text(node_) + ": the application's configuration step";
+        e.boot_try = tries_;
         out.report(std::move(e));
         return;
       }

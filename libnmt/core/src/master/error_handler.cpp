@@ -40,9 +40,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
 void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   sdo_manager.node_booted(node, now, out);  // an SRD that booted forgot its entries
   const bool assigned = is_slave(node);
-  auto e =
-      master_event(MasterEvent::Kind::BootUp, now, node,
-                   node_text(node) + ": boot-up" + (assigned ? "" : " (not a slave in 1F81h)"));
+  auto e = master_event(MasterEvent::Kind::BootUp, now, node);
   e.assigned = assigned;
   report(out, std::move(e));
   auto& s = slaves[node];
@@ -67,10 +65,9 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
 }
 
 void NmtMaster::Impl::report_loss(cfg::NodeId node, bool heartbeat, TimePoint now, Output& out) {
-  report(out,
-         master_event(
-             heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost, now,
-             node, node_text(node) + (heartbeat ? ": heartbeat lost" : ": node guarding lost")));
+  report(out, master_event(
+                  heartbeat ? MasterEvent::Kind::HeartbeatLost : MasterEvent::Kind::GuardingLost,
+                  now, node));
   set_known_state(node, KnownState::missing(), now, out);
 }
 
@@ -107,9 +104,9 @@ void NmtMaster::Impl::dispatch_error_control(TimePoint now, Output& out) {
   for (const auto& e : error_control_out.events) {
     const bool heartbeat = e.protocol == ErrorControlProtocol::Heartbeat;
     if (e.kind == ErrorControlEvent::Kind::Resolved) {
-      report(out, master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node,
-                               node_text(e.node) + (heartbeat ? ": heartbeat received again"
-                                                              : ": node guarding replies again")));
+      auto resolved = master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node);
+      resolved.heartbeat = heartbeat;
+      report(out, std::move(resolved));
       continue;
     }
     // §4.1: no first heartbeat within the consumer time ends start error control with status

@@ -13,10 +13,13 @@ using Kind = LssProcedureEvent::Kind;
 
 namespace {
 
-// The scan's text without its "scan: " head: "vendor ... got node-ID 5, stored".
-std::string scan_text(const LssProcedureEvent& e) {
-  const std::string head = std::string(to_string(LssProcedureKind::Scan)) + ": ";
-  return e.text.rfind(head, 0) == 0 ? e.text.substr(head.size()) : e.text;
+// What became of the device of a scan's Assigned or Skipped event, with the LSS master's timeout
+// for an unanswered service.
+MasterEvent::Lss lss_outcome(const LssProcedureEvent& e, Duration timeout) {
+  return {.outcome = e.outcome.value_or(LssScanOutcome::NoNodeId),
+          .error_code = e.error_code,
+          .spec_error = e.spec_error,
+          .timeout = timeout};
 }
 
 }  // namespace
@@ -92,6 +95,8 @@ void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
     // it so, the pass or look ends at once with the reason.
     LssProcedureEvent e;
     e.procedure = LssProcedureKind::Scan;
+    // Failed without a service's event: the scan could not start
+    // (MasterEvent::LssScan::Stop::CouldNotStart).
     e.kind = Kind::Failed;
     e.at = now;
     e.text = started.error().message;
@@ -130,9 +135,9 @@ void ExecuteLssProcess::handle(const LssProcedureEvent& e, TimePoint now, Output
     case Kind::Assigned: {
       ++assigned_;
       const cfg::NodeId node = e.node_id.value();  // Assigned always names it
-      auto m = master_event(MasterEvent::Kind::LssAssigned, e.at, node,
-                            node_text(node) + ": LSS: " + scan_text(e));
+      auto m = master_event(MasterEvent::Kind::LssAssigned, e.at, node);
       m.lss_address = e.address;
+      m.lss = lss_outcome(e, lss_.options().timeout);
       out.report(std::move(m));
       return;
     }
@@ -140,17 +145,16 @@ void ExecuteLssProcess::handle(const LssProcedureEvent& e, TimePoint now, Output
       const auto chosen = chosen_.find(e.address);
       if (chosen != chosen_.end()) {
         // The device is a slave's, but it refused or did not answer configure node-ID.
-        auto m = master_event(MasterEvent::Kind::LssFailed, e.at, chosen->second,
-                              node_text(chosen->second) + ": LSS: " + scan_text(e));
+        auto m = master_event(MasterEvent::Kind::LssFailed, e.at, chosen->second);
         m.lss_address = e.address;
+        m.lss = lss_outcome(e, lss_.options().timeout);
         out.report(std::move(m));
         return;
       }
       if (phase_ != Phase::Startup && !reported_.insert(e.address).second) return;
-      auto m = master_event(MasterEvent::Kind::LssUnmatched, e.at, std::nullopt,
-                            "LSS: unconfigured device " + address_digits(e.address) +
-                                " matches no slave: left unconfigured");
+      auto m = master_event(MasterEvent::Kind::LssUnmatched, e.at, std::nullopt);
       m.lss_address = e.address;
+      m.lss = lss_outcome(e, lss_.options().timeout);
       out.report(std::move(m));
       return;
     }
@@ -162,11 +166,14 @@ void ExecuteLssProcess::handle(const LssProcedureEvent& e, TimePoint now, Output
 
 void ExecuteLssProcess::scan_ended(const LssProcedureEvent& e, TimePoint now, Output& out) {
   const bool startup = phase_ == Phase::Startup;
-  std::string text = "LSS: " + std::to_string(e.found) + " unconfigured device" +
-                     (e.found == 1 ? "" : "s") + " found, " + std::to_string(assigned_) +
-                     " given a node-ID";
-  if (e.kind != Kind::Done) text += " (scan ended early: " + e.text + ")";
-  auto m = master_event(MasterEvent::Kind::LssScanEnded, e.at, std::nullopt, std::move(text));
+  using Stop = MasterEvent::LssScan::Stop;
+  auto m = master_event(MasterEvent::Kind::LssScanEnded, e.at, std::nullopt);
+  m.lss_scan = MasterEvent::LssScan{.found = e.found,
+                                    .assigned = assigned_,
+                                    .stopped = e.kind == Kind::Done ? Stop::None
+                                               : e.step             ? Stop::DeviceStoppedAnswering
+                                                                    : Stop::CouldNotStart,
+                                    .part = e.step ? e.step->part : std::uint8_t{0}};
   out.report(std::move(m));
   phase_ = Phase::Idle;
   next_look_.reset();

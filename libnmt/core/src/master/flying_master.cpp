@@ -36,21 +36,14 @@ bool forces_negotiation(std::uint16_t active_priority, std::uint16_t own_priorit
   return active_priority > own_priority;
 }
 
-std::string ms_text(Duration d) {
-  return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()) + " ms";
-}
-
-std::string priority_text(std::uint16_t priority) {
-  return "priority " + std::to_string(priority);
-}
-
 /// How often a 76h that brought no reset is sent again before this device gives up forcing.
 constexpr unsigned kForceTries = 3;
 
 MasterEvent flying_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node,
-                         std::optional<std::uint16_t> priority, std::string text) {
-  auto e = master_event(kind, at, node, std::move(text));
+                         std::optional<std::uint16_t> priority, MasterEvent::FlyingMaster why) {
+  auto e = master_event(kind, at, node);
   e.priority = priority;
+  e.flying = why;
   return e;
 }
 
@@ -87,10 +80,11 @@ void FlyingMasterProcess::start(const FlyingTiming& timing, TimePoint now, Outpu
   // all listen when the detection starts (DSP 302 §5.5.1.2).
   flying_.deadline = now + t.delay;
   port_.set_startup(StartupState::Negotiating);
-  out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
-                          std::string("flying master start-up after ") +
-                              (warm ? "a reset communication" : "power-on") +
-                              ": active master detection in " + ms_text(t.delay)));
+  out.report(flying_event(
+      MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
+      {.reason = warm ? FlyingMasterReason::ResetCommunication : FlyingMasterReason::PowerOn,
+       .own_priority = t.priority,
+       .wait = t.delay}));
 }
 
 void FlyingMasterProcess::restart(TimePoint now) {
@@ -101,7 +95,7 @@ void FlyingMasterProcess::restart(TimePoint now) {
   port_.restart(now);
 }
 
-void FlyingMasterProcess::wait(TimePoint now, Output& out, const std::string& why) {
+void FlyingMasterProcess::wait(TimePoint now, Output& out, FlyingMasterReason why) {
   const auto& t = timing_;
   // §5.3: waiting time = priority level x priority time slot + node-ID x device time slot,
   // from the trigger (each trigger heard starts it again, DSP 302 §5.5.1.3).
@@ -111,8 +105,9 @@ void FlyingMasterProcess::wait(TimePoint now, Output& out, const std::string& wh
   flying_.deadline = now + wait;
   port_.set_startup(StartupState::Negotiating);
   if (began) {
-    out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
-                            why + ": negotiation, waiting " + ms_text(wait)));
+    out.report(flying_event(
+        MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
+        {.reason = why, .own_priority = t.priority, .timeout = t.timeout, .wait = wait}));
   }
 }
 
@@ -130,16 +125,15 @@ void FlyingMasterProcess::win(TimePoint now, Output& out) {
   // ... and checks for other active masters every 1F90h sub 6 (§5.5.3).
   flying_.cycle_due.reset();
   if (t.cycle.count() > 0) flying_.cycle_due = now + t.cycle;
-  out.report(flying_event(MasterEvent::Kind::ActiveMaster, now, node_, t.priority,
-                          "active NMT master: no better master answered within the waiting "
-                          "time (" +
-                              priority_text(t.priority) + ")"));
+  out.report(
+      flying_event(MasterEvent::Kind::ActiveMaster, now, node_, t.priority,
+                   {.reason = FlyingMasterReason::NoBetterMaster, .own_priority = t.priority}));
   // §3.7 h: "enter the NMT master mode": NMT start-up goes on (§3.1 c onwards).
   port_.became_active(now, out);
 }
 
 void FlyingMasterProcess::standby(cfg::NodeId node, std::uint16_t priority, TimePoint now,
-                                  Output& out, const std::string& why) {
+                                  Output& out, FlyingMasterReason why) {
   flying_.phase = Phase::Standby;
   flying_.deadline.reset();
   flying_.active = node;
@@ -158,11 +152,7 @@ void FlyingMasterProcess::standby(cfg::NodeId node, std::uint16_t priority, Time
   if (watch) flying_.heartbeat_due = now + *watch;
   port_.set_startup(StartupState::Standby);
   out.report(flying_event(MasterEvent::Kind::Standby, now, node, priority,
-                          node_text(node) + " is the active NMT master (" +
-                              priority_text(priority) + "): " + why +
-                              (watch ? "; watching its heartbeat (" + ms_text(*watch) + ")"
-                                     : "; its heartbeat is not watched (no 1016h entry, 1017h "
-                                       "is 0)")));
+                          {.reason = why, .own_priority = timing_.priority, .watch = watch}));
 }
 
 void FlyingMasterProcess::force(TimePoint now, Output& out, cfg::NodeId node,
@@ -176,10 +166,9 @@ void FlyingMasterProcess::force(TimePoint now, Output& out, cfg::NodeId node,
   flying_.phase = Phase::Forced;
   flying_.deadline = now + t.timeout + t.delay;
   port_.set_startup(StartupState::Negotiating);
-  out.report(flying_event(MasterEvent::Kind::ForceNegotiation, now, node, priority,
-                          node_text(node) + " is master with " + priority_text(priority) +
-                              ", lower than ours (" + priority_text(t.priority) +
-                              "): force NMT flying master negotiation"));
+  out.report(
+      flying_event(MasterEvent::Kind::ForceNegotiation, now, node, priority,
+                   {.reason = FlyingMasterReason::LowerPriority, .own_priority = t.priority}));
 }
 
 void FlyingMasterProcess::master_response(std::uint16_t priority, cfg::NodeId node, TimePoint now,
@@ -189,9 +178,9 @@ void FlyingMasterProcess::master_response(std::uint16_t priority, cfg::NodeId no
     // Another device says it is the master: two active masters (a healed split, or a 71h of
     // ours that did not reach it). Forcing makes the other reset all nodes, this device
     // included, and the negotiation decides again (§5.5.3).
-    out.report(flying_event(MasterEvent::Kind::MultipleMasters, now, node, priority,
-                            node_text(node) + " answered as active NMT master too (" +
-                                priority_text(priority) + "): forcing a negotiation"));
+    out.report(
+        flying_event(MasterEvent::Kind::MultipleMasters, now, node, priority,
+                     {.reason = FlyingMasterReason::AnsweredToo, .own_priority = t.priority}));
     out.send(empty_frame(Cob::kForceNegotiation));
     return;
   }
@@ -204,16 +193,14 @@ void FlyingMasterProcess::master_response(std::uint16_t priority, cfg::NodeId no
     // §3.7 f: a master with a higher priority level, or the same level (only "lower then the own
     // priority" forces, §3.7 g/i): this device becomes an NMT slave.
     standby(node, priority, now, out,
-            std::string(priority == t.priority ? "the same priority level as ours"
-                                               : "a higher priority level than ours") +
-                " (" + priority_text(t.priority) + ")");
+            priority == t.priority ? FlyingMasterReason::SamePriority
+                                   : FlyingMasterReason::HigherPriority);
     return;
   }
   // DSP 302 §5.5.2 implementation hint: no second force after one that a worse master won
   // again (timing parameters that do not order the masters), else the network never settles.
   if (flying_.forced && flying_.phase != Phase::Forced) {
-    standby(node, priority, now, out,
-            "worse than ours, but it won again after this device forced a negotiation");
+    standby(node, priority, now, out, FlyingMasterReason::WonAgainAfterForce);
     // Remembered across the resets that follow (the winner's start-up resets all nodes, and
     // this device detects again after each): forgetting it here made every such reset force a
     // negotiation again, a livelock. Cleared when this device wins or yields to a better master.
@@ -242,9 +229,8 @@ bool FlyingMasterProcess::detection_frame(const CanFrame& frame, TimePoint now, 
   if (detection_.phase == P::Detect && frame.id == Cob::kCapableResponse) {
     // DSP 302 §5.5.3.1: a device able to become NMT master exists; it starts the network.
     detection_ = Detection{};
-    out.report(master_event(MasterEvent::Kind::MasterDetection, now, std::nullopt,
-                            "an NMT master-capable device answered (74h): the network is left "
-                            "to the NMT master"));
+    out.report(flying_event(MasterEvent::Kind::MasterDetection, now, std::nullopt, std::nullopt,
+                            {.reason = FlyingMasterReason::CapableDeviceAnswered}));
     return true;
   }
   if (detection_.phase == P::Wait) {
@@ -253,8 +239,8 @@ bool FlyingMasterProcess::detection_frame(const CanFrame& frame, TimePoint now, 
       // DSP 302 §5.5.3.1: the node-ID slots keep a group of self-starting devices from each
       // sending the start: one with a lower node-ID did.
       detection_ = Detection{};
-      out.report(master_event(MasterEvent::Kind::MasterDetection, now, std::nullopt,
-                              "another device started all nodes first"));
+      out.report(flying_event(MasterEvent::Kind::MasterDetection, now, std::nullopt, std::nullopt,
+                              {.reason = FlyingMasterReason::OtherStartedAllNodes}));
       return false;
     }
   }
@@ -277,9 +263,9 @@ void FlyingMasterProcess::detection_timer(TimePoint now, Output& out) {
       const auto wait = node_.value() * t.node_slot;
       detection_.phase = P::Wait;
       detection_.deadline = now + wait;
-      out.report(master_event(MasterEvent::Kind::MasterDetection, now, std::nullopt,
-                              "no NMT master-capable device answered within " + ms_text(t.timeout) +
-                                  ": start all nodes in " + ms_text(wait)));
+      out.report(flying_event(
+          MasterEvent::Kind::MasterDetection, now, std::nullopt, std::nullopt,
+          {.reason = FlyingMasterReason::NoCapableDevice, .timeout = t.timeout, .wait = wait}));
       break;
     }
     case P::Wait:
@@ -325,16 +311,15 @@ bool FlyingMasterProcess::on_frame(const CanFrame& frame, TimePoint now, Output&
         return true;
       }
       // §5.3: "other CANopen devices ... shall immediately start their waiting time".
-      wait(now, out, "negotiation trigger (72h) heard");
+      wait(now, out, FlyingMasterReason::TriggerHeard);
       return true;
     case Cob::kForceNegotiation:
       // §5.4, §5.5.3: only the active master acts: reset communication of all nodes, itself
       // included, and the negotiation runs again.
       if (flying_.phase != Phase::Active) return false;
-      out.report(flying_event(MasterEvent::Kind::MultipleMasters, now, std::nullopt, std::nullopt,
-                              "force NMT flying master negotiation (76h) received: another "
-                              "master is active or has a higher priority; reset communication "
-                              "of all nodes"));
+      out.report(
+          flying_event(MasterEvent::Kind::MultipleMasters, now, std::nullopt, std::nullopt,
+                       {.reason = FlyingMasterReason::ForceReceived, .own_priority = t.priority}));
       port_.reset_all_nodes();
       restart(now);
       return true;
@@ -378,8 +363,9 @@ void FlyingMasterProcess::on_timer(TimePoint now, Output& out) {
     // §5.5.2: negotiation by a reset communication of all nodes (this device included).
     out.report(flying_event(MasterEvent::Kind::ActiveMasterLost, now, flying_.active,
                             flying_.active_priority,
-                            "heartbeat of the active NMT master " + node_text(*flying_.active) +
-                                " lost: reset communication of all nodes, negotiation"));
+                            {.reason = FlyingMasterReason::HeartbeatLost,
+                             .own_priority = t.priority,
+                             .watch = flying_.watch}));
     port_.reset_all_nodes();
     restart(now);
     return;
@@ -398,15 +384,16 @@ void FlyingMasterProcess::on_timer(TimePoint now, Output& out) {
         // §3.7 d: after power-on, reset communication of all nodes first (DSP 302 §5.5.1.2:
         // PDO traffic must not disturb the timing; this device resets too, warm).
         out.report(flying_event(MasterEvent::Kind::NegotiationBegan, now, node_, t.priority,
-                                "no active master answered within " + ms_text(t.timeout) +
-                                    " after power-on: reset communication of all nodes"));
+                                {.reason = FlyingMasterReason::NoActiveMasterAfterPowerOn,
+                                 .own_priority = t.priority,
+                                 .timeout = t.timeout}));
         port_.reset_all_nodes();
         restart(now);
         break;
       }
       // §3.7 e: after a reset communication, the negotiation.
       out.send(empty_frame(Cob::kNegotiationTrigger));
-      wait(now, out, "no active master answered within " + ms_text(t.timeout));
+      wait(now, out, FlyingMasterReason::NoActiveMaster);
       break;
     case Phase::Negotiate:
       win(now, out);

@@ -152,10 +152,10 @@ class FlyingMasterProcess {
   bool detection_frame(const CanFrame& frame, TimePoint now, Output& out);
   void detection_timer(TimePoint now, Output& out);
   void restart(TimePoint now);
-  void wait(TimePoint now, Output& out, const std::string& why);
+  void wait(TimePoint now, Output& out, FlyingMasterReason why);
   void win(TimePoint now, Output& out);
   void standby(cfg::NodeId node, std::uint16_t priority, TimePoint now, Output& out,
-               const std::string& why);
+               FlyingMasterReason why);
   void force(TimePoint now, Output& out, cfg::NodeId node, std::uint16_t priority);
   void master_response(std::uint16_t priority, cfg::NodeId node, TimePoint now, Output& out);
 

@@ -24,9 +24,9 @@ DictionaryEntry make_entry(std::uint16_t index, std::uint8_t sub, std::string na
                            cfg::DataType type, cfg::AccessType access, std::uint64_t value);
 /// The first up to 4 bytes of an upload, little-endian (UNSIGNED32 objects); 0 when empty.
 std::uint32_t uploaded_u32(const SdoResult& result);
-/// "1018h sub 01h upload failed: 0x05040000 (SDO protocol timed out)"; for a transfer the
-/// client refused, "... download could not start: " and its words (SdoResult::refusal).
-std::string transfer_failure(const SdoResult& result);
+/// A boot that failed on `result` (describe() words it "1018h sub 01h upload failed: ...").
+BootFailure transfer_failed(const SdoResult& result,
+                            BootFailure::Reason reason = BootFailure::Reason::TransferFailed);
 /// 1..127 in order: the master's loops over every node-ID, without a cast and a check per node.
 constexpr std::array<cfg::NodeId, cfg::kMaxNodeId> all_node_ids() {
   return []<std::size_t... I>(std::index_sequence<I...>) {

@@ -193,12 +193,10 @@ std::string node_text(cfg::NodeId node) {
   return "node " + std::to_string(node.value());
 }
 
-MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node,
-                         std::string text) {
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node) {
   MasterEvent e{kind};
   e.at = at;
   e.node_id = node;
-  e.text = std::move(text);
   return e;
 }
 

@@ -15,11 +15,9 @@ namespace nmt {
 /// "node 3" (messages).
 std::string node_text(cfg::NodeId node);
 /// An event with the fields every kind has; `node` nullopt: an event of the master, about no node.
-MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node,
-                         std::string text);
-inline MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, cfg::NodeId node,
-                                std::string text) {
-  return master_event(kind, at, std::optional<cfg::NodeId>(node), std::move(text));
+MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, std::optional<cfg::NodeId> node);
+inline MasterEvent master_event(MasterEvent::Kind kind, TimePoint at, cfg::NodeId node) {
+  return master_event(kind, at, std::optional<cfg::NodeId>(node));
 }
 
 }  // namespace nmt

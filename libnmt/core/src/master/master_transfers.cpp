@@ -14,9 +14,7 @@ namespace {
 
 // MasterEvent::ProgramProgress: `done` of the 1F50h image's `total` bytes confirmed.
 MasterEvent program_progress(cfg::NodeId node, std::size_t done, std::size_t total, TimePoint now) {
-  auto e = master_event(MasterEvent::Kind::ProgramProgress, now, node,
-                        node_text(node) + ": program download " + std::to_string(done) + " of " +
-                            std::to_string(total) + " bytes");
+  auto e = master_event(MasterEvent::Kind::ProgramProgress, now, node);
   e.step = BootStep::UpdateSoftware;
   e.bytes = done;
   e.total = total;
@@ -54,11 +52,7 @@ void NmtMaster::Impl::route_transfer_events(TimePoint now, Output& out) {
     if (const auto* manager = std::get_if<Scheduler::Manager>(&finished.owner)) {
       sdo_manager.on_transfer_result(manager->tag, result, now, out);
     } else if (const auto* application = std::get_if<Scheduler::Application>(&finished.owner)) {
-      auto e = master_event(
-          MasterEvent::Kind::SdoFinished, now, node,
-          node_text(node) + ": " + cfg::to_string(result.address) +
-              (result.upload ? " upload " : " download ") +
-              (result.ok() ? std::string("done") : "aborted: " + to_string(result.abort)));
+      auto e = master_event(MasterEvent::Kind::SdoFinished, now, node);
       e.sdo = result;
       e.sdo->id = application->id;
       report(out, std::move(e));

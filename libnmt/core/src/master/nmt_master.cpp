@@ -323,8 +323,9 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
     startup = StartupState::NotMaster;
-    report(out, master_event(MasterEvent::Kind::NotMaster, now, std::nullopt,
-                             "1F80h is " + cfg::hex(config.value, 8) + ": not the NMT master"));
+    auto e = master_event(MasterEvent::Kind::NotMaster, now, std::nullopt);
+    e.nmt_startup = config.value;
+    report(out, std::move(e));
     flying.stop_detection();
     if (config.self_starting()) {
       // §5.1: all nodes only when no master-capable device answers (flying_master.hpp).
@@ -344,8 +345,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   startup_began = now;
   // §3.1 d (keep-alive slaves are checked by their boot, §3.4 part 2).
   queue_reset_all(now);
-  report(out,
-         master_event(MasterEvent::Kind::StartupBegan, now, std::nullopt, "NMT start-up began"));
+  report(out, master_event(MasterEvent::Kind::StartupBegan, now, std::nullopt));
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
   boot_up_gate.close(now + options.boot_up_wait, options.bitrate != 0);
@@ -386,14 +386,8 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   if (!all_ended) return;
   if (!failed.empty()) {
     startup = StartupState::Halted;
-    std::string text = "NMT start-up halted: mandatory ";
-    for (std::size_t i = 0; i < failed.size(); ++i) {
-      const auto error = *boot(failed[i]).last_error();
-      text += (i == 0 ? "" : ", ") + node_text(failed[i]) + (i == 0 ? " failed with" : " with") +
-              " status " + std::string(1, letter(error)) + " (" + std::string(describe(error)) +
-              ")";
-    }
-    auto e = master_event(MasterEvent::Kind::StartupHalted, now, failed.front(), text);
+    auto e = master_event(MasterEvent::Kind::StartupHalted, now, failed.front());
+    for (const auto n : failed) e.halted_by.push_back({n, *boot(n).last_error()});
     e.error = boot(failed.front()).last_error();
     report(out, std::move(e));
     return;
@@ -402,9 +396,7 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
   if (startup_config().no_auto_operational()) {
     startup = StartupState::AwaitApplication;
-    report(out, master_event(MasterEvent::Kind::StartupAwaitsApplication, now, std::nullopt,
-                             "all mandatory slaves booted; waiting for the application to enter "
-                             "operational (1F80h bit 2)"));
+    report(out, master_event(MasterEvent::Kind::StartupAwaitsApplication, now, std::nullopt));
     return;
   }
   finish_startup(now, out);
@@ -435,16 +427,14 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     }
   }
   startup = StartupState::Operational;
-  report(out, master_event(MasterEvent::Kind::StartupComplete, now, std::nullopt,
-                           "NMT start-up complete"));
+  report(out, master_event(MasterEvent::Kind::StartupComplete, now, std::nullopt));
 }
 
 void NmtMaster::Impl::set_own_state(NmtState state, TimePoint now, Output& out) {
   if (own_state == state) return;
   own_state = state;
   producer.set_state(state);
-  auto e = master_event(MasterEvent::Kind::MasterStateChanged, now, node_id,
-                        "master " + std::string(to_string(state)));
+  auto e = master_event(MasterEvent::Kind::MasterStateChanged, now, node_id);
   e.state = state;
   report(out, std::move(e));
 }
@@ -490,10 +480,7 @@ void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
         if (is_slave(n)) set_known_state(n, state, now, out);
       }
     }
-    auto e =
-        master_event(MasterEvent::Kind::NmtCommandSent, now, target.node(),
-                     std::string(to_string(command)) + " " +
-                         (target.all() ? std::string("all nodes") : node_text(*target.node())));
+    auto e = master_event(MasterEvent::Kind::NmtCommandSent, now, target.node());
     e.command = command;
     report(out, std::move(e));
   }
@@ -505,13 +492,9 @@ void NmtMaster::Impl::set_known_state(cfg::NodeId node, KnownState state, TimePo
   if (s.known_state == state) return;
   s.known_state = state;
   if (!is_slave(node)) return;
-  auto e = master_event(MasterEvent::Kind::SlaveStateChanged, now, node, node_text(node) + ": ");
+  auto e = master_event(MasterEvent::Kind::SlaveStateChanged, now, node);
   e.state = state.nmt_state();
-  if (e.state) {
-    e.text += to_string(*e.state);
-  } else {
-    e.text += state.kind == KnownState::Kind::Missing ? "missing" : "state unknown";
-  }
+  e.missing = !e.state && state.kind == KnownState::Kind::Missing;
   report(out, std::move(e));
 }
 
