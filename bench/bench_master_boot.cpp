@@ -212,7 +212,7 @@ void set(nmt::NmtMaster& master, std::uint16_t index, std::uint8_t sub, std::uin
 // 1.5 heartbeat periods).
 nmt::NmtMaster make_master(std::uint16_t heartbeat_ms) {
   nmt::MasterOptions options;
-  options.bitrate = kBitrate;
+  options.pacing.bitrate = kBitrate;
   options.configurations = std::make_shared<Configurations>();
   auto created = nmt::NmtMaster::create(cfg::DeviceDescription{},
                                         cfg::NodeId::from(kMasterId).value(), options);

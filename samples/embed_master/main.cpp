@@ -91,7 +91,7 @@ int main() {
     slave.heartbeat = 300ms;                       // 1016h: the master consumes it
   }
   config.options.configurations = std::make_shared<MyConfigurations>();
-  config.options.application_step =
+  config.options.boot.application_step =
       true;  // MasterEvent::ApplicationStep, then configuration_done()
   auto created = config.build();
   if (!created.ok()) return std::cerr << created.error().message << "\n", 1;

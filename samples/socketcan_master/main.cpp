@@ -167,7 +167,7 @@ int main(int argc, char** argv) {
     config.add_slave(cfg::NodeId::from(*node).value());  // optional, boot and start it
   }
   if (argc <= 2) config.add_slave(cfg::NodeId::from(2).value());
-  config.options.sdo_timeout = 500ms;
+  config.options.sdo.timeout = 500ms;
   auto built = config.build();
   if (!built) return std::cerr << "socketcan_master: " << built.error().message << "\n", 2;
   nmt::NmtMaster engine = std::move(built).value();

@@ -395,20 +395,20 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   h.devices.reserve(4);
   nmt::MasterOptions options;
   options.manager = h.manager;
-  options.sdo_manager = true;
-  options.sdo_manager_channels = 4;
-  options.sdo_manager_scan_timeout = 5ms;
-  options.sdo_timeout = 50ms;
-  options.retry_interval = 300ms;
-  options.boot_up_wait = 100ms;
-  options.reboot_timeout = 500ms;
-  options.srd_guard_time = 200ms;
-  options.block_threshold = 16;
+  options.sdo_manager.enabled = true;
+  options.sdo_manager.channels = 4;
+  options.sdo_manager.scan_timeout = 5ms;
+  options.sdo.timeout = 50ms;
+  options.boot.retry_interval = 300ms;
+  options.boot.boot_up_wait = 100ms;
+  options.boot.reboot_timeout = 500ms;
+  options.sdo_manager.srd_guard_time = 200ms;
+  options.sdo.block_threshold = 16;
   // Bounds small enough for the input to reach them (nmt_master.hpp: memory a peer can make the
   // master use); the checks hold the master to them.
   h.manager->set_limits({.max_entry_bytes = 3000, .max_total_bytes = 12000});
-  options.sdo_manager_max_queued_requests = 4;
-  options.max_queued_nmt_requests = 8;
+  options.sdo_manager.max_queued_requests = 4;
+  options.nmt.max_queued_requests = 8;
   auto created = nmt::NmtMaster::create(master_dcf, *cfg::NodeId::from(kMasterId), options);
   if (!created.ok()) std::abort();
   h.master.emplace(std::move(created).value());

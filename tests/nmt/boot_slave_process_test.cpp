@@ -199,7 +199,7 @@ TEST(BootSlave, DeviceTypeIsNotCheckedWhen1F84IsZero) {
 }
 
 // §3.4 c: "If no response is received ... status B". §3.3: an optional slave is tried again
-// (MasterOptions::retry_interval); the retry repeats silently while it ends the same way.
+// (MasterOptions::boot.retry_interval); the retry repeats silently while it ends the same way.
 TEST(BootSlave, ReportsStatusBAndRetriesAnOptionalSlaveSilently) {
   Rig rig;
   rig.process.start(rig.now, rig.out);

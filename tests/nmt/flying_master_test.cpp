@@ -445,7 +445,7 @@ TEST(FlyingMaster, OnePercentFrameLossStillElectsOneMaster) {
   for (std::uint64_t seed = 1; seed <= 20; ++seed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     FlyingRig rig;
-    rig.options.sdo_retries = 4;
+    rig.options.sdo.retries = 4;
     rig.bus.set_loss_rate(0.01, seed);
     rig.add_slave(2);
     rig.add_master(10, 1);

@@ -186,11 +186,11 @@ TEST(MasterBounds, BlockWriteWithoutSizeIsRefusedWhenItsDataPassesTheLimit) {
 
 // CiA 302-2 §6.1: NMT services go out at least 102Ah apart; §6.4: 1F82h writes queue them. A
 // peer may set 102Ah to its largest value (6.5535 s) and write 1F82h as fast as the bus allows:
-// beyond MasterOptions::max_queued_nmt_requests the write is refused with 0504 0005, and once
+// beyond MasterOptions::nmt.max_queued_requests the write is refused with 0504 0005, and once
 // the queue drained, requests are taken again.
 TEST(MasterBounds, RequestNmtBeyondTheQueueBoundIsRefusedOutOfMemory) {
   MasterRig rig;
-  rig.options.max_queued_nmt_requests = 3;
+  rig.options.nmt.max_queued_requests = 3;
   rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 10s));
   ASSERT_EQ(rig.tool_write_u(0x102A, 0, 65535, 2), SdoAbort::None);

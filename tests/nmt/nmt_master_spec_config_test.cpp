@@ -171,10 +171,10 @@ TEST(NmtMasterSpec, ZeroExpectedConfigurationDateAndTimeAlwaysDownload) {
   EXPECT_EQ(rig.device_value(3, 0x2000, 0), 25U);
 }
 
-// Header: MasterOptions::force_download downloads even when 1020h matches.
+// Header: MasterOptions::boot.force_download downloads even when 1020h matches.
 TEST(NmtMasterSpec, ForcedDownloadIgnoresAMatchingVerifyConfiguration) {
   MasterRig rig;
-  rig.options.force_download = true;
+  rig.options.boot.force_download = true;
   expect_configuration_of_3(rig);
   rig.two_slaves({}, configured_slave_eds());
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
@@ -182,10 +182,10 @@ TEST(NmtMasterSpec, ForcedDownloadIgnoresAMatchingVerifyConfiguration) {
   EXPECT_EQ(rig.device_value(3, 0x2000, 0), 25U);
 }
 
-// Header: MasterOptions::save_configuration = false: no 1010h 'save'.
+// Header: MasterOptions::boot.save_configuration = false: no 1010h 'save'.
 TEST(NmtMasterSpec, NoSaveWhenSaveConfigurationIsOff) {
   MasterRig rig;
-  rig.options.save_configuration = false;
+  rig.options.boot.save_configuration = false;
   rig.configurations->writes[3] = node3_configuration();
   rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 10s, 3));
@@ -329,7 +329,7 @@ TEST(NmtMasterSpec, PdoMappingIsDownloadedInPdoSafeOrder) {
   EXPECT_LT(first_entry[0].at, cob[1].at);
 }
 
-// Header: values longer than MasterOptions::block_threshold go by SDO block transfer (CiA 301
+// Header: values longer than MasterOptions::sdo.block_threshold go by SDO block transfer (CiA 301
 // §7.2.4.3.9: block download initiate, ccs 6), shorter ones expedited or segmented.
 TEST(NmtMasterSpec, LongConfigurationValueGoesByBlockTransfer) {
   MasterRig rig;

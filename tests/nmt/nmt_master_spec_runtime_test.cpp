@@ -65,7 +65,7 @@ TEST(NmtMasterSpec, HeartbeatLossOfOptionalSlaveRestartsItsBoot) {
   rig.run_for(2s);
   // §4.2: the error event restarts the boot at once (engine.hpp rule 5): its 1000h read is sent
   // at the loss. How many tries follow is not the spec's (the heartbeat stays away: status K
-  // and retries every MasterOptions::retry_interval).
+  // and retries every MasterOptions::boot.retry_interval).
   const auto restarted = rig.uploads_of(3, 0x1000, 0, lost[0].at);
   ASSERT_FALSE(restarted.empty()) << "boot not restarted";
   EXPECT_EQ(restarted.front().at, seen_when_sent_at(lost[0].at, restarted.front().frame));

@@ -34,11 +34,11 @@ void expect_tried_without_end(const MasterRig& rig, std::uint8_t node) {
   ASSERT_FALSE(errors.empty());
   EXPECT_EQ(errors.front().error, BootError::B);
   std::vector<TimePoint> expected;
-  for (auto begin = errors.front().at + options.retry_interval; begin <= rig.bus.now();
-       begin += options.sdo_timeout * (1 + options.sdo_retries) + options.retry_interval) {
-    for (unsigned i = 0; i <= options.sdo_retries; ++i) {
-      if (begin + options.sdo_timeout * i <= rig.bus.now() - 1ms) {
-        expected.push_back(begin + options.sdo_timeout * i);
+  for (auto begin = errors.front().at + options.boot.retry_interval; begin <= rig.bus.now();
+       begin += options.sdo.timeout * (1 + options.sdo.retries) + options.boot.retry_interval) {
+    for (unsigned i = 0; i <= options.sdo.retries; ++i) {
+      if (begin + options.sdo.timeout * i <= rig.bus.now() - 1ms) {
+        expected.push_back(begin + options.sdo.timeout * i);
       }
     }
   }
@@ -421,10 +421,10 @@ TEST(NmtMasterSpec, OptionalSlaveAppearingLateIsRetriedEverySecondThenBootedAndS
   // Each try sends the 1000h upload 1 + sdo_retries times, sdo_timeout apart, and ends with B one
   // sdo_timeout after the last; the next try begins retry_interval (1 s) later.
   auto uploads = rig.uploads_of(3, 0x1000, 0);
-  const std::size_t per_try = 1 + rig.options.sdo_retries;
+  const std::size_t per_try = 1 + rig.options.sdo.retries;
   ASSERT_GE(uploads.size(), 3 * per_try);
   for (std::size_t first = per_try; first + 1 <= uploads.size(); first += per_try) {
-    const TimePoint error_at = uploads[first - 1].at + rig.options.sdo_timeout;
+    const TimePoint error_at = uploads[first - 1].at + rig.options.sdo.timeout;
     EXPECT_GE(uploads[first].at - error_at, 900ms) << uploads[first];
     EXPECT_LE(uploads[first].at - error_at, 1100ms) << uploads[first];
   }
@@ -461,10 +461,10 @@ TEST(NmtMasterSpec, MissingMandatorySlaveHaltsStartupAndEndsAfterBootTime) {
   // §3.3: the final error comes when "the elapsed time is greater than the configured value of
   // object 1F89h" (4000 ms), so not before. At the latest it ends the first try after that: the
   // try before it ended with B within the boot time, the next one starts "the recommended cycle
-  // time" of 1 s later (rig.options.retry_interval) and its 1000h upload fails after the rig's
+  // time" of 1 s later (rig.options.boot.retry_interval) and its 1000h upload fails after the rig's
   // SDO timeout, once per attempt (1 + sdo_retries).
-  const auto latest =
-      4000ms + rig.options.retry_interval + (1 + rig.options.sdo_retries) * rig.options.sdo_timeout;
+  const auto latest = 4000ms + rig.options.boot.retry_interval +
+                      (1 + rig.options.sdo.retries) * rig.options.sdo.timeout;
   EXPECT_GT(final_error.at - rig.started_at, 4000ms);
   EXPECT_LE(final_error.at - rig.started_at, latest);
   // Tried more than once before the boot time ended, not after.
@@ -709,8 +709,8 @@ TEST(NmtMasterSpec, BootOfSlaveBeginsAfterBootUpWaitWhenItsBootUpIsLost) {
   ASSERT_FALSE(reset.empty());
   auto upload = rig.uploads_of(3, 0x1000, 0, reset.front().at);
   ASSERT_FALSE(upload.empty());
-  EXPECT_GE(upload.front().at - reset.front().at, rig.options.boot_up_wait - 1ms);
-  EXPECT_LE(upload.front().at - reset.front().at, rig.options.boot_up_wait + 20ms);
+  EXPECT_GE(upload.front().at - reset.front().at, rig.options.boot.boot_up_wait - 1ms);
+  EXPECT_LE(upload.front().at - reset.front().at, rig.options.boot.boot_up_wait + 20ms);
 }
 
 // Header: with the bit rate known (paced), a lost boot-up holds only its own slave: the slaves
@@ -718,7 +718,7 @@ TEST(NmtMasterSpec, BootOfSlaveBeginsAfterBootUpWaitWhenItsBootUpIsLost) {
 // boot-up was lost still starts after boot_up_wait.
 TEST(NmtMasterSpec, PacedBootStartsTheBootedUpSlavesWhenAnotherBootUpIsLost) {
   MasterRig rig;
-  rig.options.bitrate = 500'000;
+  rig.options.pacing.bitrate = 500'000;
   rig.bus.set_filter([](const CanFrame& f, TimePoint) {
     return f.id == 0x703 && !f.rtr && f.dlc == 1 && f.data[0] == 0 ? FrameFate::drop()
                                                                    : FrameFate::deliver();
@@ -736,7 +736,7 @@ TEST(NmtMasterSpec, PacedBootStartsTheBootedUpSlavesWhenAnotherBootUpIsLost) {
   EXPECT_LE(upload2.front().at - boot_up.front().at, 25ms);
   auto upload3 = rig.uploads_of(3, 0x1000, 0, reset.front().at);
   ASSERT_FALSE(upload3.empty());
-  EXPECT_GE(upload3.front().at - reset.front().at, rig.options.boot_up_wait - 1ms);
+  EXPECT_GE(upload3.front().at - reset.front().at, rig.options.boot.boot_up_wait - 1ms);
 }
 
 // ------------------------------------------------------ boot NMT slave: status A..O (Table 1) ---
@@ -791,7 +791,7 @@ TEST(NmtMasterSpec, BootReportsStatusBWhenTheDeviceDoesNotAnswer) {
   EXPECT_FALSE(error.final);
   EXPECT_NE(describe(error).find("boot error B"), std::string::npos) << describe(error);
   EXPECT_EQ(master.last_error(3_node), BootError::B);
-  EXPECT_EQ(rig.uploads_of(3, 0x1000, 0).size(), 1U + rig.options.sdo_retries);
+  EXPECT_EQ(rig.uploads_of(3, 0x1000, 0).size(), 1U + rig.options.sdo.retries);
   // DSP 302 §4 step 5: start-up tries "all optional slaves at least once" before it goes on.
   ASSERT_TRUE(rig.run_until_kind(Kind::StartupComplete, 5s));
   EXPECT_GE(rig.events_of(Kind::StartupComplete).front().at, error.at);
@@ -1134,14 +1134,14 @@ void expect_progress_to_the_end(const std::vector<MasterEvent>& progress, std::s
   EXPECT_EQ(complete, 1U) << "100% once";
 }
 
-// CiA 301 §7.2.4.3.9: a value above MasterOptions::block_threshold goes by block transfer (block
-// download initiate, ccs 6: byte 0 = 110x x.x.), one below it segmented (ccs 1, s = 1: 21h). The
-// image carries its version in our trailer (cfg/program_image.hpp), which the simulated device
+// CiA 301 §7.2.4.3.9: a value above MasterOptions::sdo.block_threshold goes by block transfer
+// (block download initiate, ccs 6: byte 0 = 110x x.x.), one below it segmented (ccs 1, s = 1: 21h).
+// The image carries its version in our trailer (cfg/program_image.hpp), which the simulated device
 // reports in 1F52h once started (DSP 302 §9): no SlaveNodeOptions needed.
 TEST(NmtMasterSpec, SoftwareUpdateBySegmentedTransferBootsWithTheVersionTheImageCarries) {
   MasterRig rig;
   const auto image = needs_update(rig, 300);
-  rig.options.block_threshold = 4096;
+  rig.options.sdo.block_threshold = 4096;
   rig.two_slaves();
   ASSERT_TRUE(rig.run_until_kind(Kind::SlaveBooted, 20s, 3));
   EXPECT_TRUE(rig.boot_errors(3).empty());
@@ -1217,13 +1217,13 @@ TEST(NmtMasterSpec, SoftwareUpdateGoesOnWhenTheDeviceRefusesClearAsDsp302AllowsO
   EXPECT_EQ(rig.booted(3)[0].program->clear_refused, SdoAbort::ValueTooHigh);
 }
 
-// An SDO timeout on 1F50h (MasterOptions::program_data_timeout) repeats the download once from
+// An SDO timeout on 1F50h (MasterOptions::program.data_timeout) repeats the download once from
 // the start of the image: the first answer of the device to the image is lost.
 TEST(NmtMasterSpec, SoftwareUpdateRepeatsTheImageOnceAfterAnSdoTimeout) {
   for (const int lost : {1, 2}) {
     MasterRig rig;
     needs_update(rig, 2000);
-    rig.options.program_data_timeout = 300ms;
+    rig.options.program.data_timeout = 300ms;
     int dropped = 0;
     // The device's answers to the 1F50h initiate (scs 5, block download: A4h; index 501Fh LE).
     rig.bus.set_filter([&](const CanFrame& f, TimePoint) {
@@ -1302,13 +1302,13 @@ TEST(NmtMasterSpec, HeartbeatConfiguredByTheDownloadPassesStartErrorControl) {
   EXPECT_EQ(rig.engine().known_state(3_node), KnownState::in(NmtState::Operational));
 }
 
-// Header (MasterOptions::application_step): the boot waits for configuration_done(); false ends
-// it with status J.
+// Header (MasterOptions::boot.application_step): the boot waits for configuration_done(); false
+// ends it with status J.
 TEST(NmtMasterSpec, ApplicationConfigurationStepContinuesOrFailsTheBoot) {
   for (bool ok : {true, false}) {
     SCOPED_TRACE(ok ? "ok" : "failed");
     MasterRig rig;
-    rig.options.application_step = true;
+    rig.options.boot.application_step = true;
     rig.configurations->writes[3] = {write_of(0x2000, 0, 25, 2)};
     rig.two_slaves();
     ASSERT_TRUE(rig.run_until_kind(Kind::ApplicationStep, 10s, 3));

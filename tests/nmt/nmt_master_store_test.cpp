@@ -97,7 +97,7 @@ struct StoreRig {
 // (DOMAIN, §6.2) of 36 bytes by block and by segmented transfer is stored as it is.
 TEST(NmtMasterStore, ConciseDcfWriteWithTheSdoManagerOnIsStored) {
   StoreRig s;
-  s.rig.options.sdo_manager = true;
+  s.rig.options.sdo_manager.enabled = true;
   s.start();
   for (auto mode : {SdoMode::Block, SdoMode::Segmented}) {
     auto written = s.rig.tool_write(0x1F22, kNode, kStream, by(mode));

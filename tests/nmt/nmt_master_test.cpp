@@ -294,7 +294,7 @@ namespace nmt {
 namespace {
 TEST(NmtMaster, PacedBootCompletes) {
   MasterOptions options;
-  options.bitrate = 500'000;
+  options.pacing.bitrate = 500'000;
   MasterRig rig(options);
   for (std::uint8_t node : {std::uint8_t{2}, std::uint8_t{3}}) {
     rig.add_slave(node);
@@ -316,32 +316,43 @@ namespace {
 TEST(NmtMaster, IsNotBuiltWithAResponseTimeoutThatIsNotPositive) {
   for (const auto timeout : {Duration::zero(), Duration{-1}}) {
     MasterOptions options;
-    options.sdo_timeout = timeout;
+    options.sdo.timeout = timeout;
     const auto created = NmtMaster::create(cfg::DeviceDescription{}, kMaster, options);
     ASSERT_FALSE(created.ok());
-    EXPECT_NE(created.error().message.find("sdo_timeout"), std::string::npos)
+    EXPECT_NE(created.error().message.find("sdo.timeout"), std::string::npos)
         << created.error().message;
   }
+  MasterOptions zero;
+  zero.sdo.timeout = Duration::zero();
+  const auto refused = zero.validate();
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().message, "MasterOptions::sdo.timeout must be positive (it is 0 us)");
 }
 
 // The other waits of the boot and the SDO manager are refused alike; 0 is taken where it
-// means "none" (boot_up_wait: no wait; lss.period: no looks).
+// means "none" (boot.boot_up_wait: no wait; lss.period: no looks).
 TEST(NmtMaster, IsNotBuiltWithOtherTimeoutsThatAreNotPositive) {
-  using Field = Duration MasterOptions::*;
+  using Field = Duration& (*)(MasterOptions&);
   const std::vector<std::pair<Field, const char*>> fields{
-      {&MasterOptions::retry_interval, "retry_interval"},
-      {&MasterOptions::reboot_timeout, "reboot_timeout"},
-      {&MasterOptions::program_control_timeout, "program_control_timeout"},
-      {&MasterOptions::program_clear_timeout, "program_clear_timeout"},
-      {&MasterOptions::program_data_timeout, "program_data_timeout"},
-      {&MasterOptions::guarding_reply_timeout, "guarding_reply_timeout"},
-      {&MasterOptions::sdo_manager_scan_timeout, "sdo_manager_scan_timeout"},
-      {&MasterOptions::srd_guard_time, "srd_guard_time"},
+      {[](MasterOptions& o) -> Duration& { return o.boot.retry_interval; }, "boot.retry_interval"},
+      {[](MasterOptions& o) -> Duration& { return o.boot.reboot_timeout; }, "boot.reboot_timeout"},
+      {[](MasterOptions& o) -> Duration& { return o.program.control_timeout; },
+       "program.control_timeout"},
+      {[](MasterOptions& o) -> Duration& { return o.program.clear_timeout; },
+       "program.clear_timeout"},
+      {[](MasterOptions& o) -> Duration& { return o.program.data_timeout; },
+       "program.data_timeout"},
+      {[](MasterOptions& o) -> Duration& { return o.boot.guarding_reply_timeout; },
+       "boot.guarding_reply_timeout"},
+      {[](MasterOptions& o) -> Duration& { return o.sdo_manager.scan_timeout; },
+       "sdo_manager.scan_timeout"},
+      {[](MasterOptions& o) -> Duration& { return o.sdo_manager.srd_guard_time; },
+       "sdo_manager.srd_guard_time"},
   };
   for (const auto& [field, name] : fields) {
     for (const Duration value : {Duration::zero(), Duration{-5000}}) {
       MasterOptions options;
-      options.*field = value;
+      field(options) = value;
       const auto created = NmtMaster::create(cfg::DeviceDescription{}, kMaster, options);
       ASSERT_FALSE(created.ok()) << name;
       EXPECT_NE(created.error().message.find(name), std::string::npos) << created.error().message;
@@ -351,13 +362,13 @@ TEST(NmtMaster, IsNotBuiltWithOtherTimeoutsThatAreNotPositive) {
   lss.lss.timing.timeout = Duration::zero();
   EXPECT_FALSE(lss.validate().ok());
   MasterOptions none;
-  none.boot_up_wait = Duration::zero();
+  none.boot.boot_up_wait = Duration::zero();
   none.lss.period = Duration::zero();
   EXPECT_TRUE(none.validate().ok());
-  none.boot_up_wait = -std::chrono::milliseconds(1);
+  none.boot.boot_up_wait = -std::chrono::milliseconds(1);
   const auto negative = none.validate();
   ASSERT_FALSE(negative.ok());
-  EXPECT_NE(negative.error().message.find("boot_up_wait"), std::string::npos);
+  EXPECT_NE(negative.error().message.find("boot.boot_up_wait"), std::string::npos);
 }
 
 // CiA 302-2 §3.5 d: "The DCF may be read from ... object 1F22h on the configuration manager":

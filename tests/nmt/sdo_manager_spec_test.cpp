@@ -81,7 +81,7 @@ class ManagerRig : public MasterRig {
  public:
   ManagerRig() {
     master = manager_dcf();
-    options.sdo_manager = true;
+    options.sdo_manager.enabled = true;
     // §7.2.1: registered SRDs take part in error control. The manager's 1016h names their
     // heartbeats (srd.eds: 1017h = 100 ms) with 300 ms; the test without these entries is
     // RegisteredSrdIsWatchedByItsOwnHeartbeatWithoutA1016hEntry.
@@ -537,7 +537,7 @@ TEST(SdoManagerSpec, StandbyFlyingMasterIgnoresTheDynamicSdoRequestUntilItIsActi
   auto make = [&](const cfg::DeviceDescription& dcf, std::uint8_t node, bool sdo_manager,
                   std::uint16_t priority) {
     MasterOptions options;
-    options.sdo_manager = sdo_manager;
+    options.sdo_manager.enabled = sdo_manager;
     auto created = NmtMaster::create(dcf, *cfg::NodeId::from(node), options);
     EXPECT_TRUE(created.ok()) << (created.ok() ? "" : created.error().message);
     if (!created.ok()) throw std::runtime_error("NmtMaster::create failed");
@@ -588,12 +588,12 @@ TEST(SdoManagerSpec, StandbyFlyingMasterIgnoresTheDynamicSdoRequestUntilItIsActi
   EXPECT_EQ(rig.uploads_of(kSrd, kConnectionState, 0, from).size(), 1U);
 }
 
-// Without the SDO manager (MasterOptions::sdo_manager false and no 1F00h in the DCF) the
+// Without the SDO manager (MasterOptions::sdo_manager.enabled false and no 1F00h in the DCF) the
 // Dynamic SDO Request is not answered: the guideline-1 case of §7.2.4.
 TEST(SdoManagerSpec, MasterWithoutSdoManagerDoesNotScan) {
   ManagerRig rig;
   rig.master = master_dcf();
-  rig.options.sdo_manager = false;
+  rig.options.sdo_manager.enabled = false;
   rig.start_network();
   const TimePoint from = rig.bus.now();
   rig.set_state(kSrd, state_word(kClientSdo, 0, kRq));

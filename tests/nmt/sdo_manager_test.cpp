@@ -51,8 +51,8 @@ void add_sdo_record(LocalDictionary& dict, std::uint16_t index) {
 class SdoManagerTest : public ::testing::Test {
  protected:
   SdoManagerTest() {
-    rig.options.sdo_manager = true;
-    rig.options.sdo_manager_scan_timeout = 20ms;
+    rig.options.sdo_manager.enabled = true;
+    rig.options.sdo_manager.scan_timeout = 20ms;
   }
 
   /// An SRD at `node` with 1F10h, 1F11h and client entries 1280h-1282h.
@@ -229,8 +229,8 @@ TEST_F(SdoManagerTest, MasterTransfersWaitWhileAnSrdOwnsAllDefaultSdos) {
 TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
   SimBus bus{500'000};
   MasterOptions options;
-  options.sdo_manager = true;
-  options.sdo_manager_scan_timeout = 20ms;
+  options.sdo_manager.enabled = true;
+  options.sdo_manager.scan_timeout = 20ms;
   std::map<std::uint8_t, std::unique_ptr<SimEngineNode<NmtMaster>>> masters;
   std::vector<std::pair<std::uint8_t, MasterEvent>> events;
   for (std::uint8_t node : {std::uint8_t{10}, std::uint8_t{11}}) {

@@ -55,8 +55,8 @@ void add_server_entry(LocalDictionary& dict, std::uint16_t index) {
 
 TEST(SdoRequestingDeviceWithManager, RegistersConnectsTwiceToOneSlaveReadsAndReleases) {
   MasterRig rig;
-  rig.options.sdo_manager = true;
-  rig.options.sdo_manager_scan_timeout = 20ms;
+  rig.options.sdo_manager.enabled = true;
+  rig.options.sdo_manager.scan_timeout = 20ms;
   rig.add_slave(2);
   add_server_entry(rig.slave(2).node().dictionary(), 0x1201);
   rig.add_slave(3);

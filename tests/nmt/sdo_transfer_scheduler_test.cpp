@@ -1,7 +1,7 @@
 // The NMT master's SDO transfer scheduler alone (master/sdo_transfer_scheduler.hpp) against a fake
 // port, with exact times: the boot's window of transfers in flight (halved once per loss event,
 // grown by one per window's worth of answers), the waiting queue, the repetition after a timeout
-// (MasterOptions::sdo_retries), bus-load pacing from the frames' bit lengths (ISO 11898-1, as
+// (MasterOptions::sdo.retries), bus-load pacing from the frames' bit lengths (ISO 11898-1, as
 // nmt::frame_bits counts them) at a given bit rate, the transfers held while the SDO manager gave
 // a default SDO to an SRD (DSP 302 §7.1), refused starts and the cancel of a try's transfers.
 // Frames are CiA 301 §7.2.4.3 SDO frames on the default channels 600h/580h + node-ID.

@@ -49,7 +49,7 @@ void run_master(const MasterCliOptions& options) {
   const auto network = load_network_or_exit(options.network, options.net, options.programs);
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
-  master_options.sdo_manager = options.sdo_manager;
+  master_options.sdo_manager.enabled = options.sdo_manager;
   apply_lss_options("master", options.lss, *network, master_options);
   nmt::NmtMaster master =
       build_master("master", options.network, network, options.node_id, master_options);

@@ -579,11 +579,11 @@ void run_push(const PushCliOptions& options) {
   }
 
   nmt::MasterOptions master_options;
-  master_options.sdo_timeout = sdo_timeout;
-  master_options.sdo_retries = options.retries;
-  master_options.save_configuration = !options.no_save;
-  master_options.force_download = options.force;
-  if (sim) master_options.bitrate = sim->bitrate_bps;
+  master_options.sdo.timeout = sdo_timeout;
+  master_options.sdo.retries = options.retries;
+  master_options.boot.save_configuration = !options.no_save;
+  master_options.boot.force_download = options.force;
+  if (sim) master_options.pacing.bitrate = sim->bitrate_bps;
   apply_lss_options(kTool, options.lss, *network, master_options);
   if (!options.only.empty()) {
     // --only leaves the other nodes as they are: their devices get no node-ID by LSS either

@@ -111,7 +111,7 @@ double lss_bound_s(const nmt::MasterOptions& options) {
   const double step_s = std::chrono::duration<double>(options.lss.timing.scan_step).count();
   const double answer_s = std::chrono::duration<double>(options.lss.timing.timeout).count();
   const double devices = static_cast<double>(options.lss.addresses.size()) + 1;
-  const double frame_s = 135.0 / (options.bitrate != 0 ? options.bitrate : 125'000);
+  const double frame_s = 135.0 / (options.pacing.bitrate != 0 ? options.pacing.bitrate : 125'000);
   return devices * (145 * step_s + 2 * answer_s) + devices * devices * 74 * frame_s + 1;
 }
 

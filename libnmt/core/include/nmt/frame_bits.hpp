@@ -1,5 +1,5 @@
 // The length of a classic CAN frame on the wire, in bits (ISO 11898-1): the simulated bus times
-// frames with it, the NMT master paces its boot with it (MasterOptions::bitrate).
+// frames with it, the NMT master paces its boot with it (MasterOptions::pacing.bitrate).
 #pragma once
 
 #include <cstdint>

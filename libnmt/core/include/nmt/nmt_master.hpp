@@ -196,7 +196,7 @@ class NmtMaster {
   /// process reports when a slave is taken out of 1F81h while it runs), or a flying master is
   /// not the active master (§3.1 b).
   cfg::Status boot_slave(cfg::NodeId node, TimePoint now, Output& out);
-  /// Ends the application's configuration step of `node` (MasterOptions::application_step):
+  /// Ends the application's configuration step of `node` (MasterOptions::boot.application_step):
   /// `ok` false ends its boot with status J.
   void configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out);
   /// The driver made the entry of MasterEvent::PersistEntry `ticket` durable (`result` ok) or

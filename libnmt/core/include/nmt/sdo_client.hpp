@@ -70,7 +70,7 @@ enum class SdoMode : std::uint8_t {
 };
 
 /// Downloads of more bytes than this go by block transfer (falling back to segmented) where the
-/// caller does not choose: MasterOptions::block_threshold's default and `cfgmgr sdo` writes.
+/// caller does not choose: MasterOptions::sdo.block_threshold's default and `cfgmgr sdo` writes.
 /// CiA 301 leaves the protocol to the client. A download of n segments of 7 bytes takes 2n + 2
 /// frames segmented (each segment confirmed) and about n + 5 by block (§7.2.4.3.9: initiate, one
 /// confirmation per sub-block, end); above 64 bytes (10 segments) block saves a third of the

@@ -158,7 +158,7 @@ SdoAbort SdoManagerProcess::request_connection(cfg::NodeId srd, cfg::NodeId slav
         return connect != nullptr && connect->srd == srd && connect->client_index == client_index;
       });
   if (taken) return SdoAbort::ResourceNotAvailable;
-  // A bounded queue (MasterOptions::sdo_manager_max_queued_requests): 0504 0005, the request
+  // A bounded queue (MasterOptions::sdo_manager.max_queued_requests): 0504 0005, the request
   // is valid but there is no room to keep it.
   const auto queued = std::count_if(jobs_.begin(), jobs_.end(), [](const Job& j) {
     return std::holds_alternative<ConnectJob>(j.work);

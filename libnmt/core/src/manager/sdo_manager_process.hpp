@@ -85,9 +85,9 @@ class SdoManagerPort {
   virtual std::optional<Duration> consumer_time(cfg::NodeId node) const = 0;
   /// Error control of `node` for the manager (§7.2.1 SRDs, §7.2.2 slaves with Req EC): heartbeat
   /// consumption with `heartbeat` (else the master's 1016h entry), else node guarding (1F81h,
-  /// else MasterOptions::srd_guard_time); a node the master watches already stays watched as it
-  /// is. Its loss comes back as node_lost() until unwatch(), whatever the master does with its
-  /// own error control of the node.
+  /// else MasterOptions::sdo_manager.srd_guard_time); a node the master watches already stays
+  /// watched as it is. Its loss comes back as node_lost() until unwatch(), whatever the master does
+  /// with its own error control of the node.
   virtual void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) = 0;
   /// The manager no longer needs `node`'s error control (the master keeps its own).
   virtual void unwatch(cfg::NodeId node) = 0;
@@ -95,12 +95,12 @@ class SdoManagerPort {
 
 /// The settings of the SDO manager, from MasterOptions and the master's default SDO server.
 struct SdoManagerSettings {
-  bool enabled = false;        ///< MasterOptions::sdo_manager (or the DCF has 1F00h)
-  std::uint8_t channels = 16;  ///< MasterOptions::sdo_manager_channels
+  bool enabled = false;        ///< MasterOptions::sdo_manager.enabled (or the DCF has 1F00h)
+  std::uint8_t channels = 16;  ///< MasterOptions::sdo_manager.channels
   std::size_t max_queued_requests = 64;
   Duration scan_timeout = std::chrono::milliseconds(50);
-  Duration sdo_timeout = std::chrono::milliseconds(1000);  ///< MasterOptions::sdo_timeout
-  unsigned sdo_retries = 0;                                ///< MasterOptions::sdo_retries
+  Duration sdo_timeout = std::chrono::milliseconds(1000);  ///< MasterOptions::sdo.timeout
+  unsigned sdo_retries = 0;                                ///< MasterOptions::sdo.retries
   /// The own server channels serve with the master's default channel's settings.
   Duration server_timeout = std::chrono::milliseconds(1000);
   bool server_block_transfer = true;

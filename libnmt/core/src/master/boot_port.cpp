@@ -15,7 +15,7 @@ namespace obj = cfg::object;
 
 void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out) {
   if (after_reset) {
-    boot(node).start_after_reset(boot_up_gate.wait_until(now, options.boot_up_wait), now, out);
+    boot(node).start_after_reset(boot_up_gate.wait_until(now, options.boot.boot_up_wait), now, out);
   } else {
     boot(node).start(BootSlaveProcess::AskedBy::Master, now, out);
   }

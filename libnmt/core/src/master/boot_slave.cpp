@@ -27,17 +27,17 @@ BootFailure transfer_failed(const SdoResult& result, BootFailure::Reason reason)
 }
 
 BootSlaveProcess::Options BootSlaveProcess::Options::from(const MasterOptions& options) {
-  return {.reboot_timeout = options.reboot_timeout,
-          .guarding_reply_timeout = options.guarding_reply_timeout,
-          .retry_interval = options.retry_interval,
-          .force_download = options.force_download,
-          .save_configuration = options.save_configuration,
-          .application_step = options.application_step,
-          .program_control_timeout = options.program_control_timeout,
-          .program_clear_timeout = options.program_clear_timeout,
-          .program_data_timeout = options.program_data_timeout,
-          .sdo_timeout = options.sdo_timeout,
-          .sdo_retries = options.sdo_retries};
+  return {.reboot_timeout = options.boot.reboot_timeout,
+          .guarding_reply_timeout = options.boot.guarding_reply_timeout,
+          .retry_interval = options.boot.retry_interval,
+          .force_download = options.boot.force_download,
+          .save_configuration = options.boot.save_configuration,
+          .application_step = options.boot.application_step,
+          .program_control_timeout = options.program.control_timeout,
+          .program_clear_timeout = options.program.clear_timeout,
+          .program_data_timeout = options.program.data_timeout,
+          .sdo_timeout = options.sdo.timeout,
+          .sdo_retries = options.sdo.retries};
 }
 
 BootSlaveProcess::BootSlaveProcess(cfg::NodeId node, BootSlavePort& port, BootUpGate& gate,

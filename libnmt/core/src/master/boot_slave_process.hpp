@@ -191,7 +191,7 @@ class BootSlaveProcess {
   void on_guard_reply(NmtState state, TimePoint now, Output& out);
   /// §4.1: the consumer time passed without the first heartbeat (status K).
   void on_heartbeat_timeout(TimePoint now, Output& out);
-  /// MasterOptions::application_step ended (NmtMaster::configuration_done).
+  /// MasterOptions::boot.application_step ended (NmtMaster::configuration_done).
   void configuration_done(bool ok, TimePoint now, Output& out);
   /// The start-up's boot-up gate opened: a try waiting at it that saw its boot-up identifies.
   void pass_boot_up_gate(TimePoint now, Output& out);

@@ -1,10 +1,10 @@
 // The start-up's boot-up gate of the NMT master: after the reset communication of all nodes
 // (CiA 302-2 §3.1 d) no SDO request of a boot goes out before every reset slave sent its boot-up
-// or the wait for them (MasterOptions::boot_up_wait) ends. Boot-ups have the lowest priority
+// or the wait for them (MasterOptions::boot.boot_up_wait) ends. Boot-ups have the lowest priority
 // and a device's SDO answers would queue behind its own boot-up; the boots of all slaves start
-// together (§3.3, Annex A). With bus load pacing (MasterOptions::bitrate) the gate also opens
-// when no boot-up came for kQuiet: the other boot-ups were lost or are late, and pacing leaves
-// them room. The gate only keeps time; the master opens it for the boots waiting at it
+// together (§3.3, Annex A). With bus load pacing (MasterOptions::pacing.bitrate) the gate also
+// opens when no boot-up came for kQuiet: the other boot-ups were lost or are late, and pacing
+// leaves them room. The gate only keeps time; the master opens it for the boots waiting at it
 // (BootSlaveProcess::pass_boot_up_gate). Private to the library.
 #pragma once
 

@@ -314,9 +314,9 @@ SdoAbort NmtMaster::Impl::request_nmt(NmtTarget target, NmtRequest request,
     if (is_slave(node)) slaves[node].held = command != NmtCommand::Start;
   };
   // Each queued command waits for the inhibit time (102Ah, which a peer may set to 6.5 s):
-  // bounded by MasterOptions::max_queued_nmt_requests, 0504 0005 beyond (docs/master.md).
+  // bounded by MasterOptions::nmt.max_queued_requests, 0504 0005 beyond (docs/master.md).
   auto no_room_for = [&](std::size_t commands) {
-    return nmt_commands.size() + commands > options.max_queued_nmt_requests;
+    return nmt_commands.size() + commands > options.nmt.max_queued_requests;
   };
   // A command for the master itself changes its state in this call: that needs the call's output.
   const bool applies_to_master = target.all() ? !excluding : target.node() == node_id;

@@ -21,15 +21,15 @@ cfg::Status below(const Named& option, const char* bound) {
 
 cfg::Status MasterOptions::validate() const {
   const std::array<Named, 11> positive{{
-      {"sdo_timeout", sdo_timeout},
-      {"retry_interval", retry_interval},
-      {"reboot_timeout", reboot_timeout},
-      {"program_control_timeout", program_control_timeout},
-      {"program_clear_timeout", program_clear_timeout},
-      {"program_data_timeout", program_data_timeout},
-      {"guarding_reply_timeout", guarding_reply_timeout},
-      {"sdo_manager_scan_timeout", sdo_manager_scan_timeout},
-      {"srd_guard_time", srd_guard_time},
+      {"sdo.timeout", sdo.timeout},
+      {"boot.retry_interval", boot.retry_interval},
+      {"boot.reboot_timeout", boot.reboot_timeout},
+      {"program.control_timeout", program.control_timeout},
+      {"program.clear_timeout", program.clear_timeout},
+      {"program.data_timeout", program.data_timeout},
+      {"boot.guarding_reply_timeout", boot.guarding_reply_timeout},
+      {"sdo_manager.scan_timeout", sdo_manager.scan_timeout},
+      {"sdo_manager.srd_guard_time", sdo_manager.srd_guard_time},
       {"lss.timing.timeout", lss.timing.timeout},
       {"lss.timing.scan_step", lss.timing.scan_step},
   }};
@@ -37,8 +37,8 @@ cfg::Status MasterOptions::validate() const {
     if (option.second <= Duration::zero()) return below(option, "positive");
   }
   const std::array<Named, 2> not_negative{{
-      {"boot_up_wait", boot_up_wait},  // 0: no wait for boot-ups
-      {"lss.period", lss.period},      // 0: no looks for unconfigured devices
+      {"boot.boot_up_wait", boot.boot_up_wait},  // 0: no wait for boot-ups
+      {"lss.period", lss.period},                // 0: no looks for unconfigured devices
   }};
   for (const auto& option : not_negative) {
     if (option.second < Duration::zero()) return below(option, "0 or more");

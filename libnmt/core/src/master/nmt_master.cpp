@@ -348,7 +348,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   report(out, master_event(MasterEvent::Kind::StartupBegan, now, std::nullopt));
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
-  boot_up_gate.close(now + options.boot_up_wait, options.bitrate != 0);
+  boot_up_gate.close(now + options.boot.boot_up_wait, options.pacing.bitrate != 0);
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
   for (const auto n : all_node_ids()) {
     if (!is_slave(n)) continue;

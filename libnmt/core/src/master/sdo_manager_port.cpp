@@ -16,12 +16,12 @@ constexpr std::uint8_t kGuardLifeTimeFactor = 3;
 SdoManagerSettings NmtMaster::Impl::manager_settings(const MasterOptions& options,
                                                      const SdoServerConfig& server) {
   SdoManagerSettings s;
-  s.enabled = options.sdo_manager;
-  s.channels = options.sdo_manager_channels;
-  s.max_queued_requests = options.sdo_manager_max_queued_requests;
-  s.scan_timeout = options.sdo_manager_scan_timeout;
-  s.sdo_timeout = options.sdo_timeout;
-  s.sdo_retries = options.sdo_retries;
+  s.enabled = options.sdo_manager.enabled;
+  s.channels = options.sdo_manager.channels;
+  s.max_queued_requests = options.sdo_manager.max_queued_requests;
+  s.scan_timeout = options.sdo_manager.scan_timeout;
+  s.sdo_timeout = options.sdo.timeout;
+  s.sdo_retries = options.sdo.retries;
   s.server_timeout = server.timeout;
   s.server_block_transfer = server.block_transfer;
   return s;
@@ -69,7 +69,8 @@ void NmtMaster::Impl::ManagerPort::watch(cfg::NodeId node, std::optional<Duratio
     return;
   }
   const auto guard_ms =
-      std::chrono::duration_cast<std::chrono::milliseconds>(m.options.srd_guard_time).count();
+      std::chrono::duration_cast<std::chrono::milliseconds>(m.options.sdo_manager.srd_guard_time)
+          .count();
   (void)m.error_control.guard(
       node, Watcher::Manager,
       static_cast<std::uint16_t>(std::clamp<std::int64_t>(guard_ms, 1, 0xFFFF)),

@@ -15,10 +15,10 @@
 namespace nmt {
 
 SdoTransferScheduler::Settings SdoTransferScheduler::Settings::from(const MasterOptions& options) {
-  return {.bitrate_bps = options.bitrate,
-          .bus_load_limit = options.bus_load_limit,
-          .sdo_timeout = options.sdo_timeout,
-          .block_threshold = options.block_threshold};
+  return {.bitrate_bps = options.pacing.bitrate,
+          .bus_load_limit = options.pacing.bus_load_limit,
+          .sdo_timeout = options.sdo.timeout,
+          .block_threshold = options.sdo.block_threshold};
 }
 
 SdoTransferScheduler::SdoTransferScheduler(SdoTransferPort& port, Settings settings)

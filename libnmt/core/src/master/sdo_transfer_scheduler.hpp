@@ -1,7 +1,7 @@
 // The NMT master's SDO transfers: one client per slave (SdoClientMux) and the scheduler in front
 // of it. The boot's transfers (CiA 302-2 §3.4-§3.5, DSP 302 §9) share a window of transfers in
-// flight and, with the bit rate known, a bus-load budget (MasterOptions::bitrate,
-// bus_load_limit); a transfer that times out is repeated (MasterOptions::sdo_retries) before its
+// flight and, with the bit rate known, a bus-load budget (MasterOptions::pacing.bitrate,
+// bus_load_limit); a transfer that times out is repeated (MasterOptions::sdo.retries) before its
 // owner sees it fail; transfers to a slave whose default SDO the SDO manager gave to an SRD wait
 // until it is free again (DSP 302 §7.1). The application's and the SDO manager's transfers pass
 // the window. Private to the library.
