@@ -29,9 +29,9 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 namespace {
 

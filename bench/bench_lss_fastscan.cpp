@@ -2,8 +2,8 @@
 // time of `LssProcedure::scan` (find each device by Fastscan, give it a node-ID, store it) against
 // the frame bound of the scan.
 //
-// The frame bound, counted from the protocol as nmt/lss_procedure.hpp describes it: per device the
-// Fastscan reset (BitCheck 80h), then per part of the LSS address (vendor-ID, product code,
+// The frame bound, counted from the protocol as nmt/lss/lss_procedure.hpp describes it: per device
+// the Fastscan reset (BitCheck 80h), then per part of the LSS address (vendor-ID, product code,
 // revision, serial number) 32 bit queries and a confirmation, 1 + 4 x 33 = 133 requests; then
 // configure node-ID, store configuration and switch state global to waiting, 3 more: 136 per
 // device. Before them one switch state global of all devices, after them the reset nobody
@@ -26,11 +26,11 @@
 #include <set>
 #include <vector>
 
-#include "nmt/lss.hpp"
-#include "nmt/lss_master.hpp"
-#include "nmt/lss_procedure.hpp"
-#include "nmt/lss_slave.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/lss/lss.hpp"
+#include "nmt/lss/lss_master.hpp"
+#include "nmt/lss/lss_procedure.hpp"
+#include "nmt/lss/lss_slave.hpp"
+#include "nmt/sim/sim_bus.hpp"
 
 namespace {
 

@@ -44,11 +44,11 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_dictionary.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt/fault_injection.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sim/fault_injection.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 namespace {
 

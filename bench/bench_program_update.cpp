@@ -23,8 +23,8 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/program_image.hpp"
-#include "nmt/frame.hpp"
-#include "nmt/frame_bits.hpp"
+#include "nmt/protocol/frame.hpp"
+#include "nmt/protocol/frame_bits.hpp"
 #include "process_runner.hpp"
 
 namespace {

@@ -9,7 +9,7 @@
 // of the box without node-ID (sim:?unconfigured=1-126, every DCF with LSS_Supported=1 and a
 // serial number of its own): Execute LSS gives each its node-ID, then the usual first push. Its
 // bound adds the LSS requests the protocol needs when the master knows every device's address
-// (nmt/lss_master.hpp, scan with targets): per device the Fastscan reset, its 4 parts confirmed
+// (nmt/lss/lss_master.hpp, scan with targets): per device the Fastscan reset, its 4 parts confirmed
 // (BitCheck 0), configure node-ID, store, switch to waiting (8), plus one switch to waiting
 // before and the reset nobody answers after: 8 N + 2. (Before the targeted scan the bound was
 // a blind Fastscan's, 136 N + 2: 1 + 4 x 33 requests to find each device.)
@@ -36,8 +36,8 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/network.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt/frame.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/protocol/frame.hpp"
+#include "nmt/sim/sim_bus.hpp"
 #include "process_runner.hpp"
 
 namespace {

@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "cfg/object_dictionary.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/sdo.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/sdo/sdo.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace {
 

@@ -12,11 +12,11 @@
 #include <vector>
 
 #include "cfg/hex.hpp"
-#include "nmt/master_config.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/master/master_config.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 using namespace std::chrono_literals;
 using namespace cfg::literals;

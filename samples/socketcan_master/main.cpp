@@ -28,11 +28,11 @@
 #include <vector>
 
 #include "cfg/hex.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/master_config.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/master/master_config.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 using namespace std::chrono_literals;
 

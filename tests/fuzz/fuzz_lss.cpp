@@ -1,5 +1,5 @@
-// libFuzzer target: an LSS master (nmt/lss_master.hpp) and up to four LSS slaves
-// (nmt/lss_slave.hpp) on a bus the input controls (lss_fuzz_harness.hpp): frames are delivered
+// libFuzzer target: an LSS master (nmt/lss/lss_master.hpp) and up to four LSS slaves
+// (nmt/lss/lss_slave.hpp) on a bus the input controls (lss_fuzz_harness.hpp): frames are delivered
 // or lost, frames of any content are injected on 7E5h and 7E4h, services start, time advances.
 // Checks (beyond the harness's): no crash; a running service always has a deadline; a start
 // while one runs is refused with words and sends nothing (engine.hpp rule 5); once the input

@@ -28,8 +28,8 @@
 // the same instant for ever (on_timer at now leaves next_deadline() after now within 1000
 // calls); memory stays bounded: every call's output, the configuration manager's stored bytes
 // (cfg::ConfigManagerLimits), the SDO manager's tables and the frames waiting on the bus.
-// "Work" (nmt/nmt_master.hpp): the flying master negotiating (StartupState::Negotiating), or a
-// slave in a boot step that waits for the bus (a boot-up, an SDO answer, a heartbeat, the retry
+// "Work" (nmt/master/nmt_master.hpp): the flying master negotiating (StartupState::Negotiating), or
+// a slave in a boot step that waits for the bus (a boot-up, an SDO answer, a heartbeat, the retry
 // time) while no SDO manager connection holds that slave's default SDO (its boot then waits
 // for the release, which the SRD's error control brings).
 #include <algorithm>
@@ -48,10 +48,10 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sdo_client.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sdo/sdo_client.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// libFuzzer target: the SDO frame codec (nmt/sdo_frame.hpp). Input: any bytes, read as
+// libFuzzer target: the SDO frame codec (nmt/sdo/sdo_frame.hpp). Input: any bytes, read as
 // payloads of up to 8 bytes (a short one is padded with zeros, as sdo_payload does). Checks: no
 // crash; for every payload that parses, as a client frame, a server frame or a sub-block frame,
 // parsing its encoding gives the same value (parse(encode(x)) == x).
@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <variant>
 
-#include "nmt/sdo_frame.hpp"
+#include "nmt/sdo/sdo_frame.hpp"
 
 namespace {
 

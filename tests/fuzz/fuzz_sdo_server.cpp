@@ -13,9 +13,9 @@
 
 #include "../support/fuzz_support.hpp"
 #include "../support/sdo_test_device.hpp"
-#include "nmt/fault_injection.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/sdo.hpp"
+#include "nmt/sdo/sdo.hpp"
+#include "nmt/sim/fault_injection.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace {
 

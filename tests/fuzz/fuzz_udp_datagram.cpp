@@ -1,4 +1,4 @@
-// libFuzzer target: decoding python-can udp_multicast datagrams (nmt/udp_datagram.hpp), the
+// libFuzzer target: decoding python-can udp_multicast datagrams (nmt/io/udp_datagram.hpp), the
 // bytes any host on the group can send us. Checks: no crash and no allocation beyond the
 // datagram's size (msgpack-c allocates containers by their announced size; -malloc_limit_mb
 // catches a guard that lets one through); an accepted datagram re-encodes to one that decodes to
@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <span>
 
-#include "nmt/udp_datagram.hpp"
+#include "nmt/io/udp_datagram.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   auto frame = nmt::decode_udp_datagram(std::span<const std::uint8_t>(data, size));

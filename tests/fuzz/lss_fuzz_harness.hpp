@@ -1,6 +1,6 @@
 // What fuzz_lss and fuzz_execute_lss share: an LSS master side (the LssMaster, or the NMT
-// master's Execute LSS that runs one) and up to four LSS slaves (nmt/lss_slave.hpp) on a bus the
-// input controls: frames are delivered or lost, frames of any content are injected on 7E5h and
+// master's Execute LSS that runs one) and up to four LSS slaves (nmt/lss/lss_slave.hpp) on a bus
+// the input controls: frames are delivered or lost, frames of any content are injected on 7E5h and
 // 7E4h, time advances. Each target adds its own starts (start_op) and checks.
 // Input: byte 0 the LSS timing and the number of slaves, then per slave its LSS address (from a
 // few bytes, so addresses share parts and differ in few bits) and whether it has a node-ID; the
@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "../support/fuzz_support.hpp"
-#include "nmt/lss_master.hpp"
-#include "nmt/lss_slave.hpp"
+#include "nmt/lss/lss_master.hpp"
+#include "nmt/lss/lss_slave.hpp"
 
 namespace lss_fuzz {
 

@@ -60,9 +60,9 @@ only_core_installed() {
   local pcs
   pcs=$(find "$prefix/$libdir/pkgconfig" -type f -printf '%f\n' | sort | tr '\n' ' ')
   [ "$pcs" = "canopen-cfg.pc canopen-nmt-core.pc " ] || { echo "pkg-config: $pcs" >&2; return 1; }
-  [ -f "$prefix/include/canopen/nmt/master_config.hpp" ] || return 1
-  [ ! -e "$prefix/include/canopen/nmt/sim_bus.hpp" ] || return 1
-  [ ! -e "$prefix/include/canopen/nmt/bus_event_loop.hpp" ] || return 1
+  [ -f "$prefix/include/canopen/nmt/master/master_config.hpp" ] || return 1
+  [ ! -e "$prefix/include/canopen/nmt/sim/sim_bus.hpp" ] || return 1
+  [ ! -e "$prefix/include/canopen/nmt/io/bus_event_loop.hpp" ] || return 1
   [ ! -e "$prefix/bin" ] || { echo "programs installed: $(ls "$prefix/bin")" >&2; return 1; }
 }
 check "installed: cfg and nmt_core (libraries, headers, pkg-config), nothing else" only_core_installed

@@ -37,8 +37,8 @@ cmake --install "$build" --prefix "$prefix" >"$work/install.log"
 libdir=$(cd "$prefix" && dirname "$(find . -name canopenConfig.cmake)" | sed 's|^\./||; s|/cmake/canopen$||')
 for f in bin/cfgmgr bin/dcf2concise \
          share/canopen/schemas/cia301_communication.eds share/canopen/schemas/cia302_manager.eds \
-         include/canopen/cfg/device_file.hpp include/canopen/nmt/frame.hpp \
-         include/canopen/nmt/sim_bus.hpp include/canopen/nmt/trace.hpp \
+         include/canopen/cfg/device_file.hpp include/canopen/nmt/protocol/frame.hpp \
+         include/canopen/nmt/sim/sim_bus.hpp include/canopen/nmt/io/trace.hpp \
          "$libdir/cmake/canopen/canopenConfigVersion.cmake"; do
   [ -f "$prefix/$f" ] || fail "installed: $f"
 done

@@ -65,7 +65,7 @@ has_files "$runtime" "lib/libcanopen-cfg.so.$version" "lib/libcanopen-nmt-core.s
 has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' '(^|, )libpcap0'
 # Headers, archives, .so links, CMake and pkg-config; a static link needs the deps' -dev packages
 # (not libpcap-dev: no installed header includes pcap.h and no archive links libpcap).
-has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/frame.hpp \
+has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/protocol/frame.hpp \
   lib/libcanopen-cfg.a lib/libcanopen-nmt-core.so lib/cmake/canopen/canopenConfig.cmake \
   lib/pkgconfig/canopen-nmt-core.pc
 has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev

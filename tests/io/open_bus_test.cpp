@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "nmt/bus.hpp"
+#include "nmt/io/bus.hpp"
 
 namespace nmt {
 namespace {

@@ -4,7 +4,7 @@
 // Decoding of raw frames (flags, error frames) is tested without a kernel.
 //
 // Interfaces can be renamed with CANOPEN_TEST_CAN_IF and CANOPEN_TEST_CAN_IF2.
-#include "nmt/socketcan_bus.hpp"
+#include "nmt/io/socketcan_bus.hpp"
 
 #include <gtest/gtest.h>
 #include <linux/can.h>
@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "heartbeat_stall.hpp"
-#include "nmt/bus_event_loop.hpp"
+#include "nmt/io/bus_event_loop.hpp"
 #include "prerequisite.hpp"
 
 namespace nmt {

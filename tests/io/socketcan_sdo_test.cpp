@@ -25,9 +25,9 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/value.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/sdo.hpp"
-#include "nmt/socketcan_bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/io/socketcan_bus.hpp"
+#include "nmt/sdo/sdo.hpp"
 #include "prerequisite.hpp"
 #include "started.hpp"
 

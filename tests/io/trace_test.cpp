@@ -1,6 +1,6 @@
 // Bus traces, checked with independent readers: can-utils' log2asc and python-can's LogReader for
 // candump logs; libpcap and tshark (Wireshark's CANopen dissector) for pcap files.
-#include "nmt/trace.hpp"
+#include "nmt/io/trace.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "nmt/sim_bus.hpp"
+#include "nmt/sim/sim_bus.hpp"
 #include "pcap_library.hpp"
 #include "prerequisite.hpp"
 #include "python_peer.hpp"

@@ -4,7 +4,7 @@
 // UdpUrl.* and UdpDatagram.* use no network. UdpBus.* send multicast, so they run only inside
 // the private network namespace the ctest test `io_udp_bus_netns` creates (its only interface
 // is lo, with the multicast route on lo): nothing can leave the machine. Elsewhere they skip.
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/udp_bus.hpp"
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "multicast_netns.hpp"
-#include "nmt/bus.hpp"
+#include "nmt/io/bus.hpp"
 #include "prerequisite.hpp"
 #include "python_peer.hpp"
 

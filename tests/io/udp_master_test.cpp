@@ -18,11 +18,11 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/object_index.hpp"
 #include "multicast_netns.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/io/udp_bus.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 #include "python_peer.hpp"
 
 namespace nmt {

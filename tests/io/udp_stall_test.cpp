@@ -5,7 +5,7 @@
 
 #include "heartbeat_stall.hpp"
 #include "multicast_netns.hpp"
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/udp_bus.hpp"
 
 namespace nmt {
 namespace {

@@ -10,10 +10,10 @@
 #include <vector>
 
 #include "master/boot_slave_process.hpp"
-#include "nmt/error_control.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/master_options.hpp"
-#include "nmt/nmt_slave.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/master_options.hpp"
+#include "nmt/protocol/error_control.hpp"
+#include "nmt/slave/nmt_slave.hpp"
 
 namespace nmt {
 namespace {

@@ -21,7 +21,7 @@
 #include <thread>
 #include <vector>
 
-#include "nmt/bus_event_loop.hpp"
+#include "nmt/io/bus_event_loop.hpp"
 #include "socket_pair_bus.hpp"
 
 namespace nmt {

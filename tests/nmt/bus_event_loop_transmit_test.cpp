@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "fake_clock_bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/error_control.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 namespace nmt {
 namespace {

@@ -1,6 +1,6 @@
 // nmt::ConfigStoreClient: the store operations of DSP 302 §6 as object reads and writes, against
 // an in-memory configuration manager, with a recorder of the writes in between.
-#include "nmt/config_store_client.hpp"
+#include "nmt/manager/config_store_client.hpp"
 
 #include <gtest/gtest.h>
 
@@ -177,7 +177,7 @@ TEST(ConfigStoreClient, AnAbortNamesTheObjectAndTheCodeInWords) {
 TEST(ConfigStoreClient, AMasterThatDoesNotAnswerIsAnIoFailure) {
   RecordingObjects objects(/*remote=*/true);
   nmt::ConfigStoreClient client(objects);
-  // CiA 301: 0504 0000h, the client's own timeout (nmt/remote_config_store.hpp sets io).
+  // CiA 301: 0504 0000h, the client's own timeout (nmt/io/remote_config_store.hpp sets io).
   objects.fail_with = StoreAccess{SdoAbort::Timeout, {}, {}, true};
   const auto done = client.remove(5_node);
   ASSERT_FALSE(done);

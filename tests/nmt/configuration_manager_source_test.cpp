@@ -1,6 +1,6 @@
 // The configuration manager as the NMT master's ConfigurationSource, and its abort codes as the
 // SDO server's.
-#include "nmt/configuration_manager_source.hpp"
+#include "nmt/manager/configuration_manager_source.hpp"
 
 #include <gtest/gtest.h>
 

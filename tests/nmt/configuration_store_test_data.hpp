@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "cfg/concise_dcf.hpp"
-#include "nmt/master_options.hpp"
+#include "nmt/master/master_options.hpp"
 
 namespace nmt::store_test {
 

@@ -2,7 +2,7 @@
 // tests/data/network/nodes/io_node2.dcf (README there: heartbeat 1000 ms, 2000h = 0x12). The
 // writes compared are the DCF's configured values as the configuration manager downloads them
 // (cfg::concise_writes_from_dcf); CiA 301 §7.2.4.3 uploads read them back.
-#include "nmt/configuration_verifier.hpp"
+#include "nmt/manager/configuration_verifier.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 #include "test_paths.hpp"
 
 namespace {

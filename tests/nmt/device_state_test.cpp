@@ -1,4 +1,4 @@
-// A simulated device's non-volatile memory on disk (nmt/device_state.hpp) and the node taking
+// A simulated device's non-volatile memory on disk (nmt/sim/device_state.hpp) and the node taking
 // it back (SlaveNode::set_stored): what 1010h 'save' stored survives a new process, as a real
 // device's survives a power cycle (CiA 301 §7.5.2.13), and a damaged file is refused.
 #include <gtest/gtest.h>
@@ -9,8 +9,8 @@
 #include <string>
 
 #include "cfg/device_file.hpp"
-#include "nmt/device_state.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/sim/device_state.hpp"
+#include "nmt/sim/simulated_device.hpp"
 #include "test_paths.hpp"
 
 namespace {

@@ -1,7 +1,7 @@
 // Emergency producer (CiA 301 §7.2.7). The life-guarding frame is the example of
 // spec/002_*.txt: "81 8 30 81 11 00 00 00 00 00: node 1 sends an EMCY indicating the lifeguard
 // error".
-#include "nmt/emcy.hpp"
+#include "nmt/protocol/emcy.hpp"
 
 #include <gtest/gtest.h>
 

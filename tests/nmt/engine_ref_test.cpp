@@ -9,7 +9,7 @@
 
 #include "cfg/hex.hpp"
 #include "fake_clock_bus.hpp"
-#include "nmt/bus_event_loop.hpp"
+#include "nmt/io/bus_event_loop.hpp"
 
 namespace nmt {
 namespace {

@@ -1,7 +1,7 @@
 // Heartbeat, node guarding and life guarding (CiA 301 §7.2.8.3.2) and the start-error-control
 // timing rule of CiA 302-2 §4.1. Frame bytes: spec/002_*.txt (heartbeat "705 1 7F", guarding
 // replies "701 7F" then "701 FF", state values 04/05/7F).
-#include "nmt/error_control.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // Execute LSS (master/execute_lss.hpp): DSP 302 §4 figure 1 step 3 and CiA 302-2 §3.1 c, with
-// CiA 305's bytes as nmt/lss.hpp cites them (CANopenNode 305/CO_LSS.h, lely-core src/co/lss.c):
+// CiA 305's bytes as nmt/lss/lss.hpp cites them (CANopenNode 305/CO_LSS.h, lely-core src/co/lss.c):
 // 04h switch state global (byte 1: 0 waiting), 51h Fastscan (IDNumber bytes 1-4, BitCheck byte
 // 5, LSSSub byte 6, LSSNext byte 7; BitCheck 80h: every unconfigured device answers 4Fh), 11h
 // configure node-ID (byte 1) answered 11h with the error code in byte 1, 17h store configuration
@@ -18,11 +18,11 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
-#include "nmt/lss_slave.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/lss/lss_slave.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

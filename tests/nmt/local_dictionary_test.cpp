@@ -1,6 +1,6 @@
 // Runtime object dictionary: values from a device description, and the SDO access rules with
 // the abort codes of the CiA 301 abort code table (public knowledge of CiA 301; not in spec/).
-#include "nmt/local_dictionary.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 #include <gtest/gtest.h>
 

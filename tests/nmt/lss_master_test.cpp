@@ -1,8 +1,9 @@
 // LSS master (CiA 305): each service's request bytes and its reading of the answers, written out
-// by hand from the layouts nmt/lss.hpp cites (CANopenNode 305/CO_LSS.h, lely-core src/co/lss.c);
-// then the master against LSS slaves on the simulated bus in simulated time: Fastscan, Fastscan
-// of a known address, a device that never answers, a refused configure node-ID. The procedures
-// built from these services (the scan of many devices) are tests/nmt/lss_procedure_test.cpp's.
+// by hand from the layouts nmt/lss/lss.hpp cites (CANopenNode 305/CO_LSS.h, lely-core
+// src/co/lss.c); then the master against LSS slaves on the simulated bus in simulated time:
+// Fastscan, Fastscan of a known address, a device that never answers, a refused configure node-ID.
+// The procedures built from these services (the scan of many devices) are
+// tests/nmt/lss_procedure_test.cpp's.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "nmt/lss_master.hpp"
-#include "nmt/lss_slave.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/lss/lss_master.hpp"
+#include "nmt/lss/lss_slave.hpp"
+#include "nmt/sim/sim_bus.hpp"
 
 namespace nmt {
 namespace {

@@ -1,14 +1,14 @@
-// The CiA 305 procedures (nmt/lss_procedure.hpp), with CiA 305's bytes as nmt/lss.hpp cites them
-// (CANopenNode 305/CO_LSS.h, lely-core src/co/lss.c): 04h switch state global (byte 1: 0 waiting,
-// 1 configuration), 40h-43h switch state selective answered 44h, 5Ah-5Eh inquire (the value
-// little-endian in bytes 1-4, the node-ID in byte 1), 11h configure node-ID and 13h configure
+// The CiA 305 procedures (nmt/lss/lss_procedure.hpp), with CiA 305's bytes as nmt/lss/lss.hpp cites
+// them (CANopenNode 305/CO_LSS.h, lely-core src/co/lss.c): 04h switch state global (byte 1: 0
+// waiting, 1 configuration), 40h-43h switch state selective answered 44h, 5Ah-5Eh inquire (the
+// value little-endian in bytes 1-4, the node-ID in byte 1), 11h configure node-ID and 13h configure
 // bit timing (table selector, index) answered with the error code in byte 1, 17h store
 // configuration, 15h activate bit timing (the switch delay in ms, bytes 1-2), 51h Fastscan
 // (IDNumber bytes 1-4, BitCheck byte 5, LSSSub byte 6, LSSNext byte 7; BitCheck 80h: every
 // unconfigured device answers 4Fh), 4Ch identify non-configured remote slave answered 50h,
 // 46h-4Bh identify remote slave answered 4Fh. First each procedure alone, frame by frame in
 // simulated time, then against LSS slaves (nmt::LssSlave) on the simulated bus.
-#include "nmt/lss_procedure.hpp"
+#include "nmt/lss/lss_procedure.hpp"
 
 #include <gtest/gtest.h>
 
@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
-#include "nmt/lss_slave.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/lss/lss_slave.hpp"
+#include "nmt/sim/sim_bus.hpp"
 
 namespace nmt {
 namespace {

@@ -1,12 +1,12 @@
 // Slowscan: every LSS device of one vendor-ID and product code by identify remote slave (CiA
-// 305 46h-4Bh, nmt/lss_search.hpp). The bus is a set of devices answering as the LSS slave
+// 305 46h-4Bh, nmt/lss/lss_search.hpp). The bus is a set of devices answering as the LSS slave
 // does: any device whose vendor-ID and product code equal the range's and whose revision and
 // serial number lie inside its bounds (both included, lely-core src/co/lss.c) answers.
 #include <gtest/gtest.h>
 
 #include <vector>
 
-#include "nmt/lss_search.hpp"
+#include "nmt/lss/lss_search.hpp"
 
 namespace nmt {
 namespace {

@@ -1,5 +1,5 @@
 // LSS slave (CiA 305), frame by frame. Request and answer bytes are written out by hand from the
-// layouts nmt/lss.hpp cites (CANopenNode 305/CO_LSS.h and CO_LSSslave.c, lely-core
+// layouts nmt/lss/lss.hpp cites (CANopenNode 305/CO_LSS.h and CO_LSSslave.c, lely-core
 // src/co/lss.c): byte 0 the command specifier, 32-bit values little-endian in bytes 1-4, error
 // code byte 1, manufacturer-specific error byte 2, unused bytes 0, always 8 data bytes.
 #include <gtest/gtest.h>
@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
-#include "nmt/lss_slave.hpp"
-#include "nmt/simulated_device.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/lss/lss_slave.hpp"
+#include "nmt/sim/simulated_device.hpp"
+#include "nmt/slave/slave_node.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

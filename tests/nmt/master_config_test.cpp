@@ -1,10 +1,10 @@
-// nmt::MasterConfig (nmt/master_config.hpp): the master's objects
+// nmt::MasterConfig (nmt/master/master_config.hpp): the master's objects
 // of CiA 302-2 §6 as types. The bit positions and units are the spec's (Tables 8-14 for 1F80h,
 // Tables 19-25 and §6.3 bytes 1-3 for 1F81h, §6.1 102Ah in 100 us, §6.11 1F89h in ms, §6.13
 // 1F90h), the heartbeat entry CiA 301's (node-ID in bits 16-23, time in ms in bits 0-15). The
 // DCF path (from_dcf, then build) gives the dictionary NmtMaster::create gives, and a typed
 // config of the same values gives it too.
-#include "nmt/master_config.hpp"
+#include "nmt/master/master_config.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,12 +1,12 @@
-// describe(MasterEvent) (nmt/master_event_text.hpp): the words a person reads are made from the
-// event's typed fields alone. The status texts are CiA 302-2 §3.8 Table 1's; the SDO abort texts
-// CiA 301 §7.2.4.3.17's; the LSS error code CiA 305 §8.3.1's.
+// describe(MasterEvent) (nmt/master/master_event_text.hpp): the words a person reads are made from
+// the event's typed fields alone. The status texts are CiA 302-2 §3.8 Table 1's; the SDO abort
+// texts CiA 301 §7.2.4.3.17's; the LSS error code CiA 305 §8.3.1's.
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <string>
 
-#include "nmt/master_event_text.hpp"
+#include "nmt/master/master_event_text.hpp"
 
 namespace nmt {
 namespace {

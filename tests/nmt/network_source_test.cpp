@@ -1,7 +1,7 @@
-// A loaded network as the NMT master sees it (nmt/network_source.hpp): the configurations a node
-// with nothing stored reads, the LSS addresses of Execute LSS (CiA 305), and the master built as
-// the network's configuration manager (MasterConfig::from_network, DSP 302 §6).
-#include "nmt/network_source.hpp"
+// A loaded network as the NMT master sees it (nmt/master/network_source.hpp): the configurations a
+// node with nothing stored reads, the LSS addresses of Execute LSS (CiA 305), and the master built
+// as the network's configuration manager (MasterConfig::from_network, DSP 302 §6).
+#include "nmt/master/network_source.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/network.hpp"
-#include "nmt/master_config.hpp"
+#include "nmt/master/master_config.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "cfg/master_objects.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace nmt {
 namespace {

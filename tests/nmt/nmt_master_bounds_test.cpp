@@ -1,9 +1,9 @@
 // Memory a peer on the bus can make the NMT master use is bounded (the choice "Memory a
-// peer can make the master use" at the top of nmt/nmt_master.hpp). Beyond a bound the request is
-// refused with 0504 0005h, CiA 301 §7.2.4.3.17 "Out of memory": the configuration manager's
-// files (1F20h, 1F22h, 1F23h: DSP 302 §6) by cfg::ConfigManagerLimits, at the initiate request
-// when the download indicates its size, else as soon as the data received passes the limit; the
-// NMT commands 1F82h queues behind the inhibit time 102Ah (CiA 302-2 §6.1, §6.4) by
+// peer can make the master use" at the top of nmt/master/nmt_master.hpp). Beyond a bound the
+// request is refused with 0504 0005h, CiA 301 §7.2.4.3.17 "Out of memory": the configuration
+// manager's files (1F20h, 1F22h, 1F23h: DSP 302 §6) by cfg::ConfigManagerLimits, at the initiate
+// request when the download indicates its size, else as soon as the data received passes the limit;
+// the NMT commands 1F82h queues behind the inhibit time 102Ah (CiA 302-2 §6.1, §6.4) by
 // MasterOptions::max_queued_nmt_requests. The SDO manager's bounds are in sdo_manager_test.cpp.
 //
 // The rig (nmt_master_spec_test_rig.hpp): the master at node 1 with slaves 2 and 3, the tool as

@@ -4,7 +4,7 @@
 // Written from the public headers; the rig is nmt_master_spec_test_rig.hpp.
 #include <gtest/gtest.h>
 
-#include "nmt/frame_bits.hpp"
+#include "nmt/protocol/frame_bits.hpp"
 #include "nmt_master_spec_test_rig.hpp"
 
 namespace nmt::master_spec {

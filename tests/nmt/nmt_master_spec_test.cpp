@@ -1,6 +1,6 @@
 // An independent test of the CiA 302-2 NMT master (nmt::NmtMaster) against the specification,
-// written from its public header (nmt/nmt_master.hpp, cfg/master_objects.hpp) by someone who did
-// not write the engine: NMT start-up (§3.1), start process boot NMT slave (§3.3) and boot NMT
+// written from its public header (nmt/master/nmt_master.hpp, cfg/master_objects.hpp) by someone who
+// did not write the engine: NMT start-up (§3.1), start process boot NMT slave (§3.3) and boot NMT
 // slave with the error status of §3.8 Table 1. Check configuration, error control and the §6
 // objects over SDO are in nmt_master_spec_config_test.cpp and nmt_master_spec_runtime_test.cpp;
 // the rig and the device files are described in nmt_master_spec_test_rig.hpp.

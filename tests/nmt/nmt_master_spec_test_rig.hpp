@@ -1,7 +1,8 @@
 // The rig of the NmtMasterSpec tests (nmt_master_spec_test*.cpp): an NmtMaster, simulated slaves,
 // an SDO "tool" talking to the master's SDO server and a spare node for foreign frames, all on
 // one 500 kbit/s simulated bus with simulated time. Written from the public headers only
-// (nmt/nmt_master.hpp, cfg/master_objects.hpp, nmt/sim_bus.hpp, nmt/simulated_device.hpp).
+// (nmt/master/nmt_master.hpp, cfg/master_objects.hpp, nmt/sim/sim_bus.hpp,
+// nmt/sim/simulated_device.hpp).
 //
 // Device files, written for these tests (tests/data/master/):
 // - master.dcf: the CANopen manager at node 1; 1F80h = 01h; nodes 2 and 3 assigned with
@@ -33,12 +34,12 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
-#include "nmt/master_event_text.hpp"
-#include "nmt/master_host.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sdo_client.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/master/master_host.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sdo/sdo_client.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 #include "started.hpp"
 #include "test_paths.hpp"
 
@@ -143,7 +144,7 @@ class TestConfigurations : public ConfigurationSource {
   std::map<std::uint8_t, std::vector<std::uint8_t>> programs;
 };
 
-// Device faults (nmt/fault_injection.hpp) for one scenario.
+// Device faults (nmt/sim/fault_injection.hpp) for one scenario.
 inline DeviceFaults fault(const std::function<void(DeviceFaults&)>& set) {
   DeviceFaults faults;
   set(faults);
@@ -474,7 +475,7 @@ class MasterRig {
   /// entry at once and calls entry_persisted() (or gives it to the host's writer); false leaves
   /// that to the test.
   bool persist_entries = true;
-  /// The driver's duties (nmt/master_host.hpp), from start_master() on.
+  /// The driver's duties (nmt/master/master_host.hpp), from start_master() on.
   std::unique_ptr<MasterHost> host;
   TimePoint started_at{};
 

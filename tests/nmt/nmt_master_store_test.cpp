@@ -19,9 +19,9 @@
 
 #include "cfg/config_manager.hpp"
 #include "configuration_store_test_data.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/entry_persister.hpp"
-#include "nmt/master_host.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/io/entry_persister.hpp"
+#include "nmt/master/master_host.hpp"
 #include "nmt_master_spec_test_rig.hpp"
 #include "socket_pair_bus.hpp"
 
@@ -470,7 +470,8 @@ TEST(NmtMasterStore, ConfDownloadsTheNetworksConfigurationOfAnUnstoredNode) {
   EXPECT_EQ(s.rig.tool_write_u(0x1F25, 9, kConf, 4), SdoAbort::NoDataAvailable);
 }
 
-// --- the driver's duties (nmt/master_host.hpp) ---------------------------------------------
+// --- the driver's duties (nmt/master/master_host.hpp)
+// ---------------------------------------------
 
 /// A store directory whose entry writes call `on_write` when the data is written (before the
 /// rename that makes it the entry), and the rig on it; the rig's MasterHost writes the entries.

@@ -1,8 +1,8 @@
 // NmtMaster on the simulated bus with simulated devices (tests/data/sim_device.eds): the
-// integrator's tests of the engine's own choices (nmt/nmt_master.hpp); the independent spec suite
-// is nmt_master_spec_test.cpp. Spec: CiA 302-2 §3 (start-up, boot NMT slave, check
+// integrator's tests of the engine's own choices (nmt/master/nmt_master.hpp); the independent spec
+// suite is nmt_master_spec_test.cpp. Spec: CiA 302-2 §3 (start-up, boot NMT slave, check
 // configuration), §4 (error control, handlers), §6 (objects).
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 #include <gtest/gtest.h>
 
@@ -16,8 +16,8 @@
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/master_objects.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

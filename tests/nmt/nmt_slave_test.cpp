@@ -1,7 +1,7 @@
 // NMT slave state machine (CiA 301 §7.3.2). Frame bytes are those of the NMT overview in
 // /work/shared/spec/002_*.txt (e.g. "000 2 01 01: NMT host commands node 1 into operational",
 // "701 1 00: node 1 boot-up message").
-#include "nmt/nmt_slave.hpp"
+#include "nmt/slave/nmt_slave.hpp"
 
 #include <gtest/gtest.h>
 

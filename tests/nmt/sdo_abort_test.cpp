@@ -1,5 +1,5 @@
 // SDO abort codes, the CiA 301 abort code table (from public knowledge of CiA 301; not in spec/).
-#include "nmt/sdo_abort.hpp"
+#include "nmt/sdo/sdo_abort.hpp"
 
 #include <gtest/gtest.h>
 

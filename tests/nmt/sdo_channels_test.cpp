@@ -11,10 +11,10 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/sdo_client.hpp"
-#include "nmt/sdo_server.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/sdo/sdo_client.hpp"
+#include "nmt/sdo/sdo_server.hpp"
+#include "nmt/slave/local_dictionary.hpp"
+#include "nmt/slave/slave_node.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "nmt/frame_bits.hpp"
-#include "nmt/sdo.hpp"
+#include "nmt/protocol/frame_bits.hpp"
+#include "nmt/sdo/sdo.hpp"
 #include "started.hpp"
 
 namespace nmt {

@@ -6,7 +6,7 @@
 #include <string>
 #include <variant>
 
-#include "nmt/sdo_frame.hpp"
+#include "nmt/sdo/sdo_frame.hpp"
 
 namespace nmt::sdo {
 namespace {

@@ -4,7 +4,7 @@
 // out), records every access in order, and says what the engine asked of error control. The
 // engine's own frames (its server channels) are checked byte for byte. Values are the bit
 // layouts of DSP 302 §7.2.3 (1F10h, 1F00h/1F01h, 1F02h, 1F03h) and the choices the top of
-// nmt/nmt_master.hpp documents (the pool 680h.. of a dictionary without 1F02h, the scan from
+// nmt/master/nmt_master.hpp documents (the pool 680h.. of a dictionary without 1F02h, the scan from
 // 127 down), the same as the whole-master cases these came from (sdo_manager_test.cpp).
 //
 // Devices: SRDs from tests/data/sdo_manager/srd.eds (1F10h, 1F11h, client entries 1280h-1283h
@@ -310,7 +310,7 @@ TEST_F(SdoManagerEngine, SlaveFailureIsReportedIn1F11hToAnSrdThatAskedForErrorCo
 }
 
 // A scan (126 silent node-IDs x the scan timeout) lets a request that came meanwhile go before
-// its next read (choice, nmt/nmt_master.hpp).
+// its next read (choice, nmt/master/nmt_master.hpp).
 TEST_F(SdoManagerEngine, RequestIsServedBetweenTheReadsOfAScanNotAfterIt) {
   add_srd(120);
   add_slaves();

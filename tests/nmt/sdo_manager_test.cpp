@@ -5,7 +5,7 @@
 // has one), the master's own transfers wait while the manager gave a default SDO away, and a
 // standby flying master keeps its manager inactive. Values in the assertions are the bit
 // layouts of DSP 302 §7.2.3 (1F10h, 1F00h/1F01h, 1F02h, 1F03h) and the choices the top of
-// nmt/nmt_master.hpp documents (the pool 680h.. of a DCF without 1F02h).
+// nmt/master/nmt_master.hpp documents (the pool 680h.. of a DCF without 1F02h).
 //
 // Devices: slaves 2 and 3 of tests/data/master/master.dcf from slave.eds; SRDs are slave.eds
 // devices at high node-IDs that get 1F10h, 1F11h and client entries 1280h-1282h put into their
@@ -181,7 +181,8 @@ TEST_F(SdoManagerTest, SrdWithHeartbeatIsWatchedByItsHeartbeatNotGuarded) {
 
 // §7.1: "The SDO Manager manages all SDO connections in the network": a default SDO it gave to
 // an SRD is the SRD's. The master's own transfers to that slave (application and boot) wait
-// until it is released (choice, nmt/nmt_master.hpp): two clients on one channel would collide.
+// until it is released (choice, nmt/master/nmt_master.hpp): two clients on one channel would
+// collide.
 TEST_F(SdoManagerTest, MasterTransfersToASlaveWaitWhileAnSrdHoldsItsDefaultSdo) {
   add_srd(120);
   start_network();

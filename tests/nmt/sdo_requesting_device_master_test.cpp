@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "cfg/device_file.hpp"
-#include "nmt/sdo_requesting_device.hpp"
+#include "nmt/sdo/sdo_requesting_device.hpp"
 #include "nmt_master_spec_test_rig.hpp"
 #include "test_paths.hpp"
 

@@ -4,7 +4,7 @@
 // 1280h-1282h with COB-IDs 80000000h, 1F10h, 1F11h). Words from the §7.2.3 bit tables; SDO
 // bytes from CiA 301 §7.2.4.3 (expedited download 23h/2Bh, its confirmation 60h, upload 40h/43h,
 // abort 80h).
-#include "nmt/sdo_requesting_device.hpp"
+#include "nmt/sdo/sdo_requesting_device.hpp"
 
 #include <gtest/gtest.h>
 

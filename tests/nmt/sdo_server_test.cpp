@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "nmt/fault_injection.hpp"
-#include "nmt/sdo.hpp"
+#include "nmt/sdo/sdo.hpp"
+#include "nmt/sim/fault_injection.hpp"
 #include "sdo_test_device.hpp"
 
 namespace nmt {
@@ -428,7 +428,7 @@ TEST_F(SdoServerTest, BlockUploadAckBeyondTheBlockAborts) {
 // --- configuration ---------------------------------------------------------------------------
 
 TEST_F(SdoServerTest, ADelayedServerAnswersAfterTheDelayInOrder) {
-  // The latency of a slow device is a wrapper (nmt/fault_injection.hpp), not a server setting.
+  // The latency of a slow device is a wrapper (nmt/sim/fault_injection.hpp), not a server setting.
   Delayed<SdoServer> slow(5ms, dict, SdoServerConfig::for_node(*cfg::NodeId::from(5)));
   static_assert(Engine<Delayed<SdoServer>>);
   Delayed<SdoServer>::Output out;

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "cfg/hex.hpp"
-#include "nmt/frame_bits.hpp"
+#include "nmt/protocol/frame_bits.hpp"
 
 namespace nmt {
 namespace {

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "nmt/fault_injection.hpp"
-#include "nmt/sdo.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/sdo/sdo.hpp"
+#include "nmt/sim/fault_injection.hpp"
+#include "nmt/sim/sim_bus.hpp"
 #include "sdo_test_device.hpp"
 #include "started.hpp"
 

@@ -4,7 +4,7 @@
 // fault injection. Bit counts were worked out by hand from those field sizes; where a CRC is
 // involved, the CRC and stuff-bit count were cross-checked with an independent script (CRC-15
 // by polynomial long division over the bit string, stuffing by scanning for runs of five).
-#include "nmt/sim_bus.hpp"
+#include "nmt/sim/sim_bus.hpp"
 
 #include "cfg/hex.hpp"
 

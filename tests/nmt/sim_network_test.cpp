@@ -1,6 +1,6 @@
-// A loaded network on the simulated bus (nmt/sim_network.hpp): the `sim:` URL, node lists, and a
-// simulated device per node with a DCF.
-#include "nmt/sim_network.hpp"
+// A loaded network on the simulated bus (nmt/sim/sim_network.hpp): the `sim:` URL, node lists, and
+// a simulated device per node with a DCF.
+#include "nmt/sim/sim_network.hpp"
 
 #include <gtest/gtest.h>
 

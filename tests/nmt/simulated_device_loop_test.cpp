@@ -6,10 +6,10 @@
 
 #include "cfg/device_file.hpp"
 #include "fake_clock_bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/sdo.hpp"
-#include "nmt/simulated_device.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/sdo/sdo.hpp"
+#include "nmt/sim/simulated_device.hpp"
+#include "nmt/slave/slave_node.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

@@ -4,7 +4,7 @@
 // bytes, guarding toggle; the life-guarding EMCY `3081110000000000`), abort codes CiA 301
 // Table 22, 1010h/1011h signatures CiA 301 §7.5.2.13/14, 1F51h program control and 1F52h
 // verify application software DSP 302 §9 (CiA 302-3).
-#include "nmt/simulated_device.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -19,9 +19,9 @@
 #include "cfg/device_file.hpp"
 #include "cfg/dynamic_channels.hpp"
 #include "cfg/program_image.hpp"
-#include "nmt/device_state.hpp"
-#include "nmt/sdo.hpp"
-#include "nmt/sim_bus.hpp"
+#include "nmt/sdo/sdo.hpp"
+#include "nmt/sim/device_state.hpp"
+#include "nmt/sim/sim_bus.hpp"
 #include "prerequisite.hpp"
 #include "started.hpp"
 #include "test_paths.hpp"
@@ -723,7 +723,7 @@ TEST(SimulatedDevice, Cia302_3ClearEmptiesTheProgramMemory) {
 
 TEST(SimulatedDevice, Dsp302DownloadedProgramSurvivesANewProcessWithItsStateDirectory) {
   // `cfgmgr simulate --state DIR` / `sim:?state=DIR`: the image is the device's program memory
-  // (nmt/device_state.hpp); the next process's device boots it, and 1F52h reports its trailer.
+  // (nmt/sim/device_state.hpp); the next process's device boots it, and 1F52h reports its trailer.
   const auto dir =
       std::filesystem::temp_directory_path() / ("program_state_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);

@@ -1,7 +1,8 @@
 // An independent test of nmt::SlaveNode against the specifications, written from its public
-// headers only (nmt/slave_node.hpp, nmt/engine.hpp and the headers they include), driven frame by
-// frame as a master would drive a real slave. Device file: tests/data/spec_slave.eds (written for
-// these tests; node-ID 5, 1000h = 00030191h, 1017h = 0, 2000h = 10, 2100h = 11223344h).
+// headers only (nmt/slave/slave_node.hpp, nmt/engine.hpp and the headers they include), driven
+// frame by frame as a master would drive a real slave. Device file: tests/data/spec_slave.eds
+// (written for these tests; node-ID 5, 1000h = 00030191h, 1017h = 0, 2000h = 10, 2100h =
+// 11223344h).
 //
 // Sources of the expected values:
 // - CiA 301 is not among the spec texts of /work/shared/spec; where a test cites it, the value
@@ -26,7 +27,7 @@
 #include <vector>
 
 #include "cfg/device_file.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/slave/slave_node.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

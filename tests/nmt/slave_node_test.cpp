@@ -3,7 +3,7 @@
 // 000F0191h, 1014h = $NODEID+80h). Frames as candump strings; bytes from CiA 301: SDO expedited
 // upload/download (§7.2.4.3), boot-up and heartbeat `7xx#SS` (§7.2.8.3.2), guarding toggle
 // (§7.2.8.3.2.1), EMCY (§7.2.7.3.1).
-#include "nmt/slave_node.hpp"
+#include "nmt/slave/slave_node.hpp"
 
 #include <gtest/gtest.h>
 

@@ -16,9 +16,9 @@
 #include <thread>
 #include <vector>
 
-#include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/frame.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/protocol/frame.hpp"
 
 namespace nmt {
 

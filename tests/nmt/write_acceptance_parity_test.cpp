@@ -11,7 +11,7 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/write_acceptance.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/slave/slave_node.hpp"
 #include "test_paths.hpp"
 
 namespace nmt {

@@ -13,8 +13,8 @@
 #include <utility>
 #include <vector>
 
-#include "nmt/bus.hpp"
-#include "nmt/frame.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/protocol/frame.hpp"
 
 namespace nmt {
 

@@ -17,8 +17,8 @@
 #include <utility>
 #include <vector>
 
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/error_control.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 namespace test_support {
 

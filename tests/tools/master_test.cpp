@@ -16,7 +16,7 @@
 
 #include "generated_network.hpp"
 #include "multicast_netns.hpp"
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/udp_bus.hpp"
 #include "test_paths.hpp"
 #include "tool_test_support.hpp"
 

@@ -119,7 +119,7 @@ TEST(ProgramUpdateInNetns, SimulateStateKeepsTheDownloadedImageAcrossARestart) {
   ASSERT_EQ(push.exit_code, 0) << push.out << push.err << devices.output();
   EXPECT_THAT(push.out, HasSubstr("node 3 (drive): program updated: 1012 bytes in "));
   EXPECT_EQ(devices.stop(), 0) << devices.output();
-  // The image is a file of its own next to the device's state file (nmt/device_state.hpp).
+  // The image is a file of its own next to the device's state file (nmt/sim/device_state.hpp).
   EXPECT_EQ(std::filesystem::file_size(dir / "state/node-03.program01.bin"),
             std::filesystem::file_size(tool_test::data_path("program/drive_v2.img")));
 

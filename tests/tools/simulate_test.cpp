@@ -23,9 +23,9 @@
 #include <vector>
 
 #include "multicast_netns.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/sdo.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/sdo/sdo.hpp"
 #include "started.hpp"
 #include "tool_test_support.hpp"
 
@@ -55,7 +55,7 @@ TEST(Simulate, HelpDocumentsUsageExamplesAndExitCodes) {
 }
 
 TEST(Simulate, DamagedStateFileIsAnInputErrorBeforeTheBusIsOpened) {
-  // A state file without end= was cut short (nmt/device_state.hpp): never taken.
+  // A state file without end= was cut short (nmt/sim/device_state.hpp): never taken.
   ScratchDir dir;
   const std::filesystem::path state = dir.path() / "state";
   std::filesystem::create_directories(state);

@@ -8,11 +8,11 @@
 #include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
 #include "master_runners.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/entry_persister.hpp"
-#include "nmt/master_host.hpp"
-#include "nmt/trace.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/io/entry_persister.hpp"
+#include "nmt/io/trace.hpp"
+#include "nmt/master/master_host.hpp"
 #include "run_args.hpp"
 #include "run_support.hpp"
 
@@ -80,7 +80,7 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
       master, [&ref](const nmt::MasterHost::Call& call) { ref.apply(call); },
       note_failed_writes(reporter, limits.tool));
   // --store DIR: entries are written on a worker thread, so an fsync does not stall the loop;
-  // the SDO confirmation leaves once the entry is durable (nmt/entry_persister.hpp).
+  // the SDO confirmation leaves once the entry is durable (nmt/io/entry_persister.hpp).
   nmt::EntryPersister persister(ref, host);
   ref.set_event_handler([&](const nmt::MasterEvent& e, nmt::TimePoint) {
     reporter.report(e);

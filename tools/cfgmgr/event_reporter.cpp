@@ -6,9 +6,9 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/hex.hpp"
-#include "nmt/frame.hpp"
-#include "nmt/lss.hpp"
-#include "nmt/master_event_text.hpp"
+#include "nmt/lss/lss.hpp"
+#include "nmt/master/master_event_text.hpp"
+#include "nmt/protocol/frame.hpp"
 #include "run_args.hpp"
 
 namespace cfgmgr {

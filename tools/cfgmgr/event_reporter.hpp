@@ -9,8 +9,8 @@
 #include <string>
 
 #include "cfg/network.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/master/nmt_master.hpp"
 #include "program_updates.hpp"
 
 namespace cfgmgr {

@@ -1,7 +1,7 @@
 // cfgmgr lss scan|set-id|inquire|set-bitrate --bus URL: the Layer Setting Services of CiA 305
 // from the command line, for devices straight out of the box (no node-ID, or the factory's
-// one) on a running bus. The procedures are libnmt's LssProcedure (nmt/lss_procedure.hpp, which
-// cites its sources) run by LssSession (nmt/lss_session.hpp); this file parses arguments and
+// one) on a running bus. The procedures are libnmt's LssProcedure (nmt/lss/lss_procedure.hpp, which
+// cites its sources) run by LssSession (nmt/io/lss_session.hpp); this file parses arguments and
 // prints.
 #include <cstdint>
 #include <iostream>
@@ -20,11 +20,11 @@
 #include "cfg/network.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/lss.hpp"
-#include "nmt/lss_master.hpp"
-#include "nmt/lss_procedure.hpp"
-#include "nmt/lss_session.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/lss_session.hpp"
+#include "nmt/lss/lss.hpp"
+#include "nmt/lss/lss_master.hpp"
+#include "nmt/lss/lss_procedure.hpp"
 
 namespace cfgmgr {
 namespace {

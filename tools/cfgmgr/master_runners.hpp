@@ -11,8 +11,8 @@
 #include "cfg/network.hpp"
 #include "event_reporter.hpp"
 #include "network_source.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 namespace cfgmgr {
 
@@ -35,7 +35,7 @@ struct RunOutcome {
   bool timed_out = false;
 };
 
-/// Files that record every frame of a run (nmt/trace.hpp); empty: none. On sim: the frames
+/// Files that record every frame of a run (nmt/io/trace.hpp); empty: none. On sim: the frames
 /// are stamped with simulated time (seconds from the start), on a real bus with the wall clock.
 struct RunTraces {
   std::string pcap;     ///< pcap, LINKTYPE_CAN_SOCKETCAN (Wireshark, tshark)

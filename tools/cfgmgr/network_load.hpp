@@ -7,8 +7,8 @@
 #include <string_view>
 
 #include "cfg/network.hpp"
-#include "nmt/master_config.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/master_config.hpp"
+#include "nmt/master/nmt_master.hpp"
 #include "run_args.hpp"
 
 namespace cfgmgr {

@@ -1,10 +1,11 @@
 // The library's network pieces under the names the cfgmgr commands use: the loaded network as
-// the master's configuration source and its LSS addresses (libnmt core, nmt/network_source.hpp),
-// the `sim:` bus with a simulated device per node (libnmt sim, nmt/sim_network.hpp).
+// the master's configuration source and its LSS addresses (libnmt core,
+// nmt/master/network_source.hpp), the `sim:` bus with a simulated device per node (libnmt sim,
+// nmt/sim/sim_network.hpp).
 #pragma once
 
-#include "nmt/network_source.hpp"
-#include "nmt/sim_network.hpp"
+#include "nmt/master/network_source.hpp"
+#include "nmt/sim/sim_network.hpp"
 
 namespace cfgmgr {
 

@@ -3,7 +3,7 @@
 #include <cstdio>
 
 #include "../common/tool_support.hpp"
-#include "nmt/master_event_text.hpp"
+#include "nmt/master/master_event_text.hpp"
 
 namespace cfgmgr {
 

@@ -13,7 +13,7 @@
 
 #include "cfg/network.hpp"
 #include "cfg/program_image.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 namespace cfgmgr {
 

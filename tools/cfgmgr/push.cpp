@@ -29,7 +29,7 @@
 #include "cfg/object_index.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
-#include "nmt/master_event_text.hpp"
+#include "nmt/master/master_event_text.hpp"
 
 namespace cfgmgr {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/integer_literal.hpp"
-#include "nmt/bus.hpp"
+#include "nmt/io/bus.hpp"
 
 namespace cfgmgr {
 

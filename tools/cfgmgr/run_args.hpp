@@ -17,8 +17,8 @@
 #include "../common/tool_support.hpp"
 #include "cfg/network.hpp"
 #include "network_source.hpp"
-#include "nmt/master_options.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/master_options.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 namespace cfgmgr {
 

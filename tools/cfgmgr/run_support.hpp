@@ -11,9 +11,9 @@
 
 #include "event_reporter.hpp"
 #include "master_runners.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/master_host.hpp"
-#include "nmt/trace.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/io/trace.hpp"
+#include "nmt/master/master_host.hpp"
 
 namespace cfgmgr::run_support {
 
@@ -34,9 +34,9 @@ class StopSignals {
   struct sigaction old_term_ {};
 };
 
-/// The master's driver duties (nmt/master_host.hpp): --store DIR's entries written, and start-up
-/// let enter operational at once (this program is the application, with nothing of its own to
-/// do first). This says a failed write on stderr; the master aborts the download.
+/// The master's driver duties (nmt/master/master_host.hpp): --store DIR's entries written, and
+/// start-up let enter operational at once (this program is the application, with nothing of its own
+/// to do first). This says a failed write on stderr; the master aborts the download.
 nmt::MasterHost::Done note_failed_writes(EventReporter& reporter, std::string_view tool);
 
 /// The trace files of a run, open.

@@ -2,8 +2,8 @@
 // with any node of a running network, from the command line. The value's data type comes from
 // --type, else from the node's EDS/DCF (--eds); the value text is the project's value parser's
 // (cfg::parse_value, the syntax of EDS/DCF values). The client is libnmt's SdoClient
-// (nmt/sdo_session.hpp); this file parses arguments and prints. With --via-manager the tool is an
-// SDO requesting device (DSP 302 §7) and transfers on the channel the network's SDO manager
+// (nmt/io/sdo_session.hpp); this file parses arguments and prints. With --via-manager the tool is
+// an SDO requesting device (DSP 302 §7) and transfers on the channel the network's SDO manager
 // grants instead of the node's default SDO.
 #include <algorithm>
 #include <cctype>
@@ -29,10 +29,10 @@
 #include "cfg/value.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/sdo_abort.hpp"
-#include "nmt/sdo_client.hpp"
-#include "nmt/sdo_session.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/sdo_session.hpp"
+#include "nmt/sdo/sdo_abort.hpp"
+#include "nmt/sdo/sdo_client.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -145,7 +145,7 @@ nmt::SdoTransferOptions transfer_options(const SdoCliOptions& o, std::size_t wri
   nmt::SdoTransferOptions options;
   options.timeout = sdo_timeout_or_exit(kTool, o.sdo_timeout_s);
   // CiA 301 §7.2.4.3.9: block transfer; the client falls back to segmented when the server
-  // answers 0504 0001 (nmt/sdo_client.hpp).
+  // answers 0504 0001 (nmt/sdo/sdo_client.hpp).
   if (o.block || write_size > nmt::kBlockDownloadThreshold) options.mode = nmt::SdoMode::Block;
   return options;
 }

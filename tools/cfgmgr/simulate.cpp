@@ -18,12 +18,12 @@
 #include "cfg/node_id.hpp"
 #include "commands.hpp"
 #include "network_source.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/device_state.hpp"
-#include "nmt/lss.hpp"
-#include "nmt/simulated_device.hpp"
-#include "nmt/trace.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/io/trace.hpp"
+#include "nmt/lss/lss.hpp"
+#include "nmt/sim/device_state.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -148,7 +148,7 @@ void run_simulate(const SimulateOptions& options) {
       const nmt::LssAddress address = device->node().lss()->address();
       if (auto [it, inserted] = by_address.emplace(address, parsed->path);
           !inserted && !options.state_dir.empty()) {
-        // Their --state file is named by the LSS address (nmt/device_state.hpp): two such
+        // Their --state file is named by the LSS address (nmt/sim/device_state.hpp): two such
         // devices would overwrite each other's. CiA 305 wants LSS addresses unique anyway.
         std::cerr << "cfgmgr simulate: --state: " << it->second << "@255 and " << parsed->path
                   << "@255 have the same LSS address " << nmt::address_digits(address)

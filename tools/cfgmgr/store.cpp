@@ -4,7 +4,7 @@
 // objects over SDO (--bus URL --master N, e.g. `cfgmgr master ... --store DIR`). Both go through
 // the same object view, index and sub-index as a CANopen tool sees them: locally the manager's
 // read/write, remotely SDO uploads and downloads. The operations are libnmt's
-// nmt::ConfigStoreClient (nmt/config_store_client.hpp); this file is the command line.
+// nmt::ConfigStoreClient (nmt/manager/config_store_client.hpp); this file is the command line.
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
@@ -23,9 +23,9 @@
 #include "cfg/node_id.hpp"
 #include "cfg/object_index.hpp"
 #include "commands.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/config_store_client.hpp"
-#include "nmt/remote_config_store.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/remote_config_store.hpp"
+#include "nmt/manager/config_store_client.hpp"
 
 namespace cfgmgr {
 namespace {

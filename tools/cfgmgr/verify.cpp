@@ -21,11 +21,11 @@
 #include "cfg/value.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
-#include "nmt/bus.hpp"
-#include "nmt/bus_event_loop.hpp"
-#include "nmt/configuration_verifier.hpp"
-#include "nmt/sim_bus.hpp"
-#include "nmt/simulated_device.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/bus_event_loop.hpp"
+#include "nmt/manager/configuration_verifier.hpp"
+#include "nmt/sim/sim_bus.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 namespace cfgmgr {
 namespace {

@@ -1,6 +1,6 @@
 // SDO abort codes (the abort code table of CiA 301 §7.2.4.3.17): the one enum and the one table
 // of texts, in the vocabulary both libraries share: libcfg answers with them (the configuration
-// manager, a device's write rules), libnmt sends and reports them (nmt/sdo_abort.hpp names them
+// manager, a device's write rules), libnmt sends and reports them (nmt/sdo/sdo_abort.hpp names them
 // nmt::SdoAbort). Implemented from public knowledge of CiA 301 (the standard is not in spec/).
 #pragma once
 

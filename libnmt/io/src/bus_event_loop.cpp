@@ -1,4 +1,4 @@
-#include "nmt/bus_event_loop.hpp"
+#include "nmt/io/bus_event_loop.hpp"
 
 #include <linux/can/error.h>
 #include <poll.h>

@@ -1,5 +1,5 @@
-// Store entries written on a worker thread (nmt/entry_persister.hpp).
-#include "nmt/entry_persister.hpp"
+// Store entries written on a worker thread (nmt/io/entry_persister.hpp).
+#include "nmt/io/entry_persister.hpp"
 
 #include <utility>
 

@@ -6,7 +6,7 @@
 
 #include <cstdint>
 
-#include "nmt/frame.hpp"
+#include "nmt/protocol/frame.hpp"
 
 namespace nmt::detail {
 

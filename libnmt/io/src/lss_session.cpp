@@ -1,4 +1,4 @@
-#include "nmt/lss_session.hpp"
+#include "nmt/io/lss_session.hpp"
 
 #include <chrono>
 #include <utility>

@@ -4,9 +4,9 @@
 #include <string>
 #include <string_view>
 
-#include "nmt/bus.hpp"
-#include "nmt/socketcan_bus.hpp"
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/bus.hpp"
+#include "nmt/io/socketcan_bus.hpp"
+#include "nmt/io/udp_bus.hpp"
 
 namespace nmt {
 

@@ -1,9 +1,9 @@
-// A master's configuration manager over SDO (nmt/remote_config_store.hpp).
-#include "nmt/remote_config_store.hpp"
+// A master's configuration manager over SDO (nmt/io/remote_config_store.hpp).
+#include "nmt/io/remote_config_store.hpp"
 
 #include <utility>
 
-#include "nmt/sdo_session.hpp"
+#include "nmt/io/sdo_session.hpp"
 
 namespace nmt {
 namespace {

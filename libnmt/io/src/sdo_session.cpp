@@ -1,4 +1,4 @@
-#include "nmt/sdo_session.hpp"
+#include "nmt/io/sdo_session.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -9,7 +9,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/hex.hpp"
 #include "cfg/object_address.hpp"
-#include "nmt/srd_description.hpp"
+#include "nmt/sdo/srd_description.hpp"
 
 namespace nmt {
 namespace {

@@ -1,7 +1,7 @@
 // The SocketCAN driver. Reviewed line by line against the kernel's
 // Documentation/networking/can.rst (cited below as "can.rst, <section title>"); where the
 // behaviour comes from the kernel source or from measurement instead, the comment says so.
-#include "nmt/socketcan_bus.hpp"
+#include "nmt/io/socketcan_bus.hpp"
 
 #include <fcntl.h>
 #include <linux/can.h>

@@ -1,6 +1,6 @@
 // Trace writers (candump log, pcap) and the tracing decorators. Formats: can-utils' candump -l
 // log (lib.c sprint_canframe / parse_canframe), and the tcpdump.org LINKTYPE_CAN_SOCKETCAN page.
-#include "nmt/trace.hpp"
+#include "nmt/io/trace.hpp"
 
 #include <array>
 #include <cassert>

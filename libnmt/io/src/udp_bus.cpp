@@ -1,7 +1,7 @@
 // python-can compatible UDP multicast bus: the sockets. The datagram codec is udp_datagram.cpp,
 // the udp:// URL udp_url.cpp. Facts about the peer come from python-can 4.1's
 // can/interfaces/udp_multicast/bus.py.
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/udp_bus.hpp"
 
 #include <arpa/inet.h>
 #include <fcntl.h>

@@ -1,8 +1,8 @@
-// python-can's udp_multicast datagram (nmt/udp_datagram.hpp): one CAN frame as a MessagePack
+// python-can's udp_multicast datagram (nmt/io/udp_datagram.hpp): one CAN frame as a MessagePack
 // map, encoded and decoded with msgpack-c. Facts about the peer come from python-can 4.1's
 // can/interfaces/udp_multicast/utils.py (pack_message, unpack_message) and can/message.py
 // (Message._check).
-#include "nmt/udp_datagram.hpp"
+#include "nmt/io/udp_datagram.hpp"
 
 #include <msgpack.h>
 

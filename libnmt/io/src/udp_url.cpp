@@ -1,11 +1,11 @@
-// The udp:// URL of the python-can compatible UDP multicast bus (nmt/udp_bus.hpp): parse and
+// The udp:// URL of the python-can compatible UDP multicast bus (nmt/io/udp_bus.hpp): parse and
 // print. The options are python-can 4.1's (can/interfaces/udp_multicast/bus.py).
 #include <charconv>
 #include <string>
 #include <string_view>
 
 #include "ipv4_address.hpp"
-#include "nmt/udp_bus.hpp"
+#include "nmt/io/udp_bus.hpp"
 
 namespace nmt {
 

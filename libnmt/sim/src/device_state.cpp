@@ -1,4 +1,4 @@
-#include "nmt/device_state.hpp"
+#include "nmt/sim/device_state.hpp"
 
 #include <cerrno>
 #include <cstring>

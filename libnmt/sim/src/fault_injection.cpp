@@ -1,9 +1,9 @@
-#include "nmt/fault_injection.hpp"
+#include "nmt/sim/fault_injection.hpp"
 
 #include <string>
 
 #include "cfg/object_index.hpp"
-#include "nmt/error_control.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 namespace nmt {
 
@@ -142,7 +142,7 @@ bool FaultInjectedSlave::on_frame(const CanFrame& frame, TimePoint now, Output& 
   if (!node_->powered() || f.absent) return false;
   if (state_->lose()) return false;
   // Not on the bus yet; but a node without node-ID stays initialising and serves LSS only
-  // (nmt/slave_node.hpp), so its frames go to it.
+  // (nmt/slave/slave_node.hpp), so its frames go to it.
   if (node_->state() == NmtState::Initialising && node_->has_node_id()) return false;
 
   const bool sdo_request = on_cob_id(frame, node_->sdo_config().request_cob_id) && !frame.rtr &&

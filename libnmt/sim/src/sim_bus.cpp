@@ -1,4 +1,4 @@
-#include "nmt/sim_bus.hpp"
+#include "nmt/sim/sim_bus.hpp"
 
 #include <algorithm>
 #include <array>

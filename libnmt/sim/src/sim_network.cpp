@@ -1,5 +1,5 @@
-// A loaded network on the simulated bus (nmt/sim_network.hpp).
-#include "nmt/sim_network.hpp"
+// A loaded network on the simulated bus (nmt/sim/sim_network.hpp).
+#include "nmt/sim/sim_network.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
-#include "nmt/device_state.hpp"
+#include "nmt/sim/device_state.hpp"
 
 namespace nmt {
 

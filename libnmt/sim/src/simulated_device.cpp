@@ -1,4 +1,4 @@
-#include "nmt/simulated_device.hpp"
+#include "nmt/sim/simulated_device.hpp"
 
 #include <string>
 #include <utility>

@@ -5,7 +5,7 @@
 
 #include "cfg/hex.hpp"
 #include "cfg/schema.hpp"
-#include "nmt/frame.hpp"
+#include "nmt/protocol/frame.hpp"
 
 int main() {
   // CiA 301 NMT module control: COB-ID 0, command specifier 1 (start remote node), node-ID 5.

@@ -2,8 +2,8 @@
 // one frame to the pcap file named by its argument; the test reads the file's header.
 #include <iostream>
 
-#include "nmt/frame.hpp"
-#include "nmt/trace.hpp"
+#include "nmt/io/trace.hpp"
+#include "nmt/protocol/frame.hpp"
 
 int main(int argc, char** argv) {
   if (argc != 2) {

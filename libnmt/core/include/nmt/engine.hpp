@@ -54,14 +54,14 @@
 //    NodeGuardingMaster::guard (its first request is due at `now`: the NMT master's error
 //    control, whose first request follows the NMT start and SDO requests of the same call).
 //    LssSlave::start takes no `now, out` on purpose: an LSS slave never sends on its own
-//    (nmt/lss_slave.hpp).
+//    (nmt/lss/lss_slave.hpp).
 // 6. Engines keep no reference to `out` or to a frame after a call returns; they only append,
 //    and only to the `out` of the call they are in: what a dictionary hook reports goes into
 //    the output of the call the access runs in (LocalDictionary's HookOutput), never into a
 //    list kept for the next call.
 // 7. Engines that contain engines (the slave node, the master) forward frames and time to them
 //    and report their parts' events as their own event type. Test faults (latency, loss,
-//    reboots) live in wrappers of the same shape (nmt/fault_injection.hpp), never inside a
+//    reboots) live in wrappers of the same shape (nmt/sim/fault_injection.hpp), never inside a
 //    protocol engine.
 #pragma once
 
@@ -71,7 +71,7 @@
 #include <utility>
 #include <vector>
 
-#include "nmt/frame.hpp"
+#include "nmt/protocol/frame.hpp"
 
 namespace nmt {
 

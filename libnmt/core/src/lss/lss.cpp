@@ -1,4 +1,4 @@
-#include "nmt/lss.hpp"
+#include "nmt/lss/lss.hpp"
 
 #include <array>
 #include <cassert>

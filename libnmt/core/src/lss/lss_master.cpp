@@ -1,4 +1,4 @@
-#include "nmt/lss_master.hpp"
+#include "nmt/lss/lss_master.hpp"
 
 #include <algorithm>
 #include <cstdio>

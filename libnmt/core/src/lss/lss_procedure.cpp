@@ -1,6 +1,6 @@
-// The CiA 305 procedures (nmt/lss_procedure.hpp): chains of LssMaster services, each next one
+// The CiA 305 procedures (nmt/lss/lss_procedure.hpp): chains of LssMaster services, each next one
 // started in the call its predecessor ended in.
-#include "nmt/lss_procedure.hpp"
+#include "nmt/lss/lss_procedure.hpp"
 
 #include <utility>
 

@@ -1,4 +1,4 @@
-#include "nmt/lss_search.hpp"
+#include "nmt/lss/lss_search.hpp"
 
 namespace nmt {
 

@@ -1,4 +1,4 @@
-#include "nmt/lss_slave.hpp"
+#include "nmt/lss/lss_slave.hpp"
 
 #include <utility>
 

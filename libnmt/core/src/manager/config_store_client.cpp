@@ -1,5 +1,5 @@
-// The store operations of a configuration manager's client (nmt/config_store_client.hpp).
-#include "nmt/config_store_client.hpp"
+// The store operations of a configuration manager's client (nmt/manager/config_store_client.hpp).
+#include "nmt/manager/config_store_client.hpp"
 
 #include <utility>
 

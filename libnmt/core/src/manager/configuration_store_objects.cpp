@@ -12,8 +12,8 @@
 #include "cfg/concise_dcf.hpp"
 #include "cfg/object_index.hpp"
 #include "master/master_support.hpp"
-#include "nmt/configuration_manager_source.hpp"
-#include "nmt/sdo_server.hpp"
+#include "nmt/manager/configuration_manager_source.hpp"
+#include "nmt/sdo/sdo_server.hpp"
 
 namespace nmt {
 

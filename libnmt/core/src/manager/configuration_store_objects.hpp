@@ -35,8 +35,8 @@
 #include "cfg/config_manager.hpp"
 #include "cfg/node_id.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace nmt {
 

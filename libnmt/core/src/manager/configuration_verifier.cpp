@@ -1,4 +1,4 @@
-#include "nmt/configuration_verifier.hpp"
+#include "nmt/manager/configuration_verifier.hpp"
 
 #include <map>
 

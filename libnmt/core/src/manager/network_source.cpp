@@ -1,5 +1,5 @@
-// A loaded network as the master's configuration source (nmt/network_source.hpp).
-#include "nmt/network_source.hpp"
+// A loaded network as the master's configuration source (nmt/master/network_source.hpp).
+#include "nmt/master/network_source.hpp"
 
 #include <utility>
 

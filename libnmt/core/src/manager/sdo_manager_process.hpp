@@ -48,10 +48,10 @@
 #include "cfg/object_address.hpp"
 #include "cfg/sdo_manager_objects.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sdo_client.hpp"
-#include "nmt/sdo_server.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sdo/sdo_client.hpp"
+#include "nmt/sdo/sdo_server.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace nmt {
 

@@ -27,9 +27,9 @@
 #include "master/boot_up_gate.hpp"
 #include "master/sdo_transfer_scheduler.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/error_control.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sdo.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/protocol/error_control.hpp"
+#include "nmt/sdo/sdo.hpp"
 
 namespace nmt {
 

@@ -11,7 +11,7 @@
 #include <chrono>
 #include <optional>
 
-#include "nmt/frame.hpp"
+#include "nmt/protocol/frame.hpp"
 
 namespace nmt {
 

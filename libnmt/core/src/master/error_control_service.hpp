@@ -15,7 +15,7 @@
 #include "cfg/node_id.hpp"
 #include "cfg/result.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/error_control.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 namespace nmt {
 

@@ -2,9 +2,9 @@
 // nodes; CiA 302-2 §3.1 c: the master runs the LSS master services where node-IDs must be set)
 // and the later look for devices that appear unconfigured (a replaced device), as one engine of
 // the shape of nmt/engine.hpp. Private to the library. The LSS protocol (CiA 305) is the
-// LssProcedure's (nmt/lss_procedure.hpp: its scan, built from nmt/lss_master.hpp's services, the
-// sources in nmt/lss.hpp); this engine decides which node-ID a found device gets and what the
-// master hears of it. The choices are listed in docs/master.md ("Execute LSS").
+// LssProcedure's (nmt/lss/lss_procedure.hpp: its scan, built from nmt/lss/lss_master.hpp's
+// services, the sources in nmt/lss/lss.hpp); this engine decides which node-ID a found device gets
+// and what the master hears of it. The choices are listed in docs/master.md ("Execute LSS").
 //
 // It talks to the NMT master only through ExecuteLssPort: "which slave has this LSS address",
 // "the start-up pass ended" (the master goes on with its reset of all nodes), and "may I use
@@ -30,9 +30,9 @@
 
 #include "cfg/node_id.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/lss_master.hpp"
-#include "nmt/lss_procedure.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/lss/lss_master.hpp"
+#include "nmt/lss/lss_procedure.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 namespace nmt {
 

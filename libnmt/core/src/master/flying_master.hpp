@@ -25,7 +25,7 @@
 
 #include "cfg/node_id.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 namespace nmt {
 

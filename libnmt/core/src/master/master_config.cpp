@@ -1,6 +1,6 @@
-// MasterConfig (nmt/master_config.hpp): the master's objects of CiA 302-2 §6 as types, read from
-// and written to the master's dictionary, and checked in words before the master is built.
-#include "nmt/master_config.hpp"
+// MasterConfig (nmt/master/master_config.hpp): the master's objects of CiA 302-2 §6 as types, read
+// from and written to the master's dictionary, and checked in words before the master is built.
+#include "nmt/master/master_config.hpp"
 
 #include <algorithm>
 #include <array>
@@ -12,8 +12,8 @@
 #include "cfg/network.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
-#include "nmt/error_control.hpp"
-#include "nmt/network_source.hpp"
+#include "nmt/master/network_source.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 namespace nmt {
 

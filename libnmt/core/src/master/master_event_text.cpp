@@ -1,6 +1,6 @@
-// describe(MasterEvent) (nmt/master_event_text.hpp): the one place where the NMT master's events
-// become words. The engine reports typed values; these are the sentences the tools print.
-#include "nmt/master_event_text.hpp"
+// describe(MasterEvent) (nmt/master/master_event_text.hpp): the one place where the NMT master's
+// events become words. The engine reports typed values; these are the sentences the tools print.
+#include "nmt/master/master_event_text.hpp"
 
 #include <chrono>
 #include <string>

@@ -1,5 +1,5 @@
-// The driver's duties toward the master on any bus (nmt/master_host.hpp).
-#include "nmt/master_host.hpp"
+// The driver's duties toward the master on any bus (nmt/master/master_host.hpp).
+#include "nmt/master/master_host.hpp"
 
 #include <utility>
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <utility>
 
-#include "nmt/master_options.hpp"
+#include "nmt/master/master_options.hpp"
 
 namespace nmt {
 

@@ -13,9 +13,9 @@
 #include "cfg/data_type.hpp"
 #include "cfg/node_id.hpp"
 #include "master/master_text.hpp"
-#include "nmt/local_dictionary.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sdo_client.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/sdo/sdo_client.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace nmt {
 

@@ -1,6 +1,6 @@
 // The texts of the NMT master: the error status of CiA 302-2 §3.8 (Table 1) in words, the names
-// of the boot steps, start-up states and event kinds (nmt/nmt_master.hpp), and the event helpers
-// of master_text.hpp.
+// of the boot steps, start-up states and event kinds (nmt/master/nmt_master.hpp), and the event
+// helpers of master_text.hpp.
 #include "master/master_text.hpp"
 
 #include <utility>

@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "cfg/node_id.hpp"
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 namespace nmt {
 

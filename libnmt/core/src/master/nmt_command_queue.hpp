@@ -21,7 +21,7 @@
 #include <utility>
 
 #include "nmt/engine.hpp"
-#include "nmt/nmt_slave.hpp"
+#include "nmt/slave/nmt_slave.hpp"
 
 namespace nmt {
 

@@ -5,7 +5,7 @@
 // boot_port.cpp), the objects and request NMT/guarding in master_dictionary.cpp, the SDO
 // transfers in sdo_transfer_scheduler.hpp (the master's side in master_transfers.cpp), the texts
 // of the enums and events in master_text.cpp.
-#include "nmt/nmt_master.hpp"
+#include "nmt/master/nmt_master.hpp"
 
 #include <algorithm>
 #include <bitset>

@@ -31,10 +31,10 @@
 #include "master/master_text.hpp"
 #include "master/nmt_command_queue.hpp"
 #include "master/sdo_transfer_scheduler.hpp"
-#include "nmt/deadline_queue.hpp"
-#include "nmt/error_control.hpp"
-#include "nmt/nmt_master.hpp"
-#include "nmt/sdo_server.hpp"
+#include "nmt/master/nmt_master.hpp"
+#include "nmt/protocol/deadline_queue.hpp"
+#include "nmt/protocol/error_control.hpp"
+#include "nmt/sdo/sdo_server.hpp"
 
 namespace nmt {
 

@@ -10,7 +10,7 @@
 
 #include "cfg/object_index.hpp"
 #include "master/master_text.hpp"
-#include "nmt/frame_bits.hpp"
+#include "nmt/protocol/frame_bits.hpp"
 
 namespace nmt {
 

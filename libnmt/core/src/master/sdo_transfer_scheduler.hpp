@@ -36,8 +36,8 @@
 #include "cfg/object_address.hpp"
 #include "cfg/result.hpp"
 #include "nmt/engine.hpp"
-#include "nmt/master_options.hpp"
-#include "nmt/sdo_client.hpp"
+#include "nmt/master/master_options.hpp"
+#include "nmt/sdo/sdo_client.hpp"
 
 namespace nmt {
 

@@ -1,4 +1,4 @@
-#include "nmt/emcy.hpp"
+#include "nmt/protocol/emcy.hpp"
 
 #include <algorithm>
 #include <string>

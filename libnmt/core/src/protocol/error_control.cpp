@@ -1,4 +1,4 @@
-#include "nmt/error_control.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 #include <algorithm>
 #include <array>

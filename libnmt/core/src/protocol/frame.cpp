@@ -1,4 +1,4 @@
-#include "nmt/frame.hpp"
+#include "nmt/protocol/frame.hpp"
 
 #include <algorithm>
 #include <type_traits>

@@ -1,6 +1,6 @@
 // The length of a classic CAN frame on the wire (ISO 11898-1): used by the simulated bus to
 // time frames and by the master to pace its boot (docs/master.md, MasterOptions::pacing.bitrate).
-#include "nmt/frame_bits.hpp"
+#include "nmt/protocol/frame_bits.hpp"
 
 #include <algorithm>
 #include <array>

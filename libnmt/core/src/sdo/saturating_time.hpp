@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <limits>
 
-#include "nmt/frame.hpp"
+#include "nmt/protocol/frame.hpp"
 
 namespace nmt {
 

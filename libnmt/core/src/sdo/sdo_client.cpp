@@ -1,4 +1,4 @@
-#include "nmt/sdo_client.hpp"
+#include "nmt/sdo/sdo_client.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -6,8 +6,8 @@
 #include <variant>
 
 #include "cfg/object_index.hpp"
-#include "nmt/frame_bits.hpp"
-#include "nmt/local_dictionary.hpp"
+#include "nmt/protocol/frame_bits.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 #include "sdo/saturating_time.hpp"
 
 namespace nmt {

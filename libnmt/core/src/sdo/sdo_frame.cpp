@@ -1,4 +1,4 @@
-#include "nmt/sdo_frame.hpp"
+#include "nmt/sdo/sdo_frame.hpp"
 
 #include <algorithm>
 

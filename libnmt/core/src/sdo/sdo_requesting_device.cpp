@@ -1,4 +1,4 @@
-#include "nmt/sdo_requesting_device.hpp"
+#include "nmt/sdo/sdo_requesting_device.hpp"
 
 #include <utility>
 

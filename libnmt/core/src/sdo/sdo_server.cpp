@@ -1,4 +1,4 @@
-#include "nmt/sdo_server.hpp"
+#include "nmt/sdo/sdo_server.hpp"
 
 #include <algorithm>
 #include <limits>

@@ -1,6 +1,6 @@
 // The device description of an SdoSession that asks the SDO manager for a channel
-// (nmt/sdo_session.hpp): sans-I/O data, next to the SDO requesting device engine.
-#include "nmt/srd_description.hpp"
+// (nmt/io/sdo_session.hpp): sans-I/O data, next to the SDO requesting device engine.
+#include "nmt/sdo/srd_description.hpp"
 
 namespace nmt {
 namespace {

@@ -1,4 +1,4 @@
-#include "nmt/local_dictionary.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 #include <algorithm>
 

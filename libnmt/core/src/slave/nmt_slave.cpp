@@ -1,4 +1,4 @@
-#include "nmt/nmt_slave.hpp"
+#include "nmt/slave/nmt_slave.hpp"
 
 #include <array>
 #include <cassert>

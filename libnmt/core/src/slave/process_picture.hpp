@@ -3,7 +3,7 @@
 #pragma once
 
 #include "cfg/object_dictionary.hpp"
-#include "nmt/local_dictionary.hpp"
+#include "nmt/slave/local_dictionary.hpp"
 
 namespace nmt::detail {
 

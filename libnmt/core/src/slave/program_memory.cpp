@@ -8,7 +8,7 @@
 #include "cfg/bytes.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/program_image.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/slave/slave_node.hpp"
 
 namespace nmt {
 

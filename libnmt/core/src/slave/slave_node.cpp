@@ -1,4 +1,4 @@
-#include "nmt/slave_node.hpp"
+#include "nmt/slave/slave_node.hpp"
 
 #include <cstdlib>
 #include <utility>

@@ -1,7 +1,7 @@
 // SlaveNode, its dictionary side: the write rules its hooks apply (CiA 301 communication
 // objects through libcfg, program control DSP 302 §9), what a stored write does to the node's
 // parts, and parameter storage (1010h/1011h, the restore at a reset). The node's behaviour where
-// CiA 301 leaves room is listed at the top of nmt/slave_node.hpp.
+// CiA 301 leaves room is listed at the top of nmt/slave/slave_node.hpp.
 #include <array>
 #include <utility>
 
@@ -10,7 +10,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/write_acceptance.hpp"
-#include "nmt/slave_node.hpp"
+#include "nmt/slave/slave_node.hpp"
 
 namespace nmt {
 
