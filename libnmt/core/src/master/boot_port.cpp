@@ -1,6 +1,6 @@
 // The master's side of the boot NMT slave engines (BootSlaveProcess, boot_slave_process.hpp):
 // their port (transfers, NMT queue, error control, the values they compare against), the
-// opening of the start-up's boot-up gate (boot_up_gate.hpp), and what follows a boot's report:
+// opening of the start-up's boot-up gate (boot_slave_set.hpp), and what follows a boot's report:
 // start remote node (CiA 302-2 §3.4 part 3 g-l), "missing" after status B, error control stopped
 // after an error.
 #include <string>
@@ -14,19 +14,21 @@ namespace nmt {
 namespace obj = cfg::object;
 
 void NmtMaster::Impl::start_boot(cfg::NodeId node, bool after_reset, TimePoint now, Output& out) {
-  if (after_reset) {
-    boot(node).start_after_reset(boot_up_gate.wait_until(now, options.boot.boot_up_wait), now, out);
-  } else {
-    boot(node).start(BootSlaveProcess::AskedBy::Master, now, out);
-  }
-  track_boot_deadline(node);
+  boots.with(node, [&](BootSlaveProcess& b) {
+    if (after_reset) {
+      b.start_after_reset(boots.gate().wait_until(now, options.boot.boot_up_wait), now, out);
+    } else {
+      b.start(BootSlaveProcess::AskedBy::Master, now, out);
+    }
+  });
 }
 
 void NmtMaster::Impl::boot_as_asked(cfg::NodeId node, TimePoint now, Output& out) {
   slaves[node].held = false;
   stop_error_control(node);
-  boot(node).start(BootSlaveProcess::AskedBy::Application, now, out);
-  track_boot_deadline(node);
+  boots.with(node, [&](BootSlaveProcess& b) {
+    b.start(BootSlaveProcess::AskedBy::Application, now, out);
+  });
 }
 
 void NmtMaster::Impl::start_remote_node(cfg::NodeId node) {
@@ -36,19 +38,8 @@ void NmtMaster::Impl::start_remote_node(cfg::NodeId node) {
   const bool operational = slaves[node].known_state.nmt_state() == NmtState::Operational;
   const bool broadcast_later = config.start_all_nodes() && own_state != NmtState::Operational;
   if (!operational && !config.no_start_slaves() && !broadcast_later &&
-      startup == StartupState::Operational) {
+      startup.state == StartupState::Operational) {
     queue_nmt(NmtCommand::Start, node);
-  }
-}
-
-void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) {
-  for (const auto& b : boots) {
-    if (!quiet && b.at_boot_up_gate() && !b.boot_up_seen()) return;  // not yet
-  }
-  boot_up_gate.open();
-  for (auto& b : boots) {
-    b.pass_boot_up_gate(now, out);
-    track_boot_deadline(b.node());
   }
 }
 
@@ -56,11 +47,11 @@ void NmtMaster::Impl::open_boot_up_gate(TimePoint now, Output& out, bool quiet) 
 
 void NmtMaster::Impl::BootPort::transfer(std::uint64_t try_id,
                                          SdoTransferScheduler::Request request, TimePoint now) {
-  m_.transfers.start_boot(try_id, std::move(request), now, m_.transfer_out);
+  m_.transfers.start_boot(try_id, std::move(request), now, m_.outputs.transfers);
 }
 
 void NmtMaster::Impl::BootPort::cancel_transfers(cfg::NodeId node, TimePoint now) {
-  m_.transfers.cancel(node, now, m_.transfer_out);
+  m_.transfers.cancel(node, now, m_.outputs.transfers);
 }
 
 void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, cfg::NodeId node) {
@@ -119,7 +110,7 @@ std::optional<std::vector<std::uint8_t>> NmtMaster::Impl::BootPort::program(
 }
 
 TimePoint NmtMaster::Impl::BootPort::startup_began() const {
-  return m_.startup_began;
+  return m_.startup.began;
 }
 
 void NmtMaster::Impl::BootPort::boot_con(cfg::NodeId node, std::optional<BootError> status,

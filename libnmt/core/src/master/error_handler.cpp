@@ -17,11 +17,10 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
   }
   const auto state = message.state();
   if (!state) return;
-  auto& b = boot(node);
+  const auto& b = boots[node];
   if (b.awaits_guard_reply()) {
     set_known_state(node, KnownState::in(*state), now, out);
-    b.on_guard_reply(*state, now, out);
-    track_boot_deadline(node);
+    boots.with(node, [&](BootSlaveProcess& p) { p.on_guard_reply(*state, now, out); });
     return;
   }
   // A heartbeat has bit 7 clear; a guarding reply may have it set (the toggle bit).
@@ -29,8 +28,7 @@ void NmtMaster::Impl::on_error_control(const ErrorControlMessage& message, TimeP
     slaves[node].heartbeat_at = now;
     if (b.awaits_heartbeat()) {
       set_known_state(node, KnownState::in(*state), now, out);
-      b.on_heartbeat(*state, now, out);
-      track_boot_deadline(node);
+      boots.with(node, [&](BootSlaveProcess& p) { p.on_heartbeat(*state, now, out); });
       return;
     }
   }
@@ -47,14 +45,14 @@ void NmtMaster::Impl::on_boot_up(cfg::NodeId node, TimePoint now, Output& out) {
   s.heartbeat_at.reset();
   set_known_state(node, KnownState::in(NmtState::PreOperational), now, out);
   if (!assigned) return;  // §3.1: unlisted devices are the application's concern
-  if (auto& b = boot(node); b.on_boot_up(now, out)) {
-    track_boot_deadline(node);
+  if (boots.with(node, [&](BootSlaveProcess& b) { return b.on_boot_up(now, out); })) {
+    const auto& b = boots[node];
     // The boot-up the gate waited for: when it was the last one, the gate opens for all.
-    if (b.at_boot_up_gate() && b.boot_up_seen()) open_boot_up_gate(now, out);
+    if (b.at_boot_up_gate() && b.boot_up_seen()) boots.open_gate(now, out);
     return;
   }
-  if (startup == StartupState::Off || startup == StartupState::NotMaster || !acts_as_master() ||
-      startup == StartupState::ExecutingLss) {
+  if (startup.state == StartupState::Off || startup.state == StartupState::NotMaster ||
+      !acts_as_master() || startup.state == StartupState::ExecutingLss) {
     return;  // Execute LSS: the reset of all nodes follows
   }
   stop_error_control(node);
@@ -84,7 +82,7 @@ void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint 
   }
   if (a.mandatory() && config.reset_all_nodes()) {
     queue_nmt(NmtCommand::ResetNode, NmtTarget::all_nodes());
-    startup_due = now;
+    startup.due = now;
     return;
   }
   stop_error_control(node);
@@ -100,8 +98,8 @@ void NmtMaster::Impl::error_handler(cfg::NodeId node, bool heartbeat, TimePoint 
 }
 
 void NmtMaster::Impl::dispatch_error_control(TimePoint now, Output& out) {
-  for (const auto& f : error_control_out.frames) out.send(f);
-  for (const auto& e : error_control_out.events) {
+  for (const auto& f : outputs.error_control.frames) out.send(f);
+  for (const auto& e : outputs.error_control.events) {
     const bool heartbeat = e.protocol == ErrorControlProtocol::Heartbeat;
     if (e.kind == ErrorControlEvent::Kind::Resolved) {
       auto resolved = master_event(MasterEvent::Kind::ErrorControlResolved, now, e.node);
@@ -114,9 +112,8 @@ void NmtMaster::Impl::dispatch_error_control(TimePoint now, Output& out) {
     // watched for the SDO manager alone (an SRD; a slave whose error control the master stopped
     // after a boot error) is reported lost and missing (1F82h), but the master does not act on
     // an error control it does not run.
-    if (heartbeat && boot(e.node).awaits_first_heartbeat()) {
-      boot(e.node).on_heartbeat_timeout(now, out);
-      track_boot_deadline(e.node);
+    if (heartbeat && boots[e.node].awaits_first_heartbeat()) {
+      boots.with(e.node, [&](BootSlaveProcess& b) { b.on_heartbeat_timeout(now, out); });
     } else if (e.watchers.master) {
       error_handler(e.node, heartbeat, now, out);
     } else {

@@ -57,11 +57,11 @@ void NmtMaster::Impl::FlyingPort::became_active(TimePoint now, Output& out) {
 }
 
 void NmtMaster::Impl::FlyingPort::set_startup(StartupState state) {
-  m.startup = state;
+  m.startup.state = state;
 }
 
 void NmtMaster::Impl::FlyingPort::restart(TimePoint now) {
-  m.startup_due = now;
+  m.startup.due = now;
 }
 
 void NmtMaster::Impl::FlyingPort::reset_all_nodes() {

@@ -11,13 +11,13 @@ namespace obj = cfg::object;
 
 bool NmtMaster::Impl::execute_lss_first(TimePoint now, Output& out) {
   if (!options.lss.enabled) return false;
-  if (lss_pass_done) {
+  if (startup.lss_pass_done) {
     // The pass ran for this start-up: on to the reset of all nodes; later looks if asked for.
-    lss_pass_done = false;
+    startup.lss_pass_done = false;
     execute_lss.watch(now);
     return false;
   }
-  startup = StartupState::ExecutingLss;
+  startup.state = StartupState::ExecutingLss;
   execute_lss.start(now, out);
   return true;
 }
@@ -60,13 +60,14 @@ std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
 }
 
 void NmtMaster::Impl::LssPort::pass_ended(TimePoint now, Output& out) {
-  m.lss_pass_done = true;
+  m.startup.lss_pass_done = true;
   m.begin_startup(now, out);
 }
 
 bool NmtMaster::Impl::LssPort::may_look() const {
-  return m.acts_as_master() && m.startup != StartupState::Off &&
-         m.startup != StartupState::NotMaster && m.startup != StartupState::ExecutingLss;
+  return m.acts_as_master() && m.startup.state != StartupState::Off &&
+         m.startup.state != StartupState::NotMaster &&
+         m.startup.state != StartupState::ExecutingLss;
 }
 
 }  // namespace nmt

@@ -30,7 +30,7 @@ bool NmtMaster::Impl::TransferPort::default_sdo_given_out(cfg::NodeId node) cons
 }
 
 bool NmtMaster::Impl::TransferPort::boot_try_runs(cfg::NodeId node, std::uint64_t try_id) const {
-  const auto& b = m.boot(node);
+  const auto& b = m.boots[node];
   return b.running() && b.try_id() == try_id;
 }
 
@@ -39,9 +39,9 @@ bool NmtMaster::Impl::TransferPort::boot_try_runs(cfg::NodeId node, std::uint64_
 void NmtMaster::Impl::route_transfer_events(TimePoint now, Output& out) {
   using Scheduler = SdoTransferScheduler;
   // By index: routing a result starts transfers, which append frames (never events) to
-  // transfer_out.
-  for (std::size_t i = 0; i < transfer_out.events.size(); ++i) {
-    auto event = std::move(transfer_out.events[i]);
+  // outputs.transfers.
+  for (std::size_t i = 0; i < outputs.transfers.events.size(); ++i) {
+    auto event = std::move(outputs.transfers.events[i]);
     if (const auto* p = std::get_if<Scheduler::ProgramProgress>(&event)) {
       report(out, program_progress(p->node, p->done, p->total, now));
       continue;
@@ -58,41 +58,40 @@ void NmtMaster::Impl::route_transfer_events(TimePoint now, Output& out) {
       report(out, std::move(e));
     } else {
       // Of a try that still runs (the scheduler drops those of ended tries).
-      boot(node).on_sdo_result(result, now, out);
-      track_boot_deadline(node);
+      boots.with(node, [&](BootSlaveProcess& b) { b.on_sdo_result(result, now, out); });
     }
   }
-  transfer_out.events.clear();
+  outputs.transfers.events.clear();
 }
 
 void NmtMaster::Impl::settle(TimePoint now, Output& out) {
-  // The call's SDO requests stay in transfer_out until the end: the NMT commands of the call
+  // The call's SDO requests stay in outputs.transfers until the end: the NMT commands of the call
   // (each round's flush_nmt) go out ahead of them, by output order (§6.1 queue,
   // nmt_command_queue.hpp).
   for (;;) {
     if (transfers.collect(now)) {
-      while (transfers.dispatch_next(now, transfer_out)) route_transfer_events(now, out);
+      while (transfers.dispatch_next(now, outputs.transfers)) route_transfer_events(now, out);
       continue;
     }
-    transfers.release_held(now, transfer_out);
-    transfers.pump(now, transfer_out);
+    transfers.release_held(now, outputs.transfers);
+    transfers.pump(now, outputs.transfers);
     sdo_manager.pump(now, out);
-    if (startup == StartupState::BootingSlaves) check_startup(now, out);
+    if (startup.state == StartupState::BootingSlaves) check_startup(now, out);
     flush_nmt(now, out);
     if (transfers.settled()) break;
   }
-  transfers.report_progress(transfer_out);
+  transfers.report_progress(outputs.transfers);
   route_transfer_events(now, out);
-  for (const auto& f : transfer_out.frames) out.send(f);
-  transfer_out.frames.clear();
+  for (const auto& f : outputs.transfers.frames) out.send(f);
+  outputs.transfers.frames.clear();
   // Node guarding started in this call (boot's start error control, the SDO manager's watch,
   // request node guarding) has its first request due at `now` (NodeGuardingMaster::guard): the
   // error control service sends it here, last, after the call's NMT commands and SDO requests,
   // where it has always gone: a slave that boot starts is started before its first guarding
   // request, so its first reply says operational (CiA 302-2 §3.4 part 3 e before g-l). (A request
   // that fell due before on_timer came goes with it: engine.hpp rule 3.)
-  error_control_out.clear();
-  error_control.send_due_requests(now, error_control_out);
+  outputs.error_control.clear();
+  error_control.send_due_requests(now, outputs.error_control);
   dispatch_error_control(now, out);
 }
 

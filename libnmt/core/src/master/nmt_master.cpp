@@ -47,12 +47,7 @@ NmtMaster::Impl::Impl(cfg::NodeId id, MasterOptions opts, LocalDictionary dictio
       dict(std::move(dictionary)),
       server(dict, SdoServerConfig::from_dictionary(dict)),
       producer(id),
-      sdo_manager(dict, manager_port, id, manager_settings(options, server.config())) {
-  boots.reserve(cfg::kMaxNodeId);
-  for (const auto node : all_node_ids()) {
-    boots.emplace_back(node, boot_port, boot_up_gate, BootSlaveProcess::Options::from(options));
-  }
-}
+      sdo_manager(dict, ports.manager, id, manager_settings(options, server.config())) {}
 
 cfg::Result<NmtMaster> NmtMaster::create(const cfg::DeviceDescription& description,
                                          cfg::NodeId node_id, MasterOptions options) {
@@ -90,12 +85,12 @@ void NmtMaster::entry_persisted(std::uint64_t ticket, const cfg::Status& result,
 
 bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
   auto& m = *impl_;
-  if (m.startup == StartupState::Off) return false;
+  if (m.startup.state == StartupState::Off) return false;
   m.transfers.pace_frame_of_others(frame, now);
   bool mine = false;
   const auto services = services_in(m.own_state);
   if (services.sdo) {
-    auto& server_out = m.part_out;
+    auto& server_out = m.outputs.parts;
     server_out.clear();
     if (m.server.on_frame(frame, now, server_out, HookOutput(out))) {
       mine = true;
@@ -103,7 +98,7 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     }
   }
   if (m.sdo_manager.on_frame(frame, now, out)) mine = true;
-  if (m.transfers.on_frame(frame, now, m.transfer_out)) mine = true;
+  if (m.transfers.on_frame(frame, now, m.outputs.transfers)) mine = true;
   if (m.flying.on_frame(frame, now, out)) {
     m.settle(now, out);
     return true;
@@ -113,8 +108,8 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     return true;
   }
   if (auto message = parse_error_control(frame)) {
-    m.error_control_out.clear();
-    m.error_control.on_frame(frame, now, m.error_control_out);
+    m.outputs.error_control.clear();
+    m.error_control.on_frame(frame, now, m.outputs.error_control);
     m.dispatch_error_control(now, out);
     m.on_error_control(*message, now, out);
     mine = true;
@@ -125,51 +120,38 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
 
 void NmtMaster::on_timer(TimePoint now, Output& out) {
   auto& m = *impl_;
-  if (m.startup == StartupState::Off) return;
-  if (m.startup_due && now >= *m.startup_due) {
-    m.startup_due.reset();
+  if (m.startup.state == StartupState::Off) return;
+  if (m.startup.due && now >= *m.startup.due) {
+    m.startup.due.reset();
     m.start(now, out);
   }
   if (services_in(m.own_state).sdo) {
-    auto& server_out = m.part_out;
+    auto& server_out = m.outputs.parts;
     server_out.clear();
     m.server.on_timer(now, server_out);
     for (const auto& f : server_out.frames) out.send(f);
   }
   m.sdo_manager.on_timer(now, out);
-  m.transfers.on_timer(now, m.transfer_out);
+  m.transfers.on_timer(now, m.outputs.transfers);
   m.flying.on_timer(now, out);
   m.execute_lss.on_timer(now, out);
   {
-    auto& producer_out = m.part_out;
+    auto& producer_out = m.outputs.parts;
     producer_out.clear();
     m.producer.on_timer(now, producer_out);
     for (const auto& f : producer_out.frames) out.send(f);
   }
-  m.error_control_out.clear();
-  m.error_control.on_timer(now, m.error_control_out);
+  m.outputs.error_control.clear();
+  m.error_control.on_timer(now, m.outputs.error_control);
   m.dispatch_error_control(now, out);
-  if (m.boot_up_gate.quiet_over(now)) m.open_boot_up_gate(now, out, true);
-  // The boot engines that are due, in node-ID order (as the events have always come).
-  struct DueNodes {
-    std::bitset<128> nodes;
-    void push_back(cfg::NodeId node) { nodes.set(node.value()); }
-  } due;
-  m.boot_deadlines.due(now, due);
-  if (due.nodes.any()) {
-    for (const auto node : all_node_ids()) {
-      if (!due.nodes[node.value()]) continue;
-      m.boot(node).on_timer(now, out);
-      m.track_boot_deadline(node);
-    }
-  }
+  m.boots.on_timer(now, out);
   m.settle(now, out);
 }
 
 std::optional<TimePoint> NmtMaster::next_deadline() const {
   const auto& m = *impl_;
-  if (m.startup == StartupState::Off) return std::nullopt;
-  auto due = m.startup_due;
+  if (m.startup.state == StartupState::Off) return std::nullopt;
+  auto due = m.startup.due;
   due = earliest(due, m.server.next_deadline());
   due = earliest(due, m.transfers.next_deadline());
   due = earliest(due, m.producer.next_deadline());
@@ -177,14 +159,13 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.flying.next_deadline());
   due = earliest(due, m.execute_lss.next_deadline());
   due = earliest(due, m.sdo_manager.next_deadline());
-  due = earliest(due, m.boot_up_gate.next_deadline());
-  due = earliest(due, m.boot_deadlines.earliest());
+  due = earliest(due, m.boots.next_deadline());
   due = earliest(due, m.nmt_commands.next_deadline());
   return due;
 }
 
 void NmtMaster::enter_operational(TimePoint now, Output& out) {
-  if (impl_->startup == StartupState::AwaitApplication) impl_->finish_startup(now, out);
+  if (impl_->startup.state == StartupState::AwaitApplication) impl_->finish_startup(now, out);
   impl_->settle(now, out);
 }
 
@@ -219,8 +200,7 @@ cfg::Status NmtMaster::boot_slave(cfg::NodeId node, TimePoint now, Output& out) 
 
 void NmtMaster::configuration_done(cfg::NodeId node, bool ok, TimePoint now, Output& out) {
   auto& m = *impl_;
-  m.boot(node).configuration_done(ok, now, out);
-  m.track_boot_deadline(node);
+  m.boots.with(node, [&](BootSlaveProcess& b) { b.configuration_done(ok, now, out); });
   m.settle(now, out);
 }
 
@@ -251,7 +231,7 @@ cfg::Result<SdoClient::TransferId> NmtMaster::Impl::start_application_transfer(
                       " is this master; read and write its own objects through dictionary()"};
   }
   return transfers.start_application(node, {index, sub}, upload, std::move(data), now,
-                                     transfer_out);
+                                     outputs.transfers);
 }
 
 cfg::NodeId NmtMaster::node_id() const {
@@ -261,12 +241,13 @@ NmtState NmtMaster::state() const {
   return impl_->own_state;
 }
 StartupState NmtMaster::startup_state() const {
-  return impl_->startup;
+  return impl_->startup.state;
 }
 std::optional<cfg::NodeId> NmtMaster::active_master() const {
   const auto& m = *impl_;
   if (m.flying.phase() == FlyingMasterProcess::Phase::Off) {
-    if (m.startup == StartupState::Off || m.startup == StartupState::NotMaster) return std::nullopt;
+    if (m.startup.state == StartupState::Off || m.startup.state == StartupState::NotMaster)
+      return std::nullopt;
     return m.node_id;
   }
   return m.flying.active_master();
@@ -275,10 +256,10 @@ KnownState NmtMaster::known_state(cfg::NodeId node) const {
   return impl_->slaves[node].known_state;
 }
 BootStep NmtMaster::boot_step(cfg::NodeId node) const {
-  return impl_->boot(node).step();
+  return impl_->boots[node].step();
 }
 std::optional<BootError> NmtMaster::last_error(cfg::NodeId node) const {
-  return impl_->boot(node).last_error();
+  return impl_->boots[node].last_error();
 }
 const cfg::ConfigManager* NmtMaster::config_manager() const {
   return impl_->options.manager.get();
@@ -310,8 +291,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // the SDO entries the manager gave out are gone.
   sdo_manager.clear();
   for (const auto n : all_node_ids()) {
-    boot(n).reset(now);
-    track_boot_deadline(n);
+    boots.with(n, [&](BootSlaveProcess& b) { b.reset(now); });
     stop_error_control(n);
     auto& s = slaves[n];
     const auto held_state = s.known_state;
@@ -322,7 +302,7 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // §3.1 a: not the master. Table 16: a self-starting device goes operational by itself, and
   // with bit 1 also starts all nodes.
   if (!config.is_master()) {
-    startup = StartupState::NotMaster;
+    startup.state = StartupState::NotMaster;
     auto e = master_event(MasterEvent::Kind::NotMaster, now, std::nullopt);
     e.nmt_startup = config.value;
     report(out, std::move(e));
@@ -341,14 +321,14 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
     return;
   }
   if (execute_lss_first(now, out)) return;  // DSP 302 §4 figure 1 step 3 (lss_port.cpp)
-  startup = StartupState::BootingSlaves;
-  startup_began = now;
+  startup.state = StartupState::BootingSlaves;
+  startup.began = now;
   // §3.1 d (keep-alive slaves are checked by their boot, §3.4 part 2).
   queue_reset_all(now);
   report(out, master_event(MasterEvent::Kind::StartupBegan, now, std::nullopt));
   // No SDO request until every reset slave sent its boot-up (or boot_up_wait passed): boot-ups
   // have the lowest priority, and a device's answers would queue behind its own boot-up.
-  boot_up_gate.close(now + options.boot.boot_up_wait, options.pacing.bitrate != 0);
+  boots.gate().close(now + options.boot.boot_up_wait, options.pacing.bitrate != 0);
   // §3.1 e, §3.3: boot every slave in parallel (Annex A).
   for (const auto n : all_node_ids()) {
     if (!is_slave(n)) continue;
@@ -366,7 +346,7 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   std::vector<cfg::NodeId> failed;  // mandatory slaves whose process ended with an error
   for (const auto n : all_node_ids()) {
     if (!is_slave(n)) continue;
-    const auto& s = boot(n);
+    const auto& s = boots[n];
     if (assignment(n).mandatory()) {
       if (s.booted()) continue;
       if (s.final_error() && s.last_error()) {
@@ -385,17 +365,17 @@ void NmtMaster::Impl::check_startup(TimePoint now, Output& out) {
   }
   if (!all_ended) return;
   if (!failed.empty()) {
-    startup = StartupState::Halted;
+    startup.state = StartupState::Halted;
     auto e = master_event(MasterEvent::Kind::StartupHalted, now, failed.front());
-    for (const auto n : failed) e.halted_by.push_back({n, *boot(n).last_error()});
-    e.error = boot(failed.front()).last_error();
+    for (const auto n : failed) e.halted_by.push_back({n, *boots[n].last_error()});
+    e.error = boots[failed.front()].last_error();
     report(out, std::move(e));
     return;
   }
   if (mandatory_waiting) return;
   // §3.1 g: with 1F80h bit 2 the application decides when the master goes operational.
   if (startup_config().no_auto_operational()) {
-    startup = StartupState::AwaitApplication;
+    startup.state = StartupState::AwaitApplication;
     report(out, master_event(MasterEvent::Kind::StartupAwaitsApplication, now, std::nullopt));
     return;
   }
@@ -413,20 +393,20 @@ void NmtMaster::Impl::finish_startup(TimePoint now, Output& out) {
     bool all_booted = config.start_all_nodes();
     for (const auto n : all_node_ids()) {
       if (!is_slave(n)) continue;
-      const auto& s = boot(n);
+      const auto& s = boots[n];
       if (!s.booted() || s.last_error() || assignment(n).keep_alive()) all_booted = false;
     }
     if (all_booted) {
       queue_nmt(NmtCommand::Start, NmtTarget::all_nodes());
     } else {
       for (const auto n : all_node_ids()) {
-        if (!is_slave(n) || !boot(n).booted() || !assignment(n).boot_slave()) continue;
+        if (!is_slave(n) || !boots[n].booted() || !assignment(n).boot_slave()) continue;
         if (slaves[n].known_state.nmt_state() == NmtState::Operational) continue;
         queue_nmt(NmtCommand::Start, n);
       }
     }
   }
-  startup = StartupState::Operational;
+  startup.state = StartupState::Operational;
   report(out, master_event(MasterEvent::Kind::StartupComplete, now, std::nullopt));
 }
 
@@ -442,7 +422,7 @@ void NmtMaster::Impl::set_own_state(NmtState state, TimePoint now, Output& out) 
 void NmtMaster::Impl::apply_own_command(NmtCommand command, TimePoint now, Output& out) {
   switch (command) {
     case NmtCommand::Start:
-      if (startup == StartupState::AwaitApplication) {
+      if (startup.state == StartupState::AwaitApplication) {
         finish_startup(now, out);
       } else {
         set_own_state(NmtState::Operational, now, out);
@@ -457,7 +437,7 @@ void NmtMaster::Impl::apply_own_command(NmtCommand command, TimePoint now, Outpu
     case NmtCommand::ResetNode:
     case NmtCommand::ResetCommunication:
       // The master resets itself: boot-up and NMT start-up again.
-      startup_due = now;
+      startup.due = now;
       break;
   }
 }
@@ -468,10 +448,10 @@ void NmtMaster::Impl::flush_nmt(TimePoint now, Output& out) {
   // §6.1: the queue sends what the inhibit time allows; settle() runs it before it hands out
   // the call's SDO requests, so a reset reaches a slave before the request that follows it.
   nmt_commands.set_inhibit_time(nmt_inhibit_time());
-  nmt_out.clear();
-  nmt_commands.on_timer(now, nmt_out);
-  for (const auto& f : nmt_out.frames) out.send(f);
-  for (const auto& [command, target] : nmt_out.events) {
+  outputs.nmt.clear();
+  nmt_commands.on_timer(now, outputs.nmt);
+  for (const auto& f : outputs.nmt.frames) out.send(f);
+  for (const auto& [command, target] : outputs.nmt.events) {
     const auto state = state_after(command);
     if (const auto node = target.node()) {
       set_known_state(*node, state, now, out);

@@ -23,7 +23,7 @@
 #include "manager/configuration_store_objects.hpp"
 #include "manager/sdo_manager_process.hpp"
 #include "master/boot_slave_process.hpp"
-#include "master/boot_up_gate.hpp"
+#include "master/boot_slave_set.hpp"
 #include "master/error_control_service.hpp"
 #include "master/execute_lss.hpp"
 #include "master/flying_master.hpp"
@@ -58,11 +58,20 @@ struct NmtMaster::Impl {
   HeartbeatProducer producer;
 
   NmtState own_state = NmtState::Initialising;
-  StartupState startup = StartupState::Off;
-  TimePoint startup_began{};
-  std::optional<TimePoint> startup_due;  ///< start-up (again) at this time
-  std::array<SlaveRecord, 128> slaves;   ///< by node-ID (index 0 unused)
+  /// Where NMT start-up (CiA 302-2 §3.1, DSP 302 §4 figure 1) is: the state machine of
+  /// begin_startup(), check_startup() and finish_startup().
+  struct Startup {
+    StartupState state = StartupState::Off;
+    TimePoint began{};
+    std::optional<TimePoint> due;  ///< start-up (again) at this time
+    /// Execute LSS's start-up pass ended: begin_startup() goes on to the reset of all nodes.
+    bool lss_pass_done = false;
+  };
+  Startup startup;
+  std::array<SlaveRecord, 128> slaves;  ///< by node-ID (index 0 unused)
 
+  // --- the master's side of its processes' ports: one object per port, each reaching into
+  // the master only through the calls its port declares --------------------------------
   /// The master's side of the boot engines' port (boot_port.cpp): one serves them all.
   class BootPort final : public BootSlavePort {
    public:
@@ -85,43 +94,13 @@ struct NmtMaster::Impl {
    private:
     Impl& m_;
   };
-  BootPort boot_port{*this};
-  /// Start-up: SDO requests of the boots wait until every reset slave booted up (boot_up_gate.hpp).
-  BootUpGate boot_up_gate;
-  /// Boot NMT slave, one engine per node-ID 1..127 (boot(node)).
-  std::vector<BootSlaveProcess> boots;
-  BootSlaveProcess& boot(cfg::NodeId node) { return boots[node.value() - 1U]; }
-  const BootSlaveProcess& boot(cfg::NodeId node) const { return boots[node.value() - 1U]; }
-  /// The boot engines' deadlines, earliest first, and each one's as the index holds it: read
-  /// after every call of a boot engine (track_boot_deadline), so that next_deadline() and
-  /// on_timer() need no scan of 127 engines.
-  DeadlineQueue<cfg::NodeId> boot_deadlines;
-  std::array<std::optional<TimePoint>, 128> boot_deadline_of;
-  /// After a call of boot(node): its deadline into boot_deadlines.
-  void track_boot_deadline(cfg::NodeId node) {
-    const auto deadline = boot(node).next_deadline();
-    boot_deadlines.move(node, boot_deadline_of[node], deadline);
-    boot_deadline_of[node] = deadline;
-  }
-
-  /// The SDO transfers of the boots, the application and the SDO manager, one client per slave
-  /// (sdo_transfer_scheduler.hpp), and its port (master_transfers.cpp).
+  /// The SDO transfer scheduler's port (master_transfers.cpp).
   struct TransferPort final : SdoTransferPort {
     explicit TransferPort(Impl& impl) : m(impl) {}
     bool default_sdo_given_out(cfg::NodeId node) const override;
     bool boot_try_runs(cfg::NodeId node, std::uint64_t try_id) const override;
     Impl& m;
   };
-  TransferPort transfer_port{*this};
-  SdoTransferScheduler transfers{transfer_port, SdoTransferScheduler::Settings::from(options)};
-  /// The transfers' output of the call: their frames leave at the end of settle(), after the
-  /// call's NMT commands; their events are routed as they come (route_transfer_events).
-  SdoTransferScheduler::Output transfer_out;
-  /// Scratch outputs of the parts in on_frame/on_timer (server, producer; error control),
-  /// cleared before each use so that a call allocates nothing once they have grown.
-  Outbox<NoEvent> part_out;
-  ErrorControlService::Output error_control_out;
-
   /// The flying master's port to this master (master_flying_port.cpp).
   struct FlyingPort final : FlyingMasterPort {
     explicit FlyingPort(Impl& master) : m(master) {}
@@ -136,10 +115,6 @@ struct NmtMaster::Impl {
     std::uint32_t own_heartbeat_ms() const override;
     Impl& m;
   };
-  FlyingPort flying_port{*this};
-  /// NMT flying master start-up and master detection (§3.7, §5.1-§5.5; flying_master.hpp).
-  FlyingMasterProcess flying{node_id, flying_port};
-
   /// Execute LSS's port to this master (lss_port.cpp).
   struct LssPort final : ExecuteLssPort {
     explicit LssPort(Impl& master) : m(master) {}
@@ -149,11 +124,59 @@ struct NmtMaster::Impl {
     bool may_look() const override;
     Impl& m;
   };
-  LssPort lss_port{*this};
-  /// Execute LSS (MasterOptions::lss; execute_lss.hpp) and whether its start-up pass ended, so
-  /// that begin_startup() goes on to the reset of all nodes.
-  ExecuteLssProcess execute_lss{lss_port, options.lss.timing, options.lss.period};
-  bool lss_pass_done = false;
+  /// The configuration store objects' port (store_port.cpp).
+  struct StorePort final : ConfigurationStorePort {
+    explicit StorePort(Impl& impl) : m(impl) {}
+    bool is_slave(cfg::NodeId node) const override;
+    bool boots_slaves() const override;
+    void configure(cfg::NodeId node, TimePoint now, Output& out) override;
+    void complete_download(std::uint64_t ticket, SdoAbort code, Output& out) override;
+    Impl& m;
+  };
+  /// The master's side of the SDO manager's port (sdo_manager_port.cpp).
+  struct ManagerPort final : SdoManagerPort {
+    explicit ManagerPort(Impl& impl) : m(impl) {}
+    bool master_active() const override;
+    bool serves_sdo() const override;
+    void start_transfer(SdoManagerTransfer transfer, TimePoint now) override;
+    std::optional<Duration> consumer_time(cfg::NodeId node) const override;
+    void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) override;
+    void unwatch(cfg::NodeId node) override;
+    Impl& m;
+  };
+  struct Ports {
+    explicit Ports(Impl& m) : boot(m), transfer(m), flying(m), lss(m), store(m), manager(m) {}
+    BootPort boot;
+    TransferPort transfer;
+    FlyingPort flying;
+    LssPort lss;
+    StorePort store;
+    ManagerPort manager;
+  };
+  Ports ports{*this};
+
+  /// Boot NMT slave, one engine per node-ID, and the start-up's boot-up gate (boot_slave_set.hpp).
+  BootSlaveSet boots{ports.boot, BootSlaveProcess::Options::from(options)};
+  /// The SDO transfers of the boots, the application and the SDO manager, one client per slave
+  /// (sdo_transfer_scheduler.hpp).
+  SdoTransferScheduler transfers{ports.transfer, SdoTransferScheduler::Settings::from(options)};
+  /// The outputs of the parts within one call, cleared before each use so that a call
+  /// allocates nothing once they have grown.
+  struct CallOutputs {
+    /// The transfers': their frames leave at the end of settle(), after the call's NMT
+    /// commands; their events are routed as they come (route_transfer_events).
+    SdoTransferScheduler::Output transfers;
+    Outbox<NoEvent> parts;  ///< the server's and the producer's (on_frame/on_timer)
+    ErrorControlService::Output error_control;
+    NmtCommandQueue::Output nmt;
+  };
+  CallOutputs outputs;
+
+  /// NMT flying master start-up and master detection (§3.7, §5.1-§5.5; flying_master.hpp).
+  FlyingMasterProcess flying{node_id, ports.flying};
+
+  /// Execute LSS (MasterOptions::lss; execute_lss.hpp).
+  ExecuteLssProcess execute_lss{ports.lss, options.lss.timing, options.lss.period};
   /// DSP 302 §4 figure 1 step 3: true when the LSS pass started (begin_startup() returns; the
   /// pass's end calls it again).
   bool execute_lss_first(TimePoint now, Output& out);
@@ -163,7 +186,6 @@ struct NmtMaster::Impl {
 
   /// The NMT commands and their inhibit time (§6.1); run by flush_nmt() from settle().
   NmtCommandQueue nmt_commands;
-  NmtCommandQueue::Output nmt_out;  ///< scratch output of nmt_commands
 
   // --- dictionary (master_dictionary.cpp) ----------------------------------------------------
   static void add_missing_objects(LocalDictionary& dict);
@@ -187,19 +209,9 @@ struct NmtMaster::Impl {
   Duration nmt_inhibit_time() const;
 
   // --- configuration manager objects 1F20h-1F27h (manager/configuration_store_objects.hpp) --
-  /// The master's side of their port (store_port.cpp).
-  struct StorePort final : ConfigurationStorePort {
-    explicit StorePort(Impl& impl) : m(impl) {}
-    bool is_slave(cfg::NodeId node) const override;
-    bool boots_slaves() const override;
-    void configure(cfg::NodeId node, TimePoint now, Output& out) override;
-    void complete_download(std::uint64_t ticket, SdoAbort code, Output& out) override;
-    Impl& m;
-  };
-  StorePort store_port{*this};
   /// 1F20h-1F25h served from MasterOptions::manager, the one owner of 1F26h/1F27h, the
   /// configuration to download to a slave; installed by install_hooks().
-  ConfigurationStoreObjects store_objects{dict, store_port, options.manager,
+  ConfigurationStoreObjects store_objects{dict, ports.store, options.manager,
                                           options.configurations};
 
   // --- NMT start-up, handlers, NMT queue (nmt_master.cpp) ------------------------------------
@@ -249,18 +261,6 @@ struct NmtMaster::Impl {
   void queue_reset_all(TimePoint now);
 
   // --- SDO manager (manager/sdo_manager_process.hpp, DSP 302 §7) ----------------------------
-  /// The master's side of the SDO manager's port (sdo_manager_port.cpp).
-  struct ManagerPort final : SdoManagerPort {
-    explicit ManagerPort(Impl& impl) : m(impl) {}
-    bool master_active() const override;
-    bool serves_sdo() const override;
-    void start_transfer(SdoManagerTransfer transfer, TimePoint now) override;
-    std::optional<Duration> consumer_time(cfg::NodeId node) const override;
-    void watch(cfg::NodeId node, std::optional<Duration> heartbeat, TimePoint now) override;
-    void unwatch(cfg::NodeId node) override;
-    Impl& m;
-  };
-  ManagerPort manager_port{*this};
   SdoManagerProcess sdo_manager;
   static SdoManagerSettings manager_settings(const MasterOptions& options,
                                              const SdoServerConfig& server);
@@ -277,9 +277,6 @@ struct NmtMaster::Impl {
   /// the application's as MasterEvent::SdoFinished, the SDO manager's to SdoManagerProcess, the
   /// software update's progress as MasterEvent::ProgramProgress.
   void route_transfer_events(TimePoint now, Output& out);
-  /// Starts the slaves waiting at the gate that booted up: when every one did, or (`quiet`) when
-  /// no boot-up came for BootUpGate::kQuiet.
-  void open_boot_up_gate(TimePoint now, Output& out, bool quiet = false);
 
   // --- boot NMT slave: the engines and the master's side of their port (boot_port.cpp) -------
   /// A new try of boot NMT slave for `node`; `after_reset`: it waits for the boot-up first (the

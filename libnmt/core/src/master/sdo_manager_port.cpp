@@ -30,8 +30,10 @@ SdoManagerSettings NmtMaster::Impl::manager_settings(const MasterOptions& option
 bool NmtMaster::Impl::ManagerPort::master_active() const {
   // §7: "The SDO Manager is active only if the NMT Master residing on the same device is active."
   if (!m.startup_config().is_master() || !m.acts_as_master()) return false;
-  return m.startup == StartupState::BootingSlaves || m.startup == StartupState::Halted ||
-         m.startup == StartupState::AwaitApplication || m.startup == StartupState::Operational;
+  return m.startup.state == StartupState::BootingSlaves ||
+         m.startup.state == StartupState::Halted ||
+         m.startup.state == StartupState::AwaitApplication ||
+         m.startup.state == StartupState::Operational;
 }
 
 bool NmtMaster::Impl::ManagerPort::serves_sdo() const {
@@ -46,7 +48,7 @@ void NmtMaster::Impl::ManagerPort::start_transfer(SdoManagerTransfer transfer, T
                              .data = std::move(transfer.data),
                              .timeout = transfer.timeout,
                              .retries = transfer.retries},
-                            now, m.transfer_out);
+                            now, m.outputs.transfers);
 }
 
 std::optional<Duration> NmtMaster::Impl::ManagerPort::consumer_time(cfg::NodeId node) const {

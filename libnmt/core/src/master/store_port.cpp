@@ -17,7 +17,7 @@ bool NmtMaster::Impl::StorePort::boots_slaves() const {
 void NmtMaster::Impl::StorePort::configure(cfg::NodeId node, TimePoint now, Output& out) {
   // As boot_slave(): the application (here a tool) asks for it.
   m.boot_as_asked(node, now, out);
-  m.boot(node).request_reconfiguration();
+  m.boots.with(node, [](BootSlaveProcess& b) { b.request_reconfiguration(); });
 }
 
 void NmtMaster::Impl::StorePort::complete_download(std::uint64_t ticket, SdoAbort code,
