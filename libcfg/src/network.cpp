@@ -599,11 +599,18 @@ std::uint16_t heartbeat_consumer_time_ms(std::uint16_t producer_ms) {
 }
 
 void set_expected_program(DeviceDescription& master, NodeId node, const NodeProgram& program) {
-  if (!program.version) return;
-  node_entry(master, object::kExpectedApplicationSwDate, "Expected application SW date", node)
-      .parameter_value = hex(program.version->date_days, 8);
-  node_entry(master, object::kExpectedApplicationSwTime, "Expected application SW time", node)
-      .parameter_value = hex(program.version->time_ms, 8);
+  if (!program.version && !program.identification) return;
+  if (program.version) {
+    node_entry(master, object::kExpectedApplicationSwDate, "Expected application SW date", node)
+        .parameter_value = hex(program.version->date_days, 8);
+    node_entry(master, object::kExpectedApplicationSwTime, "Expected application SW time", node)
+        .parameter_value = hex(program.version->time_ms, 8);
+  }
+  if (program.identification) {
+    node_entry(master, object::kExpectedSoftwareIdentification, "Expected software identification",
+               node)
+        .parameter_value = hex(*program.identification, 8);
+  }
   // DSP 302 §5.2 Table 23/24: bit 5 verify the version; bit 6 update it automatically, which
   // needs an image to download.
   add_assignment_bits(master, node,
@@ -665,7 +672,7 @@ void check_programs(const Network& network, Diagnostics& diagnostics) {
       const NodeProgram& p = *node.program;
       // A program from the command line (set_node_program) has no file to point at.
       const std::string file = p.source.empty() ? std::string("--program") : p.source;
-      if (!p.file.empty() && !p.version && !network.master_from_file) {
+      if (!p.file.empty() && !p.version && !p.identification && !network.master_from_file) {
         diagnostics.add(
             file, p.line, Severity::Error,
             who + ": program image '" + p.file + "' without a version: give Node" +
@@ -703,14 +710,18 @@ void check_programs(const Network& network, Diagnostics& diagnostics) {
       const auto time =
           configured_unsigned(master, object::kExpectedApplicationSwTime, x, node.node_id)
               .value_or(0);
-      if (date == 0 && time == 0) {
+      const auto identification =
+          configured_unsigned(master, object::kExpectedSoftwareIdentification, x, node.node_id)
+              .value_or(0);
+      if (date == 0 && time == 0 && identification == 0) {
         diagnostics.add(master_file, line, Severity::Error,
                         where +
                             " has bit 5 (verify the application software version) but 1F53h "
                             "and 1F54h sub " +
+                            std::to_string(x) + " give no expected version, nor 1F55h sub " +
                             std::to_string(x) +
-                            " give no expected version: the boot ends with status G (CiA 302-2 "
-                            "Table 1)");
+                            " an expected software identification: the boot ends with status G "
+                            "(CiA 302-2 Table 1)");
       }
     }
     // A program whose image was named but could not be read has its error already.

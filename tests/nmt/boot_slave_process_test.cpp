@@ -793,5 +793,149 @@ TEST(BootSlave, ReportsStatusGWhenBit5IsSetWithoutAnExpectedVersion) {
   EXPECT_EQ(rig.port.accesses.size(), 1U);
 }
 
+// --- CiA 302-3 software identification (1F55h/1F56h/1F57h), as lely-core's master checks and
+// updates it (src/co/nmt_boot.c): chosen per node by a non-zero 1F55h sub node-ID.
+
+constexpr std::uint32_t kExpectedId = 0x5EC0'0002;  // 1F55h sub 5
+constexpr std::uint32_t kRunningId = 0x5EC0'0001;   // what 1F56h sub 1 reports first
+
+/// 1F81h bit 5 (and 6), 1F55h sub 5 set and no 1F53h/1F54h, a 300-byte image.
+void verify_identification(Rig& rig, bool update) {
+  verify_software(rig, update);
+  rig.port.expect.software = {};
+  rig.port.expect.software_identification = kExpectedId;
+}
+
+/// Starts the try, answers 1000h, then 1F56h sub 1 with `id`.
+void report_identification(Rig& rig, std::uint32_t id) {
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);  // 1000h
+  expect_access(rig.last(), 0x1F56, 1, true);
+  EXPECT_EQ(rig.process.step(), BootStep::CheckSoftware);
+  rig.answer(id);
+}
+
+/// The update up to the flash status read: stop, clear and the image answered.
+void download_image(Rig& rig) {
+  stop_and_clear(rig);
+  expect_access(rig.last(), 0x1F50, 1, false, *rig.port.image);
+  rig.answer();
+  expect_access(rig.last(), 0x1F57, 1, true);  // flash status, CiA 302-3
+}
+
+TEST(BootSlave, Cia302_3MatchingSoftwareIdentificationGoesOnToCheckConfiguration) {
+  Rig rig;
+  verify_identification(rig, true);
+  report_identification(rig, kExpectedId);
+  // 1000h and 1F56h sub 1, no 1F52h; no configuration to check here: booted.
+  EXPECT_EQ(rig.port.accesses.size(), 2U);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  EXPECT_TRUE(rig.process.booted());
+}
+
+TEST(BootSlave, Cia302_3UpdateWaitsForTheFlashStatusThenStartsAndReadsTheIdentificationAgain) {
+  Rig rig;
+  verify_identification(rig, true);
+  report_identification(rig, kRunningId);
+  download_image(rig);
+  rig.answer(0x1);  // bit 0: in progress
+  const auto reads = rig.port.accesses.size();
+  rig.advance(99ms);
+  EXPECT_EQ(rig.port.accesses.size(), reads) << "read again only after 100 ms";
+  rig.advance(1ms);
+  ASSERT_EQ(rig.port.accesses.size(), reads + 1);
+  expect_access(rig.last(), 0x1F57, 1, true);
+  rig.answer(0x0);                                   // done, no error
+  expect_access(rig.last(), 0x1F51, 1, false, {1});  // start
+  rig.answer();
+  expect_access(rig.last(), 0x1F56, 1, true);  // identification again
+  rig.answer(kExpectedId);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  ASSERT_TRUE(booted[0].program.has_value());
+  EXPECT_EQ(booted[0].program->identification_before, kRunningId);
+  EXPECT_EQ(booted[0].program->identification_after, kExpectedId);
+  EXPECT_EQ(booted[0].program->bytes, 300U);
+  EXPECT_NE(describe(booted[0]).find("; program updated from software identification 0x5EC00001 "
+                                     "to 0x5EC00002, 300 bytes"),
+            std::string::npos)
+      << describe(booted[0]);
+}
+
+// lely-core's list of flash status values: bits 1-7 = 5 is "flash write error".
+TEST(BootSlave, ReportsStatusIWhenTheFlashStatusReportsAnError) {
+  Rig rig;
+  verify_identification(rig, true);
+  report_identification(rig, kRunningId);
+  download_image(rig);
+  rig.answer(5U << 1);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+  const auto errors = rig.events_of(Kind::BootError);
+  ASSERT_EQ(errors.size(), 1U);
+  ASSERT_TRUE(errors[0].failure.has_value());
+  EXPECT_EQ(errors[0].failure->reason, BootFailure::Reason::FlashStatusError);
+  EXPECT_EQ(errors[0].failure->actual, 5U << 1);
+  EXPECT_NE(
+      boot_error_text(rig).find("1F57h sub 1 (flash status) is 0x0000000A: flash write error"),
+      std::string::npos)
+      << boot_error_text(rig);
+}
+
+TEST(BootSlave, ReportsStatusIWhenTheFlashStatusStaysInProgressBeyondTheProgramDataTimeout) {
+  Rig rig;
+  verify_identification(rig, true);
+  report_identification(rig, kRunningId);
+  download_image(rig);
+  const auto image_done = rig.now;
+  while (rig.port.reports.empty() && rig.now - image_done < 2 * rig.options.program_data_timeout) {
+    rig.answer(0x1);
+    rig.advance(100ms);
+  }
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+  EXPECT_GE(rig.now - image_done, rig.options.program_data_timeout);
+  EXPECT_LT(rig.now - image_done, rig.options.program_data_timeout + 200ms);
+  const auto errors = rig.events_of(Kind::BootError);
+  ASSERT_EQ(errors.size(), 1U);
+  EXPECT_EQ(errors[0].failure->reason, BootFailure::Reason::FlashNeverReady);
+}
+
+// CiA 302-3 makes 1F57h optional: a device without it is started, and 1F56h decides.
+TEST(BootSlave, Cia302_3DeviceWithoutFlashStatusIsStartedAndCheckedBy1F56h) {
+  Rig rig;
+  verify_identification(rig, true);
+  report_identification(rig, kRunningId);
+  download_image(rig);
+  rig.abort(SdoAbort::ObjectDoesNotExist);
+  expect_access(rig.last(), 0x1F51, 1, false, {1});
+  rig.answer();
+  expect_access(rig.last(), 0x1F56, 1, true);
+  rig.answer(kRunningId);  // the image did not take
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::I);
+  EXPECT_NE(boot_error_text(rig).find("1F56h sub 1 reports software identification 0x5EC00001, "
+                                      "1F55h expects 0x5EC00002"),
+            std::string::npos)
+      << boot_error_text(rig);
+}
+
+TEST(BootSlave, Cia302_3ReportsStatusHWhenTheIdentificationDiffersAndBit6IsClear) {
+  Rig rig;
+  verify_identification(rig, false);
+  report_identification(rig, kRunningId);
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, BootError::H);
+  const auto errors = rig.events_of(Kind::BootError);
+  ASSERT_EQ(errors.size(), 1U);
+  EXPECT_EQ(errors[0].failure->object, (cfg::ObjectAddress{0x1F56, 1}));
+  EXPECT_EQ(errors[0].failure->actual, kRunningId);
+  EXPECT_EQ(errors[0].failure->expected_by, 0x1F55);
+  EXPECT_EQ(errors[0].failure->expected, kExpectedId);
+}
+
 }  // namespace
 }  // namespace nmt

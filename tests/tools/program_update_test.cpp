@@ -98,7 +98,8 @@ TEST(CheckProgram, Bit5WithoutExpectedDateAndTimeIsStatusGsCaseAtThe1F81hLine) {
   EXPECT_THAT(r.err, HasSubstr(data("master_bit5.dcf") +
                                ":191: error: 1F81h sub 3 (node 3) has bit 5 (verify the "
                                "application software version) but 1F53h and 1F54h sub 3 give no "
-                               "expected version: the boot ends with status G"));
+                               "expected version, nor 1F55h sub 3 an expected software "
+                               "identification: the boot ends with status G"));
 }
 
 TEST(CheckProgram, ATrailerVersionDifferentFromTheExpectedOneIsAWarning) {

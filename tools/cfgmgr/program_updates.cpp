@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "../common/tool_support.hpp"
+#include "cfg/hex.hpp"
 #include "nmt/master/master_event_text.hpp"
 
 namespace cfgmgr {
@@ -40,8 +41,13 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
   if ((e.kind != K::SlaveBooted && e.kind != K::BootError) || !e.program || u.updated || u.failed) {
     return std::nullopt;
   }
-  u.before = e.program->before;
-  u.after = e.program->after;
+  if (e.program->identification_before) {
+    u.identification_before = e.program->identification_before;
+    u.identification_after = e.program->identification_after;
+  } else {
+    u.before = e.program->before;
+    u.after = e.program->after;
+  }
   u.total = e.program->bytes;
   u.began = e.program->began;
   if (e.program->clear_refused) u.clear_refused = e.program->clear_refused;
@@ -58,6 +64,12 @@ std::optional<std::string> ProgramUpdates::observe(const nmt::MasterEvent& e) {
                      ": program updated: " + tools::plural(u.total, "byte") + " in " + seconds;
   if (u.before) line += ", was " + cfg::to_string(*u.before);
   if (u.after) line += ", now " + cfg::to_string(*u.after);
+  if (u.identification_before) {
+    line += ", was software identification " + cfg::hex(*u.identification_before, 8);
+  }
+  if (u.identification_after) {
+    line += ", now " + cfg::hex(*u.identification_after, 8) + " (1F56h sub 1)";
+  }
   return line;
 }
 
@@ -67,6 +79,10 @@ const ProgramUpdate* ProgramUpdates::find(std::uint8_t node) const {
 }
 
 namespace {
+
+std::string number_json(const std::optional<std::uint32_t>& value) {
+  return value ? std::to_string(*value) : std::string("null");
+}
 
 std::string version_json(const std::optional<cfg::ProgramVersion>& version) {
   if (!version) return "null";
@@ -84,6 +100,8 @@ std::string ProgramUpdates::json(std::uint8_t node) const {
   std::snprintf(seconds, sizeof seconds, "%.6f", u->seconds());
   return std::string("{\"updated\": ") + (u->updated ? "true" : "false") +
          ", \"before\": " + version_json(u->before) + ", \"after\": " + version_json(u->after) +
+         ", \"identification_before\": " + number_json(u->identification_before) +
+         ", \"identification_after\": " + number_json(u->identification_after) +
          ", \"bytes\": " + std::to_string(u->bytes) + ", \"seconds\": " + seconds +
          ", \"clear_refused\": " +
          (u->clear_refused ? tools::json_string(nmt::to_string(*u->clear_refused)) : "null") + "}";

@@ -26,6 +26,10 @@ struct ProgramUpdate {
   std::optional<nmt::TimePoint> ended;        ///< start confirmed (CheckSoftware again) or error
   std::optional<cfg::ProgramVersion> before;  ///< 1F52h before the update
   std::optional<cfg::ProgramVersion> after;   ///< 1F52h after it (nullopt: not read again)
+  /// A CiA 302-3 node (1F55h expectation): 1F56h sub 1 before and after, in place of the
+  /// versions (which stay nullopt).
+  std::optional<std::uint32_t> identification_before;
+  std::optional<std::uint32_t> identification_after;
   /// The device refused clear (1F51h = 3) with this abort and the download went on
   /// (MasterEvent::ProgramClearRefused, a DSP 302 v3.2.1 device); nullopt: clear was accepted.
   std::optional<cfg::SdoAbort> clear_refused;
@@ -46,9 +50,11 @@ class ProgramUpdates {
   std::optional<std::string> observe(const nmt::MasterEvent& e);
   /// The node's last update this run; nullptr when it had none.
   const ProgramUpdate* find(std::uint8_t node) const;
-  /// `--json`'s "program" of a node: {"updated", "before", "after", "bytes", "seconds",
-  /// "clear_refused"} (a version as {"date_days", "time_ms", "text"}; clear_refused the abort
-  /// in words, null when clear was accepted), or null when the node had no update.
+  /// `--json`'s "program" of a node: {"updated", "before", "after", "identification_before",
+  /// "identification_after", "bytes", "seconds", "clear_refused"} (a version as {"date_days",
+  /// "time_ms", "text"}, null for a CiA 302-3 node; an identification as a number, null for a
+  /// DSP 302 node; clear_refused the abort in words, null when clear was accepted), or null
+  /// when the node had no update.
   std::string json(std::uint8_t node) const;
 
  private:

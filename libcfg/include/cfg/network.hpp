@@ -46,6 +46,10 @@ struct NodeProgram {
   /// The expected version; nullopt only for a node whose version the master DCF's 1F53h/1F54h
   /// give (master DCF form), not the description.
   std::optional<ProgramVersion> version;
+  /// CiA 302-3: the expected software identification (1F55h sub N), compared with the slave's
+  /// 1F56h sub 1 instead of 1F52h against the version (as lely-core's master does; dcfgen's
+  /// `software_version`). Nonzero when set.
+  std::optional<std::uint32_t> identification;
   std::string source;  ///< the file that names the program ("" for a command line)
   int line = 0;        ///< the line of NodeXProgramFile= (else NodeXProgramVersion=)
 };

@@ -60,8 +60,13 @@ inline constexpr std::uint16_t kProgramControl = 0x1F51;
 inline constexpr std::uint16_t kVerifyApplicationSoftware = 0x1F52;
 inline constexpr std::uint16_t kExpectedApplicationSwDate = 0x1F53;
 inline constexpr std::uint16_t kExpectedApplicationSwTime = 0x1F54;
+/// CiA 302-3, master: the software identification expected of node N (sub N), compared with
+/// the slave's 1F56h sub 1 (lely-core's master and dcfgen's `software_version`).
+inline constexpr std::uint16_t kExpectedSoftwareIdentification = 0x1F55;
 inline constexpr std::uint16_t kProgramSoftwareIdentification = 0x1F56;
 inline constexpr std::uint16_t kFlashStatusIdentification = 0x1F57;
+/// CiA 302-3, master: the program image for node N (sub N, DOMAIN; dcfgen's `software_file`).
+inline constexpr std::uint16_t kSlaveProgramData = 0x1F58;
 inline constexpr std::uint16_t kDynamicChannelsProcessPicture = 0x1F70;
 inline constexpr std::uint16_t kNmtStartup = 0x1F80;
 inline constexpr std::uint16_t kSlaveAssignment = 0x1F81;

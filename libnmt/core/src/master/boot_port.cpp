@@ -80,6 +80,7 @@ BootSlaveExpectations NmtMaster::Impl::BootPort::expectations(cfg::NodeId node) 
   }
   e.software = {m_.value_of(obj::kExpectedApplicationSwDate, node),
                 m_.value_of(obj::kExpectedApplicationSwTime, node)};
+  e.software_identification = m_.value_of(obj::kExpectedSoftwareIdentification, node);
   e.configuration = m_.store_objects.expected_configuration(node);
   e.restore_sub = static_cast<std::uint8_t>(m_.value_of(obj::kRestoreConfiguration, node));
   e.boot_time_ms = m_.value_of(obj::kBootTime, 0);

@@ -99,6 +99,7 @@ void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_
   software_updated_ = false;
   identity_sub_ = 0;
   software_ = {};
+  software_id_ = 0;
   update_.reset();
   verify_ = {};
   cob_ids_to_read_.clear();
@@ -165,7 +166,8 @@ void BootSlaveProcess::download(Phase phase, std::uint16_t index, std::uint8_t s
 
 void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& out) {
   const bool reads_u32 = phase_ == Phase::ReadDeviceType || phase_ == Phase::ReadIdentity ||
-                         phase_ == Phase::ReadSoftwareDate || phase_ == Phase::ReadSoftwareTime;
+                         phase_ == Phase::ReadSoftwareDate || phase_ == Phase::ReadSoftwareTime ||
+                         phase_ == Phase::ReadSoftwareId || phase_ == Phase::ReadFlashStatus;
   if (reads_u32 && r.ok() && r.data.empty()) {
     // A 0-byte answer (a segmented or block upload of nothing) has no UNSIGNED32 to compare: the
     // step fails as a failed upload does, with CiA 301 0607 0010 (length does not match).
@@ -229,6 +231,8 @@ void BootSlaveProcess::on_sdo_result(const SdoResult& r, TimePoint now, Output& 
     }
     case Phase::ReadSoftwareDate:
     case Phase::ReadSoftwareTime:
+    case Phase::ReadSoftwareId:
+    case Phase::ReadFlashStatus:
     case Phase::ProgramStop:
     case Phase::ProgramClear:
     case Phase::ProgramData:
@@ -446,6 +450,9 @@ void BootSlaveProcess::on_timer(TimePoint now, Output& out) {
       return;
     case Phase::RetryWait:
       start(now, out);
+      return;
+    case Phase::FlashStatusWait:
+      upload(Phase::ReadFlashStatus, cfg::object::kFlashStatusIdentification, 1, now);
       return;
     default:
       return;

@@ -41,6 +41,9 @@ struct BootSlaveExpectations {
   /// 1F85h-1F88h: vendor-ID, product code, revision number, serial number (0: not checked).
   std::array<std::uint32_t, 4> identity{};
   cfg::ProgramVersion software;           ///< 1F53h/1F54h (DSP 302 §9)
+  /// 1F55h (CiA 302-3): the software identification expected in the slave's 1F56h sub 1; when
+  /// non-zero it is checked instead of `software` (0: not given).
+  std::uint32_t software_identification = 0;
   cfg::ConfigurationStamp configuration;  ///< 1F26h/1F27h, or the configuration manager's stamp
   std::uint8_t restore_sub = 0;           ///< 1F8Ah (§6.12; 0: no restore)
   std::uint32_t boot_time_ms = 0;         ///< 1F89h (§6.11; 0: no limit)
@@ -136,9 +139,12 @@ class BootSlaveProcess {
     AwaitResetBootUp,     // keep-alive slave not operational: reset communication sent
     ReadSoftwareDate,     // 1F52h sub 1
     ReadSoftwareTime,     // 1F52h sub 2
+    ReadSoftwareId,       // 1F56h sub 1 (CiA 302-3, against 1F55h)
     ProgramStop,          // 1F51h sub 1 = 0
     ProgramClear,         // 1F51h sub 1 = 3
     ProgramData,          // 1F50h sub 1 = image
+    ReadFlashStatus,      // 1F57h sub 1 after the image (CiA 302-3)
+    FlashStatusWait,      // 1F57h bit 0 said "in progress": read again at the deadline
     ProgramStart,         // 1F51h sub 1 = 1
     ReadVerifyDate,       // 1020h sub 1
     ReadVerifyTime,       // 1020h sub 2
@@ -234,6 +240,11 @@ class BootSlaveProcess {
   void software_checked(TimePoint now, Output& out);
   void program_step(Phase phase, TimePoint now);
   /// The answers of the software phases (ReadSoftware*, Program*).
+  /// Reads the slave's software identity: 1F56h sub 1 with a 1F55h expectation, else 1F52h.
+  void read_software(TimePoint now);
+  /// CiA 302-3: the flash status 1F57h sub 1 read after the image (lely-core's
+  /// co_nmt_boot_wait_flash), and what follows its value.
+  void flash_status_read(const SdoResult& result, TimePoint now, Output& out);
   void software_sdo_result(const SdoResult& result, TimePoint now, Output& out);
   void start_error_control(TimePoint now, Output& out);
   void error_control_started(TimePoint now, Output& out);
@@ -262,6 +273,10 @@ class BootSlaveProcess {
   // Data of the current try.
   std::uint8_t identity_sub_ = 0;
   cfg::ProgramVersion software_;                      ///< 1F52h as read
+  std::uint32_t software_id_ = 0;                     ///< 1F56h sub 1 as read (CiA 302-3)
+  /// The image went down at this time: 1F57h's "in progress" is waited for until the program
+  /// data timeout passed since then.
+  TimePoint image_sent_{};
   std::optional<MasterEvent::ProgramUpdate> update_;  ///< the software update of this try
   cfg::ConfigurationStamp verify_;                    ///< 1020h as read
   std::vector<std::uint16_t> cob_ids_to_read_;

@@ -91,6 +91,8 @@ void NmtMaster::Impl::add_missing_objects(LocalDictionary& dict) {
             127, 0);
   add_array(dict, obj::kExpectedApplicationSwTime, "Expected application SW time", T::Unsigned32,
             127, 0);
+  add_array(dict, obj::kExpectedSoftwareIdentification, "Expected software identification",
+            T::Unsigned32, 127, 0);
   // 1F82h/1F83h are requests whatever the file says: writable, and 80h for all nodes.
   for (std::uint16_t index : {obj::kRequestNmt, obj::kRequestGuarding}) {
     for (unsigned sub = 1; sub < kAllNodesSub; ++sub) {

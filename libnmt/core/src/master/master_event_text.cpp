@@ -212,10 +212,51 @@ std::string slave_booted_words(const MasterEvent& e, const std::string& node) {
     text += "; program updated from " + cfg::to_string(e.program->before) + " to " +
             cfg::to_string(*e.program->after) + ", " + std::to_string(e.program->bytes) + " bytes";
   }
+  if (e.program && e.program->identification_after) {
+    text += "; program updated from software identification " +
+            cfg::hex(e.program->identification_before.value_or(0), 8) + " to " +
+            cfg::hex(*e.program->identification_after, 8) + ", " +
+            std::to_string(e.program->bytes) + " bytes";
+  }
   return text;
 }
 
+/// CiA 302-3's flash status identification (1F57h sub 1), bits 1-7, in words (the list
+/// lely-core's co_nmt_boot_wait_flash_on_up_con reports).
+std::string flash_status_words(std::uint32_t value) {
+  const auto status = (value >> 1) & 0x7FU;
+  switch (status) {
+    case 0:
+      return "no error";
+    case 1:
+      return "no valid program available";
+    case 2:
+      return "data format unknown";
+    case 3:
+      return "data format error or data CRC error";
+    case 4:
+      return "flash not cleared before write";
+    case 5:
+      return "flash write error";
+    case 6:
+      return "general address error";
+    case 7:
+      return "flash secured (write access currently forbidden)";
+    case 63:
+      return "unspecified error";
+    default:
+      if (status > 63) {
+        return "manufacturer-specific error " + cfg::hex((value >> 16) & 0xFFFFU, 4) + "h";
+      }
+      return "reserved status " + std::to_string(status);
+  }
+}
+
 std::string software_words(const BootFailure& f) {
+  if (f.expected_by == cfg::object::kExpectedSoftwareIdentification) {
+    return "1F56h sub 1 reports software identification " + cfg::hex(f.actual, 8) +
+           ", 1F55h expects " + cfg::hex(f.expected, 8);
+  }
   return "1F52h reports " + cfg::to_string(f.software) + ", 1F53h/1F54h expect " +
          cfg::to_string(f.expected_software);
 }
@@ -242,6 +283,10 @@ std::string_view to_string(BootFailure::Reason reason) {
       return "software_differs_after_update";
     case BootFailure::Reason::ProgramDownloadFailed:
       return "program_download_failed";
+    case BootFailure::Reason::FlashStatusError:
+      return "flash_status_error";
+    case BootFailure::Reason::FlashNeverReady:
+      return "flash_never_ready";
     case BootFailure::Reason::NoHeartbeat:
       return "no_heartbeat";
     case BootFailure::Reason::NoGuardingReply:
@@ -391,7 +436,7 @@ std::string describe(const BootFailure& f, cfg::NodeId node) {
                     cfg::object_name(f.expected_by) + " expects " + cfg::hex(f.expected, 8);
       break;
     case Reason::NoExpectedSoftware:
-      text = "1F81h bit 5 asks for a software version check, but 1F53h and 1F54h sub " +
+      text = "1F81h bit 5 asks for a software version check, but 1F53h, 1F54h and 1F55h sub " +
              cfg::hex(node.value(), 2) + "h are 0";
       break;
     case Reason::SoftwareDiffers:
@@ -408,6 +453,14 @@ std::string describe(const BootFailure& f, cfg::NodeId node) {
       break;
     case Reason::ProgramDownloadFailed:
       text = "program download: " + transfer();
+      break;
+    case Reason::FlashStatusError:
+      text = "after the program download 1F57h sub 1 (flash status) is " + cfg::hex(f.actual, 8) +
+             ": " + flash_status_words(f.actual);
+      break;
+    case Reason::FlashNeverReady:
+      text = "after the program download 1F57h sub 1 (flash status) still said 'in progress' " +
+             std::string("when the program data timeout had passed");
       break;
     case Reason::NoHeartbeat:
       text = "no heartbeat within the consumer time (1016h)";

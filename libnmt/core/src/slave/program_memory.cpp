@@ -1,5 +1,8 @@
 // SlaveNode's program memory (DSP 302 §9, program download): the images written to 1F50h sub N,
-// kept over resets and power cycles, and the version 1F52h reports for program number 1. The
+// kept over resets and power cycles, and the version 1F52h reports for program number 1. Where
+// the device file has them, CiA 302-3's 1F56h sub N (program software identification: the
+// CRC-32 of the image, our simulated devices' choice) and 1F57h sub N (flash status
+// identification: 0 after a download, "no valid program" after a clear). The
 // image format is the manufacturer's (§9); a simulated device learns an image's version from our
 // trailer convention (cfg/program_image.hpp), the rest of the image is opaque to it.
 #include <string>
@@ -31,6 +34,7 @@ void SlaveNode::program_downloaded(std::uint8_t program, std::span<const std::ui
   if (dict_.entry(obj::kProgramSoftwareIdentification, program)) {
     dict_.set_unsigned(obj::kProgramSoftwareIdentification, program, cfg::crc32(image));
   }
+  set_flash_status(program, kFlashStatusOk);
   const auto version = cfg::program_image_version(image);
   // DSP 302 §9: 1F52h verifies "the stored program number 1". An image with a trailer reports
   // its version once started (program_state_changed); one without it gets the options' version
@@ -46,6 +50,7 @@ void SlaveNode::program_downloaded(std::uint8_t program, std::span<const std::ui
 void SlaveNode::program_state_changed(std::uint8_t program, ProgramState state) {
   if (state == ProgramState::NoProgram) {
     program_images_.erase(program);  // clear (1F51h = 3, CiA 302-3)
+    set_flash_status(program, kFlashStatusNoProgram);
     return;
   }
   if (program != 1 || state != ProgramState::Running) return;
@@ -57,6 +62,12 @@ void SlaveNode::program_state_changed(std::uint8_t program, ProgramState state) 
     // An image without a trailer, e.g. restored from an earlier run: the version its download
     // was given.
     report_program_version(*options_.downloaded_program_version);
+  }
+}
+
+void SlaveNode::set_flash_status(std::uint8_t program, std::uint32_t value) {
+  if (dict_.entry(obj::kFlashStatusIdentification, program)) {
+    dict_.set_unsigned(obj::kFlashStatusIdentification, program, value);
   }
 }
 

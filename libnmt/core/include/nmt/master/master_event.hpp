@@ -119,22 +119,28 @@ struct BootFailure {
     NotListed,           ///< A: 1F81h sub node-ID has bit 0 clear
     TransferFailed,      ///< B, D/M/N/O, G, I, J: `transfer` (1000h, 1018h, 1F52h, 1020h)
     ValueDiffers,        ///< C, D, M, N, O: `object` is `actual`, `expected_by` holds `expected`
-    NoExpectedSoftware,  ///< G: 1F81h bit 5 set, but 1F53h and 1F54h of the node are 0
+    NoExpectedSoftware,  ///< G: 1F81h bit 5 set, but 1F53h, 1F54h and 1F55h of the node are 0
     SoftwareDiffers,     ///< H: 1F52h `software` differs from `expected_software`, and ...
     UpdateNotAllowed,    ///< H: ... 1F81h bit 6 does not allow an update
     NoProgramImage,      ///< H: ... no program image is available
     SoftwareDiffersAfterUpdate,  ///< I: 1F52h after the program download still differs
     ProgramDownloadFailed,       ///< I: `transfer` of the update (1F51h, 1F50h) failed
-    NoHeartbeat,                 ///< E: no heartbeat within the consumer time (1016h)
-    NoGuardingReply,             ///< F: no reply to the node guarding request
-    NoConfigurationStored,       ///< J: 1F26h/1F27h expect a configuration, none is stored
-    RestoreFailed,               ///< J: `transfer` of 1011h 'load' failed
-    NoBootUpAfterRestore,        ///< J: no boot-up after the restore and reset
-    WriteFailed,                 ///< J: `transfer` of entry `entry` of `entries` failed
-    SaveFailed,                  ///< J: `transfer` of 1010h 'save' failed
-    ApplicationStepFailed,       ///< J: configuration_done(node, false)
-    NoFirstHeartbeat,            ///< K: no heartbeat within `consumer_time_ms` (1016h)
-    KeptAlive,                   ///< L: kept alive (1F81h bit 4), configuration not checked
+    /// I: the flash status 1F57h sub 1 read after the image reports an error (CiA 302-3):
+    /// `actual` is its value, bits 1-7 the status, bits 16-31 a manufacturer's code.
+    FlashStatusError,
+    /// I: 1F57h sub 1 still said "in progress" (bit 0) when the program data timeout had
+    /// passed since the image went down: `actual` is its last value.
+    FlashNeverReady,
+    NoHeartbeat,            ///< E: no heartbeat within the consumer time (1016h)
+    NoGuardingReply,        ///< F: no reply to the node guarding request
+    NoConfigurationStored,  ///< J: 1F26h/1F27h expect a configuration, none is stored
+    RestoreFailed,          ///< J: `transfer` of 1011h 'load' failed
+    NoBootUpAfterRestore,   ///< J: no boot-up after the restore and reset
+    WriteFailed,            ///< J: `transfer` of entry `entry` of `entries` failed
+    SaveFailed,             ///< J: `transfer` of 1010h 'save' failed
+    ApplicationStepFailed,  ///< J: configuration_done(node, false)
+    NoFirstHeartbeat,       ///< K: no heartbeat within `consumer_time_ms` (1016h)
+    KeptAlive,              ///< L: kept alive (1F81h bit 4), configuration not checked
   };
   Reason reason = Reason::NotListed;
   BootStep step = BootStep::Idle;       ///< the step the try was in when it failed
@@ -145,7 +151,9 @@ struct BootFailure {
   std::uint32_t actual = 0;
   std::uint16_t expected_by = 0;
   std::uint32_t expected = 0;
-  /// Software*, UpdateNotAllowed, NoProgramImage: 1F52h as read and 1F53h/1F54h.
+  /// Software*, UpdateNotAllowed, NoProgramImage: 1F52h as read and 1F53h/1F54h. With a CiA
+  /// 302-3 expectation (1F55h) instead: `object` is 1F56h sub 1, `actual` its value,
+  /// `expected_by` 1F55h and `expected` the identification expected.
   cfg::ProgramVersion software{};
   cfg::ProgramVersion expected_software{};
   std::size_t entry = 0;               ///< WriteFailed: the entry that failed, 1-based
@@ -309,6 +317,9 @@ struct MasterEvent {
   struct ProgramUpdate {
     cfg::ProgramVersion before;
     std::optional<cfg::ProgramVersion> after;
+    /// CiA 302-3 (a 1F55h expectation): 1F56h sub 1 before and after, in place of the versions.
+    std::optional<std::uint32_t> identification_before;
+    std::optional<std::uint32_t> identification_after;
     std::uint64_t bytes = 0;
     TimePoint began{};
     std::optional<TimePoint> ended;

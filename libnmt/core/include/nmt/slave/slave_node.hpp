@@ -263,6 +263,11 @@ class SlaveNode {
                           Output& out);
   void program_state_changed(std::uint8_t program, ProgramState state);
   void report_program_version(const cfg::ProgramVersion& version);
+  /// CiA 302-3 1F57h sub `program`, where the device file has it: bit 0 "in progress", bits
+  /// 1-7 the status (0 no error, 1 no valid program available).
+  static constexpr std::uint32_t kFlashStatusOk = 0;
+  static constexpr std::uint32_t kFlashStatusNoProgram = 1U << 1;
+  void set_flash_status(std::uint8_t program, std::uint32_t value);
   bool on_lss_frame(const CanFrame& frame, TimePoint now, Output& out);
   void take_node_id(cfg::NodeId node_id, ResetScope scope, TimePoint now, Output& out);
   void become_unconfigured(TimePoint now);
