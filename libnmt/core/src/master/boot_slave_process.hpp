@@ -40,7 +40,7 @@ struct BootSlaveExpectations {
   std::uint32_t device_type = 0;    ///< 1F84h (0: not checked)
   /// 1F85h-1F88h: vendor-ID, product code, revision number, serial number (0: not checked).
   std::array<std::uint32_t, 4> identity{};
-  cfg::ProgramVersion software;           ///< 1F53h/1F54h (DSP 302 §9)
+  cfg::ProgramVersion software;  ///< 1F53h/1F54h (DSP 302 §9)
   /// 1F55h (CiA 302-3): the software identification expected in the slave's 1F56h sub 1; when
   /// non-zero it is checked instead of `software` (0: not given).
   std::uint32_t software_identification = 0;
@@ -272,8 +272,8 @@ class BootSlaveProcess {
 
   // Data of the current try.
   std::uint8_t identity_sub_ = 0;
-  cfg::ProgramVersion software_;                      ///< 1F52h as read
-  std::uint32_t software_id_ = 0;                     ///< 1F56h sub 1 as read (CiA 302-3)
+  cfg::ProgramVersion software_;   ///< 1F52h as read
+  std::uint32_t software_id_ = 0;  ///< 1F56h sub 1 as read (CiA 302-3)
   /// The image went down at this time: 1F57h's "in progress" is waited for until the program
   /// data timeout passed since then.
   TimePoint image_sent_{};
