@@ -310,6 +310,8 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // the SDO entries the manager gave out are gone.
   sdo_manager.clear();
   for (const auto n : all_node_ids()) {
+    // The manager's transfers still running would bring it stale results (clear()).
+    transfers.cancel_manager(n, now, transfer_out);
     boot(n).reset(now);
     track_boot_deadline(n);
     stop_error_control(n);
