@@ -78,6 +78,13 @@ struct Rig {
                          now, out);
   }
 
+  // One upload of `object` by the SDO manager (`tag`) to node `n`, 100 ms for each response.
+  void manager_upload(std::uint64_t tag, std::uint8_t n, cfg::ObjectAddress object, TimePoint now) {
+    scheduler.start_manager(
+        tag, {.node = node(n), .object = object, .upload = true, .timeout = milliseconds(100)}, now,
+        out);
+  }
+
   // The master's settle (NmtMaster::Impl::settle) without its other parts.
   void settle(TimePoint now) {
     for (;;) {
@@ -281,9 +288,7 @@ TEST(SdoTransferScheduler, HeldTransfersStartInOrderWhenTheDefaultSdoIsFree) {
   EXPECT_EQ(rig.scheduler.held(), 3U);
 
   // The SDO manager's own transfer to node 5 is not held: it manages that SDO.
-  rig.scheduler.start_manager(
-      9, {.node = node(5), .object = {0x1000, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(1), rig.out);
+  rig.manager_upload(9, 5, {0x1000, 0}, at_ms(1));
   rig.settle(at_ms(1));
   EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
 
@@ -349,9 +354,7 @@ TEST(SdoTransferScheduler, ReportsARefusedStartWithTheClientsWords) {
 TEST(SdoTransferScheduler, ABootTrysEndStopsOnlyTheBootsTransfersToItsNode) {
   Rig rig;
   rig.boot_upload(5, 1, at_ms(0), milliseconds(100));
-  rig.scheduler.start_manager(
-      3, {.node = node(5), .object = {0x1001, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(0), rig.out);
+  rig.manager_upload(3, 5, {0x1001, 0}, at_ms(0));
   ASSERT_TRUE(
       rig.scheduler.start_application(node(5), {0x1018, 1}, true, {}, at_ms(0), rig.out).ok());
   rig.boot_upload(6, 1, at_ms(0), milliseconds(100));
@@ -391,9 +394,7 @@ TEST(SdoTransferScheduler, ABootTrysEndStopsOnlyTheBootsTransfersToItsNode) {
 // boot's leaves the queue without a frame, the manager's gets its answer.
 TEST(SdoTransferScheduler, TheManagersTransferOnTheBusGetsItsAnswerWhenABootTryOfItsNodeEnds) {
   Rig rig;
-  rig.scheduler.start_manager(
-      7, {.node = node(5), .object = {0x1F10, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(0), rig.out);
+  rig.manager_upload(7, 5, {0x1F10, 0}, at_ms(0));
   rig.boot_upload(5, 1, at_ms(0), milliseconds(100));
   rig.settle(at_ms(0));
   EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, "40101F0000000000")});
@@ -417,15 +418,12 @@ TEST(SdoTransferScheduler, TheManagersTransferOnTheBusGetsItsAnswerWhenABootTryO
 }
 
 // A manager whose tables were cleared (the master resets all nodes) has its transfers stopped:
-// the one on the bus aborted, the queued one removed; the boot's and the application's go on.
+// the one on the bus is aborted, and so is its next, which the client starts then; the boot's
+// goes on.
 TEST(SdoTransferScheduler, CancelManagerStopsOnlyTheManagersTransfers) {
   Rig rig;
-  rig.scheduler.start_manager(
-      7, {.node = node(5), .object = {0x1F10, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(0), rig.out);
-  rig.scheduler.start_manager(
-      8, {.node = node(5), .object = {0x1001, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(0), rig.out);
+  rig.manager_upload(7, 5, {0x1F10, 0}, at_ms(0));
+  rig.manager_upload(8, 5, {0x1001, 0}, at_ms(0));
   rig.boot_upload(5, 1, at_ms(0), milliseconds(100));
   rig.settle(at_ms(0));
   EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, "40101F0000000000")});
