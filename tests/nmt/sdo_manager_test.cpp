@@ -226,6 +226,49 @@ TEST_F(SdoManagerTest, MasterTransfersWaitWhileAnSrdOwnsAllDefaultSdos) {
   EXPECT_TRUE(rig.events_of(Kind::SdoFinished, 3).front().sdo->ok());
 }
 
+// CiA 302-2 §3.3: the boot of a slave "shall run asynchronously to other processes"; DSP 302
+// §7.1: the manager checks S before it gives S's default SDO to the SRD. A boot of S that begins
+// while the manager's read of S's 1000h is on the bus leaves that read running: the manager gets
+// its answer and establishes the connection, and its later jobs (the release) run too.
+TEST_F(SdoManagerTest, ABootOfTheSlaveDuringTheManagersProbeLeavesTheProbeRunning) {
+  add_srd(120);
+  start_network();
+  ASSERT_TRUE(register_srd(120, 0x12810001));
+  const auto from = rig.bus.now();
+  ASSERT_EQ(srd_write(120, 0x1281, 0x1F00, request_word(0x1282, 120, 3)), SdoAbort::None);
+  // The manager's probe of S, CiA 301 §7.2.4.3.5 initiate upload of 1000h sub 0.
+  ASSERT_TRUE(rig.bus.run_until([&] { return !rig.uploads_of(3, 0x1000, 0, from).empty(); },
+                                rig.bus.now() + 1s));
+  const auto probe = rig.uploads_of(3, 0x1000, 0, from).front();
+  ASSERT_TRUE(rig.on_id(0x583, probe.at).empty()) << "answered before the boot began";
+  const auto asked = rig.bus.now();
+  ASSERT_TRUE(rig.call([](NmtMaster& m, TimePoint now, NmtMaster::Output& out) {
+                   return m.boot_slave(3_node, now, out);
+                 })
+                  .ok());
+  ASSERT_TRUE(wait_for(Kind::SdoConnectionEstablished, 120, 2s));
+  // No abort of the probe (CiA 301 §7.2.4.3.17, ccs 4): S answered it; the boot's own read of
+  // 1000h waited behind it on S's default SDO.
+  for (const auto& s : rig.requests_to(3, asked)) EXPECT_NE(s.frame.data[0], 0x80) << s;
+  const auto uploads = rig.uploads_of(3, 0x1000, 0, from);
+  ASSERT_EQ(uploads.size(), 2U);
+  const auto answers = rig.on_id(0x583, from);
+  ASSERT_FALSE(answers.empty());
+  EXPECT_EQ(answers.front().text(), "583#4300100091010F00") << "1000h = 000F0191h (slave.eds)";
+  EXPECT_LT(answers.front().at, uploads[1].at);
+  // §7.1: S's default SDO, given to the SRD's 1282h.
+  EXPECT_EQ(at(120, 0x1282, 1), 0x603U);
+  EXPECT_EQ(at(120, 0x1282, 2), 0x583U);
+  // The boot that began went on: S booted once more, without an error.
+  const auto booted = rig.booted(3);
+  ASSERT_FALSE(booted.empty());
+  EXPECT_GE(booted.back().at, asked);
+  EXPECT_TRUE(rig.boot_errors(3).empty());
+  // The SRD lets S go (§7.2.2 1F01h): the manager's next job runs.
+  ASSERT_EQ(srd_write(120, 0x1281, 0x1F01, request_word(0x1282, 120, 3)), SdoAbort::None);
+  ASSERT_TRUE(wait_for(Kind::SdoConnectionReleased, 120));
+}
+
 /// Two flying masters: the standby one ignores 6E0h and refuses 1F00h with 0800 0022.
 TEST(SdoManagerFlying, StandbyMasterIgnoresTheDynamicSdoRequest) {
   SimBus bus{500'000};

@@ -3,7 +3,8 @@
 // grown by one per window's worth of answers), the waiting queue, the repetition after a timeout
 // (MasterOptions::sdo.retries), bus-load pacing from the frames' bit lengths (ISO 11898-1, as
 // nmt::frame_bits counts them) at a given bit rate, the transfers held while the SDO manager gave
-// a default SDO to an SRD (DSP 302 §7.1), refused starts and the cancel of a try's transfers.
+// a default SDO to an SRD (DSP 302 §7.1), refused starts, and the cancel of a try's transfers
+// that leaves the SDO manager's and the application's running.
 // Frames are CiA 301 §7.2.4.3 SDO frames on the default channels 600h/580h + node-ID.
 #include "master/sdo_transfer_scheduler.hpp"
 
@@ -75,6 +76,13 @@ struct Rig {
                           .timeout = timeout,
                           .retries = retries},
                          now, out);
+  }
+
+  // One upload of `object` by the SDO manager (`tag`) to node `n`, 100 ms for each response.
+  void manager_upload(std::uint64_t tag, std::uint8_t n, cfg::ObjectAddress object, TimePoint now) {
+    scheduler.start_manager(
+        tag, {.node = node(n), .object = object, .upload = true, .timeout = milliseconds(100)}, now,
+        out);
   }
 
   // The master's settle (NmtMaster::Impl::settle) without its other parts.
@@ -280,9 +288,7 @@ TEST(SdoTransferScheduler, HeldTransfersStartInOrderWhenTheDefaultSdoIsFree) {
   EXPECT_EQ(rig.scheduler.held(), 3U);
 
   // The SDO manager's own transfer to node 5 is not held: it manages that SDO.
-  rig.scheduler.start_manager(
-      9, {.node = node(5), .object = {0x1000, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(1), rig.out);
+  rig.manager_upload(9, 5, {0x1000, 0}, at_ms(1));
   rig.settle(at_ms(1));
   EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
 
@@ -343,12 +349,12 @@ TEST(SdoTransferScheduler, ReportsARefusedStartWithTheClientsWords) {
   EXPECT_TRUE(app.events.empty());
 }
 
-TEST(SdoTransferScheduler, CancelEndsTheNodesBootAndManagerTransfersButNotTheApplications) {
+// CiA 302-2 §3.3: the boot of a slave runs asynchronously to the other processes; DSP 302 §7.1:
+// the SDO manager's accesses are its own. A boot try's end stops the boot's transfers only.
+TEST(SdoTransferScheduler, ABootTrysEndStopsOnlyTheBootsTransfersToItsNode) {
   Rig rig;
   rig.boot_upload(5, 1, at_ms(0), milliseconds(100));
-  rig.scheduler.start_manager(
-      3, {.node = node(5), .object = {0x1001, 0}, .upload = true, .timeout = milliseconds(100)},
-      at_ms(0), rig.out);
+  rig.manager_upload(3, 5, {0x1001, 0}, at_ms(0));
   ASSERT_TRUE(
       rig.scheduler.start_application(node(5), {0x1018, 1}, true, {}, at_ms(0), rig.out).ok());
   rig.boot_upload(6, 1, at_ms(0), milliseconds(100));
@@ -357,22 +363,83 @@ TEST(SdoTransferScheduler, CancelEndsTheNodesBootAndManagerTransfersButNotTheApp
             (std::vector<std::string>{on(0x600, 5, kUpload1000), on(0x600, 6, kUpload1000)}));
 
   // The boot upload on the bus is aborted (0800 0000, general error); the client starts the
-  // next, the manager's upload of 1001h, which is aborted too; then the application's goes on
-  // the bus. Node 6 keeps its own.
+  // next, the manager's upload of 1001h, which goes on. Node 6 keeps its own.
   rig.port.running[5] = 2;
-  rig.scheduler.cancel(node(5), at_ms(10), rig.out);
+  rig.scheduler.cancel_boot(node(5), at_ms(10), rig.out);
   rig.settle(at_ms(10));
-  EXPECT_EQ(rig.take_frames(),
-            (std::vector<std::string>{
-                on(0x600, 5, "8000100000000008"), on(0x600, 5, "4001100000000000"),
-                on(0x600, 5, "8001100000000008"), on(0x600, 5, "4018100100000000")}));
+  EXPECT_EQ(rig.take_frames(), (std::vector<std::string>{on(0x600, 5, "8000100000000008"),
+                                                         on(0x600, 5, "4001100000000000")}));
   EXPECT_TRUE(rig.finished().empty());
   EXPECT_EQ(rig.scheduler.boot_in_flight(), 1U);
-  rig.frame(on(0x580, 5, "4318100178563412"), at_ms(11));
-  rig.frame(on(0x580, 6, kAnswer1000), at_ms(12));
-  ASSERT_EQ(rig.finished().size(), 2U);
-  EXPECT_EQ(rig.finished()[0].owner, Scheduler::Owner{Scheduler::Application{1}});
-  EXPECT_EQ(rig.finished()[1].node, node(6));
+  // The manager gets its answer (1001h = 00h, one byte), then the application's upload goes on
+  // the bus and gets its own.
+  rig.frame(on(0x580, 5, "4F01100000000000"), at_ms(11));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, "4018100100000000")});
+  rig.frame(on(0x580, 5, "4318100178563412"), at_ms(12));
+  rig.frame(on(0x580, 6, kAnswer1000), at_ms(13));
+  const auto finished = rig.finished();
+  ASSERT_EQ(finished.size(), 3U);
+  EXPECT_EQ(finished[0].owner, Scheduler::Owner{Scheduler::Manager{3}});
+  EXPECT_TRUE(finished[0].result.ok());
+  EXPECT_EQ(finished[0].result.data, std::vector<std::uint8_t>{0x00});
+  EXPECT_EQ(finished[0].result.finished, at_ms(11));
+  EXPECT_EQ(finished[1].owner, Scheduler::Owner{Scheduler::Application{1}});
+  EXPECT_EQ(finished[1].result.data, (std::vector<std::uint8_t>{0x78, 0x56, 0x34, 0x12}));
+  EXPECT_EQ(finished[2].node, node(6));
+  EXPECT_EQ(finished[2].owner, Scheduler::Owner{Scheduler::BootTry{1}});
+  EXPECT_EQ(rig.scheduler.boot_in_flight(), 0U);
+}
+
+// The manager's transfer on the bus when the boot try ends, the boot's queued behind it: the
+// boot's leaves the queue without a frame, the manager's gets its answer.
+TEST(SdoTransferScheduler, TheManagersTransferOnTheBusGetsItsAnswerWhenABootTryOfItsNodeEnds) {
+  Rig rig;
+  rig.manager_upload(7, 5, {0x1F10, 0}, at_ms(0));
+  rig.boot_upload(5, 1, at_ms(0), milliseconds(100));
+  rig.settle(at_ms(0));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, "40101F0000000000")});
+  EXPECT_EQ(rig.scheduler.boot_in_flight(), 1U);
+
+  rig.port.running.erase(5);
+  rig.scheduler.cancel_boot(node(5), at_ms(10), rig.out);
+  rig.settle(at_ms(10));
+  EXPECT_TRUE(rig.take_frames().empty());
+  EXPECT_EQ(rig.scheduler.boot_in_flight(), 0U);
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(100));  // the manager's response timeout
+
+  // 1F10h = 0001 2801h (four bytes, expedited).
+  rig.frame(on(0x580, 5, "43101F0001280100"), at_ms(20));
+  EXPECT_TRUE(rig.take_frames().empty());
+  ASSERT_EQ(rig.finished().size(), 1U);
+  EXPECT_EQ(rig.finished()[0].owner, Scheduler::Owner{Scheduler::Manager{7}});
+  EXPECT_TRUE(rig.finished()[0].result.ok());
+  EXPECT_EQ(rig.finished()[0].result.data, (std::vector<std::uint8_t>{0x01, 0x28, 0x01, 0x00}));
+  EXPECT_EQ(rig.scheduler.next_deadline(), std::nullopt);
+}
+
+// A manager whose tables were cleared (the master resets all nodes) has its transfers stopped:
+// the one on the bus is aborted, and so is its next, which the client starts then; the boot's
+// goes on.
+TEST(SdoTransferScheduler, CancelManagerStopsOnlyTheManagersTransfers) {
+  Rig rig;
+  rig.manager_upload(7, 5, {0x1F10, 0}, at_ms(0));
+  rig.manager_upload(8, 5, {0x1001, 0}, at_ms(0));
+  rig.boot_upload(5, 1, at_ms(0), milliseconds(100));
+  rig.settle(at_ms(0));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, "40101F0000000000")});
+
+  rig.scheduler.cancel_manager(node(5), at_ms(10), rig.out);
+  rig.settle(at_ms(10));
+  // 1F10h aborted (0800 0000); 1001h, next on the client, starts and is aborted at once; then
+  // the boot's 1000h.
+  EXPECT_EQ(
+      rig.take_frames(),
+      (std::vector<std::string>{on(0x600, 5, "80101F0000000008"), on(0x600, 5, "4001100000000000"),
+                                on(0x600, 5, "8001100000000008"), on(0x600, 5, kUpload1000)}));
+  EXPECT_TRUE(rig.finished().empty());
+  rig.frame(on(0x580, 5, kAnswer1000), at_ms(11));
+  ASSERT_EQ(rig.finished().size(), 1U);
+  EXPECT_EQ(rig.finished()[0].owner, Scheduler::Owner{Scheduler::BootTry{1}});
 }
 
 TEST(SdoTransferScheduler, DropsTheResultOfATryThatEnded) {

@@ -51,7 +51,7 @@ void NmtMaster::Impl::BootPort::transfer(std::uint64_t try_id,
 }
 
 void NmtMaster::Impl::BootPort::cancel_transfers(cfg::NodeId node, TimePoint now) {
-  m_.transfers.cancel(node, now, m_.outputs.transfers);
+  m_.transfers.cancel_boot(node, now, m_.outputs.transfers);
 }
 
 void NmtMaster::Impl::BootPort::queue_nmt(NmtCommand command, cfg::NodeId node) {

@@ -65,7 +65,8 @@ class BootSlavePort {
   /// BootSlaveProcess::on_sdo_result while try `try_id` runs.
   virtual void transfer(std::uint64_t try_id, SdoTransferScheduler::Request request,
                         TimePoint now) = 0;
-  /// A try ended: stop its transfers (on the bus too) and forget their results.
+  /// A try ended: stop its transfers (on the bus too) and forget their results. Only the boot's:
+  /// the SDO manager's and the application's to the node go on (SdoTransferScheduler::cancel_boot).
   virtual void cancel_transfers(cfg::NodeId node, TimePoint now) = 0;
 
   // --- NMT and error control.

@@ -291,6 +291,8 @@ void NmtMaster::Impl::begin_startup(TimePoint now, Output& out) {
   // the SDO entries the manager gave out are gone.
   sdo_manager.clear();
   for (const auto n : all_node_ids()) {
+    // The manager's transfers still running would bring it stale results (clear()).
+    transfers.cancel_manager(n, now, outputs.transfers);
     boots.with(n, [&](BootSlaveProcess& b) { b.reset(now); });
     stop_error_control(n);
     auto& s = slaves[n];

@@ -166,10 +166,13 @@ void SdoTransferScheduler::forget(std::map<Key, Transfer>::iterator it) {
   transfers_.erase(it);
 }
 
-void SdoTransferScheduler::cancel(cfg::NodeId node, TimePoint now, Output& out) {
-  done_[node.value()] = 0;  // a new try (or none) follows
-  for (auto it = transfers_.begin(); it != transfers_.end();) {
-    if (it->first.first == node && !std::holds_alternative<Application>(it->second.owner)) {
+template <class O>
+void SdoTransferScheduler::cancel_of(cfg::NodeId node, TimePoint now, Output& out) {
+  // By client id, the order they started in: the one a cancel ends on the bus lets its client
+  // start the next queued, which may be of the same owner and end next.
+  for (auto it = transfers_.lower_bound({node, 0});
+       it != transfers_.end() && it->first.first == node;) {
+    if (std::holds_alternative<O>(it->second.owner)) {
       const auto id = it->first.second;
       forget(it++);
       clients_.client(node).cancel(id, now, client_out_);
@@ -178,6 +181,19 @@ void SdoTransferScheduler::cancel(cfg::NodeId node, TimePoint now, Output& out) 
     }
   }
   take_frames(out);
+}
+
+void SdoTransferScheduler::cancel_boot(cfg::NodeId node, TimePoint now, Output& out) {
+  done_[node.value()] = 0;  // a new try (or none) follows
+  // CiA 302-2 §3.3: the boot of a slave "shall run asynchronously to other processes", and DSP
+  // 302 §7.1: the SDO manager "manages all SDO connections" with accesses of its own. A boot
+  // try's end is not theirs: the manager waits for each of its results (one access at a time),
+  // and one never delivered would stop its jobs for good.
+  cancel_of<BootTry>(node, now, out);
+}
+
+void SdoTransferScheduler::cancel_manager(cfg::NodeId node, TimePoint now, Output& out) {
+  cancel_of<Manager>(node, now, out);
 }
 
 // --- settling ---

@@ -140,10 +140,17 @@ class SdoTransferScheduler {
                                                        TimePoint now, Output& out);
   /// The SDO manager's transfer, started at once (it manages the default SDOs it gives out).
   void start_manager(std::uint64_t tag, Request request, TimePoint now, Output& out);
-  /// A boot try of `node` ended: its transfers and the SDO manager's to `node` stop (abort frames
-  /// on the bus) and their results are forgotten; the application's go on. Its waiting and held
-  /// transfers are dropped when their turn comes (SdoTransferPort::boot_try_runs).
-  void cancel(cfg::NodeId node, TimePoint now, Output& out);
+  /// A boot try of `node` ended: the boot's transfers to `node` stop (abort 0800 0000h on the bus
+  /// for the one running, the next queued on its client starts) and their results are forgotten.
+  /// Only the boot's: the SDO manager's and the application's to `node` go on and end with a
+  /// result for their owner (CiA 302-2 §3.3: the boot runs asynchronously to the other processes;
+  /// DSP 302 §7.1: the SDO manager's accesses are its own). Its waiting and held transfers are
+  /// dropped when their turn comes (SdoTransferPort::boot_try_runs).
+  void cancel_boot(cfg::NodeId node, TimePoint now, Output& out);
+  /// The SDO manager's transfers to `node` stop as cancel_boot() stops the boot's, their results
+  /// forgotten: for a manager whose tables were cleared (SdoManagerProcess::clear, when the
+  /// master resets all nodes), to which they would come stale.
+  void cancel_manager(cfg::NodeId node, TimePoint now, Output& out);
 
   // --- settling a call of the master, in rounds (see the top of this file)
   /// The requests since the last call into the pacing, the clients' results into the queue;
@@ -190,6 +197,9 @@ class SdoTransferScheduler {
   void schedule(cfg::NodeId node, Transfer transfer, TimePoint now, Output& out);
   void launch(cfg::NodeId node, Transfer transfer, TimePoint now, Output& out);
   void forget(std::map<Key, Transfer>::iterator it);
+  /// Ends the transfers to `node` of owners of type `O` (cancel_boot, cancel_manager).
+  template <class O>
+  void cancel_of(cfg::NodeId node, TimePoint now, Output& out);
   void dispatch(const SdoResult& result, TimePoint now, Output& out);
   /// The clients' frames into `out`, counted for the pacing.
   void take_frames(Output& out);
