@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_master.hpp"
 #include "nmt/lss/lss_slave.hpp"
 #include "nmt/sim/sim_bus.hpp"
@@ -94,7 +95,7 @@ TEST_F(LssMasterTest, ConfigureNodeIdSends11AndReadsErrorCode1AsOutOfRange) {
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Refused);
   EXPECT_EQ(events[0].error_code, 1);
-  EXPECT_EQ(events[0].text, "configure node-ID: refused: node-ID out of range (error code 1)");
+  EXPECT_EQ(describe(events[0]), "configure node-ID: refused: node-ID out of range (error code 1)");
 }
 
 TEST_F(LssMasterTest, ConfigureNodeIdAnswer0IsDone) {
@@ -122,7 +123,8 @@ TEST_F(LssMasterTest, ConfigureBitTimingSends13SelectorAndIndex) {
             Frames{"7E5#1300030000000000"});
   answer("7E4#1301000000000000");
   ASSERT_EQ(events.size(), 1u);
-  EXPECT_EQ(events[0].text, "configure bit timing: refused: bit rate not supported (error code 1)");
+  EXPECT_EQ(describe(events[0]),
+            "configure bit timing: refused: bit rate not supported (error code 1)");
 }
 
 TEST_F(LssMasterTest, ActivateBitTimingSends15WithTheDelayAndEndsAfterTwiceIt) {
@@ -142,9 +144,9 @@ TEST_F(LssMasterTest, StoreConfigurationSends17AndNamesErrorCodes2AndFF) {
   call([](auto& m, auto t, auto& o) { return m.store_configuration(t, o); });
   answer("7E4#17FF330000000000");
   ASSERT_EQ(events.size(), 2u);
-  EXPECT_EQ(events[0].text,
+  EXPECT_EQ(describe(events[0]),
             "store configuration: refused: storage media access error (error code 2)");
-  EXPECT_EQ(events[1].text,
+  EXPECT_EQ(describe(events[1]),
             "store configuration: refused: manufacturer-specific error 33h (error code 255)");
   EXPECT_EQ(events[1].spec_error, 0x33);
 }
@@ -263,7 +265,7 @@ TEST_F(LssMasterTest, NoAnswerWithinTheTimeoutIsATimeoutEvent) {
   tick(TimePoint{100ms});
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Timeout);
-  EXPECT_EQ(events[0].text, "configure node-ID: no answer within 100 ms");
+  EXPECT_EQ(describe(events[0]), "configure node-ID: no answer within 100 ms");
 }
 
 TEST_F(LssMasterTest, AnAnswerReceivedAfterTheTimeoutCountsAsLate) {
@@ -424,7 +426,7 @@ TEST_F(LssBus, SelectiveConfigureStoreAndInquireAgainstADevice) {
   run([](auto& m, auto t, auto& o) { return m.inquire(LssService::InquireSerial, t, o); });
   run([](auto& m, auto t, auto& o) { return m.inquire(LssService::InquireNodeId, t, o); });
   ASSERT_EQ(events.size(), 5u);
-  for (const auto& e : events) EXPECT_EQ(e.kind, Kind::Done) << e.text;
+  for (const auto& e : events) EXPECT_EQ(e.kind, Kind::Done) << describe(e);
   EXPECT_EQ(events[3].value, 0xCAFEBABEu);
   EXPECT_EQ(events[4].value, 3u);  // the active node-ID; 42 is pending until reset
   EXPECT_EQ(stored, std::vector<std::string>{"LSS: store node-ID 42"});

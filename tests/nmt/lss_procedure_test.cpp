@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_slave.hpp"
 #include "nmt/sim/sim_bus.hpp"
 
@@ -116,7 +117,7 @@ TEST_F(LssProcedureTest, AssignNodeIdRefusedWithErrorCode1SwitchesBackAndFailsIn
   EXPECT_EQ(events[0].step->service, LssService::ConfigureNodeId);
   EXPECT_EQ(events[0].step->kind, LssMasterEvent::Kind::Refused);
   EXPECT_EQ(events[0].step->error_code, 1);
-  EXPECT_EQ(events[0].text, "configure node-ID: refused: node-ID out of range (error code 1)");
+  EXPECT_EQ(describe(events[0]), "configure node-ID: refused: node-ID out of range (error code 1)");
 }
 
 TEST_F(LssProcedureTest, AssignNodeIdToAnAbsentDeviceFailsAfterTheTimeoutWithoutMoreFrames) {
@@ -129,7 +130,7 @@ TEST_F(LssProcedureTest, AssignNodeIdToAnAbsentDeviceFailsAfterTheTimeoutWithout
   EXPECT_EQ(events[0].kind, Kind::Failed);
   EXPECT_EQ(events[0].step->service, LssService::SwitchStateSelective);
   EXPECT_EQ(events[0].step->kind, LssMasterEvent::Kind::Timeout);
-  EXPECT_EQ(events[0].text, "switch state selective: no answer within 100 ms");
+  EXPECT_EQ(describe(events[0]), "switch state selective: no answer within 100 ms");
 }
 
 TEST_F(LssProcedureTest, InquireIdentityOfTheOnlyDeviceReadsFiveValuesAndSwitchesBack) {
@@ -153,7 +154,7 @@ TEST_F(LssProcedureTest, InquireNodeIdAnswered0IsNoNodeIdAndFails) {
   EXPECT_EQ(answer("7E4#5E00000000000000", TimePoint{2ms}), Frames{"7E5#0400000000000000"});
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Failed);
-  EXPECT_EQ(events[0].text,
+  EXPECT_EQ(describe(events[0]),
             "inquire node-ID answered 0: no node-ID (CiA 305: 1..127, or 255 for not configured)");
 }
 
@@ -188,7 +189,8 @@ TEST_F(LssProcedureTest, SetBitRateNotSupportedSwitchesBackToWaiting) {
   EXPECT_EQ(answer("7E4#1301000000000000", TimePoint{1ms}), Frames{"7E5#0400000000000000"});
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Failed);
-  EXPECT_EQ(events[0].text, "configure bit timing: refused: bit rate not supported (error code 1)");
+  EXPECT_EQ(describe(events[0]),
+            "configure bit timing: refused: bit rate not supported (error code 1)");
 }
 
 TEST_F(LssProcedureTest, AnyUnconfiguredSends4ChAndCountsAnAnswerWithinTheStep) {
@@ -213,7 +215,7 @@ TEST_F(LssProcedureTest, ScanSwitchesAllToWaitingThenTheFastscanResetAndEndsOnIt
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Done);
   EXPECT_EQ(events[0].found, 0u);
-  EXPECT_EQ(events[0].text, "scan: 0 unconfigured devices found");
+  EXPECT_EQ(describe(events[0]), "scan: 0 unconfigured devices found");
 }
 
 TEST_F(LssProcedureTest, OneProcedureAtATimeAndABusyStartSaysWhyAndSendsNothing) {
@@ -386,10 +388,12 @@ TEST_F(LssProcedureBus, ScanLeavesTwoDevicesWithOneLssAddressUnconfiguredAndFind
   ASSERT_EQ(events.size(), 3u);
   EXPECT_EQ(events[0].kind, Kind::Skipped);
   EXPECT_EQ(events[0].address, twin);
-  EXPECT_NE(events[0].text.find("more than one device answered configure node-ID with this LSS "
-                                "address"),
-            std::string::npos)
-      << events[0].text;
+  EXPECT_EQ(events[0].outcome, LssScanOutcome::Duplicate);
+  EXPECT_NE(
+      describe(events[0]).find("more than one device answered configure node-ID with this LSS "
+                               "address"),
+      std::string::npos)
+      << describe(events[0]);
   EXPECT_EQ(events[1].kind, Kind::Assigned);
   EXPECT_EQ(events[1].address, other);
   EXPECT_EQ(events[2].kind, Kind::Done);
@@ -488,7 +492,7 @@ TEST_F(LssProcedureBus, AssignNodeIdGivesTheSelectedDeviceItsNodeIdAndLeavesTheO
   run_until_done();
   bus.run_for(10ms);  // the switch back to waiting, sent as the procedure ended, has no answer
   ASSERT_EQ(events.size(), 1u);
-  EXPECT_EQ(events[0].kind, Kind::Done) << events[0].text;
+  EXPECT_EQ(events[0].kind, Kind::Done) << describe(events[0]);
   EXPECT_EQ(events[0].previous_node_id, lss::kUnconfigured);
   // Unconfigured before, so back in waiting it starts with the new node-ID.
   EXPECT_EQ(device.engine().active_node_id(), 5);
