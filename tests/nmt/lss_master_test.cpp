@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "lss_engine_fixture.hpp"
 #include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_master.hpp"
 #include "nmt/lss/lss_slave.hpp"
@@ -21,41 +22,12 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
-using Frames = std::vector<std::string>;
+using lss_test::Frames;
 using Kind = LssMasterEvent::Kind;
 
-class LssMasterTest : public ::testing::Test {
+class LssMasterTest : public lss_test::EngineTest<LssMaster> {
  protected:
-  LssMaster master;
-  TimePoint now{};
-  std::vector<LssMasterEvent> events;
-
-  Frames take(LssMaster::Output& out) {
-    for (auto& e : out.events) events.push_back(e);
-    Frames frames;
-    for (auto& f : out.frames) frames.push_back(to_candump(f));
-    out.clear();
-    return frames;
-  }
-  // Starts a service that must start (engine.hpp rule 5: a start that fails says why).
-  template <class Fn>
-  Frames call(Fn fn) {
-    LssMaster::Output out;
-    const cfg::Status started = fn(master, now, out);
-    EXPECT_TRUE(started.ok()) << started.error().message;
-    return take(out);
-  }
-  Frames answer(std::string_view candump, bool expect_taken = true) {
-    LssMaster::Output out;
-    EXPECT_EQ(master.on_frame(*from_candump(candump), now, out), expect_taken) << candump;
-    return take(out);
-  }
-  Frames tick(TimePoint t) {
-    now = t;
-    LssMaster::Output out;
-    master.on_timer(now, out);
-    return take(out);
-  }
+  LssMaster& master = engine;
 };
 
 TEST_F(LssMasterTest, SwitchStateGlobalSends04WithTheModeAndEndsAtOnce) {
@@ -304,40 +276,7 @@ TEST_F(LssMasterTest, InquireOfAServiceThatIsNoInquirySaysSoAndSendsNothing) {
 
 // --- master against slaves on the simulated bus ------------------------------------------------
 
-class LssBus : public ::testing::Test {
- protected:
-  SimBus bus{500'000};
-  SimEngineNode<LssMaster> master;
-  std::vector<std::unique_ptr<SimEngineNode<LssSlave>>> slaves;
-  std::vector<LssMasterEvent> events;
-
-  LssBus() {
-    bus.attach(master);
-    master.set_event_handler([this](const LssMasterEvent& e, TimePoint) { events.push_back(e); });
-  }
-  SimEngineNode<LssSlave>& add(LssAddress address, std::uint8_t node_id = lss::kUnconfigured) {
-    auto node = std::make_unique<SimEngineNode<LssSlave>>(address, node_id);
-    auto* raw = node.get();
-    // The owner's part: a device that got its node-ID starts with it.
-    raw->set_event_handler([raw](const LssSlaveEvent& e, TimePoint) {
-      if (e.kind == LssSlaveEvent::Kind::NodeIdActivate) {
-        raw->engine().activate_pending_node_id();
-      }
-    });
-    bus.attach(*raw);
-    slaves.push_back(std::move(node));
-    return *raw;
-  }
-  // Starts a service that must start (engine.hpp rule 5: a start that fails says why).
-  template <class Fn>
-  void start(Fn fn) {
-    const cfg::Status started = master.apply(fn);
-    EXPECT_TRUE(started.ok()) << started.error().message;
-  }
-  void run_until_done() {
-    ASSERT_TRUE(bus.run_until([this] { return !master.engine().busy(); }, TimePoint{3600s}));
-  }
-};
+using LssBus = lss_test::LssBusTest<LssMaster>;
 
 TEST_F(LssBus, FastscanFindsTheOnlyUnconfiguredDeviceAndLeavesItInConfiguration) {
   const LssAddress a{0x01020304, 0x00000A0B, 0x00010002, 0xCAFEBABE};
