@@ -88,6 +88,8 @@ std::string node_id_number(std::optional<cfg::NodeId> node_id) {
   return std::to_string(node_id ? node_id->value() : lss::kUnconfigured);
 }
 
+// A procedure's Done. AnyUnconfigured and SetBitRate end with their last service and say its
+// line; InquireNodeId and InquireIdentity the address, then the inquire node-ID's line.
 std::string done_words(const LssProcedureEvent& e) {
   const std::string name(to_string(e.procedure));
   switch (e.procedure) {

@@ -33,10 +33,10 @@
 //   cloned serial number) answer every Fastscan step alike and are in configuration together.
 //   A second answer to the scan's configure node-ID, heard while the store waits for its
 //   answer, tells: the scan then configures FFh (not configured) and stores it in all of them,
-//   switches them back to waiting, and reports the address Skipped (LssScanOutcome::Duplicate); the
-//   scan looks past it. It needs LssMasterOptions::store (the default):
-//   without the store's wait nothing is listened for. On a real bus two identical answers sent
-//   in the same bit time are one frame; then it is not seen (a known limit).
+//   switches them back to waiting, and reports the address Skipped (LssScanOutcome::Duplicate);
+//   the scan looks past it. It needs LssMasterOptions::store (the default): without the store's
+//   wait nothing is listened for. On a real bus two identical answers sent in the same bit
+//   time are one frame; then it is not seen (a known limit).
 // - A procedure that addresses one device (AssignNodeId, InquireNodeId, InquireIdentity by
 //   address) first switches every device to waiting: switch state selective is obeyed in waiting
 //   only. A procedure that fails after devices entered LSS configuration switches every device
