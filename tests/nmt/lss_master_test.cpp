@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "lss_engine_fixture.hpp"
+#include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_master.hpp"
 #include "nmt/lss/lss_slave.hpp"
 #include "nmt/sim/sim_bus.hpp"
@@ -20,41 +22,12 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
-using Frames = std::vector<std::string>;
+using lss_test::Frames;
 using Kind = LssMasterEvent::Kind;
 
-class LssMasterTest : public ::testing::Test {
+class LssMasterTest : public lss_test::EngineTest<LssMaster> {
  protected:
-  LssMaster master;
-  TimePoint now{};
-  std::vector<LssMasterEvent> events;
-
-  Frames take(LssMaster::Output& out) {
-    for (auto& e : out.events) events.push_back(e);
-    Frames frames;
-    for (auto& f : out.frames) frames.push_back(to_candump(f));
-    out.clear();
-    return frames;
-  }
-  // Starts a service that must start (engine.hpp rule 5: a start that fails says why).
-  template <class Fn>
-  Frames call(Fn fn) {
-    LssMaster::Output out;
-    const cfg::Status started = fn(master, now, out);
-    EXPECT_TRUE(started.ok()) << started.error().message;
-    return take(out);
-  }
-  Frames answer(std::string_view candump, bool expect_taken = true) {
-    LssMaster::Output out;
-    EXPECT_EQ(master.on_frame(*from_candump(candump), now, out), expect_taken) << candump;
-    return take(out);
-  }
-  Frames tick(TimePoint t) {
-    now = t;
-    LssMaster::Output out;
-    master.on_timer(now, out);
-    return take(out);
-  }
+  LssMaster& master = engine;
 };
 
 TEST_F(LssMasterTest, SwitchStateGlobalSends04WithTheModeAndEndsAtOnce) {
@@ -94,7 +67,7 @@ TEST_F(LssMasterTest, ConfigureNodeIdSends11AndReadsErrorCode1AsOutOfRange) {
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Refused);
   EXPECT_EQ(events[0].error_code, 1);
-  EXPECT_EQ(events[0].text, "configure node-ID: refused: node-ID out of range (error code 1)");
+  EXPECT_EQ(describe(events[0]), "configure node-ID: refused: node-ID out of range (error code 1)");
 }
 
 TEST_F(LssMasterTest, ConfigureNodeIdAnswer0IsDone) {
@@ -122,7 +95,8 @@ TEST_F(LssMasterTest, ConfigureBitTimingSends13SelectorAndIndex) {
             Frames{"7E5#1300030000000000"});
   answer("7E4#1301000000000000");
   ASSERT_EQ(events.size(), 1u);
-  EXPECT_EQ(events[0].text, "configure bit timing: refused: bit rate not supported (error code 1)");
+  EXPECT_EQ(describe(events[0]),
+            "configure bit timing: refused: bit rate not supported (error code 1)");
 }
 
 TEST_F(LssMasterTest, ActivateBitTimingSends15WithTheDelayAndEndsAfterTwiceIt) {
@@ -142,9 +116,9 @@ TEST_F(LssMasterTest, StoreConfigurationSends17AndNamesErrorCodes2AndFF) {
   call([](auto& m, auto t, auto& o) { return m.store_configuration(t, o); });
   answer("7E4#17FF330000000000");
   ASSERT_EQ(events.size(), 2u);
-  EXPECT_EQ(events[0].text,
+  EXPECT_EQ(describe(events[0]),
             "store configuration: refused: storage media access error (error code 2)");
-  EXPECT_EQ(events[1].text,
+  EXPECT_EQ(describe(events[1]),
             "store configuration: refused: manufacturer-specific error 33h (error code 255)");
   EXPECT_EQ(events[1].spec_error, 0x33);
 }
@@ -263,7 +237,7 @@ TEST_F(LssMasterTest, NoAnswerWithinTheTimeoutIsATimeoutEvent) {
   tick(TimePoint{100ms});
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Timeout);
-  EXPECT_EQ(events[0].text, "configure node-ID: no answer within 100 ms");
+  EXPECT_EQ(describe(events[0]), "configure node-ID: no answer within 100 ms");
 }
 
 TEST_F(LssMasterTest, AnAnswerReceivedAfterTheTimeoutCountsAsLate) {
@@ -302,40 +276,7 @@ TEST_F(LssMasterTest, InquireOfAServiceThatIsNoInquirySaysSoAndSendsNothing) {
 
 // --- master against slaves on the simulated bus ------------------------------------------------
 
-class LssBus : public ::testing::Test {
- protected:
-  SimBus bus{500'000};
-  SimEngineNode<LssMaster> master;
-  std::vector<std::unique_ptr<SimEngineNode<LssSlave>>> slaves;
-  std::vector<LssMasterEvent> events;
-
-  LssBus() {
-    bus.attach(master);
-    master.set_event_handler([this](const LssMasterEvent& e, TimePoint) { events.push_back(e); });
-  }
-  SimEngineNode<LssSlave>& add(LssAddress address, std::uint8_t node_id = lss::kUnconfigured) {
-    auto node = std::make_unique<SimEngineNode<LssSlave>>(address, node_id);
-    auto* raw = node.get();
-    // The owner's part: a device that got its node-ID starts with it.
-    raw->set_event_handler([raw](const LssSlaveEvent& e, TimePoint) {
-      if (e.kind == LssSlaveEvent::Kind::NodeIdActivate) {
-        raw->engine().activate_pending_node_id();
-      }
-    });
-    bus.attach(*raw);
-    slaves.push_back(std::move(node));
-    return *raw;
-  }
-  // Starts a service that must start (engine.hpp rule 5: a start that fails says why).
-  template <class Fn>
-  void start(Fn fn) {
-    const cfg::Status started = master.apply(fn);
-    EXPECT_TRUE(started.ok()) << started.error().message;
-  }
-  void run_until_done() {
-    ASSERT_TRUE(bus.run_until([this] { return !master.engine().busy(); }, TimePoint{3600s}));
-  }
-};
+using LssBus = lss_test::LssBusTest<LssMaster>;
 
 TEST_F(LssBus, FastscanFindsTheOnlyUnconfiguredDeviceAndLeavesItInConfiguration) {
   const LssAddress a{0x01020304, 0x00000A0B, 0x00010002, 0xCAFEBABE};
@@ -424,7 +365,7 @@ TEST_F(LssBus, SelectiveConfigureStoreAndInquireAgainstADevice) {
   run([](auto& m, auto t, auto& o) { return m.inquire(LssService::InquireSerial, t, o); });
   run([](auto& m, auto t, auto& o) { return m.inquire(LssService::InquireNodeId, t, o); });
   ASSERT_EQ(events.size(), 5u);
-  for (const auto& e : events) EXPECT_EQ(e.kind, Kind::Done) << e.text;
+  for (const auto& e : events) EXPECT_EQ(e.kind, Kind::Done) << describe(e);
   EXPECT_EQ(events[3].value, 0xCAFEBABEu);
   EXPECT_EQ(events[4].value, 3u);  // the active node-ID; 42 is pending until reset
   EXPECT_EQ(stored, std::vector<std::string>{"LSS: store node-ID 42"});

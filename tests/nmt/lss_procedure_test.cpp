@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "lss_engine_fixture.hpp"
+#include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_slave.hpp"
 #include "nmt/sim/sim_bus.hpp"
 
@@ -26,7 +28,7 @@ namespace nmt {
 namespace {
 
 using namespace std::chrono_literals;
-using Frames = std::vector<std::string>;
+using lss_test::Frames;
 using Kind = LssProcedureEvent::Kind;
 
 // tests/data/lss/lss_io.eds: 1018h vendor 7E57C0DEh, product 305h, revision 10002h, serial 1001h.
@@ -34,39 +36,9 @@ const LssAddress kDevice{0x7E57C0DE, 0x00000305, 0x00010002, 0x00001001};
 const Frames kSelectDevice{"7E5#0400000000000000", "7E5#40DEC0577E000000", "7E5#4105030000000000",
                            "7E5#4202000100000000", "7E5#4301100000000000"};
 
-class LssProcedureTest : public ::testing::Test {
+class LssProcedureTest : public lss_test::EngineTest<LssProcedure> {
  protected:
-  LssProcedure procedure;  // 100 ms timeout, 10 ms scan step
-  TimePoint now{};
-  std::vector<LssProcedureEvent> events;
-
-  Frames take(LssProcedure::Output& out) {
-    for (auto& e : out.events) events.push_back(e);
-    Frames frames;
-    for (auto& f : out.frames) frames.push_back(to_candump(f));
-    out.clear();
-    return frames;
-  }
-  // Starts a procedure that must start (engine.hpp rule 5: a start that fails says why).
-  template <class Fn>
-  Frames call(Fn fn) {
-    LssProcedure::Output out;
-    const cfg::Status started = fn(procedure, now, out);
-    EXPECT_TRUE(started.ok()) << started.error().message;
-    return take(out);
-  }
-  Frames answer(std::string_view candump, TimePoint at) {
-    now = at;
-    LssProcedure::Output out;
-    EXPECT_TRUE(procedure.on_frame(*from_candump(candump), now, out)) << candump;
-    return take(out);
-  }
-  Frames tick(TimePoint t) {
-    now = t;
-    LssProcedure::Output out;
-    procedure.on_timer(now, out);
-    return take(out);
-  }
+  LssProcedure& procedure = engine;
 };
 
 TEST_F(LssProcedureTest, AssignNodeIdSelectsInquiresConfiguresStoresAndSwitchesBackToWaiting) {
@@ -116,7 +88,7 @@ TEST_F(LssProcedureTest, AssignNodeIdRefusedWithErrorCode1SwitchesBackAndFailsIn
   EXPECT_EQ(events[0].step->service, LssService::ConfigureNodeId);
   EXPECT_EQ(events[0].step->kind, LssMasterEvent::Kind::Refused);
   EXPECT_EQ(events[0].step->error_code, 1);
-  EXPECT_EQ(events[0].text, "configure node-ID: refused: node-ID out of range (error code 1)");
+  EXPECT_EQ(describe(events[0]), "configure node-ID: refused: node-ID out of range (error code 1)");
 }
 
 TEST_F(LssProcedureTest, AssignNodeIdToAnAbsentDeviceFailsAfterTheTimeoutWithoutMoreFrames) {
@@ -129,7 +101,7 @@ TEST_F(LssProcedureTest, AssignNodeIdToAnAbsentDeviceFailsAfterTheTimeoutWithout
   EXPECT_EQ(events[0].kind, Kind::Failed);
   EXPECT_EQ(events[0].step->service, LssService::SwitchStateSelective);
   EXPECT_EQ(events[0].step->kind, LssMasterEvent::Kind::Timeout);
-  EXPECT_EQ(events[0].text, "switch state selective: no answer within 100 ms");
+  EXPECT_EQ(describe(events[0]), "switch state selective: no answer within 100 ms");
 }
 
 TEST_F(LssProcedureTest, InquireIdentityOfTheOnlyDeviceReadsFiveValuesAndSwitchesBack) {
@@ -153,7 +125,7 @@ TEST_F(LssProcedureTest, InquireNodeIdAnswered0IsNoNodeIdAndFails) {
   EXPECT_EQ(answer("7E4#5E00000000000000", TimePoint{2ms}), Frames{"7E5#0400000000000000"});
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Failed);
-  EXPECT_EQ(events[0].text,
+  EXPECT_EQ(describe(events[0]),
             "inquire node-ID answered 0: no node-ID (CiA 305: 1..127, or 255 for not configured)");
 }
 
@@ -188,7 +160,8 @@ TEST_F(LssProcedureTest, SetBitRateNotSupportedSwitchesBackToWaiting) {
   EXPECT_EQ(answer("7E4#1301000000000000", TimePoint{1ms}), Frames{"7E5#0400000000000000"});
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Failed);
-  EXPECT_EQ(events[0].text, "configure bit timing: refused: bit rate not supported (error code 1)");
+  EXPECT_EQ(describe(events[0]),
+            "configure bit timing: refused: bit rate not supported (error code 1)");
 }
 
 TEST_F(LssProcedureTest, AnyUnconfiguredSends4ChAndCountsAnAnswerWithinTheStep) {
@@ -213,7 +186,7 @@ TEST_F(LssProcedureTest, ScanSwitchesAllToWaitingThenTheFastscanResetAndEndsOnIt
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].kind, Kind::Done);
   EXPECT_EQ(events[0].found, 0u);
-  EXPECT_EQ(events[0].text, "scan: 0 unconfigured devices found");
+  EXPECT_EQ(describe(events[0]), "scan: 0 unconfigured devices found");
 }
 
 TEST_F(LssProcedureTest, OneProcedureAtATimeAndABusyStartSaysWhyAndSendsNothing) {
@@ -229,31 +202,8 @@ TEST_F(LssProcedureTest, OneProcedureAtATimeAndABusyStartSaysWhyAndSendsNothing)
 
 // --- procedures against slaves on the simulated bus --------------------------------------------
 
-class LssProcedureBus : public ::testing::Test {
+class LssProcedureBus : public lss_test::LssBusTest<LssProcedure> {
  protected:
-  SimBus bus{500'000};
-  SimEngineNode<LssProcedure> master;
-  std::vector<std::unique_ptr<SimEngineNode<LssSlave>>> slaves;
-  std::vector<LssProcedureEvent> events;
-
-  LssProcedureBus() {
-    bus.attach(master);
-    master.set_event_handler(
-        [this](const LssProcedureEvent& e, TimePoint) { events.push_back(e); });
-  }
-  SimEngineNode<LssSlave>& add(LssAddress address, std::uint8_t node_id = lss::kUnconfigured) {
-    auto node = std::make_unique<SimEngineNode<LssSlave>>(address, node_id);
-    auto* raw = node.get();
-    // The owner's part: a device that got its node-ID starts with it.
-    raw->set_event_handler([raw](const LssSlaveEvent& e, TimePoint) {
-      if (e.kind == LssSlaveEvent::Kind::NodeIdActivate) {
-        raw->engine().activate_pending_node_id();
-      }
-    });
-    bus.attach(*raw);
-    slaves.push_back(std::move(node));
-    return *raw;
-  }
   // Devices of one product (the usual case: a batch of new drives) with random serial numbers.
   std::vector<LssAddress> add_random(int n, std::uint32_t seed) {
     std::mt19937 rng(seed);
@@ -264,15 +214,6 @@ class LssProcedureBus : public ::testing::Test {
     }
     for (const auto& a : made) add(a);
     return {made.begin(), made.end()};
-  }
-  // Starts a procedure that must start (engine.hpp rule 5: a start that fails says why).
-  template <class Fn>
-  void start(Fn fn) {
-    const cfg::Status started = master.apply(fn);
-    EXPECT_TRUE(started.ok()) << started.error().message;
-  }
-  void run_until_done() {
-    ASSERT_TRUE(bus.run_until([this] { return !master.engine().busy(); }, TimePoint{3600s}));
   }
   // Scans with node-IDs 1, 2, ... in the order devices are found.
   std::vector<LssProcedureEvent> scan_all() {
@@ -305,17 +246,28 @@ class LssProcedureBus : public ::testing::Test {
   }
 };
 
-TEST_F(LssProcedureBus, ScanConfiguresOneUnconfiguredDevice) {
-  auto addresses = add_random(1, 1);
+// N devices of one product with random serial numbers (the seed is N).
+class LssProcedureScanOfRandomDevices : public LssProcedureBus,
+                                        public ::testing::WithParamInterface<int> {};
+
+TEST_P(LssProcedureScanOfRandomDevices, ConfiguresEachOnceLowestAddressFirstIn136RequestsEach) {
+  const int n = GetParam();
+  auto addresses = add_random(n, static_cast<std::uint32_t>(n));
+  int requests = 0;
+  bus.add_observer([&](const CanFrame& f, TimePoint) { requests += f.id == lss::kMasterCobId; });
   scan_all();
   expect_all_configured(addresses);
+  // Per device: the Fastscan reset, 4 x (32 bit queries + confirmation), configure node-ID,
+  // store configuration, switch state global; before them the switch of all devices to
+  // waiting, after them the reset nobody answers.
+  EXPECT_EQ(requests, 1 + n * (1 + 4 * 33 + 3) + 1);
 }
 
-TEST_F(LssProcedureBus, ScanConfiguresTwoDevices) {
-  auto addresses = add_random(2, 2);
-  scan_all();
-  expect_all_configured(addresses);
-}
+INSTANTIATE_TEST_SUITE_P(OneTwoTenFifty, LssProcedureScanOfRandomDevices,
+                         ::testing::Values(1, 2, 10, 50),
+                         [](const ::testing::TestParamInfo<int>& param) {
+                           return std::to_string(param.param) + "Devices";
+                         });
 
 TEST_F(LssProcedureBus, ScanTellsApartTwoDevicesWhoseAddressesDifferInOneBit) {
   // Serial numbers 0x5A5A0F0F and 0x5A5A0F0E: only bit 0 differs; likewise bit 31 of two
@@ -328,24 +280,6 @@ TEST_F(LssProcedureBus, ScanTellsApartTwoDevicesWhoseAddressesDifferInOneBit) {
   add(a);
   scan_all();
   expect_all_configured({a, b, c});
-}
-
-TEST_F(LssProcedureBus, ScanConfiguresTenDevicesWithRandomSerialNumbers) {
-  auto addresses = add_random(10, 10);
-  scan_all();
-  expect_all_configured(addresses);
-}
-
-TEST_F(LssProcedureBus, ScanConfiguresFiftyDevicesWithRandomSerialNumbers) {
-  auto addresses = add_random(50, 50);
-  int requests = 0;
-  bus.add_observer([&](const CanFrame& f, TimePoint) { requests += f.id == lss::kMasterCobId; });
-  scan_all();
-  expect_all_configured(addresses);
-  // Per device: the Fastscan reset, 4 x (32 bit queries + confirmation), configure node-ID,
-  // store configuration, switch state global; before them the switch of all devices to
-  // waiting, after them the reset nobody answers.
-  EXPECT_EQ(requests, 1 + 50 * (1 + 4 * 33 + 3) + 1);
 }
 
 TEST_F(LssProcedureBus, ScanLooksPastADeviceItGivesNoNodeId) {
@@ -386,10 +320,12 @@ TEST_F(LssProcedureBus, ScanLeavesTwoDevicesWithOneLssAddressUnconfiguredAndFind
   ASSERT_EQ(events.size(), 3u);
   EXPECT_EQ(events[0].kind, Kind::Skipped);
   EXPECT_EQ(events[0].address, twin);
-  EXPECT_NE(events[0].text.find("more than one device answered configure node-ID with this LSS "
-                                "address"),
-            std::string::npos)
-      << events[0].text;
+  EXPECT_EQ(events[0].outcome, LssScanOutcome::Duplicate);
+  EXPECT_NE(
+      describe(events[0]).find("more than one device answered configure node-ID with this LSS "
+                               "address"),
+      std::string::npos)
+      << describe(events[0]);
   EXPECT_EQ(events[1].kind, Kind::Assigned);
   EXPECT_EQ(events[1].address, other);
   EXPECT_EQ(events[2].kind, Kind::Done);
@@ -488,7 +424,7 @@ TEST_F(LssProcedureBus, AssignNodeIdGivesTheSelectedDeviceItsNodeIdAndLeavesTheO
   run_until_done();
   bus.run_for(10ms);  // the switch back to waiting, sent as the procedure ended, has no answer
   ASSERT_EQ(events.size(), 1u);
-  EXPECT_EQ(events[0].kind, Kind::Done) << events[0].text;
+  EXPECT_EQ(events[0].kind, Kind::Done) << describe(events[0]);
   EXPECT_EQ(events[0].previous_node_id, lss::kUnconfigured);
   // Unconfigured before, so back in waiting it starts with the new node-ID.
   EXPECT_EQ(device.engine().active_node_id(), 5);

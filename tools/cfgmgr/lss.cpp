@@ -23,6 +23,7 @@
 #include "nmt/io/bus.hpp"
 #include "nmt/io/lss_session.hpp"
 #include "nmt/lss/lss.hpp"
+#include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_master.hpp"
 #include "nmt/lss/lss_procedure.hpp"
 
@@ -130,7 +131,8 @@ Event done_or_exit(cfg::Result<Event> result, const std::string& who,
   if (!result) fail(tools::kExitIo, result.error().message);
   Event e = std::move(result).value();
   if (e.kind == Event::Kind::Done) return e;
-  std::string text = who.empty() ? e.text : who + ": " + e.text;
+  const std::string words = nmt::describe(e);
+  std::string text = who.empty() ? words : who + ": " + words;
   const bool timeout = e.step && e.step->kind == nmt::LssMasterEvent::Kind::Timeout;
   if (e.step && e.step->service == nmt::LssService::SwitchStateSelective) {
     text += select_hint;

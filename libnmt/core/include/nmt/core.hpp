@@ -5,6 +5,7 @@
 
 #include "nmt/engine.hpp"
 #include "nmt/lss/lss.hpp"
+#include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_master.hpp"
 #include "nmt/lss/lss_procedure.hpp"
 #include "nmt/lss/lss_search.hpp"

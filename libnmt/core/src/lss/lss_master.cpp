@@ -1,7 +1,6 @@
 #include "nmt/lss/lss_master.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <utility>
 
 #include "cfg/bytes.hpp"
@@ -49,18 +48,13 @@ namespace {
 CanFrame request(Cs cs, std::uint32_t value = 0) {
   return lss::make_frame(lss::kMasterCobId, cs, value);
 }
-std::string ms(Duration d) {
-  return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()) + " ms";
-}
 }  // namespace
 
-LssMasterEvent LssMaster::event(LssService service, Kind kind, TimePoint now,
-                                std::string text) const {
+LssMasterEvent LssMaster::event(LssService service, Kind kind, TimePoint now) const {
   LssMasterEvent e;
   e.service = service;
   e.kind = kind;
   e.at = now;
-  e.text = std::string(to_string(service)) + ": " + std::move(text);
   return e;
 }
 
@@ -93,9 +87,9 @@ cfg::Status LssMaster::switch_state_global(LssState state, TimePoint now, Output
   if (auto started = start(LssService::SwitchStateGlobal); !started) return started;
   out.send(lss::make_frame(lss::kMasterCobId, Cs::SwitchStateGlobal,
                            {static_cast<std::uint8_t>(state)}));
-  finish(event(LssService::SwitchStateGlobal, Kind::Done, now,
-               "all devices to LSS " + std::string(to_string(state))),
-         out);
+  auto e = event(LssService::SwitchStateGlobal, Kind::Done, now);
+  e.state = state;
+  finish(std::move(e), out);
   return {};
 }
 
@@ -240,9 +234,7 @@ void LssMaster::on_timer(TimePoint now, Output& out) {
       step_ended(now, out);
       break;
     case Wait::Delay:
-      finish(event(LssService::ActivateBitTiming, Kind::Done, now,
-                   "devices switched after twice the switch delay"),
-             out);
+      finish(event(LssService::ActivateBitTiming, Kind::Done, now), out);
       break;
   }
 }
@@ -253,7 +245,7 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
   const std::uint8_t spec = frame.data[2];
   switch (expect_) {
     case Cs::SwitchSelectiveAnswer: {
-      auto e = event(service, Kind::Done, now, to_string(fs_.id) + " in LSS configuration");
+      auto e = event(service, Kind::Done, now);
       e.address = fs_.id;
       finish(std::move(e), out);
       return;
@@ -261,9 +253,7 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
     case Cs::ConfigureNodeId:
     case Cs::ConfigureBitTiming:
     case Cs::StoreConfiguration: {
-      auto e = code == 0 ? event(service, Kind::Done, now, "done")
-                         : event(service, Kind::Refused, now,
-                                 "refused: " + lss::error_text(expect_, code, spec));
+      auto e = event(service, code == 0 ? Kind::Done : Kind::Refused, now);
       e.error_code = code;
       e.spec_error = code == 0xFF ? spec : 0;
       if (expect_ == Cs::ConfigureNodeId) e.node_id = node_id_;
@@ -271,17 +261,14 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
       return;
     }
     case Cs::InquireNodeId: {
-      auto e = event(service, Kind::Done, now, "node-ID " + std::to_string(code));
+      auto e = event(service, Kind::Done, now);
       e.value = code;
       finish(std::move(e), out);
       return;
     }
     default: {  // inquire identity
-      const std::uint32_t value = cfg::load_le32(std::span(frame.data).subspan(1, 4));
-      char hex[16];
-      std::snprintf(hex, sizeof hex, "%08Xh", value);
-      auto e = event(service, Kind::Done, now, hex);
-      e.value = value;
+      auto e = event(service, Kind::Done, now);
+      e.value = cfg::load_le32(std::span(frame.data).subspan(1, 4));
       finish(std::move(e), out);
       return;
     }
@@ -289,8 +276,8 @@ void LssMaster::answered(const CanFrame& frame, TimePoint now, Output& out) {
 }
 
 void LssMaster::timed_out(TimePoint now, Output& out) {
-  const std::string text = "no answer within " + ms(options_.timeout);
-  auto e = event(*service_, Kind::Timeout, now, text);
+  auto e = event(*service_, Kind::Timeout, now);
+  e.timeout = options_.timeout;
   if (*service_ == LssService::SwitchStateSelective) e.address = fs_.id;
   finish(std::move(e), out);
 }
@@ -298,9 +285,7 @@ void LssMaster::timed_out(TimePoint now, Output& out) {
 void LssMaster::step_ended(TimePoint now, Output& out) {
   const LssService service = *service_;
   if (service == LssService::IdentifyRemoteSlaves || service == LssService::IdentifyNonConfigured) {
-    finish(heard_ ? event(service, Kind::Done, now, "a device answered")
-                  : event(service, Kind::NotFound, now, "no device answered"),
-           out);
+    finish(event(service, heard_ ? Kind::Done : Kind::NotFound, now), out);
     return;
   }
   fastscan_step(heard_, now, out);
@@ -344,7 +329,10 @@ void LssMaster::fastscan_probe(TimePoint now, Output& out, int from_bit) {
     return;
   }
   if (fs_.level == 0) {
-    fastscan_end(Kind::NotFound, now, out, "no unconfigured device above " + to_string(*fs_.after));
+    // Unconfigured devices answered the reset, none of them above `after`.
+    auto e = fastscan_event(Kind::NotFound, now);
+    e.after = fs_.after;
+    finish(std::move(e), out);
     return;
   }
   // Nothing higher below this part: probe the part before it, from a fresh start.
@@ -357,7 +345,7 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
   switch (fs_.step) {
     case Step::Reset:
       if (!answer) {
-        fastscan_end(Kind::NotFound, now, out, "no unconfigured device answered");
+        finish(fastscan_event(Kind::NotFound, now), out);
         return;
       }
       if (fs_.confirm) {
@@ -409,13 +397,13 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
       return;
     case Step::Confirm:
       if (!answer) {
-        fastscan_end(Kind::Timeout, now, out,
-                     "the device stopped answering (part " + std::to_string(fs_.sub) + ")",
-                     static_cast<std::uint8_t>(fs_.sub));
+        auto e = fastscan_event(Kind::Timeout, now);
+        e.part = static_cast<std::uint8_t>(fs_.sub);
+        finish(std::move(e), out);
         return;
       }
       if (fs_.sub == 3) {
-        fastscan_end(Kind::Done, now, out, "found " + to_string(fs_.id));
+        finish(fastscan_event(Kind::Done, now), out);
         return;
       }
       ++fs_.sub;
@@ -427,11 +415,11 @@ void LssMaster::fastscan_step(bool answer, TimePoint now, Output& out) {
       if (!answer) {
         // Its device is absent or configured; the devices that matched the parts before stay
         // there until the next reset brings every unconfigured device back to part 0.
-        fastscan_end(Kind::Absent, now, out, "no device " + to_string(fs_.id) + " unconfigured");
+        finish(fastscan_event(Kind::Absent, now), out);
         return;
       }
       if (fs_.sub == 3) {
-        fastscan_end(Kind::Done, now, out, "found " + to_string(fs_.id));
+        finish(fastscan_event(Kind::Done, now), out);
         return;
       }
       ++fs_.sub;
@@ -447,12 +435,10 @@ void LssMaster::fastscan_target(TimePoint now, Output& out) {
   send_fastscan(fs_.id.part(0), 0, 0, 1, out, now);
 }
 
-void LssMaster::fastscan_end(Kind kind, TimePoint now, Output& out, std::string text,
-                             std::uint8_t part) {
-  auto e = event(LssService::Fastscan, kind, now, std::move(text));
+LssMasterEvent LssMaster::fastscan_event(Kind kind, TimePoint now) const {
+  auto e = event(LssService::Fastscan, kind, now);
   if (kind == Kind::Done || kind == Kind::Absent) e.address = fs_.id;
-  e.part = part;
-  finish(std::move(e), out);
+  return e;
 }
 
 }  // namespace nmt

@@ -34,30 +34,17 @@ std::string_view to_string(LssProcedureKind procedure) {
 
 namespace {
 
-// A service event's words without the service's name in front ("no answer within 100 ms"): the
-// LssMaster writes every text as "<service>: <words>" (lss_master.cpp, LssMaster::event).
-std::string words_of(const LssMasterEvent& e) {
-  const std::string head = std::string(to_string(e.service)) + ": ";
-  return e.text.rfind(head, 0) == 0 ? e.text.substr(head.size()) : e.text;
-}
-
-std::string duplicate_text() {
-  return "more than one device answered configure node-ID with this LSS address (CiA 305 takes "
-         "LSS addresses to be unique)";
-}
-
 constexpr LssService kInquiries[] = {LssService::InquireVendorId, LssService::InquireProductCode,
                                      LssService::InquireRevision, LssService::InquireSerial,
                                      LssService::InquireNodeId};
 
 }  // namespace
 
-LssProcedureEvent LssProcedure::event(Kind kind, TimePoint now, std::string text) const {
+LssProcedureEvent LssProcedure::event(Kind kind, TimePoint now) const {
   LssProcedureEvent e;
   e.procedure = run_->kind;
   e.kind = kind;
   e.at = now;
-  e.text = std::move(text);
   return e;
 }
 
@@ -225,9 +212,7 @@ void LssProcedure::identify_next(TimePoint now, Output& out) {
     (void)lss_.identify_remote_slaves(*range, now, lss_out_);
     return;
   }
-  auto e = event(Kind::Done, now,
-                 std::string(to_string(LssProcedureKind::FindProduct)) + ": " +
-                     std::to_string(run_->search->found().size()) + " found");
+  auto e = event(Kind::Done, now);
   e.addresses = run_->search->found();
   done(std::move(e), out);
 }
@@ -237,11 +222,10 @@ void LssProcedure::done(Event e, Output& out) {
   out.report(std::move(e));
 }
 
-void LssProcedure::failed(const LssMasterEvent& step, std::string text, bool to_waiting,
-                          TimePoint now, Output& out) {
+void LssProcedure::failed(const LssMasterEvent& step, bool to_waiting, TimePoint now, Output& out) {
   // Devices this procedure put in LSS configuration go back to waiting first.
   if (to_waiting) switch_all(LssState::Waiting, now);
-  auto e = event(Kind::Failed, now, std::move(text));
+  auto e = event(Kind::Failed, now);
   e.address = run_->address;
   e.step = step;
   e.found = run_->found;
@@ -260,7 +244,7 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
       scan_event(e, now, out);
       return;
     case Step::Probe: {
-      auto d = event(Kind::Done, now, e.text);
+      auto d = event(Kind::Done, now);
       d.found = e.ok() ? 1 : 0;
       done(std::move(d), out);
       return;
@@ -272,7 +256,7 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
       return;
     case Step::Select:
       if (!e.ok()) {
-        failed(e, e.text, /*to_waiting=*/false, now, out);
+        failed(e, /*to_waiting=*/false, now, out);
         return;
       }
       if (r.kind == LssProcedureKind::AssignNodeId) {
@@ -292,7 +276,7 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
     case Step::ConfigureId:
     case Step::StoreId:
       if (!e.ok()) {
-        failed(e, e.text, /*to_waiting=*/true, now, out);
+        failed(e, /*to_waiting=*/true, now, out);
         return;
       }
       if (r.step == Step::ConfigureId && r.store) {
@@ -302,12 +286,10 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
       }
       switch_all(LssState::Waiting, now);
       {
-        auto d = event(Kind::Done, now,
-                       std::string(to_string(r.kind)) + ": " + to_string(r.address) + " node-ID " +
-                           std::to_string(r.node_id ? r.node_id->value() : lss::kUnconfigured) +
-                           (r.store ? ", stored" : ", not stored (as asked)"));
+        auto d = event(Kind::Done, now);
         d.address = r.address;
         d.node_id = r.node_id;
+        d.outcome = r.store ? LssScanOutcome::Stored : LssScanOutcome::NotStoredAsAsked;
         d.previous_node_id = r.previous_node_id;
         done(std::move(d), out);
       }
@@ -318,7 +300,7 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
     case Step::ConfigureTiming:
     case Step::StoreTiming:
       if (!e.ok()) {
-        failed(e, e.text, /*to_waiting=*/true, now, out);
+        failed(e, /*to_waiting=*/true, now, out);
         return;
       }
       if (r.step == Step::ConfigureTiming && r.store) {
@@ -331,10 +313,10 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
       return;
     case Step::Activate:
       if (!e.ok()) {
-        failed(e, e.text, /*to_waiting=*/false, now, out);
+        failed(e, /*to_waiting=*/false, now, out);
         return;
       }
-      done(event(Kind::Done, now, e.text), out);
+      done(event(Kind::Done, now), out);
       return;
   }
 }
@@ -342,7 +324,7 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
 void LssProcedure::after_inquiry(const LssMasterEvent& e, TimePoint now, Output& out) {
   Running& r = *run_;
   if (!e.ok()) {
-    failed(e, e.text, /*to_waiting=*/true, now, out);
+    failed(e, /*to_waiting=*/true, now, out);
     return;
   }
   if (kInquiries[r.inquiry] != LssService::InquireNodeId) {
@@ -354,15 +336,12 @@ void LssProcedure::after_inquiry(const LssMasterEvent& e, TimePoint now, Output&
   // InquireIdentity switches back before it looks at the node-ID; InquireNodeId after.
   if (r.kind == LssProcedureKind::InquireIdentity) switch_all(LssState::Waiting, now);
   if (e.value != lss::kUnconfigured && !cfg::NodeId::from(e.value)) {
-    failed(e,
-           "inquire node-ID answered " + std::to_string(e.value) +
-               ": no node-ID (CiA 305: 1..127, or 255 for not configured)",
-           /*to_waiting=*/true, now, out);
+    // A Failed whose step is Done: the answer is one CiA 305 does not allow.
+    failed(e, /*to_waiting=*/true, now, out);
     return;
   }
   if (r.kind == LssProcedureKind::InquireNodeId) switch_all(LssState::Waiting, now);
-  auto d = event(Kind::Done, now,
-                 std::string(to_string(r.kind)) + ": " + to_string(r.address) + " " + e.text);
+  auto d = event(Kind::Done, now);
   d.address = r.address;
   if (e.value != lss::kUnconfigured) d.node_id = cfg::NodeId::from(e.value);
   done(std::move(d), out);
@@ -383,23 +362,20 @@ void LssProcedure::search_next(TimePoint now) {
 
 void LssProcedure::scan_event(const LssMasterEvent& e, TimePoint now, Output& out) {
   Running& r = *run_;
-  const auto words = [&e](Cs cs) { return lss::error_text(cs, e.error_code, e.spec_error); };
   switch (r.step) {
     case Step::Search:
       search_event(e, now, out);
       return;
     case Step::Configure:
       if (e.kind == ServiceKind::Timeout) {
-        device_done(Kind::Skipped, LssScanOutcome::ConfigureUnanswered, e.text, e, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::ConfigureUnanswered, e, now, out);
       } else if (e.kind == ServiceKind::Refused) {
-        device_done(Kind::Skipped, LssScanOutcome::ConfigureRefused,
-                    "configure node-ID refused: " + words(Cs::ConfigureNodeId), e, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::ConfigureRefused, e, now, out);
       } else if (lss_.options().store) {
         r.step = Step::Store;
         (void)lss_.store_configuration(now, lss_out_);
       } else {
-        device_done(Kind::Assigned, LssScanOutcome::NotStoredAsAsked, "not stored (as asked)", {},
-                    now, out);
+        device_done(Kind::Assigned, LssScanOutcome::NotStoredAsAsked, std::nullopt, now, out);
       }
       return;
     case Step::Store:
@@ -409,26 +385,22 @@ void LssProcedure::scan_event(const LssMasterEvent& e, TimePoint now, Output& ou
         r.step = Step::Unconfigure;
         (void)lss_.configure_node_id(std::nullopt, now, lss_out_);
       } else if (e.kind == ServiceKind::Timeout) {
-        device_done(Kind::Assigned, LssScanOutcome::StoreUnanswered, "not stored: " + e.text, e,
-                    now, out);
+        device_done(Kind::Assigned, LssScanOutcome::StoreUnanswered, e, now, out);
       } else if (e.kind == ServiceKind::Refused) {
-        device_done(Kind::Assigned, LssScanOutcome::StoreRefused,
-                    "not stored: store configuration refused: " + words(Cs::StoreConfiguration), e,
-                    now, out);
+        device_done(Kind::Assigned, LssScanOutcome::StoreRefused, e, now, out);
       } else {
-        device_done(Kind::Assigned, LssScanOutcome::Stored, "stored", {}, now, out);
+        device_done(Kind::Assigned, LssScanOutcome::Stored, std::nullopt, now, out);
       }
       return;
     case Step::Unconfigure:
     case Step::Unstore:
       if (e.kind == ServiceKind::Timeout) {
-        device_done(Kind::Skipped, LssScanOutcome::DuplicateUndoUnanswered,
-                    duplicate_text() + "; undoing its node-ID: " + words_of(e), {}, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::DuplicateUndoUnanswered, e, now, out);
       } else if (r.step == Step::Unconfigure) {
         r.step = Step::Unstore;
         (void)lss_.store_configuration(now, lss_out_);
       } else {
-        device_done(Kind::Skipped, LssScanOutcome::Duplicate, duplicate_text(), {}, now, out);
+        device_done(Kind::Skipped, LssScanOutcome::Duplicate, std::nullopt, now, out);
       }
       return;
     default:
@@ -447,9 +419,7 @@ void LssProcedure::search_event(const LssMasterEvent& e, TimePoint now, Output& 
       search_next(now);
       return;
     case ServiceKind::NotFound: {
-      auto d = event(Kind::Done, now,
-                     std::string(to_string(r.kind)) + ": " + std::to_string(r.found) +
-                         " unconfigured devices found");
+      auto d = event(Kind::Done, now);
       d.found = r.found;
       d.addresses = std::move(r.addresses);
       done(std::move(d), out);
@@ -458,8 +428,7 @@ void LssProcedure::search_event(const LssMasterEvent& e, TimePoint now, Output& 
     default:
       // A device stopped answering midway. FindUnconfigured switches every device back to
       // waiting (as its other services end), Scan ends as Fastscan left it.
-      failed(e, std::string(to_string(r.kind)) + ": " + words_of(e),
-             /*to_waiting=*/r.kind == LssProcedureKind::FindUnconfigured, now, out);
+      failed(e, /*to_waiting=*/r.kind == LssProcedureKind::FindUnconfigured, now, out);
       return;
   }
 }
@@ -486,7 +455,7 @@ void LssProcedure::device_found(const LssAddress& address, TimePoint now, Output
   std::optional<cfg::NodeId> node_id;
   if (r.chooser) node_id = r.chooser(address);
   if (!node_id) {
-    device_done(Kind::Skipped, LssScanOutcome::NoNodeId, "no node-ID for it", {}, now, out);
+    device_done(Kind::Skipped, LssScanOutcome::NoNodeId, std::nullopt, now, out);
     return;
   }
   r.node_id = node_id;
@@ -495,22 +464,19 @@ void LssProcedure::device_found(const LssAddress& address, TimePoint now, Output
   (void)lss_.configure_node_id(node_id, now, lss_out_);
 }
 
-void LssProcedure::device_done(Kind kind, LssScanOutcome outcome, std::string text,
-                               const LssMasterEvent& refusal, TimePoint now, Output& out) {
+void LssProcedure::device_done(Kind kind, LssScanOutcome outcome,
+                               std::optional<LssMasterEvent> step, TimePoint now, Output& out) {
   Running& r = *run_;
-  const std::string head =
-      to_string(r.address) + (kind == Kind::Assigned
-                                  ? " got node-ID " + std::to_string(r.node_id.value()) + ", "
-                                  : " left unconfigured: ");
-  auto e = event(kind, now, std::string(to_string(r.kind)) + ": " + head + text);
+  auto e = event(kind, now);
   e.address = r.address;
   if (kind == Kind::Assigned) e.node_id = r.node_id;
   e.outcome = outcome;
   // Only a refusal carries an error code; a timeout's event has none.
-  if (refusal.kind == ServiceKind::Refused) {
-    e.error_code = refusal.error_code;
-    e.spec_error = refusal.error_code == 0xFF ? refusal.spec_error : 0;
+  if (step && step->kind == ServiceKind::Refused) {
+    e.error_code = step->error_code;
+    e.spec_error = step->error_code == 0xFF ? step->spec_error : 0;
   }
+  e.step = std::move(step);
   out.report(std::move(e));
   if (kind == Kind::Skipped) {
     // A skipped target is found again bit by bit (only then is it looked past): devices with

@@ -92,14 +92,13 @@ void ExecuteLssProcess::begin_scan(TimePoint now, Output& out) {
                            lss_out_, port_.known_addresses());
   if (!started) {
     // The LssProcedure is idle here (stopped, or its look ended), so this cannot happen; were
-    // it so, the pass or look ends at once with the reason.
+    // it so, the pass or look ends at once.
     LssProcedureEvent e;
     e.procedure = LssProcedureKind::Scan;
     // Failed without a service's event: the scan could not start
     // (MasterEvent::LssScan::Stop::CouldNotStart).
     e.kind = Kind::Failed;
     e.at = now;
-    e.text = started.error().message;
     scan_ended(e, now, out);
     return;
   }

@@ -11,6 +11,7 @@
 #include "cfg/object_index.hpp"
 #include "cfg/sdo_abort.hpp"
 #include "master/master_text.hpp"
+#include "nmt/lss/lss_event_text.hpp"
 
 namespace nmt {
 
@@ -142,40 +143,9 @@ std::string flying_words(const MasterEvent& e) {
 }
 
 std::string lss_words(const MasterEvent& e) {
-  using O = LssScanOutcome;
   const MasterEvent::Lss l = e.lss.value_or(MasterEvent::Lss{});
   const std::string address = e.lss_address ? to_string(*e.lss_address) : std::string();
-  const std::string timeout = "no answer within " + ms_words(l.timeout);
-  const std::string duplicate =
-      "more than one device answered configure node-ID with this LSS address (CiA 305 takes LSS "
-      "addresses to be unique)";
-  const auto error = [&](lss::Cs service) {
-    return lss::error_text(service, l.error_code, l.spec_error);
-  };
-  const std::string got =
-      address + " got node-ID " + (e.node_id ? std::to_string(e.node_id->value()) : "?") + ", ";
-  const std::string left = address + " left unconfigured: ";
-  switch (l.outcome) {
-    case O::Stored:
-      return got + "stored";
-    case O::NotStoredAsAsked:
-      return got + "not stored (as asked)";
-    case O::StoreRefused:
-      return got + "not stored: store configuration refused: " + error(lss::Cs::StoreConfiguration);
-    case O::StoreUnanswered:
-      return got + "not stored: store configuration: " + timeout;
-    case O::ConfigureRefused:
-      return left + "configure node-ID refused: " + error(lss::Cs::ConfigureNodeId);
-    case O::ConfigureUnanswered:
-      return left + "configure node-ID: " + timeout;
-    case O::Duplicate:
-      return left + duplicate;
-    case O::DuplicateUndoUnanswered:
-      return left + duplicate + "; undoing its node-ID: " + timeout;
-    case O::NoNodeId:
-      return left + "no node-ID for it";
-  }
-  return "";
+  return address + " " + describe(l.outcome, e.node_id, l.error_code, l.spec_error, l.timeout);
 }
 
 std::string lss_scan_words(const MasterEvent& e) {

@@ -83,9 +83,9 @@ enum class LssService : std::uint8_t {
 };
 std::string_view to_string(LssService service);  ///< "configure node-ID", ...
 
-/// What became of a device a scan found (CiA 305 §8.3 configure node-ID, store configuration):
-/// the fact behind the text of an LssProcedure scan's Assigned or Skipped event
-/// (nmt/lss/lss_procedure.hpp).
+/// What became of a device given a node-ID (CiA 305 configure node-ID, store configuration): an
+/// LssProcedure scan's Assigned or Skipped event, or its AssignNodeId's Done
+/// (nmt/lss/lss_procedure.hpp; in words: nmt/lss/lss_event_text.hpp).
 enum class LssScanOutcome : std::uint8_t {
   Stored,                   ///< Assigned: node-ID configured and stored
   NotStoredAsAsked,         ///< Assigned: configured, not stored (LssMasterOptions::store)
@@ -98,6 +98,8 @@ enum class LssScanOutcome : std::uint8_t {
   NoNodeId,                 ///< Skipped: the chooser gave no node-ID for it
 };
 
+/// How a service ended, as typed facts; the words for people are describe(event)
+/// (nmt/lss/lss_event_text.hpp).
 struct LssMasterEvent {
   enum class Kind : std::uint8_t {
     Done,      ///< the service ended as asked (Identify*: a device answered; Fastscan: found)
@@ -113,12 +115,21 @@ struct LssMasterEvent {
   std::uint32_t value = 0;  ///< inquire: the value (InquireNodeId: the node-ID)
   /// ConfigureNodeId: the node-ID (nullopt for FFh, not configured)
   std::optional<cfg::NodeId> node_id;
+  /// Refused: the error code of the answer (configure node-ID, configure bit timing, store
+  /// configuration; CiA 305 as nmt/lss/lss.hpp cites it) and, for FFh, the manufacturer's code.
   std::uint8_t error_code = 0;
   std::uint8_t spec_error = 0;
   /// Fastscan Timeout of a device that stopped answering: the part (0..3) of its address.
   std::uint8_t part = 0;
-  std::string text;  ///< one line for people, e.g. "configure node-ID refused: node-ID out of
-                     ///< range (error code 1)"
+  /// SwitchStateGlobal: the state every device was switched to.
+  LssState state = LssState::Waiting;
+  /// Timeout of a service one device answers: how long the master waited for the answer
+  /// (LssMasterOptions::timeout); zero for Fastscan, whose steps end by the scan step.
+  Duration timeout{};
+  /// Fastscan NotFound of a scan above an address (fastscan(after)) that unconfigured devices
+  /// answered: that address, none of them is above it. Nullopt when no unconfigured device
+  /// answered the reset.
+  std::optional<LssAddress> after;
 
   bool ok() const { return kind == Kind::Done; }
 };
@@ -206,7 +217,7 @@ class LssMaster {
   void answered(const CanFrame& frame, TimePoint now, Output& out);
   void step_ended(TimePoint now, Output& out);
   void timed_out(TimePoint now, Output& out);
-  Event event(LssService service, LssMasterEvent::Kind kind, TimePoint now, std::string text) const;
+  Event event(LssService service, LssMasterEvent::Kind kind, TimePoint now) const;
 
   void send_fastscan(std::uint32_t id, int bit_check, int sub, int next, Output& out,
                      TimePoint now);
@@ -215,8 +226,8 @@ class LssMaster {
   void fastscan_probe(TimePoint now, Output& out, int from_bit);
   void fastscan_descend(TimePoint now, Output& out);
   void fastscan_target(TimePoint now, Output& out);
-  void fastscan_end(LssMasterEvent::Kind kind, TimePoint now, Output& out, std::string text,
-                    std::uint8_t part = 0);
+  // The Fastscan's end; Done and Absent carry the address.
+  Event fastscan_event(LssMasterEvent::Kind kind, TimePoint now) const;
 
   LssMasterOptions options_;
   std::optional<LssService> service_;

@@ -33,10 +33,10 @@
 //   cloned serial number) answer every Fastscan step alike and are in configuration together.
 //   A second answer to the scan's configure node-ID, heard while the store waits for its
 //   answer, tells: the scan then configures FFh (not configured) and stores it in all of them,
-//   switches them back to waiting, and reports the address Skipped (text: "more than one device
-//   answered ..."); the scan looks past it. It needs LssMasterOptions::store (the default):
-//   without the store's wait nothing is listened for. On a real bus two identical answers sent
-//   in the same bit time are one frame; then it is not seen (a known limit).
+//   switches them back to waiting, and reports the address Skipped (LssScanOutcome::Duplicate);
+//   the scan looks past it. It needs LssMasterOptions::store (the default): without the store's
+//   wait nothing is listened for. On a real bus two identical answers sent in the same bit
+//   time are one frame; then it is not seen (a known limit).
 // - A procedure that addresses one device (AssignNodeId, InquireNodeId, InquireIdentity by
 //   address) first switches every device to waiting: switch state selective is obeyed in waiting
 //   only. A procedure that fails after devices entered LSS configuration switches every device
@@ -50,7 +50,6 @@
 #include <functional>
 #include <optional>
 #include <set>
-#include <string>
 #include <string_view>
 #include <vector>
 
@@ -77,10 +76,12 @@ enum class LssProcedureKind : std::uint8_t {
 };
 std::string_view to_string(LssProcedureKind procedure);  ///< "scan", "assign node-ID", ...
 
+/// How a procedure went, as typed facts; the words for people are describe(event)
+/// (nmt/lss/lss_event_text.hpp).
 struct LssProcedureEvent {
   enum class Kind : std::uint8_t {
-    Assigned,  ///< Scan: a found device got `node_id` (stored unless `error_code` says why not)
-    Skipped,   ///< Scan: a found device was left without node-ID (`text` says why)
+    Assigned,  ///< Scan: a found device got `node_id` (stored unless `outcome` says why not)
+    Skipped,   ///< Scan: a found device was left without node-ID (`outcome` says why)
     Done,      ///< the procedure ended as asked; its results in the fields below
     /// A service ended otherwise than asked: `step` is its event (the service, Refused with the
     /// CiA 305 error code, Timeout, NotFound; Done when the answer is one CiA 305 does not
@@ -104,17 +105,17 @@ struct LssProcedureEvent {
   std::vector<LssAddress> addresses;
   /// Scan: the devices found (assigned and skipped); AnyUnconfigured: 1 when any answered.
   std::uint32_t found = 0;
-  /// Assigned/Skipped: what became of the device.
+  /// Assigned/Skipped: what became of the device; AssignNodeId Done: Stored, or
+  /// NotStoredAsAsked when the store was not asked for.
   std::optional<LssScanOutcome> outcome;
   /// Assigned/Skipped: the error code of store configuration or configure node-ID when it
   /// refused (0: none), and the manufacturer-specific error with code FFh.
   std::uint8_t error_code = 0;
   std::uint8_t spec_error = 0;
-  /// Failed: the event of the service that ended the procedure.
+  /// Failed: the event of the service that ended the procedure (none: the procedure could not
+  /// start). Assigned/Skipped: the event of the service that refused or went unanswered
+  /// (configure node-ID, store configuration), none when every service went as asked.
   std::optional<LssMasterEvent> step;
-  /// One line for people, e.g. "scan: vendor ... got node-ID 5, stored"; Failed: the service's
-  /// words ("configure node-ID: refused: node-ID out of range (error code 1)").
-  std::string text;
 
   bool ok() const { return kind == Kind::Done || kind == Kind::Assigned; }
 };
@@ -224,18 +225,17 @@ class LssProcedure {
   void inquire_next(TimePoint now);
   void identify_next(TimePoint now, Output& out);
   void done(Event e, Output& out);
-  void failed(const LssMasterEvent& step, std::string text, bool to_waiting, TimePoint now,
-              Output& out);
+  void failed(const LssMasterEvent& step, bool to_waiting, TimePoint now, Output& out);
   void after_inquiry(const LssMasterEvent& e, TimePoint now, Output& out);
   void search_next(TimePoint now);
   void search_event(const LssMasterEvent& e, TimePoint now, Output& out);
   void device_found(const LssAddress& address, TimePoint now, Output& out);
-  /// A scan's device ends Assigned or Skipped with `outcome`; `refusal` the service's event when
-  /// a device refused it (its error codes), else a default one.
-  void device_done(Event::Kind kind, LssScanOutcome outcome, std::string text,
-                   const LssMasterEvent& refusal, TimePoint now, Output& out);
+  /// A scan's device ends Assigned or Skipped with `outcome`; `step` the event of the service
+  /// the device refused or did not answer, nullopt when none.
+  void device_done(Event::Kind kind, LssScanOutcome outcome, std::optional<LssMasterEvent> step,
+                   TimePoint now, Output& out);
   void scan_event(const LssMasterEvent& e, TimePoint now, Output& out);
-  Event event(Event::Kind kind, TimePoint now, std::string text) const;
+  Event event(Event::Kind kind, TimePoint now) const;
 
   LssMaster lss_;
   LssMaster::Output lss_out_;  ///< scratch output of lss_
