@@ -18,9 +18,10 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
   cmd.add_option("network", args.network,
                  "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a "
                  "master DCF (CANopenManager=1) whose 1F20h/1F22h name node files with "
-                 "DownloadFile=")
+                 "DownloadFile= or UploadFile= (lely dcfgen's master.dcf)")
       ->required()
       ->type_name("NETWORK");
+  add_dcf_path_option(cmd, args.dcf_path);
   auto* bus =
       cmd.add_option("--bus", args.bus,
                      "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
@@ -53,6 +54,15 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                  "(days since 1984-01-01, ms after midnight); repeatable")
       ->type_name("NODE=VERSION");
   return bus;
+}
+
+void add_dcf_path_option(CLI::App& cmd, std::vector<std::string>& dirs) {
+  cmd.add_option("--dcf-path", dirs,
+                 "Where the files a master DCF names in 1F20h/1F22h/1F58h are, when they are not "
+                 "where it says (lely's dcfgen writes the absolute paths of the machine that ran "
+                 "it, its dcf_path): each file is looked for by its name in DIR, then beside the "
+                 "master DCF (a warning); repeatable")
+      ->type_name("DIR");
 }
 
 void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
