@@ -30,7 +30,9 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                      "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR, "
                      "and &unconfigured=3,5-7; state=DIR keeps what each device saved with 1010h "
                      "between runs; the devices of the unconfigured= nodes power on without "
-                     "node-ID and wait for LSS, CiA 305)")
+                     "node-ID and wait for LSS, CiA 305; &device=FILE@2-7, repeatable: the "
+                     "devices at those node-IDs are built from the EDS/DCF FILE, also where the "
+                     "network has only a concise DCF, as dcfgen's master.dcf gives)")
           ->type_name("URL");
   cmd.add_option("--node-id", args.node_id,
                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
