@@ -426,10 +426,11 @@ std::optional<Loader::NamedFile> Loader::named_file(std::string_view text, std::
     out.path = beside;
     return out;
   }
-  std::string looked = "'" + beside + "'";
+  std::string looked;
   for (const std::string& dir : options_.dcf_path) {
-    looked += ", '" + (fs::path(dir) / file_name).string() + "'";
+    looked += "'" + (fs::path(dir) / file_name).string() + "', ";
   }
+  looked += "'" + beside + "'";
   error(path_, out.line,
         concat({out.what, " '", name, "': no such file (nor ", looked,
                 "); the master DCF names a file of another machine or one that was moved: "
