@@ -146,6 +146,17 @@ class Loader {
   // NodeXProgramFile= / NodeXProgramVersion= of [Topology] (our keys, see network.hpp).
   std::optional<NodeProgram> read_program(const Section& topology, const std::string& prefix,
                                           const fs::path& base);
+  // The file a master DCF's DOMAIN entry `sub` names (network.hpp: DownloadFile=, else
+  // UploadFile=; as written, else by its name in dcf_path, else beside the master DCF), with
+  // the key's words for messages ("1F22h sub 02h UploadFile"). nullopt when the entry names
+  // none; `path` empty when the file is nowhere (an error at the key's line).
+  struct NamedFile {
+    std::string what;
+    std::string path;
+    int line = 0;
+  };
+  std::optional<NamedFile> named_file(std::string_view text, std::uint16_t index,
+                                      const SubObject& sub, const fs::path& base);
   void error(const std::string& file, int line, std::string message) {
     diagnostics_.add(file, line, Severity::Error, std::move(message));
   }
@@ -353,6 +364,83 @@ std::optional<NodeProgram> Loader::read_program(const Section& topology, const s
   return program;
 }
 
+// The line of `key`= in the section that begins at `section_line` of `text` (1-based), else
+// `section_line`: the model keeps the section's line only, and this is asked only for messages.
+int key_line(std::string_view text, int section_line, std::string_view key) {
+  int line = 0;
+  std::size_t at = 0;
+  while (at <= text.size()) {
+    const std::size_t end = std::min(text.find('\n', at), text.size());
+    std::string_view row = detail::trim_blanks(text.substr(at, end - at));
+    ++line;
+    if (line > section_line) {
+      if (!row.empty() && row.front() == '[') break;
+      const auto eq = row.find('=');
+      if (eq != std::string_view::npos && iequals(detail::trim_blanks(row.substr(0, eq)), key)) {
+        return line;
+      }
+    }
+    at = end + 1;
+  }
+  return section_line;
+}
+
+std::optional<Loader::NamedFile> Loader::named_file(std::string_view text, std::uint16_t index,
+                                                    const SubObject& sub, const fs::path& base) {
+  const bool download = sub.download_file && !sub.download_file->empty();
+  const bool upload = sub.upload_file && !sub.upload_file->empty();
+  if (!download && !upload) return std::nullopt;
+  const std::string_view key = download ? "DownloadFile" : "UploadFile";
+  const std::string& name = download ? *sub.download_file : *sub.upload_file;
+  NamedFile out;
+  out.what = to_string(ObjectAddress{index, sub.sub_index}) + " " + std::string(key);
+  out.line = key_line(text, sub.line, key);
+  if (download && upload && *sub.download_file != *sub.upload_file) {
+    diagnostics_.add(path_, out.line, Severity::Warning,
+                     concat({out.what, " '", name, "' and UploadFile '", *sub.upload_file,
+                             "' name different files: DownloadFile is used"}));
+  }
+  const std::string written = resolve(base, name);
+  std::error_code ec;
+  if (fs::exists(written, ec)) {
+    out.path = written;
+    return out;
+  }
+  // lely's dcfgen writes its dcf_path joined to the file's name, a path of the machine that ran
+  // it: the name alone is looked for where this machine keeps the files.
+  std::string file_name = name;
+  std::replace(file_name.begin(), file_name.end(), '\\', '/');
+  file_name = fs::path(file_name).filename().string();
+  for (const std::string& dir : options_.dcf_path) {
+    const std::string candidate = (fs::path(dir) / file_name).string();
+    if (fs::exists(candidate, ec)) {
+      out.path = candidate;
+      return out;
+    }
+  }
+  const std::string beside = (base / file_name).string();
+  if (!file_name.empty() && beside != written && fs::exists(beside, ec)) {
+    diagnostics_.add(path_, out.line, Severity::Warning,
+                     concat({out.what, " '", name, "' does not exist; using '", beside,
+                             "' beside the master DCF instead"}));
+    out.path = beside;
+    return out;
+  }
+  std::string looked;
+  for (const std::string& dir : options_.dcf_path) {
+    looked += "'" + (fs::path(dir) / file_name).string() + "', ";
+  }
+  looked += "'" + beside + "'";
+  error(path_, out.line,
+        concat({out.what, " '", name, "': no such file (nor ", looked,
+                "); the master DCF names a file of another machine or one that was moved: "
+                "rebuild the master DCF here (dcfgen) or pass the directory that holds '",
+                file_name, "'",
+                options_.dcf_path_hint.empty() ? std::string_view()
+                                               : std::string_view(options_.dcf_path_hint)}));
+  return out;
+}
+
 // A node file named by 1F22h: a concise DCF, or (written by hand) a DCF.
 bool looks_like_text_dcf(std::span<const std::uint8_t> bytes) {
   std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
@@ -386,23 +474,27 @@ std::optional<Network> Loader::load_master_dcf(std::string_view text) {
     std::uint16_t index = 0;
     for (const std::uint16_t candidate : {object::kStoreDcf, object::kConciseDcf}) {
       const SubObject* s = dcf->sub(candidate, sub_index);
-      if (s != nullptr && s->download_file && !s->download_file->empty()) {
+      const auto names = [](const OptionalText& t) { return t && !t->empty(); };
+      if (s != nullptr && (names(s->download_file) || names(s->upload_file))) {
         sub = s;
         index = candidate;
         break;
       }
     }
     if (sub == nullptr) continue;
-    const std::string what = to_string(ObjectAddress{index, sub_index}) + " DownloadFile";
     if (network.master_node_id && *network.master_node_id == node) {
       diagnostics_.add(path_, sub->line, Severity::Warning,
-                       what + ": names a file for the master's own node-ID; ignored");
+                       to_string(ObjectAddress{index, sub_index}) +
+                           ": names a file for the master's own node-ID; ignored");
       continue;
     }
-    const std::string file = resolve(base, *sub->download_file);
+    const auto named = named_file(text, index, *sub, base);
+    if (!named || named->path.empty()) continue;
+    const std::string& what = named->what;
+    const std::string& file = named->path;
     auto bytes = read_file(file);
     if (!bytes) {
-      error(path_, sub->line, concat({what, " '", file, "': ", bytes.error().message}));
+      error(path_, named->line, concat({what, " '", file, "': ", bytes.error().message}));
       continue;
     }
     const std::string_view view = bytes->view();
@@ -411,7 +503,7 @@ std::optional<Network> Loader::load_master_dcf(std::string_view text) {
     if (index == object::kStoreDcf || looks_like_text_dcf(data)) {
       auto node_dcf = parse_dcf(view, file);
       if (!node_dcf) continue;
-      check_node_id(*node_dcf, node, path_, sub->line, concat({what, " '", file, "'"}));
+      check_node_id(*node_dcf, node, path_, named->line, concat({what, " '", file, "'"}));
       if (auto slave = node_from_dcf(std::move(*node_dcf), node, file, {})) {
         network.nodes.push_back(std::move(*slave));
       }
@@ -419,7 +511,7 @@ std::optional<Network> Loader::load_master_dcf(std::string_view text) {
     }
     auto writes = decode_concise_dcf(data);
     if (!writes) {
-      error(path_, sub->line,
+      error(path_, named->line,
             concat({what, " '", file, "': not a concise DCF: ", writes.error().message}));
       continue;
     }
@@ -428,6 +520,35 @@ std::optional<Network> Loader::load_master_dcf(std::string_view text) {
     slave.file = file;
     slave.writes = std::move(writes).value();
     network.nodes.push_back(std::move(slave));
+  }
+  // CiA 302-3 1F58h sub X: the image of node X's program; its version is the master DCF's own
+  // (1F53h/1F54h, check_programs).
+  for (unsigned x = kMinNodeId; x <= kMaxNodeId; ++x) {
+    const SubObject* sub = dcf->sub(object::kSlaveProgramData, static_cast<std::uint8_t>(x));
+    if (sub == nullptr) continue;
+    const auto named = named_file(text, object::kSlaveProgramData, *sub, base);
+    if (!named || named->path.empty()) continue;
+    const auto it = std::find_if(network.nodes.begin(), network.nodes.end(),
+                                 [x](const NetworkNode& n) { return n.node_id.value() == x; });
+    if (it == network.nodes.end()) {
+      diagnostics_.add(path_, named->line, Severity::Warning,
+                       concat({named->what, " '", named->path, "': node ", std::to_string(x),
+                               " has no configuration (1F20h/1F22h sub ", hex_digits(x, 2),
+                               "h name no file); its program is not used"}));
+      continue;
+    }
+    NodeProgram program;
+    program.file = named->path;
+    program.source = path_;
+    program.line = named->line;
+    auto image = read_program_image(program.file);
+    if (!image) {
+      error(path_, named->line,
+            concat({named->what, " '", program.file, "': ", image.error().message}));
+      continue;
+    }
+    program.image = std::move(image).value();
+    it->program = std::move(program);
   }
   network.master = std::move(*dcf);
   return network;

@@ -10,6 +10,7 @@
 #include "cfg/cob_id.hpp"
 #include "cfg/data_type.hpp"
 #include "cfg/hex.hpp"
+#include "cfg/master_objects.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
@@ -247,6 +248,35 @@ class Checker {
   std::map<std::uint32_t, std::vector<OtherUse>> other_uses_;
 };
 
+// A master DCF alone configures node X from its 1F20h/1F22h sub X (network.hpp): a slave the
+// master boots (1F81h bits 0 and 2, CiA 302-2 Table 19/20) whose entries name no file gets no
+// configuration at all, which a generator that left the entry empty rarely means.
+void slaves_without_configuration(const Network& network, Diagnostics& diagnostics) {
+  if (!network.master_from_file || network.master_file != network.file) return;
+  const DeviceDescription& master = network.master;
+  const auto names_file = [&master](std::uint16_t index, std::uint8_t x) {
+    const SubObject* s = master.sub(index, x);
+    return s != nullptr && ((s->download_file && !s->download_file->empty()) ||
+                            (s->upload_file && !s->upload_file->empty()));
+  };
+  const Member self{std::nullopt, "the master", network.master_file, &master, nullptr};
+  for (unsigned x = kMinNodeId; x <= kMaxNodeId; ++x) {
+    const auto sub = static_cast<std::uint8_t>(x);
+    const auto assignment = value_of(self, object::kSlaveAssignment, sub);
+    if (!assignment) continue;
+    const SlaveAssignment bits{assignment->value};
+    if (!bits.is_slave() || !bits.boot_slave()) continue;
+    if (names_file(object::kStoreDcf, sub) || names_file(object::kConciseDcf, sub)) continue;
+    const std::string digits = hex_digits(x, 2);
+    const std::string node = std::to_string(x);
+    diagnostics.add(network.master_file, assignment->line, Severity::Warning,
+                    "1F81h sub " + digits + "h: node " + node +
+                        " is a slave the master boots, but there is no configuration for node " +
+                        node + " (1F22h sub " + digits + "h empty): neither 1F22h nor 1F20h sub " +
+                        digits + "h names a file, so nothing is downloaded to it");
+  }
+}
+
 }  // namespace
 
 void check_network(const Network& network, Diagnostics& diagnostics) {
@@ -276,6 +306,7 @@ void check_network(const Network& network, Diagnostics& diagnostics) {
     if (m.dcf == nullptr || m.writes == nullptr || !m.node_id) continue;
     check_download(*m.dcf, *m.node_id, *m.writes, m.file, m.label + ": ", diagnostics);
   }
+  slaves_without_configuration(network, diagnostics);
 }
 
 }  // namespace cfg

@@ -421,6 +421,37 @@ TEST(BootSlave, SkipsTheDownloadWhen1020hMatches) {
             "node 5: booted (configuration up to date)");
 }
 
+// §3.5 a: 1F26h/1F27h = 0 and nothing to download (a master DCF whose 1F22h sub 5 is empty):
+// booted without a comparison or a download, which is not "up to date".
+TEST(BootSlave, ReportsNoConfigurationWhenItHasNothingToConfigureTheSlaveWith) {
+  Rig rig;
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  EXPECT_EQ(rig.port.accesses.size(), 1U);  // 1000h only
+  ASSERT_EQ(rig.port.reports.size(), 1U);
+  EXPECT_EQ(rig.port.reports[0].status, std::nullopt);
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  EXPECT_FALSE(booted[0].configured);
+  EXPECT_TRUE(booted[0].no_configuration);
+  EXPECT_EQ(describe(booted[0]),
+            "node 5: booted, no configuration for node 5 (1F22h sub 05h empty)");
+}
+
+// An empty configuration is one: downloaded (nothing but 1010h), not "no configuration".
+TEST(BootSlave, AnEmptyConfigurationIsDownloadedNotReportedAsMissing) {
+  Rig rig;
+  rig.port.writes = std::vector<cfg::ObjectWrite>{};
+  rig.process.start(rig.now, rig.out);
+  rig.answer(0);
+  expect_access(rig.last(), 0x1010, 1, false, le32(cfg::kSaveSignature));
+  rig.answer();
+  const auto booted = rig.events_of(Kind::SlaveBooted);
+  ASSERT_EQ(booted.size(), 1U);
+  EXPECT_TRUE(booted[0].configured);
+  EXPECT_FALSE(booted[0].no_configuration);
+}
+
 // J: "Configuration download failed".
 TEST(BootSlave, ReportsStatusJWhenTheSlaveAbortsAConfigurationWrite) {
   Rig rig;

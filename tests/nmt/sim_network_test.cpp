@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -50,9 +51,21 @@ TEST(SimUrl, NamesTheParameterItRefuses) {
   EXPECT_EQ(message("sim:?seed=1&seed=2"), "sim: parameter 'seed' given twice");
   EXPECT_EQ(message("sim:?speed=1"),
             "sim: unknown parameter 'speed' (known: bitrate, latency_ms, loss, seed, state, "
-            "unconfigured)");
+            "unconfigured, device)");
   EXPECT_EQ(message("sim:x"), "sim: expected '?' and parameters after 'sim:', got 'x'");
   EXPECT_EQ(message("sim:?unconfigured=0"), "sim: unconfigured=0: '0' is no node-ID 1..127");
+  EXPECT_EQ(message("sim:?device=drive.eds"),
+            "sim: device=drive.eds: expected FILE@NODES (an EDS or DCF and node-IDs, e.g. "
+            "drive.eds@2-7)");
+  EXPECT_EQ(message("sim:?device=a.eds@2-3&device=b.eds@3"),
+            "sim: device=b.eds@3: node 3 has a device= already");
+}
+
+TEST(SimUrl, DeviceFilesAreRepeatableAndGiveEachNodeItsFile) {
+  const auto options = parse_sim_url("sim:?device=/x/a@b.eds@2-3&loss=0&device=c.dcf@0x10");
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  EXPECT_EQ(options->device_files, (std::map<std::uint8_t, std::string>{
+                                       {2, "/x/a@b.eds"}, {3, "/x/a@b.eds"}, {16, "c.dcf"}}));
 }
 
 TEST(NodeList, RangesAndSingleNodes) {
@@ -77,6 +90,41 @@ TEST(SimulatedDevices, OneDevicePerNodeWithADcf) {
       with_identity_of(*load.network->find(*cfg::NodeId::from(2))->dcf, *cfg::NodeId::from(2), {});
   EXPECT_EQ(identity.device_type, 0x00030191U);
   EXPECT_EQ(identity.vendor_id, 0xABCU);
+}
+
+// tests/data/network/master.dcf: node 2 by a DCF (1F20h sub 2), node 3 by a concise DCF alone
+// (1F22h sub 3), which has no dictionary to simulate unless device= gives one; device= also adds
+// a node-ID the network does not have (9), after the network's nodes.
+TEST(SimulatedDevices, DeviceFilesSimulateNodesGivenByAConciseDcfAlone) {
+  auto load = cfg::load_network(CANOPEN_TEST_DATA_DIR + "/network/master.dcf");
+  ASSERT_TRUE(load.ok()) << load.diagnostics.format();
+  std::vector<cfg::NodeId> skipped;
+  std::vector<cfg::NodeId> owners;
+  auto plain = simulated_devices(*load.network, SimBusOptions{}, &skipped, &owners);
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  EXPECT_EQ(plain->size(), 1U);
+  EXPECT_EQ(skipped, (std::vector<cfg::NodeId>{*cfg::NodeId::from(3)}));
+  EXPECT_EQ(owners, (std::vector<cfg::NodeId>{*cfg::NodeId::from(2)}));
+
+  SimBusOptions options;
+  const std::string eds = CANOPEN_TEST_DATA_DIR + "/network/nodes/io_node2.dcf";
+  options.device_files = {{3, eds}, {9, eds}};
+  skipped.clear();
+  owners.clear();
+  auto devices = simulated_devices(*load.network, options, &skipped, &owners);
+  ASSERT_TRUE(devices.ok()) << devices.error().message;
+  EXPECT_EQ(devices->size(), 3U);
+  EXPECT_TRUE(skipped.empty());
+  EXPECT_EQ(owners, (std::vector<cfg::NodeId>{*cfg::NodeId::from(2), *cfg::NodeId::from(3),
+                                              *cfg::NodeId::from(9)}));
+
+  options.device_files = {{3, CANOPEN_TEST_DATA_DIR + "/network/no_such.eds"}};
+  const auto missing = simulated_devices(*load.network, options);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("device=" + CANOPEN_TEST_DATA_DIR +
+                                         "/network/no_such.eds: cannot simulate it"),
+            std::string::npos)
+      << missing.error().message;
 }
 
 }  // namespace

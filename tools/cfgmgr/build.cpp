@@ -31,6 +31,7 @@ struct BuildCliOptions {
   std::string node_id;
   bool lf = false;
   std::vector<std::string> variables;  ///< NODE=FILE
+  std::vector<std::string> dcf_path;   ///< --dcf-path DIR
 };
 
 void write_or_exit(const std::string& path, std::string_view bytes) {
@@ -90,7 +91,7 @@ void write_programmed_node(const std::string& spec, const cfg::Network& network,
 void run_build(const BuildCliOptions& options) {
   if (options.net == 0)
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network = load_network_or_exit(options.network, options.net);
+  const auto network = load_network_or_exit(options.network, options.net, {}, options.dcf_path);
   const cfg::NetworkBuild build = cfg::build_network(*network);
   // The master's node-ID as cfgmgr master and push take it (--node-id, else the network's, else
   // 7Fh), and a check that the master can be built from the dictionary written (CiA 306 §4.7: a
@@ -146,7 +147,8 @@ void add_build_command(CLI::App& app) {
       "downloads to node N)");
   cmd->add_option("network", options->network,
                   "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a master "
-                  "DCF (CANopenManager=1) whose 1F20h/1F22h name node files with DownloadFile=")
+                  "DCF (CANopenManager=1) whose 1F20h/1F22h name node files with DownloadFile= or "
+                  "UploadFile= (lely dcfgen's master.dcf)")
       ->required()
       ->type_name("NETWORK");
   cmd->add_option("-o,--output", options->output_dir,
@@ -154,6 +156,7 @@ void add_build_command(CLI::App& app) {
                   "whole, never left half-written)")
       ->required()
       ->type_name("DIR");
+  add_dcf_path_option(*cmd, options->dcf_path);
   cmd->add_option("--net", options->net,
                   "Which network of the project file: 1 is [Topology], N is [TopologyN]")
       ->capture_default_str()

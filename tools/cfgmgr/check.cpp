@@ -21,6 +21,7 @@
 #include "cfg/schema.hpp"
 #include "cfg/write_acceptance.hpp"
 #include "commands.hpp"
+#include "run_args.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -33,6 +34,7 @@ struct CheckOptions {
   bool network = false;
   unsigned net = 1;
   std::string schema_dir;
+  std::vector<std::string> dcf_path;  ///< --dcf-path DIR
 };
 
 struct FileReport {
@@ -116,6 +118,8 @@ FileReport check_network_file(const std::string& file, const CheckOptions& optio
   cfg::NetworkOptions load_options;
   load_options.net = options.net;
   load_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
+  load_options.dcf_path = options.dcf_path;
+  load_options.dcf_path_hint = kDcfPathHint;
   cfg::NetworkLoad load = cfg::load_network(file, load_options);
   report.diagnostics = std::move(load.diagnostics);
   if (load.unreadable) {
@@ -272,6 +276,7 @@ void add_check_command(CLI::App& app) {
                 "Check every FILE as a network description (needed for a master DCF whose "
                 "1F20h/1F22h name the node files): missing files, node-ID clashes, COB-ID "
                 "clashes between TPDOs, PDO mappings of objects that are not mappable");
+  add_dcf_path_option(*cmd, options->dcf_path);
   cmd->add_option("--net", options->net,
                   "Which network of a project file: 1 is [Topology], N is [TopologyN]")
       ->capture_default_str()

@@ -41,6 +41,9 @@ void EventReporter::report(const nmt::MasterEvent& e) {
         line = node + (again ? "reconfigured" : "booted, configured") + " (" +
                std::to_string(e.written) + (e.written == 1 ? " entry" : " entries") + ", " +
                tools::plural(e.bytes, "byte") + ")";
+      } else if (e.no_configuration) {
+        line = node + (again ? "booted again" : "booted") + ", " +
+               nmt::describe_no_configuration(*e.node_id);
       } else {
         line = node + (again ? "booted again" : "booted") + " (configuration up to date)";
       }
@@ -179,6 +182,7 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
       break;
     case K::SlaveBooted:
       out += std::string(", \"configured\": ") + (e.configured ? "true" : "false") +
+             ", \"no_configuration\": " + (e.no_configuration ? "true" : "false") +
              ", \"entries\": " + std::to_string(e.written) +
              ", \"bytes\": " + std::to_string(e.bytes);
       break;

@@ -46,7 +46,8 @@ void run_master(const MasterCliOptions& options) {
   const std::optional<SimBusOptions> sim = parse_bus_url("master", options.bus);
   if (options.net == 0)
     fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network = load_network_or_exit(options.network, options.net, options.programs);
+  const auto network =
+      load_network_or_exit(options.network, options.net, options.programs, options.dcf_path);
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager.enabled = options.sdo_manager;
@@ -98,7 +99,8 @@ void add_master_command(CLI::App& app) {
                   "active_master, standby, ...; of the bus itself: bus_off, restarted, "
                   "send_failed, ... with node_id 0 and the frame), node_id, text, and per event "
                   "error/"
-                  "description/final, configured/entries/bytes, assigned, step, state, command, "
+                  "description/final, configured/no_configuration/entries/bytes, assigned, step, "
+                  "state, command, "
                   "priority, connection_error, lss_address (lss_assigned, lss_unmatched, "
                   "lss_failed) and connection (row, client_node_id, client_index, "
                   "server_node_id, server_index, request_cob_id, response_cob_id); try (the "
@@ -144,7 +146,8 @@ void add_master_command(CLI::App& app) {
       "configuration (rules in cfg/network.hpp). With 1F80h bit 2 set, cfgmgr master is the "
       "application that lets the master enter operational, at once.\n\n"
       "Events, one a line on stderr, seconds since the start first: node N: booted, "
-      "configured (E entries, B bytes) / booted (configuration up to date) / reconfigured / "
+      "configured (E entries, B bytes) / booted (configuration up to date) / booted, no "
+      "configuration for node N (1F22h sub N empty) / reconfigured / "
       "boot error X: <CiA 302-2 Table 1 text> / heartbeat lost / node guarding lost / boot-up "
       "seen; NMT start-up complete / halted. With 1F80h bit 5 in the master DCF the master takes "
       "part in the NMT flying master negotiation (CiA 302-2 section 3.7; 1F90h sets its "

@@ -42,11 +42,12 @@ struct RunTraces {
   std::string candump;  ///< candump log (`candump -l` format: can-utils, python-can)
 };
 
-/// The simulated devices of `network` (simulated_devices), a note on stderr for each node that
-/// has no DCF to simulate it from; ends the command with exit 1 when one cannot be built.
-std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(std::string_view tool,
-                                                            const cfg::Network& network,
-                                                            const SimBusOptions& sim);
+/// The simulated devices of `network` (simulated_devices; `owners` gets each one's node-ID), a
+/// note on stderr for each node that has no DCF or device= file to simulate it from; ends the
+/// command with exit 1 when one cannot be built.
+std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(
+    std::string_view tool, const cfg::Network& network, const SimBusOptions& sim,
+    std::vector<cfg::NodeId>* owners = nullptr);
 
 /// Runs `master` with a simulated device per node of `network` on the simulated bus, in
 /// simulated time, until SIGINT/SIGTERM or `limits`. With `sim.state_dir`, each device writes

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "../common/command_failure.hpp"
 #include "../common/tool_support.hpp"
@@ -57,9 +58,12 @@ void apply_program_overrides(cfg::Network& network, const ProgramOverrides& prog
 }  // namespace
 
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net,
-                                                         const ProgramOverrides& programs) {
+                                                         const ProgramOverrides& programs,
+                                                         const std::vector<std::string>& dcf_path) {
   cfg::NetworkOptions load_options;
   load_options.net = net;
+  load_options.dcf_path = dcf_path;
+  load_options.dcf_path_hint = kDcfPathHint;
   auto load = cfg::load_network(path, load_options);
   if (load.network) {
     apply_program_overrides(*load.network, programs, load.diagnostics);

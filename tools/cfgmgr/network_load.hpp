@@ -13,10 +13,12 @@
 
 namespace cfgmgr {
 
-/// The network loaded, `programs` applied and cfg::check_programs run (diagnostics printed;
-/// exit 1 on errors, 3 when unreadable, 2 for a malformed --program/--program-version).
-std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net,
-                                                         const ProgramOverrides& programs = {});
+/// The network loaded (the files a master DCF names looked for in `dcf_path` too, --dcf-path),
+/// `programs` applied and cfg::check_programs run (diagnostics printed; exit 1 on errors, 3 when
+/// unreadable, 2 for a malformed --program/--program-version).
+std::shared_ptr<const cfg::Network> load_network_or_exit(
+    const std::string& path, unsigned net, const ProgramOverrides& programs = {},
+    const std::vector<std::string>& dcf_path = {});
 
 /// The master of `network` with node-ID `node_id_text` (empty: the network's, else 7Fh) and
 /// `options` (its configurations come from the network). It is the configuration manager

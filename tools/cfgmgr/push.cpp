@@ -55,7 +55,9 @@ struct PushCliOptions : NetworkRunArgs {
   LssRunArgs lss;
 };
 
-enum class Result : std::uint8_t { Pending, Configured, Skipped, Error };
+/// NoConfiguration: booted, but the master had nothing to configure the node with (a master
+/// DCF whose 1F22h sub N is empty), which is no "skipped: up to date".
+enum class Result : std::uint8_t { Pending, Configured, Skipped, NoConfiguration, Error };
 
 struct NodeReport {
   std::uint8_t node_id = 0;
@@ -90,6 +92,8 @@ std::string_view result_name(Result result) {
       return "configured";
     case Result::Skipped:
       return "skipped";
+    case Result::NoConfiguration:
+      return "no_configuration";
     case Result::Pending:
     case Result::Error:
       break;
@@ -197,7 +201,9 @@ class Collector {
         }
         break;
       case K::SlaveBooted:
-        r->result = e.configured ? Result::Configured : Result::Skipped;
+        r->result = e.configured         ? Result::Configured
+                    : e.no_configuration ? Result::NoConfiguration
+                                         : Result::Skipped;
         r->step = e.step;
         r->entries = e.written;
         r->total = e.total;
@@ -205,6 +211,8 @@ class Collector {
         // A slave 1F81h bit 2 leaves to the application ends its boot at step Idle (no
         // configuration, no start: CiA 302-2 §3.3, Table 22).
         r->message = e.configured ? "configured"
+                     : e.no_configuration
+                         ? nmt::describe_no_configuration(*e.node_id) + ": nothing downloaded"
                      : e.step == nmt::BootStep::Idle
                          ? "skipped: left to the application (1F81h bit 2 clear: no "
                            "configuration, no start)"
@@ -275,8 +283,8 @@ class Collector {
   std::string stop_;  ///< the words of the event that ended start-up (halted, not master)
 };
 
-// The result column: "configured", "skipped", "error C"; the words go under the table
-// (the live view shows the same).
+// The result column: "configured", "skipped", "no_configuration", "error C"; the words go under
+// the table (the live view shows the same).
 std::string result_text(const NodeReport& r) {
   if (r.result == Result::Error && !r.status.empty()) return "error " + r.status;
   return std::string(result_name(r.result));
@@ -473,12 +481,14 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
               << '\n';
   }
   for (const auto& r : nodes) {
-    if (r.result != Result::Error) continue;
+    if (r.result != Result::Error && r.result != Result::NoConfiguration) continue;
     if (first) std::cout << '\n';
     first = false;
+    // A node without configuration: its message says so ("no configuration for node 2 ...").
     std::cout << "node " << static_cast<int>(r.node_id)
-              << (r.name.empty() ? "" : " (" + r.name + ")") << ": " << result_text(r) << ": "
-              << r.message << '\n';
+              << (r.name.empty() ? "" : " (" + r.name + ")") << ": "
+              << (r.result == Result::Error ? result_text(r) + ": " : std::string()) << r.message
+              << '\n';
   }
   if (!unmatched.empty()) std::cout << '\n';
   for (const auto& address : unmatched) {
@@ -571,7 +581,8 @@ void run_push(const PushCliOptions& options) {
   }
   const nmt::Duration sdo_timeout = sdo_timeout_or_exit(kTool, options.sdo_timeout_s);
   if (!options.only.empty()) parse_only(kTool, options.only);  // a usage error before any file
-  const auto network = load_network_or_exit(options.network, options.net, options.programs);
+  const auto network =
+      load_network_or_exit(options.network, options.net, options.programs, options.dcf_path);
   const auto selected = selected_nodes(*network, options);
   if (options.dry_run) {
     print_plan(selected, options);
@@ -702,7 +713,9 @@ void add_push_command(CLI::App& app) {
   cmd->add_option(
          "--json", options->json,
          "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
-         "nodes [{node_id, name, result (configured/skipped/error), status (with an error: "
+         "nodes [{node_id, name, result (configured/skipped/no_configuration/error: "
+         "no_configuration when the master had nothing to configure the node with, a master "
+         "DCF whose 1F22h sub N is empty), status (with an error: "
          "its CiA 302-2 letter, or not_tried / unfinished when its boot did not end "
          "before the run did; null otherwise), message, entries, bytes, retries, "
          "seconds, mandatory, lss_assigned (true when --lss gave the node its node-ID in "
@@ -754,10 +767,12 @@ void add_push_command(CLI::App& app) {
       "second): a progress bar, and per node its NMT state, boot step, entries written of "
       "total, bytes and retries (boot tries repeated). Otherwise events are printed one a line "
       "on stderr as cfgmgr master prints them. The table goes to stdout at the end: node, name, "
-      "result (configured, skipped, error X with the CiA 302-2 status letter), entries "
-      "(configuration writes, PDO-safe order; for an error, those written before it), time "
-      "(from the node's first boot step to its result); under it one line per error with its "
-      "words (\"node 2 (io): error D: ...\").\n\n"
+      "result (configured, skipped, no_configuration, error X with the CiA 302-2 status "
+      "letter), entries (configuration writes, PDO-safe order; for an error, those written "
+      "before it), time (from the node's first boot step to its result); under it one line "
+      "per error with its words (\"node 2 (io): error D: ...\") and one per node the master "
+      "had no configuration for (\"node 2: no configuration for node 2 (1F22h sub 02h empty): "
+      "nothing downloaded\").\n\n"
       "A mandatory node that fails halts NMT start-up (CiA 302-2 section 3.1 f): no node is "
       "started and the master stays pre-operational, but every other node's boot still runs "
       "to its own end, so one run reports each node's own result.\n\n"

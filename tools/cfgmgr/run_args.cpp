@@ -18,9 +18,10 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
   cmd.add_option("network", args.network,
                  "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a "
                  "master DCF (CANopenManager=1) whose 1F20h/1F22h name node files with "
-                 "DownloadFile=")
+                 "DownloadFile= or UploadFile= (lely dcfgen's master.dcf)")
       ->required()
       ->type_name("NETWORK");
+  add_dcf_path_option(cmd, args.dcf_path);
   auto* bus =
       cmd.add_option("--bus", args.bus,
                      "Bus URL: socketcan:IFNAME, udp://GROUP:PORT (python-can "
@@ -29,7 +30,9 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                      "simulated time (sim:?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR, "
                      "and &unconfigured=3,5-7; state=DIR keeps what each device saved with 1010h "
                      "between runs; the devices of the unconfigured= nodes power on without "
-                     "node-ID and wait for LSS, CiA 305)")
+                     "node-ID and wait for LSS, CiA 305; &device=FILE@2-7, repeatable: the "
+                     "devices at those node-IDs are built from the EDS/DCF FILE, also where the "
+                     "network has only a concise DCF, as dcfgen's master.dcf gives)")
           ->type_name("URL");
   cmd.add_option("--node-id", args.node_id,
                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "
@@ -53,6 +56,15 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                  "(days since 1984-01-01, ms after midnight); repeatable")
       ->type_name("NODE=VERSION");
   return bus;
+}
+
+void add_dcf_path_option(CLI::App& cmd, std::vector<std::string>& dirs) {
+  cmd.add_option("--dcf-path", dirs,
+                 "Where the files a master DCF names in 1F20h/1F22h/1F58h are, when they are not "
+                 "where it says (lely's dcfgen writes the absolute paths of the machine that ran "
+                 "it, its dcf_path): each file is looked for by its name in DIR, then beside the "
+                 "master DCF (a warning); repeatable")
+      ->type_name("DIR");
 }
 
 void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {

@@ -40,7 +40,14 @@ struct NetworkRunArgs {
   unsigned net = 1;     ///< --net
   bool verbose = false;
   ProgramOverrides programs;
+  std::vector<std::string> dcf_path;  ///< --dcf-path DIR, repeatable (cfg::NetworkOptions)
 };
+
+/// Adds --dcf-path DIR (repeatable) to `cmd`: where the files a master DCF names are looked for
+/// when they do not exist as written (cfg::NetworkOptions::dcf_path).
+void add_dcf_path_option(CLI::App& cmd, std::vector<std::string>& dirs);
+/// The end of the error for a file a master DCF names that is nowhere: how to pass --dcf-path.
+inline constexpr std::string_view kDcfPathHint = " with --dcf-path DIR";
 
 /// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
 /// required).

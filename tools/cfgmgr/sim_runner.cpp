@@ -23,15 +23,18 @@ using namespace run_support;
 
 std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(std::string_view tool,
                                                             const cfg::Network& network,
-                                                            const SimBusOptions& sim) {
+                                                            const SimBusOptions& sim,
+                                                            std::vector<cfg::NodeId>* owners) {
   std::vector<cfg::NodeId> skipped;
-  auto built = simulated_devices(network, sim, &skipped);
+  auto built = simulated_devices(network, sim, &skipped, owners);
   if (!built) {
     exit_with(tools::kExitInputErrors, built.error().message);
   }
   for (const cfg::NodeId node : skipped) {
     std::cerr << command_prefix(tool) << "note: node " << int{node.value()}
-              << " has no DCF (a concise DCF only): not simulated\n";
+              << " has no DCF (a concise DCF only): not simulated (give its EDS with "
+                 "sim:?device=FILE@"
+              << int{node.value()} << ")\n";
   }
   return std::move(built).value();
 }
@@ -39,7 +42,10 @@ std::vector<nmt::SimulatedDevice> simulated_devices_or_exit(std::string_view too
 RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
                              const SimBusOptions& sim, const RunLimits& limits,
                              EventReporter& reporter, const RunTraces& traces) {
-  std::vector<nmt::SimulatedDevice> built = simulated_devices_or_exit(limits.tool, network, sim);
+  // The node of each device: its state file's, whatever node-ID LSS gives the device.
+  std::vector<cfg::NodeId> owners;
+  std::vector<nmt::SimulatedDevice> built =
+      simulated_devices_or_exit(limits.tool, network, sim, &owners);
   OpenTraces trace_files = open_traces(limits.tool, traces);
   nmt::SimBus bus(sim.bitrate_bps);
   bus.set_loss_rate(sim.loss, sim.seed);
@@ -50,12 +56,6 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
   }
   std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::SimulatedDevice>>> devices;
   bool state_failed = false;
-  // The network's node of each device (simulated_devices builds one per node with a DCF, in
-  // order): its state file's, whatever node-ID LSS gives the device.
-  std::vector<cfg::NodeId> owners;
-  for (const auto& n : network.nodes) {
-    if (n.dcf) owners.push_back(n.node_id);
-  }
   for (auto& device : built) {
     devices.push_back(
         std::make_unique<nmt::SimEngineNode<nmt::SimulatedDevice>>(std::move(device)));

@@ -40,6 +40,7 @@ struct VerifyCliOptions {
   double sdo_timeout_s = 0.5;
   unsigned retries = 2;
   std::string only;
+  std::vector<std::string> dcf_path;  ///< --dcf-path DIR
 };
 
 // One entry as reported: the engine's result with what the description says about it.
@@ -248,7 +249,7 @@ void run_verify(const VerifyCliOptions& options) {
   const nmt::Duration sdo_timeout = sdo_timeout_or_exit(kTool, options.sdo_timeout_s);
   std::set<std::uint8_t> only;
   if (!options.only.empty()) only = parse_only(kTool, options.only);  // before any file
-  auto network = load_network_or_exit(options.network, options.net);
+  auto network = load_network_or_exit(options.network, options.net, {}, options.dcf_path);
   if (!only.empty()) {
     // Only these nodes are read (and, on sim:, simulated); each must be in the network.
     for (const std::uint8_t id : only) {
@@ -316,7 +317,8 @@ void add_verify_command(CLI::App& app) {
       "description; writes nothing");
   cmd->add_option("network", options->network,
                   "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a master "
-                  "DCF (CANopenManager=1) whose 1F20h/1F22h name node files with DownloadFile=")
+                  "DCF (CANopenManager=1) whose 1F20h/1F22h name node files with DownloadFile= or "
+                  "UploadFile= (lely dcfgen's master.dcf)")
       ->required()
       ->type_name("NETWORK");
   cmd->add_option("--bus", options->bus,
@@ -326,6 +328,7 @@ void add_verify_command(CLI::App& app) {
                   "seed=N)")
       ->required()
       ->type_name("URL");
+  add_dcf_path_option(*cmd, options->dcf_path);
   cmd->add_option("--net", options->net,
                   "Which network of the project file: 1 is [Topology], N is [TopologyN]")
       ->capture_default_str()

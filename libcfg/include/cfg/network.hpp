@@ -13,7 +13,18 @@
 //    1F80h/1F81h/1F84h-1F8Ah/1016h/1F26h/1F27h rule the boot; without one the master's dictionary
 //    is derived (derive_master, below);
 //  - a master DCF alone (CANopenManager=1): its 1F20h sub X (a DCF) or 1F22h sub X (a concise
-//    DCF, or a DCF) name node X's file with DownloadFile=, relative to the master DCF.
+//    DCF, or a DCF) name node X's file, relative to the master DCF, and 1F58h sub X (CiA 302-3
+//    program data) the image of node X's program (NetworkNode::program, without a version: the
+//    master DCF's 1F53h/1F54h give it). A DOMAIN's file is named by DownloadFile= (CiA 306: the
+//    file whose content is downloaded into the domain) or UploadFile= (the file the domain's
+//    content is read from when it is uploaded, as lely-core's master reads it; lely's dcfgen
+//    writes only this one); both name the content of the master's own entry, DownloadFile= wins
+//    when both are given. A node X in 1F81h whose 1F20h/1F22h sub X name no file is not in
+//    `nodes`: the master has no configuration for it. A named file that does not exist as
+//    written (dcfgen writes absolute paths of the machine that built the files) is looked for
+//    by its name alone in NetworkOptions::dcf_path, then beside the master DCF (a warning names
+//    both paths); found nowhere, it is an error at the key's line. A 1F58h sub X for a node
+//    without a 1F20h/1F22h file is a warning and not used.
 // No bus I/O, no clocks: files are read once by load_network.
 #pragma once
 
@@ -97,6 +108,13 @@ struct NetworkOptions {
   /// How the DCFs are read (cfg/device_file.hpp); the project file's own checks are the same
   /// in both modes.
   ReadMode mode = ReadMode::Tolerant;
+  /// Directories where a file a master DCF names (1F20h/1F22h/1F58h) is looked for by its name
+  /// alone when it does not exist as written, in order (lely's dcfgen calls the directory it
+  /// writes into the master DCF's paths `dcf_path`); the master DCF's directory comes after.
+  std::vector<std::string> dcf_path;
+  /// How the caller's user gives such a directory (e.g. "pass it with --dcf-path DIR"), ending
+  /// the error for a file found nowhere. Empty: the message says "pass the directory".
+  std::string dcf_path_hint;
 };
 
 struct NetworkLoad {

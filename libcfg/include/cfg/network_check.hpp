@@ -13,6 +13,8 @@
 //  - Each node's own writes (mapping length and mappability, access, limits, sizes, PDO rules)
 //    run through the rules a CiA 301 device applies, as for a single DCF (check_download of
 //    write_acceptance.hpp): a write the device will refuse is a warning naming the abort code.
+//  - A master DCF alone: a slave it boots (1F81h sub X bits 0 and 2) whose 1F20h/1F22h sub X
+//    name no file is a warning at its 1F81h entry: the master has no configuration for it.
 // The values are those the node has after its download: the DCF's ParameterValue, else its
 // DefaultValue (CiA 306 §4.6.3), with $NODEID resolved; a node given by a concise DCF alone is
 // checked on its COB-IDs only (there is no dictionary to run its writes against).

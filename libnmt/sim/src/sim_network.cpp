@@ -5,11 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
 #include <utility>
 
+#include "cfg/device_file.hpp"
 #include "cfg/integer_literal.hpp"
 #include "cfg/node_id.hpp"
 #include "nmt/sim/device_state.hpp"
@@ -89,7 +91,9 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
     const auto eq = pair.find('=');
     const std::string name(pair.substr(0, eq));
     const std::string_view value = eq == std::string_view::npos ? "" : pair.substr(eq + 1);
-    if (!seen.insert(name).second) return sim_error("parameter '" + name + "' given twice");
+    if (name != "device" && !seen.insert(name).second) {
+      return sim_error("parameter '" + name + "' given twice");
+    }
     if (name == "bitrate") {
       const auto parsed = cfg::parse_integer_literal(value);
       if (!parsed.literal || parsed.literal->value < 1 || parsed.literal->value > 1'000'000'000) {
@@ -122,9 +126,23 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
       if (!nodes)
         return sim_error("unconfigured=" + std::string(value) + ": " + nodes.error().message);
       options.unconfigured = std::move(nodes).value();
+    } else if (name == "device") {
+      const auto at = value.rfind('@');
+      if (at == std::string_view::npos || at == 0) {
+        return sim_error("device=" + std::string(value) +
+                         ": expected FILE@NODES (an EDS or DCF and node-IDs, e.g. drive.eds@2-7)");
+      }
+      auto nodes = parse_node_list(value.substr(at + 1));
+      if (!nodes) return sim_error("device=" + std::string(value) + ": " + nodes.error().message);
+      for (const std::uint8_t node : *nodes) {
+        if (!options.device_files.emplace(node, std::string(value.substr(0, at))).second) {
+          return sim_error("device=" + std::string(value) + ": node " + std::to_string(node) +
+                           " has a device= already");
+        }
+      }
     } else {
       return sim_error("unknown parameter '" + name +
-                       "' (known: bitrate, latency_ms, loss, seed, state, unconfigured)");
+                       "' (known: bitrate, latency_ms, loss, seed, state, unconfigured, device)");
     }
   }
   return options;
@@ -143,32 +161,66 @@ DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId no
 
 cfg::Result<std::vector<SimulatedDevice>> simulated_devices(const cfg::Network& network,
                                                             const SimBusOptions& options,
-                                                            std::vector<cfg::NodeId>* skipped) {
+                                                            std::vector<cfg::NodeId>* skipped,
+                                                            std::vector<cfg::NodeId>* owners) {
   DeviceFaults faults;
   faults.sdo_latency = std::chrono::duration_cast<Duration>(
       std::chrono::duration<double, std::milli>(options.latency_ms));
-  std::vector<SimulatedDevice> devices;
-  devices.reserve(network.nodes.size());
-  for (const auto& node : network.nodes) {
-    if (!node.dcf) {
-      if (skipped != nullptr) skipped->push_back(node.node_id);
-      continue;
+  // device=: each file read once, whatever the number of its node-IDs.
+  std::map<std::string, cfg::DeviceDescription> files;
+  for (const auto& [node, file] : options.device_files) {
+    if (files.contains(file)) continue;
+    cfg::ReadResult read = cfg::read_device_file(file);
+    if (!read.device || read.diagnostics.has_errors()) {
+      std::string first;
+      for (const auto& d : read.diagnostics.items()) {
+        if (d.severity == cfg::Severity::Error) {
+          first = d.message;
+          break;
+        }
+      }
+      return cfg::Error{"sim: device=" + file + ": cannot simulate it: " + first};
     }
+    files.emplace(file, std::move(*read.device));
+  }
+  // The devices: the network's nodes in order, then the device= node-IDs it does not have.
+  struct Wanted {
+    cfg::NodeId node;
+    const cfg::DeviceDescription* dcf;
+    std::string file;
+  };
+  std::vector<Wanted> wanted;
+  for (const auto& node : network.nodes) {
+    if (const auto it = options.device_files.find(node.node_id.value());
+        it != options.device_files.end()) {
+      wanted.push_back({node.node_id, &files.at(it->second), it->second});
+    } else if (node.dcf) {
+      wanted.push_back({node.node_id, &*node.dcf, node.file});
+    } else if (skipped != nullptr) {
+      skipped->push_back(node.node_id);
+    }
+  }
+  for (const auto& [id, file] : options.device_files) {
+    const cfg::NodeId node = *cfg::NodeId::from(id);
+    if (network.find(node) == nullptr) wanted.push_back({node, &files.at(file), file});
+  }
+  std::vector<SimulatedDevice> devices;
+  devices.reserve(wanted.size());
+  for (const auto& [node, dcf, file] : wanted) {
     // unconfigured=: the device of the node powers on without node-ID and waits for LSS to
     // give it one (CiA 305); the node-ID is only where its DCF says it belongs.
-    const bool unconfigured = options.unconfigured.contains(node.node_id.value());
-    const auto identity = with_identity_of(*node.dcf, node.node_id, faults);
-    auto device = unconfigured ? SimulatedDevice::create_unconfigured(*node.dcf, identity)
-                               : SimulatedDevice::create(*node.dcf, node.node_id.value(), identity);
+    const bool unconfigured = options.unconfigured.contains(node.value());
+    const auto identity = with_identity_of(*dcf, node, faults);
+    auto device = unconfigured ? SimulatedDevice::create_unconfigured(*dcf, identity)
+                               : SimulatedDevice::create(*dcf, node.value(), identity);
     if (!device) {
-      return cfg::Error{node.file + ": error: cannot simulate node " +
-                        std::to_string(node.node_id.value()) +
+      return cfg::Error{file + ": error: cannot simulate node " + std::to_string(node.value()) +
                         (unconfigured ? " unconfigured: " : ": ") + device.error().message};
     }
     if (!options.state_dir.empty()) {
       // Like a real device, it powers on with what it saved last time (CiA 301 §7.5.2.13),
       // the node-ID LSS stored included (CiA 305).
-      auto saved = load_device_state(options.state_dir, node.node_id);
+      auto saved = load_device_state(options.state_dir, node);
       if (!saved) {
         return cfg::Error{saved.error().message + " (remove the file to start from the DCF)",
                           saved.error().category};
@@ -176,6 +228,7 @@ cfg::Result<std::vector<SimulatedDevice>> simulated_devices(const cfg::Network& 
       if (*saved) restore_device_state(device->node(), std::move(**saved));
     }
     devices.push_back(std::move(device).value());
+    if (owners != nullptr) owners->push_back(node);
   }
   return devices;
 }

@@ -109,6 +109,7 @@ void BootSlaveProcess::begin(std::optional<TimePoint> boot_up_until, bool asked_
   next_ = 0;
   bytes_ = 0;
   configured_ = false;
+  no_configuration_ = false;
   keep_alive_operational_ = false;
   left_to_application_ = false;
   cob_ids_checked_ = false;
@@ -366,6 +367,7 @@ void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   e.step = step_;
   e.boot_try = tries_;
   e.configured = configured_;
+  e.no_configuration = no_configuration_;
   e.written = configured_ ? plan_.size() : 0;
   e.total = plan_.size();
   e.bytes = bytes_;

@@ -287,6 +287,9 @@ class BootSlaveProcess {
   std::size_t next_ = 0;
   std::uint64_t bytes_ = 0;
   bool configured_ = false;
+  /// The master has nothing to configure the node with (no configuration, no restore, 1F26h/
+  /// 1F27h 0): booted without a download that is no "up to date".
+  bool no_configuration_ = false;
   bool keep_alive_operational_ = false;
   bool left_to_application_ = false;  ///< 1F81h bit 2 clear: booted without configuration
   bool cob_ids_checked_ = false;

@@ -49,7 +49,8 @@ void BootSlaveProcess::begin_download(TimePoint now, Output& out) {
       failed(BootError::J, {.reason = BootFailure::Reason::NoConfigurationStored}, now, out);
       return;
     }
-    start_error_control(now, out);  // nothing to configure
+    no_configuration_ = true;  // nothing to configure: neither compared nor downloaded
+    start_error_control(now, out);
     return;
   }
   // Storage commands are the master's to send; 1020h too when it verifies (it writes 1F26h/1F27h

@@ -177,7 +177,8 @@ std::string slave_booted_words(const MasterEvent& e, const std::string& node) {
                          "start)")
        : e.configured ? " (configured: " + std::to_string(e.total) + " entries, " +
                             std::to_string(e.bytes) + " bytes)"
-                      : " (configuration up to date)");
+       : e.no_configuration && e.node_id ? ", " + describe_no_configuration(*e.node_id)
+                                         : " (configuration up to date)");
   if (e.program && e.program->after) {
     text += "; program updated from " + cfg::to_string(e.program->before) + " to " +
             cfg::to_string(*e.program->after) + ", " + std::to_string(e.program->bytes) + " bytes";
@@ -377,6 +378,12 @@ std::string_view to_string(SdoManagerReason::Kind kind) {
       return "slave_booted_up";
   }
   return "?";
+}
+
+std::string describe_no_configuration(cfg::NodeId node) {
+  const std::string id = std::to_string(node.value());
+  return "no configuration for node " + id + " (" +
+         cfg::to_string(cfg::ObjectAddress{cfg::object::kConciseDcf, node.value()}) + " empty)";
 }
 
 std::string describe_transfer_failure(const SdoResult& result) {

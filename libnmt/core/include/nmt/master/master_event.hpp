@@ -300,7 +300,10 @@ struct MasterEvent {
   std::optional<NmtState> state{};
   bool missing = false;  ///< SlaveStateChanged without `state`: missing (1F82h), else unknown
   std::optional<NmtCommand> command{};
-  bool configured = false;        ///< SlaveBooted: the configuration was downloaded
+  bool configured = false;  ///< SlaveBooted: the configuration was downloaded
+  /// SlaveBooted: the master has no configuration for the node (nothing stored or given for
+  /// 1F22h sub node-ID, nothing to restore, 1F26h/1F27h 0): nothing compared, nothing written.
+  bool no_configuration = false;
   bool final = false;             ///< BootError: the last try (mandatory, or boot time over)
   bool assigned = false;          ///< BootUp: the node is a slave in 1F81h
   bool entry_written = false;     ///< BootStepChanged Download: an entry was written (`written`)

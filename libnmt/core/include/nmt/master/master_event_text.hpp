@@ -23,6 +23,10 @@ std::string describe_boot_error(const MasterEvent& event);
 /// "1000h is 0x00020192, 1F84h expects 0x00030192" (`node` is the slave). Part of describe().
 std::string describe(const BootFailure& failure, cfg::NodeId node);
 
+/// A SlaveBooted with `no_configuration`: "no configuration for node 3 (1F22h sub 03h empty)",
+/// the words describe() and the tools use for a slave booted with nothing to configure it with.
+std::string describe_no_configuration(cfg::NodeId node);
+
 /// "1018h sub 01h upload failed: 0x05040000 (SDO protocol timed out)"; for a transfer the
 /// client refused, "... download could not start: " and its words (SdoResult::refusal).
 std::string describe_transfer_failure(const SdoResult& result);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <set>
 #include <string>
 #include <string_view>
@@ -18,7 +19,7 @@ namespace nmt {
 
 /// `sim:` with optional
 /// `?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR&unconfigured=3,5-7` (any order, each
-/// at most once).
+/// at most once) and `&device=FILE@3,5-7` (repeatable, each node-ID in one only).
 struct SimBusOptions {
   std::uint32_t bitrate_bps = 500'000;  ///< 1 ... 1 000 000 000
   double latency_ms = 0;                ///< every SDO response of a device leaves this late
@@ -30,6 +31,11 @@ struct SimBusOptions {
   /// Nodes whose devices power on without node-ID and wait for LSS (CiA 305) to give them one;
   /// their DCFs must say LSS_Supported=1.
   std::set<std::uint8_t> unconfigured;
+  /// device=FILE@NODES: the device at each of these node-IDs is built from the EDS/DCF FILE, in
+  /// place of the network's DCF, and also where the network has none to simulate (a node given
+  /// by a concise DCF alone, or not given at all: a slave a master DCF lists in 1F81h). So a
+  /// master DCF with concise DCFs (lely dcfgen's master.dcf) runs against the slaves' EDSs.
+  std::map<std::uint8_t, std::string> device_files;
 };
 
 /// A list of node-IDs (1..127, each a number as cfg::parse_integer_literal reads it) as "3,5-7"
@@ -48,14 +54,16 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url);
 DeviceFaults with_identity_of(const cfg::DeviceDescription& file, cfg::NodeId node,
                               DeviceFaults faults);
 
-/// One simulated device for each node of the network that has a DCF (a node given only by a
-/// concise DCF has no dictionary to simulate: it is left out, and `skipped` gets its node-ID),
+/// One simulated device for each node of the network that has a DCF or a device= file (a node
+/// given only by a concise DCF has no dictionary to simulate: it is left out, and `skipped` gets
+/// its node-ID), then one for each device= node-ID the network does not have, ascending;
+/// `owners` gets each device's node-ID, in the order of the devices,
 /// with the SDO latency of `options`, answering the identity cfg::identity_of gives (its DCF's
 /// 1000h/1018h, else [DeviceInfo], as the real device would), and with the values it saved in an
 /// earlier run when `options.state_dir` has them. Fails with a message naming the node's file
 /// when a device cannot be built from it, or the saved values' file when it is damaged.
 cfg::Result<std::vector<SimulatedDevice>> simulated_devices(
     const cfg::Network& network, const SimBusOptions& options,
-    std::vector<cfg::NodeId>* skipped = nullptr);
+    std::vector<cfg::NodeId>* skipped = nullptr, std::vector<cfg::NodeId>* owners = nullptr);
 
 }  // namespace nmt
