@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bus_yml.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/network.hpp"
@@ -190,8 +191,8 @@ void run_check(const CheckOptions& options) {
       reports.push_back(std::move(report));
       continue;
     }
-    if (!from_stdin &&
-        (options.network || has_extension(file, ".cpj") || has_topology_section(*text))) {
+    if (!from_stdin && (options.network || has_extension(file, ".cpj") ||
+                        cfg::is_bus_yml_path(file) || has_topology_section(*text))) {
       text->release();
       report = check_network_file(file, options, schemas, any_unreadable);
       if (options.strict) report.diagnostics = tools::promote_warnings(report.diagnostics);

@@ -14,10 +14,12 @@
 //    is derived (derive_master, below);
 //  - a master DCF alone (CANopenManager=1): its 1F20h sub X (a DCF) or 1F22h sub X (a concise
 //    DCF, or a DCF) name node X's file with DownloadFile=, relative to the master DCF.
-// No bus I/O, no clocks: files are read once by load_network.
+// A third form, lely dcfgen's and ros2_canopen's bus.yml, is read into the same model by
+// cfg/bus_yml.hpp. No bus I/O, no clocks: files are read once by load_network.
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <span>
 #include <string>
@@ -93,6 +95,9 @@ struct NetworkOptions {
   /// How the DCFs are read (cfg/device_file.hpp); the project file's own checks are the same
   /// in both modes.
   ReadMode mode = ReadMode::Tolerant;
+  /// Values of `@NAME@` placeholders (CMake configure_file's) in a bus.yml's paths, by NAME
+  /// (cfg/bus_yml.hpp); unused by the other forms.
+  std::map<std::string, std::string> placeholders;
 };
 
 struct NetworkLoad {
@@ -110,12 +115,13 @@ struct NetworkLoad {
 };
 
 /// Reads a network description (either form, told apart by content: a project file has a
-/// [Topology] section). Never throws on bad input. Reported as errors: a file that cannot be
-/// read (at the line naming it), a NodeXPresent/Nodes value that is not a number, a present
-/// node without NodeXDCFName, a DCF whose [DeviceComissioning] NodeID differs from the node-ID
-/// the project file (or the 1F20h/1F22h sub-index) gives it, two DCFs with CANopenManager=1, a
-/// DCF value that cannot be encoded. Warnings: Nodes differing from the number of present
-/// nodes.
+/// [Topology] section; a path ending in .yml/.yaml is a lely/ros2_canopen bus.yml, read by
+/// load_bus_yml of cfg/bus_yml.hpp into the same model). Never throws on bad input. Reported as
+/// errors: a file that cannot be read (at the line naming it), a NodeXPresent/Nodes value that is
+/// not a number, a present node without NodeXDCFName, a DCF whose [DeviceComissioning] NodeID
+/// differs from the node-ID the project file (or the 1F20h/1F22h sub-index) gives it, two DCFs with
+/// CANopenManager=1, a DCF value that cannot be encoded. Warnings: Nodes differing from the number
+/// of present nodes.
 NetworkLoad load_network(const std::string& path, const NetworkOptions& options = {});
 
 // --- the derived master --------------------------------------------------------------------------
