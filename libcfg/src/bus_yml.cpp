@@ -38,11 +38,12 @@ struct Field {
   std::string key;
   int line = 0;
   YAML::Node value;
+  std::string path;  // for messages: the keys above it and this one ("axis.tpdo.1.cob_id")
 };
 
 // The fields of a mapping in file order; `<<: *anchor` (YAML 1.1 merge key, which PyYAML and
 // so dcfgen read) adds the anchor's keys the mapping does not give itself.
-std::vector<Field> fields_of(const YAML::Node& map) {
+std::vector<Field> fields_of(const YAML::Node& map, const std::string& prefix) {
   std::vector<Field> own;
   std::vector<YAML::Node> merged;
   for (auto it = map.begin(); it != map.end(); ++it) {
@@ -56,10 +57,10 @@ std::vector<Field> fields_of(const YAML::Node& map) {
       }
       continue;
     }
-    own.push_back({key, line_of(it->first), it->second});
+    own.push_back({key, line_of(it->first), it->second, prefix + key});
   }
   for (const auto& m : merged) {
-    for (auto& f : fields_of(m)) {
+    for (auto& f : fields_of(m, prefix)) {
       const bool given =
           std::any_of(own.begin(), own.end(), [&](const Field& o) { return o.key == f.key; });
       if (!given) own.push_back(std::move(f));
@@ -249,7 +250,7 @@ class Reader {
 
 std::optional<std::int64_t> Reader::integer(const Field& f, std::int64_t min, std::int64_t max) {
   const auto bad = [&](const std::string& why) {
-    error(f.line, f.key + ": expected an integer from " + std::to_string(min) + " to " +
+    error(f.line, f.path + ": expected an integer from " + std::to_string(min) + " to " +
                       std::to_string(max) + why);
     return std::nullopt;
   };
@@ -304,7 +305,7 @@ std::optional<bool> Reader::boolean(const Field& f) {
       return parsed.literal->value != 0;
     }
   }
-  error(f.line, f.key + ": expected true or false");
+  error(f.line, f.path + ": expected true or false");
   return std::nullopt;
 }
 
@@ -315,13 +316,13 @@ std::optional<double> Reader::real(const Field& f) {
     const double v = std::strtod(t.c_str(), &end);
     if (!t.empty() && end == t.c_str() + t.size() && std::isfinite(v) && v >= 0) return v;
   }
-  error(f.line, f.key + ": expected a non-negative number");
+  error(f.line, f.path + ": expected a non-negative number");
   return std::nullopt;
 }
 
 std::optional<std::string> Reader::text(const Field& f) {
   if (f.value.IsScalar()) return f.value.Scalar();
-  error(f.line, f.key + ": expected a text");
+  error(f.line, f.path + ": expected a text");
   return std::nullopt;
 }
 
@@ -372,22 +373,23 @@ std::optional<Network> Reader::load() {
           "per slave (lely dcfgen), or nodes and defaults (ros2_canopen)");
     return std::nullopt;
   }
-  const std::vector<Field> top = fields_of(root);
+  const std::vector<Field> top = fields_of(root, "");
   if (const Field* o = find(top, "options"); o != nullptr && is_map(*o, "")) {
-    read_options(fields_of(o->value));
+    read_options(fields_of(o->value, "options."));
   }
   const Field* master = find(top, "master");
   if (master == nullptr) {
     // dcfgen's main reads cfg["master"]: without it there is no master to configure.
     error(1, "no 'master' key: dcfgen needs the master's settings (at least its node_id)");
   } else if (is_map(*master, "")) {
-    read_master(fields_of(master->value));
+    read_master(fields_of(master->value, "master."));
   }
 
   const Field* nodes = find(top, "nodes");
   const Field* defaults = find(top, "defaults");
   std::vector<Field> default_fields;
-  if (defaults != nullptr && is_map(*defaults, "")) default_fields = fields_of(defaults->value);
+  if (defaults != nullptr && is_map(*defaults, ""))
+    default_fields = fields_of(defaults->value, "defaults.");
   if (defaults != nullptr && nodes == nullptr) {
     warning(defaults->line,
             "defaults without nodes: ros2_canopen applies defaults to the entries of nodes "
@@ -402,15 +404,15 @@ std::optional<Network> Reader::load() {
       error(f.line, f.key + ": expected a slave's settings (a mapping with dcf and node_id)");
       continue;
     }
-    read_slave(f.key, f.line, fields_of(f.value));
+    read_slave(f.key, f.line, fields_of(f.value, f.key + "."));
   }
   if (nodes != nullptr && is_map(*nodes, "")) {
-    for (const auto& n : fields_of(nodes->value)) {
+    for (const auto& n : fields_of(nodes->value, "nodes.")) {
       if (!n.value.IsMap()) {
         error(n.line, "nodes." + n.key + ": expected a slave's settings (a mapping)");
         continue;
       }
-      std::vector<Field> own = fields_of(n.value);
+      std::vector<Field> own = fields_of(n.value, n.key + ".");
       for (const auto& d : default_fields) {
         const Field* mine = find(own, d.key);
         if (mine == nullptr) {
@@ -453,8 +455,15 @@ void Reader::read_options(const std::vector<Field>& fields) {
   for (const auto& f : fields) {
     if (f.key == "dcf_path") {
       // dcfgen writes it into master.dcf as the directory of the generated files; the inputs
-      // are found relative to the bus.yml. A placeholder in it changes nothing here.
-      (void)text(f);
+      // are found relative to the bus.yml, so a placeholder in it changes nothing here.
+      if (auto v = text(f); v && v->find('@') != std::string::npos) {
+        diagnostics_.add(path_, f.line, Severity::Note,
+                         "options.dcf_path '" + *v +
+                             "': where dcfgen's master looks for the generated files (a CMake "
+                             "placeholder here); not used by cfgmgr, which reads the slaves' "
+                             "files relative to " +
+                             fs::path(path_).filename().string());
+      }
     } else if (f.key == "heartbeat_multiplier") {
       if (auto v = real(f)) heartbeat_multiplier_ = *v;
     } else if (f.key == "retry_factor") {
@@ -518,8 +527,8 @@ void Reader::read_master(const std::vector<Field>& fields) {
       u32(m.boot_time_ms, 0xFFFFFFFFU);
     } else if (f.key == "error_behavior") {
       if (!is_map(f, "master.")) continue;
-      for (const auto& e : fields_of(f.value)) {
-        const auto sub = integer({e.key, e.line, YAML::Node(e.key)}, 1, 0xFE);
+      for (const auto& e : fields_of(f.value, f.path + ".")) {
+        const auto sub = integer({e.key, e.line, YAML::Node(e.key), e.path}, 1, 0xFE);
         const auto value = unsigned_of(e, 0xFF);
         if (sub && value) m.error_behavior[static_cast<std::uint8_t>(*sub)] = *value;
       }
@@ -609,7 +618,7 @@ void Reader::read_mapping(DeviceDescription& dcf, const SlaveSettings& slave, bo
     return;
   }
   if (dcf.object(mapping_index) == nullptr) {
-    error(f.line, who + "mapping: the EDS/DCF has no " + hex(mapping_index, 4) + "h");
+    error(f.line, who + "mapping: the EDS/DCF has no " + hex_digits(mapping_index, 4) + "h");
     return;
   }
   std::vector<std::uint32_t> entries;
@@ -622,7 +631,7 @@ void Reader::read_mapping(DeviceDescription& dcf, const SlaveSettings& slave, bo
       ok = false;
       continue;
     }
-    const auto fields = fields_of(item);
+    const auto fields = fields_of(item, f.path + ".");
     const Field* index_field = find(fields, "index");
     const Field* sub_field = find(fields, "sub_index");
     if (index_field == nullptr) {
@@ -676,7 +685,7 @@ void Reader::read_mapping(DeviceDescription& dcf, const SlaveSettings& slave, bo
 void Reader::read_pdo(DeviceDescription& dcf, const SlaveSettings& slave, bool receive,
                       const Field& f) {
   const std::string kind = receive ? "rpdo" : "tpdo";
-  const auto number = integer({f.key, f.line, YAML::Node(f.key)}, 1, 512);
+  const auto number = integer({f.key, f.line, YAML::Node(f.key), f.path}, 1, 512);
   if (!number) return;
   const std::string who = slave.name + "." + kind + "." + f.key + ": ";
   if (!f.value.IsMap()) {
@@ -688,10 +697,10 @@ void Reader::read_pdo(DeviceDescription& dcf, const SlaveSettings& slave, bool r
   if (dcf.sub(comm, 1) == nullptr) {
     // dcfgen: KeyError "Receive-PDO N not available".
     error(f.line, who + "the EDS/DCF has no " + (receive ? "RPDO " : "TPDO ") + f.key + " (" +
-                      hex(comm, 4) + "h sub 1)");
+                      hex_digits(comm, 4) + "h sub 1)");
     return;
   }
-  const auto fields = fields_of(f.value);
+  const auto fields = fields_of(f.value, f.path + ".");
   for (const auto& k : fields) {
     if (!one_of(kPdoKeys, k.key)) warning(k.line, who + k.key + ": unknown PDO key; ignored");
   }
@@ -731,7 +740,7 @@ void Reader::read_pdo(DeviceDescription& dcf, const SlaveSettings& slave, bool r
     for (const auto& k : fields) {
       if (k.key != "enabled" && k.key != "cob_id") {
         warning(k.line, who + k.key + ": not written: the PDO's COB-ID " + hex(cob, 8) +
-                            "h has bit 31 set (not valid) and no cob_id makes it valid, so "
+                            " has bit 31 set (not valid) and no cob_id makes it valid, so "
                             "dcfgen ignores its settings; give cob_id (auto or a number)");
       }
     }
@@ -776,7 +785,7 @@ void Reader::read_pdo(DeviceDescription& dcf, const SlaveSettings& slave, bool r
     const auto [it, fresh] = tpdos_.emplace(key, TpdoUse{slave.name + " TPDO " + f.key, cob_line});
     if (!fresh) {
       // CiA 301 §7.2.2: a PDO has one producer.
-      error(cob_line, who + "COB-ID " + hex(id.can_id().id, 3) + "h is also the COB-ID of " +
+      error(cob_line, who + "COB-ID " + hex(id.can_id().id, 3) + " is also the COB-ID of " +
                           it->second.who + " (line " + std::to_string(it->second.line) +
                           "): two TPDOs on one CAN identifier");
     }
@@ -906,7 +915,8 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
     const auto v = unsigned_of(*f, max);
     if (!v) return std::optional<std::uint32_t>();
     if (dcf.object(index) == nullptr) {
-      warning(f->line, who + f->key + ": the EDS/DCF has no " + hex(index, 4) + "h: not written");
+      warning(f->line,
+              who + f->key + ": the EDS/DCF has no " + hex_digits(index, 4) + "h: not written");
       return v;
     }
     set(dcf, s, index, 0, std::to_string(*v), f->line, who + f->key + ": ");
@@ -945,8 +955,8 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
   }
   if (const Field* f = find(fields, "error_behavior")) {
     if (is_map(*f, who)) {
-      for (const auto& e : fields_of(f->value)) {
-        const auto sub = integer({e.key, e.line, YAML::Node(e.key)}, 1, 0xFE);
+      for (const auto& e : fields_of(f->value, f->path + ".")) {
+        const auto sub = integer({e.key, e.line, YAML::Node(e.key), e.path}, 1, 0xFE);
         const auto value = unsigned_of(e, 0xFF);
         if (sub && value) {
           set(dcf, s, object::kErrorBehaviour, static_cast<std::uint8_t>(*sub),
@@ -958,7 +968,7 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
   for (const bool receive : {true, false}) {
     if (const Field* f = find(fields, receive ? "rpdo" : "tpdo")) {
       if (!is_map(*f, who)) continue;
-      for (const auto& pdo : fields_of(f->value)) read_pdo(dcf, s, receive, pdo);
+      for (const auto& pdo : fields_of(f->value, f->path + ".")) read_pdo(dcf, s, receive, pdo);
     }
   }
   flag("boot", s.boot);
@@ -983,7 +993,7 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
           error(item_line, who + "sdo: expected {index, sub_index, value}");
           continue;
         }
-        const auto entry = fields_of(item);
+        const auto entry = fields_of(item, f->path + ".");
         const Field* index = find(entry, "index");
         if (index == nullptr) {
           error(item_line, who + "sdo: an entry without index");

@@ -22,6 +22,7 @@
 #include "cfg/schema.hpp"
 #include "cfg/write_acceptance.hpp"
 #include "commands.hpp"
+#include "network_load.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -34,6 +35,7 @@ struct CheckOptions {
   bool network = false;
   unsigned net = 1;
   std::string schema_dir;
+  std::vector<std::string> defines;  ///< --define NAME=VALUE
 };
 
 struct FileReport {
@@ -116,6 +118,11 @@ FileReport check_network_file(const std::string& file, const CheckOptions& optio
   report.file = file;
   cfg::NetworkOptions load_options;
   load_options.net = options.net;
+  if (auto placeholders = parse_defines(options.defines)) {
+    load_options.placeholders = std::move(*placeholders);
+  } else {
+    exit_with(tools::kExitUsage);
+  }
   load_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
   cfg::NetworkLoad load = cfg::load_network(file, load_options);
   report.diagnostics = std::move(load.diagnostics);
@@ -278,6 +285,7 @@ void add_check_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber)
       ->type_name("N");
+  add_define_option(*cmd, options->defines);
   cmd->footer(std::string("Examples:\n"
                           "  cfgmgr check drive.eds\n"
                           "  cfgmgr check --strict network/*.dcf\n"

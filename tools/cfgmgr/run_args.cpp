@@ -52,7 +52,16 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                  "overriding NodeXProgramVersion=: YYYY-MM-DD[THH:MM[:SS[.mmm]]] or DAYS,MS "
                  "(days since 1984-01-01, ms after midnight); repeatable")
       ->type_name("NODE=VERSION");
+  add_define_option(cmd, args.defines);
   return bus;
+}
+
+void add_define_option(CLI::App& cmd, std::vector<std::string>& defines) {
+  cmd.add_option("--define", defines,
+                 "A bus.yml's @NAME@ placeholder (ros2_canopen's CMake fills them with "
+                 "configure_file, e.g. @BUS_CONFIG_PATH@) is VALUE; repeatable")
+      ->allow_extra_args(false)
+      ->type_name("NAME=VALUE");
 }
 
 void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {

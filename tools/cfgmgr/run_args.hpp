@@ -40,7 +40,12 @@ struct NetworkRunArgs {
   unsigned net = 1;     ///< --net
   bool verbose = false;
   ProgramOverrides programs;
+  std::vector<std::string> defines;  ///< --define NAME=VALUE
 };
+
+/// Adds --define NAME=VALUE (repeatable) to `cmd`: the value of a bus.yml's `@NAME@`
+/// placeholder (cfg/bus_yml.hpp), as CMake's configure_file would fill it.
+void add_define_option(CLI::App& cmd, std::vector<std::string>& defines);
 
 /// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
 /// required).
