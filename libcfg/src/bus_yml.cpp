@@ -43,8 +43,9 @@ struct Field {
 
 // The fields of a mapping in file order; `<<: *anchor` (YAML 1.1 merge key, which PyYAML and
 // so dcfgen read) adds the anchor's keys the mapping does not give itself.
-std::vector<Field> fields_of(const YAML::Node& map, const std::string& prefix) {
+std::vector<Field> fields_of(const YAML::Node& map, const std::string& prefix, int depth = 0) {
   std::vector<Field> own;
+  if (!map.IsMap()) return own;
   std::vector<YAML::Node> merged;
   for (auto it = map.begin(); it != map.end(); ++it) {
     const std::string key = it->first.IsScalar() ? it->first.Scalar() : std::string();
@@ -59,14 +60,75 @@ std::vector<Field> fields_of(const YAML::Node& map, const std::string& prefix) {
     }
     own.push_back({key, line_of(it->first), it->second, prefix + key});
   }
+  // A merge of a merge of ...: deeper than any real file, and the end of an anchor that merges
+  // itself.
+  constexpr int kMaxMergeDepth = 16;
+  if (depth >= kMaxMergeDepth) return own;
   for (const auto& m : merged) {
-    for (auto& f : fields_of(m, prefix)) {
+    for (auto& f : fields_of(m, prefix, depth + 1)) {
       const bool given =
           std::any_of(own.begin(), own.end(), [&](const Field& o) { return o.key == f.key; });
       if (!given) own.push_back(std::move(f));
     }
   }
   return own;
+}
+
+// Whether two values read the same: one node (an alias of the other), two equal scalars, or
+// two collections of equal size whose items read the same (to a few levels; deeper ones count
+// as different, which at worst gives one warning too many).
+bool same_value(const YAML::Node& a, const YAML::Node& b, int depth = 0) {
+  if (a.is(b)) return true;
+  if (a.Type() != b.Type() || depth > 4) return false;
+  if (a.IsScalar()) return a.Scalar() == b.Scalar();
+  if (a.IsNull()) return true;
+  if (a.size() != b.size()) return false;
+  if (a.IsSequence()) {
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      if (!same_value(a[i], b[i], depth + 1)) return false;
+    }
+    return true;
+  }
+  if (a.IsMap()) {
+    auto ib = b.begin();
+    for (auto ia = a.begin(); ia != a.end(); ++ia, ++ib) {
+      if (!same_value(ia->first, ib->first, depth + 1) ||
+          !same_value(ia->second, ib->second, depth + 1)) {
+        return false;
+      }
+    }
+    return true;
+  }
+  return false;
+}
+
+// The deepest nesting of flow collections ('[', '{') outside quotes and comments: yaml-cpp
+// parses them by recursion, and a file nested thousands deep would exhaust the stack.
+int flow_depth(std::string_view text) {
+  int depth = 0, deepest = 0;
+  char quote = 0;
+  bool comment = false;
+  for (const char c : text) {
+    if (c == '\n') {
+      comment = false;
+      quote = 0;  // a quote left open (it's, in a plain scalar) ends with its line here
+    }
+    if (comment) continue;
+    if (quote != 0) {
+      if (c == quote) quote = 0;
+      continue;
+    }
+    if (c == '"' || c == '\'') {
+      quote = c;
+    } else if (c == '#') {
+      comment = true;
+    } else if (c == '[' || c == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if ((c == ']' || c == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return deepest;
 }
 
 const Field* find(const std::vector<Field>& fields, std::string_view key) {
@@ -360,6 +422,12 @@ std::optional<Network> Reader::load() {
     return std::nullopt;
   }
   base_ = fs::path(path_).parent_path();
+  constexpr int kMaxFlowDepth = 64;
+  if (flow_depth(file->view()) > kMaxFlowDepth) {
+    error(0,
+          "not a bus.yml: [ ] and { } nested more than " + std::to_string(kMaxFlowDepth) + " deep");
+    return std::nullopt;
+  }
   YAML::Node root;
   try {
     root = YAML::Load(std::string(file->view()));
@@ -417,7 +485,7 @@ std::optional<Network> Reader::load() {
         const Field* mine = find(own, d.key);
         if (mine == nullptr) {
           own.push_back(d);
-        } else if (YAML::Dump(mine->value) != YAML::Dump(d.value)) {
+        } else if (!same_value(mine->value, d.value)) {
           warning(mine->line, "nodes." + n.key + "." + d.key +
                                   ": the node's own value is used; ros2_canopen's cogen.py "
                                   "lets defaults." +

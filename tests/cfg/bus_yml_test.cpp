@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <map>
 #include <string>
 #include <utility>
@@ -223,6 +224,19 @@ TEST(BusYml, AWrongTypeIsAnErrorAndAnUnknownKeyAWarning) {
   ASSERT_NE(d, nullptr) << load.diagnostics.format();
   EXPECT_EQ(d->severity, cfg::Severity::Warning);
   EXPECT_EQ(d->line, 6);
+}
+
+TEST(BusYml, FlowCollectionsNestedDeeperThan64AreRefusedBeforeParsing) {
+  // yaml-cpp parses [ ] and { } by recursion: 100000 of them would exhaust the stack.
+  const std::string path = ::testing::TempDir() + "/deep.yml";
+  {
+    std::ofstream out(path);
+    out << "master: {node_id: 1}\nio: " << std::string(100000, '[') << "\n";
+  }
+  const auto load = cfg::load_network(path);
+  EXPECT_FALSE(load.ok());
+  ASSERT_NE(find_diagnostic(load.diagnostics, "nested more than 64 deep"), nullptr)
+      << load.diagnostics.format();
 }
 
 TEST(BusYml, AFileThatIsNotThereIsUnreadable) {
