@@ -1119,7 +1119,7 @@ SubObject& master_entry(DeviceDescription& master, std::uint16_t index, std::uin
       count.name = "Highest sub-index supported";
       count.data_type = static_cast<std::uint16_t>(DataType::Unsigned8);
       count.access = AccessType::Ro;
-      count.default_value = hex(sub == 0 ? 0 : 0xFE, 2);
+      count.default_value = hex(0, 2);  // the highest sub-index, set below
       object.subs.emplace(0, std::move(count));
     }
   }
@@ -1130,6 +1130,10 @@ SubObject& master_entry(DeviceDescription& master, std::uint16_t index, std::uin
     it->second.data_type = static_cast<std::uint16_t>(type);
     it->second.access = AccessType::Rw;
     it->second.default_value = "0";
+    if (object.object_type == ObjectType::Array) {
+      object.subs.at(0).default_value = hex(object.subs.rbegin()->first, 2);
+      object.sub_number = static_cast<std::uint8_t>(object.subs.size());
+    }
   }
   return it->second;
 }

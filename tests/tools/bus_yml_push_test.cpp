@@ -54,6 +54,21 @@ TEST(BusYmlPush, PushConfiguresEverySlaveAndASecondPushDownloadsNothing) {
   }
 }
 
+TEST(BusYmlPush, BuildWritesAMasterDcfThatReadsBackAsTheNetwork) {
+  ScratchDir dir;
+  const std::string out = dir / "out";
+  auto r = cfgmgr(dir, {"build", data("lely.yml"), "-o", out});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* file : {"master.dcf", "node2.bin", "node3.bin", "node4.bin"}) {
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(out) / file)) << file;
+  }
+  // The master DCF (1006h, 1F80h, 1F89h, 102Ah from the bus.yml) names the three concise DCFs
+  // and checks clean as a network.
+  auto check = cfgmgr(dir, {"check", "--network", out + "/master.dcf"});
+  EXPECT_EQ(check.exit_code, 0) << check.err;
+  EXPECT_NE(check.out.find("0 errors, 0 warnings, 3 nodes"), std::string::npos) << check.out;
+}
+
 TEST(BusYmlPush, TheRos2LayoutPushesWithItsDefaults) {
   ScratchDir dir;
   auto r = cfgmgr(dir, {"push", data("ros2.yml"), "--bus", "sim:", "--json", dir / "r.json"});
