@@ -264,7 +264,8 @@ void add_check_command(CLI::App& app) {
       "message) on stderr");
   cmd->add_option("files", options->files,
                   "EDS or DCF files ('-': stdin), or network descriptions: a CiA 306-3 project "
-                  "file (.cpj, or any file with a [Topology] section) is checked as a whole")
+                  "file (.cpj, or any file with a [Topology] section) or a lely dcfgen / "
+                  "ros2_canopen bus.yml (.yml, .yaml) is checked as a whole")
       ->required()
       ->type_name("FILE");
   cmd->add_flag("--strict", options->strict,
