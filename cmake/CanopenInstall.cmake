@@ -73,7 +73,7 @@ function(canopen_pkg_config module description requires requires_private library
 endfunction()
 canopen_pkg_config(canopen-cfg
                    "CANopen object dictionary, CiA 306 EDS/DCF, CiA 302 concise DCF" ""
-                   "zlib" canopen-cfg)
+                   "zlib yaml-cpp" canopen-cfg)
 canopen_pkg_config(canopen-nmt-core
                    "CANopen protocol engines (frames, SDO, NMT slave, error control, EMCY)"
                    canopen-cfg "" canopen-nmt-core)

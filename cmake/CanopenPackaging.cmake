@@ -66,7 +66,7 @@ set(CPACK_COMPONENT_RUNTIME_DESCRIPTION
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME libcanopen-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 # No libpcap-dev: the headers do not include pcap.h and the archives do not link libpcap.
-set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS "zlib1g-dev, libmsgpack-dev")
+set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS "zlib1g-dev, libyaml-cpp-dev, libmsgpack-dev")
 set(CPACK_COMPONENT_DEV_DESCRIPTION
     "CANopen commissioning libraries: headers, static libraries, CMake package, pkg-config files")
 

@@ -7,7 +7,7 @@ packages=(
   # build; man pages from --help; clang-format for the lint.clang_format test (tools/lint.sh)
   g++ cmake make pkg-config help2man clang-format
   # libraries the product uses
-  zlib1g-dev libcli11-dev libmsgpack-dev libpcap-dev
+  zlib1g-dev libyaml-cpp-dev libcli11-dev libmsgpack-dev libpcap-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # bench_ini_vs_inih: our INI scanner against inih, which the product's first plan named

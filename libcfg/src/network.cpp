@@ -7,6 +7,7 @@
 #include <string_view>
 #include <utility>
 
+#include "cfg/bus_yml.hpp"
 #include "cfg/bytes.hpp"
 #include "cfg/data_type.hpp"
 #include "cfg/hex.hpp"
@@ -679,6 +680,7 @@ const NetworkNode* Network::find(NodeId node) const {
 }
 
 NetworkLoad load_network(const std::string& path, const NetworkOptions& options) {
+  if (is_bus_yml_path(path)) return load_bus_yml(path, options);  // lely dcfgen's bus.yml
   NetworkLoad out;
   Loader loader(path, options, out.diagnostics);
   out.network = loader.load();

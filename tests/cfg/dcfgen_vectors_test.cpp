@@ -1,19 +1,10 @@
 // Our concise DCFs against the ones lely's dcfgen produced (corpus README, "Concise DCF vector
-// sets"). dcfgen reads a YAML bus description plus each slave's EDS/DCF; we read a DCF. So each
-// test below reads the slave's EDS/DCF from the corpus and applies the YAML's settings as
-// ParameterValues, hand-translated line by line (the comments quote the YAML). The comparison is
+// sets"). dcfgen reads a YAML bus description plus each slave's EDS/DCF; so do we: each test
+// reads the set's bus.yml with the bus.yml reader (cfg/bus_yml.hpp, through load_network), whose
+// slaves are the EDS/DCF with the YAML's settings applied as ParameterValues. The comparison is
 // semantic: the state a device is left in (the last value written to each entry), plus the
 // PDO-safe order of our stream. Every place where our stream differs is listed in the test with
 // the reason, and in tests/cfg/dcfgen-differences.md.
-//
-// Hand-translation rules (lely dcfgen semantics of its YAML keys):
-// - rpdo/tpdo N `enabled: true`, `cob_id: auto` (or no cob_id): COB-ID = CiA 301 pre-defined
-//   connection set, RPDO N: 200h + 100h*(N-1) + node-ID, TPDO N: 180h + 100h*(N-1) + node-ID.
-//   `enabled: false`: the same COB-ID with bit 31 set (PDO not valid).
-// - `transmission: T`: communication sub-index 2 = T.
-// - `mapping: [{index, sub_index}...]`: mapping sub-index 0 = number of entries, sub-index k =
-//   index << 16 | sub_index << 8 | bit length of the entry's data type in the EDS.
-// - `sdo: [{index, sub_index, value}...]`: ParameterValue = value.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -24,9 +15,12 @@
 #include <utility>
 #include <vector>
 
+#include "cfg/bytes.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/download_order.hpp"
+#include "cfg/network.hpp"
+#include "cfg/value.hpp"
 #include "concise_test_support.hpp"
 #include "prerequisite.hpp"
 #include "test_paths.hpp"
@@ -61,58 +55,41 @@ std::vector<ObjectWrite> load_bin(const std::string& relative) {
   return entries.ok() ? *entries : std::vector<ObjectWrite>{};
 }
 
-std::string hex32(std::uint32_t v) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "0x%08X", v);
-  return buf;
-}
-
-// YAML `sdo:` entry or any other setting: the value becomes the entry's ParameterValue.
-void set(DeviceDescription& dcf, std::uint16_t index, std::uint8_t sub, const std::string& value) {
-  SubObject* s = dcf.sub(index, sub);
-  ASSERT_NE(s, nullptr) << std::hex << index << "sub" << int{sub} << " not in the device file";
-  s->parameter_value = value;
-}
-
-// YAML `mapping:` entry: index << 16 | sub-index << 8 | bit length of the data type.
-std::string mapping_entry(const DeviceDescription& dcf, std::uint16_t index, std::uint8_t sub) {
-  const SubObject* s = dcf.sub(index, sub);
-  EXPECT_NE(s, nullptr) << std::hex << index << "sub" << int{sub} << " not in the device file";
-  if (s == nullptr || !s->basic_type()) return "0";
-  const unsigned bits = data_type_info(*s->basic_type()).size_bytes * 8u;
-  return hex32(static_cast<std::uint32_t>(index) << 16 | static_cast<std::uint32_t>(sub) << 8 |
-               bits);
-}
-
-using Mapping = std::vector<std::pair<std::uint16_t, std::uint8_t>>;
-struct Pdo {
-  bool enabled = true;
-  std::optional<int> transmission;
-  Mapping mapping;
-};
-Pdo mapped(Mapping mapping, std::optional<int> transmission = std::nullopt) {
-  return {true, transmission, std::move(mapping)};
-}
-Pdo transmission_only(int transmission) {
-  return {true, transmission, {}};
-}
-Pdo disabled() {
-  return {false, std::nullopt, {}};
-}
-
-// YAML rpdo/tpdo N (N from 1) with cob_id auto.
-void configure_pdo(DeviceDescription& dcf, bool receive, int n, const Pdo& pdo) {
-  const auto comm = static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + n - 1);
-  const unsigned base = (receive ? 0x200u : 0x180u) + 0x100u * static_cast<unsigned>(n - 1);
-  set(dcf, comm, 1, "$NODEID+" + hex32(base | (pdo.enabled ? 0u : kCobIdInvalidBit)));
-  if (pdo.transmission) set(dcf, comm, 2, std::to_string(*pdo.transmission));
-  if (pdo.mapping.empty()) return;
-  const auto map = static_cast<std::uint16_t>(comm + 0x200);
-  set(dcf, map, 0, std::to_string(pdo.mapping.size()));
-  for (std::size_t k = 0; k < pdo.mapping.size(); ++k) {
-    set(dcf, map, static_cast<std::uint8_t>(k + 1),
-        mapping_entry(dcf, pdo.mapping[k].first, pdo.mapping[k].second));
+// A corpus set's bus.yml and the device files it names, copied into a fresh directory under
+// the names the bus.yml uses (the corpus prefixes some of them with the set's name), and read
+// with the bus.yml reader (cfg/bus_yml.hpp): the configuration of each slave is the reader's,
+// not a translation by hand.
+Network load_bus_yml_set(const std::string& set, const std::string& yml,
+                         const std::vector<std::pair<std::string, std::string>>& files,
+                         NetworkOptions options = {}) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(::testing::TempDir()) / ("dcfgen_vectors_" + set);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fs::copy_file(corpus(set + "/" + yml), dir / "bus.yml");
+  for (const auto& [from, to] : files) {
+    fs::create_directories((dir / to).parent_path());
+    fs::copy_file(corpus(set + "/" + from), dir / to);
   }
+  auto load = load_network((dir / "bus.yml").string(), options);
+  EXPECT_TRUE(load.ok()) << load.diagnostics.format();
+  return load.network ? std::move(*load.network) : Network{};
+}
+
+const NetworkNode& node_of(const Network& network, std::uint8_t id) {
+  const NetworkNode* node = network.find(*NodeId::from(id));
+  EXPECT_NE(node, nullptr) << "node " << int{id};
+  static const NetworkNode none;
+  return node != nullptr ? *node : none;
+}
+
+// A UNSIGNED32 entry of a master DCF as its dictionary holds it (ParameterValue, else
+// DefaultValue); 0 when absent, as a CompactSubObj array's unset entries are.
+std::uint32_t u32_of(const DeviceDescription& dcf, std::uint16_t index, std::uint8_t sub) {
+  const SubObject* s = dcf.sub(index, sub);
+  if (s == nullptr || !s->configured_value() || s->configured_value()->empty()) return 0;
+  auto v = parse_value(DataType::Unsigned32, *s->configured_value());
+  return v ? static_cast<std::uint32_t>(v->as_unsigned()) : 0xDEADBEEF;
 }
 
 std::vector<ObjectWrite> our_writes(const DeviceDescription& dcf, std::uint8_t node_id,
@@ -196,18 +173,12 @@ std::vector<std::string> pdo_rule_violations(const std::vector<ObjectWrite>& wri
 
 TEST(DcfgenVectors, KingPigeonM150Slave2) {
   SKIP_WITHOUT_CORPUS();
-  DeviceDescription dcf = load("canopen-binding-kingpigeon/m150c.dcf");
-  // slave_2: node_id: 2
-  // rpdo: 1: {enabled: true, transmission: 0x01}   (cob_id auto, mapping as in the DCF)
-  configure_pdo(dcf, true, 1, transmission_only(0x01));
-  // sdo:
-  set(dcf, 0x1800, 5, "0");        // - {index: 0x1800, sub_index: 0x05, value: 0}
-  set(dcf, 0x1802, 5, "0");        // - {index: 0x1802, sub_index: 0x05, value: 0}
-  set(dcf, 0x1016, 1, "0x14000");  // - {index: 0x1016, sub_index: 0x01, value: 0x14000}
-  set(dcf, 0x1017, 0, "0x4000");   // - {index: 0x1017, sub_index: 0x00, value: 0x4000}
-  // heartbeat_consumer/heartbeat_producer: false configure the master, not this stream.
-
-  const auto ours = our_writes(dcf, 2);
+  // slave_2: node_id 2; rpdo 1 {enabled: true, transmission: 0x01} (cob_id and mapping as in
+  // the DCF); sdo 1800h/1802h sub 5 = 0, 1016h sub 1 = 0x14000, 1017h = 0x4000;
+  // heartbeat_consumer/heartbeat_producer: false.
+  const Network network = load_bus_yml_set("canopen-binding-kingpigeon", "gen_master.yml",
+                                           {{"m150c.dcf", "slaves_dcf/m150c.dcf"}});
+  const auto& ours = node_of(network, 2).writes;
   const auto dcfgen = load_bin("canopen-binding-kingpigeon/slave_2.bin");
   EXPECT_THAT(pdo_rule_violations(ours), IsEmpty());
   // We disable TPDO1/TPDO3 around their event-timer writes (DSP 302 §6.2 step 1 for any
@@ -222,26 +193,11 @@ TEST(DcfgenVectors, KingPigeonM150Slave2) {
 
 // ---------------------------------------------------------------------------------------------
 // starnus-ros2_canopen-build: cia402__bus.yml + cia402_slave.eds -> cia402_device_{1,2}.bin
+// (lely's flat layout as cogen.py wrote it, with YAML anchors: rpdo: &id001 ... rpdo: *id001)
 
-DeviceDescription starnus_cia402_dcf() {
-  DeviceDescription dcf = load("starnus-ros2_canopen-build/cia402__cia402_slave.eds");
-  // rpdo: 1: {cob_id: auto, enabled: true, mapping: [{24640, 0}, {24672, 0}]}  (6040h, 6060h)
-  configure_pdo(dcf, true, 1, mapped({{0x6040, 0}, {0x6060, 0}}));
-  //       2: {cob_id: auto, enabled: true, mapping: [{24698, 0}, {24831, 0}]}  (607Ah, 60FFh)
-  configure_pdo(dcf, true, 2, mapped({{0x607A, 0}, {0x60FF, 0}}));
-  // tpdo: 1: {..., mapping: [{24641, 0}, {24673, 0}], transmission: 1}  (6041h, 6061h)
-  configure_pdo(dcf, false, 1, mapped({{0x6041, 0}, {0x6061, 0}}, 1));
-  //       2: {..., mapping: [{24676, 0}, {24684, 0}], transmission: 1}  (6064h, 606Ch)
-  configure_pdo(dcf, false, 2, mapped({{0x6064, 0}, {0x606C, 0}}, 1));
-  //       3: {enabled: false}, 4: {enabled: false}
-  configure_pdo(dcf, false, 3, disabled());
-  configure_pdo(dcf, false, 4, disabled());
-  // sdo: {24770, 1, 50}, {24770, 2, -3}, {24705, 0, 1000}, {24707, 0, 2000}
-  set(dcf, 0x60C2, 1, "50");
-  set(dcf, 0x60C2, 2, "-3");
-  set(dcf, 0x6081, 0, "1000");
-  set(dcf, 0x6083, 0, "2000");
-  return dcf;
+Network starnus_cia402() {
+  return load_bus_yml_set("starnus-ros2_canopen-build", "cia402__bus.yml",
+                          {{"cia402__cia402_slave.eds", "cia402_slave.eds"}});
 }
 
 // The differences are the same for both nodes: dcfgen leaves out PDO settings equal to the EDS
@@ -258,10 +214,11 @@ std::vector<std::string> starnus_cia402_differences(unsigned node) {
 
 TEST(DcfgenVectors, Ros2CanopenCia402Device1And2) {
   SKIP_WITHOUT_CORPUS();
-  const DeviceDescription dcf = starnus_cia402_dcf();
+  const Network network = starnus_cia402();
+  EXPECT_EQ(network.nodes.size(), 6u);  // cia402_device_1..6, node-IDs 2..7
   for (auto [node, bin] : {std::pair<std::uint8_t, const char*>{2, "cia402__cia402_device_1.bin"},
                            {3, "cia402__cia402_device_2.bin"}}) {
-    const auto ours = our_writes(dcf, node);
+    const auto& ours = node_of(network, node).writes;
     const auto dcfgen = load_bin(std::string("starnus-ros2_canopen-build/") + bin);
     EXPECT_THAT(pdo_rule_violations(ours), IsEmpty()) << bin;
     EXPECT_THAT(differences(ours, dcfgen), ElementsAreArray(starnus_cia402_differences(node)))
@@ -275,7 +232,10 @@ TEST(DcfgenVectors, Ros2CanopenCia402Device1And2) {
 
 TEST(DcfgenVectors, Ros2CanopenCia402ChangedOnlyMatchesDcfgenState) {
   SKIP_WITHOUT_CORPUS();
-  const auto ours = our_writes(starnus_cia402_dcf(), 2, ConciseSelection::ChangedOnly);
+  const Network network = starnus_cia402();
+  const NetworkNode& node = node_of(network, 2);
+  ASSERT_TRUE(node.dcf.has_value());
+  const auto ours = our_writes(*node.dcf, 2, ConciseSelection::ChangedOnly);
   const auto dcfgen = load_bin("starnus-ros2_canopen-build/cia402__cia402_device_1.bin");
   // ChangedOnly leaves out the two mapping entries equal to the EDS default (RPDO1 entry 1 =
   // 6040h, TPDO1 entry 1 = 6041h); dcfgen writes whole mappings. A device at its defaults ends
@@ -286,33 +246,39 @@ TEST(DcfgenVectors, Ros2CanopenCia402ChangedOnlyMatchesDcfgenState) {
   EXPECT_THAT(pdo_rule_violations(ours), IsEmpty());
 }
 
+TEST(DcfgenVectors, Ros2CanopenCia402MasterAsDcfgenWroteIt) {
+  SKIP_WITHOUT_CORPUS();
+  const Network network = starnus_cia402();
+  const DeviceDescription dcfgen = load("starnus-ros2_canopen-build/cia402__master.dcf");
+  ASSERT_TRUE(network.master_node_id.has_value());
+  EXPECT_EQ(network.master_node_id->value(), 1);  // master: node_id: 1
+  // sync_period: 10000 (us) -> 1006h; the start flags -> 1F80h = 1 (NMT master, the rest
+  // default).
+  for (std::uint16_t index : {std::uint16_t{0x1006}, std::uint16_t{0x1F80}}) {
+    EXPECT_EQ(u32_of(network.master, index, 0), u32_of(dcfgen, index, 0)) << std::hex << index;
+  }
+  // 1F81h (slave, boot; not mandatory: dcfgen's default), 1F84h-1F86h (the EDS's identity),
+  // 1F87h (revision_number: 0), 1016h (no slave produces a heartbeat: no entries).
+  for (std::uint8_t node = 1; node <= 127; ++node) {
+    for (int index : {0x1F81, 0x1F84, 0x1F85, 0x1F86, 0x1F87, 0x1F88, 0x1016}) {
+      EXPECT_EQ(u32_of(network.master, static_cast<std::uint16_t>(index), node),
+                u32_of(dcfgen, static_cast<std::uint16_t>(index), node))
+          << std::hex << index << " sub " << std::dec << int{node};
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // starnus-ros2_canopen-build: robot_control__bus.yml + cia402_slave.eds -> joint_{1,2}.bin
 
-TEST(DcfgenVectors, Ros2CanopenRobotControlJoints) {
-  SKIP_WITHOUT_CORPUS();
-  DeviceDescription dcf = load("starnus-ros2_canopen-build/robot_control__cia402_slave.eds");
-  // tpdo: 1: {enabled: true, cob_id: "auto", transmission: 0x01,
-  //           mapping: [{0x6041, 0}, {0x6061, 0}]}
-  configure_pdo(dcf, false, 1, mapped({{0x6041, 0}, {0x6061, 0}}, 0x01));
-  //       2: {..., transmission: 0x01, mapping: [{0x6064, 0}, {0x606c, 0}]}
-  configure_pdo(dcf, false, 2, mapped({{0x6064, 0}, {0x606C, 0}}, 0x01));
-  // rpdo: 1: {enabled: true, cob_id: "auto", mapping: [{0x6040, 0}, {0x6060, 0}]}
-  configure_pdo(dcf, true, 1, mapped({{0x6040, 0}, {0x6060, 0}}));
-  //       2: {enabled: true, cob_id: "auto", mapping: [{0x607A, 0}]}
-  configure_pdo(dcf, true, 2, mapped({{0x607A, 0}}));
-  // sdo: {0x60C2, 1, 50}, {0x60C2, 2, -3}, {0x6081, 0, 1000}, {0x6083, 0, 2000}, {0x6060, 0, 7}
-  set(dcf, 0x60C2, 1, "50");
-  set(dcf, 0x60C2, 2, "-3");
-  set(dcf, 0x6081, 0, "1000");
-  set(dcf, 0x6083, 0, "2000");
-  set(dcf, 0x6060, 0, "7");
+void expect_robot_control_joints(const Network& network, const std::string& set,
+                                 const std::string& prefix) {
   // position_mode, switching_state, driver, package, period: ros2_canopen settings, not
-  // device configuration.
-  for (auto [node, bin] : {std::pair<std::uint8_t, const char*>{2, "robot_control__joint_1.bin"},
-                           {3, "robot_control__joint_2.bin"}}) {
-    const auto ours = our_writes(dcf, node);
-    const auto dcfgen = load_bin(std::string("starnus-ros2_canopen-build/") + bin);
+  // device configuration (the reader names them in one note).
+  for (auto [node, bin] :
+       {std::pair<std::uint8_t, const char*>{2, "joint_1.bin"}, {3, "joint_2.bin"}}) {
+    const auto& ours = node_of(network, node).writes;
+    const auto dcfgen = load_bin(set + "/" + prefix + bin);
     EXPECT_THAT(differences(ours, dcfgen), IsEmpty()) << bin;
     EXPECT_THAT(pdo_rule_violations(ours), IsEmpty()) << bin;
     EXPECT_THAT(pdo_rule_violations(dcfgen), IsEmpty()) << bin;
@@ -323,23 +289,50 @@ TEST(DcfgenVectors, Ros2CanopenRobotControlJoints) {
   }
 }
 
+TEST(DcfgenVectors, Ros2CanopenRobotControlJoints) {
+  SKIP_WITHOUT_CORPUS();
+  expect_robot_control_joints(
+      load_bus_yml_set("starnus-ros2_canopen-build", "robot_control__bus.yml",
+                       {{"robot_control__cia402_slave.eds", "cia402_slave.eds"}}),
+      "starnus-ros2_canopen-build", "robot_control__");
+}
+
+// ---------------------------------------------------------------------------------------------
+// ros2_canopen-dcfgen: ros2_canopen's own test configurations as it ships them, with the
+// dcf_path placeholder "@BUS_CONFIG_PATH@" (not read: the EDS is found beside the bus.yml).
+
+TEST(DcfgenVectors, Ros2CanopenShippedRobotControlJoints) {
+  SKIP_WITHOUT_CORPUS();
+  expect_robot_control_joints(
+      load_bus_yml_set("ros2_canopen-dcfgen", "robot_control/bus.yml",
+                       {{"robot_control/cia402_slave.eds", "cia402_slave.eds"}}),
+      "ros2_canopen-dcfgen", "robot_control/");
+}
+
+TEST(DcfgenVectors, Ros2CanopenShippedCia402DefaultsAndNodes) {
+  SKIP_WITHOUT_CORPUS();
+  // The defaults/nodes layout: cia402_device_1 {node_id: 2, namespace} gets every key of
+  // defaults (dcf, the sdo list, tpdo 1-4, rpdo 1-2 with 607Ah and 60FFh).
+  const Network network = load_bus_yml_set("ros2_canopen-dcfgen", "cia402/bus.yml",
+                                           {{"cia402/cia402_slave.eds", "cia402_slave.eds"}});
+  ASSERT_EQ(network.nodes.size(), 1u);
+  const auto& ours = node_of(network, 2).writes;
+  const auto dcfgen = load_bin("ros2_canopen-dcfgen/cia402/cia402_device_1.bin");
+  EXPECT_THAT(pdo_rule_violations(ours), IsEmpty());
+  // The same differences as the starnus build of the same configuration (above).
+  EXPECT_THAT(differences(ours, dcfgen), ElementsAreArray(starnus_cia402_differences(2)));
+}
+
 // ---------------------------------------------------------------------------------------------
 // ros_canopen-motion_controller_driver: pilz.yaml + pilz.eds -> prbt_joint_1.bin
 
 TEST(DcfgenVectors, PilzPrbtJoint1) {
   SKIP_WITHOUT_CORPUS();
-  DeviceDescription dcf = load("ros_canopen-motion_controller_driver/pilz.eds");
-  // prbt_joint_1: node_id: 3
-  // tpdo: 1: {enabled: true, mapping: [{0x6041, 0}, {0x6061, 0}, {0x6064, 0}]}
-  configure_pdo(dcf, false, 1, mapped({{0x6041, 0}, {0x6061, 0}, {0x6064, 0}}));
-  //       2: {enabled: true, mapping: [{0x606b, 0}, {0x606c, 0}]}
-  configure_pdo(dcf, false, 2, mapped({{0x606B, 0}, {0x606C, 0}}));
-  // rpdo: 1: {enabled: true, mapping: [{0x6040, 0}, {0x60c1, 1}, {0x6042, 0}]}
-  configure_pdo(dcf, true, 1, mapped({{0x6040, 0}, {0x60C1, 1}, {0x6042, 0}}));
-  //       2: {enabled: true, mapping: [{0x607a, 0}, {0x6081, 0}]}
-  configure_pdo(dcf, true, 2, mapped({{0x607A, 0}, {0x6081, 0}}));
-
-  const auto ours = our_writes(dcf, 3);
+  // prbt_joint_1: node_id 3; tpdo 1 {6041h, 6061h, 6064h}, 2 {606Bh, 606Ch}; rpdo 1 {6040h,
+  // 60C1h sub 1, 6042h}, 2 {607Ah, 6081h}; all enabled, cob_id as in the EDS.
+  const Network network = load_bus_yml_set("ros_canopen-motion_controller_driver", "pilz.yaml",
+                                           {{"pilz.eds", "pilz.eds"}});
+  const auto& ours = node_of(network, 3).writes;
   const auto dcfgen = load_bin("ros_canopen-motion_controller_driver/prbt_joint_1.bin");
   EXPECT_THAT(pdo_rule_violations(ours), IsEmpty());
   EXPECT_THAT(pdo_rule_violations(dcfgen), IsEmpty());
@@ -372,37 +365,26 @@ TEST(DcfgenVectors, PilzPrbtJoint1) {
 
 TEST(DcfgenVectors, OdriveMasterExpectedIdentity) {
   SKIP_WITHOUT_CORPUS();
-  const DeviceDescription slave = load("odrive-cia402-profile/odrive-canopen-cia402.dcf");
-  const SubObject* revision = slave.sub(0x1018, 3);
-  const SubObject* serial = slave.sub(0x1018, 4);
-  ASSERT_NE(revision, nullptr);
-  ASSERT_NE(serial, nullptr);
-  ASSERT_TRUE(revision->configured_value().has_value());
-  ASSERT_TRUE(serial->configured_value().has_value());
-
-  DeviceDescription master = load("odrive-cia402-profile/master.dcf");
-  // motor_1..motor_4: node_id 2..5, dcf odrive-canopen-cia402.dcf.
-  for (std::uint8_t node = 2; node <= 5; ++node) {
-    set(master, 0x1F87, node, *revision->configured_value());
-    set(master, 0x1F88, node, *serial->configured_value());
-  }
-  const auto ours = our_writes(master, 1);
+  const Network network =
+      load_bus_yml_set("odrive-cia402-profile", "master.yaml",
+                       {{"odrive-canopen-cia402.dcf", "odrive-canopen-cia402.dcf"}});
+  ASSERT_EQ(network.nodes.size(), 4u);  // motor_1..motor_4: node_id 2..5
   const auto dcfgen = load_bin("odrive-cia402-profile/master.bin");
-  // Everything master.bin holds, ours holds with the same value. The rest of ours is master.dcf's
-  // own ParameterValues (heartbeat consumers, slave assignments, remote PDO mappings, ...),
-  // which dcfgen's master reads from master.dcf instead of from a concise stream.
-  for (const auto& line : differences(ours, dcfgen)) {
-    EXPECT_EQ(line.rfind("ours only: ", 0), 0u) << line;
-  }
-  const auto state = final_state(ours);
+  // Every value master.bin holds is the value our master's dictionary has.
+  ASSERT_FALSE(dcfgen.empty());
   for (const auto& w : dcfgen) {
-    auto it = state.find({w.index, w.sub_index});
-    ASSERT_NE(it, state.end()) << entry_text(w.index, w.sub_index, w.data);
-    EXPECT_EQ(it->second, w.data) << entry_text(w.index, w.sub_index, w.data);
+    ASSERT_EQ(w.data.size(), 4u) << entry_text(w.index, w.sub_index, w.data);
+    EXPECT_EQ(u32_of(network.master, w.index, w.sub_index), load_le(w.data, 4))
+        << entry_text(w.index, w.sub_index, w.data);
   }
-  // No PDO rule check here: master.dcf gives its own RPDO mappings as CompactSubObj, whose
-  // sub-index 0 is read-only, so the mapping cannot be deactivated by SDO at all (dcfgen's
-  // master loads master.dcf into its own dictionary, where CiA 301's SDO rules do not apply).
+  // mandatory: true -> 1F81h bit 3 (with bits 0 and 2: slave, boot), as dcfgen's master.dcf.
+  const DeviceDescription master = load("odrive-cia402-profile/master.dcf");
+  for (std::uint8_t node = 2; node <= 5; ++node) {
+    EXPECT_EQ(u32_of(network.master, 0x1F81, node), u32_of(master, 0x1F81, node)) << int{node};
+    EXPECT_EQ(u32_of(network.master, 0x1F81, node), 0x0Du) << int{node};
+  }
+  ASSERT_TRUE(network.master.commissioning.has_value());
+  EXPECT_EQ(network.master.commissioning->baudrate_kbps, 500);  // master: baudrate: 500
 }
 
 }  // namespace

@@ -38,7 +38,7 @@ fi
 cmake --install "$build" --prefix "$prefix" >"$work/install.log"
 echo "ok: configured, built and installed with CANOPEN_CORE_ONLY=ON"
 
-# No third-party library but zlib in any compile or link line.
+# No third-party library but zlib and yaml-cpp (libcfg) in any compile or link line.
 third_party='cli11|msgpack|pcap|gtest|gmock'
 no_third_party() {
   local found

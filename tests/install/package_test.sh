@@ -62,13 +62,13 @@ runtime_name=$(dpkg-deb -f "$runtime" Package)
 # libpcap, which libnmt_io loads with dlopen() when a pcap trace is opened, from the package.
 has_files "$runtime" "lib/libcanopen-cfg.so.$version" "lib/libcanopen-nmt-core.so.$version" \
   "lib/libcanopen-nmt-io.so.$version" share/canopen/schemas/cia301_communication.eds
-has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' '(^|, )libpcap0'
+has_depends "$runtime" '(^|, )libc6' 'libmsgpackc' 'libyaml-cpp' '(^|, )libpcap0'
 # Headers, archives, .so links, CMake and pkg-config; a static link needs the deps' -dev packages
 # (not libpcap-dev: no installed header includes pcap.h and no archive links libpcap).
 has_files "$dev" include/canopen/cfg/device_file.hpp include/canopen/nmt/protocol/frame.hpp \
   lib/libcanopen-cfg.a lib/libcanopen-nmt-core.so lib/cmake/canopen/canopenConfig.cmake \
   lib/pkgconfig/canopen-nmt-core.pc
-has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libmsgpack-dev
+has_depends "$dev" "$runtime_name \(= $version\)" zlib1g-dev libyaml-cpp-dev libmsgpack-dev
 # The tools and their man pages; the schemas come with the runtime package.
 has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
   share/man/man1/cfgmgr-simulate.1.gz share/man/man1/cfgmgr-master.1.gz \

@@ -32,6 +32,7 @@ struct BuildCliOptions {
   bool lf = false;
   std::vector<std::string> variables;  ///< NODE=FILE
   std::vector<std::string> dcf_path;   ///< --dcf-path DIR
+  std::vector<std::string> defines;    ///< --define NAME=VALUE
 };
 
 void write_or_exit(const std::string& path, std::string_view bytes) {
@@ -91,7 +92,8 @@ void write_programmed_node(const std::string& spec, const cfg::Network& network,
 void run_build(const BuildCliOptions& options) {
   if (options.net == 0)
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network = load_network_or_exit(options.network, options.net, {}, options.dcf_path);
+  const auto network =
+      load_network_or_exit(options.network, options.net, {}, options.dcf_path, options.defines);
   const cfg::NetworkBuild build = cfg::build_network(*network);
   // The master's node-ID as cfgmgr master and push take it (--node-id, else the network's, else
   // 7Fh), and a check that the master can be built from the dictionary written (CiA 306 §4.7: a
@@ -161,6 +163,7 @@ void add_build_command(CLI::App& app) {
                   "Which network of the project file: 1 is [Topology], N is [TopologyN]")
       ->capture_default_str()
       ->type_name("N");
+  add_define_option(*cmd, options->defines);
   cmd->add_option("--node-id", options->node_id,
                   "The master's node-ID written into master.dcf (1..127); default: the "
                   "network's, else 0x7F (127), as cfgmgr master takes it")

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bus_yml.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/network.hpp"
@@ -21,6 +22,7 @@
 #include "cfg/schema.hpp"
 #include "cfg/write_acceptance.hpp"
 #include "commands.hpp"
+#include "network_load.hpp"
 #include "run_args.hpp"
 
 namespace cfgmgr {
@@ -35,6 +37,7 @@ struct CheckOptions {
   unsigned net = 1;
   std::string schema_dir;
   std::vector<std::string> dcf_path;  ///< --dcf-path DIR
+  std::vector<std::string> defines;   ///< --define NAME=VALUE
 };
 
 struct FileReport {
@@ -117,6 +120,11 @@ FileReport check_network_file(const std::string& file, const CheckOptions& optio
   report.file = file;
   cfg::NetworkOptions load_options;
   load_options.net = options.net;
+  if (auto placeholders = parse_defines(options.defines)) {
+    load_options.placeholders = std::move(*placeholders);
+  } else {
+    exit_with(tools::kExitUsage);
+  }
   load_options.mode = options.strict ? cfg::ReadMode::Strict : cfg::ReadMode::Tolerant;
   load_options.dcf_path = options.dcf_path;
   load_options.dcf_path_hint = kDcfPathHint;
@@ -194,8 +202,8 @@ void run_check(const CheckOptions& options) {
       reports.push_back(std::move(report));
       continue;
     }
-    if (!from_stdin &&
-        (options.network || has_extension(file, ".cpj") || has_topology_section(*text))) {
+    if (!from_stdin && (options.network || has_extension(file, ".cpj") ||
+                        cfg::is_bus_yml_path(file) || has_topology_section(*text))) {
       text->release();
       report = check_network_file(file, options, schemas, any_unreadable);
       if (options.strict) report.diagnostics = tools::promote_warnings(report.diagnostics);
@@ -260,7 +268,8 @@ void add_check_command(CLI::App& app) {
       "message) on stderr");
   cmd->add_option("files", options->files,
                   "EDS or DCF files ('-': stdin), or network descriptions: a CiA 306-3 project "
-                  "file (.cpj, or any file with a [Topology] section) is checked as a whole")
+                  "file (.cpj, or any file with a [Topology] section) or a lely dcfgen / "
+                  "ros2_canopen bus.yml (.yml, .yaml) is checked as a whole")
       ->required()
       ->type_name("FILE");
   cmd->add_flag("--strict", options->strict,
@@ -282,6 +291,7 @@ void add_check_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber)
       ->type_name("N");
+  add_define_option(*cmd, options->defines);
   cmd->footer(std::string("Examples:\n"
                           "  cfgmgr check drive.eds\n"
                           "  cfgmgr check --strict network/*.dcf\n"

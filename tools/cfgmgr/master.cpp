@@ -46,8 +46,8 @@ void run_master(const MasterCliOptions& options) {
   const std::optional<SimBusOptions> sim = parse_bus_url("master", options.bus);
   if (options.net == 0)
     fail_command("master", tools::kExitUsage, "--net: networks are numbered from 1");
-  const auto network =
-      load_network_or_exit(options.network, options.net, options.programs, options.dcf_path);
+  const auto network = load_network_or_exit(options.network, options.net, options.programs,
+                                            options.dcf_path, options.defines);
   nmt::MasterOptions master_options;
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager.enabled = options.sdo_manager;

@@ -57,13 +57,31 @@ void apply_program_overrides(cfg::Network& network, const ProgramOverrides& prog
 
 }  // namespace
 
+std::optional<std::map<std::string, std::string>> parse_defines(
+    const std::vector<std::string>& defines) {
+  std::map<std::string, std::string> out;
+  for (const auto& d : defines) {
+    const auto eq = d.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      std::cerr << "--define " << d << ": expected NAME=VALUE\n";
+      return std::nullopt;
+    }
+    out[d.substr(0, eq)] = d.substr(eq + 1);
+  }
+  return out;
+}
+
 std::shared_ptr<const cfg::Network> load_network_or_exit(const std::string& path, unsigned net,
                                                          const ProgramOverrides& programs,
-                                                         const std::vector<std::string>& dcf_path) {
+                                                         const std::vector<std::string>& dcf_path,
+                                                         const std::vector<std::string>& defines) {
   cfg::NetworkOptions load_options;
   load_options.net = net;
   load_options.dcf_path = dcf_path;
   load_options.dcf_path_hint = kDcfPathHint;
+  auto placeholders = parse_defines(defines);
+  if (!placeholders) exit_with(tools::kExitUsage);
+  load_options.placeholders = std::move(*placeholders);
   auto load = cfg::load_network(path, load_options);
   if (load.network) {
     apply_program_overrides(*load.network, programs, load.diagnostics);

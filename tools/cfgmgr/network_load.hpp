@@ -2,9 +2,12 @@
 // MasterConfig::from_network), with the tools' diagnostics and exit codes.
 #pragma once
 
+#include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "cfg/network.hpp"
 #include "nmt/master/master_config.hpp"
@@ -15,10 +18,16 @@ namespace cfgmgr {
 
 /// The network loaded (the files a master DCF names looked for in `dcf_path` too, --dcf-path),
 /// `programs` applied and cfg::check_programs run (diagnostics printed; exit 1 on errors, 3 when
-/// unreadable, 2 for a malformed --program/--program-version).
+/// unreadable, 2 for a malformed --program/--program-version). `defines` are --define's
+/// NAME=VALUE (exit 2 for one without '=').
 std::shared_ptr<const cfg::Network> load_network_or_exit(
     const std::string& path, unsigned net, const ProgramOverrides& programs = {},
-    const std::vector<std::string>& dcf_path = {});
+    const std::vector<std::string>& dcf_path = {}, const std::vector<std::string>& defines = {});
+
+/// --define's NAME=VALUE as NetworkOptions::placeholders; nullopt (and a message naming the
+/// argument on stderr) for one without '=' or with an empty NAME.
+std::optional<std::map<std::string, std::string>> parse_defines(
+    const std::vector<std::string>& defines);
 
 /// The master of `network` with node-ID `node_id_text` (empty: the network's, else 7Fh) and
 /// `options` (its configurations come from the network). It is the configuration manager

@@ -581,8 +581,8 @@ void run_push(const PushCliOptions& options) {
   }
   const nmt::Duration sdo_timeout = sdo_timeout_or_exit(kTool, options.sdo_timeout_s);
   if (!options.only.empty()) parse_only(kTool, options.only);  // a usage error before any file
-  const auto network =
-      load_network_or_exit(options.network, options.net, options.programs, options.dcf_path);
+  const auto network = load_network_or_exit(options.network, options.net, options.programs,
+                                            options.dcf_path, options.defines);
   const auto selected = selected_nodes(*network, options);
   if (options.dry_run) {
     print_plan(selected, options);

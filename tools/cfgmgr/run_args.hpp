@@ -48,6 +48,12 @@ struct NetworkRunArgs {
 void add_dcf_path_option(CLI::App& cmd, std::vector<std::string>& dirs);
 /// The end of the error for a file a master DCF names that is nowhere: how to pass --dcf-path.
 inline constexpr std::string_view kDcfPathHint = " with --dcf-path DIR";
+std::vector<std::string> defines;  ///< --define NAME=VALUE
+};
+
+/// Adds --define NAME=VALUE (repeatable) to `cmd`: the value of a bus.yml's `@NAME@`
+/// placeholder (cfg/bus_yml.hpp), as CMake's configure_file would fill it.
+void add_define_option(CLI::App& cmd, std::vector<std::string>& defines);
 
 /// Adds NETWORK, --bus, --node-id, --net and -v to `cmd`. Returns --bus (a command may make it
 /// required).

@@ -41,6 +41,7 @@ struct VerifyCliOptions {
   unsigned retries = 2;
   std::string only;
   std::vector<std::string> dcf_path;  ///< --dcf-path DIR
+  std::vector<std::string> defines;   ///< --define NAME=VALUE
 };
 
 // One entry as reported: the engine's result with what the description says about it.
@@ -249,7 +250,8 @@ void run_verify(const VerifyCliOptions& options) {
   const nmt::Duration sdo_timeout = sdo_timeout_or_exit(kTool, options.sdo_timeout_s);
   std::set<std::uint8_t> only;
   if (!options.only.empty()) only = parse_only(kTool, options.only);  // before any file
-  auto network = load_network_or_exit(options.network, options.net, {}, options.dcf_path);
+  auto network =
+      load_network_or_exit(options.network, options.net, {}, options.dcf_path, options.defines);
   if (!only.empty()) {
     // Only these nodes are read (and, on sim:, simulated); each must be in the network.
     for (const std::uint8_t id : only) {
@@ -333,6 +335,7 @@ void add_verify_command(CLI::App& app) {
                   "Which network of the project file: 1 is [Topology], N is [TopologyN]")
       ->capture_default_str()
       ->type_name("N");
+  add_define_option(*cmd, options->defines);
   cmd->add_option("--json", options->json,
                   "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
                   "nodes [{node_id, name, entries, same, differ, failed, write_only}], "

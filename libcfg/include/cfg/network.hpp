@@ -25,10 +25,12 @@
 //    by its name alone in NetworkOptions::dcf_path, then beside the master DCF (a warning names
 //    both paths); found nowhere, it is an error at the key's line. A 1F58h sub X for a node
 //    without a 1F20h/1F22h file is a warning and not used.
-// No bus I/O, no clocks: files are read once by load_network.
+// A third form, lely dcfgen's and ros2_canopen's bus.yml, is read into the same model by
+// cfg/bus_yml.hpp. No bus I/O, no clocks: files are read once by load_network.
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <span>
 #include <string>
@@ -115,6 +117,9 @@ struct NetworkOptions {
   /// How the caller's user gives such a directory (e.g. "pass it with --dcf-path DIR"), ending
   /// the error for a file found nowhere. Empty: the message says "pass the directory".
   std::string dcf_path_hint;
+  /// Values of `@NAME@` placeholders (CMake configure_file's) in a bus.yml's paths, by NAME
+  /// (cfg/bus_yml.hpp); unused by the other forms.
+  std::map<std::string, std::string> placeholders;
 };
 
 struct NetworkLoad {
@@ -132,12 +137,13 @@ struct NetworkLoad {
 };
 
 /// Reads a network description (either form, told apart by content: a project file has a
-/// [Topology] section). Never throws on bad input. Reported as errors: a file that cannot be
-/// read (at the line naming it), a NodeXPresent/Nodes value that is not a number, a present
-/// node without NodeXDCFName, a DCF whose [DeviceComissioning] NodeID differs from the node-ID
-/// the project file (or the 1F20h/1F22h sub-index) gives it, two DCFs with CANopenManager=1, a
-/// DCF value that cannot be encoded. Warnings: Nodes differing from the number of present
-/// nodes.
+/// [Topology] section; a path ending in .yml/.yaml is a lely/ros2_canopen bus.yml, read by
+/// load_bus_yml of cfg/bus_yml.hpp into the same model). Never throws on bad input. Reported as
+/// errors: a file that cannot be read (at the line naming it), a NodeXPresent/Nodes value that is
+/// not a number, a present node without NodeXDCFName, a DCF whose [DeviceComissioning] NodeID
+/// differs from the node-ID the project file (or the 1F20h/1F22h sub-index) gives it, two DCFs with
+/// CANopenManager=1, a DCF value that cannot be encoded. Warnings: Nodes differing from the number
+/// of present nodes.
 NetworkLoad load_network(const std::string& path, const NetworkOptions& options = {});
 
 // --- the derived master --------------------------------------------------------------------------

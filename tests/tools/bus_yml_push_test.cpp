@@ -1,0 +1,138 @@
+// cfgmgr with a lely dcfgen / ros2_canopen bus.yml as the network (cfg/bus_yml.hpp), end to
+// end on sim: push configures every slave with the reader's configuration and a second push
+// (state kept) downloads nothing; check names bad input at its line; push of bad input exits 1
+// before the bus. The files are tests/data/bus_yml (README.md there).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "prerequisite.hpp"
+#include "push_test_support.hpp"
+
+namespace {
+
+using push_test::cfgmgr;
+using push_test::nodes_of;
+using push_test::parse_json;
+using tool_test::DataDir;
+using tool_test::Json;
+using tool_test::ScratchDir;
+
+const DataDir data("bus_yml");
+
+TEST(BusYmlPush, PushConfiguresEverySlaveAndASecondPushDownloadsNothing) {
+  ScratchDir dir;
+  const std::string bus = "sim:?state=" + (dir / "state");
+  auto first = cfgmgr(dir, {"push", data("lely.yml"), "--bus", bus, "--json", dir / "first.json"});
+  ASSERT_EQ(first.exit_code, 0) << first.err.substr(0, 4000);
+  const Json json = parse_json(dir / "first.json");
+  EXPECT_TRUE(json.get("ok")->boolean);
+  const auto nodes = nodes_of(json);
+  ASSERT_EQ(nodes.size(), 3U);
+  for (const auto& [id, n] : nodes) {
+    SCOPED_TRACE("node " + std::to_string(id));
+    EXPECT_EQ(n->get("result")->string, "configured");
+    EXPECT_GT(n->get("entries")->number, 0);
+  }
+  // Node 2 (io): TPDO 1 (invalid, transmission, inhibit time, mapping 0/1/2/count, valid),
+  // TPDO 2 disabled, 1017h: 10 writes, as the reader makes them (bus_yml_test.cpp).
+  EXPECT_EQ(nodes.at(2)->get("entries")->number, 10);
+  EXPECT_EQ(nodes.at(2)->get("name")->string, "io");
+
+  // The devices saved (1010h) and keep 1020h = 1F26h/1F27h: nothing is downloaded again
+  // (CiA 302-2 §3.5 c).
+  auto second =
+      cfgmgr(dir, {"push", data("lely.yml"), "--bus", bus, "--json", dir / "second.json"});
+  ASSERT_EQ(second.exit_code, 0) << second.err.substr(0, 4000);
+  const Json again = parse_json(dir / "second.json");
+  ASSERT_EQ(nodes_of(again).size(), 3U);
+  for (const auto& [id, n] : nodes_of(again)) {
+    SCOPED_TRACE("node " + std::to_string(id));
+    EXPECT_EQ(n->get("result")->string, "skipped");
+    EXPECT_EQ(n->get("entries")->number, 0);
+  }
+}
+
+TEST(BusYmlPush, BuildWritesAMasterDcfThatReadsBackAsTheNetwork) {
+  ScratchDir dir;
+  const std::string out = dir / "out";
+  auto r = cfgmgr(dir, {"build", data("lely.yml"), "-o", out});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* file : {"master.dcf", "node2.bin", "node3.bin", "node4.bin"}) {
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(out) / file)) << file;
+  }
+  // The master DCF (1006h, 1F80h, 1F89h, 102Ah from the bus.yml) names the three concise DCFs
+  // and checks clean as a network.
+  auto check = cfgmgr(dir, {"check", "--network", out + "/master.dcf"});
+  EXPECT_EQ(check.exit_code, 0) << check.err;
+  EXPECT_NE(check.out.find("0 errors, 0 warnings, 3 nodes"), std::string::npos) << check.out;
+}
+
+TEST(BusYmlPush, TheRos2LayoutPushesWithItsDefaults) {
+  ScratchDir dir;
+  auto r = cfgmgr(dir, {"push", data("ros2.yml"), "--bus", "sim:", "--json", dir / "r.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err.substr(0, 4000);
+  const Json json = parse_json(dir / "r.json");
+  const auto nodes = nodes_of(json);
+  ASSERT_EQ(nodes.size(), 2U);
+  EXPECT_EQ(nodes.at(5)->get("result")->string, "configured");
+  EXPECT_EQ(nodes.at(6)->get("result")->string, "configured");
+}
+
+TEST(BusYmlPush, CheckNamesBadInputAtItsLineAndExits1) {
+  ScratchDir dir;
+  for (const auto& [file, where] : std::vector<std::pair<std::string, std::string>>{
+           {"truncated.yml", "truncated.yml:8: error: not valid YAML"},
+           {"no_dcf.yml", "no_dcf.yml:3: error: io: no dcf"},
+           {"missing_object.yml", "missing_object.yml:10: error: io.tpdo.1: mapping: 7123h"},
+           {"node_id_clash.yml", "node_id_clash.yml:8: error: io_b.node_id: node-ID clash"},
+           {"cob_id_clash.yml", "cob_id_clash.yml:12: error: io_b.tpdo.1: COB-ID 0x183"}}) {
+    SCOPED_TRACE(file);
+    const auto r = cfgmgr(dir, {"check", data(file)});
+    EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+    EXPECT_NE(r.err.find(where), std::string::npos) << r.err;
+  }
+}
+
+TEST(BusYmlPush, PushOfBadInputSendsNothing) {
+  ScratchDir dir;
+  const std::string log = dir / "bus.log";
+  const auto r = cfgmgr(dir, {"push", data("cob_id_clash.yml"), "--bus", "sim:", "--candump", log});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("cob_id_clash.yml:12: error"), std::string::npos) << r.err;
+  EXPECT_TRUE(!std::filesystem::exists(log) || tool_test::slurp(log).empty());
+}
+
+TEST(BusYmlPush, DefineFillsACmakePlaceholder) {
+  ScratchDir dir;
+  const auto without = cfgmgr(dir, {"check", data("placeholder.yml")});
+  EXPECT_EQ(without.exit_code, 1);
+  EXPECT_NE(without.err.find("--define IO_DIR="), std::string::npos) << without.err;
+  const auto with = cfgmgr(dir, {"check", data("placeholder.yml"), "--define",
+                                 "IO_DIR=" + std::string(CANOPEN_SAMPLES_DIR)});
+  EXPECT_EQ(with.exit_code, 0) << with.err;
+}
+
+// Corpus tier: ros2_canopen's cia402 network as the starnus build had it (six drives of one EDS,
+// lely's flat layout with YAML anchors): push configures every slave.
+TEST(BusYmlPush, CorpusRos2CanopenCia402ConfiguresEverySlave) {
+  namespace fs = std::filesystem;
+  const fs::path set = fs::path(CANOPEN_CORPUS_DIR) / "starnus-ros2_canopen-build";
+  if (!fs::exists(set)) PREREQUISITE_MISSING("corpus not found at ", set.string());
+  ScratchDir dir;
+  fs::copy_file(set / "cia402__bus.yml", dir.path() / "bus.yml");
+  fs::copy_file(set / "cia402__cia402_slave.eds", dir.path() / "cia402_slave.eds");
+  auto r = cfgmgr(dir, {"push", dir / "bus.yml", "--bus", "sim:", "--json", dir / "r.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err.substr(0, 4000);
+  const Json json = parse_json(dir / "r.json");
+  const auto nodes = nodes_of(json);
+  ASSERT_EQ(nodes.size(), 6U);  // node-IDs 2..7
+  for (const auto& [id, n] : nodes) {
+    SCOPED_TRACE("node " + std::to_string(id));
+    EXPECT_EQ(n->get("result")->string, "configured");
+    EXPECT_GT(n->get("entries")->number, 20);
+  }
+}
+
+}  // namespace
