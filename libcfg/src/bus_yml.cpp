@@ -1044,11 +1044,37 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
   flag("reset_communication", s.reset_communication);
   if (auto v = u32("restore_configuration", 0xFF))
     s.restore_configuration = static_cast<std::uint8_t>(*v);
-  for (std::string_view key : {"software_file", "software_version"}) {
-    if (const Field* f = find(fields, key)) {
-      warning(f->line, who + f->key +
-                           ": the software update of CiA 302-3 (1F55h-1F58h) is not done by "
-                           "cfgmgr's master: the node's software is neither checked nor updated");
+  // dcfgen (master.dcf.em): software_version sets 1F81h bit 5 and is the expected software
+  // identification 1F55h sub N; software_file sets bit 6 and is 1F58h sub N, the image lely's
+  // master downloads. Both become the node's NodeProgram: the master checks the slave's 1F56h
+  // sub 1 against 1F55h and updates it from the file (CiA 302-3, docs/master.md).
+  std::optional<NodeProgram> program;
+  if (const Field* f = find(fields, "software_version")) {
+    if (auto v = unsigned_of(*f, 0xFFFFFFFFU); v && *v != 0) {
+      program.emplace();
+      program->identification = *v;
+      program->source = path_;
+      program->line = f->line;
+    }
+  }
+  if (const Field* f = find(fields, "software_file")) {
+    if (auto image_name = path_value(*f, who)) {
+      if (!program) {
+        warning(f->line, who +
+                             "software_file without software_version: 1F81h bit 5 stays clear, "
+                             "so the master neither checks nor updates the node's software (as "
+                             "lely's master)");
+      } else {
+        const fs::path p(*image_name);
+        program->file = (p.is_absolute() || base_.empty() ? p : base_ / p).string();
+        program->line = f->line;
+        auto image = read_program_image(program->file);
+        if (!image) {
+          error(f->line, who + "software_file '" + program->file + "': " + image.error().message);
+        } else {
+          program->image = std::move(image).value();
+        }
+      }
     }
   }
   if (const Field* f = find(fields, "sdo")) {
@@ -1101,6 +1127,7 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
   node.file = file;
   node.dcf = std::move(dcf);
   node.writes = std::move(*writes);
+  node.program = std::move(program);
   nodes_.push_back(std::move(node));
   slaves_.push_back(std::move(s));
 }
@@ -1261,6 +1288,10 @@ DeviceDescription Reader::make_master(const std::vector<NetworkNode>& nodes) {
     if (serial && *serial != 0) {
       put(object::kSerialNumber, node.value(), "Serial number", DataType::Unsigned32, *serial);
     }
+  }
+  // After 1F81h is written: the program's bits 5/6 and 1F55h sub N.
+  for (const auto& n : nodes) {
+    if (n.program) set_expected_program(master, n.node_id, *n.program);
   }
   return master;
 }

@@ -4,9 +4,13 @@
 // before the bus. The files are tests/data/bus_yml (README.md there).
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
 #include "prerequisite.hpp"
 #include "push_test_support.hpp"
 
@@ -54,14 +58,64 @@ TEST(BusYmlPush, PushConfiguresEverySlaveAndASecondPushDownloadsNothing) {
   }
 }
 
+// dcfgen's software_version/software_file (1F81h bits 5/6, 1F55h, 1F58h): the master checks the
+// slave's 1F56h sub 1 against 1F55h and, when it differs, downloads the image (CiA 302-3, as
+// lely's master does). sim_device.eds reports 1F56h sub 1 = 0 and has no 1F57h (the flash
+// status is optional: the program is started and 1F56h decides); a simulated device reports the
+// CRC-32 of the image it holds, so the expected identification is the image's CRC-32.
+TEST(BusYmlPush, SoftwareVersionAndFileUpdateTheSlaveByIdentificationAndASecondPushUpdatesNothing) {
+  ScratchDir dir;
+  std::vector<std::uint8_t> image(700);
+  for (std::size_t i = 0; i < image.size(); ++i) image[i] = static_cast<std::uint8_t>(i * 7);
+  tool_test::write_file(dir / "drive_v2.img", image);
+  const std::uint32_t id = cfg::crc32(image);
+  tool_test::write_file(dir / "bus.yml",
+                        std::string("master:\n  node_id: 1\n\ndrive:\n  dcf: \"") +
+                            tool_test::data_path("sim_device.eds") +
+                            "\"\n  node_id: 5\n  software_version: " + cfg::hex(id, 8) +
+                            "\n  software_file: \"drive_v2.img\"\n");
+  const std::string bus = "sim:?state=" + (dir / "state");
+  auto first = cfgmgr(dir, {"push", dir / "bus.yml", "--bus", bus, "--json", dir / "first.json"});
+  ASSERT_EQ(first.exit_code, 0) << first.out << first.err.substr(0, 4000);
+  EXPECT_NE(first.out.find("node 5 (drive): program updated: 700 bytes in "), std::string::npos)
+      << first.out;
+  EXPECT_NE(first.out.find("before software identification 0x00000000, after " + cfg::hex(id, 8) +
+                           " (1F56h sub 1)"),
+            std::string::npos)
+      << first.out;
+  const Json report = parse_json(dir / "first.json");
+  const auto nodes = nodes_of(report);
+  ASSERT_EQ(nodes.size(), 1U);
+  const auto* program = nodes.at(5)->get("program");
+  ASSERT_NE(program, nullptr);
+  EXPECT_TRUE(program->get("updated")->boolean);
+  EXPECT_EQ(program->get("bytes")->number, 700);
+  EXPECT_EQ(program->get("identification_before")->number, 0);
+  EXPECT_EQ(program->get("identification_after")->number, id);
+  EXPECT_TRUE(program->get("before")->is(Json::Kind::Null));
+
+  // The device keeps its program (sim:?state=): 1F56h now equals 1F55h, nothing to update.
+  auto second = cfgmgr(dir, {"push", dir / "bus.yml", "--bus", bus, "--json", dir / "second.json"});
+  ASSERT_EQ(second.exit_code, 0) << second.err.substr(0, 4000);
+  EXPECT_EQ(second.out.find("program updated"), std::string::npos) << second.out;
+  const Json second_report = parse_json(dir / "second.json");
+  const auto again = nodes_of(second_report);
+  ASSERT_EQ(again.size(), 1U);
+  EXPECT_TRUE(again.at(5)->get("program")->is(Json::Kind::Null));
+}
+
 TEST(BusYmlPush, BuildWritesAMasterDcfThatReadsBackAsTheNetwork) {
   ScratchDir dir;
   const std::string out = dir / "out";
   auto r = cfgmgr(dir, {"build", data("lely.yml"), "-o", out});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const char* file : {"master.dcf", "node2.bin", "node3.bin", "node4.bin"}) {
+  // dcfgen's names: master.dcf and <slave>.bin, the slave's key in the bus.yml.
+  for (const char* file : {"master.dcf", "io.bin", "axis_x.bin", "axis_y.bin"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(out) / file)) << file;
   }
+  const std::string master = tool_test::slurp(out + "/master.dcf");
+  EXPECT_NE(master.find("UploadFile=io.bin"), std::string::npos);
+  EXPECT_NE(master.find("UploadFile=axis_x.bin"), std::string::npos);
   // The master DCF (1006h, 1F80h, 1F89h, 102Ah from the bus.yml) names the three concise DCFs
   // and checks clean as a network.
   auto check = cfgmgr(dir, {"check", "--network", out + "/master.dcf"});

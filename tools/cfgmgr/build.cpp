@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "../common/tool_support.hpp"
+#include "cfg/bus_yml.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/dynamic_channels.hpp"
 #include "cfg/integer_literal.hpp"
@@ -94,7 +95,18 @@ void run_build(const BuildCliOptions& options) {
     fail_command(kTool, tools::kExitUsage, "--net: networks are numbered from 1");
   const auto network =
       load_network_or_exit(options.network, options.net, {}, options.dcf_path, options.defines);
-  const cfg::NetworkBuild build = cfg::build_network(*network);
+  // A bus.yml is built as dcfgen builds it, so that ros2_canopen's launch files find the files:
+  // each slave's concise DCF is named after its key, `<slave>.bin` (dcfgen's Slave.write_bin);
+  // a name that is no plain file name keeps ours, nodeN.bin.
+  cfg::NodeFileName file_name;
+  if (cfg::is_bus_yml_path(options.network)) {
+    file_name = [](const cfg::NetworkNode& node) {
+      const bool plain = !node.name.empty() && node.name != "." && node.name != ".." &&
+                         node.name.find_first_of("/\\") == std::string::npos;
+      return plain ? node.name + ".bin" : "node" + std::to_string(node.node_id.value()) + ".bin";
+    };
+  }
+  const cfg::NetworkBuild build = cfg::build_network(*network, file_name);
   // The master's node-ID as cfgmgr master and push take it (--node-id, else the network's, else
   // 7Fh), and a check that the master can be built from the dictionary written (CiA 306 §4.7: a
   // DCF names its node).
@@ -146,11 +158,11 @@ void add_build_command(CLI::App& app) {
       "dcfgen does: DIR/master.dcf (1F80h, 1F81h, 1F84h-1F88h, 1F26h/1F27h, 1016h as cfgmgr "
       "master derives them, or the network's own master DCF; 1F22h sub N names node N's file "
       "with DownloadFile= and UploadFile=) and DIR/nodeN.bin (the CiA 302 concise DCF the master "
-      "downloads to node N)");
+      "downloads to node N; from a bus.yml DIR/<slave>.bin, dcfgen's names)");
   cmd->add_option("network", options->network,
                   "CiA 306-3 project file (nodelist.cpj; DCF paths relative to it) or a master "
                   "DCF (CANopenManager=1) whose 1F20h/1F22h name node files with DownloadFile= or "
-                  "UploadFile= (lely dcfgen's master.dcf)")
+                  "UploadFile= (lely dcfgen's master.dcf), or a lely / ros2_canopen bus.yml")
       ->required()
       ->type_name("NETWORK");
   cmd->add_option("-o,--output", options->output_dir,

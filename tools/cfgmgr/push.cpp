@@ -23,6 +23,7 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/download_order.hpp"
+#include "cfg/hex.hpp"
 #include "cfg/master_objects.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
@@ -471,11 +472,20 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
     std::snprintf(seconds, sizeof seconds, "%.3f s", u->seconds());
     std::cout << "node " << static_cast<int>(r.node_id)
               << (r.name.empty() ? "" : " (" + r.name + ")")
-              << ": program updated: " << tools::plural(u->total, "byte") << " in " << seconds
-              << ", before "
-              << (u->before ? cfg::to_string(*u->before) : std::string("(not reported)"))
-              << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?"))
-              << (u->clear_refused
+              << ": program updated: " << tools::plural(u->total, "byte") << " in " << seconds;
+    if (u->identification_before) {
+      // CiA 302-3 (1F55h): the identifications, not the versions.
+      std::cout << ", before software identification " << cfg::hex(*u->identification_before, 8)
+                << ", after "
+                << (u->identification_after ? cfg::hex(*u->identification_after, 8)
+                                            : std::string("?"))
+                << " (1F56h sub 1)";
+    } else {
+      std::cout << ", before "
+                << (u->before ? cfg::to_string(*u->before) : std::string("(not reported)"))
+                << ", after " << (u->after ? cfg::to_string(*u->after) : std::string("?"));
+    }
+    std::cout << (u->clear_refused
                       ? "; clear (1F51h = 3) refused: " + nmt::to_string(*u->clear_refused)
                       : std::string())
               << '\n';

@@ -41,6 +41,7 @@ struct NetworkRunArgs {
   bool verbose = false;
   ProgramOverrides programs;
   std::vector<std::string> dcf_path;  ///< --dcf-path DIR, repeatable (cfg::NetworkOptions)
+  std::vector<std::string> defines;   ///< --define NAME=VALUE
 };
 
 /// Adds --dcf-path DIR (repeatable) to `cmd`: where the files a master DCF names are looked for
@@ -48,8 +49,6 @@ struct NetworkRunArgs {
 void add_dcf_path_option(CLI::App& cmd, std::vector<std::string>& dirs);
 /// The end of the error for a file a master DCF names that is nowhere: how to pass --dcf-path.
 inline constexpr std::string_view kDcfPathHint = " with --dcf-path DIR";
-std::vector<std::string> defines;  ///< --define NAME=VALUE
-};
 
 /// Adds --define NAME=VALUE (repeatable) to `cmd`: the value of a bus.yml's `@NAME@`
 /// placeholder (cfg/bus_yml.hpp), as CMake's configure_file would fill it.
