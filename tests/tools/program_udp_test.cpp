@@ -3,17 +3,21 @@
 // (tests/io/python/program_slaves.py: 1F50h by block download, 1F51h with DSP 302 v3.2.1's range
 // 0..2, so that the master's clear (3) is refused, 1F52h from the image's trailer). Runs inside
 // a private network namespace (tests/support/run_in_netns.sh) as the other UDP tool tests do;
-// elsewhere it skips.
+// elsewhere it skips. The same slaves also have CiA 302-3's 1F56h/1F57h, for the update that a
+// bus.yml's software_version/software_file asks for (lely's master's way).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <chrono>
 #include <csignal>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include "cfg/bytes.hpp"
+#include "cfg/hex.hpp"
 #include "multicast_netns.hpp"
 #include "python_peer.hpp"
 #include "tool_test_support.hpp"
@@ -131,6 +135,59 @@ TEST(ProgramUpdateInNetns, SimulateStateKeepsTheDownloadedImageAcrossARestart) {
   ASSERT_EQ(again.exit_code, 0) << again.out << again.err;
   EXPECT_THAT(again.out, Not(HasSubstr("program updated")));
   EXPECT_EQ(devices.stop(), 0) << devices.output();
+}
+
+// CiA 302-3 as lely's master does it, from a bus.yml (dcfgen's software_version and
+// software_file): 1F56h sub 1 against 1F55h, the image, then 1F57h sub 1 read until bit 0
+// ("in progress") clears, every 100 ms, over a real-time bus; start; 1F56h again. The second
+// push finds 1F56h = 1F55h and downloads nothing.
+TEST(ProgramUpdateInNetns, BusYmlSoftwareVersionUpdatesByIdentificationAfterTheFlashStatus) {
+  REQUIRE_ISOLATED_MULTICAST();
+  REQUIRE_PYTHON_CAN();
+  ScratchDir dir;
+  const char* port = "43227";
+  std::vector<std::uint8_t> image(700);
+  for (std::size_t i = 0; i < image.size(); ++i) image[i] = static_cast<std::uint8_t>(i * 13);
+  tool_test::write_file(dir / "drive_v3.img", image);
+  const std::uint32_t id = cfg::crc32(image);  // zlib's, as the python slave computes it
+  tool_test::write_file(dir / "bus.yml",
+                        std::string("master:\n  node_id: 1\n\ndrive:\n  dcf: \"") +
+                            tool_test::data_path("program/nodes/python_node3.dcf") +
+                            "\"\n  node_id: 3\n  software_version: " + cfg::hex(id, 8) +
+                            "\n  software_file: \"drive_v3.img\"\n");
+  const std::string bus = test_support::udp_test_url(port);
+  test_support::PythonPeer slave(
+      test_support::python_script("program_slaves.py"),
+      {"--flash-busy", "2", test_support::kUdpTestGroup, port, "40", "3"});
+  ASSERT_EQ(slave.read_line(), "READY");
+  const auto first = tool_test::cfgmgr(dir, {"push", dir / "bus.yml", "--bus", bus});
+  const auto second = tool_test::cfgmgr(dir, {"push", dir / "bus.yml", "--bus", bus});
+  {
+    test_support::PythonPeer end({"send", test_support::kUdpTestGroup, port, "7FF#"});
+    (void)end.finish();
+  }
+  const auto lines = slave.read_all();
+  (void)slave.finish();
+  std::string all;
+  for (const auto& line : lines) all += line + "\n";
+  ASSERT_EQ(first.exit_code, 0) << first.out << first.err << "--- slave:\n" << all;
+  EXPECT_THAT(first.out, HasSubstr("node 3 (drive): program updated: 700 bytes in "));
+  EXPECT_THAT(first.out, HasSubstr("before software identification 0x0BAD0001, after " +
+                                   cfg::hex(id, 8) + " (1F56h sub 1)"));
+  // The image, two reads of "in progress", one of "done", then start.
+  const auto image_at = position(lines, "PROGRAM 3 700");
+  const auto busy = position(lines, "FLASH 3 1");
+  const auto done = position(lines, "FLASH 3 0");
+  const auto start = position(lines, "CONTROL 3 1");
+  ASSERT_GE(image_at, 0) << all;
+  EXPECT_LT(image_at, busy) << all;
+  EXPECT_LT(busy, done) << all;
+  EXPECT_LT(done, start) << all;
+  EXPECT_EQ(std::count(lines.begin(), lines.end(), "FLASH 3 1"), 2) << all;
+  EXPECT_EQ(std::count(lines.begin(), lines.end(), "READ 3 1F52 01"), 0) << "no DSP 302 read";
+  ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
+  EXPECT_THAT(second.out, Not(HasSubstr("program updated")));
+  EXPECT_EQ(std::count(lines.begin(), lines.end(), "PROGRAM 3 700"), 1) << all;
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 python-can alone (nothing here uses our C++ code): the independent peers of the software update
 tests over the UDP multicast bus (tests/tools/program_udp_test.cpp).
 
-Usage: program_slaves.py [--refuse-clear] GROUP PORT TIMEOUT_S NODE...
+Usage: program_slaves.py [--refuse-clear] [--flash-busy N] GROUP PORT TIMEOUT_S NODE...
 
 Besides master_slaves.py's objects, every NODE has:
   - 1F50h sub 1 (DOMAIN, wo): program 1's data, by block download only (CiA 301
@@ -16,14 +16,22 @@ Besides master_slaves.py's objects, every NODE has:
     (ms after midnight); 2025-08-01 07:30 (15188, 27000000) until a downloaded program starts,
     then the version of its trailer (our convention: the image ends in date LE32, time LE32,
     "CPV1"), or 0/0 for an image without one.
-Extra lines: PROGRAM NODE SIZE (an image stored), CONTROL NODE VALUE (1F51h written).
+  - 1F56h sub 1 (UNSIGNED32, ro): CiA 302-3's program software identification: 0BAD0001h until a
+    downloaded program starts, then the image's CRC-32 (zlib's).
+  - 1F57h sub 1 (UNSIGNED32, ro): CiA 302-3's flash status identification: after an image is
+    stored, bit 0 ("in progress") for the first N reads (--flash-busy N, default 0), then 0
+    (no error).
+Extra lines: PROGRAM NODE SIZE (an image stored), CONTROL NODE VALUE (1F51h written), FLASH
+NODE VALUE (1F57h read).
 """
 import sys
+import zlib
 
 import master_slaves as base
 
 TRAILER = b"CPV1"
 REFUSE_CLEAR = False
+FLASH_BUSY = 0
 
 
 class ProgramSlave(base.Slave):
@@ -32,6 +40,8 @@ class ProgramSlave(base.Slave):
         self.version = (15188, 27000000)
         self.control = 1
         self.image = None
+        self.identification = 0x0BAD0001
+        self.busy_reads = 0
         self.receiving = None  # block download: {"data", "size", "seq"}
 
     def version_of(self, image):
@@ -56,6 +66,7 @@ class ProgramSlave(base.Slave):
                 self.abort(0x1F50, 1, 0x06070010)
                 return
             self.image = image
+            self.busy_reads = FLASH_BUSY
             base.say("PROGRAM %d %d" % (self.node, len(image)))
             self.reply([0xA1])
             return
@@ -101,6 +112,7 @@ class ProgramSlave(base.Slave):
             self.control = value
             if value == 1 and self.image is not None:
                 self.version = self.version_of(self.image)
+                self.identification = zlib.crc32(self.image) & 0xFFFFFFFF
             self.reply([0x60, data[1], data[2], sub])
             return
         if index == 0x1F52 and sub in (1, 2):
@@ -110,6 +122,19 @@ class ProgramSlave(base.Slave):
             base.say("READ %d 1F52 %02X" % (self.node, sub))
             value = self.version[sub - 1].to_bytes(4, "little")
             self.reply([0x43, data[1], data[2], sub] + list(value))
+            return
+        if index in (0x1F56, 0x1F57) and sub == 1:
+            if ccs != 2:
+                self.abort(index, sub, 0x06010002)
+                return
+            if index == 0x1F56:
+                value = self.identification
+                base.say("READ %d 1F56 01" % self.node)
+            else:
+                value = 1 if self.busy_reads > 0 else 0
+                self.busy_reads = max(0, self.busy_reads - 1)
+                base.say("FLASH %d %d" % (self.node, value))
+            self.reply([0x43, data[1], data[2], sub] + list(value.to_bytes(4, "little")))
             return
         if index == 0x1F52 and sub == 0 and ccs == 2:
             self.reply([0x4F, data[1], data[2], 0, 2])
@@ -122,5 +147,8 @@ if __name__ == "__main__":
     if len(argv) > 1 and argv[1] == "--refuse-clear":
         REFUSE_CLEAR = True
         del argv[1]
+    if len(argv) > 2 and argv[1] == "--flash-busy":
+        FLASH_BUSY = int(argv[2])
+        del argv[1:3]
     base.Slave = ProgramSlave
     sys.exit(base.main(argv))
