@@ -19,8 +19,10 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "cfg/download_order.hpp"
+#include "multicast_netns.hpp"
 #include "prerequisite.hpp"
 #include "push_test_support.hpp"
+#include "tool_test_support.hpp"
 
 namespace {
 
@@ -242,6 +244,37 @@ TEST(DcfgenPush, Ros2CanopenSimpleSaysNoConfigurationForSlavesWithAnEmpty1F22h) 
                                             "master boots, but there is no configuration for "
                                             "node 2 (1F22h sub 02h empty)"));
   EXPECT_THAT(check.err, HasSubstr(master + ":503: warning: 1F81h sub 03h"));
+}
+
+// The same master.dcf over the UDP multicast bus in real time, against `cfgmgr simulate`
+// processes built from the EDS dcfgen read (ros2_canopen's robot_control: two joints, 30
+// entries each in their .bin). Runs inside a private network namespace; elsewhere it skips.
+TEST(DcfgenPush, EndToEndOverUdp) {
+  tool_test::run_in_private_netns("DcfgenPushInNetns.*");
+}
+
+TEST(DcfgenPushInNetns, Ros2CanopenRobotControlConfiguresBothJointsOverUdp) {
+  REQUIRE_ISOLATED_MULTICAST();
+  SKIP_WITHOUT_CORPUS();
+  ScratchDir dir;
+  const std::string set = corpus("ros2_canopen-dcfgen/robot_control");
+  const std::string bus = test_support::udp_test_url("43228");
+  tool_test::SimulatedDevices devices(dir.path(), bus, {});
+  ASSERT_NO_FATAL_FAILURE(
+      devices.simulate({set + "/cia402_slave.eds@2", set + "/cia402_slave.eds@3"}));
+  const auto r = cfgmgr(dir, {"push", set + "/master.dcf", "--bus", bus, "--dcf-path", set,
+                              "--json", dir / "report.json"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err << devices.output();
+  const Json report = push_test::parse_json(dir / "report.json");
+  const auto nodes = push_test::nodes_of(report);
+  ASSERT_EQ(nodes.size(), 2U);
+  for (const auto& [id, bin] : {std::pair{2, "joint_1.bin"}, std::pair{3, "joint_2.bin"}}) {
+    const Expected e = expected_download(set + "/" + bin);
+    EXPECT_EQ(e.in_stream, 30U);  // MANIFEST.tsv
+    EXPECT_EQ(nodes.at(id)->get("result")->string, "configured");
+    EXPECT_EQ(static_cast<std::size_t>(nodes.at(id)->get("entries")->number), e.written);
+  }
+  EXPECT_EQ(devices.stop(), 0) << devices.output();
 }
 
 }  // namespace
