@@ -1050,7 +1050,14 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
   // sub 1 against 1F55h and updates it from the file (CiA 302-3, docs/master.md).
   std::optional<NodeProgram> program;
   if (const Field* f = find(fields, "software_version")) {
-    if (auto v = unsigned_of(*f, 0xFFFFFFFFU); v && *v != 0) {
+    const auto v = unsigned_of(*f, 0xFFFFFFFFU);
+    if (v && *v == 0) {
+      // dcfgen: 0 leaves 1F81h bit 5 clear; nothing is checked.
+      warning(f->line, who +
+                           "software_version: 0 means 'not given': the node's software is "
+                           "not checked (1F81h bit 5 clear, as in dcfgen)");
+    }
+    if (v && *v != 0) {
       program.emplace();
       program->identification = *v;
       program->source = path_;

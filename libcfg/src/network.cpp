@@ -753,6 +753,17 @@ std::optional<ProgramVersion> expected_program_version(const Network& network, N
   return version;
 }
 
+std::optional<std::uint32_t> expected_software_identification(const Network& network, NodeId node) {
+  const DeviceDescription& master = network.master;
+  const std::uint8_t x = node.value();
+  const auto bits = configured_unsigned(master, object::kSlaveAssignment, x, node).value_or(0);
+  if ((bits & SlaveAssignment::kVerifySoftware) == 0) return std::nullopt;
+  const auto id =
+      configured_unsigned(master, object::kExpectedSoftwareIdentification, x, node).value_or(0);
+  if (id == 0) return std::nullopt;
+  return static_cast<std::uint32_t>(id);
+}
+
 Result<std::vector<std::uint8_t>> read_program_image(const std::string& file) {
   auto text = read_file(file);
   if (!text) return text.error();
@@ -771,6 +782,13 @@ Result<void> set_node_program(Network& network, NodeId node, const std::string& 
     return Error{"node " + std::to_string(node.value()) + " is not in " + network.file};
   }
   NodeProgram program = target->program.value_or(NodeProgram{});
+  if (version && program.identification) {
+    // The master would check 1F56h against 1F55h and never look at this version.
+    return Error{"node " + std::to_string(node.value()) +
+                 ": a version (1F52h, DSP 302) for a node checked by its software "
+                 "identification (1F55h, CiA 302-3: bus.yml software_version); give "
+                 "--program NODE=FILE alone"};
+  }
   if (!file.empty()) {
     auto image = read_program_image(file);
     if (!image) return Error{"'" + file + "': " + image.error().message};

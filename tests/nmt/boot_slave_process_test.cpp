@@ -968,5 +968,23 @@ TEST(BootSlave, Cia302_3ReportsStatusHWhenTheIdentificationDiffersAndBit6IsClear
   EXPECT_EQ(errors[0].failure->expected, kExpectedId);
 }
 
+// The start-up's reset of all nodes while the try waits to read 1F57h again: the wait ends with
+// the try, and the next try begins at 1000h.
+TEST(BootSlave, Cia302_3ResetDuringTheFlashStatusWaitEndsTheWait) {
+  Rig rig;
+  verify_identification(rig, true);
+  report_identification(rig, kRunningId);
+  download_image(rig);
+  rig.answer(0x1);  // in progress: read again in 100 ms
+  EXPECT_EQ(rig.process.next_deadline(), rig.now + 100ms);
+  rig.process.reset(rig.now);
+  EXPECT_EQ(rig.process.next_deadline(), std::nullopt);
+  const auto reads = rig.port.accesses.size();
+  rig.advance(200ms);
+  EXPECT_EQ(rig.port.accesses.size(), reads) << "no 1F57h read after the reset";
+  rig.process.start(rig.now, rig.out);
+  expect_access(rig.last(), 0x1000, 0, true);
+}
+
 }  // namespace
 }  // namespace nmt

@@ -75,6 +75,10 @@ TEST(BusYmlPush, SoftwareVersionAndFileUpdateTheSlaveByIdentificationAndASecondP
                             "\"\n  node_id: 5\n  software_version: " + cfg::hex(id, 8) +
                             "\n  software_file: \"drive_v2.img\"\n");
   const std::string bus = "sim:?state=" + (dir / "state");
+  // verify reads 1F56h sub 1 against 1F55h, as the master checks it (not 1F52h).
+  auto before = cfgmgr(dir, {"verify", dir / "bus.yml", "--bus", bus});
+  EXPECT_EQ(before.exit_code, 4) << before.out << before.err;
+  EXPECT_NE(before.out.find("1F56h sub 01h"), std::string::npos) << before.out;
   auto first = cfgmgr(dir, {"push", dir / "bus.yml", "--bus", bus, "--json", dir / "first.json"});
   ASSERT_EQ(first.exit_code, 0) << first.out << first.err.substr(0, 4000);
   EXPECT_NE(first.out.find("node 5 (drive): program updated: 700 bytes in "), std::string::npos)
@@ -102,6 +106,48 @@ TEST(BusYmlPush, SoftwareVersionAndFileUpdateTheSlaveByIdentificationAndASecondP
   const auto again = nodes_of(second_report);
   ASSERT_EQ(again.size(), 1U);
   EXPECT_TRUE(again.at(5)->get("program")->is(Json::Kind::Null));
+  auto after = cfgmgr(dir, {"verify", dir / "bus.yml", "--bus", bus});
+  EXPECT_EQ(after.exit_code, 0) << after.out << after.err;
+
+  // A version on the command line for a node checked by its identification would never be
+  // looked at: refused.
+  auto both = cfgmgr(
+      dir, {"push", dir / "bus.yml", "--bus", "sim:", "--program-version", "5=2026-11-27T08:15"});
+  EXPECT_NE(both.exit_code, 0);
+  EXPECT_NE(both.err.find("checked by its software identification (1F55h"), std::string::npos)
+      << both.err;
+
+  // build carries the image: DIR/drive.img, named by 1F58h sub 5 of DIR/master.dcf, which a
+  // push of the built master DCF reads back and downloads to a fresh device.
+  auto built = cfgmgr(dir, {"build", dir / "bus.yml", "-o", dir / "out"});
+  ASSERT_EQ(built.exit_code, 0) << built.err;
+  EXPECT_EQ(tool_test::slurp(dir / "out/drive.img"), std::string(image.begin(), image.end()));
+  const std::string master = tool_test::slurp(dir / "out/master.dcf");
+  EXPECT_NE(master.find("[1F58sub5]"), std::string::npos);
+  EXPECT_NE(master.find("UploadFile=drive.img"), std::string::npos);
+  auto from_build = cfgmgr(dir, {"push", dir / "out/master.dcf", "--bus",
+                                 "sim:?device=" + tool_test::data_path("sim_device.eds") + "@5"});
+  ASSERT_EQ(from_build.exit_code, 0) << from_build.out << from_build.err;
+  EXPECT_NE(from_build.out.find("program updated: 700 bytes in "), std::string::npos)
+      << from_build.out;
+}
+
+// Slave keys that are no plain file name, or that another slave's nodeN.bin would also give,
+// keep our nodeN.bin: no file is written twice and 1F22h names one file per node.
+TEST(BusYmlPush, BuildKeepsNodeNNamesWhereSlaveKeysWouldCollideOrAreNoFileNames) {
+  ScratchDir dir;
+  const std::string eds = tool_test::data_path("sim_device.eds");
+  tool_test::write_file(dir / "bus.yml", "master:\n  node_id: 1\nnode3:\n  dcf: \"" + eds +
+                                             "\"\n  node_id: 2\n\"odd name\":\n  dcf: \"" + eds +
+                                             "\"\n  node_id: 3\n");
+  auto r = cfgmgr(dir, {"build", dir / "bus.yml", "-o", dir / "out"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "out/node2.bin"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out/node3.bin"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/odd name.bin"));
+  const std::string master = tool_test::slurp(dir / "out/master.dcf");
+  EXPECT_NE(master.find("UploadFile=node2.bin"), std::string::npos);
+  EXPECT_NE(master.find("UploadFile=node3.bin"), std::string::npos);
 }
 
 TEST(BusYmlPush, BuildWritesAMasterDcfThatReadsBackAsTheNetwork) {

@@ -274,6 +274,9 @@ TEST(DcfgenPushInNetns, Ros2CanopenRobotControlConfiguresBothJointsOverUdp) {
     EXPECT_EQ(nodes.at(id)->get("result")->string, "configured");
     EXPECT_EQ(static_cast<std::size_t>(nodes.at(id)->get("entries")->number), e.written);
   }
+  // The devices hold the .bin's values: verify reads every entry back and finds none differing.
+  const auto v = cfgmgr(dir, {"verify", set + "/master.dcf", "--bus", bus, "--dcf-path", set});
+  EXPECT_EQ(v.exit_code, 0) << v.out << v.err;
   EXPECT_EQ(devices.stop(), 0) << devices.output();
 }
 

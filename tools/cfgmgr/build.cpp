@@ -1,8 +1,11 @@
 // cfgmgr build NETWORK -o DIR: the master DCF and every slave's concise DCF of a network
 // description (cfg/network_build.hpp), what lely's dcfgen makes from its YAML, so that a master
 // DCF alone describes the network.
+#include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -96,14 +99,32 @@ void run_build(const BuildCliOptions& options) {
   const auto network =
       load_network_or_exit(options.network, options.net, {}, options.dcf_path, options.defines);
   // A bus.yml is built as dcfgen builds it, so that ros2_canopen's launch files find the files:
-  // each slave's concise DCF is named after its key, `<slave>.bin` (dcfgen's Slave.write_bin);
-  // a name that is no plain file name keeps ours, nodeN.bin.
+  // each slave's concise DCF is named after its key, `<slave>.bin` (dcfgen's Slave.write_bin).
+  // A key that is no plain file name ([A-Za-z0-9._-], not starting with a dot), or one that
+  // another slave's name or our nodeN.bin would also give (case-insensitively: a file system may
+  // not tell them apart), keeps ours, nodeN.bin, so that no file is written twice.
   cfg::NodeFileName file_name;
   if (cfg::is_bus_yml_path(options.network)) {
-    file_name = [](const cfg::NetworkNode& node) {
-      const bool plain = !node.name.empty() && node.name != "." && node.name != ".." &&
-                         node.name.find_first_of("/\\") == std::string::npos;
-      return plain ? node.name + ".bin" : "node" + std::to_string(node.node_id.value()) + ".bin";
+    const auto plain = [](const std::string& name) {
+      return !name.empty() && name.front() != '.' &&
+             std::all_of(name.begin(), name.end(), [](char c) {
+               return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' || c == '_' ||
+                      c == '-';
+             });
+    };
+    const auto folded = [](std::string name) {
+      for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return name;
+    };
+    std::map<std::string, int> uses;  // folded file name -> slaves that would get it
+    for (const auto& node : network->nodes) {
+      if (plain(node.name)) ++uses[folded(node.name + ".bin")];
+      ++uses[folded("node" + std::to_string(node.node_id.value()) + ".bin")];
+    }
+    file_name = [plain, folded, uses](const cfg::NetworkNode& node) {
+      const std::string own = node.name + ".bin";
+      if (plain(node.name) && uses.at(folded(own)) == 1) return own;
+      return "node" + std::to_string(node.node_id.value()) + ".bin";
     };
   }
   const cfg::NetworkBuild build = cfg::build_network(*network, file_name);
@@ -134,6 +155,15 @@ void run_build(const BuildCliOptions& options) {
               << (node.name.empty() ? "" : " (" + node.name + ")") << ", " << node.entries
               << (node.entries == 1 ? " entry, " : " entries, ")
               << tools::plural(node.concise_dcf.size(), "byte") << '\n';
+    if (!node.program_image.empty()) {
+      // CiA 302-3 program data (1F58h sub N names it), as dcfgen's software_file.
+      const std::string image = (dir / node.program_file_name).string();
+      write_or_exit(image,
+                    std::string_view(reinterpret_cast<const char*>(node.program_image.data()),
+                                     node.program_image.size()));
+      std::cout << image << ": node " << int{node.node_id.value()} << "'s program, "
+                << tools::plural(node.program_image.size(), "byte") << '\n';
+    }
   }
   cfg::WriteOptions write_options;
   write_options.kind = cfg::FileKind::Dcf;

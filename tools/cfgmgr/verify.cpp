@@ -173,6 +173,13 @@ std::string json_report(const std::vector<NodeSummary>& nodes, const std::vector
 void start(nmt::ConfigurationVerifier& verifier, const cfg::Network& network, nmt::TimePoint now,
            nmt::ConfigurationVerifier::Output& out) {
   for (const auto& node : network.nodes) {
+    if (const auto id = cfg::expected_software_identification(network, node.node_id)) {
+      // CiA 302-3: 1F56h sub 1 against 1F55h, which the master checks instead of 1F52h.
+      std::vector<cfg::ObjectWrite> writes = node.writes;
+      writes.push_back({cfg::object::kProgramSoftwareIdentification, 1, cfg::le32_bytes(*id)});
+      verifier.verify(node.node_id, writes, now, out);
+      continue;
+    }
     const auto program = cfg::expected_program_version(network, node.node_id);
     if (!program) {
       verifier.verify(node.node_id, node.writes, now, out);

@@ -234,6 +234,10 @@ Result<void> set_node_program(Network& network, NodeId node, const std::string& 
 /// when 1F81h sub `node` has bit 5; nullopt when the master does not check the node's version
 /// (or both are 0, status G's case).
 std::optional<ProgramVersion> expected_program_version(const Network& network, NodeId node);
+/// CiA 302-3: the software identification the master expects node `node` to report in 1F56h
+/// sub 1, its 1F55h sub `node` when 1F81h sub `node` has bit 5; nullopt when not checked or 0.
+/// When set, the master checks it instead of expected_program_version.
+std::optional<std::uint32_t> expected_software_identification(const Network& network, NodeId node);
 
 /// The image at `file`: fails ("cannot open the file: ...", "the file is empty: ...") without
 /// the path in the message, like read_file.

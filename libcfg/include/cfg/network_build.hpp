@@ -24,6 +24,11 @@ struct BuiltNode {
   /// master downloads from it.
   std::vector<std::uint8_t> concise_dcf;
   std::size_t entries = 0;
+  /// The node's program image (NetworkNode::program), empty without one, and the name the
+  /// master DCF's 1F58h sub node-ID gives it (CiA 302-3 program data, as dcfgen's
+  /// software_file): the concise DCF's name with ".img" for ".bin".
+  std::vector<std::uint8_t> program_image;
+  std::string program_file_name;
 };
 
 struct NetworkBuild {
@@ -31,8 +36,10 @@ struct NetworkBuild {
   /// 1F84h-1F88h, 1F26h/1F27h, 1016h) with 1F22h (concise DCF, an ARRAY of DOMAIN, sub-index =
   /// node-ID) naming each slave's file: DownloadFile= (what load_network reads) and UploadFile=
   /// (what lely's master reads) both; 1F20h sub-indices with DownloadFile= are removed, since
-  /// 1F22h now configures the nodes. [DeviceComissioning] says CANopenManager=1, NodeID (when
-  /// the network knows the master's) and NetworkName.
+  /// 1F22h now configures the nodes. The nodes with a program image get 1F58h sub node-ID
+  /// naming it the same two ways (load_network reads it back as the node's program).
+  /// [DeviceComissioning] says CANopenManager=1, NodeID (when the network knows the master's)
+  /// and NetworkName.
   DeviceDescription master;
   std::vector<BuiltNode> nodes;  ///< by ascending node-ID
 };
