@@ -22,6 +22,7 @@
 #include "cfg/object_address.hpp"
 #include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
+#include "relative_path.hpp"
 
 namespace cfg {
 namespace {
@@ -929,9 +930,7 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
   }
   const auto dcf_name = path_value(*dcf_field, who);
   if (!dcf_name) return;
-  const fs::path dcf_path(*dcf_name);
-  const std::string file =
-      (dcf_path.is_absolute() || base_.empty() ? dcf_path : base_ / dcf_path).string();
+  const std::string file = detail::resolve_relative(base_, *dcf_name);
   const auto read = device_file(file, dcf_field->line, who);
   if (!read) return;
   DeviceDescription dcf = **read;
@@ -1070,10 +1069,10 @@ void Reader::read_slave(const std::string& name, int line, const std::vector<Fie
         warning(f->line, who +
                              "software_file without software_version: 1F81h bit 5 stays clear, "
                              "so the master neither checks nor updates the node's software (as "
-                             "lely's master)");
+                             "lely's master); give software_version, the identification the "
+                             "device reports in 1F56h sub 1, to have it updated");
       } else {
-        const fs::path p(*image_name);
-        program->file = (p.is_absolute() || base_.empty() ? p : base_ / p).string();
+        program->file = detail::resolve_relative(base_, *image_name);
         program->line = f->line;
         auto image = read_program_image(program->file);
         if (!image) {

@@ -17,8 +17,26 @@
 #include "cfg/value.hpp"
 #include "device_file_detail.hpp"
 #include "ini_scanner.hpp"
+#include "relative_path.hpp"
 
 namespace cfg {
+
+std::string detail::resolve_relative(const std::filesystem::path& base_dir,
+                                     const std::string& name) {
+  const auto join = [&base_dir](const std::string& n) {
+    const std::filesystem::path p(n);
+    return (p.is_absolute() || base_dir.empty() ? p : base_dir / p).string();
+  };
+  std::string path = join(name);
+  std::error_code ec;
+  if (name.find('\\') != std::string::npos && !std::filesystem::exists(path, ec)) {
+    std::string slashed = name;
+    std::replace(slashed.begin(), slashed.end(), '\\', '/');
+    if (std::filesystem::exists(join(slashed), ec)) path = join(slashed);
+  }
+  return path;
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -96,23 +114,6 @@ std::optional<std::uint64_t> number_of(std::string_view text) {
   const auto parsed = parse_integer_literal(text);
   if (!parsed.literal) return std::nullopt;
   return parsed.literal->value;
-}
-
-// The file a description names, relative to the directory of the naming file. Tools on Windows
-// write '\': tried as '/' when the name as written does not exist.
-std::string resolve(const fs::path& base_dir, const std::string& name) {
-  const auto join = [&base_dir](const std::string& n) {
-    const fs::path p(n);
-    return (p.is_absolute() || base_dir.empty() ? p : base_dir / p).string();
-  };
-  std::string path = join(name);
-  std::error_code ec;
-  if (name.find('\\') != std::string::npos && !fs::exists(path, ec)) {
-    std::string slashed = name;
-    std::replace(slashed.begin(), slashed.end(), '\\', '/');
-    if (fs::exists(join(slashed), ec)) path = join(slashed);
-  }
-  return path;
 }
 
 fs::path directory_of(const std::string& path) {
@@ -256,7 +257,7 @@ std::optional<Network> Loader::load_project(const std::vector<Section>& sections
   if (const Entry* e = topology->find("NetName")) network.name = e->value;
   const fs::path base = directory_of(path_);
   if (const Entry* e = topology->find("EDSBaseName"); e != nullptr && !e->value.empty()) {
-    network.eds_base_dir = resolve(base, e->value);
+    network.eds_base_dir = detail::resolve_relative(base, e->value);
   }
   const std::string section_name = "[" + topology->name + "] ";
 
@@ -283,7 +284,7 @@ std::optional<Network> Loader::load_project(const std::vector<Section>& sections
                     "DCFName: nothing to configure it from"}));
       continue;
     }
-    const std::string file = resolve(base, dcf_entry->value);
+    const std::string file = detail::resolve_relative(base, dcf_entry->value);
     auto dcf = read_dcf(file, path_, dcf_entry->line, section_name + dcf_entry->key);
     if (!dcf) continue;
     check_node_id(*dcf, node, path_, dcf_entry->line,
@@ -352,7 +353,7 @@ std::optional<NodeProgram> Loader::read_program(const Section& topology, const s
     program.version = *version;
   }
   if (file_entry != nullptr) {
-    program.file = resolve(base, file_entry->value);
+    program.file = detail::resolve_relative(base, file_entry->value);
     auto image = read_program_image(program.file);
     if (!image) {
       error(path_, file_entry->line,
@@ -401,7 +402,7 @@ std::optional<Loader::NamedFile> Loader::named_file(std::string_view text, std::
                      concat({out.what, " '", name, "' and UploadFile '", *sub.upload_file,
                              "' name different files: DownloadFile is used"}));
   }
-  const std::string written = resolve(base, name);
+  const std::string written = detail::resolve_relative(base, name);
   std::error_code ec;
   if (fs::exists(written, ec)) {
     out.path = written;
