@@ -327,7 +327,7 @@ DeviceDescription as_found_dcf(const DeviceDescription& eds, NodeId node,
       product != nullptr && !product->empty() ? *product : "node " + std::to_string(node.value());
   dcf.commissioning = std::move(commissioning);
 
-  const auto warn = [&](ObjectAddress address, std::string why) {
+  const auto warn = [&](ObjectAddress address, const std::string& why) {
     diagnostics.add("", 0, Severity::Warning,
                     "node " + std::to_string(node.value()) + ": " + to_string(address) +
                         " not recorded: " + why);

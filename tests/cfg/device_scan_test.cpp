@@ -376,6 +376,30 @@ TEST(DeviceScanAsFound, ValuesThatDoNotFitTheirTypeOrAreNoScannedEntryAreWarnedA
   EXPECT_THAT(diagnostics.format(), HasSubstr("node 5: 1017h sub 00h not recorded"));
 }
 
+TEST(DeviceScanAsFound, AddsTheIdentityEntriesAnEdsLacks) {
+  // An EDS with 1018h sub 1 only (CiA 301 makes sub 2-4 optional): the product code and revision
+  // read are still what a push checks.
+  DeviceDescription eds = load(data("sim_device.eds"));
+  eds.object(0x1018)->subs.erase(2);
+  eds.object(0x1018)->subs.erase(3);
+  eds.object(0x1018)->subs.erase(4);
+  eds.sub(0x1018, 0)->default_value = "1";
+  Values values;
+  values[{0x1018, 2}] = u32(0x508);
+  values[{0x1018, 3}] = u32(0x00020004);
+  Diagnostics diagnostics;
+  const DeviceDescription dcf = as_found_dcf(eds, *NodeId::from(5), values, diagnostics);
+  EXPECT_TRUE(diagnostics.empty()) << diagnostics.format();
+  ASSERT_NE(dcf.sub(0x1018, 3), nullptr);
+  EXPECT_EQ(dcf.sub(0x1018, 2)->parameter_value, "0x508");
+  EXPECT_EQ(dcf.sub(0x1018, 3)->parameter_value, "0x20004");
+  EXPECT_EQ(dcf.sub(0x1018, 3)->access, AccessType::Ro);
+  EXPECT_EQ(dcf.sub(0x1018, 0)->default_value, "0x03");  // the highest sub-index now
+  const DeviceIdentity id = identity_of(dcf, *NodeId::from(5));
+  EXPECT_EQ(id.product_code, 0x508u);
+  EXPECT_EQ(id.revision_number, 0x00020004u);
+}
+
 // The last value each entry is written with: the state a device is left in after the writes.
 std::map<ObjectAddress, std::vector<std::uint8_t>> state_after(
     const std::vector<ObjectWrite>& writes) {
@@ -404,6 +428,7 @@ TEST(DeviceScanAsFound, PushOfTheProjectReproducesTheScannedDeviceAndChecksItsId
 
   const NetworkLoad loaded = load_network(dir / "nodelist.cpj");
   ASSERT_TRUE(loaded.ok()) << loaded.diagnostics.format();
+  EXPECT_TRUE(loaded.diagnostics.empty()) << loaded.diagnostics.format();
   const Network& network = *loaded.network;
   EXPECT_EQ(network.name, "scanned");
   const NetworkNode* pushed = network.find(node);
@@ -464,6 +489,7 @@ TEST(DeviceScanIdentityOnly, LoadsInAProjectWithNoWritesAndItsIdentityChecked) {
 
   const NetworkLoad loaded = load_network(dir / "nodelist.cpj");
   ASSERT_TRUE(loaded.ok()) << loaded.diagnostics.format();
+  EXPECT_TRUE(loaded.diagnostics.empty()) << loaded.diagnostics.format();
   EXPECT_FALSE(loaded.diagnostics.has_errors());
   const Network& network = *loaded.network;
   const NetworkNode* pushed = network.find(node);
