@@ -11,7 +11,8 @@
 // part (high 16 bits) equals and whose minor part (low 16 bits) is not lower than the recorded
 // one (CiA 302-2 §6.9, libnmt/core/src/master/boot_slave.cpp), so a replacement with a newer
 // minor revision (backward compatible by CiA 301 §7.5.2.23) passes and an older one, which may
-// lack what the scanned device was configured with, is refused (status N). The serial number
+// lack what the scanned device was configured with, is refused (status N; tests/nmt's
+// NmtMasterSpec.RevisionWithEqualMajorAndEqualOrHigherMinorPasses). The serial number
 // (1018h sub 4) is never recorded in a DCF: a replacement has another one (derive_master keeps
 // 1F88h 0 anyway).
 #pragma once
