@@ -18,9 +18,9 @@ class ScratchDir {
  public:
   ScratchDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string test = info != nullptr ? std::string(info->test_suite_name()) + "_" +
-                                                   info->name()
-                                             : std::string("no_test");
+    const std::string test = info != nullptr
+                                 ? std::string(info->test_suite_name()) + "_" + info->name()
+                                 : std::string("no_test");
     path_ = std::filesystem::temp_directory_path() /
             ("canopen_" + test + "_" + std::to_string(::getpid()));
     // A parameterised test's name holds '/'.
