@@ -9,7 +9,6 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -22,6 +21,7 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/device_scan.hpp"
+#include "cfg/hex.hpp"
 #include "cfg/network.hpp"
 #include "cfg/object_address.hpp"
 #include "cfg/value.hpp"
@@ -110,18 +110,13 @@ const Json* node_in(const Json& report, double node_id) {
 void write_variant(const std::string& path, std::optional<std::uint32_t> product,
                    std::optional<std::uint32_t> revision) {
   cfg::DeviceDescription eds = load(kDriveEds);
-  auto hex = [](std::uint32_t v) {
-    char text[16];
-    std::snprintf(text, sizeof text, "0x%08X", v);
-    return std::string(text);
-  };
   if (product) {
-    eds.device_info.set("ProductNumber", hex(*product));
-    eds.sub(0x1018, 2)->default_value = hex(*product);
+    eds.device_info.set("ProductNumber", cfg::hex(*product, 8));
+    eds.sub(0x1018, 2)->default_value = cfg::hex(*product, 8);
   }
   if (revision) {
-    eds.device_info.set("RevisionNumber", hex(*revision));
-    eds.sub(0x1018, 3)->default_value = hex(*revision);
+    eds.device_info.set("RevisionNumber", cfg::hex(*revision, 8));
+    eds.sub(0x1018, 3)->default_value = cfg::hex(*revision, 8);
   }
   cfg::WriteOptions options;
   options.kind = cfg::FileKind::Eds;
@@ -466,12 +461,8 @@ TEST(ScanDecoy, SameProductOtherRevisionTakesTheNearestAndSaysSo) {
   EXPECT_FALSE(node->get("revision_exact")->boolean);
   ASSERT_TRUE(node->get("eds")->is(Json::Kind::String));
   EXPECT_TRUE(std::filesystem::equivalent(node->get("eds")->string, dir / "lib/older.eds"));
-  char device_rev[16];
-  char file_rev[16];
-  std::snprintf(device_rev, sizeof device_rev, "0x%08X", revision);
-  std::snprintf(file_rev, sizeof file_rev, "0x%08X", older);
-  EXPECT_THAT(node->get("note")->string, HasSubstr(device_rev));
-  EXPECT_THAT(node->get("note")->string, HasSubstr(file_rev));
+  EXPECT_THAT(node->get("note")->string, HasSubstr(cfg::hex(revision, 8)));
+  EXPECT_THAT(node->get("note")->string, HasSubstr(cfg::hex(older, 8)));
   EXPECT_THAT(node->get("note")->string, HasSubstr("nearest"));
   EXPECT_THAT(scan.err, HasSubstr("nearest"));
   EXPECT_EQ(node->get("identity")->get("revision")->number, revision);
