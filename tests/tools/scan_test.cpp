@@ -159,6 +159,45 @@ TEST(Scan, TheScannedProjectVerifiesAgainstTheOriginalsAndNamesWhatFactoryDevice
   EXPECT_EQ(named.size(), 2U);
 }
 
+// The device swap in two commands (issue 32): the scanned project pushed onto replacements at
+// factory defaults (the EDSs; sim:?state=DIR keeps what they saved) leaves them as the originals
+// were: verify finds no difference, and a scan of the replacements reads, entry by entry, the
+// values the originals' DCFs hold.
+TEST(Scan, APushOntoFactoryDevicesMakesThemHoldWhatTheOriginalsHeld) {
+  ScratchDir dir;
+  const auto scan = cfgmgr(dir, {"scan", "--bus", sim({kDrive3 + "@3", kIo2 + "@2"}), "--eds-dir",
+                                 kSamples, "-o", dir / "before"});
+  ASSERT_EQ(scan.exit_code, 0) << scan.err;
+  const std::string replacements =
+      sim({kDriveEds + "@3", kIoEds + "@2"}) + "&state=" + dir / "state";
+  const auto push = cfgmgr(dir, {"push", dir / "before/nodelist.cpj", "--bus", replacements});
+  ASSERT_EQ(push.exit_code, 0) << push.out << push.err;
+  const auto verify = cfgmgr(dir, {"verify", dir / "before/nodelist.cpj", "--bus", replacements});
+  EXPECT_EQ(verify.exit_code, 0) << verify.out << verify.err;
+
+  const auto rescan =
+      cfgmgr(dir, {"scan", "--bus", replacements, "--eds-dir", kSamples, "-o", dir / "after"});
+  ASSERT_EQ(rescan.exit_code, 0) << rescan.err;
+  struct Case {
+    std::string file;
+    std::string eds;
+    std::uint8_t node;
+  };
+  for (const Case& c : {Case{kDrive3, kDriveEds, 3}, Case{kIo2, kIoEds, 2}}) {
+    SCOPED_TRACE(c.file);
+    const auto original = load(c.file);
+    const auto after = load(dir / ("after/node" + std::to_string(c.node) + ".dcf"));
+    std::size_t compared = 0;
+    for (const auto a : cfg::entries_to_scan(load(c.eds))) {
+      const auto held = value_at(original, a, c.node);
+      if (!held) continue;  // the file gives no value
+      EXPECT_EQ(value_at(after, a, c.node), held) << cfg::to_string(a);
+      ++compared;
+    }
+    EXPECT_GT(compared, 10U);
+  }
+}
+
 // ------------------------------------------------------------------- the as-found DCF --------
 
 // Entry by entry, nodeN.dcf holds what the device holds: each entry the scan reads has the
@@ -470,6 +509,17 @@ TEST(ScanDecoy, SameProductOtherRevisionTakesTheNearestAndSaysSo) {
   const auto dcf = load(dir / "out/node3.dcf");
   EXPECT_EQ(value_at(dcf, {0x1018, 3}, 3), value_at(original, {0x1018, 3}, 3))
       << "1018h sub 3 of the as-found DCF: " << *dcf.sub(0x1018, 3)->configured_value();
+
+  // So a replacement with a lower minor revision than the scanned device (which may lack what
+  // that one was configured with) is refused by the push (status N, CiA 302-2 §6.9), as it is
+  // with a project whose EDS matched exactly.
+  const std::uint32_t lower = revision - 1;
+  ASSERT_GT(lower, older);
+  write_variant(dir / "replacement.eds", std::nullopt, lower);
+  const auto push =
+      cfgmgr(dir, {"push", dir / "out/nodelist.cpj", "--bus", sim({dir / "replacement.eds@3"})});
+  EXPECT_EQ(push.exit_code, 4) << push.out << push.err;
+  EXPECT_THAT(push.out, HasSubstr("error N")) << push.err;
 }
 
 // No EDS at all (an empty library, or none given): every device is in the project by its
