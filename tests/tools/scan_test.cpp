@@ -541,6 +541,30 @@ TEST(ScanDecoy, NoEdsAtAllKeepsTheIdentityAndExits4) {
   }
 }
 
+// A device that refuses a read the EDS allows (6083h write-only on the device: abort 0601 0001):
+// the entry is skipped and counted, never fatal; the DCF records no value for it.
+TEST(ScanDecoy, AnEntryTheDeviceRefusesIsSkippedAndCounted) {
+  ScratchDir dir;
+  cfg::DeviceDescription device = load(kDrive3);
+  ASSERT_NE(device.sub(0x6083, 0), nullptr);
+  device.sub(0x6083, 0)->access = cfg::AccessType::Wo;
+  tool_test::write_file(dir / "device.dcf", cfg::write_device_description(device, {}));
+  const auto scan = cfgmgr(dir, {"scan", "--bus", sim({dir / "device.dcf@3"}), "--eds-dir",
+                                 kSamples, "-o", dir / "out", "--json", dir / "scan.json"});
+  EXPECT_EQ(scan.exit_code, 0) << scan.err;
+  const auto json = parse_json_file(dir / "scan.json");
+  ASSERT_TRUE(json);
+  const Json* node = node_in(*json, 3);
+  ASSERT_NE(node, nullptr);
+  EXPECT_EQ(node->get("entries_skipped")->number, 1);
+  EXPECT_EQ(node->get("entries_read")->number,
+            static_cast<double>(cfg::entries_to_scan(load(kDriveEds)).size() - 1));
+  const auto dcf = load(dir / "out/node3.dcf");
+  ASSERT_NE(dcf.sub(0x6083, 0), nullptr);
+  EXPECT_FALSE(dcf.sub(0x6083, 0)->parameter_value);
+  EXPECT_TRUE(dcf.sub(0x6084, 0)->parameter_value);  // the next one is read
+}
+
 // A broken file in the library (a ParameterValue that is no UNSIGNED32, an error in either read
 // mode, line 9) is named with its file:line and skipped; the scan goes on and, the device's EDS
 // being there, exits 0.
