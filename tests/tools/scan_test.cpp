@@ -697,6 +697,28 @@ TEST(ScanInNetns, TheScanSendsNoWriteAndNoNmtCommand) {
   EXPECT_GE(uploads, 127U);  // 1000h of every node-ID at least
 }
 
+// Bad command lines are exit 2 and say which option is wrong; an --eds-dir that is no directory is
+// exit 3 (--help: "3  I/O error"). Nothing is written in either case.
+TEST(ScanOutput, BadArgumentsExit2AndAMissingLibraryExit3) {
+  ScratchDir dir;
+  const std::string bus = sim({kDrive3 + "@3"});
+  const auto node0 = cfgmgr(dir, {"scan", "--bus", bus, "--node", "0", "-o", dir / "out"});
+  EXPECT_EQ(node0.exit_code, 2);
+  EXPECT_THAT(node0.err, HasSubstr("--node")) << "names the option the user gave";
+  const auto no_devices = cfgmgr(dir, {"scan", "--bus", "sim:", "-o", dir / "out"});
+  EXPECT_EQ(no_devices.exit_code, 2);
+  EXPECT_THAT(no_devices.err, HasSubstr("device=FILE@NODES"));
+  EXPECT_EQ(cfgmgr(dir, {"scan", "--bus", bus}).exit_code, 2);  // -o is required
+  const auto file_library =
+      cfgmgr(dir, {"scan", "--bus", bus, "--eds-dir", kDriveEds, "-o", dir / "out"});
+  EXPECT_EQ(file_library.exit_code, 3);
+  EXPECT_THAT(file_library.err, HasSubstr("--eds-dir"));
+  EXPECT_EQ(
+      cfgmgr(dir, {"scan", "--bus", bus, "--eds-dir", dir / "absent", "-o", dir / "out"}).exit_code,
+      3);
+  EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+}
+
 // ------------------------------------------------------------------- --help ------------------
 
 TEST(Scan, HelpHasExamplesAndExitCodes) {
