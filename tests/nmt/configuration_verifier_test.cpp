@@ -117,13 +117,47 @@ TEST(ConfigurationVerifier, ALostResponseIsReadAgain) {
 }
 
 // No device at node 9: every upload times out, 1 + retries (2) times, and is reported failed.
-TEST(ConfigurationVerifier, ANodeThatDoesNotAnswerFailsWithTimeout) {
-  const auto results = verify(io_node2(), {{0x1017, 0, {0xE8, 0x03}}}, {}, 9);
-  ASSERT_EQ(results.size(), 1U);
-  EXPECT_FALSE(results[0].read());
-  EXPECT_EQ(results[0].abort, nmt::SdoAbort::Timeout);
-  EXPECT_EQ(results[0].attempts, 3U);
+// No device at node 9: its first upload times out once (100 ms) and the node is unreachable;
+// its other entries are not asked (issue 33: an absent node costs one timeout, not 3 per entry).
+TEST(ConfigurationVerifier, ANodeThatNeverAnswersIsUnreachableAfterOneTimeout) {
+  nmt::TimePoint last{};
+  const auto results = verify(
+      io_node2(), {{0x1017, 0, {0xE8, 0x03}}, {0x2000, 0, {0x12}}, {0x1017, 0, {0xE8, 0x03}}},
+      [&last](const nmt::CanFrame& f, nmt::TimePoint now) {
+        if (f.id == 0x609) last = now;
+        return nmt::FrameFate::deliver();
+      },
+      9);
+  ASSERT_EQ(results.size(), 2U);  // 1017h twice is one entry
   EXPECT_EQ(results[0].node_id, 9);
+  EXPECT_EQ(results[0].abort, nmt::SdoAbort::Timeout);
+  EXPECT_EQ(results[0].attempts, 1U);
+  EXPECT_TRUE(results[0].unreachable);
+  EXPECT_EQ(results[1].attempts, 0U) << "never asked";
+  EXPECT_TRUE(results[1].unreachable);
+  // The request and its abort: nothing after the one timeout.
+  EXPECT_LE(last - nmt::TimePoint{}, std::chrono::milliseconds(101));
+}
+
+// A device whose boot-up was seen (702h#00 when it powers on) is there: its lost first answer
+// is asked again, not taken for absence.
+TEST(ConfigurationVerifier, ALostFirstAnswerOfAHeardDeviceIsAskedAgain) {
+  bool dropped = false;
+  const auto results = verify(io_node2(), {{0x1017, 0, {0xE8, 0x03}}, {0x2000, 0, {0x12}}},
+                              [&dropped](const nmt::CanFrame& f, nmt::TimePoint) {
+                                if (f.id == 0x582 && !dropped) {
+                                  dropped = true;
+                                  return nmt::FrameFate::drop();
+                                }
+                                return nmt::FrameFate::deliver();
+                              });
+  ASSERT_EQ(results.size(), 2U);
+  // The repetition queues behind 2000h: 1017h ends second.
+  EXPECT_EQ(results[1].address, (cfg::ObjectAddress{0x1017, 0}));
+  EXPECT_TRUE(results[1].same());
+  EXPECT_EQ(results[1].attempts, 2U);
+  EXPECT_FALSE(results[1].unreachable);
+  EXPECT_TRUE(results[0].same());
 }
 
 }  // namespace

@@ -63,6 +63,8 @@ struct NodeSummary {
   std::size_t differ = 0;
   std::size_t failed = 0;
   std::size_t write_only = 0;
+  /// The node never answered (nmt::VerifyResult::unreachable): none of its entries was read.
+  bool unreachable = false;
 };
 
 // The value in words by the entry's data type in the node's DCF (hex bytes without one).
@@ -107,14 +109,20 @@ void print_report(const std::vector<NodeSummary>& nodes, const std::vector<Entry
                   n.failed);
     char id[8];
     std::snprintf(id, sizeof id, "%4d", n.node->node_id.value());
-    const char* result = n.differ == 0 && n.failed == 0 ? "same as the description"
-                         : n.differ != 0                ? "differs"
-                                                        : "not all read";
+    const char* result = n.unreachable                    ? "no response"
+                         : n.differ == 0 && n.failed == 0 ? "same as the description"
+                         : n.differ != 0                  ? "differs"
+                                                          : "not all read";
     std::cout << id << "  " << pad(n.node->name, name_width) << "  " << numbers << "  " << result
               << '\n';
   }
+  for (const auto& n : nodes) {
+    if (!n.unreachable) continue;
+    std::cout << node_label(*n.node) << ": no response to its first upload (is it on the bus?); "
+              << tools::plural(n.entries, "entry") << " not read\n";
+  }
   for (const auto& e : entries) {
-    if (e.result.same()) continue;
+    if (e.result.same() || e.result.unreachable) continue;
     const cfg::NetworkNode& node = *std::find_if(nodes.begin(), nodes.end(), [&](const auto& n) {
                                       return n.node->node_id == e.result.node_id;
                                     })->node;
@@ -144,13 +152,14 @@ std::string json_report(const std::vector<NodeSummary>& nodes, const std::vector
            ", \"entries\": " + std::to_string(n.entries) + ", \"same\": " + std::to_string(n.same) +
            ", \"differ\": " + std::to_string(n.differ) +
            ", \"failed\": " + std::to_string(n.failed) +
-           ", \"write_only\": " + std::to_string(n.write_only) + "}";
+           ", \"write_only\": " + std::to_string(n.write_only) +
+           ", \"unreachable\": " + (n.unreachable ? "true" : "false") + "}";
     first = false;
   }
   out += "], \"differences\": [";
   first = true;
   for (const auto& e : entries) {
-    if (!e.differs()) continue;
+    if (!e.differs() || e.result.unreachable) continue;  // an absent node: in "nodes" only
     const auto& r = e.result;
     out += std::string(first ? "" : ", ") + "{\"node_id\": " + std::to_string(r.node_id.value()) +
            ", \"index\": " + std::to_string(r.address.index) +
@@ -297,6 +306,7 @@ void run_verify(const VerifyCliOptions& options) {
       return s.node->node_id == e.result.node_id;
     });
     ++n.entries;
+    n.unreachable = n.unreachable || e.result.unreachable;
     if (e.result.same()) {
       ++n.same;
     } else if (e.write_only()) {
@@ -343,11 +353,12 @@ void add_verify_command(CLI::App& app) {
       ->capture_default_str()
       ->type_name("N");
   add_define_option(*cmd, options->defines);
-  cmd->add_option("--json", options->json,
-                  "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
-                  "nodes [{node_id, name, entries, same, differ, failed, write_only}], "
-                  "differences [{node_id, index, sub_index, address, name, expected, "
-                  "expected_hex, actual, actual_hex, abort}]")
+  cmd->add_option(
+         "--json", options->json,
+         "Also write the report as JSON: ok, elapsed_s (bus time; simulated on sim:), "
+         "nodes [{node_id, name, entries, same, differ, failed, write_only, unreachable}], "
+         "differences [{node_id, index, sub_index, address, name, expected, "
+         "expected_hex, actual, actual_hex, abort}]")
       ->type_name("FILE");
   cmd->add_option("--sdo-timeout", options->sdo_timeout_s,
                   "Timeout of each SDO response, in seconds")
@@ -366,7 +377,9 @@ void add_verify_command(CLI::App& app) {
       "same: node, index, sub-index, name, the expected value and the device's, in words. An "
       "entry written more than once by the download (a PDO's COB-ID, its mapping count) is "
       "compared with its last write. A write-only entry (abort 0601 0001) is listed but not "
-      "compared.\n\n"
+      "compared. A node whose first upload goes unanswered (and whose heartbeat was not seen) "
+      "is 'no response' and its other entries are not asked: an absent node costs one SDO "
+      "timeout.\n\n"
       "Examples:\n"
       "  cfgmgr verify samples/network/nodelist.cpj --bus sim:\n"
       "  cfgmgr verify nodelist.cpj --bus socketcan:can0 --json verify.json\n"

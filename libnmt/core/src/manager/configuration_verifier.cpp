@@ -53,6 +53,12 @@ void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::Object
 }
 
 bool ConfigurationVerifier::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
+  if (!frame.extended && !frame.rtr && frame.id > 0x700 && frame.id <= 0x77F && frame.dlc >= 1) {
+    // A heartbeat or boot-up (CiA 301 §7.2.8.3.2): the node is there, a lost answer of it is
+    // asked again.
+    answered_.insert(static_cast<std::uint8_t>(frame.id - 0x700));
+    return false;
+  }
   sdo_.clear();
   const bool mine = mux_.on_frame(frame, now, sdo_);
   take(sdo_, now, out);
@@ -77,7 +83,33 @@ void ConfigurationVerifier::take(Outbox<SdoResult>& sdo, TimePoint now, Output& 
       if (it == running_.end()) continue;
       VerifyResult r = std::move(it->second.result);
       running_.erase(it);
-      if (result.abort == SdoAbort::Timeout && r.attempts <= options_.retries) {
+      const cfg::NodeId node_id = r.node_id;
+      const std::uint8_t node = node_id.value();
+      const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
+      if (unreachable_.contains(node)) {
+        // One of the node's other entries, cancelled below: never asked.
+        r.abort = SdoAbort::Timeout;
+        r.attempts = 0;
+        r.unreachable = true;
+        out.report(std::move(r));
+        continue;
+      }
+      if (!timed_out) answered_.insert(node);
+      if (timed_out && !answered_.contains(node)) {
+        // The node's first upload went unanswered: absent. Its other entries are cancelled
+        // (each result comes back through `sdo` and is reported above).
+        unreachable_.insert(node);
+        r.abort = SdoAbort::Timeout;
+        r.unreachable = true;
+        out.report(std::move(r));
+        std::vector<SdoClient::TransferId> others;
+        for (const auto& [k, running] : running_) {
+          if (k >> 32 == node) others.push_back(static_cast<SdoClient::TransferId>(k));
+        }
+        for (const auto id : others) mux_.client(node_id).cancel(id, now, sdo, SdoAbort::Timeout);
+        continue;
+      }
+      if (timed_out && r.attempts <= options_.retries) {
         ++r.attempts;
         upload(std::move(r), now, sdo, out);
         continue;

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <span>
 #include <utility>
 #include <vector>
@@ -30,7 +31,10 @@ struct VerifyResult {
   std::vector<std::uint8_t> expected{};  ///< what the configuration writes
   std::vector<std::uint8_t> actual{};    ///< what the device answered (empty when it failed)
   SdoAbort abort = SdoAbort::None;       ///< None: read; else why the upload failed (last try)
-  unsigned attempts = 1;                 ///< uploads made (more than 1 after timeouts)
+  unsigned attempts = 1;                 ///< uploads made (more than 1 after timeouts); 0: none
+  /// The node never answered: its first upload went unanswered, so it was neither repeated nor
+  /// were the node's other entries asked (each reported with abort Timeout and 0 attempts).
+  bool unreachable = false;
 
   bool read() const { return abort == SdoAbort::None; }
   /// Read, and byte for byte what the configuration writes.
@@ -39,8 +43,11 @@ struct VerifyResult {
 
 struct VerifyOptions {
   SdoTransferOptions sdo{};  ///< timeout of each response, largest value accepted
-  /// How often an upload that timed out (0504 0000, a lost frame) is made again. Other aborts
-  /// are the device's answer and final.
+  /// How often an upload that timed out (0504 0000, a lost frame) is made again, to a node
+  /// that answered before or whose heartbeat was seen. Other aborts are the device's answer and
+  /// final. A node whose first upload goes unanswered and that was never heard is taken as
+  /// absent: no repetition and none of its other entries, so an absent node costs one timeout,
+  /// not one per entry and try.
   unsigned retries = 2;
 };
 
@@ -78,6 +85,10 @@ class ConfigurationVerifier {
   Outbox<SdoResult> sdo_;  ///< the mux's output in a call, cleared before each use (no allocation)
   // By node-ID << 32 | transfer id (ids count per client).
   std::map<std::uint64_t, Running> running_;
+  // Nodes that answered at least once or were heard (heartbeat), and those taken as absent
+  // (see VerifyOptions::retries).
+  std::set<std::uint8_t> answered_;
+  std::set<std::uint8_t> unreachable_;
 };
 static_assert(Engine<ConfigurationVerifier>);
 
