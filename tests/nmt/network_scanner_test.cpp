@@ -247,6 +247,32 @@ TEST(NetworkScanner, ASilentNodeIdIsProbedOnceAndAHeartbeatLaterBringsANewProbe)
   EXPECT_EQ(rig.all<Scanner::NodeFound>().size(), 1U);
 }
 
+TEST(NetworkScanner, ProbeRetriesFindASilentDeviceWhoseAnswerWasLost) {
+  // No heartbeat or boot-up reaches the scan and the first answer is lost: with probe_retries
+  // = 1 every node-ID is probed a second time after the first timeout, which finds the device;
+  // the absent ones cost two timeouts in all.
+  auto options = ScanRig::default_options();
+  options.probe_retries = 1;
+  ScanRig rig(io_node2(), {2}, options);
+  bool dropped = false;
+  rig.filter = [&dropped](const nmt::CanFrame& f, nmt::TimePoint) {
+    if (f.id == 0x702) return nmt::FrameFate::drop();
+    if (f.id == 0x582 && !dropped) {
+      dropped = true;
+      return nmt::FrameFate::drop();
+    }
+    return nmt::FrameFate::deliver();
+  };
+  rig.power_on();
+  rig.scan({id(2), id(3)});
+  EXPECT_EQ(rig.all<Scanner::NodeFound>().size(), 1U);
+  const auto absent = rig.all<Scanner::NodeAbsent>();
+  ASSERT_EQ(absent.size(), 1U);
+  EXPECT_EQ(absent[0].node, 3);
+  EXPECT_GE(rig.finished_at - nmt::TimePoint{}, 200ms);
+  EXPECT_LE(rig.finished_at - nmt::TimePoint{}, 210ms);
+}
+
 TEST(NetworkScanner, ReadsTheEdsTheDeviceStoresIn1021h) {
   // CiA 301 §7.5.2.20/21: 1022h = 0 (ISO 10646, not compressed) and the file in 1021h.
   auto dcf = io_node2();

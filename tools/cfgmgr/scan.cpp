@@ -23,6 +23,7 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/atomic_file.hpp"
+#include "cfg/bytes.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/device_scan.hpp"
 #include "cfg/hex.hpp"
@@ -55,6 +56,7 @@ struct ScanCliOptions {
   std::string nodes;  ///< --node 3 or 3,5-7; empty: 1..127
   double sdo_timeout_s = 0.5;
   unsigned retries = 2;
+  unsigned probe_retries = 0;
   std::uint32_t bitrate = 0;
   double bus_load = 0.97;
   bool no_lss = false;
@@ -78,7 +80,7 @@ struct ScannedNode {
 
 struct ScanResults {
   std::map<std::uint8_t, ScannedNode> nodes;
-  std::size_t absent = 0;
+  std::set<std::uint8_t> absent_ids;  ///< node-IDs nobody answered at (in the end)
   std::size_t asked = 0;
   std::vector<nmt::LssAddress> unconfigured;  ///< LSS addresses of devices without node-ID
   std::string lss_problem;                    ///< the LSS scan's failure in words, if any
@@ -140,12 +142,22 @@ class Collector {
       : results_(results), library_(library), diagnostics_(diagnostics) {}
 
   void on_event(const Scanner::Event& event, const Read& read) {
-    if (std::holds_alternative<Scanner::NodeAbsent>(event)) {
-      ++results_.absent;
+    if (const auto* absent = std::get_if<Scanner::NodeAbsent>(&event)) {
+      results_.absent_ids.insert(absent->node.value());
     } else if (const auto* found = std::get_if<Scanner::NodeFound>(&event)) {
       ScannedNode& node =
           results_.nodes.insert_or_assign(found->node.value(), ScannedNode{.found = *found})
               .first->second;
+      results_.absent_ids.erase(found->node.value());  // a later probe found it
+      // The identity as read: the as-found DCF records it (cfg::as_found_dcf), so that the
+      // project checks the device's revision, not the one of the EDS that matched.
+      const auto& id = found->identity;
+      if (id.device_type) node.values[{0x1000, 0}] = cfg::le32_bytes(*id.device_type);
+      const std::optional<std::uint32_t>* subs[] = {&id.vendor_id, &id.product_code,
+                                                    &id.revision_number};
+      for (std::uint8_t sub = 1; sub <= 3; ++sub) {
+        if (*subs[sub - 1]) node.values[{0x1018, sub}] = cfg::le32_bytes(**subs[sub - 1]);
+      }
       auto entries = choose_eds(node, library_, diagnostics_);
       read(found->node, std::move(entries));
     } else if (const auto* entry = std::get_if<Scanner::EntryRead>(&event)) {
@@ -189,6 +201,7 @@ nmt::ScanOptions scan_options(const ScanCliOptions& o, std::uint32_t bitrate) {
   nmt::ScanOptions options;
   options.sdo.timeout = sdo_timeout_or_exit(kTool, o.sdo_timeout_s);
   options.retries = o.retries;
+  options.probe_retries = o.probe_retries;
   options.read_stored_eds = !o.no_stored_eds;
   options.bitrate_bps = bitrate;
   options.bus_load_limit = o.bus_load;
@@ -301,7 +314,7 @@ std::string json_report(const ScanResults& r, const std::string& output_dir) {
   std::snprintf(seconds, sizeof seconds, "%.6f", static_cast<double>(r.elapsed.count()) / 1e6);
   std::string out = "{\"output\": " + tools::json_string(output_dir) +
                     ", \"elapsed_s\": " + seconds + ", \"asked\": " + std::to_string(r.asked) +
-                    ", \"absent\": " + std::to_string(r.absent) + ", \"nodes\": [";
+                    ", \"absent\": " + std::to_string(r.absent_ids.size()) + ", \"nodes\": [";
   bool first = true;
   for (const auto& [id, n] : r.nodes) {
     std::snprintf(seconds, sizeof seconds, "%.6f", static_cast<double>(n.took.count()) / 1e6);
@@ -384,7 +397,9 @@ void run_scan(const ScanCliOptions& o) {
     for (unsigned n = 1; n <= 127; ++n)
       ids.push_back(*cfg::NodeId::from(static_cast<std::uint8_t>(n)));
   } else {
-    for (const std::uint8_t n : parse_only(kTool, o.nodes)) ids.push_back(*cfg::NodeId::from(n));
+    auto listed = nmt::parse_node_list(o.nodes);
+    if (!listed) fail_command(kTool, tools::kExitUsage, "--node " + listed.error().message);
+    for (const std::uint8_t n : *listed) ids.push_back(*cfg::NodeId::from(n));
   }
   {
     std::error_code ec;
@@ -498,6 +513,12 @@ void add_scan_command(CLI::App& app) {
   cmd->add_option("--retries", o->retries,
                   "How often an upload that timed out is repeated, to a device that answered "
                   "before (or whose heartbeat was seen)")
+      ->capture_default_str()
+      ->type_name("N");
+  cmd->add_option("--probe-retries", o->probe_retries,
+                  "How often the probe (1000h) of a node-ID without heartbeat is repeated "
+                  "after a timeout: each costs one more timeout in all, and on a lossy bus finds "
+                  "a device without heartbeat whose probe or answer was lost")
       ->capture_default_str()
       ->type_name("N");
   cmd->add_option("--bitrate", o->bitrate,

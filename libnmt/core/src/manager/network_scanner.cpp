@@ -197,8 +197,13 @@ void NetworkScanner::finished_upload(Node& n, Upload upload, SdoResult result, T
                                      Output& out) {
   const bool timed_out = result.abort == SdoAbort::Timeout && !result.aborted_by_server;
   if (timed_out) {
-    const bool alive = upload.purpose == Purpose::Probe ? n.heard : n.answered;
-    if (alive && upload.attempts <= options_.retries) {
+    // Repetitions: of a probe, probe_retries for any node-ID and retries for one the bus
+    // showed alive; of the other uploads, retries (the device answered the probe).
+    const unsigned allowed = upload.purpose == Purpose::Probe
+                                 ? (n.heard ? std::max(options_.retries, options_.probe_retries)
+                                            : options_.probe_retries)
+                                 : (n.answered ? options_.retries : 0);
+    if (upload.attempts <= allowed) {
       ++upload.attempts;
       n.todo.push_front(upload);
       make_ready(n);

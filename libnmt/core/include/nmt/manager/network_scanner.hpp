@@ -11,10 +11,11 @@
 //  1. probe: 1000h sub 0 (CiA 301 §7.5.2.1, every device has it). Any answer, an abort too, says
 //     a device is there. No answer within the SDO timeout: the node-ID is absent. Every node is
 //     probed at once, so the absent ones cost one timeout in all, not one each. A probe is
-//     repeated (ScanOptions::retries) only for a node-ID the bus showed alive (a heartbeat or
-//     boot-up on 700h + node-ID, CiA 301 §7.2.8.3.2): a silent absent node-ID costs no second
-//     timeout, a present device whose answer was lost is asked again; a heartbeat of a node-ID
-//     already taken as absent brings a new probe while the scan still runs.
+//     repeated (ScanOptions::retries) for a node-ID the bus showed alive (a heartbeat or
+//     boot-up on 700h + node-ID, CiA 301 §7.2.8.3.2), and only probe_retries times (default
+//     none) for the others: a silent absent node-ID costs no second timeout, a present device whose
+//     answer was lost is asked again; a heartbeat of a node-ID already taken as absent brings a new
+//     probe while the scan still runs.
 //  2. identity: 1018h sub 1-4 (§7.5.2.23); a sub-index the device refuses stays nullopt.
 //  3. the EDS the device stores (§7.5.2.20-21, CiA 306 §4.6): 1022h sub 0, and when its value
 //     is 0 (ISO 10646, not compressed) 1021h sub 0 by block upload. A device without them
@@ -56,6 +57,10 @@ struct ScanOptions {
   /// How often an upload that timed out is made again, to a device that answered before (or,
   /// for the probe, whose heartbeat was seen). Other aborts are the device's answer and final.
   unsigned retries = 2;
+  /// How often the probe of a node-ID the bus did not show alive is repeated after a timeout:
+  /// 0 keeps the absent ones at one timeout in all; on a lossy bus each repetition costs one
+  /// more and finds a device without heartbeat whose probe or answer was lost.
+  unsigned probe_retries = 0;
   /// Read the EDS the device stores (1021h/1022h).
   bool read_stored_eds = true;
   /// The bus bit rate (0: unknown, requests are not paced) and the share of the bus the scan's
