@@ -133,11 +133,39 @@ Diagnostics Reader::take_diagnostics() {
   return out;
 }
 
+void Reader::finish_node_id_values() {
+  // A DCF saved from a device at one node-ID and edited to another keeps the first one's
+  // pre-defined COB-IDs (a vendor tool's DCF of a device at node 1, NodeID=12, records 1200h
+  // sub 1 = 0x601). The device at node 12 derives its own (CiA 301 §7.3.5; simulated devices
+  // do too, cfg::device_entries), so the recorded value says something the device never does.
+  const std::optional<std::uint8_t> node = model_.node_id();
+  if (!node) return;
+  for (const auto& [index, object] : model_.objects) {
+    for (const auto& [sub_index, sub] : object.subs) {
+      if (!sub.parameter_value || !sub.default_value) continue;
+      const auto type = sub.basic_type();
+      if (!type) continue;
+      const auto at = node_id_of_default(*type, *sub.default_value, *sub.parameter_value);
+      if (!at || *at == *node) continue;
+      auto derived = parse_value(*type, *sub.default_value, *node);
+      add(sub.parameter_value_line, Severity::Warning,
+          to_string(ObjectAddress{index, sub_index}) + ": ParameterValue " +
+              std::string(*sub.parameter_value) + " is DefaultValue " +
+              std::string(*sub.default_value) + " for node-ID " + std::to_string(*at) +
+              ", but NodeID is " + std::to_string(*node) +
+              ": a value recorded for another node-ID; the device at node " +
+              std::to_string(*node) + " derives " +
+              (derived ? format_value(*derived) : std::string("its own")) + " (CiA 301 §7.3.5)");
+    }
+  }
+}
+
 void Reader::finish() {
   for (auto& [index, st] : states_) finish_object(index, st);
   check_object_lists();
   finish_comments();
   finish_dynamic_channels();
+  finish_node_id_values();
   if (!strict_ && dropped_comments_ > 1) {
     warn(0, std::to_string(dropped_comments_ - 1) +
                 " more values have a comment after them, dropped the same way (strict mode lists "

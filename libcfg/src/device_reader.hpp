@@ -323,6 +323,7 @@ class Reader final : public IniSink {
 
   // ---- [DynamicChannels] (device_reader_dynamic.cpp)
   void finish_dynamic_channels();
+  void finish_node_id_values();
 
   // ---- after the last line (device_reader.cpp)
   void finish();

@@ -629,4 +629,16 @@ std::optional<int> compare_values(const Value& a, const Value& b) {
   }
 }
 
+std::optional<std::uint8_t> node_id_of_default(DataType type, std::string_view default_text,
+                                               std::string_view value_text) {
+  if (!mentions_node_id(default_text) || mentions_node_id(value_text)) return std::nullopt;
+  const auto value = parse_value(type, value_text);
+  if (!value) return std::nullopt;
+  for (unsigned n = 1; n <= 127; ++n) {
+    const auto at = parse_value(type, default_text, static_cast<std::uint8_t>(n));
+    if (at && *at == *value) return static_cast<std::uint8_t>(n);
+  }
+  return std::nullopt;
+}
+
 }  // namespace cfg

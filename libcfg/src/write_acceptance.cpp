@@ -80,11 +80,22 @@ Result<DeviceEntries> device_entries(const DeviceDescription& device, std::uint8
       const auto type = *e.basic_type;
       const auto fixed = e.fixed_size();
       e.max_size = fixed ? *fixed : kDefaultMaxVariableSize;
-      if (const auto& text = sub.configured_value()) {
+      const OptionalText& configured = sub.configured_value();
+      std::optional<std::string_view> text;
+      if (configured) text = std::string_view(*configured);
+      if (sub.parameter_value && sub.default_value &&
+          node_id_of_default(type, *sub.default_value, *sub.parameter_value)) {
+        // A value of the pre-defined connection set recorded for some node-ID (a DCF saved at
+        // node 1 says 1200h sub 1 = 0x601): the device derives it from its own node-ID
+        // (CiA 301 §7.3.5), as a device that moves to another node-ID does.
+        text = std::string_view(*sub.default_value);
+      }
+      if (text) {
         auto value = parse_value(type, *text, node_id);
         if (!value) {
-          return Error{where(sub.parameter_value ? "ParameterValue" : "DefaultValue", *text) +
-                       value.error().message};
+          return Error{
+              where(sub.parameter_value ? "ParameterValue" : "DefaultValue", std::string(*text)) +
+              value.error().message};
         }
         e.bytes = encode(*value);
       } else if (fixed) {

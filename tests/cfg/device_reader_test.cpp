@@ -9,6 +9,7 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/hex.hpp"
+#include "test_paths.hpp"
 
 namespace cfg {
 namespace {
@@ -1072,6 +1073,31 @@ TEST(DeviceReader, ReadDeviceFileReportsAFileThatCannotBeOpened) {
   ASSERT_EQ(r.diagnostics.size(), 1u);
   EXPECT_THAT(r.diagnostics.items()[0].format(),
               HasSubstr("/nonexistent/dir/device.eds: error: cannot open the file"));
+}
+
+// Issue 33: a DCF saved at node 1 and edited to node 12 keeps node 1's pre-defined COB-IDs;
+// the device at node 12 derives its own (CiA 301 §7.3.5): a warning at each ParameterValue.
+TEST(DeviceReader, WarnsWhereANodeIdDerivedValueWasRecordedForAnotherNodeId) {
+  const std::string path = std::string(CANOPEN_TEST_DATA_DIR) + "/network/nodes/saved_at_node1.dcf";
+  const ReadResult r = read_device_file(path);
+  ASSERT_TRUE(r.device.has_value()) << r.diagnostics.format();
+  std::vector<std::string> found;
+  for (const Diagnostic& d : r.diagnostics.items()) {
+    if (d.severity == Severity::Warning && d.message.find("another node-ID") != std::string::npos) {
+      found.push_back(std::to_string(d.line) + ": " + d.message.substr(0, d.message.find(':')));
+    }
+  }
+  const auto line_of_value = [&](std::uint16_t index, std::uint8_t sub) {
+    return r.device->sub(index, sub)->parameter_value_line;
+  };
+  EXPECT_EQ(found, (std::vector<std::string>{
+                       std::to_string(line_of_value(0x1200, 1)) + ": 1200h sub 01h",
+                       std::to_string(line_of_value(0x1200, 2)) + ": 1200h sub 02h",
+                       std::to_string(line_of_value(0x1800, 1)) + ": 1800h sub 01h"}));
+  EXPECT_THAT(r.diagnostics.format(),
+              HasSubstr("ParameterValue 0x00000601 is DefaultValue $NODEID+0x600 for node-ID 1, "
+                        "but NodeID is 12"));
+  EXPECT_THAT(r.diagnostics.format(), HasSubstr("the device at node 12 derives 0x60C (CiA 301"));
 }
 
 TEST(DeviceReader, ReadDeviceFileUsesThePathInDiagnostics) {

@@ -184,6 +184,31 @@ TEST(SimulatedDevice, NodeIdComesFromDeviceComissioningWhenNotGiven) {
   EXPECT_FALSE(SimulatedDevice::create(sim_eds(), 128).ok());
 }
 
+// Issue 33: a DCF saved from a device at node 1 and edited to node 12 (NodeID=12, 1200h sub 1/2
+// and 1800h sub 1 recorded as 601h/581h/181h, their DefaultValues $NODEID+...). A CiA 301 device
+// derives the pre-defined connection set from its node-ID (§7.3.5): at node 12 it answers on
+// 60Ch/58Ch, and its TPDO1 is 18Ch.
+TEST(SimulatedDevice, ValuesOfThePredefinedConnectionSetFollowItsNodeId) {
+  const auto dcf =
+      load_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/network/nodes/saved_at_node1.dcf");
+  auto created = SimulatedDevice::create(dcf, 12);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  SimulatedDevice device = std::move(created).value();
+  SimulatedDevice::Output out;
+  device.start(TimePoint{}, out);
+  device.on_timer(TimePoint{}, out);  // initialisation ends: the boot-up
+  out.clear();
+  EXPECT_EQ(device.node().dictionary().get_unsigned(0x1200, 1), 0x60CU);
+  EXPECT_EQ(device.node().dictionary().get_unsigned(0x1200, 2), 0x58CU);
+  EXPECT_EQ(device.node().dictionary().get_unsigned(0x1800, 1), 0x18CU);
+  device.on_frame(*from_candump("60C#4017100000000000"), TimePoint{}, out);
+  ASSERT_EQ(out.frames.size(), 1U);
+  EXPECT_EQ(to_candump(out.frames[0]), "58C#4B171000E8030000");  // 1017h = 1000 ms
+  out.clear();
+  device.on_frame(*from_candump("601#4017100000000000"), TimePoint{}, out);
+  EXPECT_TRUE(out.frames.empty()) << "node 1's channel is not this device's";
+}
+
 TEST(SimulatedDevice, ProducesHeartbeatWithStateAfter1017IsWritten) {
   Rig rig;
   rig.boot();

@@ -69,6 +69,13 @@ bool mentions_node_id(std::string_view text);
 Result<Value> parse_value(DataType type, std::string_view text,
                           std::optional<std::uint8_t> node_id = std::nullopt);
 
+/// For an entry whose DefaultValue uses $NODEID (the pre-defined connection set of CiA 301
+/// §7.3.5: EMCY, PDO and default SDO COB-IDs): the node-ID (1..127) at which that default is
+/// `value`, the smallest if several; nullopt when it is none's. What tells a value a device
+/// derived from its node-ID (a DCF saved at node 1 records 1200h sub 1 = 0x601) from one set.
+std::optional<std::uint8_t> node_id_of_default(DataType type, std::string_view default_text,
+                                               std::string_view value_text);
+
 /// Little-endian bytes with the exact size of the type (INTEGER24: 3 bytes, UNSIGNED40: 5).
 std::vector<std::uint8_t> encode(const Value& value);
 
