@@ -362,7 +362,23 @@ void Reader::finish_dynamic_channels() {
     }
   };
   report.warn = [this](int line, std::string message) { warn(line, std::move(message)); };
-  (void)read_dynamic_channels(dynamic_.keys, dynamic_.line, report);
+  const DynamicChannels channels = read_dynamic_channels(dynamic_.keys, dynamic_.line, report);
+  // §8.4: the segments' objects come into being when network variables are allocated (the DCF
+  // of the programmed device, §8.5, has them); an EDS must not define any there. A file without
+  // [DeviceComissioning] is taken as an EDS (CiA 306 §4.1: a DCF has that section).
+  if (!used || model_.commissioning) return;
+  for (std::size_t i = 0; i < channels.segments.size(); ++i) {
+    const DynamicSegment& segment = channels.segments[i];
+    for (auto it = model_.objects.lower_bound(segment.first_index);
+         it != model_.objects.end() && it->first <= segment.last_index; ++it) {
+      warn(it->second.line, "object " + object_name(it->first) +
+                                " lies in dynamic channel segment " + std::to_string(i + 1) + " (" +
+                                object_name(segment.first_index) + "-" +
+                                object_name(segment.last_index) + ")" +
+                                ": an EDS must not define objects in a segment, they are made "
+                                "when network variables are allocated (CiA DSP 302 §8.4)");
+    }
+  }
 }
 
 }  // namespace reader

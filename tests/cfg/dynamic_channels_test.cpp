@@ -4,6 +4,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -458,6 +459,37 @@ TEST(DynamicIndexAssignment, VariablesFileLinesAreNameTypeDirection) {
   auto dir = parse_network_variables("s,REAL32,sideways\n", "plc.csv");
   ASSERT_FALSE(dir);
   EXPECT_THAT(dir.error().message, HasSubstr("plc.csv:1: direction 'sideways' is not in or out"));
+}
+
+// §8.4: the objects of a segment come into being when variables are allocated; an EDS must not
+// define one (issue 33: such a file passed `cfgmgr check --strict`). An error under strict, a
+// warning when tolerant, at the object's line; a DCF (the programmed device's, §8.5) may.
+TEST(DynamicChannels, AnEdsThatDefinesAnObjectInsideASegmentIsAnErrorUnderStrict) {
+  std::ifstream in(data_file("spec_example.eds"));
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string eds = text.str() +
+                          "\r\n[7002]\r\nParameterName=Inside\r\nObjectType=0x7\r\n"
+                          "DataType=0x0005\r\nAccessType=ro\r\nPDOMapping=1\r\n";
+  const int line = 1 + static_cast<int>(std::count(
+                           eds.begin(), eds.begin() + static_cast<long>(eds.find("[7002]")), '\n'));
+  for (const ReadMode mode : {ReadMode::Strict, ReadMode::Tolerant}) {
+    ReadOptions options;
+    options.mode = mode;
+    options.file_name = "inside.eds";
+    const ReadResult r = parse_device_description(eds, options);
+    const Severity expected = mode == ReadMode::Strict ? Severity::Error : Severity::Warning;
+    EXPECT_THAT(at_line(r.diagnostics, line, expected),
+                HasSubstr("object 7002h lies in dynamic channel segment 1 (7001h-7017h)"))
+        << r.diagnostics.format();
+  }
+  // The same object in a DCF: allowed.
+  ReadOptions options;
+  options.mode = ReadMode::Strict;
+  const ReadResult dcf =
+      parse_device_description(eds + "\r\n[DeviceComissioning]\r\nNodeID=5\r\n", options);
+  EXPECT_EQ(dcf.diagnostics.format().find("lies in dynamic channel"), std::string::npos)
+      << dcf.diagnostics.format();
 }
 
 }  // namespace
