@@ -790,6 +790,24 @@ Result<void> set_node_program(Network& network, NodeId node, const std::string& 
                  "identification (1F55h, CiA 302-3: bus.yml software_version); give "
                  "--program NODE=FILE alone"};
   }
+  if (!file.empty() && network.master_from_file) {
+    // CiA 302-2 Table 24: the master DCF's 1F81h sub X with bit 6 clear forbids the automatic
+    // software update of node X. An image from the command line would set the bit and override
+    // that interlock silently: refused, naming both.
+    const std::uint8_t x = node.value();
+    const SubObject* assignment = network.master.sub(object::kSlaveAssignment, x);
+    const auto bits = configured_unsigned(network.master, object::kSlaveAssignment, x, node);
+    if (assignment != nullptr && bits && (*bits & SlaveAssignment::kUpdateSoftware) == 0) {
+      const int line = assignment->parameter_value ? assignment->parameter_value_line
+                                                   : assignment->default_value_line;
+      return Error{"node " + std::to_string(x) + ": " + network.master_file +
+                   (line > 0 ? ":" + std::to_string(line) : std::string()) + ": 1F81h sub " +
+                   std::to_string(x) + " = " + hex(*bits, 8) +
+                   " clears bit 6 (automatic software update not allowed, CiA 302-2 Table 24): "
+                   "the master would not download the image; set bit 6 there or leave out "
+                   "--program"};
+    }
+  }
   if (!file.empty()) {
     auto image = read_program_image(file);
     if (!image) return Error{"'" + file + "': " + image.error().message};

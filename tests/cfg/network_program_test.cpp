@@ -58,6 +58,24 @@ TEST(NetworkProgram, AnOverrideReplacesTheVersionAndKeepsTheImage) {
   EXPECT_FALSE(cfg::set_node_program(*load.network, *cfg::NodeId::from(9), "", std::nullopt));
 }
 
+// Issue 33: master_bit5.dcf's 1F81h sub 3 = 2Dh (line 191) leaves bit 6 clear: no automatic
+// software update of node 3 (CiA 302-2 Table 24). An image from the command line is refused
+// naming that line, instead of setting the bit behind the DCF's back; a version alone is not.
+TEST(NetworkProgram, AnImageForANodeWhoseMasterDcfForbidsTheUpdateIsRefused) {
+  auto load = cfg::load_network(data("master_bit5.dcf"));
+  ASSERT_TRUE(load.ok());
+  const auto refused =
+      cfg::set_node_program(*load.network, *cfg::NodeId::from(3), data("drive_v2.img"), {});
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("master_bit5.dcf:191: 1F81h sub 3 = 0x0000002D clears "
+                                         "bit 6 (automatic software update not allowed"),
+            std::string::npos)
+      << refused.error().message;
+  EXPECT_EQ(entry(load.network->master, cfg::object::kSlaveAssignment, 3), 0x2DU) << "unchanged";
+  EXPECT_TRUE(cfg::set_node_program(*load.network, *cfg::NodeId::from(3), "",
+                                    cfg::ProgramVersion{15188, 27'000'000}));
+}
+
 TEST(NetworkProgram, Bit5WithoutExpectedVersionInAMasterDcfIsStatusGsCase) {
   const auto load = cfg::load_network(data("master_bit5.dcf"));
   ASSERT_TRUE(load.ok());

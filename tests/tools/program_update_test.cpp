@@ -188,6 +188,19 @@ TEST(PushProgram, AMatchingVersionUpdatesNothing) {
   EXPECT_THAT(r.err, Not(HasSubstr("node 3: software update")));
 }
 
+// Issue 33: master_bit5.dcf's 1F81h sub 3 (line 191) clears bit 6, automatic software update
+// not allowed (CiA 302-2 Table 24). --program 3=IMAGE is refused before the bus, naming both;
+// before, the image was downloaded all the same.
+TEST(PushProgram, AnImageForANodeWhoseMasterDcfForbidsTheUpdateIsRefusedBeforeTheBus) {
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"push", data("master_bit5.dcf"), "--bus", "sim:", "--program",
+                              "3=" + data("drive_v2.img"), "--candump", dir / "bus.log"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("master_bit5.dcf:191: 1F81h sub 3 = 0x0000002D clears bit 6 "
+                               "(automatic software update not allowed"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "bus.log")) << "nothing was sent";
+}
+
 TEST(PushProgram, MalformedOverridesAreUsageErrors) {
   ScratchDir dir;
   const auto r = cfgmgr(dir, {"push", data("program.cpj"), "--bus", "sim:", "--program", "3"});
