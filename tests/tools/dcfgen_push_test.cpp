@@ -274,6 +274,14 @@ TEST(DcfgenPushInNetns, Ros2CanopenRobotControlConfiguresBothJointsOverUdp) {
     EXPECT_EQ(nodes.at(id)->get("result")->string, "configured");
     EXPECT_EQ(static_cast<std::size_t>(nodes.at(id)->get("entries")->number), e.written);
   }
+  // Issue 33: the bus's counters are in the report (a UDP bus has no controller errors).
+  const Json* counters = report.get("bus");
+  ASSERT_TRUE(counters != nullptr && counters->is(Json::Kind::Object));
+  for (const char* key :
+       {"error_frames", "bus_off", "error_passive", "lost_arbitration", "queue_full", "refused"}) {
+    ASSERT_NE(counters->get(key), nullptr) << key;
+    EXPECT_EQ(counters->get(key)->number, 0.0) << key;
+  }
   // The devices hold the .bin's values: verify reads every entry back and finds none differing.
   const auto v = cfgmgr(dir, {"verify", set + "/master.dcf", "--bus", bus, "--dcf-path", set});
   EXPECT_EQ(v.exit_code, 0) << v.out << v.err;

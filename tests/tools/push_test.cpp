@@ -64,6 +64,8 @@ TEST(Push, ConfiguresEveryNodeOfTheSampleNetworkWithTheirConciseDcfWrites) {
   EXPECT_TRUE(json.get("ok")->boolean);
   ASSERT_TRUE(json.get("elapsed_s")->is(Json::Kind::Number));
   EXPECT_GT(json.get("elapsed_s")->number, 0.0);
+  ASSERT_NE(json.get("bus"), nullptr);
+  EXPECT_TRUE(json.get("bus")->is(Json::Kind::Null)) << "sim: has no controller to count";
   const auto nodes = nodes_of(json);
   // samples/network/nodelist.cpj: nodes 2 (io_left), 3 (axis_x), 4 (io_right).
   const std::map<int, std::pair<std::string, std::string>> expected = {

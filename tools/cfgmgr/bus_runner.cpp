@@ -121,7 +121,7 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
   writers.reserve(tracing.size());
   for (auto* t : tracing) writers.push_back(&t->trace());
   close_traces(limits.tool, writers);
-  return {loop.now() - began, timed_out(limits, reporter)};
+  return {loop.now() - began, timed_out(limits, reporter), loop.counters()};
 }
 
 }  // namespace cfgmgr

@@ -11,6 +11,7 @@
 #include "cfg/network.hpp"
 #include "event_reporter.hpp"
 #include "network_source.hpp"
+#include "nmt/io/bus_event_loop.hpp"
 #include "nmt/master/nmt_master.hpp"
 #include "nmt/sim/simulated_device.hpp"
 
@@ -33,6 +34,9 @@ struct RunOutcome {
   /// With until_startup_ends (and no run_for_s): start-up did not end within the bound (a
   /// message was printed; the command exits 4).
   bool timed_out = false;
+  /// A real bus's transmit and error-frame counters at the end (nullopt on sim:, which has no
+  /// controller).
+  std::optional<nmt::BusCounters> bus{};
 };
 
 /// Files that record every frame of a run (nmt/io/trace.hpp); empty: none. On sim: the frames

@@ -510,7 +510,8 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
 // The --json report (fixed keys of the configuration manager issue; "mandatory" added).
 std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Duration elapsed,
                         nmt::TimePoint start, const std::vector<nmt::LssAddress>& unmatched,
-                        const ProgramUpdates& programs) {
+                        const ProgramUpdates& programs,
+                        const std::optional<nmt::BusCounters>& bus) {
   char number[32];
   std::snprintf(number, sizeof number, "%.6f", static_cast<double>(elapsed.count()) / 1e6);
   std::string out = std::string("{\"ok\": ") + (ok ? "true" : "false") +
@@ -535,7 +536,22 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
   for (std::size_t i = 0; i < unmatched.size(); ++i) {
     out += (i == 0 ? "" : ", ") + tools::json_string(nmt::address_digits(unmatched[i]));
   }
-  return out + "]}\n";
+  out += "], \"bus\": ";
+  if (!bus) return out + "null}\n";  // sim: has no controller
+  const auto field = [](const char* name, std::uint64_t value) {
+    return std::string(", \"") + name + "\": " + std::to_string(value);
+  };
+  std::snprintf(number, sizeof number, "%.6f",
+                static_cast<double>(bus->bus_off_time.count()) / 1e6);
+  out += "{\"error_frames\": " + std::to_string(bus->error_frames) +
+         field("error_warning", bus->error_warning) + field("error_passive", bus->error_passive) +
+         field("bus_off", bus->bus_off) + field("restarted", bus->restarted) +
+         field("lost_arbitration", bus->lost_arbitration) +
+         field("controller_overflows", bus->controller_overflows) +
+         field("bus_errors", bus->bus_errors) + field("queue_full", bus->queue_full) +
+         field("send_failures", bus->send_failures) + field("refused", bus->refused) +
+         field("max_queued", bus->max_queued) + ", \"bus_off_s\": " + number + "}";
+  return out + "}\n";
 }
 
 // What the run bound allows for the software updates (DSP 302 §9) the nodes may need: each
@@ -702,8 +718,9 @@ void run_push(const PushCliOptions& options) {
   print_table(collector.nodes(), reporter.start(), options.lss.lss, collector.unmatched(),
               reporter.programs());
   if (json.stream() != nullptr) {
-    finish_report_or_exit(json, json_report(collector.nodes(), ok, elapsed, reporter.start(),
-                                            collector.unmatched(), reporter.programs()));
+    finish_report_or_exit(
+        json, json_report(collector.nodes(), ok, elapsed, reporter.start(), collector.unmatched(),
+                          reporter.programs(), outcome.bus));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }
@@ -733,7 +750,10 @@ void add_push_command(CLI::App& app) {
          "{updated, before, after (each null or {date_days, time_ms, text}), bytes, seconds, "
          "clear_refused (null, or the abort with which the device refused 1F51h = 3)}}], "
          "lss_unmatched [LSS addresses VVVVVVVV:PPPPPPPP:RRRRRRRR:SSSSSSSS of devices --lss "
-         "found that match no node]")
+         "found that match no node], bus: null on sim:, else the controller's counters "
+         "{error_frames, error_warning, error_passive, bus_off, restarted, lost_arbitration, "
+         "controller_overflows, bus_errors, queue_full, send_failures, refused, max_queued, "
+         "bus_off_s}")
       ->type_name("FILE");
   cmd->add_option("--boot-time", options->boot_time_s,
                   "How long a mandatory slave that does not answer is tried again (overrides "
