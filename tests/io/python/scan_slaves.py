@@ -38,9 +38,9 @@ switch state selective (44h), 4Ch identify non-configured (50h), 51h Fastscan (4
 inquire, 11h configure node-ID, 17h store, as libnmt's LSS slave answers them.
 
 Lines, flushed: READY; NMT NODE CS; READ NODE INDEX SUB (an upload answered with data);
-REFUSED NODE INDEX SUB CODE (an upload or download aborted); WRITE NODE INDEX SUB DATA (a
-download stored, DATA hex as sent); SAVE NODE; LSS TEXT (LSS services, e.g. "LSS FASTSCAN
-FOUND"). On the frame 7FFh with no data: DUMP NODE INDEX SUB DATA for every entry a read is
+REFUSED NODE INDEX SUB CODE up|down|other (an upload, a download or another request aborted);
+WRITE NODE INDEX SUB DATA (a download stored, DATA hex as sent); SAVE NODE; LSS TEXT (LSS
+services, e.g. "LSS FASTSCAN FOUND"). On the frame 7FFh with no data: DUMP NODE INDEX SUB DATA for every entry a read is
 answered for, then END (exit 0); TIMEOUT after TIMEOUT_S (exit 1).
 """
 import sys
@@ -223,8 +223,8 @@ class ScanSlave(base.Slave):
             self.send(0x700 + self.node, [self.state])
             self.next_heartbeat = max(self.next_heartbeat + period / 1000.0, now)
 
-    def refuse(self, index, sub, code):
-        base.say("REFUSED %d %04X %02X %08X" % (self.node, index, sub, code))
+    def refuse(self, index, sub, code, what):
+        base.say("REFUSED %d %04X %02X %08X %s" % (self.node, index, sub, code, what))
         self.transfer = None
         self.abort(index, sub, code)
 
@@ -245,11 +245,11 @@ class ScanSlave(base.Slave):
     def upload(self, data, index, sub):
         entry, code = self.lookup(index, sub)
         if entry is None:
-            return self.refuse(index, sub, code)
+            return self.refuse(index, sub, code, "up")
         if entry.access == "wo":
-            return self.refuse(index, sub, 0x06010001)
+            return self.refuse(index, sub, 0x06010001, "up")
         if entry.refuse_read is not None:
-            return self.refuse(index, sub, entry.refuse_read)
+            return self.refuse(index, sub, entry.refuse_read, "up")
         base.say("READ %d %04X %02X" % (self.node, index, sub))
         value = self.values[(index, sub)]
         if len(value) <= 4:
@@ -262,7 +262,7 @@ class ScanSlave(base.Slave):
         t = self.transfer
         index, sub = t["key"]
         if command >> 4 & 1 != t["toggle"]:
-            return self.refuse(index, sub, 0x05030000)
+            return self.refuse(index, sub, 0x05030000, "up")
         chunk, t["data"] = t["data"][:7], t["data"][7:]
         last = not t["data"]
         self.reply([t["toggle"] << 4 | (7 - len(chunk)) << 1 | int(last)] + list(chunk))
@@ -275,9 +275,9 @@ class ScanSlave(base.Slave):
         command = data[0]
         entry, code = self.lookup(index, sub)
         if entry is None:
-            return self.refuse(index, sub, code)
+            return self.refuse(index, sub, code, "down")
         if entry.access in ("ro", "const"):
-            return self.refuse(index, sub, 0x06010002)
+            return self.refuse(index, sub, 0x06010002, "down")
         if command & 0x02:  # expedited
             n = 4 - (command >> 2 & 0x03) if command & 0x01 else 4
             value = bytes(data[4:4 + n])
@@ -293,7 +293,7 @@ class ScanSlave(base.Slave):
         index, sub = t["key"]
         command = data[0]
         if command >> 4 & 1 != t["toggle"]:
-            return self.refuse(index, sub, 0x05030000)
+            return self.refuse(index, sub, 0x05030000, "down")
         n = command >> 1 & 0x07
         t["data"] += bytes(data[1:8 - n])
         toggle = t["toggle"]
@@ -301,7 +301,7 @@ class ScanSlave(base.Slave):
         if command & 0x01:  # last segment
             self.transfer = None
             if t["size"] is not None and t["size"] != len(t["data"]):
-                return self.refuse(index, sub, 0x06070010)
+                return self.refuse(index, sub, 0x06070010, "down")
             if not self.store(index, sub, self.entries[(index, sub)], t["data"]):
                 return
         self.reply([0x20 | toggle << 4])
@@ -310,18 +310,18 @@ class ScanSlave(base.Slave):
         """Checks and stores a downloaded value; False when it was refused (abort sent)."""
         if entry.kind == "vs":
             if len(value) > MAX_STRING:
-                self.refuse(index, sub, 0x06070012)
+                self.refuse(index, sub, 0x06070012, "down")
                 return False
         elif entry.kind != "domain" and len(value) != SIZES[entry.kind]:
-            self.refuse(index, sub, 0x06070010)
+            self.refuse(index, sub, 0x06070010, "down")
             return False
         number = int.from_bytes(value, "little")
         if index in (0x1010, 0x1011) and number != (base.SAVE if index == 0x1010 else LOAD):
-            self.refuse(index, sub, 0x08000020)
+            self.refuse(index, sub, 0x08000020, "down")
             return False
         code = self.pdo_rule(index, sub, number)
         if code:
-            self.refuse(index, sub, code)
+            self.refuse(index, sub, code, "down")
             return False
         base.say("WRITE %d %04X %02X %s" % (self.node, index, sub, value.hex().upper()))
         if index == 0x1010:
@@ -383,7 +383,7 @@ class ScanSlave(base.Slave):
         elif ccs == 1:
             self.download(data, index, sub)
         else:
-            self.refuse(index, sub, 0x05040001)
+            self.refuse(index, sub, 0x05040001, "other")
 
     def dump(self):
         for (index, sub), entry in sorted(self.entries.items()):
