@@ -20,6 +20,7 @@
 #include "cfg/device_file.hpp"
 #include "cfg/download_order.hpp"
 #include "concise_test_support.hpp"
+#include "scratch_dir.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
@@ -30,6 +31,7 @@ namespace fs = std::filesystem;
 using test_support::le;
 using test_support::read_bytes;
 using test_support::read_text;
+using test_support::ScratchDir;
 using test_support::u16;
 using test_support::u32;
 using test_support::u8;
@@ -68,23 +70,6 @@ std::string samples_dir() {
   return CANOPEN_SAMPLES_DIR;
 }
 
-/// A fresh empty directory per test.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("cfgstore-" + std::string(info->test_suite_name()) + "-" +
-                                         info->name() + "-" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string str() const { return path_.string(); }
-  std::string file(std::string_view name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
-};
 
 ConfigManager open_store(const std::string& dir, StoreWriteHooks hooks = {}) {
   auto opened = ConfigManager::open(dir, std::move(hooks));
@@ -390,7 +375,7 @@ TEST(ConfigManager, PlanFromDcfIsWhatDcf2ConciseGives) {
 // --- the store directory ----------------------------------------------------------------------
 
 TEST(ConfigStore, EntriesSurviveReopeningTheDirectory) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string dcf = read_text(samples_dir() + "/network/drive_node3.dcf");
   const std::string eds = read_text(samples_dir() + "/drive.eds");
   {
@@ -400,10 +385,10 @@ TEST(ConfigStore, EntriesSurviveReopeningTheDirectory) {
     ASSERT_TRUE(manager.put_eds(3_node, eds).ok());
     ASSERT_TRUE(manager.set_expected_stamp(127_node, {14000, 1}).ok());
   }
-  EXPECT_TRUE(fs::exists(dir.file("1F22-01")));
-  EXPECT_TRUE(fs::exists(dir.file("1F20-03")));
-  EXPECT_TRUE(fs::exists(dir.file("1F23-03")));
-  EXPECT_TRUE(fs::exists(dir.file("1F26-7F")));
+  EXPECT_TRUE(fs::exists((dir / "1F22-01")));
+  EXPECT_TRUE(fs::exists((dir / "1F20-03")));
+  EXPECT_TRUE(fs::exists((dir / "1F23-03")));
+  EXPECT_TRUE(fs::exists((dir / "1F26-7F")));
   ConfigManager again = open_store(dir.str());
   EXPECT_TRUE(again.problems().empty()) << again.problems().format();
   EXPECT_EQ(again.concise(1_node), encode_concise_dcf(sample_writes()));
@@ -414,7 +399,7 @@ TEST(ConfigStore, EntriesSurviveReopeningTheDirectory) {
 }
 
 TEST(ConfigStore, RemovedEntriesStayRemoved) {
-  TempDir dir;
+  ScratchDir dir;
   {
     ConfigManager manager = open_store(dir.str());
     ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
@@ -428,23 +413,23 @@ TEST(ConfigStore, RemovedEntriesStayRemoved) {
 }
 
 TEST(ConfigStore, FlippedByteIsReportedWithTheFileAndNeverUsed) {
-  TempDir dir;
+  ScratchDir dir;
   {
     ConfigManager manager = open_store(dir.str());
     ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
     ASSERT_TRUE(manager.put_concise(2_node, encode_concise_dcf(sample_writes(200))).ok());
   }
   // Flip one bit in the middle of node 1's file.
-  Bytes file = read_bytes(dir.file("1F22-01"));
+  Bytes file = read_bytes((dir / "1F22-01"));
   ASSERT_GT(file.size(), 30U);
   file[25] ^= 0x04;
-  std::ofstream(dir.file("1F22-01"), std::ios::binary | std::ios::trunc)
+  std::ofstream((dir / "1F22-01"), std::ios::binary | std::ios::trunc)
       .write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
 
   ConfigManager again = open_store(dir.str());
   ASSERT_EQ(again.problems().size(), 1U);
   const Diagnostic& problem = again.problems().items()[0];
-  EXPECT_EQ(problem.file, dir.file("1F22-01"));
+  EXPECT_EQ(problem.file, (dir / "1F22-01"));
   EXPECT_EQ(problem.severity, Severity::Error);
   EXPECT_THAT(problem.message, HasSubstr("CRC-32 mismatch"));
   EXPECT_FALSE(again.has_configuration(1_node));
@@ -452,14 +437,14 @@ TEST(ConfigStore, FlippedByteIsReportedWithTheFileAndNeverUsed) {
 }
 
 TEST(ConfigStore, TruncatedAndMisnamedFilesAreReported) {
-  TempDir dir;
+  ScratchDir dir;
   {
     ConfigManager manager = open_store(dir.str());
     ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
     ASSERT_TRUE(manager.put_concise(2_node, encode_concise_dcf(sample_writes(200))).ok());
   }
-  fs::resize_file(dir.file("1F22-01"), fs::file_size(dir.file("1F22-01")) - 3);
-  fs::copy_file(dir.file("1F22-02"), dir.file("1F22-03"));
+  fs::resize_file((dir / "1F22-01"), fs::file_size((dir / "1F22-01")) - 3);
+  fs::copy_file((dir / "1F22-02"), (dir / "1F22-03"));
   ConfigManager again = open_store(dir.str());
   ASSERT_EQ(again.problems().size(), 2U) << again.problems().format();
   EXPECT_THAT(again.problems().items()[0].message, HasSubstr("truncated"));
@@ -469,9 +454,9 @@ TEST(ConfigStore, TruncatedAndMisnamedFilesAreReported) {
 
 TEST(ConfigStore, EntryWithAGoodChecksumButNoDcfInsideIsReported) {
   // A file another program wrote with a correct CRC: the content is checked as a write is.
-  TempDir dir;
+  ScratchDir dir;
   const Bytes file = encode_store_entry({0x1F20, 4_node, bytes_of("not a DCF\n")});
-  std::ofstream(dir.file("1F20-04"), std::ios::binary)
+  std::ofstream((dir / "1F20-04"), std::ios::binary)
       .write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
   ConfigManager manager = open_store(dir.str());
   ASSERT_EQ(manager.problems().size(), 1U);
@@ -481,22 +466,22 @@ TEST(ConfigStore, EntryWithAGoodChecksumButNoDcfInsideIsReported) {
 }
 
 TEST(ConfigStore, LeftoverTemporaryFilesAreRemovedAndOtherFilesIgnored) {
-  TempDir dir;
-  std::ofstream(dir.file(".1F22-01.4242.tmp")) << "half a write";
-  std::ofstream(dir.file("README")) << "not an entry";
+  ScratchDir dir;
+  std::ofstream((dir / ".1F22-01.4242.tmp")) << "half a write";
+  std::ofstream((dir / "README")) << "not an entry";
   ConfigManager manager = open_store(dir.str());
   EXPECT_TRUE(manager.problems().empty());
-  EXPECT_FALSE(fs::exists(dir.file(".1F22-01.4242.tmp")));
-  EXPECT_TRUE(fs::exists(dir.file("README")));
+  EXPECT_FALSE(fs::exists((dir / ".1F22-01.4242.tmp")));
+  EXPECT_TRUE(fs::exists((dir / "README")));
 }
 
 TEST(ConfigStore, FailedWriteAbortsAndKeepsTheOldValue) {
   // The rename cannot replace the entry (a directory has its name): works as root too.
-  TempDir dir;
+  ScratchDir dir;
   ConfigManager manager = open_store(dir.str());
   ASSERT_TRUE(manager.put_concise(1_node, encode_concise_dcf(sample_writes())).ok());
-  fs::remove(dir.file("1F22-01"));
-  fs::create_directories(dir.file("1F22-01/x"));
+  fs::remove((dir / "1F22-01"));
+  fs::create_directories((dir / "1F22-01/x"));
   const ConfigWrite write = manager.write(0x1F22, 1, encode_concise_dcf(sample_writes(5)));
   EXPECT_EQ(code(write.abort), kAbortCannotStore);
   EXPECT_THAT(write.message, HasSubstr("1F22-01"));
@@ -567,7 +552,7 @@ struct CrashFixture {
 TEST(ConfigStore, KilledWriterAtEveryStepLeavesOldOrNewValue) {
   // The writer is a child process that SIGKILLs itself at step k of a write (after each
   // 32-byte piece, after the fsync, the rename and the directory fsync), for every k.
-  TempDir dir;
+  ScratchDir dir;
   CrashFixture fixture;
   fixture.seed(dir.str());
   Bytes current = fixture.a;
@@ -606,7 +591,7 @@ TEST(ConfigStore, KilledWriterAtEveryStepLeavesOldOrNewValue) {
 
 TEST(ConfigStore, KilledWriterAtRandomMomentsLeavesOldOrNewValue) {
   // A child rewrites node 1 in a loop (a, b, a, ...); it is killed after a random delay.
-  TempDir dir;
+  ScratchDir dir;
   CrashFixture fixture;
   fixture.seed(dir.str());
   std::mt19937 random(1234);

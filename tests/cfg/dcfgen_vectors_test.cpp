@@ -23,6 +23,7 @@
 #include "cfg/value.hpp"
 #include "concise_test_support.hpp"
 #include "prerequisite.hpp"
+#include "scratch_dir.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
@@ -63,8 +64,10 @@ Network load_bus_yml_set(const std::string& set, const std::string& yml,
                          const std::vector<std::pair<std::string, std::string>>& files,
                          NetworkOptions options = {}) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::path(::testing::TempDir()) / ("dcfgen_vectors_" + set);
-  fs::remove_all(dir);
+  // The test's own directory (CTest runs the tests of one set side by side), removed once the
+  // network is read: a Network holds its files' contents, not their paths.
+  const test_support::ScratchDir scratch;
+  const fs::path dir = scratch.path() / set;
   fs::create_directories(dir);
   fs::copy_file(corpus(set + "/" + yml), dir / "bus.yml");
   for (const auto& [from, to] : files) {

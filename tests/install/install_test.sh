@@ -49,7 +49,7 @@ for lib in cfg nmt-core nmt-sim nmt-io; do
 done
 [ -f "$prefix/$libdir/pkgconfig/canopen-nmt.pc" ] || fail "installed: canopen-nmt.pc"
 for page in dcf2concise cfgmgr cfgmgr-check cfgmgr-fmt cfgmgr-simulate cfgmgr-master cfgmgr-push \
-            cfgmgr-diff cfgmgr-build cfgmgr-verify cfgmgr-store cfgmgr-sdo cfgmgr-lss; do
+            cfgmgr-diff cfgmgr-build cfgmgr-verify cfgmgr-store cfgmgr-sdo cfgmgr-lss cfgmgr-scan; do
   [ -f "$prefix/share/man/man1/$page.1.gz" ] || fail "installed: man page $page.1.gz"
 done
 echo "ok: installed files checked"

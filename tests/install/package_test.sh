@@ -74,7 +74,7 @@ has_files "$tools" bin/cfgmgr bin/dcf2concise share/man/man1/cfgmgr-check.1.gz \
   share/man/man1/cfgmgr-simulate.1.gz share/man/man1/cfgmgr-master.1.gz \
   share/man/man1/cfgmgr-push.1.gz share/man/man1/cfgmgr-diff.1.gz \
   share/man/man1/cfgmgr-build.1.gz share/man/man1/cfgmgr-verify.1.gz \
-  share/man/man1/cfgmgr-store.1.gz share/man/man1/cfgmgr-sdo.1.gz share/man/man1/cfgmgr-lss.1.gz \
+  share/man/man1/cfgmgr-store.1.gz share/man/man1/cfgmgr-sdo.1.gz share/man/man1/cfgmgr-lss.1.gz share/man/man1/cfgmgr-scan.1.gz \
   share/man/man1/dcf2concise.1.gz
 # cfgmgr is linked with the static libraries: its --trace loads libpcap, named by the package.
 has_depends "$tools" "$runtime_name \(= $version\)" '(^|, )libc6' 'libstdc\+\+6' '(^|, )libpcap0'

@@ -282,7 +282,7 @@ TEST(ConfigurationStoreObjects, ConfIsRefusedWhereTheMasterCannotBoot) {
 // until the driver wrote the entry and called entry_persisted(); then the manager has it and
 // the held download is completed without an abort.
 TEST(ConfigurationStoreObjects, StoredEntryIsHeldUntilTheDriverPersistedIt) {
-  TempDir dir;
+  ScratchDir dir;
   StoreObjects s(open_manager(dir.str()));
   const auto node = *cfg::NodeId::from(kNode);
   const auto verdict = s.download(0x1F22, kNode, kStream);
@@ -315,7 +315,7 @@ TEST(ConfigurationStoreObjects, StoredEntryIsHeldUntilTheDriverPersistedIt) {
 // stored to the application", CiA 301 §7.2.4.3.17), here a 1F26h write; the manager keeps its
 // value, and a second completion of the same ticket changes nothing.
 TEST(ConfigurationStoreObjects, FailedPersistAbortsTheHeldDownloadWith08000020) {
-  TempDir dir;
+  ScratchDir dir;
   StoreObjects s(open_manager(dir.str()));
   const auto node = *cfg::NodeId::from(kNode);
   const auto verdict = s.download(0x1F26, kNode, cfg::le32_bytes(0x3A99));
@@ -344,7 +344,7 @@ TEST(ConfigurationStoreObjects, OnlyAStoreDirectoryHoldsAndOnlyWithAnOutput) {
   EXPECT_TRUE(memory.out.empty());
   EXPECT_EQ(memory.manager->concise(node), kStream);
 
-  TempDir dir;
+  ScratchDir dir;
   StoreObjects stored(open_manager(dir.str()));
   EXPECT_EQ(stored.dict.write(0x1F22, kNode, kStream, stored.now), SdoAbort::DeviceState);
   EXPECT_FALSE(stored.manager->concise(node).has_value());

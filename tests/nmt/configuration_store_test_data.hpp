@@ -16,8 +16,11 @@
 
 #include "cfg/concise_dcf.hpp"
 #include "nmt/master/master_options.hpp"
+#include "scratch_dir.hpp"
 
 namespace nmt::store_test {
+
+using test_support::ScratchDir;
 
 constexpr std::uint8_t kNode = 5;
 // DSP 302 §6.4: "the signature 'conf' (this equals the UNSIGNED32 number 666E 6F63h)".
@@ -59,26 +62,6 @@ class NetworkLikeSource final : public ConfigurationSource {
     if (node.value() != kNode) return std::optional<std::string>{};
     return std::optional<std::string>{kNetworkDcf};
   }
-};
-
-/// A fresh directory per test.
-class TempDir {
- public:
-  TempDir() {
-    namespace fs = std::filesystem;
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("masterstore-" + std::string(info->test_suite_name()) +
-                                         "-" + info->name() + "-" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { std::filesystem::remove_all(path_); }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  std::string str() const { return path_.string(); }
-
- private:
-  std::filesystem::path path_;
 };
 
 }  // namespace nmt::store_test

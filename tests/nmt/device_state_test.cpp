@@ -11,6 +11,7 @@
 #include "cfg/device_file.hpp"
 #include "nmt/sim/device_state.hpp"
 #include "nmt/sim/simulated_device.hpp"
+#include "scratch_dir.hpp"
 #include "test_paths.hpp"
 
 namespace {
@@ -25,17 +26,6 @@ void power_on_at(Device& device, nmt::TimePoint now) {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() : path_(fs::temp_directory_path() / ("device_state_" + std::to_string(::getpid()))) {
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 TEST(DeviceState, FormatsAndParsesBackTheSameValues) {
   // 1017h = 1000 ms (UNSIGNED16 E8h 03h on the bus), 1020h sub 1 = 0x11223344, an empty entry.
@@ -123,7 +113,7 @@ nmt::SimulatedDevice device() {
 
 TEST(DeviceState, ADeviceGivenItsSavedValuesHasThemAfterPowerOn) {
   // CiA 301 §7.5.2.13: saved parameters are what the device starts with after a power cycle.
-  TempDir dir;
+  test_support::ScratchDir dir;
   nmt::SimulatedDevice first = device();
   power_on_at(first, nmt::TimePoint{});
   ASSERT_TRUE(first.node().dictionary().set_unsigned(0x1017, 0, 1000));
@@ -150,7 +140,7 @@ TEST(DeviceState, AnUnconfiguredDeviceLssGaveNodeId5BootsAsNode5InTheNextProcess
   // CiA 305: a node-ID stored with store configuration (17h) is the one the device powers on
   // with. The device of lss_io.eds starts unconfigured, LSS gives it node-ID 5 and stores it;
   // a new device from the same file with the saved state boots at once as node 5 (705h#00).
-  TempDir dir;
+  test_support::ScratchDir dir;
   auto read = cfg::read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/lss/lss_io.eds");
   ASSERT_TRUE(read.device) << read.diagnostics.format();
   auto frames = [](nmt::SlaveNode& n, std::string_view candump) {

@@ -36,7 +36,7 @@ using store_test::kNetworkStream;
 using store_test::kNode;
 using store_test::kStream;
 using store_test::NetworkLikeSource;
-using store_test::TempDir;
+using store_test::ScratchDir;
 
 // The tool's SDO request COB-ID: 600h + the master's node-ID (CiA 301 pre-defined set).
 constexpr std::uint32_t kToolRequestId = 0x600 + kMaster;
@@ -269,7 +269,7 @@ TEST(NmtMasterStore, ConfToSub80hConfiguresEverySlaveWithAConfiguration) {
 // The writes persist in the store directory: a manager opened again on the
 // directory has what the tool wrote over the bus.
 TEST(NmtMasterStore, WritesOverSdoPersistInTheStoreDirectory) {
-  TempDir dir;
+  ScratchDir dir;
   auto opened = cfg::ConfigManager::open(dir.str());
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   StoreRig s(std::make_shared<cfg::ConfigManager>(std::move(opened).value()));
@@ -313,7 +313,7 @@ struct DurableStoreRig {
       m.entry_persisted(ticket, result, now, out);
     });
   }
-  TempDir dir;
+  ScratchDir dir;
   std::shared_ptr<cfg::ConfigManager> manager;
   StoreRig s;
 };
@@ -496,7 +496,7 @@ struct HostedStoreRig {
     for (const auto& seen : s.rig.on_id(0x580 + kMaster, from)) out.push_back(seen.frame);
     return out;
   }
-  TempDir dir;
+  ScratchDir dir;
   std::shared_ptr<cfg::ConfigManager> manager;
   StoreRig s;
 };
@@ -570,7 +570,7 @@ TEST(MasterHost, AStoreWriteIsHeldUntilItsWriterCompletesIt) {
 // arrives meanwhile is reported (CiA 302-2 §4, boot-up handler). The SDO confirmation of the 1F26h
 // write (DSP 302 §6.6) leaves only after the write ended (CiA 301 §7.2.4.3.3: 60h).
 TEST(NmtMasterStore, TheLoopKeepsServingFramesWhileAWorkerPersistsAnEntry) {
-  TempDir dir;
+  ScratchDir dir;
   std::atomic<bool> writing{false};
   std::atomic<bool> release{false};
   cfg::StoreWriteHooks hooks;

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "prerequisite.hpp"
+#include "scratch_dir.hpp"
 #include "test_paths.hpp"
 
 namespace tool_test {
@@ -62,39 +63,7 @@ struct RunResult {
   std::string err;  ///< stderr
 };
 
-/// A scratch directory, removed at the end of the test.
-class ScratchDir {
- public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = std::filesystem::temp_directory_path() /
-            (std::string("canopen_tools_") + info->test_suite_name() + "_" + info->name() + "_" +
-             std::to_string(::getpid()));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-
-  const std::filesystem::path& path() const { return path_; }
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
-  /// Names of the files in the directory (hidden ones too), sorted.
-  std::vector<std::string> files() const {
-    std::vector<std::string> names;
-    for (const auto& e : std::filesystem::directory_iterator(path_)) {
-      names.push_back(e.path().filename().string());
-    }
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-
- private:
-  std::filesystem::path path_;
-};
+using test_support::ScratchDir;
 
 /// Runs `tool` (cfgmgr, dcf2concise) with `args`, in `cwd` when given, stdin from `stdin_file`
 /// when given (else /dev/null).

@@ -33,6 +33,8 @@ void add_store_command(CLI::App& app);
 void add_sdo_command(CLI::App& app);
 /// `cfgmgr lss scan|set-id|inquire|set-bitrate --bus URL`: LSS, CiA 305 (lss.cpp).
 void add_lss_command(CLI::App& app);
+/// `cfgmgr scan --bus URL --eds-dir DIR -o OUT`: a live network into a project (scan.cpp).
+void add_scan_command(CLI::App& app);
 /// `cfgmgr program-image PAYLOAD --version V -o IMAGE`: an image with a version trailer
 /// (program_image.cpp).
 void add_program_image_command(CLI::App& app);

@@ -35,6 +35,7 @@ int run(int argc, char** argv) {
   cfgmgr::add_store_command(app);
   cfgmgr::add_sdo_command(app);
   cfgmgr::add_lss_command(app);
+  cfgmgr::add_scan_command(app);
   cfgmgr::add_program_image_command(app);
 
   try {

@@ -179,6 +179,7 @@ struct DeviceIdentity {
   /// LSS_SerialNumber, else 1018h sub 4's ParameterValue/DefaultValue. derive_master leaves
   /// 1F88h 0 all the same (see above).
   std::optional<std::uint32_t> serial_number;
+  bool operator==(const DeviceIdentity&) const = default;
 };
 DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node);
 

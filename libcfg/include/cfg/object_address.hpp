@@ -13,6 +13,7 @@ struct ObjectAddress {
   std::uint16_t index = 0;
   std::uint8_t sub_index = 0;
   constexpr bool operator==(const ObjectAddress&) const = default;
+  // NOLINTNEXTLINE(modernize-use-nullptr): clang-tidy 14 flags the 0 of the defaulted compare
   constexpr auto operator<=>(const ObjectAddress&) const = default;
   /// One number for maps and sets: index << 8 | sub-index.
   constexpr std::uint32_t key() const { return std::uint32_t{index} << 8 | sub_index; }
