@@ -23,6 +23,7 @@
 
 #include "../common/tool_support.hpp"
 #include "cfg/atomic_file.hpp"
+#include "cfg/bytes.hpp"
 #include "cfg/device_file.hpp"
 #include "cfg/device_scan.hpp"
 #include "cfg/hex.hpp"
@@ -131,6 +132,24 @@ std::vector<cfg::ObjectAddress> choose_eds(ScannedNode& node, const cfg::EdsLibr
   return {};
 }
 
+// 1000h and 1018h sub 1-3 as the device reported them, which as_found_dcf records (the identity
+// push checks, cfg/device_scan.hpp): without them the DCF keeps the EDS's revision, and a push
+// onto a replacement of the scanned device's revision fails with error N when the EDS matched
+// by the nearest revision only.
+void record_identity(ScannedNode& node) {
+  const auto& id = node.found.identity;
+  if (id.device_type) {
+    node.values[cfg::ObjectAddress{0x1000, 0}] = cfg::le32_bytes(*id.device_type);
+  }
+  const std::optional<std::uint32_t> subs[] = {id.vendor_id, id.product_code, id.revision_number};
+  for (std::uint8_t i = 0; i < 3; ++i) {
+    if (subs[i]) {
+      node.values[cfg::ObjectAddress{0x1018, static_cast<std::uint8_t>(i + 1)}] =
+          cfg::le32_bytes(*subs[i]);
+    }
+  }
+}
+
 // The engines' events into `results`; `read` hands a found node's entries to the scanner (through
 // the driver's apply, so its frames go out).
 class Collector {
@@ -146,6 +165,7 @@ class Collector {
       ScannedNode& node =
           results_.nodes.insert_or_assign(found->node.value(), ScannedNode{.found = *found})
               .first->second;
+      record_identity(node);
       auto entries = choose_eds(node, library_, diagnostics_);
       read(found->node, std::move(entries));
     } else if (const auto* entry = std::get_if<Scanner::EntryRead>(&event)) {
