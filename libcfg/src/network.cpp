@@ -689,6 +689,11 @@ NetworkLoad load_network(const std::string& path, const NetworkOptions& options)
   return out;
 }
 
+std::optional<std::uint32_t> configured_value(const NetworkNode& node, std::uint16_t index,
+                                              std::uint8_t sub_index) {
+  return value_after_download(node, index, sub_index);
+}
+
 DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node) {
   const auto identity = [&](std::uint8_t sub, std::string_view key) {
     auto value = configured_unsigned(dcf, object::kIdentity, sub, node);

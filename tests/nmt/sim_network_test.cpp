@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <map>
 #include <set>
 #include <string>
@@ -51,7 +52,11 @@ TEST(SimUrl, NamesTheParameterItRefuses) {
   EXPECT_EQ(message("sim:?seed=1&seed=2"), "sim: parameter 'seed' given twice");
   EXPECT_EQ(message("sim:?speed=1"),
             "sim: unknown parameter 'speed' (known: bitrate, latency_ms, loss, seed, state, "
-            "unconfigured, device)");
+            "unconfigured, device, emcy)");
+  EXPECT_EQ(message("sim:?emcy=0@10:8130"),
+            "sim: emcy=0@10:8130: expected NODE@MS:CODE[:REGISTER] (node-ID, ms after the "
+            "start, EMCY error code and error register bits in hex, e.g. 3@1500:8130)");
+  EXPECT_EQ(message("sim:?emcy=3@10:18130").substr(0, 24), "sim: emcy=3@10:18130: ex");
   EXPECT_EQ(message("sim:x"), "sim: expected '?' and parameters after 'sim:', got 'x'");
   EXPECT_EQ(message("sim:?unconfigured=0"), "sim: unconfigured=0: '0' is no node-ID 1..127");
   EXPECT_EQ(message("sim:?device=drive.eds"),
@@ -66,6 +71,21 @@ TEST(SimUrl, DeviceFilesAreRepeatableAndGiveEachNodeItsFile) {
   ASSERT_TRUE(options.ok()) << options.error().message;
   EXPECT_EQ(options->device_files, (std::map<std::uint8_t, std::string>{
                                        {2, "/x/a@b.eds"}, {3, "/x/a@b.eds"}, {16, "c.dcf"}}));
+}
+
+// emcy=NODE@MS:CODE[:REGISTER], repeatable: the EMCYs each node's device raises.
+TEST(SimUrl, EmergenciesAreRepeatableWithTimeCodeAndRegister) {
+  const auto options = parse_sim_url("sim:?emcy=3@1500:8130&emcy=3@1600:0x2310:02&emcy=5@0:0");
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  ASSERT_EQ(options->emergencies.size(), 2U);
+  const auto& three = options->emergencies.at(3);
+  ASSERT_EQ(three.size(), 2U);
+  EXPECT_EQ(three[0].at, TimePoint{} + std::chrono::milliseconds(1500));
+  EXPECT_EQ(three[0].error_code, 0x8130);
+  EXPECT_EQ(three[0].error_register_bits, 0);
+  EXPECT_EQ(three[1].error_code, 0x2310);
+  EXPECT_EQ(three[1].error_register_bits, 0x02);
+  EXPECT_EQ(options->emergencies.at(5)[0].error_code, 0x0000);
 }
 
 TEST(NodeList, RangesAndSingleNodes) {

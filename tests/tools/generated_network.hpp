@@ -35,6 +35,9 @@ struct NetworkSpec {
   bool master_dcf = false;
   std::map<int, std::uint32_t> assignment;
   std::map<int, Identity> expected;
+  /// Nodes whose DCF has 1014h (COB-ID EMCY, CiA 301 §7.5.2.14) with this value (the device
+  /// sends its EMCY there, the master consumes it there).
+  std::map<int, std::uint32_t> emcy_cob_id;
   /// Nodes listed by the master but without a device (not in the project file).
   std::vector<int> absent;
   /// Nodes whose 2001h is not mappable (PDOMapping=0) though their RPDO 1 maps it: the device
@@ -149,6 +152,8 @@ inline std::string slave_dcf(const NetworkSpec& spec, int node) {
   header(w, file, node, spec.identity, false, spec.lss);
   w.list("MandatoryObjects", {0x1000, 0x1001, 0x1018});
   std::vector<std::uint16_t> optional = {0x1010, 0x1011, 0x1017, 0x1020};
+  const auto emcy = spec.emcy_cob_id.find(node);
+  if (emcy != spec.emcy_cob_id.end()) optional.insert(optional.begin(), 0x1014);
   for (int p = 0; p < spec.pdos; ++p) {
     for (const int base : {0x1400, 0x1600, 0x1800, 0x1A00}) {
       optional.push_back(static_cast<std::uint16_t>(base + p));
@@ -167,6 +172,11 @@ inline std::string slave_dcf(const NetworkSpec& spec, int node) {
     w.object(index, "Highest sub-index supported", "0x0005", "ro", "1", std::nullopt, false, 0);
     w.object(index, index == 0x1010 ? "Save all parameters" : "Restore all default parameters",
              "0x0007", "rw", "1", std::nullopt, false, 1);
+  }
+  if (emcy != spec.emcy_cob_id.end()) {
+    // Default and value alike: a device whose EMCY is there from power-on (CiA 301 §7.5.2.5
+    // refuses moving a valid COB-ID, so a download could not move it).
+    w.object(0x1014, "COB-ID EMCY", "0x0007", "rw", hex32(emcy->second), hex32(emcy->second));
   }
   w.object(0x1017, "Producer heartbeat time", "0x0006", "rw", "0",
            std::to_string(spec.heartbeat_ms));

@@ -8,6 +8,7 @@
 #include "cfg/hex.hpp"
 #include "nmt/lss/lss.hpp"
 #include "nmt/master/master_event_text.hpp"
+#include "nmt/protocol/emcy_text.hpp"
 #include "nmt/protocol/frame.hpp"
 #include "run_args.hpp"
 
@@ -55,7 +56,12 @@ void EventReporter::report(const nmt::MasterEvent& e) {
       } else {
         line = node + "boot error: " + nmt::describe(e);
       }
+      if (e.boot_emergency) line += "; " + nmt::describe_boot_emergency(e);
       if (!e.final) line += " (trying again)";
+      break;
+    case K::Emergency:
+    case K::EmergencyFlood:
+      line = nmt::describe(e);  // "node 3: emergency 8130h life guard error or heartbeat ..."
       break;
     case K::StartupHalted:
       halted_ = true;
@@ -147,6 +153,23 @@ std::string json_failure(const nmt::BootFailure& f) {
     out += ", \"consumer_time_ms\": " + std::to_string(f.consumer_time_ms);
   }
   if (f.boot_time_ms) out += ", \"boot_time_ms\": " + std::to_string(*f.boot_time_ms);
+  return out + "}";
+}
+// An EMCY (CiA 301 §7.2.7) as a JSON object: the numbers a script compares, the code's words.
+std::string json_emergency(const nmt::MasterEvent::EmergencyReport& r) {
+  std::string bytes;
+  for (const std::uint8_t b : r.emcy.manufacturer) bytes += cfg::hex_digits(b, 2);
+  std::string out =
+      "{\"error_code\": " + std::to_string(r.emcy.error_code) +
+      ", \"error_code_hex\": " + tools::json_string(cfg::hex_digits(r.emcy.error_code, 4)) +
+      ", \"error_register\": " + std::to_string(r.emcy.error_register) +
+      ", \"manufacturer\": " + tools::json_string(bytes) + ", \"code_text\": " +
+      tools::json_string(nmt::describe_emcy_code(r.emcy.error_code, r.device_type)) +
+      ", \"register_text\": " +
+      tools::json_string(nmt::describe_error_register(r.emcy.error_register)) +
+      ", \"ends_error\": " + (r.ends_error ? "true" : "false");
+  if (r.device_type) out += ", \"device_type\": " + std::to_string(*r.device_type);
+  if (r.suppressed != 0) out += ", \"suppressed\": " + std::to_string(r.suppressed);
   return out + "}";
 }
 }  // namespace
@@ -255,6 +278,8 @@ void EventReporter::write_json(const nmt::MasterEvent& e) {
   }
   if (e.lss_address)
     out += ", \"lss_address\": " + tools::json_string(nmt::address_digits(*e.lss_address));
+  if (e.emergency) out += ", \"emergency\": " + json_emergency(*e.emergency);
+  if (e.boot_emergency) out += ", \"boot_emergency\": " + json_emergency(*e.boot_emergency);
   if (e.boot_try != 0) out += ", \"try\": " + std::to_string(e.boot_try);
   out += ", \"text\": " + tools::json_string(nmt::describe(e)) + "}\n";
   *json_ << out << std::flush;

@@ -108,7 +108,10 @@ void add_master_command(CLI::App& app) {
                   "expected, abort/abort_text, entry/entries, consumer_time_ms, boot_time_ms), "
                   "halted_by (startup_halted), nmt_startup (not_master), reason (flying master "
                   "and SDO manager kinds), outcome/error_code (lss_*), found/assigned "
-                  "(lss_scan_ended)")
+                  "(lss_scan_ended), emergency (emergency, emergency_flood: error_code, "
+                  "error_code_hex, error_register, manufacturer (10 hex digits), code_text, "
+                  "register_text, ends_error, device_type, suppressed) and boot_emergency "
+                  "(boot_error, slave_booted: the EMCY the node sent during its boot)")
       ->type_name("FILE");
   cmd->add_option("--store", options->store,
                   "Keep what tools write to 1F20h-1F27h in this store directory (created when "

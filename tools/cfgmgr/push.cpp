@@ -85,6 +85,9 @@ struct NodeReport {
   std::optional<nmt::TimePoint> began;
   nmt::TimePoint ended{};
   bool lss_assigned = false;  ///< --lss: the node-ID was given to its device by LSS in this run
+  /// EMCYs the node sent with an error code (CiA 301 §7.2.7; error resets not counted), those
+  /// a flood's summary counted included.
+  std::uint64_t emergencies = 0;
 };
 
 std::string_view result_name(Result result) {
@@ -171,6 +174,11 @@ class Collector {
     if (r == nullptr) return;
     if (e.kind == K::LssAssigned) r->lss_assigned = true;
     if (e.kind == K::SlaveStateChanged && e.state) r->state = e.state;
+    if (e.kind == K::Emergency && e.emergency &&
+        e.emergency->emcy.error_code != nmt::emcy_code::kErrorReset) {
+      ++r->emergencies;
+    }
+    if (e.kind == K::EmergencyFlood && e.emergency) r->emergencies += e.emergency->suppressed;
     if (r->result != Result::Pending) return;
     switch (e.kind) {
       case K::ProgramProgress:
@@ -448,18 +456,20 @@ void print_table(const std::vector<NodeReport>& nodes, nmt::TimePoint start, boo
     return text;
   };
   std::cout << "node  " << pad("name", name_width) << "  " << pad("result", result_width)
-            << (lss ? "  lss     " : "") << "  entries  time\n";
+            << (lss ? "  lss     " : "") << "  entries  emcy  time\n";
   for (const auto& r : nodes) {
     char number[8];
     std::snprintf(number, sizeof number, "%4d", r.node_id);
     char entries[16];
     std::snprintf(entries, sizeof entries, "%7zu", r.entries);
+    char emcy[24];
+    std::snprintf(emcy, sizeof emcy, "%4llu", static_cast<unsigned long long>(r.emergencies));
     char seconds[32];
     std::snprintf(seconds, sizeof seconds, "%.3f s", node_seconds(r, start));
     std::cout << number << "  " << pad(r.name, name_width) << "  "
               << pad(result_text(r), result_width)
               << (lss ? (r.lss_assigned ? "  assigned" : "  -       ") : "") << "  " << entries
-              << "  " << seconds << '\n';
+              << "  " << emcy << "  " << seconds << '\n';
   }
   bool first = true;
   // DSP 302 §9: each node whose program was downloaded in this run, with what it took.
@@ -529,6 +539,7 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
            ", \"retries\": " + std::to_string(r.retries) + ", \"seconds\": " + number +
            ", \"mandatory\": " + (r.mandatory ? "true" : "false") +
            ", \"lss_assigned\": " + (r.lss_assigned ? "true" : "false") +
+           ", \"emergencies\": " + std::to_string(r.emergencies) +
            ", \"program\": " + programs.json(r.node_id) + "}";
     first = false;
   }
@@ -746,7 +757,9 @@ void add_push_command(CLI::App& app) {
          "its CiA 302-2 letter, or not_tried / unfinished when its boot did not end "
          "before the run did; null otherwise), message, entries, bytes, retries, "
          "seconds, mandatory, lss_assigned (true when --lss gave the node its node-ID in "
-         "this run), program: null, or for a node whose program was downloaded (DSP 302 §9) "
+         "this run), emergencies (EMCYs the node sent with an error code, CiA 301 §7.2.7; "
+         "error resets not counted), program: null, or for a node whose program was downloaded "
+         "(DSP 302 §9) "
          "{updated, before, after (each null or {date_days, time_ms, text}), bytes, seconds, "
          "clear_refused (null, or the abort with which the device refused 1F51h = 3)}}], "
          "lss_unmatched [LSS addresses VVVVVVVV:PPPPPPPP:RRRRRRRR:SSSSSSSS of devices --lss "

@@ -32,7 +32,10 @@ CLI::Option* add_network_run_options(CLI::App& cmd, NetworkRunArgs& args) {
                      "between runs; the devices of the unconfigured= nodes power on without "
                      "node-ID and wait for LSS, CiA 305; &device=FILE@2-7, repeatable: the "
                      "devices at those node-IDs are built from the EDS/DCF FILE, also where the "
-                     "network has only a concise DCF, as dcfgen's master.dcf gives)")
+                     "network has only a concise DCF, as dcfgen's master.dcf gives; "
+                     "&emcy=NODE@MS:CODE[:REGISTER], repeatable: the device at NODE raises the "
+                     "emergency with error code CODE (hex, e.g. 8130) and error register bits "
+                     "REGISTER (hex) MS ms of simulated time after the start, CiA 301 §7.2.7)")
           ->type_name("URL");
   cmd.add_option("--node-id", args.node_id,
                  "The master's node-ID (1..127, e.g. 1 or 0x01); default: the master DCF's "

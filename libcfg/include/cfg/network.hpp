@@ -183,6 +183,12 @@ struct DeviceIdentity {
 };
 DeviceIdentity identity_of(const DeviceDescription& dcf, NodeId node);
 
+/// The unsigned value (up to 32 bits) `node` has in an entry after its configuration: its write
+/// of the entry, else its DCF's ParameterValue, else DefaultValue ($NODEID resolved with its
+/// node-ID); nullopt when neither has one (1014h of a node without it: 80h + node-ID applies).
+std::optional<std::uint32_t> configured_value(const NetworkNode& node, std::uint16_t index,
+                                              std::uint8_t sub_index);
+
 /// A node's concise DCF: its writes in the network's (PDO-safe) order as a DSP 302 §6.2 stream.
 /// The one encoding of a node's configuration: `cfgmgr build` writes it as nodeN.bin, the
 /// derived master's 1F26h/1F27h are its configuration_stamp, and the configuration manager

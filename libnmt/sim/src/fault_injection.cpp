@@ -1,5 +1,7 @@
 #include "nmt/sim/fault_injection.hpp"
 
+#include <algorithm>
+
 #include <string>
 
 #include "cfg/object_index.hpp"
@@ -26,7 +28,8 @@ struct FaultInjectedSlave::State {
   bool reboot_fired = false;
   /// End of the initialisation the boot delay lengthens; nullopt outside initialising.
   std::optional<TimePoint> boot_at;
-  HeldFrames sdo_responses;  ///< waiting out the latency
+  HeldFrames sdo_responses;        ///< waiting out the latency
+  std::size_t next_emergency = 0;  ///< faults.emergencies raised before this one
 
   bool lose() {
     if (faults.frame_loss_rate <= 0.0) return false;
@@ -86,6 +89,9 @@ void FaultInjectedSlave::set_faults(DeviceFaults faults) {
   state_->sdo_requests = 0;
   state_->reboot_fired = false;
   state_->sdo_responses.clear();
+  std::stable_sort(state_->faults.emergencies.begin(), state_->faults.emergencies.end(),
+                   [](const auto& a, const auto& b) { return a.at < b.at; });
+  state_->next_emergency = 0;
   apply_sdo_timeout();
 }
 
@@ -189,6 +195,11 @@ void FaultInjectedSlave::on_timer(TimePoint now, Output& out) {
   node_->on_timer(now, inner);
   pass(inner, drop_heartbeat, now, out);
   if (node_->state() != NmtState::Initialising) release_sdo_responses(now, out);
+  auto& due = state_->faults.emergencies;
+  while (state_->next_emergency < due.size() && due[state_->next_emergency].at <= now) {
+    const auto& e = due[state_->next_emergency++];
+    raise_emergency(e.error_code, e.error_register_bits, now, out);
+  }
 }
 
 std::optional<TimePoint> FaultInjectedSlave::next_deadline() const {
@@ -199,7 +210,10 @@ std::optional<TimePoint> FaultInjectedSlave::next_deadline() const {
     if (next && state_->boot_at && *state_->boot_at > *next) next = state_->boot_at;
     return next;
   }
-  return earliest(next, state_->sdo_responses.next_due());
+  next = earliest(next, state_->sdo_responses.next_due());
+  const auto& due = state_->faults.emergencies;
+  if (state_->next_emergency < due.size()) next = earliest(next, due[state_->next_emergency].at);
+  return next;
 }
 
 void FaultInjectedSlave::raise_emergency(std::uint16_t error_code, std::uint8_t error_register_bits,

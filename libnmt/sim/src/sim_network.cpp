@@ -1,6 +1,8 @@
 // A loaded network on the simulated bus (nmt/sim/sim_network.hpp).
 #include "nmt/sim/sim_network.hpp"
 
+#include <cctype>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -38,6 +40,58 @@ std::optional<double> parse_number(std::string_view text) {
   }
   if (used != copy.size() || !std::isfinite(value)) return std::nullopt;
   return value;
+}
+
+// Hex digits, with or without 0x, as EMCY codes are written ("8130", "0x8130"), at most
+// `max`.
+std::optional<std::uint32_t> parse_hex(std::string_view text, std::uint32_t max) {
+  if (text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) {
+    text.remove_prefix(2);
+  }
+  if (text.empty() || text.size() > 8) return std::nullopt;
+  std::uint32_t value = 0;
+  for (const char c : text) {
+    const int digit = std::isdigit(static_cast<unsigned char>(c)) ? c - '0'
+                      : (c >= 'a' && c <= 'f')                    ? c - 'a' + 10
+                      : (c >= 'A' && c <= 'F')                    ? c - 'A' + 10
+                                                                  : -1;
+    if (digit < 0) return std::nullopt;
+    value = value * 16 + static_cast<std::uint32_t>(digit);
+  }
+  if (value > max) return std::nullopt;
+  return value;
+}
+
+// emcy=NODE@MS:CODE[:REGISTER]: one emergency of the device at NODE, MS ms of simulated time
+// after the run began, with error code CODE and 1001h bits REGISTER (hex).
+cfg::Result<std::pair<std::uint8_t, ScheduledEmergency>> parse_emcy_fault(std::string_view value) {
+  const auto fail = [&] {
+    return sim_error("emcy=" + std::string(value) +
+                     ": expected NODE@MS:CODE[:REGISTER] (node-ID, ms after the start, EMCY "
+                     "error code and error register bits in hex, e.g. 3@1500:8130)");
+  };
+  const auto at = value.find('@');
+  const auto colon = value.find(':', at == std::string_view::npos ? 0 : at);
+  if (at == std::string_view::npos || colon == std::string_view::npos) return fail();
+  const auto node = cfg::parse_integer_literal(value.substr(0, at)).literal;
+  if (!node || !cfg::NodeId::from(static_cast<std::uint8_t>(node->value)) || node->value > 127) {
+    return fail();
+  }
+  const auto ms = parse_number(value.substr(at + 1, colon - at - 1));
+  if (!ms || *ms < 0 || *ms > 1e9) return fail();
+  std::string_view rest = value.substr(colon + 1);
+  const auto second = rest.find(':');
+  const auto code = parse_hex(rest.substr(0, second), 0xFFFF);
+  if (!code) return fail();
+  std::optional<std::uint32_t> reg = 0;
+  if (second != std::string_view::npos) reg = parse_hex(rest.substr(second + 1), 0xFF);
+  if (!reg) return fail();
+  ScheduledEmergency e;
+  e.at = TimePoint{} +
+         std::chrono::duration_cast<Duration>(std::chrono::duration<double, std::milli>(*ms));
+  e.error_code = static_cast<std::uint16_t>(*code);
+  e.error_register_bits = static_cast<std::uint8_t>(*reg);
+  return std::pair{static_cast<std::uint8_t>(node->value), e};
 }
 
 }  // namespace
@@ -91,7 +145,7 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
     const auto eq = pair.find('=');
     const std::string name(pair.substr(0, eq));
     const std::string_view value = eq == std::string_view::npos ? "" : pair.substr(eq + 1);
-    if (name != "device" && !seen.insert(name).second) {
+    if (name != "device" && name != "emcy" && !seen.insert(name).second) {
       return sim_error("parameter '" + name + "' given twice");
     }
     if (name == "bitrate") {
@@ -140,9 +194,14 @@ cfg::Result<SimBusOptions> parse_sim_url(std::string_view url) {
                            " has a device= already");
         }
       }
+    } else if (name == "emcy") {
+      auto fault = parse_emcy_fault(value);
+      if (!fault) return fault.error();
+      options.emergencies[fault->first].push_back(fault->second);
     } else {
-      return sim_error("unknown parameter '" + name +
-                       "' (known: bitrate, latency_ms, loss, seed, state, unconfigured, device)");
+      return sim_error(
+          "unknown parameter '" + name +
+          "' (known: bitrate, latency_ms, loss, seed, state, unconfigured, device, emcy)");
     }
   }
   return options;
@@ -210,7 +269,10 @@ cfg::Result<std::vector<SimulatedDevice>> simulated_devices(const cfg::Network& 
     // unconfigured=: the device of the node powers on without node-ID and waits for LSS to
     // give it one (CiA 305); the node-ID is only where its DCF says it belongs.
     const bool unconfigured = options.unconfigured.contains(node.value());
-    const auto identity = with_identity_of(*dcf, node, faults);
+    auto identity = with_identity_of(*dcf, node, faults);
+    if (const auto it = options.emergencies.find(node.value()); it != options.emergencies.end()) {
+      identity.emergencies = it->second;
+    }
     auto device = unconfigured ? SimulatedDevice::create_unconfigured(*dcf, identity)
                                : SimulatedDevice::create(*dcf, node.value(), identity);
     if (!device) {

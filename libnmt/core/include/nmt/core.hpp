@@ -22,6 +22,7 @@
 #include "nmt/master/nmt_master.hpp"
 #include "nmt/protocol/deadline_queue.hpp"
 #include "nmt/protocol/emcy.hpp"
+#include "nmt/protocol/emcy_text.hpp"
 #include "nmt/protocol/error_control.hpp"
 #include "nmt/protocol/frame.hpp"
 #include "nmt/protocol/frame_bits.hpp"

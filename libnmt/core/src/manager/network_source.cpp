@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "cfg/device_file.hpp"
+#include "cfg/object_index.hpp"
 
 namespace nmt {
 
@@ -64,6 +65,19 @@ std::map<cfg::NodeId, LssAddress> lss_addresses(const cfg::Network& network,
                     ": none of them gets its node-ID by LSS");
   }
   return addresses;
+}
+
+std::map<cfg::NodeId, EmcySource> emcy_sources(const cfg::Network& network) {
+  std::map<cfg::NodeId, EmcySource> sources;
+  for (const auto& node : network.nodes) {
+    EmcySource source;
+    if (auto cob = cfg::configured_value(node, cfg::object::kCobIdEmcy, 0)) {
+      source.cob_id = cfg::CobId::from_word(*cob);
+    }
+    source.device_type = cfg::configured_value(node, cfg::object::kDeviceType, 0);
+    sources.emplace(node.node_id, source);
+  }
+  return sources;
 }
 
 }  // namespace nmt

@@ -372,6 +372,7 @@ void BootSlaveProcess::succeeded(TimePoint now, Output& out) {
   e.total = plan_.size();
   e.bytes = bytes_;
   e.program = update_;
+  e.boot_emergency = port_->take_boot_emergency(node_);
   out.report(std::move(e));
 }
 
@@ -401,10 +402,13 @@ void BootSlaveProcess::failed(BootError error, BootFailure failure, TimePoint no
     }
   }
   final_error_ = !retry;
+  // Taken at every end of a try, so that a retry's report names only its own.
+  auto boot_emergency = port_->take_boot_emergency(node_);
   // Retries that end the same way are not reported again.
   if (reported_error_ != error || !retry) {
     reported_error_ = error;
     auto e = master_event(MasterEvent::Kind::BootError, now, node_);
+    e.boot_emergency = boot_emergency;
     e.error = error;
     e.final = !retry;
     e.step = BootStep::Failed;

@@ -96,6 +96,11 @@ class BootSlavePort {
   virtual std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const = 0;
   /// When NMT start-up began (§3.3: 1F89h counts from there).
   virtual TimePoint startup_began() const = 0;
+  /// The last EMCY (not an error reset) the node sent while this boot ran, taken: the next call
+  /// returns nullopt until another comes. For the boot's report (MasterEvent::boot_emergency).
+  virtual std::optional<MasterEvent::EmergencyReport> take_boot_emergency(cfg::NodeId /*node*/) {
+    return std::nullopt;
+  }
 
   /// The ONE report (lely's co_nmt_boot_con): the try ended with `status` (nullopt: OK, the node
   /// is to be started per §3.4 part 3 g-l; `left_to_application`: 1F81h bit 2 clear, neither

@@ -395,6 +395,7 @@ cfg::Result<MasterConfig> MasterConfig::from_network(std::shared_ptr<const cfg::
                       " is also the node-ID of " + clash->file};
   }
   const cfg::DeviceDescription& dcf = network->master;
+  if (options.emcy.sources.empty()) options.emcy.sources = emcy_sources(*network);
   options.configurations = std::make_shared<NetworkSource>(std::move(network));
   if (!options.manager) options.manager = std::make_shared<cfg::ConfigManager>();
   return from_dcf(dcf, node_id, std::move(options));

@@ -12,6 +12,7 @@
 #include "cfg/sdo_abort.hpp"
 #include "master/master_text.hpp"
 #include "nmt/lss/lss_event_text.hpp"
+#include "nmt/protocol/emcy_text.hpp"
 
 namespace nmt {
 
@@ -483,7 +484,25 @@ std::string describe_boot_error(const MasterEvent& e) {
       text += "; boot time 1F89h (" + std::to_string(*e.failure->boot_time_ms) + " ms) elapsed";
     }
   }
+  if (e.boot_emergency) text += "; " + describe_boot_emergency(e);
   return text;
+}
+
+std::string describe_emergency(const Emergency& emcy, std::optional<std::uint32_t> device_type) {
+  std::string bytes;
+  for (const std::uint8_t b : emcy.manufacturer) {
+    bytes += (bytes.empty() ? "" : " ") + cfg::hex_digits(b, 2);
+  }
+  return describe_emcy_code(emcy.error_code, device_type) + "; error register " +
+         cfg::hex_digits(emcy.error_register, 2) + "h (" +
+         describe_error_register(emcy.error_register) + "); manufacturer bytes " + bytes;
+}
+
+std::string describe_boot_emergency(const MasterEvent& e) {
+  if (!e.boot_emergency) return {};
+  return "the node sent emergency " +
+         describe_emcy_code(e.boot_emergency->emcy.error_code, e.boot_emergency->device_type) +
+         " during its boot";
 }
 
 std::string describe(const MasterEvent& e) {
@@ -500,7 +519,8 @@ std::string describe(const MasterEvent& e) {
       }
       return node + ": " + std::string(to_string(e.step));
     case Kind::SlaveBooted:
-      return slave_booted_words(e, node);
+      return slave_booted_words(e, node) +
+             (e.boot_emergency ? "; " + describe_boot_emergency(e) : std::string());
     case Kind::BootError:
       return node + ": boot error " + std::string(1, letter(e.error.value_or(BootError::A))) +
              ": " + describe_boot_error(e);
@@ -616,6 +636,25 @@ std::string describe(const MasterEvent& e) {
       return node + ": program clear (" + address +
              " = 3) refused: " + to_string(e.sdo ? e.sdo->abort : SdoAbort::None) +
              "; the download goes on";
+    }
+    case Kind::Emergency: {
+      if (!e.emergency) return node + ": emergency";
+      const auto& r = *e.emergency;
+      if (r.emcy.error_code == emcy_code::kErrorReset) {
+        return node + (r.ends_error ? ": emergency ended: " : ": emergency: ") +
+               describe_emergency(r.emcy, r.device_type);
+      }
+      return node + ": emergency " + describe_emergency(r.emcy, r.device_type);
+    }
+    case Kind::EmergencyFlood: {
+      if (!e.emergency) return node + ": emergencies not reported";
+      const auto& r = *e.emergency;
+      const auto window_ms =
+          std::chrono::duration_cast<std::chrono::milliseconds>(r.window).count();
+      return node + ": " + std::to_string(r.suppressed) + " more emergencies " +
+             describe_emcy_code(r.emcy.error_code, r.device_type) + " not reported (at most " +
+             std::to_string(r.max_per_window) + " per " + std::to_string(window_ms) +
+             " ms per node and code)";
     }
   }
   return std::string(to_string(e.kind));

@@ -20,7 +20,7 @@ cfg::Status below(const Named& option, const char* bound) {
 }  // namespace
 
 cfg::Status MasterOptions::validate() const {
-  const std::array<Named, 11> positive{{
+  const std::array<Named, 12> positive{{
       {"sdo.timeout", sdo.timeout},
       {"boot.retry_interval", boot.retry_interval},
       {"boot.reboot_timeout", boot.reboot_timeout},
@@ -32,6 +32,7 @@ cfg::Status MasterOptions::validate() const {
       {"sdo_manager.srd_guard_time", sdo_manager.srd_guard_time},
       {"lss.timing.timeout", lss.timing.timeout},
       {"lss.timing.scan_step", lss.timing.scan_step},
+      {"emcy.window", emcy.window},
   }};
   for (const auto& option : positive) {
     if (option.second <= Duration::zero()) return below(option, "positive");
@@ -42,6 +43,9 @@ cfg::Status MasterOptions::validate() const {
   }};
   for (const auto& option : not_negative) {
     if (option.second < Duration::zero()) return below(option, "0 or more");
+  }
+  if (emcy.max_per_window == 0) {
+    return cfg::Error{"MasterOptions::emcy.max_per_window must be 1 or more (it is 0)"};
   }
   return {};
 }

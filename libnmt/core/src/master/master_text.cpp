@@ -185,6 +185,10 @@ std::string_view to_string(MasterEvent::Kind kind) {
       return "lss_scan_ended";
     case K::ProgramClearRefused:
       return "program_clear_refused";
+    case K::Emergency:
+      return "emergency";
+    case K::EmergencyFlood:
+      return "emergency_flood";
   }
   return "?";
 }

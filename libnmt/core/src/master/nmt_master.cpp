@@ -107,6 +107,12 @@ bool NmtMaster::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
     m.settle(now, out);
     return true;
   }
+  m.outputs.emcy.clear();
+  if (m.emcy.on_frame(frame, now, m.outputs.emcy)) {
+    m.dispatch_emergencies(out);
+    m.settle(now, out);
+    return true;
+  }
   if (auto message = parse_error_control(frame)) {
     m.outputs.error_control.clear();
     m.error_control.on_frame(frame, now, m.outputs.error_control);
@@ -145,6 +151,9 @@ void NmtMaster::on_timer(TimePoint now, Output& out) {
   m.error_control.on_timer(now, m.outputs.error_control);
   m.dispatch_error_control(now, out);
   m.boots.on_timer(now, out);
+  m.outputs.emcy.clear();
+  m.emcy.on_timer(now, m.outputs.emcy);
+  m.dispatch_emergencies(out);
   m.settle(now, out);
 }
 
@@ -161,6 +170,7 @@ std::optional<TimePoint> NmtMaster::next_deadline() const {
   due = earliest(due, m.sdo_manager.next_deadline());
   due = earliest(due, m.boots.next_deadline());
   due = earliest(due, m.nmt_commands.next_deadline());
+  due = earliest(due, m.emcy.next_deadline());
   return due;
 }
 
@@ -278,6 +288,7 @@ void NmtMaster::Impl::start(TimePoint now, Output& out) {
   // The master is a CANopen device (§3.1: "shall behave according to the NMT slave state
   // machine"): initialisation ends with its boot-up message.
   own_state = NmtState::Initialising;
+  consume_emergencies();
   out.send(make_boot_up(node_id));
   producer.set_period(static_cast<std::uint16_t>(value_of(obj::kProducerHeartbeatTime, 0)), now);
   producer.on_boot_up(now);

@@ -24,6 +24,7 @@
 #include "manager/sdo_manager_process.hpp"
 #include "master/boot_slave_process.hpp"
 #include "master/boot_slave_set.hpp"
+#include "master/emcy_consumer.hpp"
 #include "master/error_control_service.hpp"
 #include "master/execute_lss.hpp"
 #include "master/flying_master.hpp"
@@ -88,6 +89,7 @@ struct NmtMaster::Impl {
     std::optional<std::vector<cfg::ObjectWrite>> configuration(cfg::NodeId node) const override;
     std::optional<std::vector<std::uint8_t>> program(cfg::NodeId node) const override;
     TimePoint startup_began() const override;
+    std::optional<MasterEvent::EmergencyReport> take_boot_emergency(cfg::NodeId node) override;
     void boot_con(cfg::NodeId node, std::optional<BootError> status, bool left_to_application,
                   TimePoint now, Outbox<MasterEvent>& out) override;
 
@@ -169,6 +171,7 @@ struct NmtMaster::Impl {
     Outbox<NoEvent> parts;  ///< the server's and the producer's (on_frame/on_timer)
     ErrorControlService::Output error_control;
     NmtCommandQueue::Output nmt;
+    EmcyConsumer::Output emcy;
   };
   CallOutputs outputs;
 
@@ -259,6 +262,21 @@ struct NmtMaster::Impl {
   /// Reset communication of all nodes as §3.1 d words it (individually when a slave is kept
   /// alive, never the master itself).
   void queue_reset_all(TimePoint now);
+
+  // --- emergencies (master/emcy_consumer.hpp, CiA 301 §7.2.7; master_emcy.cpp) --------------
+  EmcyConsumer emcy{EmcyConsumer::Settings{
+      options.emcy.max_per_window,
+      std::chrono::duration_cast<std::chrono::milliseconds>(options.emcy.window)}};
+  /// By node-ID: the last EMCY (not an error reset) a node sent while its boot ran, until the
+  /// boot's report takes it (BootPort::take_boot_emergency).
+  std::array<std::optional<MasterEvent::EmergencyReport>, 128> boot_emergencies{};
+  /// The COB-ID of each node's EMCY (1028h, else MasterOptions::emcy, else 80h + node-ID) to
+  /// the consumer: at start().
+  void consume_emergencies();
+  /// 1000h of `node` for the words of its EMCY codes: MasterOptions::emcy, else 1F84h (not 0).
+  std::optional<std::uint32_t> device_type_of(cfg::NodeId node) const;
+  /// What the consumer put into outputs.emcy, as MasterEvent::Emergency / EmergencyFlood.
+  void dispatch_emergencies(Output& out);
 
   // --- SDO manager (manager/sdo_manager_process.hpp, DSP 302 §7) ----------------------------
   SdoManagerProcess sdo_manager;

@@ -18,6 +18,7 @@
 #include "cfg/sdo_manager_objects.hpp"
 #include "nmt/lss/lss.hpp"
 #include "nmt/lss/lss_master.hpp"
+#include "nmt/protocol/emcy.hpp"
 #include "nmt/protocol/frame.hpp"
 #include "nmt/sdo/sdo_client.hpp"
 #include "nmt/slave/nmt_slave.hpp"
@@ -284,6 +285,11 @@ struct MasterEvent {
     /// `sdo->abort`, one of the refusals of a DSP 302 v3.2.1 device (docs/master.md); the download
     /// goes on. `program->clear_refused` of the boot's SlaveBooted/BootError I says it again.
     ProgramClearRefused,
+    // Emergencies (CiA 301 §7.2.7; MasterOptions::emcy): `emergency` holds the message.
+    Emergency,       ///< an EMCY of node_id (error code 0000h: error reset or no error; with
+                     ///< `emergency->ends_error` it ends the error the node reported)
+    EmergencyFlood,  ///< `emergency->suppressed` EMCYs of node_id with that code were not
+                     ///< reported (more than the bound in one window); `emcy` is the last
   };
   Kind kind;
   TimePoint at{};
@@ -379,6 +385,23 @@ struct MasterEvent {
     unsigned part = 0;
   };
   std::optional<LssScan> lss_scan{};
+  /// Emergency, EmergencyFlood: the EMCY (error code, error register 1001h, the 5 manufacturer
+  /// bytes), the node's device type (1000h) its code is read in where the master knows it (the
+  /// profile's words, CiA 402/401), and for a flood the count not reported, the window and bound.
+  struct EmergencyReport {
+    Emergency emcy{};
+    std::optional<std::uint32_t> device_type{};
+    bool ends_error = false;       ///< Emergency 0000h after an error of the node
+    std::uint32_t suppressed = 0;  ///< EmergencyFlood
+    TimePoint window_began{};      ///< EmergencyFlood
+    Duration window{};             ///< EmergencyFlood: the window's length
+    unsigned max_per_window = 0;   ///< EmergencyFlood: reported at most per window and code
+    bool operator==(const EmergencyReport&) const = default;
+  };
+  std::optional<EmergencyReport> emergency{};
+  /// BootError, SlaveBooted: the last EMCY (not an error reset) node_id sent while its boot ran
+  /// (since the previous boot report of the node), with its device type; nullopt: none.
+  std::optional<EmergencyReport> boot_emergency{};
 };
 /// "slave_booted", "boot_error", ...: names for logs and JSON.
 std::string_view to_string(MasterEvent::Kind kind);

@@ -3,6 +3,8 @@
 // the field; a log or terminal prints describe(event).
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -18,6 +20,16 @@ std::string describe(const MasterEvent& event);
 /// A BootError's words after its "node 3: boot error C: " head: Table 1's text, the reason in
 /// parentheses and, for a mandatory slave's last B, "; boot time 1F89h (N ms) elapsed".
 std::string describe_boot_error(const MasterEvent& event);
+
+/// An EMCY in words: "8130h life guard error or heartbeat error; error register 11h (generic,
+/// communication); manufacturer bytes 00 00 00 00 00", the code read in the profile of
+/// `device_type` (1000h) where it has words for it (nmt/protocol/emcy_text.hpp). Part of
+/// describe() for MasterEvent::Emergency.
+std::string describe_emergency(const Emergency& emcy, std::optional<std::uint32_t> device_type);
+
+/// A BootError's or SlaveBooted's boot_emergency: "the node sent emergency 8130h life guard error
+/// or heartbeat error during its boot"; empty without one. Part of describe_boot_error().
+std::string describe_boot_emergency(const MasterEvent& event);
 
 /// The reason of a failed boot in words, without the status letter and Table 1's text:
 /// "1000h is 0x00020192, 1F84h expects 0x00030192" (`node` is the slave). Part of describe().

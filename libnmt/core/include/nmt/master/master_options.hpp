@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cfg/cob_id.hpp"
 #include "cfg/concise_dcf.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/result.hpp"
@@ -156,6 +157,27 @@ struct NmtRequestOptions {
   std::size_t max_queued_requests = 256;
 };
 
+/// What the master knows of a node's emergency producer from the node's DCF.
+struct EmcySource {
+  /// 1014h (its ParameterValue, else DefaultValue, $NODEID resolved); nullopt: 80h + node-ID.
+  std::optional<cfg::CobId> cob_id;
+  /// 1000h, for the device profile's words of its codes (CiA 402, 401); nullopt: the master's
+  /// 1F84h sub node-ID when not 0.
+  std::optional<std::uint32_t> device_type;
+};
+
+/// The emergency consumer (CiA 301 §7.2.7; docs/master.md, "Emergencies"). The master consumes
+/// the EMCY of every slave in 1F81h and of every node in `sources`, on the COB-ID of the
+/// master's 1028h sub node-ID where its dictionary has that entry (CiA 301 §7.5.2.30; bit 31
+/// set: not consumed), else the source's 1014h, else 80h + node-ID.
+struct EmcyOptions {
+  std::map<cfg::NodeId, EmcySource> sources;
+  /// Per node and error code at most this many EMCYs are reported per `window`; the rest are
+  /// counted and reported as one MasterEvent::EmergencyFlood when the window ends (>= 1).
+  unsigned max_per_window = 5;
+  Duration window = std::chrono::seconds(1);
+};
+
 /// How an NMT master is built: what no object of its dictionary says, one member per process.
 ///
 /// Where a slave's configuration comes from (check configuration, CiA 302-2 §3.5 d; the one
@@ -197,6 +219,8 @@ struct MasterOptions {
   NmtRequestOptions nmt;
   /// Execute LSS (off by default).
   ExecuteLssOptions lss;
+  /// The emergency consumer.
+  EmcyOptions emcy;
 
   /// The durations checked: every timeout, wait and interval above (lss.timing's too) positive
   /// (an SDO response timeout of 0 can never be met, SdoClient::check_start refuses it; a retry

@@ -48,4 +48,10 @@ class NetworkSource final : public ConfigurationSource {
 std::map<cfg::NodeId, LssAddress> lss_addresses(const cfg::Network& network,
                                                 std::vector<std::string>& notes);
 
+/// What the master knows of the emergency producers of the network's nodes
+/// (MasterOptions::emcy.sources): each node's 1014h and 1000h after its configuration
+/// (cfg::configured_value; a node without 1014h: 80h + node-ID). MasterConfig::from_network
+/// fills MasterOptions::emcy.sources with it when they are empty.
+std::map<cfg::NodeId, EmcySource> emcy_sources(const cfg::Network& network);
+
 }  // namespace nmt

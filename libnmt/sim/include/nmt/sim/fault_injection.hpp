@@ -133,6 +133,15 @@ struct InjectedAbort {
   bool on_write = true;
 };
 
+/// An emergency the device raises at a time (SlaveNode::raise_emergency, through its
+/// EmcyProducer: 1014h, 1015h and the NMT state apply).
+struct ScheduledEmergency {
+  TimePoint at{};
+  std::uint16_t error_code = 0;
+  /// Bits set in 1001h with it (the generic bit follows any code but 0000h, CiA 301 §7.5.2.2).
+  std::uint8_t error_register_bits = 0;
+};
+
 /// Faults a slave node can be given. All default to a well-behaved node.
 struct DeviceFaults {
   /// The node is not on the bus at all: no boot-up, no answers, no heartbeat.
@@ -166,6 +175,9 @@ struct DeviceFaults {
   std::optional<TimePoint> heartbeat_stops_at;
   /// Node guarding requests (RTR) are never answered.
   bool ignore_guarding = false;
+  /// Emergencies raised at their times, in time order (each once; one due while the node is
+  /// initialising or absent is dropped, as SlaveNode drops it).
+  std::vector<ScheduledEmergency> emergencies;
 };
 
 /// A SlaveNode with faults: an nmt::Engine reporting the node's events, plus a Fault event when

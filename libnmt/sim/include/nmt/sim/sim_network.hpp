@@ -19,7 +19,10 @@ namespace nmt {
 
 /// `sim:` with optional
 /// `?bitrate=500000&latency_ms=1&loss=0.01&seed=N&state=DIR&unconfigured=3,5-7` (any order, each
-/// at most once) and `&device=FILE@3,5-7` (repeatable, each node-ID in one only).
+/// at most once), `&device=FILE@3,5-7` (repeatable, each node-ID in one only) and
+/// `&emcy=NODE@MS:CODE[:REGISTER]` (repeatable: the device at NODE raises the EMCY with error
+/// code CODE, hex, and error register bits REGISTER, hex, MS ms of simulated time after the
+/// run's start, through its EmcyProducer).
 struct SimBusOptions {
   std::uint32_t bitrate_bps = 500'000;  ///< 1 ... 1 000 000 000
   double latency_ms = 0;                ///< every SDO response of a device leaves this late
@@ -36,6 +39,8 @@ struct SimBusOptions {
   /// by a concise DCF alone, or not given at all: a slave a master DCF lists in 1F81h). So a
   /// master DCF with concise DCFs (lely dcfgen's master.dcf) runs against the slaves' EDSs.
   std::map<std::uint8_t, std::string> device_files;
+  /// emcy=: the emergencies each node's device raises (DeviceFaults::emergencies).
+  std::map<std::uint8_t, std::vector<ScheduledEmergency>> emergencies;
 };
 
 /// A list of node-IDs (1..127, each a number as cfg::parse_integer_literal reads it) as "3,5-7"
