@@ -70,7 +70,6 @@ std::string samples_dir() {
   return CANOPEN_SAMPLES_DIR;
 }
 
-
 ConfigManager open_store(const std::string& dir, StoreWriteHooks hooks = {}) {
   auto opened = ConfigManager::open(dir, std::move(hooks));
   EXPECT_TRUE(opened.ok()) << (opened.ok() ? "" : opened.error().message);

@@ -26,7 +26,6 @@ void power_on_at(Device& device, nmt::TimePoint now) {
 
 namespace fs = std::filesystem;
 
-
 TEST(DeviceState, FormatsAndParsesBackTheSameValues) {
   // 1017h = 1000 ms (UNSIGNED16 E8h 03h on the bus), 1020h sub 1 = 0x11223344, an empty entry.
   const nmt::SavedValues values = {

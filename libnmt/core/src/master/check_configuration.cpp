@@ -109,7 +109,9 @@ void BootSlaveProcess::write_next(TimePoint now, Output& out) {
              now);
     return;
   }
-  if (options_.save_configuration) {
+  // Nothing written (a node the description knows by its identity only, cfgmgr scan's device
+  // without EDS): nothing to save, and a save would store whatever the device holds in RAM.
+  if (options_.save_configuration && !plan_.empty()) {
     download(Phase::WriteSave, obj::kStoreParameters, 1, cfg::le32_bytes(cfg::kSaveSignature), now);
     return;
   }
