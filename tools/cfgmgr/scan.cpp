@@ -31,6 +31,7 @@
 #include "master_run.hpp"
 #include "nmt/io/bus.hpp"
 #include "nmt/io/bus_event_loop.hpp"
+#include "nmt/lss/lss.hpp"
 #include "nmt/lss/lss_event_text.hpp"
 #include "nmt/lss/lss_procedure.hpp"
 #include "nmt/manager/network_scanner.hpp"
@@ -87,14 +88,8 @@ struct ScanResults {
   nmt::Duration elapsed{0};
 };
 
-std::string hex32(std::uint32_t v) {
-  char text[16];
-  std::snprintf(text, sizeof text, "0x%08X", v);
-  return text;
-}
-
 std::string optional_hex(const std::optional<std::uint32_t>& v) {
-  return v ? hex32(*v) : std::string("-");
+  return v ? cfg::hex(*v, 8) : std::string("-");
 }
 
 /// A terminal gets a line per node as it is done; pipes and files get the table only.
@@ -451,9 +446,9 @@ void run_scan(const ScanCliOptions& o) {
     }
   }
   for (const auto& a : results.unconfigured) {
-    std::cerr << "cfgmgr scan: a device without node-ID, LSS address " << hex32(a.vendor_id) << ':'
-              << hex32(a.product_code) << ':' << hex32(a.revision) << ':' << hex32(a.serial)
-              << " (give it one with cfgmgr lss set-id)\n";
+    std::cerr << "cfgmgr scan: a device without node-ID, LSS address " << nmt::address_digits(a)
+              << ": not in the project (give it a node-ID with cfgmgr lss set-id "
+              << nmt::address_digits(a) << " NODE-ID, then scan again)\n";
   }
   if (!results.lss_problem.empty()) {
     std::cerr << "cfgmgr scan: warning: the LSS scan for devices without node-ID: "

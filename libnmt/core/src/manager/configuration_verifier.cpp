@@ -3,6 +3,7 @@
 #include <map>
 
 #include "cfg/object_address.hpp"
+#include "nmt/protocol/error_control.hpp"
 
 namespace nmt {
 namespace {
@@ -53,10 +54,10 @@ void ConfigurationVerifier::verify(cfg::NodeId node, std::span<const cfg::Object
 }
 
 bool ConfigurationVerifier::on_frame(const CanFrame& frame, TimePoint now, Output& out) {
-  if (!frame.extended && !frame.rtr && frame.id > 0x700 && frame.id <= 0x77F && frame.dlc >= 1) {
+  if (const auto message = parse_error_control(frame)) {
     // A heartbeat or boot-up (CiA 301 §7.2.8.3.2): the node is there, a lost answer of it is
     // asked again.
-    answered_.insert(static_cast<std::uint8_t>(frame.id - 0x700));
+    answered_.insert(message->node_id.value());
     return false;
   }
   sdo_.clear();

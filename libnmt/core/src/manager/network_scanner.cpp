@@ -5,13 +5,13 @@
 #include <utility>
 
 #include "cfg/bytes.hpp"
+#include "nmt/protocol/error_control.hpp"
 #include "nmt/protocol/frame_bits.hpp"
 
 namespace nmt {
 namespace {
 
 // CiA 301 §7.3.5 pre-defined connection set.
-constexpr std::uint32_t kHeartbeatBase = 0x700;    // NMT error control, 700h + node-ID
 constexpr std::uint32_t kSdoResponseBase = 0x580;  // default SDO server -> client
 constexpr std::uint32_t kSdoRequestBase = 0x600;   // default SDO client -> server
 
@@ -82,10 +82,9 @@ bool NetworkScanner::on_frame(const CanFrame& frame, TimePoint now, Output& out)
     // when the requests went out.
     paced_until_ += paced_time(frame_bits(frame).total());
   }
-  if (in_range(frame, kHeartbeatBase) && frame.dlc >= 1) {
+  if (const auto message = parse_error_control(frame)) {
     // CiA 301 §7.2.8.3.2: a heartbeat or boot-up: a device is at this node-ID.
-    if (const auto it = nodes_.find(static_cast<std::uint8_t>(frame.id - kHeartbeatBase));
-        it != nodes_.end()) {
+    if (const auto it = nodes_.find(message->node_id.value()); it != nodes_.end()) {
       Node& n = it->second;
       const bool first = !n.heard;
       n.heard = true;
