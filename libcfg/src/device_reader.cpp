@@ -140,13 +140,13 @@ void Reader::finish_node_id_values() {
   // do too, cfg::device_entries), so the recorded value says something the device never does.
   const std::optional<std::uint8_t> node = model_.node_id();
   if (!node) return;
+  const std::optional<std::uint8_t> at = recorded_node_id(model_);
+  if (!at || *at == *node) return;
   for (const auto& [index, object] : model_.objects) {
     for (const auto& [sub_index, sub] : object.subs) {
       if (!sub.parameter_value || !sub.default_value) continue;
       const auto type = sub.basic_type();
-      if (!type) continue;
-      const auto at = node_id_of_default(*type, *sub.default_value, *sub.parameter_value);
-      if (!at || *at == *node) continue;
+      if (!type || !is_default_at(*type, *sub.default_value, *sub.parameter_value, *at)) continue;
       auto derived = parse_value(*type, *sub.default_value, *node);
       add(sub.parameter_value_line, Severity::Warning,
           to_string(ObjectAddress{index, sub_index}) + ": ParameterValue " +

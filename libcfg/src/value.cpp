@@ -641,4 +641,39 @@ std::optional<std::uint8_t> node_id_of_default(DataType type, std::string_view d
   return std::nullopt;
 }
 
+bool is_default_at(DataType type, std::string_view default_text, std::string_view value_text,
+                   std::uint8_t node_id) {
+  if (!mentions_node_id(default_text) || mentions_node_id(value_text)) return false;
+  const auto value = parse_value(type, value_text);
+  const auto at = parse_value(type, default_text, node_id);
+  return value && at && *value == *at;
+}
+
+std::optional<std::uint8_t> recorded_node_id(const DeviceDescription& device) {
+  const std::optional<std::uint8_t> own = device.node_id();
+  std::optional<std::uint8_t> sdo_server, agreed;
+  unsigned agreeing = 0;
+  bool disagree = false, at_own = false;
+  for (const auto& [index, object] : device.objects) {
+    for (const auto& [sub_index, sub] : object.subs) {
+      if (!sub.parameter_value || !sub.default_value) continue;
+      const auto type = sub.basic_type();
+      if (!type) continue;
+      const auto at = node_id_of_default(*type, *sub.default_value, *sub.parameter_value);
+      if (!at) continue;
+      if (index == 0x1200 && (sub_index == 1 || sub_index == 2) && !sdo_server) sdo_server = at;
+      if (own && *at == *own) at_own = true;
+      if (!agreed) agreed = at;
+      if (*agreed == *at) {
+        ++agreeing;
+      } else {
+        disagree = true;
+      }
+    }
+  }
+  if (sdo_server) return sdo_server;
+  if (agreed && agreeing >= 2 && !disagree && !at_own) return agreed;
+  return own;
+}
+
 }  // namespace cfg

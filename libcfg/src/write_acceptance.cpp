@@ -57,6 +57,7 @@ Result<DeviceEntries> device_entries(const DeviceDescription& device, std::uint8
     return Error{"node-ID " + std::to_string(node_id) + " is outside 1..127"};
   }
   DeviceEntries entries;
+  const std::optional<std::uint8_t> recorded_at = recorded_node_id(device);
   for (const auto& [index, object] : device.objects) {
     for (const auto& [sub_index, sub] : object.subs) {
       DeviceEntry e;
@@ -83,10 +84,10 @@ Result<DeviceEntries> device_entries(const DeviceDescription& device, std::uint8
       const OptionalText& configured = sub.configured_value();
       std::optional<std::string_view> text;
       if (configured) text = std::string_view(*configured);
-      if (sub.parameter_value && sub.default_value &&
-          node_id_of_default(type, *sub.default_value, *sub.parameter_value)) {
-        // A value of the pre-defined connection set recorded for some node-ID (a DCF saved at
-        // node 1 says 1200h sub 1 = 0x601): the device derives it from its own node-ID
+      if (sub.parameter_value && sub.default_value && recorded_at &&
+          is_default_at(type, *sub.default_value, *sub.parameter_value, *recorded_at)) {
+        // A value of the pre-defined connection set recorded at the file's node-ID (a DCF saved
+        // at node 1 says 1200h sub 1 = 0x601): the device derives it from its own node-ID
         // (CiA 301 §7.3.5), as a device that moves to another node-ID does.
         text = std::string_view(*sub.default_value);
       }

@@ -9,12 +9,15 @@
 
 #include "cfg/device_file.hpp"
 #include "cfg/hex.hpp"
+#include "cfg/write_acceptance.hpp"
+#include "concise_test_support.hpp"
 #include "test_paths.hpp"
 
 namespace cfg {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 std::string hex4(std::uint16_t v) {
   return hex_digits(v, 4);
@@ -1098,6 +1101,44 @@ TEST(DeviceReader, WarnsWhereANodeIdDerivedValueWasRecordedForAnotherNodeId) {
               HasSubstr("ParameterValue 0x00000601 is DefaultValue $NODEID+0x600 for node-ID 1, "
                         "but NodeID is 12"));
   EXPECT_THAT(r.diagnostics.format(), HasSubstr("the device at node 12 derives 0x60C (CiA 301"));
+}
+
+// Which node-ID a file's $NODEID values were recorded at: the default SDO server's COB-IDs
+// (1200h sub 1/2, fixed at 600h/580h + node-ID by CiA 301 §7.3.5) tell where the device was
+// when its DCF was saved; a lone other value that is another node-ID's default (1014h = 0A4h,
+// 80h + 36) is a deliberate setting: the device keeps it, and nothing warns.
+TEST(DeviceReader, TheDefaultSdoServerTellsTheNodeIdAFileWasRecordedAt) {
+  const std::string saved =
+      std::string(CANOPEN_TEST_DATA_DIR) + "/network/nodes/saved_at_node1.dcf";
+  const ReadResult r = read_device_file(saved);
+  ASSERT_TRUE(r.device.has_value()) << r.diagnostics.format();
+  EXPECT_EQ(recorded_node_id(*r.device), std::optional<std::uint8_t>(1));
+  // Without 1200h's values, 1800h sub 1 = 181h alone is TPDO 1's COB-ID set on purpose.
+  std::string text = test_support::read_text(saved);
+  for (const char* line : {"ParameterValue=0x00000601\n", "ParameterValue=0x00000581\n"}) {
+    const auto at = text.find(line);
+    ASSERT_NE(at, std::string::npos);
+    text.erase(at, std::string(line).size());
+  }
+  const ReadResult lone = parse(text);
+  ASSERT_TRUE(lone.device.has_value()) << lone.diagnostics.format();
+  EXPECT_EQ(recorded_node_id(*lone.device), std::optional<std::uint8_t>(12));
+  EXPECT_THAT(lone.diagnostics.format(), Not(HasSubstr("another node-ID")));
+  const auto entries = device_entries(*lone.device, 12);
+  ASSERT_TRUE(entries.ok()) << entries.error().message;
+  EXPECT_EQ(find_entry(*entries, 0x1800, 1)->unsigned_value(), 0x181U);
+  EXPECT_EQ(find_entry(*entries, 0x1200, 1)->unsigned_value(), 0x60CU);  // its default at 12
+}
+
+TEST(DeviceReader, AnEmcyCobIdMovedOnPurposeIsKept) {
+  const ReadResult r =
+      read_device_file(std::string(CANOPEN_TEST_DATA_DIR) + "/emcy/nodes/python_node4.dcf");
+  ASSERT_TRUE(r.device.has_value()) << r.diagnostics.format();
+  EXPECT_EQ(recorded_node_id(*r.device), std::optional<std::uint8_t>(4));
+  EXPECT_THAT(r.diagnostics.format(), Not(HasSubstr("another node-ID")));
+  const auto entries = device_entries(*r.device, 4);
+  ASSERT_TRUE(entries.ok()) << entries.error().message;
+  EXPECT_EQ(find_entry(*entries, 0x1014, 0)->unsigned_value(), 0xA4U);
 }
 
 TEST(DeviceReader, ReadDeviceFileUsesThePathInDiagnostics) {

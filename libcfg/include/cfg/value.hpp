@@ -76,6 +76,22 @@ Result<Value> parse_value(DataType type, std::string_view text,
 std::optional<std::uint8_t> node_id_of_default(DataType type, std::string_view default_text,
                                                std::string_view value_text);
 
+struct DeviceDescription;
+
+/// The node-ID at which a file's values of the pre-defined connection set were recorded (its
+/// $NODEID DefaultValues with a plain ParameterValue): that of 1200h sub 1/2 when the file
+/// gives them (the default SDO server's COB-IDs, which CiA 301 §7.3.5 fixes at 600h/580h +
+/// node-ID, so they tell where a device was when its DCF was saved); else the one node-ID that
+/// two or more such values agree on, unless one of them is at the file's own NodeID; else the
+/// file's NodeID (nullopt without one). A lone value that is another node-ID's default (1014h =
+/// 0A4h at node 4) is a deliberate setting, not a recording.
+std::optional<std::uint8_t> recorded_node_id(const DeviceDescription& device);
+
+/// True when `value_text` is `default_text` (a $NODEID expression) evaluated at `node_id`: a
+/// value the device derives from its node-ID rather than one set on purpose.
+bool is_default_at(DataType type, std::string_view default_text, std::string_view value_text,
+                   std::uint8_t node_id);
+
 /// Little-endian bytes with the exact size of the type (INTEGER24: 3 bytes, UNSIGNED40: 5).
 std::vector<std::uint8_t> encode(const Value& value);
 
