@@ -16,6 +16,7 @@
 #include "cfg/hex.hpp"
 #include "cfg/node_id.hpp"
 #include "cfg/object_address.hpp"
+#include "cfg/object_index.hpp"
 #include "cfg/value.hpp"
 #include "download_order_detail.hpp"
 
@@ -355,6 +356,16 @@ void WriteBuilder::add_entry(const Location& at) {
 
 std::optional<std::uint32_t> WriteBuilder::dcf_cob_id(std::uint16_t comm_index) {
   const Object* object = dcf_.object(comm_index);
+  if (comm_index == object::kCobIdEmcy) {
+    // The EMCY COB-ID the device has before the stream: its DefaultValue (CiA 301 §7.3.5).
+    const SubObject* sub = object != nullptr ? object->sub(0) : nullptr;
+    if (sub == nullptr || !sub->default_value || !sub->basic_type()) return std::nullopt;
+    auto value = parse_value(*sub->basic_type(), *sub->default_value, node_id_);
+    if (!value || data_type_info(value->type()).type_class != TypeClass::Unsigned) {
+      return std::nullopt;
+    }
+    return static_cast<std::uint32_t>(value->as_unsigned());
+  }
   const SubObject* sub = object != nullptr ? object->sub(1) : nullptr;
   // DSP 302 §6.2 step 1 applies "if it is not readonly".
   if (sub == nullptr || !is_writable(sub->access)) return std::nullopt;

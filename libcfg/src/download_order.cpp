@@ -7,6 +7,7 @@
 
 #include "cfg/bytes.hpp"
 #include "cfg/cob_id.hpp"
+#include "cfg/object_index.hpp"
 #include "download_order_detail.hpp"
 
 namespace cfg {
@@ -164,6 +165,22 @@ DownloadOrder order(std::span<W> writes, const CobIdLookup& current_cob_id) {
   for (const auto& [index, pdo] : sequence) {
     if (pdo) {
       order_pdo(*pdo, find(pdo->comm_index), find(pdo->mapping_index), current_cob_id, out);
+    } else if (index == object::kCobIdEmcy) {
+      // A device whose EMCY is valid at another COB-ID refuses a valid one written alone: it is
+      // written with bit 31 set first (always allowed), then as configured. The lookup says
+      // what the device has; when it does not know, the pair goes out anyway.
+      for (W* write : *find(index)) {
+        const auto cob_id = write->sub_index == 0 ? as_cob_id(write->data) : std::nullopt;
+        const auto current = cob_id && current_cob_id ? current_cob_id(object::kCobIdEmcy)
+                                                      : std::optional<std::uint32_t>();
+        if (cob_id && cob_id->valid() &&
+            (!current || (CobId::from_word(*current).valid() && *current != cob_id->word()))) {
+          ObjectWrite invalid{object::kCobIdEmcy, 0, {}};
+          append_le(invalid.data, cob_id->with_valid(false).word(), 4);
+          out.writes.push_back(std::move(invalid));
+        }
+        emit(write, out);
+      }
     } else if (index != kVerifyConfiguration) {
       for (W* write : *find(index)) emit(write, out);
     }

@@ -584,9 +584,11 @@ bool has_verify_configuration(const DeviceDescription& dcf) {
 // The value a node has after its configuration: the write of that entry, else the DCF's.
 std::optional<std::uint32_t> value_after_download(const NetworkNode& node, std::uint16_t index,
                                                   std::uint8_t sub_index) {
-  for (const auto& w : node.writes) {
-    if (w.index == index && w.sub_index == sub_index && !w.data.empty() && w.data.size() <= 4) {
-      return static_cast<std::uint32_t>(load_le(w.data, w.data.size()));
+  // The last write of the entry is what the device keeps: a COB-ID is written invalid first
+  // and valid last (PDOs, 1014h; download_order.hpp).
+  for (auto w = node.writes.rbegin(); w != node.writes.rend(); ++w) {
+    if (w->index == index && w->sub_index == sub_index && !w->data.empty() && w->data.size() <= 4) {
+      return static_cast<std::uint32_t>(load_le(w->data, w->data.size()));
     }
   }
   if (!node.dcf) return std::nullopt;

@@ -434,8 +434,21 @@ TEST(ConciseWrites, RefuseWriteOnDownloadFlagIsHonoured) {
   EXPECT_EQ(diagnostics.items()[0].line, 30);
 }
 
+// CiA 301 §7.5.2.17: the device's EMCY is valid at its DefaultValue (85h at node 5), so a stream
+// that moves it writes 1014h "not valid" first; a device refuses the change otherwise.
+TEST(ConciseWrites, AMovedEmcyCobIdIsWrittenNotValidFirst) {
+  auto dcf = make_dcf({{0x1014, 0, DataType::Unsigned32, kRw, "0xA5", "$NODEID+0x80", 40}}, 5);
+  Diagnostics diagnostics;
+  auto writes = concise_writes_from_dcf(dcf, options(), diagnostics);
+  ASSERT_TRUE(writes.has_value()) << diagnostics.format();
+  EXPECT_THAT(*writes, ElementsAre(u32(0x1014, 0, 0x800000A5), u32(0x1014, 0, 0xA5)));
+}
+
 TEST(ConciseWrites, NodeIdComesFromCommissioningOrOptions) {
-  auto dcf = make_dcf({{0x1014, 0, DataType::Unsigned32, kRw, "$NODEID+0x80", none, 40}}, 5);
+  // DefaultValue as an EDS gives it: the device has this EMCY COB-ID already, so no "not
+  // valid" write goes before it (CiA 301 §7.5.2.17, download_order.hpp).
+  auto dcf =
+      make_dcf({{0x1014, 0, DataType::Unsigned32, kRw, "$NODEID+0x80", "$NODEID+0x80", 40}}, 5);
   Diagnostics diagnostics;
   auto from_dcf = concise_writes_from_dcf(dcf, options(), diagnostics);
   ASSERT_TRUE(from_dcf.has_value()) << diagnostics.format();

@@ -219,6 +219,33 @@ TEST(DownloadOrder, InputOrderDoesNotMatter) {
   }
 }
 
+// CiA 301 §7.5.2.17: 1014h's bits 0-29 may change only while bit 31 (EMCY not valid) is set, as a
+// PDO's COB-ID; a device whose EMCY is valid at 84h refuses 0A4h written alone (0609 0030).
+TEST(DownloadOrder, AValidEmcyCobIdIsWrittenInvalidFirst) {
+  std::vector<ObjectWrite> writes{u16(0x1017, 0, 100), u32(0x1014, 0, 0xA4), u8(0x1001, 0, 0)};
+  EXPECT_THAT(pdo_safe_order(writes), ElementsAre(u8(0x1001, 0, 0), u32(0x1014, 0, 0x800000A4),
+                                                  u32(0x1014, 0, 0xA4), u16(0x1017, 0, 100)));
+  // An EMCY configured not valid is written once; ordering an ordered stream gives it back.
+  EXPECT_THAT(pdo_safe_order(std::vector<ObjectWrite>{u32(0x1014, 0, 0x80000084)}),
+              ElementsAre(u32(0x1014, 0, 0x80000084)));
+  const auto once = pdo_safe_order(writes);
+  EXPECT_EQ(pdo_safe_order(once), once);
+}
+
+TEST(DownloadOrder, TheEmcyCobIdPairIsLeftOutWhereTheDeviceHasItOrHasNoValidEmcy) {
+  const std::vector<ObjectWrite> writes{u32(0x1014, 0, 0xA4)};
+  const auto device_has = [](std::uint32_t word) {
+    return [word](std::uint16_t index) -> std::optional<std::uint32_t> {
+      EXPECT_EQ(index, 0x1014);
+      return word;
+    };
+  };
+  EXPECT_THAT(pdo_safe_order(writes, device_has(0x84)),
+              ElementsAre(u32(0x1014, 0, 0x800000A4), u32(0x1014, 0, 0xA4)));
+  EXPECT_THAT(pdo_safe_order(writes, device_has(0xA4)), ElementsAre(u32(0x1014, 0, 0xA4)));
+  EXPECT_THAT(pdo_safe_order(writes, device_has(0x80000084)), ElementsAre(u32(0x1014, 0, 0xA4)));
+}
+
 TEST(DownloadOrder, PdoIndicesCoverCiA301Ranges) {
   EXPECT_FALSE(pdo_indices_of(0x13FF).has_value());
   EXPECT_FALSE(pdo_indices_of(0x1C00).has_value());

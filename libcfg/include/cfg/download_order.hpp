@@ -17,7 +17,7 @@ namespace cfg {
 
 /// Current value of a PDO COB-ID (14xxh/18xxh sub 1) on the device, when the writes do not
 /// carry it; nullopt if unknown (or if the COB-ID cannot be written: DSP 302 §6.2 step 1 applies
-/// only "if it is not readonly").
+/// only "if it is not readonly"). Asked with 1014h, the device's EMCY COB-ID (1014h sub 0).
 using CobIdLookup = std::function<std::optional<std::uint32_t>(std::uint16_t comm_index)>;
 
 /// Writes in download order, and the PDOs for which the ordering rule could not be applied in
@@ -43,7 +43,9 @@ struct DownloadOrder {
 /// Orders writes for download. For every PDO (1400h-15FFh/1600h-17FFh, 1800h-19FFh/1A00h-1BFFh)
 /// whose parameters are written: first its COB-ID with bit 31 set (PDO invalid), then
 /// communication sub-indices 2 and up, then mapping sub-index 0 = 0, the mapping entries,
-/// mapping sub-index 0 = n, and last the COB-ID as configured. Every other object in index
+/// mapping sub-index 0 = n, and last the COB-ID as configured. A valid EMCY COB-ID (1014h) is
+/// written with bit 31 set first (CiA 301 §7.5.2.17) unless the lookup says the device has it
+/// already, or has its EMCY not valid. Every other object in index
 /// order (sub-index order within an object), except 1020h (verify configuration), which comes
 /// after everything else: a device resets it when any other configuration value changes (DSP
 /// 302 v3.2.1 §6.3). A PDO sorts at its communication index, so the whole sequence of RPDO n

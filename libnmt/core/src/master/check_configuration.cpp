@@ -11,6 +11,7 @@
 #include "cfg/object_index.hpp"
 #include "master/boot_slave_process.hpp"
 #include "master/master_support.hpp"
+#include "nmt/protocol/emcy.hpp"
 
 namespace nmt {
 
@@ -73,8 +74,13 @@ void BootSlaveProcess::begin_download(TimePoint now, Output& out) {
 
 void BootSlaveProcess::plan_download(TimePoint now, Output& out) {
   // The tail (1020h, 1010h) is written as steps of their own (write_next).
+  // A PDO's COB-ID as read from the slave; its EMCY's (1014h) as the pre-defined connection set
+  // gives it (CiA 301 §7.3.5), so that a configuration that keeps it writes no pair around it.
   auto order = cfg::plan_download(configuration_, {},
                                   [this](std::uint16_t comm_index) -> std::optional<std::uint32_t> {
+                                    if (comm_index == obj::kCobIdEmcy) {
+                                      return default_emcy_cob_id(node_).word();
+                                    }
                                     const auto it = cob_ids_read_.find(comm_index);
                                     if (it == cob_ids_read_.end()) return std::nullopt;
                                     return it->second;
