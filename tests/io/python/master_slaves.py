@@ -82,6 +82,10 @@ class Slave:
         period = self.values[(0x1017, 0)]
         self.next_heartbeat = now + period / 1000.0 if period else None
 
+    def wakeup(self):
+        """When the slave next has something to send on its own (None: only when asked)."""
+        return self.next_heartbeat
+
     def heartbeat(self, now):
         if self.next_heartbeat is not None and now >= self.next_heartbeat:
             self.send(0x700 + self.node, [self.state])
@@ -162,7 +166,7 @@ def main(argv):
                 return 1
             for slave in slaves.values():
                 slave.heartbeat(now)
-            due = [s.next_heartbeat for s in slaves.values() if s.next_heartbeat is not None]
+            due = [s.wakeup() for s in slaves.values() if s.wakeup() is not None]
             wait = max(0.0, min(due + [deadline]) - now)
             msg = bus.recv(wait)
             if msg is None or msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
