@@ -123,20 +123,20 @@ void apply_lss_options(std::string_view tool, const LssRunArgs& args, const cfg:
 double lss_bound_s(const nmt::MasterOptions& options) {
   if (!options.lss.enabled) return 0;
   // The worst case, in which every device on the bus (taken as at most one per known address
-  // and one more) matches no node: per known address its reset and 4 confirmations (5 steps,
-  // lss_master.hpp), answered by every unconfigured device up to the serial number (4 N^2
-  // answers); then per device the bit-by-bit Fastscan (1 + 4 x 33 steps), configure and store
-  // (two timeouts at most), and the probes past a device left alone; the last, silent Fastscan
-  // reset. Its answers: every device not yet found answers about 100 queries of each search
-  // (devices of one product share the upper parts of their addresses), about 70 N^2 frames
-  // (BENCHMARKS.md, bench_lss_fastscan). Frames of 135 bits at most at the bit rate (125 kbit/s
-  // when unknown). When the devices match their nodes, the scan takes a small part of this
-  // (BENCHMARKS.md, bench_push --lss).
+  // and one more) matches no node: per known address its selection unanswered (one timeout),
+  // then its reset and 4 confirmations (5 steps, lss_master.hpp), answered by every
+  // unconfigured device up to the serial number (4 N^2 answers); then per device the bit-by-bit
+  // Fastscan (1 + 4 x 33 steps), configure and store (two timeouts at most), and the probes past
+  // a device left alone; the last, silent Fastscan reset. Its answers: every device not yet
+  // found answers about 100 queries of each search (devices of one product share the upper
+  // parts of their addresses), about 70 N^2 frames (BENCHMARKS.md, bench_lss_fastscan). Frames
+  // of 135 bits at most at the bit rate (125 kbit/s when unknown). When the devices match their
+  // nodes, the scan takes a small part of this (BENCHMARKS.md, bench_push --lss).
   const double step_s = std::chrono::duration<double>(options.lss.timing.scan_step).count();
   const double answer_s = std::chrono::duration<double>(options.lss.timing.timeout).count();
   const double devices = static_cast<double>(options.lss.addresses.size()) + 1;
   const double frame_s = 135.0 / (options.pacing.bitrate != 0 ? options.pacing.bitrate : 125'000);
-  return devices * (145 * step_s + 2 * answer_s) + devices * devices * 74 * frame_s + 1;
+  return devices * (145 * step_s + 3 * answer_s) + devices * devices * 74 * frame_s + 1;
 }
 
 tools::ReportFile open_report_or_exit(const std::string& path) {
