@@ -88,8 +88,9 @@ void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
                "node's that node's node-ID, stored in the device; devices that match no node are "
                "reported and left without node-ID");
   cmd.add_option("--lss-scan-step", args.scan_step_ms,
-                 "With --lss: how long each Fastscan request waits for answers, in ms (above "
-                 "the devices' answer time; raise it for devices behind a slow link)")
+                 "With --lss: how long each Fastscan request (and identify non-configured "
+                 "remote slave) waits for answers, in ms (above the devices' answer time; "
+                 "raise it for devices behind a slow link)")
       ->capture_default_str()
       ->type_name("MS")
       ->check(CLI::Range(1U, 10000U));
@@ -99,9 +100,11 @@ void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
                  "device) every MS milliseconds, and give them their node-ID; the master then "
                  "boots and configures them. Each look is one LSS frame (4Ch, about 0.25 ms of "
                  "bus time at 500 kbit/s: 0.025 % of the bus at 1000 ms) and one scan step of "
-                 "waiting for answers; only when a device answers, a Fastscan follows (about "
-                 "135 requests and as many answers per device, one scan step each; a device "
-                 "that matches no node costs that at every look). Default: no looks")
+                 "waiting for answers; only when a device answers, the missing nodes' devices are "
+                 "selected by their LSS addresses (8 requests and 4 answers each) and the rest "
+                 "found by Fastscan (about 135 requests and as many answers per device, one "
+                 "scan step each; a device that matches no node costs that at every look). "
+                 "Default: no looks")
       ->type_name("MS")
       ->check(CLI::Range(1U, 3600000U));
 }
