@@ -229,15 +229,16 @@ TEST_F(ExecuteLssBus, FoundDeviceGetsItsSlavesNodeIdStoredThenBackToWaiting) {
   run_pass();
   EXPECT_EQ(device.active_node_id(), 5);
   EXPECT_EQ(device.state(), LssState::Waiting);
-  // After the Fastscan's last confirmation (LSSNext 0 of the serial number, answered 4Fh):
+  // After its selection (the serial number in 43h, answered 44h) and inquire node-ID (FFh):
   // configure node-ID 5, its answer (error code 0), store, its answer, back to waiting, and
-  // the next Fastscan reset.
-  const auto confirm = std::find(frames.begin(), frames.end(), "7E5#51BEBAFECA000300");
-  ASSERT_NE(confirm, frames.end());
-  EXPECT_EQ(Frames(confirm, frames.end()),
-            (Frames{"7E5#51BEBAFECA000300", "7E4#4F00000000000000", "7E5#1105000000000000",
-                    "7E4#1100000000000000", "7E5#1700000000000000", "7E4#1700000000000000",
-                    "7E5#0400000000000000", "7E5#5100000000800000"}));
+  // the Fastscan reset that looks for devices left over.
+  const auto selected = std::find(frames.begin(), frames.end(), "7E5#43BEBAFECA000000");
+  ASSERT_NE(selected, frames.end());
+  EXPECT_EQ(Frames(selected, frames.end()),
+            (Frames{"7E5#43BEBAFECA000000", "7E4#4400000000000000", "7E5#5E00000000000000",
+                    "7E4#5EFF000000000000", "7E5#1105000000000000", "7E4#1100000000000000",
+                    "7E5#1700000000000000", "7E4#1700000000000000", "7E5#0400000000000000",
+                    "7E5#5100000000800000"}));
   ASSERT_EQ(texts(events, Kind::LssAssigned).size(), 1u);
   const MasterEvent* assigned = event_of(Kind::LssAssigned);
   ASSERT_NE(assigned, nullptr);
