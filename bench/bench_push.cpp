@@ -8,11 +8,14 @@
 // "--lss": instead, the push --lss of the same network whose 126 devices all come out
 // of the box without node-ID (sim:?unconfigured=1-126, every DCF with LSS_Supported=1 and a
 // serial number of its own): Execute LSS gives each its node-ID, then the usual first push. Its
-// bound adds the LSS requests the protocol needs when the master knows every device's address
-// (nmt/lss/lss_master.hpp, scan with targets): per device the Fastscan reset, its 4 parts confirmed
-// (BitCheck 0), configure node-ID, store, switch to waiting (8), plus one switch to waiting
-// before and the reset nobody answers after: 8 N + 2. (Before the targeted scan the bound was
-// a blind Fastscan's, 136 N + 2: 1 + 4 x 33 requests to find each device.)
+// bound adds the LSS frames the protocol needs when the master knows every device's address
+// (nmt/lss/lss_procedure.hpp, scan with targets), requests and the answers CiA 305 requires, each
+// at its exact length: one switch to waiting, identify non-configured remote slave (4Ch) and
+// every device's answer (50h); per device switch state selective (40h-43h) and its answer (44h),
+// inquire node-ID (5Eh) and its answer, configure node-ID and store configuration with theirs,
+// the switch to waiting (12); the Fastscan reset nobody answers after: 13 N + 3. (Issue 34's
+// before: 8 N + 2 requests, the Fastscan confirmation's, answers not counted; before the targeted
+// scan a blind Fastscan's, 136 N + 2: 1 + 4 x 33 requests to find each device.)
 //   cmake --build build-bench --target bench_push && build-bench/bench/bench_push [RUNS] [--lss]
 // Per run: bus time (the report's elapsed_s, simulated), the lower bound (air time,
 // nmt::frame_bits, of the frames CiA 301/302-2 require, built here from the network's own
@@ -36,6 +39,7 @@
 #include "cfg/master_objects.hpp"
 #include "cfg/network.hpp"
 #include "cfg/object_index.hpp"
+#include "nmt/lss/lss.hpp"
 #include "nmt/protocol/frame.hpp"
 #include "nmt/sim/sim_bus.hpp"
 #include "process_runner.hpp"
@@ -181,11 +185,34 @@ void print(const char* what, const std::vector<Run>& runs, const Required& bound
 
 }  // namespace
 
-// The LSS requests a scan of `devices` new devices of known addresses needs (see the top), 8
-// data bytes each.
-void add_lss_requests(Required& r, std::size_t devices) {
-  const std::vector<std::uint8_t> request(8, 0);
-  for (std::size_t i = 0; i < 8 * devices + 2; ++i) r.add(0x7E5, request);
+// The LSS frames a scan of the network's new devices of known addresses needs (see the top),
+// 8 data bytes each, as CiA 305 lays them out (nmt/lss/lss.hpp).
+void add_lss_frames(Required& r, const cfg::Network& network, const generated::NetworkSpec& spec) {
+  auto frame = [&r](std::uint32_t id, nmt::lss::Cs cs, std::uint32_t value = 0) {
+    r.frames.push_back(nmt::lss::make_frame(id, cs, value));
+  };
+  using nmt::lss::Cs;
+  constexpr std::uint32_t kM = nmt::lss::kMasterCobId;
+  constexpr std::uint32_t kS = nmt::lss::kSlaveCobId;
+  frame(kM, Cs::SwitchStateGlobal);
+  frame(kM, Cs::IdentifyNonConfigured);
+  for (std::size_t i = 0; i < network.nodes.size(); ++i) frame(kS, Cs::IdentifyNonConfiguredAnswer);
+  for (const auto& node : network.nodes) {
+    const std::uint8_t id = node.node_id.value();
+    frame(kM, Cs::SwitchSelectiveVendor, spec.identity.vendor_id);
+    frame(kM, Cs::SwitchSelectiveProduct, spec.identity.product_code);
+    frame(kM, Cs::SwitchSelectiveRevision, spec.identity.revision);
+    frame(kM, Cs::SwitchSelectiveSerial, generated::lss_serial(id));
+    frame(kS, Cs::SwitchSelectiveAnswer);
+    frame(kM, Cs::InquireNodeId);
+    frame(kS, Cs::InquireNodeId, nmt::lss::kUnconfigured);
+    frame(kM, Cs::ConfigureNodeId, id);
+    frame(kS, Cs::ConfigureNodeId);
+    frame(kM, Cs::StoreConfiguration);
+    frame(kS, Cs::StoreConfiguration);
+    frame(kM, Cs::SwitchStateGlobal);
+  }
+  r.frames.push_back(nmt::lss::make_fastscan(0, nmt::lss::kFastscanReset, 0, 0));
 }
 
 int main(int argc, char** argv) {
@@ -221,7 +248,7 @@ int main(int argc, char** argv) {
       step1.push_back(push(fast, dir));
     }
     Required bound = required_frames(network, spec, true);
-    add_lss_requests(bound, network.nodes.size());
+    add_lss_frames(bound, network, spec);
     print("--lss", step10, bound);
     print("step 1 ms", step1, bound);
     fs::remove_all(dir);

@@ -56,6 +56,20 @@ TEST_F(LssMasterTest, SwitchStateSelectiveSends40To43LittleEndianAndWaitsFor44) 
   EXPECT_EQ(events[0].address, a);
 }
 
+TEST_F(LssMasterTest, SwitchStateSelectiveWithoutAnswerIsATimeoutAfterOneLssTimeout) {
+  const LssAddress a{0x01020304, 0x00000A0B, 0x00010002, 0xCAFEBABE};
+  call([&](auto& m, auto t, auto& o) { return m.switch_state_selective(a, t, o); });
+  // Another service's answer (4Fh, a Fastscan answer) is not the selection's.
+  answer("7E4#4F00000000000000", false);
+  EXPECT_TRUE(tick(TimePoint{99ms}).empty());
+  EXPECT_TRUE(events.empty());
+  EXPECT_TRUE(tick(TimePoint{100ms}).empty());  // nothing more is sent
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, Kind::Timeout);
+  EXPECT_EQ(events[0].address, a);
+  EXPECT_FALSE(master.busy());
+}
+
 TEST_F(LssMasterTest, ConfigureNodeIdSends11AndReadsErrorCode1AsOutOfRange) {
   // A node-ID the device does not accept (CiA 305 error code 1); the master sends only 1..127
   // and FFh (cfg::NodeId), so the device's range is what refuses here.

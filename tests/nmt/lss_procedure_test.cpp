@@ -189,6 +189,78 @@ TEST_F(LssProcedureTest, ScanSwitchesAllToWaitingThenTheFastscanResetAndEndsOnIt
   EXPECT_EQ(describe(events[0]), "scan: 0 unconfigured devices found");
 }
 
+// Scan with a known address (Execute LSS): kDevice's selection, 40h-43h without the 04h.
+const Frames kSelect(kSelectDevice.begin() + 1, kSelectDevice.end());
+const std::string kWaiting = "7E5#0400000000000000";
+const std::string kIdentifyNonConfigured = "7E5#4C00000000000000";
+const std::string kFastscanReset = "7E5#5100000000800000";
+
+std::optional<cfg::NodeId> node_5(const LssAddress&) {
+  return cfg::NodeId::from(5);
+}
+
+TEST_F(LssProcedureTest, ScanOfAKnownAddressSelectsItInquiresConfiguresStoresAndSwitchesBack) {
+  EXPECT_EQ(call([](auto& p, auto t, auto& o) { return p.scan(node_5, t, o, {kDevice}); }),
+            (Frames{kWaiting, kIdentifyNonConfigured}));
+  // 50h: a device without node-ID is there; the scan step ends the identify service.
+  EXPECT_TRUE(answer("7E4#5000000000000000", TimePoint{1ms}).empty());
+  EXPECT_EQ(tick(TimePoint{11ms}), kSelect);
+  EXPECT_EQ(procedure.next_deadline(), TimePoint{111ms});  // the LSS timeout, one answer
+  EXPECT_EQ(answer("7E4#4400000000000000", TimePoint{12ms}), Frames{"7E5#5E00000000000000"});
+  EXPECT_EQ(answer("7E4#5EFF000000000000", TimePoint{13ms}), Frames{"7E5#1105000000000000"});
+  EXPECT_EQ(answer("7E4#1100000000000000", TimePoint{14ms}), Frames{"7E5#1700000000000000"});
+  // Stored: back to waiting (it starts with node-ID 5), then the Fastscan reset asks whether
+  // any unconfigured device is left.
+  EXPECT_EQ(answer("7E4#1700000000000000", TimePoint{15ms}), (Frames{kWaiting, kFastscanReset}));
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, Kind::Assigned);
+  EXPECT_EQ(events[0].address, kDevice);
+  EXPECT_EQ(events[0].node_id, cfg::NodeId::from(5));
+  EXPECT_EQ(events[0].outcome, LssScanOutcome::Stored);
+  EXPECT_TRUE(tick(TimePoint{25ms}).empty());
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[1].kind, Kind::Done);
+  EXPECT_EQ(events[1].found, 1u);
+}
+
+TEST_F(LssProcedureTest, ScanOfKnownAddressesEndsOnTheSilenceOfIdentifyNonConfigured) {
+  // Every device has a node-ID (a second push): no selection at all.
+  EXPECT_EQ(call([](auto& p, auto t, auto& o) { return p.scan(node_5, t, o, {kDevice}); }),
+            (Frames{kWaiting, kIdentifyNonConfigured}));
+  EXPECT_TRUE(tick(TimePoint{10ms}).empty());
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, Kind::Done);
+  EXPECT_EQ(events[0].found, 0u);
+}
+
+TEST_F(LssProcedureTest, KnownAddressOfAConfiguredDeviceIsSwitchedBackWithoutAConfigure) {
+  call([](auto& p, auto t, auto& o) { return p.scan(node_5, t, o, {kDevice}); });
+  answer("7E4#5000000000000000", TimePoint{1ms});  // another device has no node-ID
+  EXPECT_EQ(tick(TimePoint{11ms}), kSelect);
+  EXPECT_EQ(answer("7E4#4400000000000000", TimePoint{12ms}), Frames{"7E5#5E00000000000000"});
+  // Node-ID 9: it is left as it is; the targets done, the Fastscan search for the rest.
+  EXPECT_EQ(answer("7E4#5E09000000000000", TimePoint{13ms}), (Frames{kWaiting, kFastscanReset}));
+  EXPECT_TRUE(events.empty());
+}
+
+TEST_F(LssProcedureTest, UnansweredSelectionFallsBackToTheFastscanConfirmationAfterTheTimeout) {
+  call([](auto& p, auto t, auto& o) { return p.scan(node_5, t, o, {kDevice}); });
+  answer("7E4#5000000000000000", TimePoint{1ms});
+  EXPECT_EQ(tick(TimePoint{11ms}), kSelect);
+  EXPECT_TRUE(tick(TimePoint{110ms}).empty());
+  // One LSS timeout; then every device to waiting and the confirmation, the reset first.
+  EXPECT_EQ(tick(TimePoint{111ms}), (Frames{kWaiting, kFastscanReset}));
+  EXPECT_EQ(answer("7E4#4F00000000000000", TimePoint{112ms}), Frames{});
+  // The reset was answered: the vendor-ID with BitCheck 0, LSSSub 0, LSSNext 1.
+  EXPECT_EQ(tick(TimePoint{122ms}), Frames{"7E5#51DEC0577E000001"});
+  // Unanswered: the target is absent; no target left, so the search for the rest.
+  EXPECT_EQ(tick(TimePoint{132ms}), Frames{kFastscanReset});
+  EXPECT_TRUE(tick(TimePoint{142ms}).empty());
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, Kind::Done);
+  EXPECT_EQ(events[0].found, 0u);
+}
+
 TEST_F(LssProcedureTest, OneProcedureAtATimeAndABusyStartSaysWhyAndSendsNothing) {
   call([](auto& p, auto t, auto& o) { return p.find_unconfigured(t, o); });
   LssProcedure::Output out;

@@ -80,6 +80,74 @@ TEST_F(LssSlaveTest, SwitchStateSelectiveOutOfOrderIsNotAnswered) {
   EXPECT_EQ(slave.state(), LssState::Waiting);
 }
 
+TEST(LssSlave, SwitchStateSelectiveIsAnsweredOnlyByTheDeviceWithAllFourParts) {
+  // Four devices of one product that share three parts and differ in one: only the device
+  // whose vendor-ID, product code, revision number and serial number all match answers 44h.
+  std::vector<LssSlave> slaves{
+      LssSlave(kAddress, lss::kUnconfigured),
+      LssSlave({0x01020304, 0x00000A0B, 0x00010002, 0xCAFEBABF}, lss::kUnconfigured),
+      LssSlave({0x01020304, 0x00000A0B, 0x00010003, 0xCAFEBABE}, lss::kUnconfigured),
+      LssSlave({0x01020304, 0x00000A0C, 0x00010002, 0xCAFEBABE}, lss::kUnconfigured),
+      LssSlave({0x01020305, 0x00000A0B, 0x00010002, 0xCAFEBABE}, lss::kUnconfigured)};
+  std::vector<Frames> answers(slaves.size());
+  for (const char* request : {"7E5#4004030201000000", "7E5#410B0A0000000000",
+                              "7E5#4202000100000000", "7E5#43BEBAFECA000000"}) {
+    for (std::size_t i = 0; i < slaves.size(); ++i) {
+      LssSlave::Output out;
+      slaves[i].on_frame(*from_candump(request), TimePoint{}, out);
+      for (const auto& f : out.frames) answers[i].push_back(to_candump(f));
+    }
+  }
+  EXPECT_EQ(answers[0], Frames{"7E4#4400000000000000"});
+  EXPECT_EQ(slaves[0].state(), LssState::Configuration);
+  for (std::size_t i = 1; i < slaves.size(); ++i) {
+    EXPECT_TRUE(answers[i].empty()) << i;
+    EXPECT_EQ(slaves[i].state(), LssState::Waiting) << i;
+  }
+}
+
+TEST(LssSlave, SwitchStateSelectiveIsAnsweredByAConfiguredDeviceToo) {
+  // The selection is by LSS address, not by node-ID state (unlike Fastscan).
+  LssSlave slave(kAddress, 5);
+  Frames answers;
+  for (const char* request : {"7E5#4004030201000000", "7E5#410B0A0000000000",
+                              "7E5#4202000100000000", "7E5#43BEBAFECA000000"}) {
+    LssSlave::Output out;
+    slave.on_frame(*from_candump(request), TimePoint{}, out);
+    for (const auto& f : out.frames) answers.push_back(to_candump(f));
+  }
+  EXPECT_EQ(answers, Frames{"7E4#4400000000000000"});
+  EXPECT_EQ(slave.state(), LssState::Configuration);
+}
+
+TEST_F(LssSlaveTest, SwitchStateSelectiveWithAPartMissingIsNotAnswered) {
+  feed("7E5#4004030201000000");
+  feed("7E5#410B0A0000000000");
+  // The revision number (42h) never came: the serial number alone selects nothing.
+  EXPECT_TRUE(feed("7E5#43BEBAFECA000000").empty());
+  EXPECT_EQ(slave.state(), LssState::Waiting);
+}
+
+TEST_F(LssSlaveTest, SwitchStateSelectiveAfterAMismatchStartsOverAtTheVendorId) {
+  feed("7E5#4004030201000000");
+  feed("7E5#410C0A0000000000");  // another product code
+  feed("7E5#4202000100000000");
+  EXPECT_TRUE(feed("7E5#43BEBAFECA000000").empty());
+  // A complete sequence afterwards selects it.
+  feed("7E5#4004030201000000");
+  feed("7E5#410B0A0000000000");
+  feed("7E5#4202000100000000");
+  EXPECT_EQ(feed("7E5#43BEBAFECA000000"), Frames{"7E4#4400000000000000"});
+}
+
+TEST_F(LssSlaveTest, SwitchStateSelectiveIsIgnoredInConfiguration) {
+  configuration();
+  feed("7E5#4004030201000000", false);
+  feed("7E5#410B0A0000000000", false);
+  feed("7E5#4202000100000000", false);
+  EXPECT_TRUE(feed("7E5#43BEBAFECA000000", false).empty());
+}
+
 // --- configure node-ID (11h, byte 1 node-ID; answer byte 1 error code) --------------------------
 
 TEST_F(LssSlaveTest, ConfigureNodeId11AnswersErrorCode0AndKeepsItPending) {

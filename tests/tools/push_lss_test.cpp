@@ -137,7 +137,7 @@ TEST(PushLss, SimDevicesOutOfTheBoxAreAllConfiguredAndASecondPushNeedsNoLss) {
   const auto again = tool_test::json_object_of(tool_test::slurp(dir / "second.json"));
   EXPECT_EQ(lss_assigned(again), (std::vector<bool>{false, false, false}));
   const std::string log2 = tool_test::slurp(dir / "second.log");
-  EXPECT_EQ(lss_frames(log2, "7E5"), 2);  // 04h to waiting, the Fastscan reset
+  EXPECT_EQ(lss_frames(log2, "7E5"), 2);  // 04h to waiting, 4Ch (identify non-configured)
   EXPECT_EQ(lss_frames(log2, "7E4"), 0);
   EXPECT_THAT(second.err, HasSubstr("LSS: 0 unconfigured devices found"));
 }

@@ -88,8 +88,9 @@ void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
                "node's that node's node-ID, stored in the device; devices that match no node are "
                "reported and left without node-ID");
   cmd.add_option("--lss-scan-step", args.scan_step_ms,
-                 "With --lss: how long each Fastscan request waits for answers, in ms (above "
-                 "the devices' answer time; raise it for devices behind a slow link)")
+                 "With --lss: how long each Fastscan request (and identify non-configured "
+                 "remote slave) waits for answers, in ms (above the devices' answer time; "
+                 "raise it for devices behind a slow link)")
       ->capture_default_str()
       ->type_name("MS")
       ->check(CLI::Range(1U, 10000U));
@@ -99,9 +100,11 @@ void add_lss_options(CLI::App& cmd, LssRunArgs& args, bool with_period) {
                  "device) every MS milliseconds, and give them their node-ID; the master then "
                  "boots and configures them. Each look is one LSS frame (4Ch, about 0.25 ms of "
                  "bus time at 500 kbit/s: 0.025 % of the bus at 1000 ms) and one scan step of "
-                 "waiting for answers; only when a device answers, a Fastscan follows (about "
-                 "135 requests and as many answers per device, one scan step each; a device "
-                 "that matches no node costs that at every look). Default: no looks")
+                 "waiting for answers; only when a device answers, the missing nodes' devices are "
+                 "selected by their LSS addresses (8 requests and 4 answers each) and the rest "
+                 "found by Fastscan (about 135 requests and as many answers per device, one "
+                 "scan step each; a device that matches no node costs that at every look). "
+                 "Default: no looks")
       ->type_name("MS")
       ->check(CLI::Range(1U, 3600000U));
 }
@@ -123,20 +126,20 @@ void apply_lss_options(std::string_view tool, const LssRunArgs& args, const cfg:
 double lss_bound_s(const nmt::MasterOptions& options) {
   if (!options.lss.enabled) return 0;
   // The worst case, in which every device on the bus (taken as at most one per known address
-  // and one more) matches no node: per known address its reset and 4 confirmations (5 steps,
-  // lss_master.hpp), answered by every unconfigured device up to the serial number (4 N^2
-  // answers); then per device the bit-by-bit Fastscan (1 + 4 x 33 steps), configure and store
-  // (two timeouts at most), and the probes past a device left alone; the last, silent Fastscan
-  // reset. Its answers: every device not yet found answers about 100 queries of each search
-  // (devices of one product share the upper parts of their addresses), about 70 N^2 frames
-  // (BENCHMARKS.md, bench_lss_fastscan). Frames of 135 bits at most at the bit rate (125 kbit/s
-  // when unknown). When the devices match their nodes, the scan takes a small part of this
-  // (BENCHMARKS.md, bench_push --lss).
+  // and one more) matches no node: per known address its selection unanswered (one timeout),
+  // then its reset and 4 confirmations (5 steps, lss_master.hpp), answered by every
+  // unconfigured device up to the serial number (4 N^2 answers); then per device the bit-by-bit
+  // Fastscan (1 + 4 x 33 steps), configure and store (two timeouts at most), and the probes past
+  // a device left alone; the last, silent Fastscan reset. Its answers: every device not yet
+  // found answers about 100 queries of each search (devices of one product share the upper
+  // parts of their addresses), about 70 N^2 frames (BENCHMARKS.md, bench_lss_fastscan). Frames
+  // of 135 bits at most at the bit rate (125 kbit/s when unknown). When the devices match their
+  // nodes, the scan takes a small part of this (BENCHMARKS.md, bench_push --lss).
   const double step_s = std::chrono::duration<double>(options.lss.timing.scan_step).count();
   const double answer_s = std::chrono::duration<double>(options.lss.timing.timeout).count();
   const double devices = static_cast<double>(options.lss.addresses.size()) + 1;
   const double frame_s = 135.0 / (options.pacing.bitrate != 0 ? options.pacing.bitrate : 125'000);
-  return devices * (145 * step_s + 2 * answer_s) + devices * devices * 74 * frame_s + 1;
+  return devices * (145 * step_s + 3 * answer_s) + devices * devices * 74 * frame_s + 1;
 }
 
 tools::ReportFile open_report_or_exit(const std::string& path) {

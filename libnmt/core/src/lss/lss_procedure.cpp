@@ -69,7 +69,12 @@ cfg::Status LssProcedure::scan(NodeIdChooser chooser, TimePoint now, Output& out
   run_->targets = std::move(targets);
   // No device someone left in configuration may take the node-IDs the scan hands out.
   switch_all(LssState::Waiting, now);
-  search_next(now);
+  if (run_->targets.empty()) {
+    search_next(now);
+  } else {
+    // Selection is answered by configured devices too: first whether anyone needs LSS at all.
+    check_unconfigured(now);
+  }
   forward(now, out);
   return {};
 }
@@ -237,6 +242,9 @@ void LssProcedure::handle(const LssMasterEvent& e, TimePoint now, Output& out) {
   Running& r = *run_;
   switch (r.step) {
     case Step::Search:
+    case Step::Check:
+    case Step::SelectTarget:
+    case Step::InquireTarget:
     case Step::Configure:
     case Step::Store:
     case Step::Unconfigure:
@@ -353,10 +361,81 @@ void LssProcedure::search_next(TimePoint now) {
   Running& r = *run_;
   r.step = Step::Search;
   r.confirming = r.next_target < r.targets.size();
-  if (r.confirming) {
-    (void)lss_.fastscan_confirm(r.targets[r.next_target++], now, lss_out_);
-  } else {
+  if (!r.confirming) {
     (void)lss_.fastscan(r.cursor, now, lss_out_);
+    return;
+  }
+  r.address = r.targets[r.next_target++];
+  // A selection costs an absent target one timeout, a Fastscan confirmation none: select while
+  // the targets mostly answer (see the top).
+  if (2 * r.absent <= r.present + 2) {
+    r.step = Step::SelectTarget;
+    (void)lss_.switch_state_selective(r.address, now, lss_out_);
+  } else {
+    r.check_due = false;  // its reset answers the question
+    (void)lss_.fastscan_confirm(r.address, now, lss_out_);
+  }
+}
+
+void LssProcedure::check_unconfigured(TimePoint now) {
+  run_->step = Step::Check;
+  run_->check_due = false;
+  (void)lss_.identify_non_configured(now, lss_out_);
+}
+
+void LssProcedure::scan_done(TimePoint now, Output& out) {
+  Running& r = *run_;
+  auto d = event(Kind::Done, now);
+  d.found = r.found;
+  d.addresses = std::move(r.addresses);
+  done(std::move(d), out);
+}
+
+void LssProcedure::target_event(const LssMasterEvent& e, TimePoint now, Output& out) {
+  Running& r = *run_;
+  switch (r.step) {
+    case Step::Check:
+      // Identify non-configured remote slave: Done when a device without node-ID answered.
+      if (e.ok()) {
+        search_next(now);
+      } else {
+        scan_done(now, out);
+      }
+      return;
+    case Step::SelectTarget:
+      if (e.ok()) {
+        // Only the device with all four parts answered 44h; it is in LSS configuration.
+        r.step = Step::InquireTarget;
+        (void)lss_.inquire(LssService::InquireNodeId, now, lss_out_);
+        return;
+      }
+      // No answer within the timeout: absent, or it missed a frame. Every device back to
+      // waiting (a late answer left it in configuration, where Fastscan is not answered), then
+      // the Fastscan confirmation, whose reset also tells whether anyone unconfigured is left.
+      switch_all(LssState::Waiting, now);
+      r.step = Step::Search;
+      r.check_due = false;
+      (void)lss_.fastscan_confirm(r.address, now, lss_out_);
+      return;
+    case Step::InquireTarget:
+      if (e.ok() && e.value != lss::kUnconfigured) {
+        // Configured already: left as it is, like a configured device Fastscan never finds.
+        // Whether anyone unconfigured is left is asked again only when a device got its
+        // node-ID since it was last asked (else the answer is still yes).
+        ++r.present;
+        switch_all(LssState::Waiting, now);
+        if (r.check_due) {
+          check_unconfigured(now);
+        } else {
+          search_next(now);
+        }
+        return;
+      }
+      // FFh, or no answer (inquire node-ID unsupported): it is a target in configuration.
+      device_found(r.address, now, out);
+      return;
+    default:
+      return;
   }
 }
 
@@ -365,6 +444,11 @@ void LssProcedure::scan_event(const LssMasterEvent& e, TimePoint now, Output& ou
   switch (r.step) {
     case Step::Search:
       search_event(e, now, out);
+      return;
+    case Step::Check:
+    case Step::SelectTarget:
+    case Step::InquireTarget:
+      target_event(e, now, out);
       return;
     case Step::Configure:
       if (e.kind == ServiceKind::Timeout) {
@@ -416,15 +500,12 @@ void LssProcedure::search_event(const LssMasterEvent& e, TimePoint now, Output& 
       return;
     case ServiceKind::Absent:
       // The target's device is absent or configured: the next target, or bit by bit.
+      ++r.absent;
       search_next(now);
       return;
-    case ServiceKind::NotFound: {
-      auto d = event(Kind::Done, now);
-      d.found = r.found;
-      d.addresses = std::move(r.addresses);
-      done(std::move(d), out);
+    case ServiceKind::NotFound:
+      scan_done(now, out);
       return;
-    }
     default:
       // A device stopped answering midway. FindUnconfigured switches every device back to
       // waiting (as its other services end), Scan ends as Fastscan left it.
@@ -444,6 +525,7 @@ void LssProcedure::device_found(const LssAddress& address, TimePoint now, Output
     return;
   }
   ++r.found;
+  if (r.confirming) ++r.present;
   if (r.kind == LssProcedureKind::FindUnconfigured) {
     r.addresses.push_back(address);
     // Back to waiting, still without node-ID; the next Fastscan looks above it.
@@ -478,6 +560,7 @@ void LssProcedure::device_done(Kind kind, LssScanOutcome outcome,
   }
   e.step = std::move(step);
   out.report(std::move(e));
+  r.check_due = true;  // one unconfigured device fewer
   if (kind == Kind::Skipped) {
     // A skipped target is found again bit by bit (only then is it looked past): devices with
     // lower addresses are still to be found after the targets.

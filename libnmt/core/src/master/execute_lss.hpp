@@ -12,10 +12,10 @@
 // (MasterEvent: LssAssigned, LssUnmatched, LssFailed, LssScanEnded).
 //
 //   start(now, out)   the start-up pass: one LssProcedure::scan (every unconfigured device:
-//   Fastscan,
 //                     configure node-ID, store, switch back to waiting), then port.pass_ended();
-//                     the scan first confirms the slaves' known addresses (port.known_addresses,
-//                     4 requests each) and searches bit by bit only for the devices left over
+//                     the scan first selects the slaves' known addresses (port.known_addresses:
+//                     switch state selective, 4 requests and one answer each) and searches bit
+//                     by bit only for the devices left over
 //   watch(now)        afterwards, every `period`: identify non-configured remote slave (4Ch, one
 //                     frame and one Fastscan step of silence when there is nobody), and a scan
 //                     only when a device answered
@@ -44,8 +44,9 @@ class ExecuteLssPort {
 
   /// The slave (node-ID in 1F81h) whose LSS address is `address`; nullopt: none.
   virtual std::optional<cfg::NodeId> slave_with(const LssAddress& address) const = 0;
-  /// The LSS addresses of the slaves that have one, in node-ID order: each scan confirms these
-  /// first (4 Fastscan requests each) and searches bit by bit only for devices left over.
+  /// The LSS addresses of the slaves that have one and are not known to run (1F82h), in
+  /// node-ID order: each scan selects these first (switch state selective) and searches bit by
+  /// bit only for devices left over.
   virtual std::vector<LssAddress> known_addresses() const = 0;
   /// The start-up pass ended: NMT start-up goes on (reset of all nodes, boots).
   virtual void pass_ended(TimePoint now, Output& out) = 0;

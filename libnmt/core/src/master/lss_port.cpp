@@ -46,15 +46,13 @@ std::optional<cfg::NodeId> NmtMaster::Impl::LssPort::slave_with(const LssAddress
 }
 
 std::vector<LssAddress> NmtMaster::Impl::LssPort::known_addresses() const {
-  // The slaves not known to run (1F82h: 0 unknown, 1 missing) first: a look after start-up
-  // mostly finds the device of a slave that went missing, and once it has its node-ID the
-  // reset's silence ends the scan before the running slaves' addresses are tried.
+  // The slaves not known to run (1F82h: 0 unknown, 1 missing): a slave heard running has its
+  // node-ID, and its device would answer the scan's selection only to be left as it is. A look
+  // after start-up mostly finds the device of a slave that went missing.
   std::vector<LssAddress> known;
-  for (const bool running : {false, true}) {
-    for (const auto n : all_node_ids()) {
-      if (!m.is_slave(n) || m.slaves[n].known_state.nmt_state().has_value() != running) continue;
-      if (const auto address = m.lss_address_of(n)) known.push_back(*address);
-    }
+  for (const auto n : all_node_ids()) {
+    if (!m.is_slave(n) || m.slaves[n].known_state.nmt_state().has_value()) continue;
+    if (const auto address = m.lss_address_of(n)) known.push_back(*address);
   }
   return known;
 }

@@ -20,15 +20,30 @@
 //   unconfigured and the next Fastscan looks above its address, so every device is found once. A
 //   device that appears during the scan with an address below one already skipped is not found:
 //   scan again. FindUnconfigured is the same walk with no node-ID for anyone.
-// - Scan with known addresses (`targets`): each is confirmed in turn by
-//   LssMaster::fastscan_confirm (the Fastscan reset, then its 4 parts with BitCheck 0). The
-//   reset's silence ends the scan (no unconfigured device is left; no further target is tried);
-//   an unanswered part ends that target (its device is absent or configured); all 4 answered:
-//   the device is in configuration and gets its node-ID as above. When every target is done, the
-//   devices left are found bit by bit as above. A target whose configure node-ID failed is left
-//   in waiting unconfigured; the bit-by-bit Fastscan finds it again and passes it without a
-//   second event. A target absent at its turn that appears later is found bit by bit and gets its
-//   node-ID from the chooser.
+// - Scan with known addresses (`targets`): first identify non-configured remote slave (4Ch):
+//   its silence ends the scan at once (every device has a node-ID: a second push costs 04h, 4Ch
+//   and one scan step). Then each target in turn is switched to LSS configuration by switch
+//   state selective (40h-43h with its vendor-ID, product code, revision and serial number; only
+//   the device with all four answers 44h), so no other device answers anything while it is
+//   configured: per device 4 requests and 1 answer instead of the Fastscan confirmation's 5
+//   steps, which every unconfigured device of the product answers up to the serial number
+//   (about 2 N^2 answers). A configured device answers the selection too, so inquire node-ID
+//   (5Eh) asks first: FFh (or no answer) and it gets its node-ID as below; a node-ID and it is
+//   switched back untouched, no event, and when a device got its node-ID since the last such
+//   question, 4Ch asks again whether any unconfigured device is left (its silence ends the
+//   scan: the new device among configured ones costs the others one selection each until
+//   it is done, then one 4Ch). A target that does not answer its selection within
+//   LssMasterOptions::timeout falls back to LssMaster::fastscan_confirm, whose reset (80h) also
+//   tells whether any unconfigured device is left (its silence ends the scan; no further target
+//   is tried); an unanswered part ends that target (absent or configured). As selection costs
+//   a timeout per absent target and the confirmation none, targets are selected only while
+//   they mostly answer: while 2 x absent <= present + 2 (of the targets so far; present: found
+//   by either); else confirmed by Fastscan (one absent target among many present ones costs
+//   one timeout more than a Fastscan confirmation). When every target is done, the devices
+//   left are found bit by bit as above. A target whose configure node-ID failed is left in
+//   waiting unconfigured; the bit-by-bit Fastscan finds it again and passes it without a
+//   second event. A target absent at its turn that appears later is found bit by bit and gets
+//   its node-ID from the chooser.
 // - Two devices with one LSS address (CiA 305 takes it to be unique; a factory mistake, a
 //   cloned serial number) answer every Fastscan step alike and are in configuration together.
 //   A second answer to the scan's configure node-ID, heard while the store waits for its
@@ -134,7 +149,8 @@ class LssProcedure {
   // no event (engine.hpp rule 5) --------------------------------------------------------------
   /// Finds every unconfigured device one by one and gives each the node-ID `chooser` says (see
   /// the top); one Assigned or Skipped event per device, then Done (`found`) or, when a device
-  /// stopped answering Fastscan midway, Failed. `targets` are confirmed first, in order.
+  /// stopped answering Fastscan midway, Failed. `targets` are tried first, in order, each by
+  /// switch state selective (see the top).
   cfg::Status scan(NodeIdChooser chooser, TimePoint now, Output& out,
                    std::vector<LssAddress> targets = {});
   /// The addresses of every unconfigured device, each left unconfigured in waiting: Done with
@@ -178,6 +194,9 @@ class LssProcedure {
  private:
   enum class Step : std::uint8_t {
     Search,           // Scan, FindUnconfigured: a Fastscan runs
+    Check,            // Scan with targets: identify non-configured remote slave (4Ch)
+    SelectTarget,     // Scan: switch state selective of a target
+    InquireTarget,    // Scan: inquire node-ID of the selected target
     Configure,        // Scan: configure node-ID of the device found
     Store,            // Scan: its store configuration
     Unconfigure,      // Scan: FFh configured again after a duplicate LSS address
@@ -212,7 +231,10 @@ class LssProcedure {
     std::vector<LssAddress> addresses;
     std::vector<LssAddress> targets;  // known addresses, confirmed before the bit-by-bit search
     std::size_t next_target = 0;
-    bool confirming = false;      // the Fastscan running confirms a target
+    bool confirming = false;      // the device being dealt with is a target
+    std::uint32_t present = 0;    // targets found (selected or confirmed)
+    std::uint32_t absent = 0;     // targets not found
+    bool check_due = false;       // a device got its node-ID since 4Ch or 80h was last answered
     std::set<LssAddress> failed;  // targets whose configure node-ID failed (reported once)
     bool duplicate = false;       // a second device answered this device's configure node-ID
   };
@@ -235,6 +257,9 @@ class LssProcedure {
   void device_done(Event::Kind kind, LssScanOutcome outcome, std::optional<LssMasterEvent> step,
                    TimePoint now, Output& out);
   void scan_event(const LssMasterEvent& e, TimePoint now, Output& out);
+  void target_event(const LssMasterEvent& e, TimePoint now, Output& out);
+  void check_unconfigured(TimePoint now);
+  void scan_done(TimePoint now, Output& out);
   Event event(Event::Kind kind, TimePoint now) const;
 
   LssMaster lss_;
