@@ -18,6 +18,7 @@ namespace {
 using push_test::nodes_of;
 using push_test::parse_json;
 using tool_test::cfgmgr;
+using tool_test::events_of;
 using tool_test::Json;
 using tool_test::json_lines;
 using tool_test::ScratchDir;
@@ -28,15 +29,6 @@ generated::NetworkSpec small_network() {
   spec.values = 2;
   spec.pdos = 0;
   return spec;
-}
-
-std::vector<const Json*> events_of(const std::vector<Json>& events, const std::string& name) {
-  std::vector<const Json*> out;
-  for (const auto& e : events) {
-    const Json* kind = e.get("event");
-    if (kind != nullptr && kind->string == name) out.push_back(&e);
-  }
-  return out;
 }
 
 TEST(EmcySim, MasterReportsEachEmergencyItsResetAndAFloodsCount) {

@@ -22,6 +22,7 @@ namespace {
 
 using ::testing::Contains;
 using ::testing::HasSubstr;
+using tool_test::events_of;
 using tool_test::Json;
 using tool_test::ScratchDir;
 
@@ -54,15 +55,6 @@ PeerRun run_against_slaves(const ScratchDir& dir, const char* port,
   (void)slaves.finish();
   for (const auto& line : r.lines) r.all += line + "\n";
   return r;
-}
-
-std::vector<const Json*> events_of(const std::vector<Json>& events, const std::string& name) {
-  std::vector<const Json*> out;
-  for (const auto& e : events) {
-    const Json* kind = e.get("event");
-    if (kind != nullptr && kind->string == name) out.push_back(&e);
-  }
-  return out;
 }
 
 TEST(EmcyUdp, EndToEndOverUdp) {

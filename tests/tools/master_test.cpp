@@ -23,19 +23,11 @@
 namespace {
 
 using tool_test::cfgmgr;
+using tool_test::events_of;
 using tool_test::Json;
 using tool_test::json_lines;
 using tool_test::ScratchDir;
 using tool_test::test_network;
-
-std::vector<const Json*> events_of(const std::vector<Json>& events, const std::string& name) {
-  std::vector<const Json*> out;
-  for (const auto& e : events) {
-    const Json* kind = e.get("event");
-    if (kind != nullptr && kind->string == name) out.push_back(&e);
-  }
-  return out;
-}
 
 int node_of(const Json& e) {
   const Json* node = e.get("node_id");

@@ -338,6 +338,17 @@ inline std::vector<Json> json_lines(const std::string& path) {
   return out;
 }
 
+/// The events of --json-events lines whose "event" is `name`, in file order.
+inline std::vector<const Json*> events_of(const std::vector<Json>& events,
+                                          const std::string& name) {
+  std::vector<const Json*> out;
+  for (const auto& e : events) {
+    const Json* kind = e.get("event");
+    if (kind != nullptr && kind->string == name) out.push_back(&e);
+  }
+  return out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Tests over UDP multicast run inside a private network namespace whose only interface is lo
 // (tests/support/run_in_netns.sh), so that no datagram leaves the machine; inside, they check
