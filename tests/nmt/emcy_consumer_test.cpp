@@ -154,5 +154,27 @@ TEST(EmcyConsumer, ErrorResetSaysTheFloodFirst) {
   EXPECT_EQ(rig.consumer.next_deadline(), std::nullopt);
 }
 
+TEST(EmcyConsumer, EndingTheWindowsSaysEveryOpenFloodAtOnce) {
+  // The driver stops 300 ms into a window: its count is said then, not lost with the window.
+  Rig rig({.max_per_window = 2, .window = milliseconds(1000)});
+  rig.consumer.consume(id(3), default_emcy_cob_id(id(3)));
+  rig.consumer.consume(id(4), default_emcy_cob_id(id(4)));
+  for (int i = 0; i < 6; ++i) rig.feed("083#3081110000000000", 10 * i);
+  rig.feed("084#1023030000000000", 20);  // node 4: one, reported, nothing suppressed
+  ASSERT_EQ(rig.events.size(), 3u);
+  EmcyConsumer::Output out;
+  rig.consumer.end_windows(at_ms(300), out);
+  ASSERT_EQ(out.events.size(), 1u);
+  EXPECT_EQ(out.events[0].kind, Kind::Flood);
+  EXPECT_EQ(out.events[0].node, id(3));
+  EXPECT_EQ(out.events[0].suppressed, 4u);
+  EXPECT_EQ(out.events[0].at, at_ms(300));
+  EXPECT_EQ(out.events[0].window_began, at_ms(0));
+  EXPECT_EQ(rig.consumer.next_deadline(), std::nullopt);
+  // Said once: the window is gone.
+  rig.tick(1000);
+  EXPECT_EQ(rig.events.size(), 3u);
+}
+
 }  // namespace
 }  // namespace nmt

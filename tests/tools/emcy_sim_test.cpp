@@ -75,6 +75,39 @@ TEST(EmcySim, MasterReportsEachEmergencyItsResetAndAFloodsCount) {
   EXPECT_EQ(floods[0]->get("emergency")->get("suppressed")->number, 3);
 }
 
+TEST(EmcySim, AFloodWhoseWindowIsOpenWhenTheRunEndsIsSaidAtTheEnd) {
+  ScratchDir dir;
+  const std::string cpj = generated::write_network(dir.path() / "net", small_network());
+  const std::string events = dir / "events.jsonl";
+  // 8 x 2310h at 700 ms; the window (1000 ms) would end at 1.700 s, the run ends at 1.000 s.
+  std::string url = "sim:?";
+  for (int i = 0; i < 8; ++i) url += "emcy=2@700:2310:02&";
+  url.pop_back();
+  auto r = cfgmgr(dir, {"master", cpj, "--bus", url, "--run-for", "1", "--json-events", events});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("1.000  node 2: 3 more emergencies 2310h"), std::string::npos) << r.err;
+  const auto floods = events_of(json_lines(events), "emergency_flood");
+  ASSERT_EQ(floods.size(), 1U) << r.err;
+  EXPECT_EQ(floods[0]->get("emergency")->get("suppressed")->number, 3);
+}
+
+TEST(EmcySim, PushCountsTheEmergenciesOfAFloodStillOpenWhenItEnds) {
+  ScratchDir dir;
+  const std::string cpj = generated::write_network(dir.path() / "net", small_network());
+  const std::string report = dir / "report.json";
+  // 9 EMCYs of node 1 at 5 ms: 5 reported, 4 counted; push ends long before the window does.
+  std::string url = "sim:?";
+  for (int i = 0; i < 9; ++i) url += "emcy=1@5:5000&";
+  url.pop_back();
+  auto r = cfgmgr(dir, {"push", cpj, "--bus", url, "--json", report});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Json json = parse_json(report);
+  const auto nodes = nodes_of(json);
+  ASSERT_EQ(nodes.size(), 2U) << r.err;
+  EXPECT_EQ(nodes.at(1)->get("emergencies")->number, 9);
+  EXPECT_NE(r.err.find("node 1: 4 more emergencies 5000h"), std::string::npos) << r.err;
+}
+
 TEST(EmcySim, TheCobIdIsThe1014hOfTheNodesDcf) {
   ScratchDir dir;
   auto spec = small_network();

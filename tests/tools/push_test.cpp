@@ -312,6 +312,31 @@ TEST(Push, OnATerminalTheLiveViewShowsEachFailedNodesStatusLetter) {
   EXPECT_NE(view.find("error D"), std::string::npos) << view;
 }
 
+TEST(Push, OnATerminalEmergenciesGoAboveTheLiveViewAndAreCountedInIt) {
+  // CiA 301 §7.2.7: node 3 sends 8130h at 5 ms. The view has no words for it: its line is printed
+  // above the view, and the view's emcy column counts it.
+  int exit_code = -1;
+  const std::string out = run_on_terminal(
+      {"push", sample_network("nodelist.cpj"), "--bus", "sim:?latency_ms=1&emcy=3@5:8130:10"},
+      exit_code);
+  ASSERT_EQ(exit_code, 0) << out;
+  EXPECT_NE(out.find("node 3: emergency 8130h life guard error or heartbeat error"),
+            std::string::npos)
+      << out;
+  const std::string view = out.substr(0, out.rfind("node  name"));
+  EXPECT_NE(view.find("retries  emcy"), std::string::npos) << view;
+  // Node 3's row once the EMCY came: its count 1 in the last column.
+  bool counted = false;
+  std::istringstream lines(view);
+  for (std::string line; std::getline(lines, line);) {
+    const auto row = line.find("   3  axis_x");
+    if (row == std::string::npos) continue;
+    const std::string cut = line.substr(0, line.find("\x1b[K"));
+    if (cut.size() >= 4 && cut.substr(cut.size() - 4) == "   1") counted = true;
+  }
+  EXPECT_TRUE(counted) << view;
+}
+
 TEST(Push, OnlyLeavesTheOtherNodesAlone) {
   // --only 3: nodes 2 and 4 get no NMT command at all (no reset, no start; CiA 302-2 §3.1 d
   // with keep-alive slaves: reset communication per node instead of 000#8200) and no SDO.

@@ -114,6 +114,9 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
       fail_command(limits.tool, tools::kExitIo, sent.error().message);
     }
   }
+  // A flood whose window is still open is said now, not lost with the run (emcy_consumer.hpp).
+  ref.apply(
+      [](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.end_emergency_windows(now, out); });
   if (const std::string counters = bus_counters_text(loop.counters()); !counters.empty()) {
     reporter.note(command_prefix(limits.tool) + "bus: " + counters);
   }

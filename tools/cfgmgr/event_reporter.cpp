@@ -113,8 +113,13 @@ void EventReporter::report(const nmt::MasterEvent& e) {
       if (verbose_) line = nmt::describe(e);
       break;
   }
-  if (!line.empty() && !quiet_)
+  const bool emergency = e.kind == K::Emergency || e.kind == K::EmergencyFlood;
+  if (!line.empty() && !quiet_) {
     std::cerr << seconds_text(start_, e.at) << "  " << line << '\n' << std::flush;
+  } else if (!line.empty() && emergency) {
+    // A live view has no words for an EMCY: the line goes above it (bounded by the flood rule).
+    note(seconds_text(start_, e.at) + "  " + line);
+  }
   if (json_ != nullptr) write_json(e);
   if (observer_) observer_(e);
 }

@@ -24,7 +24,8 @@ class EventReporter {
   /// Event times are printed as seconds since `start` (0 on sim:).
   void set_start(nmt::TimePoint start) { start_ = start; }
   nmt::TimePoint start() const { return start_; }
-  /// Quiet: no event lines on stderr (a live view shows the run instead); JSON lines stay.
+  /// Quiet: no event lines on stderr (a live view shows the run instead) but the EMCYs', which
+  /// go to note(); JSON lines stay.
   void set_quiet(bool quiet) { quiet_ = quiet; }
   /// Events of these nodes are neither printed nor written (nodes a run leaves alone); the
   /// observer still gets them.

@@ -300,8 +300,9 @@ std::string result_text(const NodeReport& r) {
 }
 
 // The live view on a terminal: per node its NMT state, boot step, entries written of total,
-// bytes and retries, and a progress bar for the whole network, drawn on stderr over the last
-// drawing (ANSI cursor movement), at most every kRedraw of wall-clock time.
+// bytes, retries and EMCYs (their lines go above the view, EventReporter::set_quiet), and a
+// progress bar for the whole network, drawn on stderr over the last drawing (ANSI cursor movement),
+// at most every kRedraw of wall-clock time.
 class LiveView {
  public:
   static constexpr std::chrono::milliseconds kRedraw{100};  // ~10 Hz: readable, cheap
@@ -373,10 +374,11 @@ class LiveView {
                     rate > 0 ? static_cast<double>(r.program_total - r.program_bytes) / rate : 0.0);
       step = text;
     }
-    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-30.30s  %9s  %7llu  %7u",
+    std::snprintf(line, sizeof line, "%4d  %-12.12s  %-15.15s  %-28.28s  %9s  %7llu  %7u  %4llu",
                   r.node_id, r.name.c_str(),
                   r.state ? std::string(nmt::to_string(*r.state)).c_str() : "-", step.c_str(),
-                  entries.c_str(), static_cast<unsigned long long>(r.bytes), r.retries);
+                  entries.c_str(), static_cast<unsigned long long>(r.bytes), r.retries,
+                  static_cast<unsigned long long>(r.emergencies));
     return line;
   }
 
@@ -407,8 +409,8 @@ class LiveView {
                     " done, " + std::to_string(written) + " of " + std::to_string(total) +
                     (total == 1 ? " entry" : " entries") + " written");
     char head[160];
-    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-30s  %9s  %7s  %7s", "node", "name",
-                  "state", "step", "entries", "bytes", "retries");
+    std::snprintf(head, sizeof head, "%4s  %-12s  %-15s  %-28s  %9s  %7s  %7s  %4s", "node", "name",
+                  "state", "step", "entries", "bytes", "retries", "emcy");
     lines.emplace_back(head);
     // Nodes still booting first, then those waiting, then those done; as many as fit.
     std::vector<const NodeReport*> order;

@@ -111,6 +111,9 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
     bus.run_until([&] { return bus.frames_queued(node) == 0; },
                   bus.now() + std::chrono::seconds(1));
   }
+  // A flood whose window is still open is said now, not lost with the run (emcy_consumer.hpp).
+  node.apply(
+      [](nmt::NmtMaster& m, nmt::TimePoint now, auto& out) { m.end_emergency_windows(now, out); });
   const bool late = timed_out(limits, reporter);
   close_traces(limits.tool, writers);
   if (state_failed) exit_with(tools::kExitIo);

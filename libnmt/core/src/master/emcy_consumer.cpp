@@ -90,6 +90,14 @@ void EmcyConsumer::on_timer(TimePoint now, Output& out) {
   }
 }
 
+void EmcyConsumer::end_windows(TimePoint now, Output& out) {
+  for (auto& [k, w] : windows_) {
+    end_window(*cfg::NodeId::from(static_cast<std::uint8_t>(k >> 16)),
+               static_cast<std::uint16_t>(k), w, now, out);
+  }
+  windows_.clear();
+}
+
 std::optional<TimePoint> EmcyConsumer::next_deadline() const {
   std::optional<TimePoint> due;
   for (const auto& [k, w] : windows_) {

@@ -69,6 +69,9 @@ class EmcyConsumer {
   bool on_frame(const CanFrame& frame, TimePoint now, Output& out);
   /// Ends the windows that are over: a Flood event for each that suppressed any.
   void on_timer(TimePoint now, Output& out);
+  /// Ends every open window now, over or not: a Flood event for each that suppressed any (the
+  /// driver stops: a count not said now would be lost).
+  void end_windows(TimePoint now, Output& out);
   /// The end of the earliest window that suppressed something; nullopt when none.
   std::optional<TimePoint> next_deadline() const;
 

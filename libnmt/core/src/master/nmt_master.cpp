@@ -179,6 +179,11 @@ void NmtMaster::enter_operational(TimePoint now, Output& out) {
   impl_->settle(now, out);
 }
 
+void NmtMaster::end_emergency_windows(TimePoint now, Output& out) {
+  impl_->emcy.end_windows(now, impl_->outputs.emcy);
+  impl_->dispatch_emergencies(out);
+}
+
 SdoAbort NmtMaster::request_nmt(NmtTarget target, NmtRequest request, TimePoint now, Output& out,
                                 std::optional<cfg::NodeId> requester) {
   const auto code = impl_->request_nmt(target, request, requester, now, &out);

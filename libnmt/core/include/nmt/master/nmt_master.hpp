@@ -204,6 +204,10 @@ class NmtMaster {
   /// download that wrote it is confirmed, or aborted with 0800 0020. An unknown ticket is
   /// ignored.
   void entry_persisted(std::uint64_t ticket, const cfg::Status& result, TimePoint now, Output& out);
+  /// Says the EMCY floods counted so far: a MasterEvent::EmergencyFlood for each window that
+  /// suppressed EMCYs and is still open (MasterOptions::emcy), and the windows end. A driver
+  /// that stops calls it last, so that no count goes unsaid.
+  void end_emergency_windows(TimePoint now, Output& out);
   /// SDO transfers of the application to a slave, on the master's client for that slave (queued
   /// behind the boot's own transfers). Results come as MasterEvent::SdoFinished. Could not start
   /// (engine.hpp rule 5: the error says why, nothing in `out`): `node` is the master itself, or
