@@ -62,7 +62,7 @@ svg .entries { stroke: #0b3d1a; stroke-width: 0.6; }
 table { border-collapse: collapse; margin-top: 4px; }
 th, td { border-bottom: 1px solid #d0d7de; padding: 3px 10px; text-align: left; vertical-align: top; }
 th { background: #f6f8fa; }
-td.n { text-align: right; font-variant-numeric: tabular-nums; }
+td.n { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 tr.failed td { background: #ffebe9; }
 tr.failed td.result { color: #cf222e; font-weight: bold; }
 )";
@@ -151,7 +151,9 @@ class Drawing {
   double duration_s_;
 };
 
-std::string title(std::string_view text) { return "<title>" + escape_html(text) + "</title>"; }
+std::string title(std::string_view text) {
+  return "<title>" + escape_html(text) + "</title>";
+}
 
 // A mark at `x` on a lane whose middle is at `mid`.
 std::string mark_svg(const Mark& m, double x, double mid) {
@@ -187,13 +189,13 @@ std::string mark_svg(const Mark& m, double x, double mid) {
 
 std::string legend() {
   std::string out = "<div class=\"legend\">";
-  for (const PhaseKind k : {PhaseKind::BootUp, PhaseKind::Identify, PhaseKind::Program,
-                            PhaseKind::Verify, PhaseKind::Restore, PhaseKind::Download,
-                            PhaseKind::Save, PhaseKind::Application, PhaseKind::ErrorControl,
-                            PhaseKind::RetryWait, PhaseKind::Operational}) {
+  for (const PhaseKind k :
+       {PhaseKind::BootUp, PhaseKind::Identify, PhaseKind::Program, PhaseKind::Verify,
+        PhaseKind::Restore, PhaseKind::Download, PhaseKind::Save, PhaseKind::Application,
+        PhaseKind::ErrorControl, PhaseKind::RetryWait, PhaseKind::Operational}) {
     out += "<span><svg width=\"14\" height=\"12\"><rect class=\"" + std::string(phase_class(k)) +
-           "\" x=\"0\" y=\"1\" width=\"14\" height=\"10\"/></svg>" +
-           escape_html(phase_words(k)) + "</span>";
+           "\" x=\"0\" y=\"1\" width=\"14\" height=\"10\"/></svg>" + escape_html(phase_words(k)) +
+           "</span>";
   }
   const auto key = [](MarkKind kind, std::string_view words) {
     const Mark m{kind, 0, std::string(words)};
@@ -242,23 +244,24 @@ std::string timeline(const ReportData& data) {
     peak = std::max(peak, s.load);
     bits_time += s.load * (s.end_s - s.begin_s);
   }
-  area += " L" + number(d.x(data.load.empty() ? 0 : data.load.back().end_s)) + "," +
-          number(base) + " Z";
+  area += " L" + number(d.x(data.load.empty() ? 0 : data.load.back().end_s)) + "," + number(base) +
+          " Z";
   const double mean = data.duration_s > 0 ? bits_time / data.duration_s : 0;
-  const double bucket_ms = data.load.empty() ? 0 : (data.load[0].end_s - data.load[0].begin_s) * 1e3;
-  out += "<g id=\"bus-load\">" +
-         title("bus load at " + std::to_string(data.bitrate_bps) + " bit/s" +
-               (data.bitrate_assumed ? " (assumed)" : "") + ": peak " + number(peak * 100, 0) +
-               " %, mean " + number(mean * 100, 1) + " % (" + number(bucket_ms, 1) +
-               " ms buckets)") +
-         "<rect class=\"load-frame\" x=\"" + number(kLabelWidth) + "\" y=\"" + number(kLoadTop) +
-         "\" width=\"" + number(kChartWidth) + "\" height=\"" + number(kLoadHeight) + "\"/>" +
-         "<path class=\"load-area\" d=\"" + area + "\"/>" + "<text x=\"8\" y=\"" +
-         number(kLoadTop + 14) + "\">bus load</text><text x=\"8\" y=\"" + number(kLoadTop + 28) +
-         "\">peak " + number(peak * 100, 0) + " %, mean " + number(mean * 100, 1) +
-         " %</text><text x=\"" + number(kLabelWidth - 4) + "\" y=\"" + number(kLoadTop + 10) +
-         "\" text-anchor=\"end\">100 %</text><text x=\"" + number(kLabelWidth - 4) + "\" y=\"" +
-         number(base) + "\" text-anchor=\"end\">0 %</text>";
+  const double bucket_ms =
+      data.load.empty() ? 0 : (data.load[0].end_s - data.load[0].begin_s) * 1e3;
+  out +=
+      "<g id=\"bus-load\">" +
+      title("bus load at " + std::to_string(data.bitrate_bps) + " bit/s" +
+            (data.bitrate_assumed ? " (assumed)" : "") + ": peak " + number(peak * 100, 0) +
+            " %, mean " + number(mean * 100, 1) + " % (" + number(bucket_ms, 1) + " ms buckets)") +
+      "<rect class=\"load-frame\" x=\"" + number(kLabelWidth) + "\" y=\"" + number(kLoadTop) +
+      "\" width=\"" + number(kChartWidth) + "\" height=\"" + number(kLoadHeight) + "\"/>" +
+      "<path class=\"load-area\" d=\"" + area + "\"/>" + "<text x=\"8\" y=\"" +
+      number(kLoadTop + 14) + "\">bus load</text><text x=\"8\" y=\"" + number(kLoadTop + 28) +
+      "\">peak " + number(peak * 100, 0) + " %, mean " + number(mean * 100, 1) +
+      " %</text><text x=\"" + number(kLabelWidth - 4) + "\" y=\"" + number(kLoadTop + 10) +
+      "\" text-anchor=\"end\">100 %</text><text x=\"" + number(kLabelWidth - 4) + "\" y=\"" +
+      number(base) + "\" text-anchor=\"end\">0 %</text>";
   for (const auto& m : data.bus_marks) out += mark_svg(m, d.x(m.at_s), base - 6);
   out += "</g>\n";
 
@@ -268,9 +271,9 @@ std::string timeline(const ReportData& data) {
     const double top = kLanesTop + kLaneHeight * static_cast<double>(i);
     const double mid = top + kLaneHeight / 2;
     const std::string id = std::to_string(n.node_id);
-    std::string label = id + "  " + (n.name.size() > kNameInLabel
-                                         ? n.name.substr(0, kNameInLabel - 3) + "..."
-                                         : n.name);
+    std::string label =
+        id + "  " +
+        (n.name.size() > kNameInLabel ? n.name.substr(0, kNameInLabel - 3) + "..." : n.name);
     out += "<g class=\"lane" + std::string(n.failed ? " failed" : "") + "\" id=\"lane-" + id +
            "\" data-node=\"" + id + "\">" +
            title("node " + id + (n.name.empty() ? "" : " (" + n.name + ")") + ": " + n.result +
@@ -289,8 +292,8 @@ std::string timeline(const ReportData& data) {
       if (!p.entries_s.empty()) {
         std::string ticks;
         for (const double t : p.entries_s) {
-          ticks += "M" + number(d.x(t)) + "," + number(mid - kBarHeight / 2) + "v" +
-                   number(kBarHeight);
+          ticks +=
+              "M" + number(d.x(t)) + "," + number(mid - kBarHeight / 2) + "v" + number(kBarHeight);
         }
         out += "<path class=\"entries\" d=\"" + ticks + "\"/>";
       }
@@ -320,13 +323,12 @@ std::string result_table(const ReportData& data) {
   for (const NodeRow& n : data.nodes) {
     const std::string id = std::to_string(n.node_id);
     out += "<tr id=\"row-" + id + "\"" + (n.failed ? " class=\"failed\"" : "") + " title=\"" +
-           escape_html(n.result) + "\"><td class=\"n\">" + id + "</td><td>" +
-           escape_html(n.name) + "</td><td class=\"result\">" + escape_html(n.result) +
-           "</td><td>" + (n.mandatory ? "yes" : "no") + "</td><td class=\"n\">" +
-           std::to_string(n.entries) + "</td><td class=\"n\">" + std::to_string(n.emergencies) +
-           "</td><td class=\"n\">" + std::to_string(n.retries) + "</td><td class=\"n\">" +
-           number(n.seconds, 3) + " s</td><td>" +
-           escape_html(n.message == n.result ? "" : n.message) + "</td></tr>\n";
+           escape_html(n.result) + "\"><td class=\"n\">" + id + "</td><td>" + escape_html(n.name) +
+           "</td><td class=\"result\">" + escape_html(n.result) + "</td><td>" +
+           (n.mandatory ? "yes" : "no") + "</td><td class=\"n\">" + std::to_string(n.entries) +
+           "</td><td class=\"n\">" + std::to_string(n.emergencies) + "</td><td class=\"n\">" +
+           std::to_string(n.retries) + "</td><td class=\"n\">" + number(n.seconds, 3) +
+           " s</td><td>" + escape_html(n.message == n.result ? "" : n.message) + "</td></tr>\n";
   }
   return out + "</tbody></table>\n";
 }
@@ -364,9 +366,9 @@ std::string html_report(const ReportData& data) {
   const std::string heading = "cfgmgr " + data.tool + ": " + data.network;
   std::size_t failed = 0;
   for (const auto& n : data.nodes) failed += n.failed ? 1 : 0;
-  std::string out =
-      "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" +
-      escape_html(heading) + "</title>\n<style>" + std::string(kStyle) + "</style></head>\n<body>\n";
+  std::string out = "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" +
+                    escape_html(heading) + "</title>\n<style>" + std::string(kStyle) +
+                    "</style></head>\n<body>\n";
   out += "<h1>" + escape_html(heading) + "</h1>\n<p class=\"facts\">bus " + escape_html(data.bus) +
          ", " + std::to_string(data.bitrate_bps) + " bit/s" +
          (data.bitrate_assumed ? " (assumed; give --report-bitrate)" : "") + ", " +

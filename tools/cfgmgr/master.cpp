@@ -54,8 +54,8 @@ void run_master(const MasterCliOptions& options) {
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager.enabled = options.sdo_manager;
   apply_lss_options("master", options.lss, *network, master_options);
-  const nmt::MasterConfig config = master_config_or_exit("master", options.network, network,
-                                                         options.node_id, master_options);
+  const nmt::MasterConfig config =
+      master_config_or_exit("master", options.network, network, options.node_id, master_options);
   nmt::NmtMaster master = build_master_or_exit(config, options.network, *network);
 
   tools::ReportFile json = open_report_or_exit(options.json_events);
@@ -107,10 +107,9 @@ void run_master(const MasterCliOptions& options) {
                            "no slave was started (exit 4)"
                      : reporter.complete() ? "NMT start-up complete"
                                            : "NMT start-up had not ended when the run did";
-    write_html_report_or_exit(*html,
-                              report::html_report(recorder->finish(
-                                  reporter.start(), reporter.start() + outcome.elapsed,
-                                  std::move(header))));
+    write_html_report_or_exit(
+        *html, report::html_report(recorder->finish(
+                   reporter.start(), reporter.start() + outcome.elapsed, std::move(header))));
   }
   if (failed) exit_with(kExitMandatoryFailed);
 }

@@ -592,15 +592,13 @@ std::string html_page(ReportRecorder& recorder, const std::vector<NodeReport>& n
   header.ok = ok;
   // The outcome as the exit code tells it (--help's "Exit codes").
   header.outcome = outcome.timed_out ? "NMT start-up did not end within the run's bound (exit 4)"
-                   : halted ? "NMT start-up halted: a mandatory node failed (CiA 302-2 "
-                              "§3.1 f), no node was started (exit 4)"
-                   : !ok    ? "a mandatory node failed (exit 4)"
-                   : failed == 0
-                       ? "every node configured or skipped"
-                       : "every mandatory node configured or skipped; " +
-                             tools::plural(failed, "optional node") + " failed";
-  return report::html_report(
-      recorder.finish(start, start + outcome.elapsed, std::move(header)));
+                   : halted          ? "NMT start-up halted: a mandatory node failed (CiA 302-2 "
+                                       "§3.1 f), no node was started (exit 4)"
+                   : !ok             ? "a mandatory node failed (exit 4)"
+                   : failed == 0     ? "every node configured or skipped"
+                                     : "every mandatory node configured or skipped; " +
+                                       tools::plural(failed, "optional node") + " failed";
+  return report::html_report(recorder.finish(start, start + outcome.elapsed, std::move(header)));
 }
 
 // What the run bound allows for the software updates (DSP 302 §9) the nodes may need: each
@@ -786,9 +784,8 @@ void run_push(const PushCliOptions& options) {
                           reporter.programs(), outcome.bus));
   }
   if (html) {
-    write_html_report_or_exit(
-        *html, html_page(*recorder, collector.nodes(), options, ok, outcome, reporter.start(),
-                         reporter.halted()));
+    write_html_report_or_exit(*html, html_page(*recorder, collector.nodes(), options, ok, outcome,
+                                               reporter.start(), reporter.halted()));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }

@@ -54,8 +54,8 @@ std::optional<PhaseKind> phase_of(nmt::BootStep step) {
 }
 
 // Buckets twice as wide: each pair of neighbours merged.
-void widen(std::vector<std::uint64_t>& bits, std::int64_t& bucket_us) {
-  std::vector<std::uint64_t> wide((bits.size() + 1) / 2, 0);
+void widen(std::vector<double>& bits, std::int64_t& bucket_us) {
+  std::vector<double> wide((bits.size() + 1) / 2, 0);
   for (std::size_t i = 0; i < bits.size(); ++i) wide[i / 2] += bits[i];
   bits = std::move(wide);
   bucket_us *= 2;
@@ -72,7 +72,11 @@ ReportRecorder::ReportRecorder(std::vector<Node> nodes, std::uint32_t bitrate_bp
     : bitrate_bps_(bitrate_bps != 0 ? bitrate_bps : 1), assumed_(assumed) {
   std::sort(nodes.begin(), nodes.end(),
             [](const Node& a, const Node& b) { return a.node_id < b.node_id; });
-  for (auto& n : nodes) lanes_.push_back(Lane{std::move(n)});
+  for (auto& n : nodes) {
+    Lane lane;
+    lane.node = std::move(n);
+    lanes_.push_back(std::move(lane));
+  }
 }
 
 ReportRecorder::Lane* ReportRecorder::find(std::uint8_t node) {
@@ -86,8 +90,7 @@ void ReportRecorder::close_phase(Lane& lane, nmt::TimePoint at) {
   if (!lane.phases.empty() && !lane.phases.back().end) lane.phases.back().end = at;
 }
 
-void ReportRecorder::open_phase(Lane& lane, PhaseKind kind, nmt::TimePoint at,
-                                std::string title) {
+void ReportRecorder::open_phase(Lane& lane, PhaseKind kind, nmt::TimePoint at, std::string title) {
   close_phase(lane, at);
   lane.phases.push_back(OpenPhase{kind, at, std::nullopt, std::move(title), {}});
 }
@@ -128,12 +131,10 @@ void ReportRecorder::observe(const nmt::MasterEvent& e) {
         break;
       }
       if (!lane->began) lane->began = e.at;
-      open_phase(*lane, *kind,
-                 e.at,
-                 *kind == PhaseKind::Download
-                     ? download_title(e.written, e.total, e.boot_try)
-                     : std::string(nmt::to_string(e.step)) + " (try " +
-                           std::to_string(e.boot_try) + ")");
+      open_phase(*lane, *kind, e.at,
+                 *kind == PhaseKind::Download ? download_title(e.written, e.total, e.boot_try)
+                                              : std::string(nmt::to_string(e.step)) + " (try " +
+                                                    std::to_string(e.boot_try) + ")");
       break;
     }
     case K::ProgramProgress:
@@ -199,15 +200,31 @@ void ReportRecorder::on_frame(const nmt::CanFrame& frame, nmt::TimePoint at) {
     error_frames_.push_back(
         {MarkKind::ErrorFrame, at, "error frame (class " + cfg::hex(frame.id, 8) + ")"});
   }
-  if (!origin_) origin_ = at;
-  const std::int64_t since_us = std::max<std::int64_t>(
-      0, std::chrono::duration_cast<std::chrono::microseconds>(at - *origin_).count());
-  while (static_cast<std::size_t>(since_us / bucket_us_) >= kMaxBuckets) {
-    widen(bits_, bucket_us_);
+  // The frame occupied the bus for its bits at the bit rate before `at` (its end, as the
+  // simulated bus and a receiving driver stamp it): its bits go to the buckets of that time.
+  const unsigned bits = nmt::frame_bits(frame).total();
+  const auto length_us = static_cast<std::int64_t>(static_cast<double>(bits) * 1e6 /
+                                                   static_cast<double>(bitrate_bps_));
+  const nmt::TimePoint began = at - std::chrono::microseconds(length_us);
+  if (!origin_) origin_ = began;
+  const auto since_us = [this](nmt::TimePoint t) {
+    return std::max<std::int64_t>(
+        0, std::chrono::duration_cast<std::chrono::microseconds>(t - *origin_).count());
+  };
+  const std::int64_t from_us = since_us(began);
+  const std::int64_t to_us = std::max(since_us(at), from_us + 1);
+  while (static_cast<std::size_t>(to_us / bucket_us_) >= kMaxBuckets) widen(bits_, bucket_us_);
+  const auto last = static_cast<std::size_t>(to_us / bucket_us_);
+  if (bits_.size() <= last) bits_.resize(last + 1, 0);
+  // Each bucket its share of the frame's time; the bits are counted as doubles of a bit.
+  for (auto i = static_cast<std::size_t>(from_us / bucket_us_); i <= last; ++i) {
+    const std::int64_t lo = std::max(from_us, static_cast<std::int64_t>(i) * bucket_us_);
+    const std::int64_t hi = std::min(to_us, static_cast<std::int64_t>(i + 1) * bucket_us_);
+    if (hi > lo) {
+      bits_[i] += static_cast<double>(bits) * static_cast<double>(hi - lo) /
+                  static_cast<double>(to_us - from_us);
+    }
   }
-  const auto index = static_cast<std::size_t>(since_us / bucket_us_);
-  if (bits_.size() <= index) bits_.resize(index + 1, 0);
-  bits_[index] += nmt::frame_bits(frame).total();
 }
 
 void ReportRecorder::set_result(const report::NodeRow& row) {
@@ -259,7 +276,7 @@ report::ReportData ReportRecorder::finish(nmt::TimePoint start, nmt::TimePoint e
   if (origin_) {
     // The buckets up to the end of the run (the quiet ones after the last frame too), merged
     // as on_frame merges them while there are too many.
-    std::vector<std::uint64_t> bits = bits_;
+    std::vector<double> bits = bits_;
     std::int64_t bucket_us = bucket_us_;
     const std::int64_t span_us = std::max<std::int64_t>(
         0, std::chrono::duration_cast<std::chrono::microseconds>(end - *origin_).count());
@@ -269,8 +286,7 @@ report::ReportData ReportRecorder::finish(nmt::TimePoint start, nmt::TimePoint e
     const double origin_s = seconds(*origin_);
     for (std::size_t i = 0; i < bits.size(); ++i) {
       const double begin = origin_s + static_cast<double>(i) * bucket_s;
-      data.load.push_back({begin, begin + bucket_s,
-                           static_cast<double>(bits[i]) / (bucket_s * bitrate_bps_)});
+      data.load.push_back({begin, begin + bucket_s, bits[i] / (bucket_s * bitrate_bps_)});
     }
   }
   return data;

@@ -74,19 +74,19 @@ class ReportRecorder {
 
   Lane* find(std::uint8_t node);
   static void close_phase(Lane& lane, nmt::TimePoint at);
-  static void open_phase(Lane& lane, report::PhaseKind kind, nmt::TimePoint at,
-                         std::string title);
+  static void open_phase(Lane& lane, report::PhaseKind kind, nmt::TimePoint at, std::string title);
 
   std::vector<Lane> lanes_;
   std::vector<TimedMark> master_marks_;
   std::vector<TimedMark> error_frames_;
   std::uint32_t bitrate_bps_;
   bool assumed_;
-  // The bus load: bits per bucket of `bucket_us_` from `origin_`; when the run outgrows
-  // kMaxBuckets, neighbours are merged and the bucket doubles, so a long run stays small.
+  // The bus load: bits per bucket of `bucket_us_` from `origin_` (a frame's bits shared by the
+  // buckets its time on the bus falls in); when the run outgrows kMaxBuckets, neighbours are
+  // merged and the bucket doubles, so a long run stays small.
   std::optional<nmt::TimePoint> origin_;
   std::int64_t bucket_us_ = 1000;
-  std::vector<std::uint64_t> bits_;
+  std::vector<double> bits_;
   std::uint64_t frames_ = 0;
 };
 

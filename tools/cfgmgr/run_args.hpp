@@ -83,7 +83,7 @@ void finish_report_or_exit(tools::ReportFile& report, std::string_view text = {}
 
 /// --report FILE.html and --report-bitrate of push and master (html_report.hpp).
 struct HtmlReportArgs {
-  std::string path;                         ///< empty: no report
+  std::string path;                          ///< empty: no report
   std::optional<std::uint32_t> bitrate_bps;  ///< --report-bitrate
 };
 /// Adds --report and --report-bitrate to `cmd`; `when` says when the file is written.
