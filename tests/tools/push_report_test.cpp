@@ -4,7 +4,10 @@
 // from that DOM: a lane and a table row per node, the failed node marked, its EMCY on its lane.
 // Without Chromium it skips (fails under CI=true).
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
@@ -59,7 +62,8 @@ std::string start_tag(const std::string& dom, const std::string& id) {
   return dom.substr(open, dom.find('>', at) - open + 1);
 }
 
-// The text between an element's start tag and its end tag `</tag>`.
+// The element with `id` up to the first end tag `</tag>` after it (for elements without
+// children of their kind).
 std::string element(const std::string& dom, const std::string& id, const std::string& tag) {
   const auto at = dom.find("id=\"" + id + "\"");
   if (at == std::string::npos) return "";
@@ -68,8 +72,18 @@ std::string element(const std::string& dom, const std::string& id, const std::st
   return end == std::string::npos ? "" : dom.substr(begin, end - begin);
 }
 
+// Node `id`'s lane of the timeline: from its group to the next lane or the end of the lanes.
+std::string lane(const std::string& dom, int id) {
+  const auto at = dom.find("id=\"lane-" + std::to_string(id) + "\"");
+  if (at == std::string::npos) return "";
+  const auto begin = dom.rfind('<', at);
+  const auto end = std::min({dom.find("id=\"lane-", at + 1), dom.find("class=\"mark master", at),
+                             dom.find("</svg>", at)});
+  return end == std::string::npos ? "" : dom.substr(begin, end - begin);
+}
+
 // CiA 302-2 §3.3: node 3 is listed by the master as mandatory but has no device (no boot-up, no
-// SDO answer): status B once the boot time (--boot-time 2) is over, after retries; nodes 1 and 2
+// SDO answer): status B once the boot time (--boot-time 3) is over, after retries; nodes 1 and 2
 // are configured, node 1 sends an EMCY 8130h (CiA 301 Table 21: life guard or heartbeat error)
 // 300 ms into the run.
 TEST(PushReport, ChromiumShowsEveryNodeAndMarksTheFailedOne) {
@@ -87,12 +101,13 @@ TEST(PushReport, ChromiumShowsEveryNodeAndMarksTheFailedOne) {
   const std::string cpj = generated::write_network(dir.path() / "net", spec);
   const std::string page = dir / "push.html";
   const std::string json = dir / "push.json";
-  const auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:?emcy=1@300:8130:10", "--boot-time", "2",
+  const auto r = cfgmgr(dir, {"push", cpj, "--bus", "sim:?emcy=1@300:8130:10", "--boot-time", "3",
                               "--report", page, "--json", json});
   ASSERT_EQ(r.exit_code, 4) << r.err;  // a mandatory node failed
   const auto nodes = nodes_of(parse_json(json));
   ASSERT_EQ(nodes.size(), 3U);
   ASSERT_EQ(nodes.at(3)->get("status")->string, "B");
+  ASSERT_GE(nodes.at(3)->get("retries")->number, 1.0);
   ASSERT_TRUE(std::filesystem::exists(page)) << r.err;
 
   const std::string dom_file = dir / "dom.html";
@@ -114,11 +129,11 @@ TEST(PushReport, ChromiumShowsEveryNodeAndMarksTheFailedOne) {
   // Table 1; node 1's lane has its EMCY.
   const std::string row3 = element(dom, "row-3", "tr");
   EXPECT_NE(row3.find(">error B<"), std::string::npos) << row3;
-  const std::string lane3 = element(dom, "lane-3", "svg");
+  const std::string lane3 = lane(dom, 3);
   EXPECT_NE(lane3.find("class=\"m-error\""), std::string::npos);
-  EXPECT_NE(lane3.find("class=\"m-retry\""), std::string::npos);
+  EXPECT_NE(lane3.find("class=\"m-retry\""), std::string::npos) << lane3;
   EXPECT_NE(lane3.find("boot error B"), std::string::npos);
-  const std::string lane1 = element(dom, "lane-1", "g");
+  const std::string lane1 = lane(dom, 1);
   EXPECT_NE(lane1.find("class=\"m-emergency\""), std::string::npos) << lane1;
   EXPECT_NE(lane1.find("8130h"), std::string::npos) << lane1;
   EXPECT_NE(lane1.find("class=\"p-download\""), std::string::npos) << lane1;
@@ -153,10 +168,22 @@ TEST(PushReport, ChromiumShowsEveryNodeAndMarksTheFailedOne) {
 TEST(PushReport, AnUnwritableReportIsExit3BeforeTheBus) {
   ScratchDir dir;
   const auto r = cfgmgr(dir, {"push", tool_test::sample_network("nodelist.cpj"), "--bus",
-                              "sim:", "--report", (dir / "no-such-dir" / "push.html")});
+                              "sim:", "--report", dir / "no-such-dir/push.html"});
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("push.html: error: cannot create"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("simulated device"), std::string::npos) << r.err;
+}
+
+// A write error at the end (a full disk: /dev/full refuses every write with ENOSPC) is exit 3
+// with the file's name and the reason.
+TEST(PushReport, AReportThatCannotBeWrittenAtTheEndIsExit3) {
+  if (!std::filesystem::exists("/dev/full")) PREREQUISITE_MISSING("/dev/full is absent");
+  ScratchDir dir;
+  const auto r = cfgmgr(dir, {"push", tool_test::sample_network("nodelist.cpj"), "--bus",
+                              "sim:", "--report", "/dev/full"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("/dev/full: error: write error: No space left on device"), std::string::npos)
+      << r.err;
 }
 
 // cfgmgr master --report writes the page when it stops: a lane per slave of the sample network.
