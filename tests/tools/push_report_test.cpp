@@ -27,10 +27,11 @@ using tool_test::shell_quote;
 using tool_test::slurp;
 
 // Debian 12's chromium-headless-shell installs /usr/bin/chromium-headless-shell; the full
-// browser (package chromium) does as well with --headless. CHROMIUM names another.
+// browser (package chromium) does as well with --headless. CHROMIUM names another (and only
+// that one: a CHROMIUM that is not there is a missing prerequisite). "" when there is none.
 std::string chromium() {
   if (const char* named = std::getenv("CHROMIUM"); named != nullptr && *named != '\0') {
-    return named;
+    return ::access(named, X_OK) == 0 ? named : "";
   }
   for (const char* path : {"/usr/bin/chromium-headless-shell", "/usr/bin/chromium"}) {
     if (::access(path, X_OK) == 0) return path;
