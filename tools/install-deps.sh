@@ -20,6 +20,9 @@ packages=(
   python3 python3-can python3-msgpack can-utils iproute2 util-linux
   # an independent decoder of our pcap traces (CANopen dissector)
   tshark
+  # a real browser for push --report's page: /usr/bin/chromium-headless-shell (--dump-dom,
+  # --screenshot; tests/tools/push_report_test.cpp)
+  chromium-headless-shell
   # VM tier: a real Linux CAN stack under qemu
   qemu-system-x86 busybox-static cpio kmod xz-utils
 )

@@ -89,6 +89,10 @@ RunOutcome run_master_on_bus(nmt::NmtMaster master, const std::string& url, cons
       loop.request_stop();
     }
   });
+  if (traces.frames) {
+    loop.set_observer([&traces](const nmt::CanFrame& frame, nmt::TimePoint at,
+                                nmt::BusEventLoop::Direction) { traces.frames(frame, at); });
+  }
   loop.set_bus_event_handler(
       [&reporter](const nmt::BusEvent& e, nmt::TimePoint at) { reporter.report_bus(e, at); });
   const bool forever = !limits.run_for_s && !limits.until_startup_ends;

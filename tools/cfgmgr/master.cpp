@@ -16,6 +16,7 @@
 #include "cfg/config_manager.hpp"
 #include "commands.hpp"
 #include "master_run.hpp"
+#include "report_recorder.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -29,6 +30,7 @@ struct MasterCliOptions : NetworkRunArgs {
   std::string store;
   bool sdo_manager = false;
   LssRunArgs lss;
+  HtmlReportArgs report;
 };
 
 /// --store DIR: the configuration manager the master serves (1F20h-1F27h) and configures from
@@ -52,27 +54,64 @@ void run_master(const MasterCliOptions& options) {
   if (!options.store.empty()) master_options.manager = open_store_or_exit(options.store);
   master_options.sdo_manager.enabled = options.sdo_manager;
   apply_lss_options("master", options.lss, *network, master_options);
-  nmt::NmtMaster master =
-      build_master("master", options.network, network, options.node_id, master_options);
+  const nmt::MasterConfig config =
+      master_config_or_exit("master", options.network, network, options.node_id, master_options);
+  nmt::NmtMaster master = build_master_or_exit(config, options.network, *network);
 
   tools::ReportFile json = open_report_or_exit(options.json_events);
+  std::optional<tools::OutputFile> html = open_html_report_or_exit(options.report);
   EventReporter reporter(options.verbose, json.stream());
   reporter.track_programs(network);
+  // --report: a lane per slave the master boots, the bus load from every frame.
+  std::optional<ReportRecorder> recorder;
+  RunTraces traces;
+  if (html) {
+    std::vector<ReportRecorder::Node> lanes;
+    for (const nmt::SlaveConfig& slave : config.slaves) {
+      if (!slave.slave) continue;
+      const cfg::NetworkNode* node = network->find(slave.node);
+      lanes.push_back({slave.node.value(), node != nullptr ? node->name : "", slave.mandatory});
+    }
+    bool assumed = false;
+    const std::uint32_t bitrate = report_bitrate(options.report, sim, assumed);
+    recorder.emplace(std::move(lanes), bitrate, assumed);
+    reporter.set_observer([&recorder](const nmt::MasterEvent& e) { recorder->observe(e); });
+    traces.frames = [&recorder](const nmt::CanFrame& frame, nmt::TimePoint at) {
+      recorder->on_frame(frame, at);
+    };
+  }
   RunLimits limits;
   limits.tool = "master";
   limits.run_for_s = options.run_for_s;
-  bool timed_out = false;
+  RunOutcome outcome;
   if (sim) {
     // Without --run-for, sim: ends once NMT start-up has (master_run.hpp).
     limits.until_startup_ends = true;
     limits.bound_s = kSimDefaultBoundS + lss_bound_s(master_options);
     limits.bound_hint = " of simulated time (give --run-for to run longer)";
-    timed_out = run_master_on_sim(std::move(master), *network, *sim, limits, reporter).timed_out;
+    outcome = run_master_on_sim(std::move(master), *network, *sim, limits, reporter, traces);
   } else {
-    timed_out = run_master_on_bus(std::move(master), options.bus, limits, reporter).timed_out;
+    outcome = run_master_on_bus(std::move(master), options.bus, limits, reporter, traces);
   }
   finish_report_or_exit(json);
-  if (timed_out || reporter.halted()) exit_with(kExitMandatoryFailed);
+  const bool failed = outcome.timed_out || reporter.halted();
+  if (html) {
+    report::ReportData header;
+    header.tool = "master";
+    header.network = options.network;
+    header.bus = options.bus;
+    header.ok = !failed;
+    header.outcome = outcome.timed_out ? "NMT start-up did not end within the run's bound (exit 4)"
+                     : reporter.halted()
+                         ? "NMT start-up halted: a mandatory slave failed (CiA 302-2 §3.1 f), "
+                           "no slave was started (exit 4)"
+                     : reporter.complete() ? "NMT start-up complete"
+                                           : "NMT start-up had not ended when the run did";
+    write_html_report_or_exit(
+        *html, report::html_report(recorder->finish(
+                   reporter.start(), reporter.start() + outcome.elapsed, std::move(header))));
+  }
+  if (failed) exit_with(kExitMandatoryFailed);
 }
 
 }  // namespace
@@ -126,6 +165,7 @@ void add_master_command(CLI::App& app) {
                 "(680h-6DFh when the DCF has none) and release them (1F01h, or when the "
                 "requester's heartbeat or guarding stops)");
   add_lss_options(*cmd, options->lss, /*with_period=*/true);
+  add_html_report_options(*cmd, options->report, "when the master stops");
   cmd->footer(std::string(
       "Devices out of the box (no node-ID, CiA 305): with --lss the master first finds every "
       "device without node-ID (Fastscan) and gives each the node-ID of the node whose DCF has "
@@ -166,7 +206,8 @@ void add_master_command(CLI::App& app) {
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --store /var/lib/canopen/store\n"
       "  cfgmgr sdo read --bus socketcan:can0 0x7F 1F22:3 --type domain -o node3.bin\n"
       "  cfgmgr master nodelist.cpj --bus socketcan:can0 --sdo-manager\n"
-      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --lss --lss-period 1000\n\n"
+      "  cfgmgr master nodelist.cpj --bus socketcan:can0 --lss --lss-period 1000\n"
+      "  cfgmgr master samples/network/nodelist.cpj --bus sim: --report boot.html\n\n"
       "Exit codes:\n"
       "  0  stopped by Ctrl-C/SIGTERM or --run-for, or (sim: without --run-for) NMT start-up "
       "complete\n"
@@ -175,7 +216,7 @@ void add_master_command(CLI::App& app) {
       "  2  usage error (bad command line, a --bus URL that does not parse, a --node-id "
       "outside 1..127 or of a slave)\n"
       "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
-      "--json-events or the --store directory cannot be written\n"
+      "--json-events, --report or the --store directory cannot be written\n"
       "  4  NMT start-up halted: a mandatory slave failed its boot (CiA 302-2 section 3.1 f; the "
       "others still boot to their own end, then start-up halts: no slave started, the master "
       "stays pre-operational); on sim: without --run-for also when start-up did not end "

@@ -44,6 +44,9 @@ struct RunOutcome {
 struct RunTraces {
   std::string pcap;     ///< pcap, LINKTYPE_CAN_SOCKETCAN (Wireshark, tshark)
   std::string candump;  ///< candump log (`candump -l` format: can-utils, python-can)
+  /// Also called with every frame of the run (error frames included) at the engines' time, the
+  /// clock of the master's events (--report's bus load); none when empty.
+  std::function<void(const nmt::CanFrame&, nmt::TimePoint)> frames;
 };
 
 /// The simulated devices of `network` (simulated_devices; `owners` gets each one's node-ID), a

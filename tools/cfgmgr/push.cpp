@@ -31,6 +31,7 @@
 #include "commands.hpp"
 #include "master_run.hpp"
 #include "nmt/master/master_event_text.hpp"
+#include "report_recorder.hpp"
 
 namespace cfgmgr {
 namespace {
@@ -54,6 +55,7 @@ struct PushCliOptions : NetworkRunArgs {
   unsigned retries = 2;
   RunTraces traces;
   LssRunArgs lss;
+  HtmlReportArgs report;
 };
 
 /// NoConfiguration: booted, but the master had nothing to configure the node with (a master
@@ -567,6 +569,40 @@ std::string json_report(const std::vector<NodeReport>& nodes, bool ok, nmt::Dura
   return out + "}\n";
 }
 
+// The --report page: the lanes the recorder kept, the table's rows as print_table has them.
+std::string html_page(ReportRecorder& recorder, const std::vector<NodeReport>& nodes,
+                      const PushCliOptions& options, bool ok, const RunOutcome& outcome,
+                      nmt::TimePoint start, bool halted) {
+  std::size_t failed = 0;
+  for (const auto& r : nodes) {
+    report::NodeRow row;
+    row.node_id = r.node_id;
+    row.result = result_text(r);
+    row.failed = r.result == Result::Error;
+    row.message = r.message;
+    row.entries = r.entries;
+    row.emergencies = r.emergencies;
+    row.retries = r.retries;
+    row.seconds = node_seconds(r, start);
+    recorder.set_result(row);
+    failed += row.failed ? 1 : 0;
+  }
+  report::ReportData header;
+  header.tool = std::string(kTool);
+  header.network = options.network;
+  header.bus = options.bus;
+  header.ok = ok;
+  // The outcome as the exit code tells it (--help's "Exit codes").
+  header.outcome = outcome.timed_out ? "NMT start-up did not end within the run's bound (exit 4)"
+                   : halted          ? "NMT start-up halted: a mandatory node failed (CiA 302-2 "
+                                       "§3.1 f), no node was started (exit 4)"
+                   : !ok             ? "a mandatory node failed (exit 4)"
+                   : failed == 0     ? "every node configured or skipped"
+                                     : "every mandatory node configured or skipped; " +
+                                       tools::plural(failed, "optional node") + " failed";
+  return report::html_report(recorder.finish(start, start + outcome.elapsed, std::move(header)));
+}
+
 // What the run bound allows for the software updates (DSP 302 §9) the nodes may need: each
 // image byte as 1/7 of an 8-byte frame (135 bits at most with stuffing), twice (the master's
 // pacing counts each segment with an answer's length), at the sim: bit rate, on a real bus at
@@ -691,6 +727,19 @@ void run_push(const PushCliOptions& options) {
   nmt::NmtMaster master = build_master_or_exit(config, options.network, *network);
 
   tools::ReportFile json = open_report_or_exit(options.json);
+  std::optional<tools::OutputFile> html = open_html_report_or_exit(options.report);
+  std::optional<ReportRecorder> recorder;
+  RunTraces traces = options.traces;
+  if (html) {
+    std::vector<ReportRecorder::Node> lanes;
+    for (const auto& r : reports) lanes.push_back({r.node_id, r.name, r.mandatory});
+    bool assumed = false;
+    const std::uint32_t bitrate = report_bitrate(options.report, sim, assumed);
+    recorder.emplace(std::move(lanes), bitrate, assumed);
+    traces.frames = [&recorder](const nmt::CanFrame& frame, nmt::TimePoint at) {
+      recorder->on_frame(frame, at);
+    };
+  }
 
   Collector collector(std::move(reports));
   EventReporter reporter(options.verbose, nullptr);
@@ -702,8 +751,9 @@ void run_push(const PushCliOptions& options) {
     reporter.set_quiet(true);  // the view shows what the event lines would
     reporter.set_note_handler([&view](const std::string& line) { view->note(line); });
   }
-  reporter.set_observer([&collector, &view](const nmt::MasterEvent& e) {
+  reporter.set_observer([&collector, &view, &recorder](const nmt::MasterEvent& e) {
     collector.observe(e);
+    if (recorder) recorder->observe(e);
     if (view) view->update(collector.nodes(), false);
   });
   RunLimits limits;
@@ -715,8 +765,8 @@ void run_push(const PushCliOptions& options) {
   // own result by then.
   limits.settled = [&] { return reporter.halted() || collector.settled(); };
   const RunOutcome outcome =
-      sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter, options.traces)
-          : run_master_on_bus(std::move(master), options.bus, limits, reporter, options.traces);
+      sim ? run_master_on_sim(std::move(master), *network, *sim, limits, reporter, traces)
+          : run_master_on_bus(std::move(master), options.bus, limits, reporter, traces);
   const nmt::Duration elapsed = outcome.elapsed;
   collector.close(reporter.start() + elapsed);
   if (view) {
@@ -734,6 +784,10 @@ void run_push(const PushCliOptions& options) {
     finish_report_or_exit(
         json, json_report(collector.nodes(), ok, elapsed, reporter.start(), collector.unmatched(),
                           reporter.programs(), outcome.bus));
+  }
+  if (html) {
+    write_html_report_or_exit(*html, html_page(*recorder, collector.nodes(), options, ok, outcome,
+                                               reporter.start(), reporter.halted()));
   }
   if (!ok) exit_with(kExitMandatoryFailed);
 }
@@ -794,6 +848,7 @@ void add_push_command(CLI::App& app) {
                   "Record every frame of the run as a candump log (candump -l format, for "
                   "can-utils and python-can); on sim: stamped with simulated time")
       ->type_name("FILE.log");
+  add_html_report_options(*cmd, options->report, "at the end of the run");
   add_lss_options(*cmd, options->lss, /*with_period=*/false);
   cmd->add_flag("--force", options->force, "Download even when 1020h matches 1F26h/1F27h");
   cmd->add_flag("--no-start", options->no_start,
@@ -843,6 +898,7 @@ void add_push_command(CLI::App& app) {
       "  cfgmgr push samples/network/nodelist.cpj --bus 'sim:?state=/tmp/devices' "
       "--candump boot.log\n"
       "  cfgmgr push nodelist.cpj --bus socketcan:can0 --json report.json\n"
+      "  cfgmgr push samples/network/nodelist.cpj --bus sim: --report push.html\n"
       "  cfgmgr push master.dcf --bus udp://239.74.163.2:43113 --force --no-save\n"
       "  cfgmgr push nodelist.cpj --bus socketcan:can0 --lss --json report.json\n\n"
       "Exit codes:\n"
@@ -853,7 +909,7 @@ void add_push_command(CLI::App& app) {
       "  2  usage error (bad command line, a --bus URL that does not parse, --only naming a "
       "node that is not in the network)\n"
       "  3  I/O error: the description cannot be read, the bus cannot be opened or fails, "
-      "--json cannot be written\n"
+      "--json or --report cannot be written\n"
       "  4  a mandatory node failed (NMT start-up halted, CiA 302-2 section 3.1 f: no node "
       "started; every node's result is still reported), or start-up did not end within the "
       "boot time + 60 s\n"));

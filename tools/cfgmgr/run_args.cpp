@@ -156,6 +156,45 @@ void finish_report_or_exit(tools::ReportFile& report, std::string_view text) {
   }
 }
 
+void add_html_report_options(CLI::App& cmd, HtmlReportArgs& args, std::string_view when) {
+  cmd.add_option("--report", args.path,
+                 "Write a page for people to FILE.html, " + std::string(when) +
+                     ": one self-contained HTML file (inline SVG and CSS; no script, nothing "
+                     "fetched) with a timeline per node over bus time (boot-up, identity, "
+                     "program and configuration download with its entries, start; errors, "
+                     "retries and EMCYs marked), the bus load with error frames, and the result "
+                     "table. Written whole or not at all (a temporary file renamed over FILE)")
+      ->type_name("FILE.html");
+  cmd.add_option("--report-bitrate", args.bitrate_bps,
+                 "The bus's bit rate for the report's bus load; default: sim:'s bitrate=, on a "
+                 "real bus 125000 (the page says it was assumed)")
+      ->type_name("BPS")
+      ->check(CLI::Range(1U, 1'000'000'000U));
+}
+
+std::uint32_t report_bitrate(const HtmlReportArgs& args, const std::optional<SimBusOptions>& sim,
+                             bool& assumed) {
+  assumed = false;
+  if (args.bitrate_bps) return *args.bitrate_bps;
+  if (sim) return sim->bitrate_bps;
+  assumed = true;
+  return 125'000;
+}
+
+std::optional<tools::OutputFile> open_html_report_or_exit(const HtmlReportArgs& args) {
+  if (args.path.empty()) return std::nullopt;
+  auto opened = tools::OutputFile::open(args.path);
+  if (!opened) exit_with(tools::kExitIo, opened.error().message);
+  return std::move(*opened);
+}
+
+void write_html_report_or_exit(tools::OutputFile& file, std::string_view html) {
+  if (auto written = file.write(html); !written) exit_with(tools::kExitIo, written.error().message);
+  if (auto committed = file.commit(); !committed) {
+    exit_with(tools::kExitIo, committed.error().message);
+  }
+}
+
 std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3f", static_cast<double>((at - start).count()) / 1e6);

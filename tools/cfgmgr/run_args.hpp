@@ -81,6 +81,24 @@ tools::ReportFile open_report_or_exit(const std::string& path);
 /// Writes `text` to the report file and flushes it; a write error ends the command with exit 3.
 void finish_report_or_exit(tools::ReportFile& report, std::string_view text = {});
 
+/// --report FILE.html and --report-bitrate of push and master (html_report.hpp).
+struct HtmlReportArgs {
+  std::string path;                          ///< empty: no report
+  std::optional<std::uint32_t> bitrate_bps;  ///< --report-bitrate
+};
+/// Adds --report and --report-bitrate to `cmd`; `when` says when the file is written.
+void add_html_report_options(CLI::App& cmd, HtmlReportArgs& args, std::string_view when);
+/// The bit rate the report's bus load is taken at: --report-bitrate, else sim:'s, else 125
+/// kbit/s, which `assumed` then says.
+std::uint32_t report_bitrate(const HtmlReportArgs& args, const std::optional<SimBusOptions>& sim,
+                             bool& assumed);
+/// The --report file opened before any bus work (a temporary beside it, renamed over it when
+/// written: a reader never sees half a page); nullopt without --report. Prints "PATH: error:
+/// cannot create: ..." and ends the command with exit 3 when it cannot.
+std::optional<tools::OutputFile> open_html_report_or_exit(const HtmlReportArgs& args);
+/// Writes `html` to the report and puts it in place; a write error ends the command with exit 3.
+void write_html_report_or_exit(tools::OutputFile& file, std::string_view html);
+
 /// Seconds from `start` to `at` with millisecond digits ("0.512").
 std::string seconds_text(nmt::TimePoint start, nmt::TimePoint at);
 nmt::Duration seconds_to_duration(double s);

@@ -54,6 +54,7 @@ RunOutcome run_master_on_sim(nmt::NmtMaster master, const cfg::Network& network,
     writers.push_back(w.get());
     bus.add_observer(nmt::trace_observer(*w));
   }
+  if (traces.frames) bus.add_observer(traces.frames);
   std::vector<std::unique_ptr<nmt::SimEngineNode<nmt::SimulatedDevice>>> devices;
   bool state_failed = false;
   for (auto& device : built) {
