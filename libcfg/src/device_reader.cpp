@@ -89,6 +89,9 @@ ReadResult Reader::run(std::string_view text) {
   dummy_usage_.kv = &model_.dummy_usage;
   detail::scan_ini(text, *this);
   close_section();
+  // The model holds copies: what finish() still looks up in the file (section names, the
+  // texts of [xxxxName]/[xxxxValue], comments) is read back page by page if at all.
+  if (file_ != nullptr) release_pages_before(text.data() + text.size());
   if (sections_seen_ == 0) {
     diagnostics_.clear();  // line-by-line complaints about a non-INI file help nobody
     suppressed_ = {};
@@ -97,10 +100,29 @@ ReadResult Reader::run(std::string_view text) {
     return result;
   }
   finish();
-  arena_->seal();  // edits of the model from here on allocate from the heap
+  arena_->seal();
   result.device = std::move(model_);
   result.diagnostics = take_diagnostics();
   return result;
+}
+
+ReadResult Reader::run(const FileText& file) {
+  file_ = &file;
+  file_released_ = 0;
+  ReadResult result = run(file.view());
+  file_ = nullptr;
+  return result;
+}
+
+void Reader::release_pages_before(const char* at) {
+  // A madvise call per step: the file's resident part stays within a step and the current
+  // section, at a few calls per megabyte.
+  constexpr std::size_t kStep = std::size_t{256} << 10;
+  const auto offset = static_cast<std::size_t>(at - file_->view().data());
+  const bool to_end = offset >= file_->size();
+  if (!to_end && offset - file_released_ < kStep) return;
+  file_->release_pages(file_released_, offset);
+  file_released_ = offset;
 }
 
 void Reader::add(int line, Severity severity, std::string message) {
@@ -196,6 +218,11 @@ void Reader::finish() {
 }  // namespace detail::reader
 
 ReadResult parse_device_description(std::string_view text, const ReadOptions& options) {
+  detail::reader::Reader reader(options);
+  return reader.run(text);
+}
+
+ReadResult parse_device_description(const FileText& text, const ReadOptions& options) {
   detail::reader::Reader reader(options);
   return reader.run(text);
 }

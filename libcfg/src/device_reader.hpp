@@ -203,6 +203,8 @@ class Reader final : public IniSink {
 
   /// Reads `text` (the whole file) into a model and diagnostics.
   ReadResult run(std::string_view text);
+  /// Reads a file as read_file gave it, giving its pages back behind the reader.
+  ReadResult run(const FileText& file);
 
   // ---- IniSink (device_reader_sections.cpp)
   void on_section(int line, std::string_view name, std::string_view trailing, bool closed) override;
@@ -327,6 +329,8 @@ class Reader final : public IniSink {
 
   // ---- after the last line (device_reader.cpp)
   void finish();
+  // Gives back the pages of the file before `at` (a position in it), a step at a time.
+  void release_pages_before(const char* at);
 
   struct Seen {
     bool file_info = false, device_info = false, dummy_usage = false, comments = false,
@@ -339,6 +343,10 @@ class Reader final : public IniSink {
 
   ReadOptions options_;
   bool strict_ = false;
+  // The file being read, when its pages are given back as the reader passes them (run(const
+  // FileText&)); views into it stay valid, a page read again is read again from the file cache.
+  const FileText* file_ = nullptr;
+  std::size_t file_released_ = 0;  // bytes before this are given back
   // The model's maps and value texts live here (cfg/model_memory.hpp), sealed after the read.
   std::shared_ptr<ModelArena> arena_;
   DeviceDescription model_;

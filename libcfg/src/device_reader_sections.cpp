@@ -12,6 +12,8 @@ namespace cfg::detail::reader {
 
 void Reader::on_section(int line, std::string_view name, std::string_view trailing, bool closed) {
   close_section();
+  // Nothing before this section is needed any more but a few views, read back if at all.
+  if (file_ != nullptr) release_pages_before(name.data());
   ++sections_seen_;
   std::vector<RawKey> keys = std::move(cur_.keys);  // keep its capacity: no allocation per section
   keys.clear();

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <string>
@@ -39,6 +40,17 @@ void FileText::release() {
   mapped_ = nullptr;
   mapped_size_ = 0;
   std::string().swap(buffer_);
+}
+
+void FileText::release_pages(std::size_t begin, std::size_t end) const {
+  if (mapped_ == nullptr) return;
+  static const auto page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  begin -= begin % page;
+  // To the end: the last page too, though the file ends inside it.
+  end = end >= mapped_size_ ? mapped_size_ + (page - mapped_size_ % page) % page : end - end % page;
+  // The mapping is read-only and private, so none of its pages was ever copied on write: each
+  // one dropped is the file's, and reading it again maps the cached page back.
+  if (end > begin) ::madvise(const_cast<char*>(mapped_) + begin, end - begin, MADV_DONTNEED);
 }
 
 Result<FileText> read_file(int fd) {

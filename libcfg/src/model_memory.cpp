@@ -1,6 +1,7 @@
 #include "cfg/model_memory.hpp"
 
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -29,11 +30,14 @@ std::byte* map_huge_block(std::size_t size) {
   if (p == MAP_FAILED) return nullptr;
   const auto begin = reinterpret_cast<std::uintptr_t>(p);
   const std::uintptr_t aligned = (begin + kHugePage - 1) & ~(std::uintptr_t{kHugePage} - 1);
-  // Give back the unaligned head and the tail beyond `size`.
+  // Give back the unaligned head and the tail beyond `size` (from the page that follows it:
+  // munmap takes page-aligned addresses only).
   // NOLINTBEGIN(performance-no-int-to-ptr): addresses inside the mapping
   if (aligned > begin) munmap(p, aligned - begin);
   const std::uintptr_t end = begin + length;
-  if (end > aligned + size) munmap(reinterpret_cast<void*>(aligned + size), end - aligned - size);
+  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const std::uintptr_t used_end = (aligned + size + page - 1) & ~(page - 1);
+  if (end > used_end) munmap(reinterpret_cast<void*>(used_end), end - used_end);
   auto* block = reinterpret_cast<std::byte*>(aligned);
   // NOLINTEND(performance-no-int-to-ptr)
   madvise(block, size, MADV_HUGEPAGE);

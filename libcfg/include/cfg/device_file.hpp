@@ -77,6 +77,13 @@ class FileText {
   std::size_t size() const { return view().size(); }
   /// Gives the memory back now (the object is empty afterwards).
   void release();
+  /// Of a mapped file, drops the pages of bytes [begin, end), both rounded down to a page, from
+  /// the process's resident memory (a hint, as madvise(MADV_DONTNEED) is; the reader calls it
+  /// behind itself); an `end` at or past size() drops the last page too. The bytes stay
+  /// readable: a page read again comes back from the kernel's file cache. Consecutive calls,
+  /// each beginning where the last ended, drop each page once.
+  /// Nothing for a text read into memory.
+  void release_pages(std::size_t begin, std::size_t end) const;
 
  private:
   friend Result<FileText> read_file(int fd);
@@ -93,6 +100,12 @@ Result<FileText> read_file(const std::string& path);
 /// The same from an open descriptor (standard input: 0) to its end; the descriptor stays open
 /// and owned by the caller. Fails with "cannot read the file: <reason>".
 Result<FileText> read_file(int fd);
+
+/// parse_device_description of a file as read_file read it, which gives back the pages of a
+/// mapped file as the reader leaves them behind (FileText::release_pages), so that the file and
+/// the model made from it are not resident together: the file's own size off a tool's peak
+/// memory. `text` stays valid; bytes read again afterwards are read again from the file cache.
+ReadResult parse_device_description(const FileText& text, const ReadOptions& options = {});
 
 enum class FileKind { Eds, Dcf };
 enum class LineEnding { Crlf, Lf };
