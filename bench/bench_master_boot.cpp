@@ -45,6 +45,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "cfg/bytes.hpp"
@@ -625,21 +626,25 @@ int run_seeds(const SeedArguments& a) {
   std::printf("seed  first_s  ratio  tries_failed configured | second_s  ratio  tries_failed\n");
   for (std::uint64_t seed = a.first; seed <= a.last; ++seed) {
     BootResult first;
-    const BootResult second = boot_case(a.heartbeat_ms, loss, seed, true, &first);
-    if (first.sim_s == 0) first = second;  // the first start-up failed: no second ran
-    if (!first.error.empty() || !second.error.empty()) ++failed_boots;
-    first_ratios.push_back(first.sim_s / first_bound_s);
+    BootResult second = boot_case(a.heartbeat_ms, loss, seed, true, &first);
+    const bool second_ran = first.error.empty() && first.sim_s > 0;
+    if (!second_ran) first = std::exchange(second, BootResult{});  // the first failed: no second
+    const bool failed = !first.error.empty() || !second_ran || !second.error.empty();
+    if (failed) ++failed_boots;
+    // A failed start-up has no boot time: only its failed tries and slaves count.
+    if (first.error.empty()) first_ratios.push_back(first.sim_s / first_bound_s);
     failed_tries += first.boot_errors;
     unconfigured += kSlaves - first.configured;
-    if (first.error.empty() && second.error.empty()) {
-      second_ratios.push_back(second.sim_s / second_bound_s);
+    if (second_ran) {
+      if (second.error.empty()) second_ratios.push_back(second.sim_s / second_bound_s);
       failed_tries += second.boot_errors;
       not_booted += kSlaves - second.booted;
     }
-    std::printf("%4llu  %7.3f  %5.3f  %12zu %10zu | %8.3f  %5.3f  %12zu %s%s\n",
+    std::printf("%4llu  %7.3f  %5.3f  %12zu %10zu | %8.3f  %5.3f  %12zu %s\n",
                 static_cast<unsigned long long>(seed), first.sim_s, first.sim_s / first_bound_s,
                 first.boot_errors, first.configured, second.sim_s, second.sim_s / second_bound_s,
-                second.boot_errors, first.error.c_str(), second.error.c_str());
+                second.boot_errors,
+                first.error.empty() ? second.error.c_str() : first.error.c_str());
     std::fflush(stdout);
   }
   std::printf("first start-up ratio:  %s\n", distribution(first_ratios).c_str());

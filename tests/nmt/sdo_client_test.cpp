@@ -617,7 +617,8 @@ TEST_F(SdoClientTest, NoRepeatWhenRepeatAfterIsNotBeforeTheTimeout) {
 // CiA 301 §7.5.2.13/§7.5.2.14: each write of 'save'/'load' starts a store or restore; CiA 302-3:
 // 1F50h hands a program over and 1F51h controls it. None of them is sent twice.
 TEST_F(SdoClientTest, NeverRepeatsWritesToStoreRestoreProgramDataOrProgramControl) {
-  for (const std::uint16_t index : {0x1010, 0x1011, 0x1F50, 0x1F51}) {
+  for (const std::uint16_t index :
+       std::initializer_list<std::uint16_t>{0x1010, 0x1011, 0x1F50, 0x1F51}) {
     now = TimePoint{};
     results.clear();
     const auto id = download(index, 1, {0x73, 0x61, 0x76, 0x65}, repeating(500ms, 20ms));

@@ -453,9 +453,6 @@ TEST(SdoTransferScheduler, DropsTheResultOfATryThatEnded) {
   EXPECT_EQ(rig.scheduler.boot_in_flight(), 0U);
 }
 
-}  // namespace
-}  // namespace nmt
-
 // --- the learnt repetition (MasterOptions::sdo.repeat_floor, SdoTransferOptions::repeat_after)
 
 // CiA 301 leaves the response timeout to the application: the boot repeats a slave's expedited
@@ -531,3 +528,6 @@ TEST(SdoTransferScheduler, TheApplicationsTransfersAreNotRepeated) {
   EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
   EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(510));
 }
+
+}  // namespace
+}  // namespace nmt

@@ -186,6 +186,11 @@ bool download_never_repeated(std::uint16_t index) {
 
 }  // namespace
 
+// An initiate upload is repeated before the client knows the answer's protocol. A value longer
+// than 4 bytes is answered segmented, and a server that refuses a second initiate while its
+// segmented upload runs (abort 0504 0001, as SdoServer does) ends a repeated upload whose answer
+// was only late with that abort (never with a wrong value): callers repeat uploads of values
+// that fit 4 bytes (the master's boot reads only 32-bit objects).
 void SdoClient::arm_repeat(Transfer& t, TimePoint now) {
   const auto& after = t.options.repeat_after;
   if (!after || *after <= Duration::zero() || t.repeats >= sdo::kMaxRepeats) return;
