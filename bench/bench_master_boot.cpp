@@ -23,11 +23,20 @@
 // failed try of a slave's boot (retried, §3.3) is counted in boot_errors and the first one is the
 // label. Run from a Release build: build-bench/bench/bench_master_boot; BENCH_MASTER_TRACE=FILE
 // writes the frames and events of the boots to FILE (see write_trace).
+//   --loss-seeds=FIRST-LAST [--loss-per-1000=L (10)] [--hb=N (0)]
+//                                instead of the benchmarks: for each loss seed a first start-up and
+//                                the second (all 1020h match) as
+//                                BM_MasterBoot/BM_MasterBootAllMatch run them, one line per seed,
+//                                then the ratios' distribution (min/median/p90/max), the failed
+//                                tries and the slaves not configured (first) or not booted
+//                                (second), summed over the seeds.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -35,6 +44,8 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "cfg/bytes.hpp"
@@ -478,6 +489,23 @@ void report(benchmark::State& state, const BootResult& r, const Required& requir
   if (!r.first_boot_error.empty()) state.SetLabel("first boot error: " + r.first_boot_error);
 }
 
+// A first start-up on a new network with frame loss `loss` (PRNG seed `seed`) and, when
+// `second_start_up`, after it and a power cycle of the devices the start-up when every 1020h
+// matches (the loss PRNG going on): the last boot's result.
+BootResult boot_case(std::uint16_t heartbeat_ms, double loss, std::uint64_t seed,
+                     bool second_start_up, BootResult* first = nullptr) {
+  Network net(heartbeat_ms);
+  // After the devices' power-on boot-ups: the loss hits the boot alone.
+  net.bus.set_loss_rate(loss, seed);
+  BootResult r = boot(net, heartbeat_ms);
+  if (second_start_up && r.error.empty()) {
+    if (first != nullptr) *first = r;
+    net.power_cycle();
+    r = boot(net, heartbeat_ms);
+  }
+  return r;
+}
+
 // One boot per iteration on a new network; `second_start_up`: the boot after a first one and a
 // power cycle of the devices, when every 1020h matches.
 void master_boot(benchmark::State& state, bool second_start_up) {
@@ -488,14 +516,7 @@ void master_boot(benchmark::State& state, bool second_start_up) {
       seed_text != nullptr ? std::strtoull(seed_text, nullptr, 10) : kLossSeed;
   const Required required = required_frames(!second_start_up, heartbeat_ms);
   for (auto _ : state) {
-    Network net(heartbeat_ms);
-    // After the devices' power-on boot-ups: the loss hits the boot alone.
-    net.bus.set_loss_rate(loss, seed);
-    BootResult r = boot(net, heartbeat_ms);
-    if (second_start_up && r.error.empty()) {
-      net.power_cycle();
-      r = boot(net, heartbeat_ms);
-    }
+    BootResult r = boot_case(heartbeat_ms, loss, seed, second_start_up);
     if (!r.error.empty()) {
       state.SkipWithError(r.error.c_str());
       return;
@@ -528,6 +549,121 @@ void boot_arguments(benchmark::internal::Benchmark* b) {
 BENCHMARK(BM_MasterBoot)->Apply(boot_arguments);
 BENCHMARK(BM_MasterBootAllMatch)->Apply(boot_arguments);
 
+// --- many loss seeds (--loss-seeds) -------------------------------------------------------------
+
+struct SeedArguments {
+  std::uint64_t first = 0;
+  std::uint64_t last = 0;
+  unsigned loss_per_1000 = 10;
+  std::uint16_t heartbeat_ms = 0;
+};
+
+// The value of `--name=VALUE` in `arg`, or nullopt.
+std::optional<std::string_view> flag_value(std::string_view arg, std::string_view name) {
+  if (arg.substr(0, name.size()) != name || arg.size() <= name.size() || arg[name.size()] != '=') {
+    return std::nullopt;
+  }
+  return arg.substr(name.size() + 1);
+}
+
+// The --loss-seeds arguments, or nullopt when there are none (the benchmarks run).
+std::optional<SeedArguments> seed_arguments(int argc, char** argv) {
+  std::optional<SeedArguments> a;
+  SeedArguments parsed;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (const auto v = flag_value(arg, "--loss-seeds")) {
+      const std::string text(*v);
+      const auto dash = text.find('-');
+      parsed.first = std::strtoull(text.substr(0, dash).c_str(), nullptr, 10);
+      parsed.last = dash == std::string::npos
+                        ? parsed.first
+                        : std::strtoull(text.substr(dash + 1).c_str(), nullptr, 10);
+      a = parsed;
+    } else if (const auto l = flag_value(arg, "--loss-per-1000")) {
+      parsed.loss_per_1000 =
+          static_cast<unsigned>(std::strtoul(std::string(*l).c_str(), nullptr, 10));
+    } else if (const auto h = flag_value(arg, "--hb")) {
+      parsed.heartbeat_ms =
+          static_cast<std::uint16_t>(std::strtoul(std::string(*h).c_str(), nullptr, 10));
+    }
+  }
+  if (a) {
+    a->loss_per_1000 = parsed.loss_per_1000;
+    a->heartbeat_ms = parsed.heartbeat_ms;
+  }
+  return a;
+}
+
+// min / median / p90 / max of `values` (nearest rank).
+std::string distribution(std::vector<double> values) {
+  if (values.empty()) return "none";
+  std::sort(values.begin(), values.end());
+  const auto rank = [&](double q) {
+    const auto i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(values.size())));
+    return values[std::clamp<std::size_t>(i, 1, values.size()) - 1];
+  };
+  char text[128];
+  std::snprintf(text, sizeof text, "min %.3f  median %.3f  p90 %.3f  max %.3f", values.front(),
+                rank(0.5), rank(0.9), values.back());
+  return text;
+}
+
+int run_seeds(const SeedArguments& a) {
+  const double loss = a.loss_per_1000 / 1000.0;
+  const double first_bound_s =
+      static_cast<double>(air_bits(required_frames(true, a.heartbeat_ms).frames)) / kBitrate;
+  const double second_bound_s =
+      static_cast<double>(air_bits(required_frames(false, a.heartbeat_ms).frames)) / kBitrate;
+  std::vector<double> first_ratios;
+  std::vector<double> second_ratios;
+  std::size_t failed_tries = 0;
+  std::size_t unconfigured = 0;
+  std::size_t not_booted = 0;
+  std::size_t failed_boots = 0;
+  std::printf("hb:%u loss_per_1000:%u, bounds %.3f s / %.3f s\n", a.heartbeat_ms, a.loss_per_1000,
+              first_bound_s, second_bound_s);
+  std::printf("seed  first_s  ratio  tries_failed configured | second_s  ratio  tries_failed\n");
+  for (std::uint64_t seed = a.first; seed <= a.last; ++seed) {
+    BootResult first;
+    BootResult second = boot_case(a.heartbeat_ms, loss, seed, true, &first);
+    const bool second_ran = first.error.empty() && first.sim_s > 0;
+    if (!second_ran) first = std::exchange(second, BootResult{});  // the first failed: no second
+    const bool failed = !first.error.empty() || !second_ran || !second.error.empty();
+    if (failed) ++failed_boots;
+    // A failed start-up has no boot time: only its failed tries and slaves count.
+    if (first.error.empty()) first_ratios.push_back(first.sim_s / first_bound_s);
+    failed_tries += first.boot_errors;
+    unconfigured += kSlaves - first.configured;
+    if (second_ran) {
+      if (second.error.empty()) second_ratios.push_back(second.sim_s / second_bound_s);
+      failed_tries += second.boot_errors;
+      not_booted += kSlaves - second.booted;
+    }
+    std::printf("%4llu  %7.3f  %5.3f  %12zu %10zu | %8.3f  %5.3f  %12zu %s\n",
+                static_cast<unsigned long long>(seed), first.sim_s, first.sim_s / first_bound_s,
+                first.boot_errors, first.configured, second.sim_s, second.sim_s / second_bound_s,
+                second.boot_errors,
+                first.error.empty() ? second.error.c_str() : first.error.c_str());
+    std::fflush(stdout);
+  }
+  std::printf("first start-up ratio:  %s\n", distribution(first_ratios).c_str());
+  std::printf("second start-up ratio: %s\n", distribution(second_ratios).c_str());
+  std::printf(
+      "seeds %llu-%llu: failed tries %zu, slaves not configured %zu (first), not booted %zu "
+      "(second), failed start-ups %zu\n",
+      static_cast<unsigned long long>(a.first), static_cast<unsigned long long>(a.last),
+      failed_tries, unconfigured, not_booted, failed_boots);
+  return failed_boots == 0 ? 0 : 1;
+}
+
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  if (const auto seeds = seed_arguments(argc, argv)) return run_seeds(*seeds);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

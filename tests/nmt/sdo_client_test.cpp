@@ -555,6 +555,174 @@ TEST(SdoClientMux, TimesOutEachClientAtItsOwnResponseTimeoutEarliestFirst) {
   EXPECT_FALSE(mux.busy());
 }
 
+// --- repetition of expedited requests (SdoTransferOptions::repeat_after) ---------------------
+// CiA 301 §7.2.4.3.3/§7.2.4.3.6: an expedited download or an initiate upload is one request
+// frame answered by one response; sending it again reads the same object or writes the same
+// value, so the client may repeat it when its answer is overdue.
+
+SdoTransferOptions repeating(Duration timeout, Duration after) {
+  SdoTransferOptions o;
+  o.timeout = timeout;
+  o.repeat_after = after;
+  return o;
+}
+
+TEST_F(SdoClientTest, RepeatsAnUnansweredUploadAtRepeatAfterAndFailsOnlyAtTheFullTimeout) {
+  const auto id = upload(0x1000, 0, repeating(500ms, 20ms));
+  EXPECT_EQ(first, Frames{"605#4000100000000000"});
+  EXPECT_EQ(client.next_deadline(), TimePoint{20ms});
+  EXPECT_EQ(tick(TimePoint{19ms}), Frames{});  // early: nothing
+  // sdo::kMaxRepeats = 3 repetitions, 20 ms apart, each the same frame.
+  EXPECT_EQ(tick(TimePoint{20ms}), Frames{"605#4000100000000000"});
+  EXPECT_EQ(client.next_deadline(), TimePoint{40ms});
+  EXPECT_EQ(tick(TimePoint{40ms}), Frames{"605#4000100000000000"});
+  EXPECT_EQ(tick(TimePoint{60ms}), Frames{"605#4000100000000000"});
+  // Then only the response timeout, from the first request.
+  EXPECT_EQ(client.next_deadline(), TimePoint{500ms});
+  EXPECT_EQ(tick(TimePoint{499ms}), Frames{});
+  EXPECT_EQ(result(id), nullptr);
+  EXPECT_EQ(tick(TimePoint{500ms}), Frames{"605#8000100000000405"});
+  ASSERT_NE(result(id), nullptr);
+  EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
+  EXPECT_EQ(result(id)->repeats, 3u);
+  EXPECT_EQ(result(id)->longest_answer, std::nullopt);
+}
+
+TEST_F(SdoClientTest, RepeatedExpeditedDownloadEndsOnItsFirstAnswer) {
+  const auto id = download(0x1017, 0, {0xE8, 0x03}, repeating(500ms, 20ms));
+  EXPECT_EQ(tick(TimePoint{20ms}), Frames{"605#2B171000E8030000"});  // identical
+  now = TimePoint{25ms};
+  EXPECT_EQ(respond("585#6017100000000000"), Frames{});
+  ASSERT_NE(result(id), nullptr);
+  EXPECT_TRUE(result(id)->ok());
+  EXPECT_EQ(result(id)->repeats, 1u);
+  // The answer may be to either copy: it tells no answer time.
+  EXPECT_EQ(result(id)->longest_answer, std::nullopt);
+}
+
+TEST_F(SdoClientTest, AnAnsweredRequestIsNotRepeatedAndTellsItsAnswerTime) {
+  const auto id = upload(0x1000, 0, repeating(500ms, 20ms));
+  now = TimePoint{3ms};
+  respond("585#4300100091010200");
+  EXPECT_EQ(client.next_deadline(), std::nullopt);
+  EXPECT_EQ(result(id)->repeats, 0u);
+  EXPECT_EQ(result(id)->longest_answer, Duration{3ms});
+}
+
+TEST_F(SdoClientTest, NoRepeatWhenRepeatAfterIsNotBeforeTheTimeout) {
+  upload(0x1000, 0, repeating(100ms, 100ms));
+  EXPECT_EQ(client.next_deadline(), TimePoint{100ms});
+}
+
+// CiA 301 §7.5.2.13/§7.5.2.14: each write of 'save'/'load' starts a store or restore; CiA 302-3:
+// 1F50h hands a program over and 1F51h controls it. None of them is sent twice.
+TEST_F(SdoClientTest, NeverRepeatsWritesToStoreRestoreProgramDataOrProgramControl) {
+  for (const std::uint16_t index :
+       std::initializer_list<std::uint16_t>{0x1010, 0x1011, 0x1F50, 0x1F51}) {
+    now = TimePoint{};
+    results.clear();
+    const auto id = download(index, 1, {0x73, 0x61, 0x76, 0x65}, repeating(500ms, 20ms));
+    EXPECT_EQ(client.next_deadline(), TimePoint{500ms}) << std::hex << index;
+    EXPECT_EQ(tick(TimePoint{100ms}), Frames{});
+    tick(TimePoint{500ms});
+    ASSERT_NE(result(id), nullptr);
+    EXPECT_EQ(result(id)->repeats, 0u);
+  }
+}
+
+// Segments carry a toggle bit (§7.2.4.3.4/§7.2.4.3.7): a second copy would be another segment.
+TEST_F(SdoClientTest, NeverRepeatsASegmentedDownloadOrASegmentRequest) {
+  const auto id = download(0x2000, 0, Bytes{1, 2, 3, 4, 5, 6, 7, 8}, repeating(500ms, 20ms));
+  EXPECT_EQ(first, Frames{"605#2100200008000000"});
+  EXPECT_EQ(client.next_deadline(), TimePoint{500ms});
+  now = TimePoint{2ms};
+  EXPECT_EQ(respond("585#6000200000000000"), Frames{"605#0001020304050607"});
+  EXPECT_EQ(client.next_deadline(), TimePoint{502ms});
+  EXPECT_EQ(tick(TimePoint{100ms}), Frames{});
+  tick(TimePoint{502ms});
+  EXPECT_EQ(result(id)->repeats, 0u);
+  EXPECT_EQ(result(id)->abort, SdoAbort::Timeout);
+}
+
+TEST_F(SdoClientTest, NeverRepeatsABlockTransfersFrames) {
+  auto o = repeating(500ms, 20ms);
+  o.mode = SdoMode::Block;
+  upload(0x1008, 0, o);
+  EXPECT_EQ(client.next_deadline(), TimePoint{500ms});
+}
+
+// The server answered both copies of a repeated upload: the second answer arrives while the
+// next transfer runs and names the repeated object. It is not taken for the next transfer's.
+TEST_F(SdoClientTest, TheSecondAnswerToARepeatedUploadIsIgnoredByTheNextTransfer) {
+  const auto a = upload(0x1000, 0, repeating(500ms, 20ms));
+  tick(TimePoint{20ms});
+  now = TimePoint{21ms};
+  respond("585#4300100091010200");  // the first copy's answer, late
+  const auto b = upload(0x1018, 1, repeating(500ms, 20ms));
+  EXPECT_EQ(respond("585#4300100091010200"), Frames{});  // the second copy's
+  EXPECT_EQ(result(b), nullptr);
+  respond("585#4318100178563412");
+  ASSERT_NE(result(b), nullptr);
+  EXPECT_TRUE(result(b)->ok());
+  EXPECT_EQ(result(b)->data, (Bytes{0x78, 0x56, 0x34, 0x12}));
+  EXPECT_TRUE(result(a)->ok());
+}
+
+// Same object, other direction: the upload's second answer does not fail the download.
+TEST_F(SdoClientTest, TheSecondAnswerToARepeatedUploadDoesNotFailADownloadOfTheSameObject) {
+  upload(0x1017, 0, repeating(500ms, 20ms));
+  tick(TimePoint{20ms});
+  respond("585#4B17100064000000");
+  const auto b = download(0x1017, 0, {0xE8, 0x03}, repeating(500ms, 20ms));
+  EXPECT_EQ(respond("585#4B17100064000000"), Frames{});  // no abort 0504 0001
+  EXPECT_EQ(result(b), nullptr);
+  respond("585#6017100000000000");
+  EXPECT_TRUE(result(b)->ok());
+}
+
+// A repeated request the server refuses is refused twice: the second abort names the repeated
+// object, not the next transfer's, and does not end it.
+TEST_F(SdoClientTest, TheSecondAbortOfARepeatedRequestDoesNotEndTheNextTransfer) {
+  const auto a = upload(0x1234, 0, repeating(500ms, 20ms));
+  tick(TimePoint{20ms});
+  respond("585#8034120000000206");  // 0602 0000: object does not exist
+  EXPECT_EQ(result(a)->abort, SdoAbort::ObjectDoesNotExist);
+  const auto b = upload(0x1000, 0, repeating(500ms, 20ms));
+  EXPECT_EQ(respond("585#8034120000000206"), Frames{});
+  EXPECT_EQ(result(b), nullptr);
+  respond("585#4300100091010200");
+  EXPECT_TRUE(result(b)->ok());
+}
+
+// A value of more than 4 bytes: the first initiate answer starts the segments, and the server,
+// given the second copy, starts its upload again and answers the initiate again (§7.2.4.3.6);
+// that second initiate answer is skipped, the segments go on from the first.
+TEST_F(SdoClientTest, ARepeatedUploadAnsweredSegmentedSkipsTheSecondInitiateAnswer) {
+  const auto id = upload(0x1008, 0, repeating(500ms, 20ms));
+  tick(TimePoint{20ms});
+  EXPECT_EQ(respond("585#4108100014000000"), Frames{"605#6000000000000000"});
+  EXPECT_EQ(respond("585#4108100014000000"), Frames{});
+  EXPECT_EQ(respond("585#0043414E6F70656E"), Frames{"605#7000000000000000"});
+  EXPECT_EQ(respond("585#1020746573742064"), Frames{"605#6000000000000000"});
+  EXPECT_EQ(respond("585#0365766963652100"), Frames{});
+  ASSERT_NE(result(id), nullptr);
+  EXPECT_TRUE(result(id)->ok());
+  EXPECT_EQ(std::string(result(id)->data.begin(), result(id)->data.end()), "CANopen test device!");
+}
+
+// The stray answers are ignored only while the repeated transfer's timeout could still bring
+// them; an abort naming that object later is the next transfer's own.
+TEST_F(SdoClientTest, StrayAnswersAreForgottenAfterTheRepeatedTransfersTimeout) {
+  upload(0x1234, 0, repeating(100ms, 20ms));
+  tick(TimePoint{20ms});
+  respond("585#8034120000000206");
+  now = TimePoint{150ms};
+  const auto b = upload(0x1000, 0, repeating(100ms, 20ms));
+  respond("585#8034120000000206");
+  ASSERT_NE(result(b), nullptr);
+  EXPECT_EQ(result(b)->abort, SdoAbort::ObjectDoesNotExist);
+}
+
 // A transfer queued behind the one that timed out starts in the same call (engine rule 5's "no
 // start waits for a timer"), and the mux's deadline becomes its response timeout.
 TEST(SdoClientMux, NextDeadlineFollowsTheQueuedTransferThatStartsOnATimeout) {

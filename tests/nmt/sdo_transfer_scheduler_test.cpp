@@ -453,5 +453,81 @@ TEST(SdoTransferScheduler, DropsTheResultOfATryThatEnded) {
   EXPECT_EQ(rig.scheduler.boot_in_flight(), 0U);
 }
 
+// --- the learnt repetition (MasterOptions::sdo.repeat_floor, SdoTransferOptions::repeat_after)
+
+// CiA 301 leaves the response timeout to the application: the boot repeats a slave's expedited
+// request after 2 x its largest recent answer time, at least the floor, never before the slave
+// answered once, each slave by its own answers.
+TEST(SdoTransferScheduler, LearnsEachSlavesRepeatTimeFromItsOwnAnswers) {
+  Rig rig({.sdo_timeout = milliseconds(500), .repeat_floor = milliseconds(20)});
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), std::nullopt);
+  rig.boot_upload(5, 1, at_ms(0), milliseconds(500));
+  rig.settle(at_ms(0));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
+  // Not answered yet: no repetition, the full timeout is the deadline.
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(500));
+  rig.frame(on(0x580, 5, kAnswer1000), at_ms(3));  // 3 ms: 2 x 3 = 6 ms, below the floor
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(20));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(6), milliseconds(500)), std::nullopt);
+
+  // Node 6 answers in 40 ms: its repetition comes after 80 ms.
+  rig.boot_upload(6, 1, at_ms(10), milliseconds(500));
+  rig.settle(at_ms(10));
+  rig.take_frames();
+  rig.frame(on(0x580, 6, kAnswer1000), at_ms(50));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(6), milliseconds(500)), milliseconds(80));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(20));
+  // Bounded above: a repetition not before the timeout is none.
+  EXPECT_EQ(rig.scheduler.repeat_after(node(6), milliseconds(80)), std::nullopt);
+
+  // Node 5's next request is repeated 20 ms after it went out, then answered.
+  rig.boot_upload(5, 1, at_ms(100), milliseconds(500));
+  rig.settle(at_ms(100));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(120));
+  rig.timer(at_ms(120));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
+  rig.frame(on(0x580, 5, kAnswer1000), at_ms(122));
+  ASSERT_EQ(rig.finished().size(), 3U);
+  EXPECT_TRUE(rig.finished()[2].result.ok());
+  EXPECT_EQ(rig.finished()[2].result.repeats, 1U);
+  // A repeated request's answer may answer either copy: it is not learnt from.
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(20));
+}
+
+// The window is the last Scheduler::kAnswerWindow answers: a slow answer is forgotten after it.
+TEST(SdoTransferScheduler, ForgetsAnAnswerTimeAfterTheWindowOfAnswers) {
+  Rig rig({.sdo_timeout = milliseconds(500), .repeat_floor = milliseconds(20)});
+  TimePoint t = at_ms(0);
+  const auto answered_after = [&](milliseconds took) {
+    rig.boot_upload(5, 1, t, milliseconds(500));
+    rig.settle(t);
+    rig.take_frames();
+    t += took;
+    rig.frame(on(0x580, 5, kAnswer1000), t);
+  };
+  answered_after(milliseconds(30));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(60));
+  for (std::size_t i = 1; i < Scheduler::kAnswerWindow; ++i) answered_after(milliseconds(2));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(60));
+  answered_after(milliseconds(2));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(20));
+}
+
+// The application's transfers keep their own timeout alone (no repetition): only the boot's
+// are repeated.
+TEST(SdoTransferScheduler, TheApplicationsTransfersAreNotRepeated) {
+  Rig rig({.sdo_timeout = milliseconds(500), .repeat_floor = milliseconds(20)});
+  rig.boot_upload(5, 1, at_ms(0), milliseconds(500));
+  rig.settle(at_ms(0));
+  rig.frame(on(0x580, 5, kAnswer1000), at_ms(2));
+  rig.take_frames();
+  ASSERT_TRUE(
+      rig.scheduler.start_application(node(5), {0x1000, 0}, true, {}, at_ms(10), rig.out).ok());
+  rig.settle(at_ms(10));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(510));
+}
+
 }  // namespace
 }  // namespace nmt

@@ -218,6 +218,68 @@ TEST_F(SdoTransferTest, SlowServerWithinTheTimeoutSucceeds) {
   EXPECT_LT(r.finished - r.started, 81ms);
 }
 
+// --- repeated expedited requests (SdoTransferOptions::repeat_after), the server's view -------
+
+SdoTransferOptions repeating_after(Duration after) {
+  SdoTransferOptions o;
+  o.timeout = 500ms;
+  o.repeat_after = after;
+  return o;
+}
+
+TEST_F(SdoTransferTest, ALostAnswerCostsTheRepeatNotTheTimeout) {
+  bool dropped = false;
+  bus.set_filter([&dropped](const CanFrame& f, TimePoint) {
+    if (f.id != 0x585 || dropped) return FrameFate::deliver();
+    dropped = true;
+    return FrameFate::drop();
+  });
+  auto r = run_upload(0x1000, 0, repeating_after(20ms));
+  ASSERT_TRUE(r.ok()) << r.abort;
+  EXPECT_EQ(r.repeats, 1u);
+  EXPECT_GE(r.finished - r.started, 20ms);
+  EXPECT_LT(r.finished - r.started, 21ms);
+  EXPECT_EQ(count("605#40001000"), 2);
+}
+
+// A server slower than repeat_after gets the expedited write twice: it writes the same value
+// twice (CiA 301 §7.2.4.3.3: each expedited download is complete in itself) and answers both;
+// the second answer comes while the next transfer runs and is not taken for its answer.
+TEST_F(SdoTransferTest, ARepeatedExpeditedWriteToASlowServerLeavesTheValueAndTheNextTransfer) {
+  server.node.engine().set_delay(30ms);
+  results.clear();
+  client.apply([&](SdoClientMux& m, TimePoint now, SdoClientMux::Output& out) {
+    auto& c = m.client(*cfg::NodeId::from(5));
+    test_support::started(c.download(0x2003, 0, {0xF4, 0x01, 0x00, 0x00}, now, out,
+                                     repeating_after(20ms)));  // 500
+    test_support::started(c.upload(0x2003, 0, now, out, repeating_after(20ms)));
+  });
+  ASSERT_TRUE(bus.run_until_idle(bus.now() + 60s));
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_TRUE(results[0].ok()) << results[0].abort;
+  EXPECT_EQ(results[0].repeats, 1u);
+  ASSERT_TRUE(results[1].ok()) << results[1].abort;
+  EXPECT_EQ(results[1].data, (Bytes{0xF4, 0x01, 0x00, 0x00}));
+  EXPECT_EQ(server.dict.get_unsigned(0x2003, 0), 500u);
+  EXPECT_EQ(count("605#23032000F4010000"), 2);  // the write, twice
+  EXPECT_EQ(count("585#60032000"), 2);          // answered twice
+}
+
+// The limit of repeating an upload: a value of more than 4 bytes is answered segmented, and this
+// server (like many) refuses a second initiate while its segmented upload runs (abort 0504 0001,
+// then the segment request finds no transfer): the client reports the server's abort, no wrong
+// value. Hence the master repeats only its boot's uploads, all of 32-bit objects (1000h, 1018h,
+// 1020h, 1F56h/1F57h, PDO COB-IDs) that a server answers expedited (sdo_client.hpp, top).
+TEST_F(SdoTransferTest, ARepeatedUploadOfALongValueFromASlowServerEndsWithTheServersAbort) {
+  server.node.engine().set_delay(30ms);
+  auto r = run_upload(0x1008, 0, repeating_after(20ms));
+  EXPECT_EQ(r.abort, SdoAbort::InvalidCommandSpecifier);
+  EXPECT_TRUE(r.aborted_by_server);
+  EXPECT_EQ(r.repeats, 1u);
+  EXPECT_TRUE(r.data.empty());
+  EXPECT_FALSE(server.sdo().busy());
+}
+
 TEST_F(SdoTransferTest, TimeoutWhenTheLastSegmentOfABlockIsLost) {
   // The segment with c=1 never arrives: the server cannot acknowledge, the client times out.
   bus.set_filter([](const CanFrame& f, TimePoint) {

@@ -20,8 +20,9 @@ cfg::Status below(const Named& option, const char* bound) {
 }  // namespace
 
 cfg::Status MasterOptions::validate() const {
-  const std::array<Named, 12> positive{{
+  const std::array<Named, 13> positive{{
       {"sdo.timeout", sdo.timeout},
+      {"sdo.repeat_floor", sdo.repeat_floor},
       {"boot.retry_interval", boot.retry_interval},
       {"boot.reboot_timeout", boot.reboot_timeout},
       {"program.control_timeout", program.control_timeout},

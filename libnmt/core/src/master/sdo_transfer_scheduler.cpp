@@ -18,7 +18,26 @@ SdoTransferScheduler::Settings SdoTransferScheduler::Settings::from(const Master
   return {.bitrate_bps = options.pacing.bitrate,
           .bus_load_limit = options.pacing.bus_load_limit,
           .sdo_timeout = options.sdo.timeout,
-          .block_threshold = options.sdo.block_threshold};
+          .block_threshold = options.sdo.block_threshold,
+          .repeat_floor = options.sdo.repeat_floor};
+}
+
+// CiA 301 leaves the SDO response timeout to the application (the client "may" abort), and
+// CiA 302-2 §3.4/§3.5 bound a slave's boot by 1F89h boot time, not by a per-request time: a
+// timeout long enough for the slowest device (500 ms) is the cost of every lost frame. A slave's
+// own answer times say how long its answer takes under the present bus load: twice the largest
+// of its last few is a margin a healthy slave keeps, the floor keeps a fast slave's jitter (a
+// full bus, a busy device) from repeating what is only late, and the full timeout still decides
+// failure, so a slave that slows down costs repeated frames, never a failed boot.
+std::optional<Duration> SdoTransferScheduler::repeat_after(cfg::NodeId node,
+                                                           Duration timeout) const {
+  const AnswerTimes& times = answer_times_[node.value()];
+  if (times.count == 0) return std::nullopt;
+  const Duration largest = *std::max_element(
+      times.recent.begin(), times.recent.begin() + static_cast<std::ptrdiff_t>(times.count));
+  const Duration after = std::max(2 * largest, settings_.repeat_floor);
+  if (after >= timeout) return std::nullopt;
+  return after;
 }
 
 SdoTransferScheduler::SdoTransferScheduler(SdoTransferPort& port, Settings settings)
@@ -133,7 +152,10 @@ void SdoTransferScheduler::schedule(cfg::NodeId node, Transfer transfer, TimePoi
 }
 
 void SdoTransferScheduler::launch(cfg::NodeId node, Transfer transfer, TimePoint now, Output& out) {
-  if (is_boot(transfer)) ++boot_in_flight_;
+  if (is_boot(transfer)) {
+    ++boot_in_flight_;
+    transfer.options.repeat_after = repeat_after(node, transfer.options.timeout);
+  }
   transfer.launched = now;
   auto& client = clients_.client(node);
   const auto [index, sub] = transfer.object;
@@ -226,6 +248,13 @@ bool SdoTransferScheduler::dispatch_next(TimePoint now, Output& out) {
 void SdoTransferScheduler::dispatch(const SdoResult& result, TimePoint now, Output& out) {
   if (!result.node_id) return;  // the scheduler's clients are all for_node
   const cfg::NodeId node = *result.node_id;
+  if (result.longest_answer) {
+    // Any owner's answer tells the slave's answer time.
+    AnswerTimes& times = answer_times_[node.value()];
+    times.recent[times.next] = *result.longest_answer;
+    times.next = (times.next + 1) % kAnswerWindow;
+    times.count = std::min(times.count + 1, kAnswerWindow);
+  }
   const auto it = transfers_.find({node, result.id});
   if (it == transfers_.end()) return;  // cancelled
   Transfer transfer = std::move(it->second);

@@ -107,8 +107,13 @@ class SdoTransferScheduler {
     double bus_load_limit = 0.97;   ///< share of the bus the pacing allows (0.05..1)
     Duration sdo_timeout{0};        ///< the application's transfers
     std::size_t block_threshold = kBlockDownloadThreshold;  ///< block download above this size
+    /// The boot's repetition of expedited requests: the lower bound (MasterSdoOptions).
+    Duration repeat_floor = std::chrono::milliseconds(20);
     static Settings from(const MasterOptions& options);
   };
+
+  /// How many of a slave's last answer times its repetition time is learnt from.
+  static constexpr std::size_t kAnswerWindow = 8;
 
   /// The window's size at the start and at most: transfers of the boot in flight.
   static constexpr double kMaxWindow = 128;
@@ -174,6 +179,10 @@ class SdoTransferScheduler {
 
   // --- what tests and the master read
   double window() const { return window_; }
+  /// What a boot request of `timeout` to `node` is repeated after now: 2 x the largest of the
+  /// slave's last kAnswerWindow answer times, at least Settings::repeat_floor; nullopt while the
+  /// slave has not answered or when that is not below `timeout`.
+  std::optional<Duration> repeat_after(cfg::NodeId node, Duration timeout) const;
   std::size_t boot_in_flight() const { return boot_in_flight_; }
   std::size_t waiting() const { return waiting_.size(); }
   std::size_t held() const { return held_.size(); }
@@ -226,6 +235,13 @@ class SdoTransferScheduler {
   std::deque<std::pair<cfg::NodeId, Transfer>> held_;
   /// Boot transfers of each node's current try that ended (pump: the slave furthest behind).
   std::array<std::size_t, 128> done_{};
+  /// Each slave's last answer times (SdoResult::longest_answer), a ring of kAnswerWindow.
+  struct AnswerTimes {
+    std::array<Duration, kAnswerWindow> recent{};
+    std::size_t count = 0;  ///< answers recorded, up to kAnswerWindow
+    std::size_t next = 0;   ///< the slot the next answer time goes to
+  };
+  std::array<AnswerTimes, 128> answer_times_{};
 
   // Bus-load pacing (Settings::bitrate_bps): no new boot transfer before paced_until_.
   TimePoint paced_until_{};

@@ -120,8 +120,9 @@ std::optional<SdoClient::Progress> SdoClient::download_progress() const {
 }
 
 std::optional<TimePoint> SdoClient::next_deadline() const {
-  if (active_) return active_->deadline;
-  return std::nullopt;
+  if (!active_) return std::nullopt;
+  if (active_->repeat_at) return std::min(*active_->repeat_at, active_->deadline);
+  return active_->deadline;
 }
 
 void SdoClient::sync_mux_deadline() {
@@ -140,6 +141,8 @@ SdoResult SdoClient::result_of(const Transfer& t, SdoAbort code) const {
   r.abort = code;
   r.protocol = t.protocol;
   r.fell_back = t.fell_back;
+  r.repeats = t.repeats;
+  r.longest_answer = t.longest_answer;
   return r;
 }
 
@@ -164,6 +167,67 @@ void SdoClient::send(Transfer& t, const sdo::Payload& d, TimePoint now, Output& 
   out.send(sdo::make_frame(config_.request_cob_id, d));
   if (!t.started) t.started = now;
   t.deadline = later(now, t.options.timeout);
+  t.request = d;
+  t.sent_at = now;
+  t.request_repeated = false;
+  t.repeat_at.reset();
+}
+
+namespace {
+
+// Writes whose repetition is not the same as one write: 1010h/1011h start a store or restore
+// with each write (CiA 301 §7.5.2.13/14), 1F50h/1F51h hand a program over or control it
+// (CiA 302-3).
+bool download_never_repeated(std::uint16_t index) {
+  return index == cfg::object::kStoreParameters ||
+         index == cfg::object::kRestoreDefaultParameters || index == cfg::object::kProgramData ||
+         index == cfg::object::kProgramControl;
+}
+
+}  // namespace
+
+// An initiate upload is repeated before the client knows the answer's protocol. A value longer
+// than 4 bytes is answered segmented, and a server that refuses a second initiate while its
+// segmented upload runs (abort 0504 0001, as SdoServer does) ends a repeated upload whose answer
+// was only late with that abort (never with a wrong value): callers repeat uploads of values
+// that fit 4 bytes (the master's boot reads only 32-bit objects).
+void SdoClient::arm_repeat(Transfer& t, TimePoint now) {
+  const auto& after = t.options.repeat_after;
+  if (!after || *after <= Duration::zero() || t.repeats >= sdo::kMaxRepeats) return;
+  const bool expedited_request = t.upload ? t.state == State::InitiateUpload
+                                          : t.state == State::InitiateDownload &&
+                                                t.protocol == SdoProtocol::Expedited &&
+                                                !download_never_repeated(t.index);
+  if (!expedited_request) return;
+  const TimePoint at = later(now, *after);
+  if (at < t.deadline) t.repeat_at = at;
+}
+
+void SdoClient::repeat(Transfer& t, TimePoint now, Output& out) {
+  // The same frame again; the timeout keeps running from the first request.
+  out.send(sdo::make_frame(config_.request_cob_id, t.request));
+  t.request_repeated = true;
+  t.repeat_at.reset();
+  ++t.repeats;
+  stray_ = {{t.index, t.sub}, t.repeats, t.deadline};
+  arm_repeat(t, now);
+}
+
+void SdoClient::note_answer(Transfer& t, TimePoint now) {
+  if (t.request_repeated) return;
+  const Duration took = now - t.sent_at;
+  t.longest_answer = t.longest_answer ? std::max(*t.longest_answer, took) : took;
+}
+
+bool SdoClient::stray_answer(const sdo::ServerFrame& f, TimePoint now) {
+  if (stray_.count == 0 || now > stray_.until) return false;
+  std::optional<cfg::ObjectAddress> named;
+  if (const auto* r = std::get_if<sdo::InitiateUploadResponse>(&f)) named = r->address;
+  if (const auto* r = std::get_if<sdo::InitiateDownloadResponse>(&f)) named = r->address;
+  if (const auto* r = std::get_if<sdo::Abort>(&f)) named = r->address;
+  if (!named || *named != stray_.address) return false;
+  --stray_.count;
+  return true;
 }
 
 void SdoClient::pump(TimePoint now, Output& out) {
@@ -177,7 +241,11 @@ void SdoClient::pump(TimePoint now, Output& out) {
 
 void SdoClient::on_timer(TimePoint now, Output& out) {
   // CiA 301 abort codes: the client aborts with 0504 0000 when the server does not answer.
-  if (active_ && now >= active_->deadline) fail(*active_, SdoAbort::Timeout, true, now, out);
+  if (active_ && now >= active_->deadline) {
+    fail(*active_, SdoAbort::Timeout, true, now, out);
+  } else if (active_ && active_->repeat_at && now >= *active_->repeat_at) {
+    repeat(*active_, now, out);
+  }
   pump(now, out);
   sync_mux_deadline();
 }
@@ -220,7 +288,8 @@ void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
     } else {
       t.protocol = SdoProtocol::Segmented;
     }
-    return send(t, sdo::encode(r), now, out);
+    send(t, sdo::encode(r), now, out);
+    return arm_repeat(t, now);
   }
   t.data.clear();
   if (t.mode == SdoMode::Block) {
@@ -235,6 +304,7 @@ void SdoClient::start(Transfer& t, TimePoint now, Output& out) {
   t.protocol = SdoProtocol::Segmented;  // until the server answers expedited
   t.state = State::InitiateUpload;
   send(t, sdo::encode(sdo::InitiateUploadRequest{address}), now, out);
+  arm_repeat(t, now);
 }
 
 void SdoClient::send_download_segment(Transfer& t, TimePoint now, Output& out) {
@@ -288,7 +358,11 @@ void SdoClient::handle(Transfer& t, const sdo::Payload& d, TimePoint now, Output
   }
   const auto f = sdo::parse_server_frame(d);
   if (!f) return fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
-  if (const auto* a = std::get_if<sdo::Abort>(&*f)) return aborted(t, *a, now, out);
+  if (const auto* a = std::get_if<sdo::Abort>(&*f)) {
+    // The second abort of a repeated request of the transfer before: not this transfer's.
+    if (a->address != cfg::ObjectAddress{t.index, t.sub} && stray_answer(*f, now)) return;
+    return aborted(t, *a, now, out);
+  }
   handle_response(t, *f, now, out);
 }
 
@@ -326,6 +400,7 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
       const auto* r = std::get_if<sdo::InitiateDownloadResponse>(&f);
       if (r == nullptr) break;
       if (r->address != address) return fail(t, SdoAbort::General, true, now, out);
+      note_answer(t, now);
       if (t.protocol == SdoProtocol::Expedited) return finish(SdoAbort::None, false, now, out);
       return send_download_segment(t, now, out);
     }
@@ -334,6 +409,7 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
       const auto* r = std::get_if<sdo::DownloadSegmentResponse>(&f);
       if (r == nullptr) break;
       if (r->toggle != t.toggle) return fail(t, SdoAbort::ToggleBitNotAlternated, true, now, out);
+      note_answer(t, now);
       t.offset += std::min(sdo::kSegmentBytes, t.data.size() - t.offset);
       if (t.offset == t.data.size()) return finish(SdoAbort::None, false, now, out);
       t.toggle = !t.toggle;
@@ -364,6 +440,7 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
       const auto* r = std::get_if<sdo::InitiateUploadResponse>(&f);
       if (r == nullptr) break;
       if (r->address != address) return fail(t, SdoAbort::General, true, now, out);
+      note_answer(t, now);
       if (r->expedited) {
         const std::size_t size = r->size.value_or(4);
         t.data.assign(r->data.begin(), r->data.begin() + static_cast<std::ptrdiff_t>(size));
@@ -385,6 +462,7 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
       const auto* r = std::get_if<sdo::UploadSegmentResponse>(&f);
       if (r == nullptr) break;
       if (r->toggle != t.toggle) return fail(t, SdoAbort::ToggleBitNotAlternated, true, now, out);
+      note_answer(t, now);
       if (t.data.size() + r->size > t.options.max_size) {
         return fail(t, SdoAbort::OutOfMemory, true, now, out);
       }
@@ -466,6 +544,8 @@ void SdoClient::handle_response(Transfer& t, const sdo::ServerFrame& f, TimePoin
     case State::BlockUpload:  // handled in handle()
       break;
   }
+  // The server's answer to another copy of a repeated request, after one was taken.
+  if (stray_answer(f, now)) return;
   fail(t, SdoAbort::InvalidCommandSpecifier, true, now, out);
 }
 

@@ -81,6 +81,14 @@ struct MasterSdoOptions {
   unsigned retries = 2;
   /// Values longer than this many bytes go by block transfer (falling back to segmented).
   std::size_t block_threshold = kBlockDownloadThreshold;
+  /// The boot's expedited requests (initiate upload, expedited download; never 1010h/1011h/
+  /// 1F50h/1F51h writes) are sent again when no answer came within 2 x the slave's largest
+  /// recent answer time (SdoResult::longest_answer of its last transfers), at least this long and
+  /// below `timeout` (SdoTransferOptions::repeat_after, up to sdo::kMaxRepeats times); the
+  /// transfer still fails only after `timeout`. A slave that has not answered yet is not
+  /// repeated to. A lost frame then costs about this long instead of `timeout`. At or above
+  /// `timeout`: no repetition. docs/master.md, "The boot's SDO transfers".
+  Duration repeat_floor = std::chrono::milliseconds(20);
 };
 
 /// The pacing of the boot's SDO requests to a share of the bus (docs/master.md, "The boot's SDO

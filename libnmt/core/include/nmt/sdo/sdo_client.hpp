@@ -13,6 +13,20 @@
 // a cancelled request) is recognised when it is an initiate response naming another object:
 // it is ignored. A late segment response cannot be told apart and can be taken for one of the
 // next transfer; keep client timeouts above server response times.
+//
+// Repeated requests (SdoTransferOptions::repeat_after): CiA 301 leaves the response timeout to
+// the application, and on a lossy bus a lost request or answer costs the whole timeout. An
+// expedited request (initiate upload, expedited download) can be sent again as it was: reading
+// twice reads the same object, and writing the same value twice leaves the same value, so the
+// server's second answer is the same as its first. The client re-sends such a request when no
+// answer came within repeat_after (at most sdo::kMaxRepeats times) and still ends the transfer
+// only at the full timeout from its first request. Never repeated: downloads to 1010h/1011h
+// (store/restore: each write starts a store) and 1F50h/1F51h (program download and control),
+// downloads that are not expedited, segment and block frames (their toggle and sequence state
+// moves on). An answer to a repeated request that arrives after another one was taken (the
+// server answered both) is recognised and ignored while the transfer's timeout runs: an initiate
+// response or an abort naming the repeated object where the transfer in progress expects no such
+// frame, or names another object.
 #pragma once
 
 #include <chrono>
@@ -93,7 +107,21 @@ struct SdoTransferOptions {
   bool crc = true;
   /// Largest upload accepted; a server sending more is aborted with 0504 0005.
   std::size_t max_size = std::size_t{16} << 20;
+  /// When set (and positive): an expedited request (initiate upload, expedited download) not
+  /// answered within this time is sent again, identically, up to sdo::kMaxRepeats times, each
+  /// repeat_after after the one before while that is before the timeout; the transfer still
+  /// ends with Timeout only `timeout` after its first request. Never for downloads to
+  /// 1010h/1011h/1F50h/1F51h nor for segment or block frames (see the top of this file).
+  /// nullopt: no repetition (the default).
+  std::optional<Duration> repeat_after;
 };
+
+namespace sdo {
+/// How often one request is sent again at most (SdoTransferOptions::repeat_after): with a frame
+/// loss rate p each try loses its request or answer with about 2p, so 1 + 3 tries all fail with
+/// about (2p)^4 (1.6e-7 at 1 % loss).
+inline constexpr unsigned kMaxRepeats = 3;
+}  // namespace sdo
 
 /// The outcome of one transfer.
 struct SdoResult {
@@ -115,6 +143,13 @@ struct SdoResult {
   /// words); `abort` is None then, as no abort was sent or received. Only a driver that queues
   /// transfers before it gives them to the client reports such a result (NmtMaster's boot).
   std::string refusal;
+  /// How often a request of the transfer was sent again (SdoTransferOptions::repeat_after).
+  unsigned repeats = 0;
+  /// The longest time the server took to answer one of the transfer's requests (from when the
+  /// client handed the request out to when its answer came), over the expedited and segment
+  /// requests sent once; nullopt when none such was answered (a repeated request's answer may
+  /// answer either copy and is not counted). What a caller learns a server's answer times from.
+  std::optional<Duration> longest_answer;
 
   bool ok() const { return abort == SdoAbort::None && refusal.empty(); }
 };
@@ -223,6 +258,20 @@ class SdoClient {
     bool block_has_last = false;     // block download: the sub-block on the wire ends the data
     std::optional<TimePoint> started;
     TimePoint deadline{};
+    // Repetition (SdoTransferOptions::repeat_after) of the request on the wire.
+    sdo::Payload request{};              // the last request frame sent
+    TimePoint sent_at{};                 // when it was handed out
+    bool request_repeated = false;       // it was sent again: its answer's time is ambiguous
+    std::optional<TimePoint> repeat_at;  // when it is sent again; nullopt: never
+    unsigned repeats = 0;                // repetitions sent in the transfer
+    std::optional<Duration> longest_answer;
+  };
+  // Answers still possible to the repeated requests of a transfer that took one answer already
+  // (the server answered two copies): ignored while `until` (that transfer's full timeout) runs.
+  struct StrayAnswers {
+    cfg::ObjectAddress address;
+    unsigned count = 0;
+    TimePoint until{};
   };
 
   void start(Transfer& t, TimePoint now, Output& out);
@@ -233,6 +282,14 @@ class SdoClient {
   void send_download_segment(Transfer& t, TimePoint now, Output& out);
   void send_download_sub_block(Transfer& t, TimePoint now, Output& out);
   void send(Transfer& t, const sdo::Payload& d, TimePoint now, Output& out);
+  /// Arms the repetition of the request just sent when the transfer may repeat it.
+  void arm_repeat(Transfer& t, TimePoint now);
+  void repeat(Transfer& t, TimePoint now, Output& out);
+  /// The answer to the request on the wire arrived: its time counts unless it was repeated.
+  static void note_answer(Transfer& t, TimePoint now);
+  /// True (and the stray answer consumed) when `f` answers an earlier copy of a repeated
+  /// request: an initiate response or abort naming the repeated object.
+  bool stray_answer(const sdo::ServerFrame& f, TimePoint now);
   void fail(Transfer& t, SdoAbort code, bool send_frame, TimePoint now, Output& out);
   void finish(SdoAbort code, bool by_server, TimePoint now, Output& out);
   void pump(TimePoint now, Output& out);
@@ -243,6 +300,7 @@ class SdoClient {
   TransferId next_id_ = 1;
   std::unique_ptr<Transfer> active_;
   std::deque<std::unique_ptr<Transfer>> queue_;
+  StrayAnswers stray_;
   std::uint64_t unanswered_bits_ = 0;
   // The running sum of the mux that owns this client (SdoClientMux::unanswered_bits); null for
   // a client of its own. Points into the mux's heap cell, so it survives moves of the mux.
