@@ -495,6 +495,43 @@ TEST(SdoTransferScheduler, LearnsEachSlavesRepeatTimeFromItsOwnAnswers) {
   EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), milliseconds(20));
 }
 
+// A read changes nothing on the device: a slave that has not answered yet has its first read
+// (1000h, CiA 302-2 §3.4) repeated by what the other slaves' answers taught; its writes are not.
+TEST(SdoTransferScheduler, ASlavesFirstReadIsRepeatedByTheOtherSlavesAnswerTimes) {
+  Rig rig({.sdo_timeout = milliseconds(500), .repeat_floor = milliseconds(20)});
+  // Nobody answered yet: no repetition at all.
+  EXPECT_EQ(rig.scheduler.unanswered_read_repeat_after(milliseconds(500)), std::nullopt);
+  rig.boot_upload(6, 1, at_ms(0), milliseconds(500));
+  rig.settle(at_ms(0));
+  rig.take_frames();
+  rig.frame(on(0x580, 6, kAnswer1000), at_ms(15));  // node 6 answers in 15 ms: 30 ms
+  EXPECT_EQ(rig.scheduler.unanswered_read_repeat_after(milliseconds(500)), milliseconds(30));
+  EXPECT_EQ(rig.scheduler.repeat_after(node(5), milliseconds(500)), std::nullopt);
+  // Node 5's first read: repeated 30 ms after it went out.
+  rig.boot_upload(5, 1, at_ms(100), milliseconds(500));
+  rig.settle(at_ms(100));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(130));
+  rig.timer(at_ms(130));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 5, kUpload1000)});
+  rig.frame(on(0x580, 5, kAnswer1000), at_ms(133));
+  ASSERT_EQ(rig.finished().size(), 2U);
+  EXPECT_TRUE(rig.finished()[1].result.ok());
+  EXPECT_EQ(rig.finished()[1].result.repeats, 1U);
+  // Node 7 has not answered: a write to it waits the full timeout, unrepeated.
+  rig.port.running[7] = 1;
+  rig.scheduler.start_boot(1,
+                           {.node = node(7),
+                            .object = {0x1017, 0},
+                            .upload = false,
+                            .data = {0xE8, 0x03},
+                            .timeout = milliseconds(500)},
+                           at_ms(200), rig.out);
+  rig.settle(at_ms(200));
+  rig.take_frames();
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(700));
+}
+
 // The window is the last Scheduler::kAnswerWindow answers: a slow answer is forgotten after it.
 TEST(SdoTransferScheduler, ForgetsAnAnswerTimeAfterTheWindowOfAnswers) {
   Rig rig({.sdo_timeout = milliseconds(500), .repeat_floor = milliseconds(20)});

@@ -31,7 +31,15 @@ SdoTransferScheduler::Settings SdoTransferScheduler::Settings::from(const Master
 // failure, so a slave that slows down costs repeated frames, never a failed boot.
 std::optional<Duration> SdoTransferScheduler::repeat_after(cfg::NodeId node,
                                                            Duration timeout) const {
-  const AnswerTimes& times = answer_times_[node.value()];
+  return repeat_from(answer_times_[node.value()], timeout);
+}
+
+std::optional<Duration> SdoTransferScheduler::unanswered_read_repeat_after(Duration timeout) const {
+  return repeat_from(any_slave_answer_times_, timeout);
+}
+
+std::optional<Duration> SdoTransferScheduler::repeat_from(const AnswerTimes& times,
+                                                          Duration timeout) const {
   if (times.count == 0) return std::nullopt;
   const Duration largest = *std::max_element(
       times.recent.begin(), times.recent.begin() + static_cast<std::ptrdiff_t>(times.count));
@@ -154,7 +162,11 @@ void SdoTransferScheduler::schedule(cfg::NodeId node, Transfer transfer, TimePoi
 void SdoTransferScheduler::launch(cfg::NodeId node, Transfer transfer, TimePoint now, Output& out) {
   if (is_boot(transfer)) {
     ++boot_in_flight_;
-    transfer.options.repeat_after = repeat_after(node, transfer.options.timeout);
+    const bool answered = answer_times_[node.value()].count > 0;
+    transfer.options.repeat_after = answered ? repeat_after(node, transfer.options.timeout)
+                                    : transfer.upload
+                                        ? unanswered_read_repeat_after(transfer.options.timeout)
+                                        : std::nullopt;
   }
   transfer.launched = now;
   auto& client = clients_.client(node);
@@ -250,10 +262,11 @@ void SdoTransferScheduler::dispatch(const SdoResult& result, TimePoint now, Outp
   const cfg::NodeId node = *result.node_id;
   if (result.longest_answer) {
     // Any owner's answer tells the slave's answer time.
-    AnswerTimes& times = answer_times_[node.value()];
-    times.recent[times.next] = *result.longest_answer;
-    times.next = (times.next + 1) % kAnswerWindow;
-    times.count = std::min(times.count + 1, kAnswerWindow);
+    for (AnswerTimes* times : {&answer_times_[node.value()], &any_slave_answer_times_}) {
+      times->recent[times->next] = *result.longest_answer;
+      times->next = (times->next + 1) % kAnswerWindow;
+      times->count = std::min(times->count + 1, kAnswerWindow);
+    }
   }
   const auto it = transfers_.find({node, result.id});
   if (it == transfers_.end()) return;  // cancelled

@@ -183,6 +183,11 @@ class SdoTransferScheduler {
   /// slave's last kAnswerWindow answer times, at least Settings::repeat_floor; nullopt while the
   /// slave has not answered or when that is not below `timeout`.
   std::optional<Duration> repeat_after(cfg::NodeId node, Duration timeout) const;
+  /// What a boot read (upload) of `timeout` to a slave that has not answered yet is repeated
+  /// after: the same rule over the last kAnswerWindow answers of any slave; nullopt before any
+  /// slave answered. A read changes nothing on the device, so a slave's first request (its
+  /// 1000h) need not cost a full timeout when it or its answer is lost.
+  std::optional<Duration> unanswered_read_repeat_after(Duration timeout) const;
   std::size_t boot_in_flight() const { return boot_in_flight_; }
   std::size_t waiting() const { return waiting_.size(); }
   std::size_t held() const { return held_.size(); }
@@ -242,6 +247,8 @@ class SdoTransferScheduler {
     std::size_t next = 0;   ///< the slot the next answer time goes to
   };
   std::array<AnswerTimes, 128> answer_times_{};
+  AnswerTimes any_slave_answer_times_{};  ///< the same over every slave's answers
+  std::optional<Duration> repeat_from(const AnswerTimes& times, Duration timeout) const;
 
   // Bus-load pacing (Settings::bitrate_bps): no new boot transfer before paced_until_.
   TimePoint paced_until_{};

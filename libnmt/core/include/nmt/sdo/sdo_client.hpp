@@ -26,7 +26,10 @@
 // moves on). An answer to a repeated request that arrives after another one was taken (the
 // server answered both) is recognised and ignored while the transfer's timeout runs: an initiate
 // response or an abort naming the repeated object where the transfer in progress expects no such
-// frame, or names another object.
+// frame, or names another object. One limit: an initiate upload of a value longer than 4 bytes
+// whose answer was only late meets a server already in its segmented upload, which may refuse
+// the second initiate (0504 0001): the transfer ends with that abort, never with a wrong value
+// (the master's boot repeats only uploads of 32-bit objects).
 #pragma once
 
 #include <chrono>
@@ -152,6 +155,7 @@ struct SdoResult {
   std::optional<Duration> longest_answer;
 
   bool ok() const { return abort == SdoAbort::None && refusal.empty(); }
+  bool operator==(const SdoResult&) const = default;
 };
 
 /// Client side of one SDO channel (one server). Transfers are queued and run one at a time, in
