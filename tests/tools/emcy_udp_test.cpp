@@ -22,6 +22,7 @@ namespace {
 
 using ::testing::Contains;
 using ::testing::HasSubstr;
+using ::testing::Not;
 using tool_test::events_of;
 using tool_test::Json;
 using tool_test::ScratchDir;
@@ -66,12 +67,13 @@ TEST(EmcyUdpInNetns, PushTakesEachEmcyFromItsNodesCobIdAndCountsIt) {
   REQUIRE_PYTHON_CAN();
   ScratchDir dir;
   const std::string report = dir / "report.json";
+  const std::string page = dir / "report.html";
   // Both raise an EMCY as the master writes their 2000h (during the boot); node 4 ends its
   // error 50 ms later with an error reset (0000h).
   const auto r = run_against_slaves(
       dir, kPushPort,
       {"3:write-2000:0:8130:11", "4:write-2000:0:2310:03:0102030405", "4:write-2000:50:0000:00"},
-      {"push", tool_test::data_path("emcy/python.cpj"), "--json", report});
+      {"push", tool_test::data_path("emcy/python.cpj"), "--json", report, "--report", page});
   const std::string context = r.run.out + r.run.err + "--- slaves:\n" + r.all;
   ASSERT_EQ(r.run.exit_code, 0) << context;
   // Node 4's 1014h went through "not valid" to 0A4h (UNSIGNED32 little-endian), and its EMCYs
@@ -104,6 +106,21 @@ TEST(EmcyUdpInNetns, PushTakesEachEmcyFromItsNodesCobIdAndCountsIt) {
   // An EMCY is the device's report, not a boot error (CiA 302-2 §3.3 has none for it).
   EXPECT_EQ(nodes.at(3)->get("result")->string, "configured") << context;
   EXPECT_EQ(nodes.at(4)->get("result")->string, "configured") << context;
+  // --report on a real bus in real time: each node's lane and row, its EMCY marked on the
+  // timeline, no failed node (the page's DOM in a browser: push_report_test.cpp).
+  const std::string html = tool_test::slurp(page);
+  for (const char* node : {"3", "4"}) {
+    EXPECT_THAT(html, HasSubstr(std::string("id=\"lane-") + node + "\"")) << html;
+    EXPECT_THAT(html, HasSubstr(std::string("<tr id=\"row-") + node + "\" title=\"configured\""))
+        << html;
+  }
+  std::size_t marks = 0;  // on the timeline, after the legend's key
+  for (auto at = html.find("class=\"m-emergency\"", html.find("<svg class=\"timeline\""));
+       at != std::string::npos; at = html.find("class=\"m-emergency\"", at + 1)) {
+    ++marks;
+  }
+  EXPECT_EQ(marks, 3U) << html;  // 8130h of node 3, 2310h and its reset of node 4
+  EXPECT_THAT(html, Not(HasSubstr("class=\"lane failed\""))) << html;
 }
 
 TEST(EmcyUdpInNetns, MasterReportsEachEmcyItsEndAndAFloodOnce) {
