@@ -35,12 +35,14 @@ class FakePort final : public SdoTransferPort {
  public:
   std::set<std::uint8_t> given_out;               ///< default SDOs the SDO manager gave away
   std::map<std::uint8_t, std::uint64_t> running;  ///< each node's running boot try
+  std::set<std::uint8_t> heard;  ///< nodes whose NMT state the master knows from their frames
 
   bool default_sdo_given_out(cfg::NodeId n) const override { return given_out.contains(n.value()); }
   bool boot_try_runs(cfg::NodeId n, std::uint64_t try_id) const override {
     const auto it = running.find(n.value());
     return it != running.end() && it->second == try_id;
   }
+  bool heard_from(cfg::NodeId n) const override { return heard.contains(n.value()); }
 };
 
 // CiA 301 §7.2.4.3.5 initiate upload request of 1000h sub 0.
@@ -499,6 +501,7 @@ TEST(SdoTransferScheduler, LearnsEachSlavesRepeatTimeFromItsOwnAnswers) {
 // (1000h, CiA 302-2 §3.4) repeated by what the other slaves' answers taught; its writes are not.
 TEST(SdoTransferScheduler, ASlavesFirstReadIsRepeatedByTheOtherSlavesAnswerTimes) {
   Rig rig({.sdo_timeout = milliseconds(500), .repeat_floor = milliseconds(20)});
+  rig.port.heard = {5, 6, 7};
   // Nobody answered yet: no repetition at all.
   EXPECT_EQ(rig.scheduler.unanswered_read_repeat_after(milliseconds(500)), std::nullopt);
   rig.boot_upload(6, 1, at_ms(0), milliseconds(500));
@@ -529,6 +532,12 @@ TEST(SdoTransferScheduler, ASlavesFirstReadIsRepeatedByTheOtherSlavesAnswerTimes
                            at_ms(200), rig.out);
   rig.settle(at_ms(200));
   rig.take_frames();
+  EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(700));
+  // Node 8 was never heard from (no boot-up, no heartbeat): likely absent, its read is not
+  // multiplied (CiA 302-2 §3.4 b: status B after its retries, nothing more on the bus).
+  rig.boot_upload(8, 1, at_ms(300), milliseconds(500));
+  rig.settle(at_ms(300));
+  EXPECT_EQ(rig.take_frames(), std::vector<std::string>{on(0x600, 8, kUpload1000)});
   EXPECT_EQ(rig.scheduler.next_deadline(), at_ms(700));
 }
 

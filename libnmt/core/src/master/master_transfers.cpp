@@ -34,6 +34,10 @@ bool NmtMaster::Impl::TransferPort::boot_try_runs(cfg::NodeId node, std::uint64_
   return b.running() && b.try_id() == try_id;
 }
 
+bool NmtMaster::Impl::TransferPort::heard_from(cfg::NodeId node) const {
+  return m.slaves[node].known_state.kind == KnownState::Kind::InState;
+}
+
 // --- routing ---
 
 void NmtMaster::Impl::route_transfer_events(TimePoint now, Output& out) {

@@ -101,6 +101,7 @@ struct NmtMaster::Impl {
     explicit TransferPort(Impl& impl) : m(impl) {}
     bool default_sdo_given_out(cfg::NodeId node) const override;
     bool boot_try_runs(cfg::NodeId node, std::uint64_t try_id) const override;
+    bool heard_from(cfg::NodeId node) const override;
     Impl& m;
   };
   /// The flying master's port to this master (master_flying_port.cpp).

@@ -162,11 +162,11 @@ void SdoTransferScheduler::schedule(cfg::NodeId node, Transfer transfer, TimePoi
 void SdoTransferScheduler::launch(cfg::NodeId node, Transfer transfer, TimePoint now, Output& out) {
   if (is_boot(transfer)) {
     ++boot_in_flight_;
-    const bool answered = answer_times_[node.value()].count > 0;
-    transfer.options.repeat_after = answered ? repeat_after(node, transfer.options.timeout)
-                                    : transfer.upload
-                                        ? unanswered_read_repeat_after(transfer.options.timeout)
-                                        : std::nullopt;
+    if (answer_times_[node.value()].count > 0) {
+      transfer.options.repeat_after = repeat_after(node, transfer.options.timeout);
+    } else if (transfer.upload && port_->heard_from(node)) {
+      transfer.options.repeat_after = unanswered_read_repeat_after(transfer.options.timeout);
+    }
   }
   transfer.launched = now;
   auto& client = clients_.client(node);

@@ -51,6 +51,9 @@ class SdoTransferPort {
   /// Boot try `try_id` of `node` still runs: its waiting transfers may start and its results
   /// count; those of an ended try are dropped.
   virtual bool boot_try_runs(cfg::NodeId node, std::uint64_t try_id) const = 0;
+  /// The master knows `node`'s NMT state from a frame of its own (boot-up, heartbeat, guarding
+  /// reply): it is on the bus, so a read it has not answered was lost, not unheard.
+  virtual bool heard_from(cfg::NodeId node) const = 0;
 };
 
 class SdoTransferScheduler {
@@ -183,10 +186,11 @@ class SdoTransferScheduler {
   /// slave's last kAnswerWindow answer times, at least Settings::repeat_floor; nullopt while the
   /// slave has not answered or when that is not below `timeout`.
   std::optional<Duration> repeat_after(cfg::NodeId node, Duration timeout) const;
-  /// What a boot read (upload) of `timeout` to a slave that has not answered yet is repeated
-  /// after: the same rule over the last kAnswerWindow answers of any slave; nullopt before any
-  /// slave answered. A read changes nothing on the device, so a slave's first request (its
-  /// 1000h) need not cost a full timeout when it or its answer is lost.
+  /// What a boot read (upload) of `timeout` to a slave that has not answered an SDO yet but was
+  /// heard from (SdoTransferPort::heard_from) is repeated after: the same rule over the last
+  /// kAnswerWindow answers of any slave; nullopt before any slave answered. A read changes
+  /// nothing on the device, so a present slave's first request (its 1000h) need not cost a full
+  /// timeout when it or its answer is lost; an absent slave's reads are not multiplied.
   std::optional<Duration> unanswered_read_repeat_after(Duration timeout) const;
   std::size_t boot_in_flight() const { return boot_in_flight_; }
   std::size_t waiting() const { return waiting_.size(); }
