@@ -100,7 +100,7 @@ ReadResult Reader::run(std::string_view text) {
     return result;
   }
   finish();
-  arena_->seal();
+  arena_->seal();  // edits of the model from here on allocate from the heap
   result.device = std::move(model_);
   result.diagnostics = take_diagnostics();
   return result;

@@ -265,4 +265,19 @@ TEST(ReportRecorder, MarksErrorFramesOnTheBus) {
   EXPECT_DOUBLE_EQ(d.bus_marks[0].at_s, 0.25);
 }
 
+TEST(ReportRecorder, MarksAnErrorStormsFirstFramesAndCountsTheRest) {
+  ReportRecorder recorder({}, 125000, false);
+  nmt::CanFrame frame{};
+  frame.error = true;
+  frame.id = 0x004;
+  const std::size_t storm = ReportRecorder::kMaxErrorFrameMarks + 50;
+  for (int i = 0; i < static_cast<int>(storm); ++i) recorder.on_frame(frame, at_ms(i));
+  const ReportData d = recorder.finish(at_ms(0), at_ms(1000), {});
+  ASSERT_EQ(d.bus_marks.size(), ReportRecorder::kMaxErrorFrameMarks);
+  EXPECT_EQ(d.frames, storm);  // every frame still counts to the load
+  EXPECT_NE(d.bus_marks.back().title.find("; 50 more error frames after it, not marked"),
+            std::string::npos)
+      << d.bus_marks.back().title;
+}
+
 }  // namespace

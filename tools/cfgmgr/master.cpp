@@ -72,13 +72,10 @@ void run_master(const MasterCliOptions& options) {
       const cfg::NetworkNode* node = network->find(slave.node);
       lanes.push_back({slave.node.value(), node != nullptr ? node->name : "", slave.mandatory});
     }
-    bool assumed = false;
-    const std::uint32_t bitrate = report_bitrate(options.report, sim, assumed);
-    recorder.emplace(std::move(lanes), bitrate, assumed);
+    const ReportBitrate bitrate = report_bitrate(options.report, sim);
+    recorder.emplace(std::move(lanes), bitrate.bps, bitrate.assumed);
+    traces.frames = recorder->frame_sink();
     reporter.set_observer([&recorder](const nmt::MasterEvent& e) { recorder->observe(e); });
-    traces.frames = [&recorder](const nmt::CanFrame& frame, nmt::TimePoint at) {
-      recorder->on_frame(frame, at);
-    };
   }
   RunLimits limits;
   limits.tool = "master";

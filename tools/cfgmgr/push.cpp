@@ -733,12 +733,9 @@ void run_push(const PushCliOptions& options) {
   if (html) {
     std::vector<ReportRecorder::Node> lanes;
     for (const auto& r : reports) lanes.push_back({r.node_id, r.name, r.mandatory});
-    bool assumed = false;
-    const std::uint32_t bitrate = report_bitrate(options.report, sim, assumed);
-    recorder.emplace(std::move(lanes), bitrate, assumed);
-    traces.frames = [&recorder](const nmt::CanFrame& frame, nmt::TimePoint at) {
-      recorder->on_frame(frame, at);
-    };
+    const ReportBitrate bitrate = report_bitrate(options.report, sim);
+    recorder.emplace(std::move(lanes), bitrate.bps, bitrate.assumed);
+    traces.frames = recorder->frame_sink();
   }
 
   Collector collector(std::move(reports));

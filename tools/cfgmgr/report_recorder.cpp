@@ -196,9 +196,11 @@ void ReportRecorder::observe(const nmt::MasterEvent& e) {
 
 void ReportRecorder::on_frame(const nmt::CanFrame& frame, nmt::TimePoint at) {
   ++frames_;
-  if (frame.error) {
+  if (frame.error && error_frames_.size() < kMaxErrorFrameMarks) {
     error_frames_.push_back(
         {MarkKind::ErrorFrame, at, "error frame (class " + cfg::hex(frame.id, 8) + ")"});
+  } else if (frame.error) {
+    ++error_frames_unmarked_;
   }
   // The frame occupied the bus for its bits at the bit rate before `at` (its end, as the
   // simulated bus and a receiving driver stamp it): its bits go to the buckets of that time.
@@ -272,6 +274,10 @@ report::ReportData ReportRecorder::finish(nmt::TimePoint start, nmt::TimePoint e
   }
   for (const TimedMark& m : error_frames_) {
     data.bus_marks.push_back({m.kind, seconds(m.at), m.title});
+  }
+  if (error_frames_unmarked_ > 0) {
+    data.bus_marks.back().title +=
+        "; " + std::to_string(error_frames_unmarked_) + " more error frames after it, not marked";
   }
   if (origin_) {
     // The buckets up to the end of the run (the quiet ones after the last frame too), merged

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -30,8 +31,15 @@ class ReportRecorder {
   /// A master event, at its own time (MasterEvent::at).
   void observe(const nmt::MasterEvent& e);
   /// A frame on the bus at `at` (the engines' clock): its bits (nmt::frame_bits, stuff bits
-  /// included) count to the load; an error frame is marked.
+  /// included) count to the load; an error frame is marked, the first kMaxErrorFrameMarks of
+  /// them (a bus in an error storm sends thousands a second: the rest are counted in the last
+  /// mark's title, so a long run's page stays small).
+  static constexpr std::size_t kMaxErrorFrameMarks = 200;
   void on_frame(const nmt::CanFrame& frame, nmt::TimePoint at);
+  /// on_frame of this recorder as a RunTraces::frames sink (the recorder must outlive the run).
+  std::function<void(const nmt::CanFrame&, nmt::TimePoint)> frame_sink() {
+    return [this](const nmt::CanFrame& frame, nmt::TimePoint at) { on_frame(frame, at); };
+  }
 
   /// Replaces what the events told of a node's result with a table's (push's): result,
   /// failed, message, entries, emergencies, retries and seconds of `row`; its lane stays.
@@ -78,7 +86,8 @@ class ReportRecorder {
 
   std::vector<Lane> lanes_;
   std::vector<TimedMark> master_marks_;
-  std::vector<TimedMark> error_frames_;
+  std::vector<TimedMark> error_frames_;      // the first kMaxErrorFrameMarks
+  std::uint64_t error_frames_unmarked_ = 0;  // those after them, counted only
   std::uint32_t bitrate_bps_;
   bool assumed_;
   // The bus load: bits per bucket of `bucket_us_` from `origin_` (a frame's bits shared by the

@@ -172,13 +172,10 @@ void add_html_report_options(CLI::App& cmd, HtmlReportArgs& args, std::string_vi
       ->check(CLI::Range(1U, 1'000'000'000U));
 }
 
-std::uint32_t report_bitrate(const HtmlReportArgs& args, const std::optional<SimBusOptions>& sim,
-                             bool& assumed) {
-  assumed = false;
-  if (args.bitrate_bps) return *args.bitrate_bps;
-  if (sim) return sim->bitrate_bps;
-  assumed = true;
-  return 125'000;
+ReportBitrate report_bitrate(const HtmlReportArgs& args, const std::optional<SimBusOptions>& sim) {
+  if (args.bitrate_bps) return {*args.bitrate_bps, false};
+  if (sim) return {sim->bitrate_bps, false};
+  return {};
 }
 
 std::optional<tools::OutputFile> open_html_report_or_exit(const HtmlReportArgs& args) {

@@ -89,9 +89,12 @@ struct HtmlReportArgs {
 /// Adds --report and --report-bitrate to `cmd`; `when` says when the file is written.
 void add_html_report_options(CLI::App& cmd, HtmlReportArgs& args, std::string_view when);
 /// The bit rate the report's bus load is taken at: --report-bitrate, else sim:'s, else 125
-/// kbit/s, which `assumed` then says.
-std::uint32_t report_bitrate(const HtmlReportArgs& args, const std::optional<SimBusOptions>& sim,
-                             bool& assumed);
+/// kbit/s, which `assumed` then says (the page says so).
+struct ReportBitrate {
+  std::uint32_t bps = 125'000;
+  bool assumed = true;
+};
+ReportBitrate report_bitrate(const HtmlReportArgs& args, const std::optional<SimBusOptions>& sim);
 /// The --report file opened before any bus work (a temporary beside it, renamed over it when
 /// written: a reader never sees half a page); nullopt without --report. Prints "PATH: error:
 /// cannot create: ..." and ends the command with exit 3 when it cannot.

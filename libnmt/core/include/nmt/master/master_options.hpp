@@ -85,9 +85,10 @@ struct MasterSdoOptions {
   /// 1F50h/1F51h writes) are sent again when no answer came within 2 x the slave's largest
   /// recent answer time (SdoResult::longest_answer of its last transfers), at least this long and
   /// below `timeout` (SdoTransferOptions::repeat_after, up to sdo::kMaxRepeats times); the
-  /// transfer still fails only after `timeout`. A slave that has not answered yet is not
-  /// repeated to. A lost frame then costs about this long instead of `timeout`. At or above
-  /// `timeout`: no repetition. docs/master.md, "The boot's SDO transfers".
+  /// transfer still fails only after `timeout`. A slave that has not answered yet gets only its
+  /// reads repeated, by any slave's answer times, and only once the master heard from it
+  /// (boot-up, heartbeat). A lost frame then costs about this long instead of `timeout`. At or
+  /// above `timeout`: no repetition. docs/master.md, "The boot's SDO transfers".
   Duration repeat_floor = std::chrono::milliseconds(20);
 };
 
